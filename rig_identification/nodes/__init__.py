@@ -1,0 +1,1 @@
+"""Thin rclpy node classes around the ROS-free core."""

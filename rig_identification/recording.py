@@ -1,0 +1,328 @@
+"""Recordings: the rig's sensor streams as arrays, read from and written to rosbag2.
+
+A recording folder (``RECORDING_FORMAT.md``) holds ``rig.yaml``, ``bag/`` (rosbag2,
+MCAP or sqlite3) and, for simulated recordings, ``truth.yaml``.  Bags are read and
+written with ``rosbags`` (no ROS installation needed).
+
+Topics (all stamped; consumers align them by ``header.stamp``):
+
+* ``/rig/imu`` sensor_msgs/msg/Imu, frame ``imu``: gyro rad/s, specific force m/s^2.
+* ``/rig/load_cells/<cable>`` geometry_msgs/msg/WrenchStamped: ``wrench.force.z`` = tension, N.
+* ``/rig/exciter/wrench`` geometry_msgs/msg/WrenchStamped: ``force.x``, ``force.y`` in the exciter frame, N.
+* ``/rig/inclinometer`` geometry_msgs/msg/Vector3Stamped: ``vector.x``/``vector.y`` elevation of the
+  inclinometer's x/y axes above the horizontal, rad.
+
+Errors: :class:`RecordingError` (a ``ValueError``) naming the file and topic.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .rig import Rig, RigError, dump_rig, load_rig
+
+IMU_TOPIC = "/rig/imu"
+LOAD_CELL_PREFIX = "/rig/load_cells/"
+EXCITER_TOPIC = "/rig/exciter/wrench"
+INCLINOMETER_TOPIC = "/rig/inclinometer"
+
+IMU_TYPE = "sensor_msgs/msg/Imu"
+WRENCH_TYPE = "geometry_msgs/msg/WrenchStamped"
+VECTOR_TYPE = "geometry_msgs/msg/Vector3Stamped"
+
+
+class RecordingError(ValueError):
+    """A recording that cannot be read or is inconsistent with its rig description."""
+
+
+@dataclass
+class TimeSeries:
+    """Samples of one stream.  t: (N,) header stamps, s.  data: (N, k)."""
+
+    t: np.ndarray
+    data: np.ndarray
+
+    def __post_init__(self):
+        self.t = np.asarray(self.t, float)
+        self.data = np.asarray(self.data, float)
+        if self.data.ndim == 1:
+            self.data = self.data[:, None]
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def window(self, t0: float, t1: float) -> "TimeSeries":
+        m = (self.t >= t0) & (self.t <= t1)
+        return TimeSeries(self.t[m], self.data[m])
+
+    def interp(self, t: np.ndarray) -> np.ndarray:
+        """Linear interpolation of every column at times ``t`` (M,) -> (M, k)."""
+        return np.column_stack([np.interp(t, self.t, c) for c in self.data.T])
+
+
+@dataclass
+class SensorData:
+    """All sensor streams of one experiment.
+
+    imu.data: (N, 6) gyro x,y,z rad/s then specific force x,y,z m/s^2, IMU axes.
+    load_cells[name].data: (N, 1) cable tension, N.
+    exciter.data: (N, 2) exciter force x, y in the exciter frame, N (or None).
+    inclinometer.data: (N, 2) elevation of the x and y axes, rad (or None).
+    """
+
+    imu: TimeSeries
+    load_cells: dict[str, TimeSeries]
+    exciter: TimeSeries | None = None
+    inclinometer: TimeSeries | None = None
+
+    @property
+    def t_start(self) -> float:
+        return float(self.imu.t[0])
+
+    @property
+    def t_end(self) -> float:
+        return float(self.imu.t[-1])
+
+
+@dataclass
+class Recording:
+    """A recording folder in memory: rig description, sensor data, optional truth."""
+
+    rig: Rig
+    sensors: SensorData
+    truth: dict | None = None
+    path: Path | None = None
+    warnings: list[str] = field(default_factory=list)
+
+
+# --- reading --------------------------------------------------------------------------
+
+def _typestore():
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def _stamp(msg) -> float:
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | None = None) -> SensorData:
+    """Read the rig topics of a rosbag2 folder (or a single .mcap/.db3 file).
+
+    Samples are sorted by header stamp; duplicated stamps and non-finite samples are
+    dropped with a warning appended to ``warnings``.  Unknown topics are ignored.
+    Raises :class:`RecordingError` for a missing or unreadable bag, a missing topic,
+    or a cable in ``cable_names`` without a load-cell topic.
+    """
+    from rosbags.highlevel import AnyReader
+
+    warnings = [] if warnings is None else warnings
+    bag = Path(bag)
+    if not bag.exists():
+        raise RecordingError(f"{bag}: no bag here")
+    columns: dict[str, list] = {}
+    ts = _typestore()
+    try:
+        with AnyReader([bag], default_typestore=ts) as reader:
+            wanted = {IMU_TOPIC: IMU_TYPE, EXCITER_TOPIC: WRENCH_TYPE, INCLINOMETER_TOPIC: VECTOR_TYPE}
+            for name in cable_names:
+                wanted[LOAD_CELL_PREFIX + name] = WRENCH_TYPE
+            conns = []
+            for c in reader.connections:
+                if c.topic in wanted:
+                    if c.msgtype != wanted[c.topic]:
+                        raise RecordingError(f"{bag}: topic {c.topic} has type {c.msgtype}, expected {wanted[c.topic]}")
+                    conns.append(c)
+                elif c.topic.startswith(LOAD_CELL_PREFIX):
+                    warnings.append(f"{bag}: topic {c.topic} names a cable that rig.yaml does not list; ignored")
+            for conn, _, raw in reader.messages(connections=conns):
+                msg = reader.deserialize(raw, conn.msgtype)
+                if conn.topic == IMU_TOPIC:
+                    w, a = msg.angular_velocity, msg.linear_acceleration
+                    row = (_stamp(msg), w.x, w.y, w.z, a.x, a.y, a.z)
+                elif conn.topic == EXCITER_TOPIC:
+                    row = (_stamp(msg), msg.wrench.force.x, msg.wrench.force.y)
+                elif conn.topic == INCLINOMETER_TOPIC:
+                    row = (_stamp(msg), msg.vector.x, msg.vector.y)
+                else:
+                    row = (_stamp(msg), msg.wrench.force.z)
+                columns.setdefault(conn.topic, []).append(row)
+    except RecordingError:
+        raise
+    except Exception as e:  # rosbags raises several exception types for broken bags
+        raise RecordingError(f"{bag}: cannot read the bag ({type(e).__name__}: {e})") from None
+
+    def series(topic: str, required: bool) -> TimeSeries | None:
+        rows = columns.get(topic)
+        if not rows:
+            if required:
+                raise RecordingError(f"{bag}: topic {topic} is missing or empty")
+            return None
+        a = np.array(rows, float)
+        finite = np.isfinite(a).all(axis=1)
+        if not finite.all():
+            bad = a[~finite, 0]
+            warnings.append(f"{bag}: topic {topic}: {int((~finite).sum())} non-finite sample(s) between "
+                            f"t={bad.min():.3f} and t={bad.max():.3f} s dropped")
+            a = a[finite]
+        order = np.argsort(a[:, 0], kind="stable")
+        if np.any(order != np.arange(len(order))):
+            warnings.append(f"{bag}: topic {topic}: samples out of stamp order; sorted by header.stamp")
+            a = a[order]
+        dup = np.concatenate([[False], np.diff(a[:, 0]) <= 0])
+        if dup.any():
+            warnings.append(f"{bag}: topic {topic}: {int(dup.sum())} duplicated stamp(s) dropped")
+            a = a[~dup]
+        if len(a) < 2:
+            raise RecordingError(f"{bag}: topic {topic} has fewer than 2 valid samples")
+        return TimeSeries(a[:, 0], a[:, 1:])
+
+    imu = series(IMU_TOPIC, True)
+    cells = {n: series(LOAD_CELL_PREFIX + n, True) for n in cable_names}
+    return SensorData(imu, cells, series(EXCITER_TOPIC, False), series(INCLINOMETER_TOPIC, False))
+
+
+def read_recording(path: str | Path) -> Recording:
+    """Read a recording folder (``rig.yaml`` + ``bag/`` [+ ``truth.yaml``]).
+
+    Raises :class:`RecordingError` or :class:`~rig_identification.rig.RigError`.
+    """
+    p = Path(path)
+    if not p.is_dir():
+        raise RecordingError(f"{p}: not a recording folder")
+    rig_path = p / "rig.yaml"
+    if not rig_path.exists():
+        raise RecordingError(f"{p}: no rig.yaml in the recording folder")
+    rig = load_rig(rig_path)
+    warnings: list[str] = []
+    sensors = read_sensor_data(p / "bag", rig.cable_names, warnings)
+    truth = None
+    if (p / "truth.yaml").exists():
+        try:
+            truth = yaml.safe_load((p / "truth.yaml").read_text())
+        except yaml.YAMLError as e:
+            raise RecordingError(f"{p / 'truth.yaml'}: not valid YAML ({e})") from None
+    return Recording(rig, sensors, truth, p, warnings)
+
+
+# --- writing --------------------------------------------------------------------------
+
+def _header(types, t: float, frame: str):
+    sec = int(np.floor(t))
+    nsec = int(round((t - sec) * 1e9))
+    if nsec >= 1_000_000_000:
+        sec, nsec = sec + 1, nsec - 1_000_000_000
+    return types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+                                        frame_id=frame)
+
+
+def sensor_messages(rig: Rig, sensors: SensorData):
+    """Yield ``(topic, msgtype, stamp_s, message)`` for every sample, in stamp order.
+
+    Messages are rosbags typestore objects, ready for ``typestore.serialize_cdr``.
+    """
+    ts = _typestore()
+    T = ts.types
+    Vec, Quat = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
+    streams = []
+    zero_cov = np.zeros(9)
+    orient_cov = np.zeros(9)
+    orient_cov[0] = -1.0
+
+    def imu_msg(t, row):
+        return T[IMU_TYPE](header=_header(T, t, "imu"), orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0),
+                           orientation_covariance=orient_cov,
+                           angular_velocity=Vec(x=row[0], y=row[1], z=row[2]), angular_velocity_covariance=zero_cov,
+                           linear_acceleration=Vec(x=row[3], y=row[4], z=row[5]),
+                           linear_acceleration_covariance=zero_cov)
+
+    def wrench_msg(frame, fx, fy, fz):
+        def f(t, row):
+            r = [0.0, 0.0, 0.0]
+            vals = (fx, fy, fz)
+            for i, v in enumerate(vals):
+                if v is not None:
+                    r[i] = float(row[v])
+            return T[WRENCH_TYPE](header=_header(T, t, frame),
+                                  wrench=T["geometry_msgs/msg/Wrench"](force=Vec(x=r[0], y=r[1], z=r[2]),
+                                                                        torque=Vec(x=0.0, y=0.0, z=0.0)))
+        return f
+
+    def incl_msg(t, row):
+        return T[VECTOR_TYPE](header=_header(T, t, "inclinometer"), vector=Vec(x=row[0], y=row[1], z=0.0))
+
+    streams.append((IMU_TOPIC, IMU_TYPE, sensors.imu, imu_msg))
+    for name, s in sensors.load_cells.items():
+        streams.append((LOAD_CELL_PREFIX + name, WRENCH_TYPE, s, wrench_msg(f"load_cell_{name}", None, None, 0)))
+    if sensors.exciter is not None:
+        streams.append((EXCITER_TOPIC, WRENCH_TYPE, sensors.exciter, wrench_msg("exciter", 0, 1, None)))
+    if sensors.inclinometer is not None:
+        streams.append((INCLINOMETER_TOPIC, VECTOR_TYPE, sensors.inclinometer, incl_msg))
+    events = []
+    for k, (_, _, s, _) in enumerate(streams):
+        events.extend((float(t), k, i) for i, t in enumerate(s.t))
+    events.sort()
+    for t, k, i in events:
+        topic, mtype, s, make = streams[k]
+        yield topic, mtype, t, make(t, s.data[i])
+
+
+def write_bag(bag_dir: Path, rig: Rig, sensors: SensorData, storage: str = "mcap") -> int:
+    """Write the sensor streams as a rosbag2 at ``bag_dir`` (must not exist).
+
+    The bag timestamp of each message is its header stamp.  Returns the number of
+    messages written.  ``storage``: ``"mcap"`` or ``"sqlite3"``.
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    ts = _typestore()
+    plugin = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}[storage]
+    n = 0
+    with Writer(bag_dir, version=9, storage_plugin=plugin) as w:
+        conns = {}
+        for topic, mtype, t, msg in sensor_messages(rig, sensors):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, mtype, typestore=ts)
+            w.write(conns[topic], int(round(t * 1e9)), ts.serialize_cdr(msg, mtype))
+            n += 1
+    return n
+
+
+def write_recording(out: str | Path, rig: Rig, sensors: SensorData, truth: dict | None = None,
+                    storage: str = "mcap", rig_comment: str | None = None, overwrite: bool = False) -> Path:
+    """Write a recording folder atomically: it appears whole at ``out`` or not at all.
+
+    Builds the folder next to ``out`` and renames it into place.  Raises
+    :class:`RecordingError` if ``out`` exists and ``overwrite`` is false.
+    """
+    out = Path(out)
+    if out.exists() and not overwrite:
+        raise RecordingError(f"{out}: already exists (refusing to overwrite)")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    try:
+        (tmp / "rig.yaml").write_text(dump_rig(rig, rig_comment))
+        if truth is not None:
+            (tmp / "truth.yaml").write_text(yaml.safe_dump(truth, sort_keys=False, default_flow_style=None))
+        write_bag(tmp / "bag", rig, sensors, storage)
+        for f in tmp.rglob("*"):
+            if f.is_file():
+                with open(f, "rb") as fh:
+                    os.fsync(fh.fileno())
+        if out.exists():
+            shutil.rmtree(out)
+        os.replace(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return out
+
+
+__all__ = ["TimeSeries", "SensorData", "Recording", "RecordingError", "RigError", "read_recording",
+           "read_sensor_data", "write_recording", "write_bag", "sensor_messages", "load_rig"]

@@ -1,0 +1,261 @@
+"""Rig description: geometry and known quantities of the suspended-body rig.
+
+Loads and validates ``rig.yaml`` exactly as specified in ``RECORDING_FORMAT.md``
+(shared with the rig and the reference simulator).  Every length is in metres,
+masses in kg, angles in rad.  Frames (REP-103, right-handed):
+
+* ``world``: z up, gravity along -z, origin at a reference point on the ceiling.
+* ``body``: fixed to the carrying frame, origin at any reference point on it
+  (not necessarily the centre of gravity).
+* ``imu``, ``exciter``, ``inclinometer``: sensor frames given by a position (body
+  frame) and roll-pitch-yaw (fixed-axis XYZ) relative to the body axes.
+
+Errors: :class:`RigError` (a ``ValueError``) naming the file and the field.
+"""
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from scipy.spatial.transform import Rotation
+
+CABLE_NAME = re.compile(r"^[a-z0-9_]+$")
+
+
+class RigError(ValueError):
+    """A rig description that is missing a field or holds a wrong value."""
+
+
+@dataclass(frozen=True)
+class Cable:
+    """One suspension cable.
+
+    ceiling_anchor: (3,) world frame, m.  body_anchor: (3,) body frame, m.
+    length: unstretched length, m.  stiffness: axial stiffness EA/L in N/m, or
+    ``None`` for an inextensible cable.
+    """
+
+    name: str
+    ceiling_anchor: np.ndarray
+    body_anchor: np.ndarray
+    length: float
+    stiffness: float | None = None
+
+
+@dataclass(frozen=True)
+class Mount:
+    """A sensor or actuator frame on the body: position (3,) m and rotation to body axes."""
+
+    position: np.ndarray
+    rpy: np.ndarray
+
+    @property
+    def rotation(self) -> Rotation:
+        """Rotation from the mount's axes to the body axes (fixed-axis XYZ rpy)."""
+        return Rotation.from_euler("xyz", self.rpy)
+
+
+@dataclass(frozen=True)
+class DummyMass:
+    mass: float
+    position: np.ndarray
+
+
+@dataclass(frozen=True)
+class Rig:
+    """The validated content of ``rig.yaml``.
+
+    ``center_of_gravity`` is ``None`` when unknown (static experiment).
+    ``exciter``, ``inclinometer`` and ``dummy_mass`` are ``None`` when absent.
+    """
+
+    gravity: float
+    cables: tuple[Cable, ...]
+    mass: float
+    center_of_gravity: np.ndarray | None
+    imu: Mount
+    exciter: Mount | None = None
+    inclinometer: Mount | None = None
+    dummy_mass: DummyMass | None = None
+    source: str = "<memory>"
+    extra: dict = field(default_factory=dict)
+
+    # --- convenient stacked views -------------------------------------------------
+    @property
+    def cable_names(self) -> list[str]:
+        return [c.name for c in self.cables]
+
+    @property
+    def ceiling_anchors(self) -> np.ndarray:
+        """(N, 3) world frame, m."""
+        return np.array([c.ceiling_anchor for c in self.cables])
+
+    @property
+    def body_anchors(self) -> np.ndarray:
+        """(N, 3) body frame, m."""
+        return np.array([c.body_anchor for c in self.cables])
+
+    @property
+    def cable_lengths(self) -> np.ndarray:
+        """(N,) unstretched lengths, m."""
+        return np.array([c.length for c in self.cables])
+
+    @property
+    def cable_stiffness(self) -> np.ndarray:
+        """(N,) axial stiffness N/m; ``inf`` for inextensible cables."""
+        return np.array([np.inf if c.stiffness is None else c.stiffness for c in self.cables])
+
+    def require_cg(self) -> np.ndarray:
+        if self.center_of_gravity is None:
+            raise RigError(f"{self.source}: body.center_of_gravity is required for this job "
+                           "(estimate it first with the static experiment: rig-identify cg)")
+        return self.center_of_gravity
+
+    def with_cg(self, cg) -> "Rig":
+        """A copy with ``body.center_of_gravity`` replaced, (3,) body frame, m."""
+        from dataclasses import replace
+        return replace(self, center_of_gravity=np.asarray(cg, float))
+
+    def to_dict(self) -> dict:
+        """The rig.yaml mapping (inverse of :func:`rig_from_dict`)."""
+        def vec(v):
+            return [float(x) for x in v]
+        cables = []
+        for c in self.cables:
+            d = {"name": c.name, "ceiling_anchor": vec(c.ceiling_anchor),
+                 "body_anchor": vec(c.body_anchor), "length": float(c.length)}
+            if c.stiffness is not None:
+                d["stiffness"] = float(c.stiffness)
+            cables.append(d)
+        out: dict[str, Any] = {"gravity": float(self.gravity), "cables": cables,
+                               "body": {"mass": float(self.mass)}}
+        if self.center_of_gravity is not None:
+            out["body"]["center_of_gravity"] = vec(self.center_of_gravity)
+        out["imu"] = {"position": vec(self.imu.position), "rpy": vec(self.imu.rpy)}
+        if self.exciter is not None:
+            out["exciter"] = {"position": vec(self.exciter.position), "rpy": vec(self.exciter.rpy)}
+        if self.inclinometer is not None:
+            out["inclinometer"] = {"rpy": vec(self.inclinometer.rpy)}
+        if self.dummy_mass is not None:
+            out["dummy_mass"] = {"mass": float(self.dummy_mass.mass),
+                                 "position": vec(self.dummy_mass.position)}
+        return out
+
+
+# --- validation helpers -------------------------------------------------------------
+
+def _get(d: Any, key: str, where: str, src: str, required: bool = True):
+    if not isinstance(d, dict):
+        raise RigError(f"{src}: {where} must be a mapping, got {type(d).__name__}")
+    if key not in d or d[key] is None:
+        if required:
+            raise RigError(f"{src}: missing field {where}.{key}" if where else f"{src}: missing field {key}")
+        return None
+    return d[key]
+
+
+def _number(v, name: str, src: str, positive: bool = False, nonneg: bool = False) -> float:
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise RigError(f"{src}: field {name} must be a number, got {v!r}")
+    x = float(v)
+    if not math.isfinite(x):
+        raise RigError(f"{src}: field {name} must be finite, got {v!r}")
+    if positive and x <= 0:
+        raise RigError(f"{src}: field {name} must be > 0, got {v!r}")
+    if nonneg and x < 0:
+        raise RigError(f"{src}: field {name} must be >= 0, got {v!r}")
+    return x
+
+
+def _vector(v, name: str, src: str, n: int = 3) -> np.ndarray:
+    if not isinstance(v, (list, tuple)) or len(v) != n:
+        raise RigError(f"{src}: field {name} must be a list of {n} numbers, got {v!r}")
+    return np.array([_number(x, f"{name}[{i}]", src) for i, x in enumerate(v)], float)
+
+
+def _mount(d, name: str, src: str, with_position: bool = True) -> Mount:
+    pos = _vector(_get(d, "position", name, src), f"{name}.position", src) if with_position else np.zeros(3)
+    rpy_raw = _get(d, "rpy", name, src, required=False)
+    rpy = np.zeros(3) if rpy_raw is None else _vector(rpy_raw, f"{name}.rpy", src)
+    return Mount(position=pos, rpy=rpy)
+
+
+KNOWN_TOP = {"gravity", "cables", "body", "imu", "exciter", "inclinometer", "dummy_mass"}
+
+
+def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
+    """Validate a rig.yaml mapping and build a :class:`Rig`.
+
+    Raises :class:`RigError` naming ``source`` and the offending field.
+    """
+    src = source
+    if not isinstance(d, dict):
+        raise RigError(f"{src}: the rig description must be a YAML mapping")
+    gravity = _number(_get(d, "gravity", "", src), "gravity", src, positive=True)
+    if not 9.0 < gravity < 10.5:
+        raise RigError(f"{src}: field gravity = {gravity} m/s^2 is not an Earth gravity (units?)")
+    raw_cables = _get(d, "cables", "", src)
+    if not isinstance(raw_cables, list):
+        raise RigError(f"{src}: field cables must be a list")
+    if len(raw_cables) < 3:
+        raise RigError(f"{src}: field cables lists {len(raw_cables)} cable(s); at least 3 are needed")
+    cables = []
+    seen = set()
+    for i, c in enumerate(raw_cables):
+        w = f"cables[{i}]"
+        name = _get(c, "name", w, src)
+        if not isinstance(name, str) or not CABLE_NAME.match(name):
+            raise RigError(f"{src}: field {w}.name must match [a-z0-9_]+, got {name!r}")
+        if name in seen:
+            raise RigError(f"{src}: field {w}.name: duplicate cable name {name!r}")
+        seen.add(name)
+        ca = _vector(_get(c, "ceiling_anchor", w, src), f"{w}.ceiling_anchor", src)
+        ba = _vector(_get(c, "body_anchor", w, src), f"{w}.body_anchor", src)
+        length = _number(_get(c, "length", w, src), f"{w}.length", src, positive=True)
+        k_raw = _get(c, "stiffness", w, src, required=False)
+        k = None if k_raw is None else _number(k_raw, f"{w}.stiffness", src, positive=True)
+        cables.append(Cable(name, ca, ba, length, k))
+    anchors = np.array([c.body_anchor for c in cables])
+    if np.linalg.matrix_rank(anchors - anchors.mean(0), tol=1e-6) < 2:
+        raise RigError(f"{src}: field cables: the body anchors are collinear; the body could spin freely")
+    body = _get(d, "body", "", src)
+    mass = _number(_get(body, "mass", "body", src), "body.mass", src, positive=True)
+    cg_raw = _get(body, "center_of_gravity", "body", src, required=False)
+    cg = None if cg_raw is None else _vector(cg_raw, "body.center_of_gravity", src)
+    imu = _mount(_get(d, "imu", "", src), "imu", src)
+    ex_raw = _get(d, "exciter", "", src, required=False)
+    exciter = None if ex_raw is None else _mount(ex_raw, "exciter", src)
+    inc_raw = _get(d, "inclinometer", "", src, required=False)
+    incl = None if inc_raw is None else _mount(inc_raw, "inclinometer", src, with_position=False)
+    dm_raw = _get(d, "dummy_mass", "", src, required=False)
+    dummy = None
+    if dm_raw is not None:
+        dummy = DummyMass(_number(_get(dm_raw, "mass", "dummy_mass", src), "dummy_mass.mass", src, positive=True),
+                          _vector(_get(dm_raw, "position", "dummy_mass", src), "dummy_mass.position", src))
+    extra = {k: v for k, v in d.items() if k not in KNOWN_TOP}
+    return Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, extra)
+
+
+def load_rig(path: str | Path) -> Rig:
+    """Load and validate a ``rig.yaml`` file.  Raises :class:`RigError`."""
+    p = Path(path)
+    try:
+        text = p.read_text()
+    except OSError as e:
+        raise RigError(f"{p}: cannot read the rig description ({e.strerror})") from None
+    try:
+        d = yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise RigError(f"{p}: not valid YAML ({str(e).splitlines()[0]})") from None
+    return rig_from_dict(d, str(p))
+
+
+def dump_rig(rig: Rig, comment: str | None = None) -> str:
+    """rig.yaml text for ``rig`` (flow-style vectors, as in the format spec)."""
+    head = f"# {comment}\n" if comment else ""
+    return head + yaml.safe_dump(rig.to_dict(), sort_keys=False, default_flow_style=None)
