@@ -159,7 +159,13 @@ def _get(d: Any, key: str, where: str, src: str, required: bool = True):
     return d[key]
 
 
+FLOAT_12 = re.compile(r"^[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)?$")
+
+
 def _number(v, name: str, src: str, positive: bool = False, nonneg: bool = False) -> float:
+    # PyYAML implements YAML 1.1, which reads "5.0e6" (valid YAML 1.2 float) as a string
+    if isinstance(v, str) and FLOAT_12.match(v.strip()):
+        v = float(v)
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise RigError(f"{src}: field {name} must be a number, got {v!r}")
     x = float(v)

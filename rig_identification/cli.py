@@ -1,0 +1,89 @@
+"""Command line: ``rig-identify`` (offline identification of recordings) and ``rig-sim``.
+
+``rig-identify inertia RECORDING [--json]`` replays a recording folder through the same
+tracker -> preprocessor -> identifier code as the nodes and prints the mass properties.
+User errors (bad files, inconsistent input) print one clear line and exit with status 2;
+no traceback.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+import numpy as np
+
+from .identification import KEYS, IdentificationError, from_tensor
+from .recording import RecordingError, read_recording
+from .rig import RigError
+from .tracker import TrackerError
+
+USER_ERRORS = (RecordingError, RigError, IdentificationError, TrackerError, FileNotFoundError)
+
+
+def _print_inertia(result, truth: dict | None, rec_path) -> None:
+    from .pipeline import compare_to_truth
+    d = result.to_dict()
+    print(f"recording: {rec_path}")
+    print(f"mass: {d['mass']:.2f} kg   centre of gravity (body): "
+          + ", ".join(f"{x:.4f}" for x in d["center_of_gravity"]) + " m")
+    print(f"window: {d['window']['end'] - d['window']['start']:.1f} s, {d['window']['samples']} samples; "
+          f"band {d['band_hz'][0]:.2f}–{d['band_hz'][1]:.2f} Hz")
+    cmp = compare_to_truth(result, truth) if truth and "inertia_about_cg" in truth else None
+    head = f"{'entry':6s} {'value kg·m²':>12s} {'std':>8s}"
+    if cmp:
+        head += f" {'truth':>10s} {'error':>9s} {'err/std':>8s}"
+    print(head)
+    for k, v, s in zip(KEYS, from_tensor(result.inertia), result.inertia_std):
+        line = f"{k:6s} {v:12.2f} {s:8.2f}"
+        if cmp:
+            c = cmp[k]
+            line += f" {c['truth']:10.2f} {c['error_percent']:+8.3f}% {c['error_sigma']:+8.2f}"
+        print(line)
+    if cmp:
+        print("(error: % of the entry for diagonals, % of the largest diagonal for products)")
+    for w in d["weakly_determined"][:1]:
+        print("note: " + w["text"])
+    for w in d["warnings"]:
+        print("warning: " + w)
+
+
+def cmd_inertia(args) -> int:
+    rec = read_recording(args.recording)
+    from .pipeline import identify_recording
+    band = tuple(args.band) if args.band else None
+    result = identify_recording(rec, start=args.start, end=args.end, band_hz=band)
+    if args.json:
+        print(json.dumps(result.to_dict()))
+    else:
+        _print_inertia(result, rec.truth, rec.path)
+    return 0
+
+
+def identify_main(argv=None) -> int:
+    """Entry point of ``rig-identify``."""
+    ap = argparse.ArgumentParser(prog="rig-identify", description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="command", required=True)
+    p = sub.add_parser("inertia", help="identify the inertia tensor from a dynamic recording")
+    p.add_argument("recording", help="recording folder (rig.yaml + bag/)")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--start", type=float, help="window start, s from the first IMU sample")
+    p.add_argument("--end", type=float, help="window end, s from the first IMU sample")
+    p.add_argument("--band", type=float, nargs=2, metavar=("LOW_HZ", "HIGH_HZ"),
+                   help="pass band of the fit (default: around the spectral peaks of the gyro)")
+    args = ap.parse_args(argv)
+    try:
+        return {"inertia": cmd_inertia}[args.command](args)
+    except USER_ERRORS as e:
+        print(f"rig-identify: error: {e}", file=sys.stderr)
+        return 2
+
+
+def sim_main(argv=None) -> int:
+    """Entry point of ``rig-sim`` (implemented in :mod:`rig_identification.sim_cli`)."""
+    from .sim_cli import sim_main as _main
+    return _main(argv)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(identify_main())

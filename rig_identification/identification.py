@@ -1,0 +1,305 @@
+"""Identifier: the inertia tensor about the CG from the generalized wrench and the gyro.
+
+Model — the Newton–Euler rotational equation about the centre of gravity in body
+axes, *with* the gyroscopic term the thesis dropped (thesis eq. 3.10 has ``J θ̈ = M``)::
+
+    J ω̇ + ω × (J ω) = M                                   (Euler's equation)
+
+Estimator — output-error form, no initial guess.  Integrating Euler's equation and
+multiplying by the inverse tensor ``P = J⁻¹`` gives an equation that is *linear in P*
+and predicts the measured output ω from the measured input M::
+
+    ω(t) = ω(t0) + P ∫ (M − ω × J ω) dt
+
+Both sides are band-pass filtered with the same zero-phase filter (scipy
+``sosfiltfilt``; it removes ω(t0), the gyro bias and the slow drift of the integrated
+moment and of the tracker), and P is fitted by linear least squares; the small
+gyroscopic term is evaluated with the previous iterate of J (two or three passes,
+starting from J = 0).  Because ω is the *output*, the gyro noise does not enter the
+regressor: no errors-in-variables bias (least squares on differentiated noisy gyro
+data is biased by a few percent; Ljung, *System Identification*, 2nd ed., §7.3 on
+prediction-error vs. equation-error methods).  The regressor's own noise, the
+integral of the load-cell noise, is small.
+
+Uncertainty — the residuals are coloured (band-passed), so the covariance of P is the
+sandwich (heteroscedasticity- and autocorrelation-consistent) estimate with batch
+means over blocks longer than the correlation time; J = P⁻¹ and its covariance follow
+by the delta method (dJ = −J dP J).  The eigen-directions of the information matrix
+of J tell which combinations the recording determines poorly (see
+:attr:`InertiaResult.weak_directions`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import cumulative_trapezoid
+from scipy.signal import butter, sosfiltfilt
+
+from .rig import Rig
+
+KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+# index pairs of the six independent tensor entries
+PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+class IdentificationError(ValueError):
+    """The data cannot give a trustworthy inertia estimate (too short, gaps, no motion)."""
+
+
+def basis() -> np.ndarray:
+    """(6, 3, 3) symmetric basis: tensor = sum_k theta_k E_k, theta in :data:`KEYS` order."""
+    E = np.zeros((6, 3, 3))
+    for k, (i, j) in enumerate(PAIRS):
+        E[k, i, j] = E[k, j, i] = 1.0
+    return E
+
+
+def to_tensor(theta) -> np.ndarray:
+    """(6,) entries (ixx, ixy, ixz, iyy, iyz, izz) -> (3,3) symmetric tensor."""
+    return np.einsum("k,kij->ij", np.asarray(theta, float), basis())
+
+
+def from_tensor(J: np.ndarray) -> np.ndarray:
+    """(3,3) -> (6,) entries in :data:`KEYS` order."""
+    return np.array([J[i, j] for i, j in PAIRS])
+
+
+def physically_consistent(J: np.ndarray) -> bool:
+    """Positive definite and obeying the triangle inequalities of the principal moments."""
+    ev = np.linalg.eigvalsh(0.5 * (J + J.T))
+    return bool(ev[0] > 0 and ev[0] + ev[1] >= ev[2] * (1 - 1e-9))
+
+
+@dataclass
+class InertiaResult:
+    """Identified mass properties.
+
+    mass kg; center_of_gravity (3,) body m; inertia (3,3) kg·m² about the CG, body axes
+    (geometry_msgs/Inertia entries: off-diagonals are negated products of inertia);
+    inertia_std (6,) in :data:`KEYS` order; covariance (6,6); correlation (6,6);
+    weak_directions: list of (relative std, (3,3) unit-norm tensor direction) for the
+    poorly determined combinations; residual_rms (3,) rad/s of the band-passed gyro fit.
+    """
+
+    mass: float
+    center_of_gravity: np.ndarray
+    inertia: np.ndarray
+    inertia_std: np.ndarray
+    covariance: np.ndarray
+    t_start: float
+    t_end: float
+    n_samples: int
+    band_hz: tuple[float, float]
+    residual_rms: np.ndarray
+    fit_r2: np.ndarray
+    weak_directions: list = field(default_factory=list)
+    method: str = "output-error (integrated Newton–Euler, band-passed)"
+    warnings: list[str] = field(default_factory=list)
+
+    @property
+    def correlation(self) -> np.ndarray:
+        s = np.sqrt(np.diag(self.covariance))
+        return self.covariance / np.outer(s, s)
+
+    def to_dict(self) -> dict:
+        theta = from_tensor(self.inertia)
+        ev, _ = np.linalg.eigh(self.inertia)
+        return {
+            "mass": float(self.mass),
+            "center_of_gravity": [float(x) for x in self.center_of_gravity],
+            "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, theta)},
+            "inertia_std": {k: float(v) for k, v in zip(KEYS, self.inertia_std)},
+            "frame": "body",
+            "principal_moments": [float(x) for x in ev],
+            "physically_consistent": physically_consistent(self.inertia),
+            "correlation": [[round(float(x), 4) for x in row] for row in self.correlation],
+            "weakly_determined": [describe_direction(s, D) for s, D in self.weak_directions],
+            "window": {"start": float(self.t_start), "end": float(self.t_end), "samples": int(self.n_samples)},
+            "band_hz": [float(self.band_hz[0]), float(self.band_hz[1])],
+            "residual_rms_rad_s": [float(x) for x in self.residual_rms],
+            "fit_r2": [float(x) for x in self.fit_r2],
+            "method": self.method,
+            "warnings": list(self.warnings),
+        }
+
+
+def describe_direction(rel_std: float, D: np.ndarray) -> dict:
+    """A weakly determined tensor combination, in words a lab engineer reads."""
+    theta = from_tensor(D)
+    names = {"ixx": "roll inertia Ixx", "iyy": "pitch inertia Iyy", "izz": "yaw inertia Izz",
+             "ixy": "product Ixy", "ixz": "product Ixz", "iyz": "product Iyz"}
+    k = int(np.argmax(np.abs(theta)))
+    return {"relative_std": float(rel_std), "direction": {kk: round(float(v), 3) for kk, v in zip(KEYS, theta)},
+            "mostly": KEYS[k], "text": f"{names[KEYS[k]]} is the most weakly determined combination "
+                                      f"(relative std {100 * rel_std:.2f} %)"}
+
+
+def _uniform(t: np.ndarray, what: str) -> float:
+    dt = np.diff(t)
+    if len(dt) < 10:
+        raise IdentificationError(f"{what}: fewer than 10 samples in the window")
+    med = float(np.median(dt))
+    gaps = np.nonzero(dt > 1.5 * med)[0]
+    if len(gaps):
+        g = gaps[np.argmax(dt[gaps])]
+        raise IdentificationError(f"{what}: gap of {dt[g]:.3f} s at t={t[g]:.3f} s in the window; "
+                                  "choose a window without gaps")
+    return med
+
+
+def auto_band(omega: np.ndarray, fs: float) -> tuple[float, float]:
+    """Pass band (Hz) around where the body actually moves.
+
+    From the Welch spectrum (scipy) of the gyro (N,3): the band that holds the spectral
+    peaks standing 100x above the noise floor (median of the upper half of the
+    spectrum), widened by 0.6x below and 1.5x above.  Below it the integrated moment
+    carries the tracker's slow errors; above it there is only noise.
+    """
+    from scipy.signal import welch
+    nper = int(min(len(omega), 2 ** np.ceil(np.log2(20 * fs))))
+    f, P = welch(omega, fs=fs, nperseg=nper, axis=0)
+    P = P.sum(1)
+    floor = np.median(P[f > fs / 4])
+    sig = np.nonzero((P > 100 * floor) & (f > 0.1))[0]
+    if len(sig) == 0:
+        return 0.25, min(5.0, 0.4 * fs)
+    return max(0.05, 0.6 * f[sig[0]]), min(0.4 * fs, max(1.5 * f[sig[-1]], 2.0 * 0.6 * f[sig[0]]))
+
+
+def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
+                     band_hz: tuple[float, float] | None = None, block_s: float = 4.0,
+                     iterations: int = 3) -> InertiaResult:
+    """Fit the inertia tensor about the CG (see module docstring).
+
+    t: (N,) s, uniformly sampled (a gap raises).  omega_body: (N,3) rad/s, body axes
+    (gyro rotated from IMU axes).  torque: (N,3) N·m about the CG, body axes.
+    band_hz: pass band of the zero-phase Butterworth filter applied to both sides
+    (default: :func:`auto_band` of the gyro).
+    Raises :class:`IdentificationError` for too little data, gaps or no motion.
+    """
+    t = np.asarray(t, float)
+    dt = _uniform(t, "identifier")
+    fs = 1.0 / dt
+    duration = t[-1] - t[0]
+    lo, hi = band_hz if band_hz is not None else auto_band(np.asarray(omega_body, float), fs)
+    hi = min(hi, 0.4 * fs)
+    if duration < 5.0 / lo:
+        raise IdentificationError(f"identifier: window of {duration:.1f} s is too short for the "
+                                  f"{lo} Hz high-pass (needs ≥ {5.0 / lo:.0f} s)")
+    sos = butter(4, [lo, hi], btype="bandpass", fs=fs, output="sos")
+    filt = lambda x: sosfiltfilt(sos, x, axis=0)  # noqa: E731
+    w = np.asarray(omega_body, float)
+    y = filt(w)
+    if np.sqrt(np.mean(y**2)) < 1e-5:
+        raise IdentificationError("identifier: the body hardly rotated in the window "
+                                  f"(band-passed gyro RMS {np.sqrt(np.mean(y**2)):.2e} rad/s)")
+    E = basis()
+    J = np.zeros((3, 3))
+    for _ in range(max(1, iterations)):
+        gyro_term = np.cross(w, w @ J.T)
+        I = filt(cumulative_trapezoid(torque - gyro_term, t, axis=0, initial=0.0))
+        # omega_f = P I_f: rows of the regression for the 6 entries of P
+        X = np.einsum("kij,nj->nik", E, I)  # (N,3,6)
+        A = X.reshape(-1, 6)
+        p, *_ = np.linalg.lstsq(A, y.reshape(-1), rcond=None)
+        P = to_tensor(p)
+        J = np.linalg.inv(P)
+    resid = y - np.einsum("ij,nj->ni", P, I)
+    # sandwich covariance with batch means (residuals are band-limited, hence correlated)
+    H = np.einsum("nik,ni->nk", X, resid)
+    nb = max(1, int(round(block_s * fs)))
+    nblocks = len(H) // nb
+    if nblocks < 8:
+        nb = max(1, len(H) // 8)
+        nblocks = len(H) // nb
+    S = H[: nblocks * nb].reshape(nblocks, nb, 6).sum(1)
+    meat = S.T @ S * (len(H) / (nblocks * nb))
+    bread = np.linalg.inv(A.T @ A)
+    cov_p = bread @ meat @ bread
+    # delta method: dJ = -J dP J
+    G = np.array([from_tensor(-J @ Ek @ J) for Ek in E]).T  # (6 J entries, 6 P entries)
+    cov_J = G @ cov_p @ G.T
+    std = np.sqrt(np.clip(np.diag(cov_J), 0, None))
+    res_rms = np.sqrt(np.mean(resid**2, axis=0))
+    r2 = 1 - np.sum(resid**2, 0) / np.sum(y**2, 0)
+    # weakly determined combinations: eigen-directions of cov_J with the largest relative std
+    scale = np.trace(J) / 3
+    Dm = np.diag([1, np.sqrt(2), np.sqrt(2), 1, np.sqrt(2), 1])  # Frobenius metric on the entries
+    evals, evecs = np.linalg.eigh(Dm @ cov_J @ Dm)
+    weak = []
+    for lam, vec in sorted(zip(evals, evecs.T), key=lambda z: -z[0])[:2]:
+        v = np.linalg.solve(Dm, vec)
+        D = to_tensor(v)
+        D /= np.linalg.norm(D)
+        weak.append((float(np.sqrt(max(lam, 0)) / scale), D))
+    warnings = []
+    if not physically_consistent(J):
+        warnings.append("the identified tensor is not physically consistent (not positive definite "
+                        "or violates the triangle inequality): the window does not excite the body enough")
+    return InertiaResult(rig.mass, rig.require_cg().copy(), J, std, cov_J, float(t[0]), float(t[-1]), len(t),
+                         (lo, hi), res_rms, r2, weak, warnings=warnings)
+
+
+class InertiaIdentifier:
+    """Streaming buffer for the identifier node: gyro and generalized wrench samples.
+
+    ``identify(start, end, last)`` fits over a window (absolute stamps in s, or the last
+    ``last`` seconds) with :func:`identify_inertia`.  The wrench samples carry the pose
+    stamps, i.e. the IMU stamps; the gyro is interpolated to them.
+    """
+
+    def __init__(self, rig: Rig, max_seconds: float = 900.0, **fit_params):
+        self.rig = rig
+        rig.require_cg()
+        self.fit_params = fit_params
+        self.max_seconds = max_seconds
+        self._imu_t: list[float] = []
+        self._gyro: list[np.ndarray] = []
+        self._w_t: list[float] = []
+        self._torque: list[np.ndarray] = []
+        self._imu_to_body = rig.imu.rotation
+
+    def add_imu(self, t: float, gyro) -> None:
+        if self._imu_t and t <= self._imu_t[-1]:
+            raise ValueError(f"IMU stamp {t:.6f} s not after the previous one")
+        self._imu_t.append(float(t))
+        self._gyro.append(np.asarray(gyro, float))
+        self._trim(self._imu_t, self._gyro)
+
+    def add_wrench(self, w) -> None:
+        if self._w_t and w.t <= self._w_t[-1]:
+            raise ValueError(f"wrench stamp {w.t:.6f} s not after the previous one")
+        self._w_t.append(float(w.t))
+        self._torque.append(np.asarray(w.torque, float))
+        self._trim(self._w_t, self._torque)
+
+    def _trim(self, ts: list, vals: list) -> None:
+        if len(ts) > 1000 and ts[-1] - ts[0] > self.max_seconds * 1.1:
+            cut = int(np.searchsorted(ts, ts[-1] - self.max_seconds))
+            del ts[:cut], vals[:cut]
+
+    @property
+    def span(self) -> tuple[float, float] | None:
+        if not self._w_t:
+            return None
+        return self._w_t[0], self._w_t[-1]
+
+    def identify(self, start: float | None = None, end: float | None = None,
+                 last: float | None = None) -> InertiaResult:
+        if len(self._w_t) < 10 or len(self._imu_t) < 10:
+            raise IdentificationError("identifier: no data buffered yet (is the preprocessor running?)")
+        tw = np.array(self._w_t)
+        lo = tw[0] if start is None else start
+        hi = tw[-1] if end is None else end
+        if last is not None:
+            lo = max(lo, hi - last)
+        m = (tw >= lo) & (tw <= hi)
+        ti = np.array(self._imu_t)
+        m &= (tw >= ti[0]) & (tw <= ti[-1])
+        if m.sum() < 10:
+            raise IdentificationError(f"identifier: no samples in the window [{lo:.3f}, {hi:.3f}] s")
+        g = np.array(self._gyro)
+        gyro = np.column_stack([np.interp(tw[m], ti, g[:, k]) for k in range(3)])
+        return identify_inertia(self.rig, tw[m], self._imu_to_body.apply(gyro), np.array(self._torque)[m],
+                                **self.fit_params)
