@@ -109,7 +109,8 @@ class StaticPose:
 
 def static_pose(rig: Rig, tensions: np.ndarray | None = None, elevations: np.ndarray | None = None,
                 specific_force: np.ndarray | None = None, exciter_force_body: np.ndarray | None = None,
-                cg: np.ndarray | None = None, guess: tuple[np.ndarray, Rotation] | None = None) -> StaticPose:
+                cg: np.ndarray | None = None, guess: tuple[np.ndarray, Rotation] | None = None,
+                at_rest: bool = True) -> StaticPose:
     """Pose of the body at rest from the cable geometry and what the sensors say.
 
     Weighted least squares (scipy) on:
@@ -120,8 +121,11 @@ def static_pose(rig: Rig, tensions: np.ndarray | None = None, elevations: np.nda
       otherwise shows up as a yaw error of ~0.5 mrad and a large spurious moment);
     * the inclinometer elevations (thesis: direction cosines c31, c32), or else the
       accelerometer's gravity direction;
-    * with tensions, the horizontal force balance (thesis eqs. 2.20–2.21) and, when the
-      CG ``cg`` (3,) body m is known, the moment balance about it (eqs. 2.23–2.25).
+    * with tensions, the horizontal force balance (thesis eqs. 2.20–2.21; with the
+      specific force, Newton's law ``sum T u + F_exc = m R f`` so that it also holds
+      when a step force starts the motion) and, when the body is ``at_rest`` (no
+      exciter force, no rotation) and the CG ``cg`` (3,) body m is known, the moment
+      balance about it (eqs. 2.23–2.25) with one fitted cable compliance.
 
     tensions: (N,) N.  elevations: (2,) rad.  specific_force: (3,) m/s^2, IMU axes.
     exciter_force_body: (3,) N.  Raises :class:`TrackerError` if no consistent pose exists.
@@ -129,18 +133,22 @@ def static_pose(rig: Rig, tensions: np.ndarray | None = None, elevations: np.nda
     L = rig.cable_lengths
     k = rig.cable_stiffness
     known = np.isfinite(k)
-    fit_c = tensions is not None and not known.all()
+    use_moment = tensions is not None and cg is not None and at_rest
+    fit_c = use_moment and not known.all()
     T = np.zeros(len(L)) if tensions is None else np.asarray(tensions, float)
     incl = rig.inclinometer.rotation if rig.inclinometer is not None else None
     up_imu = None
     if (elevations is None or incl is None) and specific_force is not None:
         up_imu = np.asarray(specific_force, float) / np.linalg.norm(specific_force)
     f_exc = np.zeros(3) if exciter_force_body is None else np.asarray(exciter_force_body, float)
-    sigma_len = 1e-4 if (fit_c or known.all() or tensions is None) else 3e-3
-    c_prior = 2e-7  # m/N: a steel cable of a few metres
+    c_prior = 2e-7  # m/N: a steel cable of a few metres (k = 5e6 N/m)
+    sigma_len = 1e-4 if (fit_c or known.all() or tensions is None) else 5e-4
+    f_up = None
+    if specific_force is not None:
+        f_up = rig.imu.rotation.apply(np.asarray(specific_force, float))  # body axes
 
     def compliance(x):
-        c = np.where(known, 1.0 / np.where(known, k, 1.0), 0.0)
+        c = np.where(known, 1.0 / np.where(known, k, 1.0), 0.0 if tensions is None else c_prior)
         if fit_c:
             c = np.where(known, c, x[6] * 1e-7)
         return c
@@ -156,8 +164,9 @@ def static_pose(rig: Rig, tensions: np.ndarray | None = None, elevations: np.nda
             r.append(((rot * rig.imu.rotation).inv().apply(Z) - up_imu) / 1e-4)
         if tensions is not None:
             f_b = T[:, None] * rot.inv().apply(v / lv[:, None])
-            r.append(rot.apply(f_b.sum(0) + f_exc)[:2] / 1.0)
-            if cg is not None:
+            inertial = rig.mass * f_up if f_up is not None else np.array([0.0, 0.0, rig.mass * rig.gravity])
+            r.append((rot.apply(f_b.sum(0) + f_exc) - (rot.apply(inertial) if f_up is not None else inertial))[:2])
+            if use_moment:
                 m = np.cross(rig.body_anchors - cg, f_b).sum(0)
                 if rig.exciter is not None:
                     m = m + np.cross(rig.exciter.position - cg, f_exc)
@@ -199,7 +208,7 @@ class PoseTracker:
     """
 
     def __init__(self, rig: Rig, tau_tilt: float = 2.0, tau_yaw: float = 2.0, f_position: float = 0.1,
-                 init_time: float = 0.5):
+                 init_time: float = 0.1):
         self.rig = rig
         self.tau_tilt, self.tau_yaw, self.f_position, self.init_time = tau_tilt, tau_yaw, f_position, init_time
         self._imu_to_body = rig.imu.rotation
@@ -212,6 +221,7 @@ class PoseTracker:
         self._init: list[tuple[float, np.ndarray, np.ndarray]] = []
         self._init_incl: list[np.ndarray] = []
         self._init_tens: list[np.ndarray] = []
+        self._init_exc: list[np.ndarray] = []
         self._incl_pending: np.ndarray | None = None
         self._t_incl: float | None = None
         self.compliance_history: list[tuple[float, np.ndarray]] = []
@@ -232,6 +242,11 @@ class PoseTracker:
             self._init_incl.append(a)
         else:
             self._incl_pending = a
+
+    def add_exciter(self, t: float, force_xy) -> None:
+        """Exciter force (2,) N in the exciter frame; used only for the initial pose."""
+        if self._Rm is None and self.rig.exciter is not None:
+            self._init_exc.append(np.asarray(force_xy, float)[:2])
 
     def add_tensions(self, t: float, tensions) -> None:
         """tensions: dict cable name -> N, or (N,) array in rig order."""
@@ -264,7 +279,12 @@ class PoseTracker:
         tens = np.mean(self._init_tens, axis=0) if self._init_tens else None
         elev = np.mean(self._init_incl, axis=0) if (self._init_incl and self._incl is not None) else None
         f_imu = self._imu_to_body.inv().apply(f_b)
-        pose = static_pose(self.rig, tens, elev, f_imu, cg=self.rig.center_of_gravity)
+        quiet = np.max(np.abs([s[1] for s in self._init])) < 5e-3
+        exc = None
+        if self._init_exc:
+            exc = self.rig.exciter.rotation.apply(np.r_[np.mean(self._init_exc, axis=0), 0.0])
+        at_rest = quiet and (exc is None or np.linalg.norm(exc) < 10.0)  # N: ramping exciters start small
+        pose = static_pose(self.rig, tens, elev, f_imu, exc, cg=self.rig.center_of_gravity, at_rest=at_rest)
         self.p, self._Rm = pose.position, pose.rotation.as_matrix()
         # constraint lengths consistent with the initial pose (absorbs the static stretch)
         self._lengths, self._compliance = pose.lengths, pose.compliance
@@ -408,6 +428,9 @@ def _replay(rig: Rig, sensors, **params) -> tuple[list[PoseEstimate], PoseTracke
     events = [(t, 2, i) for i, t in enumerate(sensors.imu.t)]
     if sensors.inclinometer is not None:
         events += [(t, 0, i) for i, t in enumerate(sensors.inclinometer.t)]
+    if sensors.exciter is not None:
+        n_exc = int(np.searchsorted(sensors.exciter.t, sensors.imu.t[0] + 2 * tracker.init_time))
+        events += [(t, 3, i) for i, t in enumerate(sensors.exciter.t[:n_exc])]
     names = rig.cable_names
     cells = [sensors.load_cells[n] for n in names]
     if all(len(c) == len(cells[0]) and np.array_equal(c.t, cells[0].t) for c in cells):
@@ -427,6 +450,8 @@ def _replay(rig: Rig, sensors, **params) -> tuple[list[PoseEstimate], PoseTracke
                 out.append(pose)
         elif kind == 1:
             tracker.add_tensions(t, tens[i])
+        elif kind == 3:
+            tracker.add_exciter(t, sensors.exciter.data[i])
         else:
             tracker.add_inclinometer(t, incl[i])
     if not out:
