@@ -33,7 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import cumulative_trapezoid
+from scipy.integrate import cumulative_simpson
 from scipy.signal import butter, sosfiltfilt
 
 from .rig import Rig
@@ -148,23 +148,26 @@ def _uniform(t: np.ndarray, what: str) -> float:
     return med
 
 
-def auto_band(omega: np.ndarray, fs: float) -> tuple[float, float]:
+def auto_band(omega: np.ndarray, fs: float, f_min: float = 0.4) -> tuple[float, float]:
     """Pass band (Hz) around where the body actually moves.
 
-    From the Welch spectrum (scipy) of the gyro (N,3): the band that holds the spectral
-    peaks standing 100x above the noise floor (median of the upper half of the
-    spectrum), widened by 0.6x below and 1.5x above.  Below it the integrated moment
-    carries the tracker's slow errors; above it there is only noise.
+    From the Welch spectrum (scipy) of the gyro (N,3): the band holding the spectral
+    bins that stand 100x above the noise floor (median of the upper half of the
+    spectrum) and within 10^-4 of the highest peak, widened by 0.6x below and 1.5x
+    above.  The low edge is at least ``f_min`` (default 4x the tracker's correction
+    bandwidth): below it the pose, hence the integrated moment, carries the
+    tracker's slow corrections.  Above the band there is only noise.
     """
     from scipy.signal import welch
     nper = int(min(len(omega), 2 ** np.ceil(np.log2(20 * fs))))
     f, P = welch(omega, fs=fs, nperseg=nper, axis=0)
     P = P.sum(1)
     floor = np.median(P[f > fs / 4])
-    sig = np.nonzero((P > 100 * floor) & (f > 0.1))[0]
+    sig = np.nonzero((P > max(100 * floor, 1e-4 * P[f > 0.05].max())) & (f > 0.05))[0]
     if len(sig) == 0:
-        return 0.25, min(5.0, 0.4 * fs)
-    return max(0.05, 0.6 * f[sig[0]]), min(0.4 * fs, max(1.5 * f[sig[-1]], 2.0 * 0.6 * f[sig[0]]))
+        return max(f_min, 0.25), min(5.0, 0.4 * fs)
+    lo = max(f_min, 0.6 * f[sig[0]])
+    return lo, min(0.4 * fs, max(1.5 * f[sig[-1]], 2.0 * lo))
 
 
 def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
@@ -198,7 +201,7 @@ def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np
     J = np.zeros((3, 3))
     for _ in range(max(1, iterations)):
         gyro_term = np.cross(w, w @ J.T)
-        I = filt(cumulative_trapezoid(torque - gyro_term, t, axis=0, initial=0.0))
+        I = filt(cumulative_simpson(torque - gyro_term, x=t, axis=0, initial=0.0))
         # omega_f = P I_f: rows of the regression for the 6 entries of P
         X = np.einsum("kij,nj->nik", E, I)  # (N,3,6)
         A = X.reshape(-1, 6)

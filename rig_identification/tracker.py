@@ -299,7 +299,8 @@ class PoseTracker:
         self.v = np.zeros(3)
         self._a_bias = np.zeros(3)
         self.omega = self._init[-1][1]
-        self._f_prev = self._init[-1][2]
+        self._fw_prev = self._Rm @ self._init[-1][2]
+        self._omega_prev2 = None
         self._t = t[-1]
         self._t_incl_used = self._t_incl if self._t_incl is not None else self._t
         self._init.clear()
@@ -307,17 +308,24 @@ class PoseTracker:
     def _step(self, dt: float, gyro_b: np.ndarray, f_b: np.ndarray):
         # rotation matrices here (body->world); scipy Rotation gives the exponentials
         omega_prev = self.omega
-        Rm = self._Rm @ Rotation.from_rotvec(0.5 * (omega_prev + gyro_b) * dt).as_matrix()
+        # rotation increment over the interval: third-order Adams–Moulton quadrature of ω
+        # through the last three samples (the midpoint rule's (ωh)²/12 amplitude error
+        # would bias the tensor by ~0.05 % at 100 Hz sampling)
+        w2 = self._omega_prev2 if self._omega_prev2 is not None else omega_prev
+        Rm = self._Rm @ Rotation.from_rotvec((5 * gyro_b + 8 * omega_prev - w2) * (dt / 12)).as_matrix()
+        self._omega_prev2 = omega_prev
         self.omega = gyro_b
-        # acceleration of the body origin from the specific force at the IMU (rigid-body
-        # kinematics: a_imu = a_o + alpha x r + w x (w x r))
+        # specific force of the body origin in world axes (rigid-body kinematics:
+        # f_imu = f_o + alpha x r + w x (w x r)), each sample rotated with its own
+        # orientation, then integrated with the trapezoidal rule
         alpha = (gyro_b - omega_prev) / dt
         r = self._r_imu
-        a_origin_b = 0.5 * (f_b + self._f_prev) - _cross(alpha, r) - _cross(gyro_b, _cross(gyro_b, r))
-        a = Rm @ a_origin_b + self._g - self._a_bias
-        self._f_prev = f_b
-        self.p = self.p + self.v * dt + 0.5 * a * dt * dt
-        self.v = self.v + a * dt
+        f_w = Rm @ (f_b - _cross(alpha, r) - _cross(gyro_b, _cross(gyro_b, r)))
+        a = 0.5 * (f_w + self._fw_prev) + self._g - self._a_bias
+        self._fw_prev = f_w
+        v_new = self.v + a * dt
+        self.p = self.p + 0.5 * (self.v + v_new) * dt
+        self.v = v_new
         dphi = self._tilt_correction(Rm, dt, f_b) + self._constraint_correction(Rm, dt)
         self._Rm = Rotation.from_rotvec(dphi).as_matrix() @ Rm
 
