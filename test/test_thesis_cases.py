@@ -1,0 +1,25 @@
+"""Issue 2: simulated thesis case studies, noise-free, through the whole offline pipeline.
+
+Every diagonal entry within 0.1 % and every product within 0.1 % of the largest diagonal
+(the thesis reported up to 6 % and 22 % on these cases).  Durations are shortened to
+keep the suite fast; bench/bench_thesis_cases.py runs all of 10–17 at full length.
+"""
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from rig_identification.pipeline import compare_to_truth, identify_recording
+from rig_identification.recording import Recording
+from rig_identification.simulator import load_experiment, simulate
+
+CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
+
+
+@pytest.mark.parametrize("case", ["case10", "case16"])
+def test_noise_free_case(case):
+    exp = load_experiment(CASES / f"{case}.yaml")
+    sim = simulate(replace(exp, duration=60.0))
+    res = identify_recording(Recording(sim.rig, sim.sensors, sim.truth))
+    for k, c in compare_to_truth(res, sim.truth).items():
+        assert abs(c["error_percent"]) < 0.1, (case, k, c)
