@@ -44,23 +44,30 @@ class TrackerError(ValueError):
     """The tracker cannot find a pose consistent with the rig geometry."""
 
 
-@dataclass
 class PoseEstimate:
     """One tracked pose.
 
-    t: stamp, s.  position: (3,) world, m, of the body origin.  quaternion: (4,) xyzw,
-    body -> world.  omega: (3,) body axes, rad/s.  velocity: (3,) world, m/s.
+    t: stamp, s.  position: (3,) world, m, of the body origin.  matrix: (3,3) rotation
+    body -> world; quaternion: (4,) xyzw of the same rotation (computed on first use).
+    omega: (3,) body axes, rad/s.  velocity: (3,) world, m/s.
     """
 
-    t: float
-    position: np.ndarray
-    quaternion: np.ndarray
-    omega: np.ndarray
-    velocity: np.ndarray
+    __slots__ = ("t", "position", "matrix", "omega", "velocity", "_quat")
+
+    def __init__(self, t: float, position: np.ndarray, matrix: np.ndarray, omega: np.ndarray,
+                 velocity: np.ndarray):
+        self.t, self.position, self.matrix, self.omega, self.velocity = t, position, matrix, omega, velocity
+        self._quat = None
+
+    @property
+    def quaternion(self) -> np.ndarray:
+        if self._quat is None:
+            self._quat = Rotation.from_matrix(self.matrix).as_quat()
+        return self._quat
 
     @property
     def rotation(self) -> Rotation:
-        return Rotation.from_quat(self.quaternion)
+        return Rotation.from_matrix(self.matrix)
 
 
 @dataclass
@@ -75,9 +82,9 @@ class PoseTrack:
 
     @classmethod
     def from_estimates(cls, poses: list[PoseEstimate]) -> "PoseTrack":
-        return cls(np.array([p.t for p in poses]), np.array([p.position for p in poses]),
-                   np.array([p.quaternion for p in poses]), np.array([p.omega for p in poses]),
-                   np.array([p.velocity for p in poses]))
+        quat = Rotation.from_matrix(np.array([p.matrix for p in poses])).as_quat()
+        return cls(np.array([p.t for p in poses]), np.array([p.position for p in poses]), quat,
+                   np.array([p.omega for p in poses]), np.array([p.velocity for p in poses]))
 
 
 def inclinometer_elevations(rotation: Rotation, incl_to_body: Rotation) -> np.ndarray:
@@ -212,6 +219,7 @@ class PoseTracker:
         self.rig = rig
         self.tau_tilt, self.tau_yaw, self.f_position, self.init_time = tau_tilt, tau_yaw, f_position, init_time
         self._imu_to_body = rig.imu.rotation
+        self._imu_m = self._imu_to_body.as_matrix()
         self._r_imu = rig.imu.position
         self._incl = rig.inclinometer.rotation if rig.inclinometer is not None else None
         self._g = np.array([0.0, 0.0, -rig.gravity])
@@ -257,8 +265,8 @@ class PoseTracker:
             self._init_tens.append(self._tensions)
 
     def add_imu(self, t: float, gyro, accel) -> PoseEstimate | None:
-        gyro_b = self._imu_to_body.apply(np.asarray(gyro, float))
-        f_b = self._imu_to_body.apply(np.asarray(accel, float))
+        gyro_b = self._imu_m @ np.asarray(gyro, float)
+        f_b = self._imu_m @ np.asarray(accel, float)
         if self._Rm is None:
             self._init.append((t, gyro_b, f_b))
             if t - self._init[0][0] < self.init_time:
@@ -301,6 +309,8 @@ class PoseTracker:
         self.omega = self._init[-1][1]
         self._fw_prev = self._Rm @ self._init[-1][2]
         self._omega_prev2 = None
+        self._dphi = np.zeros(3)
+        self._n_steps = 0
         self._t = t[-1]
         self._t_incl_used = self._t_incl if self._t_incl is not None else self._t
         self._init.clear()
@@ -312,7 +322,10 @@ class PoseTracker:
         # through the last three samples (the midpoint rule's (ωh)²/12 amplitude error
         # would bias the tensor by ~0.05 % at 100 Hz sampling)
         w2 = self._omega_prev2 if self._omega_prev2 is not None else omega_prev
-        Rm = self._Rm @ Rotation.from_rotvec((5 * gyro_b + 8 * omega_prev - w2) * (dt / 12)).as_matrix()
+        # the previous step's world-frame correction dphi is applied here, in body axes
+        # (exp(dphi) R exp(theta) = R exp(R^T dphi + theta) to O(|dphi||theta|) ~ 1e-9 rad)
+        theta = (5 * gyro_b + 8 * omega_prev - w2) * (dt / 12) + self._Rm.T @ self._dphi
+        Rm = self._Rm @ Rotation.from_rotvec(theta).as_matrix()
         self._omega_prev2 = omega_prev
         self.omega = gyro_b
         # specific force of the body origin in world axes (rigid-body kinematics:
@@ -326,8 +339,11 @@ class PoseTracker:
         v_new = self.v + a * dt
         self.p = self.p + 0.5 * (self.v + v_new) * dt
         self.v = v_new
-        dphi = self._tilt_correction(Rm, dt, f_b) + self._constraint_correction(Rm, dt)
-        self._Rm = Rotation.from_rotvec(dphi).as_matrix() @ Rm
+        self._dphi = self._tilt_correction(Rm, dt, f_b) + self._constraint_correction(Rm, dt)
+        self._Rm = Rm
+        self._n_steps += 1
+        if self._n_steps % 200 == 0:  # re-orthonormalise now and then
+            self._Rm = Rotation.from_matrix(Rm).as_matrix()
 
     def _tilt_correction(self, Rm: np.ndarray, dt: float, f_b: np.ndarray) -> np.ndarray:
         """World-frame rotation (3,) rad pulling the tilt toward the inclinometer/gravity."""
@@ -342,7 +358,7 @@ class PoseTracker:
             H = np.column_stack([axes[:, 1], -axes[:, 0], np.zeros(2)]) / np.cos(pred)[:, None]
             gain = min(1.0, (self._t_incl - self._t_incl_used) / self.tau_tilt)
             self._t_incl_used = self._t_incl
-            return gain * (np.linalg.pinv(H) @ (meas - pred))
+            return gain * (H.T @ np.linalg.solve(H @ H.T, meas - pred))
         # no inclinometer: align the measured specific force with gravity, slowly
         up = Rm @ f_b
         n = np.linalg.norm(up)
@@ -365,7 +381,8 @@ class PoseTracker:
             self._refine_compliance(dt, resid)
         # d l_i = -u_i . dp - (R b_i x u_i) . dphi ; unknowns dp (3) and yaw about world z
         G = np.column_stack([-u, -(rb[:, 0] * u[:, 1] - rb[:, 1] * u[:, 0])])
-        delta = np.linalg.lstsq(G, -resid, rcond=None)[0]
+        GtG = G.T @ G
+        delta = np.linalg.solve(GtG + 1e-12 * np.trace(GtG) * np.eye(4), -(G.T @ resid))
         # third-order complementary filter (poles at -wn): the integral state absorbs a
         # constant acceleration error (tilt error x g, accelerometer bias)
         wn = 2 * np.pi * self.f_position
@@ -405,9 +422,7 @@ class PoseTracker:
         return None if self._Rm is None else Rotation.from_matrix(self._Rm)
 
     def _estimate(self) -> PoseEstimate:
-        rot = Rotation.from_matrix(self._Rm)  # also re-orthonormalises
-        self._Rm = rot.as_matrix()
-        return PoseEstimate(self._t, self.p.copy(), rot.as_quat(), self.omega.copy(), self.v.copy())
+        return PoseEstimate(self._t, self.p.copy(), self._Rm.copy(), self.omega.copy(), self.v.copy())
 
 
 def track(rig: Rig, sensors, **params) -> PoseTrack:
