@@ -128,6 +128,7 @@ from typing import Any
 import numpy as np
 import yaml
 from scipy.integrate import solve_ivp
+from scipy.linalg.lapack import dposv
 from scipy.optimize import minimize, root
 from scipy.spatial.transform import Rotation
 
@@ -271,7 +272,8 @@ class Excitation:
         if self.rotating is not None:
             r = self.rotating
             out.update(type="rotating", amplitude=r.amplitude, frequency=r.frequency, ramp_time=r.ramp_time,
-                       ramp_shape=r.ramp_shape, phase=r.phase, direction=r.direction, start_time=r.start_time, stop_time=r.stop_time)
+                       ramp_shape=r.ramp_shape, phase=r.phase, direction=r.direction, start_time=r.start_time,
+                       stop_time=r.stop_time)
         else:
             out["type"] = "pulses"
         out["pulses"] = [{"force": p.force.tolist(), "point": p.point.tolist(), "start": p.start, "end": p.end,
@@ -653,14 +655,6 @@ def _skew(a) -> np.ndarray:
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
-_NEXT, _PREV = [1, 2, 0], [2, 0, 1]
-
-
-def _cross_rows(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Row-wise cross products of two (N, 3) arrays -> (N, 3)."""
-    return a[:, _NEXT] * b[:, _PREV] - a[:, _PREV] * b[:, _NEXT]
-
-
 def _moment_sum(s: np.ndarray, f: np.ndarray) -> np.ndarray:
     """sum_i s_i × f_i of two (N, 3) arrays -> (3,)."""
     X = s.T @ f
@@ -685,6 +679,7 @@ class _Model:
         self.cg = np.asarray(cg, float)
         self.A = rig.ceiling_anchors
         self.r = rig.body_anchors - self.cg
+        self.r_skew = np.array([_skew(r) for r in self.r])      # (N, 3, 3): r_i × ·
         self.L = rig.cable_lengths
         self.g = np.array([0.0, 0.0, -rig.gravity])
         self.cables = cables
@@ -767,18 +762,21 @@ class _Model:
         ω × Jω (body).
         """
         beta = self.cables.baumgarte
-        arm = _cross_rows(self.r, u @ R)                # r_i × Rᵀu_i, body axes (N, 3)
-        B = np.hstack([u, arm])                         # (N, 6): rows B_iᵀ
-        MinvB = np.hstack([u / self.m, arm @ self.Jinv])
-        MinvQ = np.concatenate([F_ext / self.m + self.g, self.Jinv @ M_rest])
+        n = len(l)
+        B, MinvB, MinvQ = np.empty((n, 6)), np.empty((n, 6)), np.empty(6)     # B: rows B_iᵀ
+        B[:, :3] = u
+        B[:, 3:] = (self.r_skew @ (u @ R)[:, :, None])[:, :, 0]             # r_i × Rᵀu_i, body axes
+        MinvB[:, :3] = u / self.m
+        MinvB[:, 3:] = B[:, 3:] @ self.Jinv
+        MinvQ[:3] = F_ext / self.m + self.g
+        MinvQ[3:] = self.Jinv @ M_rest
         centripetal = self.r @ (Rdot @ W).T             # R (ω × (ω × r_i)), world
         h = ((Pdot * Pdot).sum(axis=1) - (d * centripetal).sum(axis=1)
              + 2 * beta * l * ldot + 0.5 * beta ** 2 * (l ** 2 - self.L ** 2)) / l
-        try:
-            T = np.linalg.solve(B @ MinvB.T, h - B @ MinvQ)
-        except np.linalg.LinAlgError:
+        _, T, info = dposv(B @ MinvB.T, h - B @ MinvQ)   # B M⁻¹ Bᵀ is symmetric positive definite
+        if info != 0:
             raise SimulationError("inextensible cables: the constraint Jacobian is singular "
-                                  "(degenerate cable geometry)") from None
+                                  "(degenerate cable geometry)")
         qdd = MinvQ + MinvB.T @ T
         return qdd[:3], qdd[3:], T
 
@@ -863,7 +861,7 @@ def _equilibrium(model: _Model) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     p, R = _pose(x)
     s = model.r @ R.T
     u = (model.A - (p + s)) / _lengths(model, x)[:, None]
-    T0 = np.linalg.lstsq(np.vstack([u.T, _cross_rows(s, u).T]), -np.concatenate([model.m * model.g, np.zeros(3)]),
+    T0 = np.linalg.lstsq(np.vstack([u.T, np.cross(s, u).T]), -np.concatenate([model.m * model.g, np.zeros(3)]),
                          rcond=None)[0] / weight
     while True:
         idx = np.flatnonzero(active)
@@ -897,7 +895,7 @@ def _project(model: _Model, p_cg: np.ndarray, R: np.ndarray, target: np.ndarray)
         if np.max(np.abs(err)) < 1e-13:
             break
         u = d / l[:, None]
-        Jac = np.hstack([-u, -_cross_rows(s, u)])            # dl / d[p, θ_world]
+        Jac = np.hstack([-u, -np.cross(s, u)])               # dl / d[p, θ_world]
         step = -np.linalg.lstsq(Jac, err, rcond=None)[0]
         p_cg = p_cg + step[:3]
         R = Rotation.from_rotvec(step[3:]).as_matrix() @ R
