@@ -166,7 +166,7 @@ def _number(v, name: str, src: str, positive: bool = False, nonneg: bool = False
     # PyYAML implements YAML 1.1, which reads "5.0e6" (valid YAML 1.2 float) as a string
     if isinstance(v, str) and FLOAT_12.match(v.strip()):
         v = float(v)
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
         raise RigError(f"{src}: field {name} must be a number, got {v!r}")
     x = float(v)
     if not math.isfinite(x):

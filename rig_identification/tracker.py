@@ -171,8 +171,10 @@ def static_pose(rig: Rig, tensions: np.ndarray | None = None, elevations: np.nda
             r.append(((rot * rig.imu.rotation).inv().apply(Z) - up_imu) / 1e-4)
         if tensions is not None:
             f_b = T[:, None] * rot.inv().apply(v / lv[:, None])
-            inertial = rig.mass * f_up if f_up is not None else np.array([0.0, 0.0, rig.mass * rig.gravity])
-            r.append((rot.apply(f_b.sum(0) + f_exc) - (rot.apply(inertial) if f_up is not None else inertial))[:2])
+            if at_rest or f_up is None:  # weight, exact
+                r.append((rot.apply(f_b.sum(0) + f_exc) - [0.0, 0.0, rig.mass * rig.gravity])[:2] / 1.0)
+            else:  # Newton's law with the accelerometer (its bias, ~0.05 m/s^2, sets the weight)
+                r.append((rot.apply(f_b.sum(0) + f_exc - rig.mass * f_up))[:2] / (0.05 * rig.mass))
             if use_moment:
                 m = np.cross(rig.body_anchors - cg, f_b).sum(0)
                 if rig.exciter is not None:
@@ -211,15 +213,20 @@ class PoseTracker:
     ``init_time`` seconds, which are averaged to find the initial pose at rest).
 
     Parameters: ``tau_tilt`` s (tilt correction time constant), ``tau_yaw`` s,
-    ``f_position`` Hz (position correction bandwidth), ``init_time`` s.
+    ``f_position`` Hz (position correction bandwidth), ``init_time`` s, ``tau_bias`` s
+    (gyro-bias estimation; ``gyro_bias`` (3,) rad/s body axes is the current estimate),
+    ``tau_tilt_accel`` s (tilt from gravity when the rig has no inclinometer: the
+    specific force of a swinging body is vertical only on average, hence the long time).
     """
 
     def __init__(self, rig: Rig, tau_tilt: float = 2.0, tau_yaw: float = 2.0, f_position: float = 0.1,
-                 init_time: float = 0.1):
+                 init_time: float = 0.1, tau_bias: float = 5.0, tau_tilt_accel: float = 30.0):
         self.rig = rig
         self.tau_tilt, self.tau_yaw, self.f_position, self.init_time = tau_tilt, tau_yaw, f_position, init_time
+        self.tau_bias, self.tau_tilt_accel = tau_bias, tau_tilt_accel
         self._imu_to_body = rig.imu.rotation
         self._imu_m = self._imu_to_body.as_matrix()
+        self._anchors_from_imu = rig.body_anchors - rig.imu.position
         self._r_imu = rig.imu.position
         self._incl = rig.inclinometer.rotation if rig.inclinometer is not None else None
         self._g = np.array([0.0, 0.0, -rig.gravity])
@@ -267,7 +274,9 @@ class PoseTracker:
     def add_imu(self, t: float, gyro, accel) -> PoseEstimate | None:
         gyro_b = self._imu_m @ np.asarray(gyro, float)
         f_b = self._imu_m @ np.asarray(accel, float)
-        if self._Rm is None:
+        if self._Rm is not None:
+            gyro_b = gyro_b - self.gyro_bias
+        else:
             self._init.append((t, gyro_b, f_b))
             if t - self._init[0][0] < self.init_time:
                 return None
@@ -293,11 +302,14 @@ class PoseTracker:
             exc = self.rig.exciter.rotation.apply(np.r_[np.mean(self._init_exc, axis=0), 0.0])
         at_rest = quiet and (exc is None or np.linalg.norm(exc) < 10.0)  # N: ramping exciters start small
         pose = static_pose(self.rig, tens, elev, f_imu, exc, cg=self.rig.center_of_gravity, at_rest=at_rest)
-        self.p, self._Rm = pose.position, pose.rotation.as_matrix()
+        self._Rm = pose.rotation.as_matrix()
+        self.p = pose.position + self._Rm @ self._r_imu  # the IMU point
         # constraint lengths consistent with the initial pose (absorbs the static stretch)
         self._lengths, self._compliance = pose.lengths, pose.compliance
         # online compliance refinement (only when rig.yaml gives no stiffness)
-        self._adapt = tens is not None and not np.isfinite(self.rig.cable_stiffness).all()
+        # needs the inclinometer: without it the in-band tilt is too rough to tell stretch
+        self._adapt = (tens is not None and elev is not None
+                       and not np.isfinite(self.rig.cable_stiffness).all())
         self._T0 = tens if tens is not None else np.zeros(len(self._lengths))
         self._l0 = self._lengths + self._T0 * self._compliance
         self._hp_e = np.zeros(len(self._lengths))
@@ -311,6 +323,7 @@ class PoseTracker:
         self._omega_prev2 = None
         self._dphi = np.zeros(3)
         self._n_steps = 0
+        self.gyro_bias = np.zeros(3)
         self._t = t[-1]
         self._t_incl_used = self._t_incl if self._t_incl is not None else self._t
         self._init.clear()
@@ -328,18 +341,19 @@ class PoseTracker:
         Rm = self._Rm @ Rotation.from_rotvec(theta).as_matrix()
         self._omega_prev2 = omega_prev
         self.omega = gyro_b
-        # specific force of the body origin in world axes (rigid-body kinematics:
-        # f_imu = f_o + alpha x r + w x (w x r)), each sample rotated with its own
-        # orientation, then integrated with the trapezoidal rule
-        alpha = (gyro_b - omega_prev) / dt
-        r = self._r_imu
-        f_w = Rm @ (f_b - _cross(alpha, r) - _cross(gyro_b, _cross(gyro_b, r)))
+        # the filter tracks the IMU point, whose acceleration the accelerometer gives
+        # without lever-arm terms: a = R f + g; each sample is rotated with its own
+        # attitude, then integrated with the trapezoidal rule
+        f_w = Rm @ f_b
         a = 0.5 * (f_w + self._fw_prev) + self._g - self._a_bias
         self._fw_prev = f_w
         v_new = self.v + a * dt
         self.p = self.p + 0.5 * (self.v + v_new) * dt
         self.v = v_new
         self._dphi = self._tilt_correction(Rm, dt, f_b) + self._constraint_correction(Rm, dt)
+        # integral action: a steady correction is a gyro bias (PI complementary filter,
+        # natural frequency 1/tau_bias); removes the bias x tau offset of a P-only filter
+        self.gyro_bias = self.gyro_bias - (self.tau_tilt / self.tau_bias**2) * (Rm.T @ self._dphi)
         self._Rm = Rm
         self._n_steps += 1
         if self._n_steps % 200 == 0:  # re-orthonormalise now and then
@@ -364,7 +378,7 @@ class PoseTracker:
         n = np.linalg.norm(up)
         if n < 1e-6:
             return np.zeros(3)
-        return (dt / self.tau_tilt) * np.array([up[1], -up[0], 0.0]) / n
+        return (dt / self.tau_tilt_accel) * np.array([up[1], -up[0], 0.0]) / n
 
     def _constraint_correction(self, Rm: np.ndarray, dt: float) -> np.ndarray:
         """Correct position (third-order complementary filter) toward the cable-length
@@ -372,7 +386,7 @@ class PoseTracker:
         lengths = self._lengths
         if self._tensions is not None:
             lengths = lengths + self._tensions * self._compliance
-        rb = self.rig.body_anchors @ Rm.T
+        rb = self._anchors_from_imu @ Rm.T
         v = self.rig.ceiling_anchors - (self.p + rb)
         lv = np.sqrt(np.einsum("ij,ij->i", v, v))
         u = v / lv[:, None]
@@ -422,7 +436,9 @@ class PoseTracker:
         return None if self._Rm is None else Rotation.from_matrix(self._Rm)
 
     def _estimate(self) -> PoseEstimate:
-        return PoseEstimate(self._t, self.p.copy(), self._Rm.copy(), self.omega.copy(), self.v.copy())
+        r_w = self._Rm @ self._r_imu
+        return PoseEstimate(self._t, self.p - r_w, self._Rm.copy(), self.omega.copy(),
+                            self.v - np.cross(self._Rm @ self.omega, r_w))
 
 
 def track(rig: Rig, sensors, **params) -> PoseTrack:
