@@ -94,8 +94,10 @@ class InertiaResult:
     residual_rms: np.ndarray
     fit_r2: np.ndarray
     weak_directions: list = field(default_factory=list)
-    method: str = "output-error (integrated Newton–Euler, band-passed)"
+    method: str = "prediction error (band-limited output error, integrated Newton–Euler)"
     warnings: list[str] = field(default_factory=list)
+    crb_std: np.ndarray | None = None
+    gyro_noise: float | None = None
 
     @property
     def correlation(self) -> np.ndarray:
@@ -110,6 +112,8 @@ class InertiaResult:
             "center_of_gravity": [float(x) for x in self.center_of_gravity],
             "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, theta)},
             "inertia_std": {k: float(v) for k, v in zip(KEYS, self.inertia_std)},
+            "inertia_crb_std": (None if self.crb_std is None
+                                else {k: float(v) for k, v in zip(KEYS, self.crb_std)}),
             "frame": "body",
             "principal_moments": [float(x) for x in ev],
             "physically_consistent": physically_consistent(self.inertia),
@@ -170,60 +174,157 @@ def auto_band(omega: np.ndarray, fs: float, f_min: float = 0.4) -> tuple[float, 
     return lo, min(0.4 * fs, max(1.5 * f[sig[-1]], 2.0 * lo))
 
 
+def consistent_from_params(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Physically consistent tensor from 6 free parameters, and d(entries)/d(theta).
+
+    J = tr(Σ) I − Σ with the second-moment matrix Σ = ∫ρρᵀ dm = L Lᵀ (log-Cholesky: L
+    lower triangular, positive diagonal exp(θ)); every J of this form is positive
+    definite and obeys the triangle inequalities, and every such J has this form
+    (Wensing, Kim & Slotine, "Linear matrix inequalities for physically consistent
+    inertial parameter identification", IEEE RA-L 2017).  theta order: L00, L10, L11,
+    L20, L21, L22.  Returns entries (6,) in :data:`KEYS` order and the (6,6) Jacobian.
+    """
+    idx = ((0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2))
+    L = np.zeros((3, 3))
+    dL = np.zeros((6, 3, 3))
+    for k, (i, j) in enumerate(idx):
+        if i == j:
+            L[i, j] = np.exp(theta[k])
+            dL[k, i, j] = L[i, j]
+        else:
+            L[i, j] = theta[k]
+            dL[k, i, j] = 1.0
+    S = L @ L.T
+    J = np.trace(S) * np.eye(3) - S
+    dS = dL @ L.T + L @ dL.transpose(0, 2, 1)
+    dJ = np.trace(dS, axis1=1, axis2=2)[:, None, None] * np.eye(3) - dS
+    return from_tensor(J), np.array([from_tensor(d) for d in dJ]).T
+
+
+def params_from_consistent(J: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`consistent_from_params`; a J that is not consistent is first
+    projected (eigenvalues of Σ = ½ tr(J) I − J clipped to ≥ 1e-6 of their largest)."""
+    S = 0.5 * np.trace(J) * np.eye(3) - J
+    ev, V = np.linalg.eigh(0.5 * (S + S.T))
+    ev = np.maximum(ev, 1e-6 * max(ev.max(), 1e-12))
+    L = np.linalg.cholesky(V @ np.diag(ev) @ V.T)
+    return np.array([np.log(L[0, 0]), L[1, 0], np.log(L[1, 1]), L[2, 0], L[2, 1], np.log(L[2, 2])])
+
+
+def _batch_means_cov(A3: np.ndarray, resid: np.ndarray, nb: int) -> np.ndarray:
+    """Sandwich covariance of least squares with correlated residuals (batch means).
+
+    A3: (N,3,p) Jacobian of the prediction; resid: (N,3).  Blocks of nb samples,
+    longer than the residuals' correlation time, make the block sums independent.
+    """
+    p = A3.shape[2]
+    A = A3.reshape(-1, p)
+    H = np.einsum("nik,ni->nk", A3, resid)
+    nblocks = len(H) // nb
+    if nblocks < 8:
+        nb = max(1, len(H) // 8)
+        nblocks = len(H) // nb
+    S = H[: nblocks * nb].reshape(nblocks, nb, p).sum(1)
+    meat = S.T @ S * (len(H) / (nblocks * nb))
+    bread = np.linalg.inv(A.T @ A)
+    return bread @ meat @ bread
+
+
+def gyro_noise_sigma(omega: np.ndarray, fs: float) -> float:
+    """White-noise σ (rad/s) of the gyro from the flat top of its Welch spectrum (scipy)."""
+    from scipy.signal import welch
+    f, P = welch(omega, fs=fs, nperseg=min(len(omega), 1024), axis=0)
+    return float(np.sqrt(np.median(P[f > fs / 4].mean(1)) * fs / 2))
+
+
 def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
                      band_hz: tuple[float, float] | None = None, block_s: float = 4.0,
-                     iterations: int = 3) -> InertiaResult:
+                     consistent: bool = True) -> InertiaResult:
     """Fit the inertia tensor about the CG (see module docstring).
+
+    Two stages, no initial guess: (1) linear least squares in P = J⁻¹ (the gyroscopic
+    term evaluated with the previous iterate, three passes from J = 0); (2) from there,
+    Levenberg–Marquardt (scipy ``least_squares``, analytic Jacobian) on the physically
+    consistent parametrisation :func:`consistent_from_params`, with the gyroscopic
+    term of the current J — the prediction-error estimate proper.
 
     t: (N,) s, uniformly sampled (a gap raises).  omega_body: (N,3) rad/s, body axes
     (gyro rotated from IMU axes).  torque: (N,3) N·m about the CG, body axes.
-    band_hz: pass band of the zero-phase Butterworth filter applied to both sides
-    (default: :func:`auto_band` of the gyro).
+    band_hz: pass band of the zero-phase Butterworth prefilter applied to both sides
+    (default: :func:`auto_band` of the gyro).  consistent: run stage 2.
     Raises :class:`IdentificationError` for too little data, gaps or no motion.
     """
+    from scipy.optimize import least_squares
+
     t = np.asarray(t, float)
     dt = _uniform(t, "identifier")
     fs = 1.0 / dt
     duration = t[-1] - t[0]
-    lo, hi = band_hz if band_hz is not None else auto_band(np.asarray(omega_body, float), fs)
+    w = np.asarray(omega_body, float)
+    lo, hi = band_hz if band_hz is not None else auto_band(w, fs)
     hi = min(hi, 0.4 * fs)
     if duration < 5.0 / lo:
         raise IdentificationError(f"identifier: window of {duration:.1f} s is too short for the "
-                                  f"{lo} Hz high-pass (needs ≥ {5.0 / lo:.0f} s)")
+                                  f"{lo:.2f} Hz high-pass (needs ≥ {5.0 / lo:.0f} s)")
     sos = butter(4, [lo, hi], btype="bandpass", fs=fs, output="sos")
     filt = lambda x: sosfiltfilt(sos, x, axis=0)  # noqa: E731
-    w = np.asarray(omega_body, float)
     y = filt(w)
     if np.sqrt(np.mean(y**2)) < 1e-5:
         raise IdentificationError("identifier: the body hardly rotated in the window "
                                   f"(band-passed gyro RMS {np.sqrt(np.mean(y**2)):.2e} rad/s)")
     E = basis()
-    J = np.zeros((3, 3))
-    for _ in range(max(1, iterations)):
-        gyro_term = np.cross(w, w @ J.T)
-        I = filt(cumulative_simpson(torque - gyro_term, x=t, axis=0, initial=0.0))
-        # omega_f = P I_f: rows of the regression for the 6 entries of P
-        X = np.einsum("kij,nj->nik", E, I)  # (N,3,6)
-        A = X.reshape(-1, 6)
-        p, *_ = np.linalg.lstsq(A, y.reshape(-1), rcond=None)
-        P = to_tensor(p)
-        J = np.linalg.inv(P)
-    resid = y - np.einsum("ij,nj->ni", P, I)
-    # sandwich covariance with batch means (residuals are band-limited, hence correlated)
-    H = np.einsum("nik,ni->nk", X, resid)
-    nb = max(1, int(round(block_s * fs)))
-    nblocks = len(H) // nb
-    if nblocks < 8:
-        nb = max(1, len(H) // 8)
-        nblocks = len(H) // nb
-    S = H[: nblocks * nb].reshape(nblocks, nb, 6).sum(1)
-    meat = S.T @ S * (len(H) / (nblocks * nb))
-    bread = np.linalg.inv(A.T @ A)
-    cov_p = bread @ meat @ bread
-    # delta method: dJ = -J dP J
-    G = np.array([from_tensor(-J @ Ek @ J) for Ek in E]).T  # (6 J entries, 6 P entries)
-    cov_J = G @ cov_p @ G.T
+    integ = lambda x: filt(cumulative_simpson(x, x=t, axis=0, initial=0.0))  # noqa: E731
+    IM = integ(np.asarray(torque, float))
+    # the gyroscopic term is linear in the entries: ω×(Jω) = Σ_m j_m ω×(E_m ω)
+    G = np.stack([integ(np.cross(w, w @ Em.T)) for Em in E])  # (6,N,3)
+
+    def predict(j):
+        P = np.linalg.inv(to_tensor(j))
+        u = IM - np.einsum("m,mni->ni", j, G)
+        return P, P @ u.T
+
+    # stage 1: linear in P
+    j = np.zeros(6)
+    for _ in range(3):
+        u = IM - np.einsum("m,mni->ni", j, G)
+        X = np.einsum("kij,nj->nik", E, u)  # (N,3,6)
+        p, *_ = np.linalg.lstsq(X.reshape(-1, 6), y.reshape(-1), rcond=None)
+        j = from_tensor(np.linalg.inv(to_tensor(p)))
+    method = "prediction error: band-limited output error of the integrated Newton–Euler equation"
+    P, yhat = predict(j)
+    sigma = np.sqrt(np.mean((y - yhat.T) ** 2, axis=0))
+
+    def jac_entries(j, P, yhat):
+        # d yhat / d j_k = -P (E_k yhat + G_k)   -> (N,3,6)
+        return -np.einsum("ij,knj->nik", P, np.einsum("kij,jn->kni", E, yhat) + G)
+
+    if consistent:
+        def fun(th):
+            jj, _ = consistent_from_params(th)
+            return ((y - predict(jj)[1].T) / sigma).ravel()
+
+        def jac(th):
+            jj, dj = consistent_from_params(th)
+            Pm, yh = predict(jj)
+            return -(jac_entries(jj, Pm, yh) / sigma[None, :, None]).reshape(-1, 6) @ dj
+
+        sol = least_squares(fun, params_from_consistent(to_tensor(j)), jac=jac, method="lm",
+                            xtol=1e-12, ftol=1e-12)
+        j, _ = consistent_from_params(sol.x)
+        method += "; Levenberg–Marquardt on a physically consistent parametrisation"
+    J = to_tensor(j)
+    P, yhat = predict(j)
+    resid = y - yhat.T
+    A3 = jac_entries(j, P, yhat)
+    cov_J = _batch_means_cov(A3, resid, max(1, int(round(block_s * fs))))
     std = np.sqrt(np.clip(np.diag(cov_J), 0, None))
+    # predicted covariance from the gyro's white noise alone (the Cramér–Rao bound of
+    # this estimator for the recording's excitation): σ² B⁻¹ (FA)ᵀ(FA) B⁻¹, F = prefilter
+    A = A3.reshape(-1, 6)
+    B = np.linalg.inv(A.T @ A)
+    FA = filt(A3.reshape(len(t), -1)).reshape(-1, 6)
+    sg = gyro_noise_sigma(w, fs)
+    crb = sg**2 * B @ (FA.T @ FA) @ B
     res_rms = np.sqrt(np.mean(resid**2, axis=0))
     r2 = 1 - np.sum(resid**2, 0) / np.sum(y**2, 0)
     # weakly determined combinations: eigen-directions of cov_J with the largest relative std
@@ -232,16 +333,18 @@ def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np
     evals, evecs = np.linalg.eigh(Dm @ cov_J @ Dm)
     weak = []
     for lam, vec in sorted(zip(evals, evecs.T), key=lambda z: -z[0])[:2]:
-        v = np.linalg.solve(Dm, vec)
-        D = to_tensor(v)
+        D = to_tensor(np.linalg.solve(Dm, vec))
         D /= np.linalg.norm(D)
         weak.append((float(np.sqrt(max(lam, 0)) / scale), D))
     warnings = []
     if not physically_consistent(J):
         warnings.append("the identified tensor is not physically consistent (not positive definite "
                         "or violates the triangle inequality): the window does not excite the body enough")
-    return InertiaResult(rig.mass, rig.require_cg().copy(), J, std, cov_J, float(t[0]), float(t[-1]), len(t),
-                         (lo, hi), res_rms, r2, weak, warnings=warnings)
+    res = InertiaResult(rig.mass, rig.require_cg().copy(), J, std, cov_J, float(t[0]), float(t[-1]), len(t),
+                        (lo, hi), res_rms, r2, weak, method=method, warnings=warnings)
+    res.crb_std = np.sqrt(np.clip(np.diag(crb), 0, None))
+    res.gyro_noise = sg
+    return res
 
 
 class InertiaIdentifier:
