@@ -52,11 +52,24 @@ def cmd_inertia(args) -> int:
     rec = read_recording(args.recording)
     from .pipeline import identify_recording
     band = tuple(args.band) if args.band else None
-    result = identify_recording(rec, start=args.start, end=args.end, band_hz=band)
+    result = identify_recording(rec, start=args.start, end=args.end, band_hz=band, model=args.model,
+                                initial_guess=args.initial_guess)
     if args.json:
         print(json.dumps(result.to_dict()))
     else:
         _print_inertia(result, rec.truth, rec.path)
+    return 0
+
+
+def cmd_thesis_table(args) -> int:
+    from .thesis_table import print_table, run_case
+    rows = []
+    for name in args.cases or [f"case{i:02d}" for i in range(1, 18)]:
+        rows.append(run_case(name))
+        if not args.json:
+            print_table(rows[-1:])
+    if args.json:
+        print(json.dumps(rows))
     return 0
 
 
@@ -71,9 +84,16 @@ def identify_main(argv=None) -> int:
     p.add_argument("--end", type=float, help="window end, s from the first IMU sample")
     p.add_argument("--band", type=float, nargs=2, metavar=("LOW_HZ", "HIGH_HZ"),
                    help="pass band of the fit (default: around the spectral peaks of the gyro)")
+    p.add_argument("--model", choices=["pem", "thesis"], default="pem",
+                   help="pem: ours (default); thesis: the thesis's model and estimator, as a baseline")
+    p.add_argument("--initial-guess", type=float, nargs=6, metavar=("IXX", "IXY", "IXZ", "IYY", "IYZ", "IZZ"),
+                   help="starting tensor entries for --model thesis (kg·m², products negated)")
+    t = sub.add_parser("thesis-table", help="the thesis's 17 case studies: reported errors vs ours vs --model thesis")
+    t.add_argument("cases", nargs="*", help="case names (default: case01 … case17)")
+    t.add_argument("--json", action="store_true", help="print one JSON list")
     args = ap.parse_args(argv)
     try:
-        return {"inertia": cmd_inertia}[args.command](args)
+        return {"inertia": cmd_inertia, "thesis-table": cmd_thesis_table}[args.command](args)
     except USER_ERRORS as e:
         print(f"rig-identify: error: {e}", file=sys.stderr)
         return 2

@@ -152,13 +152,13 @@ def _uniform(t: np.ndarray, what: str) -> float:
     return med
 
 
-def auto_band(omega: np.ndarray, fs: float, f_min: float = 0.4) -> tuple[float, float]:
+def auto_band(omega: np.ndarray, fs: float, f_min: float = 0.15) -> tuple[float, float]:
     """Pass band (Hz) around where the body actually moves.
 
     From the Welch spectrum (scipy) of the gyro (N,3): the band holding the spectral
     bins that stand 100x above the noise floor (median of the upper half of the
     spectrum) and within 10^-4 of the highest peak, widened by 0.6x below and 1.5x
-    above.  The low edge is at least ``f_min`` (default 4x the tracker's correction
+    above.  The low edge is at least ``f_min`` (1.5x the tracker's correction
     bandwidth): below it the pose, hence the integrated moment, carries the
     tracker's slow corrections.  Above the band there is only noise.
     """
@@ -261,11 +261,15 @@ def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np
     fs = 1.0 / dt
     duration = t[-1] - t[0]
     w = np.asarray(omega_body, float)
-    lo, hi = band_hz if band_hz is not None else auto_band(w, fs)
+    if band_hz is None:
+        lo, hi = auto_band(w, fs)
+        lo = max(lo, 2.0 / duration)  # at least two periods of the high-pass edge in the window
+    else:
+        lo, hi = band_hz
     hi = min(hi, 0.4 * fs)
-    if duration < 5.0 / lo:
+    if duration < 2.0 / lo:
         raise IdentificationError(f"identifier: window of {duration:.1f} s is too short for the "
-                                  f"{lo:.2f} Hz high-pass (needs ≥ {5.0 / lo:.0f} s)")
+                                  f"{lo:.2f} Hz high-pass (needs ≥ {2.0 / lo:.0f} s)")
     sos = butter(4, [lo, hi], btype="bandpass", fs=fs, output="sos")
     filt = lambda x: sosfiltfilt(sos, x, axis=0)  # noqa: E731
     y = filt(w)
@@ -345,6 +349,46 @@ def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np
     res.crb_std = np.sqrt(np.clip(np.diag(crb), 0, None))
     res.gyro_noise = sg
     return res
+
+
+def identify_inertia_thesis(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
+                            initial_guess: np.ndarray) -> InertiaResult:
+    """The thesis's identification, as a baseline (thesis sections 3.3 and 3.5).
+
+    Model: eq. 3.10/3.11 — ``J θ̈ = M`` with the angular velocities as states, *without*
+    the gyroscopic term ω × Jω; forward-Euler discretisation (eqs. 3.17–3.21,
+    A_d = 1 + T·A, B_d = T·B); one-step-ahead predictor of the measured output
+    (eq. 3.25 with C = I): ``ω̂(n+1) = ω(n) + T J⁻¹ M(n)``; prediction errors minimised
+    by Levenberg–Marquardt (eq. 3.30) from ``initial_guess`` (6,) tensor entries in
+    :data:`KEYS` order, as MATLAB's ``pem`` did.  Covariance: σ² (AᵀA)⁻¹ of the
+    white-residual assumption.  t: (N,) s uniform; omega_body (N,3) rad/s; torque (N,3) N·m.
+    """
+    from scipy.optimize import least_squares
+
+    t = np.asarray(t, float)
+    T = _uniform(t, "identifier (thesis model)")
+    w = np.asarray(omega_body, float)
+    M = np.asarray(torque, float)
+    dw = w[1:] - w[:-1]
+
+    def fun(j):
+        return (dw - T * M[:-1] @ np.linalg.inv(to_tensor(j)).T).ravel()
+
+    sol = least_squares(fun, np.asarray(initial_guess, float), method="lm", xtol=1e-12, ftol=1e-12)
+    J = to_tensor(sol.x)
+    A = sol.jac
+    resid = sol.fun.reshape(-1, 3)
+    dof = max(1, A.shape[0] - 6)
+    cov = float(resid.ravel() @ resid.ravel()) / dof * np.linalg.pinv(A.T @ A)
+    warnings = [] if physically_consistent(J) else ["the identified tensor is not physically consistent"]
+    if not sol.success:
+        warnings.append(f"Levenberg–Marquardt did not converge: {sol.message}")
+    return InertiaResult(rig.mass, rig.require_cg().copy(), J, np.sqrt(np.clip(np.diag(cov), 0, None)), cov,
+                         float(t[0]), float(t[-1]), len(t), (0.0, 0.5 / T), np.sqrt(np.mean(resid**2, 0)),
+                         1 - np.sum(resid**2, 0) / np.sum((dw - dw.mean(0)) ** 2, 0), [],
+                         method="thesis: eq. 3.11 without gyroscopic terms, forward Euler, one-step "
+                                "predictor (3.25), Levenberg–Marquardt from the initial guess",
+                         warnings=warnings)
 
 
 class InertiaIdentifier:

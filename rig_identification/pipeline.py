@@ -3,18 +3,30 @@ from __future__ import annotations
 
 import numpy as np
 
-from .identification import InertiaResult, identify_inertia
+from .identification import InertiaResult, identify_inertia, identify_inertia_thesis
 from .preprocessor import preprocess
 from .recording import Recording, RecordingError
 from .tracker import track
 
 
+def default_initial_guess(rig) -> np.ndarray:
+    """A rough tensor (6,) for the thesis model when none is given: the mass spread over
+    a box spanned by the body anchors, diagonal (kg·m²)."""
+    half = np.ptp(rig.body_anchors, axis=0) / 2 + 0.1
+    sx, sy, sz = half**2
+    return rig.mass / 3 * np.array([sy + sz, 0.0, 0.0, sx + sz, 0.0, sx + sy])
+
+
 def identify_recording(rec: Recording, start: float | None = None, end: float | None = None,
-                       settle: float = 5.0, band_hz: tuple[float, float] | None = None) -> InertiaResult:
+                       settle: float = 5.0, band_hz: tuple[float, float] | None = None,
+                       model: str = "pem", initial_guess=None) -> InertiaResult:
     """Identify the inertia tensor of a dynamic recording.
 
     start/end: window in seconds from the first IMU stamp (default: the whole
-    recording after ``settle`` s, the tracker's convergence time).  Raises
+    recording after ``settle`` s, the tracker's convergence time, at most a tenth of
+    the recording).  model: ``"pem"`` (ours) or ``"thesis"`` (the thesis's model and
+    estimator, :func:`~rig_identification.identification.identify_inertia_thesis`, from
+    ``initial_guess`` (6,) tensor entries or :func:`default_initial_guess`).  Raises
     :class:`~rig_identification.recording.RecordingError`,
     :class:`~rig_identification.rig.RigError`,
     :class:`~rig_identification.identification.IdentificationError`.
@@ -27,13 +39,21 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     poses = track(rig, s)
     wrench = preprocess(rig, poses, s)
     t0 = s.t_start
+    settle = min(settle, 0.1 * (s.t_end - t0))
     lo = t0 + (settle if start is None else max(start, settle))
     hi = s.t_end if end is None else t0 + end
     m = (wrench.t >= lo) & (wrench.t <= hi)
     if m.sum() < 10:
         raise RecordingError(f"{rec.path}: no samples in the window [{lo - t0:.1f}, {hi - t0:.1f}] s")
     gyro = s.imu.interp(wrench.t[m])[:, :3]
-    result = identify_inertia(rig, wrench.t[m], rig.imu.rotation.apply(gyro), wrench.torque[m], band_hz=band_hz)
+    gyro_b = rig.imu.rotation.apply(gyro)
+    if model == "thesis":
+        guess = default_initial_guess(rig) if initial_guess is None else np.asarray(initial_guess, float)
+        result = identify_inertia_thesis(rig, wrench.t[m], gyro_b, wrench.torque[m], guess)
+    elif model == "pem":
+        result = identify_inertia(rig, wrench.t[m], gyro_b, wrench.torque[m], band_hz=band_hz)
+    else:
+        raise ValueError(f"unknown model {model!r} (pem or thesis)")
     result.warnings[:0] = rec.warnings
     return result
 

@@ -301,7 +301,18 @@ class PoseTracker:
         if self._init_exc:
             exc = self.rig.exciter.rotation.apply(np.r_[np.mean(self._init_exc, axis=0), 0.0])
         at_rest = quiet and (exc is None or np.linalg.norm(exc) < 10.0)  # N: ramping exciters start small
-        pose = static_pose(self.rig, tens, elev, f_imu, exc, cg=self.rig.center_of_gravity, at_rest=at_rest)
+        # first as an equilibrium; if that does not fit (released from a displaced pose, or
+        # an unmeasured force already acting), from the geometry and Newton's law alone
+        pose = None
+        for rest in ((True, False) if at_rest else (False,)):
+            try:
+                pose = static_pose(self.rig, tens, elev, f_imu, exc, cg=self.rig.center_of_gravity, at_rest=rest)
+            except TrackerError:
+                continue
+            if np.max(np.abs(pose.residuals)) <= 5.0:
+                break
+        if pose is None:
+            pose = static_pose(self.rig, None, elev, f_imu)
         self._Rm = pose.rotation.as_matrix()
         self.p = pose.position + self._Rm @ self._r_imu  # the IMU point
         # constraint lengths consistent with the initial pose (absorbs the static stretch)
@@ -456,7 +467,7 @@ def track(rig: Rig, sensors, **params) -> PoseTrack:
         hist = tracker.compliance_history
         c = np.median([h[1] for h in hist[len(hist) // 2:]], axis=0)
         from dataclasses import replace
-        cables = tuple(replace(cb, stiffness=cb.stiffness if cb.stiffness is not None else 1.0 / ci)
+        cables = tuple(replace(cb, stiffness=cb.stiffness if cb.stiffness is not None else 1.0 / max(ci, 1e-12))
                        for cb, ci in zip(rig.cables, c))
         out, _ = _replay(replace(rig, cables=cables), sensors, **params)
     return PoseTrack.from_estimates(out)
