@@ -18,7 +18,9 @@ from .recording import RecordingError, read_recording
 from .rig import RigError
 from .tracker import TrackerError
 
-USER_ERRORS = (RecordingError, RigError, IdentificationError, TrackerError, FileNotFoundError)
+from .statics import StaticsError  # noqa: E402
+
+USER_ERRORS = (RecordingError, RigError, IdentificationError, TrackerError, StaticsError, FileNotFoundError)
 
 
 def _print_inertia(result, truth: dict | None, rec_path) -> None:
@@ -77,7 +79,9 @@ def identify_main(argv=None) -> int:
     """Entry point of ``rig-identify``."""
     ap = argparse.ArgumentParser(prog="rig-identify", description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="command", required=True)
+    from .cg_cli import add_cg_parser, add_cg_plan_parser
     p = sub.add_parser("inertia", help="identify the inertia tensor from a dynamic recording")
+    p.set_defaults(func=cmd_inertia)
     p.add_argument("recording", help="recording folder (rig.yaml + bag/)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--start", type=float, help="window start, s from the first IMU sample")
@@ -91,9 +95,12 @@ def identify_main(argv=None) -> int:
     t = sub.add_parser("thesis-table", help="the thesis's 17 case studies: reported errors vs ours vs --model thesis")
     t.add_argument("cases", nargs="*", help="case names (default: case01 … case17)")
     t.add_argument("--json", action="store_true", help="print one JSON list")
+    t.set_defaults(func=cmd_thesis_table)
+    add_cg_parser(sub)
+    add_cg_plan_parser(sub)
     args = ap.parse_args(argv)
     try:
-        return {"inertia": cmd_inertia, "thesis-table": cmd_thesis_table}[args.command](args)
+        return args.func(args)
     except USER_ERRORS as e:
         print(f"rig-identify: error: {e}", file=sys.stderr)
         return 2

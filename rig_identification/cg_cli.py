@@ -1,0 +1,387 @@
+"""``rig-identify cg`` and ``rig-identify cg-plan``: the static centre-of-gravity experiment.
+
+    rig-identify cg BASELINE_RECORDING DUMMY_RECORDING [--json] [--start S] [--end S]
+                    [--dummy-mass KG --dummy-position X Y Z] [--tare KG X Y Z] [--scale-std KG]
+                    [--dummy-position-std MM] [--length-std MM] [--no-load-cells]
+                    [--no-inclinometer] [--accelerometer] [--fit-inclinometer-offset]
+                    [--allow-motion]
+    rig-identify cg-plan RIG [--cg-guess X Y Z] [--dummy-mass KG] [--dummy-position X Y Z]
+                    [--duration S] [--masses KG ...] [--position X Y Z ...] [--target-mm MM]
+                    [--noise-from RECORDING] [--load-cell-noise N] [--inclinometer-noise RAD]
+                    [--load-cell-rate HZ] [--inclinometer-rate HZ] [--dummy-position-std MM]
+                    [--length-std MM] [--max-duration S] [--json]
+
+``cg`` estimates the CG of the suspended body of BASELINE (body at rest without the dummy
+mass) from it and DUMMY (with the dummy mass of rig.yaml ``dummy_mass``), see
+:mod:`rig_identification.statics`.  ``--json`` prints one object
+``{"center_of_gravity": [x, y, z], "center_of_gravity_std": [...], "mass": ...,
+"mass_from_load_cells": ..., ...}`` (body frame, m, kg).  truth.yaml is never used for the
+estimate; when present it is shown beside it (text output only).
+
+``cg-plan`` predicts the CG σ of a planned static test and recommends one that reaches
+±2.5 mm (1.96 σ) on every coordinate.  RIG is a rig.yaml file, an experiment file or a
+recording folder (whose data give the sensor noise).
+
+The lead wires these in ``rig-identify`` with :func:`add_cg_parser`,
+:func:`add_cg_plan_parser`; user errors raise the errors listed in :data:`USER_ERRORS`, which
+``rig-identify`` prints as one line (exit status 2).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .recording import RecordingError, read_recording
+from .rig import DummyMass, RigError, load_rig
+from .statics import (CgOptions, SensorNoise, StaticsError, StaticState, estimate_cg, plan_static_test,
+                      predict_cg_std)
+from .tracker import TrackerError
+
+USER_ERRORS = (RecordingError, RigError, StaticsError, TrackerError, FileNotFoundError)
+
+
+def _options(args) -> CgOptions:
+    return CgOptions(use_load_cells=not getattr(args, "no_load_cells", False),
+                     use_inclinometer=not getattr(args, "no_inclinometer", False),
+                     use_accelerometer=getattr(args, "accelerometer", False),
+                     fit_inclinometer_offset=getattr(args, "fit_inclinometer_offset", False),
+                     scale_std=getattr(args, "scale_std", None),
+                     dummy_position_std=(getattr(args, "dummy_position_std", None) or 0.0) * 1e-3,
+                     length_std=(getattr(args, "length_std", None) or 0.0) * 1e-3)
+
+
+def _positive(name):
+    def f(text):
+        try:
+            x = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not (math.isfinite(x) and x > 0):
+            raise argparse.ArgumentTypeError(f"{name} must be > 0, got {text!r}")
+        return x
+    return f
+
+
+def _nonneg(name):
+    def f(text):
+        try:
+            x = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not (math.isfinite(x) and x >= 0):
+            raise argparse.ArgumentTypeError(f"{name} must be >= 0, got {text!r}")
+        return x
+    return f
+
+
+def _add_common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--scale-std", type=_positive("--scale-std"), metavar="KG",
+                   help="σ of the scale's mass reading (default 0.1 %% of it)")
+    p.add_argument("--dummy-position-std", type=_nonneg("--dummy-position-std"), metavar="MM",
+                   help="σ of each coordinate of the dummy mass's position, mm (default 0: exact)")
+    p.add_argument("--length-std", type=_nonneg("--length-std"), metavar="MM",
+                   help="σ of the cable lengths of rig.yaml, mm (default 0: exact)")
+
+
+def add_cg_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``cg`` sub-command to an ``argparse`` sub-parser collection; returns it."""
+    p = subparsers.add_parser("cg", help="centre of gravity from the two static recordings (without and "
+                                         "with the dummy mass)",
+                              description="Centre of gravity of the suspended body (body frame) from a "
+                                          "baseline and a dummy-mass static recording (thesis chapter 2).")
+    p.add_argument("baseline", help="recording folder of the body at rest WITHOUT the dummy mass")
+    p.add_argument("dummy", help="recording folder of the body at rest WITH the dummy mass")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--start", type=float, metavar="S", help="window start, s from each recording's first IMU sample")
+    p.add_argument("--end", type=float, metavar="S", help="window end, s from each recording's first IMU sample")
+    p.add_argument("--dummy-mass", type=_positive("--dummy-mass"), metavar="KG",
+                   help="dummy mass, kg (default: rig.yaml dummy_mass)")
+    p.add_argument("--dummy-position", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="dummy mass position, body frame, m (default: rig.yaml dummy_mass)")
+    p.add_argument("--tare", type=float, nargs=4, metavar=("KG", "X", "Y", "Z"),
+                   help="a known part of the suspended body (e.g. the carrying frame: mass and CG, body "
+                        "frame m): also report the CG of the rest (the vehicle)")
+    _add_common(p)
+    p.add_argument("--no-load-cells", action="store_true",
+                   help="ignore the load cells (the thesis's method: inclinometer angles only)")
+    p.add_argument("--no-inclinometer", action="store_true", help="ignore the inclinometer")
+    p.add_argument("--accelerometer", action="store_true",
+                   help="also use the accelerometer's gravity direction (its bias is not modelled)")
+    p.add_argument("--fit-inclinometer-offset", action="store_true",
+                   help="fit the inclinometer's two zero offsets")
+    p.add_argument("--allow-motion", action="store_true",
+                   help="use a state even if the body never comes to rest (batch-means uncertainty)")
+    p.set_defaults(func=cmd_cg)
+    return p
+
+
+def _rig_geometry(rig) -> dict:
+    d = rig.to_dict()
+    d["body"].pop("center_of_gravity", None)
+    d.pop("dummy_mass", None)
+    return d
+
+
+def _state(rec, label: str, args) -> StaticState:
+    t_first = rec.sensors.t_start
+    t0 = None if args.start is None else t_first + args.start
+    t1 = None if args.end is None else t_first + args.end
+    if args.start is not None and args.end is not None and args.end <= args.start:
+        raise StaticsError(f"--end ({args.end} s) must be after --start ({args.start} s)")
+    st = StaticState.from_window(rec.sensors, t0, t1, label=label, allow_motion=args.allow_motion)
+    st.warnings = [f"{rec.path}: {w}" for w in rec.warnings] + st.warnings
+    return st
+
+
+def run_cg(args):
+    """Read the two recordings and estimate; returns (CgResult, baseline Recording, dummy Recording)."""
+    if (args.dummy_mass is None) != (args.dummy_position is None):
+        raise StaticsError("--dummy-mass and --dummy-position go together")
+    rb = read_recording(args.baseline)
+    rd = read_recording(args.dummy)
+    gb, gd = _rig_geometry(rb.rig), _rig_geometry(rd.rig)
+    if gb != gd:
+        diff = sorted(k for k in set(gb) | set(gd) if gb.get(k) != gd.get(k))
+        raise StaticsError(f"{rb.rig.source} and {rd.rig.source} describe different rigs (field(s) "
+                           f"{', '.join(diff)} differ); both static recordings need the same rig.yaml")
+    rig = rb.rig
+    if args.dummy_mass is not None:
+        dummy = DummyMass(float(args.dummy_mass), np.array(args.dummy_position, float))
+    else:
+        dummy = rig.dummy_mass or rd.rig.dummy_mass
+        if dummy is None:
+            raise StaticsError(f"{rd.rig.source}: missing field dummy_mass (or pass --dummy-mass and "
+                               "--dummy-position)")
+    sb = _state(rb, "baseline", args)
+    sd = _state(rd, "dummy", args)
+    sd.added = (dummy,)
+    return estimate_cg(rig, sb, sd, _options(args)), rb, rd
+
+
+def cmd_cg(args) -> int:
+    """``rig-identify cg``: print the CG estimate (text or ``--json``); returns 0."""
+    res, rb, rd = run_cg(args)
+    d = res.to_dict()
+    d["baseline"], d["dummy"] = str(rb.path), str(rd.path)
+    if args.tare is not None:
+        c, s = res.without(args.tare[0], args.tare[1:])
+        d["tare"] = {"mass": float(args.tare[0]), "center_of_gravity": [float(x) for x in args.tare[1:]]}
+        d["center_of_gravity_without_tare"] = [float(x) for x in c]
+        d["center_of_gravity_without_tare_std"] = [float(x) for x in s]
+    if args.json:
+        print(json.dumps(d))
+        return 0
+    _print_cg(res, d, rb)
+    return 0
+
+
+def _print_cg(res, d: dict, rb) -> None:
+    truth = rb.truth.get("center_of_gravity") if isinstance(rb.truth, dict) else None
+    for s in res.states:
+        print(f"{s.label:9s} averaged {s.window[1] - s.window[0]:.1f} s; tilt rpy "
+              + ", ".join(f"{math.degrees(a):+.4f}" for a in s.rpy) + " deg; tensions "
+              + ", ".join(f"{t:.1f}" for t in s.tensions) + " N")
+    print(f"streams: {', '.join(res.streams)}; fit χ² = {res.chi2:.1f} for {res.dof} degrees of freedom")
+    head = f"{'CG (body frame)':16s} {'value m':>10s} {'std mm':>8s}"
+    if truth is not None:
+        head += f" {'truth m':>10s} {'error mm':>9s} {'err/std':>8s}"
+    print(head)
+    for i, a in enumerate("xyz"):
+        line = f"{a:16s} {res.center_of_gravity[i]:10.5f} {res.center_of_gravity_std[i] * 1e3:8.3f}"
+        if truth is not None:
+            e = res.center_of_gravity[i] - float(truth[i])
+            line += f" {float(truth[i]):10.5f} {e * 1e3:+9.3f} {e / res.center_of_gravity_std[i]:+8.2f}"
+        print(line)
+    if truth is not None:
+        print("(truth from truth.yaml, shown for comparison only)")
+    if "center_of_gravity_without_tare" in d:
+        c, s = d["center_of_gravity_without_tare"], d["center_of_gravity_without_tare_std"]
+        print(f"without the tare ({d['tare']['mass']:g} kg): " + ", ".join(f"{x:.5f}" for x in c) + " m, std "
+              + ", ".join(f"{x * 1e3:.3f}" for x in s) + " mm")
+    line = f"mass: {res.mass:.2f} kg (scale)"
+    if res.mass_from_load_cells is not None:
+        line += f"; load cells {res.mass_from_load_cells:.3f} ± {res.mass_from_load_cells_std:.3f} kg"
+    if res.load_cell_gain is not None:
+        line += f"; load-cell gain {res.load_cell_gain:.5f} ± {res.load_cell_gain_std:.5f} (from the dummy mass)"
+    print(line)
+    if res.cable_compliance is not None:
+        k = (f"{res.cable_stiffness:.4g} ± {res.cable_stiffness_std:.2g} N/m" if res.cable_stiffness is not None
+             else "not significantly extensible")
+        print(f"cable stiffness (fitted): {k}")
+    w = res.weakly_determined
+    print("note: " + w["text"])
+    print("note: inputs taken as exact: a 1 mm error of the dummy's position would move the CG by "
+          + ", ".join(f"{x * 1e3:.2f}" for x in w["dummy_position_1mm"]) + " mm (x, y, z); a 0.1 mm error of one "
+          "cable's length by up to " + ", ".join(f"{x * 1e3:.2f}" for x in w["cable_length_0.1mm"])
+          + " mm (give their uncertainty with --dummy-position-std, --length-std)")
+    for x in res.warnings:
+        print("warning: " + x)
+
+
+# --- cg-plan -------------------------------------------------------------------------------------
+
+def add_cg_plan_parser(subparsers) -> argparse.ArgumentParser:
+    """Add the ``cg-plan`` sub-command (experiment design of the static test); returns it."""
+    p = subparsers.add_parser("cg-plan", help="predict the CG uncertainty of a planned static test and "
+                                              "recommend one reaching ±2.5 mm",
+                              description="Experiment design for the static CG test: predicted CG σ of a "
+                                          "planned test and a recommended plan.")
+    p.add_argument("rig", help="rig.yaml file, an experiment file (config/cases/*.yaml), or a recording folder "
+                               "(its rig.yaml; its data give the noise)")
+    p.add_argument("--cg-guess", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="assumed CG, body frame m (default: rig.yaml's, else 1 m below the body anchors' centroid)")
+    p.add_argument("--dummy-mass", type=_positive("--dummy-mass"), metavar="KG",
+                   help="planned dummy mass (default: rig.yaml dummy_mass)")
+    p.add_argument("--dummy-position", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="planned dummy position, body frame m (default: rig.yaml dummy_mass)")
+    p.add_argument("--duration", type=_positive("--duration"), default=10.0, metavar="S",
+                   help="planned averaging time per state, s (default 10)")
+    p.add_argument("--masses", type=_positive("--masses"), nargs="+", metavar="KG",
+                   help="dummy masses to consider (default 25 50 100 200)")
+    p.add_argument("--position", type=float, nargs=3, action="append", metavar=("X", "Y", "Z"),
+                   help="a dummy position to consider, body frame m (repeatable; default: the body "
+                        "anchors and the corners 1 m below them)")
+    p.add_argument("--target-mm", type=_positive("--target-mm"), default=2.5, metavar="MM",
+                   help="required half-width of the 95 %% interval (1.96 σ) on every coordinate, mm")
+    p.add_argument("--max-duration", type=_positive("--max-duration"), default=600.0, metavar="S",
+                   help="longest acceptable averaging time per state, s (default 600)")
+    p.add_argument("--noise-from", metavar="RECORDING", help="measure the sensor noise in this static recording")
+    p.add_argument("--load-cell-noise", type=_nonneg("--load-cell-noise"), metavar="N", help="σ per sample, N")
+    p.add_argument("--inclinometer-noise", type=_nonneg("--inclinometer-noise"), metavar="RAD",
+                   help="σ per sample, rad")
+    p.add_argument("--load-cell-rate", type=_positive("--load-cell-rate"), metavar="HZ")
+    p.add_argument("--inclinometer-rate", type=_positive("--inclinometer-rate"), metavar="HZ")
+    _add_common(p)
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=cmd_cg_plan)
+    return p
+
+
+def _load_rig_or_experiment(path: Path):
+    """A rig.yaml, or the ``rig`` of an experiment file (config/cases/*.yaml: its CG is the guess)."""
+    import yaml
+    try:
+        d = yaml.safe_load(path.read_text())
+    except OSError as e:
+        raise RigError(f"{path}: cannot read the rig description ({e.strerror})") from None
+    except yaml.YAMLError:
+        d = None
+    if isinstance(d, dict) and "rig" in d and "gravity" not in d:
+        from .simulator import ExperimentError, load_experiment
+        try:
+            return load_experiment(path).rig
+        except ExperimentError as e:
+            raise RigError(str(e)) from None
+    return load_rig(path)
+
+
+def cmd_cg_plan(args) -> int:
+    """``rig-identify cg-plan``: predicted σ of the planned test and the recommended plan; returns 0."""
+    src = Path(args.rig)
+    noise = SensorNoise()
+    noise_src = "defaults (the reference recordings' sensors)"
+    if src.is_dir():
+        rig = load_rig(src / "rig.yaml") if (src / "rig.yaml").exists() else None
+        if rig is None:
+            raise RecordingError(f"{src}: no rig.yaml in the recording folder")
+        if args.noise_from is None and (src / "bag").exists():
+            args.noise_from = str(src)
+    else:
+        rig = _load_rig_or_experiment(src)
+    if args.noise_from is not None:
+        rec = read_recording(args.noise_from)
+        noise = SensorNoise.from_state(StaticState.from_window(rec.sensors, label=str(rec.path), allow_motion=True))
+        noise_src = f"measured in {rec.path}"
+    kw = {}
+    for a, k in (("load_cell_noise", "load_cell"), ("inclinometer_noise", "inclinometer"),
+                 ("load_cell_rate", "rate_load_cells"), ("inclinometer_rate", "rate_inclinometer")):
+        if getattr(args, a) is not None:
+            kw[k] = getattr(args, a)
+    if kw:
+        from dataclasses import replace
+        noise = replace(noise, **kw)
+        noise_src += " (with command-line overrides)"
+    if args.cg_guess is not None:
+        guess = np.array(args.cg_guess, float)
+    elif rig.center_of_gravity is not None:
+        guess = rig.center_of_gravity
+    else:
+        guess = rig.body_anchors.mean(0) - np.array([0.0, 0.0, 1.0])
+    if (args.dummy_mass is None) != (args.dummy_position is None) and rig.dummy_mass is None:
+        raise StaticsError("--dummy-mass and --dummy-position go together when rig.yaml has no dummy_mass")
+    planned = None
+    if args.dummy_mass is not None or args.dummy_position is not None or rig.dummy_mass is not None:
+        m = args.dummy_mass if args.dummy_mass is not None else rig.dummy_mass.mass
+        pos = args.dummy_position if args.dummy_position is not None else rig.dummy_mass.position
+        planned = DummyMass(float(m), np.array(pos, float))
+    opts = _options(args)
+    target = args.target_mm * 1e-3
+    out: dict = {"cg_guess": [float(x) for x in guess], "target_half_width_95": target,
+                 "noise": {k: float(v) for k, v in vars(noise).items()}, "noise_source": noise_src}
+    if planned is not None:
+        r = predict_cg_std(rig, guess, planned, args.duration, noise, opts)
+        out["planned"] = {"dummy_mass": planned.mass, "dummy_position": [float(x) for x in planned.position],
+                          "duration": args.duration, "center_of_gravity_std": [float(x) for x in r.center_of_gravity_std],
+                          "half_width_95": [float(1.96 * x) for x in r.center_of_gravity_std],
+                          "reaches_target": bool(np.all(1.96 * r.center_of_gravity_std <= target)),
+                          "tilt_change_rad": r.weakly_determined["tilt_change_rad"]}
+    best, plans = plan_static_test(rig, guess, masses=args.masses or (25.0, 50.0, 100.0, 200.0),
+                                   positions=args.position, target=target, noise=noise,
+                                   max_duration=args.max_duration, options=opts)
+    out["recommended"] = None if best is None else best.to_dict()
+    out["candidates"] = [p.to_dict() for p in sorted(plans, key=lambda p: (not p.reaches_target, p.duration,
+                                                                            p.dummy.mass))]
+    if args.json:
+        print(json.dumps(out))
+        return 0
+    print(f"rig: {rig.source}; assumed CG {', '.join(f'{x:.3f}' for x in guess)} m (body); sensor noise {noise_src}: "
+          f"load cells {noise.load_cell:.3g} N at {noise.rate_load_cells:.0f} Hz, inclinometer "
+          f"{noise.inclinometer:.3g} rad at {noise.rate_inclinometer:.0f} Hz")
+    if opts.dummy_position_std or opts.length_std:
+        print(f"systematic: dummy position σ {opts.dummy_position_std * 1e3:g} mm, cable lengths σ "
+              f"{opts.length_std * 1e3:g} mm")
+    if planned is not None:
+        p = out["planned"]
+        print(f"planned: {planned.mass:g} kg at {', '.join(f'{x:.3f}' for x in planned.position)} m, "
+              f"{args.duration:g} s per state: CG σ " + ", ".join(f"{x * 1e3:.3f}" for x in p["center_of_gravity_std"])
+              + " mm, ±" + ", ".join(f"{x * 1e3:.2f}" for x in p["half_width_95"]) + " mm (95 %) -> "
+              + ("reaches" if p["reaches_target"] else "does NOT reach") + f" ±{args.target_mm:g} mm")
+    print(f"{'mass kg':>8s} {'position m':>24s} {'time s':>7s} {'σ x mm':>7s} {'σ y mm':>7s} {'σ z mm':>7s} "
+          f"{'tilt mrad':>9s} {'ok':>3s}")
+    for p in out["candidates"][:12]:
+        print(f"{p['dummy_mass']:8.1f} {'(' + ', '.join(f'{x:.2f}' for x in p['dummy_position']) + ')':>24s} "
+              f"{p['duration']:7.0f} " + " ".join(f"{x * 1e3:7.3f}" for x in p["center_of_gravity_std"])
+              + f" {p['tilt_change_rad'] * 1e3:9.2f} {'yes' if p['reaches_target'] else 'no':>3s}")
+    if best is None:
+        print(f"no candidate reaches ±{args.target_mm:g} mm within {args.max_duration:g} s per state: "
+              "use a heavier dummy, positions farther out, or better sensors")
+    else:
+        print(f"recommended: {best.dummy.mass:g} kg at ({', '.join(f'{x:.3f}' for x in best.dummy.position)}) m, "
+              f"average {best.duration:g} s per state: ±" + ", ".join(f"{1.96 * x * 1e3:.2f}" for x in best.std)
+              + f" mm (95 %) on x, y, z")
+    return 0
+
+
+def cg_main(argv=None) -> int:
+    """Stand-alone entry (until ``rig-identify`` wires the sub-commands): ``python -m
+    rig_identification.cg_cli cg|cg-plan ...``."""
+    import sys
+    ap = argparse.ArgumentParser(prog="rig-identify")
+    sub = ap.add_subparsers(dest="command", required=True)
+    add_cg_parser(sub)
+    add_cg_plan_parser(sub)
+    args = ap.parse_args(argv)
+    try:
+        return args.func(args)
+    except USER_ERRORS as e:
+        print(f"rig-identify: error: {e}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":  # pragma: no cover
+    import sys
+    sys.exit(cg_main())
