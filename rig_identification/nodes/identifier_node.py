@@ -1,0 +1,316 @@
+"""identifier: buffers the gyro and the generalized wrench; fits the inertia tensor on request.
+
+Thin node around rig_identification.identification.InertiaIdentifier (the same fit as
+the offline ``rig-identify``).
+
+Parameters (the window ones are read at each request; set them with ros2 param set):
+  rig (string, required)   path of the rig description (rig.yaml, with body.center_of_gravity)
+  window_start (double, unset)  window start, s after the first IMU sample received
+  window_end (double, unset)    window end, s after the first IMU sample (unset: the latest sample)
+  window_last (double, unset)   only the last N s of the window
+  settle (double, 5.0)     the window never starts before this many s after the first IMU
+                           sample (tracker convergence; as rig-identify)
+  min_duration (double, 10.0)  refuse to fit a window shorter than this, s
+  band_hz (double[2], [] = auto)  pass band of the fit, Hz
+  block_s, iterations      identify_inertia parameters (defaults: the core's)
+  max_seconds (double)     seconds of data kept in the buffer (InertiaIdentifier default)
+  debug_fit_delay (double, 0.0)  testing aid: each fit takes this much longer, s
+  input_reliability (string, reliable)  reliable | best_effort (QoS of the subscriptions)
+  executor (string, events)  executor of the data node (events | single)
+
+Subscribes (RELIABLE, KEEP_ALL):
+  /rig/imu                 sensor_msgs/Imu, frame imu (gyro, rad/s)
+  /rig/generalized_wrench  geometry_msgs/WrenchStamped, frame body (torque about the CG, N·m)
+
+Services (std_srvs/Trigger; ``message`` is JSON):
+  ~/identify_inertia  fit over the window; success=true: InertiaResult.to_dict() plus
+                      "received" counts; success=false: {"error": "..."} (too little data,
+                      no motion, or "busy" while another fit runs)
+  ~/estimate_cg       success=false, {"error": "not implemented yet ..."}
+  ~/status            buffered samples: {"imu": n, "wrench": n, "duration": s, "busy": bool, ...}
+  (served by the helper node ``<name>_services`` under this node's name, see below)
+
+Publishes:
+  /rig/mass_properties  geometry_msgs/InertiaStamped after each successful fit, frame body,
+                        stamp = window end: m kg, com = CG m, ixx..izz kg·m² (tensor entries).
+                        RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1 (a late subscriber receives it)
+  /diagnostics          message counts
+
+Threading: the subscriptions run on the EventsExecutor in the main thread.  The rclpy
+7.1.6 EventsExecutor ignores callback groups, runs only one callback at a time and cannot
+run ``async`` service callbacks (rclpy issue #1473, fixed in 7.1.11), so a fit inside a
+service callback would stop the message flow.  The services therefore live on a second
+node (``<name>_services``, service names ``/<name>/identify_inertia`` ...) spun by a
+MultiThreadedExecutor in a background thread with a ReentrantCallbackGroup: a fit runs
+in its own thread while the main thread keeps receiving, and a second request during a
+fit is answered "busy" at once.  The fit runs on a snapshot of the buffer taken under a
+lock, so incoming samples never wait for it.
+"""
+from __future__ import annotations
+
+import copy
+import math
+import sys
+import threading
+import time
+
+import rclpy
+from rclpy.node import Node
+from rcl_interfaces.msg import ParameterDescriptor
+
+from . import common
+from .common import LATCHED_QOS
+
+
+class IdentifierNode(Node):
+    """Node ``identifier``: buffers gyro + wrench, fits on request (see the module docstring)."""
+
+    def __init__(self):
+        super().__init__("identifier")
+        from geometry_msgs.msg import InertiaStamped, WrenchStamped
+        from sensor_msgs.msg import Imu
+
+        from ..identification import InertiaIdentifier, identify_inertia
+        self.declare_parameter("rig", "")
+        self.declare_parameter("executor", "events")
+        dyn = ParameterDescriptor(dynamic_typing=True,
+                                  description="seconds after the first IMU sample; unset = no limit")
+        for name in ("window_start", "window_end", "window_last"):
+            self.declare_parameter(name, None, dyn)
+        self.declare_parameter("settle", 5.0)
+        self.declare_parameter("min_duration", 10.0)
+        self.declare_parameter("band_hz", None, ParameterDescriptor(
+            dynamic_typing=True, description="[low, high] Hz pass band of the fit; unset or [] = automatic"))
+        self.declare_parameter("debug_fit_delay", 0.0)
+        self.fit_params = common.core_params(self, identify_inertia, skip=("rig", "t", "omega_body", "torque"))
+        buf_params = common.core_params(self, InertiaIdentifier.__init__, skip=("self", "rig"))
+        qos_in = common.input_qos(self)
+        rig = common.load_rig_param(self)
+        self.rig = rig
+        self.identifier = InertiaIdentifier(rig, **buf_params)
+        self.lock = threading.Lock()
+        self.busy = threading.Lock()
+        self.t_first_imu: float | None = None
+        self.t_last_wrench: float | None = None
+        self.n_imu = self.n_wrench = 0
+        self.guard = common.InputGuard(self)
+        self.diag = common.Diagnostics(self, self.guard, extra=self._diag_extra)
+        self.pub = self.create_publisher(InertiaStamped, common.MASS_PROPERTIES_TOPIC, LATCHED_QOS)
+        self.create_subscription(Imu, common.IMU_TOPIC, self.on_imu, qos_in)
+        self.create_subscription(WrenchStamped, common.WRENCH_TOPIC, self.on_wrench, qos_in)
+        self.service_node = IdentifierServices(self)
+        self.get_logger().info(f"ready: rig {rig.source}; services {self.get_fully_qualified_name()}/"
+                               "identify_inertia, estimate_cg, status")
+
+    # --- data --------------------------------------------------------------------------
+    def on_imu(self, msg) -> None:
+        w = msg.angular_velocity
+        t = self.guard.accept(common.IMU_TOPIC, msg.header, common.IMU_FRAME, (w.x, w.y, w.z))
+        if t is None:
+            return
+        with self.lock:
+            try:
+                self.identifier.add_imu(t, (w.x, w.y, w.z))
+            except ValueError as e:
+                self.guard.core_error(common.IMU_TOPIC, e)
+                return
+            if self.t_first_imu is None:
+                self.t_first_imu = t
+            self.n_imu += 1
+
+    def on_wrench(self, msg) -> None:
+        from ..preprocessor import Wrench
+        f, tq = msg.wrench.force, msg.wrench.torque
+        vals = (f.x, f.y, f.z, tq.x, tq.y, tq.z)
+        t = self.guard.accept(common.WRENCH_TOPIC, msg.header, common.BODY_FRAME, vals)
+        if t is None:
+            return
+        import numpy as np
+        with self.lock:
+            try:
+                self.identifier.add_wrench(Wrench(t, np.array(vals[:3]), np.array(vals[3:])))
+            except ValueError as e:
+                self.guard.core_error(common.WRENCH_TOPIC, e)
+                return
+            self.t_last_wrench = t
+            self.n_wrench += 1
+
+    def _diag_extra(self) -> dict:
+        return {"buffered imu": self.n_imu, "buffered wrench": self.n_wrench, "busy": self.busy.locked()}
+
+    def status(self) -> dict:
+        with self.lock:
+            d = {"imu": self.n_imu, "wrench": self.n_wrench, "t_first_imu": self.t_first_imu,
+                 "t_last_wrench": self.t_last_wrench, "busy": self.busy.locked()}
+        d["duration"] = (d["t_last_wrench"] - d["t_first_imu"]) if d["t_last_wrench"] and d["t_first_imu"] else 0.0
+        return d
+
+    # --- the fit -------------------------------------------------------------------------
+    def _seconds(self, name: str) -> float | None:
+        v = self.get_parameter(name).value
+        if v is None or v == "":
+            return None
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ValueError(f"parameter {name} = {v!r}: expected a number of seconds (or unset)")
+        return float(v)
+
+    def identify(self) -> dict:
+        """Fit over the configured window (runs in a service thread).  Returns the result
+        dict; raises ValueError (IdentificationError, bad parameters) with a clear message."""
+        from geometry_msgs.msg import InertiaStamped
+        start, end, last = (self._seconds(n) for n in ("window_start", "window_end", "window_last"))
+        settle = float(self.get_parameter("settle").value)
+        min_duration = float(self.get_parameter("min_duration").value)
+        band = self.get_parameter("band_hz").value
+        params = dict(self.fit_params)
+        for name in params:
+            params[name] = self.get_parameter(name).value
+        if band is not None and not (hasattr(band, "__len__") and len(band) == 0):
+            try:
+                lo_hz, hi_hz = (float(x) for x in band)
+                ok = 0 < lo_hz < hi_hz
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ValueError(f"parameter band_hz = {band!r}: expected [low, high] Hz with 0 < low < high")
+            params["band_hz"] = (lo_hz, hi_hz)
+        with self.lock:  # snapshot: lists copied, samples (never mutated) shared
+            if self.t_first_imu is None or self.t_last_wrench is None:
+                raise ValueError("no data received yet (are the sensor driver, tracker and preprocessor running?)")
+            snap = copy.copy(self.identifier)
+            for k, v in vars(snap).items():
+                if isinstance(v, list):
+                    setattr(snap, k, list(v))
+            t0, t_last = self.t_first_imu, self.t_last_wrench
+            received = {"imu": self.n_imu, "wrench": self.n_wrench}
+        snap.fit_params = params
+        lo = t0 + max(start if start is not None else 0.0, settle)
+        hi = t_last if end is None else min(t0 + end, t_last)
+        if last is not None:
+            lo = max(lo, hi - last)
+        if hi - lo < min_duration:
+            raise ValueError(f"the window holds {max(hi - lo, 0.0):.1f} s of data "
+                             f"({lo - t0:.1f} to {hi - t0:.1f} s after the first IMU sample); "
+                             f"min_duration is {min_duration:g} s: wait for more data or widen the window")
+        t_fit = time.monotonic()
+        result = snap.identify(start=lo, end=hi)
+        delay = float(self.get_parameter("debug_fit_delay").value)
+        if delay > 0:
+            time.sleep(delay)
+        d = result.to_dict()
+        d["window"]["start_relative"] = d["window"]["start"] - t0
+        d["window"]["end_relative"] = d["window"]["end"] - t0
+        d["received"] = received
+        d["fit_seconds"] = time.monotonic() - t_fit
+        msg = InertiaStamped()
+        common.set_stamp(msg.header, result.t_end, common.BODY_FRAME)
+        msg.inertia.m = float(result.mass)
+        common.set_xyz(msg.inertia.com, result.center_of_gravity)
+        J = result.inertia
+        i = msg.inertia
+        i.ixx, i.ixy, i.ixz = float(J[0, 0]), float(J[0, 1]), float(J[0, 2])
+        i.iyy, i.iyz, i.izz = float(J[1, 1]), float(J[1, 2]), float(J[2, 2])
+        self.pub.publish(msg)
+        self.get_logger().info(f"identified: Ixx {J[0, 0]:.1f} Iyy {J[1, 1]:.1f} Izz {J[2, 2]:.1f} kg m^2 "
+                               f"over {result.t_end - result.t_start:.1f} s ({result.n_samples} samples)")
+        return d
+
+
+class IdentifierServices(Node):
+    """The identifier's services, on their own node and executor thread (see module docstring)."""
+
+    def __init__(self, owner: IdentifierNode):
+        super().__init__(f"{owner.get_name()}_services", namespace=owner.get_namespace(),
+                         context=owner.context, start_parameter_services=False)
+        from rclpy.callback_groups import ReentrantCallbackGroup
+        from std_srvs.srv import Trigger
+        self.owner = owner
+        base = owner.get_fully_qualified_name()
+        group = ReentrantCallbackGroup()
+        self.create_service(Trigger, f"{base}/identify_inertia", self.on_identify, callback_group=group)
+        self.create_service(Trigger, f"{base}/estimate_cg", self.on_estimate_cg, callback_group=group)
+        self.create_service(Trigger, f"{base}/status", self.on_status, callback_group=group)
+        self._thread: threading.Thread | None = None
+        self._stop = threading.Event()
+
+    def start(self) -> None:
+        self._thread = threading.Thread(target=self._spin, name="identifier-services", daemon=True)
+        self._thread.start()
+
+    def _spin(self) -> None:
+        from rclpy.executors import MultiThreadedExecutor
+        ex = MultiThreadedExecutor(num_threads=3, context=self.context)
+        ex.add_node(self)
+        try:
+            while self.context.ok() and not self._stop.is_set():
+                ex.spin_once(timeout_sec=0.2)
+        except Exception:  # context shut down under our feet
+            if self.context.ok():
+                raise
+        finally:
+            ex.shutdown(timeout_sec=1.0)
+
+    def stop(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=3.0)
+
+    def on_identify(self, request, response):
+        from ..identification import IdentificationError
+        if not self.owner.busy.acquire(blocking=False):
+            response.success = False
+            response.message = common.to_json({"error": "busy: a fit is already running; call again when it ends"})
+            return response
+        try:
+            d = self.owner.identify()
+            response.success = True
+            response.message = common.to_json(d)
+        except (IdentificationError, ValueError) as e:
+            self.owner.get_logger().warn(f"identify_inertia: {e}")
+            response.success = False
+            response.message = common.to_json({"error": str(e)})
+        except Exception as e:  # a bug in the fit must not kill the node
+            self.owner.get_logger().error(f"identify_inertia failed: {type(e).__name__}: {e}")
+            response.success = False
+            response.message = common.to_json({"error": f"internal error: {type(e).__name__}: {e}"})
+        finally:
+            self.owner.busy.release()
+        return response
+
+    def on_estimate_cg(self, request, response):
+        response.success = False
+        response.message = common.to_json({"error": "not implemented yet: the static centre-of-gravity "
+                                                    "estimate is not available in the node"})
+        return response
+
+    def on_status(self, request, response):
+        response.success = True
+        response.message = common.to_json(self.owner.status())
+        return response
+
+
+def main(argv=None) -> int:
+    argv = common.handle_help(argv, "identifier", __doc__)
+    rclpy.init(args=argv)
+    node = None
+    try:
+        try:
+            node = IdentifierNode()
+        except (ValueError, OSError) as e:
+            print(f"identifier: error: {e}", file=sys.stderr)
+            return 2
+        node.service_node.start()
+        common.spin(node)
+        return 0
+    except KeyboardInterrupt:
+        return 0
+    finally:
+        if node is not None:
+            node.service_node.stop()
+            node.service_node.destroy_node()
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == "__main__":
+    sys.exit(main())

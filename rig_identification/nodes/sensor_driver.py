@@ -1,0 +1,354 @@
+"""sensor_driver: publishes the rig's sensor streams from a simulation or a recording.
+
+Source (one of):
+  experiment (string)  experiment YAML simulated at start-up with simulator.simulate;
+                       default (both empty): the package's config/rigs/default.yaml
+  recording (string)   recording folder (rig.yaml + bag/ [+ truth.yaml]) replayed
+
+Parameters:
+  rate (double, 1.0)          real-time factor of the replay (2.0 = twice as fast)
+  duration (double, 0.0)      > 0: simulate / replay only the first DURATION s of data
+  restamp (bool, false)       shift the header stamps so that the first sample is "now"
+  rig_out (string, "")        write the rig description (rig.yaml) here before publishing
+  wait_for (string[], [])     start publishing only once these topics have subscribers:
+                              "TOPIC" (>= 1) or "TOPIC:COUNT"; "PREFIX*:COUNT" applies to each
+                              own topic with that prefix.  Counted as readers matched by the
+                              writer (DDS level, not the ROS graph, which can show a reader
+                              seconds before its writer has matched it and then the first
+                              samples are lost): own topics from the own writers, other
+                              topics from the "matched TOPIC" value that this package's
+                              nodes publish on /diagnostics for their writers
+  wait_timeout (double, 60.0) give up waiting after this many seconds (then publish anyway)
+  start_delay (double, 0.5)   pause after the subscribers are there (endpoint matching settles)
+  publish_period (double, 0.01) timer period, s: each tick publishes every sample whose
+                              stamp is due, in stamp order
+  exit_when_done (bool, false) exit once everything is published (else stay up: latched topics)
+  executor (string, events)   events | single
+
+Publishes (stamps = the data's header stamps):
+  /rig/imu                 sensor_msgs/Imu, frame imu: gyro rad/s, specific force m/s^2,
+                           orientation_covariance[0] = -1
+  /rig/load_cells/<cable>  geometry_msgs/WrenchStamped, frame load_cell_<cable>: force.z = tension N
+  /rig/exciter/wrench      geometry_msgs/WrenchStamped, frame exciter: force.x, force.y N
+  /rig/inclinometer        geometry_msgs/Vector3Stamped, frame inclinometer: elevations rad
+    (all RELIABLE, VOLATILE, KEEP_ALL: no sample is lost; a reliable reader that falls behind
+    slows the replay down (back-pressure); BEST_EFFORT readers match too)
+  /rig/sim_truth           std_msgs/String JSON of truth.yaml (if any), latched (TRANSIENT_LOCAL)
+  /rig/sensor_driver/status std_msgs/String JSON {"state": "loading|waiting|publishing|done",
+                           "total": {topic: n}, "published": {topic: n}, ...}, latched
+  /diagnostics             message counts
+"""
+from __future__ import annotations
+
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from rclpy.node import Node
+from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.task import Future
+
+from . import common
+from .common import LATCHED_QOS, SENSOR_QOS
+
+
+class _Stream:
+    """One topic's samples, prepared for fast publishing."""
+
+    def __init__(self, topic: str, publisher, msg, fill, t: np.ndarray, data: np.ndarray):
+        self.topic, self.publisher, self.msg, self.fill = topic, publisher, msg, fill
+        self.t = np.asarray(t, float)
+        self.rows = np.asarray(data, float).reshape(len(self.t), -1).tolist()
+        self.published = 0
+
+    def stamps(self, offset: float):
+        t = self.t + offset
+        sec = np.floor(t)
+        nsec = np.rint((t - sec) * 1e9)
+        over = nsec >= 1e9
+        sec[over] += 1
+        nsec[over] -= 1e9
+        self.sec, self.nsec = sec.astype(np.int64).tolist(), nsec.astype(np.int64).tolist()
+
+
+class SensorDriver(Node):
+    """Publish simulated or recorded sensor streams in real time (times ``rate``)."""
+
+    def __init__(self):
+        super().__init__("sensor_driver")
+        p = self.declare_parameter
+        p("experiment", "")
+        p("recording", "")
+        p("rate", 1.0)
+        p("duration", 0.0)
+        p("restamp", False)
+        p("rig_out", "")
+        p("wait_for", None, ParameterDescriptor(dynamic_typing=True, description="TOPIC[:COUNT] list"))
+        p("wait_timeout", 60.0)
+        p("start_delay", 0.5)
+        p("publish_period", 0.01)
+        p("exit_when_done", False)
+        p("executor", "events")
+        get = lambda n: self.get_parameter(n).value  # noqa: E731
+        self.rate = float(get("rate"))
+        if not self.rate > 0:
+            raise ValueError(f"parameter rate = {self.rate}: must be > 0")
+        self.restamp = bool(get("restamp"))
+        self.wait_for = [w for w in (get("wait_for") or []) if w]
+        self.wait_timeout = float(get("wait_timeout"))
+        self.start_delay = float(get("start_delay"))
+        self.exit_when_done = bool(get("exit_when_done"))
+        self.stop_future = Future()
+        self.exit_code = 0
+
+        from std_msgs.msg import String
+        self.status_pub = self.create_publisher(String, common.DRIVER_STATUS_TOPIC, LATCHED_QOS)
+        self.truth_pub = self.create_publisher(String, common.TRUTH_TOPIC, LATCHED_QOS)
+        self.guard = common.InputGuard(self)
+        self.diag = common.Diagnostics(self, self.guard, extra=self._diag_values)
+        from diagnostic_msgs.msg import DiagnosticArray
+        self._matched: dict[str, dict[str, int]] = {}  # topic -> {node: matched readers}
+        if self.wait_for:
+            self._diag_sub = self.create_subscription(DiagnosticArray, common.DIAGNOSTICS_TOPIC, self._on_diag,
+                                                      common.DIAGNOSTICS_QOS)
+        self.state = "loading"
+        self.source = ""
+        self._publish_status()
+
+        rig, sensors, truth = self._load(get("experiment"), get("recording"), float(get("duration")))
+        self.rig = rig
+        if get("rig_out"):
+            from ..rig import dump_rig
+            out = Path(get("rig_out"))
+            out.parent.mkdir(parents=True, exist_ok=True)
+            tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
+            tmp.write_text(dump_rig(rig, f"rig description published by sensor_driver ({self.source})"))
+            os.replace(tmp, out)  # atomic: readers never see half a file
+            self.get_logger().info(f"wrote the rig description to {out}")
+        if truth is not None:
+            self.truth_pub.publish(String(data=common.to_json(truth)))
+        self.streams = self._make_streams(rig, sensors)
+        # merged publication order: by stamp, ties in stream order (as recording.sensor_messages)
+        t_all = np.concatenate([s.t for s in self.streams])
+        k_all = np.concatenate([np.full(len(s.t), k) for k, s in enumerate(self.streams)])
+        i_all = np.concatenate([np.arange(len(s.t)) for s in self.streams])
+        order = np.lexsort((k_all, t_all))
+        self.ev_t = t_all[order].tolist()
+        self.ev_k = k_all[order].tolist()
+        self.ev_i = i_all[order].tolist()
+        self.n_events = len(self.ev_t)
+        self.next = 0
+        self.stalls = 0  # publish attempts refused by a full KEEP_ALL writer (back-pressure)
+        self.t_first = self.ev_t[0]
+        self.total = {s.topic: len(s.t) for s in self.streams}
+        self._t_wait = time.monotonic()
+        self._t_ready = None
+        self._last_status = 0.0
+        self.state = "waiting" if self.wait_for else "publishing"
+        if self.state == "publishing":
+            self._begin()
+        else:
+            self.get_logger().info("waiting for subscribers: " + ", ".join(self.wait_for))
+        self._publish_status()
+        self.timer = self.create_timer(float(get("publish_period")), self._tick)
+
+    # --- source ------------------------------------------------------------------------
+    def _load(self, experiment: str, recording: str, duration: float):
+        if experiment and recording:
+            raise ValueError("give either parameter experiment or recording, not both")
+        if recording:
+            from ..recording import read_recording
+            rec = read_recording(recording)
+            for w in rec.warnings:
+                self.get_logger().warn(w)
+            self.source = f"recording {recording}"
+            sensors = rec.sensors
+            if duration > 0:
+                sensors = _cut(sensors, sensors.t_start + duration)
+            self.get_logger().info(f"replaying {self.source}: {sensors.t_end - sensors.t_start:.1f} s of data")
+            return rec.rig, sensors, rec.truth
+        from ..simulator import load_experiment, simulate
+        path = experiment or str(common.default_experiment())
+        exp = load_experiment(path)
+        if duration > 0:
+            exp = exp.with_overrides(duration=duration)
+        self.source = f"simulation of {path}"
+        self.get_logger().info(f"simulating {path} ({exp.static.duration if exp.static else exp.duration:.0f} s)...")
+        sim = simulate(exp)
+        self.get_logger().info(f"simulated in {sim.wall_time:.1f} s")
+        return sim.rig, sim.sensors, sim.truth
+
+    def _make_streams(self, rig, sensors) -> list[_Stream]:
+        from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+        from sensor_msgs.msg import Imu
+        streams = []
+
+        def pub(topic, mtype):
+            return self.create_publisher(mtype, topic, SENSOR_QOS)
+
+        imu = Imu()
+        imu.header.frame_id = common.IMU_FRAME
+        imu.orientation.w = 1.0
+        imu.orientation_covariance[0] = -1.0
+
+        def fill_imu(m, r):
+            av, la = m.angular_velocity, m.linear_acceleration
+            av.x, av.y, av.z, la.x, la.y, la.z = r
+        streams.append(_Stream(common.IMU_TOPIC, pub(common.IMU_TOPIC, Imu), imu, fill_imu,
+                               sensors.imu.t, sensors.imu.data))
+
+        def fill_tension(m, r):
+            m.wrench.force.z = r[0]
+        for name in rig.cable_names:
+            topic = common.LOAD_CELL_PREFIX + name
+            m = WrenchStamped()
+            m.header.frame_id = common.load_cell_frame(name)
+            s = sensors.load_cells[name]
+            streams.append(_Stream(topic, pub(topic, WrenchStamped), m, fill_tension, s.t, s.data))
+        if sensors.exciter is not None:
+            m = WrenchStamped()
+            m.header.frame_id = common.EXCITER_FRAME
+
+            def fill_exc(m, r):
+                f = m.wrench.force
+                f.x, f.y = r
+            streams.append(_Stream(common.EXCITER_TOPIC, pub(common.EXCITER_TOPIC, WrenchStamped), m, fill_exc,
+                                   sensors.exciter.t, sensors.exciter.data))
+        if sensors.inclinometer is not None:
+            m = Vector3Stamped()
+            m.header.frame_id = common.INCLINOMETER_FRAME
+
+            def fill_incl(m, r):
+                m.vector.x, m.vector.y = r
+            streams.append(_Stream(common.INCLINOMETER_TOPIC, pub(common.INCLINOMETER_TOPIC, Vector3Stamped), m,
+                                   fill_incl, sensors.inclinometer.t, sensors.inclinometer.data))
+        return streams
+
+    # --- publishing ----------------------------------------------------------------------
+    def _ready(self) -> bool:
+        own = {s.topic: s.publisher for s in self.streams}
+        for w in self.wait_for:
+            topic, _, n = w.partition(":")
+            need = int(n) if n else 1
+            if topic.endswith("*"):  # every own topic with this prefix
+                topics = [t for t in own if t.startswith(topic[:-1])]
+            else:
+                topics = [topic]
+            for tp in topics:
+                have = own[tp].get_subscription_count() if tp in own else \
+                    max(self._matched.get(tp, {}).values(), default=0)
+                if have < need:
+                    return False
+        return True
+
+    def _on_diag(self, msg) -> None:
+        for st in msg.status:
+            for kv in st.values:
+                if kv.key.startswith("matched "):
+                    try:
+                        self._matched.setdefault(kv.key[8:], {})[st.name] = int(kv.value)
+                    except ValueError:
+                        pass
+
+    def _begin(self) -> None:
+        offset = 0.0
+        if self.restamp:
+            offset = self.get_clock().now().nanoseconds * 1e-9 - self.t_first
+        for s in self.streams:
+            s.stamps(offset)
+        self.state = "publishing"
+        self.wall0 = time.monotonic()
+        self.get_logger().info(f"publishing {self.n_events} messages on {len(self.streams)} topics "
+                               f"({self.ev_t[-1] - self.t_first:.1f} s of data at {self.rate:g}x real time)")
+
+    def _tick(self) -> None:
+        now = time.monotonic()
+        if self.state == "waiting":
+            if self._t_ready is None:
+                if self._ready():
+                    self._t_ready = now
+                elif now - self._t_wait > self.wait_timeout:
+                    self.get_logger().warn(f"subscribers still missing after {self.wait_timeout:.0f} s; "
+                                           "publishing anyway")
+                    self._t_ready = now
+            if self._t_ready is not None and now - self._t_ready >= self.start_delay:
+                self._begin()
+                self._publish_status()
+            return
+        if self.state != "publishing":
+            return
+        target = self.t_first + (now - self.wall0) * self.rate
+        ev_t, ev_k, ev_i, streams = self.ev_t, self.ev_k, self.ev_i, self.streams
+        i, n = self.next, self.n_events
+        while i < n and ev_t[i] <= target:
+            s = streams[ev_k[i]]
+            j = ev_i[i]
+            m = s.msg
+            st = m.header.stamp
+            st.sec = s.sec[j]
+            st.nanosec = s.nsec[j]
+            s.fill(m, s.rows[j])
+            try:
+                s.publisher.publish(m)
+            except Exception:  # a slow reliable reader holds the writer full: retry next tick
+                self.next = i
+                self.stalls += 1
+                return
+            s.published += 1
+            i += 1
+        self.next = i
+        if i >= n:
+            self.state = "done"
+            wall = now - self.wall0
+            self.achieved = {"wall_seconds": wall, "rate": (self.ev_t[-1] - self.t_first) / max(wall, 1e-9),
+                             "back_pressure_stalls": self.stalls}
+            self.get_logger().info(f"done: published {n} messages in {wall:.1f} s "
+                                   f"({self.achieved['rate']:.2f}x real time)")
+            self._publish_status()
+            if self.exit_when_done:
+                self.stop_future.set_result(True)
+        elif now - self._last_status > 1.0:
+            self._publish_status()
+
+    def _diag_values(self) -> dict:
+        d = {"state": self.state, "back-pressure stalls": getattr(self, "stalls", 0)}
+        for s in getattr(self, "streams", []):
+            d[f"tx {s.topic}"] = s.published
+        return d
+
+    def _publish_status(self) -> None:
+        from std_msgs.msg import String
+        self._last_status = time.monotonic()
+        d = {"state": self.state, "source": self.source, "rate": self.rate}
+        if hasattr(self, "streams"):
+            d["total"] = self.total
+            d["published"] = {s.topic: s.published for s in self.streams}
+            d["t_start"] = self.t_first
+            d["t_end"] = self.ev_t[-1]
+            d["cables"] = self.rig.cable_names
+        if getattr(self, "achieved", None):
+            d["achieved"] = self.achieved
+        self.status_pub.publish(String(data=common.to_json(d)))
+
+
+def _cut(sensors, t_end: float):
+    """SensorData restricted to stamps <= t_end."""
+    from ..recording import SensorData, TimeSeries
+
+    def cut(s):
+        if s is None:
+            return None
+        m = s.t <= t_end
+        return TimeSeries(s.t[m], s.data[m])
+    return SensorData(cut(sensors.imu), {k: cut(v) for k, v in sensors.load_cells.items()},
+                      cut(sensors.exciter), cut(sensors.inclinometer))
+
+
+def main(argv=None) -> int:
+    return common.run(SensorDriver, argv, "sensor_driver", __doc__)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,474 @@
+"""The node graph as separate processes over DDS (a private ROS_DOMAIN_ID, localhost only).
+
+One replay serves every test of this module (fixture ``graph``): 30 s of the default
+experiment are simulated here (so that the true motion is known), written as a recording,
+and replayed by sensor_driver at 3x real time to tracker, preprocessor and identifier.
+This process listens to every topic.  The identifier runs with ``debug_fit_delay`` so that
+a fit lasts long enough to be interrupted by a second request.
+"""
+from __future__ import annotations
+
+import json
+import math
+import random
+import subprocess
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+from scipy.spatial.transform import Rotation
+
+rclpy = pytest.importorskip("rclpy")
+
+from rig_identification.nodes import common  # noqa: E402
+from rig_identification.nodes.demo import Graph  # noqa: E402
+from rig_identification.recording import write_recording  # noqa: E402
+from rig_identification.simulator import load_experiment, simulate  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[1]
+DURATION = 30.0
+RATE = 3.0
+FIT_DELAY = 2.0
+KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+
+
+class Listener:
+    """rclpy in this process (own context, EventsExecutor in a thread): records every topic."""
+
+    def __init__(self, domain_id: int, cables: list[str], executor: str = "events"):
+        from diagnostic_msgs.msg import DiagnosticArray
+        from geometry_msgs.msg import InertiaStamped, Vector3Stamped, WrenchStamped
+        from nav_msgs.msg import Odometry
+        from rclpy.signals import SignalHandlerOptions
+        from sensor_msgs.msg import Imu
+        from std_msgs.msg import String
+        self.ctx = rclpy.Context()
+        rclpy.init(context=self.ctx, domain_id=domain_id, signal_handler_options=SignalHandlerOptions.NO)
+        self.node = rclpy.create_node("test_listener", context=self.ctx)
+        self.lock = threading.Lock()
+        self.counts: dict[str, int] = {}
+        self.poses: list[tuple] = []
+        self.frames: dict[str, set] = {}
+        self.status: dict = {}
+        self.diag: dict[str, dict] = {}
+        self.diag_times: dict[str, list[float]] = {}
+        self.truth: dict = {}
+        topics = {common.IMU_TOPIC: Imu, common.EXCITER_TOPIC: WrenchStamped,
+                  common.INCLINOMETER_TOPIC: Vector3Stamped, common.WRENCH_TOPIC: WrenchStamped}
+        topics.update({common.LOAD_CELL_PREFIX + c: WrenchStamped for c in cables})
+        for topic, mtype in topics.items():
+            self.node.create_subscription(mtype, topic, lambda m, t=topic: self._count(t, m), common.SENSOR_QOS)
+        self.node.create_subscription(Odometry, common.POSE_TOPIC, self._pose, common.SENSOR_QOS)
+        self.node.create_subscription(String, common.DRIVER_STATUS_TOPIC,
+                                      lambda m: setattr(self, "status", json.loads(m.data)), common.LATCHED_QOS)
+        self.node.create_subscription(String, common.TRUTH_TOPIC,
+                                      lambda m: setattr(self, "truth", json.loads(m.data)), common.LATCHED_QOS)
+        self.node.create_subscription(DiagnosticArray, common.DIAGNOSTICS_TOPIC, self._diag, common.DIAGNOSTICS_QOS)
+        self.InertiaStamped = InertiaStamped
+        if executor == "events":
+            from rclpy.experimental import EventsExecutor
+            self.executor = EventsExecutor(context=self.ctx)
+        else:
+            from rclpy.executors import SingleThreadedExecutor
+            self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self):
+        from rclpy.task import Future
+        never = Future()
+        while not self._stop.is_set() and self.ctx.ok():
+            self.executor.spin_until_future_complete(never, timeout_sec=0.1)
+
+    def _count(self, topic, msg):
+        with self.lock:
+            self.counts[topic] = self.counts.get(topic, 0) + 1
+            self.frames.setdefault(topic, set()).add(msg.header.frame_id)
+
+    def _pose(self, m):
+        p, q, tw = m.pose.pose.position, m.pose.pose.orientation, m.twist.twist
+        with self.lock:
+            self.counts[common.POSE_TOPIC] = self.counts.get(common.POSE_TOPIC, 0) + 1
+            self.frames.setdefault(common.POSE_TOPIC, set()).add((m.header.frame_id, m.child_frame_id))
+            self.poses.append((common.stamp_to_sec(m.header.stamp), p.x, p.y, p.z, q.x, q.y, q.z, q.w,
+                               tw.angular.x, tw.angular.y, tw.angular.z, tw.linear.x, tw.linear.y, tw.linear.z))
+
+    def _diag(self, msg):
+        for st in msg.status:
+            self.diag[st.name] = common.diagnostic_values(st)
+            self.diag_times.setdefault(st.name, []).append(time.monotonic())
+
+    def call(self, service: str, timeout: float = 60.0):
+        """Call a std_srvs/Trigger service from a fresh client; returns the response."""
+        from std_srvs.srv import Trigger
+        cli = self.node.create_client(Trigger, service)
+        try:
+            assert cli.wait_for_service(timeout_sec=20.0), f"service {service} not available"
+            fut = cli.call_async(Trigger.Request())
+            end = time.monotonic() + timeout
+            while not fut.done() and time.monotonic() < end:
+                time.sleep(0.02)
+            assert fut.done(), f"no answer from {service} within {timeout} s"
+            return fut.result()
+        finally:
+            self.node.destroy_client(cli)
+
+    def close(self):
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self.node.destroy_node()
+        self.ctx.try_shutdown()
+
+
+def wait_until(cond, timeout: float, what: str, graph: Graph | None = None, step: float = 0.1, info=None):
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if cond():
+            return
+        if graph is not None and graph.dead():
+            dead = graph.dead()
+            pytest.fail(f"node(s) {dead} died while waiting for {what}:\n"
+                        + "\n".join(graph.log(n)[-3000:] for n in dead))
+        time.sleep(step)
+    logs = "" if graph is None else "\n".join(f"--- {n}:\n{graph.log(n)[-1500:]}" for n in graph.procs)
+    pytest.fail(f"timed out after {timeout} s waiting for {what}\n{info() if info else ''}\n{logs}")
+
+
+@pytest.fixture(scope="module")
+def sim():
+    exp = load_experiment(REPO / "config" / "rigs" / "default.yaml").with_overrides(duration=DURATION)
+    return simulate(exp)
+
+
+@pytest.fixture(scope="module")
+def graph(sim, tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("graph")
+    rec = write_recording(tmp / "recording", sim.rig, sim.sensors, sim.truth)
+    g = Graph(workdir=tmp / "nodes", domain_id=random.Random().randint(100, 199))
+    rig = str(rec / "rig.yaml")
+    listener = Listener(g.domain_id, sim.rig.cable_names)
+    try:
+        g.start("sensor_driver", {"recording": str(rec), "rate": RATE, "start_delay": 1.0, "wait_timeout": 60.0,
+                                  "wait_for": ["/rig/imu:3", "/rig/load_cells/*:3", "/rig/exciter/wrench:3",
+                                               "/rig/inclinometer:2", "/rig/pose:2", "/rig/generalized_wrench:2"]})
+        g.start("tracker", {"rig": rig})
+        g.start("preprocessor", {"rig": rig})
+        g.start("identifier", {"rig": rig, "debug_fit_delay": FIT_DELAY, "min_duration": 10.0})
+        state = lambda: (f"driver status {listener.status}\nlistener counts {listener.counts}\n"  # noqa: E731
+                         f"diagnostics {listener.diag}")
+        wait_until(lambda: listener.status.get("state") == "done", 120.0, "the driver to finish", g, info=state)
+        total = listener.status["total"]
+
+        def drained():
+            d, c = listener.diag, listener.counts
+            wrenches = d.get("/preprocessor", {}).get("tx /rig/generalized_wrench", -1)
+            poses = d.get("/tracker", {}).get("tx /rig/pose", -1)
+            return (d.get("/identifier", {}).get("rx /rig/generalized_wrench") == wrenches
+                    and d.get("/tracker", {}).get("rx /rig/imu") == total[common.IMU_TOPIC]
+                    and c.get(common.WRENCH_TOPIC) == wrenches and c.get(common.POSE_TOPIC) == poses
+                    and all(c.get(t) == n for t, n in total.items()))
+        # every node (and this listener) has processed everything
+        wait_until(drained, 120.0, "the pipeline to drain", g, info=state)
+        time.sleep(1.0)
+        yield g, listener, sim, rec
+    finally:
+        listener.close()
+        codes = g.stop()
+        print("exit codes:", codes)
+
+
+def test_every_topic_arrives_without_drops(graph):
+    g, lis, sim, rec = graph
+    total = lis.status["total"]
+    s = sim.sensors
+    expected = {common.IMU_TOPIC: len(s.imu), common.EXCITER_TOPIC: len(s.exciter),
+                common.INCLINOMETER_TOPIC: len(s.inclinometer)}
+    expected.update({common.LOAD_CELL_PREFIX + n: len(v) for n, v in s.load_cells.items()})
+    assert total == expected
+    assert lis.status["published"] == expected
+    for topic, n in expected.items():
+        assert lis.counts.get(topic) == n, f"{topic}: listener got {lis.counts.get(topic)} of {n}"
+    # each node received every message it subscribes to, none rejected
+    for node, topics in {"/tracker": list(expected), "/preprocessor": [t for t in expected if t != common.IMU_TOPIC
+                                                                       and t != common.INCLINOMETER_TOPIC],
+                         "/identifier": [common.IMU_TOPIC]}.items():
+        d = lis.diag[node]
+        for topic in topics:
+            assert d[f"rx {topic}"] == expected[topic], (node, topic, d)
+            assert d[f"rejected {topic}"] == 0, (node, topic, d)
+    # derived streams: one pose per IMU sample after the tracker's initialisation, no loss downstream
+    poses_tx = lis.diag["/tracker"]["tx /rig/pose"]
+    assert expected[common.IMU_TOPIC] - 25 <= poses_tx < expected[common.IMU_TOPIC]
+    assert lis.counts[common.POSE_TOPIC] == poses_tx
+    assert lis.diag["/preprocessor"]["rx /rig/pose"] == poses_tx
+    wrench_tx = lis.diag["/preprocessor"]["tx /rig/generalized_wrench"]
+    assert wrench_tx >= poses_tx - 5
+    assert lis.counts[common.WRENCH_TOPIC] == wrench_tx
+    assert lis.diag["/identifier"]["rx /rig/generalized_wrench"] == wrench_tx
+    # frames of RECORDING_FORMAT.md
+    assert lis.frames[common.IMU_TOPIC] == {"imu"}
+    assert lis.frames[common.EXCITER_TOPIC] == {"exciter"}
+    assert lis.frames[common.INCLINOMETER_TOPIC] == {"inclinometer"}
+    assert lis.frames[common.LOAD_CELL_PREFIX + "c0"] == {"load_cell_c0"}
+    assert lis.frames[common.WRENCH_TOPIC] == {"body"}
+    assert lis.frames[common.POSE_TOPIC] == {("world", "body")}
+
+
+def test_pose_matches_simulated_truth(graph):
+    g, lis, sim, rec = graph
+    with lis.lock:
+        P = np.array(lis.poses)
+    st = sim.states
+    idx = np.searchsorted(st.t, P[:, 0] - 1e-6)
+    assert np.allclose(st.t[idx], P[:, 0], atol=1e-6), "pose stamps are not the IMU stamps"
+    late = P[:, 0] - st.t[0] > 5.0  # the complementary filters have converged
+    dp = P[:, 1:4] - st.position[idx]
+    R_true = Rotation.from_quat(st.quaternion[idx])
+    R_est = Rotation.from_quat(P[:, 4:8])
+    dr = (R_true.inv() * R_est).magnitude()
+    print(f"pose errors after 5 s: position {np.abs(dp[late]).max():.2e} m, orientation {dr[late].max():.2e} rad, "
+          f"omega {np.abs(P[late, 8:11] - st.omega[idx][late]).max():.2e} rad/s, "
+          f"velocity {np.abs(P[late, 11:14] - R_true.inv().apply(st.velocity[idx])[late]).max():.2e} m/s")
+    assert np.abs(dp[late]).max() < 5e-3, np.abs(dp[late]).max(0)
+    assert dr[late].max() < 2e-3, dr[late].max()
+    # twist: angular = body rates (the gyro, noise 0.002 rad/s); linear = body-axes velocity
+    assert np.abs(P[late, 8:11] - st.omega[idx][late]).max() < 0.015  # ~7 sigma of the gyro noise
+    v_body_true = R_true.inv().apply(st.velocity[idx])
+    assert np.abs(P[late, 11:14] - v_body_true[late]).max() < 0.01
+    # the body really moved: the comparison is not trivial
+    assert np.ptp(st.position[idx][late], axis=0).max() > 5e-3
+
+
+def test_identify_service_returns_json(graph):
+    g, lis, sim, rec = graph
+    r = lis.call("/identifier/identify_inertia")
+    assert r.success, r.message
+    d = json.loads(r.message)
+    for key in ("mass", "center_of_gravity", "inertia_about_cg", "inertia_std", "frame", "window", "received"):
+        assert key in d, key
+    assert d["frame"] == "body"
+    assert set(d["inertia_about_cg"]) == set(KEYS) == set(d["inertia_std"])
+    assert d["mass"] == pytest.approx(sim.truth["mass"])
+    truth = sim.truth["inertia_about_cg"]
+    for k in ("ixx", "iyy", "izz"):
+        assert d["inertia_about_cg"][k] == pytest.approx(truth[k], rel=0.03), k
+    assert d["window"]["start_relative"] == pytest.approx(5.0, abs=0.05)  # settle
+    assert d["received"]["wrench"] == lis.diag["/preprocessor"]["tx /rig/generalized_wrench"]
+
+
+def core_in_stamp_order(rig, sensors, settle: float) -> dict:
+    """The streaming core classes fed in header-stamp order in this process (no ROS): what the
+    nodes must reproduce (ties as tracker.track: inclinometer, tensions, IMU, exciter)."""
+    from rig_identification.identification import InertiaIdentifier
+    from rig_identification.preprocessor import WrenchPreprocessor
+    from rig_identification.tracker import PoseTracker
+    tr, pp, idf = PoseTracker(rig), WrenchPreprocessor(rig), InertiaIdentifier(rig)
+    names = rig.cable_names
+    ev = [(t, 2, 0, i) for i, t in enumerate(sensors.imu.t)]
+    ev += [(t, 1, k, i) for k, n in enumerate(names) for i, t in enumerate(sensors.load_cells[n].t)]
+    ev += [(t, 3, 0, i) for i, t in enumerate(sensors.exciter.t)]
+    ev += [(t, 0, 0, i) for i, t in enumerate(sensors.inclinometer.t)]
+    ev.sort()
+    group = {}
+    for t, kind, k, i in ev:
+        ws = []
+        if kind == 2:
+            idf.add_imu(t, sensors.imu.data[i, :3])
+            pose = tr.add_imu(t, sensors.imu.data[i, :3], sensors.imu.data[i, 3:])
+            ws = pp.add_pose(pose) if pose is not None else []
+        elif kind == 1:
+            v = float(sensors.load_cells[names[k]].data[i, 0])
+            group[names[k]] = v
+            if len(group) == len(names):
+                tr.add_tensions(t, group)
+                group = {}
+            ws = pp.add_tension(names[k], t, v)
+        elif kind == 3:
+            if not tr.initialised:
+                tr.add_exciter(t, sensors.exciter.data[i])
+            ws = pp.add_exciter(t, *sensors.exciter.data[i])
+        else:
+            tr.add_inclinometer(t, sensors.inclinometer.data[i])
+        for w in ws:
+            idf.add_wrench(w)
+    return idf.identify(start=float(sensors.imu.t[0]) + settle).to_dict()
+
+
+def test_nodes_reproduce_the_core_fed_in_stamp_order(graph):
+    """Arrival order over DDS differs from stamp order; the tracker node merges its inputs by
+    stamp, so the graph gives the same tensor as the core classes run in one process."""
+    g, lis, sim, rec = graph
+    node = json.loads(lis.call("/identifier/identify_inertia").message)
+    ref = core_in_stamp_order(sim.rig, sim.sensors, 5.0)
+    for k in KEYS:
+        assert node["inertia_about_cg"][k] == pytest.approx(ref["inertia_about_cg"][k], rel=1e-6, abs=1e-6), k
+    assert node["window"]["samples"] == ref["window"]["samples"]
+
+
+def test_mass_properties_latched_for_a_late_subscriber(graph):
+    g, lis, sim, rec = graph
+    r = lis.call("/identifier/identify_inertia")
+    assert r.success, r.message
+    d = json.loads(r.message)
+    got = []
+    sub = lis.node.create_subscription(lis.InertiaStamped, common.MASS_PROPERTIES_TOPIC, got.append,
+                                       common.LATCHED_QOS)
+    try:
+        wait_until(lambda: got, 10.0, "the latched /rig/mass_properties")
+    finally:
+        lis.node.destroy_subscription(sub)
+    m = got[-1]
+    assert m.header.frame_id == "body"
+    assert m.inertia.m == pytest.approx(d["mass"])
+    assert [m.inertia.com.x, m.inertia.com.y, m.inertia.com.z] == pytest.approx(d["center_of_gravity"])
+    for k in KEYS:
+        assert getattr(m.inertia, k) == pytest.approx(d["inertia_about_cg"][k]), k
+    assert common.stamp_to_sec(m.header.stamp) == pytest.approx(d["window"]["end"], abs=1e-6)
+
+
+def test_second_call_during_a_fit_is_answered_busy(graph):
+    g, lis, sim, rec = graph
+    out = {}
+    t0 = time.monotonic()
+    first = threading.Thread(target=lambda: out.setdefault("first", lis.call("/identifier/identify_inertia")))
+    first.start()
+    time.sleep(0.7)  # the first fit is running (it lasts FIT_DELAY s longer than the fit)
+    n_diag = len(lis.diag_times.get("/identifier", []))
+    t1 = time.monotonic()
+    second = lis.call("/identifier/identify_inertia", timeout=FIT_DELAY)
+    answered = time.monotonic() - t1
+    assert not second.success
+    assert "busy" in json.loads(second.message)["error"]
+    assert answered < FIT_DELAY * 0.75, f"the busy answer took {answered:.2f} s"
+    status = json.loads(lis.call("/identifier/status").message)
+    assert status["busy"] is True
+    first.join(timeout=60)
+    assert out["first"].success, out["first"].message
+    assert time.monotonic() - t0 >= FIT_DELAY
+    # the node's main executor kept running during the fit (its 1 Hz diagnostics went on)
+    assert len(lis.diag_times["/identifier"]) > n_diag
+
+
+def test_estimate_cg_answers_not_implemented(graph):
+    g, lis, sim, rec = graph
+    r = lis.call("/identifier/estimate_cg")
+    assert not r.success
+    assert "not implemented" in json.loads(r.message)["error"]
+
+
+def test_client_prints_the_table_with_truth(graph):
+    g, lis, sim, rec = graph
+    p = subprocess.run([sys.executable, "-m", "rig_identification.nodes.client", "--timeout", "20"],
+                       env=g.env, capture_output=True, text=True, timeout=90)
+    assert p.returncode == 0, p.stdout + p.stderr
+    out = p.stdout
+    for word in ("Ixx", "Iyz", "Izz", "mass", "truth", "error", "% of the largest true diagonal"):
+        assert word in out, (word, out)
+    assert "not implemented" in out  # the CG service's answer is reported
+    row = next(line for line in out.splitlines() if line.startswith("Ixx"))
+    assert f"{sim.truth['inertia_about_cg']['ixx']:.2f}" in row
+    pj = subprocess.run([sys.executable, "-m", "rig_identification.nodes.client", "--json", "--timeout", "20"],
+                        env=g.env, capture_output=True, text=True, timeout=90)
+    assert pj.returncode == 0, pj.stderr
+    assert set(json.loads(pj.stdout)["inertia_about_cg"]) == set(KEYS)
+
+
+def test_client_reports_a_missing_identifier(graph):
+    g, lis, sim, rec = graph
+    p = subprocess.run([sys.executable, "-m", "rig_identification.nodes.client", "--identifier", "/nobody",
+                        "--timeout", "1"], env=g.env, capture_output=True, text=True, timeout=60)
+    assert p.returncode == 2
+    assert "/nobody/identify_inertia not available" in p.stderr
+
+
+def test_malformed_messages_are_dropped_and_nodes_survive(graph):
+    from geometry_msgs.msg import WrenchStamped
+    from nav_msgs.msg import Odometry
+    from sensor_msgs.msg import Imu
+    g, lis, sim, rec = graph
+    node = lis.node
+    before = {n: dict(lis.diag[n]) for n in ("/tracker", "/preprocessor", "/identifier")}
+    t_last = float(sim.sensors.imu.t[-1])
+    pubs = {t: node.create_publisher(m, t, common.SENSOR_QOS) for t, m in
+            ((common.IMU_TOPIC, Imu), (common.WRENCH_TOPIC, WrenchStamped), (common.POSE_TOPIC, Odometry),
+             (common.LOAD_CELL_PREFIX + "c0", WrenchStamped))}
+    wait_until(lambda: all(p.get_subscription_count() >= 1 for p in pubs.values()), 10.0, "test publishers to match")
+
+    def imu(t, frame="imu", gx=0.0):
+        m = Imu()
+        common.set_stamp(m.header, t, frame)
+        m.angular_velocity.x = gx
+        m.linear_acceleration.z = 9.8
+        m.orientation_covariance[0] = -1.0
+        return m
+    pubs[common.IMU_TOPIC].publish(imu(t_last + 1.0, gx=math.nan))         # NaN
+    pubs[common.IMU_TOPIC].publish(imu(t_last + 1.0, frame="camera"))      # wrong frame
+    pubs[common.IMU_TOPIC].publish(imu(t_last - 10.0))                     # stamp going backwards
+    w = WrenchStamped()
+    common.set_stamp(w.header, t_last + 1.0, "body")
+    w.wrench.torque.y = math.inf
+    pubs[common.WRENCH_TOPIC].publish(w)                                   # inf torque
+    o = Odometry()
+    common.set_stamp(o.header, t_last + 1.0, "world")
+    o.child_frame_id = "base_link"
+    o.pose.pose.orientation.w = 1.0
+    pubs[common.POSE_TOPIC].publish(o)                                     # wrong child frame
+    c = WrenchStamped()
+    common.set_stamp(c.header, t_last - 5.0, "load_cell_c0")
+    pubs[common.LOAD_CELL_PREFIX + "c0"].publish(c)                        # stamp going backwards
+
+    def rejected(node_name, topic):
+        return lis.diag[node_name].get(f"rejected {topic}", 0) - before[node_name].get(f"rejected {topic}", 0)
+    wait_until(lambda: rejected("/tracker", common.IMU_TOPIC) == 3
+               and rejected("/identifier", common.IMU_TOPIC) == 3
+               and rejected("/identifier", common.WRENCH_TOPIC) == 1
+               and rejected("/preprocessor", common.POSE_TOPIC) == 1
+               and rejected("/preprocessor", common.LOAD_CELL_PREFIX + "c0") == 1
+               and rejected("/tracker", common.LOAD_CELL_PREFIX + "c0") == 1, 15.0, "the rejections", g)
+    assert not g.dead()
+    assert "dropped a malformed message on /rig/imu" in g.log("tracker")
+    # still serving, with the same data as before
+    r = lis.call("/identifier/identify_inertia")
+    assert r.success, r.message
+    assert json.loads(r.message)["received"]["imu"] == lis.status["total"][common.IMU_TOPIC]
+    for p in pubs.values():
+        node.destroy_publisher(p)
+
+
+def test_nodes_stop_cleanly_on_sigint(graph):
+    g, lis, sim, rec = graph
+    codes = g.stop(grace=10.0)
+    assert codes == {"sensor_driver": 0, "tracker": 0, "preprocessor": 0, "identifier": 0}, codes
+
+
+def test_nodes_refuse_a_bad_rig_description(tmp_path):
+    bad = tmp_path / "rig.yaml"
+    bad.write_text(yaml.safe_dump({"gravity": 9.81, "cables": []}))
+    for module in ("tracker_node", "preprocessor_node", "identifier_node"):
+        p = subprocess.run([sys.executable, "-m", f"rig_identification.nodes.{module}", "--ros-args",
+                            "-p", f"rig:={bad}"], env=common.ros_env(random.Random().randint(200, 230)),
+                           capture_output=True, text=True, timeout=60)
+        assert p.returncode == 2, (module, p.stderr)
+        assert "cables" in p.stderr and "Traceback" not in p.stderr, (module, p.stderr)
+
+
+def test_stamp_merger_orders_streams_and_does_not_wait_for_a_silent_one():
+    m = common.StampMerger(["a", "b"], max_delay=1.0)
+    assert m.push("a", 1.0, 2, "a1") == []          # b has said nothing yet
+    assert m.push("a", 1.1, 2, "a2") == []
+    out = m.push("b", 1.05, 1, "b1")                # b reached 1.05: a1 and b1 can go
+    assert [e[4] for e in out] == ["a1", "b1"]
+    out = m.push("b", 1.1, 1, "b2")                 # equal stamps: lower rank first
+    assert [e[4] for e in out] == ["b2", "a2"]
+    assert m.push("a", 1.0, 2, "late") is None      # older than what was handed on
+    # b goes silent: a is released once it is max_delay ahead
+    assert m.push("a", 1.5, 2, "a3") == []
+    assert [e[4] for e in m.push("a", 2.6, 2, "a4")] == ["a3"]
+    m.drop_stream("b")
+    assert [e[4] for e in m.push("a", 2.7, 2, "a5")] == ["a4", "a5"]
