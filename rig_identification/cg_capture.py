@@ -85,11 +85,12 @@ class CgSession:
             cells[n] = s
         return SensorData(imu, cells, self._exc.series(), self._incl.series())
 
-    def capture(self, which: str) -> StaticState:
-        """Capture the ``"baseline"`` or ``"dummy"`` state from the buffered window."""
+    def capture(self, which: str, data: SensorData | None = None) -> StaticState:
+        """Capture the ``"baseline"`` or ``"dummy"`` state from the buffered window (or from
+        ``data``, a :meth:`sensor_data` snapshot taken earlier, e.g. under a node's lock)."""
         if which not in ("baseline", "dummy"):
             raise ValueError(f"unknown state {which!r} (baseline or dummy)")
-        data = self.sensor_data()
+        data = self.sensor_data() if data is None else data
         span = data.imu.t[-1] - data.imu.t[0]
         if span < 0.5 * self.seconds:
             raise StaticsError(f"only {span:.1f} s of data buffered; wait {self.seconds:.0f} s at rest before "

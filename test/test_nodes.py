@@ -355,11 +355,11 @@ def test_second_call_during_a_fit_is_answered_busy(graph):
     assert len(lis.diag_times["/identifier"]) > n_diag
 
 
-def test_estimate_cg_answers_not_implemented(graph):
+def test_estimate_cg_asks_for_the_static_states_first(graph):
     g, lis, sim, rec = graph
     r = lis.call("/identifier/estimate_cg")
     assert not r.success
-    assert "not implemented" in json.loads(r.message)["error"]
+    assert "capture the baseline and dummy" in json.loads(r.message)["error"]
 
 
 def test_client_prints_the_table_with_truth(graph):
@@ -370,7 +370,7 @@ def test_client_prints_the_table_with_truth(graph):
     out = p.stdout
     for word in ("Ixx", "Iyz", "Izz", "mass", "truth", "error", "% of the largest true diagonal"):
         assert word in out, (word, out)
-    assert "not implemented" in out  # the CG service's answer is reported
+    assert "capture the baseline" in out  # the CG service's answer is reported
     row = next(line for line in out.splitlines() if line.startswith("Ixx"))
     assert f"{sim.truth['inertia_about_cg']['ixx']:.2f}" in row
     pj = subprocess.run([sys.executable, "-m", "rig_identification.nodes.client", "--json", "--timeout", "20"],

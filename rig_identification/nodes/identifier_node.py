@@ -15,24 +15,37 @@ Parameters (the window ones are read at each request; set them with ros2 param s
   block_s, iterations      identify_inertia parameters (defaults: the core's)
   max_seconds (double)     seconds of data kept in the buffer (InertiaIdentifier default)
   debug_fit_delay (double, 0.0)  testing aid: each fit takes this much longer, s
+  cg_capture_seconds (double, 10.0)  averaging window of a static CG state, s
+  dummy_mass (double, unset), dummy_position (double[3], unset)  the dummy mass, kg, and the
+                           body-frame position of its CG, m, if rig.yaml has no dummy_mass
+  (rig.yaml may omit body.center_of_gravity: then only the CG services work, and
+  identify_inertia says to put the estimated CG into rig.yaml first)
   input_reliability (string, reliable)  reliable | best_effort (QoS of the subscriptions)
   executor (string, events)  executor of the data node (events | single)
 
 Subscribes (RELIABLE, KEEP_ALL):
-  /rig/imu                 sensor_msgs/Imu, frame imu (gyro, rad/s)
+  /rig/imu                 sensor_msgs/Imu, frame imu (gyro, rad/s; specific force for the CG states)
   /rig/generalized_wrench  geometry_msgs/WrenchStamped, frame body (torque about the CG, N·m)
+  /rig/load_cells/<cable>, /rig/exciter/wrench, /rig/inclinometer  raw streams of the static
+                           CG experiment (averaged on capture)
 
 Services (std_srvs/Trigger; ``message`` is JSON):
   ~/identify_inertia  fit over the window; success=true: InertiaResult.to_dict() plus
                       "received" counts; success=false: {"error": "..."} (too little data,
                       no motion, or "busy" while another fit runs)
-  ~/estimate_cg       success=false, {"error": "not implemented yet ..."}
+  ~/capture_cg_baseline  the static CG experiment, step 1: average the last
+                      cg_capture_seconds of the raw streams with the body at rest (no dummy)
+  ~/capture_cg_dummy  step 2: the same with the dummy mass fixed (rig.yaml dummy_mass, or the
+                      dummy_mass / dummy_position parameters)
+  ~/estimate_cg       step 3: the CG from the two states (rig_identification.statics, as
+                      ``rig-identify cg``); success=true: CgResult.to_dict(); publishes it
   ~/status            buffered samples: {"imu": n, "wrench": n, "duration": s, "busy": bool, ...}
   (served by the helper node ``<name>_services`` under this node's name, see below)
 
 Publishes:
-  /rig/mass_properties  geometry_msgs/InertiaStamped after each successful fit, frame body,
-                        stamp = window end: m kg, com = CG m, ixx..izz kg·m² (tensor entries).
+  /rig/mass_properties  geometry_msgs/InertiaStamped after each successful fit or CG
+                        estimate, frame body: m kg, com = CG m (the estimate after
+                        estimate_cg), ixx..izz kg·m² (tensor entries; zero until identified).
                         RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1 (a late subscriber receives it)
   /diagnostics          message counts
 
@@ -87,7 +100,13 @@ class IdentifierNode(Node):
         qos_in = common.input_qos(self)
         rig = common.load_rig_param(self)
         self.rig = rig
-        self.identifier = InertiaIdentifier(rig, **buf_params)
+        self.identifier = InertiaIdentifier(rig, **buf_params) if rig.center_of_gravity is not None else None
+        self.declare_parameter("cg_capture_seconds", 10.0)
+        self.declare_parameter("dummy_mass", None, ParameterDescriptor(dynamic_typing=True))
+        self.declare_parameter("dummy_position", None, ParameterDescriptor(dynamic_typing=True))
+        self.cg_session = self._new_cg_session()
+        self.last_inertia = None
+        self.last_cg = rig.center_of_gravity
         self.lock = threading.Lock()
         self.busy = threading.Lock()
         self.t_first_imu: float | None = None
@@ -98,19 +117,29 @@ class IdentifierNode(Node):
         self.pub = self.create_publisher(InertiaStamped, common.MASS_PROPERTIES_TOPIC, LATCHED_QOS)
         self.create_subscription(Imu, common.IMU_TOPIC, self.on_imu, qos_in)
         self.create_subscription(WrenchStamped, common.WRENCH_TOPIC, self.on_wrench, qos_in)
+        from geometry_msgs.msg import Vector3Stamped
+        for name in rig.cable_names:
+            self.create_subscription(WrenchStamped, common.LOAD_CELL_PREFIX + name,
+                                     lambda m, n=name: self.on_load_cell(n, m), qos_in)
+        if rig.exciter is not None:
+            self.create_subscription(WrenchStamped, common.EXCITER_TOPIC, self.on_exciter, qos_in)
+        if rig.inclinometer is not None:
+            self.create_subscription(Vector3Stamped, common.INCLINOMETER_TOPIC, self.on_inclinometer, qos_in)
         self.service_node = IdentifierServices(self)
         self.get_logger().info(f"ready: rig {rig.source}; services {self.get_fully_qualified_name()}/"
-                               "identify_inertia, estimate_cg, status")
+                               "identify_inertia, capture_cg_baseline, capture_cg_dummy, estimate_cg, status")
 
     # --- data --------------------------------------------------------------------------
     def on_imu(self, msg) -> None:
-        w = msg.angular_velocity
-        t = self.guard.accept(common.IMU_TOPIC, msg.header, common.IMU_FRAME, (w.x, w.y, w.z))
+        w, a = msg.angular_velocity, msg.linear_acceleration
+        t = self.guard.accept(common.IMU_TOPIC, msg.header, common.IMU_FRAME, (w.x, w.y, w.z, a.x, a.y, a.z))
         if t is None:
             return
         with self.lock:
             try:
-                self.identifier.add_imu(t, (w.x, w.y, w.z))
+                self.cg_session.add_imu(t, (w.x, w.y, w.z), (a.x, a.y, a.z))
+                if self.identifier is not None:
+                    self.identifier.add_imu(t, (w.x, w.y, w.z))
             except ValueError as e:
                 self.guard.core_error(common.IMU_TOPIC, e)
                 return
@@ -126,6 +155,8 @@ class IdentifierNode(Node):
         if t is None:
             return
         import numpy as np
+        if self.identifier is None:
+            return
         with self.lock:
             try:
                 self.identifier.add_wrench(Wrench(t, np.array(vals[:3]), np.array(vals[3:])))
@@ -134,6 +165,79 @@ class IdentifierNode(Node):
                 return
             self.t_last_wrench = t
             self.n_wrench += 1
+
+    def on_load_cell(self, name: str, msg) -> None:
+        topic = common.LOAD_CELL_PREFIX + name
+        tension = msg.wrench.force.z
+        t = self.guard.accept(topic, msg.header, common.load_cell_frame(name), (tension,))
+        if t is not None:
+            self._to_cg(topic, self.cg_session.add_tension, name, t, tension)
+
+    def on_exciter(self, msg) -> None:
+        f = msg.wrench.force
+        t = self.guard.accept(common.EXCITER_TOPIC, msg.header, common.EXCITER_FRAME, (f.x, f.y))
+        if t is not None:
+            self._to_cg(common.EXCITER_TOPIC, self.cg_session.add_exciter, t, f.x, f.y)
+
+    def on_inclinometer(self, msg) -> None:
+        v = msg.vector
+        t = self.guard.accept(common.INCLINOMETER_TOPIC, msg.header, common.INCLINOMETER_FRAME, (v.x, v.y))
+        if t is not None:
+            self._to_cg(common.INCLINOMETER_TOPIC, self.cg_session.add_inclinometer, t, (v.x, v.y))
+
+    def _to_cg(self, topic, add, *args) -> None:
+        with self.lock:
+            try:
+                add(*args)
+            except ValueError as e:
+                self.guard.core_error(topic, e)
+
+    # --- the static CG experiment -----------------------------------------------------
+    def _new_cg_session(self):
+        from ..cg_capture import CgSession
+        from ..rig import DummyMass
+        dm, dp = self.get_parameter("dummy_mass").value, self.get_parameter("dummy_position").value
+        dummy = None
+        if dm is not None or dp is not None:
+            try:
+                dummy = DummyMass(float(dm), [float(x) for x in dp])
+                ok = dummy.mass > 0 and len(dummy.position) == 3
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ValueError(f"parameters dummy_mass = {dm!r}, dummy_position = {dp!r}: expected kg > 0 "
+                                 "and [x, y, z] m")
+        return CgSession(self.rig, float(self.get_parameter("cg_capture_seconds").value), dummy)
+
+    def capture_cg(self, which: str) -> dict:
+        """Capture a static state from the buffered raw streams (snapshot under the lock,
+        averaging outside it); raises ValueError/StaticsError with a clear message."""
+        with self.lock:
+            session = self.cg_session
+            data = session.sensor_data()
+        state = session.capture(which, data)
+        return {"captured": which, "seconds": float(data.imu.t[-1] - data.imu.t[0]),
+                "tensions": None if state.tensions is None else [float(x) for x in state.tensions],
+                "warnings": list(state.warnings)}
+
+    def estimate_cg(self) -> dict:
+        from geometry_msgs.msg import InertiaStamped
+        result = self.cg_session.estimate()
+        d = result.to_dict()
+        self.last_cg = result.center_of_gravity
+        msg = InertiaStamped()
+        common.set_stamp(msg.header, float(self.get_clock().now().nanoseconds) * 1e-9, common.BODY_FRAME)
+        msg.inertia.m = float(result.mass)
+        common.set_xyz(msg.inertia.com, result.center_of_gravity)
+        if self.last_inertia is not None:
+            J = self.last_inertia
+            i = msg.inertia
+            i.ixx, i.ixy, i.ixz = float(J[0, 0]), float(J[0, 1]), float(J[0, 2])
+            i.iyy, i.iyz, i.izz = float(J[1, 1]), float(J[1, 2]), float(J[2, 2])
+        self.pub.publish(msg)
+        c = result.center_of_gravity
+        self.get_logger().info(f"centre of gravity: {c[0]:.4f}, {c[1]:.4f}, {c[2]:.4f} m (body)")
+        return d
 
     def _diag_extra(self) -> dict:
         return {"buffered imu": self.n_imu, "buffered wrench": self.n_wrench, "busy": self.busy.locked()}
@@ -174,6 +278,10 @@ class IdentifierNode(Node):
             if not ok:
                 raise ValueError(f"parameter band_hz = {band!r}: expected [low, high] Hz with 0 < low < high")
             params["band_hz"] = (lo_hz, hi_hz)
+        if self.identifier is None:
+            raise ValueError(f"{self.rig.source} has no body.center_of_gravity: run the static experiment "
+                             "(capture_cg_baseline, capture_cg_dummy, estimate_cg), put the CG into rig.yaml "
+                             "and restart the tracker, preprocessor and identifier")
         with self.lock:  # snapshot: lists copied, samples (never mutated) shared
             if self.t_first_imu is None or self.t_last_wrench is None:
                 raise ValueError("no data received yet (are the sensor driver, tracker and preprocessor running?)")
@@ -211,6 +319,7 @@ class IdentifierNode(Node):
         i.ixx, i.ixy, i.ixz = float(J[0, 0]), float(J[0, 1]), float(J[0, 2])
         i.iyy, i.iyz, i.izz = float(J[1, 1]), float(J[1, 2]), float(J[2, 2])
         self.pub.publish(msg)
+        self.last_inertia = J
         self.get_logger().info(f"identified: Ixx {J[0, 0]:.1f} Iyy {J[1, 1]:.1f} Izz {J[2, 2]:.1f} kg m^2 "
                                f"over {result.t_end - result.t_start:.1f} s ({result.n_samples} samples)")
         return d
@@ -229,6 +338,12 @@ class IdentifierServices(Node):
         group = ReentrantCallbackGroup()
         self.create_service(Trigger, f"{base}/identify_inertia", self.on_identify, callback_group=group)
         self.create_service(Trigger, f"{base}/estimate_cg", self.on_estimate_cg, callback_group=group)
+        self.create_service(Trigger, f"{base}/capture_cg_baseline",
+                            lambda rq, rs: self._cg_call(rs, lambda: owner.capture_cg("baseline")),
+                            callback_group=group)
+        self.create_service(Trigger, f"{base}/capture_cg_dummy",
+                            lambda rq, rs: self._cg_call(rs, lambda: owner.capture_cg("dummy")),
+                            callback_group=group)
         self.create_service(Trigger, f"{base}/status", self.on_status, callback_group=group)
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -278,9 +393,27 @@ class IdentifierServices(Node):
         return response
 
     def on_estimate_cg(self, request, response):
-        response.success = False
-        response.message = common.to_json({"error": "not implemented yet: the static centre-of-gravity "
-                                                    "estimate is not available in the node"})
+        return self._cg_call(response, self.owner.estimate_cg)
+
+    def _cg_call(self, response, action):
+        """Run one CG step; user errors (StaticsError, ValueError) come back as JSON errors."""
+        if not self.owner.busy.acquire(blocking=False):
+            response.success = False
+            response.message = common.to_json({"error": "busy: a fit is already running; call again when it ends"})
+            return response
+        try:
+            response.message = common.to_json(action())
+            response.success = True
+        except ValueError as e:  # StaticsError is a ValueError
+            self.owner.get_logger().warn(f"centre of gravity: {e}")
+            response.success = False
+            response.message = common.to_json({"error": str(e)})
+        except Exception as e:  # a bug must not kill the node
+            self.owner.get_logger().error(f"centre of gravity failed: {type(e).__name__}: {e}")
+            response.success = False
+            response.message = common.to_json({"error": f"internal error: {type(e).__name__}: {e}"})
+        finally:
+            self.owner.busy.release()
         return response
 
     def on_status(self, request, response):

@@ -1,0 +1,83 @@
+"""The static CG experiment through the identifier node's services, over DDS.
+
+The reference static pair is replayed by sensor_driver (baseline, then the dummy state,
+restamped to "now" so that time runs on as on the rig); the test calls
+~/capture_cg_baseline, ~/capture_cg_dummy and ~/estimate_cg like a lab tool and checks the
+CG against truth.yaml and against `rig-identify cg` on the same recordings, and the
+published /rig/mass_properties.  rig.yaml has no centre of gravity (static experiment).
+"""
+from __future__ import annotations
+
+import json
+import random
+import time
+
+import numpy as np
+import pytest
+import yaml
+
+rclpy = pytest.importorskip("rclpy")
+
+from conftest import recording  # noqa: E402
+from test_nodes import Listener, wait_until  # noqa: E402
+
+from rig_identification.nodes.demo import Graph  # noqa: E402
+from rig_identification.recording import read_recording  # noqa: E402
+from rig_identification.statics import StaticState, estimate_cg  # noqa: E402
+
+WAIT_FOR = ["/rig/imu:1", "/rig/load_cells/*:1", "/rig/inclinometer:1"]
+
+
+def replay(g: Graph, lis: Listener, name: str, rec) -> None:
+    """Start a sensor_driver (process ``name``) replaying ``rec``; wait until it is done."""
+    params = g.dir / f"{name}.params.yaml"
+    params.write_text(yaml.safe_dump({"/**": {"ros__parameters": {
+        "recording": str(rec), "rate": 2.0, "restamp": True, "start_delay": 1.0, "wait_for": WAIT_FOR,
+        "wait_timeout": 60.0, "exit_when_done": True}}}))
+    g.start(name, module="rig_identification.nodes.sensor_driver", args=["--ros-args", "--params-file", str(params)])
+    wait_until(lambda: g.procs[name].poll() is not None, 90.0, f"{name} to finish")
+    assert g.procs[name].returncode == 0, g.log(name)
+    del g.procs[name]
+    time.sleep(1.0)
+
+
+def test_cg_services_on_the_reference_pair(tmp_path):
+    base_path = recording("visible_case16_static/static_baseline")
+    dummy_path = recording("visible_case16_static/static_dummy")
+    g = Graph(workdir=tmp_path / "nodes", domain_id=random.Random().randint(200, 232))
+    rig = str(base_path / "rig.yaml")
+    base = read_recording(base_path)
+    lis = Listener(g.domain_id, base.rig.cable_names)
+    try:
+        g.start("identifier", {"rig": rig, "cg_capture_seconds": 9.0})
+        early = lis.call("/identifier/estimate_cg")
+        assert not early.success and "capture the baseline and dummy" in json.loads(early.message)["error"]
+        no_cg = lis.call("/identifier/identify_inertia")
+        assert not no_cg.success and "center_of_gravity" in json.loads(no_cg.message)["error"]
+        replay(g, lis, "driver_baseline", base_path)
+        r = lis.call("/identifier/capture_cg_baseline")
+        assert r.success, r.message
+        replay(g, lis, "driver_dummy", dummy_path)
+        r = lis.call("/identifier/capture_cg_dummy")
+        assert r.success, r.message
+        got = {}
+        lis.node.create_subscription(lis.InertiaStamped, "/rig/mass_properties",
+                                     lambda m: got.setdefault("msg", m), __import__(
+                                         "rig_identification.nodes.common", fromlist=["x"]).LATCHED_QOS)
+        r = lis.call("/identifier/estimate_cg")
+        assert r.success, r.message
+        d = json.loads(r.message)
+        cg, sd = np.array(d["center_of_gravity"]), np.array(d["center_of_gravity_std"])
+        truth = np.array(base.truth["center_of_gravity"])
+        assert np.all(np.abs(cg - truth)[:2] < 1e-3) and abs(cg[2] - truth[2]) < 12e-3
+        assert np.all(np.abs(cg - truth) < 3 * sd + 1e-5)
+        offline = estimate_cg(base.rig, StaticState.from_recording(base, label="baseline"),
+                              StaticState.from_recording(read_recording(dummy_path), label="dummy"))
+        np.testing.assert_allclose(cg, offline.center_of_gravity, atol=3 * sd.max())
+        wait_until(lambda: "msg" in got, 10.0, "/rig/mass_properties")
+        com = got["msg"].inertia.com
+        np.testing.assert_allclose([com.x, com.y, com.z], cg, atol=1e-9)
+        assert got["msg"].inertia.m == pytest.approx(d["mass"])
+    finally:
+        lis.close()
+        g.stop()
