@@ -22,7 +22,7 @@ estimate; when present it is shown beside it (text output only).
 ±2.5 mm (1.96 σ) on every coordinate.  RIG is a rig.yaml file, an experiment file or a
 recording folder (whose data give the sensor noise).
 
-The lead wires these in ``rig-identify`` with :func:`add_cg_parser`,
+``rig-identify`` (cli.py) wires these in with :func:`add_cg_parser`,
 :func:`add_cg_plan_parser`; user errors raise the errors listed in :data:`USER_ERRORS`, which
 ``rig-identify`` prints as one line (exit status 2).
 """
@@ -364,24 +364,3 @@ def cmd_cg_plan(args) -> int:
               f"average {best.duration:g} s per state: ±" + ", ".join(f"{1.96 * x * 1e3:.2f}" for x in best.std)
               + f" mm (95 %) on x, y, z")
     return 0
-
-
-def cg_main(argv=None) -> int:
-    """Stand-alone entry (until ``rig-identify`` wires the sub-commands): ``python -m
-    rig_identification.cg_cli cg|cg-plan ...``."""
-    import sys
-    ap = argparse.ArgumentParser(prog="rig-identify")
-    sub = ap.add_subparsers(dest="command", required=True)
-    add_cg_parser(sub)
-    add_cg_plan_parser(sub)
-    args = ap.parse_args(argv)
-    try:
-        return args.func(args)
-    except USER_ERRORS as e:
-        print(f"rig-identify: error: {e}", file=sys.stderr)
-        return 2
-
-
-if __name__ == "__main__":  # pragma: no cover
-    import sys
-    sys.exit(cg_main())

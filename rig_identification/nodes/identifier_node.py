@@ -339,10 +339,10 @@ class IdentifierServices(Node):
         self.create_service(Trigger, f"{base}/identify_inertia", self.on_identify, callback_group=group)
         self.create_service(Trigger, f"{base}/estimate_cg", self.on_estimate_cg, callback_group=group)
         self.create_service(Trigger, f"{base}/capture_cg_baseline",
-                            lambda rq, rs: self._cg_call(rs, lambda: owner.capture_cg("baseline")),
+                            lambda rq, rs: self._guarded_call(rs, lambda: owner.capture_cg("baseline"), "capture_cg_baseline"),
                             callback_group=group)
         self.create_service(Trigger, f"{base}/capture_cg_dummy",
-                            lambda rq, rs: self._cg_call(rs, lambda: owner.capture_cg("dummy")),
+                            lambda rq, rs: self._guarded_call(rs, lambda: owner.capture_cg("dummy"), "capture_cg_dummy"),
                             callback_group=group)
         self.create_service(Trigger, f"{base}/status", self.on_status, callback_group=group)
         self._thread: threading.Thread | None = None
@@ -371,32 +371,15 @@ class IdentifierServices(Node):
             self._thread.join(timeout=3.0)
 
     def on_identify(self, request, response):
-        from ..identification import IdentificationError
-        if not self.owner.busy.acquire(blocking=False):
-            response.success = False
-            response.message = common.to_json({"error": "busy: a fit is already running; call again when it ends"})
-            return response
-        try:
-            d = self.owner.identify()
-            response.success = True
-            response.message = common.to_json(d)
-        except (IdentificationError, ValueError) as e:
-            self.owner.get_logger().warn(f"identify_inertia: {e}")
-            response.success = False
-            response.message = common.to_json({"error": str(e)})
-        except Exception as e:  # a bug in the fit must not kill the node
-            self.owner.get_logger().error(f"identify_inertia failed: {type(e).__name__}: {e}")
-            response.success = False
-            response.message = common.to_json({"error": f"internal error: {type(e).__name__}: {e}"})
-        finally:
-            self.owner.busy.release()
-        return response
+        return self._guarded_call(response, self.owner.identify, "identify_inertia")
 
     def on_estimate_cg(self, request, response):
-        return self._cg_call(response, self.owner.estimate_cg)
+        return self._guarded_call(response, self.owner.estimate_cg, "estimate_cg")
 
-    def _cg_call(self, response, action):
-        """Run one CG step; user errors (StaticsError, ValueError) come back as JSON errors."""
+    def _guarded_call(self, response, action, what: str):
+        """Run a fit or a CG step, one at a time: a call while another runs is answered
+        "busy"; user errors (IdentificationError, StaticsError: ValueErrors) come back as
+        JSON errors; a bug is logged and answered, never kills the node."""
         if not self.owner.busy.acquire(blocking=False):
             response.success = False
             response.message = common.to_json({"error": "busy: a fit is already running; call again when it ends"})
@@ -405,11 +388,11 @@ class IdentifierServices(Node):
             response.message = common.to_json(action())
             response.success = True
         except ValueError as e:  # StaticsError is a ValueError
-            self.owner.get_logger().warn(f"centre of gravity: {e}")
+            self.owner.get_logger().warn(f"{what}: {e}")
             response.success = False
             response.message = common.to_json({"error": str(e)})
         except Exception as e:  # a bug must not kill the node
-            self.owner.get_logger().error(f"centre of gravity failed: {type(e).__name__}: {e}")
+            self.owner.get_logger().error(f"{what} failed: {type(e).__name__}: {e}")
             response.success = False
             response.message = common.to_json({"error": f"internal error: {type(e).__name__}: {e}"})
         finally:
