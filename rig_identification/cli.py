@@ -46,8 +46,6 @@ def _print_inertia(result, truth: dict | None, rec_path) -> None:
         print("(error: % of the entry for diagonals, % of the largest diagonal for products)")
     for w in d["weakly_determined"][:1]:
         print("note: " + w["text"])
-    for w in d["warnings"]:
-        print("warning: " + w)
 
 
 def cmd_inertia(args) -> int:
@@ -60,6 +58,8 @@ def cmd_inertia(args) -> int:
         print(json.dumps(result.to_dict()))
     else:
         _print_inertia(result, rec.truth, rec.path)
+    for w in result.warnings:  # also in the JSON's "warnings" list
+        print("warning: " + w, file=sys.stderr)
     return 0
 
 

@@ -5,7 +5,7 @@ import numpy as np
 
 from .identification import InertiaResult, identify_inertia, identify_inertia_thesis
 from .preprocessor import preprocess
-from .recording import Recording, RecordingError
+from .recording import Recording, RecordingError, crop, fill_short_gaps, find_bad_spans
 from .tracker import track
 
 
@@ -15,6 +15,67 @@ def default_initial_guess(rig) -> np.ndarray:
     half = np.ptp(rig.body_anchors, axis=0) / 2 + 0.1
     sx, sy, sz = half**2
     return rig.mass / 3 * np.array([sy + sz, 0.0, 0.0, sx + sz, 0.0, sx + sy])
+
+
+MIN_CLEAN = 15.0  # s: shortest clean span worth fitting (tracker settling + two high-pass periods)
+MIN_MOTION = 0.005  # rad/s: RMS of the smoothed gyro about its mean below which the body "hardly moved"
+
+
+def _check_units(rec: Recording) -> None:
+    rig, s = rec.rig, rec.sensors
+    total = np.sum([np.median(s.load_cells[n].data[:, 0]) for n in rig.cable_names])
+    weight = rig.mass * rig.gravity
+    if not 0.5 <= total / weight <= 50.0:
+        raise RecordingError(f"{rec.path}: the load-cell tensions (median sum {total:.4g} N) do not match the "
+                             f"weight in rig.yaml (body.mass × gravity = {weight:.4g} N): check the units of the "
+                             "tensions (N, not kN) and body.mass (kg)")
+
+
+def clean_sensors(rec: Recording, warnings: list[str]):
+    """Exclude bad spans (gaps, saturation, slack cables; :func:`~.recording.find_bad_spans`):
+    keep the longest span free of them, bridge short IMU gaps.  Appends one warning per
+    excluded span.  Raises :class:`RecordingError` if less than :data:`MIN_CLEAN` s remain."""
+    s = rec.sensors
+    t0, t_end = s.t_start, s.t_end
+    spans = sorted(find_bad_spans(rec.rig, s), key=lambda b: b.t0)
+    a, b = t0, t_end
+    if spans:
+        edges, cur = [], t0
+        for sp in spans:
+            if sp.t0 > cur:
+                edges.append((cur, sp.t0))
+            cur = max(cur, sp.t1)
+        if cur < t_end:
+            edges.append((cur, t_end))
+        a, b = max(edges, key=lambda e: e[1] - e[0]) if edges else (t0, t0)
+        what = "; ".join(f"{sp.topic}: {sp.reason} at t={sp.t0 - t0:.2f}–{sp.t1 - t0:.2f} s" for sp in spans[:5])
+        if len(spans) > 5:
+            what += f"; and {len(spans) - 5} more"
+        if b - a < MIN_CLEAN:
+            raise RecordingError(f"{rec.path}: after excluding the bad spans ({what}) the longest clean span is "
+                                 f"{b - a:.1f} s (t={a - t0:.1f}–{b - t0:.1f} s), less than the {MIN_CLEAN:.0f} s "
+                                 "needed for a trustworthy fit")
+        for sp in spans:
+            warnings.append(f"{sp.topic}: {sp.reason} at t={sp.t0 - t0:.2f}–{sp.t1 - t0:.2f} s from the start; "
+                            f"span excluded, fit on the longest clean span t={a - t0:.2f}–{b - t0:.2f} s")
+        s = crop(s, a, b)
+    imu, filled = fill_short_gaps(s.imu)
+    if filled:
+        s.imu = imu
+        warnings.append(f"{'/rig/imu'}: {len(filled)} short gap(s) (≤ 0.1 s) bridged by linear interpolation, "
+                        f"first at t={filled[0][0] - t0:.2f}–{filled[0][1] - t0:.2f} s from the start")
+    return s
+
+
+def _check_motion(rec: Recording, s) -> None:
+    g = s.imu.data[:, :3]
+    n = max(1, int(round(0.5 / np.median(np.diff(s.imu.t)))))
+    k = np.ones(n) / n
+    sm = np.column_stack([np.convolve(c - c.mean(), k, mode="valid") for c in g.T])
+    rms = float(np.sqrt(np.mean(np.sum(sm**2, axis=1)))) if len(sm) else 0.0
+    if rms < MIN_MOTION:
+        raise RecordingError(f"{rec.path}: the body hardly moved (smoothed gyro RMS {rms:.1e} rad/s, threshold "
+                             f"{MIN_MOTION:g} rad/s): is this a static recording? inertia needs a dynamic one")
 
 
 def identify_recording(rec: Recording, start: float | None = None, end: float | None = None,
@@ -36,12 +97,16 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     if rig.exciter is not None and s.exciter is None:
         raise RecordingError(f"{rec.path}: rig.yaml describes an exciter but the bag has no "
                              "/rig/exciter/wrench topic")
+    _check_units(rec)
+    warnings: list[str] = []
+    s = clean_sensors(rec, warnings)
+    _check_motion(rec, s)
     poses = track(rig, s)
     wrench = preprocess(rig, poses, s)
-    t0 = s.t_start
-    settle = min(settle, 0.1 * (s.t_end - t0))
-    lo = t0 + (settle if start is None else max(start, settle))
-    hi = s.t_end if end is None else t0 + end
+    t0 = rec.sensors.t_start  # --start/--end count from the recording's first IMU sample
+    settle = min(settle, 0.1 * (s.t_end - s.t_start))
+    lo = s.t_start + settle if start is None else max(t0 + start, s.t_start + settle)
+    hi = s.t_end if end is None else min(t0 + end, s.t_end)
     m = (wrench.t >= lo) & (wrench.t <= hi)
     if m.sum() < 10:
         raise RecordingError(f"{rec.path}: no samples in the window [{lo - t0:.1f}, {hi - t0:.1f}] s")
@@ -54,7 +119,7 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
         result = identify_inertia(rig, wrench.t[m], gyro_b, wrench.torque[m], band_hz=band_hz)
     else:
         raise ValueError(f"unknown model {model!r} (pem or thesis)")
-    result.warnings[:0] = rec.warnings
+    result.warnings[:0] = rec.warnings + warnings
     return result
 
 

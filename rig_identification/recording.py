@@ -140,7 +140,10 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
                         raise RecordingError(f"{bag}: topic {c.topic} has type {c.msgtype}, expected {wanted[c.topic]}")
                     conns.append(c)
                 elif c.topic.startswith(LOAD_CELL_PREFIX):
-                    warnings.append(f"{bag}: topic {c.topic} names a cable that rig.yaml does not list; ignored")
+                    raise RecordingError(f"{bag}: topic {c.topic} is a load cell of cable "
+                                         f"{c.topic[len(LOAD_CELL_PREFIX):]!r}, which rig.yaml does not list "
+                                         f"(rig.yaml cables: {', '.join(cable_names)}); rig.yaml and the bag "
+                                         "do not describe the same rig")
             for conn, _, raw in reader.messages(connections=conns):
                 msg = reader.deserialize(raw, conn.msgtype)
                 if conn.topic == IMU_TOPIC:
@@ -168,8 +171,8 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
         finite = np.isfinite(a).all(axis=1)
         if not finite.all():
             bad = a[~finite, 0]
-            warnings.append(f"{bag}: topic {topic}: {int((~finite).sum())} non-finite sample(s) between "
-                            f"t={bad.min():.3f} and t={bad.max():.3f} s dropped")
+            warnings.append(f"{bag}: topic {topic}: {int((~finite).sum())} non-finite (NaN/inf) sample(s) "
+                            f"between t={bad.min():.3f} and t={bad.max():.3f} s dropped")
             a = a[finite]
         order = np.argsort(a[:, 0], kind="stable")
         if np.any(order != np.arange(len(order))):
@@ -186,6 +189,87 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
     imu = series(IMU_TOPIC, True)
     cells = {n: series(LOAD_CELL_PREFIX + n, True) for n in cable_names}
     return SensorData(imu, cells, series(EXCITER_TOPIC, False), series(INCLINOMETER_TOPIC, False))
+
+
+# --- screening for bad spans -------------------------------------------------------------
+
+SHORT_GAP = 0.1          # s: gaps up to this are bridged by interpolation, longer ones are excluded
+SATURATION_RUN = 5       # identical samples at a channel's extreme that make a saturated run
+SLACK_FRACTION = 0.05    # tension below this fraction of the cable's share of the weight = slack
+
+
+@dataclass
+class BadSpan:
+    """A span of one topic where the data cannot be trusted (``reason``); stamps in s."""
+
+    topic: str
+    t0: float
+    t1: float
+    reason: str
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Index ranges [i, j] (inclusive) of consecutive True in ``mask``."""
+    d = np.diff(np.r_[0, mask.astype(np.int8), 0])
+    return list(zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0] - 1))
+
+
+def find_bad_spans(rig: Rig, sensors: SensorData) -> list[BadSpan]:
+    """Spans to exclude from a fit: gaps longer than :data:`SHORT_GAP` (dropped messages),
+    saturated channels (runs of >= :data:`SATURATION_RUN` identical samples at the
+    channel's extreme) and slack cables (tension below :data:`SLACK_FRACTION` of the
+    cable's share of the weight)."""
+    spans: list[BadSpan] = []
+    streams = [(IMU_TOPIC, sensors.imu)] + [(LOAD_CELL_PREFIX + n, s) for n, s in sensors.load_cells.items()]
+    if sensors.exciter is not None and rig.exciter is not None:
+        streams.append((EXCITER_TOPIC, sensors.exciter))
+    for topic, s in streams:
+        if len(s) < 3:
+            continue
+        dt = np.diff(s.t)
+        med = float(np.median(dt))
+        for i in np.nonzero(dt > max(SHORT_GAP, 1.5 * med))[0]:
+            spans.append(BadSpan(topic, float(s.t[i]), float(s.t[i + 1]),
+                                 f"gap of {dt[i]:.2f} s (dropped messages)"))
+        for k, col in enumerate(s.data.T):
+            if np.ptp(col) == 0:
+                continue
+            for ext in (col.max(), col.min()):
+                for i, j in _runs(col == ext):
+                    if j - i + 1 >= SATURATION_RUN:
+                        spans.append(BadSpan(topic, float(s.t[i]), float(s.t[j]),
+                                             f"saturated (channel {k} stuck at {ext:.6g} for {j - i + 1} samples)"))
+    share = rig.mass * rig.gravity / len(rig.cables)
+    for name, s in sensors.load_cells.items():
+        for i, j in _runs(s.data[:, 0] < SLACK_FRACTION * share):
+            spans.append(BadSpan(LOAD_CELL_PREFIX + name, float(s.t[max(i - 1, 0)]),
+                                 float(s.t[min(j + 1, len(s) - 1)]),
+                                 f"cable {name} slack (tension below {SLACK_FRACTION * share:.0f} N; "
+                                 "the rigid-cable model does not hold)"))
+    return spans
+
+
+def crop(sensors: SensorData, t0: float, t1: float) -> SensorData:
+    """The sensor streams within [t0, t1] (stamps in s)."""
+    w = lambda s: None if s is None else s.window(t0, t1)  # noqa: E731
+    return SensorData(w(sensors.imu), {n: w(s) for n, s in sensors.load_cells.items()},
+                      w(sensors.exciter), w(sensors.inclinometer))
+
+
+def fill_short_gaps(ts: TimeSeries) -> tuple[TimeSeries, list[tuple[float, float]]]:
+    """Insert linearly interpolated samples into gaps of a nearly uniform stream.
+
+    Returns the filled series and the filled spans (t0, t1)."""
+    if len(ts) < 3:
+        return ts, []
+    dt = np.diff(ts.t)
+    med = float(np.median(dt))
+    idx = np.nonzero(dt > 1.5 * med)[0]
+    if not len(idx):
+        return ts, []
+    new = [np.arange(ts.t[i] + med, ts.t[i + 1] - 0.5 * med, med) for i in idx]
+    t = np.sort(np.concatenate([ts.t, *new]))
+    return TimeSeries(t, ts.interp(t)), [(float(ts.t[i]), float(ts.t[i + 1])) for i in idx]
 
 
 def read_recording(path: str | Path) -> Recording:
@@ -324,5 +408,5 @@ def write_recording(out: str | Path, rig: Rig, sensors: SensorData, truth: dict 
     return out
 
 
-__all__ = ["TimeSeries", "SensorData", "Recording", "RecordingError", "RigError", "read_recording",
+__all__ = ["BadSpan", "find_bad_spans", "crop", "fill_short_gaps", "TimeSeries", "SensorData", "Recording", "RecordingError", "RigError", "read_recording",
            "read_sensor_data", "write_recording", "write_bag", "sensor_messages", "load_rig"]

@@ -251,9 +251,11 @@ def load_rig(path: str | Path) -> Rig:
     """Load and validate a ``rig.yaml`` file.  Raises :class:`RigError`."""
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8")
     except OSError as e:
         raise RigError(f"{p}: cannot read the rig description ({e.strerror})") from None
+    except UnicodeDecodeError as e:
+        raise RigError(f"{p}: not a text file (byte {e.start} is not UTF-8)") from None
     try:
         d = yaml.safe_load(text)
     except yaml.YAMLError as e:

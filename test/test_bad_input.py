@@ -1,0 +1,329 @@
+"""Bad recordings (issue 6): each gets a clear error (exit 2) or a warning naming topic and span."""
+import copy
+import dataclasses
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import yaml
+
+from rig_identification.recording import write_recording
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def sim():
+    from rig_identification.simulator import load_experiment, simulate
+    exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=35.0)
+    rates = {k: min(v, 100.0) for k, v in exp.sensors.rates.items()}
+    exp = dataclasses.replace(exp, sensors=dataclasses.replace(exp.sensors, rates=rates))
+    return simulate(exp)
+
+
+@pytest.fixture(scope="module")
+def base(sim, tmp_path_factory):
+    return write_recording(tmp_path_factory.mktemp("rec") / "base", sim.rig, sim.sensors, sim.truth)
+
+
+@pytest.fixture(scope="module")
+def base_result(base):
+    rc, out, err = run(base)
+    assert rc == 0, err
+    return out
+
+
+def run(path, *extra):
+    p = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(path), "--json", *extra],
+                       capture_output=True, text=True, cwd=REPO, timeout=120)
+    assert "Traceback" not in p.stderr, p.stderr
+    out = json.loads(p.stdout) if p.returncode == 0 else None
+    return p.returncode, out, p.stderr
+
+
+def make(sim, tmp_path, mutate=None, storage="mcap", rig=None):
+    sensors = copy.deepcopy(sim.sensors)
+    if mutate is not None:
+        mutate(sensors)
+    return write_recording(tmp_path / "rec", rig or sim.rig, sensors, sim.truth, storage=storage)
+
+
+def vec(out):
+    from rig_identification.identification import KEYS
+    return np.array([out["inertia_about_cg"][k] for k in KEYS])
+
+
+def assert_close(out, ref, tol=0.01):
+    a, b = vec(out), vec(ref)
+    assert np.max(np.abs(a - b)) <= tol * np.max(np.abs(b)), (a, b)
+
+
+def assert_good(out, truth, pct=1.0):
+    from rig_identification.identification import from_tensor, KEYS
+    tru = truth["inertia_about_cg"]
+    big = max(abs(tru[k]) for k in ("ixx", "iyy", "izz"))
+    for k, v in zip(KEYS, vec(out)):
+        assert abs(v - tru[k]) <= pct / 100 * big, (k, v, tru[k])
+
+
+def drop_topic(sensors, name):
+    if name == "imu":
+        sensors.imu = None
+    else:
+        del sensors.load_cells[name]
+
+
+# 1. missing topics ------------------------------------------------------------------
+def test_missing_load_cell(sim, tmp_path):
+    rec = make(sim, tmp_path, lambda s: s.load_cells.pop("c2"))
+    rc, _, err = run(rec)
+    assert rc == 2
+    assert "/rig/load_cells/c2" in err and "missing" in err
+    assert len(err.strip().splitlines()) == 1
+
+
+def test_missing_imu(sim, tmp_path):
+    sensors = copy.deepcopy(sim.sensors)
+    from rig_identification.recording import write_bag
+    (tmp_path / "rec").mkdir()
+    (tmp_path / "rec" / "rig.yaml").write_text((Path(sim_rec_dir(sim, tmp_path)) / "rig.yaml").read_text())
+    # a bag without /rig/imu: write the load cells only
+    sensors.imu = dataclasses.replace(sensors.imu) if False else sensors.imu
+    from rig_identification import recording as R
+    orig = R.sensor_messages
+
+    def no_imu(rig, s):
+        return ((t, m, st, msg) for t, m, st, msg in orig(rig, s) if t != R.IMU_TOPIC)
+    R.sensor_messages = no_imu
+    try:
+        write_bag(tmp_path / "rec" / "bag", sim.rig, sensors)
+    finally:
+        R.sensor_messages = orig
+    rc, _, err = run(tmp_path / "rec")
+    assert rc == 2
+    assert "/rig/imu" in err and "missing" in err
+
+
+def sim_rec_dir(sim, tmp_path):
+    return write_recording(tmp_path / "tmp_rig", sim.rig, sim.sensors, None)
+
+
+# 2. empty and truncated bags ----------------------------------------------------------
+def test_empty_bag(sim, tmp_path):
+    def empty(s):
+        for ts in [s.imu, *s.load_cells.values(), s.exciter, s.inclinometer]:
+            if ts is not None:
+                ts.t, ts.data = ts.t[:0], ts.data[:0]
+    rec = make(sim, tmp_path, empty)
+    rc, _, err = run(rec)
+    assert rc == 2
+    assert "/rig/imu" in err and ("missing or empty" in err or "no messages" in err)
+
+
+def test_truncated_bag(sim, tmp_path):
+    rec = make(sim, tmp_path)
+    f = next((rec / "bag").glob("*.mcap"))
+    data = f.read_bytes()
+    f.write_bytes(data[: len(data) // 2])
+    rc, _, err = run(rec)
+    assert rc == 2
+    assert "bag" in err and ("truncated" in err or "cannot read" in err)
+    assert len(err.strip().splitlines()) == 1
+
+
+# 3. sqlite3 storage ------------------------------------------------------------------
+def test_sqlite3_equals_mcap(sim, tmp_path, base_result):
+    rec = make(sim, tmp_path, storage="sqlite3")
+    assert list((rec / "bag").glob("*.db3"))
+    rc, out, err = run(rec)
+    assert rc == 0, err
+    assert np.allclose(vec(out), vec(base_result), rtol=1e-9, atol=1e-9)
+
+
+# 4. unknown extra topics ----------------------------------------------------------------
+def test_unknown_topics_ignored(sim, tmp_path, base_result):
+    from rig_identification import recording as R
+    orig = R.sensor_messages
+
+    def extra(rig, s):
+        for item in orig(rig, s):
+            yield item
+            if item[0] == R.INCLINOMETER_TOPIC:
+                yield ("/camera/temperature", item[1], item[2], item[3])
+    R.sensor_messages = extra
+    try:
+        rec = make(sim, tmp_path)
+    finally:
+        R.sensor_messages = orig
+    rc, out, err = run(rec)
+    assert rc == 0, err
+    assert np.allclose(vec(out), vec(base_result), rtol=1e-9, atol=1e-9)
+
+
+# 5. NaN / inf samples ---------------------------------------------------------------------
+def test_nan_samples_dropped(sim, tmp_path):
+    def nan(s):
+        i = np.searchsorted(s.imu.t, s.imu.t[0] + 20.0)
+        s.imu.data[i:i + 3, 1] = np.nan
+        j = np.searchsorted(s.load_cells["c1"].t, s.load_cells["c1"].t[0] + 25.0)
+        s.load_cells["c1"].data[j, 0] = np.inf
+    rec = make(sim, tmp_path, nan)
+    rc, out, err = run(rec)
+    assert rc == 0, err
+    assert any("/rig/imu" in w and "non-finite" in w and "t=" in w for w in out["warnings"])
+    assert any("/rig/load_cells/c1" in w and "non-finite" in w for w in out["warnings"])
+    assert "warning:" in err
+    assert_good(out, sim.truth)
+
+
+# 6. duplicated / out-of-order stamps ----------------------------------------------------------
+def test_duplicated_and_unordered_stamps(sim, tmp_path, base_result):
+    from rig_identification import recording as R
+    orig = R.sensor_messages
+
+    def swapped(rig, s):  # two /rig/load_cells/c0 messages written out of stamp order
+        held, n = None, 0
+        for item in orig(rig, s):
+            if item[0] == R.LOAD_CELL_PREFIX + "c0":
+                n += 1
+                if n == 1000:
+                    held = item
+                    continue
+                yield item
+                if held is not None:  # same bag time as the later one, earlier header stamp
+                    yield held[0], held[1], item[2], held[3]
+                    held = None
+            else:
+                yield item
+
+    def dup(s):
+        k = len(s.imu.t) // 3
+        s.imu.t = np.insert(s.imu.t, k, s.imu.t[k])
+        s.imu.data = np.insert(s.imu.data, k, s.imu.data[k], axis=0)
+    R.sensor_messages = swapped
+    try:
+        rec = make(sim, tmp_path, dup)
+    finally:
+        R.sensor_messages = orig
+    rc, out, err = run(rec)
+    assert rc == 0, err
+    assert any("/rig/load_cells/c0" in w and "order" in w for w in out["warnings"]), out["warnings"]
+    assert any("/rig/imu" in w and "duplicated" in w for w in out["warnings"]), out["warnings"]
+    assert_close(out, base_result, 0.001)
+
+
+# 7. gaps ---------------------------------------------------------------------------------------
+def _cut(ts, t0, t1):
+    m = (ts.t < t0) | (ts.t > t1)
+    ts.t, ts.data = ts.t[m], ts.data[m]
+
+
+@pytest.mark.parametrize("topic", ["imu", "c1"])
+def test_gap_excluded(sim, tmp_path, topic):
+    def gap(s):
+        t0 = s.imu.t[0]
+        _cut(s.imu if topic == "imu" else s.load_cells[topic], t0 + 4.0, t0 + 6.0)
+    rec = make(sim, tmp_path, gap)
+    rc, out, err = run(rec)
+    assert rc == 0, err
+    name = "/rig/imu" if topic == "imu" else f"/rig/load_cells/{topic}"
+    assert any(name in w and "gap" in w and "excluded" in w for w in out["warnings"]), out["warnings"]
+    assert out["window"]["start"] - sim.sensors.imu.t[0] > 5.9
+    assert_good(out, sim.truth)
+
+
+def test_gap_leaves_too_little(sim, tmp_path):
+    def gaps(s):
+        t0 = s.imu.t[0]
+        for a in (8.0, 17.0, 26.0):
+            _cut(s.imu, t0 + a, t0 + a + 1.0)
+    rec = make(sim, tmp_path, gaps)
+    rc, _, err = run(rec)
+    assert rc == 2
+    assert "/rig/imu" in err and "gap" in err
+
+
+# 8. saturation ----------------------------------------------------------------------------------
+def test_saturated_load_cell(sim, tmp_path):
+    def sat(s):  # the load cell jumps to its range and sticks there for 1.5 s
+        c = s.load_cells["c3"]
+        m = (c.t > c.t[0] + 3.0) & (c.t < c.t[0] + 4.5)
+        c.data[m, 0] = 1.05 * c.data[:, 0].max()
+    rec = make(sim, tmp_path, sat)
+    rc, out, err = run(rec)
+    assert rc == 0, err
+    assert any("/rig/load_cells/c3" in w and "saturat" in w for w in out["warnings"]), out["warnings"]
+    assert_good(out, sim.truth)
+
+
+# 9. slack cable ------------------------------------------------------------------------------
+def test_slack_cable(sim, tmp_path):
+    def slack(s):
+        c = s.load_cells["c2"]
+        t0 = c.t[0]
+        m = (c.t > t0 + 3.0) & (c.t < t0 + 4.5)
+        c.data[m, 0] = np.abs(np.random.default_rng(0).normal(0, 2.0, m.sum()))
+    rec = make(sim, tmp_path, slack)
+    rc, out, err = run(rec)
+    assert rc == 0, err
+    assert any("/rig/load_cells/c2" in w and "slack" in w for w in out["warnings"]), out["warnings"]
+    assert_good(out, sim.truth)
+
+
+# 10. rig.yaml contradicting the bag ------------------------------------------------------------
+def _edit_rig(rec, fn):
+    d = yaml.safe_load((rec / "rig.yaml").read_text())
+    fn(d)
+    (rec / "rig.yaml").write_text(yaml.safe_dump(d))
+
+
+def test_rig_cable_not_in_bag(sim, tmp_path):
+    rec = make(sim, tmp_path)
+    _edit_rig(rec, lambda d: d["cables"][1].update(name="c9"))
+    rc, _, err = run(rec)
+    assert rc == 2
+    assert "c9" in err
+
+
+def test_bag_cable_not_in_rig(sim, tmp_path):
+    rec = make(sim, tmp_path)
+    _edit_rig(rec, lambda d: d["cables"].pop())
+    rc, _, err = run(rec)
+    assert rc == 2
+    assert "/rig/load_cells/c3" in err and "rig.yaml" in err
+
+
+def test_lengths_in_mm(sim, tmp_path):
+    rec = make(sim, tmp_path)
+
+    def mm(d):
+        for c in d["cables"]:
+            c["length"] *= 1000.0
+    _edit_rig(rec, mm)
+    rc, _, err = run(rec)
+    assert rc == 2
+    assert "units" in err and "rig.yaml" in err
+
+
+def test_tensions_in_kN(sim, tmp_path):
+    def kn(s):
+        for c in s.load_cells.values():
+            c.data = c.data / 1000.0
+    rec = make(sim, tmp_path, kn)
+    rc, _, err = run(rec)
+    assert rc == 2
+    assert "units" in err and "tension" in err
+
+
+# 11. static recording ----------------------------------------------------------------------------
+def test_static_recording(sim, tmp_path):
+    from rig_identification.simulator import load_experiment, simulate
+    exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=30.0, static="baseline")
+    st = simulate(exp)
+    rec = write_recording(tmp_path / "static", sim.rig, st.sensors, st.truth)  # sim.rig: with the CG
+    rc, _, err = run(rec)
+    assert rc == 2
+    assert "hardly moved" in err
