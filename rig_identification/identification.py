@@ -189,7 +189,7 @@ def consistent_from_params(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     dL = np.zeros((6, 3, 3))
     for k, (i, j) in enumerate(idx):
         if i == j:
-            L[i, j] = np.exp(theta[k])
+            L[i, j] = np.exp(np.clip(theta[k], -30.0, 30.0))  # a wild LM trial step must not overflow
             dL[k, i, j] = L[i, j]
         else:
             L[i, j] = theta[k]
