@@ -75,6 +75,60 @@ def cmd_thesis_table(args) -> int:
     return 0
 
 
+def cmd_modes(args) -> int:
+    from .modes import estimate_modes, match_modes, natural_modes
+    from .identification import to_tensor
+    rec = read_recording(args.recording)
+    rig = rec.rig
+    cg = rig.require_cg()
+    if args.inertia is not None:
+        ixx, iyy, izz, ixy, ixz, iyz = args.inertia
+        J = to_tensor([ixx, ixy, ixz, iyy, iyz, izz])
+        source = "--inertia"
+    else:
+        from .pipeline import identify_recording
+        J = identify_recording(rec).inertia
+        source = "identified from the recording"
+    if args.stiffness is not None:
+        k, kname = args.stiffness, f"spring cables k = {args.stiffness:g} N/m"
+    elif all(c.stiffness is not None for c in rig.cables):
+        k, kname = rig.cable_stiffness, "spring cables (rig.yaml stiffness)"
+    else:
+        k, kname = None, "inextensible cables"
+    geo = natural_modes(rig, rig.mass, cg, J, k)
+    est = estimate_modes(rec)
+    pairs = match_modes(geo, est.modes)
+    if args.json:
+        print(json.dumps({"recording": str(rec.path), "inertia_source": source, "cable_model": kname,
+                          "inertia": [float(x) for x in from_tensor(J)],
+                          "exciter_frequency_hz": est.exciter_frequency,
+                          "geometric": [m.to_dict() for m in geo],
+                          "estimated": [e.to_dict() for e in est.modes],
+                          "matches": [{"geometric_hz": m.frequency, "estimated_hz": None if e is None else e.frequency,
+                                       "difference_percent": d} for m, e, d in pairs],
+                          "warnings": est.warnings}))
+        return 0
+    print(f"recording: {rec.path}")
+    print(f"model: mass {rig.mass:.1f} kg, CG from rig.yaml, inertia {source}, {kname}")
+    if est.exciter_frequency is not None:
+        print(f"exciter: {est.exciter_frequency:.4f} Hz (excluded with its harmonics)")
+    print(f"{'geometry Hz':>11s}  {'mode shape (world axes)':32s} {'recording Hz':>12s} {'diff %':>8s} "
+          f"{'damping':>8s}  gyro")
+    for m, e, d in pairs:
+        if e is None:
+            print(f"{m.frequency:11.4f}  {m.description:32s} {'-':>12s}")
+        else:
+            print(f"{m.frequency:11.4f}  {m.description:32s} {e.frequency:12.4f} {d:+8.2f} "
+                  f"{e.damping_ratio:8.4f}  {e.axes}")
+    used = {id(e) for _, e, _ in pairs if e is not None}
+    for e in est.modes:
+        if id(e) not in used:
+            print(f"{'-':>11s}  {'(no geometric mode)':32s} {e.frequency:12.4f} {'':8s} {e.damping_ratio:8.4f}  {e.axes}")
+    for w in est.warnings:
+        print("note: " + w)
+    return 0
+
+
 def identify_main(argv=None) -> int:
     """Entry point of ``rig-identify``."""
     ap = argparse.ArgumentParser(prog="rig-identify", description=__doc__.splitlines()[0])
@@ -97,6 +151,15 @@ def identify_main(argv=None) -> int:
     t.add_argument("--json", action="store_true", help="print one JSON list")
     t.set_defaults(func=cmd_thesis_table)
     add_cg_parser(sub)
+    mp = sub.add_parser("modes", help="natural frequencies: from the geometry vs estimated from a recording")
+    mp.add_argument("recording", help="recording folder (rig.yaml + bag/)")
+    mp.add_argument("--json", action="store_true", help="print one JSON object")
+    mp.add_argument("--inertia", type=float, nargs=6, metavar=("IXX", "IYY", "IZZ", "IXY", "IXZ", "IYZ"),
+                    help="inertia tensor entries about the CG, body axes, kg·m² (products negated, as "
+                         "truth.yaml); default: identified from the recording")
+    mp.add_argument("--stiffness", type=float, metavar="N_PER_M",
+                    help="cable stiffness for the model (default: rig.yaml's, else inextensible cables)")
+    mp.set_defaults(func=cmd_modes)
     add_cg_plan_parser(sub)
     args = ap.parse_args(argv)
     try:
