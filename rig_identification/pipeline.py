@@ -18,7 +18,7 @@ def default_initial_guess(rig) -> np.ndarray:
 
 
 MIN_CLEAN = 15.0  # s: shortest clean span worth fitting (tracker settling + two high-pass periods)
-MIN_MOTION = 0.005  # rad/s: RMS of the smoothed gyro about its mean below which the body "hardly moved"
+MIN_MOTION = 2e-4  # rad/s: RMS of the low-passed gyro about its mean below which the body "hardly moved"
 
 
 def _check_units(rec: Recording) -> None:
@@ -68,14 +68,24 @@ def clean_sensors(rec: Recording, warnings: list[str]):
 
 
 def _check_motion(rec: Recording, s) -> None:
+    """Refuse a recording in which the body did not move beyond the gyro's own noise:
+    the gyro low-passed at 10 Hz (zero-phase Butterworth, scipy) about its mean must stand
+    out of the noise it would have in that band (σ from the spectrum's flat top), by 5x,
+    and be at least MIN_MOTION."""
+    from scipy.signal import butter, sosfiltfilt
+
+    from .identification import gyro_noise_sigma
     g = s.imu.data[:, :3]
-    n = max(1, int(round(0.5 / np.median(np.diff(s.imu.t)))))
-    k = np.ones(n) / n
-    sm = np.column_stack([np.convolve(c - c.mean(), k, mode="valid") for c in g.T])
-    rms = float(np.sqrt(np.mean(np.sum(sm**2, axis=1)))) if len(sm) else 0.0
-    if rms < MIN_MOTION:
-        raise RecordingError(f"{rec.path}: the body hardly moved (smoothed gyro RMS {rms:.1e} rad/s, threshold "
-                             f"{MIN_MOTION:g} rad/s): is this a static recording? inertia needs a dynamic one")
+    fs = 1.0 / np.median(np.diff(s.imu.t))
+    f_lp = min(10.0, 0.4 * fs)
+    sm = sosfiltfilt(butter(4, f_lp, fs=fs, output="sos"), g - g.mean(0), axis=0)
+    rms = float(np.sqrt(np.mean(np.sum(sm**2, axis=1))))
+    noise = gyro_noise_sigma(g, fs) * np.sqrt(3 * 2 * f_lp / fs)
+    threshold = max(5 * noise, MIN_MOTION)
+    if rms < threshold:
+        raise RecordingError(f"{rec.path}: the body hardly moved (gyro RMS below 10 Hz {rms:.1e} rad/s, threshold "
+                             f"{threshold:.1e} rad/s from the gyro noise): is this a static recording? inertia "
+                             "needs a dynamic one")
 
 
 def identify_recording(rec: Recording, start: float | None = None, end: float | None = None,
