@@ -48,26 +48,28 @@ class WrenchSeries:
     torque: np.ndarray
 
 
-def generalized_wrench(rig: Rig, position: np.ndarray, quaternion: np.ndarray, tensions: np.ndarray,
+def generalized_wrench(rig: Rig, position: np.ndarray, rotation: np.ndarray, tensions: np.ndarray,
                        exciter_xy: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
     """Vectorised wrench on the body about its CG (see module docstring).
 
-    position: (M,3) world m; quaternion: (M,4) xyzw body->world; tensions: (M,N) N in
-    rig cable order; exciter_xy: (M,2) N in the exciter frame, or None.
-    Returns force (M,3) N and torque (M,3) N·m, body axes.
+    position: (M,3) world m; rotation: (M,3,3) matrices or (M,4) xyzw quaternions, body ->
+    world; tensions: (M,N) N in rig cable order; exciter_xy: (M,2) N in the exciter frame,
+    or None.  Returns force (M,3) N and torque (M,3) N·m, body axes.
     Raises :class:`~rig_identification.rig.RigError` if rig.yaml has no CG.
     """
     c = rig.require_cg()
-    R = Rotation.from_quat(quaternion)
+    R = np.asarray(rotation, float)
+    if R.ndim == 2:
+        R = Rotation.from_quat(R).as_matrix()
     b = rig.body_anchors
-    # ceiling anchors seen from the body: R^T (A - p), (M, N, 3)
-    rel = np.stack([R.apply(a[None, :] - position, inverse=True) for a in rig.ceiling_anchors], axis=1) - b[None]
-    u = rel / np.linalg.norm(rel, axis=2, keepdims=True)
+    # ceiling anchors seen from the body: R^T (A - p) - b, (M, N, 3)
+    rel = np.einsum("mji,mnj->mni", R, rig.ceiling_anchors[None, :, :] - position[:, None, :]) - b[None]
+    u = rel / np.sqrt(np.einsum("mni,mni->mn", rel, rel))[:, :, None]
     f_cables = tensions[:, :, None] * u
     force = f_cables.sum(1)
     torque = np.cross(b - c, f_cables).sum(1)
     if exciter_xy is not None and rig.exciter is not None:
-        fe = rig.exciter.rotation.apply(np.column_stack([exciter_xy, np.zeros(len(exciter_xy))]))
+        fe = exciter_xy @ rig.exciter.rotation.as_matrix()[:, :2].T
         force = force + fe
         torque = torque + np.cross(rig.exciter.position - c, fe)
     return force, torque
@@ -112,7 +114,7 @@ class WrenchPreprocessor:
         return self._flush()
 
     @staticmethod
-    def _interp(q: deque, t: float) -> np.ndarray | None:
+    def _interp(q: deque, t: float) -> tuple | None:
         """Linear interpolation in a deque of (t, values...) rows; None if t is out of range."""
         if not q or q[-1][0] < t or q[0][0] > t:
             return None
@@ -121,10 +123,10 @@ class WrenchPreprocessor:
         while i > 0 and q[i - 1][0] >= t:
             i -= 1
         if q[i][0] == t or i == 0:
-            return np.array(q[i][1:])
-        t0, t1 = q[i - 1][0], q[i][0]
+            return q[i][1:]
+        (t0, *a), (t1, *b) = q[i - 1], q[i]
         w = (t - t0) / (t1 - t0)
-        return (1 - w) * np.array(q[i - 1][1:]) + w * np.array(q[i][1:])
+        return tuple((1 - w) * x + w * y for x, y in zip(a, b))
 
     def _flush(self) -> list[Wrench]:
         out = []
@@ -139,8 +141,8 @@ class WrenchPreprocessor:
                 self.dropped += 1
                 continue
             tens = np.array([v[0] for v in vals[:len(self.names)]])
-            exc = vals[-1][None, :] if self._exc is not None else None
-            f, m = generalized_wrench(self.rig, pose.position[None], pose.quaternion[None], tens[None], exc)
+            exc = np.array([vals[-1]]) if self._exc is not None else None
+            f, m = generalized_wrench(self.rig, pose.position[None], pose.matrix[None], tens[None], exc)
             out.append(Wrench(pose.t, f[0], m[0]))
             # keep one sample at or before the next pose for interpolation
             for s in streams:
