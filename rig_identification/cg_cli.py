@@ -362,5 +362,5 @@ def cmd_cg_plan(args) -> int:
     else:
         print(f"recommended: {best.dummy.mass:g} kg at ({', '.join(f'{x:.3f}' for x in best.dummy.position)}) m, "
               f"average {best.duration:g} s per state: ±" + ", ".join(f"{1.96 * x * 1e3:.2f}" for x in best.std)
-              + f" mm (95 %) on x, y, z")
+              + " mm (95 %) on x, y, z")
     return 0

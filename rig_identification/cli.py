@@ -11,7 +11,6 @@ import argparse
 import json
 import sys
 
-import numpy as np
 
 from .identification import KEYS, IdentificationError, from_tensor
 from .recording import RecordingError, read_recording

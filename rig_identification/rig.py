@@ -247,20 +247,24 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     return Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, extra)
 
 
-def load_rig(path: str | Path) -> Rig:
-    """Load and validate a ``rig.yaml`` file.  Raises :class:`RigError`."""
+def read_yaml(path: str | Path, error: type[ValueError], what: str):
+    """Parse a YAML file; an unreadable, non-UTF-8 or invalid file raises ``error`` naming it."""
     p = Path(path)
     try:
         text = p.read_text(encoding="utf-8")
     except OSError as e:
-        raise RigError(f"{p}: cannot read the rig description ({e.strerror})") from None
+        raise error(f"{p}: cannot read the {what} ({e.strerror})") from None
     except UnicodeDecodeError as e:
-        raise RigError(f"{p}: not a text file (byte {e.start} is not UTF-8)") from None
+        raise error(f"{p}: not a text file (byte {e.start} is not UTF-8)") from None
     try:
-        d = yaml.safe_load(text)
+        return yaml.safe_load(text)
     except yaml.YAMLError as e:
-        raise RigError(f"{p}: not valid YAML ({str(e).splitlines()[0]})") from None
-    return rig_from_dict(d, str(p))
+        raise error(f"{p}: not valid YAML ({str(e).splitlines()[0]})") from None
+
+
+def load_rig(path: str | Path) -> Rig:
+    """Load and validate a ``rig.yaml`` file.  Raises :class:`RigError`."""
+    return rig_from_dict(read_yaml(path, RigError, "rig description"), str(path))
 
 
 def dump_rig(rig: Rig, comment: str | None = None) -> str:

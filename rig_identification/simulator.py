@@ -126,7 +126,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 from scipy.integrate import solve_ivp
 from scipy.linalg.lapack import dposv
 from scipy.optimize import minimize, root
@@ -635,16 +634,8 @@ def experiment_from_dict(d: Any, source: str = "<memory>") -> Experiment:
 
 def load_experiment(path: str | Path) -> Experiment:
     """Load and validate an experiment YAML file.  Raises :class:`ExperimentError`."""
-    p = Path(path)
-    try:
-        text = p.read_text()
-    except OSError as e:
-        raise ExperimentError(f"{p}: cannot read the experiment file ({e.strerror})") from None
-    try:
-        d = yaml.safe_load(text)
-    except yaml.YAMLError as e:
-        raise ExperimentError(f"{p}: not valid YAML ({str(e).splitlines()[0]})") from None
-    return experiment_from_dict(d, str(p))
+    from .rig import read_yaml
+    return experiment_from_dict(read_yaml(path, ExperimentError, "experiment file"), str(path))
 
 
 # --- the mechanical model --------------------------------------------------------------
