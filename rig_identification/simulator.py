@@ -88,6 +88,9 @@ Experiment file schema (YAML)
     static: {kind: baseline, duration: 10.0}   # optional: a static CG recording instead
                                     # (kind baseline or dummy; dummy uses rig.dummy_mass)
     thesis: {...}                   # free mapping, carried for the comparison tables
+    effects:                        # physics beyond the rigid-body model, concealed in the
+      - {name: viscous_damping, linear: 150.0, angular: 300.0}   # recording and listed in
+                                    # truth.yaml (names and parameters: rig_identification.effects)
 
 The rotating force (exciter frame, z = spin axis) is
 F = A(t) [cos θ, direction sin θ, 0], θ = 2π f (t - start_time) + phase,
@@ -131,6 +134,7 @@ from scipy.linalg.lapack import dposv
 from scipy.optimize import minimize, root
 from scipy.spatial.transform import Rotation
 
+from .effects import Effect, parse_effects
 from .recording import SensorData, TimeSeries
 from .rig import DummyMass, Rig, RigError, rig_from_dict
 
@@ -242,6 +246,22 @@ class RotatingForce:
         theta += self.phase
         return np.array([amp * math.cos(theta), self.direction * amp * math.sin(theta), 0.0])
 
+    def angle_and_speed(self, t: float) -> tuple[float, float, float]:
+        """Rotor angle θ (rad, exciter frame, signed by ``direction``), spin speed dθ/dt
+        (rad/s) and spin acceleration (rad/s²) at time t s; (0, 0, 0) when the motor is off."""
+        tau = t - self.start_time
+        if tau < 0 or (self.stop_time is not None and t >= self.stop_time):
+            return 0.0, 0.0, 0.0
+        T, w = self.ramp_time, 2 * math.pi * self.frequency
+        if self.ramp_shape == "spin_up" and tau < T:
+            theta, speed, acc = math.pi * self.frequency * tau ** 2 / T, w * tau / T, w / T
+        elif self.ramp_shape == "spin_up":
+            theta, speed, acc = w * (tau - T / 2), w, 0.0
+        else:
+            theta, speed, acc = w * tau, w, 0.0
+        d = self.direction
+        return d * (theta + self.phase), d * speed, d * acc
+
     def breakpoints(self) -> list[float]:
         out = [self.start_time, self.start_time + self.ramp_time]
         return out + ([self.stop_time] if self.stop_time is not None else [])
@@ -340,6 +360,11 @@ class Experiment:
     reference: dict = field(default_factory=dict)
     thesis: dict = field(default_factory=dict)
     path: str = "<memory>"
+    effects: tuple = ()
+
+    def effect(self, name: str) -> Effect | None:
+        """The first effect called ``name``, or None."""
+        return next((e for e in self.effects if e.name == name), None)
 
     @property
     def mass(self) -> float:
@@ -435,7 +460,7 @@ class _Fields:
         return v
 
 
-TOP_KEYS = {"name", "description", "source", "rig", "inertia_about_cg", "cable_model", "initial", "excitation",
+TOP_KEYS = {"effects", "name", "description", "source", "rig", "inertia_about_cg", "cable_model", "initial", "excitation",
             "duration", "sensors", "seed", "stamp_origin", "static", "thesis"}
 INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
@@ -625,11 +650,17 @@ def experiment_from_dict(d: Any, source: str = "<memory>") -> Experiment:
     description = d.get("description", "")
     if not isinstance(description, str):
         raise f.error("description", "must be text")
+    try:
+        effects = parse_effects(d.get("effects"), f"{source}: effects", rig.cable_names)
+    except ValueError as e:
+        raise ExperimentError(str(e)) from None
+    if any(e.name == "exciter_rotor" for e in effects) and excitation.rotating is None:
+        raise ExperimentError(f"{source}: effects: exciter_rotor needs excitation.rotating")
     return Experiment(name=name, rig=rig, inertia=inertia, cable_model=cable_model, initial=initial,
                       excitation=excitation, duration=duration, sensors=sensors, seed=seed,
                       stamp_origin=stamp_origin, static=static, description=description,
                       reference=f.mapping(d.get("source"), "source"), thesis=f.mapping(d.get("thesis"), "thesis"),
-                      path=source)
+                      path=source, effects=effects)
 
 
 def load_experiment(path: str | Path) -> Experiment:
@@ -659,7 +690,7 @@ class _Model:
     """
 
     def __init__(self, rig: Rig, mass: float, cg: np.ndarray, inertia: np.ndarray, cables: CableModel,
-                 excitation: Excitation):
+                 excitation: Excitation, effects: tuple = ()):
         n = len(rig.cables)
         if cables.type == "inextensible" and n > 6:
             raise SimulationError(f"inextensible cables: {n} cables have statically indeterminate tensions "
@@ -679,6 +710,36 @@ class _Model:
         self.R_exc = ex.rotation.as_matrix() if ex is not None else np.eye(3)
         r_exc = ex.position - self.cg if ex is not None else np.zeros(3)
         self.M_exc = _skew(r_exc) @ self.R_exc          # exciter-frame force -> moment about the CG
+        self._dissipative = [e for e in effects if e.name in ("viscous_damping", "air_drag", "coulomb_friction")]
+        self._rotor = next((e for e in effects if e.name == "exciter_rotor"), None)
+        if self._rotor is not None:
+            rot = excitation.rotating
+            self._unbalance = self._rotor.get("unbalance", rot.amplitude / (2 * math.pi * rot.frequency) ** 2)
+            self._rotor_inertia = self._rotor.get("rotor_inertia", 0.0)
+
+    def effect_wrench(self, t: float, R: np.ndarray, v: np.ndarray, w: np.ndarray):
+        """Force (3,) world N and moment (3,) body N·m about the CG of the concealed effects
+        (:mod:`~rig_identification.effects`): dissipation and the exciter's rotor."""
+        F, M = np.zeros(3), np.zeros(3)
+        for e in self._dissipative:
+            if e.name == "viscous_damping":
+                F -= e.get("linear") * v
+                M -= e.get("angular") * w
+            elif e.name == "air_drag":
+                F -= e.get("linear") * math.sqrt(v @ v) * v
+                M -= e.get("angular") * math.sqrt(w @ w) * w
+            else:
+                eps = e.get("velocity_scale", 1e-3)
+                F -= e.get("force") * v / math.sqrt(v @ v + eps * eps)
+                M -= e.get("torque") * w / math.sqrt(w @ w + eps * eps)
+        if self._rotor is not None:
+            theta, speed, acc = self.excitation.rotating.angle_and_speed(t)
+            z = self.R_exc[:, 2]
+            u = self.R_exc @ np.array([math.cos(theta), math.sin(theta), 0.0])   # toward the unbalanced mass
+            M += self._unbalance * np.cross(u, R.T @ self.g)                 # its weight, turning with it
+            h = self._rotor_inertia * speed * z                                # spin angular momentum, body
+            M -= np.cross(w, h) + self._rotor_inertia * acc * z
+        return F, M
 
     def breakpoints(self) -> list[float]:
         """Times where the forcing is discontinuous (or has a kink), s."""
@@ -719,6 +780,9 @@ class _Model:
         y (18,) at time t s: the Newton–Euler equations of the module docstring."""
         p, R, v, w = y[0:3], y[3:12].reshape(3, 3), y[12:15], y[15:18]
         F_ext, M_ext, exciter = self.external(t, R)
+        if self._dissipative or self._rotor is not None:
+            dF, dM = self.effect_wrench(t, R, v, w)
+            F_ext, M_ext = F_ext + dF, M_ext + dM
         W = _skew(w)
         Rdot = R @ W                                    # dR/dt = R skew(ω)
         s = self.r @ R.T                                # lever arms CG -> body anchors, world
@@ -1042,36 +1106,52 @@ def _sensors(exp: Experiment, model: _Model, traj: Trajectory, rig: Rig, duratio
     def noisy(x, key):
         return x + bias[key] + noise[key] * rng.standard_normal(x.shape)
 
+    eff = {e.name: e for e in exp.effects}
+    delay = {e.get("stream", ""): e.get("delay") for e in exp.effects if e.name == "sensor_delay"}
+
     g_world = model.g
     # IMU
     t, Y, ev = at(spec.rates["imu"])
     R_imu = rig.imu.rotation.as_matrix()
+    if "imu_misalignment" in eff:   # true IMU axes: turned beyond rig.yaml's imu.rpy
+        R_imu = R_imu @ Rotation.from_euler("xyz", eff["imu_misalignment"].get("rpy")).as_matrix()
     omega, alpha = Y[:, 15:18], ev["alpha"]
     rho = rig.imu.position - model.cg
+    if "imu_offset" in eff:         # true IMU position: rig.yaml's + offset
+        rho = rho + eff["imu_offset"].get("offset")
     a_rel_body = np.cross(alpha, rho) + np.cross(omega, np.cross(omega, rho))
     a_imu = ev["a"] + np.einsum("kij,kj->ki", ev["R"], a_rel_body)
     f_body = np.einsum("kji,kj->ki", ev["R"], a_imu - g_world)
     gyro = noisy(omega @ R_imu, "gyro")
     acc = noisy(f_body @ R_imu, "accelerometer")
+    if "gyro_bias" in eff:
+        gyro += eff["gyro_bias"].get("bias")
+    if "accelerometer_bias" in eff:
+        acc += eff["accelerometer_bias"].get("bias")
     imu = TimeSeries(exp.stamp_origin + t, np.hstack([gyro, acc]))
     # load cells
     t, Y, ev = at(spec.rates["load_cells"])
     if model.cables.type == "inextensible" and not model.cables.compression:
         _check_taut(rig, t, ev["T"], model.m * np.linalg.norm(g_world))
-    T = noisy(ev["T"], "load_cell")
-    cells = {name: TimeSeries(exp.stamp_origin + t, T[:, i]) for i, name in enumerate(rig.cable_names)}
+    T = ev["T"].copy()
+    for e in exp.effects:
+        if e.name == "load_cell_scale":
+            T[:, rig.cable_names.index(e.get("cable"))] *= e.get("scale")
+    T = noisy(T, "load_cell")
+    t_cells = exp.stamp_origin + t + delay.get("load_cells", 0.0)
+    cells = {name: TimeSeries(t_cells, T[:, i]) for i, name in enumerate(rig.cable_names)}
     # exciter
     exc = None
     if rig.exciter is not None:
         t, Y, ev = at(spec.rates["exciter"])
-        exc = TimeSeries(exp.stamp_origin + t, noisy(ev["exciter"], "exciter"))
+        exc = TimeSeries(exp.stamp_origin + t + delay.get("exciter", 0.0), noisy(ev["exciter"], "exciter"))
     # inclinometer
     inc = None
     if rig.inclinometer is not None:
         t, Y, ev = at(spec.rates["inclinometer"])
         axes = ev["R"] @ rig.inclinometer.rotation.as_matrix()
         angles = np.arcsin(np.clip(axes[:, 2, :2], -1.0, 1.0))
-        inc = TimeSeries(exp.stamp_origin + t, noisy(angles, "inclinometer"))
+        inc = TimeSeries(exp.stamp_origin + t + delay.get("inclinometer", 0.0), noisy(angles, "inclinometer"))
     return SensorData(imu, cells, exc, inc)
 
 
@@ -1114,13 +1194,23 @@ def simulate(exp: Experiment) -> SimResult:
         rig_out = replace(exp.rig, center_of_gravity=None)
     else:
         rig_out = replace(exp.rig, dummy_mass=None)
-    model = _Model(exp.rig, mass, cg, J, cables, excitation)
+    elastic = exp.effect("cable_elasticity")
+    if elastic is not None:     # stretching cables, declared inextensible in the rig.yaml written
+        k = elastic.get("stiffness")
+        cables = CableModel.spring(exp.rig, mass, np.full(len(exp.rig.cables), k))
+        rig_out = replace(rig_out, cables=tuple(replace(c, stiffness=None) for c in rig_out.cables))
+    cable_mass = exp.effect("cable_mass")
+    if cable_mass is not None:  # half of each cable hangs on its body anchor, outside the load cell
+        for b in exp.rig.body_anchors:
+            mass, cg, J = _with_dummy(mass, cg, J, DummyMass(0.5 * cable_mass.get("mass"), np.asarray(b, float)))
+    model = _Model(exp.rig, mass, cg, J, cables, excitation, exp.effects)
     y0 = _initial_state(model, initial)
     traj, nfev = _integrate(model, y0, duration)
     cache: dict[float, tuple] = {}
     sensors = _sensors(exp, model, traj, rig_out, duration, cache)
     truth = {"mass": float(exp.mass), "center_of_gravity": [float(x) for x in exp.cg],
-             "inertia_about_cg": inertia_entries(exp.inertia), "effects": [], "scenario": exp.name,
+             "inertia_about_cg": inertia_entries(exp.inertia),
+             "effects": [e.truth_entry() for e in exp.effects], "scenario": exp.name,
              "seed": exp.seed}
     if static is not None:
         truth["notes"] = (f"static experiment {'WITH' if static.kind == 'dummy' else 'without'} the dummy mass"

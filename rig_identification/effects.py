@@ -1,0 +1,147 @@
+"""The library of physics beyond the rigid-body, rigid-cable model (issue "diagnose").
+
+One name per effect, used alike by the simulator (``effects:`` in an experiment file,
+which conceals the effect in a simulated recording and lists it in truth.yaml) and by
+:mod:`~rig_identification.diagnosis` (which names it in a recording).  Parameters (SI):
+
+=====================  ==================================================================
+name                   parameters
+=====================  ==================================================================
+viscous_damping        ``linear`` N·s/m (force −c v on the CG, world), ``angular``
+                       N·m·s/rad (moment −c ω, body axes) — the reference simulator's
+                       damped recording uses these two names
+air_drag               ``linear`` N·s²/m² (force −c |v| v), ``angular`` N·m·s²/rad²
+                       (moment −c |ω| ω)
+coulomb_friction       ``torque`` N·m (moment −τ ω/|ω|), ``force`` N (force −f v/|v|):
+                       dry friction in the cable anchors' pivots, lumped on the body;
+                       regularised over ``velocity_scale`` (default 1e-3 rad/s or m/s)
+cable_elasticity       ``stiffness`` N/m: the cables stretch (T/k) although rig.yaml gives
+                       no stiffness (i.e. declares them inextensible)
+cable_mass             ``mass`` kg per cable: the load cells sit at the ceiling anchors;
+                       half of each cable's mass hangs on its body anchor and moves with it
+exciter_rotor          ``unbalance`` kg·m (unbalanced mass × eccentricity; default: the
+                       rotating force's amplitude / (2π f)², i.e. the mass that makes it),
+                       ``rotor_inertia`` kg·m² (polar, about the spin axis; default 0): the
+                       rotor's weight, turning with it, and its spin angular momentum
+imu_offset             ``offset`` (3,) m, body axes: the IMU is at rig.yaml's position + offset
+imu_misalignment       ``rpy`` (3,) rad: the IMU axes are turned by this (fixed-axis XYZ)
+                       beyond rig.yaml's imu.rpy
+sensor_delay           ``stream`` (load_cells | exciter | inclinometer), ``delay`` s: that
+                       stream's stamps lag the IMU's (stamp = sample time + delay)
+gyro_bias              ``bias`` (3,) rad/s, IMU axes
+accelerometer_bias     ``bias`` (3,) m/s², IMU axes
+load_cell_scale        ``cable`` name, ``scale`` (reading / true tension, e.g. 1.03)
+gyroscopic_coupling    none: ω × Jω is always in the simulated physics; a model that leaves
+                       it out (the thesis's eq. 3.10, ``--model thesis``) misses it
+=====================  ==================================================================
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+EFFECT_NAMES = ("viscous_damping", "air_drag", "coulomb_friction", "cable_elasticity", "cable_mass",
+                "exciter_rotor", "imu_offset", "imu_misalignment", "sensor_delay", "gyro_bias",
+                "accelerometer_bias", "load_cell_scale", "gyroscopic_coupling")
+
+# parameter name -> (size, required)   size 0 = scalar, -1 = text
+PARAMETERS = {
+    "viscous_damping": {"linear": (0, False), "angular": (0, False)},
+    "air_drag": {"linear": (0, False), "angular": (0, False)},
+    "coulomb_friction": {"torque": (0, False), "force": (0, False), "velocity_scale": (0, False)},
+    "cable_elasticity": {"stiffness": (0, True)},
+    "cable_mass": {"mass": (0, True)},
+    "exciter_rotor": {"unbalance": (0, False), "rotor_inertia": (0, False)},
+    "imu_offset": {"offset": (3, True)},
+    "imu_misalignment": {"rpy": (3, True)},
+    "sensor_delay": {"stream": (-1, True), "delay": (0, True)},
+    "gyro_bias": {"bias": (3, True)},
+    "accelerometer_bias": {"bias": (3, True)},
+    "load_cell_scale": {"cable": (-1, True), "scale": (0, True)},
+    "gyroscopic_coupling": {},
+}
+DELAY_STREAMS = ("load_cells", "exciter", "inclinometer")
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One effect: ``name`` from :data:`EFFECT_NAMES`, ``parameters`` (validated mapping)."""
+
+    name: str
+    parameters: dict = field(default_factory=dict)
+
+    def get(self, key: str, default=0.0):
+        return self.parameters.get(key, default)
+
+    def truth_entry(self) -> dict:
+        """truth.yaml form: ``{name: ..., <parameter>: <value>, ...}`` (as the reference simulator)."""
+        out = {"name": self.name}
+        for k, v in self.parameters.items():
+            out[k] = v.tolist() if isinstance(v, np.ndarray) else v
+        return out
+
+
+def parse_effects(raw, where: str, cable_names: list[str]) -> tuple[Effect, ...]:
+    """Validate an ``effects`` list: each item ``{name: ..., <parameter>: <value>}``.
+
+    Raises ValueError naming ``where`` (the file and field) and the offending entry.
+    """
+    if raw is None:
+        return ()
+    if not isinstance(raw, list):
+        raise ValueError(f"{where}: must be a list of {{name: ..., parameters...}}")
+    out = []
+    for i, item in enumerate(raw):
+        w = f"{where}[{i}]"
+        if not isinstance(item, dict) or "name" not in item:
+            raise ValueError(f"{w}: must be a mapping with a name")
+        name = item["name"]
+        if name not in PARAMETERS:
+            raise ValueError(f"{w}.name: unknown effect {name!r} (known: {', '.join(EFFECT_NAMES)})")
+        spec = PARAMETERS[name]
+        params = {}
+        for k, v in item.items():
+            if k == "name":
+                continue
+            if k not in spec:
+                raise ValueError(f"{w}.{k}: not a parameter of {name} (parameters: {', '.join(spec) or 'none'})")
+            size, _ = spec[k]
+            if size == -1:
+                if not isinstance(v, str):
+                    raise ValueError(f"{w}.{k}: must be text, got {v!r}")
+                params[k] = v
+            elif size == 0:
+                try:
+                    x = float(v)
+                except (TypeError, ValueError):
+                    raise ValueError(f"{w}.{k}: must be a number, got {v!r}") from None
+                if not np.isfinite(x):
+                    raise ValueError(f"{w}.{k}: must be finite, got {v!r}")
+                params[k] = x
+            else:
+                try:
+                    a = np.asarray(v, float)
+                except (TypeError, ValueError):
+                    raise ValueError(f"{w}.{k}: must be a list of {size} numbers, got {v!r}") from None
+                if a.shape != (size,) or not np.all(np.isfinite(a)):
+                    raise ValueError(f"{w}.{k}: must be a list of {size} finite numbers, got {v!r}")
+                params[k] = a
+        for k, (_, required) in spec.items():
+            if required and k not in params:
+                raise ValueError(f"{w}: {name} needs the parameter {k}")
+        if name == "sensor_delay" and params["stream"] not in DELAY_STREAMS:
+            raise ValueError(f"{w}.stream: must be one of {', '.join(DELAY_STREAMS)}, got {params['stream']!r}")
+        if name == "load_cell_scale":
+            if params["cable"] not in cable_names:
+                raise ValueError(f"{w}.cable: no cable {params['cable']!r} in the rig ({', '.join(cable_names)})")
+            if params["scale"] <= 0:
+                raise ValueError(f"{w}.scale: must be > 0")
+        if name in ("cable_elasticity",) and params["stiffness"] <= 0:
+            raise ValueError(f"{w}.stiffness: must be > 0")
+        if name == "cable_mass" and params["mass"] < 0:
+            raise ValueError(f"{w}.mass: must be >= 0")
+        if any(o.name == name and name not in ("load_cell_scale", "sensor_delay") for o in out):
+            raise ValueError(f"{w}: effect {name} listed twice")
+        out.append(Effect(name, params))
+    return tuple(out)
