@@ -49,6 +49,7 @@ def atomic_directory(path: str | Path, overwrite: bool = True):
         raise FileExistsError(f"{out}: already exists (refusing to overwrite)")
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
+    os.chmod(tmp, 0o755)  # mkdtemp makes it 0700; the finished folder is an ordinary one
     try:
         yield tmp
         for f in tmp.rglob("*"):

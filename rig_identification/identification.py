@@ -72,6 +72,24 @@ def physically_consistent(J: np.ndarray) -> bool:
 
 
 @dataclass
+class FitSeries:
+    """The fit's output over one segment (one recording's window): t (N,) s; measured
+    (N,3) band-passed gyro, rad/s, body axes; predicted (N,3) the model's band-passed ω
+    with the identified tensor; band_hz the pass band; label the segment's name."""
+
+    t: np.ndarray
+    measured: np.ndarray
+    predicted: np.ndarray
+    band_hz: tuple[float, float]
+    label: str = ""
+
+    @property
+    def residual(self) -> np.ndarray:
+        """(N,3) rad/s measured − predicted."""
+        return self.measured - self.predicted
+
+
+@dataclass
 class InertiaResult:
     """Identified mass properties.
 
@@ -79,7 +97,10 @@ class InertiaResult:
     (geometry_msgs/Inertia entries: off-diagonals are negated products of inertia);
     inertia_std (6,) in :data:`KEYS` order; covariance (6,6); correlation (6,6);
     weak_directions: list of (relative std, (3,3) unit-norm tensor direction) for the
-    poorly determined combinations; residual_rms (3,) rad/s of the band-passed gyro fit.
+    poorly determined combinations; residual_rms (3,) rad/s of the band-passed gyro fit;
+    series: one :class:`FitSeries` per fitted segment (empty for the thesis baseline).
+    A joint fit (:func:`identify_inertia_joint`): t_start/t_end are the earliest start
+    and latest end over the segments, n_samples their total, band_hz the union of bands.
     """
 
     mass: float
@@ -98,6 +119,7 @@ class InertiaResult:
     warnings: list[str] = field(default_factory=list)
     crb_std: np.ndarray | None = None
     gyro_noise: float | None = None
+    series: list = field(default_factory=list)
 
     @property
     def correlation(self) -> np.ndarray:
@@ -125,7 +147,11 @@ class InertiaResult:
             "fit_r2": [float(x) for x in self.fit_r2],
             "method": self.method,
             "warnings": list(self.warnings),
-        }
+        } | ({"recordings": [{"label": s.label, "window": {"start": float(s.t[0]), "end": float(s.t[-1]),
+                                                          "samples": int(len(s.t))},
+                               "band_hz": [float(s.band_hz[0]), float(s.band_hz[1])],
+                               "residual_rms_rad_s": [float(x) for x in np.sqrt(np.mean(s.residual**2, 0))]}
+                              for s in self.series]} if len(self.series) > 1 else {})
 
 
 def describe_direction(rel_std: float, D: np.ndarray) -> dict:
@@ -211,23 +237,28 @@ def params_from_consistent(J: np.ndarray) -> np.ndarray:
     return np.array([np.log(L[0, 0]), L[1, 0], np.log(L[1, 1]), L[2, 0], L[2, 1], np.log(L[2, 2])])
 
 
-def _batch_means_cov(A3: np.ndarray, resid: np.ndarray, nb: int) -> np.ndarray:
-    """Sandwich covariance of least squares with correlated residuals (batch means).
-
-    A3: (N,3,p) Jacobian of the prediction; resid: (N,3).  Blocks of nb samples,
-    longer than the residuals' correlation time, make the block sums independent.
-    """
+def _batch_means_meat(A3: np.ndarray, resid: np.ndarray, nb: int) -> np.ndarray:
+    """(p,p) "meat" of the batch-means sandwich: Σ over blocks of nb samples of (Σ AᵀR)(Σ AᵀR)ᵀ,
+    scaled to all samples.  A3: (N,3,p) Jacobian of the prediction; resid: (N,3)."""
     p = A3.shape[2]
-    A = A3.reshape(-1, p)
     H = np.einsum("nik,ni->nk", A3, resid)
     nblocks = len(H) // nb
     if nblocks < 8:
         nb = max(1, len(H) // 8)
         nblocks = len(H) // nb
     S = H[: nblocks * nb].reshape(nblocks, nb, p).sum(1)
-    meat = S.T @ S * (len(H) / (nblocks * nb))
+    return S.T @ S * (len(H) / (nblocks * nb))
+
+
+def _batch_means_cov(A3: np.ndarray, resid: np.ndarray, nb: int) -> np.ndarray:
+    """Sandwich covariance of least squares with correlated residuals (batch means).
+
+    A3: (N,3,p) Jacobian of the prediction; resid: (N,3).  Blocks of nb samples,
+    longer than the residuals' correlation time, make the block sums independent.
+    """
+    A = A3.reshape(-1, A3.shape[2])
     bread = np.linalg.inv(A.T @ A)
-    return bread @ meat @ bread
+    return bread @ _batch_means_meat(A3, resid, nb) @ bread
 
 
 def gyro_noise_sigma(omega: np.ndarray, fs: float) -> float:
@@ -235,6 +266,158 @@ def gyro_noise_sigma(omega: np.ndarray, fs: float) -> float:
     from scipy.signal import welch
     f, P = welch(omega, fs=fs, nperseg=min(len(omega), 1024), axis=0)
     return float(np.sqrt(np.median(P[f > fs / 4].mean(1)) * fs / 2))
+
+
+@dataclass
+class _Segment:
+    """One stretch of data prepared for the fit (band-passed output and regressors)."""
+
+    t: np.ndarray          # (N,) s
+    w: np.ndarray          # (N,3) rad/s raw body-axis gyro
+    fs: float              # Hz
+    band: tuple[float, float]
+    filt: object           # the zero-phase band-pass of this segment
+    y: np.ndarray          # (N,3) band-passed gyro (the measured output)
+    IM: np.ndarray         # (N,3) band-passed integrated moment
+    G: np.ndarray          # (6,N,3) band-passed integrated gyroscopic regressors
+    label: str = ""
+
+
+def _prepare_segment(t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
+                     band_hz: tuple[float, float] | None, what: str = "identifier",
+                     label: str = "") -> _Segment:
+    """Band-pass the output and integrate + band-pass the regressors of one segment
+    (the first half of :func:`identify_inertia`).  Raises :class:`IdentificationError`."""
+    t = np.asarray(t, float)
+    dt = _uniform(t, what)
+    fs = 1.0 / dt
+    duration = t[-1] - t[0]
+    w = np.asarray(omega_body, float)
+    if band_hz is None:
+        lo, hi = auto_band(w, fs)
+        lo = max(lo, 2.0 / duration)  # at least two periods of the high-pass edge in the window
+    else:
+        lo, hi = band_hz
+    hi = min(hi, 0.4 * fs)
+    if duration < 2.0 / lo:
+        raise IdentificationError(f"{what}: window of {duration:.1f} s is too short for the "
+                                  f"{lo:.2f} Hz high-pass (needs ≥ {2.0 / lo:.0f} s)")
+    sos = butter(4, [lo, hi], btype="bandpass", fs=fs, output="sos")
+    filt = lambda x: sosfiltfilt(sos, x, axis=0)  # noqa: E731
+    y = filt(w)
+    if np.sqrt(np.mean(y**2)) < 1e-5:
+        raise IdentificationError(f"{what}: the body hardly rotated in the window "
+                                  f"(band-passed gyro RMS {np.sqrt(np.mean(y**2)):.2e} rad/s)")
+    E = basis()
+    integ = lambda x: filt(cumulative_simpson(x, x=t, axis=0, initial=0.0))  # noqa: E731
+    IM = integ(np.asarray(torque, float))
+    # the gyroscopic term is linear in the entries: ω×(Jω) = Σ_m j_m ω×(E_m ω)
+    G = np.stack([integ(np.cross(w, w @ Em.T)) for Em in E])  # (6,N,3)
+    return _Segment(t, w, fs, (lo, hi), filt, y, IM, G, label)
+
+
+def _fit_segments(rig: Rig, segs: list[_Segment], block_s: float, consistent: bool) -> InertiaResult:
+    """The two-stage fit of :func:`identify_inertia` over one or more segments with a
+    common tensor: residuals and Jacobians stacked, sandwich meat and Cramér–Rao
+    information summed over the segments (they are independent)."""
+    from scipy.optimize import least_squares
+
+    E = basis()
+
+    def predict(j, s):
+        P = np.linalg.inv(to_tensor(j))
+        u = s.IM - np.einsum("m,mni->ni", j, s.G)
+        return P, P @ u.T
+
+    # stage 1: linear in P
+    Y = np.concatenate([s.y.reshape(-1) for s in segs])
+    j = np.zeros(6)
+    for _ in range(3):
+        X = np.concatenate([np.einsum("kij,nj->nik", E, s.IM - np.einsum("m,mni->ni", j, s.G)).reshape(-1, 6)
+                            for s in segs])  # (ΣN·3, 6)
+        p, *_ = np.linalg.lstsq(X, Y, rcond=None)
+        j = from_tensor(np.linalg.inv(to_tensor(p)))
+    method = "prediction error: band-limited output error of the integrated Newton–Euler equation"
+    # per-axis residual scale, pooled over the segments (the same gyro)
+    sigma = np.sqrt(np.mean(np.concatenate([(s.y - predict(j, s)[1].T) ** 2 for s in segs]), axis=0))
+
+    def jac_entries(j, P, yhat, s):
+        # d yhat / d j_k = -P (E_k yhat + G_k)   -> (N,3,6)
+        return -np.einsum("ij,knj->nik", P, np.einsum("kij,jn->kni", E, yhat) + s.G)
+
+    if consistent:
+        def fun(th):
+            jj, _ = consistent_from_params(th)
+            return np.concatenate([((s.y - predict(jj, s)[1].T) / sigma).ravel() for s in segs])
+
+        def jac(th):
+            jj, dj = consistent_from_params(th)
+            out = []
+            for s in segs:
+                Pm, yh = predict(jj, s)
+                out.append(-(jac_entries(jj, Pm, yh, s) / sigma[None, :, None]).reshape(-1, 6) @ dj)
+            return np.concatenate(out)
+
+        sol = least_squares(fun, params_from_consistent(to_tensor(j)), jac=jac, method="lm",
+                            xtol=1e-12, ftol=1e-12)
+        j, _ = consistent_from_params(sol.x)
+        method += "; Levenberg–Marquardt on a physically consistent parametrisation"
+    if len(segs) > 1:
+        method += f"; joint fit of {len(segs)} recordings with a common tensor"
+    J = to_tensor(j)
+    yhats, resids, A3s = [], [], []
+    for s in segs:
+        P, yhat = predict(j, s)
+        yhats.append(yhat.T)
+        resids.append(s.y - yhat.T)
+        A3s.append(jac_entries(j, P, yhat, s))
+    # sandwich covariance: bread from all segments, meat summed over the independent segments
+    As = [A3.reshape(-1, 6) for A3 in A3s]
+    B = np.linalg.inv(sum(A.T @ A for A in As))  # A.T @ A of one buffer: BLAS syrk, as before
+    meat = sum(_batch_means_meat(A3, r, max(1, int(round(block_s * s.fs)))) for A3, r, s in zip(A3s, resids, segs))
+    cov_J = B @ meat @ B
+    std = np.sqrt(np.clip(np.diag(cov_J), 0, None))
+    # predicted covariance from the gyro's white noise alone (the Cramér–Rao bound of
+    # this estimator for the recording's excitation): σ² B⁻¹ (FA)ᵀ(FA) B⁻¹, F = prefilter
+    sgs, crb = [], 0
+    for A3, s in zip(A3s, segs):
+        FA = s.filt(A3.reshape(len(s.t), -1)).reshape(-1, 6)
+        sg = gyro_noise_sigma(s.w, s.fs)
+        sgs.append(sg)
+        crb = crb + sg**2 * B @ (FA.T @ FA) @ B
+    resid = np.concatenate(resids)
+    y_all = np.concatenate([s.y for s in segs])
+    res_rms = np.sqrt(np.mean(resid**2, axis=0))
+    r2 = 1 - np.sum(resid**2, 0) / np.sum(y_all**2, 0)
+    warnings = []
+    if not physically_consistent(J):
+        warnings.append("the identified tensor is not physically consistent (not positive definite "
+                        "or violates the triangle inequality): the window does not excite the body enough")
+    t0 = min(float(s.t[0]) for s in segs)
+    t1 = max(float(s.t[-1]) for s in segs)
+    band = (min(s.band[0] for s in segs), max(s.band[1] for s in segs))
+    res = InertiaResult(rig.mass, rig.require_cg().copy(), J, std, cov_J, t0, t1, int(sum(len(s.t) for s in segs)),
+                        band, res_rms, r2, weak_directions(J, cov_J), method=method, warnings=warnings)
+    res.crb_std = np.sqrt(np.clip(np.diag(crb), 0, None))
+    res.gyro_noise = sgs[0] if len(sgs) == 1 else float(np.sqrt(np.mean(np.square(sgs))))
+    res.series = [FitSeries(s.t, s.y, yh, s.band, s.label) for s, yh in zip(segs, yhats)]
+    return res
+
+
+def weak_directions(J: np.ndarray, cov_J: np.ndarray, n: int = 2) -> list:
+    """The ``n`` most weakly determined tensor combinations: eigen-directions of the
+    covariance (equivalently of the information matrix, its inverse) in the Frobenius
+    metric of the tensor, largest std first.  Returns [(std / (tr J / 3), (3,3) unit-norm
+    tensor direction)]; ``n=6`` gives all of them."""
+    scale = np.trace(J) / 3
+    Dm = np.diag([1, np.sqrt(2), np.sqrt(2), 1, np.sqrt(2), 1])  # Frobenius metric on the entries
+    evals, evecs = np.linalg.eigh(Dm @ cov_J @ Dm)
+    weak = []
+    for lam, vec in sorted(zip(evals, evecs.T), key=lambda z: -z[0])[:n]:
+        D = to_tensor(np.linalg.solve(Dm, vec))
+        D /= np.linalg.norm(D)
+        weak.append((float(np.sqrt(max(lam, 0)) / scale), D))
+    return weak
 
 
 def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
@@ -252,103 +435,47 @@ def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np
     (gyro rotated from IMU axes).  torque: (N,3) N·m about the CG, body axes.
     band_hz: pass band of the zero-phase Butterworth prefilter applied to both sides
     (default: :func:`auto_band` of the gyro).  consistent: run stage 2.
+    The result's ``series`` holds the band-passed measured and predicted ω.
     Raises :class:`IdentificationError` for too little data, gaps or no motion.
     """
-    from scipy.optimize import least_squares
+    seg = _prepare_segment(t, omega_body, torque, band_hz)
+    return _fit_segments(rig, [seg], block_s, consistent)
 
-    t = np.asarray(t, float)
-    dt = _uniform(t, "identifier")
-    fs = 1.0 / dt
-    duration = t[-1] - t[0]
-    w = np.asarray(omega_body, float)
-    if band_hz is None:
-        lo, hi = auto_band(w, fs)
-        lo = max(lo, 2.0 / duration)  # at least two periods of the high-pass edge in the window
+
+def identify_inertia_joint(rig_list: list[Rig], segments: list, band_hz=None, block_s: float = 4.0,
+                           consistent: bool = True, labels: list[str] | None = None) -> InertiaResult:
+    """Joint fit of one inertia tensor to several recordings of the same body.
+
+    Each segment (t (N_i,) s uniform, omega_body (N_i,3) rad/s body axes, torque (N_i,3)
+    N·m about the CG, body axes) is band-passed and integrated on its own (its own pass
+    band, its own integration constant), exactly as in :func:`identify_inertia`; the
+    residuals of all segments are stacked and the same two-stage fit run with a common
+    tensor.  The residual scale per gyro axis is pooled over the segments (one sensor);
+    the sandwich covariance sums the batch-means meat of the independent segments, and
+    the Cramér–Rao std sums their white-noise information.  With one segment this is
+    :func:`identify_inertia`, number for number.
+
+    rig_list: one Rig per segment (mass and CG of the result from the first; the caller
+    checks that the bodies agree, see :func:`~.pipeline.identify_recordings`).  band_hz:
+    None (auto per segment), one (lo, hi) pair for all, or a list of pairs/None.
+    labels: names of the segments (e.g. recording folders), for messages and
+    ``result.series``.  Raises :class:`IdentificationError` (also for no segments or
+    mismatched list lengths).
+    """
+    segments = list(segments)
+    rig_list = list(rig_list)
+    if not segments:
+        raise IdentificationError("identifier: no segments to fit")
+    if len(rig_list) != len(segments):
+        raise IdentificationError(f"identifier: {len(rig_list)} rigs for {len(segments)} segments")
+    labels = list(labels) if labels is not None else [f"segment {i + 1}" for i in range(len(segments))]
+    if band_hz is None or (len(band_hz) == 2 and np.isscalar(band_hz[0])):
+        bands = [band_hz] * len(segments)
     else:
-        lo, hi = band_hz
-    hi = min(hi, 0.4 * fs)
-    if duration < 2.0 / lo:
-        raise IdentificationError(f"identifier: window of {duration:.1f} s is too short for the "
-                                  f"{lo:.2f} Hz high-pass (needs ≥ {2.0 / lo:.0f} s)")
-    sos = butter(4, [lo, hi], btype="bandpass", fs=fs, output="sos")
-    filt = lambda x: sosfiltfilt(sos, x, axis=0)  # noqa: E731
-    y = filt(w)
-    if np.sqrt(np.mean(y**2)) < 1e-5:
-        raise IdentificationError("identifier: the body hardly rotated in the window "
-                                  f"(band-passed gyro RMS {np.sqrt(np.mean(y**2)):.2e} rad/s)")
-    E = basis()
-    integ = lambda x: filt(cumulative_simpson(x, x=t, axis=0, initial=0.0))  # noqa: E731
-    IM = integ(np.asarray(torque, float))
-    # the gyroscopic term is linear in the entries: ω×(Jω) = Σ_m j_m ω×(E_m ω)
-    G = np.stack([integ(np.cross(w, w @ Em.T)) for Em in E])  # (6,N,3)
-
-    def predict(j):
-        P = np.linalg.inv(to_tensor(j))
-        u = IM - np.einsum("m,mni->ni", j, G)
-        return P, P @ u.T
-
-    # stage 1: linear in P
-    j = np.zeros(6)
-    for _ in range(3):
-        u = IM - np.einsum("m,mni->ni", j, G)
-        X = np.einsum("kij,nj->nik", E, u)  # (N,3,6)
-        p, *_ = np.linalg.lstsq(X.reshape(-1, 6), y.reshape(-1), rcond=None)
-        j = from_tensor(np.linalg.inv(to_tensor(p)))
-    method = "prediction error: band-limited output error of the integrated Newton–Euler equation"
-    P, yhat = predict(j)
-    sigma = np.sqrt(np.mean((y - yhat.T) ** 2, axis=0))
-
-    def jac_entries(j, P, yhat):
-        # d yhat / d j_k = -P (E_k yhat + G_k)   -> (N,3,6)
-        return -np.einsum("ij,knj->nik", P, np.einsum("kij,jn->kni", E, yhat) + G)
-
-    if consistent:
-        def fun(th):
-            jj, _ = consistent_from_params(th)
-            return ((y - predict(jj)[1].T) / sigma).ravel()
-
-        def jac(th):
-            jj, dj = consistent_from_params(th)
-            Pm, yh = predict(jj)
-            return -(jac_entries(jj, Pm, yh) / sigma[None, :, None]).reshape(-1, 6) @ dj
-
-        sol = least_squares(fun, params_from_consistent(to_tensor(j)), jac=jac, method="lm",
-                            xtol=1e-12, ftol=1e-12)
-        j, _ = consistent_from_params(sol.x)
-        method += "; Levenberg–Marquardt on a physically consistent parametrisation"
-    J = to_tensor(j)
-    P, yhat = predict(j)
-    resid = y - yhat.T
-    A3 = jac_entries(j, P, yhat)
-    cov_J = _batch_means_cov(A3, resid, max(1, int(round(block_s * fs))))
-    std = np.sqrt(np.clip(np.diag(cov_J), 0, None))
-    # predicted covariance from the gyro's white noise alone (the Cramér–Rao bound of
-    # this estimator for the recording's excitation): σ² B⁻¹ (FA)ᵀ(FA) B⁻¹, F = prefilter
-    A = A3.reshape(-1, 6)
-    B = np.linalg.inv(A.T @ A)
-    FA = filt(A3.reshape(len(t), -1)).reshape(-1, 6)
-    sg = gyro_noise_sigma(w, fs)
-    crb = sg**2 * B @ (FA.T @ FA) @ B
-    res_rms = np.sqrt(np.mean(resid**2, axis=0))
-    r2 = 1 - np.sum(resid**2, 0) / np.sum(y**2, 0)
-    # weakly determined combinations: eigen-directions of cov_J with the largest relative std
-    scale = np.trace(J) / 3
-    Dm = np.diag([1, np.sqrt(2), np.sqrt(2), 1, np.sqrt(2), 1])  # Frobenius metric on the entries
-    evals, evecs = np.linalg.eigh(Dm @ cov_J @ Dm)
-    weak = []
-    for lam, vec in sorted(zip(evals, evecs.T), key=lambda z: -z[0])[:2]:
-        D = to_tensor(np.linalg.solve(Dm, vec))
-        D /= np.linalg.norm(D)
-        weak.append((float(np.sqrt(max(lam, 0)) / scale), D))
-    warnings = []
-    if not physically_consistent(J):
-        warnings.append("the identified tensor is not physically consistent (not positive definite "
-                        "or violates the triangle inequality): the window does not excite the body enough")
-    res = InertiaResult(rig.mass, rig.require_cg().copy(), J, std, cov_J, float(t[0]), float(t[-1]), len(t),
-                        (lo, hi), res_rms, r2, weak, method=method, warnings=warnings)
-    res.crb_std = np.sqrt(np.clip(np.diag(crb), 0, None))
-    res.gyro_noise = sg
-    return res
+        bands = list(band_hz)
+    segs = [_prepare_segment(t, w, m, b, what=f"identifier ({lab})", label=lab)
+            for (t, w, m), b, lab in zip(segments, bands, labels)]
+    return _fit_segments(rig_list[0], segs, block_s, consistent)
 
 
 def identify_inertia_thesis(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,

@@ -3,7 +3,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .identification import InertiaResult, identify_inertia, identify_inertia_thesis
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from .identification import InertiaResult, identify_inertia, identify_inertia_joint, identify_inertia_thesis
 from .preprocessor import preprocess
 from .recording import Recording, RecordingError, crop, fill_short_gaps, find_bad_spans
 from .tracker import track
@@ -88,19 +91,32 @@ def _check_motion(rec: Recording, s) -> None:
                              "needs a dynamic one")
 
 
-def identify_recording(rec: Recording, start: float | None = None, end: float | None = None,
-                       settle: float = 5.0, band_hz: tuple[float, float] | None = None,
-                       model: str = "pem", initial_guess=None) -> InertiaResult:
-    """Identify the inertia tensor of a dynamic recording.
+@dataclass
+class PreparedRecording:
+    """A recording replayed through the cleaning, the tracker and the preprocessor, cut
+    to the fit window: the identifier's input.
+
+    rec: the recording; t (N,) s (absolute stamps, uniform); gyro_body (N,3) rad/s, body
+    axes; torque (N,3) N·m about the CG, body axes; warnings: the excluded spans etc.
+    (the recording's own reader warnings stay in ``rec.warnings``).
+    """
+
+    rec: Recording
+    t: np.ndarray
+    gyro_body: np.ndarray
+    torque: np.ndarray
+    warnings: list[str] = field(default_factory=list)
+
+
+def prepare_recording(rec: Recording, start: float | None = None, end: float | None = None,
+                      settle: float = 5.0) -> PreparedRecording:
+    """Clean a dynamic recording, run the tracker and the preprocessor, cut the window.
 
     start/end: window in seconds from the first IMU stamp (default: the whole
     recording after ``settle`` s, the tracker's convergence time, at most a tenth of
-    the recording).  model: ``"pem"`` (ours) or ``"thesis"`` (the thesis's model and
-    estimator, :func:`~rig_identification.identification.identify_inertia_thesis`, from
-    ``initial_guess`` (6,) tensor entries or :func:`default_initial_guess`).  Raises
-    :class:`~rig_identification.recording.RecordingError`,
-    :class:`~rig_identification.rig.RigError`,
-    :class:`~rig_identification.identification.IdentificationError`.
+    the recording).  Raises :class:`~rig_identification.recording.RecordingError`,
+    :class:`~rig_identification.rig.RigError` (no CG in rig.yaml),
+    :class:`~rig_identification.tracker.TrackerError`.
     """
     rig, s = rec.rig, rec.sensors
     rig.require_cg()
@@ -121,15 +137,92 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     if m.sum() < 10:
         raise RecordingError(f"{rec.path}: no samples in the window [{lo - t0:.1f}, {hi - t0:.1f}] s")
     gyro = s.imu.interp(wrench.t[m])[:, :3]
-    gyro_b = rig.imu.rotation.apply(gyro)
+    return PreparedRecording(rec, wrench.t[m], rig.imu.rotation.apply(gyro), wrench.torque[m], warnings)
+
+
+def identify_recording(rec: Recording, start: float | None = None, end: float | None = None,
+                       settle: float = 5.0, band_hz: tuple[float, float] | None = None,
+                       model: str = "pem", initial_guess=None) -> InertiaResult:
+    """Identify the inertia tensor of a dynamic recording.
+
+    start/end/settle: the window, see :func:`prepare_recording`.  model: ``"pem"`` (ours)
+    or ``"thesis"`` (the thesis's model and estimator,
+    :func:`~rig_identification.identification.identify_inertia_thesis`, from
+    ``initial_guess`` (6,) tensor entries or :func:`default_initial_guess`).  Raises
+    :class:`~rig_identification.recording.RecordingError`,
+    :class:`~rig_identification.rig.RigError`,
+    :class:`~rig_identification.identification.IdentificationError`.
+    """
+    prep = prepare_recording(rec, start, end, settle)
+    rig = rec.rig
     if model == "thesis":
         guess = default_initial_guess(rig) if initial_guess is None else np.asarray(initial_guess, float)
-        result = identify_inertia_thesis(rig, wrench.t[m], gyro_b, wrench.torque[m], guess)
+        result = identify_inertia_thesis(rig, prep.t, prep.gyro_body, prep.torque, guess)
     elif model == "pem":
-        result = identify_inertia(rig, wrench.t[m], gyro_b, wrench.torque[m], band_hz=band_hz)
+        result = identify_inertia(rig, prep.t, prep.gyro_body, prep.torque, band_hz=band_hz)
     else:
         raise ValueError(f"unknown model {model!r} (pem or thesis)")
-    result.warnings[:0] = rec.warnings + warnings
+    result.warnings[:0] = rec.warnings + prep.warnings
+    return result
+
+
+MASS_RTOL = 1e-3   # relative: rig.yaml body.mass of recordings fitted jointly must agree this well
+CG_TOL = 0.002     # m: and their body.center_of_gravity this well
+
+
+def check_same_body(recs: list[Recording], mass_rtol: float = MASS_RTOL, cg_tol: float = CG_TOL) -> None:
+    """Refuse a joint fit of recordings whose rig.yaml describe different bodies: body.mass
+    must agree within ``mass_rtol`` (relative) and body.center_of_gravity within ``cg_tol``
+    m (body axes) of the first recording's.  Raises
+    :class:`~rig_identification.recording.RecordingError` naming both files."""
+    ref = recs[0]
+    m0, c0 = ref.rig.mass, ref.rig.require_cg()
+    for r in recs[1:]:
+        m, c = r.rig.mass, r.rig.require_cg()
+        where = f"{Path(ref.path) / 'rig.yaml'} and {Path(r.path) / 'rig.yaml'}"
+        if abs(m - m0) > mass_rtol * abs(m0):
+            raise RecordingError(f"{where} describe different bodies: body.mass {m0:g} kg vs {m:g} kg (a joint "
+                                 f"fit needs the same body; tolerance {100 * mass_rtol:g} %)")
+        d = float(np.linalg.norm(np.asarray(c) - np.asarray(c0)))
+        if d > cg_tol:
+            raise RecordingError(f"{where} describe different bodies: body.center_of_gravity "
+                                 f"[{', '.join(f'{x:g}' for x in c0)}] vs [{', '.join(f'{x:g}' for x in c)}] m, "
+                                 f"{1000 * d:.1f} mm apart (a joint fit needs the same body; tolerance "
+                                 f"{1000 * cg_tol:g} mm)")
+
+
+def recording_labels(recs: list[Recording]) -> list[str]:
+    """Short names of the recordings: folder names, or full paths where names repeat."""
+    names = [Path(r.path).name for r in recs]
+    return [n if names.count(n) == 1 else str(r.path) for n, r in zip(names, recs)]
+
+
+def identify_recordings(recs: list[Recording], start: float | None = None, end: float | None = None,
+                        settle: float = 5.0, band_hz: tuple[float, float] | None = None,
+                        mass_rtol: float = MASS_RTOL, cg_tol: float = CG_TOL) -> InertiaResult:
+    """One inertia tensor from several recordings of the same body (different exciter
+    frequencies or positions, cable geometries).
+
+    Checks the bodies agree (:func:`check_same_body`) before any processing, replays
+    each recording with :func:`prepare_recording` (the same start/end/settle window on
+    each), then fits jointly with
+    :func:`~rig_identification.identification.identify_inertia_joint` (each recording
+    band-passed on its own, ``band_hz`` or automatic per recording).  One recording:
+    :func:`identify_recording`.  Warnings are prefixed with the recording's name; the
+    result's ``series`` labels are :func:`recording_labels`.  Raises like
+    :func:`identify_recording`.
+    """
+    recs = list(recs)
+    if not recs:
+        raise RecordingError("no recording given")
+    if len(recs) == 1:
+        return identify_recording(recs[0], start=start, end=end, settle=settle, band_hz=band_hz)
+    check_same_body(recs, mass_rtol, cg_tol)
+    labels = recording_labels(recs)
+    preps = [prepare_recording(r, start, end, settle) for r in recs]
+    result = identify_inertia_joint([p.rec.rig for p in preps], [(p.t, p.gyro_body, p.torque) for p in preps],
+                                    band_hz=band_hz, labels=labels)
+    result.warnings[:0] = [f"{lab}: {w}" for lab, p in zip(labels, preps) for w in p.rec.warnings + p.warnings]
     return result
 
 
