@@ -23,13 +23,23 @@ USER_ERRORS = (RecordingError, RigError, IdentificationError, TrackerError, Stat
 
 
 def _print_inertia(result, truth: dict | None, rec_path) -> None:
+    """Print the result as a table; rec_path: one recording path or a list (joint fit)."""
     from .pipeline import compare_to_truth
     d = result.to_dict()
-    print(f"recording: {rec_path}")
+    paths = rec_path if isinstance(rec_path, (list, tuple)) else [rec_path]
+    if len(paths) == 1:
+        print(f"recording: {paths[0]}")
+    else:
+        print(f"recordings (joint fit, one tensor): {len(paths)}")
     print(f"mass: {d['mass']:.2f} kg   centre of gravity (body): "
           + ", ".join(f"{x:.4f}" for x in d["center_of_gravity"]) + " m")
-    print(f"window: {d['window']['end'] - d['window']['start']:.1f} s, {d['window']['samples']} samples; "
-          f"band {d['band_hz'][0]:.2f}–{d['band_hz'][1]:.2f} Hz")
+    if len(paths) == 1:
+        print(f"window: {d['window']['end'] - d['window']['start']:.1f} s, {d['window']['samples']} samples; "
+              f"band {d['band_hz'][0]:.2f}–{d['band_hz'][1]:.2f} Hz")
+    else:
+        for p, s in zip(paths, result.series):
+            print(f"  {p}: window {s.t[-1] - s.t[0]:.1f} s, {len(s.t)} samples; "
+                  f"band {s.band_hz[0]:.2f}–{s.band_hz[1]:.2f} Hz")
     cmp = compare_to_truth(result, truth) if truth and "inertia_about_cg" in truth else None
     head = f"{'entry':6s} {'value kg·m²':>12s} {'std':>8s}"
     if cmp:
@@ -48,17 +58,48 @@ def _print_inertia(result, truth: dict | None, rec_path) -> None:
 
 
 def cmd_inertia(args) -> int:
-    rec = read_recording(args.recording)
-    from .pipeline import identify_recording
+    from pathlib import Path
+    from types import SimpleNamespace
+
+    from .pipeline import check_same_body, identify_recording, identify_recordings
+    paths = args.recording
+    if len(paths) > 1:
+        if args.model != "pem":
+            raise IdentificationError("--model thesis fits one recording at a time: give one RECORDING "
+                                      "(the joint fit of several recordings is the prediction-error model's)")
+        if all((Path(p) / "rig.yaml").is_file() for p in paths):  # different bodies: say so before reading bags
+            from .rig import load_rig
+            check_same_body([SimpleNamespace(path=Path(p), rig=load_rig(Path(p) / "rig.yaml")) for p in paths])
+    if args.report:
+        if args.model != "pem":
+            raise IdentificationError("--report needs --model pem (the thesis baseline has no predicted output "
+                                      "to plot)")
+        from .report import check_report_dir
+        check_report_dir(Path(args.report))  # before the fit, not after it
+    recs = [read_recording(p) for p in paths]
     band = tuple(args.band) if args.band else None
-    result = identify_recording(rec, start=args.start, end=args.end, band_hz=band, model=args.model,
-                                initial_guess=args.initial_guess)
+    if len(recs) > 1:
+        result = identify_recordings(recs, start=args.start, end=args.end, band_hz=band)
+    else:
+        result = identify_recording(recs[0], start=args.start, end=args.end, band_hz=band, model=args.model,
+                                    initial_guess=args.initial_guess)
+    index = None
+    if args.report:
+        from .report import ReportError, write_report
+        try:
+            index = write_report(args.report, result, recs)
+        except OSError as e:
+            raise ReportError(f"{args.report}: cannot write the report ({e.strerror or e})") from None
     if args.json:
         print(json.dumps(result.to_dict()))
     else:
-        _print_inertia(result, rec.truth, rec.path)
+        from .report import common_truth
+        _print_inertia(result, common_truth(recs) if len(recs) > 1 else recs[0].truth,
+                       [r.path for r in recs] if len(recs) > 1 else recs[0].path)
     for w in result.warnings:  # also in the JSON's "warnings" list
         print("warning: " + w, file=sys.stderr)
+    if index is not None:
+        print(f"report: {index}", file=sys.stderr if args.json else sys.stdout)
     return 0
 
 
@@ -72,6 +113,62 @@ def cmd_thesis_table(args) -> int:
     if args.json:
         print(json.dumps(rows))
     return 0
+
+
+def cmd_diagnose(args) -> int:
+    from .diagnosis import diagnose
+    rec = read_recording(args.recording)
+    d = diagnose(rec, model=args.model)
+    if args.report:
+        from .diagnosis_report import write_report
+        write_report(d, args.report, title=f"diagnosis of {rec.path}")
+    out = d.to_dict()
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"recording: {rec.path}")
+        print(f"model: {'ours (Newton–Euler with ω × Jω)' if args.model == 'pem' else 'the thesis (no ω × Jω)'}; "
+              f"band {d.band[0]:.2f}–{d.band[1]:.2f} Hz")
+        if not d.mismatch:
+            print("no significant mismatch: the rigid-body model explains the recording "
+                  f"(best candidate {max(d.tried, key=lambda c: c['likelihood_ratio'])['name']}, "
+                  f"p = {max(d.tried, key=lambda c: c['likelihood_ratio'])['p_value']:.2g})" if d.tried else "")
+        for e in out["effects"]:
+            ps = ", ".join(f"{k} = {_fmt(v)} ± {_fmt(e['parameters_std'].get(k))}" if k in e["parameters_std"]
+                           else f"{k} = {_fmt(v)}" for k, v in e["parameters"].items())
+            red = ", ".join(f"{k} −{100 * r:.0f} %" for k, r in list(e["evidence"]["rms_reduction"].items())[:4])
+            print(f"effect: {e['name']}: {ps}")
+            print(f"   evidence: likelihood ratio {e['evidence']['likelihood_ratio']:.1f} "
+                  f"(p = {e['evidence']['p_value']:.2g}); residual RMS {red}")
+        print(f"{'entry':6s} {'before':>10s} {'after':>10s}" + (f" {'truth':>10s}" if rec.truth else ""))
+        for k in KEYS:
+            line = f"{k:6s} {out['inertia_about_cg_before'][k]:10.2f} {out['inertia_about_cg_after'][k]:10.2f}"
+            if rec.truth and "inertia_about_cg" in rec.truth:
+                line += f" {rec.truth['inertia_about_cg'][k]:10.2f}"
+            print(line)
+        for name, loc in out["located"].items():
+            if loc["peaks"] or loc["grows_at"]:
+                where = [f"peak {p['hz']} Hz ({p['is']})" for p in loc["peaks"][:2]]
+                if loc["grows_at"]:
+                    where.append("grows " + loc["grows_at"])
+                if mismatch_channel(out, name):
+                    print(f"located: {name}: " + "; ".join(where))
+    for w in d.warnings:
+        print("warning: " + w, file=sys.stderr)
+    return 0
+
+
+def mismatch_channel(out: dict, name: str) -> bool:
+    """A channel worth naming: the effects found reduced its residual by ≥ 10 %."""
+    return any(name in e["evidence"]["rms_reduction"] for e in out["effects"])
+
+
+def _fmt(v) -> str:
+    if isinstance(v, list):
+        return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    return str(v)
 
 
 def cmd_modes(args) -> int:
@@ -133,9 +230,13 @@ def identify_main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="rig-identify", description=__doc__.splitlines()[0])
     sub = ap.add_subparsers(dest="command", required=True)
     from .cg_cli import add_cg_parser, add_cg_plan_parser
-    p = sub.add_parser("inertia", help="identify the inertia tensor from a dynamic recording")
+    p = sub.add_parser("inertia", help="identify the inertia tensor from one or more dynamic recordings")
     p.set_defaults(func=cmd_inertia)
-    p.add_argument("recording", help="recording folder (rig.yaml + bag/)")
+    p.add_argument("recording", nargs="+",
+                   help="recording folder (rig.yaml + bag/); several recordings of the same body (other exciter "
+                        "frequencies or positions, cable geometries) are fitted jointly with one tensor")
+    p.add_argument("--report", metavar="DIR",
+                   help="also write an HTML report (index.html + figures) to the folder DIR")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.add_argument("--start", type=float, help="window start, s from the first IMU sample")
     p.add_argument("--end", type=float, help="window end, s from the first IMU sample")
@@ -160,6 +261,14 @@ def identify_main(argv=None) -> int:
                     help="cable stiffness for the model (default: rig.yaml's, else inextensible cables)")
     mp.set_defaults(func=cmd_modes)
     add_cg_plan_parser(sub)
+    dp = sub.add_parser("diagnose", help="where the rigid-body model and a recording disagree, and which physics "
+                                         "is missing (effect library, likelihood-ratio selection)")
+    dp.add_argument("recording", help="recording folder (rig.yaml + bag/)")
+    dp.add_argument("--json", action="store_true", help="print one JSON object")
+    dp.add_argument("--report", metavar="DIR", help="write plots (residuals and spectra before/after) and the JSON")
+    dp.add_argument("--model", choices=["pem", "thesis"], default="pem",
+                    help="pem: ours (default); thesis: the thesis's model without gyroscopic terms")
+    dp.set_defaults(func=cmd_diagnose)
     args = ap.parse_args(argv)
     try:
         return args.func(args)

@@ -15,8 +15,10 @@ air_drag               ``linear`` N·s²/m² (force −c |v| v), ``angular`` N·
 coulomb_friction       ``torque`` N·m (moment −τ ω/|ω|), ``force`` N (force −f v/|v|):
                        dry friction in the cable anchors' pivots, lumped on the body;
                        regularised over ``velocity_scale`` (default 1e-3 rad/s or m/s)
-cable_elasticity       ``stiffness`` N/m: the cables stretch (T/k) although rig.yaml gives
-                       no stiffness (i.e. declares them inextensible)
+cable_elasticity       ``stiffness`` N/m: the cables' true axial stiffness, which rig.yaml
+                       gets wrong: it states ``declared_stiffness`` N/m, or (default) none —
+                       then the tool assumes steel cables stretching 1–2 mm, so a much
+                       softer cable (e.g. 5e5 N/m, ~9 mm) is the mismatch
 cable_mass             ``mass`` kg per cable: the load cells sit at the ceiling anchors;
                        half of each cable's mass hangs on its body anchor and moves with it
 exciter_rotor          ``unbalance`` kg·m (unbalanced mass × eccentricity; default: the
@@ -50,7 +52,7 @@ PARAMETERS = {
     "viscous_damping": {"linear": (0, False), "angular": (0, False)},
     "air_drag": {"linear": (0, False), "angular": (0, False)},
     "coulomb_friction": {"torque": (0, False), "force": (0, False), "velocity_scale": (0, False)},
-    "cable_elasticity": {"stiffness": (0, True)},
+    "cable_elasticity": {"stiffness": (0, True), "declared_stiffness": (0, False)},
     "cable_mass": {"mass": (0, True)},
     "exciter_rotor": {"unbalance": (0, False), "rotor_inertia": (0, False)},
     "imu_offset": {"offset": (3, True)},

@@ -1195,10 +1195,11 @@ def simulate(exp: Experiment) -> SimResult:
     else:
         rig_out = replace(exp.rig, dummy_mass=None)
     elastic = exp.effect("cable_elasticity")
-    if elastic is not None:     # stretching cables, declared inextensible in the rig.yaml written
+    if elastic is not None:     # cables of another stiffness than the rig.yaml written states
         k = elastic.get("stiffness")
         cables = CableModel.spring(exp.rig, mass, np.full(len(exp.rig.cables), k))
-        rig_out = replace(rig_out, cables=tuple(replace(c, stiffness=None) for c in rig_out.cables))
+        kd = elastic.parameters.get("declared_stiffness")
+        rig_out = replace(rig_out, cables=tuple(replace(c, stiffness=kd) for c in rig_out.cables))
     cable_mass = exp.effect("cable_mass")
     if cable_mass is not None:  # half of each cable hangs on its body anchor, outside the load cell
         for b in exp.rig.body_anchors:

@@ -1,0 +1,927 @@
+"""Diagnosis: where a recording and the rigid-body model disagree, and which physics is missing.
+
+The model (:mod:`~rig_identification.identification`) is the Newton–Euler equation of
+a rigid body on cables, fed with the measured generalized wrench.  Three groups of
+residuals test it, each on the recording's window, band-passed like the identifier
+(zero-phase Butterworth, scipy ``sosfiltfilt``):
+
+* **rotational** (gyro x, y, z): the band-limited output error of the integrated Euler
+  equation, ``y = F ω`` vs ``ŷ = F P ∫(M − ω × Jω)``, as in the identifier;
+* **translational** (accelerometer x, y, z): the measured specific force at the IMU vs
+  Newton's law, ``F/m + α × ρ + ω × (ω × ρ)`` (ρ = IMU − CG, α = dω/dt), band-passed;
+* **mean levels** (gyro and accelerometer DC): the mean gyro vs the net rotation over the
+  window (the tracker's orientation), the mean specific force vs the mean F/m.
+
+The wrench components (force, torque: the Newton–Euler equation errors) and each load
+cell (the tension correction that best explains them, least squares) are reported too.
+
+Each candidate of the effect library (:mod:`~rig_identification.effects`) extends the
+model by terms that are *linear in its parameters* (moment and force regressors,
+output corrections, mean offsets; a sensor delay to first order, ``M(t − d) ≈ M − d Ṁ``),
+so the extended model is fitted by the same Levenberg–Marquardt prediction-error fit
+as the tensor (scipy ``least_squares``, physically consistent log-Cholesky tensor,
+:func:`~rig_identification.identification.consistent_from_params`), jointly with it.
+
+Selection: forward stepwise, by the likelihood-ratio statistic
+``Λ = Σ_g N_eff,g ln(RSS_g,0 / RSS_g,1) + Δχ²_DC`` (Gaussian residuals with the
+noise scale of each group; N_eff,g is the number of independent samples of the
+band-passed residual: N · 2 (f_hi − f_lo) / f_s), against the χ² quantile of the
+effect's number of parameters at p = :data:`ALPHA` / (number of candidates tried)
+(Bonferroni).  An effect is kept only if it also reduces the residual RMS of some
+channel by at least :data:`MIN_REDUCTION` (a statistically but not physically
+significant term is not a finding).  Standard deviations of the effect parameters: the
+sandwich (batch-means) covariance, as the identifier's.
+
+References: Ljung, *System Identification* (2nd ed., 1999), §16.4 (model validation by
+residual analysis: whiteness, cross-correlation with the inputs) and §16.6 (likelihood
+ratio and information criteria for model structure selection).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import cumulative_simpson
+from scipy.optimize import least_squares
+from scipy.signal import butter, sosfiltfilt, welch
+from scipy.spatial.transform import Rotation
+from scipy.stats import chi2
+
+from .effects import EFFECT_NAMES
+from .identification import (KEYS, IdentificationError, auto_band, basis, consistent_from_params, from_tensor,
+                             params_from_consistent, to_tensor)
+from .recording import Recording, RecordingError
+
+ALPHA = 0.01          # family-wise false-alarm probability of the selection
+MIN_REDUCTION = 0.05  # an effect must reduce some channel's residual RMS by at least this fraction
+MAX_EFFECTS = 3
+STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml stiffness are not "steel-like"
+ROT, TR = ("gyro_x", "gyro_y", "gyro_z"), ("accel_x", "accel_y", "accel_z")
+
+
+# --- data ---------------------------------------------------------------------------------
+
+@dataclass
+class Window:
+    """Everything the diagnosis needs, on the IMU stamps of the window (N samples).
+
+    t (N,) s; omega (N,3) rad/s body axes (gyro); f (N,3) m/s² specific force at the IMU,
+    body axes; R (N,3,3) body -> world; v (N,3) CG velocity, body axes, m/s;
+    tensions (N,n) N; u (N,n,3) cable directions, body axes; r_cables (n,3) body anchors
+    − CG, m; f_exc (N,3) exciter force, body axes, N; r_exc (3,) exciter − CG, m;
+    rho (3,) IMU − CG, m; mass kg; g m/s²; imu_rot (3,3) IMU -> body.
+    """
+
+    t: np.ndarray
+    omega: np.ndarray
+    f: np.ndarray
+    R: np.ndarray
+    v: np.ndarray
+    tensions: np.ndarray
+    u: np.ndarray
+    r_cables: np.ndarray
+    f_exc: np.ndarray
+    r_exc: np.ndarray
+    rho: np.ndarray
+    mass: float
+    g: float
+    imu_rot: np.ndarray
+    cable_names: list
+    exc_rot: np.ndarray = field(default_factory=lambda: np.eye(3))
+    imu_rot_yaml: np.ndarray = field(default_factory=lambda: np.eye(3))   # rig.yaml's IMU -> body
+    stiffness: np.ndarray | None = None     # cable stiffness the pose was tracked with, N/m (inf: rigid)
+    sensors: object = None       # the cleaned SensorData (for exact re-alignment of a stream)
+    shifts: dict = field(default_factory=dict)   # stream -> delay applied, s
+
+    def shifted(self, stream: str, delay: float) -> "Window":
+        """A copy with ``stream`` (load_cells | exciter) re-sampled at t + delay: the stream's
+        stamps lag by ``delay`` s (linear interpolation of the cleaned samples)."""
+        from dataclasses import replace as _replace
+        s = self.sensors
+        tq = self.t + delay
+        if stream == "load_cells":
+            T = np.column_stack([np.interp(tq, s.load_cells[n].t, s.load_cells[n].data[:, 0]) for n in self.cable_names])
+            return _replace(self, tensions=T, shifts={**self.shifts, stream: delay})
+        if stream == "exciter":
+            fe = s.exciter.interp(tq) @ self.exc_rot[:, :2].T
+            return _replace(self, f_exc=fe, shifts={**self.shifts, stream: delay})
+        raise ValueError(f"cannot re-align stream {stream!r}")
+
+    @property
+    def cable_force(self) -> np.ndarray:
+        return self.tensions[:, :, None] * self.u
+
+    @property
+    def force(self) -> np.ndarray:
+        return self.cable_force.sum(1) + self.f_exc
+
+    @property
+    def cable_moment(self) -> np.ndarray:
+        return np.cross(self.r_cables[None], self.cable_force)       # (N,n,3)
+
+    @property
+    def torque(self) -> np.ndarray:
+        return self.cable_moment.sum(1) + np.cross(self.r_exc, self.f_exc)
+
+    @property
+    def g_body(self) -> np.ndarray:
+        return -self.g * self.R[:, 2, :]                               # Rᵀ (0,0,-g)
+
+
+def _track(rig, s, cables: str):
+    """Tracked poses and the cable stiffness used (N,) N/m.  cables: ``"declared"``: the
+    rig.yaml stiffness, fitted by the tracker where rig.yaml gives none (as
+    :func:`~rig_identification.tracker.track`); ``"rigid"``: inextensible where rig.yaml
+    gives none; ``"fitted"``: fitted for every cable, whatever rig.yaml says."""
+    from dataclasses import replace as _r
+
+    from .tracker import PoseTrack, _replay
+    if cables == "fitted":
+        rig = _r(rig, cables=tuple(_r(c, stiffness=None) for c in rig.cables))
+    known = np.isfinite(rig.cable_stiffness)
+    if known.all() or cables == "rigid":
+        rig_t = _r(rig, cables=tuple(c if c.stiffness is not None else _r(c, stiffness=1e15) for c in rig.cables))
+        out, _ = _replay(rig_t, s)
+        return PoseTrack.from_estimates(out), np.where(known, rig.cable_stiffness, np.inf)
+    out, tracker = _replay(rig, s)
+    hist = tracker.compliance_history
+    if not hist:
+        return PoseTrack.from_estimates(out), np.where(known, rig.cable_stiffness, np.inf)
+    c = np.median([h[1] for h in hist[len(hist) // 2:]], axis=0)
+    k = np.where(known, rig.cable_stiffness, 1.0 / np.maximum(c, 1e-12))
+    rig_t = _r(rig, cables=tuple(_r(cb, stiffness=float(ki)) for cb, ki in zip(rig.cables, k)))
+    out, _ = _replay(rig_t, s)
+    return PoseTrack.from_estimates(out), k
+
+
+def prepare_window(rec: Recording, settle: float = 5.0, warnings: list | None = None,
+                   cables: str = "declared", imu_rot_yaml: np.ndarray | None = None) -> Window:
+    """Clean the recording, track the pose and collect the :class:`Window` (the same
+    cleaning and tracker as ``rig-identify inertia``; ``cables`` as :func:`_track`).
+    Raises RecordingError, RigError, TrackerError."""
+    from .pipeline import _check_motion, _check_units, clean_sensors
+    rig = rec.rig
+    cg = rig.require_cg()
+    if rig.exciter is not None and rec.sensors.exciter is None:
+        raise RecordingError(f"{rec.path}: rig.yaml describes an exciter but the bag has no /rig/exciter/wrench topic")
+    _check_units(rec)
+    warnings = [] if warnings is None else warnings
+    s = clean_sensors(rec, warnings)
+    _check_motion(rec, s)
+    poses, stiffness = _track(rig, s, cables)
+    lo = max([c.t[0] for c in s.load_cells.values()] + ([s.exciter.t[0]] if s.exciter is not None else []))
+    hi = min([c.t[-1] for c in s.load_cells.values()] + ([s.exciter.t[-1]] if s.exciter is not None else []))
+    lo = max(lo, s.t_start + min(settle, 0.1 * (s.t_end - s.t_start)))
+    m = (poses.t >= lo) & (poses.t <= hi)
+    t = poses.t[m]
+    R = Rotation.from_quat(poses.quaternion[m]).as_matrix()
+    imu = s.imu.interp(t)
+    Rimu = rig.imu.rotation.as_matrix()
+    omega, f = imu[:, :3] @ Rimu.T, imu[:, 3:] @ Rimu.T
+    T = np.column_stack([np.interp(t, s.load_cells[n].t, s.load_cells[n].data[:, 0]) for n in rig.cable_names])
+    rel = np.einsum("mji,mnj->mni", R, rig.ceiling_anchors[None] - poses.position[m][:, None]) - rig.body_anchors[None]
+    u = rel / np.linalg.norm(rel, axis=2)[:, :, None]
+    if rig.exciter is not None and s.exciter is not None:
+        f_exc = s.exciter.interp(t) @ rig.exciter.rotation.as_matrix()[:, :2].T
+        r_exc = rig.exciter.position - cg
+    else:
+        f_exc, r_exc = np.zeros((len(t), 3)), np.zeros(3)
+    v_world = poses.velocity[m] + np.einsum("nij,nj->ni", R, np.cross(omega, cg))
+    v = np.einsum("nji,nj->ni", R, v_world)
+    return Window(t, omega, f, R, v, T, u, rig.body_anchors - cg, f_exc, r_exc, rig.imu.position - cg,
+                  rig.mass, rig.gravity, Rimu, list(rig.cable_names),
+                  rig.exciter.rotation.as_matrix() if rig.exciter is not None else np.eye(3), sensors=s,
+                  imu_rot_yaml=Rimu if imu_rot_yaml is None else imu_rot_yaml, stiffness=stiffness)
+
+
+# --- the extended model ---------------------------------------------------------------------
+
+@dataclass
+class Column:
+    """One linear parameter of an effect: its contributions to the model (see module doc).
+
+    rot_D (N,3): moment added to the Euler equation per unit parameter, N·m, body;
+    rot_O (N,3): correction added to the band-passed measured ω (already filtered);
+    tr_D (N,3): specific force added to Newton's prediction, m/s², body;
+    tr_O (N,3): correction added to the band-passed measured specific force (filtered);
+    dcg (3,), dca (3,): change of the mean-level residuals per unit parameter.
+    """
+
+    name: str
+    rot_D: np.ndarray | None = None
+    rot_O: np.ndarray | None = None
+    tr_D: np.ndarray | None = None
+    tr_O: np.ndarray | None = None
+    dcg: np.ndarray | None = None
+    dca: np.ndarray | None = None
+
+
+@dataclass
+class Candidate:
+    """An effect hypothesis: ``name`` (effects.EFFECT_NAMES), its columns, and how to turn
+    the fitted column values (and covariance) into the effect's reported parameters."""
+
+    name: str
+    columns: list
+    report: callable
+    label: str = ""
+    gyroscopic: bool = False     # frees the scale of ω × Jω instead of adding columns
+    stream: str | None = None    # sensor_delay: the stream, re-aligned exactly once selected
+    exact: bool = False          # a sensor or rig error: once selected, the data are corrected and re-tracked
+
+    @property
+    def key(self) -> tuple:
+        return (self.name, self.label)
+
+
+class Model:
+    """The band-passed model terms of one window (precomputed), evaluated for a tensor,
+    a gyroscopic scale and effect columns."""
+
+    def __init__(self, w: Window, band: tuple[float, float] | None = None):
+        self.w = w
+        t = w.t
+        dt = np.diff(t)
+        self.fs = fs = 1.0 / float(np.median(dt))
+        if band is None:
+            lo, hi = auto_band(w.omega, fs)
+            lo = max(lo, 2.0 / (t[-1] - t[0]))
+        else:
+            lo, hi = band
+        self.band = (lo, min(hi, 0.4 * fs))
+        self.sos = butter(4, list(self.band), btype="bandpass", fs=fs, output="sos")
+        self.n_eff = max(10.0, len(t) * 2 * (self.band[1] - self.band[0]) / fs)
+        self.y = self.filt(w.omega)
+        self.IM = self.integ(w.torque)
+        self.G = np.stack([self.integ(np.cross(w.omega, w.omega @ Em.T)) for Em in basis()])
+        self.alpha = np.gradient(w.omega, t, axis=0)
+        a_rel = np.cross(self.alpha, w.rho) + np.cross(w.omega, np.cross(w.omega, w.rho))
+        newton = w.force / w.mass + a_rel
+        self.ya = self.filt(w.f)
+        self.A = self.filt(newton)
+        T = t[-1] - t[0]
+        net = Rotation.from_matrix(w.R[0].T @ w.R[-1]).as_rotvec()
+        self.dcg0 = w.omega.mean(0) - w.R[0].T @ w.R[0] @ net / T
+        self.dca0 = (w.f - newton).mean(0)
+        n = len(t)
+        sg = _white_sigma(w.omega, fs)
+        sa = _white_sigma(w.f, fs)
+        self.sigma_dcg = np.sqrt((sg / np.sqrt(n)) ** 2 + 2e-5 ** 2)
+        self.sigma_dca = np.sqrt((sa / np.sqrt(n)) ** 2 + 2e-3 ** 2)
+
+    def filt(self, x):
+        return sosfiltfilt(self.sos, x, axis=0)
+
+    def integ(self, x):
+        return self.filt(cumulative_simpson(x, x=self.w.t, axis=0, initial=0.0))
+
+    # rot residual: y + Σβ O − P (IM − κ G j + Σβ I(D))
+    def residuals(self, j, kappa, beta, cols, prepared):
+        P = np.linalg.inv(to_tensor(j))
+        u = self.IM - kappa * np.einsum("m,mni->ni", j, self.G)
+        yc = self.y.copy()
+        ya = self.ya.copy()
+        A = self.A.copy()
+        dcg = self.dcg0.copy()
+        dca = self.dca0.copy()
+        for b, c, p in zip(beta, cols, prepared):
+            if p["rot_ID"] is not None:
+                u = u + b * p["rot_ID"]
+            if c.rot_O is not None:
+                yc = yc + b * c.rot_O
+            if p["tr_FD"] is not None:
+                A = A + b * p["tr_FD"]
+            if c.tr_O is not None:
+                ya = ya + b * c.tr_O
+            if c.dcg is not None:
+                dcg = dcg + b * c.dcg
+            if c.dca is not None:
+                dca = dca + b * c.dca
+        yhat = u @ P.T
+        return yc - yhat, ya - A, dcg, dca, P, yhat, u
+
+    def prepare(self, cols):
+        return [{"rot_ID": None if c.rot_D is None else self.integ(c.rot_D),
+                 "tr_FD": None if c.tr_D is None else self.filt(c.tr_D)} for c in cols]
+
+
+def _white_sigma(x: np.ndarray, fs: float) -> float:
+    f, P = welch(x, fs=fs, nperseg=min(len(x), 1024), axis=0)
+    return float(np.sqrt(np.median(P[f > fs / 4].mean(1)) * fs / 2))
+
+
+@dataclass
+class Fit:
+    """A fitted model: tensor (3,3), gyroscopic scale, effect column values and covariance,
+    residuals per group, RMS per channel."""
+
+    J: np.ndarray
+    kappa: float
+    beta: np.ndarray
+    cov: np.ndarray            # (6 + k (+1)) covariance: tensor entries, columns, [kappa]
+    rot: np.ndarray
+    tr: np.ndarray
+    dcg: np.ndarray
+    dca: np.ndarray
+    yhat: np.ndarray
+    u: np.ndarray
+    cols: list = field(default_factory=list)
+    free_kappa: bool = False
+
+    def cost(self, scales) -> dict:
+        """Per-group residual sums of squares in units of the baseline scales."""
+        sr, sa, sg, sa_dc = scales
+        return {"rot": float(np.sum((self.rot / sr) ** 2)), "tr": float(np.sum((self.tr / sa) ** 2)),
+                "dcg": float(np.sum((self.dcg / sg) ** 2)), "dca": float(np.sum((self.dca / sa_dc) ** 2))}
+
+
+def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales, j0: np.ndarray,
+              block_s: float = 4.0) -> Fit:
+    """Levenberg–Marquardt fit (scipy ``least_squares``, analytic Jacobian) of the tensor
+    (consistent parametrisation), the effect columns and optionally the gyroscopic scale
+    κ.  Each group is weighted by its baseline scale and its effective sample count, so
+    that the cost is −2 log L up to a constant (see module docstring)."""
+    sr, sa, sg, sdc = scales
+    n = len(model.w.t)
+    wr = np.sqrt(model.n_eff / n) / sr
+    wa = np.sqrt(model.n_eff / n) / sa
+    prepared = model.prepare(cols)
+    k = len(cols)
+    E = basis()
+    zeros = np.zeros((n, 3))
+    # the parts of the Jacobian that do not depend on the parameters
+    dTr = np.stack([(c.tr_O if c.tr_O is not None else zeros) - (p["tr_FD"] if p["tr_FD"] is not None else zeros)
+                    for c, p in zip(cols, prepared)], axis=-1) if k else np.zeros((n, 3, 0))
+    dG = np.array([c.dcg if c.dcg is not None else np.zeros(3) for c in cols]).T.reshape(3, k)
+    dA = np.array([c.dca if c.dca is not None else np.zeros(3) for c in cols]).T.reshape(3, k)
+
+    def unpack(x):
+        j, dj = consistent_from_params(x[:6])
+        beta = x[6:6 + k]
+        kappa = x[6 + k] if free_kappa else kappa0
+        return j, dj, beta, kappa
+
+    def fun(x):
+        j, _, beta, kappa = unpack(x)
+        r, a, dg, da, *_ = model.residuals(j, kappa, beta, cols, prepared)
+        return np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc])
+
+    def jac(x):
+        j, dj, beta, kappa = unpack(x)
+        _, _, _, _, P, yhat, _ = model.residuals(j, kappa, beta, cols, prepared)
+        nx = len(x)
+        Jr = np.zeros((n, 3, nx))
+        Jr[:, :, :6] = np.einsum("ij,knj->nik", P, np.einsum("kij,nj->kni", E, yhat) + kappa * model.G) @ dj
+        for i, (c, p) in enumerate(zip(cols, prepared)):
+            col = np.zeros((n, 3))
+            if c.rot_O is not None:
+                col += c.rot_O
+            if p["rot_ID"] is not None:
+                col -= p["rot_ID"] @ P.T
+            Jr[:, :, 6 + i] = col
+        if free_kappa:
+            Jr[:, :, -1] = np.einsum("m,mni->ni", j, model.G) @ P.T
+        Ja = np.zeros((n, 3, nx))
+        Ja[:, :, 6:6 + k] = dTr
+        Jd = np.zeros((6, nx))
+        Jd[:3, 6:6 + k] = dG / sg
+        Jd[3:, 6:6 + k] = dA / sdc
+        return np.concatenate([(Jr * wr).reshape(-1, nx), (Ja * wa).reshape(-1, nx), Jd])
+
+    x0 = np.r_[params_from_consistent(to_tensor(j0)), np.zeros(k), [kappa0] if free_kappa else []]
+    sol = least_squares(fun, x0, jac=jac, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10,
+                        max_nfev=100 * (len(x0) + 1))
+    j, dj, beta, kappa = unpack(sol.x)
+    r, a, dg, da, P, yhat, u = model.residuals(j, kappa, beta, cols, prepared)
+    # covariance of (tensor entries, beta, kappa): sandwich with batch means over time blocks
+    T = np.eye(len(sol.x))
+    T[:6, :6] = np.linalg.pinv(dj)          # d theta / d entries
+    A = jac(sol.x) @ T                        # Jacobian with respect to (entries, beta, kappa)
+    cov = _sandwich(A, sol.fun, n, 6, int(round(block_s * model.fs)))
+    return Fit(to_tensor(j), float(kappa), np.asarray(beta, float), cov, r, a, dg, da, yhat, u, cols, free_kappa)
+
+
+def _sandwich(A: np.ndarray, res: np.ndarray, n: int, per_row: int, nb: int) -> np.ndarray:
+    """Covariance (AᵀA)⁻¹ S (AᵀA)⁻¹ with S from batch means of the time rows (the first
+    n·per_row rows, sample-major within each group of n·3 rows) plus the DC rows."""
+    p = A.shape[1]
+    bread = np.linalg.pinv(A.T @ A)
+    n_time = n * per_row
+    H = A[:n_time] * res[:n_time, None]
+    # rows are [rot (n,3) ravel, tr (n,3) ravel]: sample index of each row
+    idx = np.concatenate([np.repeat(np.arange(n), 3)] * (per_row // 3))
+    nb = max(1, min(nb, n // 8))
+    blk = idx // nb
+    S = np.zeros((blk.max() + 1, p))
+    np.add.at(S, blk, H)
+    meat = S.T @ S
+    D = A[n_time:]
+    meat += D.T @ D
+    return bread @ meat @ bread
+
+
+# --- the effect library ---------------------------------------------------------------
+
+def _unit(x, floor_frac=0.1):
+    nrm = np.linalg.norm(x, axis=1)
+    floor = floor_frac * max(np.percentile(nrm, 95), 1e-12)
+    return np.where(nrm[:, None] > floor, x / np.maximum(nrm, 1e-300)[:, None], 0.0)
+
+
+def _lowpass(model: Model, x: np.ndarray) -> np.ndarray:
+    """x zero-phase low-passed at the band's upper edge: the regressors that are nonlinear in
+    a noisy signal (|ω| ω, sign ω) are formed from it, so the noise does not bias them."""
+    sos = butter(4, model.band[1], fs=model.fs, output="sos")
+    return sosfiltfilt(sos, x, axis=0)
+
+
+def _vec(vals, stds, key, applied=None):
+    a = np.zeros(len(vals)) if applied is None else np.asarray(applied, float)
+    return {key: [float(x) for x in a + np.asarray(vals, float)]}, {key: [float(x) for x in stds]}
+
+
+def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None = None,
+               allow_elasticity: bool = False) -> list[Candidate]:
+    """The effect library as model extensions for this window (names: effects.EFFECT_NAMES).
+
+    applied: corrections already made to the data (key -> accumulated value, see
+    :func:`corrected`), added to the reported parameters."""
+    applied = applied or {}
+    m = w.mass
+    om, v = w.omega, w.v
+    E = np.eye(3)
+    out = []
+
+    def scal(keys):
+        def rep(vals, stds):
+            return ({k: float(x) for k, x in zip(keys, vals)}, {k: float(s) for k, s in zip(keys, stds)})
+        return rep
+
+    # viscous damping: M = -c_a ω, F = -c_l v
+    out.append(Candidate("viscous_damping", [Column("angular", rot_D=-om), Column("linear", tr_D=-v / m)],
+                         scal(["angular", "linear"])))
+    # air drag (quadratic) and Coulomb friction (regularised sign, as the simulator), from
+    # the low-passed motion
+    om_s, v_s = _lowpass(model, om), _lowpass(model, v)
+    nw, nv = np.linalg.norm(om_s, axis=1)[:, None], np.linalg.norm(v_s, axis=1)[:, None]
+    out.append(Candidate("air_drag", [Column("angular", rot_D=-nw * om_s), Column("linear", tr_D=-nv * v_s / m)],
+                         scal(["angular", "linear"])))
+    eps = 1e-3
+    out.append(Candidate("coulomb_friction",
+                         [Column("torque", rot_D=-om_s / np.sqrt(nw**2 + eps**2)),
+                          Column("force", tr_D=-v_s / np.sqrt(nv**2 + eps**2) / m)],
+                         scal(["torque", "force"])))
+    # the exciter's rotor: its weight turning with the unbalanced mass, M = U û × g
+    if np.any(w.f_exc):
+        uh = _unit(w.f_exc)
+        out.append(Candidate("exciter_rotor", [Column("unbalance", rot_D=np.cross(uh, w.g_body))],
+                             scal(["unbalance"])))
+    # sensor delays (first order): the stream lags by d -> true = measured + d d/dt(measured)
+    # (only the readings lag, not the pose: d/dt of the tension, not of T u)
+    t = w.t
+    Fd = np.gradient(w.tensions, t, axis=0)[:, :, None] * w.u
+    streams = [("load_cells", Fd.sum(1), np.cross(w.r_cables[None], Fd).sum(1))]
+    if np.any(w.f_exc):
+        dfe = np.gradient(w.f_exc, t, axis=0)
+        streams.append(("exciter", dfe, np.cross(w.r_exc, dfe)))
+    for stream, F, Mo in streams:
+        done = float(applied.get(("sensor_delay", stream), 0.0))
+
+        def rep_d(vals, stds, stream=stream, done=done):
+            return {"stream": stream, "delay": done + float(vals[0])}, {"delay": float(stds[0])}
+        out.append(Candidate("sensor_delay", [Column("delay", rot_D=Mo, tr_D=F / m)], rep_d, label=stream,
+                             stream=stream, exact=True))
+    # load-cell gain: true T = T_meas (1 - e) -> -e times the cable's wrench
+    for i, name in enumerate(w.cable_names):
+        Fi = w.cable_force[:, i]
+        col = Column("gain_error", rot_D=-w.cable_moment[:, i], tr_D=-Fi / m, dca=-(Fi / m).mean(0))
+        done = float(applied.get(("load_cell_scale", name), 0.0))
+
+        def rep(vals, stds, name=name, done=done):
+            keep = (1.0 - done) * (1.0 - float(vals[0]))      # true / measured
+            return {"cable": name, "scale": 1.0 / keep}, {"scale": float(stds[0]) / keep}
+        out.append(Candidate("load_cell_scale", [col], rep, label=name, exact=True))
+    # IMU offset δ (body axes): the specific force at the true point is α×δ + ω×(ω×δ) more
+    cols = []
+    for k in range(3):
+        d = np.cross(model.alpha, E[k]) + np.cross(om, np.cross(om, E[k]))
+        cols.append(Column(f"offset_{'xyz'[k]}", tr_D=d, dca=-d.mean(0)))
+    out.append(Candidate("imu_offset", cols,
+                         lambda vals, stds: _vec(vals, stds, "offset", applied.get(("imu_offset", ""))),
+                         exact=True))
+    # IMU misalignment δ (body axes, small): true ω = ω_meas + δ × ω_meas, same for f
+    cols = [Column(f"rot_{'xyz'[k]}", rot_O=np.cross(E[k], model.y), tr_O=np.cross(E[k], model.ya),
+                   dcg=np.cross(E[k], w.omega.mean(0)), dca=np.cross(E[k], w.f.mean(0))) for k in range(3)]
+    done_rv = np.asarray(applied.get(("imu_misalignment", ""), np.zeros(3)), float)
+    R0 = w.imu_rot_yaml
+
+    def rep_mis(vals, stds):
+        Rb = Rotation.from_rotvec(np.asarray(vals, float)) * Rotation.from_rotvec(done_rv)   # body axes
+        Rd = Rotation.from_matrix(R0.T @ Rb.as_matrix() @ R0)                               # IMU axes
+        return {"rpy": [float(x) for x in Rd.as_euler("xyz")]}, {"rpy": [float(s) for s in stds]}
+    out.append(Candidate("imu_misalignment", cols, rep_mis, exact=True))
+    # biases (IMU axes): mean-level offsets
+    Rimu = w.imu_rot
+    cols = [Column(f"bias_{'xyz'[k]}", dcg=-(Rimu @ E[k])) for k in range(3)]
+    out.append(Candidate("gyro_bias", cols,
+                         lambda vals, stds: _vec(vals, stds, "bias", applied.get(("gyro_bias", ""))), exact=True))
+    cols = [Column(f"bias_{'xyz'[k]}", dca=-(Rimu @ E[k])) for k in range(3)]
+    out.append(Candidate("accelerometer_bias", cols,
+                         lambda vals, stds: _vec(vals, stds, "bias", applied.get(("accelerometer_bias", ""))),
+                         exact=True))
+    # cable mass: half of each cable (mass μ per anchor) moves with the body, outside the load cell
+    f_cg = w.force / m
+    Dm = np.zeros_like(om)
+    Fm = np.zeros_like(om)
+    for r in w.r_cables:
+        a_i = f_cg + np.cross(model.alpha, r) + np.cross(om, np.cross(om, r))   # anchor specific force
+        Dm -= np.cross(r, a_i)
+        Fm -= a_i
+    out.append(Candidate("cable_mass", [Column("mass_half", rot_D=Dm, tr_D=Fm / m, dca=(Fm / m).mean(0))],
+                         lambda vals, stds: ({"mass": 2 * float(vals[0])}, {"mass": 2 * float(stds[0])})))
+    # cable elasticity: the pose re-tracked with stretching cables (compliance fitted by the tracker)
+    if allow_elasticity:
+        out.append(Candidate("cable_elasticity", [], lambda vals, stds: ({"stiffness": float(vals[0])},
+                                                                         {"stiffness": float(stds[0])}),
+                             exact=True))
+    # gyroscopic coupling: only a model without it can miss it
+    if base_kappa == 0.0:
+        out.append(Candidate("gyroscopic_coupling", [], lambda vals, stds: ({"scale": float(vals[0])},
+                                                                            {"scale": float(stds[0])}),
+                             gyroscopic=True))
+    return out
+
+
+def corrected(rec: Recording, applied: dict) -> Recording:
+    """The recording with the sensor and rig errors of ``applied`` removed (key -> value):
+    ("sensor_delay", stream) s: the stream's stamps − d; ("load_cell_scale", cable) e:
+    T (1 − e); ("imu_offset", "") (3,) m body: imu.position + δ; ("imu_misalignment", "")
+    (3,) rotation vector, body axes: IMU axes turned by it; ("gyro_bias" | "accelerometer_bias",
+    "") (3,) IMU axes: subtracted.  ("cable_elasticity", "") is handled by the tracker."""
+    from dataclasses import replace as _r
+
+    from .recording import SensorData, TimeSeries
+    rig, s = rec.rig, rec.sensors
+    imu = s.imu.data.copy()
+    imu[:, :3] -= np.asarray(applied.get(("gyro_bias", ""), np.zeros(3)))
+    imu[:, 3:] -= np.asarray(applied.get(("accelerometer_bias", ""), np.zeros(3)))
+    cells = {}
+    d_cells = applied.get(("sensor_delay", "load_cells"), 0.0)
+    for n, ts in s.load_cells.items():
+        cells[n] = TimeSeries(ts.t - d_cells, ts.data * (1.0 - applied.get(("load_cell_scale", n), 0.0)))
+    exc = s.exciter
+    if exc is not None and ("sensor_delay", "exciter") in applied:
+        exc = TimeSeries(exc.t - applied[("sensor_delay", "exciter")], exc.data)
+    s2 = SensorData(TimeSeries(s.imu.t, imu), cells, exc, s.inclinometer)
+    imu_m = rig.imu
+    if ("imu_offset", "") in applied:
+        imu_m = _r(imu_m, position=imu_m.position + np.asarray(applied[("imu_offset", "")]))
+    if ("imu_misalignment", "") in applied:
+        Rb = Rotation.from_rotvec(np.asarray(applied[("imu_misalignment", "")], float))
+        imu_m = _r(imu_m, rpy=(Rb * imu_m.rotation).as_euler("xyz"))
+    return _r(rec, rig=_r(rig, imu=imu_m), sensors=s2)
+
+
+# --- diagnosis ------------------------------------------------------------------------------
+
+@dataclass
+class Diagnosis:
+    """Result of :func:`diagnose`; :meth:`to_dict` is the JSON of ``rig-identify diagnose``."""
+
+    mismatch: bool
+    effects: list
+    located: dict
+    rms_before: dict
+    rms_after: dict
+    inertia_before: np.ndarray
+    inertia_after: np.ndarray
+    inertia_std_before: np.ndarray
+    inertia_std_after: np.ndarray
+    tried: list
+    band: tuple
+    model: str
+    warnings: list = field(default_factory=list)
+    series: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        ent = lambda J: {k: float(x) for k, x in zip(KEYS, from_tensor(J))}  # noqa: E731
+        return {"mismatch": self.mismatch, "effects": self.effects, "located": self.located,
+                "residual_rms_before": self.rms_before, "residual_rms_after": self.rms_after,
+                "inertia_about_cg_before": ent(self.inertia_before),
+                "inertia_about_cg_after": ent(self.inertia_after),
+                "inertia_std_before": {k: float(x) for k, x in zip(KEYS, self.inertia_std_before)},
+                "inertia_std_after": {k: float(x) for k, x in zip(KEYS, self.inertia_std_after)},
+                "candidates": self.tried, "band_hz": [float(x) for x in self.band], "model": self.model,
+                "warnings": self.warnings}
+
+
+def channel_residuals(model: Model, fit: Fit) -> dict:
+    """Residual time series (N,) per channel: gyro and accelerometer (band-passed, plus
+    the mean-level residual), torque and force (Newton–Euler equation errors, N·m and N),
+    and each load cell (least-squares tension correction, N)."""
+    w = model.w
+    out = {}
+    for k in range(3):
+        out[ROT[k]] = fit.rot[:, k] + fit.dcg[k]
+        out[TR[k]] = fit.tr[:, k] + fit.dca[k]
+    # Newton–Euler equation errors, band-passed: torque = J α + ω×Jω − M − ΔM  (in-band)
+    J = fit.J
+    # torque residual from the output error: J (d/dt) of the rotational residual
+    torque = np.gradient(fit.rot, w.t, axis=0) @ J.T
+    force = fit.tr * w.mass
+    for k, a in enumerate("xyz"):
+        out[f"torque_{a}"] = torque[:, k]
+        out[f"force_{a}"] = force[:, k]
+    # load cells: tension corrections δT that best explain the wrench residual
+    W = np.concatenate([w.u, np.cross(w.r_cables[None], w.u)], axis=2)      # (N,n,6)
+    wr = np.concatenate([force, torque], axis=1)                             # (N,6)
+    scale = np.array([1, 1, 1, 1 / 1.5, 1 / 1.5, 1 / 1.5])                   # N vs N·m over ~1.5 m
+    Ws = W * scale
+    dT = np.einsum("nij,nj->ni", np.linalg.pinv(np.transpose(Ws, (0, 2, 1))), wr * scale)
+    for i, name in enumerate(w.cable_names):
+        out[f"load_cell_{name}"] = dT[:, i]
+    return out
+
+
+def _rms(d: dict) -> dict:
+    return {k: float(np.sqrt(np.mean(v**2))) for k, v in d.items()}
+
+
+def locate(model: Model, fit: Fit, rig, inertia) -> dict:
+    """Where the residuals of the fit show a mismatch: in time (RMS per tenth of the window,
+    and while the exciter runs vs not), in frequency (Welch peaks, each named: the forcing,
+    its harmonics, a natural frequency of the rig, or unexplained), whiteness (Ljung–Box on
+    the residual decimated to the band) and correlation with the inputs and states."""
+    from scipy.stats import chi2 as _chi2
+    w = model.w
+    ch = channel_residuals(model, fit)
+    fs = model.fs
+    lo, hi = model.band
+    # exciter frequency from the exciter force direction's rotation
+    f_exc = None
+    if np.any(w.f_exc):
+        ang = np.unwrap(np.arctan2(w.f_exc[:, 1], w.f_exc[:, 0]))
+        on = np.linalg.norm(w.f_exc, axis=1) > 0.5 * np.percentile(np.linalg.norm(w.f_exc, axis=1), 95)
+        if on.sum() > 10:
+            f_exc = abs(float(np.polyfit(w.t[on], ang[on], 1)[0])) / (2 * np.pi)
+    try:
+        from .modes import natural_modes
+        k = rig.cable_stiffness if np.isfinite(rig.cable_stiffness).all() else None
+        nat = [m.frequency for m in natural_modes(rig, rig.mass, rig.require_cg(), inertia, k)]
+    except Exception:  # noqa: BLE001 — the modes are an aid to naming peaks, not required
+        nat = []
+    states = {"omega_x": w.omega[:, 0], "omega_y": w.omega[:, 1], "omega_z": w.omega[:, 2],
+              "|omega|": np.linalg.norm(w.omega, axis=1), "v_x": w.v[:, 0], "v_y": w.v[:, 1], "v_z": w.v[:, 2],
+              "|v|": np.linalg.norm(w.v, axis=1)}
+    for i, n in enumerate(w.cable_names):
+        states[f"tension_{n}"] = w.tensions[:, i]
+    if f_exc is not None:
+        states["exciter_force_x"] = w.f_exc[:, 0]
+        states["exciter_force_y"] = w.f_exc[:, 1]
+    filt_states = {k: model.filt(v - v.mean()) for k, v in states.items()}
+    step = max(1, int(fs / (2 * hi)))
+    out = {}
+    for name, r in ch.items():
+        rr = r - r.mean()
+        tenths = np.array_split(rr, 10)
+        seg = [float(np.sqrt(np.mean(x**2))) for x in tenths]
+        f, P = welch(rr, fs=fs, nperseg=min(len(rr), int(2 ** np.ceil(np.log2(20 * fs)))))
+        inb = (f >= lo) & (f <= hi)
+        peaks = []
+        if inb.sum() > 3:
+            Pi = P[inb]
+            fl = np.median(Pi)
+            order = np.argsort(Pi)[::-1]
+            for i in order[:40]:
+                if Pi[i] < 10 * fl or len(peaks) >= 3:
+                    break
+                fr = float(f[inb][i])
+                if any(abs(fr - p["hz"]) < 0.1 for p in peaks):
+                    continue
+                peaks.append({"hz": round(fr, 3), "power_over_floor": round(float(Pi[i] / fl), 1),
+                              "is": _name_peak(fr, f_exc, nat)})
+        d = rr[::step]
+        nlag = 10
+        ac = np.array([np.corrcoef(d[:-L], d[L:])[0, 1] for L in range(1, nlag + 1)])
+        q = len(d) * (len(d) + 2) * np.sum(ac**2 / (len(d) - np.arange(1, nlag + 1)))
+        corr = sorted(((abs(float(np.corrcoef(rr, s)[0, 1])), k)
+                       for k, s in filt_states.items() if np.std(s) > 0), reverse=True)[:3]
+        out[name] = {"rms": float(np.sqrt(np.mean(r**2))), "mean": float(r.mean()),
+                     "rms_by_tenth": [round(x, 9) for x in seg],
+                     "grows_at": _grows(seg, w.t),
+                     "peaks": peaks, "whiteness_p": float(_chi2.sf(q, nlag)),
+                     "correlates_with": [{"signal": k, "correlation": round(c, 3)} for c, k in corr]}
+    return out
+
+
+def _name_peak(fr, f_exc, nat) -> str:
+    if f_exc:
+        for h in range(1, 6):
+            if abs(fr - h * f_exc) < 0.03 * h * f_exc + 0.02:
+                return "forcing" if h == 1 else f"forcing harmonic {h}"
+    for i, fn in enumerate(nat):
+        if abs(fr - fn) < 0.03 * fn + 0.02:
+            return f"natural frequency {fn:.3f} Hz"
+    if f_exc and nat:
+        for fn in nat:
+            if abs(fr - (fn + f_exc)) < 0.04 or abs(fr - abs(fn - f_exc)) < 0.04:
+                return "intermodulation of the forcing and a mode"
+    return "unexplained (no rigid-body mode or forcing harmonic)"
+
+
+def _grows(seg, t) -> str | None:
+    seg = np.asarray(seg)
+    med = np.median(seg)
+    if med <= 0:
+        return None
+    i = int(np.argmax(seg))
+    if seg[i] > 2 * med:
+        T = t[-1] - t[0]
+        return f"{i * T / 10:.0f}–{(i + 1) * T / 10:.0f} s into the window ({seg[i] / med:.1f}× the median RMS)"
+    return None
+
+
+def _lr(cost0: dict, cost1: dict, model: Model) -> float:
+    n = len(model.w.t)
+    lam = 0.0
+    for g in ("rot", "tr"):
+        # costs are in units of the baseline scales over n·3 samples; per-group likelihood ratio
+        if cost0[g] > 0 and cost1[g] > 0:
+            lam += model.n_eff * 3 * np.log(cost0[g] / cost1[g])
+    lam += cost0["dcg"] - cost1["dcg"] + cost0["dca"] - cost1["dca"]
+    return float(lam)
+
+
+def _scales(M: Model, f0: Fit) -> tuple:
+    return (float(np.sqrt(np.mean(f0.rot**2, 0)).mean()), float(np.sqrt(np.mean(f0.tr**2, 0)).mean()),
+            float(np.mean(M.sigma_dcg)), float(np.mean(M.sigma_dca)))
+
+
+def _columns(cands: list, keys: list) -> list:
+    by = {c.key: c for c in cands}
+    return [col for k in keys if k in by for col in by[k].columns]
+
+
+def _accumulate(key: tuple, done, beta: np.ndarray):
+    """Add a fitted first-order correction ``beta`` to the correction already applied."""
+    name = key[0]
+    if name == "load_cell_scale":
+        return 1.0 - (1.0 - float(done or 0.0)) * (1.0 - float(beta[0]))
+    if name == "sensor_delay":
+        return float(done or 0.0) + float(beta[0])
+    if name == "imu_misalignment":
+        prev = Rotation.from_rotvec(np.zeros(3) if done is None else np.asarray(done, float))
+        return (Rotation.from_rotvec(np.asarray(beta, float)) * prev).as_rotvec()
+    return (np.zeros(len(beta)) if done is None else np.asarray(done, float)) + np.asarray(beta, float)
+
+
+def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS, alpha: float = ALPHA,
+             band_hz: tuple[float, float] | None = None) -> Diagnosis:
+    """Diagnose a dynamic recording (see module docstring).
+
+    model: ``"pem"`` (ours, with the gyroscopic term) or ``"thesis"`` (the thesis's model:
+    no ω × Jω).  The baseline is the rig.yaml taken literally: cables without a stiffness
+    are inextensible.  Sensor and rig errors (delays, gains, biases, IMU pose, cable
+    elasticity), once selected, are removed from the data and the pose re-tracked
+    (:func:`corrected`), iterating the first-order estimate to convergence.
+    Returns a :class:`Diagnosis`.  Raises RecordingError, RigError, TrackerError,
+    IdentificationError for recordings no fit can be made of.
+    """
+    from .identification import identify_inertia
+    if model not in ("pem", "thesis"):
+        raise ValueError(f"unknown model {model!r} (pem or thesis)")
+    warnings: list[str] = []
+    kappa0 = 1.0 if model == "pem" else 0.0
+    R_yaml = rec.rig.imu.rotation.as_matrix()
+    state = {"applied": {}, "elastic": False, "band": band_hz, "candidate": True}
+    declared = np.isfinite(rec.rig.cable_stiffness).all()
+
+    def build(applied, elastic):
+        mode = "fitted" if elastic else ("declared" if declared else "rigid")
+        w = prepare_window(corrected(rec, applied), warnings=[] if state["band"] else warnings,
+                           cables=mode, imu_rot_yaml=R_yaml)
+        M = Model(w, state["band"])
+        state["band"] = M.band
+        return w, M, candidates(w, M, kappa0, applied, allow_elasticity=state["candidate"] and not elastic)
+
+    if not declared:
+        # rig.yaml gives no stiffness: steel cables stretch 1-2 mm, which the baseline fits
+        # (the tracker's compliance); only a stretch beyond STEEL_STRETCH makes the cables'
+        # elasticity a candidate, against the rigid-cable model
+        w, M, cands = build({}, True)
+        k = w.stiffness
+        stretch = float(np.median(np.median(w.tensions, axis=0) / k))
+        if stretch <= STEEL_STRETCH:
+            state["candidate"] = False
+            declared = True          # the fitted stiffness is the baseline's
+            cands = candidates(w, M, kappa0, {}, allow_elasticity=False)
+        else:
+            warnings.append(f"the cables stretch {1e3 * stretch:.1f} mm under the static load (fitted stiffness "
+                            f"{np.median(k):.3g} N/m), more than steel cables' 1-2 mm: cable elasticity is tested "
+                            "against rigid cables")
+            w, M, cands = build({}, False)
+    else:
+        w, M, cands = build({}, False)
+    band = M.band
+    j0 = from_tensor(identify_inertia(rec.rig, w.t, w.omega, w.torque, band_hz=band).inertia)
+    scales = _scales(M, fit_model(M, [], kappa0, False, (1.0, 1.0, 1.0, 1.0), j0))
+    base = fit_model(M, [], kappa0, False, scales, j0)
+    M0 = M
+    rms0 = _rms(channel_residuals(M, base))
+    threshold_p = alpha / max(1, len(cands))
+    keys: list = []
+    entries: list = []
+    free_kappa = False
+    cur_fit = base
+    tried = []
+    elastic_cache = None
+    for step in range(1, max_effects + 1):
+        cost_cur = cur_fit.cost(scales)
+        rms_cur = _rms(channel_residuals(M, cur_fit))
+        base_cols = _columns(cands, keys)
+        best = None
+        for c in cands:
+            if c.key in keys:
+                continue
+            fk = free_kappa or c.gyroscopic
+            Mc = M
+            try:
+                if c.name == "cable_elasticity":
+                    if elastic_cache is None or elastic_cache[0] != repr(state["applied"]):
+                        we, Me, ce = build(state["applied"], True)
+                        elastic_cache = (repr(state["applied"]), we, Me, ce)
+                    _, we, Mc, ce = elastic_cache
+                    fit = fit_model(Mc, _columns(ce, keys), kappa0, fk, scales, from_tensor(cur_fit.J))
+                else:
+                    fit = fit_model(M, base_cols + c.columns, kappa0, fk, scales, from_tensor(cur_fit.J))
+            except (np.linalg.LinAlgError, ValueError) as e:
+                warnings.append(f"candidate {c.name} {c.label}: fit failed ({e})")
+                continue
+            lam = _lr(cost_cur, fit.cost(scales), M)
+            dof = len(c.columns) + (1 if c.gyroscopic else 0) + (1 if c.name == "cable_elasticity" else 0)
+            p = float(chi2.sf(max(lam, 0.0), dof))
+            rms1 = _rms(channel_residuals(Mc, fit))
+            red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
+            best_red = max(red.values())
+            tried.append({"name": c.name, "label": c.label, "step": step, "likelihood_ratio": lam, "dof": dof,
+                          "p_value": p, "max_rms_reduction": best_red})
+            if p < threshold_p and best_red >= MIN_REDUCTION and (best is None or lam > best[1]):
+                best = (c, lam, fit, p, red, dof)
+        if best is None:
+            break
+        c, lam, fit, p, red, dof = best
+        keys.append(c.key)
+        free_kappa = free_kappa or c.gyroscopic
+        if c.name == "cable_elasticity":
+            state["elastic"] = True
+            _, w, M, cands = elastic_cache
+        elif c.exact:
+            # remove the error from the data, re-track, refit; iterate the first-order step
+            for _ in range(3):
+                k0 = len(_columns(cands, keys[:-1]))
+                beta = fit.beta[k0:k0 + len(c.columns)]
+                state["applied"][c.key] = _accumulate(c.key, state["applied"].get(c.key), beta)
+                w, M, cands = build(state["applied"], state["elastic"])
+                fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, from_tensor(fit.J))
+                c = next(cc for cc in cands if cc.key == c.key)
+                k0 = len(_columns(cands, keys[:-1]))
+                if np.all(np.abs(fit.beta[k0:k0 + len(c.columns)])
+                          <= 0.1 * np.sqrt(np.diag(fit.cov)[6 + k0:6 + k0 + len(c.columns)])):
+                    break
+        else:
+            c = next(cc for cc in cands if cc.key == c.key)
+        rms1 = _rms(channel_residuals(M, fit))
+        red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
+        lam = _lr(cost_cur, fit.cost(scales), M)
+        cur_fit = fit
+        affected = sorted((k for k, r in red.items() if r >= 0.1), key=lambda k: -red[k])
+        entries.append({"name": c.name, "parameters": {}, "parameters_std": {},
+                        "evidence": {"likelihood_ratio": lam, "dof": dof, "p_value": p, "threshold_p": threshold_p,
+                                     "step": step, "rms_reduction": {k: round(red[k], 4) for k in affected[:8]}}})
+    # the parameters of every selected effect, from the final joint fit
+    pos = 0
+    by = {cc.key: cc for cc in cands}
+    for e, key in zip(entries, keys):
+        if key[0] == "cable_elasticity":
+            k = w.stiffness[np.isfinite(w.stiffness)]
+            e["parameters"], e["parameters_std"] = {"stiffness": float(np.median(k))}, \
+                {"stiffness": float(np.std(k) / np.sqrt(len(k))) if len(k) > 1 else float("nan")}
+            continue
+        c = by[key]
+        if c.gyroscopic:
+            vals, stds = [cur_fit.kappa], [float(np.sqrt(max(cur_fit.cov[-1, -1], 0.0)))]
+        else:
+            vals = cur_fit.beta[pos:pos + len(c.columns)]
+            stds = np.sqrt(np.clip(np.diag(cur_fit.cov)[6 + pos:6 + pos + len(c.columns)], 0, None))
+            pos += len(c.columns)
+        e["parameters"], e["parameters_std"] = c.report(vals, stds)
+    entries.sort(key=lambda e: -e["evidence"]["likelihood_ratio"])
+    located = locate(M0, base, rec.rig, base.J)
+    std_of = lambda f: np.sqrt(np.clip(np.diag(f.cov)[:6], 0, None))  # noqa: E731
+    ch0, ch1 = channel_residuals(M0, base), channel_residuals(M, cur_fit)
+    return Diagnosis(bool(entries), entries, located, rms0, _rms(ch1), base.J, cur_fit.J,
+                     std_of(base), std_of(cur_fit), tried, band, model, warnings + list(rec.warnings),
+                     series={"t": w.t - w.t[0], "fs": M.fs, "before": ch0, "after": ch1})
+
+
+__all__ = ["Diagnosis", "diagnose", "prepare_window", "candidates", "locate", "EFFECT_NAMES", "IdentificationError"]
