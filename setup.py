@@ -24,6 +24,7 @@ setup(
         (f"share/{PACKAGE}/config/cases", sorted(glob("config/cases/*.yaml"))),
         (f"share/{PACKAGE}/config/rigs", sorted(glob("config/rigs/*.yaml"))),
         (f"share/{PACKAGE}/config/params", sorted(glob("config/params/*.yaml"))),
+        (f"share/{PACKAGE}/config/dds", sorted(glob("config/dds/*.xml"))),
     ],
     package_data={PACKAGE: ["data/*.yaml"]},
     include_package_data=True,

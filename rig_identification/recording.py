@@ -16,9 +16,6 @@ Errors: :class:`RecordingError` (a ``ValueError``) naming the file and topic.
 """
 from __future__ import annotations
 
-import os
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -385,26 +382,15 @@ def write_recording(out: str | Path, rig: Rig, sensors: SensorData, truth: dict 
     Builds the folder next to ``out`` and renames it into place.  Raises
     :class:`RecordingError` if ``out`` exists and ``overwrite`` is false.
     """
+    from .atomic import atomic_directory
     out = Path(out)
     if out.exists() and not overwrite:
         raise RecordingError(f"{out}: already exists (refusing to overwrite)")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    try:
+    with atomic_directory(out, overwrite=overwrite) as tmp:
         (tmp / "rig.yaml").write_text(dump_rig(rig, rig_comment))
         if truth is not None:
             (tmp / "truth.yaml").write_text(yaml.safe_dump(truth, sort_keys=False, default_flow_style=None))
         write_bag(tmp / "bag", rig, sensors, storage)
-        for f in tmp.rglob("*"):
-            if f.is_file():
-                with open(f, "rb") as fh:
-                    os.fsync(fh.fileno())
-        if out.exists():
-            shutil.rmtree(out)
-        os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return out
 
 

@@ -24,6 +24,7 @@ velocity in body axes (rad/s); ``velocity`` is the origin's velocity in world (m
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -241,42 +242,50 @@ class PoseTracker:
         self._t_incl: float | None = None
         self.compliance_history: list[tuple[float, np.ndarray]] = []
         self._t = None
-        self._Rm: np.ndarray | None = None
-        self._incl_m = self._incl.as_matrix() if self._incl is not None else None
-        self.p = self.v = self.omega = None
+        # filter state (plain floats, set by _initialise); R: row-major body -> world
+        self._R: tuple | None = None
+        self._p = self._v = self._omega = None
+        self._gyro_bias = (0.0, 0.0, 0.0)
+        self._gravity = float(rig.gravity)
+        self._imu_f = tuple(self._imu_m.ravel().tolist())
+        self._incl_f = tuple(self._incl.as_matrix().ravel().tolist()) if self._incl is not None else None
+        self._anchors_f = [tuple(r) for r in self._anchors_from_imu.tolist()]
+        self._ceiling_f = [tuple(r) for r in rig.ceiling_anchors.tolist()]
+        self._r_imu_f = tuple(np.asarray(self._r_imu, float).tolist())
 
     @property
     def initialised(self) -> bool:
-        return self._Rm is not None
+        return self._R is not None
 
     # --- inputs -------------------------------------------------------------------
     def add_inclinometer(self, t: float, angles) -> None:
         a = np.asarray(angles, float)[:2]
         self._t_incl = t
-        if self._Rm is None:
+        if self._R is None:
             self._init_incl.append(a)
         else:
-            self._incl_pending = a
+            self._incl_pending = (float(a[0]), float(a[1]))
 
     def add_exciter(self, t: float, force_xy) -> None:
         """Exciter force (2,) N in the exciter frame; used only for the initial pose."""
-        if self._Rm is None and self.rig.exciter is not None:
+        if self._R is None and self.rig.exciter is not None:
             self._init_exc.append(np.asarray(force_xy, float)[:2])
 
     def add_tensions(self, t: float, tensions) -> None:
         """tensions: dict cable name -> N, or (N,) array in rig order."""
         if isinstance(tensions, dict):
-            tensions = np.array([tensions[n] for n in self.rig.cable_names], float)
-        self._tensions = np.asarray(tensions, float)
-        if self._Rm is None:
-            self._init_tens.append(self._tensions)
+            tensions = [tensions[n] for n in self.rig.cable_names]
+        if self._R is None:
+            self._init_tens.append(np.asarray(tensions, float))
+        self._tensions = tuple(np.asarray(tensions, float).tolist())
 
     def add_imu(self, t: float, gyro, accel) -> PoseEstimate | None:
-        gyro_b = self._imu_m @ np.asarray(gyro, float)
-        f_b = self._imu_m @ np.asarray(accel, float)
-        if self._Rm is not None:
-            gyro_b = gyro_b - self.gyro_bias
-        else:
+        """One IMU sample: gyro (3,) rad/s and specific force (3,) m/s^2 in IMU axes.
+        Returns the pose at ``t`` (None while initialising).  Raises :class:`TrackerError`
+        when ``t`` is not after the previous stamp."""
+        if self._R is None:
+            gyro_b = self._imu_m @ np.asarray(gyro, float)
+            f_b = self._imu_m @ np.asarray(accel, float)
             self._init.append((t, gyro_b, f_b))
             if t - self._init[0][0] < self.init_time:
                 return None
@@ -285,9 +294,38 @@ class PoseTracker:
         dt = t - self._t
         if dt <= 0:
             raise TrackerError(f"IMU stamp {t:.6f} s is not after the previous one ({self._t:.6f} s)")
+        # plain floats from here on: ~10x faster than numpy on 3-vectors (same formulas)
+        gx, gy, gz = _floats(gyro)
+        ax, ay, az = _floats(accel)
+        m00, m01, m02, m10, m11, m12, m20, m21, m22 = self._imu_f
+        b0, b1, b2 = self._gyro_bias
+        gyro_b = (m00 * gx + m01 * gy + m02 * gz - b0, m10 * gx + m11 * gy + m12 * gz - b1,
+                  m20 * gx + m21 * gy + m22 * gz - b2)
+        f_b = (m00 * ax + m01 * ay + m02 * az, m10 * ax + m11 * ay + m12 * az, m20 * ax + m21 * ay + m22 * az)
         self._step(dt, gyro_b, f_b)
         self._t = t
         return self._estimate()
+
+    # the filter state, as numpy arrays (the step keeps plain floats)
+    @property
+    def p(self) -> np.ndarray | None:
+        """World position (3,) m of the IMU point."""
+        return None if self._p is None else np.array(self._p)
+
+    @property
+    def v(self) -> np.ndarray | None:
+        """World velocity (3,) m/s of the IMU point."""
+        return None if self._v is None else np.array(self._v)
+
+    @property
+    def omega(self) -> np.ndarray | None:
+        """Angular velocity (3,) rad/s, body axes, gyro bias removed."""
+        return None if self._omega is None else np.array(self._omega)
+
+    @property
+    def gyro_bias(self) -> np.ndarray:
+        """Current gyro-bias estimate (3,) rad/s, body axes."""
+        return np.array(self._gyro_bias)
 
     # --- internals ----------------------------------------------------------------
     def _initialise(self):
@@ -313,114 +351,185 @@ class PoseTracker:
                 break
         if pose is None:
             pose = static_pose(self.rig, None, elev, f_imu)
-        self._Rm = pose.rotation.as_matrix()
-        self.p = pose.position + self._Rm @ self._r_imu  # the IMU point
+        self._R = tuple(pose.rotation.as_matrix().ravel().tolist())
+        Rm = np.array(self._R).reshape(3, 3)
+        self._p = tuple((pose.position + Rm @ self._r_imu).tolist())  # the IMU point
         # constraint lengths consistent with the initial pose (absorbs the static stretch)
-        self._lengths, self._compliance = pose.lengths, pose.compliance
+        self._lengths, self._compliance = tuple(pose.lengths.tolist()), tuple(pose.compliance.tolist())
         # online compliance refinement (only when rig.yaml gives no stiffness)
         # needs the inclinometer: without it the in-band tilt is too rough to tell stretch
         self._adapt = (tens is not None and elev is not None
                        and not np.isfinite(self.rig.cable_stiffness).all())
-        self._T0 = tens if tens is not None else np.zeros(len(self._lengths))
-        self._l0 = self._lengths + self._T0 * self._compliance
-        self._hp_e = np.zeros(len(self._lengths))
-        self._hp_T = self._T0.copy()
-        self._S = np.zeros(2)
+        T0 = tens if tens is not None else np.zeros(len(self._lengths))
+        self._T0 = T0
+        self._l0 = pose.lengths + T0 * pose.compliance
+        n = len(self._lengths)
+        self._hp_e = [0.0] * n
+        self._hp_T = T0.tolist()
+        self._S = [0.0, 0.0]
         self._t_adapt = t[-1]
-        self.v = np.zeros(3)
-        self._a_bias = np.zeros(3)
-        self.omega = self._init[-1][1]
-        a0 = self._Rm @ self._init[-1][2] + self._g
+        self._v = (0.0, 0.0, 0.0)
+        self._a_bias = (0.0, 0.0, 0.0)
+        self._omega = tuple(self._init[-1][1].tolist())
+        a0 = tuple((Rm @ self._init[-1][2] + self._g).tolist())
         self._a_hist = (a0, a0)
-        self._v_prev = np.zeros(3)
+        self._v_prev = (0.0, 0.0, 0.0)
         self._omega_prev2 = None
-        self._dphi = np.zeros(3)
+        self._dphi = (0.0, 0.0, 0.0)
         self._n_steps = 0
-        self.gyro_bias = np.zeros(3)
+        self._gyro_bias = (0.0, 0.0, 0.0)
         self._t = t[-1]
         self._t_incl_used = self._t_incl if self._t_incl is not None else self._t
         self._init.clear()
 
-    def _step(self, dt: float, gyro_b: np.ndarray, f_b: np.ndarray):
-        # rotation matrices here (body->world); scipy Rotation gives the exponentials
-        omega_prev = self.omega
+    def _step(self, dt: float, gyro_b: tuple, f_b: tuple):
+        """One strapdown + correction step (plain floats; R row-major body -> world)."""
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = self._R
+        o0, o1, o2 = self._omega  # previous sample
+        w0, w1, w2 = self._omega_prev2 if self._omega_prev2 is not None else self._omega
+        d0, d1, d2 = self._dphi
+        g0, g1, g2 = gyro_b
+        h = dt / 12
         # rotation increment over the interval: third-order Adams–Moulton quadrature of ω
         # through the last three samples (the midpoint rule's (ωh)²/12 amplitude error
-        # would bias the tensor by ~0.05 % at 100 Hz sampling)
-        w2 = self._omega_prev2 if self._omega_prev2 is not None else omega_prev
-        # the previous step's world-frame correction dphi is applied here, in body axes
+        # would bias the tensor by ~0.05 % at 100 Hz sampling); the previous step's
+        # world-frame correction dphi is applied here, in body axes
         # (exp(dphi) R exp(theta) = R exp(R^T dphi + theta) to O(|dphi||theta|) ~ 1e-9 rad)
-        theta = (5 * gyro_b + 8 * omega_prev - w2) * (dt / 12) + self._Rm.T @ self._dphi
-        Rm = self._Rm @ Rotation.from_rotvec(theta).as_matrix()
-        self._omega_prev2 = omega_prev
-        self.omega = gyro_b
+        e00, e01, e02, e10, e11, e12, e20, e21, e22 = _rotvec_matrix(
+            (5 * g0 + 8 * o0 - w0) * h + (r00 * d0 + r10 * d1 + r20 * d2),
+            (5 * g1 + 8 * o1 - w1) * h + (r01 * d0 + r11 * d1 + r21 * d2),
+            (5 * g2 + 8 * o2 - w2) * h + (r02 * d0 + r12 * d1 + r22 * d2))
+        R = (r00 * e00 + r01 * e10 + r02 * e20, r00 * e01 + r01 * e11 + r02 * e21, r00 * e02 + r01 * e12 + r02 * e22,
+             r10 * e00 + r11 * e10 + r12 * e20, r10 * e01 + r11 * e11 + r12 * e21, r10 * e02 + r11 * e12 + r12 * e22,
+             r20 * e00 + r21 * e10 + r22 * e20, r20 * e01 + r21 * e11 + r22 * e21, r20 * e02 + r21 * e12 + r22 * e22)
+        self._omega_prev2 = self._omega
+        self._omega = gyro_b
         # the filter tracks the IMU point, whose acceleration the accelerometer gives
         # without lever-arm terms: a = R f + g; each sample is rotated with its own
         # attitude, then velocity and position follow by the same third-order quadrature
         # (the trapezoidal rule's amplitude error biased Iyy by 0.01 %)
-        a_k = Rm @ f_b + self._g - self._a_bias
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
+        f0, f1, f2 = f_b
+        c0, c1, c2 = self._a_bias
+        a_k = (r00 * f0 + r01 * f1 + r02 * f2 - c0, r10 * f0 + r11 * f1 + r12 * f2 - c1,
+               r20 * f0 + r21 * f1 + r22 * f2 - self._gravity - c2)
         a_1, a_2 = self._a_hist
-        v_new = self.v + (5 * a_k + 8 * a_1 - a_2) * (dt / 12)
-        self.p = self.p + (5 * v_new + 8 * self.v - self._v_prev) * (dt / 12)
+        v = self._v
+        vp = self._v_prev
+        v_new = (v[0] + (5 * a_k[0] + 8 * a_1[0] - a_2[0]) * h, v[1] + (5 * a_k[1] + 8 * a_1[1] - a_2[1]) * h,
+                 v[2] + (5 * a_k[2] + 8 * a_1[2] - a_2[2]) * h)
+        p = self._p
+        self._p = (p[0] + (5 * v_new[0] + 8 * v[0] - vp[0]) * h, p[1] + (5 * v_new[1] + 8 * v[1] - vp[1]) * h,
+                   p[2] + (5 * v_new[2] + 8 * v[2] - vp[2]) * h)
         self._a_hist = (a_k, a_1)
-        self._v_prev = self.v
-        self.v = v_new
-        self._dphi = self._tilt_correction(Rm, dt, f_b) + self._constraint_correction(Rm, dt)
+        self._v_prev = v
+        self._v = v_new
+        t0, t1, t2 = self._tilt_correction(R, dt, f_b)
+        y = self._constraint_correction(R, dt)
+        d0, d1, d2 = t0, t1, t2 + y
+        self._dphi = (d0, d1, d2)
         # integral action: a steady correction is a gyro bias (PI complementary filter,
         # natural frequency 1/tau_bias); removes the bias x tau offset of a P-only filter
-        self.gyro_bias = self.gyro_bias - (self.tau_tilt / self.tau_bias**2) * (Rm.T @ self._dphi)
-        self._Rm = Rm
+        k = self.tau_tilt / self.tau_bias**2
+        b0, b1, b2 = self._gyro_bias
+        self._gyro_bias = (b0 - k * (r00 * d0 + r10 * d1 + r20 * d2), b1 - k * (r01 * d0 + r11 * d1 + r21 * d2),
+                           b2 - k * (r02 * d0 + r12 * d1 + r22 * d2))
+        self._R = R
         self._n_steps += 1
         if self._n_steps % 200 == 0:  # re-orthonormalise now and then
-            self._Rm = Rotation.from_matrix(Rm).as_matrix()
+            self._R = tuple(Rotation.from_matrix(np.array(R).reshape(3, 3)).as_matrix().ravel().tolist())
 
-    def _tilt_correction(self, Rm: np.ndarray, dt: float, f_b: np.ndarray) -> np.ndarray:
+    def _tilt_correction(self, R: tuple, dt: float, f_b: tuple) -> tuple:
         """World-frame rotation (3,) rad pulling the tilt toward the inclinometer/gravity."""
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
         if self._incl is not None:
             if self._incl_pending is None:
-                return np.zeros(3)
+                return (0.0, 0.0, 0.0)
             meas = self._incl_pending
             self._incl_pending = None
-            axes = (Rm @ self._incl_m)[:, :2].T  # (2,3) world directions of incl x, y
-            pred = np.arcsin(np.clip(axes[:, 2], -1, 1))
+            n00, n01, _, n10, n11, _, n20, n21, _ = self._incl_f
+            # world directions of the inclinometer's x and y axes
+            ax0, ax1, ax2 = r00 * n00 + r01 * n10 + r02 * n20, r10 * n00 + r11 * n10 + r12 * n20, \
+                r20 * n00 + r21 * n10 + r22 * n20
+            ay0, ay1, ay2 = r00 * n01 + r01 * n11 + r02 * n21, r10 * n01 + r11 * n11 + r12 * n21, \
+                r20 * n01 + r21 * n11 + r22 * n21
+            px = math.asin(min(1.0, max(-1.0, ax2)))
+            py = math.asin(min(1.0, max(-1.0, ay2)))
             # d elevation / d(world rotation phi) = (a x z) / cos(elevation)
-            H = np.column_stack([axes[:, 1], -axes[:, 0], np.zeros(2)]) / np.cos(pred)[:, None]
+            cx, cy = math.cos(px), math.cos(py)
+            h00, h01 = ax1 / cx, -ax0 / cx
+            h10, h11 = ay1 / cy, -ay0 / cy
+            # H^T (H H^T)^-1 (meas - pred), H (2,3) with a zero third column
+            s00, s01, s11 = h00 * h00 + h01 * h01, h00 * h10 + h01 * h11, h10 * h10 + h11 * h11
+            r0, r1 = meas[0] - px, meas[1] - py
+            det = s00 * s11 - s01 * s01
+            y0, y1 = (s11 * r0 - s01 * r1) / det, (s00 * r1 - s01 * r0) / det
             gain = min(1.0, (self._t_incl - self._t_incl_used) / self.tau_tilt)
             self._t_incl_used = self._t_incl
-            return gain * (H.T @ np.linalg.solve(H @ H.T, meas - pred))
+            return (gain * (h00 * y0 + h10 * y1), gain * (h01 * y0 + h11 * y1), 0.0)
         # no inclinometer: align the measured specific force with gravity, slowly
-        up = Rm @ f_b
-        n = np.linalg.norm(up)
+        f0, f1, f2 = f_b
+        u0, u1, u2 = r00 * f0 + r01 * f1 + r02 * f2, r10 * f0 + r11 * f1 + r12 * f2, r20 * f0 + r21 * f1 + r22 * f2
+        n = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
         if n < 1e-6:
-            return np.zeros(3)
-        return (dt / self.tau_tilt_accel) * np.array([up[1], -up[0], 0.0]) / n
+            return (0.0, 0.0, 0.0)
+        c = dt / self.tau_tilt_accel
+        return (c * u1 / n, c * -u0 / n, 0.0)
 
-    def _constraint_correction(self, Rm: np.ndarray, dt: float) -> np.ndarray:
+    def _constraint_correction(self, R: tuple, dt: float) -> float:
         """Correct position (third-order complementary filter) toward the cable-length
-        constraints; return the yaw correction as a world-frame rotation (3,) rad."""
-        lengths = self._lengths
-        if self._tensions is not None:
-            lengths = lengths + self._tensions * self._compliance
-        rb = self._anchors_from_imu @ Rm.T
-        v = self.rig.ceiling_anchors - (self.p + rb)
-        lv = np.sqrt(np.einsum("ij,ij->i", v, v))
-        u = v / lv[:, None]
-        resid = lv - lengths
-        if self._adapt and self._tensions is not None:
+        constraints; return the yaw correction (rotation about world z, rad)."""
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
+        p0, p1, p2 = self._p
+        tens = self._tensions
+        comp = self._compliance
+        resid = []
+        # normal equations G^T G delta = -G^T r accumulated over the cables, with the rows
+        # G_i = (-u_i, -(R b_i x u_i)_z): d l_i = -u_i . dp - (R b_i x u_i) . dphi,
+        # unknowns dp (3) and yaw about world z
+        a00 = a01 = a02 = a03 = a11 = a12 = a13 = a22 = a23 = a33 = 0.0
+        y0 = y1 = y2 = y3 = 0.0
+        for i, ((b0, b1, b2), (A0, A1, A2), L) in enumerate(zip(self._anchors_f, self._ceiling_f, self._lengths)):
+            if tens is not None:
+                L = L + tens[i] * comp[i]
+            rb0, rb1 = r00 * b0 + r01 * b1 + r02 * b2, r10 * b0 + r11 * b1 + r12 * b2
+            rb2 = r20 * b0 + r21 * b1 + r22 * b2
+            v0, v1, v2 = A0 - (p0 + rb0), A1 - (p1 + rb1), A2 - (p2 + rb2)
+            lv = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+            g0, g1, g2 = -(v0 / lv), -(v1 / lv), -(v2 / lv)
+            g3 = -(rb0 * -g1 - rb1 * -g0)
+            r = lv - L
+            resid.append(r)
+            a00 += g0 * g0
+            a01 += g0 * g1
+            a02 += g0 * g2
+            a03 += g0 * g3
+            a11 += g1 * g1
+            a12 += g1 * g2
+            a13 += g1 * g3
+            a22 += g2 * g2
+            a23 += g2 * g3
+            a33 += g3 * g3
+            y0 -= g0 * r
+            y1 -= g1 * r
+            y2 -= g2 * r
+            y3 -= g3 * r
+        if self._adapt and tens is not None:
             self._refine_compliance(dt, resid)
-        # d l_i = -u_i . dp - (R b_i x u_i) . dphi ; unknowns dp (3) and yaw about world z
-        G = np.column_stack([-u, -(rb[:, 0] * u[:, 1] - rb[:, 1] * u[:, 0])])
-        GtG = G.T @ G
-        delta = np.linalg.solve(GtG + 1e-12 * np.trace(GtG) * np.eye(4), -(G.T @ resid))
+        # regularised as before: (G^T G + 1e-12 tr(G^T G) I) delta = -G^T r
+        eps = 1e-12 * (a00 + a11 + a22 + a33)
+        delta = _solve_spd4(a00 + eps, a01, a02, a03, a11 + eps, a12, a13, a22 + eps, a23, a33 + eps, y0, y1, y2, y3)
         # third-order complementary filter (poles at -wn): the integral state absorbs a
         # constant acceleration error (tilt error x g, accelerometer bias)
         wn = 2 * np.pi * self.f_position
-        self.p = self.p + 3 * wn * dt * delta[:3]
-        self.v = self.v + 3 * wn * wn * dt * delta[:3]
-        self._a_bias = self._a_bias - wn**3 * dt * delta[:3]
-        return np.array([0.0, 0.0, min(1.0, dt / self.tau_yaw) * delta[3]])
+        kp, kv, ka = 3 * wn * dt, 3 * wn * wn * dt, wn**3 * dt
+        p, v, ab = self._p, self._v, self._a_bias
+        self._p = (p[0] + kp * delta[0], p[1] + kp * delta[1], p[2] + kp * delta[2])
+        self._v = (v[0] + kv * delta[0], v[1] + kv * delta[1], v[2] + kv * delta[2])
+        self._a_bias = (ab[0] - ka * delta[0], ab[1] - ka * delta[1], ab[2] - ka * delta[2])
+        return min(1.0, dt / self.tau_yaw) * delta[3]
 
-    def _refine_compliance(self, dt: float, resid: np.ndarray):
+    def _refine_compliance(self, dt: float, resid: list):
         """Regress the in-band cable-length residual on the tension variation.
 
         In the band where the pose follows the inertial sensors, a residual that
@@ -428,32 +537,93 @@ class PoseTracker:
         high-passed with a 5 s time constant, sums forgotten over ~60 s).
         """
         a = min(1.0, dt / 5.0)
-        self._hp_e += a * (resid - self._hp_e)
-        self._hp_T += a * (self._tensions - self._hp_T)
-        e = resid - self._hp_e
-        dT = self._tensions - self._hp_T
+        hp_e, hp_T, tens = self._hp_e, self._hp_T, self._tensions
+        s_et = s_tt = 0.0
+        for i in range(len(resid)):
+            hp_e[i] += a * (resid[i] - hp_e[i])
+            hp_T[i] += a * (tens[i] - hp_T[i])
+            e = resid[i] - hp_e[i]
+            dT = tens[i] - hp_T[i]
+            s_et += e * dT
+            s_tt += dT * dT
         lam = 1.0 - dt / 60.0
-        self._S = lam * self._S + np.array([np.dot(e, dT), np.dot(dT, dT)])
+        S = self._S
+        S[0] = lam * S[0] + s_et
+        S[1] = lam * S[1] + s_tt
         if self._t - self._t_adapt >= 2.0:
             self._t_adapt = self._t
             # enough tension variation: at least ~50 N RMS per cable over the horizon
-            if self._S[1] > (50.0**2) * len(dT) * (60.0 / dt) * 0.1:
-                dc = self._S[0] / self._S[1]
+            if S[1] > (50.0**2) * len(resid) * (60.0 / dt) * 0.1:
+                dc = S[0] / S[1]
                 fit = ~np.isfinite(self.rig.cable_stiffness)
-                self._compliance = np.where(fit, np.clip(self._compliance + dc, 0.0, 1e-5), self._compliance)
-                self._lengths = self._l0 - self._T0 * self._compliance
-                self._S[:] = 0.0
-                self.compliance_history.append((self._t, self._compliance.copy()))
+                c = np.array(self._compliance)
+                c = np.where(fit, np.clip(c + dc, 0.0, 1e-5), c)
+                self._compliance = tuple(c.tolist())
+                self._lengths = tuple((self._l0 - self._T0 * c).tolist())
+                S[0] = S[1] = 0.0
+                self.compliance_history.append((self._t, c))
 
     @property
     def R(self) -> Rotation | None:
         """Current orientation, body -> world (None before initialisation)."""
-        return None if self._Rm is None else Rotation.from_matrix(self._Rm)
+        return None if self._R is None else Rotation.from_matrix(np.array(self._R).reshape(3, 3))
 
     def _estimate(self) -> PoseEstimate:
-        r_w = self._Rm @ self._r_imu
-        return PoseEstimate(self._t, self.p - r_w, self._Rm.copy(), self.omega.copy(),
-                            self.v - np.cross(self._Rm @ self.omega, r_w))
+        r00, r01, r02, r10, r11, r12, r20, r21, r22 = self._R
+        i0, i1, i2 = self._r_imu_f
+        w0, w1, w2 = self._omega
+        p, v = self._p, self._v
+        # lever arm r_w = R r_imu (world) and R omega (world)
+        q0, q1, q2 = r00 * i0 + r01 * i1 + r02 * i2, r10 * i0 + r11 * i1 + r12 * i2, r20 * i0 + r21 * i1 + r22 * i2
+        s0, s1, s2 = r00 * w0 + r01 * w1 + r02 * w2, r10 * w0 + r11 * w1 + r12 * w2, r20 * w0 + r21 * w1 + r22 * w2
+        return PoseEstimate(self._t, np.array((p[0] - q0, p[1] - q1, p[2] - q2)), np.array(self._R).reshape(3, 3),
+                            np.array(self._omega),
+                            np.array((v[0] - (s1 * q2 - s2 * q1), v[1] - (s2 * q0 - s0 * q2),
+                                      v[2] - (s0 * q1 - s1 * q0))))
+
+
+def _floats(x) -> list:
+    """A 3-vector as Python floats."""
+    return x.tolist() if isinstance(x, np.ndarray) else [float(x[0]), float(x[1]), float(x[2])]
+
+
+def _rotvec_matrix(x: float, y: float, z: float) -> tuple:
+    """Rotation matrix (row-major 9-tuple) of the rotation vector (x, y, z) rad, through the
+    unit quaternion as scipy ``Rotation.from_rotvec(...).as_matrix()`` (same series for
+    small angles)."""
+    angle2 = x * x + y * y + z * z
+    angle = math.sqrt(angle2)
+    if angle <= 1e-3:
+        scale = 0.5 - angle2 / 48 + angle2 * angle2 / 3840
+    else:
+        scale = math.sin(angle / 2) / angle
+    qx, qy, qz, qw = x * scale, y * scale, z * scale, math.cos(angle / 2)
+    xx, yy, zz, ww = qx * qx, qy * qy, qz * qz, qw * qw
+    xy, zw, xz, yw, yz, xw = qx * qy, qz * qw, qx * qz, qy * qw, qy * qz, qx * qw
+    return (xx - yy - zz + ww, 2 * (xy - zw), 2 * (xz + yw),
+            2 * (xy + zw), -xx + yy - zz + ww, 2 * (yz - xw),
+            2 * (xz - yw), 2 * (yz + xw), -xx - yy + zz + ww)
+
+
+def _solve_spd4(a00, a01, a02, a03, a11, a12, a13, a22, a23, a33, b0, b1, b2, b3) -> tuple:
+    """Solve A x = b for a symmetric positive-definite 4x4 A (upper triangle given; Cholesky)."""
+    l00 = math.sqrt(a00)
+    l10, l20, l30 = a01 / l00, a02 / l00, a03 / l00
+    l11 = math.sqrt(a11 - l10 * l10)
+    l21 = (a12 - l20 * l10) / l11
+    l31 = (a13 - l30 * l10) / l11
+    l22 = math.sqrt(a22 - l20 * l20 - l21 * l21)
+    l32 = (a23 - l30 * l20 - l31 * l21) / l22
+    l33 = math.sqrt(a33 - l30 * l30 - l31 * l31 - l32 * l32)
+    z0 = b0 / l00
+    z1 = (b1 - l10 * z0) / l11
+    z2 = (b2 - l20 * z0 - l21 * z1) / l22
+    z3 = (b3 - l30 * z0 - l31 * z1 - l32 * z2) / l33
+    x3 = z3 / l33
+    x2 = (z2 - l32 * x3) / l22
+    x1 = (z1 - l21 * x2 - l31 * x3) / l11
+    x0 = (z0 - l10 * x1 - l20 * x2 - l30 * x3) / l00
+    return x0, x1, x2, x3
 
 
 def track(rig: Rig, sensors, **params) -> PoseTrack:

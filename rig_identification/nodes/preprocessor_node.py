@@ -7,6 +7,12 @@ pose that every stream covers, the force and the moment about the CG on the body
 Parameters:
   rig (string, required)     path of the rig description (rig.yaml, with body.center_of_gravity)
   max_buffer (int)           samples buffered per stream (WrenchPreprocessor default)
+  max_gap (double, 0.1)      a pose between two samples of a stream further apart than this
+                             (s) is not processed: no interpolation over a sensor that stopped
+  batch_period (double, 0.005)  the inputs are taken serialized and decoded in batches every
+                             this many s
+  stale_after, stopped_after (double, 0.5, 2.0)  /diagnostics: an input silent this long (wall
+                             time, s) is reported WARN stale, ERROR stopped
   input_reliability (string, reliable)  reliable | best_effort (QoS of the subscriptions)
   executor (string, events)  events | single
 
@@ -21,7 +27,8 @@ Publishes:
                           force N and torque N·m about the CG, body axes (gravity excluded:
                           force / mass is the specific force of the CG).  RELIABLE, KEEP_ALL.
   /diagnostics            message counts (and poses that could not be aligned), readers matched
-                          by the /rig/generalized_wrench writer
+                          by the /rig/generalized_wrench writer; one status per input topic
+                          (OK / WARN stale / ERROR stopped, age, rate, stamp gaps)
 
 Malformed input (wrong frame, NaN, stamp not increasing, non-unit quaternion) is dropped
 with a throttled warning.
@@ -44,84 +51,68 @@ class PreprocessorNode(Node):
     def __init__(self):
         super().__init__("preprocessor")
         from geometry_msgs.msg import WrenchStamped
-        from nav_msgs.msg import Odometry
 
         from ..preprocessor import WrenchPreprocessor
         self.declare_parameter("rig", "")
         self.declare_parameter("executor", "events")
+        self.declare_parameter("batch_period", 0.005)
         params = common.core_params(self, WrenchPreprocessor.__init__, skip=("self", "rig"))
         qos_in = common.input_qos(self)
         rig = common.load_rig_param(self)
         self.pre = WrenchPreprocessor(rig, **params)
         self.guard = common.InputGuard(self)
-        self.diag = common.Diagnostics(self, self.guard, extra=lambda: {"poses not aligned": self.pre.dropped})
+        self.diag = common.Diagnostics(self, self.guard, extra=lambda: {"poses not aligned": self.pre.dropped,
+                                                                        "poses in stream gaps": self.pre.gaps})
         self.pub = self.create_publisher(WrenchStamped, common.WRENCH_TOPIC, SENSOR_QOS)
         self.diag.add_writer(common.WRENCH_TOPIC, self.pub)
-        self.out = WrenchStamped()
-        self.out.header.frame_id = common.BODY_FRAME
-        self.create_subscription(Odometry, common.POSE_TOPIC, self.on_pose, qos_in)
-        for name in rig.cable_names:
-            self.create_subscription(WrenchStamped, common.LOAD_CELL_PREFIX + name,
-                                     lambda m, n=name: self.on_load_cell(n, m), qos_in)
+        self.out_layout = common.wrench_layout(common.BODY_FRAME)
+        # inputs: raw subscriptions, decoded in batches every batch_period s
+        self.poses = common.RawInput(self, self.guard, common.POSE_TOPIC, common.odometry_layout(), qos_in)
+        self.cells = {name: common.RawInput(self, self.guard, common.LOAD_CELL_PREFIX + name,
+                                            common.wrench_layout(common.load_cell_frame(name)), qos_in)
+                      for name in rig.cable_names}
+        self.exciter = None
         if rig.exciter is not None:
-            self.create_subscription(WrenchStamped, common.EXCITER_TOPIC, self.on_exciter, qos_in)
+            self.exciter = common.RawInput(self, self.guard, common.EXCITER_TOPIC,
+                                           common.wrench_layout(common.EXCITER_FRAME), qos_in)
+        self.create_timer(float(self.get_parameter("batch_period").value), self._drain)
         self.get_logger().info(f"ready: rig {rig.source}, cables {', '.join(rig.cable_names)}, "
                                f"exciter {'yes' if rig.exciter is not None else 'no'}")
 
-    def on_pose(self, msg) -> None:
-        from ..tracker import PoseEstimate
-        topic = common.POSE_TOPIC
-        if msg.child_frame_id != common.BODY_FRAME:
-            self.guard.received[topic] = self.guard.received.get(topic, 0) + 1
-            self.guard.reject(topic, f"child_frame_id {msg.child_frame_id!r}, expected {common.BODY_FRAME!r}")
-            return
-        p, q = msg.pose.pose.position, msg.pose.pose.orientation
-        tw = msg.twist.twist
-        vals = (p.x, p.y, p.z, q.x, q.y, q.z, q.w, tw.angular.x, tw.angular.y, tw.angular.z,
-                tw.linear.x, tw.linear.y, tw.linear.z)
-        t = self.guard.accept(topic, msg.header, common.WORLD_FRAME, vals)
-        if t is None:
-            return
-        quat = np.array(vals[3:7])
-        if abs(np.dot(quat, quat) - 1.0) > 1e-3:
-            self.guard.reject(topic, f"orientation is not a unit quaternion (|q|^2 = {np.dot(quat, quat):.4f})")
-            return
-        R = Rotation.from_quat(quat).as_matrix()
-        pose = PoseEstimate(t, np.array(vals[:3]), R, np.array(vals[7:10]), R @ np.array(vals[10:13]))
-        self.publish(self.pre.add_pose(pose))
+    def _drain(self) -> None:
+        """Take every queued message, compute the wrenches every stream covers, publish them."""
+        for name, inp in self.cells.items():
+            t, v = inp.take()
+            self.pre.add_tension_samples(name, t, v[:, 2])
+        if self.exciter is not None:
+            t, v = self.exciter.take()
+            self.pre.add_exciter_samples(t, v[:, :2])
+        t, v = self.poses.take()
+        if len(t):
+            q = v[:, 3:7]
+            n2 = np.einsum("ij,ij->i", q, q)
+            unit = np.abs(n2 - 1.0) <= 1e-3
+            for i in np.nonzero(~unit)[0].tolist():
+                self.guard.reject(common.POSE_TOPIC, f"orientation is not a unit quaternion (|q|^2 = {n2[i]:.4f})")
+            if not unit.all():
+                t, v = t[unit], v[unit]
+            if len(t):
+                self.pre.add_poses(t, v[:, :3], Rotation.from_quat(v[:, 3:7]).as_matrix())
+        self.publish(self.pre.process())
 
-    def on_load_cell(self, name: str, msg) -> None:
-        topic = common.LOAD_CELL_PREFIX + name
-        tension = msg.wrench.force.z
-        t = self.guard.accept(topic, msg.header, common.load_cell_frame(name), (tension,))
-        if t is not None:
+    def publish(self, w) -> None:
+        """Publish a WrenchSeries (one serialized batch)."""
+        if not len(w.t):
+            return
+        sent = 0
+        for raw in self.out_layout.encode(w.t, np.column_stack([w.force, w.torque])):
             try:
-                self.publish(self.pre.add_tension(name, t, tension))
-            except ValueError as e:
-                self.guard.core_error(topic, e)
-
-    def on_exciter(self, msg) -> None:
-        f = msg.wrench.force
-        t = self.guard.accept(common.EXCITER_TOPIC, msg.header, common.EXCITER_FRAME, (f.x, f.y))
-        if t is not None:
-            try:
-                self.publish(self.pre.add_exciter(t, f.x, f.y))
-            except ValueError as e:
-                self.guard.core_error(common.EXCITER_TOPIC, e)
-
-    def publish(self, wrenches) -> None:
-        m = self.out
-        for w in wrenches:
-            common.set_stamp(m.header, w.t)
-            f, tq = m.wrench.force, m.wrench.torque
-            f.x, f.y, f.z = np.asarray(w.force, float).tolist()
-            tq.x, tq.y, tq.z = np.asarray(w.torque, float).tolist()
-            try:
-                common.publish_blocking(self.pub, m)
+                common.publish_blocking(self.pub, raw)
             except Exception as e:  # blocked too long by a slow reader: lost, say so
                 self.guard.reject(common.WRENCH_TOPIC + " (publish)", f"{type(e).__name__}: {e}")
-        if wrenches:
-            self.diag.count_tx(common.WRENCH_TOPIC, len(wrenches))
+                continue
+            sent += 1
+        self.diag.count_tx(common.WRENCH_TOPIC, sent)
 
 
 def main(argv=None) -> int:

@@ -21,8 +21,10 @@ Parameters:
   wait_timeout (double, 60.0) give up waiting after this many seconds (then publish anyway)
   start_delay (double, 0.5)   pause after the subscribers are there (endpoint matching settles)
   publish_period (double, 0.01) timer period, s: each tick publishes every sample whose
-                              stamp is due, in stamp order
+                              stamp is due, in stamp order (serialized in one batch per topic)
   exit_when_done (bool, false) exit once everything is published (else stay up: latched topics)
+  silence (string[], [])      fault injection: "TOPIC:T0:T1" publishes nothing on TOPIC for data
+                              times T0 <= t < T1 s after the first sample (a sensor that stops)
   executor (string, events)   events | single
 
 Publishes (stamps = the data's header stamps):
@@ -40,7 +42,7 @@ Publishes (stamps = the data's header stamps):
 """
 from __future__ import annotations
 
-import os
+import bisect
 import sys
 import time
 from pathlib import Path
@@ -55,22 +57,28 @@ from .common import LATCHED_QOS, SENSOR_QOS
 
 
 class _Stream:
-    """One topic's samples, prepared for fast publishing."""
+    """One topic's samples, published serialized (common.MessageLayout): the samples due at a
+    tick are encoded in one batch.  cols: the layout fields that ``data``'s columns fill."""
 
-    def __init__(self, topic: str, publisher, msg, fill, t: np.ndarray, data: np.ndarray):
-        self.topic, self.publisher, self.msg, self.fill = topic, publisher, msg, fill
+    def __init__(self, topic: str, publisher, layout, cols, t: np.ndarray, data: np.ndarray):
+        self.topic, self.publisher, self.layout, self.cols = topic, publisher, layout, list(cols)
         self.t = np.asarray(t, float)
-        self.rows = np.asarray(data, float).reshape(len(self.t), -1).tolist()
+        self.data = np.asarray(data, float).reshape(len(self.t), -1)
+        self.offset = 0.0
         self.published = 0
+        self._c0 = 0
+        self._cache: list[bytes] = []
 
-    def stamps(self, offset: float):
-        t = self.t + offset
-        sec = np.floor(t)
-        nsec = np.rint((t - sec) * 1e9)
-        over = nsec >= 1e9
-        sec[over] += 1
-        nsec[over] -= 1e9
-        self.sec, self.nsec = sec.astype(np.int64).tolist(), nsec.astype(np.int64).tolist()
+    def raw(self, j: int) -> bytes:
+        """The serialized message of sample ``j`` (encoded 1000 samples at a time)."""
+        k = j - self._c0
+        if 0 <= k < len(self._cache):
+            return self._cache[k]
+        idx = slice(j, min(j + 1000, len(self.t)))
+        vals = np.zeros((idx.stop - j, len(self.layout.fields)))
+        vals[:, self.cols] = self.data[idx]
+        self._c0, self._cache = j, self.layout.encode(self.t[idx] + self.offset, vals)
+        return self._cache[0]
 
 
 class SensorDriver(Node):
@@ -90,6 +98,7 @@ class SensorDriver(Node):
         p("start_delay", 0.5)
         p("publish_period", 0.01)
         p("exit_when_done", False)
+        p("silence", None, ParameterDescriptor(dynamic_typing=True, description="TOPIC:T0:T1 list"))
         p("executor", "events")
         get = lambda n: self.get_parameter(n).value  # noqa: E731
         self.rate = float(get("rate"))
@@ -100,6 +109,7 @@ class SensorDriver(Node):
         self.wait_timeout = float(get("wait_timeout"))
         self.start_delay = float(get("start_delay"))
         self.exit_when_done = bool(get("exit_when_done"))
+        self.silence = [w for w in (get("silence") or []) if w]
         self.stop_future = Future()
         self.exit_code = 0
 
@@ -120,12 +130,12 @@ class SensorDriver(Node):
         rig, sensors, truth = self._load(get("experiment"), get("recording"), float(get("duration")))
         self.rig = rig
         if get("rig_out"):
+            from ..atomic import atomic_write_text
             from ..rig import dump_rig
             out = Path(get("rig_out"))
             out.parent.mkdir(parents=True, exist_ok=True)
-            tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
-            tmp.write_text(dump_rig(rig, f"rig description published by sensor_driver ({self.source})"))
-            os.replace(tmp, out)  # atomic: readers never see half a file
+            # atomic: readers never see half a file
+            atomic_write_text(out, dump_rig(rig, f"rig description published by sensor_driver ({self.source})"))
             self.get_logger().info(f"wrote the rig description to {out}")
         if truth is not None:
             self.truth_pub.publish(String(data=common.to_json(truth)))
@@ -135,14 +145,16 @@ class SensorDriver(Node):
         k_all = np.concatenate([np.full(len(s.t), k) for k, s in enumerate(self.streams)])
         i_all = np.concatenate([np.arange(len(s.t)) for s in self.streams])
         order = np.lexsort((k_all, t_all))
+        keep = self._silence_mask(t_all[order] - t_all.min(), k_all[order])
+        order = order[keep]
         self.ev_t = t_all[order].tolist()
-        self.ev_k = k_all[order].tolist()
-        self.ev_i = i_all[order].tolist()
+        self.ev_k_arr, self.ev_i_arr = k_all[order], i_all[order]
+        self.ev_k, self.ev_i = self.ev_k_arr.tolist(), self.ev_i_arr.tolist()
         self.n_events = len(self.ev_t)
         self.next = 0
         self.stalls = 0  # publish attempts refused by a full KEEP_ALL writer (back-pressure)
         self.t_first = self.ev_t[0]
-        self.total = {s.topic: len(s.t) for s in self.streams}
+        self.total = {s.topic: int(np.count_nonzero(self.ev_k_arr == k)) for k, s in enumerate(self.streams)}
         self._t_wait = time.monotonic()
         self._t_ready = None
         self._last_status = 0.0
@@ -189,42 +201,42 @@ class SensorDriver(Node):
             return self.create_publisher(mtype, topic, SENSOR_QOS)
 
         imu = Imu()
-        imu.header.frame_id = common.IMU_FRAME
         imu.orientation.w = 1.0
         imu.orientation_covariance[0] = -1.0
-
-        def fill_imu(m, r):
-            av, la = m.angular_velocity, m.linear_acceleration
-            av.x, av.y, av.z, la.x, la.y, la.z = r
-        streams.append(_Stream(common.IMU_TOPIC, pub(common.IMU_TOPIC, Imu), imu, fill_imu,
+        streams.append(_Stream(common.IMU_TOPIC, pub(common.IMU_TOPIC, Imu), common.imu_layout(imu), range(6),
                                sensors.imu.t, sensors.imu.data))
-
-        def fill_tension(m, r):
-            m.wrench.force.z = r[0]
         for name in rig.cable_names:
             topic = common.LOAD_CELL_PREFIX + name
-            m = WrenchStamped()
-            m.header.frame_id = common.load_cell_frame(name)
             s = sensors.load_cells[name]
-            streams.append(_Stream(topic, pub(topic, WrenchStamped), m, fill_tension, s.t, s.data))
+            streams.append(_Stream(topic, pub(topic, WrenchStamped), common.wrench_layout(common.load_cell_frame(name)),
+                                   [2], s.t, s.data))
         if sensors.exciter is not None:
-            m = WrenchStamped()
-            m.header.frame_id = common.EXCITER_FRAME
-
-            def fill_exc(m, r):
-                f = m.wrench.force
-                f.x, f.y = r
-            streams.append(_Stream(common.EXCITER_TOPIC, pub(common.EXCITER_TOPIC, WrenchStamped), m, fill_exc,
-                                   sensors.exciter.t, sensors.exciter.data))
+            streams.append(_Stream(common.EXCITER_TOPIC, pub(common.EXCITER_TOPIC, WrenchStamped),
+                                   common.wrench_layout(common.EXCITER_FRAME), [0, 1], sensors.exciter.t,
+                                   sensors.exciter.data))
         if sensors.inclinometer is not None:
-            m = Vector3Stamped()
-            m.header.frame_id = common.INCLINOMETER_FRAME
-
-            def fill_incl(m, r):
-                m.vector.x, m.vector.y = r
-            streams.append(_Stream(common.INCLINOMETER_TOPIC, pub(common.INCLINOMETER_TOPIC, Vector3Stamped), m,
-                                   fill_incl, sensors.inclinometer.t, sensors.inclinometer.data))
+            streams.append(_Stream(common.INCLINOMETER_TOPIC, pub(common.INCLINOMETER_TOPIC, Vector3Stamped),
+                                   common.vector_layout(common.INCLINOMETER_FRAME), [0, 1], sensors.inclinometer.t,
+                                   sensors.inclinometer.data))
         return streams
+
+    def _silence_mask(self, t_rel: np.ndarray, k: np.ndarray) -> np.ndarray:
+        """Events to publish: all but those of the ``silence`` entries "TOPIC:T0:T1" (the
+        topic publishes nothing for data times T0 <= t < T1 s after the first sample: a
+        sensor that stops, for fault tests)."""
+        keep = np.ones(len(t_rel), bool)
+        topics = [s.topic for s in self.streams]
+        for entry in self.silence:
+            try:
+                topic, a, b = entry.rsplit(":", 2)
+                a, b = float(a), float(b)
+            except ValueError:
+                raise ValueError(f"parameter silence: {entry!r} is not TOPIC:T0:T1") from None
+            if topic not in topics:
+                raise ValueError(f"parameter silence: {topic} is not published ({', '.join(topics)})")
+            keep &= ~((k == topics.index(topic)) & (t_rel >= a) & (t_rel < b))
+            self.get_logger().warn(f"fault injection: {topic} silent from t={a:g} to {b:g} s")
+        return keep
 
     # --- publishing ----------------------------------------------------------------------
     def _ready(self) -> bool:
@@ -257,7 +269,7 @@ class SensorDriver(Node):
         if self.restamp:
             offset = self.get_clock().now().nanoseconds * 1e-9 - self.t_first
         for s in self.streams:
-            s.stamps(offset)
+            s.offset = offset
         self.state = "publishing"
         self.wall0 = time.monotonic()
         self.get_logger().info(f"publishing {self.n_events} messages on {len(self.streams)} topics "
@@ -280,18 +292,13 @@ class SensorDriver(Node):
         if self.state != "publishing":
             return
         target = self.t_first + (now - self.wall0) * self.rate
-        ev_t, ev_k, ev_i, streams = self.ev_t, self.ev_k, self.ev_i, self.streams
         i, n = self.next, self.n_events
-        while i < n and ev_t[i] <= target:
+        j = bisect.bisect_right(self.ev_t, target, lo=i)
+        streams, ev_k, ev_i = self.streams, self.ev_k, self.ev_i
+        while i < j:
             s = streams[ev_k[i]]
-            j = ev_i[i]
-            m = s.msg
-            st = m.header.stamp
-            st.sec = s.sec[j]
-            st.nanosec = s.nsec[j]
-            s.fill(m, s.rows[j])
             try:
-                s.publisher.publish(m)
+                s.publisher.publish(s.raw(ev_i[i]))
             except Exception:  # a slow reliable reader holds the writer full: retry next tick
                 self.next = i
                 self.stalls += 1

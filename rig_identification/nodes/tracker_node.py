@@ -7,6 +7,15 @@ Parameters:
   rig (string, required)     path of the rig description (rig.yaml)
   use_tensions (bool, true)  feed the load cells to the tracker (cable stretch T/k and the
                              initial pose at rest); false: IMU and inclinometer only
+  batch_period (double, 0.005)  the inputs are taken serialized and decoded in batches every
+                             this many s (at 1 kHz per sensor a message object per sample
+                             costs more CPU than the tracker itself)
+  reinit_gap (double, 0.1)   an IMU gap longer than this (s) re-initialises the tracker from
+                             the data after it instead of integrating across the hole
+  start_timeout (double, 5.0)  at start-up the tracker waits until every input has delivered
+                             (streams match at different times, e.g. after a restart in the
+                             middle of a run) and starts where all are present; a stream
+                             silent for this long (wall time, s) is left out
   max_delay (double, 5.0)    the inputs are merged in header-stamp order before the tracker
                              sees them (arrival order differs between topics); a stream that
                              lags more than this (data time, s) is not waited for; after 2 s
@@ -14,6 +23,8 @@ Parameters:
   tau_tilt, tau_yaw, f_position, init_time (double)  PoseTracker parameters
                              (defaults: those of PoseTracker)
   input_reliability (string, reliable)  reliable | best_effort (QoS of the subscriptions)
+  stale_after, stopped_after (double, 0.5, 2.0)  /diagnostics: an input silent this long (wall
+                             time, s) is reported WARN stale, ERROR stopped
   executor (string, events)  events | single
 
 Subscribes (RELIABLE, KEEP_ALL; input_reliability best_effort for BEST_EFFORT writers):
@@ -31,7 +42,8 @@ Publishes:
              twist.twist.linear = velocity of the body origin in BODY axes, m/s (nav_msgs
              convention: the twist is given in child_frame_id; R * v is the world velocity).
              Covariances are zero (not estimated).  RELIABLE, KEEP_ALL.
-  /diagnostics  message counts, readers matched by the /rig/pose writer
+  /diagnostics  message counts, readers matched by the /rig/pose writer; one status per
+             input topic (OK / WARN stale / ERROR stopped, age, rate, stamp gaps)
 
 Malformed input (wrong frame, NaN, stamp not increasing) is dropped with a throttled warning.
 """
@@ -52,47 +64,64 @@ class TrackerNode(Node):
 
     def __init__(self):
         super().__init__("tracker")
-        from geometry_msgs.msg import Vector3Stamped, WrenchStamped
         from nav_msgs.msg import Odometry
-        from sensor_msgs.msg import Imu
 
         from ..tracker import PoseTracker
         self.declare_parameter("rig", "")
         self.declare_parameter("use_tensions", True)
         self.declare_parameter("max_delay", 5.0)
+        self.declare_parameter("batch_period", 0.005)
+        self.declare_parameter("reinit_gap", 0.1)
         self.declare_parameter("executor", "events")
         params = common.core_params(self, PoseTracker.__init__, skip=("self", "rig"))
+        self.params = params
+        self.reinit_gap = float(self.get_parameter("reinit_gap").value)
+        self.reinitialised = 0
         qos_in = common.input_qos(self)
         rig = common.load_rig_param(self)
         self.rig = rig
         self.tracker = PoseTracker(rig, **params)
         self.guard = common.InputGuard(self)
-        self.diag = common.Diagnostics(self, self.guard)
+        self.diag = common.Diagnostics(self, self.guard, extra=lambda: {"reinitialised": self.reinitialised,
+                                                                        "skipped at start-up": self.skipped_at_start})
         self.pub = self.create_publisher(Odometry, common.POSE_TOPIC, SENSOR_QOS)
         self.diag.add_writer(common.POSE_TOPIC, self.pub)
-        self.odom = Odometry()
-        self.odom.header.frame_id = common.WORLD_FRAME
-        self.odom.child_frame_id = common.BODY_FRAME
+        self.out_layout = common.odometry_layout()
         self.names = rig.cable_names
         self._pending: dict[float, dict[str, float]] = {}
         self._latest: dict[str, float] = {}
         self._cells_async = False
-        streams = [common.IMU_TOPIC]
-        self.create_subscription(Imu, common.IMU_TOPIC, self.on_imu, qos_in)
+        self._poses: list = []
+        # inputs: raw subscriptions, decoded in batches (common.RawInput) every batch_period s
+        self.inputs = [(common.RawInput(self, self.guard, common.IMU_TOPIC, common.imu_layout(), qos_in),
+                        common.IMU_TOPIC)]
         if rig.inclinometer is not None:
-            self.create_subscription(Vector3Stamped, common.INCLINOMETER_TOPIC, self.on_inclinometer, qos_in)
-            streams.append(common.INCLINOMETER_TOPIC)
+            self.inputs.append((common.RawInput(self, self.guard, common.INCLINOMETER_TOPIC,
+                                                common.vector_layout(common.INCLINOMETER_FRAME), qos_in),
+                                common.INCLINOMETER_TOPIC))
         if self.get_parameter("use_tensions").value:
             for name in self.names:
-                self.create_subscription(WrenchStamped, common.LOAD_CELL_PREFIX + name,
-                                         lambda m, n=name: self.on_load_cell(n, m), qos_in)
-                streams.append(common.LOAD_CELL_PREFIX + name)
+                topic = common.LOAD_CELL_PREFIX + name
+                self.inputs.append((common.RawInput(self, self.guard, topic,
+                                                    common.wrench_layout(common.load_cell_frame(name)), qos_in), topic))
         if rig.exciter is not None:
-            self.create_subscription(WrenchStamped, common.EXCITER_TOPIC, self.on_exciter, qos_in)
-            streams.append(common.EXCITER_TOPIC)
+            self.inputs.append((common.RawInput(self, self.guard, common.EXCITER_TOPIC,
+                                                common.wrench_layout(common.EXCITER_FRAME), qos_in),
+                                common.EXCITER_TOPIC))
         # the core wants its inputs in stamp order (as the offline replay sorts them)
-        self.merger = common.StampMerger(streams, float(self.get_parameter("max_delay").value))
+        self.merger = common.StampMerger([t for _, t in self.inputs], float(self.get_parameter("max_delay").value))
+        # start-up: streams whose subscriptions match later (discovery, a restart in the middle
+        # of a run) must not find the tracker initialised without them; hold the feed until
+        # every stream has delivered (or start_timeout s of wall time), then start where all
+        # streams are present
+        self.declare_parameter("start_timeout", 5.0)
+        self.start_timeout = float(self.get_parameter("start_timeout").value)
+        self.merger.hold = True
+        self._first_stamp: dict[str, float] = {}
+        self._t_first_msg: float | None = None
+        self.skipped_at_start = 0
         self._last_push = time.monotonic()
+        self.create_timer(float(self.get_parameter("batch_period").value), self._drain)
         self.create_timer(0.25, self._flush_idle)
         self.get_logger().info(f"ready: rig {rig.source}, {len(self.names)} cables, parameters {params}")
 
@@ -100,31 +129,94 @@ class TrackerNode(Node):
     # ranks for equal stamps, as tracker.track(): inclinometer, tensions, IMU, exciter
     RANK = {common.INCLINOMETER_TOPIC: 0, common.IMU_TOPIC: 2, common.EXCITER_TOPIC: 3}
 
-    def _push(self, topic: str, t: float, payload) -> None:
-        events = self.merger.push(topic, t, self.RANK.get(topic, 1), payload)
-        if events is None:
-            self.guard.reject(topic, f"stamp {t:.6f} s arrived more than max_delay after newer samples")
-            return
+    def _drain(self) -> None:
+        """Take every queued message, merge by stamp, run the tracker, publish the poses."""
+        got = False
+        for inp, topic in self.inputs:
+            t, vals = inp.take()
+            if not len(t):
+                continue
+            got = True
+            if topic == common.EXCITER_TOPIC:
+                if self.tracker.initialised:  # only the initial pose uses it: stop waiting for it
+                    self.merger.drop_stream(topic)
+                    continue
+                rows = vals[:, :2].tolist()
+            elif topic == common.IMU_TOPIC:
+                rows = vals.tolist()
+            elif topic == common.INCLINOMETER_TOPIC:
+                rows = vals[:, :2].tolist()
+            else:
+                rows = vals[:, 2].tolist()
+            if self.merger.hold:
+                self._first_stamp.setdefault(topic, float(t[0]))
+            self._push(topic, t.tolist(), rows)
+        if self.merger.hold and (got or self._first_stamp):
+            self._start_up()
+        if got:
+            self._publish()
+            # after the work: a publish blocked by a slow reader is not "no input"
+            self._last_push = time.monotonic()
+
+    def _push(self, topic: str, ts: list, rows: list) -> None:
+        events, refused = self.merger.push_many(topic, ts, self.RANK.get(topic, 1), rows)
+        for i in refused:
+            self.guard.reject(topic, f"stamp {ts[i]:.6f} s arrived after newer samples were processed")
+        apply = self._apply
         for t_ev, _, _, stream, data in events:
+            apply(stream, t_ev, data)
+
+    def _start_up(self) -> None:
+        """Leave the start-up hold once every stream has delivered (or after start_timeout s):
+        the buffered events older than the latest first stamp are dropped, so that the
+        tracker initialises on all of its streams."""
+        now = time.monotonic()
+        if self._t_first_msg is None:
+            self._t_first_msg = now
+        streams = [t for _, t in self.inputs]
+        missing = [t for t in streams if t not in self._first_stamp]
+        if missing and now - self._t_first_msg < self.start_timeout:
+            return
+        for topic in missing:
+            self.get_logger().warn(f"no data on {topic} within {self.start_timeout:g} s: tracking without it")
+            self.merger.drop_stream(topic)
+        t_common = max(self._first_stamp.values())
+        self.skipped_at_start = self.merger.discard_before(t_common)
+        if self.skipped_at_start:
+            self.get_logger().info(f"start-up: {self.skipped_at_start} samples older than the first sample of "
+                                   "every stream skipped")
+        self.merger.hold = False
+        for t_ev, _, _, stream, data in self.merger.release():
             self._apply(stream, t_ev, data)
-        # after the work: a publish blocked by a slow reader is not "no input"
-        self._last_push = time.monotonic()
 
     def _flush_idle(self) -> None:
         """End of the data (or every input stalled): nothing arrived for 2 s, hand on the rest."""
+        if self.merger.hold:
+            if self._first_stamp:
+                self._start_up()
+                self._publish()
+            return
         if len(self.merger) and time.monotonic() - self._last_push > 2.0:
             for t_ev, _, _, stream, data in self.merger.flush():
                 self._apply(stream, t_ev, data)
+            self._publish()
 
     def _apply(self, topic: str, t: float, data) -> None:
         if topic == common.IMU_TOPIC:
+            tr = self.tracker
+            if tr.initialised and t - tr._t > self.reinit_gap:
+                # no integration across a hole in the IMU stream: start again from the data after it
+                from ..tracker import PoseTracker
+                self.get_logger().warn(f"no IMU data for {t - tr._t:.2f} s: re-initialising the tracker")
+                self.tracker = PoseTracker(self.rig, **self.params)
+                self.reinitialised += 1
             try:
                 pose = self.tracker.add_imu(t, data[:3], data[3:])
             except ValueError as e:  # TrackerError (no consistent pose), bad stamps
                 self.guard.core_error(topic, e)
                 return
             if pose is not None:
-                self.publish(pose)
+                self._poses.append(pose)
         elif topic == common.INCLINOMETER_TOPIC:
             self.tracker.add_inclinometer(t, data)
         elif topic == common.EXCITER_TOPIC:
@@ -132,36 +224,6 @@ class TrackerNode(Node):
                 self.tracker.add_exciter(t, data)
         else:
             self._add_tension(topic[len(common.LOAD_CELL_PREFIX):], t, data)
-
-    def on_imu(self, msg) -> None:
-        w, a = msg.angular_velocity, msg.linear_acceleration
-        vals = (w.x, w.y, w.z, a.x, a.y, a.z)
-        t = self.guard.accept(common.IMU_TOPIC, msg.header, common.IMU_FRAME, vals)
-        if t is not None:
-            self._push(common.IMU_TOPIC, t, vals)
-
-    def on_inclinometer(self, msg) -> None:
-        v = msg.vector
-        t = self.guard.accept(common.INCLINOMETER_TOPIC, msg.header, common.INCLINOMETER_FRAME, (v.x, v.y, v.z))
-        if t is not None:
-            self._push(common.INCLINOMETER_TOPIC, t, (v.x, v.y))
-
-    def on_load_cell(self, name: str, msg) -> None:
-        topic = common.LOAD_CELL_PREFIX + name
-        tension = msg.wrench.force.z
-        t = self.guard.accept(topic, msg.header, common.load_cell_frame(name), (tension,))
-        if t is not None:
-            self._push(topic, t, tension)
-
-    def on_exciter(self, msg) -> None:
-        f = msg.wrench.force
-        t = self.guard.accept(common.EXCITER_TOPIC, msg.header, common.EXCITER_FRAME, (f.x, f.y))
-        if t is None:
-            return
-        if self.tracker.initialised:  # only the initial pose uses it: stop waiting for it
-            self.merger.drop_stream(common.EXCITER_TOPIC)
-            return
-        self._push(common.EXCITER_TOPIC, t, (f.x, f.y))
 
     def _add_tension(self, name: str, t: float, tension: float) -> None:
         self._latest[name] = tension
@@ -183,22 +245,27 @@ class TrackerNode(Node):
             self._pending.clear()
 
     # --- output ------------------------------------------------------------------------
-    def publish(self, pose) -> None:
-        o = self.odom
-        common.set_stamp(o.header, pose.t)
-        p = o.pose.pose.position
-        p.x, p.y, p.z = pose.position.tolist()
-        q = o.pose.pose.orientation
-        q.x, q.y, q.z, q.w = pose.quaternion.tolist()
-        tw = o.twist.twist
-        tw.angular.x, tw.angular.y, tw.angular.z = np.asarray(pose.omega, float).tolist()
-        tw.linear.x, tw.linear.y, tw.linear.z = (pose.matrix.T @ pose.velocity).tolist()
-        try:
-            common.publish_blocking(self.pub, o)
-        except Exception as e:  # blocked too long by a slow reader: the pose is lost, say so
-            self.guard.reject(common.POSE_TOPIC + " (publish)", f"{type(e).__name__}: {e}")
+    def _publish(self) -> None:
+        """Publish the poses tracked since the last call (one serialized batch)."""
+        poses, self._poses = self._poses, []
+        if not poses:
             return
-        self.diag.count_tx(common.POSE_TOPIC)
+        from scipy.spatial.transform import Rotation
+        t = np.array([p.t for p in poses])
+        M = np.array([p.matrix for p in poses])
+        vel = np.array([p.velocity for p in poses])
+        vals = np.column_stack([np.array([p.position for p in poses]), Rotation.from_matrix(M).as_quat(),
+                                np.array([p.omega for p in poses]),
+                                np.einsum("nji,nj->ni", M, vel)])  # velocity in body axes: R^T v
+        sent = 0
+        for raw in self.out_layout.encode(t, vals):
+            try:
+                common.publish_blocking(self.pub, raw)
+            except Exception as e:  # blocked too long by a slow reader: the pose is lost, say so
+                self.guard.reject(common.POSE_TOPIC + " (publish)", f"{type(e).__name__}: {e}")
+                continue
+            sent += 1
+        self.diag.count_tx(common.POSE_TOPIC, sent)
 
 
 def main(argv=None) -> int:
