@@ -1,0 +1,180 @@
+"""Issue 7 part A: predicted uncertainty before the run against the Monte Carlo spread after it,
+and the experiment design for case 16.
+
+``crb`` — thesis cases 10–17 (config/cases, each with its own rig, body and excitation;
+120 s like the reference recordings, so cases 16 and 17 coincide), sensors at the reference
+recordings' rates and noise (gyro 0.002 rad/s,
+accelerometer 0.01 m/s², load cells and exciter 0.5 N, inclinometer 0.2 mrad; 200/200/200/50
+Hz).  Per case: one noise-free simulation; the prediction of
+:func:`rig_identification.planning.predict_from_trajectory` (before the run); RUNS noisy
+copies (fresh white noise on every sensor, the simulator's noise model) replayed through
+tracker -> preprocessor -> identifier; per entry the Monte Carlo spread / predicted σ, with
+the spread's own sampling uncertainty (±1/sqrt(2(RUNS-1))), and the identifier's white-gyro
+bound ``crb_std`` / spread for comparison.
+
+``plan`` — the recommended plan for case 16 (config/rigs/default.yaml: the thesis rig and the
+Jeep Cherokee, 120 s runs) against the thesis's own excitation (200 N at 1.05 Hz at the rig's
+exciter), then CONFIRM noisy runs of the plan (and of the baseline) identified with the
+ordinary pipeline: their spread against the predictions.
+
+Usage: bench_plan.py [crb [RUNS=30] [PROCESSES=2] [CASES...]] | [plan [CONFIRM=8] [PROCESSES=2]]
+(no arguments: both).
+"""
+import sys
+import time
+from multiprocessing import Pool
+from pathlib import Path
+
+import numpy as np
+
+from rig_identification.identification import KEYS, from_tensor
+from rig_identification.pipeline import identify_recording
+from rig_identification.planning import REFERENCE_NOISE, REFERENCE_RATES, Trajectory, predict_from_trajectory
+from rig_identification.recording import Recording, SensorData, TimeSeries
+from rig_identification.simulator import load_experiment, simulate
+
+ROOT = Path(__file__).resolve().parents[1]
+CASES = [f"case{i}" for i in range(10, 18)]
+_SIMS: dict = {}
+
+
+DURATION = 120.0  # s: the reference recordings' length (the thesis ran cases 10-15 for 250 s, 16 for 150, 17 for 100)
+
+
+def reference_experiment(path):
+    """The experiment of ``path`` with the reference recordings' sensor rates and length, noise-free."""
+    from dataclasses import replace
+    exp = load_experiment(path)
+    exp = replace(exp, sensors=replace(exp.sensors, rates=dict(REFERENCE_RATES)))
+    return exp.with_overrides(noise_free=True, duration=DURATION)
+
+
+def noisy(sensors: SensorData, rng, noise=REFERENCE_NOISE) -> SensorData:
+    def add(ts, sig):
+        return TimeSeries(ts.t, ts.data + np.asarray(sig) * rng.standard_normal(ts.data.shape))
+    return SensorData(add(sensors.imu, [noise["gyro"]] * 3 + [noise["accelerometer"]] * 3),
+                      {k: add(v, noise["load_cell"]) for k, v in sensors.load_cells.items()},
+                      add(sensors.exciter, noise["exciter"]), add(sensors.inclinometer, noise["inclinometer"]))
+
+
+def _clean(key):
+    if key not in _SIMS:
+        kind, arg = key
+        if kind == "case":
+            _SIMS[key] = simulate(reference_experiment(ROOT / "config" / "cases" / f"{arg}.yaml"))
+        else:
+            _SIMS[key] = simulate(arg)
+    return _SIMS[key]
+
+
+def one_run(args):
+    key, seed, band = args
+    sim = _clean(key)
+    rng = np.random.default_rng(seed)
+    res = identify_recording(Recording(sim.rig, noisy(sim.sensors, rng), sim.truth), band_hz=band)
+    return from_tensor(res.inertia), res.crb_std
+
+
+def crb_table(runs=30, procs=2, cases=None):
+    cases = cases or CASES
+    t0 = time.perf_counter()
+    print(f"Predicted σ (before the run) against the Monte Carlo spread (after it): {runs} noisy runs per case, "
+          "reference noise levels and rates")
+    print(f"(spread/pred: 1 is perfect; the spread's own 1σ sampling uncertainty is ±{100 / np.sqrt(2 * (runs - 1)):.0f} %)")
+    print(f"{'case':7s} {'s':>4s} " + " ".join(f"{k:>17s}" for k in KEYS))
+    print(f"{'':7s} {'':>4s} " + " ".join(f"{'pred  spread/pred':>17s}" for _ in KEYS))
+    ratios, crb_ratios = [], []
+    with Pool(procs) as pool:
+        for case in cases:
+            tc = time.perf_counter()
+            sim = _clean(("case", case))
+            pred = predict_from_trajectory(Trajectory.from_simulation(sim))
+            out = pool.map(one_run, [(("case", case), 1000 * int(case[4:]) + k, None) for k in range(runs)])
+            est = np.array([o[0] for o in out])
+            crb = np.array([o[1] for o in out]).mean(0)
+            spread = est.std(0, ddof=1)
+            r = spread / pred.std
+            ratios.append(r)
+            crb_ratios.append(crb / spread)
+            dur = sim.experiment.duration
+            print(f"{case:7s} {dur:4.0f} " + " ".join(f"{p:8.3f} {x:8.2f}" for p, x in zip(pred.std, r))
+                  + f"   ({time.perf_counter() - tc:.0f} s)", flush=True)
+            print(f"{'':7s} {'':>4s} " + " ".join(f"{'crb/spread':>8s} {x:8.2f}" for x in crb_ratios[-1]))
+    R = np.array(ratios)
+    C = np.array(crb_ratios)
+    print(f"spread/pred over {R.size} entries: median {np.median(R):.2f}, range {R.min():.2f}–{R.max():.2f}, "
+          f"{np.mean(np.abs(R - 1) <= 0.2) * 100:.0f} % within ±20 %; RMS of log ratio {np.sqrt(np.mean(np.log(R)**2)):.3f} "
+          f"(pure sampling noise: {1 / np.sqrt(2 * (runs - 1)):.3f})")
+    print(f"identifier's white-gyro crb_std / spread: median {np.median(C):.2f}, range {C.min():.2f}–{C.max():.2f}")
+    print(f"total {time.perf_counter() - t0:.0f} s")
+    return R
+
+
+def plan_table(confirm=8, procs=2):
+    from rig_identification.planning import Body, Run, plan_experiment
+    t0 = time.perf_counter()
+    exp = load_experiment(ROOT / "config" / "rigs" / "default.yaml")
+    rig = exp.rig
+    body = Body(rig, exp.mass, exp.inertia, np.full(len(rig.cables), 5e6), dict(REFERENCE_RATES), dict(REFERENCE_NOISE))
+    base = Run(1.05, 200.0, tuple(rig.exciter.position), "z", 120.0, 2.0, tuple(rig.exciter.rpy))
+    plan = plan_experiment(body, base, progress=lambda s: print("  " + s, flush=True))
+    print(f"plan for case 16 ({time.perf_counter() - t0:.0f} s):")
+    for i, c in enumerate(plan.runs, 1):
+        r = c.run
+        print(f"  run {i}: {r.frequency:.3f} Hz, {r.amplitude:.0f} N, exciter at {np.round(r.position, 3).tolist()} m, "
+              f"spin axis body {r.spin_axis}; peak rotation {c.peak_rotation_deg:.2f}°, lowest tension "
+              f"{100 * c.min_tension_ratio:.0f} % of static ({c.limit} limit); band "
+              f"{'auto' if c.band is None else np.round(c.band, 3).tolist()}")
+    print(f"{'entry':6s} {'baseline σ':>11s} {'plan σ':>9s} {'ratio':>6s}")
+    for k, b, p in zip(KEYS, plan.baseline.prediction.std, plan.prediction.std):
+        print(f"{k:6s} {b:11.3f} {p:9.3f} {b / p:6.2f}")
+    print(f"least improvement {plan.improvement().min():.2f}x; notes: {'; '.join(plan.notes)}")
+    if confirm <= 0:
+        return plan
+    # confirmation: noisy runs of each planned run (and of the baseline), identified by the pipeline
+    print(f"confirmation: {confirm} noisy simulations of each run, identified with the ordinary pipeline")
+    jobs = {}
+    with Pool(procs) as pool:
+        for i, c in enumerate(plan.runs):
+            e = body.experiment(c.run)
+            jobs[i] = pool.map(one_run_plan, [(("plan", i), e, 500 + i * 100 + k, c.band) for k in range(confirm)])
+        eb = body.experiment(plan.baseline.run)
+        jobs["base"] = pool.map(one_run_plan, [(("base",), eb, 900 + k, None) for k in range(confirm)])
+    truth = from_tensor(exp.inertia)
+    if len(plan.runs) == 1:
+        est = np.array([o for o in jobs[0]])
+    else:  # no joint replay here: inverse-variance combination of the runs' estimates with the predicted σ
+        w = [1 / c.prediction.std**2 for c in plan.runs]
+        est = np.array([sum(wi * o for wi, o in zip(w, os)) / sum(w) for os in zip(*(jobs[i] for i in range(len(plan.runs))))])
+    eb = np.array(jobs["base"])
+    print(f"{'entry':6s} {'plan rms err':>12s} {'pred σ':>8s} {'base rms err':>12s} {'pred σ':>8s}")
+    for k, i in zip(KEYS, range(6)):
+        print(f"{k:6s} {np.sqrt(np.mean((est[:, i] - truth[i])**2)):12.3f} {plan.prediction.std[i]:8.3f} "
+              f"{np.sqrt(np.mean((eb[:, i] - truth[i])**2)):12.3f} {plan.baseline.prediction.std[i]:8.3f}")
+    print(f"total {time.perf_counter() - t0:.0f} s")
+    return plan
+
+
+_EXP_SIMS: dict = {}
+
+
+def one_run_plan(args):
+    key, exp, seed, band = args
+    if key not in _EXP_SIMS:
+        _EXP_SIMS.clear()
+        _EXP_SIMS[key] = simulate(exp)
+    sim = _EXP_SIMS[key]
+    res = identify_recording(Recording(sim.rig, noisy(sim.sensors, np.random.default_rng(seed)), sim.truth),
+                             band_hz=band)
+    return from_tensor(res.inertia)
+
+
+if __name__ == "__main__":
+    argv = sys.argv[1:]
+    if not argv or argv[0] == "crb":
+        nums = [int(x) for x in argv[1:3] if x.isdigit()]
+        names = [x for x in argv[1:] if not x.isdigit()]
+        crb_table(*(nums or [30]), cases=names or None)
+    if not argv or argv[0] == "plan":
+        nums = [int(x) for x in argv[1:3] if x.isdigit()]
+        plan_table(*nums)
