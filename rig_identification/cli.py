@@ -225,6 +225,82 @@ def cmd_modes(args) -> int:
     return 0
 
 
+def cmd_plan(args) -> int:
+    """``rig-identify plan``: the rig's modes, the predicted σ of the baseline excitation and the
+    recommended exciter run(s) (:mod:`rig_identification.planning`); returns 0 (2 on a user error)."""
+    import numpy as np
+
+    from .planning import KEYS as PKEYS
+    from .planning import PlanError, Run, load_plan_input, make_body, plan_experiment
+    from .simulator import ExperimentError, SimulationError
+    try:
+        rig, base_exc, k = load_plan_input(args.rig)
+        ixx, iyy, izz, ixy, ixz, iyz = args.inertia
+        body = make_body(rig, args.mass, [ixx, ixy, ixz, iyy, iyz, izz], k)
+        if rig.exciter is None and args.baseline_position is None:
+            raise PlanError(f"{rig.source}: no exciter in rig.yaml; give the baseline's mounting point with "
+                            "--baseline-position X Y Z")
+        pos = args.baseline_position if args.baseline_position is not None else rig.exciter.position
+        rpy = rig.exciter.rpy if (rig.exciter is not None and args.baseline_position is None) else (0.0, 0.0, 0.0)
+        amp = args.baseline_force if args.baseline_force is not None else (base_exc or {}).get("amplitude", 200.0)
+        freq = args.baseline_frequency if args.baseline_frequency is not None else (base_exc or {}).get("frequency", 1.05)
+        baseline = Run(float(freq), float(amp), tuple(float(x) for x in pos), "z", args.duration, 2.0,
+                       tuple(float(x) for x in rpy))
+        say = (lambda s: None) if args.quiet else (lambda s: print("  " + s, file=sys.stderr, flush=True))
+        plan = plan_experiment(body, baseline, duration=args.duration, max_force=args.max_force,
+                               max_rotation_deg=args.max_rotation, min_tension_ratio=args.min_tension,
+                               frequencies=tuple(args.frequencies), positions=args.position, max_runs=args.runs,
+                               objective=args.objective, refine=max(1, args.refine), progress=say)
+    except (PlanError, ExperimentError, SimulationError) as e:
+        print(f"rig-identify: error: {e}", file=sys.stderr)
+        return 2
+    if args.json:
+        out = plan.to_dict()
+        out.update({"rig": str(rig.source), "mass": body.mass, "center_of_gravity": [float(x) for x in rig.center_of_gravity],
+                    "inertia": {kk: float(v) for kk, v in zip(PKEYS, from_tensor(body.inertia))},
+                    "cable_stiffness": [float(x) for x in body.stiffness], "noise": body.noise, "rates_hz": body.rates})
+        print(json.dumps(out))
+        return 0
+    print(f"rig: {rig.source}; body {body.mass:.1f} kg, CG " + ", ".join(f"{x:.3f}" for x in rig.center_of_gravity)
+          + " m (body); cables: springs " + ", ".join(f"{x:.3g}" for x in sorted(set(body.stiffness))) + " N/m")
+    print("natural modes (linearised about the equilibrium):")
+    for m in plan.modes:
+        print(f"  {m.frequency:7.3f} Hz  {m.description}")
+    lim = plan.limits
+    print(f"limits: rotation ≤ {lim['max_rotation_deg']:g}° (peak, start-up included), every cable ≥ "
+          f"{100 * lim['min_tension_ratio']:.0f} % of its static tension, force ≤ {lim['max_force_n']:g} N; exciter "
+          f"{lim['frequency_range_hz'][0]:g}–{lim['frequency_range_hz'][1]:g} Hz, ≥ {100 * lim['mode_margin']:.0f} % "
+          "from every mode, its double and every sum of two (parametric resonance)")
+
+    def describe(c, title):
+        r = c.run
+        axis = f"spin axis body {r.spin_axis}" if r.rpy is None else f"exciter rpy {np.round(r.exciter_rpy, 3).tolist()}"
+        band = "" if c.band is None else f"; identify with --band {c.band[0]:.2f} {c.band[1]:.2f}"
+        print(f"{title}: {r.amplitude:.0f} N rotating at {r.frequency:.3f} Hz, exciter at "
+              f"({', '.join(f'{x:.2f}' for x in r.position)}) m body, {axis}, {r.duration:.0f} s — peak rotation "
+              f"{c.peak_rotation_deg:.2f}°, lowest tension {100 * c.min_tension_ratio:.0f} % of static{band}")
+
+    describe(plan.baseline, "baseline")
+    for i, c in enumerate(plan.runs, 1):
+        if i > 1 and c is plan.runs[0]:
+            print(f"recommended run {i}: the same run again")
+            continue
+        describe(c, f"recommended run {i}" if len(plan.runs) > 1 else "recommended run")
+    bp, pp = plan.baseline.prediction, plan.prediction
+    print(f"predicted σ at the noise levels {', '.join(f'{kk} {v:g}' for kk, v in body.noise.items())} "
+          "(rad/s, m/s², N, N, rad):")
+    print(f"{'entry':6s} {'value':>9s} {'baseline σ':>11s} {'plan σ':>9s} {'ratio':>6s} {'plan σ rel.':>11s}")
+    for kk, v, b, p, rel in zip(PKEYS, from_tensor(body.inertia), bp.std, pp.std, pp.relative_std):
+        print(f"{kk:6s} {v:9.1f} {b:11.3f} {p:9.3f} {b / p:6.1f} {100 * rel:10.4f}%")
+    print("(kg·m²; relative: of the entry for diagonals, of the largest diagonal for products)")
+    for title, pr in (("baseline", bp), ("plan", pp)):
+        for w in pr.weak(1):
+            print(f"{title}: {w['text']}")
+    for n in plan.notes:
+        print("note: " + n)
+    return 0
+
+
 def identify_main(argv=None) -> int:
     """Entry point of ``rig-identify``."""
     ap = argparse.ArgumentParser(prog="rig-identify", description=__doc__.splitlines()[0])
@@ -269,6 +345,40 @@ def identify_main(argv=None) -> int:
     dp.add_argument("--model", choices=["pem", "thesis"], default="pem",
                     help="pem: ours (default); thesis: the thesis's model without gyroscopic terms")
     dp.set_defaults(func=cmd_diagnose)
+    pp = sub.add_parser("plan", help="know before you shake: the rig's modes, predicted inertia σ and the "
+                                     "recommended exciter run(s) for a nominal body")
+    pp.add_argument("rig", help="rig.yaml, experiment file or recording folder (CG from rig.yaml)")
+    pp.add_argument("--inertia", type=float, nargs=6, required=True, metavar=("IXX", "IYY", "IZZ", "IXY", "IXZ", "IYZ"),
+                    help="nominal inertia tensor entries about the CG, body axes, kg·m² (products negated, as "
+                         "truth.yaml)")
+    pp.add_argument("--mass", type=float, metavar="KG", help="nominal mass (default: rig.yaml body.mass)")
+    pp.add_argument("--duration", type=float, default=120.0, metavar="S", help="length of each run (default 120)")
+    pp.add_argument("--max-force", type=float, default=float("inf"), metavar="N",
+                    help="largest force amplitude the exciter can make (default: no limit but the rig's)")
+    pp.add_argument("--max-rotation", type=float, default=3.0, metavar="DEG",
+                    help="largest rotation of the body, start-up included (default 3)")
+    pp.add_argument("--min-tension", type=float, default=0.2, metavar="RATIO",
+                    help="lowest cable tension as a fraction of its static tension (default 0.2)")
+    pp.add_argument("--frequencies", type=float, nargs=2, default=(0.3, 4.0), metavar=("LO_HZ", "HI_HZ"),
+                    help="exciter frequency range (default 0.3 4)")
+    pp.add_argument("--position", type=float, nargs=3, action="append", metavar=("X", "Y", "Z"),
+                    help="a candidate exciter mounting point, body frame m (repeatable; default: the corners of the "
+                         "box spanned by the body anchors and the rig's exciter)")
+    pp.add_argument("--runs", type=int, choices=(1, 2), default=2, help="at most this many runs (default 2)")
+    pp.add_argument("--objective", choices=("baseline", "relative"), default="baseline",
+                    help="baseline: improve the least-improved entry over the baseline most (default); relative: "
+                         "minimise the largest relative σ")
+    pp.add_argument("--baseline-force", type=float, metavar="N",
+                    help="baseline force amplitude (default: the experiment file's, else the thesis's 200 N)")
+    pp.add_argument("--baseline-frequency", type=float, metavar="HZ",
+                    help="baseline frequency (default: the experiment file's, else the thesis's 1.05 Hz)")
+    pp.add_argument("--baseline-position", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                    help="baseline exciter position, body m (default: rig.yaml exciter)")
+    pp.add_argument("--refine", type=int, default=3, metavar="N",
+                    help="how many screened runs to simulate before choosing (default 3; 1 is quicker)")
+    pp.add_argument("--json", action="store_true", help="print one JSON object")
+    pp.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    pp.set_defaults(func=cmd_plan)
     args = ap.parse_args(argv)
     try:
         return args.func(args)
