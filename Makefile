@@ -35,8 +35,9 @@ browser:
 	       "else test/test_report.py fails"; \
 	fi
 
+# one BLAS thread per process: test_diagnose.py runs two worker processes on the two cores
 test: setup browser
-	$(PY) -m pytest -q test
+	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q test
 
 bench: setup
 	for b in bench/*.py; do $(PY) $$b || exit 1; done

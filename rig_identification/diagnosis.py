@@ -9,18 +9,39 @@ residuals test it, each on the recording's window, band-passed like the identifi
   equation, ``y = F ω`` vs ``ŷ = F P ∫(M − ω × Jω)``, as in the identifier;
 * **translational** (accelerometer x, y, z): the measured specific force at the IMU vs
   Newton's law, ``F/m + α × ρ + ω × (ω × ρ)`` (ρ = IMU − CG, α = dω/dt), band-passed;
-* **mean levels** (gyro and accelerometer DC): the mean gyro vs the net rotation over the
-  window (the tracker's orientation), the mean specific force vs the mean F/m.
-
-The wrench components (force, torque: the Newton–Euler equation errors) and each load
-cell (the tension correction that best explains them, least squares) are reported too.
+* **mean levels**: the mean gyro vs the net rotation over the window (the tracker's
+  orientation), the mean specific force vs the mean F/m, the mean moment vs
+  ``J mean(ω̇) + mean(ω × Jω)``.
 
 Each candidate of the effect library (:mod:`~rig_identification.effects`) extends the
 model by terms that are *linear in its parameters* (moment and force regressors,
 output corrections, mean offsets; a sensor delay to first order, ``M(t − d) ≈ M − d Ṁ``),
-so the extended model is fitted by the same Levenberg–Marquardt prediction-error fit
-as the tensor (scipy ``least_squares``, physically consistent log-Cholesky tensor,
-:func:`~rig_identification.identification.consistent_from_params`), jointly with it.
+so the extended model is fitted jointly with the tensor by variable projection: the
+effect parameters by linear least squares for each tensor, Levenberg–Marquardt (scipy
+``least_squares``) on the physically consistent log-Cholesky tensor parameters
+(:func:`~rig_identification.identification.consistent_from_params`).
+
+The wrench components (force, torque: the Newton–Euler equation errors, the torque with
+the mean moment, which must vanish over a window) and each load cell (the tension
+correction that best explains them, least squares) are channels too.
+
+Baseline: the rig.yaml taken literally, with the cables' stiffness from rig.yaml, or —
+when it gives none — fitted by the tracker (steel cables stretch 1–2 mm; the reference
+recordings need it).  ``cable_elasticity`` is a candidate when rig.yaml states a stiffness
+(the tracker then re-fits it), or when the fitted static stretch exceeds
+:data:`STEEL_STRETCH` (then against rigid cables).
+
+Sensor and rig errors (``sensor_delay``, ``imu_offset``, ``imu_misalignment``, the biases,
+``load_cell_scale``, ``cable_elasticity``) also move the tracked pose, which the first-order
+columns do not see: the most promising of them (:data:`EXACT_SCREEN` per step) are
+evaluated exactly — the error removed from the data (:func:`corrected`), the pose
+re-tracked, the model refitted, Broyden iterations on the first-order remainder — and the
+selected one is iterated to convergence.
+
+Known limits: ``load_cell_scale`` and ``cable_mass`` are not found yet — a gain error of one
+load cell moves the tracker's static pose (it balances forces and moments with the
+tensions) so that the first-order gains point the wrong way, and a cable's mass is nearly
+collinear with the tensor and an accelerometer bias.
 
 Selection: forward stepwise, by the likelihood-ratio statistic
 ``Λ = Σ_g N_eff,g ln(RSS_g,0 / RSS_g,1) + Δχ²_DC`` (Gaussian residuals with the
@@ -55,6 +76,8 @@ from .recording import Recording, RecordingError
 ALPHA = 0.01          # family-wise false-alarm probability of the selection
 MIN_REDUCTION = 0.05  # an effect must reduce some channel's residual RMS by at least this fraction
 MAX_EFFECTS = 3
+EXACT_SCREEN = 3      # sensor/rig-error candidates evaluated exactly (re-tracked) per selection step
+DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
 STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml stiffness are not "steel-like"
 ROT, TR = ("gyro_x", "gyro_y", "gyro_z"), ("accel_x", "accel_y", "accel_z")
 
@@ -90,6 +113,7 @@ class Window:
     exc_rot: np.ndarray = field(default_factory=lambda: np.eye(3))
     imu_rot_yaml: np.ndarray = field(default_factory=lambda: np.eye(3))   # rig.yaml's IMU -> body
     stiffness: np.ndarray | None = None     # cable stiffness the pose was tracked with, N/m (inf: rigid)
+    stiffness_std: float | None = None      # std of the fitted stiffness (tracker's compliance fit), N/m
     sensors: object = None       # the cleaned SensorData (for exact re-alignment of a stream)
     shifts: dict = field(default_factory=dict)   # stream -> delay applied, s
 
@@ -142,16 +166,21 @@ def _track(rig, s, cables: str):
     if known.all() or cables == "rigid":
         rig_t = _r(rig, cables=tuple(c if c.stiffness is not None else _r(c, stiffness=1e15) for c in rig.cables))
         out, _ = _replay(rig_t, s)
-        return PoseTrack.from_estimates(out), np.where(known, rig.cable_stiffness, np.inf)
+        return PoseTrack.from_estimates(out), np.where(known, rig.cable_stiffness, np.inf), None
     out, tracker = _replay(rig, s)
     hist = tracker.compliance_history
     if not hist:
-        return PoseTrack.from_estimates(out), np.where(known, rig.cable_stiffness, np.inf)
-    c = np.median([h[1] for h in hist[len(hist) // 2:]], axis=0)
+        return PoseTrack.from_estimates(out), np.where(known, rig.cable_stiffness, np.inf), None
+    H = np.array([h[1] for h in hist[len(hist) // 2:]])
+    c = np.median(H, axis=0)
+    # the tracker's updates are ~2 s apart, over a ~60 s forgetting horizon: ~30 updates per
+    # independent estimate
+    c_std = np.std(H, axis=0) / np.sqrt(max(1.0, len(H) / 30.0)) / np.sqrt(max(1, (~known).sum()))
     k = np.where(known, rig.cable_stiffness, 1.0 / np.maximum(c, 1e-12))
     rig_t = _r(rig, cables=tuple(_r(cb, stiffness=float(ki)) for cb, ki in zip(rig.cables, k)))
     out, _ = _replay(rig_t, s)
-    return PoseTrack.from_estimates(out), k
+    k_std = float(np.median(k[~known]) ** 2 * np.median(c_std[~known]))
+    return PoseTrack.from_estimates(out), k, k_std
 
 
 def prepare_window(rec: Recording, settle: float = 5.0, warnings: list | None = None,
@@ -168,7 +197,7 @@ def prepare_window(rec: Recording, settle: float = 5.0, warnings: list | None = 
     warnings = [] if warnings is None else warnings
     s = clean_sensors(rec, warnings)
     _check_motion(rec, s)
-    poses, stiffness = _track(rig, s, cables)
+    poses, stiffness, stiffness_std = _track(rig, s, cables)
     lo = max([c.t[0] for c in s.load_cells.values()] + ([s.exciter.t[0]] if s.exciter is not None else []))
     hi = min([c.t[-1] for c in s.load_cells.values()] + ([s.exciter.t[-1]] if s.exciter is not None else []))
     lo = max(lo, s.t_start + min(settle, 0.1 * (s.t_end - s.t_start)))
@@ -191,7 +220,8 @@ def prepare_window(rec: Recording, settle: float = 5.0, warnings: list | None = 
     return Window(t, omega, f, R, v, T, u, rig.body_anchors - cg, f_exc, r_exc, rig.imu.position - cg,
                   rig.mass, rig.gravity, Rimu, list(rig.cable_names),
                   rig.exciter.rotation.as_matrix() if rig.exciter is not None else np.eye(3), sensors=s,
-                  imu_rot_yaml=Rimu if imu_rot_yaml is None else imu_rot_yaml, stiffness=stiffness)
+                  imu_rot_yaml=Rimu if imu_rot_yaml is None else imu_rot_yaml, stiffness=stiffness,
+                  stiffness_std=stiffness_std)
 
 
 # --- the extended model ---------------------------------------------------------------------
@@ -251,10 +281,14 @@ class Model:
         self.band = (lo, min(hi, 0.4 * fs))
         self.sos = butter(4, list(self.band), btype="bandpass", fs=fs, output="sos")
         self.n_eff = max(10.0, len(t) * 2 * (self.band[1] - self.band[0]) / fs)
+        self.n_eff_group: dict = {}   # per residual group, from the baseline fit (effective_samples)
         self.y = self.filt(w.omega)
         self.IM = self.integ(w.torque)
         self.G = np.stack([self.integ(np.cross(w.omega, w.omega @ Em.T)) for Em in basis()])
-        self.alpha = np.gradient(w.omega, t, axis=0)
+        # angular acceleration from the gyro low-passed at the band's upper edge: the
+        # derivative of the raw gyro noise (×ρ) would swamp the accelerometer's own noise
+        lp = butter(4, self.band[1], fs=fs, output="sos")
+        self.alpha = np.gradient(sosfiltfilt(lp, w.omega, axis=0), t, axis=0)
         a_rel = np.cross(self.alpha, w.rho) + np.cross(w.omega, np.cross(w.omega, w.rho))
         newton = w.force / w.mass + a_rel
         self.ya = self.filt(w.f)
@@ -263,11 +297,16 @@ class Model:
         net = Rotation.from_matrix(w.R[0].T @ w.R[-1]).as_rotvec()
         self.dcg0 = w.omega.mean(0) - w.R[0].T @ w.R[0] @ net / T
         self.dca0 = (w.f - newton).mean(0)
+        # mean moment: over the window, J mean(ω̇) + mean(ω × Jω) = mean(M)
+        self.dcm_M = w.torque.mean(0)
+        self.dcm_G = np.stack([np.cross(w.omega, w.omega @ Em.T).mean(0) for Em in basis()])   # (6,3)
+        self.dcm_W = (w.omega[-1] - w.omega[0]) / T
         n = len(t)
         sg = _white_sigma(w.omega, fs)
         sa = _white_sigma(w.f, fs)
-        self.sigma_dcg = np.sqrt((sg / np.sqrt(n)) ** 2 + 2e-5 ** 2)
+        self.sigma_dcg = np.sqrt((sg / np.sqrt(n)) ** 2 + 1e-4 ** 2)
         self.sigma_dca = np.sqrt((sa / np.sqrt(n)) ** 2 + 2e-3 ** 2)
+        self.sigma_dcm = DCM_FLOOR
 
     def filt(self, x):
         return sosfiltfilt(self.sos, x, axis=0)
@@ -284,9 +323,12 @@ class Model:
         A = self.A.copy()
         dcg = self.dcg0.copy()
         dca = self.dca0.copy()
+        Jt = to_tensor(j)
+        dcm = self.dcm_M - kappa * j @ self.dcm_G - Jt @ self.dcm_W
         for b, c, p in zip(beta, cols, prepared):
             if p["rot_ID"] is not None:
                 u = u + b * p["rot_ID"]
+                dcm = dcm + b * p["rot_mean"]
             if c.rot_O is not None:
                 yc = yc + b * c.rot_O
             if p["tr_FD"] is not None:
@@ -298,10 +340,11 @@ class Model:
             if c.dca is not None:
                 dca = dca + b * c.dca
         yhat = u @ P.T
-        return yc - yhat, ya - A, dcg, dca, P, yhat, u
+        return yc - yhat, ya - A, dcg, dca, dcm, P, yhat, u
 
     def prepare(self, cols):
         return [{"rot_ID": None if c.rot_D is None else self.integ(c.rot_D),
+                 "rot_mean": None if c.rot_D is None else c.rot_D.mean(0),
                  "tr_FD": None if c.tr_D is None else self.filt(c.tr_D)} for c in cols]
 
 
@@ -323,6 +366,7 @@ class Fit:
     tr: np.ndarray
     dcg: np.ndarray
     dca: np.ndarray
+    dcm: np.ndarray
     yhat: np.ndarray
     u: np.ndarray
     cols: list = field(default_factory=list)
@@ -330,9 +374,10 @@ class Fit:
 
     def cost(self, scales) -> dict:
         """Per-group residual sums of squares in units of the baseline scales."""
-        sr, sa, sg, sa_dc = scales
+        sr, sa, sg, sa_dc, sm = scales
         return {"rot": float(np.sum((self.rot / sr) ** 2)), "tr": float(np.sum((self.tr / sa) ** 2)),
-                "dcg": float(np.sum((self.dcg / sg) ** 2)), "dca": float(np.sum((self.dca / sa_dc) ** 2))}
+                "dcg": float(np.sum((self.dcg / sg) ** 2)), "dca": float(np.sum((self.dca / sa_dc) ** 2)),
+                "dcm": float(np.sum((self.dcm / sm) ** 2))}
 
 
 def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales, j0: np.ndarray,
@@ -341,7 +386,7 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
     (consistent parametrisation), the effect columns and optionally the gyroscopic scale
     κ.  Each group is weighted by its baseline scale and its effective sample count, so
     that the cost is −2 log L up to a constant (see module docstring)."""
-    sr, sa, sg, sdc = scales
+    sr, sa, sg, sdc, sm = scales
     n = len(model.w.t)
     wr = np.sqrt(model.n_eff / n) / sr
     wa = np.sqrt(model.n_eff / n) / sa
@@ -354,6 +399,7 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
                     for c, p in zip(cols, prepared)], axis=-1) if k else np.zeros((n, 3, 0))
     dG = np.array([c.dcg if c.dcg is not None else np.zeros(3) for c in cols]).T.reshape(3, k)
     dA = np.array([c.dca if c.dca is not None else np.zeros(3) for c in cols]).T.reshape(3, k)
+    dMm = np.array([p["rot_mean"] if p["rot_mean"] is not None else np.zeros(3) for p in prepared]).T.reshape(3, k)
 
     def unpack(x):
         j, dj = consistent_from_params(x[:6])
@@ -363,12 +409,12 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
 
     def fun(x):
         j, _, beta, kappa = unpack(x)
-        r, a, dg, da, *_ = model.residuals(j, kappa, beta, cols, prepared)
-        return np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc])
+        r, a, dg, da, dm, *_ = model.residuals(j, kappa, beta, cols, prepared)
+        return np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc, dm / sm])
 
     def jac(x):
         j, dj, beta, kappa = unpack(x)
-        _, _, _, _, P, yhat, _ = model.residuals(j, kappa, beta, cols, prepared)
+        _, _, _, _, _, P, yhat, _ = model.residuals(j, kappa, beta, cols, prepared)
         nx = len(x)
         Jr = np.zeros((n, 3, nx))
         Jr[:, :, :6] = np.einsum("ij,knj->nik", P, np.einsum("kij,nj->kni", E, yhat) + kappa * model.G) @ dj
@@ -383,22 +429,60 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
             Jr[:, :, -1] = np.einsum("m,mni->ni", j, model.G) @ P.T
         Ja = np.zeros((n, 3, nx))
         Ja[:, :, 6:6 + k] = dTr
-        Jd = np.zeros((6, nx))
+        Jd = np.zeros((9, nx))
         Jd[:3, 6:6 + k] = dG / sg
-        Jd[3:, 6:6 + k] = dA / sdc
+        Jd[3:6, 6:6 + k] = dA / sdc
+        E6 = np.stack([kappa * model.dcm_G[m] + E[m] @ model.dcm_W for m in range(6)], axis=1)   # (3,6)
+        Jd[6:, :6] = -(E6 @ dj) / sm
+        Jd[6:, 6:6 + k] = dMm / sm
+        if free_kappa:
+            Jd[6:, -1] = -(j @ model.dcm_G) / sm
         return np.concatenate([(Jr * wr).reshape(-1, nx), (Ja * wa).reshape(-1, nx), Jd])
 
-    x0 = np.r_[params_from_consistent(to_tensor(j0)), np.zeros(k), [kappa0] if free_kappa else []]
-    sol = least_squares(fun, x0, jac=jac, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10,
-                        max_nfev=100 * (len(x0) + 1))
+    # variable projection (Golub & Pereyra 1973): the residual is linear in the effect
+    # columns and in κ, so for each tensor they are solved by linear least squares and
+    # Levenberg–Marquardt runs on the 6 tensor parameters alone, with Kaufman's
+    # projected Jacobian (Kaufman, BIT 15, 1975)
+    nlin = k + (1 if free_kappa else 0)
+    cache = {}
+
+    def full(th):
+        key = th.tobytes()
+        if key not in cache:
+            x = np.r_[th, np.zeros(nlin)]
+            if nlin:
+                A = jac(x)[:, 6:]
+                r0 = fun(x)
+                b, *_ = np.linalg.lstsq(A, -r0, rcond=None)
+                x = np.r_[th, b]
+            cache.clear()
+            cache[key] = x
+        return cache[key]
+
+    def fun_vp(th):
+        return fun(full(th))
+
+    def jac_vp(th):
+        Jf = jac(full(th))
+        if not nlin:
+            return Jf
+        A, Jt = Jf[:, 6:], Jf[:, :6]
+        return Jt - A @ np.linalg.lstsq(A, Jt, rcond=None)[0]
+
+    th0 = params_from_consistent(to_tensor(j0))
+    sol = least_squares(fun_vp, th0, jac=jac_vp, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10,
+                        max_nfev=200)
+    sol.x = full(sol.x)
+    sol.fun = fun(sol.x)
     j, dj, beta, kappa = unpack(sol.x)
-    r, a, dg, da, P, yhat, u = model.residuals(j, kappa, beta, cols, prepared)
+    r, a, dg, da, dm, P, yhat, u = model.residuals(j, kappa, beta, cols, prepared)
     # covariance of (tensor entries, beta, kappa): sandwich with batch means over time blocks
     T = np.eye(len(sol.x))
     T[:6, :6] = np.linalg.pinv(dj)          # d theta / d entries
     A = jac(sol.x) @ T                        # Jacobian with respect to (entries, beta, kappa)
     cov = _sandwich(A, sol.fun, n, 6, int(round(block_s * model.fs)))
-    return Fit(to_tensor(j), float(kappa), np.asarray(beta, float), cov, r, a, dg, da, yhat, u, cols, free_kappa)
+    return Fit(to_tensor(j), float(kappa), np.asarray(beta, float), cov, r, a, dg, da, dm, yhat, u, cols,
+               free_kappa)
 
 
 def _sandwich(A: np.ndarray, res: np.ndarray, n: int, per_row: int, nb: int) -> np.ndarray:
@@ -491,16 +575,22 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
             return {"stream": stream, "delay": done + float(vals[0])}, {"delay": float(stds[0])}
         out.append(Candidate("sensor_delay", [Column("delay", rot_D=Mo, tr_D=F / m)], rep_d, label=stream,
                              stream=stream, exact=True))
-    # load-cell gain: true T = T_meas (1 - e) -> -e times the cable's wrench
+    # load-cell gains: true T_i = T_meas,i (1 - e_i) -> -e_i times cable i's wrench (one column per cable)
+    done_e = np.zeros(len(w.cable_names)) + np.asarray(applied.get(("load_cell_scale", ""), 0.0), float)
+    cols = []
     for i, name in enumerate(w.cable_names):
         Fi = w.cable_force[:, i]
-        col = Column("gain_error", rot_D=-w.cable_moment[:, i], tr_D=-Fi / m, dca=-(Fi / m).mean(0))
-        done = float(applied.get(("load_cell_scale", name), 0.0))
+        cols.append(Column(f"gain_error_{name}", rot_D=-w.cable_moment[:, i], tr_D=-Fi / m, dca=-(Fi / m).mean(0)))
 
-        def rep(vals, stds, name=name, done=done):
-            keep = (1.0 - done) * (1.0 - float(vals[0]))      # true / measured
-            return {"cable": name, "scale": 1.0 / keep}, {"scale": float(stds[0]) / keep}
-        out.append(Candidate("load_cell_scale", [col], rep, label=name, exact=True))
+    def rep_scale(vals, stds):
+        keep = (1.0 - done_e) * (1.0 - np.asarray(vals, float))      # true / measured
+        scale = 1.0 / keep
+        i = int(np.argmax(np.abs(scale - 1.0)))
+        return ({"cable": w.cable_names[i], "scale": float(scale[i]),
+                 "scales": {n: float(x) for n, x in zip(w.cable_names, scale)}},
+                {"scale": float(stds[i] / keep[i]),
+                 "scales": {n: float(sd / k) for n, sd, k in zip(w.cable_names, stds, keep)}})
+    out.append(Candidate("load_cell_scale", cols, rep_scale, exact=True))
     # IMU offset δ (body axes): the specific force at the true point is α×δ + ω×(ω×δ) more
     cols = []
     for k in range(3):
@@ -554,8 +644,8 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
 
 def corrected(rec: Recording, applied: dict) -> Recording:
     """The recording with the sensor and rig errors of ``applied`` removed (key -> value):
-    ("sensor_delay", stream) s: the stream's stamps − d; ("load_cell_scale", cable) e:
-    T (1 − e); ("imu_offset", "") (3,) m body: imu.position + δ; ("imu_misalignment", "")
+    ("sensor_delay", stream) s: the stream's stamps − d; ("load_cell_scale", "") (n,) e:
+    T_i (1 − e_i); ("imu_offset", "") (3,) m body: imu.position + δ; ("imu_misalignment", "")
     (3,) rotation vector, body axes: IMU axes turned by it; ("gyro_bias" | "accelerometer_bias",
     "") (3,) IMU axes: subtracted.  ("cable_elasticity", "") is handled by the tracker."""
     from dataclasses import replace as _r
@@ -567,8 +657,9 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     imu[:, 3:] -= np.asarray(applied.get(("accelerometer_bias", ""), np.zeros(3)))
     cells = {}
     d_cells = applied.get(("sensor_delay", "load_cells"), 0.0)
+    gains = np.zeros(len(rig.cable_names)) + np.asarray(applied.get(("load_cell_scale", ""), 0.0), float)
     for n, ts in s.load_cells.items():
-        cells[n] = TimeSeries(ts.t - d_cells, ts.data * (1.0 - applied.get(("load_cell_scale", n), 0.0)))
+        cells[n] = TimeSeries(ts.t - d_cells, ts.data * (1.0 - gains[rig.cable_names.index(n)]))
     exc = s.exciter
     if exc is not None and ("sensor_delay", "exciter") in applied:
         exc = TimeSeries(exc.t - applied[("sensor_delay", "exciter")], exc.data)
@@ -627,7 +718,7 @@ def channel_residuals(model: Model, fit: Fit) -> dict:
     # Newton–Euler equation errors, band-passed: torque = J α + ω×Jω − M − ΔM  (in-band)
     J = fit.J
     # torque residual from the output error: J (d/dt) of the rotational residual
-    torque = np.gradient(fit.rot, w.t, axis=0) @ J.T
+    torque = np.gradient(fit.rot, w.t, axis=0) @ J.T + fit.dcm
     force = fit.tr * w.mass
     for k, a in enumerate("xyz"):
         out[f"torque_{a}"] = torque[:, k]
@@ -741,20 +832,37 @@ def _grows(seg, t) -> str | None:
     return None
 
 
+def effective_samples(r: np.ndarray) -> float:
+    """Number of independent samples in a residual series (N, k): N over the integrated
+    autocorrelation time τ = 1 + 2 Σ ρ_k, summed over the initial positive sequence of
+    lag pairs (Geyer, Statistical Science 7, 1992), averaged over the columns."""
+    n = len(r)
+    taus = []
+    for x in np.atleast_2d(r.T):
+        x = x - x.mean()
+        f = np.fft.rfft(x, 2 * n)
+        ac = np.fft.irfft(f * np.conj(f))[:n]
+        ac = ac / ac[0]
+        pairs = ac[1:-1:2] + ac[2::2]
+        stop = np.argmax(pairs <= 0) if np.any(pairs <= 0) else len(pairs)
+        taus.append(max(1.0, 1.0 + 2.0 * (ac[1:2 * stop + 1].sum())))
+    return float(n / np.mean(taus))
+
+
 def _lr(cost0: dict, cost1: dict, model: Model) -> float:
-    n = len(model.w.t)
     lam = 0.0
     for g in ("rot", "tr"):
-        # costs are in units of the baseline scales over n·3 samples; per-group likelihood ratio
+        # costs are in units of the baseline scales over n·3 samples; per-group likelihood
+        # ratio with the group's effective number of independent samples
         if cost0[g] > 0 and cost1[g] > 0:
-            lam += model.n_eff * 3 * np.log(cost0[g] / cost1[g])
-    lam += cost0["dcg"] - cost1["dcg"] + cost0["dca"] - cost1["dca"]
+            lam += model.n_eff_group.get(g, model.n_eff) * 3 * np.log(cost0[g] / cost1[g])
+    lam += cost0["dcg"] - cost1["dcg"] + cost0["dca"] - cost1["dca"] + cost0["dcm"] - cost1["dcm"]
     return float(lam)
 
 
 def _scales(M: Model, f0: Fit) -> tuple:
     return (float(np.sqrt(np.mean(f0.rot**2, 0)).mean()), float(np.sqrt(np.mean(f0.tr**2, 0)).mean()),
-            float(np.mean(M.sigma_dcg)), float(np.mean(M.sigma_dca)))
+            float(np.mean(M.sigma_dcg)), float(np.mean(M.sigma_dca)), float(M.sigma_dcm))
 
 
 def _columns(cands: list, keys: list) -> list:
@@ -762,17 +870,41 @@ def _columns(cands: list, keys: list) -> list:
     return [col for k in keys if k in by for col in by[k].columns]
 
 
-def _accumulate(key: tuple, done, beta: np.ndarray):
-    """Add a fitted first-order correction ``beta`` to the correction already applied."""
-    name = key[0]
-    if name == "load_cell_scale":
-        return 1.0 - (1.0 - float(done or 0.0)) * (1.0 - float(beta[0]))
-    if name == "sensor_delay":
-        return float(done or 0.0) + float(beta[0])
-    if name == "imu_misalignment":
-        prev = Rotation.from_rotvec(np.zeros(3) if done is None else np.asarray(done, float))
-        return (Rotation.from_rotvec(np.asarray(beta, float)) * prev).as_rotvec()
-    return (np.zeros(len(beta)) if done is None else np.asarray(done, float)) + np.asarray(beta, float)
+def _exact_iterate(key, state: dict, build, keys: list, fit: Fit, n_iter: int, kappa0: float,
+                  free_kappa: bool, scales) -> tuple:
+    """Remove a selected sensor or rig error from the data and re-track, iterating its
+    value x so that the first-order column's fitted remainder β(x) vanishes: Broyden's
+    method (quasi-Newton; the starting Jacobian dβ/dx = −I is the first-order model, the
+    tracker's response updates it).  Returns (applied, w, M, cands, fit)."""
+    applied = dict(state["applied"])
+    beta = _beta_of(fit, None, keys, key, state)
+    x = np.zeros(len(beta)) + np.asarray(applied.get(key, 0.0), float)
+    B = -np.eye(len(x))
+    cands = None
+    w = M = None
+    for it in range(n_iter):
+        dx = -np.linalg.solve(B, beta)
+        x_new = x + dx
+        applied[key] = float(x_new[0]) if key[0] == "sensor_delay" else x_new.copy()
+        w, M, cands = build(applied, state["elastic"])
+        fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, from_tensor(fit.J))
+        beta_new = _beta_of(fit, cands, keys, key, state)
+        dbeta = beta_new - beta
+        B = B + np.outer(dbeta - B @ dx, dx) / max(float(dx @ dx), 1e-300)
+        x, beta = x_new, beta_new
+        k0 = len(_columns(cands, keys[:keys.index(key)]))
+        n = len(beta)
+        std = np.sqrt(np.clip(np.diag(fit.cov)[6 + k0:6 + k0 + n], 0, None))
+        if np.all(np.abs(beta) <= 0.1 * std):
+            break
+    return applied, w, M, cands, fit
+
+
+def _beta_of(fit: Fit, cands, keys: list, key, state) -> np.ndarray:
+    """The fitted values of the columns of ``key`` in ``fit`` (columns ordered by ``keys``)."""
+    by = {c.key: c for c in (cands if cands is not None else state["cands"])}
+    k0 = sum(len(by[k].columns) for k in keys[:keys.index(key)] if k in by)
+    return np.asarray(fit.beta[k0:k0 + len(by[key].columns)], float)
 
 
 def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS, alpha: float = ALPHA,
@@ -801,6 +933,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         w = prepare_window(corrected(rec, applied), warnings=[] if state["band"] else warnings,
                            cables=mode, imu_rot_yaml=R_yaml)
         M = Model(w, state["band"])
+        M.n_eff_group = state.get("n_eff_group", {})
         state["band"] = M.band
         return w, M, candidates(w, M, kappa0, applied, allow_elasticity=state["candidate"] and not elastic)
 
@@ -824,8 +957,10 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         w, M, cands = build({}, False)
     band = M.band
     j0 = from_tensor(identify_inertia(rec.rig, w.t, w.omega, w.torque, band_hz=band).inertia)
-    scales = _scales(M, fit_model(M, [], kappa0, False, (1.0, 1.0, 1.0, 1.0), j0))
+    scales = _scales(M, fit_model(M, [], kappa0, False, (1.0, 1.0, 1.0, 1.0, 1e9), j0))
     base = fit_model(M, [], kappa0, False, scales, j0)
+    state["n_eff_group"] = M.n_eff_group = {"rot": min(M.n_eff, effective_samples(base.rot)),
+                                            "tr": min(M.n_eff, effective_samples(base.tr))}
     M0 = M
     rms0 = _rms(channel_residuals(M, base))
     threshold_p = alpha / max(1, len(cands))
@@ -835,11 +970,12 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     cur_fit = base
     tried = []
     elastic_cache = None
+    state["cands"] = cands
     for step in range(1, max_effects + 1):
         cost_cur = cur_fit.cost(scales)
         rms_cur = _rms(channel_residuals(M, cur_fit))
         base_cols = _columns(cands, keys)
-        best = None
+        screened = []
         for c in cands:
             if c.key in keys:
                 continue
@@ -859,37 +995,54 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
                 continue
             lam = _lr(cost_cur, fit.cost(scales), M)
             dof = len(c.columns) + (1 if c.gyroscopic else 0) + (1 if c.name == "cable_elasticity" else 0)
-            p = float(chi2.sf(max(lam, 0.0), dof))
             rms1 = _rms(channel_residuals(Mc, fit))
             red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
-            best_red = max(red.values())
-            tried.append({"name": c.name, "label": c.label, "step": step, "likelihood_ratio": lam, "dof": dof,
-                          "p_value": p, "max_rms_reduction": best_red})
-            if p < threshold_p and best_red >= MIN_REDUCTION and (best is None or lam > best[1]):
-                best = (c, lam, fit, p, red, dof)
+            screened.append({"c": c, "lam": lam, "fit": fit, "red": red, "dof": dof, "exact_state": None})
+        # sensor and rig errors move the tracked pose too: the most promising ones are
+        # evaluated exactly (data corrected, re-tracked, two Broyden steps) before choosing
+        promising = sorted((e for e in screened if e["c"].exact and e["c"].name != "cable_elasticity"
+                            and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p), key=lambda e: -e["lam"])
+        for e in promising[:EXACT_SCREEN]:
+            keys_e = keys + [e["c"].key]
+            try:
+                applied, we, Me, ce, fe = _exact_iterate(e["c"].key, state, build, keys_e, e["fit"], 2, kappa0,
+                                                         free_kappa, scales)
+            except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
+                warnings.append(f"candidate {e['c'].name} {e['c'].label}: exact correction failed ({err})")
+                e["lam"] = -np.inf
+                continue
+            e["lam"] = _lr(cost_cur, fe.cost(scales), Me)
+            rms1 = _rms(channel_residuals(Me, fe))
+            e["red"] = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
+            e["fit"] = fe
+            e["exact_state"] = (applied, we, Me, ce)
+        best = None
+        for e in screened:
+            c = e["c"]
+            p = float(chi2.sf(max(e["lam"], 0.0), e["dof"])) if np.isfinite(e["lam"]) else 1.0
+            best_red = max(e["red"].values())
+            tried.append({"name": c.name, "label": c.label, "step": step, "likelihood_ratio": float(e["lam"]),
+                          "dof": e["dof"], "p_value": p, "max_rms_reduction": best_red,
+                          "exact": e["exact_state"] is not None})
+            if c.exact and c.name != "cable_elasticity" and e["exact_state"] is None:
+                continue   # not evaluated exactly: its first-order fit is no evidence
+            if p < threshold_p and best_red >= MIN_REDUCTION and (best is None or e["lam"] > best[0]["lam"]):
+                best = (e, p)
         if best is None:
             break
-        c, lam, fit, p, red, dof = best
+        e, p = best
+        c, dof = e["c"], e["dof"]
         keys.append(c.key)
         free_kappa = free_kappa or c.gyroscopic
+        fit = e["fit"]
         if c.name == "cable_elasticity":
             state["elastic"] = True
             _, w, M, cands = elastic_cache
         elif c.exact:
-            # remove the error from the data, re-track, refit; iterate the first-order step
-            for _ in range(3):
-                k0 = len(_columns(cands, keys[:-1]))
-                beta = fit.beta[k0:k0 + len(c.columns)]
-                state["applied"][c.key] = _accumulate(c.key, state["applied"].get(c.key), beta)
-                w, M, cands = build(state["applied"], state["elastic"])
-                fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, from_tensor(fit.J))
-                c = next(cc for cc in cands if cc.key == c.key)
-                k0 = len(_columns(cands, keys[:-1]))
-                if np.all(np.abs(fit.beta[k0:k0 + len(c.columns)])
-                          <= 0.1 * np.sqrt(np.diag(fit.cov)[6 + k0:6 + k0 + len(c.columns)])):
-                    break
-        else:
-            c = next(cc for cc in cands if cc.key == c.key)
+            state["applied"], w, M, cands = e["exact_state"]
+            state["applied"], w, M, cands, fit = _exact_iterate(c.key, {**state, "cands": cands}, build, keys,
+                                                                fit, 3, kappa0, free_kappa, scales)
+        state["cands"] = cands
         rms1 = _rms(channel_residuals(M, fit))
         red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
         lam = _lr(cost_cur, fit.cost(scales), M)
@@ -905,7 +1058,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         if key[0] == "cable_elasticity":
             k = w.stiffness[np.isfinite(w.stiffness)]
             e["parameters"], e["parameters_std"] = {"stiffness": float(np.median(k))}, \
-                {"stiffness": float(np.std(k) / np.sqrt(len(k))) if len(k) > 1 else float("nan")}
+                {"stiffness": float(w.stiffness_std) if w.stiffness_std is not None else float("nan")}
             continue
         c = by[key]
         if c.gyroscopic:

@@ -10,6 +10,10 @@ Parameters (the window ones are read at each request; set them with ros2 param s
   window_last (double, unset)   only the last N s of the window
   settle (double, 5.0)     the window never starts before this many s after the first IMU
                            sample (tracker convergence; as rig-identify)
+  settle_after_gap (double, 20.0)  with no window set and a gap in an input stream (a sensor
+                           or node that stopped), the fit starts this many s after the gap: a
+                           tracker (re)initialised on the moving body starts from zero velocity,
+                           its position filter needs ~15 s to forget that
   min_duration (double, 10.0)  refuse to fit a window shorter than this, s
   band_hz (double[2], [] = auto)  pass band of the fit, Hz
   block_s, iterations      identify_inertia parameters (defaults: the core's)
@@ -21,7 +25,19 @@ Parameters (the window ones are read at each request; set them with ros2 param s
   (rig.yaml may omit body.center_of_gravity: then only the CG services work, and
   identify_inertia says to put the estimated CG into rig.yaml first)
   input_reliability (string, reliable)  reliable | best_effort (QoS of the subscriptions)
+  batch_period (double, 0.01)  the inputs are taken serialized and decoded in batches every
+                           this many s (common.RawInput)
+  stale_after, stopped_after (double, 0.5, 2.0)  /diagnostics: an input silent this long (wall
+                           time, s) is reported WARN stale, ERROR stopped
   executor (string, events)  executor of the data node (events | single)
+
+Gaps: two consecutive stamps of an input stream (any of the subscriptions below) further
+apart than max(0.1 s, 1.5 sampling periods) are a gap (a sensor or a node that stopped; the
+offline rule of recording.find_bad_spans).  No fit runs over one: a window that contains a
+gap is refused, naming the topic and the span (a window that only ends or starts inside one
+is cut at its edge); with no window set, the fit uses the data after the last gap plus
+settle_after_gap (and says so in "warnings").  A stream silent until now counts as a gap up
+to the window's end.
 
 Subscribes (RELIABLE, KEEP_ALL):
   /rig/imu                 sensor_msgs/Imu, frame imu (gyro, rad/s; specific force for the CG states)
@@ -32,13 +48,17 @@ Subscribes (RELIABLE, KEEP_ALL):
 Services (std_srvs/Trigger; ``message`` is JSON):
   ~/identify_inertia  fit over the window; success=true: InertiaResult.to_dict() plus
                       "received" counts; success=false: {"error": "..."} (too little data,
-                      no motion, or "busy" while another fit runs)
+                      no motion, a gap in the window, or "busy" while another fit runs)
   ~/capture_cg_baseline  the static CG experiment, step 1: average the last
                       cg_capture_seconds of the raw streams with the body at rest (no dummy)
   ~/capture_cg_dummy  step 2: the same with the dummy mass fixed (rig.yaml dummy_mass, or the
                       dummy_mass / dummy_position parameters)
   ~/estimate_cg       step 3: the CG from the two states (rig_identification.statics, as
                       ``rig-identify cg``); success=true: CgResult.to_dict(); publishes it
+  ~/diagnose          where the rigid-body model and the last ``diagnose_seconds`` of the raw
+                      streams disagree and which physics is missing (rig_identification.diagnosis,
+                      as ``rig-identify diagnose``); success=true: the diagnosis JSON; the improved
+                      tensor (inertia_about_cg_after) is published on /rig/mass_properties
   ~/status            buffered samples: {"imu": n, "wrench": n, "duration": s, "busy": bool, ...}
   (served by the helper node ``<name>_services`` under this node's name, see below)
 
@@ -47,7 +67,8 @@ Publishes:
                         estimate, frame body: m kg, com = CG m (the estimate after
                         estimate_cg), ixx..izz kg·m² (tensor entries; zero until identified).
                         RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1 (a late subscriber receives it)
-  /diagnostics          message counts
+  /diagnostics          message counts; one status per input topic (OK / WARN stale / ERROR
+                        stopped, age, rate, stamp gaps: common.Diagnostics)
 
 Threading: the subscriptions run on the EventsExecutor in the main thread.  The rclpy
 7.1.6 EventsExecutor ignores callback groups, runs only one callback at a time and cannot
@@ -80,8 +101,7 @@ class IdentifierNode(Node):
 
     def __init__(self):
         super().__init__("identifier")
-        from geometry_msgs.msg import InertiaStamped, WrenchStamped
-        from sensor_msgs.msg import Imu
+        from geometry_msgs.msg import InertiaStamped
 
         from ..identification import InertiaIdentifier, identify_inertia
         self.declare_parameter("rig", "")
@@ -91,6 +111,7 @@ class IdentifierNode(Node):
         for name in ("window_start", "window_end", "window_last"):
             self.declare_parameter(name, None, dyn)
         self.declare_parameter("settle", 5.0)
+        self.declare_parameter("settle_after_gap", 20.0)
         self.declare_parameter("min_duration", 10.0)
         self.declare_parameter("band_hz", None, ParameterDescriptor(
             dynamic_typing=True, description="[low, high] Hz pass band of the fit; unset or [] = automatic"))
@@ -105,9 +126,13 @@ class IdentifierNode(Node):
         self.declare_parameter("dummy_mass", None, ParameterDescriptor(dynamic_typing=True))
         self.declare_parameter("dummy_position", None, ParameterDescriptor(dynamic_typing=True))
         self.cg_session = self._new_cg_session()
+        # the raw streams of the last diagnose_seconds, for ~/diagnose (same buffer class)
+        self.declare_parameter("diagnose_seconds", 120.0)
+        from ..cg_capture import CgSession
+        self.diag_buffer = CgSession(rig, float(self.get_parameter("diagnose_seconds").value))
         self.last_inertia = None
         self.last_cg = rig.center_of_gravity
-        self.lock = threading.Lock()
+        self.lock = threading.RLock()
         self.busy = threading.Lock()
         self.t_first_imu: float | None = None
         self.t_last_wrench: float | None = None
@@ -115,82 +140,82 @@ class IdentifierNode(Node):
         self.guard = common.InputGuard(self)
         self.diag = common.Diagnostics(self, self.guard, extra=self._diag_extra)
         self.pub = self.create_publisher(InertiaStamped, common.MASS_PROPERTIES_TOPIC, LATCHED_QOS)
-        self.create_subscription(Imu, common.IMU_TOPIC, self.on_imu, qos_in)
-        self.create_subscription(WrenchStamped, common.WRENCH_TOPIC, self.on_wrench, qos_in)
-        from geometry_msgs.msg import Vector3Stamped
+        # inputs: raw subscriptions, decoded in batches every batch_period s (common.RawInput)
+        self.declare_parameter("batch_period", 0.01)
+        R = common.RawInput
+        self.inputs = [(R(self, self.guard, common.IMU_TOPIC, common.imu_layout(), qos_in), self._add_imu),
+                       (R(self, self.guard, common.WRENCH_TOPIC, common.wrench_layout(common.BODY_FRAME), qos_in),
+                        self._add_wrench)]
         for name in rig.cable_names:
-            self.create_subscription(WrenchStamped, common.LOAD_CELL_PREFIX + name,
-                                     lambda m, n=name: self.on_load_cell(n, m), qos_in)
+            self.inputs.append((R(self, self.guard, common.LOAD_CELL_PREFIX + name,
+                                  common.wrench_layout(common.load_cell_frame(name)), qos_in),
+                                lambda t, v, n=name: self._to_cg(
+                                    common.LOAD_CELL_PREFIX + n, "add_tension",
+                                    [(n, ti, x) for ti, x in zip(t, v[:, 2].tolist())])))
         if rig.exciter is not None:
-            self.create_subscription(WrenchStamped, common.EXCITER_TOPIC, self.on_exciter, qos_in)
+            self.inputs.append((R(self, self.guard, common.EXCITER_TOPIC, common.wrench_layout(common.EXCITER_FRAME),
+                                  qos_in),
+                                lambda t, v: self._to_cg(common.EXCITER_TOPIC, "add_exciter",
+                                                         [(ti, x, y) for ti, (x, y) in zip(t, v[:, :2].tolist())])))
         if rig.inclinometer is not None:
-            self.create_subscription(Vector3Stamped, common.INCLINOMETER_TOPIC, self.on_inclinometer, qos_in)
+            self.inputs.append((R(self, self.guard, common.INCLINOMETER_TOPIC,
+                                  common.vector_layout(common.INCLINOMETER_FRAME), qos_in),
+                                lambda t, v: self._to_cg(common.INCLINOMETER_TOPIC, "add_inclinometer",
+                                                         [(ti, xy) for ti, xy in zip(t, v[:, :2].tolist())])))
+        self.create_timer(float(self.get_parameter("batch_period").value), self._drain)
         self.service_node = IdentifierServices(self)
         self.get_logger().info(f"ready: rig {rig.source}; services {self.get_fully_qualified_name()}/"
-                               "identify_inertia, capture_cg_baseline, capture_cg_dummy, estimate_cg, status")
+                               "identify_inertia, diagnose, capture_cg_baseline, capture_cg_dummy, estimate_cg, status")
 
     # --- data --------------------------------------------------------------------------
-    def on_imu(self, msg) -> None:
-        w, a = msg.angular_velocity, msg.linear_acceleration
-        t = self.guard.accept(common.IMU_TOPIC, msg.header, common.IMU_FRAME, (w.x, w.y, w.z, a.x, a.y, a.z))
-        if t is None:
-            return
-        with self.lock:
-            try:
-                self.cg_session.add_imu(t, (w.x, w.y, w.z), (a.x, a.y, a.z))
-                if self.identifier is not None:
-                    self.identifier.add_imu(t, (w.x, w.y, w.z))
-            except ValueError as e:
-                self.guard.core_error(common.IMU_TOPIC, e)
-                return
-            if self.t_first_imu is None:
-                self.t_first_imu = t
-            self.n_imu += 1
+    def _drain(self) -> None:
+        """Take every queued message (decoded and validated in batches) into the buffers."""
+        with self.lock:  # the gap records too are read by the service thread
+            for inp, add in self.inputs:
+                t, vals = inp.take()
+                if len(t):
+                    add(t.tolist(), vals)
 
-    def on_wrench(self, msg) -> None:
+    def _add_imu(self, ts: list, vals) -> None:
+        rows = vals.tolist()
+        with self.lock:
+            for t, r in zip(ts, rows):
+                try:
+                    self.cg_session.add_imu(t, r[:3], r[3:])
+                    self.diag_buffer.add_imu(t, r[:3], r[3:])
+                    if self.identifier is not None:
+                        self.identifier.add_imu(t, r[:3])
+                except ValueError as e:
+                    self.guard.core_error(common.IMU_TOPIC, e)
+                    continue
+                if self.t_first_imu is None:
+                    self.t_first_imu = t
+                self.n_imu += 1
+
+    def _add_wrench(self, ts: list, vals) -> None:
         from ..preprocessor import Wrench
-        f, tq = msg.wrench.force, msg.wrench.torque
-        vals = (f.x, f.y, f.z, tq.x, tq.y, tq.z)
-        t = self.guard.accept(common.WRENCH_TOPIC, msg.header, common.BODY_FRAME, vals)
-        if t is None:
-            return
-        import numpy as np
         if self.identifier is None:
             return
         with self.lock:
-            try:
-                self.identifier.add_wrench(Wrench(t, np.array(vals[:3]), np.array(vals[3:])))
-            except ValueError as e:
-                self.guard.core_error(common.WRENCH_TOPIC, e)
-                return
-            self.t_last_wrench = t
-            self.n_wrench += 1
+            for t, f, tq in zip(ts, vals[:, :3], vals[:, 3:]):
+                try:
+                    self.identifier.add_wrench(Wrench(t, f, tq))
+                except ValueError as e:
+                    self.guard.core_error(common.WRENCH_TOPIC, e)
+                    continue
+                self.t_last_wrench = t
+                self.n_wrench += 1
 
-    def on_load_cell(self, name: str, msg) -> None:
-        topic = common.LOAD_CELL_PREFIX + name
-        tension = msg.wrench.force.z
-        t = self.guard.accept(topic, msg.header, common.load_cell_frame(name), (tension,))
-        if t is not None:
-            self._to_cg(topic, self.cg_session.add_tension, name, t, tension)
-
-    def on_exciter(self, msg) -> None:
-        f = msg.wrench.force
-        t = self.guard.accept(common.EXCITER_TOPIC, msg.header, common.EXCITER_FRAME, (f.x, f.y))
-        if t is not None:
-            self._to_cg(common.EXCITER_TOPIC, self.cg_session.add_exciter, t, f.x, f.y)
-
-    def on_inclinometer(self, msg) -> None:
-        v = msg.vector
-        t = self.guard.accept(common.INCLINOMETER_TOPIC, msg.header, common.INCLINOMETER_FRAME, (v.x, v.y))
-        if t is not None:
-            self._to_cg(common.INCLINOMETER_TOPIC, self.cg_session.add_inclinometer, t, (v.x, v.y))
-
-    def _to_cg(self, topic, add, *args) -> None:
+    def _to_cg(self, topic, method: str, rows) -> None:
+        """Raw samples into the CG session and the diagnosis buffer (``method``: add_tension,
+        add_exciter or add_inclinometer)."""
         with self.lock:
-            try:
-                add(*args)
-            except ValueError as e:
-                self.guard.core_error(topic, e)
+            for args in rows:
+                try:
+                    getattr(self.cg_session, method)(*args)
+                    getattr(self.diag_buffer, method)(*args)
+                except ValueError as e:
+                    self.guard.core_error(topic, e)
 
     # --- the static CG experiment -----------------------------------------------------
     def _new_cg_session(self):
@@ -239,6 +264,46 @@ class IdentifierNode(Node):
         self.get_logger().info(f"centre of gravity: {c[0]:.4f}, {c[1]:.4f}, {c[2]:.4f} m (body)")
         return d
 
+    def _snapshot(self, lo: float, hi: float):
+        """A copy of the identifier buffer for a fit over [lo, hi] (call under the lock):
+        the window's samples (never mutated) shared, the lists copied."""
+        snap = copy.copy(self.identifier)
+        if not _window_lists(snap, lo, hi):
+            for k, v in vars(snap).items():
+                if isinstance(v, list):
+                    setattr(snap, k, list(v))
+        return snap
+
+    def diagnose(self) -> dict:
+        """``~/diagnose``: the diagnosis of the buffered raw streams (runs in a service thread);
+        publishes the improved tensor.  Raises ValueError (RecordingError, IdentificationError...)
+        with a clear message."""
+        from pathlib import Path
+
+        from geometry_msgs.msg import InertiaStamped
+
+        from ..diagnosis import diagnose
+        from ..recording import Recording
+        if self.rig.center_of_gravity is None:
+            raise ValueError("rig.yaml has no body.center_of_gravity: diagnose needs it (run the CG experiment)")
+        with self.lock:
+            data = self.diag_buffer.sensor_data()
+        rec = Recording(self.rig, data, None, Path(f"{self.get_fully_qualified_name()} buffer"))
+        d = diagnose(rec)
+        J = d.inertia_after
+        self.last_inertia = J
+        msg = InertiaStamped()
+        common.set_stamp(msg.header, float(self.get_clock().now().nanoseconds) * 1e-9, common.BODY_FRAME)
+        msg.inertia.m = float(self.rig.mass)
+        common.set_xyz(msg.inertia.com, self.last_cg if self.last_cg is not None else self.rig.center_of_gravity)
+        i = msg.inertia
+        i.ixx, i.ixy, i.ixz = float(J[0, 0]), float(J[0, 1]), float(J[0, 2])
+        i.iyy, i.iyz, i.izz = float(J[1, 1]), float(J[1, 2]), float(J[2, 2])
+        self.pub.publish(msg)
+        names = ", ".join(e["name"] for e in d.effects) or "no significant mismatch"
+        self.get_logger().info(f"diagnose: {names}")
+        return d.to_dict()
+
     def _diag_extra(self) -> dict:
         return {"buffered imu": self.n_imu, "buffered wrench": self.n_wrench, "busy": self.busy.locked()}
 
@@ -251,6 +316,8 @@ class IdentifierNode(Node):
 
     # --- the fit -------------------------------------------------------------------------
     def _seconds(self, name: str) -> float | None:
+        if not self.has_parameter(name):  # set to "not set" (or deleted): rclpy undeclares it
+            return None
         v = self.get_parameter(name).value
         if v is None or v == "":
             return None
@@ -264,6 +331,7 @@ class IdentifierNode(Node):
         from geometry_msgs.msg import InertiaStamped
         start, end, last = (self._seconds(n) for n in ("window_start", "window_end", "window_last"))
         settle = float(self.get_parameter("settle").value)
+        settle_gap = float(self.get_parameter("settle_after_gap").value)
         min_duration = float(self.get_parameter("min_duration").value)
         band = self.get_parameter("band_hz").value
         params = dict(self.fit_params)
@@ -282,24 +350,45 @@ class IdentifierNode(Node):
             raise ValueError(f"{self.rig.source} has no body.center_of_gravity: run the static experiment "
                              "(capture_cg_baseline, capture_cg_dummy, estimate_cg), put the CG into rig.yaml "
                              "and restart the tracker, preprocessor and identifier")
-        with self.lock:  # snapshot: lists copied, samples (never mutated) shared
+        with self.lock:
             if self.t_first_imu is None or self.t_last_wrench is None:
                 raise ValueError("no data received yet (are the sensor driver, tracker and preprocessor running?)")
-            snap = copy.copy(self.identifier)
-            for k, v in vars(snap).items():
-                if isinstance(v, list):
-                    setattr(snap, k, list(v))
             t0, t_last = self.t_first_imu, self.t_last_wrench
             received = {"imu": self.n_imu, "wrench": self.n_wrench}
+            topics = [inp.topic for inp, _ in self.inputs]
+            lo = t0 + max(start if start is not None else 0.0, settle)
+            hi = t_last if end is None else min(t0 + end, t_last)
+            if last is not None:
+                lo = max(lo, hi - last)
+            gaps = self.guard.gaps_in(lo, hi, topics)
+            notes = []
+            # a window that ends (starts) inside a gap ends (starts) at its edge: no data there anyway
+            for topic, a, b in gaps:
+                if a < hi <= b and a > lo:
+                    hi = a
+                    notes.append(f"window end moved to t={hi - t0:.2f} s, where {topic} stops")
+                if a <= lo < b and b < hi:
+                    lo = b
+                    notes.append(f"window start moved to t={lo - t0:.2f} s, where {topic} resumes")
+            gaps = self.guard.gaps_in(lo, hi, topics) if notes else gaps
+            if gaps and start is None and end is None and last is None:
+                # no window asked for: the data after the last gap (a sensor or node that stopped)
+                after = max(b for _, _, b in gaps) + settle_gap
+                notes.append(f"gap in the data: {_describe_gaps(gaps, t0)}; the fit uses the data after it "
+                             f"(from t={after - t0:.1f} s, settle_after_gap {settle_gap:g} s included)")
+                lo = after
+                gaps = self.guard.gaps_in(lo, hi, topics)
+            snap = self._snapshot(lo, hi)
         snap.fit_params = params
-        lo = t0 + max(start if start is not None else 0.0, settle)
-        hi = t_last if end is None else min(t0 + end, t_last)
-        if last is not None:
-            lo = max(lo, hi - last)
+        if gaps:
+            raise ValueError(f"the window t={lo - t0:.1f} to {hi - t0:.1f} s contains a gap: {_describe_gaps(gaps, t0)}"
+                             + "; no fit over missing data: choose a window without it "
+                             "(window_start / window_end / window_last)")
         if hi - lo < min_duration:
             raise ValueError(f"the window holds {max(hi - lo, 0.0):.1f} s of data "
                              f"({lo - t0:.1f} to {hi - t0:.1f} s after the first IMU sample); "
-                             f"min_duration is {min_duration:g} s: wait for more data or widen the window")
+                             f"min_duration is {min_duration:g} s: wait for more data or widen the window"
+                             + (f" [{notes[0]}]" if notes else ""))
         t_fit = time.monotonic()
         result = snap.identify(start=lo, end=hi)
         delay = float(self.get_parameter("debug_fit_delay").value)
@@ -310,6 +399,7 @@ class IdentifierNode(Node):
         d["window"]["end_relative"] = d["window"]["end"] - t0
         d["received"] = received
         d["fit_seconds"] = time.monotonic() - t_fit
+        d["warnings"] = list(d.get("warnings", [])) + notes
         msg = InertiaStamped()
         common.set_stamp(msg.header, result.t_end, common.BODY_FRAME)
         msg.inertia.m = float(result.mass)
@@ -323,6 +413,33 @@ class IdentifierNode(Node):
         self.get_logger().info(f"identified: Ixx {J[0, 0]:.1f} Iyy {J[1, 1]:.1f} Izz {J[2, 2]:.1f} kg m^2 "
                                f"over {result.t_end - result.t_start:.1f} s ({result.n_samples} samples)")
         return d
+
+
+def _window_lists(snap, lo: float, hi: float, margin: float = 1.0) -> bool:
+    """Cut the snapshot's sample lists to [lo - margin, hi + margin] (the fit then converts
+    120 s of samples rather than the whole buffer, up to max_seconds; same result: the gyro
+    is interpolated inside the window).  False if the buffer is not laid out as expected."""
+    import bisect
+    pairs = (("_imu_t", "_gyro"), ("_w_t", "_torque"))
+    if not all(isinstance(getattr(snap, a, None), list) and isinstance(getattr(snap, b, None), list)
+               for a, b in pairs):
+        return False
+    for ta, va in pairs:
+        ts = getattr(snap, ta)
+        i, j = bisect.bisect_left(ts, lo - margin), bisect.bisect_right(ts, hi + margin)
+        setattr(snap, ta, ts[i:j])
+        setattr(snap, va, getattr(snap, va)[i:j])
+    return True
+
+
+def _describe_gaps(gaps: list[tuple[str, float, float]], t0: float, most: int = 4) -> str:
+    """"no data on TOPIC from t=A to B s ..." for the gaps (topic, t0, t1), the sensor streams
+    first (a gap in the derived wrench stream follows from them), times after ``t0``."""
+    gaps = sorted(gaps, key=lambda g: (g[0] == common.WRENCH_TOPIC, g[1]))
+    text = "; ".join(f"no data on {topic} from t={a - t0:.2f} to {b - t0:.2f} s ({b - a:.2f} s)"
+                     for topic, a, b in gaps[:most])
+    more = f" (and {len(gaps) - most} more)" if len(gaps) > most else ""
+    return f"{text}{more} (times after the first IMU sample)"
 
 
 class IdentifierServices(Node):
@@ -345,6 +462,8 @@ class IdentifierServices(Node):
                             lambda rq, rs: self._guarded_call(rs, lambda: owner.capture_cg("dummy"), "capture_cg_dummy"),
                             callback_group=group)
         self.create_service(Trigger, f"{base}/status", self.on_status, callback_group=group)
+        self.create_service(Trigger, f"{base}/diagnose",
+                            lambda rq, rs: self._guarded_call(rs, owner.diagnose, "diagnose"), callback_group=group)
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
 
@@ -407,6 +526,7 @@ class IdentifierServices(Node):
 
 def main(argv=None) -> int:
     argv = common.handle_help(argv, "identifier", __doc__)
+    common.dds_profile()
     rclpy.init(args=argv)
     node = None
     try:

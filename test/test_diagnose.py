@@ -1,0 +1,235 @@
+"""diagnose: each effect of the library, concealed in a simulated recording (random vehicle
+and rig geometry, realistic noise), is named first, its parameters estimated within 15 %,
+the residuals of the channels it affects reduced by ≥ 30 % and the inertia brought back
+within the identification bounds (diagonal 0.5 %, products 0.5 % of the largest diagonal,
+3 σ).  Clean recordings give no mismatch; the thesis's model misses the gyroscopic
+coupling; the reference damped recording's damping is named with its coefficients.
+
+The simulations and diagnoses run in two worker processes (the machine's two cores).
+"""
+from __future__ import annotations
+
+import json
+import math
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+import pytest
+import yaml
+
+from conftest import recording
+
+DEFAULT = "config/rigs/default.yaml"
+DURATION = 60.0
+
+# effect, the channel group it affects, and how its parameters are checked
+CASES = {
+    "viscous_damping": ({"name": "viscous_damping", "linear": 150.0, "angular": 300.0}, "gyro"),
+    "air_drag": ({"name": "air_drag", "linear": 5000.0, "angular": 5000.0}, "gyro"),
+    "coulomb_friction": ({"name": "coulomb_friction", "torque": 4.0, "force": 10.0}, "gyro"),
+    "exciter_rotor": ({"name": "exciter_rotor"}, "gyro"),
+    "imu_offset": ({"name": "imu_offset", "offset": [0.05, -0.03, 0.10]}, "accel"),
+    "imu_misalignment": ({"name": "imu_misalignment", "rpy": [0.01, -0.015, 0.02]}, "accel"),
+    "sensor_delay": ({"name": "sensor_delay", "stream": "load_cells", "delay": 0.02}, "gyro"),
+    "gyro_bias": ({"name": "gyro_bias", "bias": [0.003, -0.002, 0.004]}, "gyro"),
+    "accelerometer_bias": ({"name": "accelerometer_bias", "bias": [0.05, -0.03, 0.08]}, "accel"),
+    "cable_elasticity": ({"name": "cable_elasticity", "stiffness": 2.0e6, "declared_stiffness": 5.0e6}, "accel"),
+    "load_cell_scale": ({"name": "load_cell_scale", "cable": "c1", "scale": 1.03}, "torque"),
+    "cable_mass": ({"name": "cable_mass", "mass": 3.0}, "torque"),
+}
+# effects the diagnosis does not find yet (see the module docstring of diagnosis.py)
+NOT_YET = {"load_cell_scale", "cable_mass"}
+
+
+def random_experiment(seed: int, effects: list, duration: float = DURATION) -> dict:
+    """The default rig (thesis case 16, realistic sensors) with a random vehicle and geometry:
+    mass ±25 %, principal moments ×0.8–1.25, small products, CG and anchors moved by
+    centimetres, cable lengths ±5 cm, the exciter and the IMU moved."""
+    rng = np.random.default_rng(seed)
+    d = yaml.safe_load(open(DEFAULT))
+    d["duration"], d["seed"], d["static"] = duration, int(seed), None
+    rig = d["rig"]
+    rig.pop("dummy_mass", None)
+    rig["body"]["mass"] = float(rig["body"]["mass"] * rng.uniform(0.8, 1.25))
+    cg = rng.uniform(-0.05, 0.05, 3)
+    rig["body"]["center_of_gravity"] = cg.tolist()
+    # the cable lengths are the anchor distances at a level pose of the body with its CG near
+    # the middle of the ceiling anchors (as the thesis's cases), so every cable is taut
+    p0 = np.array([1.6, 2.5, -2.58]) + np.r_[rng.uniform(-0.05, 0.05, 2), rng.uniform(-0.1, 0.1)]
+    for c in rig["cables"]:
+        c["body_anchor"] = (np.array(c["body_anchor"]) + rng.uniform(-0.05, 0.05, 3)).tolist()
+        c["ceiling_anchor"] = (np.array(c["ceiling_anchor"]) + np.r_[rng.uniform(-0.1, 0.1, 2), 0.0]).tolist()
+        c["length"] = float(np.linalg.norm(np.array(c["ceiling_anchor"]) - p0 - np.array(c["body_anchor"])))
+    rig["exciter"]["position"] = (np.array(rig["exciter"]["position"]) + rng.uniform(-0.1, 0.1, 3)).tolist()
+    rig["imu"]["position"] = (cg + rng.uniform(-0.2, 0.2, 3)).tolist()
+    I = d["inertia_about_cg"]
+    while True:
+        ev = np.array([I["ixx"], I["iyy"], I["izz"]]) * rng.uniform(0.8, 1.25, 3)
+        if ev[0] + ev[1] > ev[2] and ev[0] + ev[2] > ev[1] and ev[1] + ev[2] > ev[0]:
+            break
+    from scipy.spatial.transform import Rotation
+    R = Rotation.from_rotvec(rng.uniform(-0.05, 0.05, 3)).as_matrix()
+    J = R @ np.diag(ev) @ R.T
+    d["inertia_about_cg"] = {"ixx": J[0, 0], "ixy": J[0, 1], "ixz": J[0, 2], "iyy": J[1, 1], "iyz": J[1, 2],
+                             "izz": J[2, 2]}
+    # the exciter between the two lowest natural frequencies, as in the thesis's case 16 (at a
+    # mode, the 200 N would swing the body until a cable goes slack)
+    from rig_identification.modes import natural_modes
+    from rig_identification.rig import rig_from_dict
+    r = rig_from_dict(rig, "random rig")
+    f = sorted(m.frequency for m in natural_modes(r, r.mass, r.require_cg(), J, 5e6))
+    d["excitation"]["rotating"]["frequency"] = float(0.5 * (f[0] + f[1]))
+    d["effects"] = effects
+    return d
+
+
+def simulate_taut(seed: int, effects: list, duration: float | None = None):
+    """Simulate :func:`random_experiment`; a draw in which a cable goes slack (tension below
+    10 % of its share of the weight: beyond the rig's limits) is redrawn with the next seed.
+    Returns (experiment mapping, SimResult)."""
+    from rig_identification.simulator import experiment_from_dict, simulate
+    duration = DURATION if duration is None else duration
+    for k in range(5):
+        d = random_experiment(seed + 1000 * k, effects, duration)
+        sim = simulate(experiment_from_dict(d, "random"))
+        T = np.column_stack([sim.sensors.load_cells[n].data[:, 0] for n in sim.rig.cable_names])
+        if T.min() > 0.1 * sim.rig.mass * sim.rig.gravity / T.shape[1]:
+            return d, sim
+    raise AssertionError(f"no taut random rig from seed {seed}")
+
+
+def _run(args):
+    """Worker: simulate and diagnose; returns plain data (JSON-safe)."""
+    seed, effects, model = args
+    from rig_identification.diagnosis import diagnose
+    from rig_identification.recording import Recording
+    d, sim = simulate_taut(seed, effects)
+    out = diagnose(Recording(sim.rig, sim.sensors, sim.truth, "simulated"), model=model).to_dict()
+    out["truth"] = sim.truth
+    out["excitation"] = d["excitation"]["rotating"]
+    return json.loads(json.dumps(out))
+
+
+@pytest.fixture(scope="module")
+def results():
+    jobs = {name: (100 + i, [eff], "pem") for i, (name, (eff, _)) in enumerate(CASES.items())}
+    jobs["clean"] = (301, [], "pem")
+    jobs["thesis"] = (303, [], "thesis")
+    with ProcessPoolExecutor(2) as ex:
+        return dict(zip(jobs, ex.map(_run, jobs.values())))
+
+
+def _ratio(a, b) -> float:
+    return float(np.linalg.norm(np.atleast_1d(np.asarray(a, float))) / np.linalg.norm(np.atleast_1d(np.asarray(b, float))))
+
+
+def _rel(est, true) -> float:
+    est, true = np.atleast_1d(np.asarray(est, float)), np.atleast_1d(np.asarray(true, float))
+    return float(np.linalg.norm(est - true) / np.linalg.norm(true))
+
+
+def check_parameters(name: str, found: dict, truth_entry: dict, excitation: dict):
+    p = found["parameters"]
+    if name == "exciter_rotor":
+        unbalance = excitation["amplitude"] / (2 * math.pi * excitation["frequency"]) ** 2
+        assert _rel(p["unbalance"], unbalance) < 0.15, (p, unbalance)
+    elif name == "sensor_delay":
+        assert p["stream"] == truth_entry["stream"]
+        assert _rel(p["delay"], truth_entry["delay"]) < 0.15, p
+    elif name == "load_cell_scale":
+        assert p["cable"] == truth_entry["cable"]
+        assert _rel(p["scale"] - 1.0, truth_entry["scale"] - 1.0) < 0.15, p
+    elif name == "cable_elasticity":
+        assert _rel(p["stiffness"], truth_entry["stiffness"]) < 0.15, p
+    else:   # every parameter the recording determines (relative σ below 5 %)
+        for k, v in truth_entry.items():
+            if k != "name" and _ratio(found["parameters_std"][k], v) < 0.05:
+                assert _rel(p[k], v) < 0.15, (k, p[k], v)
+        assert any(_ratio(found["parameters_std"][k], v) < 0.05 for k, v in truth_entry.items() if k != "name")
+
+
+def check_inertia(res: dict, key: str = "inertia_about_cg_after", std_key: str = "inertia_std_after",
+                  before: bool = True):
+    """Every entry within the bounds the recording allows: 0.5 % (of the entry; of the largest
+    diagonal for products) or 3 reported σ, whichever is larger (a 60 s recording of a random
+    rig determines some entries only to ~1 %; the 120 s figures are bench/bench_diagnose.py's);
+    and, where the concealed effect distorted an entry by more than 1 %, the diagnosis brought
+    it at least halfway back."""
+    tru = res["truth"]["inertia_about_cg"]
+    big = max(tru["ixx"], tru["iyy"], tru["izz"])
+    J, s, J0 = res[key], res[std_key], res["inertia_about_cg_before"]
+    for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz"):
+        ref = abs(tru[k]) if k in ("ixx", "iyy", "izz") else big
+        err, err0 = J[k] - tru[k], J0[k] - tru[k]
+        assert abs(err) <= max(0.005 * ref, 3 * s[k]), \
+            f"{k}: {J[k]:.2f} vs truth {tru[k]:.2f} ({100 * err / ref:+.3f} %, σ {s[k]:.2f})"
+        if before and abs(err0) > 0.01 * ref:
+            assert abs(err) < 0.5 * abs(err0), f"{k}: error {100 * err0 / ref:+.2f} % before, {100 * err / ref:+.2f} % after"
+
+
+@pytest.mark.parametrize("name", [n if n not in NOT_YET else pytest.param(
+    n, marks=pytest.mark.xfail(strict=True, reason="not yet found: the tracker's static pose absorbs it"))
+    for n in CASES])
+def test_concealed_effect_is_named_estimated_and_removed(results, name):
+    res = results[name]
+    eff, group = CASES[name]
+    assert res["mismatch"], f"{name}: no mismatch found; candidates {res['candidates'][:3]}"
+    first = res["effects"][0]
+    assert first["name"] == name, f"named {[e['name'] for e in res['effects']]}, concealed {name}"
+    check_parameters(name, first, res["truth"]["effects"][0], res["excitation"])
+    before, after = res["residual_rms_before"], res["residual_rms_after"]
+    red = max(1 - after[k] / before[k] for k in before if k.startswith(group))
+    assert red >= 0.30, f"{group} residual RMS reduced by only {100 * red:.0f} %"
+    check_inertia(res)
+
+
+def test_clean_simulation_has_no_mismatch(results):
+    res = results["clean"]
+    assert not res["mismatch"], [e["name"] for e in res["effects"]]
+    assert res["inertia_about_cg_after"] == res["inertia_about_cg_before"]
+    check_inertia(res)
+
+
+def test_thesis_model_misses_the_gyroscopic_coupling(results):
+    res = results["thesis"]
+    assert res["effects"] and res["effects"][0]["name"] == "gyroscopic_coupling", res["effects"]
+    # the coupling's scale is that of the physics, 1, within its uncertainty
+    p, s = res["effects"][0]["parameters"]["scale"], res["effects"][0]["parameters_std"]["scale"]
+    assert abs(p - 1.0) < 3 * s + 0.1
+
+
+def test_reference_clean_recording_has_no_mismatch():
+    from rig_identification.diagnosis import diagnose
+    from rig_identification.recording import read_recording
+    d = diagnose(read_recording(recording("visible_case16_clean")))
+    assert not d.mismatch, [e["name"] for e in d.effects]
+
+
+def test_reference_damped_recording_names_the_damping(tmp_path):
+    """visible_case16_damped conceals viscous damping (its truth.yaml lists the coefficients):
+    named first, both coefficients within 15 %, inertia back within the bounds; the CLI's
+    JSON and report hold the same."""
+    import subprocess
+    import sys
+    from rig_identification.recording import read_recording
+    rec = read_recording(recording("visible_case16_damped"))
+    tru = next(e for e in rec.truth["effects"] if e["name"] == "viscous_damping")
+    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "diagnose", str(rec.path), "--json",
+                          "--report", str(tmp_path / "report")], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    res = json.loads(out.stdout)
+    res["truth"] = rec.truth
+    first = res["effects"][0]
+    assert first["name"] == "viscous_damping"
+    for k in ("linear", "angular"):
+        assert _rel(first["parameters"][k], tru[k]) < 0.15, (k, first["parameters"][k], tru[k])
+    assert res["residual_rms_after"]["gyro_y"] < 0.5 * res["residual_rms_before"]["gyro_y"]
+    check_inertia(res)
+    # the inertia before the damping was added is far off: the mismatch mattered
+    assert abs(res["inertia_about_cg_before"]["izz"] / tru_izz(rec) - 1) > 0.02
+    files = {p.name for p in (tmp_path / "report").iterdir()}
+    assert {"diagnosis.json", "index.html", "residuals_gyro.png", "spectra_gyro.png"} <= files
+
+
+def tru_izz(rec) -> float:
+    return rec.truth["inertia_about_cg"]["izz"]
