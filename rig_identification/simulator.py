@@ -886,6 +886,13 @@ def _solve_or_fail(fun, x0, what: str, tol: float, scale: float):
     if np.max(np.abs(fun(sol.x))) * scale > tol:
         sol = root(fun, sol.x, method="lm", options={"xtol": 1e-15, "ftol": 1e-15})
     if np.max(np.abs(fun(sol.x))) * scale > tol:
+        # the stiff spring equations can stall both from a poor start (seen with single-threaded
+        # BLAS rounding): scaled trust-region least squares from the original start, then polish
+        from scipy.optimize import least_squares
+        ls = least_squares(fun, x0, method="trf", x_scale="jac", xtol=1e-15, ftol=1e-15, gtol=1e-15,
+                           max_nfev=2000)
+        sol = root(fun, ls.x, method="hybr", options={"xtol": 1e-14})
+    if np.max(np.abs(fun(sol.x))) * scale > tol:
         raise SimulationError(f"{what}: no static equilibrium found ({sol.message})")
     return sol.x
 
