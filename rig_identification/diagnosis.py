@@ -49,8 +49,9 @@ noise scale of each group; N_eff,g is the number of independent samples of the
 band-passed residual: N · 2 (f_hi − f_lo) / f_s), against the χ² quantile of the
 effect's number of parameters at p = :data:`ALPHA` / (number of candidates tried)
 (Bonferroni).  An effect is kept only if it also reduces the residual RMS of some
-channel by at least :data:`MIN_REDUCTION` (a statistically but not physically
-significant term is not a finding).  Standard deviations of the effect parameters: the
+channel by at least :data:`MIN_REDUCTION`, and a sensor-pose error must exceed the
+engineering resolution :data:`PRACTICAL_FLOOR` (5 mm, 1 mrad, 1 ms): a statistically but
+not physically significant term is not a finding.  Standard deviations of the effect parameters: the
 sandwich (batch-means) covariance, as the identifier's.
 
 References: Ljung, *System Identification* (2nd ed., 1999), §16.4 (model validation by
@@ -78,6 +79,8 @@ MIN_REDUCTION = 0.05  # an effect must reduce some channel's residual RMS by at 
 MAX_EFFECTS = 3
 EXACT_SCREEN = 3      # sensor/rig-error candidates evaluated exactly (re-tracked) per selection step
 DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
+# engineering resolution: a smaller sensor-pose error is no finding, however significant
+PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
 STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml stiffness are not "steel-like"
 ROT, TR = ("gyro_x", "gyro_y", "gyro_z"), ("accel_x", "accel_y", "accel_z")
 
@@ -995,6 +998,16 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
                 continue
             lam = _lr(cost_cur, fit.cost(scales), M)
             dof = len(c.columns) + (1 if c.gyroscopic else 0) + (1 if c.name == "cable_elasticity" else 0)
+            if c.name in PRACTICAL_FLOOR:
+                k0 = len(base_cols)
+                size = float(np.linalg.norm(fit.beta[k0:k0 + len(c.columns)]))
+                if size + float(np.linalg.norm(np.atleast_1d(state["applied"].get(c.key, 0.0)))) < \
+                        PRACTICAL_FLOOR[c.name]:
+                    tried.append({"name": c.name, "label": c.label, "step": step, "likelihood_ratio": float(lam),
+                                  "dof": dof, "p_value": float(chi2.sf(max(lam, 0.0), dof)),
+                                  "max_rms_reduction": 0.0, "exact": False,
+                                  "below_practical_floor": PRACTICAL_FLOOR[c.name]})
+                    continue
             rms1 = _rms(channel_residuals(Mc, fit))
             red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
             screened.append({"c": c, "lam": lam, "fit": fit, "red": red, "dof": dof, "exact_state": None})
