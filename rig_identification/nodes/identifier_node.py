@@ -246,20 +246,10 @@ class IdentifierNode(Node):
                 "warnings": list(state.warnings)}
 
     def estimate_cg(self) -> dict:
-        from geometry_msgs.msg import InertiaStamped
         result = self.cg_session.estimate()
         d = result.to_dict()
         self.last_cg = result.center_of_gravity
-        msg = InertiaStamped()
-        common.set_stamp(msg.header, float(self.get_clock().now().nanoseconds) * 1e-9, common.BODY_FRAME)
-        msg.inertia.m = float(result.mass)
-        common.set_xyz(msg.inertia.com, result.center_of_gravity)
-        if self.last_inertia is not None:
-            J = self.last_inertia
-            i = msg.inertia
-            i.ixx, i.ixy, i.ixz = float(J[0, 0]), float(J[0, 1]), float(J[0, 2])
-            i.iyy, i.iyz, i.izz = float(J[1, 1]), float(J[1, 2]), float(J[2, 2])
-        self.pub.publish(msg)
+        self._publish_mass_properties(None, result.mass, result.center_of_gravity, self.last_inertia)
         c = result.center_of_gravity
         self.get_logger().info(f"centre of gravity: {c[0]:.4f}, {c[1]:.4f}, {c[2]:.4f} m (body)")
         return d
@@ -280,8 +270,6 @@ class IdentifierNode(Node):
         with a clear message."""
         from pathlib import Path
 
-        from geometry_msgs.msg import InertiaStamped
-
         from ..diagnosis import diagnose
         from ..recording import Recording
         if self.rig.center_of_gravity is None:
@@ -292,17 +280,27 @@ class IdentifierNode(Node):
         d = diagnose(rec)
         J = d.inertia_after
         self.last_inertia = J
-        msg = InertiaStamped()
-        common.set_stamp(msg.header, float(self.get_clock().now().nanoseconds) * 1e-9, common.BODY_FRAME)
-        msg.inertia.m = float(self.rig.mass)
-        common.set_xyz(msg.inertia.com, self.last_cg if self.last_cg is not None else self.rig.center_of_gravity)
-        i = msg.inertia
-        i.ixx, i.ixy, i.ixz = float(J[0, 0]), float(J[0, 1]), float(J[0, 2])
-        i.iyy, i.iyz, i.izz = float(J[1, 1]), float(J[1, 2]), float(J[2, 2])
-        self.pub.publish(msg)
+        self._publish_mass_properties(None, self.rig.mass,
+                                      self.last_cg if self.last_cg is not None else self.rig.center_of_gravity, J)
         names = ", ".join(e["name"] for e in d.effects) or "no significant mismatch"
         self.get_logger().info(f"diagnose: {names}")
         return d.to_dict()
+
+    def _publish_mass_properties(self, stamp: float | None, mass: float, cg, J) -> None:
+        """/rig/mass_properties (InertiaStamped, frame body): mass kg, CG m, tensor entries
+        kg·m² (zero when J is None); stamp s (None: now)."""
+        from geometry_msgs.msg import InertiaStamped
+        msg = InertiaStamped()
+        if stamp is None:
+            stamp = float(self.get_clock().now().nanoseconds) * 1e-9
+        common.set_stamp(msg.header, stamp, common.BODY_FRAME)
+        msg.inertia.m = float(mass)
+        common.set_xyz(msg.inertia.com, cg)
+        if J is not None:
+            i = msg.inertia
+            i.ixx, i.ixy, i.ixz = float(J[0, 0]), float(J[0, 1]), float(J[0, 2])
+            i.iyy, i.iyz, i.izz = float(J[1, 1]), float(J[1, 2]), float(J[2, 2])
+        self.pub.publish(msg)
 
     def _diag_extra(self) -> dict:
         return {"buffered imu": self.n_imu, "buffered wrench": self.n_wrench, "busy": self.busy.locked()}
@@ -328,7 +326,6 @@ class IdentifierNode(Node):
     def identify(self) -> dict:
         """Fit over the configured window (runs in a service thread).  Returns the result
         dict; raises ValueError (IdentificationError, bad parameters) with a clear message."""
-        from geometry_msgs.msg import InertiaStamped
         start, end, last = (self._seconds(n) for n in ("window_start", "window_end", "window_last"))
         settle = float(self.get_parameter("settle").value)
         settle_gap = float(self.get_parameter("settle_after_gap").value)
@@ -400,15 +397,8 @@ class IdentifierNode(Node):
         d["received"] = received
         d["fit_seconds"] = time.monotonic() - t_fit
         d["warnings"] = list(d.get("warnings", [])) + notes
-        msg = InertiaStamped()
-        common.set_stamp(msg.header, result.t_end, common.BODY_FRAME)
-        msg.inertia.m = float(result.mass)
-        common.set_xyz(msg.inertia.com, result.center_of_gravity)
         J = result.inertia
-        i = msg.inertia
-        i.ixx, i.ixy, i.ixz = float(J[0, 0]), float(J[0, 1]), float(J[0, 2])
-        i.iyy, i.iyz, i.izz = float(J[1, 1]), float(J[1, 2]), float(J[2, 2])
-        self.pub.publish(msg)
+        self._publish_mass_properties(result.t_end, result.mass, result.center_of_gravity, J)
         self.last_inertia = J
         self.get_logger().info(f"identified: Ixx {J[0, 0]:.1f} Iyy {J[1, 1]:.1f} Izz {J[2, 2]:.1f} kg m^2 "
                                f"over {result.t_end - result.t_start:.1f} s ({result.n_samples} samples)")
