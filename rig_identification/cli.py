@@ -10,6 +10,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import numpy as np
 
 
 from .identification import KEYS, IdentificationError, from_tensor
@@ -53,6 +54,18 @@ def _print_inertia(result, truth: dict | None, rec_path) -> None:
         print(line)
     if cmp:
         print("(error: % of the entry for diagonals, % of the largest diagonal for products)")
+    if result.sensor_noise is not None:
+        n = result.sensor_noise
+        noise = (f"gyro {n['gyro']:.2g} rad/s, accelerometer {n['accelerometer']:.2g} m/s², load cells "
+                 f"{n['load_cell']:.2g} N, exciter {n['exciter']:.2g} N, inclinometer {1000 * n['inclinometer']:.2g} mrad")
+        if result.uncertainty.startswith("propagated"):
+            print(f"std: the sensors' noise, estimated from the recording ({noise}), propagated through tracker, "
+                  "preprocessor and identifier")
+        else:
+            print(f"std: from the fit's residuals (sandwich): they exceed what the sensors' noise ({noise}) explains")
+    if result.bias_correction is not None:
+        print("second-order bias removed (kg·m²): "
+              + ", ".join(f"{k} {v:+.3g}" for k, v in zip(KEYS, result.bias_correction)))
     for w in d["weakly_determined"][:1]:
         print("note: " + w["text"])
 

@@ -162,7 +162,7 @@ def _track(rig, s, cables: str):
     gives none; ``"fitted"``: fitted for every cable, whatever rig.yaml says."""
     from dataclasses import replace as _r
 
-    from .tracker import PoseTrack, _replay
+    from .tracker import PoseTrack, _replay, pass_compliance
     if cables == "fitted":
         rig = _r(rig, cables=tuple(_r(c, stiffness=None) for c in rig.cables))
     known = np.isfinite(rig.cable_stiffness)
@@ -175,7 +175,8 @@ def _track(rig, s, cables: str):
     if not hist:
         return PoseTrack.from_estimates(out), np.where(known, rig.cable_stiffness, np.inf), None
     H = np.array([h[1] for h in hist[len(hist) // 2:]])
-    c = np.median(H, axis=0)
+    c_ls = pass_compliance(tracker, out)
+    c = np.median(H, axis=0) if c_ls is None else np.where(known, H[0], c_ls)
     # the tracker's updates are ~2 s apart, over a ~60 s forgetting horizon: ~30 updates per
     # independent estimate
     c_std = np.std(H, axis=0) / np.sqrt(max(1.0, len(H) / 30.0)) / np.sqrt(max(1, (~known).sum()))

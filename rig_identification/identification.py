@@ -121,6 +121,15 @@ class InertiaResult:
     crb_std: np.ndarray | None = None
     gyro_noise: float | None = None
     series: list = field(default_factory=list)
+    # filled by pipeline.refine_uncertainty (None otherwise): the identifier's own sandwich
+    # σ (6,), the subtracted second-order bias (6,) kg·m², the estimated white-noise σ per
+    # sensor source, and the per-gyro-axis ratio (3,) of the fit's residual RMS to the one
+    # the propagated noise predicts
+    sandwich_std: np.ndarray | None = None
+    bias_correction: np.ndarray | None = None
+    sensor_noise: dict | None = None
+    residual_excess: np.ndarray | None = None
+    uncertainty: str = "sandwich"   # what inertia_std is: "sandwich", "propagated sensor noise", …
 
     @property
     def correlation(self) -> np.ndarray:
@@ -138,6 +147,13 @@ class InertiaResult:
             "inertia_crb_std": (None if self.crb_std is None
                                 else {k: float(v) for k, v in zip(KEYS, self.crb_std)}),
             "frame": "body",
+            "uncertainty": self.uncertainty,
+            "residual_excess": None if self.residual_excess is None else [float(x) for x in self.residual_excess],
+            "inertia_sandwich_std": (None if self.sandwich_std is None
+                                     else {k: float(v) for k, v in zip(KEYS, self.sandwich_std)}),
+            "bias_correction": (None if self.bias_correction is None
+                                else {k: float(v) for k, v in zip(KEYS, self.bias_correction)}),
+            "sensor_noise": None if self.sensor_noise is None else {k: float(v) for k, v in self.sensor_noise.items()},
             "principal_moments": [float(x) for x in ev],
             "physically_consistent": physically_consistent(self.inertia),
             "correlation": [[round(float(x), 4) for x in row] for row in self.correlation],

@@ -73,7 +73,7 @@ rad/s, m/s², N, N, rad."""
 REFERENCE_RATES = {"imu": 200.0, "load_cells": 200.0, "exciter": 200.0, "inclinometer": 50.0}
 """Sample rates of the reference recordings, Hz."""
 SOURCES = ("gyro", "accelerometer", "inclinometer", "load_cell", "exciter")
-"""Noise sources of the prediction; ``compliance`` (the tracker's compliance estimate) is added when it applies."""
+"""Noise sources of the prediction (the tracker's compliance estimate enters through them)."""
 DIAG = (0, 3, 5)  # ixx, iyy, izz in KEYS order
 SPIN_AXES = {"x": (0.0, math.pi / 2, 0.0), "y": (-math.pi / 2, 0.0, 0.0), "z": (0.0, 0.0, 0.0)}
 """Exciter rpy (body -> exciter frame) whose z axis (the spin axis) is body x, y or z."""
@@ -591,11 +591,11 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
     g_tr = g_all[:, :8]
     g_tr[:, :3] += np.einsum("ab,nax->nbx", R_imu, g_body)       # body gyro noise = R_imu · IMU-axis noise
     Gam = np.concatenate([g_tr, g_T, g_e], axis=1)               # (K, d, 18)
-    var_c_extra = 0.0
     if _adapts_compliance(rig, tracker_params):
-        # the tracker's online cable compliance (rig.yaml without stiffness): its estimate
-        # δc = <e_len, ΔT>/<ΔT, ΔT> over the second half (the median of its updates) is a
-        # linear function γᵀn of the noise, and lengthens every constraint by ΔT(t)·δc
+        # the tracker's cable compliance (rig.yaml without stiffness): its estimate
+        # δc = <e_len, ΔT>/<ΔT, ΔT> over the first pass's second half
+        # (tracker.pass_compliance) is a linear function γᵀn of the noise, and lengthens
+        # every constraint by ΔT(t)·δc
         dT = traj.tensions - traj.tensions[t < t[0] + 0.1 + 1e-9].mean(0)
         late = t >= t[0] + 0.5 * (t[-1] - t[0])
         S1 = float(np.sum(dT[late] ** 2))
@@ -611,9 +611,6 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
             gam = np.fft.irfft(np.einsum("fod,fo->fd", Ht[:, :, :8].conj(), np.fft.rfft(gam_pe, n=nfft, axis=0)),
                                n=nfft, axis=0)[:K]               # (K,8)
             Gam[:, :8] += gam[:, :, None] * gsens[None, None, :]
-            var_gam = float(np.sum((gam * sig[None, :8]) ** 2))
-            var_c_extra = (math.pi / 2 - 1) * var_gam              # median of the updates, not their mean
-            Gam_c = gsens
     Gam = Gam.reshape(K, -1, 3, 6)                                # (K, d, a, k)
     src_arr = np.array(src)
     axis_meats = {}
@@ -622,9 +619,6 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
         if sel.any():
             Gs = Gam[:, sel] * sig[sel][None, :, None, None]
             axis_meats[s_name] = np.einsum("ndak,ndbl->abkl", Gs, Gs)
-    if var_c_extra > 0:
-        gc = Gam_c.reshape(3, 6)
-        axis_meats["compliance"] = var_c_extra * np.einsum("ak,bl->abkl", gc, gc)
     axis_bread = np.einsum("nai,naj->aij", A3, A3)
     A = A3.reshape(-1, 6)
     FA = seg.filt(A3.reshape(Nw, -1)).reshape(-1, 6)

@@ -241,6 +241,9 @@ class PoseTracker:
         self._incl_pending: np.ndarray | None = None
         self._t_incl: float | None = None
         self.compliance_history: list[tuple[float, np.ndarray]] = []
+        # per ~2 s block: (t, Σ e₀ ΔT, Σ ΔT², samples) of the high-passed length residual of inextensible
+        # cables e₀ and the tension variation ΔT (see compliance_estimate)
+        self.compliance_sums: list[tuple[float, float, float, int]] = []
         self._t = None
         # filter state (plain floats, set by _initialise); R: row-major body -> world
         self._R: tuple | None = None
@@ -367,6 +370,7 @@ class PoseTracker:
         self._hp_e = [0.0] * n
         self._hp_T = T0.tolist()
         self._S = [0.0, 0.0]
+        self._blk = [0.0, 0.0, 0]
         self._t_adapt = t[-1]
         self._v = (0.0, 0.0, 0.0)
         self._a_bias = (0.0, 0.0, 0.0)
@@ -537,8 +541,8 @@ class PoseTracker:
         high-passed with a 5 s time constant, sums forgotten over ~60 s).
         """
         a = min(1.0, dt / 5.0)
-        hp_e, hp_T, tens = self._hp_e, self._hp_T, self._tensions
-        s_et = s_tt = 0.0
+        hp_e, hp_T, tens, comp = self._hp_e, self._hp_T, self._tensions, self._compliance
+        s_et = s_tt = s_e0t = 0.0
         for i in range(len(resid)):
             hp_e[i] += a * (resid[i] - hp_e[i])
             hp_T[i] += a * (tens[i] - hp_T[i])
@@ -546,12 +550,20 @@ class PoseTracker:
             dT = tens[i] - hp_T[i]
             s_et += e * dT
             s_tt += dT * dT
+            s_e0t += (e + comp[i] * dT) * dT   # the residual of an inextensible cable
         lam = 1.0 - dt / 60.0
         S = self._S
         S[0] = lam * S[0] + s_et
         S[1] = lam * S[1] + s_tt
+        blk = self._blk
+        blk[0] += s_e0t
+        blk[1] += s_tt
+        blk[2] += 1
         if self._t - self._t_adapt >= 2.0:
             self._t_adapt = self._t
+            self.compliance_sums.append((self._t, blk[0], blk[1], blk[2]))
+            blk[0] = blk[1] = 0.0
+            blk[2] = 0
             # enough tension variation: at least ~50 N RMS per cable over the horizon
             if S[1] > (50.0**2) * len(resid) * (60.0 / dt) * 0.1:
                 dc = S[0] / S[1]
@@ -562,6 +574,22 @@ class PoseTracker:
                 self._lengths = tuple((self._l0 - self._T0 * c).tolist())
                 S[0] = S[1] = 0.0
                 self.compliance_history.append((self._t, c))
+
+    def compliance_estimate(self, since: float) -> float | None:
+        """Least-squares cable compliance (m/N, common to the cables rig.yaml gives no
+        stiffness) from the blocks after the stamp ``since``: ``Σ e₀ ΔT / Σ ΔT²`` — the
+        in-band length residual of inextensible cables regressed on the tension variation,
+        the statistic of the online updates (:meth:`_refine_compliance`) pooled over the
+        whole span instead of the median of 2 s updates (smooth in the data, and a smaller
+        variance).  None when the tension hardly varied there (as the online gate)."""
+        S = [(a, b, n) for t, a, b, n in self.compliance_sums if t >= since]
+        if not S:
+            return None
+        num, den, count = (sum(x[k] for x in S) for k in range(3))
+        # the online gate: tension variation ≥ ~16 N RMS per cable
+        if den <= 0.1 * 50.0**2 * len(self._lengths) * count:
+            return None
+        return float(np.clip(num / den, 0.0, 1e-5))
 
     @property
     def R(self) -> Rotation | None:
@@ -637,14 +665,26 @@ def track(rig: Rig, sensors, **params) -> PoseTrack:
     :class:`PoseTrack` at the IMU stamps after initialisation.
     """
     out, tracker = _replay(rig, sensors, **params)
-    if tracker.compliance_history and not np.isfinite(rig.cable_stiffness).all():
-        hist = tracker.compliance_history
-        c = np.median([h[1] for h in hist[len(hist) // 2:]], axis=0)
-        from dataclasses import replace
-        cables = tuple(replace(cb, stiffness=cb.stiffness if cb.stiffness is not None else 1.0 / max(ci, 1e-12))
-                       for cb, ci in zip(rig.cables, c))
-        out, _ = _replay(replace(rig, cables=cables), sensors, **params)
+    c = pass_compliance(tracker, out)
+    if c is not None:
+        out, _ = _replay(with_compliance(rig, c), sensors, **params)
     return PoseTrack.from_estimates(out)
+
+
+def pass_compliance(tracker: "PoseTracker", out: list) -> float | None:
+    """The compliance (m/N) of the cables rig.yaml gives no stiffness, from a first replay
+    pass: :meth:`PoseTracker.compliance_estimate` over the pass's second half.  None when
+    every stiffness is known or the pass did not adapt."""
+    if np.isfinite(tracker.rig.cable_stiffness).all() or not tracker.compliance_sums or not out:
+        return None
+    return tracker.compliance_estimate(0.5 * (out[0].t + out[-1].t))
+
+
+def with_compliance(rig: Rig, c: float) -> Rig:
+    """``rig`` with the stiffness 1/c N/m on every cable rig.yaml gives none."""
+    from dataclasses import replace
+    return replace(rig, cables=tuple(replace(cb, stiffness=cb.stiffness if cb.stiffness is not None
+                                             else 1.0 / max(c, 1e-12)) for cb in rig.cables))
 
 
 def _replay(rig: Rig, sensors, **params) -> tuple[list[PoseEstimate], PoseTracker]:
