@@ -4,8 +4,13 @@ integrated by ``solve_ivp`` from the measured moment at every residual evaluatio
 
 Both fit the same 120 s, 200 Hz reference recording (visible_case16_clean) after the same
 tracker and preprocessor, with the same band-pass on both sides; the table gives the wall
-time of the fit alone and the largest error against truth.yaml.
+time of the fit alone and the largest error against truth.yaml.  A second table times the
+whole ``rig-identify inertia`` path (``pipeline.identify_recording``: cleaning, tracker,
+preprocessor, fit) without and with the uncertainty refinement (noise estimate, antithetic
+bias correction: two more replays, noise propagation).
+Usage: bench_pem_speed.py [--no-naive]
 """
+import sys
 import time
 from pathlib import Path
 
@@ -56,11 +61,18 @@ def main():
     t1 = time.perf_counter()
     print(f"{'ours (prediction error, analytic Jacobian)':44s} {t1 - t0:8.2f} "
           f"{100 * np.abs(from_tensor(res.inertia) - truth).max() / big:30.3f}")
-    t0 = time.perf_counter()
-    j = naive_output_error(t, w, M, res.band_hz, from_tensor(res.inertia) * 1.05)
-    t1 = time.perf_counter()
-    print(f"{'naive least_squares, FD Jacobian, solve_ivp':44s} {t1 - t0:8.2f} "
-          f"{100 * np.abs(j - truth).max() / big:30.3f}")
+    if "--no-naive" not in sys.argv:
+        t0 = time.perf_counter()
+        j = naive_output_error(t, w, M, res.band_hz, from_tensor(res.inertia) * 1.05)
+        t1 = time.perf_counter()
+        print(f"{'naive least_squares, FD Jacobian, solve_ivp':44s} {t1 - t0:8.2f} "
+              f"{100 * np.abs(j - truth).max() / big:30.3f}")
+    from rig_identification.pipeline import identify_recording
+    print(f"\n{'whole path (recording in memory)':44s} {'s':>8s}")
+    for refine in (False, True):
+        t0 = time.perf_counter()
+        identify_recording(rec, refine=refine)
+        print(f"{'identify_recording, refine=' + str(refine):44s} {time.perf_counter() - t0:8.2f}")
 
 
 if __name__ == "__main__":
