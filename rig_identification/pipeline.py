@@ -20,7 +20,8 @@ def default_initial_guess(rig) -> np.ndarray:
     return rig.mass / 3 * np.array([sy + sz, 0.0, 0.0, sx + sz, 0.0, sx + sy])
 
 
-MIN_CLEAN = 15.0  # s: shortest clean span worth fitting (tracker settling + two high-pass periods)
+MIN_CLEAN = 15.0  # s: shortest clean span worth fitting (tracker settling + two high-pass periods);
+#                   a shorter recording (the thesis's 10 s case studies) needs 75 % of its length clean
 MIN_MOTION = 2e-4  # rad/s: RMS of the low-passed gyro about its mean below which the body "hardly moved"
 
 
@@ -37,7 +38,8 @@ def _check_units(rec: Recording) -> None:
 def clean_sensors(rec: Recording, warnings: list[str]):
     """Exclude bad spans (gaps, saturation, slack cables; :func:`~.recording.find_bad_spans`):
     keep the longest span free of them, bridge short IMU gaps.  Appends one warning per
-    excluded span.  Raises :class:`RecordingError` if less than :data:`MIN_CLEAN` s remain."""
+    excluded span.  Raises :class:`RecordingError` if less than :data:`MIN_CLEAN` s (in a
+    shorter recording, 75 % of its length) remain."""
     s = rec.sensors
     t0, t_end = s.t_start, s.t_end
     spans = sorted(find_bad_spans(rec.rig, s), key=lambda b: b.t0)
@@ -54,9 +56,10 @@ def clean_sensors(rec: Recording, warnings: list[str]):
         what = "; ".join(f"{sp.topic}: {sp.reason} at t={sp.t0 - t0:.2f}–{sp.t1 - t0:.2f} s" for sp in spans[:5])
         if len(spans) > 5:
             what += f"; and {len(spans) - 5} more"
-        if b - a < MIN_CLEAN:
+        need = min(MIN_CLEAN, 0.75 * (t_end - t0))
+        if b - a < need:
             raise RecordingError(f"{rec.path}: after excluding the bad spans ({what}) the longest clean span is "
-                                 f"{b - a:.1f} s (t={a - t0:.1f}–{b - t0:.1f} s), less than the {MIN_CLEAN:.0f} s "
+                                 f"{b - a:.1f} s (t={a - t0:.1f}–{b - t0:.1f} s), less than the {need:.3g} s "
                                  "needed for a trustworthy fit")
         for sp in spans:
             warnings.append(f"{sp.topic}: {sp.reason} at t={sp.t0 - t0:.2f}–{sp.t1 - t0:.2f} s from the start; "
@@ -150,9 +153,11 @@ def prepare_recording(rec: Recording, start: float | None = None, end: float | N
     return PreparedRecording(rec, t, gyro_body, torque, warnings, s, poses, (lo, hi))
 
 
-MODEL_ERROR_RATIO = 1.5
+MODEL_ERROR_RATIO = 2.0
 """Fit residual RMS over the one the sensors' noise predicts beyond which the residual is
-model error (on 200 noisy replays of thesis case 16 the ratio stayed within 1.00–1.31)."""
+model error.  Clean simulated recordings: 1.00–1.31 on 200 noisy 120 s replays of thesis
+case 16; up to 1.47 on a 35 s one at 200 Hz (the tracker's start-up misfit, which the noise
+does not explain, weighs more in a short run); the damped reference recording: 9.8."""
 
 
 def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, seed: int = 0) -> InertiaResult:
@@ -219,8 +224,9 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
         # residuals themselves (the sandwich) measure
         ax = "xyz"[int(np.argmax(r))]
         result.warnings.append(f"the fit's residual is {np.max(r):.2f}× what the sensors' noise explains (gyro {ax}): "
-                               "the model leaves physics out (rig-identify diagnose names it); σ from the "
-                               "residuals (sandwich), not from the noise")
+                               "a misfit — physics the model leaves out (rig-identify diagnose looks for it), or a "
+                               "fit span that starts with the body already swinging (the tracker starts at rest); "
+                               "σ from the fit's residuals (sandwich), not from the noise")
         result.uncertainty = "sandwich (model error)"
     else:
         result.inertia_std = pred.std

@@ -23,6 +23,7 @@ import numpy as np
 import yaml
 
 from .rig import Rig, RigError, dump_rig, load_rig
+from .uncertainty import white_sigma
 
 IMU_TOPIC = "/rig/imu"
 LOAD_CELL_PREFIX = "/rig/load_cells/"
@@ -214,7 +215,8 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
 def find_bad_spans(rig: Rig, sensors: SensorData) -> list[BadSpan]:
     """Spans to exclude from a fit: gaps longer than :data:`SHORT_GAP` (dropped messages),
     saturated channels (runs of >= :data:`SATURATION_RUN` identical samples at the
-    channel's extreme) and slack cables (tension below :data:`SLACK_FRACTION` of the
+    channel's extreme, in a channel that is noisy elsewhere — :func:`~.uncertainty.white_sigma`
+    of the other samples above zero) and slack cables (tension below :data:`SLACK_FRACTION` of the
     cable's share of the weight)."""
     spans: list[BadSpan] = []
     streams = [(IMU_TOPIC, sensors.imu)] + [(LOAD_CELL_PREFIX + n, s) for n, s in sensors.load_cells.items()]
@@ -231,11 +233,20 @@ def find_bad_spans(rig: Rig, sensors: SensorData) -> list[BadSpan]:
         for k, col in enumerate(s.data.T):
             if np.ptp(col) == 0:
                 continue
-            for ext in (col.max(), col.min()):
-                for i, j in _runs(col == ext):
-                    if j - i + 1 >= SATURATION_RUN:
-                        spans.append(BadSpan(topic, float(s.t[i]), float(s.t[j]),
-                                             f"saturated (channel {k} stuck at {ext:.6g} for {j - i + 1} samples)"))
+            runs = [(ext, i, j) for ext in (col.max(), col.min()) for i, j in _runs(col == ext)
+                    if j - i + 1 >= SATURATION_RUN]
+            if not runs:
+                continue
+            # a sensor that saturates is noisy elsewhere; a noise-free stream (a simulation:
+            # stepped forces, say) may hold a value exactly and is not saturated
+            inside = np.zeros(len(col), bool)
+            for _, i, j in runs:
+                inside[i:j + 1] = True
+            if white_sigma(col[~inside]) == 0.0:
+                continue
+            for ext, i, j in runs:
+                spans.append(BadSpan(topic, float(s.t[i]), float(s.t[j]),
+                                     f"saturated (channel {k} stuck at {ext:.6g} for {j - i + 1} samples)"))
     share = rig.mass * rig.gravity / len(rig.cables)
     for name, s in sensors.load_cells.items():
         for i, j in _runs(s.data[:, 0] < SLACK_FRACTION * share):

@@ -36,8 +36,11 @@ def base_result(base):
     return out
 
 
-def run(path, *extra):
-    p = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(path), "--json", *extra],
+def run(path, *extra, quick=True):
+    # --quick: these tests are about what bad input does to the replay and the fit; the
+    # uncertainty refinement re-runs the same replay (test_refined_run_on_bad_input)
+    p = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(path), "--json", *extra,
+                        *(["--quick"] if quick else [])],
                        capture_output=True, text=True, cwd=REPO, timeout=120)
     assert "Traceback" not in p.stderr, p.stderr
     out = json.loads(p.stdout) if p.returncode == 0 else None
@@ -257,6 +260,38 @@ def test_saturated_load_cell(sim, tmp_path):
     assert rc == 0, err
     assert any("/rig/load_cells/c3" in w and "saturat" in w for w in out["warnings"]), out["warnings"]
     assert_good(out, sim.truth)
+
+
+def test_refined_run_on_bad_input(sim, tmp_path):
+    """The full run (bias correction and propagated σ re-run the replay) on a recording
+    with a gap: it fits the clean span before the gap, keeps the warning, and the σ are the
+    propagated noise (the residual is what the noise explains)."""
+    def bad(s):
+        keep = (s.imu.t < s.imu.t[0] + 30.0) | (s.imu.t > s.imu.t[0] + 30.5)
+        s.imu = type(s.imu)(s.imu.t[keep], s.imu.data[keep])
+    rc, out, err = run(make(sim, tmp_path, bad), quick=False)
+    assert rc == 0, err
+    assert out["uncertainty"] == "propagated sensor noise" and out["bias_correction"] is not None
+    assert any("gap" in w for w in out["warnings"]) and out["window"]["end"] - out["window"]["start"] < 28
+    assert_good(out, sim.truth)
+
+
+def test_noise_free_steps_are_not_saturation(sim):
+    """A noise-free stream that holds a value exactly (a simulated stepped force, the thesis's
+    case studies 1–9) is not a saturated sensor; the same run of identical samples in a
+    noisy channel is."""
+    from rig_identification.recording import TimeSeries, find_bad_spans
+    s = copy.deepcopy(sim.sensors)
+    t = s.exciter.t
+    step = np.where((t > t[0] + 5) & (t < t[0] + 8), 200.0, 0.0)
+    s.exciter = TimeSeries(t, np.column_stack([step, np.zeros(len(t))]))
+    assert not [b for b in find_bad_spans(sim.rig, s) if "exciter" in b.topic]
+    noisy = step + 0.5 * np.random.default_rng(0).standard_normal(len(t))
+    noisy[(t > t[0] + 5) & (t < t[0] + 8)] = noisy.max()
+    s.exciter = TimeSeries(t, np.column_stack([noisy, 0.5 * np.random.default_rng(1).standard_normal(len(t))]))
+    spans = [b for b in find_bad_spans(sim.rig, s) if "exciter" in b.topic]
+    assert len(spans) == 1 and "saturated" in spans[0].reason
+    assert spans[0].t0 == pytest.approx(t[0] + 5, abs=0.02) and spans[0].t1 == pytest.approx(t[0] + 8, abs=0.02)
 
 
 # 9. slack cable ------------------------------------------------------------------------------

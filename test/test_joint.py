@@ -78,7 +78,7 @@ def test_joint_fit_recovers_truth_and_beats_each_recording(recs, cached_prepare)
     a, b = single["A"], single["B"]
     # information adds: the white-noise (Cramér–Rao) std of every entry is below either recording's
     assert np.all(joint.crb_std < np.minimum(a.crb_std, b.crb_std)), (joint.crb_std, a.crb_std, b.crb_std)
-    # the calibrated (sandwich) std, itself estimated from ~10 blocks of residuals (±20 % scatter):
+    # the reported std (each recording's noise propagated through the chain, combined):
     # the uncertainty volume (geometric mean of the σ of the covariance's eigen-directions) is below
     # either recording's, and no entry is less certain than in the less informative recording
     vol = {n: np.linalg.det(r.covariance) ** (1 / 12) for n, r in (("A", a), ("B", b), ("joint", joint))}

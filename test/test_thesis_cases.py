@@ -20,6 +20,6 @@ CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
 def test_noise_free_case(case):
     exp = load_experiment(CASES / f"{case}.yaml")
     sim = simulate(replace(exp, duration=60.0))
-    res = identify_recording(Recording(sim.rig, sim.sensors, sim.truth))
+    res = identify_recording(Recording(sim.rig, sim.sensors, sim.truth), refine=False)  # noise-free
     for k, c in compare_to_truth(res, sim.truth).items():
         assert abs(c["error_percent"]) < 0.1, (case, k, c)
