@@ -12,7 +12,6 @@ Usage: bench_montecarlo_inertia.py [RUNS=200] [PROCESSES=2] [SAVE.npz]
 """
 import sys
 import time
-from dataclasses import replace
 from multiprocessing import Pool
 from pathlib import Path
 

@@ -8,7 +8,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 
 from rig_identification.identification import identify_inertia
 from rig_identification.pipeline import compare_to_truth

@@ -9,7 +9,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 
 from rig_identification.identification import KEYS, PAIRS
 from rig_identification.pipeline import compare_to_truth, identify_recording

@@ -10,7 +10,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import numpy as np
 
 
 from .identification import KEYS, IdentificationError, from_tensor

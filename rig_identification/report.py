@@ -6,7 +6,8 @@ relatively, and ``report.json`` (the page's numbers: ``result`` as
 :meth:`InertiaResult.to_dict`, ``identifiability`` as :func:`identifiability`, ``modes`` per
 recording).  Contents:
 
-* the tensor with its standard deviations (sandwich and white-noise Cramér–Rao) and,
+* the tensor with its standard deviations (what the result reports, the bound of the
+  propagated sensor noise, the fit's own sandwich) and,
   when the recordings carry ``truth.yaml``, the errors against it;
 * the identifiability table: all six eigen-directions of the covariance (the inverse of
   the information matrix) of the tensor entries in the tensor's Frobenius metric
@@ -253,7 +254,9 @@ def _table(head: list[str], rows: list[list], cls: str = "") -> str:
 
 def _tensor_rows(result: InertiaResult, truth: dict | None) -> tuple[list[str], list[list]]:
     from .pipeline import compare_to_truth
-    head = ["entry", "value kg·m²", "σ kg·m²", "σ white noise (CRB) kg·m²", "σ % of entry"]
+    refined = result.sandwich_std is not None
+    head = ["entry", "value kg·m²", "σ kg·m²",
+            "σ propagated noise (CRB) kg·m²" if refined else "σ white gyro noise kg·m²", "σ % of entry"]
     cmp = compare_to_truth(result, truth) if truth else None
     if cmp:
         head += ["truth kg·m²", "error kg·m²", "error %", "error / σ"]
@@ -407,9 +410,14 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
         parts.append("<h2>Inertia tensor about the CG, body axes</h2>")
         head, rows = _tensor_rows(result, truth)
         parts.append(_table(head, rows))
+        refined = result.sandwich_std is not None
         parts.append('<p class="note">Entries as geometry_msgs/Inertia: off-diagonals are negated products of '
-                     "inertia. σ: sandwich (batch-means) standard deviation, calibrated for coloured residuals; "
-                     "CRB: the white gyro noise alone. "
+                     + ("inertia. σ: the sensors' noise, estimated from the recording, propagated through tracker, "
+                        "preprocessor and identifier (the CRB column); where the residual shows model error, the "
+                        f"fit's own sandwich σ instead (here: {esc(result.uncertainty)}). Second-order bias removed. "
+                        if refined else
+                        "inertia. σ: sandwich (batch-means) standard deviation, calibrated for coloured residuals; "
+                        "the last σ column: the white gyro noise alone. ")
                      + ("Error %: of the entry for diagonals, of the largest diagonal for products. "
                         if truth else "")
                      + "Principal moments: " + ", ".join(f"{x:.1f}" for x in np.linalg.eigvalsh(result.inertia))

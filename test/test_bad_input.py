@@ -65,7 +65,7 @@ def assert_close(out, ref, tol=0.01):
 
 
 def assert_good(out, truth, pct=1.0):
-    from rig_identification.identification import from_tensor, KEYS
+    from rig_identification.identification import KEYS
     tru = truth["inertia_about_cg"]
     big = max(abs(tru[k]) for k in ("ixx", "iyy", "izz"))
     for k, v in zip(KEYS, vec(out)):

@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from rig_identification.identification import KEYS, from_tensor, physically_consistent
+from rig_identification.identification import KEYS, physically_consistent
 from rig_identification.pipeline import compare_to_truth, identify_recording
 from rig_identification.recording import read_recording
 
