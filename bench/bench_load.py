@@ -29,7 +29,6 @@ import argparse
 import json
 import os
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -74,17 +73,7 @@ class Listener:
         self.node.create_subscription(String, common.TRUTH_TOPIC,
                                       lambda m: setattr(self, "truth", json.loads(m.data)), common.LATCHED_QOS)
         self.node.create_subscription(DiagnosticArray, common.DIAGNOSTICS_TOPIC, self._on_diag, common.DIAGNOSTICS_QOS)
-        self.executor = EventsExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self):
-        from rclpy.task import Future
-        never = Future()
-        while not self._stop.is_set() and self.ctx.ok():
-            self.executor.spin_until_future_complete(never, timeout_sec=0.1)
+        self._spin = common.BackgroundSpin(EventsExecutor(context=self.ctx), self.node, self.ctx)
 
     def _on_diag(self, msg):
         for st in msg.status:
@@ -108,10 +97,7 @@ class Listener:
             self.node.destroy_client(cli)
 
     def close(self):
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-        self.node.destroy_node()
-        self.ctx.try_shutdown()
+        self._spin.close()
 
 
 def experiment_file(path: Path, duration: float, rate_hz: float) -> Path:

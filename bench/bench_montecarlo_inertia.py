@@ -20,11 +20,12 @@ import yaml
 
 from rig_identification.identification import KEYS, from_tensor
 from rig_identification.pipeline import identify_recording
-from rig_identification.recording import Recording, SensorData, TimeSeries
+from rig_identification.planning import REFERENCE_NOISE
+from rig_identification.recording import Recording
 from rig_identification.simulator import experiment_from_dict, simulate
+from rig_identification.uncertainty import add_noise
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"
-NOISE = {"gyro": 0.002, "accelerometer": 0.01, "load_cell": 0.5, "exciter": 0.5, "inclinometer": 0.0002}
 _SIM = None
 
 
@@ -35,20 +36,12 @@ def clean_simulation():
     return simulate(experiment_from_dict(d, "monte carlo"))
 
 
-def noisy(sensors: SensorData, rng) -> SensorData:
-    def add(ts, sig):
-        return TimeSeries(ts.t, ts.data + np.asarray(sig) * rng.standard_normal(ts.data.shape))
-    imu_sig = [NOISE["gyro"]] * 3 + [NOISE["accelerometer"]] * 3
-    return SensorData(add(sensors.imu, imu_sig), {k: add(v, NOISE["load_cell"]) for k, v in sensors.load_cells.items()},
-                      add(sensors.exciter, NOISE["exciter"]), add(sensors.inclinometer, NOISE["inclinometer"]))
-
-
 def one_run(seed):
     global _SIM
     if _SIM is None:
         _SIM = clean_simulation()
     rng = np.random.default_rng(seed)
-    res = identify_recording(Recording(_SIM.rig, noisy(_SIM.sensors, rng), _SIM.truth))
+    res = identify_recording(Recording(_SIM.rig, add_noise(_SIM.sensors, REFERENCE_NOISE, rng), _SIM.truth))
     bias = res.bias_correction if res.bias_correction is not None else np.zeros(6)
     return from_tensor(res.inertia), res.inertia_std, res.crb_std, bias, res.sandwich_std
 

@@ -30,8 +30,9 @@ import numpy as np
 from rig_identification.identification import KEYS, from_tensor
 from rig_identification.pipeline import identify_recording
 from rig_identification.planning import REFERENCE_NOISE, REFERENCE_RATES, Trajectory, predict_from_trajectory
-from rig_identification.recording import Recording, SensorData, TimeSeries
+from rig_identification.recording import Recording
 from rig_identification.simulator import load_experiment, simulate
+from rig_identification.uncertainty import add_noise
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = [f"case{i}" for i in range(10, 18)]
@@ -47,14 +48,6 @@ def reference_experiment(path):
     exp = load_experiment(path)
     exp = replace(exp, sensors=replace(exp.sensors, rates=dict(REFERENCE_RATES)))
     return exp.with_overrides(noise_free=True, duration=DURATION)
-
-
-def noisy(sensors: SensorData, rng, noise=REFERENCE_NOISE) -> SensorData:
-    def add(ts, sig):
-        return TimeSeries(ts.t, ts.data + np.asarray(sig) * rng.standard_normal(ts.data.shape))
-    return SensorData(add(sensors.imu, [noise["gyro"]] * 3 + [noise["accelerometer"]] * 3),
-                      {k: add(v, noise["load_cell"]) for k, v in sensors.load_cells.items()},
-                      add(sensors.exciter, noise["exciter"]), add(sensors.inclinometer, noise["inclinometer"]))
 
 
 def _clean(key):
@@ -73,7 +66,8 @@ def one_run(args):
     rng = np.random.default_rng(seed)
     # refine=False: the estimator the prediction models (first order; the bias correction
     # moves each estimate by a few % of σ), and crb_std stays the identifier's white-gyro bound
-    res = identify_recording(Recording(sim.rig, noisy(sim.sensors, rng), sim.truth), band_hz=band, refine=False)
+    rec = Recording(sim.rig, add_noise(sim.sensors, REFERENCE_NOISE, rng), sim.truth)
+    res = identify_recording(rec, band_hz=band, refine=False)
     return from_tensor(res.inertia), res.crb_std
 
 
@@ -166,8 +160,8 @@ def one_run_plan(args):
         _EXP_SIMS.clear()
         _EXP_SIMS[key] = simulate(exp)
     sim = _EXP_SIMS[key]
-    res = identify_recording(Recording(sim.rig, noisy(sim.sensors, np.random.default_rng(seed)), sim.truth),
-                             band_hz=band, refine=False)
+    rec = Recording(sim.rig, add_noise(sim.sensors, REFERENCE_NOISE, np.random.default_rng(seed)), sim.truth)
+    res = identify_recording(rec, band_hz=band, refine=False)
     return from_tensor(res.inertia)
 
 

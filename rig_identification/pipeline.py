@@ -201,7 +201,7 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
         return from_tensor(res.inertia)
 
     theta = from_tensor(result.inertia)
-    bias = antithetic_bias(fit, theta, rigs, [p.sensors for p in preps], noises, seed)
+    bias = antithetic_bias(fit, theta, [p.sensors for p in preps], noises, seed)
     J = to_tensor(theta - bias)
     if physically_consistent(J):
         result.inertia = J

@@ -116,10 +116,11 @@ def propagated(rig: Rig, poses, sensors, t_fit: np.ndarray, inertia: np.ndarray,
     return predict_from_trajectory(traj, noise_p, settle=settle, band_hz=tuple(band_hz))
 
 
-def add_noise(rig: Rig, sensors, noise: dict, rng: np.random.Generator, sign: float = 1.0):
-    """A copy of ``sensors`` with white noise of the σ in ``noise`` (see :func:`sensor_noise`)
-    added (``sign`` = +1) or the same realisation subtracted (``sign`` = −1): pass generators
-    in the same state for an antithetic pair."""
+def add_noise(sensors, noise: dict, rng: np.random.Generator, sign: float = 1.0):
+    """A copy of ``sensors`` (:class:`~.recording.SensorData`) with white noise of the σ in
+    ``noise`` (keys as :func:`sensor_noise`) added (``sign`` = +1) or the same realisation
+    subtracted (``sign`` = −1): pass generators in the same state for an antithetic pair.
+    Draws in the order IMU (N,6), load cells, exciter, inclinometer."""
     from .recording import SensorData, TimeSeries
 
     def add(ts, sig):
@@ -134,12 +135,12 @@ def add_noise(rig: Rig, sensors, noise: dict, rng: np.random.Generator, sign: fl
                       add(sensors.inclinometer, noise["inclinometer"]))
 
 
-def antithetic_bias(fit, base: np.ndarray, rigs: list, sensors: list, noises: list, seed: int = 0) -> np.ndarray:
+def antithetic_bias(fit, base: np.ndarray, sensors: list, noises: list, seed: int = 0) -> np.ndarray:
     """Second-order bias (6,) of an estimate, in :data:`~.identification.KEYS` order, kg·m².
 
     fit(list of SensorData) -> (6,) entries: the whole chain (tracker, preprocessor,
     identifier with the band and window of the estimate being corrected) over one recording
-    or several fitted jointly; base: ``fit(sensors)``, the estimate itself; rigs, sensors,
+    or several fitted jointly; base: ``fit(sensors)``, the estimate itself; sensors,
     noises: per recording (noise levels as :func:`sensor_noise`).  Returns
     ``½[fit(s + m) + fit(s − m)] − base`` for one white realisation ``m`` of the levels per
     recording (see the module docstring; Cook & Stefanski 1994, antithetic SIMEX); ``fit``
@@ -147,6 +148,6 @@ def antithetic_bias(fit, base: np.ndarray, rigs: list, sensors: list, noises: li
     base = np.asarray(base, float)
     out = []
     for sign in (+1.0, -1.0):
-        out.append(np.asarray(fit([add_noise(r, s, n, np.random.default_rng([seed, i]), sign)
-                                   for i, (r, s, n) in enumerate(zip(rigs, sensors, noises))]), float))
+        out.append(np.asarray(fit([add_noise(s, n, np.random.default_rng([seed, i]), sign)
+                                   for i, (s, n) in enumerate(zip(sensors, noises))]), float))
     return 0.5 * (out[0] + out[1]) - base

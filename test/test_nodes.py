@@ -71,20 +71,11 @@ class Listener:
         self.InertiaStamped = InertiaStamped
         if executor == "events":
             from rclpy.experimental import EventsExecutor
-            self.executor = EventsExecutor(context=self.ctx)
+            ex = EventsExecutor(context=self.ctx)
         else:
             from rclpy.executors import SingleThreadedExecutor
-            self.executor = SingleThreadedExecutor(context=self.ctx)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self):
-        from rclpy.task import Future
-        never = Future()
-        while not self._stop.is_set() and self.ctx.ok():
-            self.executor.spin_until_future_complete(never, timeout_sec=0.1)
+            ex = SingleThreadedExecutor(context=self.ctx)
+        self._spin = common.BackgroundSpin(ex, self.node, self.ctx)
 
     def _count(self, topic, msg):
         with self.lock:
@@ -120,10 +111,7 @@ class Listener:
             self.node.destroy_client(cli)
 
     def close(self):
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-        self.node.destroy_node()
-        self.ctx.try_shutdown()
+        self._spin.close()
 
 
 def wait_until(cond, timeout: float, what: str, graph: Graph | None = None, step: float = 0.1, info=None):

@@ -13,8 +13,9 @@ from rig_identification.modes import natural_modes
 from rig_identification.pipeline import identify_recording
 from rig_identification.planning import (REFERENCE_NOISE, Trajectory, _cumtrapz_adjoint,
                                          _sosfiltfilt_adjoint, predict_from_trajectory, resonances)
-from rig_identification.recording import Recording, SensorData, TimeSeries
+from rig_identification.recording import Recording
 from rig_identification.simulator import load_experiment, simulate
+from rig_identification.uncertainty import add_noise
 
 from conftest import REPO
 
@@ -43,16 +44,6 @@ def test_parametric_resonances_are_avoided():
     assert np.any(np.isclose(avoid, 2 * f[0])) and np.any(np.isclose(avoid, f[0] + f[2]))
 
 
-def _noisy(s: SensorData, rng) -> SensorData:
-    n = REFERENCE_NOISE
-
-    def add(ts, sig):
-        return TimeSeries(ts.t, ts.data + np.asarray(sig) * rng.standard_normal(ts.data.shape))
-    return SensorData(add(s.imu, [n["gyro"]] * 3 + [n["accelerometer"]] * 3),
-                      {k: add(v, n["load_cell"]) for k, v in s.load_cells.items()},
-                      add(s.exciter, n["exciter"]), add(s.inclinometer, n["inclinometer"]))
-
-
 def test_predicted_std_matches_noisy_replays():
     """Before the run: the prediction for a 40 s case-16 run at the reference noise levels.
     After it: 8 noisy replays through tracker -> preprocessor -> identifier.  The pooled
@@ -66,8 +57,9 @@ def test_predicted_std_matches_noisy_replays():
     truth = from_tensor(exp.inertia)
     z = []
     for seed in range(8):
-        res = identify_recording(Recording(sim.rig, _noisy(sim.sensors, np.random.default_rng(100 + seed)), sim.truth),
-                                 refine=False)  # the first-order estimator the prediction models
+        noisy = add_noise(sim.sensors, REFERENCE_NOISE, np.random.default_rng(100 + seed))
+        # refine=False: the first-order estimator the prediction models
+        res = identify_recording(Recording(sim.rig, noisy, sim.truth), refine=False)
         z.append((from_tensor(res.inertia) - truth) / pred.std)
     chi = float(np.mean(np.square(z)))
     assert 0.45 <= chi <= 1.8, f"mean (err/σ_pred)² = {chi:.2f}"

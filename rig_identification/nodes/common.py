@@ -983,3 +983,36 @@ def to_json(obj) -> str:
             return clean(o.tolist())
         return o
     return json.dumps(clean(obj))
+
+
+class BackgroundSpin:
+    """Spin ``executor`` (with ``node`` added) in a daemon thread until :meth:`close`, which
+    then shuts the executor down, destroys the node and shuts ``context`` down.  The
+    listening side of a tool that watches the graph from its own process and context (the
+    demo's monitor, the node tests, the load benchmark); the nodes themselves spin in
+    their main thread."""
+
+    def __init__(self, executor, node, context):
+        import threading
+        from rclpy.task import Future
+        self.executor, self.node, self.context = executor, node, context
+        executor.add_node(node)
+        self._never = Future()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._spin, daemon=True)
+        self._thread.start()
+
+    def _spin(self):
+        while not self._stop.is_set() and self.context.ok():
+            try:
+                self.executor.spin_until_future_complete(self._never, timeout_sec=0.1)
+            except Exception:
+                if self.context.ok():
+                    raise
+
+    def close(self):
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.context.try_shutdown()

@@ -24,7 +24,6 @@ import signal
 import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 
@@ -133,19 +132,7 @@ class Monitor:
         self.node.create_subscription(String, common.DRIVER_STATUS_TOPIC, self._on_status, common.LATCHED_QOS)
         self.node.create_subscription(DiagnosticArray, common.DIAGNOSTICS_TOPIC, self._on_diag,
                                       common.DIAGNOSTICS_QOS)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._spin, daemon=True)
-        self._thread.start()
-
-    def _spin(self):
-        while not self._stop.is_set() and self.context.ok():
-            try:
-                self.executor.spin_once(timeout_sec=0.1)
-            except Exception:
-                if self.context.ok():
-                    raise
+        self._spin = common.BackgroundSpin(SingleThreadedExecutor(context=self.context), self.node, self.context)
 
     def _on_status(self, msg):
         self.status = json.loads(msg.data)
@@ -156,11 +143,7 @@ class Monitor:
             self.diagnostics[st.name] = diagnostic_values(st)
 
     def close(self):
-        self._stop.set()
-        self._thread.join(timeout=2.0)
-        self.executor.shutdown()
-        self.node.destroy_node()
-        self.context.try_shutdown()
+        self._spin.close()
 
 
 def counts_table(diagnostics: dict[str, dict], status: dict) -> str:
