@@ -416,67 +416,84 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
         r, a, dg, da, dm, *_ = model.residuals(j, kappa, beta, cols, prepared)
         return np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc, dm / sm])
 
+    nlin = k + (1 if free_kappa else 0)
+    rows = 6 * n + 9
+
+    def lin_jac(j, P):
+        """Jacobian columns of the parameters the residual is linear in (β, κ): they
+        depend on the tensor only, (rows, nlin)."""
+        Jl = np.zeros((rows, nlin))
+        Jr = Jl[:3 * n].reshape(n, 3, nlin)
+        for i, (c, p) in enumerate(zip(cols, prepared)):
+            if c.rot_O is not None:
+                Jr[:, :, i] += c.rot_O
+            if p["rot_ID"] is not None:
+                Jr[:, :, i] -= p["rot_ID"] @ P.T
+        if free_kappa:
+            Jr[:, :, -1] = np.einsum("m,mni->ni", j, model.G) @ P.T
+        Jr *= wr
+        Jl[3 * n:6 * n] = (dTr * wa).reshape(-1, k) if k else 0.0
+        Jd = Jl[6 * n:]
+        Jd[:3, :k] = dG / sg
+        Jd[3:6, :k] = dA / sdc
+        Jd[6:, :k] = dMm / sm
+        if free_kappa:
+            Jd[6:, -1] = -(j @ model.dcm_G) / sm
+        return Jl
+
+    def tensor_jac(dj, kappa, P, yhat):
+        """Jacobian columns of the 6 tensor parameters, (rows, 6)."""
+        Jt = np.zeros((rows, 6))
+        M = (np.matmul(yhat, E.transpose(0, 2, 1)) + kappa * model.G) @ P.T     # (6, n, 3): P (E_m ŷ + κ G_m)
+        Jt[:3 * n] = (M.transpose(1, 2, 0).reshape(-1, 6) @ dj) * wr
+        E6 = np.stack([kappa * model.dcm_G[m] + E[m] @ model.dcm_W for m in range(6)], axis=1)   # (3,6)
+        Jt[6 * n + 6:] = -(E6 @ dj) / sm
+        return Jt
+
     def jac(x):
         j, dj, beta, kappa = unpack(x)
         _, _, _, _, _, P, yhat, _ = model.residuals(j, kappa, beta, cols, prepared)
-        nx = len(x)
-        Jr = np.zeros((n, 3, nx))
-        Jr[:, :, :6] = np.einsum("ij,knj->nik", P, np.einsum("kij,nj->kni", E, yhat) + kappa * model.G) @ dj
-        for i, (c, p) in enumerate(zip(cols, prepared)):
-            col = np.zeros((n, 3))
-            if c.rot_O is not None:
-                col += c.rot_O
-            if p["rot_ID"] is not None:
-                col -= p["rot_ID"] @ P.T
-            Jr[:, :, 6 + i] = col
-        if free_kappa:
-            Jr[:, :, -1] = np.einsum("m,mni->ni", j, model.G) @ P.T
-        Ja = np.zeros((n, 3, nx))
-        Ja[:, :, 6:6 + k] = dTr
-        Jd = np.zeros((9, nx))
-        Jd[:3, 6:6 + k] = dG / sg
-        Jd[3:6, 6:6 + k] = dA / sdc
-        E6 = np.stack([kappa * model.dcm_G[m] + E[m] @ model.dcm_W for m in range(6)], axis=1)   # (3,6)
-        Jd[6:, :6] = -(E6 @ dj) / sm
-        Jd[6:, 6:6 + k] = dMm / sm
-        if free_kappa:
-            Jd[6:, -1] = -(j @ model.dcm_G) / sm
-        return np.concatenate([(Jr * wr).reshape(-1, nx), (Ja * wa).reshape(-1, nx), Jd])
+        return np.concatenate([tensor_jac(dj, kappa, P, yhat), lin_jac(j, P)], axis=1)
 
     # variable projection (Golub & Pereyra 1973): the residual is linear in the effect
     # columns and in κ, so for each tensor they are solved by linear least squares and
     # Levenberg–Marquardt runs on the 6 tensor parameters alone, with Kaufman's
     # projected Jacobian (Kaufman, BIT 15, 1975)
-    nlin = k + (1 if free_kappa else 0)
     cache = {}
 
     def full(th):
+        """(x, residual, tensor Jacobian, orthonormal basis U of the linear columns) at the
+        tensor parameters th, with the linear parameters solved."""
         key = th.tobytes()
         if key not in cache:
-            x = np.r_[th, np.zeros(nlin)]
+            j, dj, _, _ = unpack(np.r_[th, np.zeros(nlin)])
+            x, U = np.r_[th, np.zeros(nlin)], None
             if nlin:
-                A = jac(x)[:, 6:]
-                r0 = fun(x)
-                b, *_ = np.linalg.lstsq(A, -r0, rcond=None)
+                P = np.linalg.inv(to_tensor(j))
+                A = lin_jac(j, P)
+                Ua, sv, Vt = np.linalg.svd(A, full_matrices=False)
+                keep = sv > sv[0] * max(A.shape) * np.finfo(float).eps if sv[0] > 0 else np.zeros(len(sv), bool)
+                U = Ua[:, keep]
+                b = -(Vt[keep].T @ ((U.T @ fun(x)) / sv[keep]))
                 x = np.r_[th, b]
+            _, _, beta, kappa = unpack(x)
+            r, a, dg, da, dm, P, yhat, _ = model.residuals(j, kappa, beta, cols, prepared)
+            res = np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc, dm / sm])
             cache.clear()
-            cache[key] = x
+            cache[key] = (x, res, tensor_jac(dj, kappa, P, yhat), U)
         return cache[key]
 
     def fun_vp(th):
-        return fun(full(th))
+        return full(th)[1]
 
     def jac_vp(th):
-        Jf = jac(full(th))
-        if not nlin:
-            return Jf
-        A, Jt = Jf[:, 6:], Jf[:, :6]
-        return Jt - A @ np.linalg.lstsq(A, Jt, rcond=None)[0]
+        _, _, Jt, U = full(th)
+        return Jt if U is None else Jt - U @ (U.T @ Jt)
 
     th0 = params_from_consistent(to_tensor(j0))
     sol = least_squares(fun_vp, th0, jac=jac_vp, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10,
                         max_nfev=200)
-    sol.x = full(sol.x)
+    sol.x = full(sol.x)[0]
     sol.fun = fun(sol.x)
     j, dj, beta, kappa = unpack(sol.x)
     r, a, dg, da, dm, P, yhat, u = model.residuals(j, kappa, beta, cols, prepared)

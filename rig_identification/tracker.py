@@ -660,7 +660,8 @@ def track(rig: Rig, sensors, **params) -> PoseTrack:
     sensors: :class:`~rig_identification.recording.SensorData`.  Streams are merged
     in header-stamp order.  When rig.yaml gives no cable stiffness, a first pass
     refines the cables' compliance online (as the node does); the replay is then run
-    again with the median compliance of the pass's second half fixed, so that the
+    again with the pass's least-squares compliance over its second half fixed
+    (:func:`pass_compliance`), so that the
     start of the recording is tracked as well as its end.  Returns the
     :class:`PoseTrack` at the IMU stamps after initialisation.
     """
