@@ -14,10 +14,13 @@ bound ``crb_std`` / spread for comparison.
 
 ``plan`` — the recommended plan for case 16 (config/rigs/default.yaml: the thesis rig and the
 Jeep Cherokee, 120 s runs) against the thesis's own excitation (200 N at 1.05 Hz at the rig's
-exciter), then CONFIRM noisy runs of the plan (and of the baseline) identified with the
-ordinary pipeline: their spread against the predictions.
+exciter), then CONFIRM noisy simulations of the plan (its runs identified jointly, as
+``rig-identify inertia REC1 REC2``) and of the baseline, with the ordinary pipeline: their
+RMS errors against the predictions.  ``vary``: the second run may also use another cable
+geometry (:func:`rig_identification.planning.geometry_variants`, ceiling anchors moved 1 m;
+``rig-identify plan --vary-geometry 1``).
 
-Usage: bench_plan.py [crb [RUNS=30] [PROCESSES=2] [CASES...]] | [plan [CONFIRM=8] [PROCESSES=2]]
+Usage: bench_plan.py [crb [RUNS=30] [PROCESSES=2] [CASES...]] | [plan [CONFIRM=8] [PROCESSES=2] [vary]]
 (no arguments: both).
 """
 import sys
@@ -106,47 +109,46 @@ def crb_table(runs=30, procs=2, cases=None):
     return R
 
 
-def plan_table(confirm=8, procs=2):
-    from rig_identification.planning import Body, Run, plan_experiment
+def plan_table(confirm=8, procs=2, vary=False):
+    from rig_identification.planning import Body, Run, geometry_variants, plan_experiment
     t0 = time.perf_counter()
     exp = load_experiment(ROOT / "config" / "rigs" / "default.yaml")
     rig = exp.rig
     body = Body(rig, exp.mass, exp.inertia, np.full(len(rig.cables), 5e6), dict(REFERENCE_RATES), dict(REFERENCE_NOISE))
     base = Run(1.05, 200.0, tuple(rig.exciter.position), "z", 120.0, 2.0, tuple(rig.exciter.rpy))
-    plan = plan_experiment(body, base, progress=lambda s: print("  " + s, flush=True))
-    print(f"plan for case 16 ({time.perf_counter() - t0:.0f} s):")
+    geometries = geometry_variants(body, 1.0) if vary else None
+    plan = plan_experiment(body, base, geometries=geometries, progress=lambda s: print("  " + s, flush=True))
+    print(f"plan for case 16{' (cable geometry variants: ceiling anchors moved 1 m)' if vary else ''} "
+          f"({time.perf_counter() - t0:.0f} s):")
     for i, c in enumerate(plan.runs, 1):
         r = c.run
         print(f"  run {i}: {r.frequency:.3f} Hz, {r.amplitude:.0f} N, exciter at {np.round(r.position, 3).tolist()} m, "
-              f"spin axis body {r.spin_axis}; peak rotation {c.peak_rotation_deg:.2f}°, lowest tension "
-              f"{100 * c.min_tension_ratio:.0f} % of static ({c.limit} limit); band "
-              f"{'auto' if c.band is None else np.round(c.band, 3).tolist()}")
+              f"spin axis body {r.spin_axis}{'' if r.direction > 0 else ' (reversed)'}; peak rotation "
+              f"{c.peak_rotation_deg:.2f}°, lowest tension {100 * c.min_tension_ratio:.0f} % of static ({c.limit} "
+              f"limit); band {'auto' if c.band is None else np.round(c.band, 3).tolist()}; cables: "
+              f"{'the rig' if c.geometry is None else c.geometry}")
     print(f"{'entry':6s} {'baseline σ':>11s} {'plan σ':>9s} {'ratio':>6s}")
     for k, b, p in zip(KEYS, plan.baseline.prediction.std, plan.prediction.std):
         print(f"{k:6s} {b:11.3f} {p:9.3f} {b / p:6.2f}")
     print(f"least improvement {plan.improvement().min():.2f}x; notes: {'; '.join(plan.notes)}")
     if confirm <= 0:
         return plan
-    # confirmation: noisy runs of each planned run (and of the baseline), identified by the pipeline
-    print(f"confirmation: {confirm} noisy simulations of each run, identified with the ordinary pipeline")
-    jobs = {}
+    # confirmation: noisy simulations of the plan's runs identified jointly (rig-identify inertia REC1 REC2),
+    # and of the baseline, with the ordinary pipeline
+    print(f"confirmation: {confirm} noisy simulations of the plan (its runs identified jointly) and of the baseline")
+    exps = [(c.body or body).experiment(c.run) for c in plan.runs]
+    bands = [c.band for c in plan.runs]
+    band = bands[0] if all(b == bands[0] for b in bands) else None
     with Pool(procs) as pool:
-        for i, c in enumerate(plan.runs):
-            e = body.experiment(c.run)
-            jobs[i] = pool.map(one_run_plan, [(("plan", i), e, 500 + i * 100 + k, c.band) for k in range(confirm)])
-        eb = body.experiment(plan.baseline.run)
-        jobs["base"] = pool.map(one_run_plan, [(("base",), eb, 900 + k, None) for k in range(confirm)])
+        est = np.array(pool.map(one_run_plan, [(("plan",), exps, 500 + 10 * k, band) for k in range(confirm)]))
+        eb = np.array(pool.map(one_run_plan, [(("base",), [body.experiment(plan.baseline.run)], 900 + k, None)
+                                              for k in range(confirm)]))
     truth = from_tensor(exp.inertia)
-    if len(plan.runs) == 1:
-        est = np.array([o for o in jobs[0]])
-    else:  # no joint replay here: inverse-variance combination of the runs' estimates with the predicted σ
-        w = [1 / c.prediction.std**2 for c in plan.runs]
-        est = np.array([sum(wi * o for wi, o in zip(w, os)) / sum(w) for os in zip(*(jobs[i] for i in range(len(plan.runs))))])
-    eb = np.array(jobs["base"])
-    print(f"{'entry':6s} {'plan rms err':>12s} {'pred σ':>8s} {'base rms err':>12s} {'pred σ':>8s}")
+    print(f"{'entry':6s} {'plan rms err':>12s} {'pred σ':>8s} {'base rms err':>12s} {'pred σ':>8s} {'ratio of rms':>12s}")
     for k, i in zip(KEYS, range(6)):
-        print(f"{k:6s} {np.sqrt(np.mean((est[:, i] - truth[i])**2)):12.3f} {plan.prediction.std[i]:8.3f} "
-              f"{np.sqrt(np.mean((eb[:, i] - truth[i])**2)):12.3f} {plan.baseline.prediction.std[i]:8.3f}")
+        ep, ebb = np.sqrt(np.mean((est[:, i] - truth[i])**2)), np.sqrt(np.mean((eb[:, i] - truth[i])**2))
+        print(f"{k:6s} {ep:12.3f} {plan.prediction.std[i]:8.3f} {ebb:12.3f} {plan.baseline.prediction.std[i]:8.3f} "
+              f"{ebb / ep:12.2f}")
     print(f"total {time.perf_counter() - t0:.0f} s")
     return plan
 
@@ -155,13 +157,16 @@ _EXP_SIMS: dict = {}
 
 
 def one_run_plan(args):
-    key, exp, seed, band = args
+    """Worker: noisy copies (seed, seed+1, ...) of the noise-free simulations of ``exps``
+    (cached per worker), identified jointly when there are several."""
+    from rig_identification.pipeline import identify_recordings
+    key, exps, seed, band = args
     if key not in _EXP_SIMS:
         _EXP_SIMS.clear()
-        _EXP_SIMS[key] = simulate(exp)
-    sim = _EXP_SIMS[key]
-    rec = Recording(sim.rig, add_noise(sim.sensors, REFERENCE_NOISE, np.random.default_rng(seed)), sim.truth)
-    res = identify_recording(rec, band_hz=band, refine=False)
+        _EXP_SIMS[key] = [simulate(e) for e in exps]
+    recs = [Recording(sim.rig, add_noise(sim.sensors, REFERENCE_NOISE, np.random.default_rng(seed + i)), sim.truth)
+            for i, sim in enumerate(_EXP_SIMS[key])]
+    res = identify_recordings(recs, band_hz=band, refine=False)
     return from_tensor(res.inertia)
 
 
@@ -173,4 +178,4 @@ if __name__ == "__main__":
         crb_table(*(nums or [30]), cases=names or None)
     if not argv or argv[0] == "plan":
         nums = [int(x) for x in argv[1:3] if x.isdigit()]
-        plan_table(*nums)
+        plan_table(*nums, vary="vary" in argv)

@@ -243,7 +243,7 @@ def cmd_plan(args) -> int:
     import numpy as np
 
     from .planning import KEYS as PKEYS
-    from .planning import PlanError, Run, load_plan_input, make_body, plan_experiment
+    from .planning import PlanError, Run, geometry_variants, load_plan_input, make_body, plan_experiment
     from .simulator import ExperimentError, SimulationError
     try:
         rig, base_exc, k = load_plan_input(args.rig)
@@ -259,10 +259,21 @@ def cmd_plan(args) -> int:
         baseline = Run(float(freq), float(amp), tuple(float(x) for x in pos), "z", args.duration, 2.0,
                        tuple(float(x) for x in rpy))
         say = (lambda s: None) if args.quiet else (lambda s: print("  " + s, file=sys.stderr, flush=True))
+        geometries = []
+        for g in args.geometry or []:
+            grig, _, _ = load_plan_input(g)
+            geometries.append((f"cables of {g}", grig))
+        if args.vary_geometry:
+            if not args.vary_geometry > 0:
+                raise PlanError(f"--vary-geometry {args.vary_geometry:g}: the shift must be > 0 m")
+            geometries += geometry_variants(body, args.vary_geometry)
+        if geometries and args.runs < 2:
+            raise PlanError("--geometry / --vary-geometry are for a second run: they need --runs 2")
         plan = plan_experiment(body, baseline, duration=args.duration, max_force=args.max_force,
                                max_rotation_deg=args.max_rotation, min_tension_ratio=args.min_tension,
                                frequencies=tuple(args.frequencies), positions=args.position, max_runs=args.runs,
-                               objective=args.objective, refine=max(1, args.refine), progress=say)
+                               objective=args.objective, refine=max(1, args.refine), geometries=geometries,
+                               progress=say)
     except (PlanError, ExperimentError, SimulationError) as e:
         print(f"rig-identify: error: {e}", file=sys.stderr)
         return 2
@@ -291,6 +302,10 @@ def cmd_plan(args) -> int:
         print(f"{title}: {r.amplitude:.0f} N rotating at {r.frequency:.3f} Hz, exciter at "
               f"({', '.join(f'{x:.2f}' for x in r.position)}) m body, {axis}, {r.duration:.0f} s — peak rotation "
               f"{c.peak_rotation_deg:.2f}°, lowest tension {100 * c.min_tension_ratio:.0f} % of static{band}")
+        if c.geometry is not None:
+            print(f"  on another cable geometry ({c.geometry}): "
+                  + "; ".join(f"{cb.name} ceiling anchor ({', '.join(f'{x:.2f}' for x in cb.ceiling_anchor)}) m, "
+                              f"length {cb.length:.3f} m" for cb in c.body.rig.cables))
 
     describe(plan.baseline, "baseline")
     for i, c in enumerate(plan.runs, 1):
@@ -391,6 +406,12 @@ def identify_main(argv=None) -> int:
                     help="baseline exciter position, body m (default: rig.yaml exciter)")
     pp.add_argument("--refine", type=int, default=3, metavar="N",
                     help="how many screened runs to simulate before choosing (default 3; 1 is quicker)")
+    pp.add_argument("--geometry", action="append", metavar="RIG.yaml",
+                    help="another cable geometry the rig can take, for the second run (rig.yaml, experiment file or "
+                         "recording folder: its cables are used, the body is this one; repeatable)")
+    pp.add_argument("--vary-geometry", type=float, metavar="M",
+                    help="also try, for the second run, the ceiling anchors moved M m farther apart (and closer "
+                         "together) along world x and along world y, cable lengths re-set to the same hanging pose")
     pp.add_argument("--json", action="store_true", help="print one JSON object")
     pp.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
     pp.set_defaults(func=cmd_plan)

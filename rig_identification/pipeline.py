@@ -270,6 +270,11 @@ MASS_RTOL = 1e-3   # relative: rig.yaml body.mass of recordings fitted jointly m
 CG_TOL = 0.002     # m: and their body.center_of_gravity this well
 
 
+def _rig_file(rec: Recording) -> str:
+    """The recording's rig.yaml, or its rig's source for an in-memory recording."""
+    return str(Path(rec.path) / "rig.yaml") if rec.path is not None else str(rec.rig.source)
+
+
 def check_same_body(recs: list[Recording], mass_rtol: float = MASS_RTOL, cg_tol: float = CG_TOL) -> None:
     """Refuse a joint fit of recordings whose rig.yaml describe different bodies: body.mass
     must agree within ``mass_rtol`` (relative) and body.center_of_gravity within ``cg_tol``
@@ -279,7 +284,7 @@ def check_same_body(recs: list[Recording], mass_rtol: float = MASS_RTOL, cg_tol:
     m0, c0 = ref.rig.mass, ref.rig.require_cg()
     for r in recs[1:]:
         m, c = r.rig.mass, r.rig.require_cg()
-        where = f"{Path(ref.path) / 'rig.yaml'} and {Path(r.path) / 'rig.yaml'}"
+        where = f"{_rig_file(ref)} and {_rig_file(r)}"
         if abs(m - m0) > mass_rtol * abs(m0):
             raise RecordingError(f"{where} describe different bodies: body.mass {m0:g} kg vs {m:g} kg (a joint "
                                  f"fit needs the same body; tolerance {100 * mass_rtol:g} %)")
@@ -293,7 +298,7 @@ def check_same_body(recs: list[Recording], mass_rtol: float = MASS_RTOL, cg_tol:
 
 def recording_labels(recs: list[Recording]) -> list[str]:
     """Short names of the recordings: folder names, or full paths where names repeat."""
-    names = [Path(r.path).name for r in recs]
+    names = [Path(r.path).name if r.path is not None else f"recording {i + 1}" for i, r in enumerate(recs)]
     return [n if names.count(n) == 1 else str(r.path) for n, r in zip(names, recs)]
 
 

@@ -878,9 +878,17 @@ class Candidate:
     peak_rotation_deg: float | None = None
     min_tension_ratio: float | None = None
     band: tuple | None = None      # identification band to use (None: the identifier's automatic band)
+    geometry: str | None = None    # None: the rig's own cables; else the other cable geometry's label
+    body: "Body | None" = None     # the body on that geometry (None: the plan's)
 
     def to_dict(self) -> dict:
-        return {"run": self.run.to_dict(), "limit": self.limit, "simulated": self.simulated,
+        geo = None
+        if self.geometry is not None and self.body is not None:
+            geo = {"label": self.geometry,
+                   "cables": [{"name": c.name, "ceiling_anchor": [float(x) for x in c.ceiling_anchor],
+                               "body_anchor": [float(x) for x in c.body_anchor], "length": float(c.length)}
+                              for c in self.body.rig.cables]}
+        return {"run": self.run.to_dict(), "cable_geometry": geo, "limit": self.limit, "simulated": self.simulated,
                 "identification_band_hz": None if self.band is None else [float(x) for x in self.band],
                 "peak_rotation_deg": self.peak_rotation_deg, "min_tension_ratio": self.min_tension_ratio,
                 "prediction": self.prediction.to_dict()}
@@ -1009,7 +1017,7 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
                     frequencies: tuple[float, float] = (0.3, 4.0), positions: list | None = None,
                     max_runs: int = 2, objective: str = "baseline", refine: int = 3, settle: float = 5.0,
                     short: float = 30.0, mode_margin: float = 0.1, tracker_params: dict | None = None,
-                    progress=None) -> Plan:
+                    geometries: list | None = None, progress=None) -> Plan:
     """Recommend one or two exciter runs (see module docstring).
 
     body: :class:`Body`.  baseline: the run to compare with (e.g. the thesis's 200 N at
@@ -1023,10 +1031,14 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
     frequency, its double and every pairwise sum (:func:`resonances`).  positions:
     candidate mounting points (body m; default :func:`candidate_positions`).  max_runs: 1
     or 2.  refine: how many screened candidates are simulated (``short`` s each).
+    geometries: other cable geometries the rig can take for the second run, [(label,
+    :class:`~.rig.Rig`)] with the same body (e.g. :func:`geometry_variants`); the best runs
+    on each are searched like the rig's own and paired with the best run on the rig.
     progress: optional callable(str) for status lines.
     Raises :class:`PlanError`, :class:`~.simulator.SimulationError`.
     """
     from .modes import natural_modes
+    from .simulator import SimulationError
     say = progress or (lambda s: None)
     if not (0 <= min_tension_ratio < 1) or not max_rotation_deg > 0 or not max_force > 0:
         raise PlanError("limits: need 0 ≤ min tension ratio < 1, max rotation > 0, max force > 0")
@@ -1042,10 +1054,8 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
               "frequency_range_hz": list(frequencies), "mode_margin": mode_margin, "objective": objective}
     rig = body.rig
     modes = natural_modes(rig, body.mass, rig.require_cg(), body.inertia, body.stiffness)
-    lin = linear_rig(body)
-    screen = _Screen(body, lin, duration, settle, tracker_params=tracker_params)
-    mode_f = np.array([m.frequency for m in modes])
     rot_f = [m.frequency for m in modes if m.energy[3:].sum() > 0.3]
+    screen = _Screen(body, linear_rig(body), duration, settle, tracker_params=tracker_params)
     # --- the baseline, simulated in full and screened (each stage compares like with like)
     say(f"simulating the baseline ({baseline.amplitude:.0f} N at {baseline.frequency:.2f} Hz, {duration:.0f} s) ...")
     base, _ = _sim_check(body, replace(baseline, duration=duration), limits, settle, tracker_params)
@@ -1061,99 +1071,176 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
         ref_sim = base.prediction.std
     else:
         ref_screen = ref_sim = base.prediction.scale
-    # --- screen
-    say("screening frequencies, mounting points and spin axes (linearised rig) ...")
-    avoid = resonances(mode_f)
-    freqs = [f for f in np.geomspace(frequencies[0], frequencies[1], 30)
-             if np.all(np.abs(f / avoid - 1) >= mode_margin)]
-    if not freqs:
-        raise PlanError(f"no exciter frequency in {frequencies[0]:g}–{frequencies[1]:g} Hz is {100 * mode_margin:.0f} % "
-                        f"away from the rig's modes ({', '.join(f'{f:.2f}' for f in mode_f)} Hz), their doubles "
-                        "and their pairwise sums")
-    pts = [np.asarray(p, float) for p in (positions if positions else candidate_positions(rig))]
-    screened: list[Candidate] = []
-    for f in freqs:
-        X = screen.responses(f)
-        band = screen.band(f, rot_f)
-        dens = screen.noise_density(band)
-        for p in pts:
-            for ax in ("x", "y", "z"):
-                for sense in (1, -1):
-                    amp, lim, rot, tmin, pred = screen.candidate(X, p, SPIN_AXES[ax], limits, dens, band,
-                                                                 direction=sense)
-                    if pred is None or not np.all(np.isfinite(pred.std)):
-                        continue
-                    screened.append(Candidate(Run(float(f), float(amp), tuple(float(x) for x in p), ax, duration,
-                                                  direction=sense), pred, lim, False, float(rot), float(tmin)))
-    if not screened:
-        raise PlanError("no candidate run moves the body measurably")
-    screened.sort(key=lambda c: c.prediction.worst(ref_screen))
-    # --- refine the best distinct single runs by simulation
     done: dict = {}
 
-    def simulate_short(c: Candidate, what: str) -> Candidate | None:
-        key = (c.run.frequency, c.run.position, c.run.spin_axis, c.run.direction)
+    def search(b: Body, label: str | None, scr: _Screen | None = None):
+        """Screen frequencies, mounting points and spin axes on the body ``b`` (cable
+        geometry ``label``; None: the rig's own), then simulate the best distinct
+        ``refine`` of them (``short`` s, amplitude brought to the limits).  Returns
+        (screened, simulated singles, rot_f)."""
+        where = "" if label is None else f" ({label})"
+        ms = modes if label is None else natural_modes(b.rig, b.mass, b.rig.require_cg(), b.inertia, b.stiffness)
+        mf = np.array([m.frequency for m in ms])
+        rf = [m.frequency for m in ms if m.energy[3:].sum() > 0.3]
+        scr = scr or _Screen(b, linear_rig(b), duration, settle, tracker_params=tracker_params)
+        say(f"screening frequencies, mounting points and spin axes (linearised rig{where}) ...")
+        avoid = resonances(mf)
+        freqs = [f for f in np.geomspace(frequencies[0], frequencies[1], 30)
+                 if np.all(np.abs(f / avoid - 1) >= mode_margin)]
+        if not freqs:
+            raise PlanError(f"no exciter frequency in {frequencies[0]:g}–{frequencies[1]:g} Hz is {100 * mode_margin:.0f} % "
+                            f"away from the rig's modes{where} ({', '.join(f'{f:.2f}' for f in mf)} Hz), their doubles "
+                            "and their pairwise sums")
+        pts = [np.asarray(p, float) for p in (positions if positions else candidate_positions(b.rig))]
+        screened: list[Candidate] = []
+        for f in freqs:
+            X = scr.responses(f)
+            band = scr.band(f, rf)
+            dens = scr.noise_density(band)
+            for p in pts:
+                for ax in ("x", "y", "z"):
+                    for sense in (1, -1):
+                        amp, lim, rot, tmin, pred = scr.candidate(X, p, SPIN_AXES[ax], limits, dens, band,
+                                                                  direction=sense)
+                        if pred is None or not np.all(np.isfinite(pred.std)):
+                            continue
+                        screened.append(Candidate(Run(float(f), float(amp), tuple(float(x) for x in p), ax, duration,
+                                                      direction=sense), pred, lim, False, float(rot), float(tmin),
+                                                  geometry=label, body=b))
+        screened.sort(key=lambda c: c.prediction.worst(ref_screen))
+        singles = [x for x in (simulate_short(c, "a candidate run", rf) for c in _distinct(screened, refine))
+                   if x is not None]
+        return screened, singles, rf
+
+    def simulate_short(c: Candidate, what: str, rf) -> Candidate | None:
+        key = (c.geometry, c.run.frequency, c.run.position, c.run.spin_axis, c.run.direction)
         if key not in done:
-            say(f"simulating {what}: {c.run.frequency:.2f} Hz, {c.run.amplitude:.0f} N, spin axis "
+            where = "" if c.geometry is None else f" ({c.geometry})"
+            say(f"simulating {what}{where}: {c.run.frequency:.2f} Hz, {c.run.amplitude:.0f} N, spin axis "
                 f"{c.run.spin_axis}, at {np.round(c.run.position, 2).tolist()} m ({short:.0f} s) ...")
-            cs = _fit_amplitude(body, replace(c.run, duration=short), limits, settle, tracker_params, c.limit,
-                                rot_f=rot_f)
+            cs = _fit_amplitude(c.body, replace(c.run, duration=short), limits, settle, tracker_params, c.limit,
+                                rot_f=rf)
             if cs is not None:
                 cs.prediction = cs.prediction.scaled((duration - settle) / cs.prediction.duration)
+                cs.geometry, cs.body = c.geometry, c.body
             done[key] = cs
         return done[key]
 
     def worst(*cs: Candidate) -> float:
         return combine([c.prediction for c in cs]).worst(ref_sim)
 
-    singles = [x for x in (simulate_short(c, "a candidate run") for c in _distinct(screened, refine)) if x is not None]
+    screened, singles, _ = search(body, None, screen)
+    if not screened:
+        raise PlanError("no candidate run moves the body measurably")
     if not singles:
         raise PlanError("every screened candidate broke a limit in simulation (cable slack, rotation, growing "
                         "swing): lower --max-force or change the frequency range")
     singles.sort(key=worst)
-    chosen = [singles[0]]
+    full: dict = {}
+
+    def simulate_full(c: Candidate, what: str) -> Candidate | None:
+        """``c`` simulated over the whole ``duration``, its amplitude brought to the limits
+        again (a run can break a limit late: beats, slow growth).  None if it cannot."""
+        key = (c.geometry, c.run.frequency, c.run.position, c.run.spin_axis, c.run.direction)
+        if key not in full:
+            if short >= duration:   # already simulated in full
+                full[key] = c
+                return c
+            where = "" if c.geometry is None else f" on cable geometry {c.geometry!r}"
+            say(f"simulating {what}{where} in full ({c.run.frequency:.2f} Hz, {duration:.0f} s) ...")
+            rf = rot_f if c.geometry is None else [
+                m.frequency for m in natural_modes(c.body.rig, body.mass, rig.require_cg(), body.inertia,
+                                                   body.stiffness) if m.energy[3:].sum() > 0.3]
+            cf = _fit_amplitude(c.body, replace(c.run, duration=duration), limits, settle, tracker_params, c.limit,
+                                rot_f=rf)
+            if cf is not None:
+                cf.geometry, cf.body = c.geometry, c.body
+            full[key] = cf
+        return full[key]
+
+    # --- the best single run, confirmed in full (falling back on the next if it breaks a limit late)
+    first = None
+    for n_c, c in enumerate(singles):
+        first = simulate_full(c, "the best run" if n_c == 0 else "the next candidate")
+        if first is not None:
+            break
+    if first is None:
+        raise PlanError(f"every candidate run broke a limit over {duration:.0f} s in simulation (cable slack, "
+                        "rotation, growing swing); lower --max-force or change the frequency range")
+    chosen = [first]
     notes = []
     if max_runs >= 2:
         sims2 = []
         for a, b in _best_pairs(screened, max(2, refine // 2), ref_screen):
-            sa, sb = simulate_short(a, "a pair, first run"), simulate_short(b, "a pair, second run")
+            sa, sb = simulate_short(a, "a pair, first run", rot_f), simulate_short(b, "a pair, second run", rot_f)
             if sa is not None and sb is not None:
                 sims2.append((sa, sb))
         sims2 += [(x, y) for k, x in enumerate(singles) for y in singles[k + 1:]]
-        repeat = worst(singles[0]) / math.sqrt(2)
-        a, b = min(sims2, key=lambda ab: worst(*ab)) if sims2 else (singles[0], singles[0])
-        if worst(a, b) < repeat:
-            chosen = [a, b]
-            notes.append(f"two complementary runs: worst entry σ/reference {worst(a, b):.3g}, against {repeat:.3g} "
-                         f"for the best run done twice and {worst(singles[0]):.3g} for it alone")
+        for label, grig in (geometries or []):
+            if len(grig.cables) != len(rig.cables):
+                notes.append(f"cable geometry {label!r} not usable: {len(grig.cables)} cables, the rig has "
+                             f"{len(rig.cables)}")
+                continue
+            try:
+                gb = replace(body, rig=replace(grig, mass=body.mass, center_of_gravity=rig.require_cg()))
+                _, gs, _ = search(gb, label)
+            except (PlanError, SimulationError) as e:
+                notes.append(f"cable geometry {label!r} not usable: {e}")
+                continue
+            if not gs:
+                notes.append(f"cable geometry {label!r}: every candidate run broke a limit in simulation")
+            sims2 += [(singles[0], y) for y in gs]
+        # the short runs' predictions, scaled to the full length, only rank the pairs (beats and
+        # start-up weigh differently in 30 s): the best few that promise to beat the best run done
+        # twice are simulated in full and compared in full
+        repeat_short = worst(singles[0]) / math.sqrt(2)
+        promising = [ab for ab in sorted(sims2, key=lambda ab: worst(*ab)) if worst(*ab) < repeat_short][:3]
+        repeat = worst(first) / math.sqrt(2)
+        best, best_val = None, repeat
+        for a, b in promising:
+            fa, fb = simulate_full(a, "a pair's first run"), simulate_full(b, "a pair's second run")
+            if fa is not None and fb is not None and worst(fa, fb) < best_val:
+                best, best_val = (fa, fb), worst(fa, fb)
+        if best is not None:
+            chosen = list(best)
+            other = "" if best[1].geometry is None else f" (the second on cable geometry {best[1].geometry!r})"
+            notes.append(f"two complementary runs{other}: worst entry σ/reference {best_val:.3g}, against "
+                         f"{repeat:.3g} for the best run done twice and {worst(first):.3g} for it alone")
         else:
-            chosen = [singles[0], singles[0]]
+            chosen = [first, first]
             notes.append(f"no other run complements the best one better than itself: do it twice (every σ / √2; "
-                         f"worst entry σ/reference {repeat:.3g} against {worst(singles[0]):.3g} for one run)")
-    # --- full-length confirmation, falling back on the next candidates if a run breaks a limit late
-    final = []
-    pool = [c for c in singles if c not in chosen]
-    for n_c, c in enumerate(chosen):
-        if n_c > 0 and c is chosen[0]:   # the same run again
-            final.append(final[0])
-            continue
-        for alt in [c] + pool:
-            if short >= duration:   # already simulated in full
-                cf = alt
-                break
-            say(f"simulating {'the recommended run' if alt is c else 'the next candidate'} in full "
-                f"({alt.run.frequency:.2f} Hz, {duration:.0f} s) ...")
-            cf = _fit_amplitude(body, replace(alt.run, duration=duration), limits, settle, tracker_params, alt.limit,
-                                rot_f=rot_f)
-            if cf is not None:
-                if alt is not c:
-                    pool.remove(alt)
-                break
-        if cf is None:
-            raise PlanError(f"every candidate run broke a limit over {duration:.0f} s in simulation (cable slack, "
-                            "rotation, growing swing); lower --max-force or change the frequency range")
-        final.append(cf)
-    return Plan(final, combine([c.prediction for c in final]), base, modes, limits, notes)
+                         f"worst entry σ/reference {repeat:.3g} against {worst(first):.3g} for one run)")
+    return Plan(chosen, combine([c.prediction for c in chosen]), base, modes, limits, notes)
+
+
+def geometry_variants(body: Body, shift: float = 1.0) -> list[tuple[str, Rig]]:
+    """Other cable geometries for a second run: the ceiling anchors moved ``shift`` m
+    farther apart (and, where they stay more than 0.2 m outside the body anchors, closer
+    together) along world x, and along world y — each anchor away from (toward) the
+    anchors' mid-point on that axis — with every cable length re-set to the anchors'
+    distance at the rig's own equilibrium pose (cables of the same material: the
+    stiffness is kept).  The body settles near that pose: the new cable directions
+    balance its weight at a slightly different one (on the thesis rig within 5 cm and
+    3°).  A variant whose cables would lean inward is left out.  Returns [(label, Rig)]."""
+    from .simulator import CableModel, equilibrium
+    rig = body.rig
+    cm = CableModel.spring(rig, body.mass, stiffness=body.stiffness)
+    pos, R0, _ = equilibrium(rig, body.mass, rig.require_cg(), cm)
+    B = pos + R0.apply(rig.body_anchors)                     # body anchors in world at equilibrium
+    A = np.asarray(rig.ceiling_anchors, float)
+    out = []
+    for ax, name in ((0, "x"), (1, "y")):
+        mid = 0.5 * (A[:, ax].min() + A[:, ax].max())
+        side = np.sign(A[:, ax] - mid)
+        for sense, word in ((1, "farther apart"), (-1, "closer together")):
+            A2 = A.copy()
+            A2[:, ax] += sense * shift * side
+            if sense < 0 and np.any(side * (A2[:, ax] - B[:, ax]) < 0.2):
+                continue        # the cables would lean inward: another rig, not a variant
+            L = np.linalg.norm(A2 - B, axis=1)
+            cables = tuple(replace(c, ceiling_anchor=a, length=float(l)) for c, a, l in zip(rig.cables, A2, L))
+            out.append((f"ceiling anchors {shift:g} m {word} along world {name}", replace(rig, cables=cables)))
+    return out
 
 
 def _best_pairs(cands: list[Candidate], n: int, ref: np.ndarray) -> list[tuple[Candidate, Candidate]]:

@@ -94,6 +94,8 @@ def test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation():
 
 
 @pytest.mark.parametrize("args, words", [
+    (["--inertia", "2894", "695", "3101", "0", "0", "-102", "--runs", "1", "--vary-geometry", "1"], "--runs 2"),
+    (["--inertia", "2894", "695", "3101", "0", "0", "-102", "--geometry", "no_such_rig.yaml"], "no_such_rig.yaml"),
     (["--inertia", "100", "100", "300", "0", "0", "0"], "physically consistent"),
     (["--inertia", "2894", "695", "3101", "0", "0", "-102", "--mass", "-5"], "--mass"),
 ])
@@ -102,3 +104,65 @@ def test_plan_cli_user_errors(args, words):
                        capture_output=True, text=True, timeout=120, cwd=REPO)
     assert p.returncode == 2
     assert words in p.stderr and "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
+
+
+def _default_body():
+    from rig_identification.planning import REFERENCE_RATES, Body
+    exp = load_experiment(DEFAULT)
+    return Body(exp.rig, exp.mass, exp.inertia, np.full(len(exp.rig.cables), 5e6), dict(REFERENCE_RATES),
+                dict(REFERENCE_NOISE))
+
+
+def test_geometry_variants_hang_the_body_where_the_rig_does():
+    """Each cable-geometry variant moves the ceiling anchors 1 m along one world axis and
+    re-sets the lengths to the rig's equilibrium pose: the body settles near it (within
+    5 cm and 3°: the new cable directions balance the weight at a nearby pose), every cable
+    taut, and the modes change."""
+    from rig_identification.planning import geometry_variants
+    from rig_identification.simulator import CableModel, equilibrium
+    body = _default_body()
+    rig = body.rig
+    cg = rig.require_cg()
+    p0, R0, T0 = equilibrium(rig, body.mass, cg, CableModel.spring(rig, body.mass, stiffness=body.stiffness))
+    f0 = [m.frequency for m in natural_modes(rig, body.mass, cg, body.inertia, body.stiffness)]
+    variants = geometry_variants(body, 1.0)
+    assert len(variants) >= 2
+    for label, vr in variants:
+        moved = np.abs(vr.ceiling_anchors - rig.ceiling_anchors)
+        ax = 0 if "world x" in label else 1
+        assert np.allclose(moved[:, ax], 1.0) and np.allclose(np.delete(moved, ax, axis=1), 0.0), label
+        p, R, T = equilibrium(vr, body.mass, cg, CableModel.spring(vr, body.mass, stiffness=body.stiffness))
+        assert np.linalg.norm(p - p0) < 0.05, (label, p - p0)
+        assert np.degrees(np.linalg.norm((R * R0.inv()).as_rotvec())) < 3.0, label
+        assert np.all(T > 0.1 * body.mass * rig.gravity / len(T)), (label, T)
+        f = [m.frequency for m in natural_modes(vr, body.mass, cg, body.inertia, body.stiffness)]
+        assert max(abs(a / b - 1) for a, b in zip(f[:3], f0[:3])) > 0.02, (label, f, f0)
+
+
+def test_second_run_on_another_cable_geometry_stays_within_the_limits():
+    """plan_experiment with one other cable geometry (ceiling anchors 1 m farther apart in
+    y; a narrowed search, 30 s runs): a run planned on that geometry, simulated there,
+    keeps every cable above 20 % of its static tension and the rotation below 3°, and the
+    joint prediction is no worse than the rig's best run done twice."""
+    from dataclasses import replace
+    from rig_identification.planning import Run, combine, geometry_variants, plan_experiment
+    body = _default_body()
+    rig = body.rig
+    label, vr = next((lab, r) for lab, r in geometry_variants(body, 1.0) if "farther apart along world y" in lab)
+    base = Run(1.05, 200.0, tuple(rig.exciter.position), "z", 30.0, 2.0, tuple(rig.exciter.rpy))
+    kw = dict(duration=30.0, refine=1, frequencies=(1.3, 1.6), positions=[(0.8, 1.25, 1.29), (0.8, -1.25, -0.46)])
+    plan = plan_experiment(body, base, geometries=[(label, vr)], **kw)
+    on_geo = [c for c in plan.runs if c.geometry is not None]
+    if on_geo:
+        c = on_geo[0]
+        assert c.body.rig is not rig and c.geometry == label
+        sim = simulate(c.body.experiment(replace(c.run, duration=30.0)))
+        T = sim.states.tensions
+        assert np.min(T / T[0][None, :]) >= 0.2 * 0.999
+        rot = sim.states.rotation
+        assert np.degrees(np.max(np.linalg.norm((rot * rot[0].inv()).as_rotvec(), axis=1))) <= 3.0 * 1.001
+        d = c.to_dict()["cable_geometry"]
+        assert d["label"] == label and [x["length"] for x in d["cables"]] == list(vr.cable_lengths)
+    best = plan_experiment(body, base, max_runs=1, **kw).runs[0]
+    twice = combine([best.prediction, best.prediction]).worst(plan.baseline.prediction.std)
+    assert plan.prediction.worst(plan.baseline.prediction.std) <= twice * 1.001
