@@ -101,6 +101,10 @@ class Prediction:
     per body axis.  axis_bread (3,6,6), axis_meats {source: (3,3,6,6)}, white_bread and
     white_meat (6,6) keep the per-axis pieces of the sandwich so that runs can be combined
     (:func:`combine`) with pooled weights: bread = Σ_a w_a B_a, meat = Σ_ab w_a w_b M_ab.
+    gyro_sensitivity (K,3,6), only when asked for (:func:`predict_from_trajectory`): the
+    linearised estimate error per gyro noise sample, ``δj ≈ Σ_n,d S[n,d] ν[n,d]`` for gyro
+    noise ν (K,3) rad/s in IMU axes at the trajectory's samples — lets a Monte Carlo
+    evaluate the first-order model on its own noise draws (a control variate).
     """
 
     inertia: np.ndarray
@@ -119,6 +123,7 @@ class Prediction:
     white_bread: np.ndarray
     white_meat: np.ndarray
     runs: int = 1
+    gyro_sensitivity: np.ndarray | None = None
 
     @staticmethod
     def assemble(inertia, axis_bread, axis_meats, white_bread, white_meat, residual_var, band_hz, duration,
@@ -509,14 +514,16 @@ def _adapts_compliance(rig: Rig, tracker_params: dict | None) -> bool:
 
 def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle: float = 5.0,
                             band_hz: tuple[float, float] | None = None, tracker_params: dict | None = None,
-                            seed: int = 0) -> Prediction:
+                            seed: int = 0, gyro_sensitivity: bool = False) -> Prediction:
     """Predicted σ of the identified tensor for the run ``traj`` (see module docstring).
 
     noise: σ per source (keys of :data:`REFERENCE_NOISE`; default the reference levels),
     at ``traj.rates``.  settle: s skipped at the start, as
     :func:`~.pipeline.identify_recording`.  band_hz: the fit's pass band (default: what
     :func:`~.identification.auto_band` picks on the gyro with this noise, seeded by
-    ``seed``).  Raises :class:`PlanError` when the body hardly moves.
+    ``seed``).  gyro_sensitivity: also return the per-sample linear map from the gyro
+    noise to the estimate error (``Prediction.gyro_sensitivity``).  Raises
+    :class:`PlanError` when the body hardly moves.
     """
     noise = dict(REFERENCE_NOISE if noise is None else noise)
     rig, t = traj.rig, traj.t
@@ -622,8 +629,12 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
     axis_bread = np.einsum("nai,naj->aij", A3, A3)
     A = A3.reshape(-1, 6)
     FA = seg.filt(A3.reshape(Nw, -1)).reshape(-1, 6)
-    return Prediction.assemble(J, axis_bread, axis_meats, A.T @ A, noise["gyro"] ** 2 * FA.T @ FA, resid_var,
+    pred = Prediction.assemble(J, axis_bread, axis_meats, A.T @ A, noise["gyro"] ** 2 * FA.T @ FA, resid_var,
                                seg.band, float(duration), Nw, np.sqrt(np.mean(seg.y**2, axis=0)))
+    if gyro_sensitivity:   # δj = B⁻¹ Σ_a w_a Γ_aᵀ ν, the same pieces as the sandwich
+        Bi = np.linalg.inv(np.einsum("a,aij->ij", pred.weights, axis_bread))
+        pred.gyro_sensitivity = np.einsum("kl,ndl->ndk", Bi, np.einsum("a,ndak->ndk", pred.weights, Gam[:, :3]))
+    return pred
 
 
 def predict_experiment(exp, noise: dict | None = None, settle: float = 5.0, band_hz=None,
