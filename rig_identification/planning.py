@@ -50,7 +50,10 @@ and the swing from growing.  Frequencies near a mode, its double or a sum of two
 skipped (:func:`resonances`).  A single steady harmonic cannot determine all six entries
 (the body's angular velocity then stays in one plane: the moment of inertia about its normal
 is seen only through the start-up transients), so a second run — complementary, or the same
-again — is added when allowed.  Objective: ``"baseline"`` (the least-improved entry as much
+again — is added when allowed; it may also use another cable geometry (``geometries``: the
+lab's own, or :func:`geometry_variants`, the ceiling anchors moved), which changes the modes
+and so the directions the rig moves in.  Pairs are ranked on short simulations and the best
+few confirmed by full-length ones before one is chosen.  Objective: ``"baseline"`` (the least-improved entry as much
 better than a baseline run as possible) or ``"relative"`` (the largest σ relative to the
 entry: diagonals to themselves, products to the largest diagonal).
 """
@@ -916,6 +919,7 @@ class Plan:
     modes: list
     limits: dict
     notes: list[str] = field(default_factory=list)
+    other_geometries: list = field(default_factory=list)   # per other cable geometry: its best second run
 
     def improvement(self) -> np.ndarray:
         """(6,) baseline σ / plan σ per entry."""
@@ -927,7 +931,8 @@ class Plan:
                 "prediction": self.prediction.to_dict(),
                 "baseline": self.baseline.to_dict(),
                 "improvement": {k: float(v) for k, v in zip(KEYS, self.improvement())},
-                "limits": dict(self.limits), "notes": list(self.notes)}
+                "limits": dict(self.limits), "notes": list(self.notes),
+                "other_geometries": [c.to_dict() for c in self.other_geometries]}
 
 
 def candidate_positions(rig: Rig) -> list[np.ndarray]:
@@ -1084,10 +1089,11 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
         ref_screen = ref_sim = base.prediction.scale
     done: dict = {}
 
-    def search(b: Body, label: str | None, scr: _Screen | None = None):
+    def search(b: Body, label: str | None, scr: _Screen | None = None, partner: Candidate | None = None):
         """Screen frequencies, mounting points and spin axes on the body ``b`` (cable
         geometry ``label``; None: the rig's own), then simulate the best distinct
-        ``refine`` of them (``short`` s, amplitude brought to the limits).  Returns
+        ``refine`` of them (``short`` s, amplitude brought to the limits): best alone and,
+        with ``partner`` given, also best together with that run (a second run).  Returns
         (screened, simulated singles, rot_f)."""
         where = "" if label is None else f" ({label})"
         ms = modes if label is None else natural_modes(b.rig, b.mass, b.rig.require_cg(), b.inertia, b.stiffness)
@@ -1119,8 +1125,11 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
                                                       direction=sense), pred, lim, False, float(rot), float(tmin),
                                                   geometry=label, body=b))
         screened.sort(key=lambda c: c.prediction.worst(ref_screen))
-        singles = [x for x in (simulate_short(c, "a candidate run", rf) for c in _distinct(screened, refine))
-                   if x is not None]
+        picks = _distinct(screened, refine)
+        if partner is not None:   # a ranking only: the partner's prediction is simulated, the candidates' screened
+            together = sorted(screened, key=lambda c: combine([partner.prediction, c.prediction]).worst(ref_sim))
+            picks += [c for c in _distinct(together, refine) if all(not _same(c, o) for o in picks)]
+        singles = [x for x in (simulate_short(c, "a candidate run", rf) for c in picks) if x is not None]
         return screened, singles, rf
 
     def simulate_short(c: Candidate, what: str, rf) -> Candidate | None:
@@ -1179,7 +1188,8 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
         raise PlanError(f"every candidate run broke a limit over {duration:.0f} s in simulation (cable slack, "
                         "rotation, growing swing); lower --max-force or change the frequency range")
     chosen = [first]
-    notes = []
+    notes: list[str] = []
+    others: list[Candidate] = []
     if max_runs >= 2:
         sims2 = []
         for a, b in _best_pairs(screened, max(2, refine // 2), ref_screen):
@@ -1187,6 +1197,7 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
             if sa is not None and sb is not None:
                 sims2.append((sa, sb))
         sims2 += [(x, y) for k, x in enumerate(singles) for y in singles[k + 1:]]
+        g_best: dict = {}
         for label, grig in (geometries or []):
             if len(grig.cables) != len(rig.cables):
                 notes.append(f"cable geometry {label!r} not usable: {len(grig.cables)} cables, the rig has "
@@ -1194,13 +1205,15 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
                 continue
             try:
                 gb = replace(body, rig=replace(grig, mass=body.mass, center_of_gravity=rig.require_cg()))
-                _, gs, _ = search(gb, label)
+                _, gs, _ = search(gb, label, partner=singles[0])
             except (PlanError, SimulationError) as e:
                 notes.append(f"cable geometry {label!r} not usable: {e}")
                 continue
             if not gs:
                 notes.append(f"cable geometry {label!r}: every candidate run broke a limit in simulation")
             sims2 += [(singles[0], y) for y in gs]
+            if gs:
+                g_best[label] = min(gs, key=lambda y: worst(singles[0], y))
         # the short runs' predictions, scaled to the full length, only rank the pairs (beats and
         # start-up weigh differently in 30 s): the best few that promise to beat the best run done
         # twice are simulated in full and compared in full
@@ -1221,7 +1234,14 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
             chosen = [first, first]
             notes.append(f"no other run complements the best one better than itself: do it twice (every σ / √2; "
                          f"worst entry σ/reference {repeat:.3g} against {worst(first):.3g} for one run)")
-    return Plan(chosen, combine([c.prediction for c in chosen]), base, modes, limits, notes)
+        for label, y in g_best.items():   # what each other geometry offered (full-length where simulated so)
+            yf = full.get((y.geometry, y.run.frequency, y.run.position, y.run.spin_axis, y.run.direction))
+            others.append(yf if yf is not None else y)
+            notes.append(f"cable geometry {label!r}: its best second run, {others[-1].run.amplitude:.0f} N at "
+                         f"{others[-1].run.frequency:.2f} Hz, gives worst entry σ/reference "
+                         f"{worst(first, others[-1]):.3g} with the best run "
+                         f"({'full-length' if yf is not None else 'short'} simulation)")
+    return Plan(chosen, combine([c.prediction for c in chosen]), base, modes, limits, notes, others)
 
 
 def geometry_variants(body: Body, shift: float = 1.0) -> list[tuple[str, Rig]]:

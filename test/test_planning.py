@@ -151,9 +151,10 @@ def test_geometry_variants_hang_the_body_where_the_rig_does():
 
 def test_second_run_on_another_cable_geometry_stays_within_the_limits():
     """plan_experiment with one other cable geometry (ceiling anchors 1 m farther apart in
-    y; a narrowed search, 30 s runs): a run planned on that geometry, simulated there,
-    keeps every cable above 20 % of its static tension and the rotation below 3°, and the
-    joint prediction is no worse than the rig's best run done twice."""
+    y; a narrowed search, 30 s runs) searches it for the second run: its best second run
+    there, simulated again on that geometry, keeps every cable above 20 % of its static
+    tension and the rotation below 3° as the plan says (on the rig's own cables it would
+    not behave the same); the plan is chosen between it and the best run done twice."""
     from dataclasses import replace
     from rig_identification.planning import Run, combine, geometry_variants, plan_experiment
     body = _default_body()
@@ -162,17 +163,25 @@ def test_second_run_on_another_cable_geometry_stays_within_the_limits():
     base = Run(1.05, 200.0, tuple(rig.exciter.position), "z", 30.0, 2.0, tuple(rig.exciter.rpy))
     kw = dict(duration=30.0, refine=1, frequencies=(1.3, 1.6), positions=[(0.8, 1.25, 1.29), (0.8, -1.25, -0.46)])
     plan = plan_experiment(body, base, geometries=[(label, vr)], **kw)
-    on_geo = [c for c in plan.runs if c.geometry is not None]
-    if on_geo:
-        c = on_geo[0]
-        assert c.body.rig is not rig and c.geometry == label
-        sim = simulate(c.body.experiment(replace(c.run, duration=30.0)))
+    assert len(plan.other_geometries) == 1
+    c = plan.other_geometries[0]
+    assert c.geometry == label and c.body.rig.cables is vr.cables
+
+    def limits(b):
+        sim = simulate(b.experiment(replace(c.run, duration=30.0)))
         T = sim.states.tensions
-        assert np.min(T / T[0][None, :]) >= 0.2 * 0.999
         rot = sim.states.rotation
-        assert np.degrees(np.max(np.linalg.norm((rot * rot[0].inv()).as_rotvec(), axis=1))) <= 3.0 * 1.001
-        d = c.to_dict()["cable_geometry"]
-        assert d["label"] == label and [x["length"] for x in d["cables"]] == list(vr.cable_lengths)
-    best = plan_experiment(body, base, max_runs=1, **kw).runs[0]
-    twice = combine([best.prediction, best.prediction]).worst(plan.baseline.prediction.std)
-    assert plan.prediction.worst(plan.baseline.prediction.std) <= twice * 1.001
+        return (float(np.min(T / T[0][None, :])),
+                float(np.degrees(np.max(np.linalg.norm((rot * rot[0].inv()).as_rotvec(), axis=1)))))
+
+    tmin, peak = limits(c.body)
+    assert tmin == pytest.approx(c.min_tension_ratio, abs=1e-6) and peak == pytest.approx(c.peak_rotation_deg, abs=1e-6)
+    assert tmin >= 0.2 * 0.999 and peak <= 3.0 * 1.001
+    assert limits(body) != pytest.approx((tmin, peak), rel=0.02)   # the geometry matters
+    d = c.to_dict()["cable_geometry"]
+    assert d["label"] == label and [x["length"] for x in d["cables"]] == list(vr.cable_lengths)
+    first = plan.runs[0]
+    best = min([combine([first.prediction, first.prediction]), combine([first.prediction, c.prediction])],
+               key=lambda p: p.worst(plan.baseline.prediction.std))
+    assert plan.prediction.worst(plan.baseline.prediction.std) == pytest.approx(
+        best.worst(plan.baseline.prediction.std), rel=1e-9)
