@@ -32,9 +32,10 @@ applied through their transposes, so that ``Cov δj = B⁻¹ (Σ_c σ_c² Γ_c�
 online cable compliance (rig.yaml without stiffness) enters as one more linear functional
 of the noise (its estimate lengthens every constraint by T(t)·δc).  Realisation by
 realisation this linear model reproduces the pipeline's residual (correlation 0.995) and
-estimate errors (0.99+); on thesis cases 10–16 its σ match the spread of 30 Monte Carlo
-replays within their sampling noise, where the white-gyro bound alone is off by −40 … +140 %
-(``bench/bench_plan.py``).  Second-order effects (errors in the integrated torque acting as
+estimate errors (0.99+); on thesis cases 10–17 its σ match the spread of 60 Monte Carlo
+replays per case within ±20 % on 46 of 48 entries (median ratio 1.00; the pitch inertia Iyy is
+predicted 10–25 % conservative on some cases), where the white-gyro bound alone is off by
+−23 … +130 % (``bench/bench_plan.py``).  Second-order effects (errors in the integrated torque acting as
 errors in variables) bias weakly excited runs slightly; they are not modelled.
 
 Design
