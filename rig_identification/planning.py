@@ -1236,12 +1236,14 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
             notes.append(f"no other run complements the best one better than itself: do it twice (every σ / √2; "
                          f"worst entry σ/reference {repeat:.3g} against {worst(first):.3g} for one run)")
         for label, y in g_best.items():   # what each other geometry offered (full-length where simulated so)
-            yf = full.get((y.geometry, y.run.frequency, y.run.position, y.run.spin_axis, y.run.direction))
+            key = (y.geometry, y.run.frequency, y.run.position, y.run.spin_axis, y.run.direction)
+            yf = full.get(key)
             others.append(yf if yf is not None else y)
+            how = ("full-length simulation" if yf is not None else
+                   "short simulation; it broke a limit over the full length" if key in full else "short simulation")
             notes.append(f"cable geometry {label!r}: its best second run, {others[-1].run.amplitude:.0f} N at "
                          f"{others[-1].run.frequency:.2f} Hz, gives worst entry σ/reference "
-                         f"{worst(first, others[-1]):.3g} with the best run "
-                         f"({'full-length' if yf is not None else 'short'} simulation)")
+                         f"{worst(first, others[-1]):.3g} with the best run ({how})")
     return Plan(chosen, combine([c.prediction for c in chosen]), base, modes, limits, notes, others)
 
 
