@@ -270,3 +270,25 @@ def test_recording_round_trip_keeps_every_message(tmp_path):
     assert counts == expected
     assert meta["message_count"] == sum(expected.values())
     assert not any(p.name.startswith(".") for p in tmp_path.iterdir())  # no temporary folder left
+
+
+def test_a_node_that_hangs_at_shutdown_still_stops():
+    """nodes.common.shutdown_watchdog: once rclpy's context is shut down (Ctrl-C), a process
+    whose clean-up hangs ends after the grace period with status 0, and says why on stderr
+    with every thread's stack (where it hung)."""
+    import subprocess
+    import sys
+    code = ("import time, rclpy\n"
+            "from rig_identification.nodes import common\n"
+            "rclpy.init()\n"
+            "common.shutdown_watchdog('hanging', grace=0.5)\n"
+            "rclpy.shutdown()\n"
+            "def stuck_in_cleanup():\n"
+            "    time.sleep(60)\n"
+            "stuck_in_cleanup()\n")
+    t0 = time.monotonic()
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=50)
+    assert p.returncode == 0, p.stderr
+    assert time.monotonic() - t0 < 30
+    assert "hanging: shutdown did not finish within 0.5 s" in p.stderr
+    assert "stuck_in_cleanup" in p.stderr   # the stack of the hung thread

@@ -518,6 +518,7 @@ def main(argv=None) -> int:
     argv = common.handle_help(argv, "identifier", __doc__)
     common.dds_profile()
     rclpy.init(args=argv)
+    common.shutdown_watchdog("identifier")
     node = None
     try:
         try:
