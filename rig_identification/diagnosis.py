@@ -466,8 +466,8 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
         tensor parameters th, with the linear parameters solved."""
         key = th.tobytes()
         if key not in cache:
-            j, dj, _, _ = unpack(np.r_[th, np.zeros(nlin)])
             x, U = np.r_[th, np.zeros(nlin)], None
+            j, dj, _, _ = unpack(x)
             if nlin:
                 P = np.linalg.inv(to_tensor(j))
                 A = lin_jac(j, P)
@@ -493,8 +493,7 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
     th0 = params_from_consistent(to_tensor(j0))
     sol = least_squares(fun_vp, th0, jac=jac_vp, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10,
                         max_nfev=200)
-    sol.x = full(sol.x)[0]
-    sol.fun = fun(sol.x)
+    sol.x, sol.fun = full(sol.x)[:2]
     j, dj, beta, kappa = unpack(sol.x)
     r, a, dg, da, dm, P, yhat, u = model.residuals(j, kappa, beta, cols, prepared)
     # covariance of (tensor entries, beta, kappa): sandwich with batch means over time blocks

@@ -1071,7 +1071,8 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
               "frequency_range_hz": list(frequencies), "mode_margin": mode_margin, "objective": objective}
     rig = body.rig
     modes = natural_modes(rig, body.mass, rig.require_cg(), body.inertia, body.stiffness)
-    rot_f = [m.frequency for m in modes if m.energy[3:].sum() > 0.3]
+    rot_f = _rotational(modes)
+    rot_fs = {None: rot_f}   # per cable geometry: its rotational modes (Hz), for the identification band
     screen = _Screen(body, linear_rig(body), duration, settle, tracker_params=tracker_params)
     # --- the baseline, simulated in full and screened (each stage compares like with like)
     say(f"simulating the baseline ({baseline.amplitude:.0f} N at {baseline.frequency:.2f} Hz, {duration:.0f} s) ...")
@@ -1095,11 +1096,11 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
         geometry ``label``; None: the rig's own), then simulate the best distinct
         ``refine`` of them (``short`` s, amplitude brought to the limits): best alone and,
         with ``partner`` given, also best together with that run (a second run).  Returns
-        (screened, simulated singles, rot_f)."""
+        (screened, simulated singles)."""
         where = "" if label is None else f" ({label})"
         ms = modes if label is None else natural_modes(b.rig, b.mass, b.rig.require_cg(), b.inertia, b.stiffness)
         mf = np.array([m.frequency for m in ms])
-        rf = [m.frequency for m in ms if m.energy[3:].sum() > 0.3]
+        rf = rot_fs.setdefault(label, _rotational(ms))
         scr = scr or _Screen(b, linear_rig(b), duration, settle, tracker_params=tracker_params)
         say(f"screening frequencies, mounting points and spin axes (linearised rig{where}) ...")
         avoid = resonances(mf)
@@ -1130,17 +1131,17 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
         if partner is not None:   # a ranking only: the partner's prediction is simulated, the candidates' screened
             together = sorted(screened, key=lambda c: combine([partner.prediction, c.prediction]).worst(ref_sim))
             picks += [c for c in _distinct(together, refine) if all(not _same(c, o) for o in picks)]
-        singles = [x for x in (simulate_short(c, "a candidate run", rf) for c in picks) if x is not None]
-        return screened, singles, rf
+        singles = [x for x in (simulate_short(c, "a candidate run") for c in picks) if x is not None]
+        return screened, singles
 
-    def simulate_short(c: Candidate, what: str, rf) -> Candidate | None:
-        key = (c.geometry, c.run.frequency, c.run.position, c.run.spin_axis, c.run.direction)
+    def simulate_short(c: Candidate, what: str) -> Candidate | None:
+        key = _run_key(c)
         if key not in done:
             where = "" if c.geometry is None else f" ({c.geometry})"
             say(f"simulating {what}{where}: {c.run.frequency:.2f} Hz, {c.run.amplitude:.0f} N, spin axis "
                 f"{c.run.spin_axis}, at {np.round(c.run.position, 2).tolist()} m ({short:.0f} s) ...")
             cs = _fit_amplitude(c.body, replace(c.run, duration=short), limits, settle, tracker_params, c.limit,
-                                rot_f=rf)
+                                rot_f=rot_fs[c.geometry])
             if cs is not None:
                 cs.prediction = cs.prediction.scaled((duration - settle) / cs.prediction.duration)
                 cs.geometry, cs.body = c.geometry, c.body
@@ -1150,7 +1151,7 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
     def worst(*cs: Candidate) -> float:
         return combine([c.prediction for c in cs]).worst(ref_sim)
 
-    screened, singles, _ = search(body, None, screen)
+    screened, singles = search(body, None, screen)
     if not screened:
         raise PlanError("no candidate run moves the body measurably")
     if not singles:
@@ -1162,18 +1163,15 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
     def simulate_full(c: Candidate, what: str) -> Candidate | None:
         """``c`` simulated over the whole ``duration``, its amplitude brought to the limits
         again (a run can break a limit late: beats, slow growth).  None if it cannot."""
-        key = (c.geometry, c.run.frequency, c.run.position, c.run.spin_axis, c.run.direction)
+        key = _run_key(c)
         if key not in full:
             if short >= duration:   # already simulated in full
                 full[key] = c
                 return c
             where = "" if c.geometry is None else f" on cable geometry {c.geometry!r}"
             say(f"simulating {what}{where} in full ({c.run.frequency:.2f} Hz, {duration:.0f} s) ...")
-            rf = rot_f if c.geometry is None else [
-                m.frequency for m in natural_modes(c.body.rig, body.mass, rig.require_cg(), body.inertia,
-                                                   body.stiffness) if m.energy[3:].sum() > 0.3]
             cf = _fit_amplitude(c.body, replace(c.run, duration=duration), limits, settle, tracker_params, c.limit,
-                                rot_f=rf)
+                                rot_f=rot_fs[c.geometry])
             if cf is not None:
                 cf.geometry, cf.body = c.geometry, c.body
             full[key] = cf
@@ -1194,7 +1192,7 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
     if max_runs >= 2:
         sims2 = []
         for a, b in _best_pairs(screened, max(2, refine // 2), ref_screen):
-            sa, sb = simulate_short(a, "a pair, first run", rot_f), simulate_short(b, "a pair, second run", rot_f)
+            sa, sb = simulate_short(a, "a pair, first run"), simulate_short(b, "a pair, second run")
             if sa is not None and sb is not None:
                 sims2.append((sa, sb))
         sims2 += [(x, y) for k, x in enumerate(singles) for y in singles[k + 1:]]
@@ -1206,7 +1204,7 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
                 continue
             try:
                 gb = replace(body, rig=replace(grig, mass=body.mass, center_of_gravity=rig.require_cg()))
-                _, gs, _ = search(gb, label, partner=singles[0])
+                _, gs = search(gb, label, partner=singles[0])
             except (PlanError, SimulationError) as e:
                 notes.append(f"cable geometry {label!r} not usable: {e}")
                 continue
@@ -1236,7 +1234,7 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
             notes.append(f"no other run complements the best one better than itself: do it twice (every σ / √2; "
                          f"worst entry σ/reference {repeat:.3g} against {worst(first):.3g} for one run)")
         for label, y in g_best.items():   # what each other geometry offered (full-length where simulated so)
-            key = (y.geometry, y.run.frequency, y.run.position, y.run.spin_axis, y.run.direction)
+            key = _run_key(y)
             yf = full.get(key)
             others.append(yf if yf is not None else y)
             how = ("full-length simulation" if yf is not None else
@@ -1275,6 +1273,17 @@ def geometry_variants(body: Body, shift: float = 1.0) -> list[tuple[str, Rig]]:
             cables = tuple(replace(c, ceiling_anchor=a, length=float(l)) for c, a, l in zip(rig.cables, A2, L))
             out.append((f"ceiling anchors {shift:g} m {word} along world {name}", replace(rig, cables=cables)))
     return out
+
+
+def _rotational(modes) -> list[float]:
+    """Frequencies (Hz) of the modes that are mostly rotation (> 30 % of their energy)."""
+    return [m.frequency for m in modes if m.energy[3:].sum() > 0.3]
+
+
+def _run_key(c: Candidate) -> tuple:
+    """What makes a run distinct for the simulation caches: geometry, frequency, mounting
+    point, spin axis and sense (the amplitude is fitted)."""
+    return (c.geometry, c.run.frequency, c.run.position, c.run.spin_axis, c.run.direction)
 
 
 def _best_pairs(cands: list[Candidate], n: int, ref: np.ndarray) -> list[tuple[Candidate, Candidate]]:

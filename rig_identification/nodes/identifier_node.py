@@ -88,7 +88,6 @@ import sys
 import threading
 import time
 
-import rclpy
 from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 
@@ -166,6 +165,11 @@ class IdentifierNode(Node):
         self.service_node = IdentifierServices(self)
         self.get_logger().info(f"ready: rig {rig.source}; services {self.get_fully_qualified_name()}/"
                                "identify_inertia, diagnose, capture_cg_baseline, capture_cg_dummy, estimate_cg, status")
+
+    def close(self) -> None:
+        """Stop and destroy the service node (called by :func:`~.common.run` at shutdown)."""
+        self.service_node.stop()
+        self.service_node.destroy_node()
 
     # --- data --------------------------------------------------------------------------
     def _drain(self) -> None:
@@ -514,29 +518,15 @@ class IdentifierServices(Node):
         return response
 
 
+def _started() -> IdentifierNode:
+    """The node with its service thread running (what ``main`` spins)."""
+    node = IdentifierNode()
+    node.service_node.start()
+    return node
+
+
 def main(argv=None) -> int:
-    argv = common.handle_help(argv, "identifier", __doc__)
-    common.dds_profile()
-    rclpy.init(args=argv)
-    common.shutdown_watchdog("identifier")
-    node = None
-    try:
-        try:
-            node = IdentifierNode()
-        except (ValueError, OSError) as e:
-            print(f"identifier: error: {e}", file=sys.stderr)
-            return 2
-        node.service_node.start()
-        common.spin(node)
-        return 0
-    except KeyboardInterrupt:
-        return 0
-    finally:
-        if node is not None:
-            node.service_node.stop()
-            node.service_node.destroy_node()
-            node.destroy_node()
-        rclpy.try_shutdown()
+    return common.run(_started, argv, "identifier", __doc__)
 
 
 if __name__ == "__main__":
