@@ -63,15 +63,15 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import cumulative_simpson
 from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt, welch
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
 from .effects import EFFECT_NAMES
-from .identification import (KEYS, IdentificationError, auto_band, basis, consistent_from_params, from_tensor,
-                             params_from_consistent, to_tensor)
+from .identification import (KEYS, IdentificationError, auto_band, basis, consistent_from_params, cumulative_integral,
+                             from_tensor,
+                             params_from_consistent, step_indices, to_tensor)
 from .recording import Recording, RecordingError
 
 ALPHA = 0.01          # family-wise false-alarm probability of the selection
@@ -287,6 +287,7 @@ class Model:
         self.n_eff = max(10.0, len(t) * 2 * (self.band[1] - self.band[0]) / fs)
         self.n_eff_group: dict = {}   # per residual group, from the baseline fit (effective_samples)
         self.y = self.filt(w.omega)
+        self.steps = step_indices(w.torque)   # stepped inputs: integrated without interpolation across them
         self.IM = self.integ(w.torque)
         self.G = np.stack([self.integ(np.cross(w.omega, w.omega @ Em.T)) for Em in basis()])
         # angular acceleration from the gyro low-passed at the band's upper edge: the
@@ -316,7 +317,7 @@ class Model:
         return sosfiltfilt(self.sos, x, axis=0)
 
     def integ(self, x):
-        return self.filt(cumulative_simpson(x, x=self.w.t, axis=0, initial=0.0))
+        return self.filt(cumulative_integral(x, self.w.t, self.steps))
 
     # rot residual: y + Σβ O − P (IM − κ G j + Σβ I(D))
     def residuals(self, j, kappa, beta, cols, prepared):

@@ -4,8 +4,9 @@ The thesis's tracker (section 3.4, "Tracker" block) integrated noise-free body
 signals.  Integrating a real gyro drifts (random walk, bias), so this tracker is a
 causal complementary filter that uses everything the rig gives:
 
-* **orientation**: strapdown integration of the gyro (midpoint rule, exact rotation
-  exponential via scipy ``Rotation``) — accurate in the band where the rig moves;
+* **orientation**: strapdown integration of the gyro (third-order Adams–Moulton
+  quadrature of ω over each interval, exact rotation exponential) — accurate in the
+  band where the rig moves;
 * **tilt** (roll, pitch w.r.t. gravity): the inclinometer's two elevations when the
   rig has one, else the accelerometer's gravity direction, blended in with a time
   constant ``tau_tilt``;
@@ -17,6 +18,17 @@ causal complementary filter that uses everything the rig gives:
 Above the crossover frequencies (well below the rig's pendulum modes) the pose
 follows the inertial sensors exactly; below them the absolute references remove the
 drift, so the pose does not wander over long recordings.
+
+Stepped inputs (the thesis's force pulses, cases 1–8): where the specific force jumps
+between two samples — a second difference above ``step_accel`` followed by its opposite
+(:func:`~rig_identification.identification.step_indices`) — the quadratures do not
+interpolate across the jump.  The step is placed at the first
+sample that shows it (zero-order hold: an input switched on the sampling clock, as the
+thesis's 0.01 s Simulink pulses) — the interval before it is integrated from the samples
+before, the interval after it by the trapezoidal rule.  Interpolating across it instead
+puts the step half a sample early, which moved Ixx of thesis case 2 by +0.27 %.  The jump
+is recognised one sample late (it needs the next sample), so the velocity and position
+of that sample are corrected then.
 
 Frames: ``position`` is the world position of the body-frame origin (m); the
 quaternion (x, y, z, w) rotates body axes to world axes; ``omega`` is the angular
@@ -217,12 +229,19 @@ class PoseTracker:
     ``f_position`` Hz (position correction bandwidth), ``init_time`` s, ``tau_bias`` s
     (gyro-bias estimation; ``gyro_bias`` (3,) rad/s body axes is the current estimate),
     ``tau_tilt_accel`` s (tilt from gravity when the rig has no inclinometer: the
-    specific force of a swinging body is vertical only on average, hence the long time).
+    specific force of a swinging body is vertical only on average, hence the long time),
+    ``step_accel`` m/s² (smallest jump of the specific force between two samples treated
+    as a stepped input, see the module docstring; 0.2 m/s² is 20× the reference
+    accelerometer noise σ — 8× that of a second difference, which white noise does not
+    reach).
     """
 
     def __init__(self, rig: Rig, tau_tilt: float = 2.0, tau_yaw: float = 2.0, f_position: float = 0.1,
-                 init_time: float = 0.1, tau_bias: float = 5.0, tau_tilt_accel: float = 30.0):
+                 init_time: float = 0.1, tau_bias: float = 5.0, tau_tilt_accel: float = 30.0,
+                 step_accel: float = 0.2):
         self.rig = rig
+        self.step_accel = float(step_accel)
+        self.steps: list[float] = []  # stamps (s) of the samples where a stepped input was recognised
         self.tau_tilt, self.tau_yaw, self.f_position, self.init_time = tau_tilt, tau_yaw, f_position, init_time
         self.tau_bias, self.tau_tilt_accel = tau_bias, tau_tilt_accel
         self._imu_to_body = rig.imu.rotation
@@ -376,7 +395,7 @@ class PoseTracker:
         self._a_bias = (0.0, 0.0, 0.0)
         self._omega = tuple(self._init[-1][1].tolist())
         a0 = tuple((Rm @ self._init[-1][2] + self._g).tolist())
-        self._a_hist = (a0, a0)
+        self._a_hist = (a0, a0, a0)
         self._v_prev = (0.0, 0.0, 0.0)
         self._omega_prev2 = None
         self._dphi = (0.0, 0.0, 0.0)
@@ -394,15 +413,38 @@ class PoseTracker:
         d0, d1, d2 = self._dphi
         g0, g1, g2 = gyro_b
         h = dt / 12
+        # a stepped input at the previous sample (module docstring): recognised now that
+        # the sample after it shows the specific force stayed there; the world-frame
+        # acceleration is re-derived with the previous attitude (a jump of ≥ 0.2 m/s²
+        # is not confused with the rotation's own change)
+        # (second differences D₋₁ = a₋₁ − 2a₋₂ + a₋₃ and D₀ = a₀ − 2a₋₁ + a₋₂: a step Δ at the
+        # previous sample gives D₋₁ ≈ Δ, D₀ ≈ −Δ whatever the slope; see
+        # identification.step_indices)
+        a_1, a_2, a_3 = self._a_hist
+        f0, f1, f2 = f_b
+        c0, c1, c2 = self._a_bias
+        b0 = r00 * f0 + r01 * f1 + r02 * f2 - c0
+        b1 = r10 * f0 + r11 * f1 + r12 * f2 - c1
+        b2 = r20 * f0 + r21 * f1 + r22 * f2 - self._gravity - c2
+        s0, s1, s2 = a_1[0] - 2 * a_2[0] + a_3[0], a_1[1] - 2 * a_2[1] + a_3[1], a_1[2] - 2 * a_2[2] + a_3[2]
+        n1 = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        step = (n1 > self.step_accel
+                and math.sqrt((b0 - a_1[0] - a_2[0] + a_3[0]) ** 2 + (b1 - a_1[1] - a_2[1] + a_3[1]) ** 2
+                              + (b2 - a_1[2] - a_2[2] + a_3[2]) ** 2) < 0.5 * n1)
         # rotation increment over the interval: third-order Adams–Moulton quadrature of ω
         # through the last three samples (the midpoint rule's (ωh)²/12 amplitude error
-        # would bias the tensor by ~0.05 % at 100 Hz sampling); the previous step's
+        # would bias the tensor by ~0.05 % at 100 Hz sampling) — the trapezoidal rule
+        # right after a step, where ω has a kink; the previous step's
         # world-frame correction dphi is applied here, in body axes
         # (exp(dphi) R exp(theta) = R exp(R^T dphi + theta) to O(|dphi||theta|) ~ 1e-9 rad)
+        if step:
+            q0, q1, q2 = (g0 + o0) * 6 * h, (g1 + o1) * 6 * h, (g2 + o2) * 6 * h
+        else:
+            q0, q1, q2 = (5 * g0 + 8 * o0 - w0) * h, (5 * g1 + 8 * o1 - w1) * h, (5 * g2 + 8 * o2 - w2) * h
         e00, e01, e02, e10, e11, e12, e20, e21, e22 = _rotvec_matrix(
-            (5 * g0 + 8 * o0 - w0) * h + (r00 * d0 + r10 * d1 + r20 * d2),
-            (5 * g1 + 8 * o1 - w1) * h + (r01 * d0 + r11 * d1 + r21 * d2),
-            (5 * g2 + 8 * o2 - w2) * h + (r02 * d0 + r12 * d1 + r22 * d2))
+            q0 + (r00 * d0 + r10 * d1 + r20 * d2),
+            q1 + (r01 * d0 + r11 * d1 + r21 * d2),
+            q2 + (r02 * d0 + r12 * d1 + r22 * d2))
         R = (r00 * e00 + r01 * e10 + r02 * e20, r00 * e01 + r01 * e11 + r02 * e21, r00 * e02 + r01 * e12 + r02 * e22,
              r10 * e00 + r11 * e10 + r12 * e20, r10 * e01 + r11 * e11 + r12 * e21, r10 * e02 + r11 * e12 + r12 * e22,
              r20 * e00 + r21 * e10 + r22 * e20, r20 * e01 + r21 * e11 + r22 * e21, r20 * e02 + r21 * e12 + r22 * e22)
@@ -413,19 +455,30 @@ class PoseTracker:
         # attitude, then velocity and position follow by the same third-order quadrature
         # (the trapezoidal rule's amplitude error biased Iyy by 0.01 %)
         r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
-        f0, f1, f2 = f_b
-        c0, c1, c2 = self._a_bias
         a_k = (r00 * f0 + r01 * f1 + r02 * f2 - c0, r10 * f0 + r11 * f1 + r12 * f2 - c1,
                r20 * f0 + r21 * f1 + r22 * f2 - self._gravity - c2)
-        a_1, a_2 = self._a_hist
         v = self._v
         vp = self._v_prev
-        v_new = (v[0] + (5 * a_k[0] + 8 * a_1[0] - a_2[0]) * h, v[1] + (5 * a_k[1] + 8 * a_1[1] - a_2[1]) * h,
-                 v[2] + (5 * a_k[2] + 8 * a_1[2] - a_2[2]) * h)
         p = self._p
-        self._p = (p[0] + (5 * v_new[0] + 8 * v[0] - vp[0]) * h, p[1] + (5 * v_new[1] + 8 * v[1] - vp[1]) * h,
-                   p[2] + (5 * v_new[2] + 8 * v[2] - vp[2]) * h)
-        self._a_hist = (a_k, a_1)
+        if step:
+            # the previous interval, before the step: from the samples before it
+            # ((3a₋₂ − a₋₃)/2 instead of Adams–Moulton's (5a₋₁ + 8a₋₂ − a₋₃)/12 per dt),
+            # and its effect on the position; this interval by the trapezoidal rule
+            self.steps.append(self._t)
+            cv = (-5 * h * (a_1[0] - 2 * a_2[0] + a_3[0]), -5 * h * (a_1[1] - 2 * a_2[1] + a_3[1]),
+                  -5 * h * (a_1[2] - 2 * a_2[2] + a_3[2]))
+            v = (v[0] + cv[0], v[1] + cv[1], v[2] + cv[2])
+            p = (p[0] + 5 * h * cv[0], p[1] + 5 * h * cv[1], p[2] + 5 * h * cv[2])
+            v_new = (v[0] + (a_k[0] + a_1[0]) * 6 * h, v[1] + (a_k[1] + a_1[1]) * 6 * h,
+                     v[2] + (a_k[2] + a_1[2]) * 6 * h)
+            self._p = (p[0] + (v_new[0] + v[0]) * 6 * h, p[1] + (v_new[1] + v[1]) * 6 * h,
+                       p[2] + (v_new[2] + v[2]) * 6 * h)
+        else:
+            v_new = (v[0] + (5 * a_k[0] + 8 * a_1[0] - a_2[0]) * h, v[1] + (5 * a_k[1] + 8 * a_1[1] - a_2[1]) * h,
+                     v[2] + (5 * a_k[2] + 8 * a_1[2] - a_2[2]) * h)
+            self._p = (p[0] + (5 * v_new[0] + 8 * v[0] - vp[0]) * h, p[1] + (5 * v_new[1] + 8 * v[1] - vp[1]) * h,
+                       p[2] + (5 * v_new[2] + 8 * v[2] - vp[2]) * h)
+        self._a_hist = (a_k, a_1, a_2)
         self._v_prev = v
         self._v = v_new
         t0, t1, t2 = self._tilt_correction(R, dt, f_b)

@@ -65,3 +65,33 @@ def test_noisy_within_reported_sigma(seed):
     np.testing.assert_allclose(res.crb_std, res.inertia_std, rtol=0.5)
     assert abs(res.gyro_noise - 0.002) < 2e-4
     assert set(res.to_dict()["inertia_std"]) == set(KEYS)
+
+
+def test_integral_places_a_step_at_the_sample_that_shows_it():
+    """A smooth signal plus a step switched on the sampling clock (zero-order hold, the
+    thesis's pulses): the integral is exact to the quadrature's order; Simpson's rule
+    across the jump errs by a third to a half sample × the step."""
+    from scipy.integrate import cumulative_simpson
+
+    from rig_identification.identification import cumulative_integral, step_indices
+    t = np.arange(101) / 100.0
+    step = 5.0 * (t >= 0.5 - 1e-9)
+    x = np.column_stack([np.sin(2 * np.pi * t) + step, np.cos(3 * t)])
+    exact = np.column_stack([(1 - np.cos(2 * np.pi * t)) / (2 * np.pi) + 5.0 * np.clip(t - 0.5, 0, None),
+                             np.sin(3 * t) / 3])
+    assert list(step_indices(x)) == [50]
+    assert np.abs(cumulative_integral(x, t) - exact).max() < 1e-5
+    # Simpson across the jump: a third to a half sample × the step, by where its panels fall
+    assert np.abs(cumulative_simpson(x, x=t, axis=0, initial=0.0) - exact)[-1, 0] > 0.01
+
+
+def test_no_steps_in_smooth_or_noisy_signals():
+    rng = np.random.default_rng(5)
+    t = np.arange(24000) / 200.0
+    smooth = 600.0 * np.column_stack([np.cos(2 * np.pi * 1.5 * t), np.sin(2 * np.pi * 1.5 * t), 0 * t])
+    from rig_identification.identification import step_indices
+    assert len(step_indices(smooth)) == 0
+    noisy = smooth + rng.normal(0, 0.5, smooth.shape)
+    assert len(step_indices(noisy)) == 0
+    noisy[12000:, 0] += 40.0      # ≈ 80 σ of the noise
+    assert list(step_indices(noisy)) == [12000]
