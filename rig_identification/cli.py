@@ -62,6 +62,10 @@ def _print_inertia(result, truth: dict | None, rec_path) -> None:
                   "preprocessor and identifier")
         else:
             print(f"std: from the fit's residuals (sandwich): they exceed what the sensors' noise ({noise}) explains")
+    if result.diagnosis is not None:
+        print("model error diagnosed: the tensor above is the fit with "
+              + ", ".join(e["name"] for e in result.diagnosis["effects"]) + " (σ from its residuals); rigid-body fit: "
+              + ", ".join(f"{k} {v:.2f}" for k, v in result.rigid_body["inertia_about_cg"].items()))
     if result.bias_correction is not None:
         print("second-order bias removed (kg·m²): "
               + ", ".join(f"{k} {v:+.3g}" for k, v in zip(KEYS, result.bias_correction)))
@@ -95,6 +99,9 @@ def cmd_inertia(args) -> int:
     else:
         result = identify_recording(recs[0], start=args.start, end=args.end, band_hz=band, model=args.model,
                                     initial_guess=args.initial_guess, refine=not args.quick)
+        if args.model == "pem" and not args.quick and not args.no_diagnose:
+            from .pipeline import with_diagnosis
+            result = with_diagnosis(recs[0], result, args.start, args.end)
     index = None
     if args.report:
         from .report import ReportError, write_report
@@ -351,7 +358,11 @@ def identify_main(argv=None) -> int:
                    help="starting tensor entries for --model thesis (kg·m², products negated)")
     p.add_argument("--quick", action="store_true",
                    help="the plain fit: no second-order bias correction, σ from the fit's residuals (sandwich) "
-                        "instead of the propagated sensor noise; about 3× faster")
+                        "instead of the propagated sensor noise, no diagnosis; about 3× faster")
+    p.add_argument("--no-diagnose", action="store_true",
+                   help="report the rigid-body fit even when its residual shows model error (by default one "
+                        "recording with model error is diagnosed, as rig-identify diagnose, and the tensor of the "
+                        "fit with the physics found is reported)")
     t = sub.add_parser("thesis-table", help="the thesis's 17 case studies: reported errors vs ours vs --model thesis")
     t.add_argument("cases", nargs="*", help="case names (default: case01 … case17)")
     t.add_argument("--json", action="store_true", help="print one JSON list")

@@ -714,6 +714,7 @@ class Diagnosis:
     model: str
     warnings: list = field(default_factory=list)
     series: dict = field(default_factory=dict)
+    covariance_after: np.ndarray | None = None   # (6,6) of the entries of inertia_after, KEYS order
 
     def to_dict(self) -> dict:
         ent = lambda J: {k: float(x) for k, x in zip(KEYS, from_tensor(J))}  # noqa: E731
@@ -1105,7 +1106,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     ch0, ch1 = channel_residuals(M0, base), channel_residuals(M, cur_fit)
     return Diagnosis(bool(entries), entries, located, rms0, _rms(ch1), base.J, cur_fit.J,
                      std_of(base), std_of(cur_fit), tried, band, model, warnings + list(rec.warnings),
-                     series={"t": w.t - w.t[0], "fs": M.fs, "before": ch0, "after": ch1})
+                     series={"t": w.t - w.t[0], "fs": M.fs, "before": ch0, "after": ch1},
+                     covariance_after=np.array(cur_fit.cov[:6, :6]))
 
 
 __all__ = ["Diagnosis", "diagnose", "prepare_window", "candidates", "locate", "EFFECT_NAMES", "IdentificationError"]

@@ -130,6 +130,10 @@ class InertiaResult:
     sensor_noise: dict | None = None
     residual_excess: np.ndarray | None = None
     uncertainty: str = "sandwich"   # what inertia_std is: "sandwich", "propagated sensor noise", …
+    # filled by pipeline.with_diagnosis when the fit showed model error and diagnose named its
+    # cause: the rigid-body fit's tensor and σ, and the effects added (JSON of each)
+    rigid_body: dict | None = None
+    diagnosis: dict | None = None
 
     @property
     def correlation(self) -> np.ndarray:
@@ -164,7 +168,8 @@ class InertiaResult:
             "fit_r2": [float(x) for x in self.fit_r2],
             "method": self.method,
             "warnings": list(self.warnings),
-        } | ({"recordings": [{"label": s.label, "window": {"start": float(s.t[0]), "end": float(s.t[-1]),
+        } | ({"rigid_body": self.rigid_body, "diagnosis": self.diagnosis} if self.diagnosis is not None else {}) \
+          | ({"recordings": [{"label": s.label, "window": {"start": float(s.t[0]), "end": float(s.t[-1]),
                                                           "samples": int(len(s.t))},
                                "band_hz": [float(s.band_hz[0]), float(s.band_hz[1])],
                                "residual_rms_rad_s": [float(x) for x in np.sqrt(np.mean(s.residual**2, 0))]}
