@@ -135,7 +135,7 @@ def cmd_thesis_table(args) -> int:
 
 
 def cmd_diagnose(args) -> int:
-    from .diagnosis import diagnose
+    from .diagnosis import diagnose, effect_parameters_text
     rec = read_recording(args.recording)
     d = diagnose(rec, model=args.model)
     if args.report:
@@ -153,8 +153,7 @@ def cmd_diagnose(args) -> int:
                   f"(best candidate {max(d.tried, key=lambda c: c['likelihood_ratio'])['name']}, "
                   f"p = {max(d.tried, key=lambda c: c['likelihood_ratio'])['p_value']:.2g})" if d.tried else "")
         for e in out["effects"]:
-            ps = ", ".join(f"{k} = {_fmt(v)} ± {_fmt(e['parameters_std'].get(k))}" if k in e["parameters_std"]
-                           else f"{k} = {_fmt(v)}" for k, v in e["parameters"].items())
+            ps = effect_parameters_text(e)
             red = ", ".join(f"{k} −{100 * r:.0f} %" for k, r in list(e["evidence"]["rms_reduction"].items())[:4])
             print(f"effect: {e['name']}: {ps}")
             print(f"   evidence: likelihood ratio {e['evidence']['likelihood_ratio']:.1f} "
@@ -180,14 +179,6 @@ def cmd_diagnose(args) -> int:
 def mismatch_channel(out: dict, name: str) -> bool:
     """A channel worth naming: the effects found reduced its residual by ≥ 10 %."""
     return any(name in e["evidence"]["rms_reduction"] for e in out["effects"])
-
-
-def _fmt(v) -> str:
-    if isinstance(v, list):
-        return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
-    if isinstance(v, float):
-        return f"{v:.4g}"
-    return str(v)
 
 
 def cmd_modes(args) -> int:

@@ -728,6 +728,24 @@ class Diagnosis:
                 "warnings": self.warnings}
 
 
+def fmt_value(v) -> str:
+    """A parameter value of an effect's JSON as text (numbers to 4 digits; lists, dicts)."""
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k}: {fmt_value(x)}" for k, x in v.items()) + "}"
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(fmt_value(x) for x in v) + "]"
+    if isinstance(v, (float, np.floating)):
+        return f"{v:.4g}"
+    return str(v)
+
+
+def effect_parameters_text(e: dict) -> str:
+    """``k = v ± σ, …`` of one entry of :attr:`Diagnosis.effects`."""
+    std = e.get("parameters_std", {})
+    return ", ".join(f"{k} = {fmt_value(v)}" + (f" ± {fmt_value(std[k])}" if k in std else "")
+                     for k, v in e["parameters"].items())
+
+
 def channel_residuals(model: Model, fit: Fit) -> dict:
     """Residual time series (N,) per channel: gyro and accelerometer (band-passed, plus
     the mean-level residual), torque and force (Newton–Euler equation errors, N·m and N),

@@ -282,7 +282,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     Raises like :func:`~.diagnosis.diagnose`.  On visible_case16_damped (unmodelled
     damping): Izz +3.1 % → +0.34 %, every entry within 0.46 %.
     """
-    from .diagnosis import diagnose
+    from .diagnosis import diagnose, effect_parameters_text
     from .identification import KEYS, from_tensor, weak_directions
     if result.residual_excess is None or np.max(result.residual_excess) <= MODEL_ERROR_RATIO:
         return result
@@ -311,10 +311,8 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     result.uncertainty = "sandwich (diagnosed model)"
     result.method += f"; model error diagnosed, the fit with {', '.join(names)} (rig-identify diagnose)"
 
-    def fmt(e):
-        return ", ".join(f"{k} {v:.4g}" + (f" ± {e['parameters_std'][k]:.2g}" if k in e["parameters_std"] else "")
-                         for k, v in e["parameters"].items())
-    result.warnings.append("model error diagnosed: " + "; ".join(f"{e['name']} ({fmt(e)})" for e in d.effects)
+    result.warnings.append("model error diagnosed: "
+                           + "; ".join(f"{e['name']} ({effect_parameters_text(e)})" for e in d.effects)
                            + " — the tensor reported is the fit with it; the rigid-body fit's is under "
                            "'rigid_body' in the JSON (--no-diagnose reports that one instead)")
     return result

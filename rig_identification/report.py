@@ -424,14 +424,15 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
                      + " kg·m².</p>")
 
         if result.diagnosis is not None:
+            from .diagnosis import effect_parameters_text
             rb = result.rigid_body["inertia_about_cg"]
             parts.append("<h2>Model error, diagnosed</h2>")
             parts.append("<p>The rigid-body fit's residual exceeded what the sensors' noise explains; "
                          "<code>rig-identify diagnose</code> named the physics below, and the tensor above is the "
                          "fit with it (σ from its residuals). The plots below are the rigid-body fit's.</p>")
             parts.append(_table(["effect", "parameters", "likelihood ratio"],
-                                [[e["name"], ", ".join(f"{k} {v:.4g}" for k, v in e["parameters"].items()),
-                                  f"{e['evidence']['likelihood_ratio']:.1f}"] for e in result.diagnosis["effects"]]))
+                                [[e["name"], effect_parameters_text(e), f"{e['evidence']['likelihood_ratio']:.1f}"]
+                                 for e in result.diagnosis["effects"]]))
             parts.append("<p>Rigid-body fit, kg·m²: " + ", ".join(f"{k} {v:.2f}" for k, v in rb.items()) + ".</p>")
 
         parts.append("<h2>Identifiability: which combinations the recording determines well and poorly</h2>")
