@@ -40,20 +40,31 @@ def test_identify_reference_recording(name):
     assert np.array_equal(res.inertia_std, res.crb_std)
 
 
-def test_model_error_falls_back_to_the_residuals():
-    """visible_case16_damped carries damping the model leaves out: the residual is many
-    times what the noise explains, and the σ then come from the residuals (sandwich), with
-    a warning that names diagnose, so that the truth stays within them."""
+@pytest.fixture(scope="module")
+def damped_rigid_body():
+    """`rig-identify inertia --no-diagnose --json` on the first 60 s of the damped reference
+    recording: the rigid-body fit."""
     rec = read_recording(recording("visible_case16_damped"))
-    res = identify_recording(rec, end=60.0)
-    assert np.max(res.residual_excess) > 3.0, res.residual_excess
-    assert res.uncertainty.startswith("sandwich") and np.array_equal(res.inertia_std, res.sandwich_std)
-    assert any("diagnose" in w for w in res.warnings)
-    cmp = compare_to_truth(res, rec.truth)
-    assert all(abs(cmp[k]["error_sigma"]) < 3.0 for k in KEYS), cmp
+    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(rec.path), "--json",
+                          "--end", "60", "--no-diagnose"], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    return rec, json.loads(out.stdout)
 
 
-def test_cli_inertia_diagnoses_model_error(tmp_path):
+def test_model_error_falls_back_to_the_residuals(damped_rigid_body):
+    """visible_case16_damped carries damping the model leaves out: the residual is many
+    times what the noise explains, and the σ of the rigid-body fit then come from the
+    residuals (sandwich), with a warning that names diagnose, so that the truth stays
+    within them."""
+    rec, d = damped_rigid_body
+    assert max(d["residual_excess"]) > 3.0, d["residual_excess"]
+    assert d["uncertainty"].startswith("sandwich") and d["inertia_std"] == d["inertia_sandwich_std"]
+    assert any("diagnose" in w for w in d["warnings"]) and "diagnosis" not in d
+    tru = rec.truth["inertia_about_cg"]
+    assert all(abs(d["inertia_about_cg"][k] - tru[k]) < 3.0 * d["inertia_std"][k] for k in KEYS), d
+
+
+def test_cli_inertia_diagnoses_model_error(tmp_path, damped_rigid_body):
     """`rig-identify inertia` on the damped reference recording: the rigid-body fit shows
     model error, so the recording is diagnosed and the tensor of the fit with the damping
     is reported — within 0.5 % (products: of the largest diagonal) and 3 σ, where the
@@ -78,11 +89,7 @@ def test_cli_inertia_diagnoses_model_error(tmp_path):
     page = (tmp_path / "report" / "index.html").read_text()
     assert "Model error, diagnosed" in page and "viscous_damping" in page
     # --no-diagnose: the rigid-body fit, as before
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(rec.path), "--json",
-                          "--end", "60", "--no-diagnose"], capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stderr
-    d2 = json.loads(out.stdout)
-    assert "diagnosis" not in d2 and d2["inertia_about_cg"] == d["rigid_body"]["inertia_about_cg"]
+    assert damped_rigid_body[1]["inertia_about_cg"] == d["rigid_body"]["inertia_about_cg"]
 
 
 def test_cli_json_keys():
