@@ -123,7 +123,7 @@ def cmd_inertia(args) -> int:
 
 
 def cmd_thesis_table(args) -> int:
-    from .thesis_table import print_table, run_case
+    from .thesis_table import print_summary, print_table, run_case
     rows = []
     for name in args.cases or [f"case{i:02d}" for i in range(1, 18)]:
         rows.append(run_case(name))
@@ -131,6 +131,8 @@ def cmd_thesis_table(args) -> int:
             print_table(rows[-1:])
     if args.json:
         print(json.dumps(rows))
+    else:
+        print_summary(rows)
     return 0
 
 

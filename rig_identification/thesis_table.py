@@ -35,7 +35,7 @@ def run_case(name: str) -> dict:
     """
     exp = load_experiment(cases_dir() / f"{name}.yaml")
     sim = simulate(exp)
-    rec = Recording(sim.rig, sim.sensors, sim.truth)
+    rec = Recording(sim.rig, sim.sensors, sim.truth, f"{name} (simulated)")   # the name in error messages
     th = exp.thesis or {}
     window = th.get("identification_window")
     start, end = (window if window else (None, None))
@@ -70,3 +70,16 @@ def print_table(rows: list[dict]) -> None:
         for key in ("thesis_model", "ours"):
             if isinstance(r[key], str):
                 print(f"{'':7s} {key}: {r[key]}")
+
+
+def print_summary(rows: list[dict]) -> None:
+    """One line per model: the largest |error| % of each case (of the entry for moments, of
+    the largest moment for products), or why the case gave no estimate."""
+    for key, label in (("ours", "ours"), ("thesis_model", "--model thesis")):
+        parts = []
+        for r in rows:
+            v = r[key]
+            parts.append(f"{r['case']} {max(abs(x) for x in v.values()):.3f}" if isinstance(v, dict)
+                         else f"{r['case']} no estimate")
+        print(f"largest error per case, {label} (%): " + ", ".join(parts))
+
