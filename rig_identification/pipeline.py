@@ -277,9 +277,9 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     and ``weak_directions`` become the diagnosed fit's (σ from its residuals;
     ``uncertainty`` says so), ``rigid_body`` keeps the rigid-body tensor and σ,
     ``diagnosis`` the named effects with their parameters and the residual RMS before/after,
-    and a warning says what was added.  When diagnose names nothing, or the fit shows no
-    model error, the result is returned as it was (with a warning in the first case).
-    Raises like :func:`~.diagnosis.diagnose`.  On visible_case16_damped (unmodelled
+    and a warning says what was added.  When the fit shows no model error, the result is
+    returned as it was; when diagnose names nothing or cannot run, too, with a warning
+    saying so.  On visible_case16_damped (unmodelled
     damping): Izz +3.1 % → +0.34 %, every entry within 0.46 %.
     """
     from .diagnosis import diagnose, effect_parameters_text
@@ -291,7 +291,11 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
         lo = t0 + (start if start is not None else 0.0)
         hi = t0 + end if end is not None else rec.sensors.t_end
         rec = Recording(rec.rig, crop(rec.sensors, lo, hi), rec.truth, rec.path, list(rec.warnings))
-    d = diagnose(rec)
+    try:
+        d = diagnose(rec)
+    except (ValueError, np.linalg.LinAlgError) as e:   # RecordingError, RigError, TrackerError, IdentificationError
+        result.warnings.append(f"diagnose could not run on the recording ({e}); the tensor is the rigid-body fit's")
+        return result
     if not d.mismatch or d.covariance_after is None:
         result.warnings.append("diagnose found no physics in its library that explains the misfit; the tensor is "
                                "the rigid-body fit's")
