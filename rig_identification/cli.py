@@ -63,9 +63,11 @@ def _print_inertia(result, truth: dict | None, rec_path) -> None:
         else:
             print(f"std: from the fit's residuals (sandwich): they exceed what the sensors' noise ({noise}) explains")
     if result.diagnosis is not None:
-        print("model error diagnosed: the tensor above is the fit with "
-              + ", ".join(e["name"] for e in result.diagnosis["effects"]) + " (σ from its residuals); rigid-body fit: "
-              + ", ".join(f"{k} {v:.2f}" for k, v in result.rigid_body["inertia_about_cg"].items()))
+        names = ", ".join(e["name"] for e in result.diagnosis["effects"])
+        print(("model error diagnosed: " + names + " removed from the data, the tensor above identified again"
+               if result.diagnosis["handled"] == "removed from the data" else
+               "model error diagnosed: the tensor above is the fit with " + names + " (σ from its residuals)")
+              + "; rigid-body fit: " + ", ".join(f"{k} {v:.2f}" for k, v in result.rigid_body["inertia_about_cg"].items()))
     if result.bias_correction is not None:
         print("second-order bias removed (kg·m²): "
               + ", ".join(f"{k} {v:+.3g}" for k, v in zip(KEYS, result.bias_correction)))
@@ -101,7 +103,7 @@ def cmd_inertia(args) -> int:
                                     initial_guess=args.initial_guess, refine=not args.quick)
         if args.model == "pem" and not args.quick and not args.no_diagnose:
             from .pipeline import with_diagnosis
-            result = with_diagnosis(recs[0], result, args.start, args.end)
+            result = with_diagnosis(recs[0], result, args.start, args.end, band)
     index = None
     if args.report:
         from .report import ReportError, write_report

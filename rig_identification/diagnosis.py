@@ -77,6 +77,9 @@ from .recording import Recording, RecordingError
 ALPHA = 0.01          # family-wise false-alarm probability of the selection
 MIN_REDUCTION = 0.05  # an effect must reduce some channel's residual RMS by at least this fraction
 MAX_EFFECTS = 3
+CORRECTIONS = ("sensor_delay", "load_cell_scale", "imu_offset", "imu_misalignment", "gyro_bias",
+               "accelerometer_bias")
+"""Effects that are errors of the data, not missing physics: :func:`corrected` removes them."""
 EXACT_SCREEN = 3      # sensor/rig-error candidates evaluated exactly (re-tracked) per selection step
 DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
@@ -715,6 +718,8 @@ class Diagnosis:
     warnings: list = field(default_factory=list)
     series: dict = field(default_factory=dict)
     covariance_after: np.ndarray | None = None   # (6,6) of the entries of inertia_after, KEYS order
+    # the sensor and rig errors removed from the data (key -> value, as :func:`corrected` takes)
+    corrections: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         ent = lambda J: {k: float(x) for k, x in zip(KEYS, from_tensor(J))}  # noqa: E731
@@ -1125,7 +1130,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     return Diagnosis(bool(entries), entries, located, rms0, _rms(ch1), base.J, cur_fit.J,
                      std_of(base), std_of(cur_fit), tried, band, model, warnings + list(rec.warnings),
                      series={"t": w.t - w.t[0], "fs": M.fs, "before": ch0, "after": ch1},
-                     covariance_after=np.array(cur_fit.cov[:6, :6]))
+                     covariance_after=np.array(cur_fit.cov[:6, :6]),
+                     corrections={k: v for k, v in state["applied"].items() if k[0] in CORRECTIONS})
 
 
 __all__ = ["Diagnosis", "diagnose", "prepare_window", "candidates", "locate", "EFFECT_NAMES", "IdentificationError"]

@@ -427,9 +427,13 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
             from .diagnosis import effect_parameters_text
             rb = result.rigid_body["inertia_about_cg"]
             parts.append("<h2>Model error, diagnosed</h2>")
+            removed = result.diagnosis["handled"] == "removed from the data"
             parts.append("<p>The rigid-body fit's residual exceeded what the sensors' noise explains; "
-                         "<code>rig-identify diagnose</code> named the physics below, and the tensor above is the "
-                         "fit with it (σ from its residuals). The plots below are the rigid-body fit's.</p>")
+                         "<code>rig-identify diagnose</code> named what is below, and "
+                         + ("these errors of the data were removed and the recording identified again: the tensor "
+                            "above and the plots below are that fit's.</p>" if removed else
+                            "the tensor above is the fit with this physics added (σ from its residuals). The plots "
+                            "below are the rigid-body fit's.</p>"))
             parts.append(_table(["effect", "parameters", "likelihood ratio"],
                                 [[e["name"], effect_parameters_text(e), f"{e['evidence']['likelihood_ratio']:.1f}"]
                                  for e in result.diagnosis["effects"]]))
