@@ -314,9 +314,15 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     diagnosis = {"effects": d.effects, "residual_rms_before": d.rms_before,
                  "residual_rms_after": d.rms_after, "band_hz": [float(x) for x in d.band]}
     found = "; ".join(f"{e['name']} ({effect_parameters_text(e)})" for e in d.effects)
+    again = None
     if d.corrections and all(n in CORRECTIONS for n in names):
         # errors of the data: removed, and the recording identified again the ordinary way
-        again = identify_recording(corrected(full, d.corrections), start=start, end=end, band_hz=band_hz)
+        try:
+            again = identify_recording(corrected(full, d.corrections), start=start, end=end, band_hz=band_hz)
+        except (ValueError, np.linalg.LinAlgError) as e:
+            result.warnings.append(f"the recording with {', '.join(names)} removed could not be identified again "
+                                   f"({e}); the tensor is diagnose's fit")
+    if again is not None:
         again.rigid_body, again.diagnosis = rigid_body, {**diagnosis, "handled": "removed from the data"}
         again.method += f"; {', '.join(names)} diagnosed and removed from the data (rig-identify diagnose)"
         again.warnings = result.warnings + [
