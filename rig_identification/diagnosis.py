@@ -70,8 +70,7 @@ from scipy.stats import chi2
 
 from .effects import EFFECT_NAMES
 from .identification import (KEYS, IdentificationError, auto_band, basis, consistent_from_params, cumulative_integral,
-                             from_tensor,
-                             params_from_consistent, step_indices, to_tensor)
+                             from_tensor, params_from_consistent, step_indices, to_tensor)
 from .recording import Recording, RecordingError
 
 ALPHA = 0.01          # family-wise false-alarm probability of the selection

@@ -33,7 +33,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import cumulative_simpson
+from scipy.integrate import cumulative_simpson, cumulative_trapezoid
 from scipy.signal import butter, decimate, sosfiltfilt
 
 from .rig import Rig
@@ -252,12 +252,8 @@ def cumulative_integral(x: np.ndarray, t: np.ndarray, steps=None) -> np.ndarray:
     for k in list(ks) + [len(x)]:
         piece = x[start:k]
         tp = t[start:k]
-        if len(piece) >= 3:
-            out[start:k] = base + cumulative_simpson(piece, x=tp, axis=0, initial=0.0)
-        else:
-            out[start:k] = base + np.concatenate([np.zeros((1,) + x.shape[1:]),
-                                                  np.cumsum(0.5 * (piece[1:] + piece[:-1]) * np.diff(tp)[:, None],
-                                                            axis=0)])[: len(piece)]
+        rule = cumulative_simpson if len(piece) >= 3 else cumulative_trapezoid
+        out[start:k] = base + rule(piece, x=tp, axis=0, initial=0.0)
         if k < len(x):
             prev = x[k - 2] if k - 2 >= start else x[k - 1]
             base = out[k - 1] + (1.5 * x[k - 1] - 0.5 * prev) * (t[k] - t[k - 1])

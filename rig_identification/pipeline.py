@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .identification import InertiaResult, identify_inertia, identify_inertia_joint, identify_inertia_thesis
@@ -297,7 +297,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
         t0 = rec.sensors.t_start
         lo = t0 + (start if start is not None else 0.0)
         hi = t0 + end if end is not None else rec.sensors.t_end
-        rec = Recording(rec.rig, crop(rec.sensors, lo, hi), rec.truth, rec.path, list(rec.warnings))
+        rec = replace(rec, sensors=crop(rec.sensors, lo, hi))
     try:
         d = diagnose(rec)
     except (ValueError, np.linalg.LinAlgError) as e:   # RecordingError, RigError, TrackerError, IdentificationError

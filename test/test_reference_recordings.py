@@ -71,7 +71,7 @@ def test_cli_inertia_diagnoses_model_error(tmp_path, damped_rigid_body):
     rigid-body fit is off by ~2 % on Izz; the rigid-body fit stays in the JSON, and the
     report says what was added.  First 60 s (the whole recording: bench figures in the
     README)."""
-    rec = read_recording(recording("visible_case16_damped"))
+    rec, rigid = damped_rigid_body
     out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(rec.path), "--json",
                           "--end", "60", "--report", str(tmp_path / "report")],
                          capture_output=True, text=True, timeout=600)
@@ -89,7 +89,7 @@ def test_cli_inertia_diagnoses_model_error(tmp_path, damped_rigid_body):
     page = (tmp_path / "report" / "index.html").read_text()
     assert "Model error, diagnosed" in page and "viscous_damping" in page
     # --no-diagnose: the rigid-body fit, as before
-    assert damped_rigid_body[1]["inertia_about_cg"] == d["rigid_body"]["inertia_about_cg"]
+    assert rigid["inertia_about_cg"] == d["rigid_body"]["inertia_about_cg"]
 
 
 def test_cli_json_keys():
