@@ -38,6 +38,7 @@ from scipy.signal import butter, decimate, sosfiltfilt
 
 from .rig import Rig
 
+STAGE1_CONDITION = 100.0   # largest / smallest principal moment of the Levenberg–Marquardt start
 FIT_RATE = 200.0  # Hz: streams sampled ≥ 2× faster are decimated to about this rate before the fit
 KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 # index pairs of the six independent tensor entries
@@ -430,7 +431,13 @@ def _fit_segments(rig: Rig, segs: list[_Segment], block_s: float, consistent: bo
         X = np.concatenate([np.einsum("kij,nj->nik", E, s.IM - np.einsum("m,mni->ni", j, s.G)).reshape(-1, 6)
                             for s in segs])  # (ΣN·3, 6)
         p, *_ = np.linalg.lstsq(X, Y, rcond=None)
-        j = from_tensor(np.linalg.inv(to_tensor(p)))
+        # unmodelled physics (strong damping, say) can make the linear estimate of P
+        # indefinite or nearly singular, and J = P⁻¹ absurd, from which Levenberg–Marquardt
+        # diverges: P's eigenvalues are held within STAGE1_CONDITION of the largest
+        ev, V = np.linalg.eigh(to_tensor(p))
+        ev = ev if ev.max() > 0 else np.abs(ev)
+        ev = np.clip(ev, ev.max() / STAGE1_CONDITION, None)
+        j = from_tensor(V @ np.diag(1.0 / ev) @ V.T)
     method = "prediction error: band-limited output error of the integrated Newton–Euler equation"
     # per-axis residual scale, pooled over the segments (the same gyro)
     sigma = np.sqrt(np.mean(np.concatenate([(s.y - predict(j, s)[1].T) ** 2 for s in segs]), axis=0))
