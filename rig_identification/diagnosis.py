@@ -36,12 +36,19 @@ Sensor and rig errors (``sensor_delay``, ``imu_offset``, ``imu_misalignment``, t
 columns do not see: the most promising of them (:data:`EXACT_SCREEN` per step) are
 evaluated exactly — the error removed from the data (:func:`corrected`), the pose
 re-tracked, the model refitted, Broyden iterations on the first-order remainder — and the
-selected one is iterated to convergence.
+selected one is iterated to convergence.  A load cell's gain (one candidate per cable)
+moves the tracker's static pose (it balances forces and moments with the tensions) so
+much that its first-order column points the wrong way: every significant one is
+evaluated exactly at ±:data:`GAIN_STEP` (:func:`_gain_screen`), and the selected one is
+found by its exact profile likelihood (:func:`_exact_profile`).
 
-Known limits: ``load_cell_scale`` and ``cable_mass`` are not found yet — a gain error of one
-load cell moves the tracker's static pose (it balances forces and moments with the
-tensions) so that the first-order gains point the wrong way, and a cable's mass is nearly
-collinear with the tensor and an accelerometer bias.
+Weights: each axis of the rotational and translational groups by its own residual scale
+(the axes' scales differ several-fold: a pooled scale biased the tensor by several per
+cent on some rigs, the identifier weights per axis too); the scales of the baseline fit
+during the selection, the final fit's own afterwards (iteratively reweighted).
+
+Known limit: ``cable_mass`` is not found yet — half a cable's mass riding on each body
+anchor is nearly collinear with the tensor, an accelerometer bias and the load-cell gains.
 
 Selection: forward stepwise, by the likelihood-ratio statistic
 ``Λ = Σ_g N_eff,g ln(RSS_g,0 / RSS_g,1) + Δχ²_DC`` (Gaussian residuals with the
@@ -51,7 +58,9 @@ effect's number of parameters at p = :data:`ALPHA` / (number of candidates tried
 (Bonferroni).  An effect is kept only if it also reduces the residual RMS of some
 channel by at least :data:`MIN_REDUCTION`, and a sensor-pose error must exceed the
 engineering resolution :data:`PRACTICAL_FLOOR` (5 mm, 1 mrad, 1 ms): a statistically but
-not physically significant term is not a finding.  Standard deviations of the effect parameters: the
+not physically significant term is not a finding.  ``gyroscopic_coupling`` is exempt from
+the residual reduction: its size is known (κ = 1), and the test is whether κ = 0 is
+rejected.  Standard deviations of the effect parameters: the
 sandwich (batch-means) covariance, as the identifier's.
 
 References: Ljung, *System Identification* (2nd ed., 1999), §16.4 (model validation by
@@ -80,6 +89,8 @@ CORRECTIONS = ("sensor_delay", "load_cell_scale", "imu_offset", "imu_misalignmen
                "accelerometer_bias")
 """Effects that are errors of the data, not missing physics: :func:`corrected` removes them."""
 EXACT_SCREEN = 3      # sensor/rig-error candidates evaluated exactly (re-tracked) per selection step
+REWEIGHT_ITER = 2     # reweighting iterations of the final fit (per-axis residual scales)
+GAIN_STEP = 0.02      # load-cell gain steps of the exact screening (relative)
 DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
 PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
@@ -395,8 +406,11 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
     that the cost is −2 log L up to a constant (see module docstring)."""
     sr, sa, sg, sdc, sm = scales
     n = len(model.w.t)
-    wr = np.sqrt(model.n_eff / n) / sr
-    wa = np.sqrt(model.n_eff / n) / sa
+    # per-axis weights (3,): the axes' residual scales differ (a weakly excited axis, a
+    # pitch axis with more tracker error), and pooling them biases the tensor — the
+    # identifier also weights per axis
+    wr = np.broadcast_to(np.sqrt(model.n_eff / n) / np.asarray(sr, float), (3,))
+    wa = np.broadcast_to(np.sqrt(model.n_eff / n) / np.asarray(sa, float), (3,))
     prepared = model.prepare(cols)
     k = len(cols)
     E = basis()
@@ -434,8 +448,8 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
                 Jr[:, :, i] -= p["rot_ID"] @ P.T
         if free_kappa:
             Jr[:, :, -1] = np.einsum("m,mni->ni", j, model.G) @ P.T
-        Jr *= wr
-        Jl[3 * n:6 * n] = (dTr * wa).reshape(-1, k) if k else 0.0
+        Jr *= wr[None, :, None]
+        Jl[3 * n:6 * n] = (dTr * wa[None, :, None]).reshape(-1, k) if k else 0.0
         Jd = Jl[6 * n:]
         Jd[:3, :k] = dG / sg
         Jd[3:6, :k] = dA / sdc
@@ -448,7 +462,7 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
         """Jacobian columns of the 6 tensor parameters, (rows, 6)."""
         Jt = np.zeros((rows, 6))
         M = (np.matmul(yhat, E.transpose(0, 2, 1)) + kappa * model.G) @ P.T     # (6, n, 3): P (E_m ŷ + κ G_m)
-        Jt[:3 * n] = (M.transpose(1, 2, 0).reshape(-1, 6) @ dj) * wr
+        Jt[:3 * n] = ((M.transpose(1, 2, 0) * wr[None, :, None]).reshape(-1, 6) @ dj)
         E6 = np.stack([kappa * model.dcm_G[m] + E[m] @ model.dcm_W for m in range(6)], axis=1)   # (3,6)
         Jt[6 * n + 6:] = -(E6 @ dj) / sm
         return Jt
@@ -548,12 +562,15 @@ def _vec(vals, stds, key, applied=None):
 
 
 def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None = None,
-               allow_elasticity: bool = False) -> list[Candidate]:
+               allow_elasticity: bool = False, profiled: dict | None = None) -> list[Candidate]:
     """The effect library as model extensions for this window (names: effects.EFFECT_NAMES).
 
     applied: corrections already made to the data (key -> accumulated value, see
-    :func:`corrected`), added to the reported parameters."""
+    :func:`corrected`), added to the reported parameters.  profiled: keys whose value was
+    found by the exact profile likelihood (key -> σ, :func:`_exact_profile`): they carry
+    no column and report the applied value."""
     applied = applied or {}
+    profiled = profiled or {}
     m = w.mass
     om, v = w.omega, w.v
     E = np.eye(3)
@@ -598,22 +615,25 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
             return {"stream": stream, "delay": done + float(vals[0])}, {"delay": float(stds[0])}
         out.append(Candidate("sensor_delay", [Column("delay", rot_D=Mo, tr_D=F / m)], rep_d, label=stream,
                              stream=stream, exact=True))
-    # load-cell gains: true T_i = T_meas,i (1 - e_i) -> -e_i times cable i's wrench (one column per cable)
-    done_e = np.zeros(len(w.cable_names)) + np.asarray(applied.get(("load_cell_scale", ""), 0.0), float)
-    cols = []
+    # load-cell gains, one candidate per cable (a gain error is one cell's fault; the four
+    # gains together are nearly collinear with an accelerometer bias and the static pose):
+    # true T_i = T_meas,i (1 - e_i) -> -e_i times cable i's wrench
     for i, name in enumerate(w.cable_names):
         Fi = w.cable_force[:, i]
-        cols.append(Column(f"gain_error_{name}", rot_D=-w.cable_moment[:, i], tr_D=-Fi / m, dca=-(Fi / m).mean(0)))
+        done_e = float(applied.get(("load_cell_scale", name), 0.0))
 
-    def rep_scale(vals, stds):
-        keep = (1.0 - done_e) * (1.0 - np.asarray(vals, float))      # true / measured
-        scale = 1.0 / keep
-        i = int(np.argmax(np.abs(scale - 1.0)))
-        return ({"cable": w.cable_names[i], "scale": float(scale[i]),
-                 "scales": {n: float(x) for n, x in zip(w.cable_names, scale)}},
-                {"scale": float(stds[i] / keep[i]),
-                 "scales": {n: float(sd / k) for n, sd, k in zip(w.cable_names, stds, keep)}})
-    out.append(Candidate("load_cell_scale", cols, rep_scale, exact=True))
+        if ("load_cell_scale", name) in profiled:
+            sd = profiled[("load_cell_scale", name)]
+            out.append(Candidate("load_cell_scale", [], lambda vals, stds, name=name, e=done_e, sd=sd: (
+                {"cable": name, "scale": 1.0 / (1.0 - e)}, {"scale": sd / (1.0 - e) ** 2}), label=name, exact=True))
+            continue
+
+        def rep_scale(vals, stds, name=name, done_e=done_e):
+            keep = (1.0 - done_e) * (1.0 - float(vals[0]))      # true / measured
+            return {"cable": name, "scale": 1.0 / keep}, {"scale": float(stds[0]) / keep}
+        out.append(Candidate("load_cell_scale", [Column(f"gain_error_{name}", rot_D=-w.cable_moment[:, i],
+                                                        tr_D=-Fi / m, dca=-(Fi / m).mean(0))],
+                             rep_scale, label=name, exact=True))
     # IMU offset δ (body axes): the specific force at the true point is α×δ + ω×(ω×δ) more
     cols = []
     for k in range(3):
@@ -667,8 +687,8 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
 
 def corrected(rec: Recording, applied: dict) -> Recording:
     """The recording with the sensor and rig errors of ``applied`` removed (key -> value):
-    ("sensor_delay", stream) s: the stream's stamps − d; ("load_cell_scale", "") (n,) e:
-    T_i (1 − e_i); ("imu_offset", "") (3,) m body: imu.position + δ; ("imu_misalignment", "")
+    ("sensor_delay", stream) s: the stream's stamps − d; ("load_cell_scale", cable) e:
+    the cable's tension T (1 − e); ("imu_offset", "") (3,) m body: imu.position + δ; ("imu_misalignment", "")
     (3,) rotation vector, body axes: IMU axes turned by it; ("gyro_bias" | "accelerometer_bias",
     "") (3,) IMU axes: subtracted.  ("cable_elasticity", "") is handled by the tracker."""
     from dataclasses import replace as _r
@@ -680,7 +700,7 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     imu[:, 3:] -= np.asarray(applied.get(("accelerometer_bias", ""), np.zeros(3)))
     cells = {}
     d_cells = applied.get(("sensor_delay", "load_cells"), 0.0)
-    gains = np.zeros(len(rig.cable_names)) + np.asarray(applied.get(("load_cell_scale", ""), 0.0), float)
+    gains = np.array([float(applied.get(("load_cell_scale", n), 0.0)) for n in rig.cable_names])
     for n, ts in s.load_cells.items():
         cells[n] = TimeSeries(ts.t - d_cells, ts.data * (1.0 - gains[rig.cable_names.index(n)]))
     exc = s.exciter
@@ -905,7 +925,9 @@ def _lr(cost0: dict, cost1: dict, model: Model) -> float:
 
 
 def _scales(M: Model, f0: Fit) -> tuple:
-    return (float(np.sqrt(np.mean(f0.rot**2, 0)).mean()), float(np.sqrt(np.mean(f0.tr**2, 0)).mean()),
+    """The baseline residual scales: per axis (3,) for the rotational and translational
+    groups, scalars for the mean levels."""
+    return (np.sqrt(np.mean(f0.rot**2, 0)), np.sqrt(np.mean(f0.tr**2, 0)),
             float(np.mean(M.sigma_dcg)), float(np.mean(M.sigma_dca)), float(M.sigma_dcm))
 
 
@@ -929,7 +951,7 @@ def _exact_iterate(key, state: dict, build, keys: list, fit: Fit, n_iter: int, k
     for it in range(n_iter):
         dx = -np.linalg.solve(B, beta)
         x_new = x + dx
-        applied[key] = float(x_new[0]) if key[0] == "sensor_delay" else x_new.copy()
+        applied[key] = float(x_new[0]) if len(x_new) == 1 else x_new.copy()
         w, M, cands = build(applied, state["elastic"])
         fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, from_tensor(fit.J))
         beta_new = _beta_of(fit, cands, keys, key, state)
@@ -949,6 +971,70 @@ def _beta_of(fit: Fit, cands, keys: list, key, state) -> np.ndarray:
     by = {c.key: c for c in (cands if cands is not None else state["cands"])}
     k0 = sum(len(by[k].columns) for k in keys[:keys.index(key)] if k in by)
     return np.asarray(fit.beta[k0:k0 + len(by[key].columns)], float)
+
+
+def _gain_screen(e: dict, state: dict, build, keys: list, cost_ref: dict, rms_ref: dict, kappa0: float,
+                 free_kappa: bool, scales, j0: np.ndarray, h: float = GAIN_STEP) -> None:
+    """Exact evidence of one load cell's gain error (screening entry ``e``, updated in
+    place): the gain removed from the data at ±``h`` about its current value, re-tracked
+    and refitted; the likelihood ratio against ``cost_ref`` through those two points and
+    the current fit (Λ = 0) is a parabola, whose maximum (at most 3h away) is the evidence
+    and the starting point of :func:`_exact_profile`."""
+    key = e["c"].key
+    x0 = float(state["applied"].get(key, 0.0))
+    lams, fits = [], []
+    for x in (x0 - h, x0 + h):
+        w, M, cands = build({**state["applied"], key: x}, state["elastic"])
+        fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, j0)
+        lams.append(_lr(cost_ref, fit.cost(scales), M))
+        fits.append((fit, M))
+    A, B = (lams[0] + lams[1]) / (2 * h * h), (lams[1] - lams[0]) / (2 * h)
+    if A < 0:
+        d = float(np.clip(-B / (2 * A), -3 * h, 3 * h))
+        lam = A * d * d + B * d
+    else:
+        d = h if lams[1] >= lams[0] else -h
+        lam = max(lams)
+    fit, M = fits[int(lams[1] >= lams[0])]
+    rms1 = _rms(channel_residuals(M, fit))
+    e.update(lam=float(lam), fit=fit, red={k: 1 - rms1[k] / rms_ref[k] for k in rms1 if rms_ref[k] > 0},
+             exact_state=({**state["applied"], key: x0 + d}, None, None, None))
+
+
+def _exact_profile(key, state: dict, build, keys: list, cost_ref: dict, kappa0: float, free_kappa: bool, scales,
+                   j0: np.ndarray, half_width: float = 0.02, tol: float = 2e-4) -> tuple:
+    """The exact profile likelihood of a one-parameter data error (a load cell's gain):
+    the error removed from the data at trial values x, the pose re-tracked and the model
+    (without the error's first-order column) refitted; x maximises the likelihood ratio
+    against ``cost_ref`` (scipy ``minimize_scalar``, bounded, ±``half_width`` about the
+    current value), σ from its curvature (Λ(x) ≈ Λ̂ − (x − x̂)²/σ²).  A load cell's gain moves
+    the tracker's static pose, so the first-order column's zero (:func:`_exact_iterate`) is
+    not the optimum.  Returns (applied, w, M, cands, fit, σ)."""
+    from scipy.optimize import minimize_scalar
+    others = [k for k in keys if k != key]
+    prof = {**state.get("profiled", {}), key: np.nan}
+    memo = {}
+
+    def evaluate(x):
+        x = float(x)
+        if x not in memo:
+            applied = {**state["applied"], key: x}
+            w, M, cands = build(applied, state["elastic"], prof)
+            fit = fit_model(M, _columns(cands, others), kappa0, free_kappa, scales, j0)
+            memo[x] = (_lr(cost_ref, fit.cost(scales), M), (applied, w, M, cands, fit))
+        return memo[x]
+
+    x0 = float(state["applied"].get(key, 0.0))
+    sol = minimize_scalar(lambda x: -evaluate(x)[0], bounds=(x0 - half_width, x0 + half_width), method="bounded",
+                          options={"xatol": tol})
+    xh = float(sol.x)
+    h = 2e-3
+    curv = 2 * evaluate(xh)[0] - evaluate(xh + h)[0] - evaluate(xh - h)[0]
+    sd = float(np.sqrt(2 * h * h / curv)) if curv > 0 else float("nan")
+    prof[key] = sd
+    state["profiled"] = prof
+    applied, w, M, cands, fit = evaluate(xh)[1]
+    return applied, w, M, cands, fit, sd
 
 
 def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS, alpha: float = ALPHA,
@@ -972,14 +1058,15 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     state = {"applied": {}, "elastic": False, "band": band_hz, "candidate": True}
     declared = np.isfinite(rec.rig.cable_stiffness).all()
 
-    def build(applied, elastic):
+    def build(applied, elastic, profiled=None):
         mode = "fitted" if elastic else ("declared" if declared else "rigid")
         w = prepare_window(corrected(rec, applied), warnings=[] if state["band"] else warnings,
                            cables=mode, imu_rot_yaml=R_yaml)
         M = Model(w, state["band"])
         M.n_eff_group = state.get("n_eff_group", {})
         state["band"] = M.band
-        return w, M, candidates(w, M, kappa0, applied, allow_elasticity=state["candidate"] and not elastic)
+        return w, M, candidates(w, M, kappa0, applied, allow_elasticity=state["candidate"] and not elastic,
+                                profiled=state.get("profiled") if profiled is None else profiled)
 
     if not declared:
         # rig.yaml gives no stiffness: steel cables stretch 1-2 mm, which the baseline fits
@@ -1054,8 +1141,19 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
             screened.append({"c": c, "lam": lam, "fit": fit, "red": red, "dof": dof, "exact_state": None})
         # sensor and rig errors move the tracked pose too: the most promising ones are
         # evaluated exactly (data corrected, re-tracked, two Broyden steps) before choosing
-        promising = sorted((e for e in screened if e["c"].exact and e["c"].name != "cable_elasticity"
+        promising = sorted((e for e in screened if e["c"].exact and e["c"].name not in ("cable_elasticity",
+                                                                                        "load_cell_scale")
                             and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p), key=lambda e: -e["lam"])
+        # a load cell's gain moves the tracker's static pose, so its first-order column is no
+        # guide to its size or evidence: every significant one is evaluated exactly
+        for e in screened:
+            if e["c"].name == "load_cell_scale" and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p:
+                try:
+                    _gain_screen(e, state, build, keys, cost_cur, rms_cur, kappa0, free_kappa, scales,
+                                 from_tensor(cur_fit.J))
+                except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
+                    warnings.append(f"candidate {e['c'].name} {e['c'].label}: exact correction failed ({err})")
+                    e["lam"] = -np.inf
         for e in promising[:EXACT_SCREEN]:
             keys_e = keys + [e["c"].key]
             try:
@@ -1080,7 +1178,10 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
                           "exact": e["exact_state"] is not None})
             if c.exact and c.name != "cable_elasticity" and e["exact_state"] is None:
                 continue   # not evaluated exactly: its first-order fit is no evidence
-            if p < threshold_p and best_red >= MIN_REDUCTION and (best is None or e["lam"] > best[0]["lam"]):
+            # the gyroscopic term is physics of known size (κ = 1), missing from the model
+            # by construction: its test is κ = 0 rejected, however small the residual's change
+            practical = best_red >= MIN_REDUCTION or c.gyroscopic
+            if p < threshold_p and practical and (best is None or e["lam"] > best[0]["lam"]):
                 best = (e, p)
         if best is None:
             break
@@ -1092,6 +1193,10 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         if c.name == "cable_elasticity":
             state["elastic"] = True
             _, w, M, cands = elastic_cache
+        elif c.name == "load_cell_scale":
+            state["applied"] = e["exact_state"][0]
+            state["applied"], w, M, cands, fit, _ = _exact_profile(c.key, state, build, keys, cost_cur, kappa0,
+                                                                   free_kappa, scales, from_tensor(fit.J))
         elif c.exact:
             state["applied"], w, M, cands = e["exact_state"]
             state["applied"], w, M, cands, fit = _exact_iterate(c.key, {**state, "cands": cands}, build, keys,
@@ -1105,6 +1210,14 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         entries.append({"name": c.name, "parameters": {}, "parameters_std": {},
                         "evidence": {"likelihood_ratio": lam, "dof": dof, "p_value": p, "threshold_p": threshold_p,
                                      "step": step, "rms_reduction": {k: round(red[k], 4) for k in affected[:8]}}})
+    # the selection weighted each axis by the baseline's residual scale, which the missing
+    # physics inflated on some axes: the final fit is reweighted by its own residual scales
+    # (iteratively reweighted least squares: the maximum-likelihood estimate with unknown
+    # per-axis noise levels)
+    for _ in range(REWEIGHT_ITER if entries else 0):
+        sr, sa = _scales(M, cur_fit)[:2]
+        cur_fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, (sr, sa) + tuple(scales[2:]),
+                            from_tensor(cur_fit.J))
     # the parameters of every selected effect, from the final joint fit
     pos = 0
     by = {cc.key: cc for cc in cands}

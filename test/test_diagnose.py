@@ -38,7 +38,7 @@ CASES = {
     "cable_mass": ({"name": "cable_mass", "mass": 3.0}, "torque"),
 }
 # effects the diagnosis does not find yet (see the module docstring of diagnosis.py)
-NOT_YET = {"load_cell_scale", "cable_mass"}
+NOT_YET = {"cable_mass"}
 
 
 def random_experiment(seed: int, effects: list, duration: float = DURATION) -> dict:
@@ -141,11 +141,18 @@ def check_parameters(name: str, found: dict, truth_entry: dict, excitation: dict
         assert _rel(p["scale"] - 1.0, truth_entry["scale"] - 1.0) < 0.15, p
     elif name == "cable_elasticity":
         assert _rel(p["stiffness"], truth_entry["stiffness"]) < 0.15, p
-    else:   # every parameter the recording determines (relative σ below 5 %)
+    else:   # every parameter (vector component) the recording determines: σ below 5 % of its size
+        determined = 0
         for k, v in truth_entry.items():
-            if k != "name" and _ratio(found["parameters_std"][k], v) < 0.05:
-                assert _rel(p[k], v) < 0.15, (k, p[k], v)
-        assert any(_ratio(found["parameters_std"][k], v) < 0.05 for k, v in truth_entry.items() if k != "name")
+            if k == "name":
+                continue
+            size = float(np.linalg.norm(np.atleast_1d(np.asarray(v, float))))
+            est, std = np.atleast_1d(np.asarray(p[k], float)), np.atleast_1d(np.asarray(found["parameters_std"][k]))
+            for i, (e, s, t) in enumerate(zip(est, std, np.atleast_1d(np.asarray(v, float)))):
+                if s < 0.05 * size:
+                    determined += 1
+                    assert abs(e - t) < 0.15 * size, (k, i, p[k], v)
+        assert determined, f"no parameter determined to 5 %: {found['parameters_std']}"
 
 
 def check_inertia(res: dict, key: str = "inertia_about_cg_after", std_key: str = "inertia_std_after",
@@ -168,9 +175,9 @@ def check_inertia(res: dict, key: str = "inertia_about_cg_after", std_key: str =
 
 
 @pytest.mark.parametrize("name", [n if n not in NOT_YET else pytest.param(
-    n, marks=pytest.mark.xfail(strict=True, reason="not yet found (diagnosis.py, 'Known limits'): a load "
-                                                        "cell's gain moves the tracker's static pose; a cable's mass "
-                                                        "is nearly collinear with the tensor"))
+    n, marks=pytest.mark.xfail(strict=True, reason="not yet found (diagnosis.py, 'Known limit'): a "
+                                                        "cable's mass is nearly collinear with the tensor, an "
+                                                        "accelerometer bias and the load-cell gains"))
     for n in CASES])
 def test_concealed_effect_is_named_estimated_and_removed(results, name):
     res = results[name]
