@@ -90,6 +90,7 @@ CORRECTIONS = ("sensor_delay", "load_cell_scale", "imu_offset", "imu_misalignmen
 """Effects that are errors of the data, not missing physics: :func:`corrected` removes them."""
 EXACT_SCREEN = 3      # sensor/rig-error candidates evaluated exactly (re-tracked) per selection step
 REWEIGHT_ITER = 2     # reweighting iterations of the final fit (per-axis residual scales)
+ALPHA_LP = 3.0        # angular acceleration: gyro low-passed at this multiple of the band's upper edge
 GAIN_STEP = 0.02      # load-cell gain steps of the exact screening (relative)
 DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
@@ -303,9 +304,12 @@ class Model:
         self.steps = step_indices(w.torque)   # stepped inputs: integrated without interpolation across them
         self.IM = self.integ(w.torque)
         self.G = np.stack([self.integ(np.cross(w.omega, w.omega @ Em.T)) for Em in basis()])
-        # angular acceleration from the gyro low-passed at the band's upper edge: the
-        # derivative of the raw gyro noise (×ρ) would swamp the accelerometer's own noise
-        lp = butter(4, self.band[1], fs=fs, output="sos")
+        # angular acceleration from the gyro low-passed at ALPHA_LP × the band's upper edge:
+        # the derivative of the raw gyro noise (×ρ) would swamp the accelerometer's own
+        # noise, and a cut-off at the edge itself (−3 dB there, −2 % of α in the band, then
+        # band-passed again) left an in-band error of α × ρ that looked like an IMU offset
+        # of ~8 mm on clean recordings and biased a load cell's gain by 15–25 %
+        lp = butter(4, min(ALPHA_LP * self.band[1], 0.4 * fs), fs=fs, output="sos")
         self.alpha = np.gradient(sosfiltfilt(lp, w.omega, axis=0), t, axis=0)
         a_rel = np.cross(self.alpha, w.rho) + np.cross(w.omega, np.cross(w.omega, w.rho))
         newton = w.force / w.mass + a_rel
@@ -622,10 +626,10 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
         Fi = w.cable_force[:, i]
         done_e = float(applied.get(("load_cell_scale", name), 0.0))
 
-        if ("load_cell_scale", name) in profiled:
-            sd = profiled[("load_cell_scale", name)]
-            out.append(Candidate("load_cell_scale", [], lambda vals, stds, name=name, e=done_e, sd=sd: (
-                {"cable": name, "scale": 1.0 / (1.0 - e)}, {"scale": sd / (1.0 - e) ** 2}), label=name, exact=True))
+        if ("load_cell_scale", name) in profiled:   # σ looked up when reported: the profile sets it last
+            out.append(Candidate("load_cell_scale", [], lambda vals, stds, name=name, e=done_e: (
+                {"cable": name, "scale": 1.0 / (1.0 - e)},
+                {"scale": profiled[("load_cell_scale", name)] / (1.0 - e) ** 2}), label=name, exact=True))
             continue
 
         def rep_scale(vals, stds, name=name, done_e=done_e):
