@@ -11,7 +11,7 @@ from scipy.signal import butter, sosfiltfilt
 from rig_identification.identification import from_tensor
 from rig_identification.modes import natural_modes
 from rig_identification.pipeline import identify_recording
-from rig_identification.planning import (REFERENCE_NOISE, Trajectory, _cumtrapz_adjoint,
+from rig_identification.planning import (REFERENCE_NOISE, SPIN_AXES, Trajectory, _cumtrapz_adjoint,
                                          _sosfiltfilt_adjoint, predict_from_trajectory, resonances)
 from rig_identification.recording import Recording
 from rig_identification.simulator import load_experiment, simulate
@@ -95,7 +95,7 @@ def test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation():
     assert {"modes", "runs", "prediction", "baseline", "improvement", "limits"} <= set(d)
     assert [round(m["frequency_hz"], 2) for m in d["modes"][:3]] == [0.85, 1.18, 2.78]
     run = d["runs"][0]
-    assert 1.3 <= run["run"]["frequency_hz"] <= 1.6 and run["run"]["spin_axis_body"] in "xyz"
+    assert 1.3 <= run["run"]["frequency_hz"] <= 1.6 and run["run"]["spin_axis_body"] in SPIN_AXES
     assert run["min_tension_ratio"] >= 0.2 and run["peak_rotation_deg"] <= 3.0
     assert d["baseline"]["run"]["frequency_hz"] == 1.05 and d["baseline"]["run"]["amplitude_n"] == 200.0
     assert min(d["improvement"].values()) > 1.2
@@ -185,3 +185,20 @@ def test_second_run_on_another_cable_geometry_stays_within_the_limits():
                key=lambda p: p.worst(plan.baseline.prediction.std))
     assert plan.prediction.worst(plan.baseline.prediction.std) == pytest.approx(
         best.worst(plan.baseline.prediction.std), rel=1e-9)
+
+
+def test_spin_axes_point_where_their_names_say():
+    """Each candidate spin axis (SPIN_AXES: body x, y, z and the diagonals between two of
+    them) is the z axis of its exciter rpy, and the plan's JSON gives that unit vector."""
+    from scipy.spatial.transform import Rotation
+
+    from rig_identification.planning import Run
+    assert len(SPIN_AXES) == 9
+    for name, rpy in SPIN_AXES.items():
+        v = np.zeros(3)
+        for sign, axis in zip(("+",) + tuple(name[1:-1]), name[::2]):
+            v["xyz".index(axis)] = 1.0 if sign == "+" else -1.0
+        v /= np.linalg.norm(v)
+        z = Rotation.from_euler("xyz", rpy).apply([0.0, 0.0, 1.0])
+        assert z == pytest.approx(v, abs=1e-12), name
+        assert Run(1.5, 500.0, (0.0, 0.0, 0.0), name).to_dict()["spin_axis_unit_body"] == pytest.approx(v, abs=1e-6)
