@@ -929,8 +929,8 @@ def _lr(cost0: dict, cost1: dict, model: Model) -> float:
 
 
 def _scales(M: Model, f0: Fit) -> tuple:
-    """The baseline residual scales: per axis (3,) for the rotational and translational
-    groups, scalars for the mean levels."""
+    """The residual scales of the fit ``f0`` (the baseline's during the selection): per
+    axis (3,) for the rotational and translational groups, scalars for the mean levels."""
     return (np.sqrt(np.mean(f0.rot**2, 0)), np.sqrt(np.mean(f0.tr**2, 0)),
             float(np.mean(M.sigma_dcg)), float(np.mean(M.sigma_dca)), float(M.sigma_dcm))
 

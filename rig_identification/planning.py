@@ -79,8 +79,8 @@ REFERENCE_RATES = {"imu": 200.0, "load_cells": 200.0, "exciter": 200.0, "inclino
 SOURCES = ("gyro", "accelerometer", "inclinometer", "load_cell", "exciter")
 """Noise sources of the prediction (the tracker's compliance estimate enters through them)."""
 DIAG = (0, 3, 5)  # ixx, iyy, izz in KEYS order
-_SPIN_VECTORS = {"x": (1, 0, 0), "y": (0, 1, 0), "z": (0, 0, 1), "x+y": (1, 1, 0), "x-y": (1, -1, 0),
-                 "x+z": (1, 0, 1), "x-z": (1, 0, -1), "y+z": (0, 1, 1), "y-z": (0, 1, -1)}
+_DIAGONALS = {"x+y": (1, 1, 0), "x-y": (1, -1, 0), "x+z": (1, 0, 1), "x-z": (1, 0, -1), "y+z": (0, 1, 1),
+              "y-z": (0, 1, -1)}
 
 
 def _spin_rpy(v) -> tuple:
@@ -91,7 +91,7 @@ def _spin_rpy(v) -> tuple:
 
 
 SPIN_AXES = {"x": (0.0, math.pi / 2, 0.0), "y": (-math.pi / 2, 0.0, 0.0), "z": (0.0, 0.0, 0.0),
-             **{k: _spin_rpy(v) for k, v in _SPIN_VECTORS.items() if len(k) == 3}}
+             **{k: _spin_rpy(v) for k, v in _DIAGONALS.items()}}
 """Exciter rpy (body -> exciter frame) whose z axis (the spin axis) is body x, y, z or the
 diagonal between two of them ("x+y": along (1, 1, 0)/√2, "x-y": along (1, −1, 0)/√2, …).
 A diagonal axis turns the force in a plane that holds one body axis and the other two's
