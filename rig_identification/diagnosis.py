@@ -39,16 +39,21 @@ re-tracked, the model refitted, Broyden iterations on the first-order remainder 
 selected one is iterated to convergence.  A load cell's gain (one candidate per cable)
 moves the tracker's static pose (it balances forces and moments with the tensions) so
 much that its first-order column points the wrong way: every significant one is
-evaluated exactly at ±:data:`GAIN_STEP` (:func:`_gain_screen`), and the selected one is
-found by its exact profile likelihood (:func:`_exact_profile`).
+evaluated exactly at ±:data:`GAIN_STEP` (:func:`_exact_screen`), and the selected one is
+found by its exact profile likelihood (:func:`_exact_profile`).  So is ``cable_mass``,
+always: the lower half of each cable (μ kg) hangs on its body anchor, outside the load
+cell at the ceiling, so the body the tensions move is heavier, its centre of gravity
+higher and its tensor larger than rig.yaml's (:func:`corrected` gives the rig that body;
+:func:`body_inertia` takes the cables' share off the fitted tensor).  To first order, its
+moment is nearly collinear with the tensor and its weight with an accelerometer bias and
+the load-cell gains; exactly, the re-tracked pose and the mean levels separate them.
+When rig.yaml gives no stiffness, the steel stretch fitted by the baseline is kept by the
+trial re-tracks and fitted again once an error is selected.
 
 Weights: each axis of the rotational and translational groups by its own residual scale
 (the axes' scales differ several-fold: a pooled scale biased the tensor by several per
 cent on some rigs, the identifier weights per axis too); the scales of the baseline fit
 during the selection, the final fit's own afterwards (iteratively reweighted).
-
-Known limit: ``cable_mass`` is not found yet — half a cable's mass riding on each body
-anchor is nearly collinear with the tensor, an accelerometer bias and the load-cell gains.
 
 Selection: forward stepwise, by the likelihood-ratio statistic
 ``Λ = Σ_g N_eff,g ln(RSS_g,0 / RSS_g,1) + Δχ²_DC`` (Gaussian residuals with the
@@ -70,6 +75,7 @@ ratio and information criteria for model structure selection).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from dataclasses import replace as _replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -92,6 +98,9 @@ EXACT_SCREEN = 3      # sensor/rig-error candidates evaluated exactly (re-tracke
 REWEIGHT_ITER = 2     # reweighting iterations of the final fit (per-axis residual scales)
 ALPHA_LP = 3.0        # angular acceleration: gyro low-passed at this multiple of the band's upper edge
 GAIN_STEP = 0.02      # load-cell gain steps of the exact screening (relative)
+CABLE_MASS_STEP = 2e-3  # cables' mass steps of the exact screening: body anchors' share of the body's mass
+PROFILED = ("load_cell_scale", "cable_mass")
+"""One-parameter errors placed by their exact profile likelihood (:func:`_exact_profile`)."""
 DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
 PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
@@ -674,8 +683,16 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
         a_i = f_cg + np.cross(model.alpha, r) + np.cross(om, np.cross(om, r))   # anchor specific force
         Dm -= np.cross(r, a_i)
         Fm -= a_i
-    out.append(Candidate("cable_mass", [Column("mass_half", rot_D=Dm, tr_D=Fm / m, dca=(Fm / m).mean(0))],
-                         lambda vals, stds: ({"mass": 2 * float(vals[0])}, {"mass": 2 * float(stds[0])})))
+    # (the first-order column is no guide: the selection evaluates the mass exactly, the rig's
+    # body given the cables' lower halves, :func:`corrected`, and places it by its profile)
+    key, done_mu = ("cable_mass", ""), float(applied.get(("cable_mass", ""), 0.0))
+    if key in profiled:
+        out.append(Candidate("cable_mass", [], lambda vals, stds, mu=done_mu: (
+            {"mass": 2 * mu}, {"mass": 2 * profiled[("cable_mass", "")]}), exact=True))
+    else:
+        out.append(Candidate("cable_mass", [Column("mass_half", rot_D=Dm, tr_D=Fm / m, dca=(Fm / m).mean(0))],
+                             lambda vals, stds, mu=done_mu: ({"mass": 2 * (mu + float(vals[0]))},
+                                                             {"mass": 2 * float(stds[0])}), exact=True))
     # cable elasticity: the pose re-tracked with stretching cables (compliance fitted by the tracker)
     if allow_elasticity:
         out.append(Candidate("cable_elasticity", [], lambda vals, stds: ({"stiffness": float(vals[0])},
@@ -694,7 +711,11 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     ("sensor_delay", stream) s: the stream's stamps − d; ("load_cell_scale", cable) e:
     the cable's tension T (1 − e); ("imu_offset", "") (3,) m body: imu.position + δ; ("imu_misalignment", "")
     (3,) rotation vector, body axes: IMU axes turned by it; ("gyro_bias" | "accelerometer_bias",
-    "") (3,) IMU axes: subtracted.  ("cable_elasticity", "") is handled by the tracker."""
+    "") (3,) IMU axes: subtracted; ("cable_mass", "") μ kg: the rig's body carries μ at each
+    body anchor (the lower half of each cable, outside its load cell at the ceiling): mass
+    + n μ, the centre of gravity moved to the combined one (the tensor fitted is then the
+    combined body's, :func:`body_inertia` gives the body's).  ("cable_elasticity", "") is
+    handled by the tracker."""
     from dataclasses import replace as _r
 
     from .recording import SensorData, TimeSeries
@@ -717,7 +738,31 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     if ("imu_misalignment", "") in applied:
         Rb = Rotation.from_rotvec(np.asarray(applied[("imu_misalignment", "")], float))
         imu_m = _r(imu_m, rpy=(Rb * imu_m.rotation).as_euler("xyz"))
-    return _r(rec, rig=_r(rig, imu=imu_m), sensors=s2)
+    rig = _r(rig, imu=imu_m)
+    mu = float(applied.get(("cable_mass", ""), 0.0))
+    if mu:
+        m, b = rig.mass, rig.body_anchors
+        rig = _r(rig, mass=m + mu * len(b), center_of_gravity=(m * rig.require_cg() + mu * b.sum(0)) / (m + mu * len(b)))
+    return _r(rec, rig=rig, sensors=s2)
+
+
+def _with_stiffness(rec: Recording, k: np.ndarray) -> Recording:
+    """``rec`` with every cable's axial stiffness (n,) N/m set in its rig."""
+    return _replace(rec, rig=_replace(rec.rig, cables=tuple(_replace(c, stiffness=float(ki))
+                                                            for c, ki in zip(rec.rig.cables, k))))
+
+
+def body_inertia(J: np.ndarray, rig, mu: float) -> np.ndarray:
+    """The body's inertia tensor about its own centre of gravity (3,3) kg·m² from ``J``
+    (3,3), that of the body with μ kg at each body anchor about their combined centre of
+    gravity (:func:`corrected`'s cable mass): parallel-axis theorem (Huygens–Steiner),
+    J_b = J − m S(c_b − c) − μ Σ S(r_i − c), S(d) = |d|² I − d dᵀ; ``rig`` the rig.yaml's."""
+    if not mu:
+        return J
+    m, cb, b = rig.mass, rig.require_cg(), rig.body_anchors
+    c = (m * cb + mu * b.sum(0)) / (m + mu * len(b))
+    S = lambda d: float(d @ d) * np.eye(3) - np.outer(d, d)  # noqa: E731
+    return J - m * S(cb - c) - mu * sum(S(r - c) for r in b)
 
 
 # --- diagnosis ------------------------------------------------------------------------------
@@ -977,43 +1022,60 @@ def _beta_of(fit: Fit, cands, keys: list, key, state) -> np.ndarray:
     return np.asarray(fit.beta[k0:k0 + len(by[key].columns)], float)
 
 
-def _gain_screen(e: dict, state: dict, build, keys: list, cost_ref: dict, rms_ref: dict, kappa0: float,
-                 free_kappa: bool, scales, j0: np.ndarray, h: float = GAIN_STEP) -> None:
-    """Exact evidence of one load cell's gain error (screening entry ``e``, updated in
-    place): the gain removed from the data at ±``h`` about its current value, re-tracked
-    and refitted; the likelihood ratio against ``cost_ref`` through those two points and
-    the current fit (Λ = 0) is a parabola, whose maximum (at most 3h away) is the evidence
-    and the starting point of :func:`_exact_profile`."""
+def _profile_steps(key, w: Window) -> tuple:
+    """(screening step, lower bound, curvature step) of the exact one-parameter evaluation
+    of ``key``: a load cell's gain error (relative) :data:`GAIN_STEP`, unbounded; the
+    half-cable mass per body anchor (kg) :data:`CABLE_MASS_STEP` of the body's mass shared
+    by the anchors, at least 0."""
+    if key[0] == "cable_mass":
+        h = CABLE_MASS_STEP * w.mass / len(w.cable_names)
+        return h, 0.0, 0.1 * h
+    return GAIN_STEP, -np.inf, 2e-3
+
+
+def _exact_screen(e: dict, state: dict, build, keys: list, cost_ref: dict, rms_ref: dict, kappa0: float,
+                  free_kappa: bool, scales, j0: np.ndarray, w: Window) -> None:
+    """Exact evidence of a one-parameter rig or data error (a load cell's gain, the cables'
+    mass; screening entry ``e``, updated in place): the error applied at two trial values
+    about its current one (±h, or +h and +2h at its lower bound; :func:`_profile_steps`),
+    the pose re-tracked and the model refitted; the likelihood ratio against ``cost_ref``
+    through those two points and the current fit (Λ = 0) is a parabola, whose maximum (at
+    most 3h away) is the evidence and the starting point of :func:`_exact_profile`."""
     key = e["c"].key
+    h, lower, _ = _profile_steps(key, w)
     x0 = float(state["applied"].get(key, 0.0))
+    offsets = (-h, h) if x0 - h >= lower else (h, 2 * h)
     lams, fits = [], []
-    for x in (x0 - h, x0 + h):
-        w, M, cands = build({**state["applied"], key: x}, state["elastic"])
+    for d in offsets:
+        w1, M, cands = build({**state["applied"], key: x0 + d}, state["elastic"])
         fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, j0)
         lams.append(_lr(cost_ref, fit.cost(scales), M))
         fits.append((fit, M))
-    A, B = (lams[0] + lams[1]) / (2 * h * h), (lams[1] - lams[0]) / (2 * h)
+    (p1, p2), (l1, l2) = offsets, lams
+    A = (l2 / p2 - l1 / p1) / (p2 - p1)       # Λ(d) = A d² + B d through (0, 0), (p1, l1), (p2, l2)
+    B = l1 / p1 - A * p1
+    best = int(l2 >= l1)
     if A < 0:
-        d = float(np.clip(-B / (2 * A), -3 * h, 3 * h))
+        d = float(np.clip(-B / (2 * A), max(-3 * h, lower - x0), 3 * h))
         lam = A * d * d + B * d
     else:
-        d = h if lams[1] >= lams[0] else -h
-        lam = max(lams)
-    fit, M = fits[int(lams[1] >= lams[0])]
+        d, lam = offsets[best], max(lams)
+    fit, M = fits[best]
     rms1 = _rms(channel_residuals(M, fit))
     e.update(lam=float(lam), fit=fit, red={k: 1 - rms1[k] / rms_ref[k] for k in rms1 if rms_ref[k] > 0},
              exact_state=({**state["applied"], key: x0 + d}, None, None, None))
 
 
 def _exact_profile(key, state: dict, build, keys: list, cost_ref: dict, kappa0: float, free_kappa: bool, scales,
-                   j0: np.ndarray, half_width: float = 0.02, tol: float = 2e-4) -> tuple:
-    """The exact profile likelihood of a one-parameter data error (a load cell's gain):
-    the error removed from the data at trial values x, the pose re-tracked and the model
-    (without the error's first-order column) refitted; x maximises the likelihood ratio
-    against ``cost_ref`` (scipy ``minimize_scalar``, bounded, ±``half_width`` about the
-    current value), σ from its curvature (Λ(x) ≈ Λ̂ − (x − x̂)²/σ²).  A load cell's gain moves
-    the tracker's static pose, so the first-order column's zero (:func:`_exact_iterate`) is
-    not the optimum.  Returns (applied, w, M, cands, fit, σ)."""
+                   j0: np.ndarray, w: Window) -> tuple:
+    """The exact profile likelihood of a one-parameter rig or data error (a load cell's
+    gain, the cables' mass): the error applied at trial values x (:func:`corrected`), the
+    pose re-tracked and the model (without the error's first-order column) refitted; x
+    maximises the likelihood ratio against ``cost_ref`` (scipy ``minimize_scalar``,
+    bounded, ± a screening step about the current value and above the lower bound of
+    :func:`_profile_steps`, to 1 % of a step), σ from its curvature (Λ(x) ≈ Λ̂ − (x − x̂)²/σ²).
+    Both move the tracker's static pose, so the first-order column's zero
+    (:func:`_exact_iterate`) is not the optimum.  Returns (applied, w, M, cands, fit, σ)."""
     from scipy.optimize import minimize_scalar
     others = [k for k in keys if k != key]
     prof = {**state.get("profiled", {}), key: np.nan}
@@ -1028,11 +1090,11 @@ def _exact_profile(key, state: dict, build, keys: list, cost_ref: dict, kappa0: 
             memo[x] = (_lr(cost_ref, fit.cost(scales), M), (applied, w, M, cands, fit))
         return memo[x]
 
+    step, lower, h = _profile_steps(key, w)
     x0 = float(state["applied"].get(key, 0.0))
-    sol = minimize_scalar(lambda x: -evaluate(x)[0], bounds=(x0 - half_width, x0 + half_width), method="bounded",
-                          options={"xatol": tol})
-    xh = float(sol.x)
-    h = 2e-3
+    sol = minimize_scalar(lambda x: -evaluate(x)[0], bounds=(max(lower, x0 - step), x0 + step),
+                          method="bounded", options={"xatol": 0.01 * step})
+    xh = max(float(sol.x), lower + h)
     curv = 2 * evaluate(xh)[0] - evaluate(xh + h)[0] - evaluate(xh - h)[0]
     sd = float(np.sqrt(2 * h * h / curv)) if curv > 0 else float("nan")
     prof[key] = sd
@@ -1061,11 +1123,14 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     R_yaml = rec.rig.imu.rotation.as_matrix()
     state = {"applied": {}, "elastic": False, "band": band_hz, "candidate": True}
     declared = np.isfinite(rec.rig.cable_stiffness).all()
+    src = {"rec": rec}    # what the model's re-tracks start from
 
-    def build(applied, elastic, profiled=None):
-        mode = "fitted" if elastic else ("declared" if declared else "rigid")
-        w = prepare_window(corrected(rec, applied), warnings=[] if state["band"] else warnings,
-                           cables=mode, imu_rot_yaml=R_yaml)
+    def build(applied, elastic, profiled=None, refit=False):
+        mode = "fitted" if elastic or (refit and "steel" in state) else ("declared" if declared else "rigid")
+        w = prepare_window(corrected(src["rec"] if mode != "fitted" else rec, applied),
+                           warnings=[] if state["band"] else warnings, cables=mode, imu_rot_yaml=R_yaml)
+        if refit and "steel" in state:
+            src["rec"] = _with_stiffness(rec, w.stiffness)
         M = Model(w, state["band"])
         M.n_eff_group = state.get("n_eff_group", {})
         state["band"] = M.band
@@ -1081,7 +1146,13 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         stretch = float(np.median(np.median(w.tensions, axis=0) / k))
         if stretch <= STEEL_STRETCH:
             state["candidate"] = False
-            declared = True          # the fitted stiffness is the baseline's
+            # the fitted stiffness is the baseline's, and the re-tracks keep it (a trial
+            # value of a data error changes a cable's 1-2 mm stretch by hundredths of a mm;
+            # fitting it again would double every re-track's cost)
+            # (fitted again once a data error is selected)
+            declared = True
+            state["steel"] = True
+            src["rec"] = _with_stiffness(rec, k)
             cands = candidates(w, M, kappa0, {}, allow_elasticity=False)
         else:
             warnings.append(f"the cables stretch {1e3 * stretch:.1f} mm under the static load (fitted stiffness "
@@ -1145,16 +1216,19 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
             screened.append({"c": c, "lam": lam, "fit": fit, "red": red, "dof": dof, "exact_state": None})
         # sensor and rig errors move the tracked pose too: the most promising ones are
         # evaluated exactly (data corrected, re-tracked, two Broyden steps) before choosing
-        promising = sorted((e for e in screened if e["c"].exact and e["c"].name not in ("cable_elasticity",
-                                                                                        "load_cell_scale")
+        promising = sorted((e for e in screened if e["c"].exact and e["c"].name not in PROFILED
+                            and e["c"].name != "cable_elasticity"
                             and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p), key=lambda e: -e["lam"])
-        # a load cell's gain moves the tracker's static pose, so its first-order column is no
-        # guide to its size or evidence: every significant one is evaluated exactly
+        # a load cell's gain and the cables' mass move the tracker's static pose, so their
+        # first-order columns are no guide to their size or evidence: every significant gain,
+        # and the cables' mass (its column is nearly collinear with the tensor), is evaluated
+        # exactly
         for e in screened:
-            if e["c"].name == "load_cell_scale" and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p:
+            if e["c"].name == "cable_mass" or (e["c"].name == "load_cell_scale"
+                                               and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p):
                 try:
-                    _gain_screen(e, state, build, keys, cost_cur, rms_cur, kappa0, free_kappa, scales,
-                                 from_tensor(cur_fit.J))
+                    _exact_screen(e, state, build, keys, cost_cur, rms_cur, kappa0, free_kappa, scales,
+                                  from_tensor(cur_fit.J), w)
                 except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
                     warnings.append(f"candidate {e['c'].name} {e['c'].label}: exact correction failed ({err})")
                     e["lam"] = -np.inf
@@ -1197,14 +1271,18 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         if c.name == "cable_elasticity":
             state["elastic"] = True
             _, w, M, cands = elastic_cache
-        elif c.name == "load_cell_scale":
+        elif c.name in PROFILED:
             state["applied"] = e["exact_state"][0]
             state["applied"], w, M, cands, fit, _ = _exact_profile(c.key, state, build, keys, cost_cur, kappa0,
-                                                                   free_kappa, scales, from_tensor(fit.J))
+                                                                   free_kappa, scales, from_tensor(fit.J), w)
         elif c.exact:
             state["applied"], w, M, cands = e["exact_state"]
             state["applied"], w, M, cands, fit = _exact_iterate(c.key, {**state, "cands": cands}, build, keys,
                                                                 fit, 3, kappa0, free_kappa, scales)
+        if c.exact and "steel" in state:
+            # the cables' steel stretch fitted again with the error removed
+            w, M, cands = build(state["applied"], False, refit=True)
+            fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, from_tensor(fit.J))
         state["cands"] = cands
         rms1 = _rms(channel_residuals(M, fit))
         red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
@@ -1243,7 +1321,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     located = locate(M0, base, rec.rig, base.J)
     std_of = lambda f: np.sqrt(np.clip(np.diag(f.cov)[:6], 0, None))  # noqa: E731
     ch0, ch1 = channel_residuals(M0, base), channel_residuals(M, cur_fit)
-    return Diagnosis(bool(entries), entries, located, rms0, _rms(ch1), base.J, cur_fit.J,
+    return Diagnosis(bool(entries), entries, located, rms0, _rms(ch1), base.J,
+                     body_inertia(cur_fit.J, rec.rig, float(state["applied"].get(("cable_mass", ""), 0.0))),
                      std_of(base), std_of(cur_fit), tried, band, model, warnings + list(rec.warnings),
                      series={"t": w.t - w.t[0], "fs": M.fs, "before": ch0, "after": ch1},
                      covariance_after=np.array(cur_fit.cov[:6, :6]),

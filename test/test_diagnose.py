@@ -37,10 +37,6 @@ CASES = {
     "load_cell_scale": ({"name": "load_cell_scale", "cable": "c1", "scale": 1.03}, "torque"),
     "cable_mass": ({"name": "cable_mass", "mass": 3.0}, "torque"),
 }
-# effects the diagnosis does not find yet (see the module docstring of diagnosis.py)
-NOT_YET = {"cable_mass"}
-
-
 def random_experiment(seed: int, effects: list, duration: float = DURATION) -> dict:
     """The default rig (thesis case 16, realistic sensors) with a random vehicle and geometry:
     mass ±25 %, principal moments ×0.8–1.25, small products, CG and anchors moved by
@@ -174,11 +170,7 @@ def check_inertia(res: dict, key: str = "inertia_about_cg_after", std_key: str =
             assert abs(err) < 0.5 * abs(err0), f"{k}: error {100 * err0 / ref:+.2f} % before, {100 * err / ref:+.2f} % after"
 
 
-@pytest.mark.parametrize("name", [n if n not in NOT_YET else pytest.param(
-    n, marks=pytest.mark.xfail(strict=True, reason="not yet found (diagnosis.py, 'Known limit'): a "
-                                                        "cable's mass is nearly collinear with the tensor, an "
-                                                        "accelerometer bias and the load-cell gains"))
-    for n in CASES])
+@pytest.mark.parametrize("name", list(CASES))
 def test_concealed_effect_is_named_estimated_and_removed(results, name):
     res = results[name]
     eff, group = CASES[name]
