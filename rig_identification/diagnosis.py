@@ -100,6 +100,7 @@ ALPHA_LP = 3.0        # angular acceleration: gyro low-passed at this multiple o
 GAIN_STEP = 0.02      # load-cell gain steps of the exact screening (relative)
 CABLE_MASS_STEP = 2e-3  # cables' mass steps of the exact screening: body anchors' share of the body's mass
 PROFILED = ("load_cell_scale", "cable_mass")
+WEIGHT_SURPLUS_SIGMA = 3.0   # the cables' mass is evaluated exactly when the cells carry this many σ more than the weight
 """One-parameter errors placed by their exact profile likelihood (:func:`_exact_profile`)."""
 DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
@@ -1033,6 +1034,26 @@ def _profile_steps(key, w: Window) -> tuple:
     return GAIN_STEP, -np.inf, 2e-3
 
 
+def _builder(build, key):
+    """The re-track of ``key``'s trial values: the cables' mass changes no tension, so its
+    trials keep the steel stretch fitted last (one tracker pass, not two); a gain or a
+    delay changes what the stretch is fitted to, so theirs fit it again."""
+    if key[0] != "cable_mass":
+        return build
+    return lambda applied, elastic, profiled=None: build(applied, elastic, profiled, keep_stretch=True)
+
+
+def _weight_surplus(M: Model, fit: Fit, n_sigma: float = WEIGHT_SURPLUS_SIGMA) -> bool:
+    """Whether the load cells carry more than the body's weight: the mean specific force
+    along gravity (body axes) falls short of the mean cable and exciter force / mass by
+    more than ``n_sigma`` of its mean-level σ — what the cables' mass does (each cable's
+    lower half hangs on the body, outside its load cell) and what makes it worth an exact
+    evaluation.  ``fit.dca`` is the mean measured minus modelled specific force."""
+    g_hat = -M.w.g_body.mean(0)
+    g_hat = g_hat / np.linalg.norm(g_hat)
+    return bool(-float(fit.dca @ g_hat) > n_sigma * float(np.mean(M.sigma_dca)))
+
+
 def _exact_screen(e: dict, state: dict, build, keys: list, cost_ref: dict, rms_ref: dict, kappa0: float,
                   free_kappa: bool, scales, j0: np.ndarray, w: Window) -> None:
     """Exact evidence of a one-parameter rig or data error (a load cell's gain, the cables'
@@ -1123,14 +1144,13 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     R_yaml = rec.rig.imu.rotation.as_matrix()
     state = {"applied": {}, "elastic": False, "band": band_hz, "candidate": True}
     declared = np.isfinite(rec.rig.cable_stiffness).all()
-    src = {"rec": rec}    # what the model's re-tracks start from
 
-    def build(applied, elastic, profiled=None, refit=False):
-        mode = "fitted" if elastic or (refit and "steel" in state) else ("declared" if declared else "rigid")
-        w = prepare_window(corrected(src["rec"] if mode != "fitted" else rec, applied),
-                           warnings=[] if state["band"] else warnings, cables=mode, imu_rot_yaml=R_yaml)
-        if refit and "steel" in state:
-            src["rec"] = _with_stiffness(rec, w.stiffness)
+    def build(applied, elastic, profiled=None, keep_stretch=False):
+        mode = "fitted" if elastic else ("declared" if declared else "rigid")
+        # keep_stretch: the steel stretch fitted last is kept (one tracker pass, not two)
+        src = _with_stiffness(rec, state["steel"]) if keep_stretch and "steel" in state else rec
+        w = prepare_window(corrected(src, applied), warnings=[] if state["band"] else warnings,
+                           cables=mode, imu_rot_yaml=R_yaml)
         M = Model(w, state["band"])
         M.n_eff_group = state.get("n_eff_group", {})
         state["band"] = M.band
@@ -1146,13 +1166,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         stretch = float(np.median(np.median(w.tensions, axis=0) / k))
         if stretch <= STEEL_STRETCH:
             state["candidate"] = False
-            # the fitted stiffness is the baseline's, and the re-tracks keep it (a trial
-            # value of a data error changes a cable's 1-2 mm stretch by hundredths of a mm;
-            # fitting it again would double every re-track's cost)
-            # (fitted again once a data error is selected)
-            declared = True
-            state["steel"] = True
-            src["rec"] = _with_stiffness(rec, k)
+            declared = True          # the fitted stiffness is the baseline's
+            state["steel"] = k       # the last fitted (N/m per cable)
             cands = candidates(w, M, kappa0, {}, allow_elasticity=False)
         else:
             warnings.append(f"the cables stretch {1e3 * stretch:.1f} mm under the static load (fitted stiffness "
@@ -1224,11 +1239,11 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         # and the cables' mass (its column is nearly collinear with the tensor), is evaluated
         # exactly
         for e in screened:
-            if e["c"].name == "cable_mass" or (e["c"].name == "load_cell_scale"
-                                               and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p):
+            if (e["c"].name == "cable_mass" and _weight_surplus(M, cur_fit)) or (
+                    e["c"].name == "load_cell_scale" and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p):
                 try:
-                    _exact_screen(e, state, build, keys, cost_cur, rms_cur, kappa0, free_kappa, scales,
-                                  from_tensor(cur_fit.J), w)
+                    _exact_screen(e, state, _builder(build, e["c"].key), keys, cost_cur, rms_cur, kappa0,
+                                  free_kappa, scales, from_tensor(cur_fit.J), w)
                 except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
                     warnings.append(f"candidate {e['c'].name} {e['c'].label}: exact correction failed ({err})")
                     e["lam"] = -np.inf
@@ -1273,17 +1288,20 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
             _, w, M, cands = elastic_cache
         elif c.name in PROFILED:
             state["applied"] = e["exact_state"][0]
-            state["applied"], w, M, cands, fit, _ = _exact_profile(c.key, state, build, keys, cost_cur, kappa0,
+            state["applied"], w, M, cands, fit, _ = _exact_profile(c.key, state, _builder(build, c.key), keys,
+                                                                   cost_cur, kappa0,
                                                                    free_kappa, scales, from_tensor(fit.J), w)
         elif c.exact:
             state["applied"], w, M, cands = e["exact_state"]
             state["applied"], w, M, cands, fit = _exact_iterate(c.key, {**state, "cands": cands}, build, keys,
                                                                 fit, 3, kappa0, free_kappa, scales)
-        if c.exact and "steel" in state:
-            # the cables' steel stretch fitted again with the error removed
-            w, M, cands = build(state["applied"], False, refit=True)
+        if c.name == "cable_mass" and "steel" in state:
+            # its trial re-tracks kept the steel stretch: fitted again with the mass in place
+            w, M, cands = build(state["applied"], False)
             fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, from_tensor(fit.J))
         state["cands"] = cands
+        if "steel" in state:
+            state["steel"] = w.stiffness
         rms1 = _rms(channel_residuals(M, fit))
         red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
         lam = _lr(cost_cur, fit.cost(scales), M)
