@@ -46,9 +46,10 @@ cell at the ceiling, so the body the tensions move is heavier, its centre of gra
 higher and its tensor larger than rig.yaml's (:func:`corrected` gives the rig that body;
 :func:`body_inertia` takes the cables' share off the fitted tensor).  To first order, its
 moment is nearly collinear with the tensor and its weight with an accelerometer bias and
-the load-cell gains; exactly, the re-tracked pose and the mean levels separate them.
-When rig.yaml gives no stiffness, the steel stretch fitted by the baseline is kept by the
-trial re-tracks and fitted again once an error is selected.
+the load-cell gains; exactly, the re-tracked pose and the mean levels separate them.  It
+is evaluated when the load cells carry more than the body's weight
+(:data:`WEIGHT_SURPLUS_SIGMA`), and its trial re-tracks keep the steel stretch fitted last
+(it changes no tension), which is fitted again once the mass is selected.
 
 Weights: each axis of the rotational and translational groups by its own residual scale
 (the axes' scales differ several-fold: a pooled scale biased the tensor by several per

@@ -264,3 +264,25 @@ def test_inertia_removes_a_diagnosed_sensor_delay_and_identifies_again():
     for k, c in compare_to_truth(res, sim.truth).items():
         assert abs(c["error_percent"]) < 0.5 and abs(c["error_sigma"]) < 3.0, (k, c)
     assert abs(res.rigid_body["inertia_about_cg"]["ixx"] / sim.truth["inertia_about_cg"]["ixx"] - 1) > 0.05
+
+
+def test_cable_mass_rig_and_tensor_invert_the_simulated_body():
+    """`corrected` with a cable mass gives the heavier body the simulator moves (its half-cable
+    point masses at the body anchors: mass and centre of gravity), and `body_inertia` takes
+    their share off that body's tensor (parallel-axis theorem), back to the vehicle's own."""
+    from rig_identification.diagnosis import body_inertia, corrected
+    from rig_identification.recording import Recording
+    from rig_identification.rig import DummyMass
+    from rig_identification.simulator import _with_dummy, experiment_from_dict, inertia_tensor, simulate
+    d = random_experiment(7, [], duration=1.0)
+    sim = simulate(experiment_from_dict(d, "random"))
+    rig, mu = sim.rig, 1.7
+    J = inertia_tensor(d["inertia_about_cg"])
+    m, c, Jc = rig.mass, rig.require_cg(), J
+    for b in rig.body_anchors:
+        m, c, Jc = _with_dummy(m, c, Jc, DummyMass(mu, np.asarray(b, float)))
+    rec = corrected(Recording(rig, sim.sensors, sim.truth, "x"), {("cable_mass", ""): mu})
+    assert rec.rig.mass == pytest.approx(m, rel=1e-12)
+    np.testing.assert_allclose(rec.rig.center_of_gravity, c, atol=1e-12)
+    assert np.abs(Jc - J).max() > 10.0       # the cables' share is not negligible
+    np.testing.assert_allclose(body_inertia(Jc, rig, mu), J, atol=1e-9)
