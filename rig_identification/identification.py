@@ -130,6 +130,9 @@ class InertiaResult:
     bias_correction: np.ndarray | None = None
     sensor_noise: dict | None = None
     residual_excess: np.ndarray | None = None
+    # filled by pipeline.identify_recording: the load cells' mean vertical force over
+    # rig.yaml's weight, − 1 (pipeline.weight_surplus)
+    weight_surplus: float | None = None
     uncertainty: str = "sandwich"   # what inertia_std is: "sandwich", "propagated sensor noise", …
     # filled by pipeline.with_diagnosis when the fit showed model error and diagnose named its
     # cause: the rigid-body fit's tensor and σ, and the effects added (JSON of each)
@@ -154,6 +157,7 @@ class InertiaResult:
             "frame": "body",
             "uncertainty": self.uncertainty,
             "residual_excess": None if self.residual_excess is None else [float(x) for x in self.residual_excess],
+            "weight_surplus": self.weight_surplus,
             "inertia_sandwich_std": (None if self.sandwich_std is None
                                      else {k: float(v) for k, v in zip(KEYS, self.sandwich_std)}),
             "bias_correction": (None if self.bias_correction is None

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -160,6 +161,35 @@ case 16; up to 1.47 on a 35 s one at 200 Hz (the tracker's start-up misfit, whic
 does not explain, weighs more in a short run); the damped reference recording: 9.8."""
 
 
+WEIGHT_TOLERANCE = 1e-3
+"""Relative difference between the load cells' mean vertical force and rig.yaml's weight
+beyond which the fit's input is not the body rig.yaml describes (a cable's mass hanging
+outside its load cell, a load cell's gain, a wrong body.mass): about a vehicle scale's
+accuracy.  Clean simulated recordings and the clean references: below 1e-4."""
+
+
+def weight_surplus(prep: PreparedRecording) -> float:
+    """The load cells' (and the exciter's) mean vertical force over the fit window, world
+    axes, relative to rig.yaml's weight: mean(Σ T_i u_i,z + F_exc,z) / (m g) − 1, with u_i
+    the unit vector from body anchor i to its ceiling anchor at the tracked pose (over a
+    window of bounded motion the mean vertical acceleration vanishes, so the mean force is
+    the weight; Newton's second law).  Dimensionless; positive when the cells carry more."""
+    rig, s, P = prep.rec.rig, prep.sensors, prep.poses
+    lo, hi = prep.window
+    m = (P.t >= lo) & (P.t <= hi)
+    t = P.t[m]
+    R = Rotation.from_quat(P.quaternion[m])
+    anchors = P.position[m][:, None, :] + np.stack([R.apply(b) for b in rig.body_anchors], axis=1)
+    d = rig.ceiling_anchors[None] - anchors
+    u_z = d[:, :, 2] / np.linalg.norm(d, axis=2)
+    T = np.column_stack([np.interp(t, s.load_cells[n].t, s.load_cells[n].data[:, 0]) for n in rig.cable_names])
+    fz = np.sum(T * u_z, axis=1)
+    if rig.exciter is not None and s.exciter is not None:
+        f_body = s.exciter.interp(t) @ rig.exciter.rotation.as_matrix()[:, :2].T
+        fz = fz + R.apply(f_body)[:, 2]
+    return float(np.mean(fz) / (rig.mass * rig.gravity) - 1.0)
+
+
 def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, seed: int = 0) -> InertiaResult:
     """Remove the second-order bias from a prediction-error estimate and give it the σ that
     the sensors' noise causes along the recordings' trajectories (:mod:`.uncertainty`).
@@ -262,6 +292,14 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     else:
         raise ValueError(f"unknown model {model!r} (pem or thesis)")
     result.warnings[:0] = rec.warnings + prep.warnings
+    result.weight_surplus = weight_surplus(prep)
+    if abs(result.weight_surplus) > WEIGHT_TOLERANCE:
+        # the rotational residual cannot see this: the heavier body is still a rigid body
+        result.warnings.append(
+            f"the load cells carry {100 * result.weight_surplus:+.2f} % of rig.yaml's weight "
+            f"({result.weight_surplus * rig.mass:+.1f} kg) beyond it: the tensions do not move the body rig.yaml "
+            "describes (each cable's lower half hanging outside its load cell, a load cell's gain, or a wrong "
+            "body.mass); rig-identify diagnose looks for the cause")
     return result
 
 
@@ -269,7 +307,9 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
                    end: float | None = None, band_hz: tuple[float, float] | None = None) -> InertiaResult:
     """Model error handled: when the rigid-body fit's residual exceeds what the sensors' noise
     explains by more than :data:`MODEL_ERROR_RATIO` (``result.residual_excess``, set by
-    :func:`refine_uncertainty`), run :func:`~.diagnosis.diagnose` on the recording (cut to
+    :func:`refine_uncertainty`), or the load cells' mean vertical force differs from
+    rig.yaml's weight by more than :data:`WEIGHT_TOLERANCE` (``result.weight_surplus``: a
+    heavier body is still a rigid body, and the residual does not show it), run :func:`~.diagnosis.diagnose` on the recording (cut to
     ``start``/``end``, s from the first IMU sample) and use what it names:
 
     * only errors of the data (:data:`~.diagnosis.CORRECTIONS`: a sensor delay, gain, bias
@@ -290,7 +330,9 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     """
     from .diagnosis import CORRECTIONS, corrected, diagnose, effect_parameters_text
     from .identification import KEYS, from_tensor, weak_directions
-    if result.residual_excess is None or np.max(result.residual_excess) <= MODEL_ERROR_RATIO:
+    misfit = result.residual_excess is not None and np.max(result.residual_excess) > MODEL_ERROR_RATIO
+    heavier = result.weight_surplus is not None and abs(result.weight_surplus) > WEIGHT_TOLERANCE
+    if not (misfit or heavier):
         return result
     full = rec
     if start is not None or end is not None:

@@ -38,6 +38,8 @@ def test_identify_reference_recording(name):
     assert np.all(res.residual_excess < 1.2), res.residual_excess
     assert res.uncertainty == "propagated sensor noise"
     assert np.array_equal(res.inertia_std, res.crb_std)
+    # the load cells carry the weight rig.yaml states (Newton: mean vertical force = m g)
+    assert abs(res.weight_surplus) < 1e-4, res.weight_surplus
 
 
 @pytest.fixture(scope="module")
