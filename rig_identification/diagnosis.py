@@ -32,7 +32,7 @@ recordings need it).  ``cable_elasticity`` is a candidate when rig.yaml states a
 :data:`STEEL_STRETCH` (then against rigid cables).
 
 Sensor and rig errors (``sensor_delay``, ``imu_offset``, ``imu_misalignment``, the biases,
-``load_cell_scale``, ``cable_elasticity``) also move the tracked pose, which the first-order
+``load_cell_scale``, ``body_mass``, ``cable_elasticity``) also move the tracked pose, which the first-order
 columns do not see: the most promising of them (:data:`EXACT_SCREEN` per step) are
 evaluated exactly — the error removed from the data (:func:`corrected`), the pose
 re-tracked, the model refitted, Broyden iterations on the first-order remainder — and the
@@ -46,10 +46,13 @@ cell at the ceiling, so the body the tensions move is heavier, its centre of gra
 higher and its tensor larger than rig.yaml's (:func:`corrected` gives the rig that body;
 :func:`body_inertia` takes the cables' share off the fitted tensor).  To first order, its
 moment is nearly collinear with the tensor and its weight with an accelerometer bias and
-the load-cell gains; exactly, the re-tracked pose and the mean levels separate them.  It
-is evaluated when the load cells carry more than the body's weight
-(:data:`WEIGHT_SURPLUS_SIGMA`), and its trial re-tracks keep the steel stretch fitted last
-(it changes no tension), which is fitted again once the mass is selected.
+the load-cell gains; exactly, the re-tracked pose and the mean levels separate them.  A
+``body_mass`` error (rig.yaml's body.mass off by δ: a weighing error) gives the same weight
+surplus without the cables' lever arms, and competes with it the same way (else a 6 kg
+weighing error was named a 1.1 kg cable mass, and "corrected" Ixx by −0.34 %).  Both are
+evaluated when the load cells carry more (the body's mass: or less) than the weight by
+:data:`WEIGHT_SURPLUS_SIGMA`, and their trial re-tracks keep the steel stretch fitted last
+(a mass changes no tension), which is fitted again once one is selected.
 
 Weights: each axis of the rotational and translational groups by its own residual scale
 (the axes' scales differ several-fold: a pooled scale biased the tensor by several per
@@ -93,15 +96,15 @@ ALPHA = 0.01          # family-wise false-alarm probability of the selection
 MIN_REDUCTION = 0.05  # an effect must reduce some channel's residual RMS by at least this fraction
 MAX_EFFECTS = 3
 CORRECTIONS = ("sensor_delay", "load_cell_scale", "imu_offset", "imu_misalignment", "gyro_bias",
-               "accelerometer_bias")
+               "accelerometer_bias", "body_mass")
 """Effects that are errors of the data, not missing physics: :func:`corrected` removes them."""
 EXACT_SCREEN = 3      # sensor/rig-error candidates evaluated exactly (re-tracked) per selection step
 REWEIGHT_ITER = 2     # reweighting iterations of the final fit (per-axis residual scales)
 ALPHA_LP = 3.0        # angular acceleration: gyro low-passed at this multiple of the band's upper edge
 GAIN_STEP = 0.02      # load-cell gain steps of the exact screening (relative)
 CABLE_MASS_STEP = 2e-3  # cables' mass steps of the exact screening: body anchors' share of the body's mass
-PROFILED = ("load_cell_scale", "cable_mass")
-WEIGHT_SURPLUS_SIGMA = 3.0   # the cables' mass is evaluated exactly when the cells carry this many σ more than the weight
+PROFILED = ("load_cell_scale", "cable_mass", "body_mass")
+WEIGHT_SURPLUS_SIGMA = 3.0   # the masses are evaluated exactly when the cells carry this many σ more (or less) than the weight
 """One-parameter errors placed by their exact profile likelihood (:func:`_exact_profile`)."""
 DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
@@ -695,6 +698,17 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
         out.append(Candidate("cable_mass", [Column("mass_half", rot_D=Dm, tr_D=Fm / m, dca=(Fm / m).mean(0))],
                              lambda vals, stds, mu=done_mu: ({"mass": 2 * (mu + float(vals[0]))},
                                                              {"mass": 2 * float(stds[0])}), exact=True))
+    # body mass: rig.yaml's body.mass is off by δ kg (a weighing error; evaluated exactly, as
+    # the cables' mass, which it competes with: the same weight surplus, without the cables'
+    # lever arms)
+    key_b, done_b = ("body_mass", ""), float(applied.get(("body_mass", ""), 0.0))
+    if key_b in profiled:
+        out.append(Candidate("body_mass", [], lambda vals, stds, d=done_b: (
+            {"mass_error": d}, {"mass_error": profiled[("body_mass", "")]}), exact=True))
+    else:
+        out.append(Candidate("body_mass", [Column("mass_error", tr_D=-f_cg / m, dca=(f_cg / m).mean(0))],
+                             lambda vals, stds, d=done_b: ({"mass_error": d + float(vals[0])},
+                                                           {"mass_error": float(stds[0])}), exact=True))
     # cable elasticity: the pose re-tracked with stretching cables (compliance fitted by the tracker)
     if allow_elasticity:
         out.append(Candidate("cable_elasticity", [], lambda vals, stds: ({"stiffness": float(vals[0])},
@@ -713,7 +727,7 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     ("sensor_delay", stream) s: the stream's stamps − d; ("load_cell_scale", cable) e:
     the cable's tension T (1 − e); ("imu_offset", "") (3,) m body: imu.position + δ; ("imu_misalignment", "")
     (3,) rotation vector, body axes: IMU axes turned by it; ("gyro_bias" | "accelerometer_bias",
-    "") (3,) IMU axes: subtracted; ("cable_mass", "") μ kg: the rig's body carries μ at each
+    "") (3,) IMU axes: subtracted; ("body_mass", "") δ kg: body.mass + δ; ("cable_mass", "") μ kg: the rig's body carries μ at each
     body anchor (the lower half of each cable, outside its load cell at the ceiling): mass
     + n μ, the centre of gravity moved to the combined one (the tensor fitted is then the
     combined body's, :func:`body_inertia` gives the body's).  ("cable_elasticity", "") is
@@ -740,7 +754,7 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     if ("imu_misalignment", "") in applied:
         Rb = Rotation.from_rotvec(np.asarray(applied[("imu_misalignment", "")], float))
         imu_m = _r(imu_m, rpy=(Rb * imu_m.rotation).as_euler("xyz"))
-    rig = _r(rig, imu=imu_m)
+    rig = _r(rig, imu=imu_m, mass=rig.mass + float(applied.get(("body_mass", ""), 0.0)))
     mu = float(applied.get(("cable_mass", ""), 0.0))
     if mu:
         m, b = rig.mass, rig.body_anchors
@@ -1032,27 +1046,31 @@ def _profile_steps(key, w: Window) -> tuple:
     if key[0] == "cable_mass":
         h = CABLE_MASS_STEP * w.mass / len(w.cable_names)
         return h, 0.0, 0.1 * h
+    if key[0] == "body_mass":
+        h = CABLE_MASS_STEP * w.mass
+        return h, -np.inf, 0.1 * h
     return GAIN_STEP, -np.inf, 2e-3
 
 
 def _builder(build, key):
-    """The re-track of ``key``'s trial values: the cables' mass changes no tension, so its
-    trials keep the steel stretch fitted last (one tracker pass, not two); a gain or a
+    """The re-track of ``key``'s trial values: a mass (the cables', the body's) changes no
+    tension, so its trials keep the steel stretch fitted last (one tracker pass, not two); a gain or a
     delay changes what the stretch is fitted to, so theirs fit it again."""
-    if key[0] != "cable_mass":
+    if key[0] not in ("cable_mass", "body_mass"):
         return build
     return lambda applied, elastic, profiled=None: build(applied, elastic, profiled, keep_stretch=True)
 
 
-def _weight_surplus(M: Model, fit: Fit, n_sigma: float = WEIGHT_SURPLUS_SIGMA) -> bool:
-    """Whether the load cells carry more than the body's weight: the mean specific force
-    along gravity (body axes) falls short of the mean cable and exciter force / mass by
-    more than ``n_sigma`` of its mean-level σ — what the cables' mass does (each cable's
-    lower half hangs on the body, outside its load cell) and what makes it worth an exact
-    evaluation.  ``fit.dca`` is the mean measured minus modelled specific force."""
+def _weight_surplus(M: Model, fit: Fit) -> float:
+    """How much more than the body's weight the load cells carry, in σ of the mean level:
+    the mean cable and exciter force / mass minus the mean specific force, along gravity
+    (body axes) — what the cables' mass does (each cable's lower half hangs on the body,
+    outside its load cell), or a body heavier than rig.yaml says; beyond
+    :data:`WEIGHT_SURPLUS_SIGMA` they are worth an exact evaluation.  ``fit.dca`` is the
+    mean measured minus modelled specific force."""
     g_hat = -M.w.g_body.mean(0)
     g_hat = g_hat / np.linalg.norm(g_hat)
-    return bool(-float(fit.dca @ g_hat) > n_sigma * float(np.mean(M.sigma_dca)))
+    return -float(fit.dca @ g_hat) / float(np.mean(M.sigma_dca))
 
 
 def _exact_screen(e: dict, state: dict, build, keys: list, cost_ref: dict, rms_ref: dict, kappa0: float,
@@ -1240,7 +1258,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         # and the cables' mass (its column is nearly collinear with the tensor), is evaluated
         # exactly
         for e in screened:
-            if (e["c"].name == "cable_mass" and _weight_surplus(M, cur_fit)) or (
+            if (e["c"].name == "cable_mass" and _weight_surplus(M, cur_fit) > WEIGHT_SURPLUS_SIGMA) or (
+                    e["c"].name == "body_mass" and abs(_weight_surplus(M, cur_fit)) > WEIGHT_SURPLUS_SIGMA) or (
                     e["c"].name == "load_cell_scale" and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p):
                 try:
                     _exact_screen(e, state, _builder(build, e["c"].key), keys, cost_cur, rms_cur, kappa0,
@@ -1296,7 +1315,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
             state["applied"], w, M, cands = e["exact_state"]
             state["applied"], w, M, cands, fit = _exact_iterate(c.key, {**state, "cands": cands}, build, keys,
                                                                 fit, 3, kappa0, free_kappa, scales)
-        if c.name == "cable_mass" and "steel" in state:
+        if c.name in ("cable_mass", "body_mass") and "steel" in state:
             # its trial re-tracks kept the steel stretch: fitted again with the mass in place
             w, M, cands = build(state["applied"], False)
             fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, from_tensor(fit.J))

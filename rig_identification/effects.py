@@ -21,6 +21,8 @@ cable_elasticity       ``stiffness`` N/m: the cables' true axial stiffness, whic
                        softer cable (e.g. 5e5 N/m, ~9 mm) is the mismatch
 cable_mass             ``mass`` kg per cable: the load cells sit at the ceiling anchors;
                        half of each cable's mass hangs on its body anchor and moves with it
+body_mass              ``mass_error`` kg: the body weighs this much more than rig.yaml's
+                       body.mass states (a weighing error; centre of gravity unchanged)
 exciter_rotor          ``unbalance`` kg·m (unbalanced mass × eccentricity; default: the
                        rotating force's amplitude / (2π f)², i.e. the mass that makes it),
                        ``rotor_inertia`` kg·m² (polar, about the spin axis; default 0): the
@@ -43,7 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-EFFECT_NAMES = ("viscous_damping", "air_drag", "coulomb_friction", "cable_elasticity", "cable_mass",
+EFFECT_NAMES = ("viscous_damping", "air_drag", "coulomb_friction", "cable_elasticity", "cable_mass", "body_mass",
                 "exciter_rotor", "imu_offset", "imu_misalignment", "sensor_delay", "gyro_bias",
                 "accelerometer_bias", "load_cell_scale", "gyroscopic_coupling")
 
@@ -54,6 +56,7 @@ PARAMETERS = {
     "coulomb_friction": {"torque": (0, False), "force": (0, False), "velocity_scale": (0, False)},
     "cable_elasticity": {"stiffness": (0, True), "declared_stiffness": (0, False)},
     "cable_mass": {"mass": (0, True)},
+    "body_mass": {"mass_error": (0, True)},
     "exciter_rotor": {"unbalance": (0, False), "rotor_inertia": (0, False)},
     "imu_offset": {"offset": (3, True)},
     "imu_misalignment": {"rpy": (3, True)},

@@ -1207,6 +1207,9 @@ def simulate(exp: Experiment) -> SimResult:
         cables = CableModel.spring(exp.rig, mass, np.full(len(exp.rig.cables), k))
         kd = elastic.parameters.get("declared_stiffness")
         rig_out = replace(rig_out, cables=tuple(replace(c, stiffness=kd) for c in rig_out.cables))
+    body_mass = exp.effect("body_mass")
+    if body_mass is not None:   # rig.yaml states a mass the body does not have
+        rig_out = replace(rig_out, mass=float(exp.rig.mass - body_mass.get("mass_error")))
     cable_mass = exp.effect("cable_mass")
     if cable_mass is not None:  # half of each cable hangs on its body anchor, outside the load cell
         for b in exp.rig.body_anchors:

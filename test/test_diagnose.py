@@ -36,6 +36,7 @@ CASES = {
     "cable_elasticity": ({"name": "cable_elasticity", "stiffness": 2.0e6, "declared_stiffness": 5.0e6}, "accel"),
     "load_cell_scale": ({"name": "load_cell_scale", "cable": "c1", "scale": 1.03}, "torque"),
     "cable_mass": ({"name": "cable_mass", "mass": 3.0}, "torque"),
+    "body_mass": ({"name": "body_mass", "mass_error": 6.0}, "accel"),
 }
 def random_experiment(seed: int, effects: list, duration: float = DURATION) -> dict:
     """The default rig (thesis case 16, realistic sensors) with a random vehicle and geometry:
@@ -137,6 +138,9 @@ def check_parameters(name: str, found: dict, truth_entry: dict, excitation: dict
         assert _rel(p["scale"] - 1.0, truth_entry["scale"] - 1.0) < 0.15, p
     elif name == "cable_elasticity":
         assert _rel(p["stiffness"], truth_entry["stiffness"]) < 0.15, p
+    elif name in ("cable_mass", "body_mass"):
+        k = "mass" if name == "cable_mass" else "mass_error"
+        assert _rel(p[k], truth_entry[k]) < 0.15, p
     else:   # every parameter (vector component) the recording determines: σ below 5 % of its size
         determined = 0
         for k, v in truth_entry.items():
