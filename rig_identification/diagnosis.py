@@ -650,7 +650,7 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
             keep = (1.0 - done_e) * (1.0 - float(vals[0]))      # true / measured
             return {"cable": name, "scale": 1.0 / keep}, {"scale": float(stds[0]) / keep}
         out.append(Candidate("load_cell_scale", [Column(f"gain_error_{name}", rot_D=-w.cable_moment[:, i],
-                                                        tr_D=-Fi / m, dca=-(Fi / m).mean(0))],
+                                                        tr_D=-Fi / m, dca=(Fi / m).mean(0))],
                              rep_scale, label=name, exact=True))
     # IMU offset δ (body axes): the specific force at the true point is α×δ + ω×(ω×δ) more
     cols = []
@@ -695,7 +695,7 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
         out.append(Candidate("cable_mass", [], lambda vals, stds, mu=done_mu: (
             {"mass": 2 * mu}, {"mass": 2 * profiled[("cable_mass", "")]}), exact=True))
     else:
-        out.append(Candidate("cable_mass", [Column("mass_half", rot_D=Dm, tr_D=Fm / m, dca=(Fm / m).mean(0))],
+        out.append(Candidate("cable_mass", [Column("mass_half", rot_D=Dm, tr_D=Fm / m, dca=-(Fm / m).mean(0))],
                              lambda vals, stds, mu=done_mu: ({"mass": 2 * (mu + float(vals[0]))},
                                                              {"mass": 2 * float(stds[0])}), exact=True))
     # body mass: rig.yaml's body.mass is off by δ kg (a weighing error; evaluated exactly, as
