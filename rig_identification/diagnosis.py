@@ -772,7 +772,8 @@ def body_inertia(J: np.ndarray, rig, mu: float) -> np.ndarray:
     """The body's inertia tensor about its own centre of gravity (3,3) kg·m² from ``J``
     (3,3), that of the body with μ kg at each body anchor about their combined centre of
     gravity (:func:`corrected`'s cable mass): parallel-axis theorem (Huygens–Steiner),
-    J_b = J − m S(c_b − c) − μ Σ S(r_i − c), S(d) = |d|² I − d dᵀ; ``rig`` the rig.yaml's."""
+    J_b = J − m S(c_b − c) − μ Σ S(r_i − c), S(d) = |d|² I − d dᵀ; ``rig`` the rig.yaml's
+    (with the body's mass as diagnosed)."""
     if not mu:
         return J
     m, cb, b = rig.mass, rig.require_cg(), rig.body_anchors
@@ -1042,7 +1043,8 @@ def _profile_steps(key, w: Window) -> tuple:
     """(screening step, lower bound, curvature step) of the exact one-parameter evaluation
     of ``key``: a load cell's gain error (relative) :data:`GAIN_STEP`, unbounded; the
     half-cable mass per body anchor (kg) :data:`CABLE_MASS_STEP` of the body's mass shared
-    by the anchors, at least 0."""
+    by the anchors, at least 0; the body's mass error (kg) that share of the body's mass,
+    unbounded."""
     if key[0] == "cable_mass":
         h = CABLE_MASS_STEP * w.mass / len(w.cable_names)
         return h, 0.0, 0.1 * h
@@ -1076,7 +1078,7 @@ def _weight_surplus(M: Model, fit: Fit) -> float:
 def _exact_screen(e: dict, state: dict, build, keys: list, cost_ref: dict, rms_ref: dict, kappa0: float,
                   free_kappa: bool, scales, j0: np.ndarray, w: Window) -> None:
     """Exact evidence of a one-parameter rig or data error (a load cell's gain, the cables'
-    mass; screening entry ``e``, updated in place): the error applied at two trial values
+    or the body's mass; screening entry ``e``, updated in place): the error applied at two trial values
     about its current one (±h, or +h and +2h at its lower bound; :func:`_profile_steps`),
     the pose re-tracked and the model refitted; the likelihood ratio against ``cost_ref``
     through those two points and the current fit (Λ = 0) is a parabola, whose maximum (at
@@ -1109,12 +1111,12 @@ def _exact_screen(e: dict, state: dict, build, keys: list, cost_ref: dict, rms_r
 def _exact_profile(key, state: dict, build, keys: list, cost_ref: dict, kappa0: float, free_kappa: bool, scales,
                    j0: np.ndarray, w: Window) -> tuple:
     """The exact profile likelihood of a one-parameter rig or data error (a load cell's
-    gain, the cables' mass): the error applied at trial values x (:func:`corrected`), the
+    gain, the cables' or the body's mass): the error applied at trial values x (:func:`corrected`), the
     pose re-tracked and the model (without the error's first-order column) refitted; x
     maximises the likelihood ratio against ``cost_ref`` (scipy ``minimize_scalar``,
     bounded, ± a screening step about the current value and above the lower bound of
     :func:`_profile_steps`, to 1 % of a step), σ from its curvature (Λ(x) ≈ Λ̂ − (x − x̂)²/σ²).
-    Both move the tracker's static pose, so the first-order column's zero
+    They move the tracker's static pose, so the first-order column's zero
     (:func:`_exact_iterate`) is not the optimum.  Returns (applied, w, M, cands, fit, σ)."""
     from scipy.optimize import minimize_scalar
     others = [k for k in keys if k != key]
@@ -1253,10 +1255,10 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         promising = sorted((e for e in screened if e["c"].exact and e["c"].name not in PROFILED
                             and e["c"].name != "cable_elasticity"
                             and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p), key=lambda e: -e["lam"])
-        # a load cell's gain and the cables' mass move the tracker's static pose, so their
-        # first-order columns are no guide to their size or evidence: every significant gain,
-        # and the cables' mass (its column is nearly collinear with the tensor), is evaluated
-        # exactly
+        # a load cell's gain and the cables' or the body's mass move the tracker's static pose,
+        # so their first-order columns are no guide to their size or evidence: every
+        # significant gain, and the masses when the cells carry more (or less) than the weight
+        # (the cables' column is nearly collinear with the tensor), are evaluated exactly
         for e in screened:
             if (e["c"].name == "cable_mass" and _weight_surplus(M, cur_fit) > WEIGHT_SURPLUS_SIGMA) or (
                     e["c"].name == "body_mass" and abs(_weight_surplus(M, cur_fit)) > WEIGHT_SURPLUS_SIGMA) or (
@@ -1360,7 +1362,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     std_of = lambda f: np.sqrt(np.clip(np.diag(f.cov)[:6], 0, None))  # noqa: E731
     ch0, ch1 = channel_residuals(M0, base), channel_residuals(M, cur_fit)
     return Diagnosis(bool(entries), entries, located, rms0, _rms(ch1), base.J,
-                     body_inertia(cur_fit.J, rec.rig, float(state["applied"].get(("cable_mass", ""), 0.0))),
+                     body_inertia(cur_fit.J, _replace(rec.rig, mass=rec.rig.mass + float(state["applied"].get(
+                         ("body_mass", ""), 0.0))), float(state["applied"].get(("cable_mass", ""), 0.0))),
                      std_of(base), std_of(cur_fit), tried, band, model, warnings + list(rec.warnings),
                      series={"t": w.t - w.t[0], "fs": M.fs, "before": ch0, "after": ch1},
                      covariance_after=np.array(cur_fit.cov[:6, :6]),
