@@ -104,8 +104,8 @@ ALPHA_LP = 3.0        # angular acceleration: gyro low-passed at this multiple o
 GAIN_STEP = 0.02      # load-cell gain steps of the exact screening (relative)
 CABLE_MASS_STEP = 2e-3  # cables' mass steps of the exact screening: body anchors' share of the body's mass
 PROFILED = ("load_cell_scale", "cable_mass", "body_mass")
-WEIGHT_SURPLUS_SIGMA = 3.0   # the masses are evaluated exactly when the cells carry this many σ more (or less) than the weight
 """One-parameter errors placed by their exact profile likelihood (:func:`_exact_profile`)."""
+WEIGHT_SURPLUS_SIGMA = 3.0   # the masses are evaluated exactly when the cells carry this many σ more (or less) than the weight
 DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
 PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
@@ -151,7 +151,6 @@ class Window:
     def shifted(self, stream: str, delay: float) -> "Window":
         """A copy with ``stream`` (load_cells | exciter) re-sampled at t + delay: the stream's
         stamps lag by ``delay`` s (linear interpolation of the cleaned samples)."""
-        from dataclasses import replace as _replace
         s = self.sensors
         tq = self.t + delay
         if stream == "load_cells":
@@ -188,14 +187,13 @@ def _track(rig, s, cables: str):
     rig.yaml stiffness, fitted by the tracker where rig.yaml gives none (as
     :func:`~rig_identification.tracker.track`); ``"rigid"``: inextensible where rig.yaml
     gives none; ``"fitted"``: fitted for every cable, whatever rig.yaml says."""
-    from dataclasses import replace as _r
 
     from .tracker import PoseTrack, _replay, pass_compliance
     if cables == "fitted":
-        rig = _r(rig, cables=tuple(_r(c, stiffness=None) for c in rig.cables))
+        rig = _replace(rig, cables=tuple(_replace(c, stiffness=None) for c in rig.cables))
     known = np.isfinite(rig.cable_stiffness)
     if known.all() or cables == "rigid":
-        rig_t = _r(rig, cables=tuple(c if c.stiffness is not None else _r(c, stiffness=1e15) for c in rig.cables))
+        rig_t = _replace(rig, cables=tuple(c if c.stiffness is not None else _replace(c, stiffness=1e15) for c in rig.cables))
         out, _ = _replay(rig_t, s)
         return PoseTrack.from_estimates(out), np.where(known, rig.cable_stiffness, np.inf), None
     out, tracker = _replay(rig, s)
@@ -209,7 +207,7 @@ def _track(rig, s, cables: str):
     # independent estimate
     c_std = np.std(H, axis=0) / np.sqrt(max(1.0, len(H) / 30.0)) / np.sqrt(max(1, (~known).sum()))
     k = np.where(known, rig.cable_stiffness, 1.0 / np.maximum(c, 1e-12))
-    rig_t = _r(rig, cables=tuple(_r(cb, stiffness=float(ki)) for cb, ki in zip(rig.cables, k)))
+    rig_t = _replace(rig, cables=tuple(_replace(cb, stiffness=float(ki)) for cb, ki in zip(rig.cables, k)))
     out, _ = _replay(rig_t, s)
     k_std = float(np.median(k[~known]) ** 2 * np.median(c_std[~known]))
     return PoseTrack.from_estimates(out), k, k_std
@@ -732,7 +730,6 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     + n μ, the centre of gravity moved to the combined one (the tensor fitted is then the
     combined body's, :func:`body_inertia` gives the body's).  ("cable_elasticity", "") is
     handled by the tracker."""
-    from dataclasses import replace as _r
 
     from .recording import SensorData, TimeSeries
     rig, s = rec.rig, rec.sensors
@@ -750,16 +747,21 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     s2 = SensorData(TimeSeries(s.imu.t, imu), cells, exc, s.inclinometer)
     imu_m = rig.imu
     if ("imu_offset", "") in applied:
-        imu_m = _r(imu_m, position=imu_m.position + np.asarray(applied[("imu_offset", "")]))
+        imu_m = _replace(imu_m, position=imu_m.position + np.asarray(applied[("imu_offset", "")]))
     if ("imu_misalignment", "") in applied:
         Rb = Rotation.from_rotvec(np.asarray(applied[("imu_misalignment", "")], float))
-        imu_m = _r(imu_m, rpy=(Rb * imu_m.rotation).as_euler("xyz"))
-    rig = _r(rig, imu=imu_m, mass=rig.mass + float(applied.get(("body_mass", ""), 0.0)))
+        imu_m = _replace(imu_m, rpy=(Rb * imu_m.rotation).as_euler("xyz"))
+    rig = _replace(rig, imu=imu_m, mass=rig.mass + float(applied.get(("body_mass", ""), 0.0)))
     mu = float(applied.get(("cable_mass", ""), 0.0))
     if mu:
-        m, b = rig.mass, rig.body_anchors
-        rig = _r(rig, mass=m + mu * len(b), center_of_gravity=(m * rig.require_cg() + mu * b.sum(0)) / (m + mu * len(b)))
-    return _r(rec, rig=rig, sensors=s2)
+        rig = _replace(rig, mass=rig.mass + mu * len(rig.cables), center_of_gravity=_combined_cg(rig, mu))
+    return _replace(rec, rig=rig, sensors=s2)
+
+
+def _combined_cg(rig, mu: float) -> np.ndarray:
+    """Centre of gravity (3,) m, body frame, of the rig's body with μ kg at each body anchor."""
+    m, b = rig.mass, rig.body_anchors
+    return (m * rig.require_cg() + mu * b.sum(0)) / (m + mu * len(b))
 
 
 def _with_stiffness(rec: Recording, k: np.ndarray) -> Recording:
@@ -777,7 +779,7 @@ def body_inertia(J: np.ndarray, rig, mu: float) -> np.ndarray:
     if not mu:
         return J
     m, cb, b = rig.mass, rig.require_cg(), rig.body_anchors
-    c = (m * cb + mu * b.sum(0)) / (m + mu * len(b))
+    c = _combined_cg(rig, mu)
     S = lambda d: float(d @ d) * np.eye(3) - np.outer(d, d)  # noqa: E731
     return J - m * S(cb - c) - mu * sum(S(r - c) for r in b)
 
@@ -1259,9 +1261,10 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         # so their first-order columns are no guide to their size or evidence: every
         # significant gain, and the masses when the cells carry more (or less) than the weight
         # (the cables' column is nearly collinear with the tensor), are evaluated exactly
+        surplus = _weight_surplus(M, cur_fit)
         for e in screened:
-            if (e["c"].name == "cable_mass" and _weight_surplus(M, cur_fit) > WEIGHT_SURPLUS_SIGMA) or (
-                    e["c"].name == "body_mass" and abs(_weight_surplus(M, cur_fit)) > WEIGHT_SURPLUS_SIGMA) or (
+            if (e["c"].name == "cable_mass" and surplus > WEIGHT_SURPLUS_SIGMA) or (
+                    e["c"].name == "body_mass" and abs(surplus) > WEIGHT_SURPLUS_SIGMA) or (
                     e["c"].name == "load_cell_scale" and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p):
                 try:
                     _exact_screen(e, state, _builder(build, e["c"].key), keys, cost_cur, rms_cur, kappa0,

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .identification import InertiaResult, identify_inertia, identify_inertia_joint, identify_inertia_thesis
-from .preprocessor import preprocess
+from .preprocessor import generalized_wrench, preprocess
 from .recording import Recording, RecordingError, crop, fill_short_gaps, find_bad_spans
 from .tracker import track
 
@@ -170,23 +170,19 @@ accuracy.  Clean simulated recordings and the clean references: below 1e-4."""
 
 def weight_surplus(prep: PreparedRecording) -> float:
     """The load cells' (and the exciter's) mean vertical force over the fit window, world
-    axes, relative to rig.yaml's weight: mean(Σ T_i u_i,z + F_exc,z) / (m g) − 1, with u_i
-    the unit vector from body anchor i to its ceiling anchor at the tracked pose (over a
-    window of bounded motion the mean vertical acceleration vanishes, so the mean force is
-    the weight; Newton's second law).  Dimensionless; positive when the cells carry more."""
+    axes, relative to rig.yaml's weight: mean(F_z) / (m g) − 1, F the preprocessor's
+    generalized force (:func:`~.preprocessor.generalized_wrench`) at the tracked pose
+    turned to world axes (over a window of bounded motion the mean vertical acceleration
+    vanishes, so the mean force is the weight; Newton's second law).  Dimensionless;
+    positive when the cells carry more."""
     rig, s, P = prep.rec.rig, prep.sensors, prep.poses
     lo, hi = prep.window
     m = (P.t >= lo) & (P.t <= hi)
     t = P.t[m]
-    R = Rotation.from_quat(P.quaternion[m])
-    anchors = P.position[m][:, None, :] + np.stack([R.apply(b) for b in rig.body_anchors], axis=1)
-    d = rig.ceiling_anchors[None] - anchors
-    u_z = d[:, :, 2] / np.linalg.norm(d, axis=2)
     T = np.column_stack([np.interp(t, s.load_cells[n].t, s.load_cells[n].data[:, 0]) for n in rig.cable_names])
-    fz = np.sum(T * u_z, axis=1)
-    if rig.exciter is not None and s.exciter is not None:
-        f_body = s.exciter.interp(t) @ rig.exciter.rotation.as_matrix()[:, :2].T
-        fz = fz + R.apply(f_body)[:, 2]
+    exc = s.exciter.interp(t) if rig.exciter is not None and s.exciter is not None else None
+    force, _ = generalized_wrench(rig, P.position[m], P.quaternion[m], T, exc)
+    fz = Rotation.from_quat(P.quaternion[m]).apply(force)[:, 2]
     return float(np.mean(fz) / (rig.mass * rig.gravity) - 1.0)
 
 
