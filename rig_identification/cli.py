@@ -162,6 +162,11 @@ def cmd_diagnose(args) -> int:
             print(f"effect: {e['name']}: {ps}")
             print(f"   evidence: likelihood ratio {e['evidence']['likelihood_ratio']:.1f} "
                   f"(p = {e['evidence']['p_value']:.2g}); residual RMS {red}")
+        s0, s1 = out["residual_rms_synchronous_before"], out["residual_rms_synchronous_after"]
+        if d.mismatch and s0 is not None and s1 is not None:
+            red = sorted(((1 - s1[k] / s0[k], k) for k in s0 if s0[k] > 0), reverse=True)[:4]
+            print(f"   synchronous residual ({out['synchronous_revolutions']:.0f} exciter revolutions averaged): "
+                  + ", ".join(f"{k} −{100 * r:.0f} %" for r, k in red))
         print(f"{'entry':6s} {'before':>10s} {'after':>10s}" + (f" {'truth':>10s}" if rec.truth else ""))
         for k in KEYS:
             line = f"{k:6s} {out['inertia_about_cg_before'][k]:10.2f} {out['inertia_about_cg_after'][k]:10.2f}"

@@ -73,8 +73,16 @@ def write_report(diag, out: str | Path, title: str = "diagnosis") -> Path:
         rows = "".join(f"<tr><td>{e['name']}</td><td>{json.dumps(e['parameters'])}</td>"
                        f"<td>{json.dumps(e['parameters_std'])}</td>"
                        f"<td>{e['evidence']['likelihood_ratio']:.1f}</td></tr>" for e in d["effects"])
+        s0, s1 = d["residual_rms_synchronous_before"], d["residual_rms_synchronous_after"]
+        sync = s0 is not None and s1 is not None
         rms = "".join(f"<tr><td>{k}</td><td>{d['residual_rms_before'][k]:.4g}</td>"
-                      f"<td>{d['residual_rms_after'][k]:.4g}</td></tr>" for k in d["residual_rms_before"])
+                      f"<td>{d['residual_rms_after'][k]:.4g}</td>"
+                      + (f"<td>{s0[k]:.4g}</td><td>{s1[k]:.4g}</td>" if sync else "") + "</tr>"
+                      for k in d["residual_rms_before"])
+        sync_head = ("<th>synchronous before</th><th>synchronous after</th>" if sync else "")
+        sync_note = (f"<p>synchronous: the residual averaged over {d['synchronous_revolutions']:.0f} exciter "
+                     "revolutions (what is locked to the forcing; the noise averaged down by about √revolutions)"
+                     "</p>" if sync else "")
         body = "".join(f'<p><img src="{i}" alt="{i}"></p>' for i in imgs)
         verdict = ("mismatch: " + ", ".join(e["name"] for e in d["effects"])) if d["mismatch"] \
             else "no significant mismatch"
@@ -83,5 +91,5 @@ def write_report(diag, out: str | Path, title: str = "diagnosis") -> Path:
             f"<h1>{title}</h1><p><b>{verdict}</b></p>"
             f"<table border=1><tr><th>effect</th><th>parameters</th><th>std</th><th>likelihood ratio</th></tr>"
             f"{rows}</table><h2>Residual RMS per channel</h2><table border=1><tr><th>channel</th><th>before</th>"
-            f"<th>after</th></tr>{rms}</table>{body}</body></html>")
+            f"<th>after</th>{sync_head}</tr>{rms}</table>{sync_note}{body}</body></html>")
     return Path(out)

@@ -1048,6 +1048,23 @@ def _fit_amplitude(body: Body, run: Run, limits: dict, settle: float, tracker_pa
     return cand
 
 
+def amplitude_at_limits(body: Body, run: Run, max_rotation_deg: float = 3.0, min_tension_ratio: float = 0.2,
+                        max_force: float = math.inf, settle: float = 5.0) -> Candidate | None:
+    """``run`` (its frequency, exciter position and spin axis kept) at the largest force
+    amplitude within the limits of :func:`plan_experiment` (same defaults): peak rotation ≤
+    ``max_rotation_deg``, every cable ≥ ``min_tension_ratio`` × its static tension (start-up
+    and beats included, 3 % margin), force ≤ ``max_force`` N; found by noise-free
+    simulation as the planner does (:func:`_fit_amplitude`).  Returns the
+    :class:`Candidate` (``.run.amplitude`` N, ``.peak_rotation_deg``,
+    ``.min_tension_ratio``, ``.prediction``), or None if no amplitude keeps the run within
+    the limits (its swing keeps growing).  Raises :class:`PlanError` for bad limits,
+    :class:`~.simulator.SimulationError`."""
+    if not (0 <= min_tension_ratio < 1) or not max_rotation_deg > 0 or not max_force > 0:
+        raise PlanError("limits: need 0 ≤ min tension ratio < 1, max rotation > 0, max force > 0")
+    limits = {"max_force_n": max_force, "max_rotation_deg": max_rotation_deg, "min_tension_ratio": min_tension_ratio}
+    return _fit_amplitude(body, run, limits, settle, None, "")
+
+
 def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_force: float = math.inf,
                     max_rotation_deg: float = 3.0, min_tension_ratio: float = 0.2,
                     frequencies: tuple[float, float] = (0.3, 4.0), positions: list | None = None,
