@@ -28,7 +28,7 @@ correction that best explains them, least squares) are channels too.
 Each channel's residual RMS is reported twice: as it is, and time-synchronously averaged
 over the exciter's revolutions (:func:`synchronous_rms`): the part locked to the forcing,
 with the sensor noise averaged down by about √(revolutions).  A model error smaller than
-the noise (the gyroscopic term at a planned excitation: a fifth of the gyro noise in the
+the noise (the gyroscopic term at a planned excitation: under half the gyro noise in the
 band) barely moves the plain RMS, but is most of the synchronous one.
 
 Baseline: the rig.yaml taken literally, with the cables' stiffness from rig.yaml, or —
