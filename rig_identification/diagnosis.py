@@ -109,7 +109,9 @@ REWEIGHT_ITER = 2     # reweighting iterations of the final fit (per-axis residu
 ALPHA_LP = 3.0        # angular acceleration: gyro low-passed at this multiple of the band's upper edge
 GAIN_STEP = 0.02      # load-cell gain steps of the exact screening (relative)
 CABLE_MASS_STEP = 2e-3  # cables' mass steps of the exact screening: body anchors' share of the body's mass
-PROFILED = ("load_cell_scale", "cable_mass", "body_mass")
+MASSES = ("cable_mass", "body_mass")
+"""Errors of the mass the tensions move: they change no tension (their trials keep the steel stretch)."""
+PROFILED = ("load_cell_scale",) + MASSES
 """One-parameter errors placed by their exact profile likelihood (:func:`_exact_profile`)."""
 WEIGHT_SURPLUS_SIGMA = 3.0   # the masses are evaluated exactly when the cells carry this many σ more (or less) than the weight
 DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
@@ -1121,7 +1123,7 @@ def _builder(build, key):
     """The re-track of ``key``'s trial values: a mass (the cables', the body's) changes no
     tension, so its trials keep the steel stretch fitted last (one tracker pass, not two); a gain or a
     delay changes what the stretch is fitted to, so theirs fit it again."""
-    if key[0] not in ("cable_mass", "body_mass"):
+    if key[0] not in MASSES:
         return build
     return lambda applied, elastic, profiled=None: build(applied, elastic, profiled, keep_stretch=True)
 
@@ -1266,8 +1268,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     base = fit_model(M, [], kappa0, False, scales, j0)
     state["n_eff_group"] = M.n_eff_group = {"rot": min(M.n_eff, effective_samples(base.rot)),
                                             "tr": min(M.n_eff, effective_samples(base.tr))}
-    M0 = M
-    rms0 = _rms(channel_residuals(M, base))
+    M0, ch0 = M, channel_residuals(M, base)
+    rms0 = _rms(ch0)
     threshold_p = alpha / max(1, len(cands))
     keys: list = []
     entries: list = []
@@ -1381,7 +1383,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
             state["applied"], w, M, cands = e["exact_state"]
             state["applied"], w, M, cands, fit = _exact_iterate(c.key, {**state, "cands": cands}, build, keys,
                                                                 fit, 3, kappa0, free_kappa, scales)
-        if c.name in ("cable_mass", "body_mass") and "steel" in state:
+        if c.name in MASSES and "steel" in state:
             # its trial re-tracks kept the steel stretch: fitted again with the mass in place
             w, M, cands = build(state["applied"], False)
             fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, from_tensor(fit.J))
@@ -1424,7 +1426,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     entries.sort(key=lambda e: -e["evidence"]["likelihood_ratio"])
     located = locate(M0, base, rec.rig, base.J)
     std_of = lambda f: np.sqrt(np.clip(np.diag(f.cov)[:6], 0, None))  # noqa: E731
-    ch0, ch1 = channel_residuals(M0, base), channel_residuals(M, cur_fit)
+    ch1 = channel_residuals(M, cur_fit)
     (sync0, revs), (sync1, _) = _sync(M0, ch0), _sync(M, ch1)
     return Diagnosis(bool(entries), entries, located, rms0, _rms(ch1), base.J,
                      body_inertia(cur_fit.J, _replace(rec.rig, mass=rec.rig.mass + float(state["applied"].get(

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from .identification import InertiaResult, identify_inertia, identify_inertia_joint, identify_inertia_thesis
-from .preprocessor import generalized_wrench, preprocess
+from .preprocessor import preprocess
 from .recording import Recording, RecordingError, crop, fill_short_gaps, find_bad_spans
 from .tracker import track
 
@@ -100,8 +100,9 @@ class PreparedRecording:
     """A recording replayed through the cleaning, the tracker and the preprocessor, cut
     to the fit window: the identifier's input.
 
-    rec: the recording; t (N,) s (absolute stamps, uniform); gyro_body (N,3) rad/s, body
-    axes; torque (N,3) N·m about the CG, body axes; warnings: the excluded spans etc.
+    rec: the recording; t (N,) s (absolute stamps, uniform; tracked pose stamps); gyro_body
+    (N,3) rad/s, body axes; torque (N,3) N·m about the CG, body axes; force (N,3) N, body
+    axes (the generalized force, weight excluded); warnings: the excluded spans etc.
     (the recording's own reader warnings stay in ``rec.warnings``).
     """
 
@@ -113,16 +114,17 @@ class PreparedRecording:
     sensors: object = None      # the cleaned SensorData that was tracked
     poses: object = None        # the tracker's PoseTrack over it
     window: tuple = (0.0, 0.0)  # (lo, hi) absolute stamps, s, of the fit window
+    force: np.ndarray | None = None
 
 
 def _replay_window(rig, s, lo: float, hi: float):
     """Tracker -> preprocessor over the cleaned sensors ``s``; the window [lo, hi] (absolute
-    stamps, s).  Returns (poses, t (N,), gyro_body (N,3), torque (N,3))."""
+    stamps, s).  Returns (poses, t (N,), gyro_body (N,3), torque (N,3), force (N,3))."""
     poses = track(rig, s)
     wrench = preprocess(rig, poses, s)
     m = (wrench.t >= lo) & (wrench.t <= hi)
     gyro = s.imu.interp(wrench.t[m])[:, :3]
-    return poses, wrench.t[m], rig.imu.rotation.apply(gyro), wrench.torque[m]
+    return poses, wrench.t[m], rig.imu.rotation.apply(gyro), wrench.torque[m], wrench.force[m]
 
 
 def prepare_recording(rec: Recording, start: float | None = None, end: float | None = None,
@@ -148,10 +150,10 @@ def prepare_recording(rec: Recording, start: float | None = None, end: float | N
     settle = min(settle, 0.1 * (s.t_end - s.t_start))
     lo = s.t_start + settle if start is None else max(t0 + start, s.t_start + settle)
     hi = s.t_end if end is None else min(t0 + end, s.t_end)
-    poses, t, gyro_body, torque = _replay_window(rig, s, lo, hi)
+    poses, t, gyro_body, torque, force = _replay_window(rig, s, lo, hi)
     if len(t) < 10:
         raise RecordingError(f"{rec.path}: no samples in the window [{lo - t0:.1f}, {hi - t0:.1f}] s")
-    return PreparedRecording(rec, t, gyro_body, torque, warnings, s, poses, (lo, hi))
+    return PreparedRecording(rec, t, gyro_body, torque, warnings, s, poses, (lo, hi), force)
 
 
 MODEL_ERROR_RATIO = 2.0
@@ -171,18 +173,13 @@ accuracy.  Clean simulated recordings and the clean references: below 1e-4."""
 def weight_surplus(prep: PreparedRecording) -> float:
     """The load cells' (and the exciter's) mean vertical force over the fit window, world
     axes, relative to rig.yaml's weight: mean(F_z) / (m g) − 1, F the preprocessor's
-    generalized force (:func:`~.preprocessor.generalized_wrench`) at the tracked pose
-    turned to world axes (over a window of bounded motion the mean vertical acceleration
-    vanishes, so the mean force is the weight; Newton's second law).  Dimensionless;
-    positive when the cells carry more."""
-    rig, s, P = prep.rec.rig, prep.sensors, prep.poses
-    lo, hi = prep.window
-    m = (P.t >= lo) & (P.t <= hi)
-    t = P.t[m]
-    T = np.column_stack([np.interp(t, s.load_cells[n].t, s.load_cells[n].data[:, 0]) for n in rig.cable_names])
-    exc = s.exciter.interp(t) if rig.exciter is not None and s.exciter is not None else None
-    force, _ = generalized_wrench(rig, P.position[m], P.quaternion[m], T, exc)
-    fz = Rotation.from_quat(P.quaternion[m]).apply(force)[:, 2]
+    generalized force (``prep.force``, :func:`~.preprocessor.generalized_wrench`) turned to
+    world axes at the tracked pose (over a window of bounded motion the mean vertical
+    acceleration vanishes, so the mean force is the weight; Newton's second law).
+    Dimensionless; positive when the cells carry more."""
+    rig, P = prep.rec.rig, prep.poses
+    q = P.quaternion[np.searchsorted(P.t, prep.t)]     # prep.t are pose stamps
+    fz = Rotation.from_quat(q).apply(prep.force)[:, 2]
     return float(np.mean(fz) / (rig.mass * rig.gravity) - 1.0)
 
 
@@ -219,7 +216,7 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     result.sandwich_std = result.inertia_std.copy()
 
     def fit(sensor_list):
-        segs = [_replay_window(r, s, *p.window)[1:] for r, s, p in zip(rigs, sensor_list, preps)]
+        segs = [_replay_window(r, s, *p.window)[1:4] for r, s, p in zip(rigs, sensor_list, preps)]
         if len(segs) == 1:
             res = identify_inertia(rigs[0], *segs[0], band_hz=bands[0])
         else:

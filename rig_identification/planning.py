@@ -1059,10 +1059,14 @@ def amplitude_at_limits(body: Body, run: Run, max_rotation_deg: float = 3.0, min
     ``.min_tension_ratio``, ``.prediction``), or None if no amplitude keeps the run within
     the limits (its swing keeps growing).  Raises :class:`PlanError` for bad limits,
     :class:`~.simulator.SimulationError`."""
+    return _fit_amplitude(body, run, _limits(max_force, max_rotation_deg, min_tension_ratio), settle, None, "")
+
+
+def _limits(max_force: float, max_rotation_deg: float, min_tension_ratio: float) -> dict:
+    """The run limits of :func:`plan_experiment` as a mapping.  Raises :class:`PlanError`."""
     if not (0 <= min_tension_ratio < 1) or not max_rotation_deg > 0 or not max_force > 0:
         raise PlanError("limits: need 0 ≤ min tension ratio < 1, max rotation > 0, max force > 0")
-    limits = {"max_force_n": max_force, "max_rotation_deg": max_rotation_deg, "min_tension_ratio": min_tension_ratio}
-    return _fit_amplitude(body, run, limits, settle, None, "")
+    return {"max_force_n": max_force, "max_rotation_deg": max_rotation_deg, "min_tension_ratio": min_tension_ratio}
 
 
 def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_force: float = math.inf,
@@ -1093,8 +1097,7 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
     from .modes import natural_modes
     from .simulator import SimulationError
     say = progress or (lambda s: None)
-    if not (0 <= min_tension_ratio < 1) or not max_rotation_deg > 0 or not max_force > 0:
-        raise PlanError("limits: need 0 ≤ min tension ratio < 1, max rotation > 0, max force > 0")
+    limits = _limits(max_force, max_rotation_deg, min_tension_ratio)
     if not 0 < frequencies[0] < frequencies[1]:
         raise PlanError(f"frequency range {frequencies} Hz must be 0 < low < high")
     if objective not in ("baseline", "relative"):
@@ -1102,9 +1105,8 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
     if not duration > settle + 10.0:
         raise PlanError(f"--duration {duration:g} s: runs must last more than {settle + 10:g} s")
     short = min(short, duration)
-    limits = {"max_force_n": max_force, "max_rotation_deg": max_rotation_deg,
-              "min_tension_ratio": min_tension_ratio, "duration_s": duration,
-              "frequency_range_hz": list(frequencies), "mode_margin": mode_margin, "objective": objective}
+    limits.update({"duration_s": duration, "frequency_range_hz": list(frequencies), "mode_margin": mode_margin,
+                   "objective": objective})
     rig = body.rig
     modes = natural_modes(rig, body.mass, rig.require_cg(), body.inertia, body.stiffness)
     rot_f = _rotational(modes)
