@@ -1,18 +1,30 @@
-"""Tracker against the simulator's true trajectory.
+"""Tracker against the simulator's true trajectory, and its compiled replay against the Python one.
 
 * 10 minutes with realistic noise and gyro/accelerometer biases: no drift.
 * An IMU away from the CG and rotated, a body origin that is not the CG, no inclinometer.
+* The compiled per-sample filter (numba, tracker_kernel) equals the Python methods to 1e-9
+  on a reference recording, a random rig without stiffness (compliance refined online),
+  stepped inputs and a rig without inclinometer; the Python path without numba.
 """
+import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import pytest
 import yaml
+from conftest import recording
 from scipy.spatial.transform import Rotation
 
+from rig_identification import tracker_kernel
 from rig_identification.pipeline import compare_to_truth, identify_recording
-from rig_identification.recording import Recording
-from rig_identification.simulator import experiment_from_dict, simulate
-from rig_identification.tracker import track
+from rig_identification.recording import Recording, crop, read_recording
+from rig_identification.scenarios import simulate_random
+from rig_identification.simulator import experiment_from_dict, load_experiment, simulate
+from rig_identification.tracker import (EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS, PoseTrack,
+                                        TrackerError, merge_events, replay, track)
+
+CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"
 
@@ -49,6 +61,24 @@ def test_no_drift_over_ten_minutes():
         assert np.all(np.abs(dp[m].mean(0)) < 0.6e-3), (a, dp[m].mean(0))
 
 
+@pytest.fixture(scope="module")
+def offset_sim():
+    """The offset rig with an inclinometer (simulated once for the module)."""
+    return simulate(offset_rig_experiment(inclinometer=True))
+
+
+@pytest.fixture(scope="module")
+def offset_sim_no_inclinometer():
+    """The offset rig without inclinometer (simulated once for the module)."""
+    return simulate(offset_rig_experiment(inclinometer=False))
+
+
+@pytest.fixture(scope="module")
+def case02():
+    """Thesis case 2: two 1 s force pulses, 100 Hz, noise-free."""
+    return simulate(load_experiment(CASES / "case02.yaml"))
+
+
 def offset_rig_experiment(inclinometer: bool):
     d = default_dict()
     # move the body origin away from the CG: shift every body-frame coordinate
@@ -65,8 +95,8 @@ def offset_rig_experiment(inclinometer: bool):
     return experiment_from_dict(d, "offset rig")
 
 
-def test_offset_rotated_imu_and_origin_away_from_cg():
-    sim = simulate(offset_rig_experiment(inclinometer=True))
+def test_offset_rotated_imu_and_origin_away_from_cg(offset_sim):
+    sim = offset_sim
     t, dp, dr = pose_errors(sim, track(sim.rig, sim.sensors))
     assert np.abs(dr).max() < 2e-5, np.abs(dr).max(0)
     assert np.abs(dp).max() < 2e-5, np.abs(dp).max(0)
@@ -75,26 +105,23 @@ def test_offset_rotated_imu_and_origin_away_from_cg():
         assert abs(c["error_percent"]) < 0.05, (k, c)
 
 
-def test_without_inclinometer_stays_bounded():
+def test_without_inclinometer_stays_bounded(offset_sim_no_inclinometer):
     # gravity in the accelerometer is a poorer tilt reference on a swinging body (it is
     # vertical only on average): the pose stays within a few tenths of a mrad and mm
-    sim = simulate(offset_rig_experiment(inclinometer=False))
+    sim = offset_sim_no_inclinometer
     t, dp, dr = pose_errors(sim, track(sim.rig, sim.sensors))
     assert np.abs(dr).max() < 2e-3, np.abs(dr).max(0)
     assert np.abs(dp).max() < 3e-3, np.abs(dp).max(0)
 
 
-def test_force_steps_are_integrated_where_they_happen():
+def test_force_steps_are_integrated_where_they_happen(case02):
     """Thesis case 2 (two 1 s force pulses, 100 Hz, noise-free): the tracker recognises the
     steps of the specific force at the samples that show them and integrates up to them,
     not across; its velocity error after the first step in the record is less than half
     of what interpolating across the steps gives (``step_accel=inf``)."""
-    from rig_identification.simulator import load_experiment
-    from rig_identification.tracker import _replay
-    cases = Path(__file__).resolve().parents[1] / "config" / "cases"
-    sim = simulate(load_experiment(cases / "case02.yaml"))
+    sim = case02
     t0 = sim.sensors.imu.t[0]
-    _, tracker = _replay(sim.rig, sim.sensors)
+    _, tracker = replay(sim.rig, sim.sensors)
     assert np.allclose(np.array(tracker.steps) - t0, [1.1, 4.1, 5.1], atol=1e-6)
     rms = []
     for step_accel in (0.2, np.inf):
@@ -112,14 +139,119 @@ def test_starts_on_a_swinging_body():
     mean, and the velocity from the cables' length rates, not zero — within 1 mm and
     0.2 mrad from the first pose on (0.3 mm, 0.12 mrad; the mean and a zero initial velocity
     left 14 mm and 5.6 mrad)."""
-    from dataclasses import replace
-
-    from rig_identification.recording import crop
-    from rig_identification.simulator import load_experiment
-    cases = Path(__file__).resolve().parents[1] / "config" / "cases"
-    sim = simulate(replace(load_experiment(cases / "case16.yaml"), duration=30.0))
+    sim = simulate(replace(load_experiment(CASES / "case16.yaml"), duration=30.0))
     s = crop(sim.sensors, sim.sensors.t_start + 20.0, sim.sensors.t_end)
     rel, dp, dr = pose_errors(sim, track(sim.rig, s))
     assert np.abs(sim.states.omega[np.searchsorted(sim.states.t, s.t_start)]).max() > 0.02   # it does swing
     assert np.linalg.norm(dp, axis=1).max() < 1e-3, np.linalg.norm(dp, axis=1).max()
     assert np.linalg.norm(dr, axis=1).max() < 2e-4, np.linalg.norm(dr, axis=1).max()
+
+
+# --- the compiled replay (tracker_kernel) against the Python methods ---------------------
+
+TOL = 1e-9   # relative: the largest difference over the largest magnitude of each quantity
+
+
+def rel_diff(a, b) -> float:
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    assert a.shape == b.shape, (a.shape, b.shape)
+    return float(np.abs(a - b).max() / max(np.abs(b).max(), 1e-300)) if b.size else 0.0
+
+
+def assert_same_replay(rig, sensors, **params):
+    """Compiled and Python replays: same poses, steps, compliance updates and final state."""
+    (pc, tc), (pp, tp) = (replay(rig, sensors, compiled=c, **params) for c in (True, False))
+    assert np.array_equal(pc.t, pp.t)
+    for f in ("position", "quaternion", "omega", "velocity"):
+        assert rel_diff(getattr(pc, f), getattr(pp, f)) < TOL, f
+    # the rotations: the angle between them, rad
+    assert np.max(np.linalg.norm((Rotation.from_quat(pc.quaternion).inv() * Rotation.from_quat(pp.quaternion))
+                                 .as_rotvec(), axis=1)) < TOL
+    assert np.array_equal(tc.steps, tp.steps)
+    assert [t for t, _ in tc.compliance_history] == [t for t, _ in tp.compliance_history]
+    if tp.compliance_history:
+        assert rel_diff([c for _, c in tc.compliance_history], [c for _, c in tp.compliance_history]) < TOL
+    assert [(t, n) for t, _, _, n in tc.compliance_sums] == [(t, n) for t, _, _, n in tp.compliance_sums]
+    if tp.compliance_sums:
+        assert rel_diff([s[1:3] for s in tc.compliance_sums], [s[1:3] for s in tp.compliance_sums]) < TOL
+    # the tracker after the last sample: the same state, whichever path ran
+    for name in ("_R", "_p", "_v", "_omega", "_gyro_bias", "_a_bias", "_lengths", "_compliance"):
+        assert rel_diff(getattr(tc, name), getattr(tp, name)) < TOL, name
+    assert (tc._t, tc._n_steps) == (tp._t, tp._n_steps)
+    return pc, tc, pp, tp
+
+
+@pytest.fixture(scope="module")
+def reference_window():
+    """The first 30 s of the reference recording visible_case16_clean (200 Hz, noise, no stiffness)."""
+    rec = read_recording(recording("visible_case16_clean"))
+    return rec.rig, crop(rec.sensors, rec.sensors.t_start, rec.sensors.t_start + 30.0)
+
+
+def test_merged_events_keep_the_order_of_a_tuple_sort(reference_window):
+    """merge_events orders as sorting (stamp, kind, index) tuples did; the kernel's kinds are the tracker's."""
+    rig, s = reference_window
+    ev = merge_events(rig, s, 0.1)
+    ref = [(t, EVENT_IMU, i) for i, t in enumerate(s.imu.t)] + [(t, EVENT_INCLINOMETER, i)
+                                                                 for i, t in enumerate(s.inclinometer.t)]
+    ref += [(t, EVENT_EXCITER, i) for i, t in enumerate(s.exciter.t[:np.searchsorted(s.exciter.t, s.t_start + 0.2)])]
+    ref += [(t, EVENT_TENSIONS, i) for i, t in enumerate(s.load_cells[rig.cable_names[0]].t)]
+    assert list(zip(ev.t.tolist(), ev.kind.tolist(), ev.index.tolist())) == sorted(ref)
+    assert (tracker_kernel.INCLINOMETER, tracker_kernel.TENSIONS, tracker_kernel.IMU, tracker_kernel.EXCITER) == \
+        (EVENT_INCLINOMETER, EVENT_TENSIONS, EVENT_IMU, EVENT_EXCITER)
+
+
+def test_compiled_replay_equals_python_on_the_reference_recording(reference_window):
+    rig, s = reference_window
+    _, tc, _, _ = assert_same_replay(rig, s)
+    assert tc.compliance_history   # the compliance was refined online: that path is compared too
+
+
+def test_compiled_track_equals_python_on_a_random_rig_without_stiffness():
+    """A random 3-cable rig, rig.yaml without stiffness: both passes of track (the second with
+    the first's compliance), and the online refinement of the first."""
+    _, sim = simulate_random(11, 3, "wide", [], 30.0)
+    assert not np.isfinite(sim.rig.cable_stiffness).any()
+    _, tc, _, _ = assert_same_replay(sim.rig, sim.sensors)
+    assert tc.compliance_history
+    a, b = (track(sim.rig, sim.sensors, compiled=c) for c in (True, False))
+    for f in ("position", "quaternion", "omega", "velocity"):
+        assert rel_diff(getattr(a, f), getattr(b, f)) < TOL, f
+
+
+def test_compiled_replay_equals_python_with_stepped_inputs(case02):
+    _, tc, _, _ = assert_same_replay(case02.rig, case02.sensors)
+    assert len(tc.steps) == 3
+    assert_same_replay(case02.rig, case02.sensors, step_accel=np.inf, tau_tilt=1.0)
+
+
+def test_compiled_replay_equals_python_without_inclinometer(offset_sim_no_inclinometer):
+    sim = offset_sim_no_inclinometer
+    assert sim.rig.inclinometer is None
+    assert_same_replay(sim.rig, sim.sensors)
+
+
+def test_without_numba_the_python_path_runs_with_a_warning(reference_window, monkeypatch):
+    rig, s = reference_window
+    s = crop(s, s.t_start, s.t_start + 3.0)
+    monkeypatch.setitem(sys.modules, "rig_identification.tracker_kernel", None)   # as when numba is missing
+    with pytest.warns(RuntimeWarning, match="numba"):
+        poses, _ = replay(rig, s)
+    with pytest.raises(ImportError):
+        replay(rig, s, compiled=True)
+    monkeypatch.undo()
+    assert isinstance(poses, PoseTrack)
+    ref, _ = replay(rig, s, compiled=True)
+    assert rel_diff(poses.position, ref.position) < TOL
+
+
+def test_compiled_replay_rejects_a_stamp_that_does_not_increase(reference_window):
+    """As the Python path: TrackerError naming the stamp."""
+    rig, s = reference_window
+    s = crop(s, s.t_start, s.t_start + 3.0)
+    t = s.imu.t.copy()
+    t[300] = t[299]
+    bad = replace(s, imu=replace(s.imu, t=t))
+    for compiled in (True, False):
+        with pytest.raises(TrackerError, match="not after the previous one"):
+            replay(rig, bad, compiled=compiled)
