@@ -20,7 +20,7 @@ import yaml
 
 from rig_identification.identification import KEYS, from_tensor
 from rig_identification.pipeline import identify_recording
-from rig_identification.planning import REFERENCE_NOISE
+from rig_identification.propagation import REFERENCE_NOISE
 from rig_identification.recording import Recording
 from rig_identification.simulator import experiment_from_dict, simulate
 from rig_identification.uncertainty import add_noise

@@ -6,7 +6,7 @@ and the experiment design for case 16.
 recordings' rates and noise (gyro 0.002 rad/s,
 accelerometer 0.01 m/s², load cells and exciter 0.5 N, inclinometer 0.2 mrad; 200/200/200/50
 Hz).  Per case: one noise-free simulation; the prediction of
-:func:`rig_identification.planning.predict_from_trajectory` (before the run); RUNS noisy
+:func:`rig_identification.propagation.predict_from_trajectory` (before the run); RUNS noisy
 copies (fresh white noise on every sensor, the simulator's noise model) replayed through
 tracker -> preprocessor -> identifier; per entry the Monte Carlo spread / predicted σ, with
 the spread's own sampling uncertainty (±1/sqrt(2(RUNS-1))), and the identifier's white-gyro
@@ -38,7 +38,7 @@ import numpy as np
 
 from rig_identification.identification import KEYS, from_tensor
 from rig_identification.pipeline import identify_recording
-from rig_identification.planning import REFERENCE_NOISE, REFERENCE_RATES, Trajectory, predict_from_trajectory
+from rig_identification.propagation import REFERENCE_NOISE, REFERENCE_RATES, Trajectory, predict_from_trajectory
 from rig_identification.recording import Recording
 from rig_identification.simulator import load_experiment, simulate
 from rig_identification.uncertainty import add_noise

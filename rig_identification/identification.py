@@ -36,11 +36,13 @@ import numpy as np
 from scipy.integrate import cumulative_simpson, cumulative_trapezoid
 from scipy.signal import butter, decimate, sosfiltfilt
 
+from .export import (AXES, ENTRY_NAMES, INERTIA_SCHEMA, INERTIA_SCHEMA_VERSION, UNITS, VEHICLE_SIGN,
+                     convention_lines, express, finite_or_none)
 from .rig import Rig
+from .verdict import KEYS, Validation
 
 STAGE1_CONDITION = 100.0   # largest / smallest principal moment of the Levenberg–Marquardt start
 FIT_RATE = 200.0  # Hz: streams sampled ≥ 2× faster are decimated to about this rate before the fit
-KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 # index pairs of the six independent tensor entries
 PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
@@ -84,6 +86,12 @@ class FitSeries:
     predicted: np.ndarray
     band_hz: tuple[float, float]
     label: str = ""
+    # the fit's local linearisation, for model validation (:mod:`.validation`): jacobian
+    # (N,3,6) d predicted / d tensor entries (KEYS order), rad/s per kg·m²; axis_scale (3,)
+    # rad/s, the per-axis residual scale that weighted the fit; fs Hz
+    jacobian: np.ndarray | None = None
+    axis_scale: np.ndarray | None = None
+    fs: float | None = None
 
     @property
     def residual(self) -> np.ndarray:
@@ -130,6 +138,8 @@ class InertiaResult:
     bias_correction: np.ndarray | None = None
     sensor_noise: dict | None = None
     residual_excess: np.ndarray | None = None
+    # the propagated σ widened to the spread of replays with fresh noise (pipeline.refine_uncertainty)
+    replay_factor: float | None = None
     # filled by pipeline.identify_recording: the load cells' mean vertical force over
     # rig.yaml's weight, − 1 (pipeline.weight_surplus)
     weight_surplus: float | None = None
@@ -138,58 +148,155 @@ class InertiaResult:
     # cause: the rigid-body fit's tensor and σ, and the effects added (JSON of each)
     rigid_body: dict | None = None
     diagnosis: dict | None = None
+    # filled by pipeline.identify_recording(s): the model validation's verdict and checks
+    # (validation.validate); whether bias_correction was subtracted (it is not when it
+    # exceeds σ: then it is evidence of trouble, validation's check "bias_correction")
+    validation: Validation | None = None
+    bias_applied: bool = False
 
     @property
     def correlation(self) -> np.ndarray:
-        s = np.sqrt(np.diag(self.covariance))
-        return self.covariance / np.outer(s, s)
+        """(6,6) correlation of the entries (NaN where a σ is 0 or not finite)."""
+        with np.errstate(all="ignore"):
+            s = np.sqrt(np.clip(np.diag(self.covariance), 0, None))
+            return self.covariance / np.outer(s, s)
 
-    def to_dict(self) -> dict:
+    @property
+    def undetermined(self) -> tuple[str, ...]:
+        """Entries the recording does not determine (validation verdict ``not_identifiable``):
+        reported as None."""
+        return () if self.validation is None else tuple(self.validation.undetermined)
+
+    def to_dict(self, t0: float | list[float] | None = None) -> dict:
+        """The result as JSON (schema :data:`~.export.INERTIA_SCHEMA`, version
+        :data:`~.export.INERTIA_SCHEMA_VERSION`; ``units`` per field, :data:`~.export.UNITS`).
+
+        Tensor entries as geometry_msgs/Inertia (off-diagonals the negated products of inertia),
+        body axes of rig.yaml; ``products_of_inertia`` with the vehicle-dynamics sign; the tensor
+        about the body frame's origin; principal moments and axes.  Undetermined entries (and
+        everything derived from them) are None, never NaN.  t0: the recording's first IMU stamp,
+        s: ``window.start``/``end`` are then seconds from it (as ``--start`` takes them) and the
+        absolute stamps are ``start_stamp``/``end_stamp``; without it (a stream, no first
+        sample known) ``start``/``end`` are the absolute stamps too.  A joint fit takes one t0
+        per recording (``series`` order): each of ``recordings`` gets its own window, and the
+        overall ``window.start``/``end`` are None (no common origin)."""
         theta = from_tensor(self.inertia)
-        ev, _ = np.linalg.eigh(self.inertia)
+        gone = set(self.undetermined)
+        ex = express(self.mass, self.center_of_gravity, self.inertia, self.inertia_std, gone)
+        num = finite_or_none
+
+        def entry(k, v):
+            return None if k in gone else num(v)
+
+        def per_key(a):
+            return None if a is None else {k: num(v) for k, v in zip(KEYS, a)}
+
+        def window(t_start, t_end, n, origin):
+            if origin is None:
+                start, end = (None, None) if isinstance(t0, (list, tuple)) else (t_start, t_end)
+            else:
+                start, end = t_start - origin, t_end - origin
+            return {"start": num(start), "end": num(end), "samples": int(n), "start_stamp": num(t_start),
+                    "end_stamp": num(t_end)}
+
+        origins = list(t0) if isinstance(t0, (list, tuple)) else [t0] * len(self.series)
+
+        scale = float(np.trace(self.inertia)) / 3 if np.all(np.isfinite(self.inertia)) else None
+        weak = [describe_direction(s, D, scale=scale, weakest=i == 0, undetermined=gone)
+                for i, (s, D) in enumerate(self.weak_directions)]
+        pm = ex.principal_dict()
+        units = dict(UNITS) if t0 is not None else UNITS | dict.fromkeys(("window.start", "window.end"), "s, stamps")
         return {
+            "schema": INERTIA_SCHEMA, "schema_version": INERTIA_SCHEMA_VERSION, "units": units,
             "mass": float(self.mass),
             "center_of_gravity": [float(x) for x in self.center_of_gravity],
-            "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, theta)},
-            "inertia_std": {k: float(v) for k, v in zip(KEYS, self.inertia_std)},
-            "inertia_crb_std": (None if self.crb_std is None
-                                else {k: float(v) for k, v in zip(KEYS, self.crb_std)}),
+            "validation": None if self.validation is None else self.validation.to_dict(),
+            "inertia_about_cg": {k: entry(k, v) for k, v in zip(KEYS, theta)},
+            "inertia_std": {k: entry(k, v) for k, v in zip(KEYS, self.inertia_std)},
+            "inertia_crb_std": per_key(self.crb_std),
             "frame": "body",
+            "convention": "; ".join(convention_lines(AXES["body"])),
+            "products_of_inertia": ex.products(),
+            "inertia_about_origin": {k: ex.entry(k, "origin") for k in KEYS},
             "uncertainty": self.uncertainty,
-            "residual_excess": None if self.residual_excess is None else [float(x) for x in self.residual_excess],
-            "weight_surplus": self.weight_surplus,
-            "inertia_sandwich_std": (None if self.sandwich_std is None
-                                     else {k: float(v) for k, v in zip(KEYS, self.sandwich_std)}),
-            "bias_correction": (None if self.bias_correction is None
-                                else {k: float(v) for k, v in zip(KEYS, self.bias_correction)}),
-            "sensor_noise": None if self.sensor_noise is None else {k: float(v) for k, v in self.sensor_noise.items()},
-            "principal_moments": [float(x) for x in ev],
-            "physically_consistent": physically_consistent(self.inertia),
-            "correlation": [[round(float(x), 4) for x in row] for row in self.correlation],
-            "weakly_determined": [describe_direction(s, D) for s, D in self.weak_directions],
-            "window": {"start": float(self.t_start), "end": float(self.t_end), "samples": int(self.n_samples)},
-            "band_hz": [float(self.band_hz[0]), float(self.band_hz[1])],
-            "residual_rms_rad_s": [float(x) for x in self.residual_rms],
-            "fit_r2": [float(x) for x in self.fit_r2],
+            "residual_excess": None if self.residual_excess is None else [num(x) for x in self.residual_excess],
+            "weight_surplus": num(self.weight_surplus),
+            "inertia_sandwich_std": per_key(self.sandwich_std),
+            "bias_correction": per_key(self.bias_correction),
+            "bias_correction_applied": bool(self.bias_applied),
+            "replay_sigma_factor": num(self.replay_factor),
+            "sensor_noise": None if self.sensor_noise is None else {k: num(v) for k, v in self.sensor_noise.items()},
+            "principal_moments": None if pm is None else pm["moments"],
+            "principal_axes": None if pm is None else pm["axes"],
+            "physically_consistent": bool(np.all(np.isfinite(self.inertia)) and physically_consistent(self.inertia)),
+            "correlation": {"keys": list(KEYS),
+                            "matrix": [[None if not np.isfinite(x) else round(float(x), 4) for x in row]
+                                       for row in self.correlation]},
+            "weakly_determined": weak,
+            "window": window(self.t_start, self.t_end, self.n_samples, None if isinstance(t0, (list, tuple)) else t0),
+            "band_hz": [num(self.band_hz[0]), num(self.band_hz[1])],
+            "residual_rms_rad_s": [num(x) for x in self.residual_rms],
+            "fit_r2": [num(x) for x in self.fit_r2],
             "method": self.method,
             "warnings": list(self.warnings),
         } | ({"rigid_body": self.rigid_body, "diagnosis": self.diagnosis} if self.diagnosis is not None else {}) \
-          | ({"recordings": [{"label": s.label, "window": {"start": float(s.t[0]), "end": float(s.t[-1]),
-                                                          "samples": int(len(s.t))},
+          | ({"recordings": [{"label": s.label, "window": window(float(s.t[0]), float(s.t[-1]), len(s.t), o),
                                "band_hz": [float(s.band_hz[0]), float(s.band_hz[1])],
                                "residual_rms_rad_s": [float(x) for x in np.sqrt(np.mean(s.residual**2, 0))]}
-                              for s in self.series]} if len(self.series) > 1 else {})
+                              for s, o in zip(self.series, origins)]} if len(self.series) > 1 else {})
 
 
-def describe_direction(rel_std: float, D: np.ndarray) -> dict:
-    """A weakly determined tensor combination, in words a lab engineer reads."""
+DIRECTION_LEVELS = ((1e-3, "well determined"), (1e-2, "fairly well determined"))
+"""Words for a tensor direction by its relative σ (σ over tr J / 3, :func:`weak_directions`):
+below each limit its words; from the last limit up to :data:`DIRECTION_NOT_DETERMINED`
+"weakly determined"; beyond it "not determined"."""
+DIRECTION_NOT_DETERMINED = 0.10
+"""Relative σ from which a direction is "not determined": validation.REL_STD_LIMIT (a test holds
+them equal; identification cannot import validation, which imports it)."""
+
+
+def direction_level(rel_std: float) -> str:
+    """"well determined", "fairly well determined", "weakly determined" or "not determined" for a
+    direction of relative σ ``rel_std`` (:data:`DIRECTION_LEVELS`, :data:`DIRECTION_NOT_DETERMINED`)."""
+    if not np.isfinite(rel_std) or rel_std >= DIRECTION_NOT_DETERMINED:
+        return "not determined"
+    return next((words for limit, words in DIRECTION_LEVELS if rel_std < limit), "weakly determined")
+
+
+def describe_direction(rel_std: float, D: np.ndarray, scale: float | None = None, weakest: bool = False,
+                       undetermined=()) -> dict:
+    """A tensor direction (of :func:`weak_directions`) in words a lab engineer reads — the one
+    wording of the CLI, the JSON and the report.
+
+    rel_std: σ along the unit direction over tr J / 3; D (3,3) unit-norm direction; scale: tr J / 3
+    kg·m² (for σ in kg·m²; None: relative only); weakest: this is the weakest direction (only it
+    is called "the most weakly determined"); undetermined: entries the validation did not
+    determine (a direction mostly along one of them is "not determined").
+
+    Returns {"relative_std", "std" (kg·m² or None), "direction" {KEYS: coefficient, tensor
+    entries}, "mostly" (the entry with the largest share), "combination" (e.g. "+0.96 Izz −0.29
+    Ixz": products with the vehicle-dynamics sign, the main entry positive), "pure" (one entry
+    holds over 90 % of it), "level" (:func:`direction_level`), "weakest", "text"}."""
     theta = from_tensor(D)
-    names = {"ixx": "roll inertia Ixx", "iyy": "pitch inertia Iyy", "izz": "yaw inertia Izz",
-             "ixy": "product Ixy", "ixz": "product Ixz", "iyz": "product Iyz"}
-    k = int(np.argmax(np.abs(theta)))
-    return {"relative_std": float(rel_std), "direction": {kk: round(float(v), 3) for kk, v in zip(KEYS, theta)},
-            "mostly": KEYS[k], "text": f"{names[KEYS[k]]} is the most weakly determined combination "
-                                      f"(relative std {100 * rel_std:.2f} %)"}
+    share = theta * np.sqrt([1, 2, 2, 1, 2, 1])     # a product appears twice in the unit (Frobenius) tensor
+    order = np.argsort(-np.abs(share))
+    if (VEHICLE_SIGN * share)[order[0]] < 0:        # a direction's sign is arbitrary: its main entry positive
+        theta, share = -theta, -share
+    shown = VEHICLE_SIGN * share
+    main = KEYS[order[0]]
+    comb = " ".join(f"{shown[i]:+.2f} {ENTRY_NAMES[KEYS[i]].split()[-1]}" for i in order
+                    if abs(share[i]) >= 0.2).replace("-", "−")
+    pure = abs(share[order[0]]) > 0.9
+    what = ENTRY_NAMES[main] if pure else f"{comb} (mostly {ENTRY_NAMES[main]})"
+    level = "not determined" if main in undetermined else direction_level(rel_std)
+    std = None if scale is None or not np.isfinite(rel_std) else float(rel_std * scale)
+    size = (f"σ {std:.3g} kg·m², " if std is not None else "σ ") + f"{100 * rel_std:.3g} % of tr J/3"
+    text = (f"the most weakly determined combination is {what}: {level} ({size})" if weakest
+            else f"{what if pure else 'the combination ' + what} is {level} ({size})")
+    return {"relative_std": finite_or_none(rel_std), "std": std,
+            "direction": {k: round(float(v), 3) for k, v in zip(KEYS, theta)}, "mostly": main,
+            "combination": comb, "pure": bool(pure), "level": level, "weakest": bool(weakest),
+            "text": text[0].upper() + text[1:]}
 
 
 def _uniform(t: np.ndarray, what: str) -> float:
@@ -357,7 +464,7 @@ def gyro_noise_sigma(omega: np.ndarray, fs: float) -> float:
 
 
 @dataclass
-class _Segment:
+class Segment:
     """One stretch of data prepared for the fit (band-passed output and regressors)."""
 
     t: np.ndarray          # (N,) s
@@ -371,9 +478,9 @@ class _Segment:
     label: str = ""
 
 
-def _prepare_segment(t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
+def prepare_segment(t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
                      band_hz: tuple[float, float] | None, what: str = "identifier",
-                     label: str = "") -> _Segment:
+                     label: str = "") -> Segment:
     """Band-pass the output and integrate + band-pass the regressors of one segment
     (the first half of :func:`identify_inertia`).  Raises :class:`IdentificationError`."""
     t = np.asarray(t, float)
@@ -412,10 +519,10 @@ def _prepare_segment(t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
     IM = integ(np.asarray(torque, float))
     # the gyroscopic term is linear in the entries: ω×(Jω) = Σ_m j_m ω×(E_m ω)
     G = np.stack([integ(np.cross(w, w @ Em.T)) for Em in E])  # (6,N,3)
-    return _Segment(t, w, fs, (lo, hi), filt, y, IM, G, label)
+    return Segment(t, w, fs, (lo, hi), filt, y, IM, G, label)
 
 
-def _fit_segments(rig: Rig, segs: list[_Segment], block_s: float, consistent: bool) -> InertiaResult:
+def _fit_segments(rig: Rig, segs: list[Segment], block_s: float, consistent: bool) -> InertiaResult:
     """The two-stage fit of :func:`identify_inertia` over one or more segments with a
     common tensor: residuals and Jacobians stacked, sandwich meat and Cramér–Rao
     information summed over the segments (they are independent)."""
@@ -505,7 +612,8 @@ def _fit_segments(rig: Rig, segs: list[_Segment], block_s: float, consistent: bo
                         band, res_rms, r2, weak_directions(J, cov_J), method=method, warnings=warnings)
     res.crb_std = np.sqrt(np.clip(np.diag(crb), 0, None))
     res.gyro_noise = sgs[0] if len(sgs) == 1 else float(np.sqrt(np.mean(np.square(sgs))))
-    res.series = [FitSeries(s.t, s.y, yh, s.band, s.label) for s, yh in zip(segs, yhats)]
+    res.series = [FitSeries(s.t, s.y, yh, s.band, s.label, A3, sigma.copy(), s.fs)
+                  for s, yh, A3 in zip(segs, yhats, A3s)]
     return res
 
 
@@ -513,7 +621,10 @@ def weak_directions(J: np.ndarray, cov_J: np.ndarray, n: int = 2) -> list:
     """The ``n`` most weakly determined tensor combinations: eigen-directions of the
     covariance (equivalently of the information matrix, its inverse) in the Frobenius
     metric of the tensor, largest std first.  Returns [(std / (tr J / 3), (3,3) unit-norm
-    tensor direction)]; ``n=6`` gives all of them."""
+    tensor direction)]; ``n=6`` gives all of them; [] when J or the covariance is not finite.
+    :func:`describe_direction` puts one in words."""
+    if not (np.all(np.isfinite(J)) and np.all(np.isfinite(cov_J))):
+        return []
     scale = np.trace(J) / 3
     Dm = np.diag([1, np.sqrt(2), np.sqrt(2), 1, np.sqrt(2), 1])  # Frobenius metric on the entries
     evals, evecs = np.linalg.eigh(Dm @ cov_J @ Dm)
@@ -544,7 +655,7 @@ def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np
     The result's ``series`` holds the band-passed measured and predicted ω.
     Raises :class:`IdentificationError` for too little data, gaps or no motion.
     """
-    seg = _prepare_segment(t, omega_body, torque, band_hz)
+    seg = prepare_segment(t, omega_body, torque, band_hz)
     return _fit_segments(rig, [seg], block_s, consistent)
 
 
@@ -579,7 +690,7 @@ def identify_inertia_joint(rig_list: list[Rig], segments: list, band_hz=None, bl
         bands = [band_hz] * len(segments)
     else:
         bands = list(band_hz)
-    segs = [_prepare_segment(t, w, m, b, what=f"identifier ({lab})", label=lab)
+    segs = [prepare_segment(t, w, m, b, what=f"identifier ({lab})", label=lab)
             for (t, w, m), b, lab in zip(segments, bands, labels)]
     return _fit_segments(rig_list[0], segs, block_s, consistent)
 

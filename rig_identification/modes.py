@@ -93,7 +93,7 @@ class ModalEstimate:
 
 # --- geometry -> modes ------------------------------------------------------------------
 
-def _length_fn(rig: Rig, p_cg: np.ndarray, R0: Rotation, cg: np.ndarray):
+def length_fn(rig: Rig, p_cg: np.ndarray, R0: Rotation, cg: np.ndarray):
     A = rig.ceiling_anchors
     S = rig.body_anchors - cg          # anchors relative to the CG, body frame
 
@@ -104,7 +104,7 @@ def _length_fn(rig: Rig, p_cg: np.ndarray, R0: Rotation, cg: np.ndarray):
     return lengths
 
 
-def _gradients(rig: Rig, p_cg, R0: Rotation, cg) -> tuple[np.ndarray, np.ndarray]:
+def gradients(rig: Rig, p_cg, R0: Rotation, cg) -> tuple[np.ndarray, np.ndarray]:
     """(N, 6) length Jacobian G at q = 0 and lengths (N,)."""
     A = rig.ceiling_anchors
     s = R0.apply(rig.body_anchors - cg)
@@ -114,7 +114,7 @@ def _gradients(rig: Rig, p_cg, R0: Rotation, cg) -> tuple[np.ndarray, np.ndarray
     return np.hstack([u, np.cross(s, u)]), l
 
 
-def _length_hessians(lengths, n: int, h: float = 1e-4) -> np.ndarray:
+def length_hessians(lengths, n: int, h: float = 1e-4) -> np.ndarray:
     """(N, 6, 6) Hessians of the lengths at q = 0 by central differences."""
     H = np.zeros((n, 6, 6))
     E = np.eye(6) * h
@@ -172,8 +172,8 @@ def natural_modes(rig: Rig, mass: float, cg, inertia, stiffness=None) -> list[Mo
     M = np.zeros((6, 6))
     M[:3, :3] = mass * np.eye(3)
     M[3:, 3:] = Jw
-    G, _ = _gradients(rig, p_cg, R0, cg)
-    H = _length_hessians(_length_fn(rig, p_cg, R0, cg), n)
+    G, _ = gradients(rig, p_cg, R0, cg)
+    H = length_hessians(length_fn(rig, p_cg, R0, cg), n)
     K = np.einsum("i,iab->ab", T, H)     # geometric (tension) stiffness; gravity term is 0
     if rigid:
         taut = T > 1e-9 * mass * rig.gravity

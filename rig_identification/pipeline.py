@@ -1,16 +1,30 @@
 """Offline replay: recording -> tracker -> preprocessor -> identifier (the nodes' core code)."""
 from __future__ import annotations
 
-import numpy as np
-from scipy.spatial.transform import Rotation
-
+import logging
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from .identification import InertiaResult, identify_inertia, identify_inertia_joint, identify_inertia_thesis
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .diagnosis import body_inertia, corrected, diagnose, effect_parameters_text, unexplained, with_stiffness
+from .identification import (KEYS, InertiaResult, from_tensor, identify_inertia, identify_inertia_joint,
+                             identify_inertia_thesis, physically_consistent, to_tensor, weak_directions)
 from .preprocessor import preprocess
-from .recording import Recording, RecordingError, crop, fill_short_gaps, find_bad_spans
+from .quality import check_motion, check_units, clean_sensors
+from .recording import Recording, RecordingError, crop
 from .tracker import track
+from .uncertainty import noise_replays, propagated, sensor_noise
+from .noise import white_sigma
+from .propagation import PlanError, combine
+from .validation import BIAS_LIMIT, AccelInput, validate, widened_std
+from .yaw_anchor import YawAnchor, anchor_yaw
+
+log = logging.getLogger(__name__)   # steps (INFO) and warnings as they happen: cli_progress shows them
+
+BIAS_SHARE = 0.3   # of the second-order bias correction counted in σ (the correction's own uncertainty)
+REPLAY_PAIRS = 3   # antithetic pairs of replays with fresh noise: the bias and a check of the propagated σ
 
 
 def default_initial_guess(rig) -> np.ndarray:
@@ -19,80 +33,6 @@ def default_initial_guess(rig) -> np.ndarray:
     half = np.ptp(rig.body_anchors, axis=0) / 2 + 0.1
     sx, sy, sz = half**2
     return rig.mass / 3 * np.array([sy + sz, 0.0, 0.0, sx + sz, 0.0, sx + sy])
-
-
-MIN_CLEAN = 15.0  # s: shortest clean span worth fitting (tracker settling + two high-pass periods);
-#                   a shorter recording (the thesis's 10 s case studies) needs 75 % of its length clean
-MIN_MOTION = 2e-4  # rad/s: RMS of the low-passed gyro about its mean below which the body "hardly moved"
-
-
-def _check_units(rec: Recording) -> None:
-    rig, s = rec.rig, rec.sensors
-    total = np.sum([np.median(s.load_cells[n].data[:, 0]) for n in rig.cable_names])
-    weight = rig.mass * rig.gravity
-    if not 0.5 <= total / weight <= 50.0:
-        raise RecordingError(f"{rec.path}: the load-cell tensions (median sum {total:.4g} N) do not match the "
-                             f"weight in rig.yaml (body.mass × gravity = {weight:.4g} N): check the units of the "
-                             "tensions (N, not kN) and body.mass (kg)")
-
-
-def clean_sensors(rec: Recording, warnings: list[str]):
-    """Exclude bad spans (gaps, saturation, slack cables; :func:`~.recording.find_bad_spans`):
-    keep the longest span free of them, bridge short IMU gaps.  Appends one warning per
-    excluded span.  Raises :class:`RecordingError` if less than :data:`MIN_CLEAN` s (in a
-    shorter recording, 75 % of its length) remain."""
-    s = rec.sensors
-    t0, t_end = s.t_start, s.t_end
-    spans = sorted(find_bad_spans(rec.rig, s), key=lambda b: b.t0)
-    a, b = t0, t_end
-    if spans:
-        edges, cur = [], t0
-        for sp in spans:
-            if sp.t0 > cur:
-                edges.append((cur, sp.t0))
-            cur = max(cur, sp.t1)
-        if cur < t_end:
-            edges.append((cur, t_end))
-        a, b = max(edges, key=lambda e: e[1] - e[0]) if edges else (t0, t0)
-        what = "; ".join(f"{sp.topic}: {sp.reason} at t={sp.t0 - t0:.2f}–{sp.t1 - t0:.2f} s" for sp in spans[:5])
-        if len(spans) > 5:
-            what += f"; and {len(spans) - 5} more"
-        need = min(MIN_CLEAN, 0.75 * (t_end - t0))
-        if b - a < need:
-            raise RecordingError(f"{rec.path}: after excluding the bad spans ({what}) the longest clean span is "
-                                 f"{b - a:.1f} s (t={a - t0:.1f}–{b - t0:.1f} s), less than the {need:.3g} s "
-                                 "needed for a trustworthy fit")
-        for sp in spans:
-            warnings.append(f"{sp.topic}: {sp.reason} at t={sp.t0 - t0:.2f}–{sp.t1 - t0:.2f} s from the start; "
-                            f"span excluded, fit on the longest clean span t={a - t0:.2f}–{b - t0:.2f} s")
-        s = crop(s, a, b)
-    imu, filled = fill_short_gaps(s.imu)
-    if filled:
-        s.imu = imu
-        warnings.append(f"{'/rig/imu'}: {len(filled)} short gap(s) (≤ 0.1 s) bridged by linear interpolation, "
-                        f"first at t={filled[0][0] - t0:.2f}–{filled[0][1] - t0:.2f} s from the start")
-    return s
-
-
-def _check_motion(rec: Recording, s) -> None:
-    """Refuse a recording in which the body did not move beyond the gyro's own noise:
-    the gyro low-passed at 10 Hz (zero-phase Butterworth, scipy) about its mean must stand
-    out of the noise it would have in that band (σ from the spectrum's flat top), by 5x,
-    and be at least MIN_MOTION."""
-    from scipy.signal import butter, sosfiltfilt
-
-    from .identification import gyro_noise_sigma
-    g = s.imu.data[:, :3]
-    fs = 1.0 / np.median(np.diff(s.imu.t))
-    f_lp = min(10.0, 0.4 * fs)
-    sm = sosfiltfilt(butter(4, f_lp, fs=fs, output="sos"), g - g.mean(0), axis=0)
-    rms = float(np.sqrt(np.mean(np.sum(sm**2, axis=1))))
-    noise = gyro_noise_sigma(g, fs) * np.sqrt(3 * 2 * f_lp / fs)
-    threshold = max(5 * noise, MIN_MOTION)
-    if rms < threshold:
-        raise RecordingError(f"{rec.path}: the body hardly moved (gyro RMS below 10 Hz {rms:.1e} rad/s, threshold "
-                             f"{threshold:.1e} rad/s from the gyro noise): is this a static recording? inertia "
-                             "needs a dynamic one")
 
 
 @dataclass
@@ -115,16 +55,52 @@ class PreparedRecording:
     poses: object = None        # the tracker's PoseTrack over it
     window: tuple = (0.0, 0.0)  # (lo, hi) absolute stamps, s, of the fit window
     force: np.ndarray | None = None
+    # the wrench of physics added to the rigid-body model (diagnosis.EffectWrench) on t: torque
+    # (N,3) N·m and force (N,3) N, body axes, already in ``torque``/``force``; the replays of
+    # refine_uncertainty add them too
+    extra_torque: np.ndarray | None = None
+    extra_force: np.ndarray | None = None
+    # refine_uncertainty's replays with fresh noise (antithetic pair): (torque, force) on t, for
+    # the validation's noise of channels predicted from the wrench (validation.AccelInput)
+    replays: list = field(default_factory=list)
+    yaw_anchor: YawAnchor | None = None     # what the yaw anchoring did (yaw_anchor.anchor_yaw)
 
 
-def _replay_window(rig, s, lo: float, hi: float):
-    """Tracker -> preprocessor over the cleaned sensors ``s``; the window [lo, hi] (absolute
-    stamps, s).  Returns (poses, t (N,), gyro_body (N,3), torque (N,3), force (N,3))."""
-    poses = track(rig, s)
+@dataclass(frozen=True)
+class Replay:
+    """One pass of tracker, yaw anchoring and preprocessor over a recording
+    (:func:`replay_window`): poses (the whole :class:`~.tracker.PoseTrack`); t (N,) s the
+    window's pose stamps; gyro_body (N,3) rad/s; torque (N,3) N·m about the CG; force (N,3)
+    N, body axes; anchor (:class:`~.yaw_anchor.YawAnchor`)."""
+
+    poses: object
+    t: np.ndarray
+    gyro_body: np.ndarray
+    torque: np.ndarray
+    force: np.ndarray
+    anchor: YawAnchor
+
+
+def with_effect_wrench(prep: PreparedRecording, effect) -> PreparedRecording:
+    """``prep`` with the wrench of the diagnosed physics (:class:`~.diagnosis.EffectWrench`,
+    interpolated onto ``prep.t``) added to the measured generalized wrench: the rigid-body
+    identifier then fits the model extended by it (Newton–Euler with the effect's moment
+    and force)."""
+    tq, fc = effect.at(prep.t)
+    return replace(prep, torque=prep.torque + tq, force=None if prep.force is None else prep.force + fc,
+                   extra_torque=tq, extra_force=fc)
+
+
+def replay_window(rig, s, lo: float, hi: float) -> Replay:
+    """Tracker -> yaw anchoring (:func:`~.yaw_anchor.anchor_yaw`: where the cables leave the
+    yaw free) -> preprocessor over the cleaned sensors ``s``; the window [lo, hi] (absolute
+    stamps, s).  The one replay every fit of a recording makes (the identification, the
+    replays of :func:`refine_uncertainty`).  Returns a :class:`Replay`."""
+    poses, anchor = anchor_yaw(rig, track(rig, s), s, lo, hi)
     wrench = preprocess(rig, poses, s)
     m = (wrench.t >= lo) & (wrench.t <= hi)
     gyro = s.imu.interp(wrench.t[m])[:, :3]
-    return poses, wrench.t[m], rig.imu.rotation.apply(gyro), wrench.torque[m], wrench.force[m]
+    return Replay(poses, wrench.t[m], rig.imu.rotation.apply(gyro), wrench.torque[m], wrench.force[m], anchor)
 
 
 def prepare_recording(rec: Recording, start: float | None = None, end: float | None = None,
@@ -142,18 +118,25 @@ def prepare_recording(rec: Recording, start: float | None = None, end: float | N
     if rig.exciter is not None and s.exciter is None:
         raise RecordingError(f"{rec.path}: rig.yaml describes an exciter but the bag has no "
                              "/rig/exciter/wrench topic")
-    _check_units(rec)
+    check_units(rec)
     warnings: list[str] = []
     s = clean_sensors(rec, warnings)
-    _check_motion(rec, s)
+    check_motion(rec, s)
     t0 = rec.sensors.t_start  # --start/--end count from the recording's first IMU sample
     settle = min(settle, 0.1 * (s.t_end - s.t_start))
     lo = s.t_start + settle if start is None else max(t0 + start, s.t_start + settle)
     hi = s.t_end if end is None else min(t0 + end, s.t_end)
-    poses, t, gyro_body, torque, force = _replay_window(rig, s, lo, hi)
+    for w in warnings:
+        log.warning(w)
+    log.info("tracking the pose and computing the generalized wrench")
+    r = replay_window(rig, s, lo, hi)
+    poses, t, gyro_body, torque, force = r.poses, r.t, r.gyro_body, r.torque, r.force
+    if r.anchor.applied:
+        log.info("yaw anchored by the moment balance (%.2f mrad): the cables' lengths leave it free",
+                 1e3 * r.anchor.offset)
     if len(t) < 10:
         raise RecordingError(f"{rec.path}: no samples in the window [{lo - t0:.1f}, {hi - t0:.1f}] s")
-    return PreparedRecording(rec, t, gyro_body, torque, warnings, s, poses, (lo, hi), force)
+    return PreparedRecording(rec, t, gyro_body, torque, warnings, s, poses, (lo, hi), force, yaw_anchor=r.anchor)
 
 
 MODEL_ERROR_RATIO = 2.0
@@ -192,19 +175,18 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     estimated from each recording (:func:`~.uncertainty.sensor_noise`); the bias is
     measured by re-running tracker, preprocessor and identifier (same windows and bands)
     with an antithetic pair of fresh noise realisations
-    (:func:`~.uncertainty.antithetic_bias`) and subtracted; the covariance is the
+    (:func:`~.uncertainty.antithetic_bias`; ``bias_correction``) and subtracted when it is within
+    the propagated σ of every entry (``bias_applied``; a larger one is evidence of trouble,
+    which the validation reports, and is not subtracted); the covariance is the
     linearised propagation of that noise through the same chain
-    (:func:`~.uncertainty.propagated`, recordings combined by :func:`~.planning.combine`):
+    (:func:`~.uncertainty.propagated`, recordings combined by :func:`~.propagation.combine`):
     ``crb_std`` holds it, and ``inertia_std`` and ``covariance`` too unless the fit's residual
     RMS exceeds the one the noise predicts by more than :data:`MODEL_ERROR_RATIO` on a gyro
     axis (``residual_excess``): that is model error, and the identifier's sandwich σ (from
-    the residuals; always in ``sandwich_std``) is kept, with a warning.  If the propagation fails (too little motion) or the corrected
+    the residuals; always in ``sandwich_std``) is kept.  If the propagation fails (too little motion) or the corrected
     tensor is not physically consistent, the result keeps the sandwich σ (or the
     uncorrected tensor) with a warning.  Returns ``result``, updated in place.
     """
-    from .identification import from_tensor, physically_consistent, to_tensor, weak_directions
-    from .planning import PlanError, combine
-    from .uncertainty import antithetic_bias, propagated, sensor_noise
 
     rigs = [p.rec.rig for p in preps]
     bands = [tuple(s.band_hz) for s in result.series] if len(result.series) == len(preps) else \
@@ -215,8 +197,17 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     result.sensor_noise = {k: float(np.sqrt(np.mean([n[k] ** 2 for n in noises]))) for k in noises[0]}
     result.sandwich_std = result.inertia_std.copy()
 
+    def replay(r, s, p):
+        rp = replay_window(r, s, *p.window)
+        t, gyro, torque, force = rp.t, rp.gyro_body, rp.torque, rp.force
+        if p.extra_torque is not None and len(t) == len(p.t):
+            torque, force = torque + p.extra_torque, force + p.extra_force
+        if len(t) == len(p.t):
+            p.replays.append((torque, force))
+        return t, gyro, torque
+
     def fit(sensor_list):
-        segs = [_replay_window(r, s, *p.window)[1:4] for r, s, p in zip(rigs, sensor_list, preps)]
+        segs = [replay(r, s, p) for r, s, p in zip(rigs, sensor_list, preps)]
         if len(segs) == 1:
             res = identify_inertia(rigs[0], *segs[0], band_hz=bands[0])
         else:
@@ -224,43 +215,62 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
         return from_tensor(res.inertia)
 
     theta = from_tensor(result.inertia)
-    bias = antithetic_bias(fit, theta, [p.sensors for p in preps], noises, seed)
-    J = to_tensor(theta - bias)
-    if physically_consistent(J):
-        result.inertia = J
-        result.bias_correction = bias
-        result.method += "; second-order bias removed (antithetic SIMEX)"
-    else:
-        result.warnings.append("the second-order bias correction would make the tensor physically inconsistent; "
-                               "not applied")
+    log.info("σ: %d replays with fresh sensor noise", 2 * REPLAY_PAIRS)
+    replays = noise_replays(fit, theta, [p.sensors for p in preps], noises, seed, pairs=REPLAY_PAIRS)
+    bias = replays.bias
+    result.bias_correction = bias
+    log.info("propagating the sensor noise")
     try:
         pred = combine([propagated(r, p.poses, p.sensors, p.t, result.inertia, b, n, rt)
                         for r, p, b, (n, rt) in zip(rigs, preps, bands, est)])
     except (PlanError, np.linalg.LinAlgError, ValueError) as e:
-        result.warnings.append(f"noise propagation failed ({e}); σ from the fit's residuals (sandwich)")
+        result.warnings.append(f"noise propagation failed ({e}); σ from the fit's residuals (sandwich); the "
+                               "second-order bias correction not applied")
         return result
+    # a correction beyond σ is evidence of trouble (validation's check "bias_correction"), not
+    # something to subtract quietly
+    J = to_tensor(theta - bias)
+    within = bool(np.all(np.abs(bias) <= BIAS_LIMIT * pred.std))
+    std = pred.std
+    if within and physically_consistent(J):
+        result.inertia = J
+        result.bias_applied = True
+        result.method += "; second-order bias removed (antithetic SIMEX)"
+        # the correction's own uncertainty (its estimate from one antithetic pair spreads
+        # 10–20 % over SIMEX seeds on clean random rigs): a third of it, in quadrature
+        std = np.sqrt(pred.std**2 + (BIAS_SHARE * bias) ** 2)
+    elif within:
+        result.warnings.append("the second-order bias correction would make the tensor physically inconsistent; "
+                               "not applied")
+    # the linearised propagation checked against the replays' own spread (their Birge ratio
+    # over 6 × REPLAY_PAIRS degrees of freedom): where the replays spread more, σ follows them —
+    # a tracker or rig the linearisation misses (a 3-cable rig: 1.47 over 6 pairs, 1.3–1.5 in
+    # Monte Carlo over 8 recordings); never narrower than the propagation
+    factor, dof = replays.sigma_factor(pred.covariance)
+    if factor > 1.0:
+        std = std * factor
+        result.replay_factor = factor
     result.crb_std = pred.std
     r = np.asarray(result.residual_rms) / pred.residual_rms
     result.residual_excess = r
     if np.max(r) > MODEL_ERROR_RATIO:
         # the residual is not the noise: model error, whose effect on the estimate the
         # residuals themselves (the sandwich) measure
-        ax = "xyz"[int(np.argmax(r))]
-        result.warnings.append(f"the fit's residual is {np.max(r):.2f}× what the sensors' noise explains (gyro {ax}): "
-                               "a misfit — physics the model leaves out (rig-identify diagnose looks for it); "
-                               "σ from the fit's residuals (sandwich), not from the noise")
         result.uncertainty = "sandwich (model error)"
     else:
-        result.inertia_std = pred.std
-        result.covariance = pred.covariance
-        result.uncertainty = "propagated sensor noise"
+        result.inertia_std = std
+        result.covariance = pred.covariance * (std[:, None] * std[None, :]) / np.outer(pred.std, pred.std)
+        result.uncertainty = "propagated sensor noise" + (
+            f" (widened {result.replay_factor:.2f}× to the spread of replays with fresh noise)"
+            if result.replay_factor else "")
     result.weak_directions = weak_directions(result.inertia, result.covariance)
     return result
 
 
 def identify_recording(rec: Recording, start: float | None = None, end: float | None = None,
                        settle: float = 5.0, band_hz: tuple[float, float] | None = None,
-                       model: str = "pem", initial_guess=None, refine: bool = True) -> InertiaResult:
+                       model: str = "pem", initial_guess=None, refine: bool = True,
+                       effect_wrench=None) -> InertiaResult:
     """Identify the inertia tensor of a dynamic recording.
 
     start/end/settle: the window, see :func:`prepare_recording`.  model: ``"pem"`` (ours;
@@ -268,24 +278,32 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     from the estimated sensor noise — about three times the work of the plain fit)
     or ``"thesis"`` (the thesis's model and estimator,
     :func:`~rig_identification.identification.identify_inertia_thesis`, from
-    ``initial_guess`` (6,) tensor entries or :func:`default_initial_guess`).  Raises
+    ``initial_guess`` (6,) tensor entries or :func:`default_initial_guess`).  effect_wrench:
+    physics added to the model (:class:`~.diagnosis.EffectWrench`, :func:`with_effect_wrench`).
+    Every fit is validated (:func:`validate_fit`: ``result.validation``).  Raises
     :class:`~rig_identification.recording.RecordingError`,
     :class:`~rig_identification.rig.RigError`,
     :class:`~rig_identification.identification.IdentificationError`.
     """
     prep = prepare_recording(rec, start, end, settle)
+    if effect_wrench is not None:
+        prep = with_effect_wrench(prep, effect_wrench)
     rig = rec.rig
     if model == "thesis":
         guess = default_initial_guess(rig) if initial_guess is None else np.asarray(initial_guess, float)
         result = identify_inertia_thesis(rig, prep.t, prep.gyro_body, prep.torque, guess)
     elif model == "pem":
-        result = identify_inertia(rig, prep.t, prep.gyro_body, prep.torque, band_hz=band_hz)
-        if refine:
+        try:
+            result = identify_inertia(rig, prep.t, prep.gyro_body, prep.torque, band_hz=band_hz)
+        except np.linalg.LinAlgError as e:
+            result = unidentified(rig, prep, f"the fit's normal equations are singular ({e})")
+        if refine and np.all(np.isfinite(result.inertia)):
             refine_uncertainty([prep], result)
     else:
         raise ValueError(f"unknown model {model!r} (pem or thesis)")
     result.warnings[:0] = rec.warnings + prep.warnings
     result.weight_surplus = weight_surplus(prep)
+    validate_fit([prep], result)
     if abs(result.weight_surplus) > WEIGHT_TOLERANCE:
         # the rotational residual cannot see this: the heavier body is still a rigid body
         result.warnings.append(
@@ -296,36 +314,90 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     return result
 
 
+def unidentified(rig, prep: PreparedRecording, reason: str) -> InertiaResult:
+    """The result of a fit that could not be made: every entry NaN (reported as null, verdict
+    ``not_identifiable``), ``reason`` as a warning."""
+    nan = np.full(6, np.nan)
+    res = InertiaResult(rig.mass, rig.require_cg().copy(), np.full((3, 3), np.nan), nan, np.full((6, 6), np.nan),
+                        float(prep.t[0]), float(prep.t[-1]), len(prep.t), (np.nan, np.nan), np.full(3, np.nan),
+                        np.full(3, np.nan), warnings=[reason])
+    return res
+
+
+def accel_inputs(preps: list[PreparedRecording], result: InertiaResult) -> list[AccelInput]:
+    """The accelerometer check's inputs (:class:`~.validation.AccelInput`) of each prepared
+    recording: its fit window, the gyro, torque and generalized force of the replay, the
+    measured specific force turned to body axes, the accelerometer's estimated noise."""
+    out = []
+    bands = [s.band_hz for s in result.series] if len(result.series) == len(preps) else [result.band_hz] * len(preps)
+    for p, band in zip(preps, bands):
+        rig = p.rec.rig
+        acc = rig.imu.rotation.apply(p.sensors.imu.interp(p.t)[:, 3:6])
+        noise = white_sigma(p.sensors.imu.data[:, 3:6])
+        out.append(AccelInput(p.t, p.gyro_body, p.torque, p.force, acc, rig.mass, rig.imu.position - rig.require_cg(),
+                              tuple(band), noise, tuple(p.replays[-2:]) if len(p.replays) >= 2 else ()))
+    return out
+
+
+def validate_fit(preps: list[PreparedRecording], result: InertiaResult) -> InertiaResult:
+    """Model validation of the fit (:func:`~.validation.validate`): ``result.validation``.
+    Under verdict ``model_error`` the σ (``inertia_std``, the covariance's diagonal) is
+    widened to the spread the checks saw (:func:`~.validation.widened_std`) and a warning
+    says the tensor is not trustworthy; under ``not_identifiable`` a warning names the
+    entries reported as null and what to change.  Returns ``result``, updated in place."""
+    log.info("validating the fit")
+    surplus = [weight_surplus(p) for p in preps]
+    v = validate(result, accel_inputs(preps, result) if result.series else None,
+                 max(surplus, key=abs), preps[0].rec.rig)
+    result.validation = v
+    w = widened_std(result.inertia_std, v)
+    if np.any(w > result.inertia_std):
+        result.covariance = result.covariance * v.sigma_factor**2 + np.diag(
+            np.maximum(w**2 - (v.sigma_factor * result.inertia_std) ** 2, 0.0))
+        result.inertia_std = w
+        result.uncertainty += (f"; widened {v.sigma_factor:.2f}× for what the consistency checks saw beyond the noise"
+                               if v.verdict != "model_error" else
+                               "; widened to the validation's spread (model error: a lower bound of the error)")
+    if v.verdict == "model_error":
+        result.warnings.append(v.summary)
+    elif v.verdict == "not_identifiable":
+        result.warnings.append(v.summary)
+    return result
+
+
 def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = None,
                    end: float | None = None, band_hz: tuple[float, float] | None = None) -> InertiaResult:
-    """Model error handled: when the rigid-body fit's residual exceeds what the sensors' noise
-    explains by more than :data:`MODEL_ERROR_RATIO` (``result.residual_excess``, set by
-    :func:`refine_uncertainty`), or the load cells' mean vertical force differs from
-    rig.yaml's weight by more than :data:`WEIGHT_TOLERANCE` (``result.weight_surplus``: a
-    heavier body is still a rigid body, and the residual does not show it), run :func:`~.diagnosis.diagnose` on the recording (cut to
-    ``start``/``end``, s from the first IMU sample) and use what it names:
+    """Model error handled — or said plainly.  When the rigid-body fit's validation says
+    ``model_error`` (:func:`validate_fit`; also when its residual exceeds what the sensors'
+    noise explains by :data:`MODEL_ERROR_RATIO`, or the load cells' mean vertical force
+    differs from rig.yaml's weight by :data:`WEIGHT_TOLERANCE`), run
+    :func:`~.diagnosis.diagnose` on the recording (cut to ``start``/``end``, s from the first
+    IMU sample) and test what it names the way every fit is tested:
 
-    * only errors of the data (:data:`~.diagnosis.CORRECTIONS`: a sensor delay, gain, bias
-      or IMU pose): they are removed from the recording (:func:`~.diagnosis.corrected`) and
-      it is identified again as :func:`identify_recording` does (same window and band) —
-      the returned result is that one, σ from the propagated noise where the residual is
-      now the noise's.  A 20 ms load-cell delay on thesis case 16 (60 s, reference noise):
-      Ixx +8.7 %, Izz +11 % → within 0.10 % and 1 σ (the diagnosis's own fit: 0.20 %);
-    * physics the model leaves out (damping, drag, the exciter's rotor, …): the tensor of
-      diagnose's fit with it; ``inertia``, ``inertia_std``, ``covariance`` and
-      ``weak_directions`` are replaced (σ from its residuals; ``uncertainty`` says so).  On
-      visible_case16_damped: Izz +3.1 % → +0.34 %, every entry within 0.46 %.
+    * the errors of the data it names (a sensor delay, gain, bias, the IMU's pose, the body's
+      or the cables' mass, the cables' stiffness) are removed from the recording
+      (:func:`~.diagnosis.corrected`) and the physics it names (damping, drag, the exciter's
+      rotor, …) is added to the model as the wrench it contributes
+      (:class:`~.diagnosis.EffectWrench`, :func:`with_effect_wrench`);
+    * the recording is identified again the ordinary way (same window and band: fit,
+      propagated σ, validation).  The effects are *named* only when that fit's validation
+      says ``ok`` and every effect's parameters are physically plausible
+      (:func:`~.diagnosis.implausible`); the result is then that fit (σ: the propagated
+      noise, or diagnose's joint fit's where larger — it carries the effects' own
+      uncertainty), the cables' share taken off when their mass was found
+      (:func:`~.diagnosis.body_inertia`);
+    * otherwise nothing is named: ``result`` stays the rigid-body fit with its
+      ``model_error`` verdict and widened σ, and ``diagnosis`` says where the mismatch is
+      (``unexplained``: channel, band, time, size; :func:`~.diagnosis.unexplained`) with
+      diagnose's candidates as ``hypotheses``, not findings.
 
-    Either way ``rigid_body`` keeps the rigid-body tensor and σ, ``diagnosis`` the named
-    effects with their parameters and the residual RMS before/after, and a warning says what
-    was done.  When the fit shows no model error, ``result`` is returned as it was; when
-    diagnose names nothing or cannot run, too, with a warning saying so.
+    ``diagnosis`` also keeps the residual RMS before/after; ``rigid_body`` the rigid-body
+    tensor and σ.  A fit without model error is returned as it was.
     """
-    from .diagnosis import CORRECTIONS, corrected, diagnose, effect_parameters_text
-    from .identification import KEYS, from_tensor, weak_directions
     misfit = result.residual_excess is not None and np.max(result.residual_excess) > MODEL_ERROR_RATIO
     heavier = result.weight_surplus is not None and abs(result.weight_surplus) > WEIGHT_TOLERANCE
-    if not (misfit or heavier):
+    flagged = result.validation is not None and result.validation.verdict == "model_error"
+    if not (misfit or heavier or flagged):
         return result
     full = rec
     if start is not None or end is not None:
@@ -333,52 +405,76 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
         lo = t0 + (start if start is not None else 0.0)
         hi = t0 + end if end is not None else rec.sensors.t_end
         rec = replace(rec, sensors=crop(rec.sensors, lo, hi))
+    log.info("diagnosing the model error")
     try:
         d = diagnose(rec)
     except (ValueError, np.linalg.LinAlgError) as e:   # RecordingError, RigError, TrackerError, IdentificationError
         result.warnings.append(f"diagnose could not run on the recording ({e}); the tensor is the rigid-body fit's")
         return result
-    if not d.mismatch or d.covariance_after is None:
-        result.warnings.append("diagnose found no physics in its library that explains the misfit; the tensor is "
-                               "the rigid-body fit's")
-        return result
-    names = [e["name"] for e in d.effects]
     rigid_body = {"inertia_about_cg": {k: float(v) for k, v in zip(KEYS, from_tensor(result.inertia))},
                   "inertia_std": {k: float(v) for k, v in zip(KEYS, result.inertia_std)},
-                  "uncertainty": result.uncertainty}
-    diagnosis = {"effects": d.effects, "residual_rms_before": d.rms_before,
-                 "residual_rms_after": d.rms_after, "band_hz": [float(x) for x in d.band]}
-    found = "; ".join(f"{e['name']} ({effect_parameters_text(e)})" for e in d.effects)
-    again = None
-    if d.corrections and all(n in CORRECTIONS for n in names):
-        # errors of the data: removed, and the recording identified again the ordinary way
+                  "uncertainty": result.uncertainty,
+                  "validation": None if result.validation is None else result.validation.verdict}
+    duration = float(d.series["t"][-1]) if d.series else float(result.t_end - result.t_start)
+    where = unexplained(d.located, duration)
+    diagnosis = {"effects": [], "hypotheses": d.effects, "unexplained": where,
+                 "residual_rms_before": d.rms_before, "residual_rms_after": d.rms_after,
+                 "band_hz": [float(x) for x in d.band]}
+    names = [e["name"] for e in d.effects]
+    again, why = None, None
+    if not d.mismatch:
+        why = "diagnose found no effect of its library that explains the misfit"
+    elif not all(e.get("plausible", True) for e in d.effects):
+        why = "; ".join(f"{e['name']}: {e['implausible']}" for e in d.effects if not e.get("plausible", True))
+        why = f"what fits best is not physically plausible ({why})"
+    else:
+        fixed = corrected(full, d.applied)
+        if d.stiffness is not None:
+            fixed = with_stiffness(fixed, d.stiffness)
+        log.info("identifying again with %s", ", ".join(names))
         try:
-            again = identify_recording(corrected(full, d.corrections), start=start, end=end, band_hz=band_hz)
+            again = identify_recording(fixed, start=start, end=end, band_hz=band_hz, effect_wrench=d.effect_wrench)
         except (ValueError, np.linalg.LinAlgError) as e:
-            result.warnings.append(f"the recording with {', '.join(names)} removed could not be identified again "
-                                   f"({e}); the tensor is diagnose's fit")
-    if again is not None:
-        again.rigid_body, again.diagnosis = rigid_body, {**diagnosis, "handled": "removed from the data"}
-        again.method += f"; {', '.join(names)} diagnosed and removed from the data (rig-identify diagnose)"
-        again.warnings = result.warnings + [
-            f"model error diagnosed: {found} — removed from the data and the recording identified again; the "
-            "rigid-body fit of the uncorrected data is under 'rigid_body' in the JSON (--no-diagnose reports that "
-            "one instead)"] + [w for w in again.warnings if w not in result.warnings]
-        return again
-    result.rigid_body, result.diagnosis = rigid_body, {**diagnosis, "handled": "added to the model"}
-    result.inertia = d.inertia_after
-    result.covariance = d.covariance_after
-    result.inertia_std = np.sqrt(np.clip(np.diag(d.covariance_after), 0, None))
-    result.crb_std = None
-    result.bias_correction = None
-    result.weak_directions = weak_directions(result.inertia, result.covariance)
-    result.uncertainty = "sandwich (diagnosed model)"
-    result.method += f"; model error diagnosed, the fit with {', '.join(names)} (rig-identify diagnose)"
-
-    result.warnings.append(f"model error diagnosed: {found} — the tensor reported is the fit with it; the "
-                           "rigid-body fit's is under 'rigid_body' in the JSON (--no-diagnose reports that one "
-                           "instead)")
-    return result
+            why = f"the recording with {', '.join(names)} could not be identified again ({e})"
+        else:
+            if again.validation is None or again.validation.verdict != "ok":
+                failed = () if again.validation is None else again.validation.failed
+                why = (f"with {', '.join(names)} the fit still fails its validation ({', '.join(failed)}): they do "
+                       "not explain the recording")
+    if why is not None:
+        diagnosis["handled"] = "not: " + why
+        result.rigid_body, result.diagnosis = rigid_body, diagnosis
+        result.warnings.append(
+            f"model error not explained: {why}; the tensor is the rigid-body fit's (σ widened, not trustworthy)"
+            + (f"; hypotheses, not findings: {', '.join(names)}" if names else "")
+            + ("; the mismatch is in " + ", ".join(f"{u['channel']} at {u['band_hz'][0] + 0.05:.2f} Hz"
+                                                   for u in where if u["band_hz"]) if where else ""))
+        return result
+    found = "; ".join(f"{e['name']} ({effect_parameters_text(e)})" for e in d.effects)
+    mu = float(d.applied.get(("cable_mass", ""), 0.0))
+    if mu:   # the fit's tensor is the body's with the cables' lower halves, about their combined CG
+        body_rig = replace(rec.rig, mass=rec.rig.mass + float(d.applied.get(("body_mass", ""), 0.0)))
+        again.inertia = body_inertia(again.inertia, body_rig, mu)
+        again.mass, again.center_of_gravity = body_rig.mass, body_rig.require_cg().copy()
+    if d.effect_wrench is not None and d.covariance_after is not None:
+        # the effects' own uncertainty: diagnose's joint fit of the tensor with them
+        joint = np.sqrt(np.clip(np.diag(d.covariance_after), 0, None))
+        wider = np.maximum(joint, again.inertia_std)
+        again.covariance = again.covariance + np.diag(wider**2 - again.inertia_std**2)
+        again.inertia_std = wider
+        again.uncertainty += "; at least diagnose's joint fit with the effects (their own uncertainty)"
+    handled = ("removed from the data" if d.effect_wrench is None else
+               "added to the model" if not d.applied and d.stiffness is None else
+               "removed from the data and added to the model")
+    diagnosis["effects"], diagnosis["hypotheses"], diagnosis["unexplained"] = d.effects, [], []
+    again.rigid_body, again.diagnosis = rigid_body, {**diagnosis, "handled": handled}
+    again.method += f"; {', '.join(names)} diagnosed (rig-identify diagnose), {handled}, validated"
+    rigid_verdict = result.validation.summary if result.validation is not None else None
+    again.warnings = [w for w in result.warnings if w != rigid_verdict] + [
+        f"model error diagnosed: {found} — {handled}, the recording identified again and validated (the "
+        "rigid-body fit's verdict was model_error; it is under 'rigid_body' in the JSON, --no-diagnose reports "
+        "it instead)"] + [w for w in again.warnings if w not in result.warnings]
+    return again
 
 
 MASS_RTOL = 1e-3   # relative: rig.yaml body.mass of recordings fitted jointly must agree this well
@@ -446,6 +542,7 @@ def identify_recordings(recs: list[Recording], start: float | None = None, end: 
     if refine:
         refine_uncertainty(preps, result)
     result.warnings[:0] = [f"{lab}: {w}" for lab, p in zip(labels, preps) for w in p.rec.warnings + p.warnings]
+    validate_fit(preps, result)
     return result
 
 
@@ -455,7 +552,6 @@ def compare_to_truth(result: InertiaResult, truth: dict) -> dict:
     Returns {key: {"value", "truth", "error", "error_percent", "error_sigma"}}; the
     percentage is of the entry for diagonals and of the largest diagonal for products.
     """
-    from .identification import KEYS, from_tensor
     tru = truth["inertia_about_cg"]
     big = max(abs(tru["ixx"]), abs(tru["iyy"]), abs(tru["izz"]))
     out = {}

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .export import ORDER
 from .identification import KEYS, PAIRS, IdentificationError
 from .pipeline import compare_to_truth, identify_recording
 from .recording import Recording
@@ -59,7 +60,7 @@ def run_case(name: str) -> dict:
 def print_table(rows: list[dict]) -> None:
     print(f"{'case':7s} {'entry':5s} {'thesis reported':>16s} {'--model thesis':>15s} {'ours':>10s}")
     for r in rows:
-        for n, k in enumerate(KEYS):
+        for n, k in enumerate(ORDER):   # moments, then products: the order of every table
             rep = r.get("thesis_reported", {}).get(k)
             rep_s = "-" if rep is None else (f"±{rep[0]:.2f} kg·m²" if rep[1] == "abs" else f"{rep[0]:.2f} %")
             cols = []

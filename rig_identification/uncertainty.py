@@ -9,7 +9,7 @@ the load cells, the exciter; see :mod:`.planning`).  For a recording, this modul
   robust spread of third differences, which a motion below a few Hz does not reach);
 * propagates those noise levels through the linearised tracker, preprocessor and
   identifier along the recording's own tracked trajectory
-  (:func:`~.planning.predict_from_trajectory`; :func:`propagated`): the Cramér–Rao-type
+  (:func:`~.propagation.predict_from_trajectory`; :func:`propagated`): the Cramér–Rao-type
   bound of this estimator for the recording's excitation, coloured residuals included;
 * removes the estimator's second-order bias (:func:`antithetic_bias`).  The tracker's
   pose carries the integrated gyro noise into the torque, the output carries the same
@@ -26,32 +26,16 @@ the load cells, the exciter; see :mod:`.planning`).  For a recording, this modul
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
+from .noise import white_sigma
+from .preprocessor import generalized_wrench
+from .propagation import Trajectory, predict_from_trajectory
+from .recording import SensorData, TimeSeries
 from .rig import Rig
-
-THIRD_DIFF_NORM = math.sqrt(20.0)   # ‖(1, −3, 3, −1)‖: σ of the third difference of white noise / σ
-MAD_NORM = 1.482602218505602        # σ / median absolute deviation of a normal variable
-
-
-def white_sigma(x: np.ndarray) -> float:
-    """White-noise σ of a sampled signal ``x`` (N,) or (N, k) (pooled over columns), from the
-    median absolute deviation of its third differences: a smooth motion sampled ≥ 20× faster
-    than it varies contributes < 1 % (its third difference is (2π f/fs)³ times its amplitude),
-    and isolated steps do not move a median.  Returns 0.0 for fewer than 8 samples."""
-    x = np.asarray(x, float)
-    if x.ndim == 1:
-        x = x[:, None]
-    if len(x) < 8:
-        return 0.0
-    d = np.diff(x, n=3, axis=0)
-    d = d[np.isfinite(d).all(axis=1)]
-    if not len(d):
-        return 0.0
-    mad = np.median(np.abs(d - np.median(d, axis=0)), axis=0)
-    return float(np.sqrt(np.mean((MAD_NORM * mad / THIRD_DIFF_NORM) ** 2)))
-
 
 def sensor_noise(rig: Rig, sensors) -> tuple[dict, dict]:
     """White-noise σ per source and sample rate per stream, estimated from a recording.
@@ -59,7 +43,7 @@ def sensor_noise(rig: Rig, sensors) -> tuple[dict, dict]:
     sensors: :class:`~.recording.SensorData`.  Returns (noise, rates): noise {"gyro" rad/s,
     "accelerometer" m/s², "load_cell" N (pooled over the cables), "exciter" N, "inclinometer"
     rad} (0.0 for a missing stream), rates {"imu", "load_cells", "exciter", "inclinometer"} Hz
-    (the keys of :data:`~.planning.REFERENCE_NOISE` / ``REFERENCE_RATES``)."""
+    (the keys of :data:`~.propagation.REFERENCE_NOISE` / ``REFERENCE_RATES``)."""
     def rate(ts):
         return float(1.0 / np.median(np.diff(ts.t))) if ts is not None and len(ts.t) > 1 else 0.0
 
@@ -78,19 +62,16 @@ def sensor_noise(rig: Rig, sensors) -> tuple[dict, dict]:
 def propagated(rig: Rig, poses, sensors, t_fit: np.ndarray, inertia: np.ndarray, band_hz: tuple[float, float],
                noise: dict, rates: dict, max_rate: float = 200.0):
     """The σ of the identified tensor that the sensors' noise causes, along the recording's
-    own trajectory (:func:`~.planning.predict_from_trajectory`).
+    own trajectory (:func:`~.propagation.predict_from_trajectory`).
 
     poses: the tracker's :class:`~.tracker.PoseTrack` (from its initialisation on);
     sensors: the cleaned :class:`~.recording.SensorData` it was tracked from; t_fit (N,) s:
     the fitted window's stamps; inertia (3,3) kg·m² the identified tensor (the linearisation
     point); band_hz: the fit's pass band; noise, rates: from :func:`sensor_noise`.  Streams
     faster than about ``max_rate`` Hz are sampled down for the prediction with the noise
-    density kept.  Returns a :class:`~.planning.Prediction` (σ, covariance, per-source
-    contributions).  Raises :class:`~.planning.PlanError` when the body hardly moves.
+    density kept.  Returns a :class:`~.propagation.Prediction` (σ, covariance, per-source
+    contributions).  Raises :class:`~.propagation.PlanError` when the body hardly moves.
     """
-    from .planning import Trajectory, predict_from_trajectory
-    from .preprocessor import generalized_wrench
-    from scipy.spatial.transform import Rotation
 
     keep = poses.t <= t_fit[-1] + 1e-9
     t = poses.t[keep]
@@ -121,7 +102,6 @@ def add_noise(sensors, noise: dict, rng: np.random.Generator, sign: float = 1.0)
     ``noise`` (keys as :func:`sensor_noise`) added (``sign`` = +1) or the same realisation
     subtracted (``sign`` = −1): pass generators in the same state for an antithetic pair.
     Draws in the order IMU (N,6), load cells, exciter, inclinometer."""
-    from .recording import SensorData, TimeSeries
 
     def add(ts, sig):
         if ts is None:
@@ -133,6 +113,52 @@ def add_noise(sensors, noise: dict, rng: np.random.Generator, sign: float = 1.0)
     cells = {n: add(sensors.load_cells[n], noise["load_cell"]) for n in sensors.load_cells}
     return SensorData(imu, cells, add(sensors.exciter, noise["exciter"]),
                       add(sensors.inclinometer, noise["inclinometer"]))
+
+
+@dataclass(frozen=True)
+class NoiseReplays:
+    """What replays with fresh noise say of an estimate (:func:`noise_replays`).
+
+    bias (6,) kg·m²: the second-order bias, the mean over the antithetic pairs of
+    ``½[θ(s + m) + θ(s − m)] − θ(s)``; draws (K,6) kg·m²: ``½[θ(s + m) − θ(s − m)]`` per pair,
+    each a draw of the estimate's first-order error at the recording's noise levels (the
+    linear term ``L m``; the noise already in the data moves only the point it is taken at)."""
+
+    bias: np.ndarray
+    draws: np.ndarray
+
+    def sigma_factor(self, covariance: np.ndarray) -> tuple[float, int]:
+        """How much larger the replays' spread is than ``covariance`` (6,6) predicts: the
+        Birge ratio √(Σ_k d_kᵀ C⁻¹ d_k / (6K)) (χ² with 6K degrees of freedom when C is right)
+        and its degrees of freedom."""
+        C = 0.5 * (covariance + covariance.T)
+        ev, U = np.linalg.eigh(C)
+        keep = ev > 1e-12 * max(ev.max(), 1e-300)
+        z = self.draws @ U[:, keep]
+        stat = float(np.sum(z**2 / ev[keep]))
+        dof = int(keep.sum()) * len(self.draws)
+        return float(np.sqrt(stat / max(dof, 1))), dof
+
+
+def noise_replays(fit, base: np.ndarray, sensors: list, noises: list, seed: int = 0, pairs: int = 1) -> NoiseReplays:
+    """The estimate re-run on the recording(s) with ``pairs`` antithetic pairs of fresh white
+    noise at the estimated levels (:func:`add_noise`): the second-order bias (antithetic
+    SIMEX, module docstring) and draws of the first-order error (:class:`NoiseReplays`).
+
+    fit(list of SensorData) -> (6,) entries (the whole chain with the estimate's band and
+    window); base: ``fit(sensors)``; sensors, noises: per recording.  ``fit`` is called
+    2 × ``pairs`` times."""
+    base = np.asarray(base, float)
+    bias, draws = [], []
+    for p in range(pairs):
+        out = []
+        for sign in (+1.0, -1.0):
+            out.append(np.asarray(fit([add_noise(s, n, np.random.default_rng([seed, i] if p == 0 else [seed, i, p]),
+                                                 sign)
+                                       for i, (s, n) in enumerate(zip(sensors, noises))]), float))
+        bias.append(0.5 * (out[0] + out[1]) - base)
+        draws.append(0.5 * (out[0] - out[1]))
+    return NoiseReplays(np.mean(bias, axis=0), np.array(draws))
 
 
 def antithetic_bias(fit, base: np.ndarray, sensors: list, noises: list, seed: int = 0) -> np.ndarray:

@@ -101,7 +101,7 @@ def test_model_error_diagnosis_that_cannot_run_keeps_the_rigid_body_fit(monkeypa
     """`pipeline.with_diagnosis`: a fit without model error is returned as it is; with model
     error but a recording diagnose cannot handle, the rigid-body fit stays, with a warning
     that says why (the inertia command must not fail where the plain fit succeeded)."""
-    import rig_identification.diagnosis as diagnosis
+    import rig_identification.pipeline as pipeline
     from rig_identification.identification import IdentificationError
     from rig_identification.pipeline import with_diagnosis
     t, w, M = euler_data(T=40.0)
@@ -110,7 +110,7 @@ def test_model_error_diagnosis_that_cannot_run_keeps_the_rigid_body_fit(monkeypa
 
     def refuse(rec, **kw):
         raise IdentificationError("identifier: window of 3.0 s is too short")
-    monkeypatch.setattr(diagnosis, "diagnose", refuse)
+    monkeypatch.setattr(pipeline, "diagnose", refuse)
     res.residual_excess = np.array([1.1, 1.0, 1.2])
     assert with_diagnosis(None, res) is res and not res.warnings       # no model error: not diagnosed
     res.residual_excess = np.array([4.0, 1.0, 1.2])

@@ -11,8 +11,9 @@ from scipy.signal import butter, sosfiltfilt
 from rig_identification.identification import from_tensor
 from rig_identification.modes import natural_modes
 from rig_identification.pipeline import identify_recording
-from rig_identification.planning import (REFERENCE_NOISE, SPIN_AXES, Trajectory, _cumtrapz_adjoint,
-                                         _sosfiltfilt_adjoint, predict_from_trajectory, resonances)
+from rig_identification.planning import SPIN_AXES, resonances
+from rig_identification.propagation import (REFERENCE_NOISE, Trajectory, cumtrapz_adjoint, predict_from_trajectory,
+                                            sosfiltfilt_adjoint)
 from rig_identification.recording import Recording
 from rig_identification.simulator import load_experiment, simulate
 from rig_identification.uncertainty import add_noise
@@ -28,9 +29,9 @@ def test_filter_adjoints_are_exact_transposes():
     rng = np.random.default_rng(1)
     sos = butter(4, [0.47, 3.4], btype="bandpass", fs=200.0, output="sos")
     x, v = rng.standard_normal((3000, 2)), rng.standard_normal((3000, 2))
-    assert np.sum(sosfiltfilt(sos, x, axis=0) * v) == pytest.approx(np.sum(x * _sosfiltfilt_adjoint(sos, v)), rel=1e-10)
+    assert np.sum(sosfiltfilt(sos, x, axis=0) * v) == pytest.approx(np.sum(x * sosfiltfilt_adjoint(sos, v)), rel=1e-10)
     lhs = np.sum(cumulative_trapezoid(x, dx=0.005, axis=0, initial=0) * v)
-    assert lhs == pytest.approx(np.sum(x * _cumtrapz_adjoint(v, 0.005)), rel=1e-10)
+    assert lhs == pytest.approx(np.sum(x * cumtrapz_adjoint(v, 0.005)), rel=1e-10)
 
 
 def test_parametric_resonances_are_avoided():
@@ -117,7 +118,8 @@ def test_plan_cli_user_errors(args, words):
 
 
 def _default_body():
-    from rig_identification.planning import REFERENCE_RATES, Body
+    from rig_identification.planning import Body
+    from rig_identification.propagation import REFERENCE_RATES
     exp = load_experiment(DEFAULT)
     return Body(exp.rig, exp.mass, exp.inertia, np.full(len(exp.rig.cables), 5e6), dict(REFERENCE_RATES),
                 dict(REFERENCE_NOISE))
@@ -156,7 +158,8 @@ def test_second_run_on_another_cable_geometry_stays_within_the_limits():
     tension and the rotation below 3° as the plan says (on the rig's own cables it would
     not behave the same); the plan is chosen between it and the best run done twice."""
     from dataclasses import replace
-    from rig_identification.planning import Run, combine, geometry_variants, plan_experiment
+    from rig_identification.planning import Run, geometry_variants, plan_experiment
+    from rig_identification.propagation import combine
     body = _default_body()
     rig = body.rig
     label, vr = next((lab, r) for lab, r in geometry_variants(body, 1.0) if "farther apart along world y" in lab)
