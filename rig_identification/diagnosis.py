@@ -84,6 +84,7 @@ ratio and information criteria for model structure selection).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from dataclasses import replace as _replace
 
@@ -96,12 +97,15 @@ from scipy.stats import chi2
 from .effects import EFFECT_NAMES
 from .identification import (KEYS, IdentificationError, auto_band, basis, consistent_from_params, cumulative_integral,
                              from_tensor, params_from_consistent, step_indices, to_tensor)
+from .quality import check_motion, check_units, clean_sensors
 from .recording import Recording, RecordingError
+from .tracker import pass_compliance, replay
+from .yaw_anchor import anchor_yaw
 
 ALPHA = 0.01          # family-wise false-alarm probability of the selection
 MIN_REDUCTION = 0.05  # an effect must reduce some channel's residual RMS by at least this fraction
 MAX_EFFECTS = 3
-CORRECTIONS = ("sensor_delay", "load_cell_scale", "imu_offset", "imu_misalignment", "gyro_bias",
+CORRECTIONS = ("sensor_delay", "load_cell_scale", "imu_offset", "imu_misalignment", "gyro_bias", "gyro_scale",
                "accelerometer_bias", "body_mass")
 """Effects that are errors of the data, not missing physics: :func:`corrected` removes them."""
 EXACT_SCREEN = 3      # sensor/rig-error candidates evaluated exactly (re-tracked) per selection step
@@ -198,18 +202,17 @@ def _track(rig, s, cables: str):
     :func:`~rig_identification.tracker.track`); ``"rigid"``: inextensible where rig.yaml
     gives none; ``"fitted"``: fitted for every cable, whatever rig.yaml says."""
 
-    from .tracker import PoseTrack, _replay, pass_compliance
     if cables == "fitted":
         rig = _replace(rig, cables=tuple(_replace(c, stiffness=None) for c in rig.cables))
     known = np.isfinite(rig.cable_stiffness)
     if known.all() or cables == "rigid":
         rig_t = _replace(rig, cables=tuple(c if c.stiffness is not None else _replace(c, stiffness=1e15) for c in rig.cables))
-        out, _ = _replay(rig_t, s)
-        return PoseTrack.from_estimates(out), np.where(known, rig.cable_stiffness, np.inf), None
-    out, tracker = _replay(rig, s)
+        out, _ = replay(rig_t, s)
+        return out, np.where(known, rig.cable_stiffness, np.inf), None
+    out, tracker = replay(rig, s)
     hist = tracker.compliance_history
     if not hist:
-        return PoseTrack.from_estimates(out), np.where(known, rig.cable_stiffness, np.inf), None
+        return out, np.where(known, rig.cable_stiffness, np.inf), None
     H = np.array([h[1] for h in hist[len(hist) // 2:]])
     c_ls = pass_compliance(tracker, out)
     c = np.median(H, axis=0) if c_ls is None else np.where(known, H[0], c_ls)
@@ -218,9 +221,9 @@ def _track(rig, s, cables: str):
     c_std = np.std(H, axis=0) / np.sqrt(max(1.0, len(H) / 30.0)) / np.sqrt(max(1, (~known).sum()))
     k = np.where(known, rig.cable_stiffness, 1.0 / np.maximum(c, 1e-12))
     rig_t = _replace(rig, cables=tuple(_replace(cb, stiffness=float(ki)) for cb, ki in zip(rig.cables, k)))
-    out, _ = _replay(rig_t, s)
+    out, _ = replay(rig_t, s)
     k_std = float(np.median(k[~known]) ** 2 * np.median(c_std[~known]))
-    return PoseTrack.from_estimates(out), k, k_std
+    return out, k, k_std
 
 
 def prepare_window(rec: Recording, settle: float = 5.0, warnings: list | None = None,
@@ -228,19 +231,19 @@ def prepare_window(rec: Recording, settle: float = 5.0, warnings: list | None = 
     """Clean the recording, track the pose and collect the :class:`Window` (the same
     cleaning and tracker as ``rig-identify inertia``; ``cables`` as :func:`_track`).
     Raises RecordingError, RigError, TrackerError."""
-    from .pipeline import _check_motion, _check_units, clean_sensors
     rig = rec.rig
     cg = rig.require_cg()
     if rig.exciter is not None and rec.sensors.exciter is None:
         raise RecordingError(f"{rec.path}: rig.yaml describes an exciter but the bag has no /rig/exciter/wrench topic")
-    _check_units(rec)
+    check_units(rec)
     warnings = [] if warnings is None else warnings
     s = clean_sensors(rec, warnings)
-    _check_motion(rec, s)
+    check_motion(rec, s)
     poses, stiffness, stiffness_std = _track(rig, s, cables)
     lo = max([c.t[0] for c in s.load_cells.values()] + ([s.exciter.t[0]] if s.exciter is not None else []))
     hi = min([c.t[-1] for c in s.load_cells.values()] + ([s.exciter.t[-1]] if s.exciter is not None else []))
     lo = max(lo, s.t_start + min(settle, 0.1 * (s.t_end - s.t_start)))
+    poses, _ = anchor_yaw(rig, poses, s, lo, hi)   # as every fit's replay (pipeline.replay_window)
     m = (poses.t >= lo) & (poses.t <= hi)
     t = poses.t[m]
     R = Rotation.from_quat(poses.quaternion[m]).as_matrix()
@@ -684,6 +687,9 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
     cols = [Column(f"bias_{'xyz'[k]}", dcg=-(Rimu @ E[k])) for k in range(3)]
     out.append(Candidate("gyro_bias", cols,
                          lambda vals, stds: _vec(vals, stds, "bias", applied.get(("gyro_bias", ""))), exact=True))
+    # (no gyro_scale candidate: a scale factor on the gyro is the tensor scaled, to first order —
+    # ω_meas = S P ∫M — and only the asymmetry of S P tells them apart; the exact iteration ran
+    # off to a zero gyro on clean rigs.  corrected() removes a known one; the validation flags one)
     cols = [Column(f"bias_{'xyz'[k]}", dca=-(Rimu @ E[k])) for k in range(3)]
     out.append(Candidate("accelerometer_bias", cols,
                          lambda vals, stds: _vec(vals, stds, "bias", applied.get(("accelerometer_bias", ""))),
@@ -734,7 +740,8 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     """The recording with the sensor and rig errors of ``applied`` removed (key -> value):
     ("sensor_delay", stream) s: the stream's stamps − d; ("load_cell_scale", cable) e:
     the cable's tension T (1 − e); ("imu_offset", "") (3,) m body: imu.position + δ; ("imu_misalignment", "")
-    (3,) rotation vector, body axes: IMU axes turned by it; ("gyro_bias" | "accelerometer_bias",
+    (3,) rotation vector, body axes: IMU axes turned by it; ("gyro_scale", "") (3,) ε per IMU
+    axis: the gyro divided by 1 + ε (after the bias); ("gyro_bias" | "accelerometer_bias",
     "") (3,) IMU axes: subtracted; ("body_mass", "") δ kg: body.mass + δ; ("cable_mass", "") μ kg: the rig's body carries μ at each
     body anchor (the lower half of each cable, outside its load cell at the ceiling): mass
     + n μ, the centre of gravity moved to the combined one (the tensor fitted is then the
@@ -745,6 +752,7 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     rig, s = rec.rig, rec.sensors
     imu = s.imu.data.copy()
     imu[:, :3] -= np.asarray(applied.get(("gyro_bias", ""), np.zeros(3)))
+    imu[:, :3] /= 1.0 + np.asarray(applied.get(("gyro_scale", ""), np.zeros(3)))
     imu[:, 3:] -= np.asarray(applied.get(("accelerometer_bias", ""), np.zeros(3)))
     cells = {}
     d_cells = applied.get(("sensor_delay", "load_cells"), 0.0)
@@ -774,7 +782,7 @@ def _combined_cg(rig, mu: float) -> np.ndarray:
     return (m * rig.require_cg() + mu * b.sum(0)) / (m + mu * len(b))
 
 
-def _with_stiffness(rec: Recording, k: np.ndarray) -> Recording:
+def with_stiffness(rec: Recording, k: np.ndarray) -> Recording:
     """``rec`` with every cable's axial stiffness (n,) N/m set in its rig."""
     return _replace(rec, rig=_replace(rec.rig, cables=tuple(_replace(c, stiffness=float(ki))
                                                             for c, ki in zip(rec.rig.cables, k))))
@@ -795,6 +803,28 @@ def body_inertia(J: np.ndarray, rig, mu: float) -> np.ndarray:
 
 
 # --- diagnosis ------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class EffectWrench:
+    """The generalized wrench that the diagnosed physics adds to the measured one (the
+    extended model's moment and force columns times their fitted parameters; Newton–Euler:
+    J ω̇ + ω × Jω = M + M_effect, m a = F + F_effect).
+
+    t (N,) s, absolute stamps of the diagnosis window; torque (N,3) N·m about the CG and force
+    (N,3) N, body axes; names: the effects it holds."""
+
+    t: np.ndarray
+    torque: np.ndarray
+    force: np.ndarray
+    names: tuple
+
+    def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(torque (M,3), force (M,3)) at the stamps ``t`` (M,) s: linear interpolation, the
+        end values held outside the window."""
+        tq = np.column_stack([np.interp(t, self.t, self.torque[:, k]) for k in range(3)])
+        fc = np.column_stack([np.interp(t, self.t, self.force[:, k]) for k in range(3)])
+        return tq, fc
+
 
 @dataclass
 class Diagnosis:
@@ -821,6 +851,13 @@ class Diagnosis:
     rms_sync_before: dict | None = None
     rms_sync_after: dict | None = None
     revolutions: float | None = None
+    # the physics added to the model (not errors of the data), as the generalized wrench it
+    # adds to the measured one along the window: :class:`EffectWrench` or None
+    effect_wrench: "EffectWrench | None" = None
+    # every correction made to the data or the rig (key -> value, :func:`corrected`; the
+    # cables' mass included), and the cables' stiffness (n,) N/m when their elasticity was found
+    applied: dict = field(default_factory=dict)
+    stiffness: np.ndarray | None = None
 
     def to_dict(self) -> dict:
         ent = lambda J: {k: float(x) for k, x in zip(KEYS, from_tensor(J))}  # noqa: E731
@@ -835,6 +872,79 @@ class Diagnosis:
                 "residual_rms_synchronous_before": self.rms_sync_before,
                 "residual_rms_synchronous_after": self.rms_sync_after,
                 "synchronous_revolutions": self.revolutions}
+
+
+PLAUSIBLE = {
+    "viscous_damping": {"angular": (0.0, np.inf), "linear": (0.0, np.inf)},
+    "air_drag": {"angular": (0.0, np.inf), "linear": (0.0, np.inf)},
+    "coulomb_friction": {"torque": (0.0, np.inf), "force": (0.0, np.inf)},
+    "sensor_delay": {"delay": (-0.1, 0.1)},
+    "load_cell_scale": {"scale": (0.8, 1.25)},
+    "gyro_bias": {"bias": (-0.05, 0.05)},
+    "gyro_scale": {"scale": (0.9, 1.1)},
+    "accelerometer_bias": {"bias": (-0.5, 0.5)},
+    "imu_misalignment": {"rpy": (-0.1, 0.1)},
+    "imu_offset": {"offset": (-1.0, 1.0)},
+    "cable_elasticity": {"stiffness": (1e4, 1e9)},
+    "gyroscopic_coupling": {"scale": (0.5, 1.5)},
+}
+"""The range (SI) each effect's parameters must fall in to be named: a fit that needs a
+dissipation of the wrong sign, a sensor delay of a tenth of a second or an IMU a metre from
+where rig.yaml puts it has found a stand-in for other physics, not the effect.  Besides:
+``cable_mass`` between 0 and 5 % of the body's mass per cable, ``body_mass`` within 10 %
+of rig.yaml's, the exciter's rotor ``unbalance`` within 0.3–3× the mass that makes the
+measured force (F / (2π f)²), and a dissipative effect's moment at most
+:data:`MAX_EFFECT_SHARE` of the measured moment (RMS in the band: a rig's damping is small)."""
+MAX_EFFECT_SHARE = 0.3
+
+
+def implausible(entry: dict, rig, effect_share: float | None = None, unbalance: float | None = None) -> str | None:
+    """Why the effect ``entry`` (of :attr:`Diagnosis.effects`) cannot be the physics in the
+    recording (see :data:`PLAUSIBLE`), or None when it is plausible.  effect_share: the RMS
+    of its moment over the measured moment's; unbalance: kg·m that makes the measured
+    exciter force."""
+    name, par = entry["name"], entry["parameters"]
+    for k, (lo, hi) in PLAUSIBLE.get(name, {}).items():
+        v = np.atleast_1d(np.asarray(par.get(k, 0.0), float))
+        if np.any(v < lo) or np.any(v > hi):
+            return f"{k} = {fmt_value(par.get(k))} outside {lo:g}…{hi:g}"
+    if name == "cable_mass" and not 0.0 <= par.get("mass", 0.0) <= 0.05 * rig.mass:
+        return f"mass {par['mass']:.3g} kg per cable outside 0…{0.05 * rig.mass:.3g} kg"
+    if name == "body_mass" and abs(par.get("mass_error", 0.0)) > 0.1 * rig.mass:
+        return f"mass error {par['mass_error']:.3g} kg beyond 10 % of rig.yaml's {rig.mass:.6g} kg"
+    if name == "exciter_rotor" and unbalance:
+        u = par.get("unbalance", 0.0)
+        if not 0.3 * unbalance <= u <= 3.0 * unbalance:
+            return f"unbalance {u:.3g} kg·m outside 0.3–3× the {unbalance:.3g} kg·m that makes the measured force"
+    if name in ("viscous_damping", "air_drag", "coulomb_friction") and effect_share is not None \
+            and effect_share > MAX_EFFECT_SHARE:
+        return f"its moment is {100 * effect_share:.0f} % of the measured moment (at most {100 * MAX_EFFECT_SHARE:.0f} %)"
+    return None
+
+
+def unexplained(located: dict, duration: float, limit: int = 6) -> list[dict]:
+    """Where the rigid-body fit's residuals show the mismatch, from :func:`locate`'s
+    analysis: one entry per spectral line of a channel's residual (the largest first)
+    ``{"channel", "band_hz": [lo, hi] Hz, "time_s": [start, end] s from the window's start,
+    "size": power over the residual's median in-band level, "is": what the frequency is}``;
+    a channel with no line but a residual that is not white (Ljung–Box p < 1e-3) gives one
+    entry over the whole band (size: its RMS).  ``time_s`` is the tenth of the window where
+    the channel's residual is largest when that is over twice the median tenth, else the
+    whole window.  At most ``limit`` entries."""
+    out = []
+    for ch, a in located.items():
+        seg = np.asarray(a.get("rms_by_tenth") or [0.0])
+        med = float(np.median(seg))
+        i = int(np.argmax(seg))
+        span = [i * duration / 10, (i + 1) * duration / 10] if med > 0 and seg[i] > 2 * med else [0.0, duration]
+        for pk in a.get("peaks", []):
+            out.append({"channel": ch, "band_hz": [round(max(pk["hz"] - 0.05, 0.0), 3), round(pk["hz"] + 0.05, 3)],
+                        "time_s": [round(x, 1) for x in span], "size": pk["power_over_floor"], "is": pk["is"]})
+        if not a.get("peaks") and a.get("whiteness_p", 1.0) < 1e-3:
+            out.append({"channel": ch, "band_hz": None, "time_s": [round(x, 1) for x in span],
+                        "size": a.get("rms"), "is": "a coloured residual (not white)"})
+    out.sort(key=lambda e: -(e["size"] or 0.0) if e["band_hz"] is not None else 0.0)
+    return out[:limit]
 
 
 def fmt_value(v) -> str:
@@ -1210,6 +1320,17 @@ def _exact_profile(key, state: dict, build, keys: list, cost_ref: dict, kappa0: 
     return applied, w, M, cands, fit, sd
 
 
+def log_sf(x: float, dof: int) -> float:
+    """ln P(χ²_dof > x), finite however large x: scipy's ``chi2.logsf``, and where that
+    underflows its asymptotic form −x/2 + (dof/2 − 1) ln(x/2) − ln Γ(dof/2) (the upper
+    incomplete gamma function's leading term; Abramowitz & Stegun 6.5.32)."""
+    x = max(float(x), 0.0)
+    v = float(chi2.logsf(x, dof))
+    if np.isfinite(v):
+        return v
+    return -x / 2 + (dof / 2 - 1) * math.log(x / 2) - math.lgamma(dof / 2)
+
+
 def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS, alpha: float = ALPHA,
              band_hz: tuple[float, float] | None = None) -> Diagnosis:
     """Diagnose a dynamic recording (see module docstring).
@@ -1234,7 +1355,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     def build(applied, elastic, profiled=None, keep_stretch=False):
         mode = "fitted" if elastic else ("declared" if declared else "rigid")
         # keep_stretch: the steel stretch fitted last is kept (one tracker pass, not two)
-        src = _with_stiffness(rec, state["steel"]) if keep_stretch and "steel" in state else rec
+        src = with_stiffness(rec, state["steel"]) if keep_stretch and "steel" in state else rec
         w = prepare_window(corrected(src, applied), warnings=[] if state["band"] else warnings,
                            cables=mode, imu_rot_yaml=R_yaml)
         M = Model(w, state["band"])
@@ -1362,7 +1483,11 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
             # the gyroscopic term is physics of known size (κ = 1), missing from the model
             # by construction: its test is κ = 0 rejected, however small the residual's change
             practical = best_red >= MIN_REDUCTION or c.gyroscopic
-            if p < threshold_p and practical and (best is None or e["lam"] > best[0]["lam"]):
+            # the strongest evidence, its parameters counted: the smallest p-value (log, so that
+            # underflowing ones still rank) — a 3-parameter accelerometer bias with a likelihood
+            # ratio 3 above a 1-parameter body mass error is the weaker explanation
+            e["log_p"] = log_sf(e["lam"], e["dof"]) if np.isfinite(e["lam"]) else 0.0
+            if p < threshold_p and practical and (best is None or e["log_p"] < best[0]["log_p"]):
                 best = (e, p)
         if best is None:
             break
@@ -1398,6 +1523,28 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         entries.append({"name": c.name, "parameters": {}, "parameters_std": {},
                         "evidence": {"likelihood_ratio": lam, "dof": dof, "p_value": p, "threshold_p": threshold_p,
                                      "step": step, "rms_reduction": {k: round(red[k], 4) for k in affected[:8]}}})
+    # backward elimination: forward selection can pick a stand-in first (drag for a delay's
+    # quadrature) and keep it once the real effect is in; each physics effect (the first-order
+    # ones: the data corrections are tested again by the validation of the corrected fit) is
+    # dropped when the others explain the recording as well without it
+    by_key = {c.key: c for c in cands}
+    for key in [k for k in keys if k in by_key and not by_key[k].exact and not by_key[k].gyroscopic]:
+        if len(keys) < 2:
+            break
+        others = [k for k in keys if k != key]
+        try:
+            fit_wo = fit_model(M, _columns(cands, others), kappa0, free_kappa, scales, from_tensor(cur_fit.J))
+        except (np.linalg.LinAlgError, ValueError):
+            continue
+        lam = _lr(fit_wo.cost(scales), cur_fit.cost(scales), M)
+        dof = len(by_key[key].columns)
+        if chi2.sf(max(lam, 0.0), dof) >= threshold_p:
+            i = keys.index(key)
+            keys.pop(i)
+            dropped = entries.pop(i)
+            warnings.append(f"{dropped['name']} dropped: with the other effects in the model it adds nothing "
+                            f"(likelihood ratio {lam:.3g}, {dof} dof)")
+            cur_fit = fit_wo
     # the selection weighted each axis by the baseline's residual scale, which the missing
     # physics inflated on some axes: the final fit is reweighted by its own residual scales
     # (iteratively reweighted least squares: the maximum-likelihood estimate with unknown
@@ -1423,6 +1570,41 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
             stds = np.sqrt(np.clip(np.diag(cur_fit.cov)[6 + pos:6 + pos + len(c.columns)], 0, None))
             pos += len(c.columns)
         e["parameters"], e["parameters_std"] = c.report(vals, stds)
+    # the physics the model lacks (not an error of the data), as the wrench it adds
+    pos = 0
+    tq_add, f_add, phys, share = np.zeros_like(w.omega), np.zeros_like(w.omega), [], {}
+    for key in keys:
+        c = by.get(key)
+        if c is None or c.gyroscopic:
+            continue
+        vals = cur_fit.beta[pos:pos + len(c.columns)]
+        pos += len(c.columns)
+        if c.exact:
+            continue
+        phys.append(c.name)
+        tq_c = np.zeros_like(w.omega)
+        for b, col in zip(vals, c.columns):
+            if col.rot_D is not None:
+                tq_c += b * col.rot_D
+            if col.tr_D is not None:
+                f_add += b * w.mass * col.tr_D
+        tq_add += tq_c
+        share[c.name] = float(np.sqrt(np.mean(M.filt(tq_c) ** 2)) / max(np.sqrt(np.mean(M.filt(w.torque) ** 2)),
+                                                                        1e-12))
+    effect_wrench = EffectWrench(w.t.copy(), tq_add, f_add, tuple(phys)) if phys else None
+    phase = exciter_phase(w)
+    unbalance = None
+    if phase is not None:
+        ok = np.isfinite(phase)
+        f_hz = abs(float(np.polyfit(w.t[ok], phase[ok], 1)[0])) / (2 * np.pi)
+        unbalance = float(np.median(np.linalg.norm(w.f_exc, axis=1))) / (2 * np.pi * f_hz) ** 2
+    for e in entries:
+        why = implausible(e, rec.rig, share.get(e["name"]), unbalance)
+        e["plausible"] = why is None
+        if why is not None:
+            e["implausible"] = why
+        if e["name"] in share:
+            e["evidence"]["moment_share"] = round(share[e["name"]], 4)
     entries.sort(key=lambda e: -e["evidence"]["likelihood_ratio"])
     located = locate(M0, base, rec.rig, base.J)
     std_of = lambda f: np.sqrt(np.clip(np.diag(f.cov)[:6], 0, None))  # noqa: E731
@@ -1435,7 +1617,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
                      series={"t": w.t - w.t[0], "fs": M.fs, "before": ch0, "after": ch1},
                      covariance_after=np.array(cur_fit.cov[:6, :6]),
                      corrections={k: v for k, v in state["applied"].items() if k[0] in CORRECTIONS},
-                     rms_sync_before=sync0, rms_sync_after=sync1, revolutions=revs)
+                     rms_sync_before=sync0, rms_sync_after=sync1, revolutions=revs, effect_wrench=effect_wrench,
+                     applied=dict(state["applied"]), stiffness=w.stiffness.copy() if state["elastic"] else None)
 
 
 __all__ = ["Diagnosis", "diagnose", "prepare_window", "candidates", "locate", "EFFECT_NAMES", "IdentificationError"]

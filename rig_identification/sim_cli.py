@@ -13,13 +13,8 @@ simulation: one message naming the file and field on stderr, exit status 2.
 from __future__ import annotations
 
 import argparse
+import math
 import sys
-
-import numpy as np
-
-from .recording import RecordingError, write_recording
-from .rig import DummyMass, RigError
-from .simulator import ExperimentError, SimulationError, load_experiment, simulate
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -48,12 +43,18 @@ def sim_main(argv: list[str] | None = None) -> int:
         parser.error("--dummy-mass and --dummy-position go together")
     if args.dummy_mass is not None and args.static is None:
         parser.error("--dummy-mass/--dummy-position need --static baseline|dummy")
-    if args.dummy_mass is not None and not (np.isfinite(args.dummy_mass) and args.dummy_mass > 0):
+    if args.dummy_mass is not None and not (math.isfinite(args.dummy_mass) and args.dummy_mass > 0):
         parser.error(f"--dummy-mass must be > 0, got {args.dummy_mass}")
-    if args.duration is not None and not (np.isfinite(args.duration) and args.duration > 0):
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
         parser.error(f"--duration must be > 0, got {args.duration}")
     if args.seed is not None and args.seed < 0:
         parser.error(f"--seed must be >= 0, got {args.seed}")
+    # the simulator (scipy) only once the command line is known good: rig-sim --help stays quick
+    import numpy as np
+
+    from .recording import RecordingError, write_recording
+    from .rig import DummyMass, RigError
+    from .simulator import ExperimentError, SimulationError, load_experiment, simulate
     dummy = None
     if args.dummy_mass is not None:
         dummy = DummyMass(float(args.dummy_mass), np.array(args.dummy_position, float))

@@ -36,8 +36,14 @@ def test_identify_reference_recording(name):
     # a clean recording: the residual is what the noise explains, and the reported σ is the
     # noise propagated through tracker, preprocessor and identifier
     assert np.all(res.residual_excess < 1.2), res.residual_excess
-    assert res.uncertainty == "propagated sensor noise"
-    assert np.array_equal(res.inertia_std, res.crb_std)
+    assert res.uncertainty.startswith("propagated sensor noise")
+    assert res.validation.verdict == "ok", res.validation.summary
+    assert all(c.passed for c in res.validation.checks), [(c.name, c.detail) for c in res.validation.checks]
+    # σ: the propagated noise, a third of the (second-order) bias correction, and never narrower
+    # than the spread of the replays with fresh noise
+    np.testing.assert_allclose(res.inertia_std, np.sqrt(res.crb_std**2 + (0.3 * res.bias_correction) ** 2)
+                               * (res.replay_factor or 1.0), rtol=1e-12)
+    assert res.replay_factor is None or res.replay_factor < 1.5, res.replay_factor
     # the load cells carry the weight rig.yaml states (Newton: mean vertical force = m g)
     assert abs(res.weight_surplus) < 1e-4, res.weight_surplus
 
@@ -60,8 +66,12 @@ def test_model_error_falls_back_to_the_residuals(damped_rigid_body):
     within them."""
     rec, d = damped_rigid_body
     assert max(d["residual_excess"]) > 3.0, d["residual_excess"]
-    assert d["uncertainty"].startswith("sandwich") and d["inertia_std"] == d["inertia_sandwich_std"]
-    assert any("diagnose" in w for w in d["warnings"]) and "diagnosis" not in d
+    # the validation says so first: model error, σ the residuals' widened by what it saw
+    assert d["validation"]["verdict"] == "model_error", d["validation"]["summary"]
+    assert {"residual_level", "input_correlation"} <= {c["name"] for c in d["validation"]["checks"] if not c["passed"]}
+    assert d["uncertainty"].startswith("sandwich")
+    assert all(d["inertia_std"][k] >= d["inertia_sandwich_std"][k] for k in KEYS)
+    assert any("MODEL ERROR" in w for w in d["warnings"]) and "diagnosis" not in d
     tru = rec.truth["inertia_about_cg"]
     assert all(abs(d["inertia_about_cg"][k] - tru[k]) < 3.0 * d["inertia_std"][k] for k in KEYS), d
 
@@ -81,7 +91,9 @@ def test_cli_inertia_diagnoses_model_error(tmp_path, damped_rigid_body):
     d = json.loads(out.stdout)
     tru = rec.truth["inertia_about_cg"]
     big = max(tru["ixx"], tru["iyy"], tru["izz"])
-    assert [e["name"] for e in d["diagnosis"]["effects"]][:1] == ["viscous_damping"]
+    assert [e["name"] for e in d["diagnosis"]["effects"]] == ["viscous_damping"]
+    # the fit with the damping passes the same validation as every fit
+    assert d["validation"]["verdict"] == "ok", d["validation"]["summary"]
     for k in KEYS:
         ref = abs(tru[k]) if k in ("ixx", "iyy", "izz") else big
         err = d["inertia_about_cg"][k] - tru[k]
@@ -89,7 +101,7 @@ def test_cli_inertia_diagnoses_model_error(tmp_path, damped_rigid_body):
     assert abs(d["rigid_body"]["inertia_about_cg"]["izz"] / tru["izz"] - 1) > 0.01
     assert any("model error diagnosed: viscous_damping" in w for w in d["warnings"])
     page = (tmp_path / "report" / "index.html").read_text()
-    assert "Model error, diagnosed" in page and "viscous_damping" in page
+    assert "Model error: what diagnosis found" in page and "viscous_damping" in page
     # --no-diagnose: the rigid-body fit, as before
     assert rigid["inertia_about_cg"] == d["rigid_body"]["inertia_about_cg"]
 
