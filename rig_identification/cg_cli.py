@@ -1,22 +1,30 @@
 """``rig-identify cg`` and ``rig-identify cg-plan``: the static centre-of-gravity experiment.
 
-    rig-identify cg BASELINE_RECORDING DUMMY_RECORDING [--json] [--start S] [--end S]
-                    [--dummy-mass KG --dummy-position X Y Z] [--tare KG X Y Z] [--scale-std KG]
-                    [--dummy-position-std MM] [--length-std MM] [--no-load-cells]
-                    [--no-inclinometer] [--accelerometer] [--fit-inclinometer-offset]
-                    [--allow-motion]
+    rig-identify cg BASELINE_RECORDING DUMMY_RECORDING [--json] [--write-rig OUT.yaml [--force]]
+                    [--start S] [--end S] [--dummy-mass KG --dummy-position X Y Z] [--tare KG X Y Z]
+                    [--scale-std KG] [--anchor-std MM] [--length-std MM] [--dummy-position-std MM]
+                    [--no-load-cells] [--no-inclinometer] [--accelerometer]
+                    [--fit-inclinometer-offset] [--allow-motion]
     rig-identify cg-plan RIG [--cg-guess X Y Z] [--dummy-mass KG] [--dummy-position X Y Z]
                     [--duration S] [--masses KG ...] [--position X Y Z ...] [--target-mm MM]
                     [--noise-from RECORDING] [--load-cell-noise N] [--inclinometer-noise RAD]
-                    [--load-cell-rate HZ] [--inclinometer-rate HZ] [--dummy-position-std MM]
-                    [--length-std MM] [--max-duration S] [--json]
+                    [--load-cell-rate HZ] [--inclinometer-rate HZ] [--anchor-std MM]
+                    [--length-std MM] [--dummy-position-std MM] [--max-duration S] [--json]
 
 ``cg`` estimates the CG of the suspended body of BASELINE (body at rest without the dummy
 mass) from it and DUMMY (with the dummy mass of rig.yaml ``dummy_mass``), see
-:mod:`rig_identification.statics`.  ``--json`` prints one object
-``{"center_of_gravity": [x, y, z], "center_of_gravity_std": [...], "mass": ...,
-"mass_from_load_cells": ..., ...}`` (body frame, m, kg).  truth.yaml is never used for the
-estimate; when present it is shown beside it (text output only).
+:mod:`rig_identification.statics`.  Its σ (``center_of_gravity_std``) includes the rig's
+geometry as surveyed -- by default 1 mm (1 σ per coordinate) on every anchor, cable length
+and the dummy's position (:data:`~.statics.DEFAULT_ANCHOR_STD` ...), set with --anchor-std,
+--length-std, --dummy-position-std -- and ``center_of_gravity_std_noise`` is the measurement
+noise's alone; both are printed.  ``--json`` prints one object, :meth:`~.statics.CgResult.to_dict`
+(``schema`` :data:`~.statics.CG_RESULT_SCHEMA`, ``schema_version``, ``units``, body frame, m,
+kg) with ``baseline``, ``dummy``, ``created`` and ``written_rig``; saved to a file it is read
+back by :func:`load_cg_result` (e.g. for ``rig-identify inertia --cg CG.json``).
+``--write-rig OUT.yaml`` writes a copy of the recordings' rig.yaml with ``body.center_of_gravity``
+set to the estimate (comment lines: date, σ, source recordings), atomically; an existing OUT is
+replaced only with ``--force``.  truth.yaml is never used for the estimate; when present it is
+shown beside it (text output only).
 
 ``cg-plan`` predicts the CG σ of a planned static test and recommends one that reaches
 ±2.5 mm (1.96 σ) on every coordinate.  RIG is a rig.yaml file, an experiment file or a
@@ -24,34 +32,53 @@ recording folder (whose data give the sensor noise).
 
 ``rig-identify`` (cli.py) wires these in with :func:`add_cg_parser`,
 :func:`add_cg_plan_parser`; user errors raise the errors listed in :data:`USER_ERRORS`, which
-``rig-identify`` prints as one line (exit status 2).
+``rig-identify`` prints as one line (exit status 2); :class:`CgResultError` is a
+:class:`~.statics.StaticsError`.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import math
+from dataclasses import dataclass, replace
+from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
+import yaml
 
+from .atomic import atomic_write_text
 from .recording import RecordingError, read_recording
-from .rig import DummyMass, RigError, load_rig
-from .statics import (CgOptions, SensorNoise, StaticsError, StaticState, estimate_cg, plan_static_test,
-                      predict_cg_std)
+from .rig import DummyMass, Rig, RigError, dump_rig, load_rig
+from .simulator import ExperimentError, load_experiment
+from .statics import (CG_RESULT_SCHEMA, CG_RESULT_SCHEMA_VERSION, DEFAULT_ANCHOR_STD, DEFAULT_DUMMY_POSITION_STD,
+                      DEFAULT_LENGTH_STD, CgOptions, CgResult, SensorNoise, StaticsError, StaticState, estimate_cg,
+                      plan_static_test, predict_cg_std)
 from .tracker import TrackerError
+
+
+class CgResultError(StaticsError):
+    """A CG result file (the JSON of ``rig-identify cg --json``) or a ``--write-rig`` target
+    that cannot be used; the message names the file and the field."""
+
 
 USER_ERRORS = (RecordingError, RigError, StaticsError, TrackerError, FileNotFoundError)
 
+GEOMETRY_NOTE = ("a careful steel-tape or laser survey: class II tape ±(0.3 + 0.2 L/m) mm, ±1.1 mm over 4 m")
+
 
 def _options(args) -> CgOptions:
+    def mm(name, default):
+        v = getattr(args, name, None)
+        return default if v is None else v * 1e-3
     return CgOptions(use_load_cells=not getattr(args, "no_load_cells", False),
                      use_inclinometer=not getattr(args, "no_inclinometer", False),
                      use_accelerometer=getattr(args, "accelerometer", False),
                      fit_inclinometer_offset=getattr(args, "fit_inclinometer_offset", False),
                      scale_std=getattr(args, "scale_std", None),
-                     dummy_position_std=(getattr(args, "dummy_position_std", None) or 0.0) * 1e-3,
-                     length_std=(getattr(args, "length_std", None) or 0.0) * 1e-3)
+                     anchor_std=mm("anchor_std", DEFAULT_ANCHOR_STD),
+                     length_std=mm("length_std", DEFAULT_LENGTH_STD),
+                     dummy_position_std=mm("dummy_position_std", DEFAULT_DUMMY_POSITION_STD))
 
 
 def _positive(name):
@@ -81,10 +108,14 @@ def _nonneg(name):
 def _add_common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--scale-std", type=_positive("--scale-std"), metavar="KG",
                    help="σ of the scale's mass reading (default 0.1 %% of it)")
-    p.add_argument("--dummy-position-std", type=_nonneg("--dummy-position-std"), metavar="MM",
-                   help="σ of each coordinate of the dummy mass's position, mm (default 0: exact)")
+    p.add_argument("--anchor-std", type=_nonneg("--anchor-std"), metavar="MM",
+                   help=f"σ of each coordinate of every ceiling and body anchor, mm (default "
+                        f"{DEFAULT_ANCHOR_STD * 1e3:g}: {GEOMETRY_NOTE}; 0: exact)")
     p.add_argument("--length-std", type=_nonneg("--length-std"), metavar="MM",
-                   help="σ of the cable lengths of rig.yaml, mm (default 0: exact)")
+                   help=f"σ of the cable lengths of rig.yaml, mm (default {DEFAULT_LENGTH_STD * 1e3:g}; 0: exact)")
+    p.add_argument("--dummy-position-std", type=_nonneg("--dummy-position-std"), metavar="MM",
+                   help=f"σ of each coordinate of the dummy mass's position, mm (default "
+                        f"{DEFAULT_DUMMY_POSITION_STD * 1e3:g}; 0: exact)")
 
 
 def add_cg_parser(subparsers) -> argparse.ArgumentParser:
@@ -95,7 +126,11 @@ def add_cg_parser(subparsers) -> argparse.ArgumentParser:
                                           "baseline and a dummy-mass static recording (thesis chapter 2).")
     p.add_argument("baseline", help="recording folder of the body at rest WITHOUT the dummy mass")
     p.add_argument("dummy", help="recording folder of the body at rest WITH the dummy mass")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--json", action="store_true", help="print one JSON object (save it for rig-identify inertia --cg)")
+    p.add_argument("--write-rig", metavar="OUT.yaml",
+                   help="write a copy of the recordings' rig.yaml with body.center_of_gravity set to the estimate "
+                        "(for the dynamic experiment), atomically")
+    p.add_argument("--force", action="store_true", help="let --write-rig replace an existing file")
     p.add_argument("--start", type=float, metavar="S", help="window start, s from each recording's first IMU sample")
     p.add_argument("--end", type=float, metavar="S", help="window end, s from each recording's first IMU sample")
     p.add_argument("--dummy-mass", type=_positive("--dummy-mass"), metavar="KG",
@@ -162,16 +197,70 @@ def run_cg(args):
     return estimate_cg(rig, sb, sd, _options(args)), rb, rd
 
 
+def _check_rig_target(out: Path, force: bool, recordings: list[Path]) -> None:
+    """Refuse a --write-rig target that exists (unless ``force``) or is a recording's own rig.yaml."""
+    for rec in recordings:
+        own = rec / "rig.yaml"
+        if own.exists() and out.exists() and out.resolve() == own.resolve():
+            raise CgResultError(f"{out}: --write-rig would replace the recording {rec}'s own rig.yaml; a recording "
+                                "stays as it was recorded: write the copy elsewhere")
+    if out.is_dir():
+        raise CgResultError(f"{out}: --write-rig names a folder; give the file to write (e.g. {out / 'rig.yaml'})")
+    if out.exists() and not force:
+        raise CgResultError(f"{out}: already exists; refusing to overwrite it (pass --force to replace it)")
+
+
+def rig_with_cg_text(rig: Rig, result: CgResult, sources: list[str], created: str, original: str | None = None) -> str:
+    """rig.yaml text: ``rig`` with ``body.center_of_gravity`` set to ``result``'s estimate,
+    headed by comment lines (``created``, the σ with and without the geometry, the
+    validation verdict, the ``sources``) and the leading comment lines of ``original`` (the
+    source rig.yaml's text, if given).  The values are written exactly (YAML floats round-trip)."""
+    c, sd = result.center_of_gravity, result.center_of_gravity_std
+    mm = ", ".join(f"{x * 1e3:.2f}" for x in sd)
+    noise = result.center_of_gravity_std_noise
+    geo = result.geometry_std
+    cg_text = ", ".join(f"{x:.5f}" for x in c)
+    lines = [f"body.center_of_gravity = [{cg_text}] m estimated by rig-identify cg on {created}",
+             f"σ {mm} mm (x, y, z: measurement noise and geometry, anchors {geo.get('anchors', 0) * 1e3:g} mm, "
+             f"cable lengths {geo.get('cable_lengths', 0) * 1e3:g} mm, dummy position "
+             f"{geo.get('dummy_position', 0) * 1e3:g} mm)"
+             + ("" if noise is None else "; noise only " + ", ".join(f"{x * 1e3:.2f}" for x in noise) + " mm"),
+             "validation: " + ("not run" if result.validation is None else result.validation.verdict
+                               + (f" ({', '.join(result.validation.failed)} failed)"
+                                  if result.validation.failed else "")),
+             "from the static recordings " + " and ".join(sources)]
+    head = "".join(f"# {x}\n" for x in lines)
+    if original:
+        lead = []
+        for line in original.splitlines():
+            if not line.startswith("#"):
+                break
+            lead.append(line + "\n")
+        head += "".join(lead)
+    return head + dump_rig(rig.with_cg(c))
+
+
 def cmd_cg(args) -> int:
-    """``rig-identify cg``: print the CG estimate (text or ``--json``); returns 0."""
+    """``rig-identify cg``: print the CG estimate (text or ``--json``), write ``--write-rig``; returns 0."""
+    out = Path(args.write_rig) if getattr(args, "write_rig", None) else None
+    if out is not None:
+        _check_rig_target(out, args.force, [Path(args.baseline), Path(args.dummy)])
     res, rb, rd = run_cg(args)
+    created = datetime.now(timezone.utc).isoformat(timespec="seconds")
     d = res.to_dict()
-    d["baseline"], d["dummy"] = str(rb.path), str(rd.path)
+    d["baseline"], d["dummy"], d["created"] = str(rb.path), str(rd.path), created
     if args.tare is not None:
         c, s = res.without(args.tare[0], args.tare[1:])
         d["tare"] = {"mass": float(args.tare[0]), "center_of_gravity": [float(x) for x in args.tare[1:]]}
         d["center_of_gravity_without_tare"] = [float(x) for x in c]
         d["center_of_gravity_without_tare_std"] = [float(x) for x in s]
+    d["written_rig"] = None
+    if out is not None:
+        _check_rig_target(out, args.force, [rb.path, rd.path])     # again: the fit took a while
+        src = rb.path / "rig.yaml"
+        text = rig_with_cg_text(rb.rig, res, [str(rb.path), str(rd.path)], created, src.read_text(encoding="utf-8"))
+        atomic_write_text(out, text)
+        d["written_rig"] = str(out)
     if args.json:
         print(json.dumps(d))
         return 0
@@ -179,28 +268,48 @@ def cmd_cg(args) -> int:
     return 0
 
 
-def _print_cg(res, d: dict, rb) -> None:
+def _print_cg(res: CgResult, d: dict, rb) -> None:
     truth = rb.truth.get("center_of_gravity") if isinstance(rb.truth, dict) else None
+    if res.validation is not None:
+        print(res.validation.summary)
     for s in res.states:
         print(f"{s.label:9s} averaged {s.window[1] - s.window[0]:.1f} s; tilt rpy "
               + ", ".join(f"{math.degrees(a):+.4f}" for a in s.rpy) + " deg; tensions "
               + ", ".join(f"{t:.1f}" for t in s.tensions) + " N")
     print(f"streams: {', '.join(res.streams)}; fit χ² = {res.chi2:.1f} for {res.dof} degrees of freedom")
-    head = f"{'CG (body frame)':16s} {'value m':>10s} {'std mm':>8s}"
+    head = f"{'CG (body frame)':16s} {'value m':>10s} {'σ mm':>8s} {'σ noise mm':>10s}"
     if truth is not None:
-        head += f" {'truth m':>10s} {'error mm':>9s} {'err/std':>8s}"
+        head += f" {'truth m':>10s} {'error mm':>9s} {'err/σ':>7s}"
     print(head)
+    noise = res.center_of_gravity_std_noise
     for i, a in enumerate("xyz"):
-        line = f"{a:16s} {res.center_of_gravity[i]:10.5f} {res.center_of_gravity_std[i] * 1e3:8.3f}"
+        line = (f"{a:16s} {res.center_of_gravity[i]:10.5f} {res.center_of_gravity_std[i] * 1e3:8.3f} "
+                f"{noise[i] * 1e3 if noise is not None else float('nan'):10.3f}")
         if truth is not None:
             e = res.center_of_gravity[i] - float(truth[i])
-            line += f" {float(truth[i]):10.5f} {e * 1e3:+9.3f} {e / res.center_of_gravity_std[i]:+8.2f}"
+            line += f" {float(truth[i]):10.5f} {e * 1e3:+9.3f} {e / res.center_of_gravity_std[i]:+7.2f}"
         print(line)
     if truth is not None:
         print("(truth from truth.yaml, shown for comparison only)")
+    geo = res.geometry_std
+    fitted = [f"{n.replace('_', ' ')} {geo[k] * 1e3:g} mm" for k, n in
+              (("anchors", "anchors"), ("cable_lengths", "cable_lengths"), ("dummy_position", "dummy_position"))
+              if geo.get(k, 0) > 0]
+    if geo.get("dummy_mass", 0) > 0:
+        fitted.append(f"dummy mass {geo['dummy_mass']:g} kg")
+    if fitted:
+        print("σ: measurement noise and the rig's geometry as surveyed (" + ", ".join(fitted)
+              + ", 1 σ per coordinate; set with --anchor-std, --length-std, --dummy-position-std); "
+                "σ noise: the measurement noise alone, the geometry taken as exact")
+    else:
+        print("σ: the measurement noise alone: every geometry input taken as exact (--anchor-std, --length-std, "
+              "--dummy-position-std 0)")
+    if res.budget:
+        print("σ budget, x, y, z mm (adds in quadrature to σ): " + "; ".join(
+            f"{k.replace('_', ' ')} " + ", ".join(f"{x * 1e3:.2f}" for x in v) for k, v in res.budget.items()))
     if "center_of_gravity_without_tare" in d:
         c, s = d["center_of_gravity_without_tare"], d["center_of_gravity_without_tare_std"]
-        print(f"without the tare ({d['tare']['mass']:g} kg): " + ", ".join(f"{x:.5f}" for x in c) + " m, std "
+        print(f"without the tare ({d['tare']['mass']:g} kg): " + ", ".join(f"{x:.5f}" for x in c) + " m, σ "
               + ", ".join(f"{x * 1e3:.3f}" for x in s) + " mm")
     line = f"mass: {res.mass:.2f} kg (scale)"
     if res.mass_from_load_cells is not None:
@@ -212,14 +321,148 @@ def _print_cg(res, d: dict, rb) -> None:
         k = (f"{res.cable_stiffness:.4g} ± {res.cable_stiffness_std:.2g} N/m" if res.cable_stiffness is not None
              else "not significantly extensible")
         print(f"cable stiffness (fitted): {k}")
-    w = res.weakly_determined
-    print("note: " + w["text"])
-    print("note: inputs taken as exact: a 1 mm error of the dummy's position would move the CG by "
-          + ", ".join(f"{x * 1e3:.2f}" for x in w["dummy_position_1mm"]) + " mm (x, y, z); a 0.1 mm error of one "
-          "cable's length by up to " + ", ".join(f"{x * 1e3:.2f}" for x in w["cable_length_0.1mm"])
-          + " mm (give their uncertainty with --dummy-position-std, --length-std)")
+    print("note: " + res.weakly_determined["text"])
+    exact = _exact_inputs_note(res)
+    if exact:
+        print("note: " + exact)
+    if res.validation is not None:
+        print("checks: " + "; ".join(
+            f"{ck.name} {ck.statistic:.2f} (threshold {ck.threshold:.2f}) {'passed' if ck.passed else 'FAILED'}"
+            if ck.passed is not None else f"{ck.name} not applicable" for ck in res.validation.checks)
+            + " (σ; fit_chi2: χ²/dof; details in --json)")
     for x in res.warnings:
         print("warning: " + x)
+    if d.get("written_rig"):
+        print(f"wrote {d['written_rig']}: the rig.yaml with body.center_of_gravity for the dynamic experiment")
+
+
+def _exact_inputs_note(res: CgResult) -> str:
+    """What a 1 mm error of each systematic input taken as exact (σ 0) would do to the CG (the
+    same sensitivity, ∂CG/∂rig.yaml value, as for the fitted ones); empty when none is exact."""
+    geo, sens = res.geometry_std, res.sensitivity
+    parts = []
+    for key, sk, what in (("dummy_position", "dummy_position", "the dummy's position (all 3 coordinates)"),
+                          ("cable_lengths", "cable_lengths", "one cable's length"),
+                          ("anchors", "body_anchors", "one anchor coordinate")):
+        if geo.get(key, 0) > 0 or sk not in sens:
+            continue
+        S = np.asarray(sens[sk])
+        if key == "dummy_position":
+            eff = 1e-3 * np.sqrt(np.sum(S**2, axis=1))
+        else:
+            if key == "anchors":
+                S = np.hstack([S, np.asarray(sens["ceiling_anchors"])])
+            eff = 1e-3 * np.max(np.abs(S), axis=1)
+        parts.append(f"a 1 mm error of {what} would move the CG by up to "
+                     + ", ".join(f"{x * 1e3:.2f}" for x in eff) + " mm")
+    if not parts:
+        return ""
+    return ("inputs taken as exact (σ 0, not in σ): " + "; ".join(parts)
+            + " (x, y, z; such an error would also show in the fit's χ²)")
+
+
+# --- the CG result file ----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class SavedCgResult:
+    """A CG result read from a file (:func:`load_cg_result`).
+
+    center_of_gravity (3,) body frame m; center_of_gravity_std (3,) m (measurement noise and
+    geometry); center_of_gravity_std_noise (3,) m or None (files before schema version 1);
+    covariance (3, 3) m² or None; mass kg or None; verdict: the validation's (``ok``,
+    ``model_error``) or None; schema_version (0: a file without ``schema``, written before
+    the field existed); source: the file."""
+
+    center_of_gravity: np.ndarray
+    center_of_gravity_std: np.ndarray
+    center_of_gravity_std_noise: np.ndarray | None
+    covariance: np.ndarray | None
+    mass: float | None
+    verdict: str | None
+    schema_version: int
+    source: str
+
+
+def _vec3(d: dict, key: str, src: str, positive: bool = False, required: bool = True) -> np.ndarray | None:
+    v = d.get(key)
+    if v is None:
+        if required:
+            raise CgResultError(f"{src}: missing field {key}")
+        return None
+    if not isinstance(v, list) or len(v) != 3 or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
+                                                          for x in v):
+        raise CgResultError(f"{src}: field {key} must be a list of 3 numbers, got {v!r}")
+    a = np.array(v, float)
+    for i, x in enumerate(a):
+        if not math.isfinite(x):
+            raise CgResultError(f"{src}: field {key}[{i}] must be finite, got {v[i]!r}")
+        if positive and x <= 0:
+            raise CgResultError(f"{src}: field {key}[{i}] must be > 0, got {v[i]!r}")
+    return a
+
+
+def load_cg_result(path: str | Path) -> SavedCgResult:
+    """Read a CG result file: the JSON object ``rig-identify cg --json`` prints (schema
+    :data:`~.statics.CG_RESULT_SCHEMA`, versions up to :data:`~.statics.CG_RESULT_SCHEMA_VERSION`;
+    a file without ``schema``, from before it existed, is read as version 0), e.g. for
+    ``rig-identify inertia --cg CG.json``.
+
+    Returns :class:`SavedCgResult` (CG (3,) body frame m and its σ).  Raises
+    :class:`CgResultError` naming the file and the field: unreadable, not JSON, another
+    schema or a newer version, frame not ``body``, CG or σ not 3 finite numbers (σ > 0),
+    a covariance that is not (3, 3) finite and symmetric."""
+    p = Path(path)
+    src = str(p)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise CgResultError(f"{src}: cannot read the CG result ({e.strerror})") from None
+    except UnicodeDecodeError as e:
+        raise CgResultError(f"{src}: not a text file (byte {e.start} is not UTF-8)") from None
+    try:
+        d = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise CgResultError(f"{src}: not JSON ({e.msg} at line {e.lineno}, column {e.colno}); save the output of "
+                            "rig-identify cg --json") from None
+    if not isinstance(d, dict):
+        raise CgResultError(f"{src}: a CG result is a JSON object, got {type(d).__name__}")
+    schema = d.get("schema")
+    if schema is None:
+        version = 0
+    elif schema != CG_RESULT_SCHEMA:
+        raise CgResultError(f"{src}: field schema is {schema!r}, not {CG_RESULT_SCHEMA!r} "
+                            "(not a rig-identify cg result)")
+    else:
+        version = d.get("schema_version")
+        if not isinstance(version, int) or isinstance(version, bool) or version < 1:
+            raise CgResultError(f"{src}: field schema_version must be an integer >= 1, got {version!r}")
+        if version > CG_RESULT_SCHEMA_VERSION:
+            raise CgResultError(f"{src}: field schema_version is {version}, written by a newer rig_identification; "
+                                f"this one reads up to {CG_RESULT_SCHEMA_VERSION}")
+    frame = d.get("frame", "body")
+    if frame != "body":
+        raise CgResultError(f"{src}: field frame is {frame!r}; the CG must be in the body frame")
+    c = _vec3(d, "center_of_gravity", src)
+    sd = _vec3(d, "center_of_gravity_std", src, positive=True)
+    sdn = _vec3(d, "center_of_gravity_std_noise", src, positive=True, required=False)
+    cov = None
+    raw = d.get("center_of_gravity_covariance")
+    if raw is not None:
+        try:
+            cov = np.array(raw, float)
+        except (TypeError, ValueError):
+            cov = None
+        if cov is None or cov.shape != (3, 3) or not np.all(np.isfinite(cov)) or not np.allclose(cov, cov.T, rtol=1e-9,
+                                                                                                   atol=0.0):
+            raise CgResultError(f"{src}: field center_of_gravity_covariance must be a symmetric 3×3 list of "
+                                "finite numbers")
+    mass = d.get("mass")
+    if mass is not None and (isinstance(mass, bool) or not isinstance(mass, (int, float)) or not math.isfinite(mass)
+                             or mass <= 0):
+        raise CgResultError(f"{src}: field mass must be a number > 0, got {mass!r}")
+    val = d.get("validation")
+    verdict = val.get("verdict") if isinstance(val, dict) else None
+    return SavedCgResult(c, sd, sdn, cov, None if mass is None else float(mass), verdict, int(version), src)
 
 
 # --- cg-plan -------------------------------------------------------------------------------------
@@ -263,7 +506,6 @@ def add_cg_plan_parser(subparsers) -> argparse.ArgumentParser:
 
 def _load_rig_or_experiment(path: Path):
     """A rig.yaml, or the ``rig`` of an experiment file (config/cases/*.yaml: its CG is the guess)."""
-    import yaml
     try:
         d = yaml.safe_load(path.read_text())
     except OSError as e:
@@ -271,7 +513,6 @@ def _load_rig_or_experiment(path: Path):
     except yaml.YAMLError:
         d = None
     if isinstance(d, dict) and "rig" in d and "gravity" not in d:
-        from .simulator import ExperimentError, load_experiment
         try:
             return load_experiment(path).rig
         except ExperimentError as e:
@@ -302,7 +543,6 @@ def cmd_cg_plan(args) -> int:
         if getattr(args, a) is not None:
             kw[k] = getattr(args, a)
     if kw:
-        from dataclasses import replace
         noise = replace(noise, **kw)
         noise_src += " (with command-line overrides)"
     if args.cg_guess is not None:
@@ -321,7 +561,8 @@ def cmd_cg_plan(args) -> int:
     opts = _options(args)
     target = args.target_mm * 1e-3
     out: dict = {"cg_guess": [float(x) for x in guess], "target_half_width_95": target,
-                 "noise": {k: float(v) for k, v in vars(noise).items()}, "noise_source": noise_src}
+                 "noise": {k: float(v) for k, v in vars(noise).items()}, "noise_source": noise_src,
+                 "geometry_std": opts.geometry_std()}
     if planned is not None:
         r = predict_cg_std(rig, guess, planned, args.duration, noise, opts)
         out["planned"] = {"dummy_mass": planned.mass, "dummy_position": [float(x) for x in planned.position],
@@ -341,9 +582,10 @@ def cmd_cg_plan(args) -> int:
     print(f"rig: {rig.source}; assumed CG {', '.join(f'{x:.3f}' for x in guess)} m (body); sensor noise {noise_src}: "
           f"load cells {noise.load_cell:.3g} N at {noise.rate_load_cells:.0f} Hz, inclinometer "
           f"{noise.inclinometer:.3g} rad at {noise.rate_inclinometer:.0f} Hz")
-    if opts.dummy_position_std or opts.length_std:
-        print(f"systematic: dummy position σ {opts.dummy_position_std * 1e3:g} mm, cable lengths σ "
-              f"{opts.length_std * 1e3:g} mm")
+    print(f"geometry as surveyed (in σ): anchors {opts.anchor_std * 1e3:g} mm, cable lengths "
+          f"{opts.length_std * 1e3:g} mm, dummy position {opts.dummy_position_std * 1e3:g} mm (1 σ per coordinate; "
+          "--anchor-std, --length-std, "
+          "--dummy-position-std)")
     if planned is not None:
         p = out["planned"]
         print(f"planned: {planned.mass:g} kg at {', '.join(f'{x:.3f}' for x in planned.position)} m, "
@@ -357,8 +599,19 @@ def cmd_cg_plan(args) -> int:
               f"{p['duration']:7.0f} " + " ".join(f"{x * 1e3:7.3f}" for x in p["center_of_gravity_std"])
               + f" {p['tilt_change_rad'] * 1e3:9.2f} {'yes' if p['reaches_target'] else 'no':>3s}")
     if best is None:
-        print(f"no candidate reaches ±{args.target_mm:g} mm within {args.max_duration:g} s per state: "
-              "use a heavier dummy, positions farther out, or better sensors")
+        target = args.target_mm * 1e-3
+        floors = [p for p in plans if p.floor is not None]
+        best_floor = min(floors, key=lambda p: float(p.floor.max())) if floors else None
+        if best_floor is not None and 1.96 * best_floor.floor.max() > target:
+            where = ", ".join(f"{x:.2f}" for x in best_floor.dummy.position)
+            print(f"no candidate reaches ±{args.target_mm:g} mm: the rig's geometry as surveyed alone leaves σ "
+                  + ", ".join(f"{x * 1e3:.2f}" for x in best_floor.floor)
+                  + f" mm (x, y, z) at best ({best_floor.dummy.mass:g} kg at ({where}) m, however long the averaging): "
+                  "survey the anchors, cable lengths and dummy position more precisely (and say so with --anchor-std, "
+                  "--length-std, --dummy-position-std), or accept a wider target (--target-mm)")
+        else:
+            print(f"no candidate reaches ±{args.target_mm:g} mm within {args.max_duration:g} s per state: "
+                  "use a heavier dummy, positions farther out, or better sensors")
     else:
         print(f"recommended: {best.dummy.mass:g} kg at ({', '.join(f'{x:.3f}' for x in best.dummy.position)}) m, "
               f"average {best.duration:g} s per state: ±" + ", ".join(f"{1.96 * x * 1e3:.2f}" for x in best.std)

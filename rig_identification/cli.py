@@ -1,397 +1,156 @@
-"""Command line: ``rig-identify`` (offline identification of recordings) and ``rig-sim``.
+"""rig-identify: identify mass, centre of gravity and inertia tensor from rig recordings, offline.
 
-``rig-identify inertia RECORDING [--json]`` replays a recording folder through the same
-tracker -> preprocessor -> identifier code as the nodes and prints the mass properties.
-User errors (bad files, inconsistent input) print one clear line and exit with status 2;
-no traceback.
+The sub-commands replay recording folders (rig.yaml + bag/) through the same tracker,
+preprocessor and identifier code as the ROS nodes.  This module builds the command line and
+runs the chosen command; the commands are in cli_inertia, cli_diagnose, cli_plan and cg_cli,
+imported only when they run (``rig-identify --help`` does not load scipy).  User errors (a
+missing path, bad files, inconsistent input) print one line ``rig-identify: error: …`` and
+exit with status 2, no traceback; a path that does not exist is refused before any work.
+Progress goes to stderr (one line per step, warnings as they happen; ``--quiet``: warnings only).
 """
 from __future__ import annotations
 
 import argparse
-import json
+import importlib
+import os
 import sys
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as dist_version
+from typing import Callable
+
+from .cli_progress import attached
+
+DESCRIPTION = """\
+Identify the mass properties of a vehicle hung on cables, offline, from recording folders
+(rig.yaml + bag/): the same tracker, preprocessor and identifier code as the ROS nodes.
+
+Every inertia output says its conventions: tensor about the centre of gravity, body frame
+of rig.yaml (REP-103: x forward, y left, z up), SI units; the tensor's off-diagonal entries
+ixy, ixz, iyz are the negated products of inertia (Ixy = -ixy, the vehicle-dynamics sign).
+Options that take a tensor all take ixx iyy izz ixy ixz iyz, in that order.
+"""
+
+EPILOG = """\
+a rig day:
+  rig-identify cg-plan RIG                       plan the static test
+  rig-identify cg BASE DUMMY --write-rig R.yaml  centre of gravity from the two static recordings
+  rig-identify plan RIG --inertia ...            plan the exciter run(s)
+  rig-identify inertia REC                       verdict, tensor, products, principal axes
+  rig-identify inertia REC --json                one JSON object (schema rig_identification.inertia_result)
+  rig-identify inertia REC --urdf --yaml F.yaml  a URDF <inertial> element; a YAML file
+  rig-identify diagnose REC                      where the model and the recording disagree, and why
+Exit status: 0 done, 2 a user error (one line on stderr, naming the file or the option)."""
 
 
-from .identification import KEYS, IdentificationError, from_tensor
-from .recording import RecordingError, read_recording
-from .rig import RigError
-from .tracker import TrackerError
-
-from .statics import StaticsError  # noqa: E402
-
-USER_ERRORS = (RecordingError, RigError, IdentificationError, TrackerError, StaticsError, FileNotFoundError)
+class UsageError(ValueError):
+    """A command line that cannot run: a path that does not exist, an output that cannot be
+    written, options that do not go together.  Names the path or the option."""
 
 
-def _print_inertia(result, truth: dict | None, rec_path) -> None:
-    """Print the result as a table; rec_path: one recording path or a list (joint fit)."""
-    from .pipeline import compare_to_truth
-    d = result.to_dict()
-    paths = rec_path if isinstance(rec_path, (list, tuple)) else [rec_path]
-    if len(paths) == 1:
-        print(f"recording: {paths[0]}")
-    else:
-        print(f"recordings (joint fit, one tensor): {len(paths)}")
-    print(f"mass: {d['mass']:.2f} kg   centre of gravity (body): "
-          + ", ".join(f"{x:.4f}" for x in d["center_of_gravity"]) + " m")
-    if len(paths) == 1:
-        print(f"window: {d['window']['end'] - d['window']['start']:.1f} s, {d['window']['samples']} samples; "
-              f"band {d['band_hz'][0]:.2f}–{d['band_hz'][1]:.2f} Hz")
-    else:
-        for p, s in zip(paths, result.series):
-            print(f"  {p}: window {s.t[-1] - s.t[0]:.1f} s, {len(s.t)} samples; "
-                  f"band {s.band_hz[0]:.2f}–{s.band_hz[1]:.2f} Hz")
-    cmp = compare_to_truth(result, truth) if truth and "inertia_about_cg" in truth else None
-    head = f"{'entry':6s} {'value kg·m²':>12s} {'std':>8s}"
-    if cmp:
-        head += f" {'truth':>10s} {'error':>9s} {'err/std':>8s}"
-    print(head)
-    for k, v, s in zip(KEYS, from_tensor(result.inertia), result.inertia_std):
-        line = f"{k:6s} {v:12.2f} {s:8.2f}"
-        if cmp:
-            c = cmp[k]
-            line += f" {c['truth']:10.2f} {c['error_percent']:+8.3f}% {c['error_sigma']:+8.2f}"
-        print(line)
-    if cmp:
-        print("(error: % of the entry for diagonals, % of the largest diagonal for products)")
-    if result.sensor_noise is not None:
-        n = result.sensor_noise
-        noise = (f"gyro {n['gyro']:.2g} rad/s, accelerometer {n['accelerometer']:.2g} m/s², load cells "
-                 f"{n['load_cell']:.2g} N, exciter {n['exciter']:.2g} N, inclinometer {1000 * n['inclinometer']:.2g} mrad")
-        if result.uncertainty.startswith("propagated"):
-            print(f"std: the sensors' noise, estimated from the recording ({noise}), propagated through tracker, "
-                  "preprocessor and identifier")
-        else:
-            print(f"std: from the fit's residuals (sandwich): they exceed what the sensors' noise ({noise}) explains")
-    if result.diagnosis is not None:
-        names = ", ".join(e["name"] for e in result.diagnosis["effects"])
-        print(("model error diagnosed: " + names + " removed from the data, the tensor above identified again"
-               if result.diagnosis["handled"] == "removed from the data" else
-               "model error diagnosed: the tensor above is the fit with " + names + " (σ from its residuals)")
-              + "; rigid-body fit: " + ", ".join(f"{k} {v:.2f}" for k, v in result.rigid_body["inertia_about_cg"].items()))
-    if result.bias_correction is not None:
-        print("second-order bias removed (kg·m²): "
-              + ", ".join(f"{k} {v:+.3g}" for k, v in zip(KEYS, result.bias_correction)))
-    for w in d["weakly_determined"][:1]:
-        print("note: " + w["text"])
+def lazy(module: str, name: str) -> Callable:
+    """The command ``module.name``, imported when it runs (the heavy modules stay out of --help)."""
+    def run(args) -> int:
+        return getattr(importlib.import_module(module), name)(args)
+    run.__qualname__ = f"{module}.{name}"
+    return run
 
 
-def cmd_inertia(args) -> int:
-    from pathlib import Path
-    from types import SimpleNamespace
-
-    from .pipeline import check_same_body, identify_recording, identify_recordings
-    paths = args.recording
-    if len(paths) > 1:
-        if args.model != "pem":
-            raise IdentificationError("--model thesis fits one recording at a time: give one RECORDING "
-                                      "(the joint fit of several recordings is the prediction-error model's)")
-        if all((Path(p) / "rig.yaml").is_file() for p in paths):  # different bodies: say so before reading bags
-            from .rig import load_rig
-            check_same_body([SimpleNamespace(path=Path(p), rig=load_rig(Path(p) / "rig.yaml")) for p in paths])
-    if args.report:
-        if args.model != "pem":
-            raise IdentificationError("--report needs --model pem (the thesis baseline has no predicted output "
-                                      "to plot)")
-        from .report import check_report_dir
-        check_report_dir(Path(args.report))  # before the fit, not after it
-    recs = [read_recording(p) for p in paths]
-    band = tuple(args.band) if args.band else None
-    if len(recs) > 1:
-        result = identify_recordings(recs, start=args.start, end=args.end, band_hz=band, refine=not args.quick)
-    else:
-        result = identify_recording(recs[0], start=args.start, end=args.end, band_hz=band, model=args.model,
-                                    initial_guess=args.initial_guess, refine=not args.quick)
-        if args.model == "pem" and not args.quick and not args.no_diagnose:
-            from .pipeline import with_diagnosis
-            result = with_diagnosis(recs[0], result, args.start, args.end, band)
-    index = None
-    if args.report:
-        from .report import ReportError, write_report
-        try:
-            index = write_report(args.report, result, recs)
-        except OSError as e:
-            raise ReportError(f"{args.report}: cannot write the report ({e.strerror or e})") from None
-    if args.json:
-        print(json.dumps(result.to_dict()))
-    else:
-        from .report import common_truth
-        _print_inertia(result, common_truth(recs) if len(recs) > 1 else recs[0].truth,
-                       [r.path for r in recs] if len(recs) > 1 else recs[0].path)
-    for w in result.warnings:  # also in the JSON's "warnings" list
-        print("warning: " + w, file=sys.stderr)
-    if index is not None:
-        print(f"report: {index}", file=sys.stderr if args.json else sys.stdout)
-    return 0
-
-
-def cmd_thesis_table(args) -> int:
-    from .thesis_table import print_summary, print_table, run_case
-    rows = []
-    for name in args.cases or [f"case{i:02d}" for i in range(1, 18)]:
-        rows.append(run_case(name))
-        if not args.json:
-            print_table(rows[-1:])
-    if args.json:
-        print(json.dumps(rows))
-    else:
-        print_summary(rows)
-    return 0
-
-
-def cmd_diagnose(args) -> int:
-    from .diagnosis import diagnose, effect_parameters_text
-    rec = read_recording(args.recording)
-    d = diagnose(rec, model=args.model)
-    if args.report:
-        from .diagnosis_report import write_report
-        write_report(d, args.report, title=f"diagnosis of {rec.path}")
-    out = d.to_dict()
-    if args.json:
-        print(json.dumps(out))
-    else:
-        print(f"recording: {rec.path}")
-        print(f"model: {'ours (Newton–Euler with ω × Jω)' if args.model == 'pem' else 'the thesis (no ω × Jω)'}; "
-              f"band {d.band[0]:.2f}–{d.band[1]:.2f} Hz")
-        if not d.mismatch:
-            print("no significant mismatch: the rigid-body model explains the recording "
-                  f"(best candidate {max(d.tried, key=lambda c: c['likelihood_ratio'])['name']}, "
-                  f"p = {max(d.tried, key=lambda c: c['likelihood_ratio'])['p_value']:.2g})" if d.tried else "")
-        for e in out["effects"]:
-            ps = effect_parameters_text(e)
-            red = ", ".join(f"{k} −{100 * r:.0f} %" for k, r in list(e["evidence"]["rms_reduction"].items())[:4])
-            print(f"effect: {e['name']}: {ps}")
-            print(f"   evidence: likelihood ratio {e['evidence']['likelihood_ratio']:.1f} "
-                  f"(p = {e['evidence']['p_value']:.2g}); residual RMS {red}")
-        s0, s1 = out["residual_rms_synchronous_before"], out["residual_rms_synchronous_after"]
-        if d.mismatch and s0 is not None and s1 is not None:
-            red = sorted(((1 - s1[k] / s0[k], k) for k in s0 if s0[k] > 0), reverse=True)[:4]
-            print(f"   synchronous residual ({out['synchronous_revolutions']:.0f} exciter revolutions averaged): "
-                  + ", ".join(f"{k} −{100 * r:.0f} %" for r, k in red))
-        print(f"{'entry':6s} {'before':>10s} {'after':>10s}" + (f" {'truth':>10s}" if rec.truth else ""))
-        for k in KEYS:
-            line = f"{k:6s} {out['inertia_about_cg_before'][k]:10.2f} {out['inertia_about_cg_after'][k]:10.2f}"
-            if rec.truth and "inertia_about_cg" in rec.truth:
-                line += f" {rec.truth['inertia_about_cg'][k]:10.2f}"
-            print(line)
-        for name, loc in out["located"].items():
-            if loc["peaks"] or loc["grows_at"]:
-                where = [f"peak {p['hz']} Hz ({p['is']})" for p in loc["peaks"][:2]]
-                if loc["grows_at"]:
-                    where.append("grows " + loc["grows_at"])
-                if mismatch_channel(out, name):
-                    print(f"located: {name}: " + "; ".join(where))
-    for w in d.warnings:
-        print("warning: " + w, file=sys.stderr)
-    return 0
-
-
-def mismatch_channel(out: dict, name: str) -> bool:
-    """A channel worth naming: the effects found reduced its residual by ≥ 10 %."""
-    return any(name in e["evidence"]["rms_reduction"] for e in out["effects"])
-
-
-def cmd_modes(args) -> int:
-    from .modes import estimate_modes, match_modes, natural_modes
-    from .identification import to_tensor
-    rec = read_recording(args.recording)
-    rig = rec.rig
-    cg = rig.require_cg()
-    if args.inertia is not None:
-        ixx, iyy, izz, ixy, ixz, iyz = args.inertia
-        J = to_tensor([ixx, ixy, ixz, iyy, iyz, izz])
-        source = "--inertia"
-    else:
-        from .pipeline import identify_recording
-        J = identify_recording(rec).inertia
-        source = "identified from the recording"
-    if args.stiffness is not None:
-        k, kname = args.stiffness, f"spring cables k = {args.stiffness:g} N/m"
-    elif all(c.stiffness is not None for c in rig.cables):
-        k, kname = rig.cable_stiffness, "spring cables (rig.yaml stiffness)"
-    else:
-        k, kname = None, "inextensible cables"
-    geo = natural_modes(rig, rig.mass, cg, J, k)
-    est = estimate_modes(rec)
-    pairs = match_modes(geo, est.modes)
-    if args.json:
-        print(json.dumps({"recording": str(rec.path), "inertia_source": source, "cable_model": kname,
-                          "inertia": [float(x) for x in from_tensor(J)],
-                          "exciter_frequency_hz": est.exciter_frequency,
-                          "geometric": [m.to_dict() for m in geo],
-                          "estimated": [e.to_dict() for e in est.modes],
-                          "matches": [{"geometric_hz": m.frequency, "estimated_hz": None if e is None else e.frequency,
-                                       "difference_percent": d} for m, e, d in pairs],
-                          "warnings": est.warnings}))
-        return 0
-    print(f"recording: {rec.path}")
-    print(f"model: mass {rig.mass:.1f} kg, CG from rig.yaml, inertia {source}, {kname}")
-    if est.exciter_frequency is not None:
-        print(f"exciter: {est.exciter_frequency:.4f} Hz (excluded with its harmonics)")
-    print(f"{'geometry Hz':>11s}  {'mode shape (world axes)':32s} {'recording Hz':>12s} {'diff %':>8s} "
-          f"{'damping':>8s}  gyro")
-    for m, e, d in pairs:
-        if e is None:
-            print(f"{m.frequency:11.4f}  {m.description:32s} {'-':>12s}")
-        else:
-            print(f"{m.frequency:11.4f}  {m.description:32s} {e.frequency:12.4f} {d:+8.2f} "
-                  f"{e.damping_ratio:8.4f}  {e.axes}")
-    used = {id(e) for _, e, _ in pairs if e is not None}
-    for e in est.modes:
-        if id(e) not in used:
-            print(f"{'-':>11s}  {'(no geometric mode)':32s} {e.frequency:12.4f} {'':8s} {e.damping_ratio:8.4f}  {e.axes}")
-    for w in est.warnings:
-        print("note: " + w)
-    return 0
-
-
-def cmd_plan(args) -> int:
-    """``rig-identify plan``: the rig's modes, the predicted σ of the baseline excitation and the
-    recommended exciter run(s) (:mod:`rig_identification.planning`); returns 0 (2 on a user error)."""
-    import numpy as np
-
-    from .planning import KEYS as PKEYS
-    from .planning import PlanError, Run, geometry_variants, load_plan_input, make_body, plan_experiment
-    from .simulator import ExperimentError, SimulationError
+def version() -> str:
+    """The installed package's version (importlib.metadata), or "unknown" when not installed."""
     try:
-        rig, base_exc, k = load_plan_input(args.rig)
-        ixx, iyy, izz, ixy, ixz, iyz = args.inertia
-        body = make_body(rig, args.mass, [ixx, ixy, ixz, iyy, iyz, izz], k)
-        if rig.exciter is None and args.baseline_position is None:
-            raise PlanError(f"{rig.source}: no exciter in rig.yaml; give the baseline's mounting point with "
-                            "--baseline-position X Y Z")
-        pos = args.baseline_position if args.baseline_position is not None else rig.exciter.position
-        rpy = rig.exciter.rpy if (rig.exciter is not None and args.baseline_position is None) else (0.0, 0.0, 0.0)
-        amp = args.baseline_force if args.baseline_force is not None else (base_exc or {}).get("amplitude", 200.0)
-        freq = args.baseline_frequency if args.baseline_frequency is not None else (base_exc or {}).get("frequency", 1.05)
-        baseline = Run(float(freq), float(amp), tuple(float(x) for x in pos), "z", args.duration, 2.0,
-                       tuple(float(x) for x in rpy))
-        say = (lambda s: None) if args.quiet else (lambda s: print("  " + s, file=sys.stderr, flush=True))
-        geometries = []
-        for g in args.geometry or []:
-            grig, _, _ = load_plan_input(g)
-            geometries.append((f"cables of {g}", grig))
-        if args.vary_geometry:
-            if not args.vary_geometry > 0:
-                raise PlanError(f"--vary-geometry {args.vary_geometry:g}: the shift must be > 0 m")
-            geometries += geometry_variants(body, args.vary_geometry)
-        if geometries and args.runs < 2:
-            raise PlanError("--geometry / --vary-geometry are for a second run: they need --runs 2")
-        plan = plan_experiment(body, baseline, duration=args.duration, max_force=args.max_force,
-                               max_rotation_deg=args.max_rotation, min_tension_ratio=args.min_tension,
-                               frequencies=tuple(args.frequencies), positions=args.position, max_runs=args.runs,
-                               objective=args.objective, refine=max(1, args.refine), geometries=geometries,
-                               progress=say)
-    except (PlanError, ExperimentError, SimulationError) as e:
-        print(f"rig-identify: error: {e}", file=sys.stderr)
-        return 2
-    if args.json:
-        out = plan.to_dict()
-        out.update({"rig": str(rig.source), "mass": body.mass, "center_of_gravity": [float(x) for x in rig.center_of_gravity],
-                    "inertia": {kk: float(v) for kk, v in zip(PKEYS, from_tensor(body.inertia))},
-                    "cable_stiffness": [float(x) for x in body.stiffness], "noise": body.noise, "rates_hz": body.rates})
-        print(json.dumps(out))
-        return 0
-    print(f"rig: {rig.source}; body {body.mass:.1f} kg, CG " + ", ".join(f"{x:.3f}" for x in rig.center_of_gravity)
-          + " m (body); cables: springs " + ", ".join(f"{x:.3g}" for x in sorted(set(body.stiffness))) + " N/m")
-    print("natural modes (linearised about the equilibrium):")
-    for m in plan.modes:
-        print(f"  {m.frequency:7.3f} Hz  {m.description}")
-    lim = plan.limits
-    print(f"limits: rotation ≤ {lim['max_rotation_deg']:g}° (peak, start-up included), every cable ≥ "
-          f"{100 * lim['min_tension_ratio']:.0f} % of its static tension, force ≤ {lim['max_force_n']:g} N; exciter "
-          f"{lim['frequency_range_hz'][0]:g}–{lim['frequency_range_hz'][1]:g} Hz, ≥ {100 * lim['mode_margin']:.0f} % "
-          "from every mode, its double and every sum of two (parametric resonance)")
-
-    def describe(c, title):
-        r = c.run
-        axis = f"spin axis body {r.spin_axis}" if r.rpy is None else f"exciter rpy {np.round(r.exciter_rpy, 3).tolist()}"
-        band = "" if c.band is None else f"; identify with --band {c.band[0]:.2f} {c.band[1]:.2f}"
-        print(f"{title}: {r.amplitude:.0f} N rotating at {r.frequency:.3f} Hz, exciter at "
-              f"({', '.join(f'{x:.2f}' for x in r.position)}) m body, {axis}, {r.duration:.0f} s — peak rotation "
-              f"{c.peak_rotation_deg:.2f}°, lowest tension {100 * c.min_tension_ratio:.0f} % of static{band}")
-        if c.geometry is not None:
-            print(f"  on another cable geometry ({c.geometry}): "
-                  + "; ".join(f"{cb.name} ceiling anchor ({', '.join(f'{x:.2f}' for x in cb.ceiling_anchor)}) m, "
-                              f"length {cb.length:.3f} m" for cb in c.body.rig.cables))
-
-    describe(plan.baseline, "baseline")
-    for i, c in enumerate(plan.runs, 1):
-        if i > 1 and c is plan.runs[0]:
-            print(f"recommended run {i}: the same run again")
-            continue
-        describe(c, f"recommended run {i}" if len(plan.runs) > 1 else "recommended run")
-    bp, pp = plan.baseline.prediction, plan.prediction
-    print(f"predicted σ at the noise levels {', '.join(f'{kk} {v:g}' for kk, v in body.noise.items())} "
-          "(rad/s, m/s², N, N, rad):")
-    print(f"{'entry':6s} {'value':>9s} {'baseline σ':>11s} {'plan σ':>9s} {'ratio':>6s} {'plan σ rel.':>11s}")
-    for kk, v, b, p, rel in zip(PKEYS, from_tensor(body.inertia), bp.std, pp.std, pp.relative_std):
-        print(f"{kk:6s} {v:9.1f} {b:11.3f} {p:9.3f} {b / p:6.1f} {100 * rel:10.4f}%")
-    print("(kg·m²; relative: of the entry for diagonals, of the largest diagonal for products)")
-    for title, pr in (("baseline", bp), ("plan", pp)):
-        for w in pr.weak(1):
-            print(f"{title}: {w['text']}")
-    for n in plan.notes:
-        print("note: " + n)
-    return 0
+        return dist_version("rig_identification")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
 
 
-def identify_main(argv=None) -> int:
-    """Entry point of ``rig-identify``."""
-    ap = argparse.ArgumentParser(prog="rig-identify", description=__doc__.splitlines()[0])
-    sub = ap.add_subparsers(dest="command", required=True)
-    from .cg_cli import add_cg_parser, add_cg_plan_parser
-    p = sub.add_parser("inertia", help="identify the inertia tensor from one or more dynamic recordings")
-    p.set_defaults(func=cmd_inertia)
+TENSOR = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")   # metavars of every option that takes a tensor (export.ORDER)
+TENSOR_HELP = ("tensor entries about the CG, body axes of rig.yaml, kg·m², in the order ixx iyy izz ixy ixz iyz "
+               "(moments, then products: the order of every option); ixy, ixz, iyz are the tensor's off-diagonal "
+               "entries as in truth.yaml and the JSON, i.e. the negated products of inertia (ixy = −Ixy)")
+
+
+def add_command(sub, name: str, help: str, description: str, run: Callable, inputs=(),
+                outputs=()) -> argparse.ArgumentParser:
+    """A sub-command parser with a description paragraph, its runner, the destinations of its
+    input paths (checked to exist before any work) and of its output files (their folder must
+    exist)."""
+    p = sub.add_parser(name, help=help, description=description)
+    p.set_defaults(func=run, inputs=tuple(inputs), outputs=tuple(outputs))
+    p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress lines on stderr (warnings still)")
+    return p
+
+
+def add_inertia_parser(sub) -> None:
+    p = add_command(sub, "inertia", "identify the inertia tensor from one or more dynamic recordings",
+                    "Replay dynamic recording(s) through tracker, preprocessor and identifier and print the mass "
+                    "properties: the verdict first (ok / model_error / not_identifiable), then the frame and "
+                    "sign convention, the tensor about the CG with σ (and the truth when truth.yaml is there), "
+                    "the products of inertia with the vehicle-dynamics sign, the principal moments and axes and "
+                    "the tensor about the body frame's origin. Entries the recording does not determine print as "
+                    "\"not determined\" (null in JSON/YAML). Several recordings of the same body are fitted "
+                    "jointly with one tensor.",
+                    lazy("rig_identification.cli_inertia", "cmd_inertia"), inputs=("recording", "cg"),
+                    outputs=("yaml",))
     p.add_argument("recording", nargs="+",
                    help="recording folder (rig.yaml + bag/); several recordings of the same body (other exciter "
                         "frequencies or positions, cable geometries) are fitted jointly with one tensor")
-    p.add_argument("--report", metavar="DIR",
-                   help="also write an HTML report (index.html + figures) to the folder DIR")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--start", type=float, help="window start, s from the first IMU sample")
-    p.add_argument("--end", type=float, help="window end, s from the first IMU sample")
+    p.add_argument("--report", metavar="DIR", help="also write an HTML report (index.html + figures) to the folder DIR")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON object (schema rig_identification.inertia_result, with units per field)")
+    p.add_argument("--urdf", action="store_true",
+                   help="also print a URDF <inertial> element (origin at the CG, mass, tensor entries; always in "
+                        "rig.yaml's body axes, REP-103, whatever --axes says)")
+    p.add_argument("--yaml", metavar="FILE", help="also write the mass properties to FILE (YAML, atomically)")
+    p.add_argument("--axes", choices=("body", "sae"), default="body",
+                   help="axes of the printout and the YAML: body (rig.yaml's body frame, REP-103: x forward, y left, "
+                        "z up; default) or sae (SAE J670: x forward, y right, z down). The JSON stays in body axes "
+                        "and gains a 'sae_j670' block")
+    p.add_argument("--start", type=float, metavar="S", help="window start, s from the first IMU sample")
+    p.add_argument("--end", type=float, metavar="S", help="window end, s from the first IMU sample")
     p.add_argument("--band", type=float, nargs=2, metavar=("LOW_HZ", "HIGH_HZ"),
                    help="pass band of the fit (default: around the spectral peaks of the gyro)")
     p.add_argument("--model", choices=["pem", "thesis"], default="pem",
                    help="pem: ours (default); thesis: the thesis's model and estimator, as a baseline")
-    p.add_argument("--initial-guess", type=float, nargs=6, metavar=("IXX", "IXY", "IXZ", "IYY", "IYZ", "IZZ"),
-                   help="starting tensor entries for --model thesis (kg·m², products negated)")
+    p.add_argument("--initial-guess", type=float, nargs=6, metavar=TENSOR,
+                   help="starting tensor for --model thesis: " + TENSOR_HELP)
     p.add_argument("--quick", action="store_true",
                    help="the plain fit: no second-order bias correction, σ from the fit's residuals (sandwich) "
                         "instead of the propagated sensor noise, no diagnosis; about 3× faster")
+    p.add_argument("--cg", metavar="CG.json",
+                   help="take the centre of gravity from a saved 'rig-identify cg --json' result instead of "
+                        "rig.yaml's body.center_of_gravity")
     p.add_argument("--no-diagnose", action="store_true",
                    help="report the rigid-body fit even when its residual shows model error (by default one "
                         "recording with model error is diagnosed, as rig-identify diagnose, and the tensor of the "
                         "fit with the physics found is reported)")
-    t = sub.add_parser("thesis-table", help="the thesis's 17 case studies: reported errors vs ours vs --model thesis")
-    t.add_argument("cases", nargs="*", help="case names (default: case01 … case17)")
-    t.add_argument("--json", action="store_true", help="print one JSON list")
-    t.set_defaults(func=cmd_thesis_table)
-    add_cg_parser(sub)
-    mp = sub.add_parser("modes", help="natural frequencies: from the geometry vs estimated from a recording")
-    mp.add_argument("recording", help="recording folder (rig.yaml + bag/)")
-    mp.add_argument("--json", action="store_true", help="print one JSON object")
-    mp.add_argument("--inertia", type=float, nargs=6, metavar=("IXX", "IYY", "IZZ", "IXY", "IXZ", "IYZ"),
-                    help="inertia tensor entries about the CG, body axes, kg·m² (products negated, as "
-                         "truth.yaml); default: identified from the recording")
-    mp.add_argument("--stiffness", type=float, metavar="N_PER_M",
-                    help="cable stiffness for the model (default: rig.yaml's, else inextensible cables)")
-    mp.set_defaults(func=cmd_modes)
-    add_cg_plan_parser(sub)
-    dp = sub.add_parser("diagnose", help="where the rigid-body model and a recording disagree, and which physics "
-                                         "is missing (effect library, likelihood-ratio selection)")
+
+
+def add_diagnose_parser(sub) -> None:
+    dp = add_command(sub, "diagnose",
+                     "where the rigid-body model and a recording disagree, and which physics is missing",
+                     "Fit the rigid-body model as 'rig-identify inertia' does and print its fit and verdict; then test "
+                     "the effect library (damping, drag, sensor delays and gains, IMU pose, cable mass and elasticity, "
+                     "…) by likelihood-ratio selection and print the effects found, their parameters with units and "
+                     "evidence, and the tensor of the model with them.",
+                     lazy("rig_identification.cli_diagnose", "cmd_diagnose"), inputs=("recording",))
     dp.add_argument("recording", help="recording folder (rig.yaml + bag/)")
     dp.add_argument("--json", action="store_true", help="print one JSON object")
     dp.add_argument("--report", metavar="DIR", help="write plots (residuals and spectra before/after) and the JSON")
     dp.add_argument("--model", choices=["pem", "thesis"], default="pem",
                     help="pem: ours (default); thesis: the thesis's model without gyroscopic terms")
-    dp.set_defaults(func=cmd_diagnose)
-    pp = sub.add_parser("plan", help="know before you shake: the rig's modes, predicted inertia σ and the "
-                                     "recommended exciter run(s) for a nominal body")
+
+
+def add_plan_parser(sub) -> None:
+    pp = add_command(sub, "plan", "know before you shake: the rig's modes, predicted inertia σ and the recommended "
+                     "exciter run(s) for a nominal body",
+                     "Experiment design for the dynamic test: the rig's natural modes, the σ a baseline exciter run "
+                     "would give the tensor of a nominal body, and the run(s) that would do better within the rig's "
+                     "limits (rotation, cable tension, exciter force and frequency).",
+                     lazy("rig_identification.cli_plan", "cmd_plan"), inputs=("rig", "geometry"))
     pp.add_argument("rig", help="rig.yaml, experiment file or recording folder (CG from rig.yaml)")
-    pp.add_argument("--inertia", type=float, nargs=6, required=True, metavar=("IXX", "IYY", "IZZ", "IXY", "IXZ", "IYZ"),
-                    help="nominal inertia tensor entries about the CG, body axes, kg·m² (products negated, as "
-                         "truth.yaml)")
+    pp.add_argument("--inertia", type=float, nargs=6, required=True, metavar=TENSOR,
+                    help="nominal " + TENSOR_HELP)
     pp.add_argument("--mass", type=float, metavar="KG", help="nominal mass (default: rig.yaml body.mass)")
     pp.add_argument("--duration", type=float, default=120.0, metavar="S", help="length of each run (default 120)")
     pp.add_argument("--max-force", type=float, default=float("inf"), metavar="N",
@@ -424,20 +183,125 @@ def identify_main(argv=None) -> int:
                     help="also try, for the second run, the ceiling anchors moved M m farther apart (and closer "
                          "together) along world x and along world y, cable lengths re-set to the same hanging pose")
     pp.add_argument("--json", action="store_true", help="print one JSON object")
-    pp.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
-    pp.set_defaults(func=cmd_plan)
-    args = ap.parse_args(argv)
-    try:
-        return args.func(args)
-    except USER_ERRORS as e:
-        print(f"rig-identify: error: {e}", file=sys.stderr)
-        return 2
 
 
-def sim_main(argv=None) -> int:
+def add_modes_parser(sub) -> None:
+    mp = add_command(sub, "modes", "natural frequencies: from the geometry vs estimated from a recording",
+                     "The rig's natural modes from its geometry (cables, mass, CG and a tensor) beside the modes "
+                     "estimated from a recording's gyro, matched one to one.",
+                     lazy("rig_identification.cli_plan", "cmd_modes"), inputs=("recording",))
+    mp.add_argument("recording", help="recording folder (rig.yaml + bag/)")
+    mp.add_argument("--json", action="store_true", help="print one JSON object")
+    mp.add_argument("--inertia", type=float, nargs=6, metavar=TENSOR,
+                    help=TENSOR_HELP + "; default: identified from the recording")
+    mp.add_argument("--stiffness", type=float, metavar="N_PER_M",
+                    help="cable stiffness for the model (default: rig.yaml's, else inextensible cables)")
+
+
+def add_thesis_table_parser(sub) -> None:
+    t = add_command(sub, "thesis-table", "the thesis's 17 case studies: reported errors vs ours vs --model thesis",
+                    "Simulate the thesis's case studies (config/cases) noise-free, identify each with our method and "
+                    "with the thesis's, and print the errors beside those the thesis reported.",
+                    lazy("rig_identification.cli_plan", "cmd_thesis_table"))
+    t.add_argument("cases", nargs="*", help="case names (default: case01 … case17)")
+    t.add_argument("--json", action="store_true", help="print one JSON list")
+
+
+STATIC = {"cg": ("centre of gravity from the two static recordings (without and with the dummy mass)",
+                 ("baseline", "dummy")),
+          "cg-plan": ("predict the CG uncertainty of a planned static test and recommend one reaching ±2.5 mm",
+                      ("rig", "noise_from"))}
+"""The static-test commands of cg_cli: their one-line help (for the top-level help, which does
+not import cg_cli) and the destinations of their input paths."""
+
+
+def add_static_parser(sub, name: str, wanted: str | None) -> None:
+    """cg or cg-plan (:mod:`.cg_cli`, which loads scipy): the real parser only when it is the
+    command; otherwise a placeholder that carries its one-line help."""
+    if wanted != name:
+        sub.add_parser(name, help=STATIC[name][0], add_help=False)
+        return
+    from .cg_cli import add_cg_parser, add_cg_plan_parser
+    p = (add_cg_parser if name == "cg" else add_cg_plan_parser)(sub)
+    p.set_defaults(inputs=STATIC[name][1], outputs=())
+    p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress lines on stderr (warnings still)")
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The ``rig-identify`` parser; ``argv`` tells which command will run (only its heavy parser,
+    if any, is built)."""
+    argv = sys.argv[1:] if argv is None else argv
+    wanted = next((a for a in argv if not a.startswith("-")), None)
+    ap = argparse.ArgumentParser(prog="rig-identify", description=DESCRIPTION, epilog=EPILOG,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--version", action="version", version=f"rig-identify (rig_identification) {version()}")
+    ap.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr (warnings still)")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    add_inertia_parser(sub)
+    add_diagnose_parser(sub)
+    add_static_parser(sub, "cg", wanted)
+    add_static_parser(sub, "cg-plan", wanted)
+    add_plan_parser(sub)
+    add_modes_parser(sub)
+    add_thesis_table_parser(sub)
+    return ap
+
+
+def check_paths(args) -> None:
+    """Refuse, before any work, an input path that does not exist and an output file whose folder
+    does not: :class:`UsageError` naming it."""
+    for dest in getattr(args, "inputs", ()):
+        value = getattr(args, dest, None)
+        for p in ([] if value is None else [value] if isinstance(value, str) else value):
+            if not os.path.exists(p):
+                raise UsageError(f"{p}: no such file or directory ({dest.replace('_', '-')})")
+    for dest in getattr(args, "outputs", ()):
+        value = getattr(args, dest, None)
+        if value is not None:
+            folder = os.path.dirname(os.path.abspath(value))
+            if not os.path.isdir(folder):
+                raise UsageError(f"{value}: cannot write it: no folder {folder} (--{dest})")
+            if os.path.isdir(value):
+                raise UsageError(f"{value}: is a folder (--{dest} takes a file)")
+
+
+def user_errors() -> tuple:
+    """The exceptions that are the user's to fix: printed as one line, exit status 2."""
+    from .identification import IdentificationError
+    from .recording import RecordingError
+    from .rig import RigError
+    from .statics import StaticsError
+    from .tracker import TrackerError
+    return (UsageError, RecordingError, RigError, IdentificationError, TrackerError, StaticsError, FileNotFoundError)
+
+
+def identify_main(argv: list[str] | None = None) -> int:
+    """Entry point of ``rig-identify``: parse, check the paths, run the command with progress on
+    stderr.  Returns the exit status (0, or 2 on a user error)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(argv).parse_args(argv)
+    with attached(quiet=args.quiet) as printer:
+        try:
+            check_paths(args)
+            args.progress = printer
+            return args.func(args)
+        except UsageError as e:
+            printer.fail()
+            print(f"rig-identify: error: {e}", file=sys.stderr)
+            return 2
+        except Exception as e:  # noqa: BLE001 — sorted below: the user's errors become one line
+            printer.fail()
+            if isinstance(e, user_errors()):
+                print(f"rig-identify: error: {e}", file=sys.stderr)
+                return 2
+            raise
+
+
+def sim_main(argv: list[str] | None = None) -> int:
     """Entry point of ``rig-sim`` (implemented in :mod:`rig_identification.sim_cli`)."""
-    from .sim_cli import sim_main as _main
-    return _main(argv)
+    from .sim_cli import sim_main as run
+    return run(argv)
 
 
 if __name__ == "__main__":  # pragma: no cover

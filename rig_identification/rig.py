@@ -14,9 +14,11 @@ Errors: :class:`RigError` (a ``ValueError``) naming the file and the field.
 """
 from __future__ import annotations
 
+import difflib
+import itertools
 import math
 import re
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -62,6 +64,8 @@ class Mount:
 
 @dataclass(frozen=True)
 class DummyMass:
+    """A point mass fixed on the body: mass kg, position (3,) body frame m (its own CG)."""
+
     mass: float
     position: np.ndarray
 
@@ -71,7 +75,8 @@ class Rig:
     """The validated content of ``rig.yaml``.
 
     ``center_of_gravity`` is ``None`` when unknown (static experiment).
-    ``exciter``, ``inclinometer`` and ``dummy_mass`` are ``None`` when absent.
+    ``exciter``, ``inclinometer`` and ``dummy_mass`` are ``None`` when absent.  ``extra``:
+    kept for callers that build a Rig by hand; rig.yaml files cannot have other fields.
     """
 
     gravity: float
@@ -118,7 +123,6 @@ class Rig:
 
     def with_cg(self, cg) -> "Rig":
         """A copy with ``body.center_of_gravity`` replaced, (3,) body frame, m."""
-        from dataclasses import replace
         return replace(self, center_of_gravity=np.asarray(cg, float))
 
     def to_dict(self) -> dict:
@@ -185,6 +189,8 @@ def _vector(v, name: str, src: str, n: int = 3) -> np.ndarray:
 
 
 def _mount(d, name: str, src: str, with_position: bool = True) -> Mount:
+    if isinstance(d, dict):
+        _check_fields(d, name, name, src)
     pos = _vector(_get(d, "position", name, src), f"{name}.position", src) if with_position else np.zeros(3)
     rpy_raw = _get(d, "rpy", name, src, required=False)
     rpy = np.zeros(3) if rpy_raw is None else _vector(rpy_raw, f"{name}.rpy", src)
@@ -192,16 +198,74 @@ def _mount(d, name: str, src: str, with_position: bool = True) -> Mount:
 
 
 KNOWN_TOP = {"gravity", "cables", "body", "imu", "exciter", "inclinometer", "dummy_mass"}
+# the fields of each mapping of rig.yaml (RECORDING_FORMAT.md); any other is an error
+KNOWN_FIELDS = {"": KNOWN_TOP, "cable": {"name", "ceiling_anchor", "body_anchor", "length", "stiffness"},
+                "body": {"mass", "center_of_gravity"}, "imu": {"position", "rpy"}, "exciter": {"position", "rpy"},
+                "inclinometer": {"rpy"}, "dummy_mass": {"mass", "position"}}
+UNKNOWN_HINTS = {"inclinometer.position": "an inclinometer's reading does not depend on where it sits: leave it out"}
+# geometry that no pose can realise: for two cables i, j the ceiling anchors A_i, A_j, the body
+# anchors' points P_i, P_j and the cables form a closed quadrilateral A_i-P_i-P_j-A_j, so none of
+# its sides |A_i - A_j|, |B_i - B_j| (the body is rigid), L_i, L_j can exceed the sum of the other
+# three when both cables are taut; allowed: REACH_SLACK of the sum (stretch under load: ~1e-3)
+REACH_SLACK = 0.02
+
+
+def _check_fields(d: dict, kind: str, where: str, src: str) -> None:
+    """Raise :class:`RigError` for a key of mapping ``d`` (a ``kind`` of :data:`KNOWN_FIELDS`,
+    at ``where``) that rig.yaml does not have, with the closest known field (difflib)."""
+    known = KNOWN_FIELDS[kind]
+    for key in d:
+        if key in known:
+            continue
+        name = f"{where}.{key}" if where else str(key)
+        hint = UNKNOWN_HINTS.get(name)
+        if hint is None:
+            close = difflib.get_close_matches(str(key), sorted(known), n=1, cutoff=0.6)
+            hint = (f"did you mean {where + '.' if where else ''}{close[0]}?" if close
+                    else "known: " + ", ".join(sorted(known)))
+        raise RigError(f"{src}: unknown field {name} ({hint})")
+
+
+def check_reach(cables, src: str) -> None:
+    """Refuse cable geometry no pose of a rigid body can hold with every cable taut.
+
+    For every pair of cables (i, j), the closed chain ceiling anchor A_i -> body anchor P_i ->
+    body anchor P_j -> ceiling anchor A_j -> A_i has sides a = |A_i - A_j| (world), d = |B_i - B_j|
+    (body frame: the same in every pose), L_i and L_j; each must be at most the sum of the other
+    three (polygon inequality), with :data:`REACH_SLACK` for the stretch.  Catches anchors in
+    other units (mm for m), a cable length in mm, anchors swapped between ceiling and body.
+    Raises :class:`RigError` naming both cables."""
+    for (i, ci), (j, cj) in itertools.combinations(enumerate(cables), 2):
+        a = float(np.linalg.norm(ci.ceiling_anchor - cj.ceiling_anchor))
+        d = float(np.linalg.norm(ci.body_anchor - cj.body_anchor))
+        sides = {"their ceiling anchors' distance": a, "their body anchors' distance": d,
+                 f"cable {ci.name}'s length": ci.length, f"cable {cj.name}'s length": cj.length}
+        total = sum(sides.values())
+        for what, x in sides.items():
+            rest = total - x
+            if x > (1.0 + REACH_SLACK) * rest + 1e-3:
+                raise RigError(
+                    f"{src}: field cables[{i}], cables[{j}]: cables {ci.name} and {cj.name} cannot both be taut in "
+                    f"any pose: {what} is {x:.4g} m but the other three sides of the chain ceiling anchor - cable - "
+                    f"body anchor - body anchor - cable - ceiling anchor add up to {rest:.4g} m "
+                    f"(ceiling anchors {a:.4g} m apart, body anchors {d:.4g} m apart, lengths {ci.length:.4g} and "
+                    f"{cj.length:.4g} m; rig.yaml is in metres -- units?)")
 
 
 def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     """Validate a rig.yaml mapping and build a :class:`Rig`.
 
-    Raises :class:`RigError` naming ``source`` and the offending field.
+    Refused, each with a :class:`RigError` naming ``source`` and the field: a missing field; a
+    field rig.yaml does not have (with the closest known one: ``body.centre_of_gravity`` ->
+    did you mean ``body.center_of_gravity``?); a value that is not a finite number (or list of
+    3); gravity outside 9–10.5 m/s²; fewer than 3 cables, a duplicate or malformed cable name;
+    a length, stiffness, body mass or dummy mass <= 0; collinear body anchors; cable geometry
+    no pose can hold with every cable taut (:func:`check_reach`: e.g. anchors in mm).
     """
     src = source
     if not isinstance(d, dict):
         raise RigError(f"{src}: the rig description must be a YAML mapping")
+    _check_fields(d, "", "", src)
     gravity = _number(_get(d, "gravity", "", src), "gravity", src, positive=True)
     if not 9.0 < gravity < 10.5:
         raise RigError(f"{src}: field gravity = {gravity} m/s^2 is not an Earth gravity (units?)")
@@ -215,6 +279,7 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     for i, c in enumerate(raw_cables):
         w = f"cables[{i}]"
         name = _get(c, "name", w, src)
+        _check_fields(c, "cable", w, src)
         if not isinstance(name, str) or not CABLE_NAME.match(name):
             raise RigError(f"{src}: field {w}.name must match [a-z0-9_]+, got {name!r}")
         if name in seen:
@@ -229,7 +294,10 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     anchors = np.array([c.body_anchor for c in cables])
     if np.linalg.matrix_rank(anchors - anchors.mean(0), tol=1e-6) < 2:
         raise RigError(f"{src}: field cables: the body anchors are collinear; the body could spin freely")
+    check_reach(cables, src)
     body = _get(d, "body", "", src)
+    if isinstance(body, dict):
+        _check_fields(body, "body", "body", src)
     mass = _number(_get(body, "mass", "body", src), "body.mass", src, positive=True)
     cg_raw = _get(body, "center_of_gravity", "body", src, required=False)
     cg = None if cg_raw is None else _vector(cg_raw, "body.center_of_gravity", src)
@@ -241,10 +309,11 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     dm_raw = _get(d, "dummy_mass", "", src, required=False)
     dummy = None
     if dm_raw is not None:
+        if isinstance(dm_raw, dict):
+            _check_fields(dm_raw, "dummy_mass", "dummy_mass", src)
         dummy = DummyMass(_number(_get(dm_raw, "mass", "dummy_mass", src), "dummy_mass.mass", src, positive=True),
                           _vector(_get(dm_raw, "position", "dummy_mass", src), "dummy_mass.position", src))
-    extra = {k: v for k, v in d.items() if k not in KNOWN_TOP}
-    return Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, extra)
+    return Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src)
 
 
 def read_yaml(path: str | Path, error: type[ValueError], what: str):
@@ -268,6 +337,7 @@ def load_rig(path: str | Path) -> Rig:
 
 
 def dump_rig(rig: Rig, comment: str | None = None) -> str:
-    """rig.yaml text for ``rig`` (flow-style vectors, as in the format spec)."""
-    head = f"# {comment}\n" if comment else ""
+    """rig.yaml text for ``rig`` (flow-style vectors, as in the format spec), headed by
+    ``comment`` (each of its lines a ``# `` comment line)."""
+    head = "".join(f"# {line}\n" for line in comment.splitlines()) if comment else ""
     return head + yaml.safe_dump(rig.to_dict(), sort_keys=False, default_flow_style=None)

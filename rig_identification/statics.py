@@ -27,6 +27,23 @@ accelerometer's gravity direction, and the scale's mass reading as a prior -- ov
 is (JᵀJ)⁻¹ with residuals divided by the noise σ of each mean (the samples' scatter /
 sqrt(n), each state tested for stationarity first).
 
+**The rig's geometry as surveyed.**  rig.yaml's anchors, cable lengths and dummy position are
+measured, not known: by default each coordinate and length carries σ = 1 mm
+(:data:`DEFAULT_ANCHOR_STD` ...; :class:`CgOptions`).  They are fitted too, each with its
+rig.yaml value as a prior of that σ (a pseudo-measurement, the Gauss–Markov / "solve-for"
+treatment of systematic parameters), so ``center_of_gravity_std`` holds both the noise and
+the geometry; ``center_of_gravity_std_noise`` is the σ with the geometry taken as exact (the
+same Jacobian, measurement rows and the other unknowns only), and ``budget`` splits the
+covariance G Gᵀ (G = (JᵀJ)⁻¹Jᵀ, CG rows) by the rows' sources, so the shares add in
+quadrature to the σ.  On the reference pair 1 mm of geometry makes the CG height's σ 22× the
+noise's; a Monte Carlo over rig.yaml surveys off by that σ (test/test_cg_uncertainty.py)
+finds the normalised errors' RMS near 1.
+
+**Model validation** (:class:`CgValidation`): the residuals' covariance under the model is
+I − U Uᵀ (U: left singular vectors of the weighted Jacobian, the linearised least-squares
+result); the inclinometer's tilt change between the states and its mean level are tested
+against it (Wald statistics), with the fit's χ² and the scale-vs-load-cell mass.
+
 Because the tensions are predicted, not plugged in, the same code runs the thesis's
 method (no load cells: inclinometers only) and any number of cables N >= 3 in any
 geometry.  The CG height is found only through the tilt change the dummy mass causes, so
@@ -41,14 +58,19 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
-from typing import Sequence
+from typing import NamedTuple, Sequence
 
 import numpy as np
 from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
 from scipy.stats import chi2 as _chi2
+from scipy.stats import norm as _norm
 
 from .recording import SensorData, TimeSeries
 from .rig import DummyMass, Rig
+from .simulator import CableModel, SimulationError, equilibrium
+from .tracker import TrackerError, inclinometer_elevations, static_pose
+from .verdict import Check
 
 Z = np.array([0.0, 0.0, 1.0])
 DEFAULT_COMPLIANCE = 2e-7        # m/N: a steel cable of a few metres (k = 5e6 N/m), start value
@@ -61,6 +83,23 @@ SLACK_FRACTION = 0.01            # a cable carrying < 1 % of an even share of th
 TOL_INCL = 5e-4                  # rad
 TOL_TENSION_REL = 5e-3           # of the mean tension per cable
 TOL_ACCEL = 5e-3                 # m/s^2
+# The rig's geometry as surveyed, 1 σ per coordinate (the default of every fit; CgOptions, and
+# rig-identify cg --anchor-std/--length-std/--dummy-position-std, set others).  A careful survey
+# with a class II steel tape (EN ISO 8764 / EC class II: maximum permissible error
+# ±(0.3 + 0.2 L/m) mm, ±1.1 mm over 4 m) or a laser distance meter (±1–1.5 mm) locates each
+# anchor, the pin-to-pin cable length and the dummy mass's centre to about a millimetre.  On the
+# reference static pair (visible_case16_static) these 1 mm make the CG height's σ 22× the noise's
+# (9.4 mm against 0.43 mm; docs/cg.md).
+DEFAULT_ANCHOR_STD = 1e-3        # m: every ceiling anchor (world) and body anchor (body) coordinate
+DEFAULT_LENGTH_STD = 1e-3        # m: every unstretched cable length
+DEFAULT_DUMMY_POSITION_STD = 1e-3  # m: every coordinate of the dummy mass's centre of gravity
+# Model validation of the CG fit (CgValidation): a check fails beyond the two-sided 3 σ of a
+# normal variable (p = 0.0027 per check; for a 2-dof Wald statistic the same p-value).
+VALIDATION_SIGMA = 3.0
+# contradictory geometry: the fit's χ² exceeds its dof by more than 20² (a 20 σ misfit, as the
+# per-stream contradiction checks) and it needed an input moved by > 10 of its σ and > 5 mm
+CONTRADICTION_CHI2 = 400.0
+TOL_GEOMETRY = 5e-3              # m
 
 
 class StaticsError(ValueError):
@@ -94,7 +133,6 @@ def _expm(phi: np.ndarray) -> np.ndarray:
 
 
 def _rpy(R: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
     return Rotation.from_matrix(R).as_euler("xyz")
 
 
@@ -321,11 +359,15 @@ class CgOptions:
     (needs load cells; it makes the CG independent of a load-cell calibration error).
     fit_inclinometer_offset: fit the inclinometer's two zero offsets.
     scale_std: σ of the scale's mass reading, kg (default 0.1 % of it).
-    length_std: σ of the rig.yaml cable lengths, m; dummy_position_std: σ of each coordinate of
-    the dummy mass's position, m; dummy_mass_std: σ of the dummy mass, kg (0 = exact; > 0 fits
-    them with that prior, which propagates these systematic uncertainties into the CG σ --
-    the dummy's horizontal position matters most for the CG height).  inflate: multiply σ
-    by sqrt(χ²/dof) when the fit's χ² is improbable (p < 0.01).
+    The rig's geometry as surveyed (1 σ; 0 = taken as exact; > 0 fits the input with that
+    prior, which propagates its uncertainty into the CG σ -- ``center_of_gravity_std``; the
+    σ of the measurement noise alone is ``center_of_gravity_std_noise``): anchor_std: each
+    coordinate of every ceiling anchor (world) and body anchor (body), m; length_std: the
+    rig.yaml cable lengths, m; dummy_position_std: each coordinate of the dummy mass's
+    position, m (its horizontal position matters most for the CG height); defaults
+    :data:`DEFAULT_ANCHOR_STD`, :data:`DEFAULT_LENGTH_STD`, :data:`DEFAULT_DUMMY_POSITION_STD`
+    (1 mm, a steel-tape survey).  dummy_mass_std: σ of the dummy mass, kg (default 0: weighed
+    exactly).  inflate: multiply σ by sqrt(χ²/dof) when the fit's χ² is improbable (p < 0.01).
     """
 
     use_load_cells: bool = True
@@ -335,17 +377,28 @@ class CgOptions:
     fit_load_cell_gain: bool = True
     fit_inclinometer_offset: bool = False
     scale_std: float | None = None
-    length_std: float = 0.0
-    dummy_position_std: float = 0.0
+    length_std: float = DEFAULT_LENGTH_STD
+    dummy_position_std: float = DEFAULT_DUMMY_POSITION_STD
     dummy_mass_std: float = 0.0
+    anchor_std: float = DEFAULT_ANCHOR_STD
     inflate: bool = True
+
+    @classmethod
+    def exact_geometry(cls, **kw) -> "CgOptions":
+        """Options that take the rig's geometry and the dummy mass as exact (noise-only σ)."""
+        return cls(**{"length_std": 0.0, "dummy_position_std": 0.0, "anchor_std": 0.0, **kw})
+
+    def geometry_std(self) -> dict[str, float]:
+        """The σ assumed for the systematic inputs (m, dummy_mass kg), by name."""
+        return {"anchors": float(self.anchor_std), "cable_lengths": float(self.length_std),
+                "dummy_position": float(self.dummy_position_std), "dummy_mass": float(self.dummy_mass_std)}
 
 
 class _Layout:
     """Indices of the global unknowns θ (internal scaled units) and their scales."""
 
     def __init__(self, n_cables: int, fit_c: bool, fit_kappa: bool, fit_off: bool, fit_len: bool,
-                 n_states: int = 2, fit_dpos: bool = False, fit_dmass: bool = False):
+                 n_states: int = 2, fit_dpos: bool = False, fit_dmass: bool = False, fit_anchors: bool = False):
         self.names: list[str] = ["cg_x", "cg_y", "cg_z"]
         self.scale: list[float] = [1.0, 1.0, 1.0]
         self.fit_c, self.fit_kappa, self.fit_off, self.fit_len = fit_c, fit_kappa, fit_off, fit_len
@@ -358,6 +411,13 @@ class _Layout:
         self.i_dd = [[self._add(f"dummy{s}_{a}", 1e-3) for a in "xyz"] for s in range(1, n_states)] \
             if fit_dpos else None
         self.i_dm = [self._add(f"dummy{s}_mass", 1.0) for s in range(1, n_states)] if fit_dmass else None
+        # anchors: (N, 3) row-major, ceiling (world) then body (body frame)
+        self.i_A = [self._add(f"ceiling_anchor_{i}_{a}", 1e-3) for i in range(n_cables) for a in "xyz"] \
+            if fit_anchors else None
+        self.i_B = [self._add(f"body_anchor_{i}_{a}", 1e-3) for i in range(n_cables) for a in "xyz"] \
+            if fit_anchors else None
+        self.core = [i for i, nm in enumerate(self.names)
+                     if not nm.startswith(("length_", "dummy", "ceiling_anchor_", "body_anchor_"))]
         self.scale_arr = np.array(self.scale)
 
     def _add(self, name: str, scale: float) -> int:
@@ -380,6 +440,24 @@ class _Global:
     L: np.ndarray           # (N,) m
     dd: np.ndarray | None = None   # (S, 3) m: dummy position offsets per state (row 0 unused)
     dm: np.ndarray | None = None   # (S,) kg: dummy mass offsets per state
+    A: np.ndarray | None = None    # (N, 3) world m: ceiling anchors (None: rig.yaml's)
+    B: np.ndarray | None = None    # (N, 3) body m: body anchors (None: rig.yaml's)
+
+
+class _Partials(NamedTuple):
+    """Derivatives of one state's scaled equilibrium equations E (N + 6,) w.r.t. the globals:
+    c (N+6, 3), common compliance C (N+6,), mass m (N+6,), lengths L (N+6, N), added mass
+    (N+6,), added first moment w (N+6, 3) body frame, ceiling anchors A (N+6, 3N) and body
+    anchors B (N+6, 3N) (row-major (N, 3))."""
+
+    c: np.ndarray
+    C: np.ndarray
+    m: np.ndarray
+    L: np.ndarray
+    m_add: np.ndarray
+    w_add: np.ndarray
+    A: np.ndarray
+    B: np.ndarray
 
 
 class _Model:
@@ -407,7 +485,7 @@ class _Model:
         self.n_states = n_states
         self.layout = _Layout(self.n, fit_c, opts.fit_load_cell_gain and tensions_used,
                               opts.fit_inclinometer_offset and self.incl is not None, opts.length_std > 0,
-                              n_states, opts.dummy_position_std > 0, opts.dummy_mass_std > 0)
+                              n_states, opts.dummy_position_std > 0, opts.dummy_mass_std > 0, opts.anchor_std > 0)
 
     # θ (internal) <-> physical
     def unpack(self, th: np.ndarray, fixed: _Global) -> _Global:
@@ -425,7 +503,10 @@ class _Model:
             dd[1:] = x[np.array(lay.i_dd)]
         if lay.i_dm is not None:
             dm[1:] = x[lay.i_dm]
-        return _Global(x[:3].copy(), comp, x[lay.i_m], kappa, np.asarray(off, float), np.asarray(L, float), dd, dm)
+        A = x[lay.i_A].reshape(-1, 3) + self.A if lay.i_A is not None else fixed.A
+        B = x[lay.i_B].reshape(-1, 3) + self.b if lay.i_B is not None else fixed.B
+        return _Global(x[:3].copy(), comp, x[lay.i_m], kappa, np.asarray(off, float), np.asarray(L, float), dd, dm,
+                       A, B)
 
     def pack(self, g: _Global) -> np.ndarray:
         lay = self.layout
@@ -444,13 +525,22 @@ class _Model:
             x[np.array(lay.i_dd)] = g.dd[1:]
         if lay.i_dm is not None and g.dm is not None:
             x[lay.i_dm] = g.dm[1:]
+        if lay.i_A is not None and g.A is not None:
+            x[lay.i_A] = (g.A - self.A).ravel()
+        if lay.i_B is not None and g.B is not None:
+            x[lay.i_B] = (g.B - self.b).ravel()
         return x / lay.scale_arr
 
     # --- equilibrium equations of one state (scaled: lengths m, forces / W, moments / W m)
     def equations(self, R, p, T, gl: _Global, m_add: float, w_add: np.ndarray, jac: bool = False):
+        """Scaled equilibrium equations E (N + 6,) of one state (module docstring): length
+        (m), force (/ W) and moment (/ W m) balance.  With ``jac``: (E, ∂E/∂y (N+6, 6+N) for
+        y = (δφ, p, T), :class:`_Partials`)."""
         W = (gl.m + m_add) * self.g
-        rb = self.b @ R.T
-        v = self.A - p - rb
+        A = self.A if gl.A is None else gl.A
+        bb = self.b if gl.B is None else gl.B
+        rb = bb @ R.T
+        v = A - p - rb
         l = np.linalg.norm(v, axis=1)
         u = v / l[:, None]
         f = T[:, None] * u
@@ -496,7 +586,17 @@ class _Model:
         Fma[n:n + 3] = self.gv / W
         Fwa = np.zeros((n + 6, 3))
         Fwa[n + 3:] = -_skew(self.gv) @ R / W
-        return E, Fy, (Fc, FC, Fm, FL, Fma, Fwa)
+        # anchors: ∂l_i/∂A_i = u_iᵀ, ∂u_i/∂A_i = P_i; b_i enters as -R b_i in v_i and as R b_i in the lever
+        FA = np.zeros((n + 6, n, 3))
+        FB = np.zeros((n + 6, n, 3))
+        idx = np.arange(n)
+        FA[idx, idx] = u
+        FB[idx, idx] = -u @ R
+        FA[n:n + 3] = np.transpose(TP, (1, 0, 2)) / W
+        FB[n:n + 3] = -np.transpose(TP @ R, (1, 0, 2)) / W
+        FA[n + 3:] = np.transpose(SrbTP, (1, 0, 2)) / W
+        FB[n + 3:] = -np.transpose((Sf + SrbTP) @ R, (1, 0, 2)) / W
+        return E, Fy, _Partials(Fc, FC, Fm, FL, Fma, Fwa, FA.reshape(n + 6, 3 * n), FB.reshape(n + 6, 3 * n))
 
     def solve_state(self, gl: _Global, m_add: float, w_add: np.ndarray, y0: tuple, label: str = "state"):
         """Equilibrium (R, p, T) of one state for the globals ``gl`` (Newton from ``y0``)."""
@@ -592,11 +692,76 @@ class StatePose:
         return _rpy(self.rotation)
 
 
+CG_RESULT_SCHEMA = "rig_identification.cg_result"   # the JSON of CgResult.to_dict / rig-identify cg --json
+CG_RESULT_SCHEMA_VERSION = 1
+CG_RESULT_UNITS = {
+    "center_of_gravity": "m", "center_of_gravity_std": "m", "center_of_gravity_std_noise": "m",
+    "center_of_gravity_covariance": "m^2", "mass": "kg", "mass_std": "kg", "mass_from_load_cells": "kg",
+    "mass_from_load_cells_std": "kg", "mass_fitted": "kg", "mass_fitted_std": "kg", "load_cell_gain": "1",
+    "load_cell_gain_std": "1", "cable_stiffness": "N/m", "cable_stiffness_std": "N/m", "cable_compliance": "m/N",
+    "cable_compliance_std": "m/N", "inclinometer_offset": "rad", "states.position": "m (world)",
+    "states.rpy": "rad (fixed-axis XYZ, body -> world)", "states.tensions": "N", "states.added_mass": "kg",
+    "states.window": "s (header stamps)", "states.residuals_sigma": "1 (residual / its σ)",
+    "weakly_determined.std": "m", "weakly_determined.tilt_change_rad": "rad",
+    "sensitivity": "m per m of rig.yaml's value (dummy_mass: m/kg)", "uncertainty.geometry_std": "m (dummy_mass: kg)",
+    "uncertainty.budget": "m", "validation.checks.statistic": "see each check's detail (σ, χ²/dof)"}
+CG_VERDICTS = ("ok", "model_error")
+# the checks that bear on the CG (a failure makes the verdict model_error); "mass" is a cross-check
+CG_MODEL_CHECKS = ("fit_chi2", "tilt_change", "inclinometer_level")
+
+
+@dataclass(frozen=True)
+class CgValidation:
+    """Model validation of a CG fit: ``verdict`` (one of :data:`CG_VERDICTS`: ``model_error``
+    when a check of :data:`CG_MODEL_CHECKS` failed) and the :class:`~.verdict.Check` list:
+
+    * ``fit_chi2``: χ²/dof of the whole fit (threshold: its 99th percentile);
+    * ``tilt_change``: the inclinometer's change of elevation between the baseline and each
+      dummy state against the rigid-body equilibrium's with the fitted CG (a Wald statistic
+      over the residual's own covariance, said as the equivalent two-sided normal σ; threshold
+      :data:`VALIDATION_SIGMA`): a body that tilts more (or less) than the frame under the
+      dummy's moment allows -- a vehicle on an unlocked suspension, an inclinometer on the
+      sprung body, a load that shifted, an inclinometer that moved between the recordings;
+    * ``inclinometer_level``: the same for the mean of the states' elevations: an inclinometer
+      zero offset or mounting error (``inclinometer.rpy``), or rig geometry off beyond its σ;
+    * ``mass``: the load cells' weight against the scale's, in combined σ (threshold 3).
+
+    A check whose residual the fit absorbs entirely (no redundancy) is not applicable
+    (statistic None)."""
+
+    verdict: str
+    checks: tuple[Check, ...]
+
+    @property
+    def failed(self) -> tuple[str, ...]:
+        return tuple(c.name for c in self.checks if c.passed is False)
+
+    @property
+    def summary(self) -> str:
+        """The verdict in words (first line of the text output)."""
+        if self.verdict == "ok":
+            return ("validation: ok — the static states agree with a rigid body on these cables (checks "
+                    + ", ".join(c.name for c in self.checks if c.passed) + " passed)")
+        bad = [c.name for c in self.checks if c.passed is False and c.name in CG_MODEL_CHECKS]
+        return ("validation: MODEL ERROR — the static states disagree with a rigid body on these cables ("
+                + ", ".join(bad) + " failed): the CG below is not trustworthy")
+
+    def to_dict(self) -> dict:
+        return {"verdict": self.verdict, "failed": list(self.failed), "checks": [c.to_dict() for c in self.checks]}
+
+
 @dataclass
 class CgResult:
     """The static experiment's estimate.
 
-    center_of_gravity (3,) body frame m, center_of_gravity_std (3,) m, covariance (3, 3) m²;
+    center_of_gravity (3,) body frame m; center_of_gravity_std (3,) m and covariance (3, 3) m²:
+    the measurement noise AND the rig's geometry as surveyed (``geometry_std``: the σ assumed
+    for the anchors, cable lengths m, dummy position m and dummy mass kg, see :class:`CgOptions`);
+    center_of_gravity_std_noise (3,) m: the measurement noise alone (the geometry taken as
+    exact, what the fit reported before geometry σ were assumed); budget: the σ (3,) m each
+    source contributes -- ``measurement_noise``, ``scale``, ``cable_lengths``, ``dummy_position``,
+    ``dummy_mass``, ``ceiling_anchors``, ``body_anchors`` (those fitted) -- which add in
+    quadrature to center_of_gravity_std;
     mass: the scale's reading (rig.yaml) kg with mass_std (the σ assumed for it);
     mass_from_load_cells (sum of the baseline's vertical tension components / g) kg with its
     std, or None without load cells -- a warning says when it and the scale disagree by more
@@ -605,13 +770,12 @@ class CgResult:
     and std, or None; cable_compliance m/N (std): the fitted common compliance of the cables
     without a stiffness in rig.yaml, or None, and cable_stiffness = its inverse N/m (None when
     the compliance is not significantly > 0, e.g. inextensible cables); states: the fitted :class:`StatePose` of each state;
-    chi2, dof of the fit; weakly_determined: the CG direction the geometry determines worst
-    (axis, direction, std, tilt change, the CG change (3,) m that a 1 mm error of each
-    coordinate of the dummy's position (root-sum-square) or a 0.1 mm error of one cable's length
-    (worst cable) would cause when taken as exact); sensitivity: ∂CG/∂input of the inputs taken
-    as exact -- ``dummy_position`` (3, 3) m/m (first dummy state), ``dummy_mass`` (3,) m/kg,
-    ``cable_lengths`` (3, N) m/m (zero columns for inputs that were fitted with a prior);
-    warnings: texts for the user.
+    chi2, dof of the fit; weakly_determined: the CG direction the data determine worst
+    (axis, direction, std, tilt change); sensitivity: ∂CG/∂(rig.yaml value) of each systematic
+    input, the same definition whether the input is fitted with its σ or taken as exact --
+    ``dummy_position`` (3, 3) m/m (first dummy state), ``dummy_mass`` (3,) m/kg,
+    ``cable_lengths`` (3, N) m/m, ``ceiling_anchors`` and ``body_anchors`` (3, 3N) m/m (cable
+    by cable, x y z); validation: the :class:`CgValidation`; warnings: texts for the user.
     """
 
     center_of_gravity: np.ndarray
@@ -640,6 +804,10 @@ class CgResult:
     parameter_covariance: np.ndarray
     streams: list[str]
     sensitivity: dict = field(default_factory=dict)
+    center_of_gravity_std_noise: np.ndarray | None = None
+    geometry_std: dict = field(default_factory=dict)
+    budget: dict = field(default_factory=dict)
+    validation: CgValidation | None = None
 
     def without(self, mass: float, cg) -> tuple[np.ndarray, np.ndarray]:
         """CG (3,) and σ (3,) body frame m of the suspended body minus a known part (e.g. the
@@ -650,13 +818,16 @@ class CgResult:
         return c, k * self.center_of_gravity_std
 
     def to_dict(self) -> dict:
-        """JSON-ready mapping (lists and floats only)."""
+        """JSON-ready mapping (lists and floats only): the file format ``rig-identify cg --json``
+        prints, ``schema`` :data:`CG_RESULT_SCHEMA` version :data:`CG_RESULT_SCHEMA_VERSION`,
+        ``units`` per field (:data:`CG_RESULT_UNITS`); read back by ``cg_cli.load_cg_result``."""
         def f(x):
             return None if x is None else float(x)
 
         def v(a):
             return None if a is None else [float(x) for x in np.ravel(a)]
         return {
+            "schema": CG_RESULT_SCHEMA, "schema_version": CG_RESULT_SCHEMA_VERSION, "units": dict(CG_RESULT_UNITS),
             "center_of_gravity": v(self.center_of_gravity),
             "center_of_gravity_std": v(self.center_of_gravity_std),
             "center_of_gravity_covariance": [v(r) for r in self.covariance],
@@ -678,6 +849,13 @@ class CgResult:
             "chi2": f(self.chi2), "dof": int(self.dof), "sigma_inflation": f(self.inflation),
             "weakly_determined": self.weakly_determined,
             "sensitivity": {k: np.asarray(val).tolist() for k, val in self.sensitivity.items()},
+            "center_of_gravity_std_noise": v(self.center_of_gravity_std_noise),
+            "uncertainty": {
+                "center_of_gravity_std": "measurement noise and the rig's geometry (geometry_std)",
+                "center_of_gravity_std_noise": "measurement noise alone (geometry taken as exact)",
+                "geometry_std": dict(self.geometry_std),
+                "budget": {k: v(val) for k, val in self.budget.items()}},
+            "validation": None if self.validation is None else self.validation.to_dict(),
             "warnings": list(self.warnings),
         }
 
@@ -687,7 +865,6 @@ class CgResult:
 def _initial_pose(rig: Rig, tens, elev, label: str):
     """Pose at rest from the lengths, tensions and angles (tracker.static_pose); diagnoses
     which input is out of line when no pose fits."""
-    from .tracker import TrackerError, inclinometer_elevations, static_pose
     try:
         return static_pose(rig, tensions=tens, elevations=elev)
     except TrackerError:
@@ -724,9 +901,16 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
     several dummy positions).  Thesis section 2.2, eqs. 2.6–2.25, generalised to N >= 3
     cables, stretched cables, load cells (see the module docstring).
 
-    Returns :class:`CgResult` (CG (3,) body frame m with σ).  Raises :class:`StaticsError`:
-    a slack cable, a dummy mass that changed neither the load nor the inclination, angles
-    outside the geometry's reach, a moving body, contradictory geometry or data.
+    options: :class:`CgOptions` (default: load cells and inclinometer, the rig's geometry
+    with the survey σ of :data:`DEFAULT_ANCHOR_STD` etc.).
+
+    Returns :class:`CgResult`: CG (3,) body frame m with σ (noise and geometry) and the σ of
+    the noise alone, the σ budget, the sensitivities and the :class:`CgValidation` (a failed
+    ``tilt_change`` or ``inclinometer_level`` check adds a warning).  Raises
+    :class:`StaticsError`: a slack cable, a dummy mass that changed neither the load nor the
+    inclination, angles outside the geometry's reach, a moving body, contradictory geometry or
+    data (a stream misfit of > 20 σ, or a fit that needs a systematic input moved by > 10 of
+    its σ and > 5 mm with χ² > dof + :data:`CONTRADICTION_CHI2`: the message names the input).
     """
     opts = options or CgOptions()
     dummies = [dummy] if isinstance(dummy, StaticState) else list(dummy)
@@ -845,9 +1029,17 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
 
     cache: dict = {}
 
-    n_cons = 3 + 1 + model.n     # consider parameters: first dummy's position, its mass, lengths
+    # the systematic inputs q (rig.yaml's values): the first dummy's position (3) and mass (1),
+    # the cable lengths (N), the ceiling anchors (3N, world) and the body anchors (3N, body)
+    n3 = 3 * model.n
+    q_slices = {"dummy_position": slice(0, 3), "dummy_mass": slice(3, 4), "cable_lengths": slice(4, 4 + model.n),
+                "ceiling_anchors": slice(4 + model.n, 4 + model.n + n3),
+                "body_anchors": slice(4 + model.n + n3, 4 + model.n + 2 * n3)}
+    n_q = 4 + model.n + 2 * n3
 
     def evaluate(th: np.ndarray, consider: bool = False):
+        """(normalised residuals r, ∂r/∂θ (scaled), per-state solutions, globals, row groups);
+        with ``consider``: ∂r/∂q (rows of r, n_q) of the systematic inputs' rig.yaml values."""
         key = th.tobytes()
         if key in cache and not consider:
             return cache[key]
@@ -860,35 +1052,41 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
             wa = ma * (dbar + gl.dd[i])
             R, p, T = model.solve_state(gl, ma, wa, y_cache[i], states[i].label)
             y_cache[i] = (R, p, T)
-            E, Fy, (Fc, FC, Fm, FL, Fma, Fwa) = model.equations(R, p, T, gl, ma, wa, jac=True)
+            E, Fy, part = model.equations(R, p, T, gl, ma, wa, jac=True)
             pred, Dy, Dk, Do = model.predict(R, T, gl)
             # dy/dθ_phys by the implicit-function theorem
             Fth = np.zeros((len(E), lay.n))
-            Fth[:, :3] = Fc
+            Fth[:, :3] = part.c
             if lay.i_C is not None:
-                Fth[:, lay.i_C] = FC
-            Fth[:, lay.i_m] = Fm
+                Fth[:, lay.i_C] = part.C
+            Fth[:, lay.i_m] = part.m
             if lay.i_L is not None:
-                Fth[:, lay.i_L] = FL
+                Fth[:, lay.i_L] = part.L
             if i > 0 and lay.i_dd is not None:
-                Fth[:, lay.i_dd[i - 1]] = Fwa * ma
+                Fth[:, lay.i_dd[i - 1]] = part.w_add * ma
             if i > 0 and lay.i_dm is not None:
-                Fth[:, lay.i_dm[i - 1]] = Fma + Fwa @ (dbar + gl.dd[i])
+                Fth[:, lay.i_dm[i - 1]] = part.m_add + part.w_add @ (dbar + gl.dd[i])
+            if lay.i_A is not None:
+                Fth[:, lay.i_A] = part.A
+                Fth[:, lay.i_B] = part.B
             try:
                 dy = -np.linalg.solve(Fy, Fth)
             except np.linalg.LinAlgError:
                 dy = -np.linalg.lstsq(Fy, Fth, rcond=None)[0]
             Jp = Dy @ dy
-            if consider:   # sensitivities to the (unfitted) dummy position, dummy mass, lengths
-                Fq = np.zeros((len(E), n_cons))
+            if consider:   # the same through the equations, for the rig.yaml values q
+                Fq = np.zeros((len(E), n_q))
                 if i == 1:
-                    Fq[:, 0:3] = Fwa * ma
-                    Fq[:, 3] = Fma + Fwa @ (dbar + gl.dd[i])
-                Fq[:, 4:] = FL
+                    Fq[:, 0:3] = part.w_add * ma
+                    Fq[:, 3] = part.m_add + part.w_add @ (dbar + gl.dd[i])
+                Fq[:, q_slices["cable_lengths"]] = part.L
+                Fq[:, q_slices["ceiling_anchors"]] = part.A
+                Fq[:, q_slices["body_anchors"]] = part.B
                 try:
-                    C_all.append(-(Dy @ -np.linalg.solve(Fy, Fq)) / sig[i][:, None])
+                    dq = -np.linalg.solve(Fy, Fq)
                 except np.linalg.LinAlgError:
-                    C_all.append(-(Dy @ -np.linalg.lstsq(Fy, Fq, rcond=None)[0]) / sig[i][:, None])
+                    dq = -np.linalg.lstsq(Fy, Fq, rcond=None)[0]
+                C_all.append(-(Dy @ dq) / sig[i][:, None])
             if lay.i_k is not None:
                 Jp[:, lay.i_k] += Dk
             if lay.i_off is not None:
@@ -897,41 +1095,42 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
             J_all.append(-Jp / sig[i][:, None])
             sol.append((R, p, T, pred))
         # priors: the scale's mass only without load cells (with them, the load cells weigh the
-        # body, calibrated by the dummy mass; the scale is then a cross-check, see below)
+        # body, calibrated by the dummy mass; the scale is then a cross-check, see below); the
+        # systematic inputs fitted with their σ (offsets from rig.yaml's values)
+        groups = [("measurement_noise", sum(len(x) for x in r_all))]
         pr, Jl = [], []
-        if not have_T:
-            pr.append(np.array([(gl.m - rig.mass) / scale_std]))
-            Jpr = np.zeros((1, lay.n))
-            Jpr[0, lay.i_m] = 1.0 / scale_std
-            Jl.append(Jpr)
-        if lay.i_L is not None:
-            pr.append((gl.L - model.L0) / opts.length_std)
-            JL = np.zeros((model.n, lay.n))
-            JL[:, lay.i_L] = np.eye(model.n) / opts.length_std
-            Jl.append(JL)
-        if lay.i_dd is not None:
-            idx = np.ravel(lay.i_dd)
-            pr.append(gl.dd[1:].ravel() / opts.dummy_position_std)
+
+        def prior(name: str, idx, value: np.ndarray, std: float) -> None:
+            idx = np.ravel(idx)
+            pr.append(np.ravel(value) / std)
             Jd = np.zeros((len(idx), lay.n))
-            Jd[np.arange(len(idx)), idx] = 1.0 / opts.dummy_position_std
+            Jd[np.arange(len(idx)), idx] = 1.0 / std
             Jl.append(Jd)
+            groups.append((name, len(idx)))
+
+        if not have_T:
+            prior("scale", [lay.i_m], np.array([gl.m - rig.mass]), scale_std)
+        if lay.i_L is not None:
+            prior("cable_lengths", lay.i_L, gl.L - model.L0, opts.length_std)
+        if lay.i_dd is not None:
+            prior("dummy_position", lay.i_dd, gl.dd[1:], opts.dummy_position_std)
         if lay.i_dm is not None:
-            pr.append(gl.dm[1:] / opts.dummy_mass_std)
-            Jd = np.zeros((len(lay.i_dm), lay.n))
-            Jd[np.arange(len(lay.i_dm)), lay.i_dm] = 1.0 / opts.dummy_mass_std
-            Jl.append(Jd)
+            prior("dummy_mass", lay.i_dm, gl.dm[1:], opts.dummy_mass_std)
+        if lay.i_A is not None:
+            prior("ceiling_anchors", lay.i_A, gl.A - model.A, opts.anchor_std)
+            prior("body_anchors", lay.i_B, gl.B - model.b, opts.anchor_std)
         r = np.concatenate(r_all + pr)
         J = np.vstack(J_all + Jl) * lay.scale_arr[None, :]
         if consider:
-            return np.vstack(C_all + [np.zeros((sum(len(x) for x in pr), n_cons))])
+            return np.vstack(C_all + [np.zeros((sum(len(x) for x in pr), n_q))])
         cache.clear()
-        cache[key] = (r, J, sol, gl)
+        cache[key] = (r, J, sol, gl, groups)
         return cache[key]
 
     th0 = model.pack(fixed)
     sol = least_squares(lambda th: evaluate(th)[0], th0, jac=lambda th: evaluate(th)[1], method="lm",
                         x_scale="jac", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200)
-    r, J, solved, gl = evaluate(sol.x)
+    r, J, solved, gl, groups = evaluate(sol.x)
     # covariance (column-scaled for conditioning)
     cn = np.linalg.norm(J, axis=0)
     cn[cn == 0] = 1.0
@@ -946,20 +1145,39 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
     dof = len(r) - lay.n
     chi2 = float(r @ r)
     infl = 1.0
+    poor_fit = None       # the warning, completed once the validation has named the cause
     if dof > 0:
         pval = float(_chi2.sf(chi2, dof))
         if pval < CHI2_P_WARN:
             if opts.inflate:
                 infl = math.sqrt(chi2 / dof)
-            hint = "" if opts.length_std > 0 else ("; if rig.yaml's cable lengths are not exact to ~0.01 mm, "
-                                                    "fit them with a length σ (--length-std)")
-            warnings.append(f"the data fit the static model poorly (χ² = {chi2:.1f} for {dof} degrees of "
-                            f"freedom, p = {pval:.1e})" + (f"; σ inflated ×{infl:.2f}" if infl > 1 else "") + hint)
+            poor_fit = (f"the data fit the static model poorly (χ² = {chi2:.1f} for {dof} degrees of "
+                        f"freedom, p = {pval:.1e})" + (f"; σ inflated ×{infl:.2f}" if infl > 1 else ""))
+            warnings.append(poor_fit)
     cov = cov * infl**2
-    # CG change per unit error of the unfitted inputs: δθ = -(JᵀJ)⁻¹ Jᵀ (∂r/∂q) δq
-    Jq = evaluate(sol.x, consider=True)
-    Sq = -(((Vt.T / S) @ U.T) @ Jq)[:3] / cn[:3, None] * lay.scale_arr[:3, None]
-    sens = {"dummy_position": Sq[:, 0:3], "dummy_mass": Sq[:, 3], "cable_lengths": Sq[:, 4:]}
+    # the estimator's gain G = (JᵀJ)⁻¹Jᵀ, CG rows, physical units: δc = -G δr
+    G = ((Vt.T / S) @ U.T)[:3] / cn[:3, None] * lay.scale_arr[:3, None]
+    # CG change per unit change of rig.yaml's value of each systematic input (fitted or not):
+    # δc = -G (∂r/∂q) δq
+    Sq = -G @ evaluate(sol.x, consider=True)
+    sens = {k: (Sq[:, sl] if k != "dummy_mass" else Sq[:, sl][:, 0]) for k, sl in q_slices.items()}
+    # σ budget: the covariance G Gᵀ split by the rows' sources (they add up to it)
+    budget, k0 = {}, 0
+    for name, nrows in groups:
+        g = G[:, k0:k0 + nrows]
+        budget[name] = infl * np.sqrt(np.sum(g**2, axis=1))
+        k0 += nrows
+    # the σ of the measurement noise alone, the systematic inputs taken as exact (their values
+    # as fitted): the fit's Jacobian restricted to the measurement (and scale) rows and the other unknowns
+    rows = np.r_[0:groups[0][1]]
+    if not have_T:
+        rows = np.r_[rows, groups[0][1]]
+    Jn = J[np.ix_(rows, lay.core)]
+    cnn = np.linalg.norm(Jn, axis=0)
+    cnn[cnn == 0] = 1.0
+    _, Sn, Vnt = np.linalg.svd(Jn / cnn, full_matrices=False)
+    cov_n = (Vnt.T / Sn**2) @ Vnt / np.outer(cnn, cnn) * np.outer(lay.scale_arr[lay.core], lay.scale_arr[lay.core])
+    c_std_noise = infl * np.sqrt(np.diag(cov_n)[:3])
 
     # --- contradiction check in physical units; slack in the fitted model
     stream_names = (["load_cells"] if have_T else []) + (["inclinometer"] if have_e else []) \
@@ -1002,14 +1220,26 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
                                    "pose (check imu.rpy or use_accelerometer=False)")
         poses_out.append(StatePose(s.label, p, R, T, float(m_add[i]), s.window, res))
 
+    # --- systematic inputs the data need moved far beyond their σ: contradictory rig.yaml
+    dev = _input_deviations(gl, model, opts, rig, [s.label for s in states])
+    if (dev and chi2 > dof + CONTRADICTION_CHI2 and abs(dev[0][1]) > 10 * dev[0][2]
+            and abs(dev[0][1]) > TOL_GEOMETRY):
+        top = "; ".join(f"{nm} {d * 1e3:+.1f} mm (σ {sd * 1e3:g} mm)" for nm, d, sd in dev[:3])
+        raise StaticsError(f"the static states contradict rig.yaml's geometry: the best fit (χ² = {chi2:.0f} for "
+                           f"{dof} degrees of freedom) needs {top} from rig.yaml's values: contradictory geometry or "
+                           "data "
+                           "(check rig.yaml's anchors, cable lengths and dummy_mass; or give their real σ with "
+                           "--anchor-std, --length-std, --dummy-position-std)")
     c = gl.c
     cc = cov[:3, :3]
     c_std = np.sqrt(np.diag(cc))
     # --- masses
     m_lc = m_lc_sd = None
     if have_T:
-        R, p, T, _ = solved[0]
-        v = rig.ceiling_anchors - p - rig.body_anchors @ R.T
+        # at the baseline pose the load cells and inclinometer give with rig.yaml's geometry
+        # (independent of the CG fit, whose fitted anchors would trade the weight for the geometry)
+        ps = poses[0]
+        v = rig.ceiling_anchors - (ps.position + ps.rotation.apply(rig.body_anchors))
         uz = v[:, 2] / np.linalg.norm(v, axis=1)
         m_lc = float(tens[0][0] @ uz / rig.gravity)
         m_lc_sd = float(np.sqrt(np.sum((tens[0][1] * uz) ** 2)) / rig.gravity)
@@ -1037,12 +1267,155 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
                             "seem to shorten under load; check the cable lengths")
     off = gl.off.copy() if lay.i_off is not None else None
     weak = _weakness(cc, rig, solved, have_e)
-    # what a 1 mm error of the dummy's position or of the cable lengths would do
-    weak["dummy_position_1mm"] = [float(x) for x in 1e-3 * np.sqrt(np.sum(sens["dummy_position"] ** 2, axis=1))]
-    weak["cable_length_0.1mm"] = [float(x) for x in 1e-4 * np.max(np.abs(sens["cable_lengths"]), axis=1)]
+    ax = "xyz".index(weak["axis"])
+    sys_var = sum(float(v[ax]) ** 2 for k, v in budget.items() if k not in ("measurement_noise", "scale"))
+    weak["systematic_share"] = sys_var / max(float(cc[ax, ax]), 1e-300)
+    if weak["systematic_share"] > 0.5 and weak["text"].endswith("longer averaging reduce it"):
+        weak["text"] = weak["text"][:weak["text"].rindex(";")] + (
+            f"; the rig's geometry as surveyed makes {100 * weak['systematic_share']:.0f} % of its variance "
+            "(σ budget): "
+            "a more precise survey of the anchors, cable lengths and dummy position reduces it, longer averaging "
+            "hardly does")
+    mass_check = None
+    if m_lc is not None:
+        comb = math.hypot(m_lc_sd, scale_std)
+        z = abs(m_lc - rig.mass) / comb
+        mass_check = Check("mass", z, MASS_COVERAGE, bool(z <= MASS_COVERAGE),
+                           f"load cells {m_lc:.2f} ± {m_lc_sd:.2f} kg against the scale's {rig.mass:.2f} ± "
+                           f"{scale_std:.2f} kg: {z:.1f} σ (a cross-check: the CG fit uses the load cells "
+                           "calibrated by the dummy mass)")
+    incl_rows = []
+    if have_e:
+        k0 = 0
+        o = model.n if have_T else 0
+        for i in range(len(states)):
+            incl_rows.append((k0 + o, k0 + o + 1, sig[i][o:o + 2]))
+            k0 += len(meas[i])
+    validation = _validate(r, U, incl_rows, [s.label for s in states], chi2, int(dof), mass_check,
+                           opts.fit_inclinometer_offset)
+    named = [ck for ck in validation.checks if ck.passed is False and ck.name in ("tilt_change", "inclinometer_level")]
+    if poor_fit is not None:
+        hint = ("; see the failed check(s) " + ", ".join(ck.name for ck in named) if named else
+                f"; if rig.yaml's geometry is less certain than the σ assumed (anchors {opts.anchor_std * 1e3:g} mm, "
+                f"cable lengths {opts.length_std * 1e3:g} mm, dummy position {opts.dummy_position_std * 1e3:g} mm), "
+                "give larger ones (--anchor-std, --length-std, --dummy-position-std)")
+        warnings[warnings.index(poor_fit)] = poor_fit + hint
+    for ck in named:
+        warnings.append(f"model validation: check {ck.name} failed: {ck.detail}")
+    geo = opts.geometry_std()
     return CgResult(c.copy(), c_std, cc, float(rig.mass), float(scale_std), m_lc, m_lc_sd, float(gl.m), m_sd,
                     kap, kap_sd, k_fit, k_sd, C, C_sd, off, poses_out, chi2, int(dof), infl, weak, warnings,
-                    list(lay.names), cov, stream_names, sens)
+                    list(lay.names), cov, stream_names, sens, center_of_gravity_std_noise=c_std_noise,
+                    geometry_std=geo, budget=budget, validation=validation)
+
+
+def _input_deviations(gl: _Global, model: _Model, opts: CgOptions, rig: Rig,
+                      labels: list[str]) -> list[tuple[str, float, float]]:
+    """The fitted systematic inputs' changes from rig.yaml's values: (name, change m, σ m),
+    largest change over σ first; empty when none is fitted."""
+    out = []
+    lay = model.layout
+    names = rig.cable_names
+    if lay.i_L is not None:
+        out += [(f"cable {n} length", float(x), opts.length_std) for n, x in zip(names, gl.L - model.L0)]
+    if lay.i_A is not None:
+        for what, X in (("ceiling_anchor", gl.A - model.A), ("body_anchor", gl.B - model.b)):
+            out += [(f"cable {n} {what} {a}", float(X[i, k]), opts.anchor_std)
+                    for i, n in enumerate(names) for k, a in enumerate("xyz")]
+    if lay.i_dd is not None:
+        out += [(f"{labels[s]} dummy position {a}", float(gl.dd[s, k]), opts.dummy_position_std)
+                for s in range(1, len(labels)) for k, a in enumerate("xyz")]
+    return sorted(out, key=lambda t: -abs(t[1]) / t[2])
+
+
+def _wald_sigma(d: np.ndarray, V: np.ndarray, V_raw: np.ndarray) -> tuple[float | None, int]:
+    """Wald statistic dᵀV⁺d of residual combinations d (k,) with covariance V (k, k), said
+    as the two-sided normal σ of the same p-value (χ² with the rank as dof), and that rank.
+    The pseudo-inverse keeps the eigen-directions whose variance exceeds 1e-4 of the largest
+    variance the same combinations of the raw measurements have (V_raw): a residual the fit
+    absorbs to within 1 % of its σ is not tested.  (None, 0) when none is left."""
+    ev, Q = np.linalg.eigh(0.5 * (V + V.T))
+    keep = ev > 1e-4 * max(float(np.linalg.eigvalsh(V_raw).max()), 1e-300)
+    k = int(keep.sum())
+    if k == 0:
+        return None, 0
+    z = Q[:, keep].T @ d
+    w = float(np.sum(z**2 / ev[keep]))
+    p = float(_chi2.sf(w, k))
+    return float(_norm.isf(max(p, 1e-300) / 2.0)), k
+
+
+def _validate(r: np.ndarray, U: np.ndarray, incl_rows: list, labels: list[str], chi2: float, dof: int,
+              mass_check: Check | None, offset_fitted: bool) -> CgValidation:
+    """The :class:`CgValidation` of a fit: normalised residuals r (n,), U (n, p) the left
+    singular vectors of the fit's Jacobian (so that the residuals' covariance under the model
+    is I − U Uᵀ, the linearised least-squares result), incl_rows: per state (row of elevation x,
+    row of elevation y, their σ (2,) rad) or empty without an inclinometer."""
+    checks = []
+    if dof > 0:
+        thr = float(_chi2.ppf(1 - CHI2_P_WARN, dof))
+        checks.append(Check("fit_chi2", chi2 / dof, thr / dof, bool(chi2 <= thr),
+                            f"χ²/dof {chi2 / dof:.2f} ({dof} dof), p = {_chi2.sf(chi2, dof):.2g}; threshold "
+                            f"{thr / dof:.2f} (p = {CHI2_P_WARN:g})"))
+    else:
+        checks.append(Check("fit_chi2", None, None, None, "no degrees of freedom: nothing to test"))
+    n = len(r)
+    cov_r = np.eye(n) - U @ U.T
+
+    def combo(weights: list[tuple[int, float]]) -> np.ndarray:
+        a = np.zeros(n)
+        for row, wgt in weights:
+            a[row] += wgt
+        return a
+
+    if incl_rows:
+        base = incl_rows[0]
+        A_t, A_l = [], []
+        for st in incl_rows[1:]:
+            for ax in range(2):
+                A_t.append(combo([(st[ax], st[2][ax]), (base[ax], -base[2][ax])]))
+        S = len(incl_rows)
+        for ax in range(2):
+            A_l.append(combo([(st[ax], st[2][ax] / S) for st in incl_rows]))
+        for name, A, what in (
+                ("tilt_change", np.array(A_t),
+                 "the inclinometer's change of elevation x, y from the baseline to the " + ", ".join(labels[1:])),
+                ("inclinometer_level", np.array(A_l), "the inclinometer's mean elevation x, y over the states")):
+            d = A @ r
+            z, k = _wald_sigma(d, A @ cov_r @ A.T, A @ A.T)
+            V = A @ cov_r @ A.T
+            if name == "inclinometer_level" and offset_fitted:
+                z = None
+            if z is None:
+                checks.append(Check(name, None, None, None, f"{what}: not testable (the fit absorbs it: no redundancy"
+                                    + (", inclinometer offsets fitted"
+                                       if offset_fitted and name != "tilt_change" else "")
+                                    + ")"))
+                continue
+            text = ", ".join(f"{x * 1e6:+.1f}" for x in d) + " µrad"
+            sd = ", ".join(f"{math.sqrt(max(x, 0.0)) * 1e6:.1f}" for x in np.diag(V))
+            ok = z <= VALIDATION_SIGMA
+            why = ""
+            if not ok and name == "tilt_change":
+                why = ("; the body tilts more (or less) under the dummy mass than a rigid body with the fitted CG on "
+                       "these cables: a compliant body (a vehicle on an unlocked suspension, its sprung mass shifting "
+                       "as the frame tilts; or an inclinometer on the sprung body), a load that shifted or an "
+                       "inclinometer that moved between the recordings -- lock the suspension (or fix the load) and "
+                       "record both states again")
+            if not ok and name == "inclinometer_level":
+                why = ("; the inclinometer's zero or mounting (rig.yaml inclinometer.rpy) disagrees with the pose the "
+                       "cables and load cells give, or the geometry is off beyond its σ: check inclinometer.rpy, "
+                       "or fit its offsets (--fit-inclinometer-offset)")
+            checks.append(Check(name, z, VALIDATION_SIGMA, bool(ok),
+                                f"{what} differs from the rigid-body equilibrium's by {text} (σ of the difference "
+                                f"{sd} µrad): {z:.1f} σ ({k} dof), threshold {VALIDATION_SIGMA:g} σ{why}"))
+    else:
+        for name in ("tilt_change", "inclinometer_level"):
+            checks.append(Check(name, None, None, None, "no inclinometer in the fit"))
+    if mass_check is not None:
+        checks.append(mass_check)
+    bad = any(c.passed is False and c.name in CG_MODEL_CHECKS for c in checks)
+    return CgValidation("model_error" if bad else "ok", tuple(checks))
 
 
 def _weakness(cc: np.ndarray, rig: Rig, solved, have_e: bool) -> dict:
@@ -1079,7 +1452,6 @@ def static_equilibrium(rig: Rig, mass: float, cg, added: Sequence[DummyMass] = (
     Returns (R (3, 3) body -> world, p (3,) world m of the body origin, T (N,) N).
     Raises :class:`StaticsError` if no equilibrium with taut cables exists.
     """
-    from .simulator import CableModel, SimulationError, equilibrium
     k = rig.cable_stiffness
     known = np.isfinite(k)
     cu = DEFAULT_COMPLIANCE if compliance is None else compliance
@@ -1164,7 +1536,9 @@ def predict_cg_std(rig: Rig, cg, dummy: DummyMass, duration: float, noise: Senso
     guess), the rig's mass and the dummy mass ``dummy`` (mass kg, position body m), each
     averaged for ``duration`` s with the sensor ``noise``; the estimator's covariance at
     these noise-free means is the CG covariance the test will have (``center_of_gravity_std``
-    (3,) m).  Raises :class:`StaticsError` (no equilibrium, slack cable, ineffective dummy).
+    (3,) m, with the geometry σ of ``options`` -- by default the 1 mm survey; the noise alone:
+    ``center_of_gravity_std_noise``).  Raises :class:`StaticsError` (no equilibrium, slack
+    cable, ineffective dummy).
     """
     noise = noise or SensorNoise()
     opts = options or CgOptions()
@@ -1178,8 +1552,9 @@ def predict_cg_std(rig: Rig, cg, dummy: DummyMass, duration: float, noise: Senso
 @dataclass
 class CgPlan:
     """A planned static test: dummy mass kg, position (3,) body m, averaging time s per
-    state, predicted CG σ (3,) m, the tilt change it causes rad and the lowest cable
-    tension N over both states."""
+    state, predicted CG σ (3,) m, the tilt change it causes rad, the lowest cable
+    tension N over both states, whether it reaches the target, and ``floor``: the CG σ (3,) m
+    no averaging time goes below (the systematic inputs' share: geometry σ of :class:`CgOptions`)."""
 
     dummy: DummyMass
     duration: float
@@ -1187,10 +1562,12 @@ class CgPlan:
     tilt_change: float
     min_tension: float
     reaches_target: bool
+    floor: np.ndarray | None = None
 
     def to_dict(self) -> dict:
         return {"dummy_mass": float(self.dummy.mass), "dummy_position": [float(x) for x in self.dummy.position],
                 "duration": float(self.duration), "center_of_gravity_std": [float(x) for x in self.std],
+                "center_of_gravity_std_floor": None if self.floor is None else [float(x) for x in self.floor],
                 "half_width_95": [float(1.96 * x) for x in self.std], "tilt_change_rad": float(self.tilt_change),
                 "min_tension": float(self.min_tension), "reaches_target": bool(self.reaches_target)}
 
@@ -1257,21 +1634,23 @@ def plan_static_test(rig: Rig, cg_guess, masses: Sequence[float] = (25.0, 50.0, 
             else:
                 need = float(np.max(a / (s2 - bb)))
             dur = max(10.0, 5.0 * math.ceil(min(need, 1e9) / 5.0 - 1e-9))
+            floor = np.sqrt(bb)
             if dur > max_duration:
                 r = predict_cg_std(rig, cg_guess, dm, max_duration, noise, options)
-                plans.append(CgPlan(dm, max_duration, r.center_of_gravity_std, tilt, tmin, False))
+                plans.append(CgPlan(dm, max_duration, r.center_of_gravity_std, tilt, tmin, False, floor))
                 continue
             r = r10 if dur == 10.0 else predict_cg_std(rig, cg_guess, dm, dur, noise, options)
             while np.any(1.96 * r.center_of_gravity_std > target) and dur + 5.0 <= max_duration:
                 dur += 5.0
                 r = predict_cg_std(rig, cg_guess, dm, dur, noise, options)
             ok = bool(np.all(1.96 * r.center_of_gravity_std <= target))
-            plans.append(CgPlan(dm, dur, r.center_of_gravity_std, tilt, tmin, ok))
+            plans.append(CgPlan(dm, dur, r.center_of_gravity_std, tilt, tmin, ok, floor))
     feasible = [p for p in plans if p.reaches_target]
     best = min(feasible, key=lambda p: (p.duration, p.dummy.mass, float(p.std.max()))) if feasible else None
     return best, plans
 
 
-__all__ = ["CgOptions", "CgPlan", "CgResult", "SensorNoise", "StatePose", "StaticState", "StaticsError",
-           "StreamStats", "candidate_positions", "estimate_cg", "plan_static_test", "predict_cg_std",
-           "static_equilibrium"]
+__all__ = ["CG_MODEL_CHECKS", "CG_RESULT_SCHEMA", "CG_RESULT_SCHEMA_VERSION", "CG_RESULT_UNITS", "CG_VERDICTS",
+           "DEFAULT_ANCHOR_STD", "DEFAULT_DUMMY_POSITION_STD", "DEFAULT_LENGTH_STD", "VALIDATION_SIGMA", "CgOptions", "CgPlan", "CgResult", "CgValidation", "SensorNoise", "StatePose", "StaticState",
+           "StaticsError", "StreamStats", "candidate_positions", "estimate_cg", "plan_static_test",
+           "predict_cg_std", "static_equilibrium"]

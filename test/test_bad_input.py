@@ -38,9 +38,10 @@ def base_result(base):
 
 def run(path, *extra, quick=True):
     # --quick: these tests are about what bad input does to the replay and the fit; the
-    # uncertainty refinement re-runs the same replay (test_refined_run_on_bad_input)
-    p = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(path), "--json", *extra,
-                        *(["--quick"] if quick else [])],
+    # uncertainty refinement re-runs the same replay (test_refined_run_on_bad_input).
+    # --quiet: stderr holds the warnings and the error only (no progress lines)
+    p = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(path), "--json", "--quiet",
+                        *extra, *(["--quick"] if quick else [])],
                        capture_output=True, text=True, cwd=REPO, timeout=120)
     assert "Traceback" not in p.stderr, p.stderr
     out = json.loads(p.stdout) if p.returncode == 0 else None
@@ -234,7 +235,8 @@ def test_gap_excluded(sim, tmp_path, topic):
     assert rc == 0, err
     name = "/rig/imu" if topic == "imu" else f"/rig/load_cells/{topic}"
     assert any(name in w and "gap" in w and "excluded" in w for w in out["warnings"]), out["warnings"]
-    assert out["window"]["start"] - sim.sensors.imu.t[0] > 5.9
+    assert out["window"]["start"] > 5.9   # s from the first IMU sample (as --start takes it)
+    assert out["window"]["start_stamp"] - sim.sensors.imu.t[0] == pytest.approx(out["window"]["start"])
     assert_good(out, sim.truth)
 
 
@@ -271,7 +273,8 @@ def test_refined_run_on_bad_input(sim, tmp_path):
         s.imu = type(s.imu)(s.imu.t[keep], s.imu.data[keep])
     rc, out, err = run(make(sim, tmp_path, bad), quick=False)
     assert rc == 0, err
-    assert out["uncertainty"] == "propagated sensor noise" and out["bias_correction"] is not None
+    assert out["uncertainty"].startswith("propagated sensor noise") and out["bias_correction"] is not None
+    assert out["validation"]["verdict"] == "ok", out["validation"]["summary"]
     assert any("gap" in w for w in out["warnings"]) and out["window"]["end"] - out["window"]["start"] < 28
     assert_good(out, sim.truth)
 
@@ -361,4 +364,30 @@ def test_static_recording(sim, tmp_path):
     rec = write_recording(tmp_path / "static", sim.rig, st.sensors, st.truth)  # sim.rig: with the CG
     rc, _, err = run(rec)
     assert rc == 2
-    assert "hardly moved" in err
+    assert "did not move" in err and "static recording" in err
+
+
+def test_missing_paths_are_named_at_once(tmp_path):
+    """A path that does not exist is refused first, naming it: exit 2, one line, before any bag is
+    read or any heavy module loaded (the other recording given is not even read)."""
+    missing = tmp_path / "no_such_recording"
+    ref = REPO.parent / "shared" / "recordings" / "visible_case16_clean"
+    cases = [["inertia", str(missing)], ["inertia", str(ref), str(missing)], ["diagnose", str(missing)],
+             ["modes", str(missing)], ["plan", str(missing), "--inertia", "1", "1", "1", "0", "0", "0"],
+             ["inertia", str(ref), "--yaml", str(missing / "out.yaml")],
+             ["inertia", str(ref), "--cg", str(tmp_path / "cg.json")],
+             ["cg", str(missing), str(ref)]]    # last: its parser (cg_cli) loads scipy
+    code = ("import json, sys\nfrom rig_identification.cli import identify_main\n"
+            f"codes = [identify_main(a) for a in {cases[:-1]!r}]\n"
+            "heavy = sorted(m for m in sys.modules if m.split('.')[0] in ('scipy', 'rosbags', 'matplotlib'))\n"
+            f"codes.append(identify_main({cases[-1]!r}))\n"
+            "print(json.dumps({'codes': codes, 'heavy': heavy}))")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=REPO, timeout=60)
+    assert "Traceback" not in p.stderr, p.stderr
+    res = json.loads(p.stdout)
+    assert res["codes"] == [2] * len(cases) and res["heavy"] == [], res
+    lines = p.stderr.splitlines()
+    assert len(lines) == len(cases) and all(ln.startswith("rig-identify: error: ") for ln in lines), lines
+    for ln, what in zip(lines, [missing] * 5 + [missing / "out.yaml", tmp_path / "cg.json", missing]):
+        assert str(what) in ln, ln
+    assert "no such file or directory" in lines[0] and "cannot write it" in lines[5]

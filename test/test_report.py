@@ -1,27 +1,69 @@
-"""HTML report of an identification (issue 7): ``rig-identify inertia REC --report DIR``.
+"""HTML report of an identification (issue 7, and "a report an engineer signs"):
+``rig-identify inertia REC --report DIR``.
 
-The page is rendered in headless Chromium (Debian's ``chromium``, installed by ``make setup``
-when run as root): every figure loads; its numbers are checked against the reference
-recording's truth.  The folder is written atomically and never replaces a foreign folder.
+The pages are rendered in headless Chromium (Debian's ``chromium``, installed by ``make setup``
+when run as root) and checked there, on what a reader sees: every figure loads, no ``nan`` or
+``inf`` anywhere in the text, the validation verdict comes before the tensor, an entry the
+recording does not determine reads "not determined", the model-error sections render (named
+effects; or where the mismatch is and the hypotheses, labelled as such).  One page comes from a
+real identification of a reference recording (its numbers checked against the truth); the
+others from one small in-memory fit dressed with each verdict (no simulation).  The folder is
+written atomically and never replaces a foreign folder.
 """
+import copy
 import html
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from rig_identification import report
 from rig_identification.cli import identify_main
-from rig_identification.identification import KEYS, identify_inertia
+from rig_identification.identification import KEYS, InertiaResult, identify_inertia
+from rig_identification.report_verdict import headline
+from rig_identification.verdict import Check, Validation
 
 from conftest import recording
 from test_identification import RIG, euler_data
 
 CHROMIUM = os.environ.get("RIG_CHROMIUM", "/usr/bin/chromium")
+SYMBOL = {"ixx": "Ixx", "iyy": "Iyy", "izz": "Izz", "ixy": "Ixy", "ixz": "Ixz", "iyz": "Iyz"}
+
+# run in the page after it loaded: what the reader sees, as JSON in <pre id="render-check">
+CHECK_JS = r"""
+window.addEventListener('load', function () {
+  var imgs = Array.prototype.slice.call(document.images);
+  var text = document.body.innerText;
+  var verdict = document.getElementById('verdict'), tensor = document.getElementById('tensor-table');
+  function rows(id) {
+    var t = document.getElementById(id);
+    if (!t) return null;
+    return Array.prototype.map.call(t.querySelectorAll('tbody tr'), function (tr) {
+      return Array.prototype.map.call(tr.cells, function (c) { return c.innerText.trim(); });
+    });
+  }
+  var out = {
+    images: imgs.length,
+    loaded: imgs.filter(function (i) { return i.complete && i.naturalWidth > 0; }).length,
+    bad_words: text.match(/\b(nan|inf|infinity)\b/gi) || [],
+    verdict: verdict ? verdict.innerText : null,
+    verdict_before_tensor: !!(verdict && tensor &&
+                              (verdict.compareDocumentPosition(tensor) & Node.DOCUMENT_POSITION_FOLLOWING)),
+    ids: Array.prototype.map.call(document.querySelectorAll('[id]'), function (e) { return e.id; }),
+    tensor: rows('tensor-table'), checks: rows('checks-table'), text: text
+  };
+  var pre = document.createElement('pre');
+  pre.id = 'render-check';
+  pre.textContent = JSON.stringify(out);
+  document.body.appendChild(pre);
+});
+"""
 
 
 def chromium(args: list[str], profile: Path) -> subprocess.CompletedProcess:
@@ -34,42 +76,161 @@ def chromium(args: list[str], profile: Path) -> subprocess.CompletedProcess:
     return subprocess.run(cmd, capture_output=True, text=True, timeout=120)
 
 
-def cli(*args) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", *map(str, args)],
-                          capture_output=True, text=True, timeout=300)
-
-
-@pytest.fixture(scope="module")
-def made(tmp_path_factory):
-    out = tmp_path_factory.mktemp("report") / "case16"
-    run = cli(recording("visible_case16_clean"), "--json", "--report", out)
-    assert run.returncode == 0, run.stderr
-    assert f"report: {out / 'index.html'}" in run.stderr
-    return out, json.loads(run.stdout)
-
-
-def test_report_renders_with_all_images(made, tmp_path):
-    out, _ = made
-    index = out / "index.html"
-    page = index.read_text()
-    srcs = re.findall(r'<img src="([^"]+)"', page)
-    # the ellipses, and per recording the fit and the residuals; relative links to files in the folder
-    assert sorted(srcs) == sorted(p.name for p in out.glob("*.png")) and len(srcs) == 3
-    dom = chromium(["--dump-dom", index.as_uri()], tmp_path / "profile")
+def render(out: Path, work: Path) -> dict:
+    """Render ``out/index.html`` in headless Chromium: the page's own check (:data:`CHECK_JS`,
+    injected into a copy outside the report folder whose <base> points at it) and a screenshot
+    (1200 × 2400 px, ``work/<name>.png``) that is not a blank page."""
+    work.mkdir(parents=True, exist_ok=True)
+    page = (out / "index.html").read_text()
+    probe = work / f"{out.name}_check.html"
+    probe.write_text(page.replace("<head>", f'<head><base href="{out.as_uri()}/"><script>{CHECK_JS}</script>', 1))
+    dom = chromium(["--dump-dom", probe.as_uri()], work / "profile")
     assert dom.returncode == 0, dom.stderr[-2000:]
-    m = re.search(r'<body[^>]*data-images-loaded="(\d+)"[^>]*data-images-total="(\d+)"', dom.stdout)
-    assert m, "the page's load check did not run: " + dom.stdout[:500]
-    loaded, total = map(int, m.groups())
-    assert total == len(srcs) and loaded == total, (loaded, total)
-    # and it draws something: a screenshot that is not a blank page
-    shot = tmp_path / "shot.png"
-    run = chromium([f"--screenshot={shot}", "--window-size=1200,2400", "--hide-scrollbars", index.as_uri()],
-                   tmp_path / "profile")
+    m = re.search(r'<pre id="render-check">(.*?)</pre>', dom.stdout, re.S)
+    assert m, "the page's check did not run: " + dom.stdout[:500]
+    seen = json.loads(html.unescape(m.group(1)))
+    shot = work / f"{out.name}.png"
+    run = chromium([f"--screenshot={shot}", "--window-size=1200,2400", "--hide-scrollbars", (out / "index.html")
+                    .as_uri()], work / "profile")
     assert run.returncode == 0 and shot.is_file(), run.stderr[-2000:]
     import matplotlib.image
     img = matplotlib.image.imread(shot)
     assert img.shape[:2] == (2400, 1200)
     assert (img[..., :3] < 0.5).mean() > 0.01  # text, tables and plot lines on a white page
+    return seen
+
+
+def assert_readable(out: Path, seen: dict, result: InertiaResult | None = None) -> None:
+    """What every page must be: every figure loaded, no nan/inf text, the verdict first, a
+    report.json without NaN holding the numbers of the page's tensor table."""
+    srcs = re.findall(r'<img src="([^"]+)"', (out / "index.html").read_text())
+    assert sorted(srcs) == sorted(p.name for p in out.glob("*.png"))
+    assert seen["images"] == len(srcs) and seen["loaded"] == seen["images"], seen
+    assert seen["bad_words"] == [], seen["bad_words"]
+    assert seen["verdict_before_tensor"], seen["ids"]
+    assert "figures loaded" not in seen["text"] and "loading" not in seen["text"]
+
+    def refuse(x):
+        raise ValueError(f"report.json holds {x}")
+    data = json.loads((out / "report.json").read_text(), parse_constant=refuse)
+    mp = data["mass_properties"]
+    for row in seen["tensor"]:
+        sym = row[0].split()[0]
+        value = mp["about_cg"][sym]
+        assert row[1] == ("not determined" if value is None else f"{value:.2f}"), (row, value)
+    if result is not None and result.validation is not None:
+        assert headline(result.validation) in seen["verdict"]
+
+
+@pytest.fixture(scope="module")
+def made(tmp_path_factory):
+    out = tmp_path_factory.mktemp("report") / "case16"
+    run = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia",
+                          str(recording("visible_case16_clean")), "--json", "--report", str(out)],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    assert f"report: {out / 'index.html'}" in run.stderr
+    return out, json.loads(run.stdout)
+
+
+@pytest.fixture(scope="module")
+def fitted():
+    """One small fit of Euler's equations (30 s, 100 Hz): the in-memory pages' base."""
+    t, w, M = euler_data(noise=0.002, T=30.0, fs=100.0)
+    return identify_inertia(RIG, t, w, M, band_hz=(0.5, 5.0))
+
+
+RIGID = {"inertia_about_cg": {"ixx": 905.0, "ixy": -14.0, "ixz": 38.0, "iyy": 2490.0, "iyz": 27.0, "izz": 2870.0},
+         "inertia_std": {k: 30.0 for k in KEYS}, "uncertainty": "sandwich (model error)", "validation": "model_error"}
+
+
+def not_identifiable(res: InertiaResult) -> InertiaResult:
+    """The fit with verdict not_identifiable: Ixx and the products with x undetermined (their σ
+    not finite, as a failed fit leaves them)."""
+    r = copy.deepcopy(res)
+    r.inertia_std = r.inertia_std.copy()
+    r.inertia_std[[0, 1, 2]] = [np.nan, np.inf, np.nan]
+    r.validation = Validation("not_identifiable", (
+        Check("residual_level", 1.1, 1.6, True, "the fit's residual is 1.10× what the sensors' noise explains"),
+        Check("segments", None, None, None, "does not apply"),
+        Check("identifiable", 0.42, 0.1, False, "largest relative σ ixx 42 % (limit 10 %)")),
+        undetermined=("ixx", "ixy", "ixz"),
+        advice=("the body hardly turned about x: move the exciter farther from that axis",))
+    return r
+
+
+def model_error_unexplained(res: InertiaResult) -> InertiaResult:
+    """The fit with verdict model_error, and a diagnosis that named nothing."""
+    r = copy.deepcopy(res)
+    r.validation = Validation("model_error", (
+        Check("residual_level", 4.2, 1.6, False, "the fit's residual is 4.20× what the sensors' noise explains"),
+        Check("sub_bands", 25.0, 7.5, False, "izz 2790 below vs 2850 kg·m² above")), failed=("residual_level",
+                                                                                          "sub_bands"))
+    r.rigid_body = RIGID
+    r.diagnosis = {
+        "effects": [], "handled": "not: with structural_mode the fit still fails its validation (sub_bands)",
+        "hypotheses": [{"name": "structural_mode", "parameters": {"sensor": "imu", "frequency": 1.6,
+                                                                   "damping_ratio": 0.2},
+                        "parameters_std": {"frequency": 0.02, "damping_ratio": float("nan")},
+                        "evidence": {"likelihood_ratio": 88.2, "dof": 3, "p_value": 1e-12}, "plausible": False,
+                        "implausible": "frequency = 1.6 outside 5…20"}],
+        "unexplained": [{"channel": "gyro_y", "band_hz": [1.55, 1.65], "time_s": [0.0, 30.0], "size": 37.5,
+                         "is": "unexplained (no rigid-body mode or forcing harmonic)"},
+                        {"channel": "torque_x", "band_hz": None, "time_s": [9.0, 12.0], "size": 12.3,
+                         "is": "a coloured residual (not white)"}]}
+    return r
+
+
+def diagnosed(res: InertiaResult) -> InertiaResult:
+    """The fit as diagnosis leaves it when it named an effect: verdict ok, the effect's
+    parameters, the rigid-body fit beside, no propagated-noise σ."""
+    r = copy.deepcopy(res)
+    r.crb_std = None
+    r.validation = Validation("ok", (Check("residual_level", 1.1, 1.6, True, "1.10× the noise"),))
+    r.rigid_body = RIGID
+    r.diagnosis = {"effects": [{"name": "viscous_damping", "parameters": {"angular": 300.47, "linear": 145.01},
+                                "parameters_std": {"angular": 1.469, "linear": 3.50},
+                                "evidence": {"likelihood_ratio": 1216.3, "dof": 2, "p_value": 7.7e-265},
+                                "plausible": True}],
+                   "hypotheses": [], "unexplained": [], "handled": "added to the model"}
+    return r
+
+
+def failed_fit() -> InertiaResult:
+    """A fit that could not be made at all (pipeline.unidentified): every number NaN, no series."""
+    nan = np.full(6, np.nan)
+    r = InertiaResult(RIG.mass, RIG.require_cg().copy(), np.full((3, 3), np.nan), nan, np.full((6, 6), np.nan),
+                      0.0, 30.0, 3000, (np.nan, np.nan), np.full(3, np.nan), np.full(3, np.nan),
+                      warnings=["the fit's normal equations are singular"])
+    r.validation = Validation("not_identifiable", (Check("identifiable", None, 0.1, False, "non-finite numbers"),),
+                              undetermined=tuple(KEYS), advice=("splay the ceiling anchors outward",))
+    return r
+
+
+@pytest.fixture(scope="module")
+def pages(fitted, tmp_path_factory):
+    """The in-memory pages: {name: (folder, result, what Chromium saw)}."""
+    base = tmp_path_factory.mktemp("pages")
+    out = {}
+    for name, res in (("not_identifiable", not_identifiable(fitted)), ("model_error", model_error_unexplained(fitted)),
+                      ("diagnosed", diagnosed(fitted)), ("failed", failed_fit())):
+        folder = base / name
+        report.write_report(folder, res, [], modes=False, rig=RIG)
+        out[name] = (folder, res, render(folder, base / "render"))
+    return out
+
+
+def test_report_renders_with_all_images(made, tmp_path):
+    out, _ = made
+    seen = render(out, tmp_path)
+    assert_readable(out, seen)
+    # the principal axes, the ellipses, and per recording the fit and the residuals
+    assert len(seen["tensor"]) == 6 and seen["images"] == 4
+    assert seen["verdict"].startswith("verdict: ok")
+    assert [r[0] for r in seen["checks"]][:2] == ["residual_level", "segments"]
+    for word in ("REP-103", "SAE J670", "rig_identification 0.1.0", "visible_case16_clean", "rig.yaml",
+                 "Principal moments and axes"):
+        assert word in seen["text"], word
 
 
 def test_report_numbers(made):
@@ -79,6 +240,17 @@ def test_report_numbers(made):
     assert data["result"]["inertia_about_cg"] == result["inertia_about_cg"]
     for k in KEYS:
         assert abs(result["inertia_about_cg"][k] - truth[k]) < 0.01 * 3101.0, k
+    # the page's products carry the vehicle-dynamics sign: the negated off-diagonal entries
+    mp = data["mass_properties"]
+    for k in KEYS:
+        sign = -1.0 if k in ("ixy", "ixz", "iyz") else 1.0
+        assert mp["about_cg"][SYMBOL[k]] == pytest.approx(sign * result["inertia_about_cg"][k], abs=1e-9)
+        assert mp["about_origin"][SYMBOL[k]] == pytest.approx(mp["about_cg"][SYMBOL[k]], abs=1e-6)  # CG at origin
+    assert mp["errors_against_truth"]["Iyz"]["truth"] == 102.0
+    # principal moments: the tensor's eigenvalues, ascending (their sum is the trace)
+    p = mp["principal_moments"]
+    assert p == sorted(p) and sum(p) == pytest.approx(mp["about_cg"]["Ixx"] + mp["about_cg"]["Iyy"]
+                                                      + mp["about_cg"]["Izz"], rel=1e-9)
     page = (out / "index.html").read_text()
     assert "2894.00" in page and "error / σ" in page        # the truth column of the tensor table
     ident = data["identifiability"]
@@ -103,19 +275,64 @@ def test_report_numbers(made):
     assert abs(modes["exciter_frequency_hz"] - 1.05) < 1e-3
 
 
-def test_report_folder_is_atomic(tmp_path, monkeypatch):
-    t, w, M = euler_data(noise=0.002, T=30.0, fs=100.0)
-    res = identify_inertia(RIG, t, w, M, band_hz=(0.5, 5.0))
+def test_not_identifiable_entries_read_not_determined(pages):
+    out, res, seen = pages["not_identifiable"]
+    assert_readable(out, seen, res)
+    rows = {r[0].split()[0]: r for r in seen["tensor"]}
+    for k in res.validation.undetermined:
+        assert rows[SYMBOL[k]][1] == "not determined", rows[SYMBOL[k]]
+        assert not re.search(r"\d", " ".join(rows[SYMBOL[k]][1:])), rows[SYMBOL[k]]   # no number in the row
+    assert rows["Iyy"][1] == f"{res.inertia[1, 1]:.2f}"
+    assert "What to change" in seen["verdict"] and res.validation.advice[0] in seen["verdict"]
+    assert "Principal moments and axes: not determined" in seen["text"]
+    data = json.loads((out / "report.json").read_text())
+    assert data["result"]["inertia_about_cg"]["ixx"] is None and data["mass_properties"]["about_cg"]["Ixx"] is None
+    assert data["mass_properties"]["principal_moments"] is None
+    # a fit that could not be made at all: a page that says so, every entry not determined
+    out, res, seen = pages["failed"]
+    assert_readable(out, seen, res)
+    assert [r[1] for r in seen["tensor"]] == ["not determined"] * 6
+    assert "No fit output" in seen["text"]
+
+
+def test_model_error_shows_where_and_hypotheses(pages):
+    out, res, seen = pages["model_error"]
+    assert_readable(out, seen, res)
+    assert "not trustworthy" in seen["verdict"] and "widened" in seen["verdict"]
+    assert [r[4] for r in seen["checks"]] == ["FAIL", "FAIL"]
+    ids = seen["ids"]
+    assert ids.index("unexplained-table") < ids.index("hypotheses-table")
+    text = seen["text"]
+    assert "Hypotheses — not findings" in text and "Model error: not explained" in text
+    assert "gyro_y" in text and "1.55–1.65" in text and "RMS 12.3 N·m" in text
+    assert "frequency = 1.600 ± 0.020 Hz" in text and "not plausible" in text
+    assert "what diagnosis found" not in text
+
+
+def test_diagnosed_effects_are_findings(pages):
+    out, res, seen = pages["diagnosed"]
+    assert_readable(out, seen, res)
+    assert "Diagnosis found viscous damping" in seen["verdict"]
+    assert {"effects-table", "rigid-body-table"} <= set(seen["ids"]) and "hypotheses-table" not in seen["ids"]
+    text = seen["text"]
+    assert "angular = 300.5 ± 1.5 N·m·s/rad" in text and "linear = 145.0 ± 3.5 N·s/m" in text
+    assert "passed its validation" in text
+    # no propagated-noise σ for this fit: its column is left out, not filled with nan
+    assert len(seen["tensor"][0]) == 5 and "σ propagated" not in text
+
+
+def test_report_folder_is_atomic(pages, fitted, tmp_path, monkeypatch):
     out = tmp_path / "rep"
-    report.write_report(out, res, [], modes=False)
+    shutil.copytree(pages["diagnosed"][0], out)         # an earlier report
     before = {p.name: p.read_bytes() for p in out.iterdir()}
-    assert {"index.html", "report.json", "ellipses.png", "fit_1.png", "residuals_1.png"} <= set(before)
+    assert {"index.html", "report.json", "ellipses.png", "principal_axes.png", "fit_1.png",
+            "residuals_1.png"} <= set(before)
 
     def boom(*a, **k):
         raise RuntimeError("disk full")
-    monkeypatch.setattr(report, "_residual_figure", boom)
+    monkeypatch.setattr(report, "ellipsoid_figure", boom)
     with pytest.raises(RuntimeError):
-        report.write_report(out, res, [], modes=False)
+        report.write_report(out, fitted, [], modes=False)
     # the earlier report is untouched, and no half-written folder is left beside it
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert [p.name for p in tmp_path.iterdir()] == ["rep"]

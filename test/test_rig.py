@@ -1,13 +1,15 @@
 """rig.yaml loader: the reference recordings load; wrong or missing fields name the field."""
 import copy
+from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
 from rig_identification.rig import RigError, dump_rig, load_rig, rig_from_dict
+from rig_identification.simulator import load_experiment
 
-from conftest import recording
+from conftest import REPO, recording
 
 
 @pytest.fixture
@@ -67,3 +69,76 @@ def test_unreadable_file(tmp_path):
     (tmp_path / "bad.yaml").write_text("cables: [\n")
     with pytest.raises(RigError, match="not valid YAML"):
         load_rig(tmp_path / "bad.yaml")
+
+
+# --- fields rig.yaml does not have, geometry no rig can have ---------------------------------------
+
+@pytest.mark.parametrize("mutate, message", [
+    (lambda d: d["body"].__setitem__("centre_of_gravity", [0, 0, 0]),
+     "unknown field body.centre_of_gravity (did you mean body.center_of_gravity?)"),
+    (lambda d: d.__setitem__("cable", d.pop("cables")), "unknown field cable (did you mean cables?)"),
+    (lambda d: d["cables"][2].__setitem__("lenght", d["cables"][2].pop("length")),
+     "unknown field cables[2].lenght (did you mean cables[2].length?)"),
+    (lambda d: d["imu"].__setitem__("frame_id", "imu"), "unknown field imu.frame_id (known: position, rpy)"),
+    (lambda d: d["inclinometer"].__setitem__("position", [0, 0, 0]),
+     "unknown field inclinometer.position (an inclinometer's reading does not depend on where it sits"),
+    (lambda d: d.__setitem__("dummy_mass", {"mass": 50.0, "positon": [0, 0, 0]}),
+     "unknown field dummy_mass.positon (did you mean dummy_mass.position?)"),
+    (lambda d: d.__setitem__("gravity", float("nan")), "field gravity must be finite"),
+    (lambda d: d["cables"][1].__setitem__("ceiling_anchor", [4.0, float("inf"), 0.0]),
+     "field cables[1].ceiling_anchor[1] must be finite"),
+    (lambda d: d.__setitem__("dummy_mass", {"mass": 0.0, "position": [0, 0, 0]}), "field dummy_mass.mass must be > 0"),
+    (lambda d: d["body"].__setitem__("mass", 0), "field body.mass must be > 0"),
+])
+def test_unknown_or_impossible_field_is_named(rig_dict, mutate, message):
+    d = copy.deepcopy(rig_dict)
+    mutate(d)
+    with pytest.raises(RigError) as e:
+        rig_from_dict(d, "my_rig.yaml")
+    assert str(e.value).startswith("my_rig.yaml: ") and message in str(e.value), str(e.value)
+
+
+def test_ceiling_anchor_in_millimetres_is_refused(rig_dict):
+    d = copy.deepcopy(rig_dict)
+    d["cables"][1]["ceiling_anchor"] = [4000.0, 0.0, 0.0]          # mm, the others in m
+    with pytest.raises(RigError) as e:
+        rig_from_dict(d, "my_rig.yaml")
+    msg = str(e.value)
+    assert "cables c0 and c1 cannot both be taut" in msg and "cables[0], cables[1]" in msg and "units" in msg
+    assert "their ceiling anchors' distance is 4000 m" in msg
+
+
+def test_cable_length_in_millimetres_is_refused(rig_dict):
+    d = copy.deepcopy(rig_dict)
+    d["cables"][3]["length"] *= 1000.0
+    with pytest.raises(RigError) as e:
+        rig_from_dict(d, "my_rig.yaml")
+    assert "cable c3's length is 2515 m" in str(e.value) and "cables[0], cables[3]" in str(e.value)
+
+
+def test_reach_is_the_polygon_inequality(rig_dict):
+    """A cable cannot be taut while longer than the way round through another taut cable:
+    L0 <= |A0 - Aj| + Lj + |B0 - Bj| for every j (+2 % for the stretch)."""
+    rig = rig_from_dict(copy.deepcopy(rig_dict))
+    c0 = rig.cables[0]
+    longest = min(np.linalg.norm(c0.ceiling_anchor - c.ceiling_anchor) + c.length
+                  + np.linalg.norm(c0.body_anchor - c.body_anchor) for c in rig.cables[1:])
+    for factor, ok in ((1.01, True), (1.03, False)):
+        d = copy.deepcopy(rig_dict)
+        d["cables"][0]["length"] = factor * longest
+        if ok:
+            rig_from_dict(d)                      # at the limit, stretched: still a rig
+        else:
+            with pytest.raises(RigError, match="cable c0's length is .* cannot|cannot both be taut"):
+                rig_from_dict(d)
+
+
+def test_every_rig_of_the_repository_loads():
+    """The reference recordings' rig.yaml and every experiment file's rig section still load."""
+    rigs = sorted(Path(recording("visible_case16_clean")).parent.glob("**/rig.yaml"))
+    experiments = sorted((REPO / "config" / "cases").glob("*.yaml")) + sorted((REPO / "config" / "rigs").glob("*.yaml"))
+    assert len(rigs) >= 5 and len(experiments) >= 19
+    for p in rigs:
+        assert len(load_rig(p).cables) >= 3
+    for p in experiments:
+        assert load_experiment(p).rig.mass > 0

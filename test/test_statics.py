@@ -74,9 +74,15 @@ def test_table21_noise_free_within_0p1_mm(table21, use_load_cells):
 
 def test_reference_pair_within_bounds(reference_pair):
     b, d = reference_pair
-    res = estimate_cg(b.rig, StaticState.from_recording(b, label="baseline"),
-                      StaticState.from_recording(d, label="dummy"))
+    sb, sd = StaticState.from_recording(b, label="baseline"), StaticState.from_recording(d, label="dummy")
     truth = np.array(b.truth["center_of_gravity"], float)      # for the check only
+    # the default: the rig's geometry as surveyed (1 mm) in σ
+    full = estimate_cg(b.rig, sb, sd)
+    assert np.all(np.abs(full.center_of_gravity - truth) < 3 * full.center_of_gravity_std)
+    assert full.validation.verdict == "ok" and not full.warnings
+    assert abs(full.cable_stiffness - 5e6) < 3 * full.cable_stiffness_std
+    # the measurement noise alone (geometry exact, as rig.yaml is for this simulated pair)
+    res = estimate_cg(b.rig, sb, sd, CgOptions.exact_geometry())
     err = res.center_of_gravity - truth
     assert np.all(np.abs(err[:2]) < 1e-3) and abs(err[2]) < 12e-3, err
     assert np.all(np.abs(err) < 3 * res.center_of_gravity_std), err / res.center_of_gravity_std
@@ -208,8 +214,12 @@ def test_contradictory_geometry_is_rejected(reference_pair):
     cables = list(b.rig.cables)
     cables[1] = replace(cables[1], length=cables[1].length + 0.05)      # 5 cm too long in rig.yaml
     rig = replace(b.rig, cables=tuple(cables))
+    sb, sd = StaticState.from_recording(b, label="baseline"), StaticState.from_recording(d, label="dummy")
     with pytest.raises(StaticsError, match="contradictory|outside"):
-        estimate_cg(rig, StaticState.from_recording(b, label="baseline"), StaticState.from_recording(d, label="dummy"))
+        estimate_cg(rig, sb, sd, CgOptions.exact_geometry())
+    # with the survey σ in the fit, the error names the input the data need moved (cable c1)
+    with pytest.raises(StaticsError, match="contradict rig.yaml's geometry: .* needs cable c1 length"):
+        estimate_cg(rig, sb, sd)
 
 
 def test_small_length_error_warns_and_length_std_absorbs_it(reference_pair):
@@ -218,9 +228,10 @@ def test_small_length_error_warns_and_length_std_absorbs_it(reference_pair):
     cables[0] = replace(cables[0], length=cables[0].length + 2e-4)      # 0.2 mm: within a tape's accuracy
     rig = replace(b.rig, cables=tuple(cables))
     sb, sd = StaticState.from_recording(b, label="baseline"), StaticState.from_recording(d, label="dummy")
-    res = estimate_cg(rig, sb, sd)
+    res = estimate_cg(rig, sb, sd, CgOptions.exact_geometry())
     assert any("fit the static model poorly" in w for w in res.warnings)
-    res = estimate_cg(rig, sb, sd, CgOptions(length_std=1e-3))
+    assert res.validation.verdict == "model_error" and "fit_chi2" in res.validation.failed
+    res = estimate_cg(rig, sb, sd, CgOptions.exact_geometry(length_std=1e-3))
     assert not res.warnings
     err = res.center_of_gravity - np.array(b.truth["center_of_gravity"], float)
     assert np.all(np.abs(err) < 3 * res.center_of_gravity_std), err / res.center_of_gravity_std
@@ -314,6 +325,16 @@ def test_equation_jacobian_matches_finite_differences(reference_pair):
             return model.equations(_expm(s * d[:3]) @ R, p + s * d[3:6], T + s * d[6:], gl, 40.0, w_add)
         num = (at(1) - at(-1)) / (2 * d[j])
         assert np.allclose(Fy[:, j], num, rtol=1e-5, atol=1e-8 * np.abs(Fy).max()), j
+    # the anchors' columns (fitted with their survey σ): ceiling anchors world, body anchors body frame
+    _, _, part = model.equations(R, p, T, gl, 40.0, w_add, jac=True)
+    for name, base, cols in (("A", rig.ceiling_anchors, part.A), ("B", rig.body_anchors, part.B)):
+        for k in range(base.size):
+            e = np.zeros(base.size)
+            e[k] = 1e-6
+            plus = replace(gl, **{name: base + e.reshape(-1, 3)})
+            minus = replace(gl, **{name: base - e.reshape(-1, 3)})
+            num = (model.equations(R, p, T, plus, 40.0, w_add) - model.equations(R, p, T, minus, 40.0, w_add)) / 2e-6
+            assert np.allclose(cols[:, k], num, rtol=1e-5, atol=1e-7 * np.abs(cols).max()), (name, k)
 
 
 def test_prediction_and_plan(reference_pair):
@@ -322,21 +343,31 @@ def test_prediction_and_plan(reference_pair):
     st = StaticState.from_recording(b, label="baseline")
     noise = SensorNoise.from_state(st)
     assert abs(noise.load_cell - 0.5) < 0.05 and abs(noise.rate_load_cells - 200) < 1
-    pred = predict_cg_std(rig, [0.0, 0.0, 0.0], rig.dummy_mass, 10.0, noise)
-    res = estimate_cg(rig, st, StaticState.from_recording(d, label="dummy"))
-    assert np.allclose(pred.center_of_gravity_std, res.center_of_gravity_std, rtol=0.2)
+    exact = CgOptions.exact_geometry()
+    sd = StaticState.from_recording(d, label="dummy")
+    for opts in (exact, CgOptions()):           # noise alone, and with the geometry as surveyed
+        pred = predict_cg_std(rig, [0.0, 0.0, 0.0], rig.dummy_mass, 10.0, noise, opts)
+        res = estimate_cg(rig, st, sd, opts)
+        assert np.allclose(pred.center_of_gravity_std, res.center_of_gravity_std, rtol=0.2)
     best, plans = plan_static_test(rig, [0.0, 0.0, 0.0], masses=(25.0, 50.0), positions=rig.body_anchors[:2],
-                                   noise=noise)
+                                   noise=noise, options=exact)
     assert best is not None and np.all(1.96 * best.std <= 2.5e-3) and best.duration == 10.0
     # a 1 mm tolerance on the dummy's position dominates the CG height: 50 kg at (0.5, 0.5, 0.3) misses ±2.5 mm
-    tol = predict_cg_std(rig, [0.0, 0.0, 0.0], rig.dummy_mass, 10.0, noise, CgOptions(dummy_position_std=1e-3))
-    assert 1.96 * tol.center_of_gravity_std[2] > 2.5e-3 > 1.96 * pred.center_of_gravity_std[2]
+    tol = predict_cg_std(rig, [0.0, 0.0, 0.0], rig.dummy_mass, 10.0, noise, CgOptions.exact_geometry(
+        dummy_position_std=1e-3))
+    noise_only = predict_cg_std(rig, [0.0, 0.0, 0.0], rig.dummy_mass, 10.0, noise, exact)
+    assert 1.96 * tol.center_of_gravity_std[2] > 2.5e-3 > 1.96 * noise_only.center_of_gravity_std[2]
+    # with the whole geometry as surveyed (1 mm) no averaging reaches ±2.5 mm on z: the plan says why
+    best, plans = plan_static_test(rig, [0.0, 0.0, 0.0], masses=(50.0,), positions=rig.body_anchors[:2], noise=noise)
+    assert best is None and all(1.96 * p.floor[2] > 2.5e-3 for p in plans)
+    assert all(abs(p.floor[2] / p.std[2] - 1) < 0.02 for p in plans)     # 600 s: the noise has averaged out
 
 
 def test_cg_plan_cli(reference_pair):
     b, _ = reference_pair
     out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "cg-plan", str(b.path), "--json",
-                          "--masses", "50", "--position", "0.8", "1.25", "1.29", "--cg-guess", "0", "0", "0"],
+                          "--masses", "50", "--position", "0.8", "1.25", "1.29", "--cg-guess", "0", "0", "0",
+                          "--anchor-std", "0", "--length-std", "0", "--dummy-position-std", "0"],
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     j = json.loads(out.stdout)
