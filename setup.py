@@ -11,6 +11,8 @@ NODES = {
     "preprocessor": "rig_identification.nodes.preprocessor_node:main",
     "identifier": "rig_identification.nodes.identifier_node:main",
     "mass_properties_client": "rig_identification.nodes.client:main",
+    "recorder": "rig_identification.nodes.recorder:main",
+    "rig_visualizer": "rig_identification.nodes.visualizer:main",
     "demo": "rig_identification.nodes.demo:main",
 }
 
@@ -25,10 +27,11 @@ setup(
         (f"share/{PACKAGE}/config/rigs", sorted(glob("config/rigs/*.yaml"))),
         (f"share/{PACKAGE}/config/params", sorted(glob("config/params/*.yaml"))),
         (f"share/{PACKAGE}/config/dds", sorted(glob("config/dds/*.xml"))),
+        (f"share/{PACKAGE}/launch", sorted(glob("launch/*.launch.py"))),
     ],
-    package_data={PACKAGE: ["data/*.yaml"]},
+    package_data={PACKAGE: ["data/*.yaml", "data/*.csv"]},
     include_package_data=True,
-    install_requires=["setuptools", "numpy", "scipy", "pyyaml", "rosbags"],
+    install_requires=["setuptools", "numpy", "scipy", "numba", "pyyaml", "rosbags"],
     zip_safe=True,
     maintainer="rig_identification developers",
     maintainer_email="dev@rig-identification.local",
@@ -37,6 +40,7 @@ setup(
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [f"{k} = {v}" for k, v in NODES.items()]
-        + ["rig-identify = rig_identification.cli:identify_main", "rig-sim = rig_identification.cli:sim_main"],
+        + ["rig-identify = rig_identification.cli:identify_main", "rig-sim = rig_identification.cli:sim_main",
+           "rig-record = rig_identification.nodes.recorder:record_main"],
     },
 )

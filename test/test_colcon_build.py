@@ -23,8 +23,9 @@ import pytest
 
 REPO = Path(__file__).resolve().parents[1]
 VENV_BIN = Path(sys.executable).parent
-NODES = ("sensor_driver", "tracker", "preprocessor", "identifier", "mass_properties_client", "demo")
-PACKAGE_FILES = ("setup.py", "setup.cfg", "package.xml", "resource", "rig_identification", "config")
+NODES = ("sensor_driver", "tracker", "preprocessor", "identifier", "mass_properties_client", "recorder",
+         "rig_visualizer", "demo", "rig-record")
+PACKAGE_FILES = ("setup.py", "setup.cfg", "package.xml", "resource", "rig_identification", "config", "launch")
 EXEC_DEPENDS = {"rclpy", "sensor_msgs", "geometry_msgs", "std_srvs", "python3-numpy", "python3-scipy",
                 "python3-rosbags-pip"}
 
@@ -84,7 +85,12 @@ def test_every_node_executable_is_installed(workspace):
     assert (share / "rig_identification" / "package.xml").is_file()
     assert (share / "rig_identification" / "config" / "rigs" / "default.yaml").is_file()
     assert sorted(p.name for p in (share / "rig_identification" / "config" / "params").glob("*.yaml")) == \
-        ["identifier.yaml", "preprocessor.yaml", "sensor_driver.yaml", "tracker.yaml"]
+        ["identifier.yaml", "preprocessor.yaml", "recorder.yaml", "rig_visualizer.yaml", "sensor_driver.yaml",
+         "tracker.yaml"]
+    # where `ros2 launch rig_identification rig_identification.launch.py` looks
+    launch = share / "rig_identification" / "launch" / "rig_identification.launch.py"
+    assert launch.is_file(), f"{launch} missing (setup.py data_files)"
+    assert launch.read_text() == (REPO / "launch" / "rig_identification.launch.py").read_text()
 
 
 def test_every_node_answers_help(workspace):

@@ -1,15 +1,19 @@
 """The static CG experiment through the identifier node's services, over DDS.
 
 The reference static pair is replayed by sensor_driver (baseline, then the dummy state,
-restamped to "now" so that time runs on as on the rig); the test calls
-~/capture_cg_baseline, ~/capture_cg_dummy and ~/estimate_cg like a lab tool and checks the
-CG against truth.yaml and against `rig-identify cg` on the same recordings, and the
-published /rig/mass_properties.  rig.yaml has no centre of gravity (static experiment).
+restamped to "now" so that time runs on as on the rig); the lab's procedure is run with the
+client's verbs — ``mass_properties_client cg-capture baseline``, ``cg-capture dummy``,
+``cg-estimate [--json]`` (which call ~/capture_cg_baseline, ~/capture_cg_dummy and
+~/estimate_cg) — and the CG is checked against truth.yaml and against `rig-identify cg` on
+the same recordings, and the published /rig/mass_properties.  rig.yaml has no centre of
+gravity (static experiment).
 """
 from __future__ import annotations
 
 import json
 import random
+import subprocess
+import sys
 import time
 
 import numpy as np
@@ -21,11 +25,18 @@ rclpy = pytest.importorskip("rclpy")
 from conftest import recording  # noqa: E402
 from test_nodes import Listener, wait_until  # noqa: E402
 
+from rig_identification.nodes import common  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.recording import read_recording  # noqa: E402
 from rig_identification.statics import StaticState, estimate_cg  # noqa: E402
 
 WAIT_FOR = ["/rig/imu:1", "/rig/load_cells/*:1", "/rig/inclinometer:1"]
+
+
+def client(g: Graph, *args: str) -> subprocess.CompletedProcess:
+    """Run ``mass_properties_client ARGS`` on the graph's ROS domain."""
+    return subprocess.run([sys.executable, "-m", "rig_identification.nodes.client", *args, "--timeout", "20"],
+                          env=g.env, capture_output=True, text=True, timeout=90)
 
 
 def replay(g: Graph, lis: Listener, name: str, rec) -> None:
@@ -50,23 +61,34 @@ def test_cg_services_on_the_reference_pair(tmp_path):
     lis = Listener(g.domain_id, base.rig.cable_names)
     try:
         g.start("identifier", {"rig": rig, "cg_capture_seconds": 9.0})
-        early = lis.call("/identifier/estimate_cg")
-        assert not early.success and "capture the baseline and dummy" in json.loads(early.message)["error"]
+        early = client(g, "cg-estimate")  # the verbs in the wrong order: refused, with the reason
+        assert early.returncode == 1, early.stdout + early.stderr
+        assert "estimate_cg refused" in early.stderr and "capture the baseline and dummy" in early.stderr
         no_cg = lis.call("/identifier/identify_inertia")
         assert not no_cg.success and "center_of_gravity" in json.loads(no_cg.message)["error"]
         replay(g, lis, "driver_baseline", base_path)
-        r = lis.call("/identifier/capture_cg_baseline")
-        assert r.success, r.message
+        p = client(g, "cg-capture", "baseline")
+        assert p.returncode == 0, p.stdout + p.stderr
+        assert "captured the baseline state: 9.0 s of data averaged" in p.stdout
+        assert "cg-capture dummy" in p.stdout  # says what comes next
+        tensions = p.stdout.split("cable tensions (rig.yaml order): ")[1].split(" N")[0].split(", ")
+        assert len(tensions) == len(base.rig.cables)
+        np.testing.assert_allclose([float(x) for x in tensions],  # the body at rest: the recording's mean
+                                   [base.sensors.load_cells[n].data.mean() for n in base.rig.cable_names], rtol=2e-3)
         replay(g, lis, "driver_dummy", dummy_path)
-        r = lis.call("/identifier/capture_cg_dummy")
-        assert r.success, r.message
+        p = client(g, "cg-capture", "dummy", "--json")
+        assert p.returncode == 0, p.stdout + p.stderr
+        assert json.loads(p.stdout)["captured"] == "dummy"
         got = {}
         lis.node.create_subscription(lis.InertiaStamped, "/rig/mass_properties",
-                                     lambda m: got.setdefault("msg", m), __import__(
-                                         "rig_identification.nodes.common", fromlist=["x"]).LATCHED_QOS)
-        r = lis.call("/identifier/estimate_cg")
-        assert r.success, r.message
-        d = json.loads(r.message)
+                                     lambda m: got.setdefault("msg", m), common.LATCHED_QOS)
+        p = client(g, "cg-estimate", "--json")
+        assert p.returncode == 0, p.stdout + p.stderr
+        d = json.loads(p.stdout)
+        text = client(g, "cg-estimate")  # the table: the same numbers
+        assert text.returncode == 0, text.stderr
+        row = next(line for line in text.stdout.splitlines() if line.startswith("CG z"))
+        assert f"{d['center_of_gravity'][2]:.5f}" in row and f"{d['center_of_gravity_std'][2]:.5f}" in row
         cg, sd = np.array(d["center_of_gravity"]), np.array(d["center_of_gravity_std"])
         truth = np.array(base.truth["center_of_gravity"])
         assert np.all(np.abs(cg - truth)[:2] < 1e-3) and abs(cg[2] - truth[2]) < 12e-3

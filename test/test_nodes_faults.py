@@ -26,7 +26,7 @@ rclpy = pytest.importorskip("rclpy")
 
 from test_nodes import Listener, wait_until  # noqa: E402
 
-from rig_identification.nodes import common  # noqa: E402
+from rig_identification.nodes import codec, common  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.recording import read_recording, write_recording  # noqa: E402
 from rig_identification.simulator import load_experiment, simulate  # noqa: E402
@@ -210,7 +210,7 @@ def test_message_layout_matches_the_rclpy_serializer():
         for i, raw in enumerate(raws):
             m = deserialize_message(raw, mtype)
             assert common.stamp_to_sec(m.header.stamp) == pytest.approx(t[i], abs=1e-9)
-            got = [float(common._get_path(m, p)) for p in layout.fields]
+            got = [float(codec.get_path(m, p)) for p in layout.fields]
             assert got == vals[i].tolist()
             # and back (alignment padding is not defined: compare what decodes, not bytes)
             tt, vv, bad = layout.decode([serialize_message(m)])

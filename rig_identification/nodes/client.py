@@ -1,23 +1,45 @@
-"""mass_properties_client: asks the identifier for the mass properties and prints them.
+"""mass_properties_client: the identifier's services from the command line (a lab tool).
 
-Waits for the identifier's services, optionally until its buffer stops growing (the
-recording has been processed), calls ~/identify_inertia and ~/estimate_cg, and prints the
-identified mass properties beside the truth of a simulated experiment (latched
-``/rig/sim_truth``, when a sensor driver publishes one) with the error of each entry:
-% of the true value for mass and the diagonal of the tensor, % of the largest true
-diagonal entry for the products of inertia, mm for the centre of gravity.
+Verbs (ROS arguments may follow ``--ros-args``; ``--identifier NAME`` picks the node):
 
-When the identifier is busy with another request's fit, the client asks again.
+  mass_properties_client [identify] [--json] [--wait-stable S]
+      waits for the identifier's services, optionally until its buffer stops growing (the
+      recording has been processed), calls ~/identify_inertia and ~/estimate_cg, and prints
+      the identified mass properties beside the truth of a simulated experiment (latched
+      ``/rig/sim_truth``, when a sensor driver publishes one) with the error of each entry:
+      % of the true value for mass and the diagonal of the tensor, % of the largest true
+      diagonal entry for the products of inertia, mm for the centre of gravity.  When the
+      identifier is busy with another request's fit, the client asks again.
+  mass_properties_client cg-capture baseline|dummy [--json]
+      the static centre-of-gravity experiment, steps 1 and 2: ~/capture_cg_baseline
+      (body at rest without the dummy mass) or ~/capture_cg_dummy (with it, at rig.yaml
+      dummy_mass.position): the identifier averages the last cg_capture_seconds of the raw
+      streams; prints the seconds averaged and the cable tensions (N, rig.yaml order).
+  mass_properties_client cg-estimate [--json]
+      step 3: ~/estimate_cg; prints the centre of gravity (body frame, m) with its standard
+      deviation (and the error against /rig/sim_truth when there is one, mm).  The estimate
+      is also published on /rig/mass_properties.
+  mass_properties_client status [--json]
+      ~/status: samples buffered by the identifier.
 
-Exit status: 0 identified; 1 the identifier refused or failed (reason printed);
-2 the identifier is not reachable (or bad command line).
+Exit status: 0 done; 1 the identifier refused or failed (its reason printed, e.g. "capture
+the baseline and dummy states first"); 2 the identifier is not reachable (or bad command line).
 """
+
 from __future__ import annotations
 
 import argparse
 import json
 import sys
 import time
+
+import rclpy
+from rclpy.node import Node
+from rclpy.utilities import remove_ros_args
+from std_msgs.msg import String
+from std_srvs.srv import Trigger
+
+from . import common
 
 KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
@@ -84,7 +106,8 @@ def format_table(result: dict, truth: dict | None, cg_answer: str | None = None,
     return "\n".join(lines)
 
 
-def _error_text(message: str) -> str:
+def error_text(message: str) -> str:
+    """The ``error`` of a service's JSON answer (or the answer itself when it is not JSON)."""
     try:
         d = json.loads(message)
         return d.get("error", message) if isinstance(d, dict) else message
@@ -92,29 +115,123 @@ def _error_text(message: str) -> str:
         return message
 
 
-def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="mass_properties_client", description=__doc__.split("\n\n")[0],
-                                 epilog="ROS arguments may follow --ros-args.")
+def format_capture(which: str, answer: dict) -> str:
+    """Text for the answer of ~/capture_cg_baseline or ~/capture_cg_dummy."""
+    tensions = answer.get("tensions")
+    lines = [f"captured the {which} state: {answer.get('seconds', 0.0):.1f} s of data averaged"]
+    if tensions:
+        lines.append("cable tensions (rig.yaml order): " + ", ".join(f"{x:.1f}" for x in tensions) + " N")
+    lines += [f"warning: {w}" for w in answer.get("warnings", [])]
+    lines.append("next: fix the dummy mass, let the body come to rest, then `mass_properties_client cg-capture "
+                 "dummy`" if which == "baseline" else "next: `mass_properties_client cg-estimate`")
+    return "\n".join(lines)
+
+
+def format_cg(answer: dict, truth: dict | None, name: str = "/identifier") -> str:
+    """Text for the answer of ~/estimate_cg (a ``statics.CgResult.to_dict()``), with the error
+    against ``truth["center_of_gravity"]`` (mm) when given."""
+    head = f"Centre of gravity estimated by {name} (frame {answer.get('frame', 'body')})"
+    cg, sd = answer["center_of_gravity"], answer.get("center_of_gravity_std") or [None] * 3
+    true_cg = (truth or {}).get("center_of_gravity")
+    hdr = f"{'quantity':<10}{'unit':>6}{'estimate':>12}{'±1σ':>10}" + (f"{'truth':>12}{'error':>12}" if true_cg else "")
+    lines = [head, "=" * len(head), hdr, "-" * len(hdr)]
+    for k, axis in enumerate("xyz"):
+        row = f"{'CG ' + axis:<10}{'m':>6}{cg[k]:>12.5f}" + (f"{sd[k]:>10.5f}" if sd[k] is not None else f"{'—':>10}")
+        if true_cg:
+            row += f"{true_cg[k]:>12.5f}{1000 * (cg[k] - true_cg[k]):>+9.2f} mm"
+        lines.append(row)
+    m, m_lc, m_lc_sd = answer.get("mass"), answer.get("mass_from_load_cells"), answer.get("mass_from_load_cells_std")
+    if m is not None:
+        lines.append(f"{'mass':<10}{'kg':>6}{m:>12.2f}{'given':>10}")
+    if m_lc is not None:
+        sd_text = f"{m_lc_sd:>10.3f}" if m_lc_sd is not None else f"{'—':>10}"
+        lines.append(f"{'mass (LC)':<10}{'kg':>6}{m_lc:>12.3f}{sd_text}   from the load cells")
+    lines += [f"warning: {w}" for w in answer.get("warnings", [])]
+    lines.append("put center_of_gravity into rig.yaml (body.center_of_gravity) before the dynamic experiment")
+    return "\n".join(lines)
+
+
+class IdentifierClient:
+    """std_srvs/Trigger calls to the identifier ``base`` (``/identifier``) from ``node``."""
+
+    def __init__(self, node: Node, base: str):
+        self.node, self.base = node, base.rstrip("/")
+        self.clients: dict = {}
+
+    def client(self, service: str):
+        if service not in self.clients:
+            self.clients[service] = self.node.create_client(Trigger, f"{self.base}/{service}")
+        return self.clients[service]
+
+    def wait(self, service: str, timeout: float) -> bool:
+        """True once ``<base>/<service>`` is available (within ``timeout`` s)."""
+        return self.client(service).wait_for_service(timeout_sec=timeout)
+
+    def call(self, service: str, timeout: float) -> Trigger.Response | None:
+        """Call ``<base>/<service>``; the response, or None without an answer within ``timeout`` s."""
+        cli = self.client(service)
+        fut = cli.call_async(Trigger.Request())
+        rclpy.spin_until_future_complete(self.node, fut, timeout_sec=timeout)
+        if not fut.done():
+            cli.remove_pending_request(fut)
+            return None
+        return fut.result()
+
+
+def parser(verb: str) -> argparse.ArgumentParser:
+    """The command line of ``verb`` (one of :data:`VERBS`)."""
+    prog = "mass_properties_client" + ("" if verb == "identify" else f" {verb}")
+    ap = argparse.ArgumentParser(prog=prog, description=VERBS[verb], epilog="ROS arguments may follow --ros-args. "
+                                 "Verbs: " + ", ".join(VERBS) + " (default identify).")
+    if verb == "cg-capture":
+        ap.add_argument("state", choices=("baseline", "dummy"),
+                        help="baseline: the body at rest without the dummy mass; dummy: with it")
     ap.add_argument("--identifier", default="/identifier", help="identifier node (default /identifier)")
     ap.add_argument("--timeout", type=float, default=60.0, help="wait this long for the services, s (default 60)")
-    ap.add_argument("--fit-timeout", type=float, default=300.0, help="wait this long for the fit, s (default 300)")
-    ap.add_argument("--wait-stable", type=float, default=0.0, metavar="S",
-                    help="first wait until the identifier has received no new sample for S s")
-    ap.add_argument("--truth-timeout", type=float, default=3.0, help="wait this long for /rig/sim_truth, s")
     ap.add_argument("--json", action="store_true", help="print the identifier's answer as one JSON object")
-    import rclpy
-    from rclpy.utilities import remove_ros_args
-    argv = list(sys.argv if argv is None else argv)
-    args = ap.parse_args(remove_ros_args(argv)[1:])
-    rclpy.init(args=argv)
-    from rclpy.node import Node
-    from std_msgs.msg import String
-    from std_srvs.srv import Trigger
+    if verb in ("identify", "cg-estimate"):
+        ap.add_argument("--truth-timeout", type=float, default=3.0 if verb == "identify" else 1.0,
+                        help="wait this long for /rig/sim_truth (simulations only), s")
+    if verb == "identify":
+        ap.add_argument("--fit-timeout", type=float, default=300.0, help="wait this long for the fit, s (default 300)")
+        ap.add_argument("--wait-stable", type=float, default=0.0, metavar="S",
+                        help="first wait until the identifier has received no new sample for S s")
+    return ap
 
-    from . import common
+
+VERBS = {
+    "identify": "Identify the inertia tensor (~/identify_inertia) and print the mass properties.",
+    "cg-capture": "Static CG experiment, step 1 or 2: capture the body at rest without (baseline) or with "
+                  "(dummy) the dummy mass.",
+    "cg-estimate": "Static CG experiment, step 3: estimate the centre of gravity from the two captured states.",
+    "status": "Print the identifier's buffer status (~/status).",
+}
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv if argv is None else argv)
+    user = remove_ros_args(argv)[1:]
+    verb = "identify"
+    if user and user[0] in VERBS:
+        verb, user = user[0], user[1:]
+    args = parser(verb).parse_args(user)
+    rclpy.init(args=argv)
     node = Node("mass_properties_client")
-    log = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
-    base = args.identifier.rstrip("/")
+    try:
+        return run(verb, args, node)
+    except KeyboardInterrupt:
+        return 130
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def log(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+def truth_listener(node: Node) -> dict:
+    """A dict filled with the latched /rig/sim_truth (JSON) once it arrives (spin ``node``)."""
     truth: dict = {}
 
     def on_truth(msg):
@@ -123,66 +240,85 @@ def main(argv=None) -> int:
         except ValueError:
             pass
     node.create_subscription(String, common.TRUTH_TOPIC, on_truth, common.LATCHED_QOS)
-    cli_id = node.create_client(Trigger, f"{base}/identify_inertia")
-    cli_cg = node.create_client(Trigger, f"{base}/estimate_cg")
-    cli_st = node.create_client(Trigger, f"{base}/status")
+    return truth
 
-    def call(cli, timeout):
-        fut = cli.call_async(Trigger.Request())
-        rclpy.spin_until_future_complete(node, fut, timeout_sec=timeout)
-        if not fut.done():
-            cli.remove_pending_request(fut)
-            return None
-        return fut.result()
 
-    try:
-        if not cli_id.wait_for_service(timeout_sec=args.timeout):
-            log(f"mass_properties_client: error: service {base}/identify_inertia not available "
-                f"after {args.timeout:.0f} s (is the identifier running, same ROS_DOMAIN_ID?)")
-            return 2
-        if args.wait_stable > 0 and cli_st.wait_for_service(timeout_sec=5.0):
-            last, since, t_end = None, time.monotonic(), time.monotonic() + args.timeout
-            while time.monotonic() < t_end:
-                r = call(cli_st, 5.0)
-                n = json.loads(r.message).get("wrench") if r is not None else None
-                if n != last:
-                    last, since = n, time.monotonic()
-                elif n and time.monotonic() - since >= args.wait_stable:
-                    break
-                time.sleep(0.2)
-            log(f"identifier buffer: {last} wrench samples")
-        t0 = time.monotonic()
-        while True:
-            r = call(cli_id, max(1.0, args.fit_timeout - (time.monotonic() - t0)))
-            busy = r is not None and not r.success and _error_text(r.message).startswith("busy")
-            if not busy or time.monotonic() - t0 > args.fit_timeout:
+def wait_truth(node: Node, truth: dict, timeout: float) -> None:
+    end = time.monotonic() + timeout
+    while not truth and time.monotonic() < end:
+        rclpy.spin_once(node, timeout_sec=0.1)
+
+
+def run(verb: str, args, node: Node) -> int:
+    """Carry out ``verb`` (see the module docstring); the exit status."""
+    idf = IdentifierClient(node, args.identifier)
+    first = {"identify": "identify_inertia", "cg-capture": f"capture_cg_{getattr(args, 'state', '')}",
+             "cg-estimate": "estimate_cg", "status": "status"}[verb]
+    truth = truth_listener(node) if verb in ("identify", "cg-estimate") else {}
+    if not idf.wait(first, args.timeout):
+        log(f"mass_properties_client: error: service {idf.base}/{first} not available "
+            f"after {args.timeout:.0f} s (is the identifier running, same ROS_DOMAIN_ID?)")
+        return 2
+    if verb == "identify":
+        return identify(args, node, idf, truth)
+    r = idf.call(first, 60.0)
+    if r is None:
+        log(f"mass_properties_client: error: no answer from {idf.base}/{first} within 60 s")
+        return 2
+    if not r.success:
+        log(f"mass_properties_client: {first} refused: {error_text(r.message)}")
+        return 1
+    answer = json.loads(r.message)
+    if args.json:
+        print(json.dumps(answer))
+    elif verb == "cg-capture":
+        print(format_capture(args.state, answer))
+    elif verb == "cg-estimate":
+        wait_truth(node, truth, args.truth_timeout)
+        print(format_cg(answer, truth or None, idf.base))
+    else:
+        print("\n".join(f"{k}: {v}" for k, v in answer.items()))
+    return 0
+
+
+def identify(args, node: Node, idf: IdentifierClient, truth: dict) -> int:
+    """The ``identify`` verb: fit, CG answer, table (or JSON)."""
+    if args.wait_stable > 0 and idf.wait("status", 5.0):
+        last, since, t_end = None, time.monotonic(), time.monotonic() + args.timeout
+        while time.monotonic() < t_end:
+            r = idf.call("status", 5.0)
+            n = json.loads(r.message).get("wrench") if r is not None else None
+            if n != last:
+                last, since = n, time.monotonic()
+            elif n and time.monotonic() - since >= args.wait_stable:
                 break
-            log("the identifier is busy with another fit; asking again in 1 s")
-            time.sleep(1.0)
-        if r is None:
-            log(f"mass_properties_client: error: no answer from {base}/identify_inertia "
-                f"within {args.fit_timeout:.0f} s")
-            return 2
-        log(f"identify_inertia answered in {time.monotonic() - t0:.1f} s")
-        cg = call(cli_cg, 10.0) if cli_cg.wait_for_service(timeout_sec=2.0) else None
-        cg_text = None if cg is None else (cg.message if cg.success else _error_text(cg.message))
-        end = time.monotonic() + args.truth_timeout
-        while not truth and time.monotonic() < end:
-            rclpy.spin_once(node, timeout_sec=0.1)
-        if not r.success:
-            log(f"mass_properties_client: identification failed: {_error_text(r.message)}")
-            return 1
-        result = json.loads(r.message)
-        if args.json:
-            print(json.dumps(result))
-        else:
-            print(format_table(result, truth or None, cg_text, base))
-        return 0
-    except KeyboardInterrupt:
-        return 130
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+            time.sleep(0.2)
+        log(f"identifier buffer: {last} wrench samples")
+    t0 = time.monotonic()
+    while True:
+        r = idf.call("identify_inertia", max(1.0, args.fit_timeout - (time.monotonic() - t0)))
+        busy = r is not None and not r.success and error_text(r.message).startswith("busy")
+        if not busy or time.monotonic() - t0 > args.fit_timeout:
+            break
+        log("the identifier is busy with another fit; asking again in 1 s")
+        time.sleep(1.0)
+    if r is None:
+        log(f"mass_properties_client: error: no answer from {idf.base}/identify_inertia "
+            f"within {args.fit_timeout:.0f} s")
+        return 2
+    log(f"identify_inertia answered in {time.monotonic() - t0:.1f} s")
+    cg = idf.call("estimate_cg", 10.0) if idf.wait("estimate_cg", 2.0) else None
+    cg_text = None if cg is None else (cg.message if cg.success else error_text(cg.message))
+    wait_truth(node, truth, args.truth_timeout)
+    if not r.success:
+        log(f"mass_properties_client: identification failed: {error_text(r.message)}")
+        return 1
+    result = json.loads(r.message)
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(format_table(result, truth or None, cg_text, idf.base))
+    return 0
 
 
 if __name__ == "__main__":

@@ -1,5 +1,7 @@
-"""Shared helpers of the rig_identification nodes: QoS, message <-> array conversion,
-input validation with throttled warnings, diagnostics, command line and spinning.
+"""Shared helpers of the rig_identification nodes: QoS, topic names, rig loading, input
+validation with throttled warnings, diagnostics, command line and spinning.  The batch
+message codec is in ``codec.py``, frame-id parameters and the start-up interface line in
+``frames.py`` (both re-exported here).
 
 QoS (one choice for the whole pipeline, see :data:`SENSOR_QOS`):
 
@@ -35,7 +37,7 @@ QoS (one choice for the whole pipeline, see :data:`SENSOR_QOS`):
 
 Inputs at 1 kHz: the consumer nodes subscribe with ``raw=True`` (the callback only queues the
 serialized bytes) and decode each topic's queue in one ``np.frombuffer`` every few ms
-(:class:`MessageLayout`, :class:`RawInput`); they publish their outputs serialized the same
+(:class:`~.codec.MessageLayout` in ``codec.py``, :class:`RawInput`); they publish their outputs serialized the same
 way.  A Python message object per sample cost ~35 µs in rclpy, a raw take ~10 µs (6 topics
 at 1 kHz, measured).  Validation (:class:`InputGuard`) and the stamp-order merge
 (:class:`StampMerger`) work on the batches.
@@ -68,6 +70,13 @@ import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
+from ..rig import Rig, RigError, load_rig, read_yaml
+from .codec import (IMU_FIELDS, ODOMETRY_FIELDS, VECTOR_FIELDS, WRENCH_FIELDS, MessageLayout,  # noqa: F401
+                    PersistentReason, imu_layout, odometry_layout, split_stamps, vector_layout, wrench_layout)
+from .frames import (BODY_FRAME, EXCITER_FRAME, IMU_FRAME, INCLINOMETER_FRAME, WORLD_FRAME,  # noqa: F401
+                     Endpoint, FrameIds, declare_frame_ids, log_interface)
+from .merge import StampMerger  # noqa: F401
+
 PACKAGE = "rig_identification"
 
 #: Sensor and derived streams: RELIABLE, VOLATILE, KEEP_ALL (see module docstring).
@@ -96,16 +105,12 @@ TRUTH_TOPIC = "/rig/sim_truth"
 DRIVER_STATUS_TOPIC = "/rig/sensor_driver/status"
 DIAGNOSTICS_TOPIC = "/diagnostics"
 
-# frame ids
-WORLD_FRAME = "world"
-BODY_FRAME = "body"
-IMU_FRAME = "imu"
-EXCITER_FRAME = "exciter"
-INCLINOMETER_FRAME = "inclinometer"
+# default frame ids (RECORDING_FORMAT.md); the nodes take theirs from parameters (frames.py)
 
 
 def load_cell_frame(cable: str) -> str:
-    return f"load_cell_{cable}"
+    """The default frame id of the load cell of ``cable`` (``load_cell_<cable>``)."""
+    return FrameIds().load_cell_frame(cable)
 
 
 # --- time stamps ------------------------------------------------------------------------
@@ -184,17 +189,42 @@ def dds_profile(env: dict | None = None) -> None:
             env[v] = str(p)
 
 
-def load_rig_param(node: Node):
-    """Load the rig description named by the node's ``rig`` parameter (path to a rig.yaml).
+def load_rig_source(path: str | Path) -> Rig:
+    """The rig description of ``path``: a rig.yaml, a recording folder (its rig.yaml) or an
+    experiment file (its ``rig:`` section, as ``config/rigs/default.yaml``: what the
+    sensor_driver's simulation of that file writes as rig.yaml, unless the experiment has
+    effects that change rig.yaml — then give the driver's ``rig_out`` file).
+
+    Raises :class:`~rig_identification.rig.RigError` naming the file (missing file, no
+    rig.yaml in the folder, bad field)."""
+    p = Path(path)
+    if p.is_dir():
+        if not (p / "rig.yaml").is_file():
+            raise RigError(f"{p}: a folder without rig.yaml (expected a rig.yaml, an experiment file or a "
+                           "recording folder)")
+        p = p / "rig.yaml"
+    d = read_yaml(p, RigError, "rig description")
+    if isinstance(d, dict) and "rig" in d and "gravity" not in d:
+        # an experiment file; simulator (scipy.integrate) only imported for this case
+        from ..simulator import ExperimentError, load_experiment
+        try:
+            return load_experiment(p).rig
+        except ExperimentError as e:
+            raise RigError(str(e)) from None
+    return load_rig(p)
+
+
+def load_rig_param(node: Node) -> Rig:
+    """Load the rig description named by the node's ``rig`` parameter: a rig.yaml, a
+    recording folder or an experiment file (:func:`load_rig_source`).
 
     Raises :class:`~rig_identification.rig.RigError` with a clear message.
     """
-    from ..rig import RigError, load_rig
     path = node.get_parameter("rig").value
     if not path:
         raise RigError("parameter 'rig' is empty: give the path of the rig description, "
                        "e.g. --ros-args -p rig:=/path/to/rig.yaml")
-    return load_rig(path)
+    return load_rig_source(path)
 
 
 def core_params(node: Node, func, skip=()) -> dict:
@@ -250,7 +280,11 @@ class InputGuard:
     A message is rejected when its frame id is not the expected one, a value is not
     finite, or its stamp is not after the previous accepted stamp of the same topic.
     Rejections are logged as warnings throttled per topic (every ``period`` s at most,
-    with the number suppressed since), and counted for the diagnostics.
+    with the number suppressed since), and counted for the diagnostics.  A reason that
+    will hold for every later message (:class:`~.codec.PersistentReason`: a frame id that
+    is not the expected one) is warned once per topic and reason, naming the parameter to
+    set; the messages are still counted.  Warnings name a remapped topic by its resolved
+    name (:meth:`alias`); the keys stay the node's own names (``/rig/imu``).
 
     Gaps: two consecutive accepted stamps of a topic further apart than
     ``max(max_gap, 1.5 × the topic's typical sampling period)`` (the offline rule of
@@ -274,6 +308,18 @@ class InputGuard:
         self._period: dict[str, float] = {}
         self._warned: dict[str, float] = {}
         self._suppressed: dict[str, int] = {}
+        self._said_once: set[tuple[str, str]] = set()
+        self.resolved: dict[str, str] = {}
+
+    def alias(self, topic: str, resolved: str) -> None:
+        """Name ``topic`` (the node's own name) as ``resolved`` (after remapping) in warnings."""
+        if resolved != topic:
+            self.resolved[topic] = resolved
+
+    def label(self, topic: str) -> str:
+        """``topic``, or ``/my/imu (remapped /rig/imu)`` when it is remapped."""
+        r = self.resolved.get(topic)
+        return topic if r is None else f"{r} (remapped {topic})"
 
     def expect(self, topic: str) -> None:
         """Declare an input topic (reported on /diagnostics before its first message)."""
@@ -285,7 +331,7 @@ class InputGuard:
         self.received[topic] = self.received.get(topic, 0) + 1
         self.last_arrival[topic] = time.monotonic()
         if frame is not None and header.frame_id != frame:
-            return self.reject(topic, f"frame_id {header.frame_id!r}, expected {frame!r}")
+            return self.reject(topic, PersistentReason(f"frame_id {header.frame_id!r}, expected {frame!r}"))
         t = stamp_to_sec(header.stamp)
         for v in values:
             if not math.isfinite(v):
@@ -373,13 +419,21 @@ class InputGuard:
         return sorted(out, key=lambda g: g[1])
 
     def reject(self, topic: str, why: str) -> None:
-        """Count a rejected message of ``topic`` and warn (throttled per topic)."""
+        """Count a rejected message of ``topic`` and warn: throttled per topic, or once per
+        topic and reason for a :class:`~.codec.PersistentReason`."""
         self.rejected[topic] = self.rejected.get(topic, 0) + 1
+        if isinstance(why, PersistentReason):
+            if (topic, why) not in self._said_once:
+                self._said_once.add((topic, why))
+                self.node.get_logger().warn(
+                    f"dropped a malformed message on {self.label(topic)}: {why}; every further message like it "
+                    "is dropped without a warning (counted on /diagnostics as rejected)")
+            return None
         now = time.monotonic()
         if now - self._warned.get(topic, -math.inf) >= self.period:
             extra = self._suppressed.pop(topic, 0)
             more = f" ({extra} more rejected since the last warning)" if extra else ""
-            self.node.get_logger().warn(f"dropped a malformed message on {topic}: {why}{more}")
+            self.node.get_logger().warn(f"dropped a malformed message on {self.label(topic)}: {why}{more}")
             self._warned[topic] = now
         else:
             self._suppressed[topic] = self._suppressed.get(topic, 0) + 1
@@ -388,332 +442,6 @@ class InputGuard:
     def core_error(self, topic: str, err: Exception) -> None:
         """The core refused an input that passed the checks: count it like a malformed message."""
         self.reject(topic, f"{type(err).__name__}: {err}")
-
-
-class StampMerger:
-    """Merge several stamped streams into one feed in header-stamp order.
-
-    Topics are delivered independently (and, under back-pressure or a DDS repair, with
-    different delays), so arrival order is not stamp order.  ``push`` buffers an event
-    and returns the events that are now safe to hand on, sorted by ``(stamp, rank)``: those
-    with a stamp no later than every stream's next possible stamp, or older than the newest
-    stamp minus ``max_delay`` (a silent or stalled stream delays the feed by at most that
-    much).  A stream's next possible stamp is its latest stamp plus ``lookahead`` times its
-    sampling period (its shortest stamp interval so far; 0 before 10 intervals): a 50 Hz
-    inclinometer then holds back the 1 kHz streams by at most 5 ms instead of 20 ms, and
-    the order stays the stamp order as long as its stamps jitter by less than
-    ``lookahead`` periods.  An event that arrives after its stamp was passed is refused
-    (``push`` returns None).  ``flush`` hands on everything buffered: for the end of the
-    data (call it when nothing arrived for a while of wall time), when no later sample will
-    ever raise the streams' stamps.
-    """
-
-    def __init__(self, streams, max_delay: float, lookahead: float = 0.75):
-        import heapq
-        self._heapq = heapq
-        self.streams = set(streams)
-        self.max_delay = max_delay
-        self.lookahead = lookahead
-        self.last: dict[str, float] = {}
-        self.ahead: dict[str, float] = {}  # latest stamp + lookahead x period
-        self._first: dict[str, int] = {}  # intervals seen
-        self._shortest: dict[str, float] = {}
-        self._margin: dict[str, float] = {}
-        self.newest = -math.inf
-        self.released = -math.inf
-        self.hold = False  # buffer only, release nothing (a node starting up)
-        self._heap: list = []
-        self._seq = 0
-
-    def __len__(self) -> int:
-        return len(self._heap)
-
-    def flush(self) -> list:
-        """Hand on every buffered event, in order."""
-        hq, heap = self._heapq, self._heap
-        out = [hq.heappop(heap) for _ in range(len(heap))]
-        if out:
-            self.released = max(self.released, out[-1][0])
-        return out
-
-    def drop_stream(self, stream: str) -> None:
-        """Stop waiting for ``stream`` (its later events are still merged)."""
-        self.streams.discard(stream)
-
-    def _learn(self, stream: str, t: float) -> None:
-        """Margin of ``stream``: ``lookahead`` x its shortest stamp interval so far (after 10
-        intervals; the shortest, not the median: a stream that starts with holes or bursts
-        must not be credited with a longer period than it has)."""
-        prev = self.last.get(stream)
-        if prev is None or t <= prev:
-            return
-        n = self._first.get(stream, 0) + 1
-        self._first[stream] = n
-        shortest = min(self._shortest.get(stream, math.inf), t - prev)
-        self._shortest[stream] = shortest
-        if n >= 10:
-            self._margin[stream] = self.lookahead * shortest
-
-    def push(self, stream: str, t: float, rank: int, payload) -> list | None:
-        """Buffer one event; return the releasable events as (t, rank, seq, stream, payload)."""
-        if t < self.released:
-            return None
-        self._learn(stream, t)
-        self.last[stream] = t
-        self.ahead[stream] = t + self._margin.get(stream, 0.0)
-        if t > self.newest:
-            self.newest = t
-        self._seq += 1
-        self._heapq.heappush(self._heap, (t, rank, self._seq, stream, payload))
-        return self._release()
-
-    def push_many(self, stream: str, ts: list, rank: int, payloads: list) -> tuple[list, list]:
-        """Buffer the events of one stream (stamps increasing) and release once: the same
-        order as :meth:`push` one by one.  Returns (released events, indices refused)."""
-        refused = []
-        push, heap, released = self._heapq.heappush, self._heap, self.released
-        learn, last = self._learn, self.last
-        seq = self._seq
-        t_last = None
-        for i, (t, payload) in enumerate(zip(ts, payloads)):
-            if t < released:
-                refused.append(i)
-                continue
-            learn(stream, t)
-            last[stream] = t
-            seq += 1
-            push(heap, (t, rank, seq, stream, payload))
-            t_last = t
-        self._seq = seq
-        if t_last is None:
-            return [], refused
-        self.last[stream] = t_last
-        self.ahead[stream] = t_last + self._margin.get(stream, 0.0)
-        if t_last > self.newest:
-            self.newest = t_last
-        return self._release(), refused
-
-    def discard_before(self, t: float) -> int:
-        """Drop the buffered events older than ``t``; returns how many."""
-        keep = [e for e in self._heap if e[0] >= t]
-        n = len(self._heap) - len(keep)
-        if n:
-            self._heapq.heapify(keep)
-            self._heap = keep
-        return n
-
-    def release(self) -> list:
-        """The events releasable now (see :meth:`push`); none while ``hold`` is set."""
-        return self._release()
-
-    def _release(self) -> list:
-        if self.hold:
-            return []
-        ahead = self.ahead
-        mark = min((ahead.get(s, -math.inf) for s in self.streams), default=self.newest)
-        mark = max(mark, self.newest - self.max_delay)
-        out = []
-        hq, heap = self._heapq, self._heap
-        while heap and heap[0][0] <= mark:
-            out.append(hq.heappop(heap))
-        if out:
-            self.released = out[-1][0]
-        return out
-
-
-# --- raw (serialized) messages, decoded and encoded in batches ----------------------------
-
-def split_stamps(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Float seconds (n,) -> (sec, nanosec) int arrays, as :func:`split_stamp` does per stamp."""
-    t = np.asarray(t, float)
-    sec = np.floor(t)
-    nsec = np.rint((t - sec) * 1e9)
-    over = nsec >= 1e9
-    sec[over] += 1
-    nsec[over] -= 1e9
-    return sec.astype(np.int64), nsec.astype(np.int64)
-
-
-def _get_path(msg, path: str):
-    for name in path.split("."):
-        msg = getattr(msg, name)
-    return msg
-
-
-def _set_path(msg, path: str, value) -> None:
-    *head, last = path.split(".")
-    for name in head:
-        msg = getattr(msg, name)
-    setattr(msg, last, value)
-
-
-class MessageLayout:
-    """Byte layout of one message type, serialized (CDR, little endian, as rclpy and Fast DDS
-    write it) with fixed strings (frame ids), to decode and encode its float64 fields for
-    many messages at once with numpy.
-
-    The layout is found by probing rclpy's own serializer: a message with the given
-    ``strings`` and distinct marker values in the ``fields`` is serialized and the markers
-    located.  Why: at 1 kHz per sensor, building a Python message object per sample costs
-    ~35 µs and a raw take ~10 µs (measured, 6 topics × 1 kHz), and a batch is decoded by one
-    ``np.frombuffer``.  A message whose size or strings differ from the layout (another
-    frame id, big-endian) is decoded on its own with ``rclpy.serialization`` (slow path) and
-    reported when its strings are not the expected ones.
-
-    msg_type: the ROS message class; fields: attribute paths of float64 fields
-    (``"angular_velocity.x"``); strings: attribute path -> expected value
-    (``{"header.frame_id": "imu"}``); template: a message whose other fields are copied by
-    :meth:`encode` (default: the type's defaults).  The stamp is ``header.stamp``.
-    """
-
-    def __init__(self, msg_type, fields, strings: dict, template=None):
-        import copy
-        import struct
-
-        from rclpy.serialization import serialize_message
-        self.msg_type = msg_type
-        self.fields = list(fields)
-        self.strings = dict(strings)
-        base = copy.deepcopy(template) if template is not None else msg_type()
-        for path, value in self.strings.items():
-            _set_path(base, path, value)
-        base.header.stamp.sec, base.header.stamp.nanosec = 0, 0
-        self.template = np.frombuffer(serialize_message(base), np.uint8).copy()
-        probe = copy.deepcopy(base)
-        probe.header.stamp.sec, probe.header.stamp.nanosec = 0x5EC0FF01, 0x0AB0FF02
-        markers = [1234.5678901234567 + 0.0009765625 * k for k in range(len(self.fields))]
-        for path, value in zip(self.fields, markers):
-            _set_path(probe, path, value)
-        data = serialize_message(probe)
-        if len(data) != len(self.template) or data[:2] != b"\x00\x01":
-            raise ValueError(f"{msg_type.__name__}: unexpected serialized layout")
-
-        def find(pattern: bytes, what: str) -> int:
-            i = data.find(pattern)
-            if i < 0 or data.find(pattern, i + 1) >= 0:
-                raise ValueError(f"{msg_type.__name__}: cannot locate {what} in the serialized message")
-            return i
-        spec = {"enc": (np.dtype((np.uint8, 2)), 0),
-                "sec": (np.dtype("<i4"), find(struct.pack("<i", 0x5EC0FF01), "header.stamp.sec")),
-                "nsec": (np.dtype("<u4"), find(struct.pack("<I", 0x0AB0FF02), "header.stamp.nanosec"))}
-        self._string_bytes = {}
-        for k, (path, value) in enumerate(self.strings.items()):
-            pattern = struct.pack("<I", len(value.encode()) + 1) + value.encode() + b"\x00"
-            spec[f"s{k}"] = (np.dtype((np.uint8, len(pattern))), find(pattern, path))
-            self._string_bytes[f"s{k}"] = np.frombuffer(pattern, np.uint8)
-        offsets = [find(struct.pack("<d", value), path) for path, value in zip(self.fields, markers)]
-        # runs of fields stored next to each other: one (n, m) view each
-        self._runs = []
-        for k, off in enumerate(offsets):
-            if k and off == offsets[k - 1] + 8:
-                self._runs[-1][1] += 1
-            else:
-                self._runs.append([off, 1])
-        for r, (off, m) in enumerate(self._runs):
-            spec[f"r{r}"] = (np.dtype(("<f8", (m,))), off)
-        self.size = len(data)
-        self.dtype = np.dtype({"names": list(spec), "formats": [v[0] for v in spec.values()],
-                               "offsets": [v[1] for v in spec.values()], "itemsize": self.size})
-        self._run_names = [f"r{r}" for r in range(len(self._runs))]
-        self._string_items = list(self._string_bytes.items())
-        self._enc = np.array([0, 1], np.uint8)
-
-    def decode(self, raws: list) -> tuple[np.ndarray, np.ndarray, dict]:
-        """Decode serialized messages.  Returns stamps t (n,) s, values (n, k) in ``fields``
-        order, and {row: reason} for the rows to refuse (unexpected strings, undecodable;
-        their t/values are NaN)."""
-        n, k = len(raws), len(self.fields)
-        bad: dict[int, str] = {}
-        if n == 0:
-            return np.empty(0), np.empty((0, k)), bad
-        if set(map(len, raws)) == {self.size}:  # the usual case: one batch, no slow path
-            arr = np.frombuffer(b"".join(raws), self.dtype)
-            good = (arr["enc"] == self._enc).all(1)
-            for name, pattern in self._string_items:
-                good &= (arr[name] == pattern).all(1)
-            t = arr["sec"] + arr["nsec"] * 1e-9
-            runs = [arr[r] for r in self._run_names]
-            vals = runs[0].copy() if len(runs) == 1 else np.concatenate(runs, axis=1)
-            if good.all():
-                return t, vals, bad
-            slow = np.nonzero(~good)[0]
-            t[slow] = np.nan
-            vals[slow] = np.nan
-        else:
-            t = np.full(n, np.nan)
-            vals = np.full((n, k), np.nan)
-            sizes = np.fromiter(map(len, raws), np.int64, n)
-            rows = np.nonzero(sizes == self.size)[0]
-            slow = np.nonzero(sizes != self.size)[0]
-            if len(rows):
-                tt, vv, _ = self.decode([raws[i] for i in rows])  # one size: the branch above
-                ok = np.isfinite(tt)
-                t[rows[ok]], vals[rows[ok]] = tt[ok], vv[ok]
-                slow = np.sort(np.concatenate([slow, rows[~ok]]))
-        for i in slow.tolist():
-            self._decode_one(raws[i], i, t, vals, bad)
-        return t, vals, bad
-
-    def _decode_one(self, raw, i, t, vals, bad) -> None:
-        from rclpy.serialization import deserialize_message
-        try:
-            msg = deserialize_message(raw, self.msg_type)
-        except Exception as e:  # noqa: BLE001 (anything the C deserializer raises)
-            bad[i] = f"undecodable message ({type(e).__name__})"
-            return
-        for path, expected in self.strings.items():
-            got = _get_path(msg, path)
-            if got != expected:
-                bad[i] = f"{path.rsplit('.', 1)[-1]} {got!r}, expected {expected!r}"
-                return
-        t[i] = stamp_to_sec(msg.header.stamp)
-        vals[i] = [float(_get_path(msg, p)) for p in self.fields]
-
-    def encode(self, t: np.ndarray, values: np.ndarray) -> list[bytes]:
-        """Serialized messages (the template with stamps ``t`` (n,) s and ``values`` (n, k))."""
-        n = len(t)
-        arr = np.empty(n, self.dtype)
-        arr.view(np.uint8).reshape(n, self.size)[:] = self.template
-        arr["sec"], arr["nsec"] = split_stamps(t)
-        values = np.asarray(values, float)
-        c = 0
-        for name, (_, m) in zip(self._run_names, self._runs):
-            arr[name] = values[:, c:c + m]
-            c += m
-        b = arr.tobytes()
-        size = self.size
-        return [b[i:i + size] for i in range(0, n * size, size)]
-
-
-IMU_FIELDS = ("angular_velocity.x", "angular_velocity.y", "angular_velocity.z",
-              "linear_acceleration.x", "linear_acceleration.y", "linear_acceleration.z")
-WRENCH_FIELDS = ("wrench.force.x", "wrench.force.y", "wrench.force.z",
-                 "wrench.torque.x", "wrench.torque.y", "wrench.torque.z")
-VECTOR_FIELDS = ("vector.x", "vector.y", "vector.z")
-ODOMETRY_FIELDS = ("pose.pose.position.x", "pose.pose.position.y", "pose.pose.position.z",
-                   "pose.pose.orientation.x", "pose.pose.orientation.y", "pose.pose.orientation.z",
-                   "pose.pose.orientation.w", "twist.twist.angular.x", "twist.twist.angular.y",
-                   "twist.twist.angular.z", "twist.twist.linear.x", "twist.twist.linear.y", "twist.twist.linear.z")
-
-
-def imu_layout(template=None) -> MessageLayout:
-    from sensor_msgs.msg import Imu
-    return MessageLayout(Imu, IMU_FIELDS, {"header.frame_id": IMU_FRAME}, template)
-
-
-def wrench_layout(frame: str) -> MessageLayout:
-    from geometry_msgs.msg import WrenchStamped
-    return MessageLayout(WrenchStamped, WRENCH_FIELDS, {"header.frame_id": frame})
-
-
-def vector_layout(frame: str) -> MessageLayout:
-    from geometry_msgs.msg import Vector3Stamped
-    return MessageLayout(Vector3Stamped, VECTOR_FIELDS, {"header.frame_id": frame})
-
-
-def odometry_layout() -> MessageLayout:
-    from nav_msgs.msg import Odometry
-    return MessageLayout(Odometry, ODOMETRY_FIELDS, {"header.frame_id": WORLD_FRAME, "child_frame_id": BODY_FRAME})
 
 
 class RawInput:
@@ -725,6 +453,13 @@ class RawInput:
         self.pending: list[bytes] = []
         self.sub = node.create_subscription(layout.msg_type, topic, self.pending.append, qos, raw=True)
         guard.expect(topic)
+        guard.alias(topic, self.sub.topic_name)
+
+    def endpoint(self) -> Endpoint:
+        """This input for :func:`~.frames.log_interface` (resolved name, type, expected frames)."""
+        names = {"header.frame_id": "frame", "child_frame_id": "child"}
+        note = ", ".join(f"{names.get(path, path)} {value}" for path, value in self.layout.strings.items())
+        return Endpoint(self.sub, note)
 
     def take(self) -> tuple[np.ndarray, np.ndarray]:
         """Decode, validate (:meth:`InputGuard.accept_batch`) and return the accepted
@@ -960,7 +695,6 @@ def run(node_factory: Callable[[], Node], argv: list[str] | None, prog: str, doc
     A start-up error that the user can fix (bad rig.yaml, missing file, bad parameter)
     prints one line on stderr and returns 2, no traceback.
     """
-    from ..rig import RigError
     argv = handle_help(argv, prog, doc)
     dds_profile()
     rclpy.init(args=argv)

@@ -30,6 +30,13 @@ Parameters (the window ones are read at each request; set them with ros2 param s
   stale_after, stopped_after (double, 0.5, 2.0)  /diagnostics: an input silent this long (wall
                            time, s) is reported WARN stale, ERROR stopped
   executor (string, events)  executor of the data node (events | single)
+  imu_frame (imu), load_cell_frame (load_cell_{cable}), exciter_frame (exciter),
+  inclinometer_frame (inclinometer)  expected frame ids of the raw inputs (frames.py)
+  body_frame (body)        expected frame of /rig/generalized_wrench, written on /rig/mass_properties
+
+The rig parameter may also name a recording folder or an experiment file.  Topic names are
+remapped the ROS way (--ros-args -r /rig/imu:=/my/imu); the node logs its resolved inputs,
+outputs and services once at start-up ("interface: ...").
 
 Gaps: two consecutive stamps of an input stream (any of the subscriptions below) further
 apart than max(0.1 s, 1.5 sampling periods) are a gap (a sensor or a node that stopped; the
@@ -40,8 +47,8 @@ settle_after_gap (and says so in "warnings").  A stream silent until now counts 
 to the window's end.
 
 Subscribes (RELIABLE, KEEP_ALL):
-  /rig/imu                 sensor_msgs/Imu, frame imu (gyro, rad/s; specific force for the CG states)
-  /rig/generalized_wrench  geometry_msgs/WrenchStamped, frame body (torque about the CG, N·m)
+  /rig/imu                 sensor_msgs/Imu, frame imu_frame (gyro, rad/s; specific force for the CG states)
+  /rig/generalized_wrench  geometry_msgs/WrenchStamped, frame body_frame (torque about the CG, N·m)
   /rig/load_cells/<cable>, /rig/exciter/wrench, /rig/inclinometer  raw streams of the static
                            CG experiment (averaged on capture)
 
@@ -64,7 +71,7 @@ Services (std_srvs/Trigger; ``message`` is JSON):
 
 Publishes:
   /rig/mass_properties  geometry_msgs/InertiaStamped after each successful fit or CG
-                        estimate, frame body: m kg, com = CG m (the estimate after
+                        estimate, frame body_frame: m kg, com = CG m (the estimate after
                         estimate_cg), ixx..izz kg·m² (tensor entries; zero until identified).
                         RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1 (a late subscriber receives it)
   /diagnostics          message counts; one status per input topic (OK / WARN stale / ERROR
@@ -118,6 +125,8 @@ class IdentifierNode(Node):
         self.fit_params = common.core_params(self, identify_inertia, skip=("rig", "t", "omega_body", "torque"))
         buf_params = common.core_params(self, InertiaIdentifier.__init__, skip=("self", "rig"))
         qos_in = common.input_qos(self)
+        frames = common.declare_frame_ids(self, ("imu", "load_cell", "exciter", "inclinometer", "body"))
+        self.frames = frames
         rig = common.load_rig_param(self)
         self.rig = rig
         self.identifier = InertiaIdentifier(rig, **buf_params) if rig.center_of_gravity is not None else None
@@ -142,27 +151,30 @@ class IdentifierNode(Node):
         # inputs: raw subscriptions, decoded in batches every batch_period s (common.RawInput)
         self.declare_parameter("batch_period", 0.01)
         R = common.RawInput
-        self.inputs = [(R(self, self.guard, common.IMU_TOPIC, common.imu_layout(), qos_in), self._add_imu),
-                       (R(self, self.guard, common.WRENCH_TOPIC, common.wrench_layout(common.BODY_FRAME), qos_in),
-                        self._add_wrench)]
+        self.inputs = [(R(self, self.guard, common.IMU_TOPIC, common.imu_layout(frames.imu, parameter="imu_frame"),
+                          qos_in), self._add_imu),
+                       (R(self, self.guard, common.WRENCH_TOPIC, common.wrench_layout(frames.body, "body_frame"),
+                          qos_in), self._add_wrench)]
         for name in rig.cable_names:
             self.inputs.append((R(self, self.guard, common.LOAD_CELL_PREFIX + name,
-                                  common.wrench_layout(common.load_cell_frame(name)), qos_in),
+                                  common.wrench_layout(frames.load_cell_frame(name), "load_cell_frame"), qos_in),
                                 lambda t, v, n=name: self._to_cg(
                                     common.LOAD_CELL_PREFIX + n, "add_tension",
                                     [(n, ti, x) for ti, x in zip(t, v[:, 2].tolist())])))
         if rig.exciter is not None:
-            self.inputs.append((R(self, self.guard, common.EXCITER_TOPIC, common.wrench_layout(common.EXCITER_FRAME),
-                                  qos_in),
+            self.inputs.append((R(self, self.guard, common.EXCITER_TOPIC,
+                                  common.wrench_layout(frames.exciter, "exciter_frame"), qos_in),
                                 lambda t, v: self._to_cg(common.EXCITER_TOPIC, "add_exciter",
                                                          [(ti, x, y) for ti, (x, y) in zip(t, v[:, :2].tolist())])))
         if rig.inclinometer is not None:
             self.inputs.append((R(self, self.guard, common.INCLINOMETER_TOPIC,
-                                  common.vector_layout(common.INCLINOMETER_FRAME), qos_in),
+                                  common.vector_layout(frames.inclinometer, "inclinometer_frame"), qos_in),
                                 lambda t, v: self._to_cg(common.INCLINOMETER_TOPIC, "add_inclinometer",
                                                          [(ti, xy) for ti, xy in zip(t, v[:, :2].tolist())])))
         self.create_timer(float(self.get_parameter("batch_period").value), self._drain)
         self.service_node = IdentifierServices(self)
+        common.log_interface(self, [inp.endpoint() for inp, _ in self.inputs],
+                             [common.Endpoint(self.pub, f"frame {frames.body}, latched")], self.service_node.trigger_services)
         self.get_logger().info(f"ready: rig {rig.source}; services {self.get_fully_qualified_name()}/"
                                "identify_inertia, diagnose, capture_cg_baseline, capture_cg_dummy, estimate_cg, status")
 
@@ -297,7 +309,7 @@ class IdentifierNode(Node):
         msg = InertiaStamped()
         if stamp is None:
             stamp = float(self.get_clock().now().nanoseconds) * 1e-9
-        common.set_stamp(msg.header, stamp, common.BODY_FRAME)
+        common.set_stamp(msg.header, stamp, self.frames.body)
         msg.inertia.m = float(mass)
         common.set_xyz(msg.inertia.com, cg)
         if J is not None:
@@ -447,17 +459,16 @@ class IdentifierServices(Node):
         self.owner = owner
         base = owner.get_fully_qualified_name()
         group = ReentrantCallbackGroup()
-        self.create_service(Trigger, f"{base}/identify_inertia", self.on_identify, callback_group=group)
-        self.create_service(Trigger, f"{base}/estimate_cg", self.on_estimate_cg, callback_group=group)
-        self.create_service(Trigger, f"{base}/capture_cg_baseline",
-                            lambda rq, rs: self._guarded_call(rs, lambda: owner.capture_cg("baseline"), "capture_cg_baseline"),
-                            callback_group=group)
-        self.create_service(Trigger, f"{base}/capture_cg_dummy",
-                            lambda rq, rs: self._guarded_call(rs, lambda: owner.capture_cg("dummy"), "capture_cg_dummy"),
-                            callback_group=group)
-        self.create_service(Trigger, f"{base}/status", self.on_status, callback_group=group)
-        self.create_service(Trigger, f"{base}/diagnose",
-                            lambda rq, rs: self._guarded_call(rs, owner.diagnose, "diagnose"), callback_group=group)
+        srv = lambda name, cb: self.create_service(Trigger, f"{base}/{name}", cb, callback_group=group)  # noqa: E731
+        self.trigger_services = [
+            srv("identify_inertia", self.on_identify),
+            srv("estimate_cg", self.on_estimate_cg),
+            srv("capture_cg_baseline",
+                lambda rq, rs: self._guarded_call(rs, lambda: owner.capture_cg("baseline"), "capture_cg_baseline")),
+            srv("capture_cg_dummy",
+                lambda rq, rs: self._guarded_call(rs, lambda: owner.capture_cg("dummy"), "capture_cg_dummy")),
+            srv("status", self.on_status),
+            srv("diagnose", lambda rq, rs: self._guarded_call(rs, owner.diagnose, "diagnose"))]
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
 

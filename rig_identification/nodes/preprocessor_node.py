@@ -15,23 +15,29 @@ Parameters:
                              time, s) is reported WARN stale, ERROR stopped
   input_reliability (string, reliable)  reliable | best_effort (QoS of the subscriptions)
   executor (string, events)  events | single
+  load_cell_frame (load_cell_{cable}), exciter_frame (exciter)  expected frame ids of the inputs
+  world_frame (world), body_frame (body)  expected frames of /rig/pose; body_frame is written
+                             on /rig/generalized_wrench
+
+Topic names are remapped the ROS way (--ros-args -r /rig/pose:=/my/pose); the node logs its
+resolved inputs and outputs once at start-up ("interface: ...").
 
 Subscribes (RELIABLE, KEEP_ALL):
-  /rig/pose               nav_msgs/Odometry, frame world, child body (from the tracker)
-  /rig/load_cells/<cable> geometry_msgs/WrenchStamped, frame load_cell_<cable>, force.z = tension N
+  /rig/pose               nav_msgs/Odometry, frame world_frame, child body_frame (from the tracker)
+  /rig/load_cells/<cable> geometry_msgs/WrenchStamped, frame load_cell_frame, force.z = tension N
                           (one per cable of rig.yaml)
-  /rig/exciter/wrench     geometry_msgs/WrenchStamped, frame exciter (if rig.yaml has an exciter)
+  /rig/exciter/wrench     geometry_msgs/WrenchStamped, frame exciter_frame (if rig.yaml has an exciter)
 
 Publishes:
-  /rig/generalized_wrench geometry_msgs/WrenchStamped, frame body, stamp = pose stamp:
+  /rig/generalized_wrench geometry_msgs/WrenchStamped, frame body_frame, stamp = pose stamp:
                           force N and torque N·m about the CG, body axes (gravity excluded:
                           force / mass is the specific force of the CG).  RELIABLE, KEEP_ALL.
   /diagnostics            message counts (and poses that could not be aligned), readers matched
                           by the /rig/generalized_wrench writer; one status per input topic
                           (OK / WARN stale / ERROR stopped, age, rate, stamp gaps)
 
-Malformed input (wrong frame, NaN, stamp not increasing, non-unit quaternion) is dropped
-with a throttled warning.
+Malformed input (NaN, stamp not increasing, non-unit quaternion) is dropped with a throttled
+warning; a message with another frame id than expected with one warning per topic and frame id.
 """
 from __future__ import annotations
 
@@ -58,6 +64,7 @@ class PreprocessorNode(Node):
         self.declare_parameter("batch_period", 0.005)
         params = common.core_params(self, WrenchPreprocessor.__init__, skip=("self", "rig"))
         qos_in = common.input_qos(self)
+        frames = common.declare_frame_ids(self, ("load_cell", "exciter", "world", "body"))
         rig = common.load_rig_param(self)
         self.pre = WrenchPreprocessor(rig, **params)
         self.guard = common.InputGuard(self)
@@ -65,17 +72,21 @@ class PreprocessorNode(Node):
                                                                         "poses in stream gaps": self.pre.gaps})
         self.pub = self.create_publisher(WrenchStamped, common.WRENCH_TOPIC, SENSOR_QOS)
         self.diag.add_writer(common.WRENCH_TOPIC, self.pub)
-        self.out_layout = common.wrench_layout(common.BODY_FRAME)
+        self.out_layout = common.wrench_layout(frames.body)
         # inputs: raw subscriptions, decoded in batches every batch_period s
-        self.poses = common.RawInput(self, self.guard, common.POSE_TOPIC, common.odometry_layout(), qos_in)
+        self.poses = common.RawInput(self, self.guard, common.POSE_TOPIC,
+                                     common.odometry_layout(frames.world, frames.body, hinted=True), qos_in)
         self.cells = {name: common.RawInput(self, self.guard, common.LOAD_CELL_PREFIX + name,
-                                            common.wrench_layout(common.load_cell_frame(name)), qos_in)
+                                            common.wrench_layout(frames.load_cell_frame(name), "load_cell_frame"),
+                                            qos_in)
                       for name in rig.cable_names}
         self.exciter = None
         if rig.exciter is not None:
             self.exciter = common.RawInput(self, self.guard, common.EXCITER_TOPIC,
-                                           common.wrench_layout(common.EXCITER_FRAME), qos_in)
+                                           common.wrench_layout(frames.exciter, "exciter_frame"), qos_in)
         self.create_timer(float(self.get_parameter("batch_period").value), self._drain)
+        inputs = [self.poses, *self.cells.values()] + ([self.exciter] if self.exciter is not None else [])
+        common.log_interface(self, [i.endpoint() for i in inputs], [common.Endpoint(self.pub, f"frame {frames.body}")])
         self.get_logger().info(f"ready: rig {rig.source}, cables {', '.join(rig.cable_names)}, "
                                f"exciter {'yes' if rig.exciter is not None else 'no'}")
 

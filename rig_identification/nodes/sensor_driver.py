@@ -26,13 +26,18 @@ Parameters:
   silence (string[], [])      fault injection: "TOPIC:T0:T1" publishes nothing on TOPIC for data
                               times T0 <= t < T1 s after the first sample (a sensor that stops)
   executor (string, events)   events | single
+  imu_frame (imu), load_cell_frame (load_cell_{cable}), exciter_frame (exciter),
+  inclinometer_frame (inclinometer)  frame ids written (frames.py; to mimic a lab's drivers)
+
+Topic names are remapped the ROS way (--ros-args -r /rig/imu:=/my/imu); the node logs its
+resolved outputs once the data is loaded ("interface: ...").
 
 Publishes (stamps = the data's header stamps):
-  /rig/imu                 sensor_msgs/Imu, frame imu: gyro rad/s, specific force m/s^2,
+  /rig/imu                 sensor_msgs/Imu, frame imu_frame: gyro rad/s, specific force m/s^2,
                            orientation_covariance[0] = -1
-  /rig/load_cells/<cable>  geometry_msgs/WrenchStamped, frame load_cell_<cable>: force.z = tension N
-  /rig/exciter/wrench      geometry_msgs/WrenchStamped, frame exciter: force.x, force.y N
-  /rig/inclinometer        geometry_msgs/Vector3Stamped, frame inclinometer: elevations rad
+  /rig/load_cells/<cable>  geometry_msgs/WrenchStamped, frame load_cell_frame: force.z = tension N
+  /rig/exciter/wrench      geometry_msgs/WrenchStamped, frame exciter_frame: force.x, force.y N
+  /rig/inclinometer        geometry_msgs/Vector3Stamped, frame inclinometer_frame: elevations rad
     (all RELIABLE, VOLATILE, KEEP_ALL: no sample is lost; a reliable reader that falls behind
     slows the replay down (back-pressure); BEST_EFFORT readers match too)
   /rig/sim_truth           std_msgs/String JSON of truth.yaml (if any), latched (TRANSIENT_LOCAL)
@@ -100,6 +105,7 @@ class SensorDriver(Node):
         p("exit_when_done", False)
         p("silence", None, ParameterDescriptor(dynamic_typing=True, description="TOPIC:T0:T1 list"))
         p("executor", "events")
+        self.frames = common.declare_frame_ids(self, ("imu", "load_cell", "exciter", "inclinometer"))
         get = lambda n: self.get_parameter(n).value  # noqa: E731
         self.rate = float(get("rate"))
         if not self.rate > 0:
@@ -140,6 +146,11 @@ class SensorDriver(Node):
         if truth is not None:
             self.truth_pub.publish(String(data=common.to_json(truth)))
         self.streams = self._make_streams(rig, sensors)
+        fr = {common.IMU_TOPIC: self.frames.imu, common.EXCITER_TOPIC: self.frames.exciter,
+              common.INCLINOMETER_TOPIC: self.frames.inclinometer}
+        common.log_interface(self, [], [common.Endpoint(st.publisher, "frame " + fr.get(
+            st.topic, self.frames.load_cell_frame(st.topic[len(common.LOAD_CELL_PREFIX):]))) for st in self.streams]
+            + [common.Endpoint(self.truth_pub, "latched"), common.Endpoint(self.status_pub, "latched")])
         # merged publication order: by stamp, ties in stream order (as recording.sensor_messages)
         t_all = np.concatenate([s.t for s in self.streams])
         k_all = np.concatenate([np.full(len(s.t), k) for k, s in enumerate(self.streams)])
@@ -203,20 +214,21 @@ class SensorDriver(Node):
         imu = Imu()
         imu.orientation.w = 1.0
         imu.orientation_covariance[0] = -1.0
-        streams.append(_Stream(common.IMU_TOPIC, pub(common.IMU_TOPIC, Imu), common.imu_layout(imu), range(6),
-                               sensors.imu.t, sensors.imu.data))
+        fr = self.frames
+        streams.append(_Stream(common.IMU_TOPIC, pub(common.IMU_TOPIC, Imu), common.imu_layout(fr.imu, imu),
+                               range(6), sensors.imu.t, sensors.imu.data))
         for name in rig.cable_names:
             topic = common.LOAD_CELL_PREFIX + name
             s = sensors.load_cells[name]
-            streams.append(_Stream(topic, pub(topic, WrenchStamped), common.wrench_layout(common.load_cell_frame(name)),
+            streams.append(_Stream(topic, pub(topic, WrenchStamped), common.wrench_layout(fr.load_cell_frame(name)),
                                    [2], s.t, s.data))
         if sensors.exciter is not None:
             streams.append(_Stream(common.EXCITER_TOPIC, pub(common.EXCITER_TOPIC, WrenchStamped),
-                                   common.wrench_layout(common.EXCITER_FRAME), [0, 1], sensors.exciter.t,
+                                   common.wrench_layout(fr.exciter), [0, 1], sensors.exciter.t,
                                    sensors.exciter.data))
         if sensors.inclinometer is not None:
             streams.append(_Stream(common.INCLINOMETER_TOPIC, pub(common.INCLINOMETER_TOPIC, Vector3Stamped),
-                                   common.vector_layout(common.INCLINOMETER_FRAME), [0, 1], sensors.inclinometer.t,
+                                   common.vector_layout(fr.inclinometer), [0, 1], sensors.inclinometer.t,
                                    sensors.inclinometer.data))
         return streams
 

@@ -26,16 +26,23 @@ Parameters:
   stale_after, stopped_after (double, 0.5, 2.0)  /diagnostics: an input silent this long (wall
                              time, s) is reported WARN stale, ERROR stopped
   executor (string, events)  events | single
+  imu_frame (imu), inclinometer_frame (inclinometer), load_cell_frame (load_cell_{cable}),
+  exciter_frame (exciter)    expected header.frame_id of the inputs (frames.py)
+  world_frame (world), body_frame (body)  frames written on /rig/pose
+
+The rig parameter may also name a recording folder or an experiment file (common.load_rig_source).
+Topic names are remapped the ROS way (--ros-args -r /rig/imu:=/my/imu); the node logs its
+resolved inputs and outputs once at start-up ("interface: ...").
 
 Subscribes (RELIABLE, KEEP_ALL; input_reliability best_effort for BEST_EFFORT writers):
-  /rig/imu                sensor_msgs/Imu, frame imu
-  /rig/inclinometer       geometry_msgs/Vector3Stamped, frame inclinometer (if rig.yaml has one)
-  /rig/load_cells/<cable> geometry_msgs/WrenchStamped, frame load_cell_<cable> (use_tensions)
-  /rig/exciter/wrench     geometry_msgs/WrenchStamped, frame exciter (initial pose only)
+  /rig/imu                sensor_msgs/Imu, frame imu_frame
+  /rig/inclinometer       geometry_msgs/Vector3Stamped, frame inclinometer_frame (if rig.yaml has one)
+  /rig/load_cells/<cable> geometry_msgs/WrenchStamped, frame load_cell_frame (use_tensions)
+  /rig/exciter/wrench     geometry_msgs/WrenchStamped, frame exciter_frame (initial pose only)
 
 Publishes:
   /rig/pose  nav_msgs/Odometry, one per IMU sample once initialised, stamp = IMU stamp;
-             header.frame_id world, child_frame_id body;
+             header.frame_id world_frame, child_frame_id body_frame;
              pose.pose.position = world position of the body-frame origin, m;
              pose.pose.orientation = rotation body -> world;
              twist.twist.angular = angular velocity, body axes, rad/s;
@@ -45,7 +52,9 @@ Publishes:
   /diagnostics  message counts, readers matched by the /rig/pose writer; one status per
              input topic (OK / WARN stale / ERROR stopped, age, rate, stamp gaps)
 
-Malformed input (wrong frame, NaN, stamp not increasing) is dropped with a throttled warning.
+Malformed input (NaN, stamp not increasing) is dropped with a throttled warning; a message
+with another frame id than expected is dropped with one warning per topic and frame id
+(naming the parameter to set), counted on /diagnostics.
 """
 from __future__ import annotations
 
@@ -78,6 +87,8 @@ class TrackerNode(Node):
         self.reinit_gap = float(self.get_parameter("reinit_gap").value)
         self.reinitialised = 0
         qos_in = common.input_qos(self)
+        frames = common.declare_frame_ids(self)
+        self.frames = frames
         rig = common.load_rig_param(self)
         self.rig = rig
         self.tracker = PoseTracker(rig, **params)
@@ -86,27 +97,29 @@ class TrackerNode(Node):
                                                                         "skipped at start-up": self.skipped_at_start})
         self.pub = self.create_publisher(Odometry, common.POSE_TOPIC, SENSOR_QOS)
         self.diag.add_writer(common.POSE_TOPIC, self.pub)
-        self.out_layout = common.odometry_layout()
+        self.out_layout = common.odometry_layout(frames.world, frames.body)
         self.names = rig.cable_names
         self._pending: dict[float, dict[str, float]] = {}
         self._latest: dict[str, float] = {}
         self._cells_async = False
         self._poses: list = []
         # inputs: raw subscriptions, decoded in batches (common.RawInput) every batch_period s
-        self.inputs = [(common.RawInput(self, self.guard, common.IMU_TOPIC, common.imu_layout(), qos_in),
-                        common.IMU_TOPIC)]
+        R = common.RawInput
+        self.inputs = [(R(self, self.guard, common.IMU_TOPIC, common.imu_layout(frames.imu, parameter="imu_frame"),
+                          qos_in), common.IMU_TOPIC)]
         if rig.inclinometer is not None:
-            self.inputs.append((common.RawInput(self, self.guard, common.INCLINOMETER_TOPIC,
-                                                common.vector_layout(common.INCLINOMETER_FRAME), qos_in),
+            self.inputs.append((R(self, self.guard, common.INCLINOMETER_TOPIC,
+                                  common.vector_layout(frames.inclinometer, "inclinometer_frame"), qos_in),
                                 common.INCLINOMETER_TOPIC))
         if self.get_parameter("use_tensions").value:
             for name in self.names:
                 topic = common.LOAD_CELL_PREFIX + name
-                self.inputs.append((common.RawInput(self, self.guard, topic,
-                                                    common.wrench_layout(common.load_cell_frame(name)), qos_in), topic))
+                self.inputs.append((R(self, self.guard, topic,
+                                      common.wrench_layout(frames.load_cell_frame(name), "load_cell_frame"), qos_in),
+                                    topic))
         if rig.exciter is not None:
-            self.inputs.append((common.RawInput(self, self.guard, common.EXCITER_TOPIC,
-                                                common.wrench_layout(common.EXCITER_FRAME), qos_in),
+            self.inputs.append((R(self, self.guard, common.EXCITER_TOPIC,
+                                  common.wrench_layout(frames.exciter, "exciter_frame"), qos_in),
                                 common.EXCITER_TOPIC))
         # the core wants its inputs in stamp order (as the offline replay sorts them)
         self.merger = common.StampMerger([t for _, t in self.inputs], float(self.get_parameter("max_delay").value))
@@ -123,6 +136,8 @@ class TrackerNode(Node):
         self._last_push = time.monotonic()
         self.create_timer(float(self.get_parameter("batch_period").value), self._drain)
         self.create_timer(0.25, self._flush_idle)
+        common.log_interface(self, [inp.endpoint() for inp, _ in self.inputs],
+                             [common.Endpoint(self.pub, f"frame {frames.world}, child {frames.body}")])
         self.get_logger().info(f"ready: rig {rig.source}, {len(self.names)} cables, parameters {params}")
 
     # --- inputs: validated, then merged in stamp order -----------------------------------
