@@ -11,7 +11,10 @@ residuals test it, each on the recording's window, band-passed like the identifi
   Newton's law, ``F/m + α × ρ + ω × (ω × ρ)`` (ρ = IMU − CG, α = dω/dt), band-passed;
 * **mean levels**: the mean gyro vs the net rotation over the window (the tracker's
   orientation), the mean specific force vs the mean F/m, the mean moment vs
-  ``J mean(ω̇) + mean(ω × Jω)``.
+  ``J mean(ω̇) + mean(ω × Jω)``, and the load cells' mean vertical force (world axes)
+  vs rig.yaml's weight, m (g + mean vertical acceleration), with σ the cells' calibration
+  (:data:`WEIGHT_SIGMA`): the one mean level the accelerometer does not enter, which tells
+  a body heavier than rig.yaml says (or cables hanging on it) from an accelerometer bias.
 
 Each candidate of the effect library (:mod:`~rig_identification.effects`) extends the
 model by terms that are *linear in its parameters* (moment and force regressors,
@@ -119,6 +122,8 @@ PROFILED = ("load_cell_scale",) + MASSES
 """One-parameter errors placed by their exact profile likelihood (:func:`_exact_profile`)."""
 WEIGHT_SURPLUS_SIGMA = 3.0   # the masses are evaluated exactly when the cells carry this many σ more (or less) than the weight
 DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
+WEIGHT_SIGMA = 5e-4   # relative σ of the load cells' mean vertical force against rig.yaml's weight:
+                      # the cells' calibration (class C3 cells: 0.02–0.05 % of their load)
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
 PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
 STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml stiffness are not "steel-like"
@@ -354,6 +359,13 @@ class Model:
         self.sigma_dcg = np.sqrt((sg / np.sqrt(n)) ** 2 + 1e-4 ** 2)
         self.sigma_dca = np.sqrt((sa / np.sqrt(n)) ** 2 + 2e-3 ** 2)
         self.sigma_dcm = DCM_FLOOR
+        # weight: the cells' (and exciter's) mean vertical force, world axes, against rig.yaml's
+        # m g plus the mean vertical acceleration (Newton's second law over the window), in
+        # σ of the cells' calibration.  The accelerometer does not enter it: a body heavier than
+        # rig.yaml says, or cables hanging on it, fail it; an accelerometer bias does not
+        fz = np.einsum("nj,nj->n", w.R[:, 2, :], w.force)
+        vz = np.einsum("j,j->", w.R[-1, 2, :], w.v[-1]) - np.einsum("j,j->", w.R[0, 2, :], w.v[0])
+        self.dcw = float((fz.mean() / w.mass - w.g - vz / T) / (WEIGHT_SIGMA * w.g))
 
     def filt(self, x):
         return sosfiltfilt(self.sos, x, axis=0)
@@ -418,13 +430,14 @@ class Fit:
     u: np.ndarray
     cols: list = field(default_factory=list)
     free_kappa: bool = False
+    dcw: float = 0.0           # the weight's mean-level residual in its σ (Model.dcw)
 
     def cost(self, scales) -> dict:
         """Per-group residual sums of squares in units of the baseline scales."""
         sr, sa, sg, sa_dc, sm = scales
         return {"rot": float(np.sum((self.rot / sr) ** 2)), "tr": float(np.sum((self.tr / sa) ** 2)),
                 "dcg": float(np.sum((self.dcg / sg) ** 2)), "dca": float(np.sum((self.dca / sa_dc) ** 2)),
-                "dcm": float(np.sum((self.dcm / sm) ** 2))}
+                "dcm": float(np.sum((self.dcm / sm) ** 2)), "dcw": self.dcw ** 2}
 
 
 def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales, j0: np.ndarray,
@@ -548,7 +561,7 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
     A = jac(sol.x) @ T                        # Jacobian with respect to (entries, beta, kappa)
     cov = _sandwich(A, sol.fun, n, 6, int(round(block_s * model.fs)))
     return Fit(to_tensor(j), float(kappa), np.asarray(beta, float), cov, r, a, dg, da, dm, yhat, u, cols,
-               free_kappa)
+               free_kappa, model.dcw)
 
 
 def _sandwich(A: np.ndarray, res: np.ndarray, n: int, per_row: int, nb: int) -> np.ndarray:
@@ -1161,7 +1174,7 @@ def _lr(cost0: dict, cost1: dict, model: Model) -> float:
         # ratio with the group's effective number of independent samples
         if cost0[g] > 0 and cost1[g] > 0:
             lam += model.n_eff_group.get(g, model.n_eff) * 3 * np.log(cost0[g] / cost1[g])
-    lam += cost0["dcg"] - cost1["dcg"] + cost0["dca"] - cost1["dca"] + cost0["dcm"] - cost1["dcm"]
+    lam += sum(cost0[k] - cost1[k] for k in ("dcg", "dca", "dcm", "dcw"))
     return float(lam)
 
 
