@@ -1,6 +1,6 @@
 """Tracker against the simulator's true trajectory, and its compiled replay against the Python one.
 
-* 10 minutes with realistic noise and gyro/accelerometer biases: no drift.
+* 4 minutes with realistic noise and gyro/accelerometer biases: no drift (its rate over ten minutes bounded).
 * An IMU away from the CG and rotated, a body origin that is not the CG, no inclinometer.
 * The compiled per-sample filter (numba, tracker_kernel) equals the Python methods to 1e-9
   on a reference recording, a random rig without stiffness (compliance refined online),
@@ -44,21 +44,31 @@ def default_dict():
 
 
 def test_no_drift_over_ten_minutes():
+    """Four minutes (the simulation is the cost: 600 s took 77 s of the suite) with gyro and
+    accelerometer biases: the error at the noise level once the bias estimate has converged,
+    every minute's mean error at the noise level, and the drift rate fitted over the run small
+    enough that ten minutes of it stay within 4× those bounds (on the 600 s run the fitted rate
+    was a tenth of the 240 s one: the short fit's slope is the wander of the noise, not drift;
+    a tracker integrating the 3 mrad/s gyro bias would be 1.8 rad off after ten minutes)."""
     d = default_dict()
-    d["duration"] = 600.0
+    d["duration"] = 240.0
     d["sensors"]["rates_hz"].update(imu=100.0, load_cells=100.0, exciter=100.0)
     d["sensors"]["bias"] = {"gyro": [0.003, -0.002, 0.004], "accelerometer": [0.02, -0.03, 0.01]}
-    sim = simulate(experiment_from_dict(d, "ten minutes"))
+    sim = simulate(experiment_from_dict(d, "four minutes"))
     t, dp, dr = pose_errors(sim, track(sim.rig, sim.sensors))
     after = t > 60.0  # the gyro-bias estimate has converged (PI loop, slowest pole ~10 s)
     rms = lambda x: np.sqrt((x**2).mean(0))  # noqa: E731
     assert np.all(rms(dr[after]) < 4e-4), rms(dr[after])  # noise: inclinometer 0.2 mrad, gyro
     assert np.all(rms(dp[after]) < 2.5e-3), rms(dp[after])
     # no drift: every minute's mean error stays at the noise level, to the end
-    for a in range(60, 600, 60):
+    for a in range(60, 240, 60):
         m = (t >= a) & (t < a + 60)
         assert np.all(np.abs(dr[m].mean(0)) < 1.5e-4), (a, dr[m].mean(0))
         assert np.all(np.abs(dp[m].mean(0)) < 0.6e-3), (a, dp[m].mean(0))
+    rate_r = np.polyfit(t[after], dr[after], 1)[0]
+    rate_p = np.polyfit(t[after], dp[after], 1)[0]
+    assert np.all(np.abs(rate_r) * 600.0 < 4 * 1.5e-4), rate_r
+    assert np.all(np.abs(rate_p) * 600.0 < 4 * 0.6e-3), rate_p
 
 
 @pytest.fixture(scope="module")
