@@ -149,7 +149,11 @@ def main(argv=None) -> int:
             for i, n in enumerate(ROWS) if n in names for k in range(a.seeds)]
     t0 = time.perf_counter()
     with ProcessPoolExecutor(a.procs) as ex:
-        rows = list(ex.map(_job, jobs))
+        rows = []
+        for r in ex.map(_job, jobs):          # each row on stderr as it is done: a sweep takes tens of minutes
+            rows.append(r)
+            print(f"done {len(rows)}/{len(jobs)}: {r['row']} seed {r['seed']}: {r.get('verdict', 'skipped')}"
+                  f" ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))
     print(f"{'row':22s} {'seed':>5s} {'verdict':17s} {'max|e|/σ':>8s} {'max e %':>8s}  failed checks / undetermined; "
