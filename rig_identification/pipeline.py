@@ -341,7 +341,8 @@ def accel_inputs(preps: list[PreparedRecording], result: InertiaResult) -> list[
 
 def validate_fit(preps: list[PreparedRecording], result: InertiaResult) -> InertiaResult:
     """Model validation of the fit (:func:`~.validation.validate`): ``result.validation``.
-    Under verdict ``model_error`` the σ (``inertia_std``, the covariance's diagonal) is
+    When a consistency check fails (verdict ``model_error``, or ``not_identifiable`` with
+    a failed check) the σ (``inertia_std``, the covariance's diagonal) is
     widened to the spread the checks saw (:func:`~.validation.widened_std`) and a warning
     says the tensor is not trustworthy; under ``not_identifiable`` a warning names the
     entries reported as null and what to change.  Returns ``result``, updated in place."""
@@ -356,8 +357,9 @@ def validate_fit(preps: list[PreparedRecording], result: InertiaResult) -> Inert
             np.maximum(w**2 - (v.sigma_factor * result.inertia_std) ** 2, 0.0))
         result.inertia_std = w
         result.uncertainty += (f"; widened {v.sigma_factor:.2f}× for what the consistency checks saw beyond the noise"
-                               if v.verdict != "model_error" else
-                               "; widened to the validation's spread (model error: a lower bound of the error)")
+                               if not v.failed else
+                               f"; widened to the validation's spread ({', '.join(v.failed)} failed: a lower bound "
+                               "of the error)")
     if v.verdict == "model_error":
         result.warnings.append(v.summary)
     elif v.verdict == "not_identifiable":

@@ -51,7 +51,7 @@ class Validation:
     to change (rig, excitation), in words; segment_inertia (K,6) and band_inertia (2,6):
     the tensor entries fitted on each time segment and frequency sub-band (kg·m²), band_edges
     (3,) Hz; spread_std (6,) kg·m²: the spread the checks saw (segments and sub-bands), which
-    widens σ under model error; failed: the names of the failed checks; sigma_factor ≥ 1: the
+    widens σ whenever a consistency check failed; failed: the names of the failed checks; sigma_factor ≥ 1: the
     largest :attr:`Check.sigma_factor`, by which σ is widened whatever the verdict."""
 
     verdict: str

@@ -18,7 +18,7 @@ from rig_identification.identification import KEYS, from_tensor
 from rig_identification.pipeline import identify_recording, with_diagnosis
 from rig_identification.recording import Recording
 from rig_identification.scenarios import simulate_random
-from rig_identification.validation import ALPHA, EFFECT_FACTOR, chi2_check
+from rig_identification.validation import ALPHA, EFFECT_FACTOR, chi2_check, widened_std
 from rig_identification.verdict import Validation
 
 DURATION = 45.0
@@ -76,7 +76,7 @@ def test_near_parallel_cables_are_not_identifiable():
     """2 cm of splay over the cable length: roll and pitch ride on the cables' stretch and the
     recording does not determine them — verdict not_identifiable, those entries null, advice
     to splay the cables, and never a non-finite number."""
-    _, _, res = _identify(3100, layout="parallel")
+    sim, _, res = _identify(3100, layout="parallel")
     v = res.validation
     assert v.verdict == "not_identifiable", v.summary
     assert {"ixx", "iyy"} <= set(v.undetermined)
@@ -84,6 +84,23 @@ def test_near_parallel_cables_are_not_identifiable():
     assert _finite_json(d)
     assert all(d["inertia_about_cg"][k] is None for k in v.undetermined)
     assert any("splay" in a or "turned" in a for a in v.advice), v.advice
+    # the entries it still gives are honest: within 3 σ of the truth
+    for k, (pct, z) in _errors(res, sim.truth).items():
+        if k not in v.undetermined:
+            assert abs(z) < 3.0, (k, pct, z)
+
+
+def test_failed_consistency_widens_sigma_whatever_the_verdict():
+    """A failed consistency check widens σ by the spread the checks saw under
+    ``not_identifiable`` too (the entries it still gives), not only under ``model_error``;
+    with every check passed, only the Birge factor applies."""
+    std, spread = np.full(6, 2.0), np.array([0.0, 1.0, 2.0, 3.0, 4.0, 30.0])
+    for verdict in ("model_error", "not_identifiable"):
+        v = Validation(verdict, (), ("ixx",) if verdict == "not_identifiable" else (), spread_std=spread,
+                       failed=("sub_bands",), sigma_factor=1.5)
+        np.testing.assert_allclose(widened_std(std, v), np.sqrt((1.5 * std) ** 2 + spread**2))
+    v = Validation("not_identifiable", (), ("ixx",), spread_std=spread, failed=(), sigma_factor=1.5)
+    np.testing.assert_allclose(widened_std(std, v), 1.5 * std)
 
 
 @pytest.fixture(scope="module")
