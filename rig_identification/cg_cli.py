@@ -45,12 +45,11 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 from .atomic import atomic_write_text
 from .recording import RecordingError, read_recording
 from .rig import DummyMass, Rig, RigError, dump_rig, load_rig
-from .simulator import ExperimentError, load_experiment
+from .simulator import load_rig_or_experiment
 from .statics import (CG_RESULT_SCHEMA, CG_RESULT_SCHEMA_VERSION, DEFAULT_ANCHOR_STD, DEFAULT_DUMMY_POSITION_STD,
                       DEFAULT_LENGTH_STD, CgOptions, CgResult, SensorNoise, StaticsError, StaticState, estimate_cg,
                       plan_static_test, predict_cg_std)
@@ -504,22 +503,6 @@ def add_cg_plan_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-def _load_rig_or_experiment(path: Path):
-    """A rig.yaml, or the ``rig`` of an experiment file (config/cases/*.yaml: its CG is the guess)."""
-    try:
-        d = yaml.safe_load(path.read_text())
-    except OSError as e:
-        raise RigError(f"{path}: cannot read the rig description ({e.strerror})") from None
-    except yaml.YAMLError:
-        d = None
-    if isinstance(d, dict) and "rig" in d and "gravity" not in d:
-        try:
-            return load_experiment(path).rig
-        except ExperimentError as e:
-            raise RigError(str(e)) from None
-    return load_rig(path)
-
-
 def cmd_cg_plan(args) -> int:
     """``rig-identify cg-plan``: predicted σ of the planned test and the recommended plan; returns 0."""
     src = Path(args.rig)
@@ -532,7 +515,7 @@ def cmd_cg_plan(args) -> int:
         if args.noise_from is None and (src / "bag").exists():
             args.noise_from = str(src)
     else:
-        rig = _load_rig_or_experiment(src)
+        rig = load_rig_or_experiment(src)
     if args.noise_from is not None:
         rec = read_recording(args.noise_from)
         noise = SensorNoise.from_state(StaticState.from_window(rec.sensors, label=str(rec.path), allow_motion=True))

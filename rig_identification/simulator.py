@@ -148,7 +148,7 @@ from scipy.spatial.transform import Rotation
 
 from .effects import DEFAULT_LOCK_DAMPING_RATIO, DEFAULT_LOCK_FREQUENCY, Effect, parse_effects
 from .recording import SensorData, TimeSeries
-from .rig import DummyMass, Rig, RigError, rig_from_dict
+from .rig import DummyMass, Rig, RigError, load_rig, read_yaml, rig_from_dict
 
 DEFAULT_STIFFNESS = 5.0e6          # N/m, reference simulator's cable stiffness
 DEFAULT_DAMPING_RATIO = 0.01       # ζ of the default cable damping (reference simulator)
@@ -688,6 +688,20 @@ def experiment_from_dict(d: Any, source: str = "<memory>") -> Experiment:
                       stamp_origin=stamp_origin, static=static, description=description,
                       reference=f.mapping(d.get("source"), "source"), thesis=f.mapping(d.get("thesis"), "thesis"),
                       path=source, effects=effects)
+
+
+def load_rig_or_experiment(path: str | Path) -> Rig:
+    """The rig of a rig.yaml, or the ``rig:`` section of an experiment file (as
+    ``config/rigs/default.yaml`` and ``config/cases/*.yaml``: its CG is then the simulated one).
+    Raises :class:`~.rig.RigError` naming the file (unreadable, not YAML, a bad field)."""
+    p = Path(path)
+    d = read_yaml(p, RigError, "rig description")
+    if isinstance(d, dict) and "rig" in d and "gravity" not in d:
+        try:
+            return load_experiment(p).rig
+        except ExperimentError as e:
+            raise RigError(str(e)) from None
+    return load_rig(p)
 
 
 def load_experiment(path: str | Path) -> Experiment:

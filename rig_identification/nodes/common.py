@@ -70,7 +70,7 @@ import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ..rig import Rig, RigError, load_rig, read_yaml
+from ..rig import Rig, RigError
 from .codec import (IMU_FIELDS, ODOMETRY_FIELDS, VECTOR_FIELDS, WRENCH_FIELDS, MessageLayout,  # noqa: F401
                     PersistentReason, imu_layout, odometry_layout, split_stamps, vector_layout, wrench_layout)
 from .frames import (BODY_FRAME, EXCITER_FRAME, IMU_FRAME, INCLINOMETER_FRAME, WORLD_FRAME,  # noqa: F401
@@ -203,15 +203,9 @@ def load_rig_source(path: str | Path) -> Rig:
             raise RigError(f"{p}: a folder without rig.yaml (expected a rig.yaml, an experiment file or a "
                            "recording folder)")
         p = p / "rig.yaml"
-    d = read_yaml(p, RigError, "rig description")
-    if isinstance(d, dict) and "rig" in d and "gravity" not in d:
-        # an experiment file; simulator (scipy.integrate) only imported for this case
-        from ..simulator import ExperimentError, load_experiment
-        try:
-            return load_experiment(p).rig
-        except ExperimentError as e:
-            raise RigError(str(e)) from None
-    return load_rig(p)
+    # simulator (scipy.integrate) imported only here: the nodes that take no rig file skip it
+    from ..simulator import load_rig_or_experiment
+    return load_rig_or_experiment(p)
 
 
 def load_rig_param(node: Node) -> Rig:
