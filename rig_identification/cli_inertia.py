@@ -221,7 +221,9 @@ def cmd_inertia(args) -> int:
     if args.report:
         step(f"writing the report to {args.report}")
         try:
-            index = write_report(args.report, result, recs)
+            # the report says where the CG came from: "from CG.json (σ x, y, z mm)"
+            index = write_report(args.report, result, recs,
+                                 cg_source=None if cg_note is None else cg_note.removeprefix("centre of gravity "))
         except OSError as e:
             raise ReportError(f"{args.report}: cannot write the report ({e.strerror or e})") from None
     body = expressed(result, "body")

@@ -1,0 +1,65 @@
+"""The rig day's hand-over, end to end through the command line (docs/tutorial.md, steps 4 and 6):
+``rig-identify cg BASELINE DUMMY --json > cg.json``, then ``rig-identify inertia RUN --cg cg.json
+--report DIR``.  The fit, the text and the report all use the static test's CG and say so: the
+report's header names cg.json and its σ instead of "rig.yaml body.center_of_gravity".
+
+The shake is the clean reference recording (--quick: a few seconds), the static pair the
+reference pair (its CG 2.2 mm below truth.yaml's, the body origin)."""
+import contextlib
+import html
+import io
+import json
+
+import numpy as np
+import pytest
+import yaml
+
+from conftest import recording
+from rig_identification.cli import identify_main
+
+CLEAN = recording("visible_case16_clean")
+BASE = recording("visible_case16_static/static_baseline")
+DUMMY = recording("visible_case16_static/static_dummy")
+
+
+def run(*argv) -> tuple[int, str, str]:
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = identify_main([str(a) for a in argv])
+    return code, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def day(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("rigday")
+    code, out, err = run("cg", BASE, DUMMY, "--json", "-q")
+    assert code == 0, err
+    cg_file = folder / "cg.json"
+    cg_file.write_text(out)
+    report = folder / "report"
+    code, text, err = run("inertia", CLEAN, "--quick", "--cg", cg_file, "--report", report, "-q")
+    assert code == 0, err
+    return json.loads(out), cg_file, report, text, err
+
+
+def test_the_fit_is_about_the_static_tests_cg(day):
+    cg, cg_file, report, text, err = day
+    data = json.loads((report / "report.json").read_text())
+    c = np.array(cg["center_of_gravity"])
+    # the static test's CG, not rig.yaml's (the body origin, truth.yaml's): 2.2 mm apart in z
+    rig_cg = yaml.safe_load((CLEAN / "rig.yaml").read_text())["body"]["center_of_gravity"]
+    assert np.abs(c - rig_cg).max() > 1e-3
+    np.testing.assert_allclose(data["result"]["center_of_gravity"], c, rtol=0, atol=1e-12)
+    assert f"({', '.join(f'{x:.4f}' for x in c)}) m (from {cg_file})" in text
+    assert f"centre of gravity from {cg_file} (σ" in err     # the warning with its σ
+
+
+def test_the_report_says_where_the_cg_came_from(day):
+    cg, cg_file, report, text, err = day
+    data = json.loads((report / "report.json").read_text())
+    source = data["report"]["center_of_gravity_source"]
+    sd_mm = ", ".join(f"{1e3 * x:.2g}" for x in cg["center_of_gravity_std"])
+    assert source == f"from {cg_file} (σ {sd_mm} mm)", source
+    page = html.unescape((report / "index.html").read_text())
+    assert f"in body axes ({source})" in page
+    assert "rig.yaml body.center_of_gravity, as measured" not in page
