@@ -8,8 +8,11 @@ Verbs (ROS arguments may follow ``--ros-args``; ``--identifier NAME`` picks the 
       the identified mass properties beside the truth of a simulated experiment (latched
       ``/rig/sim_truth``, when a sensor driver publishes one) with the error of each entry:
       % of the true value for mass and the diagonal of the tensor, % of the largest true
-      diagonal entry for the products of inertia, mm for the centre of gravity.  When the
-      identifier is busy with another request's fit, the client asks again.
+      diagonal entry for the products of inertia, mm for the centre of gravity.  First the
+      verdict (the node's fit has none: it says so) and the conventions of ``rig-identify
+      inertia`` (body frame, SI units, tensor entries ixx..iyz in its order, whose off-diagonal
+      ones are the negated products of inertia); then the products with the vehicle-dynamics
+      sign.  When the identifier is busy with another request's fit, the client asks again.
   mass_properties_client cg-capture baseline|dummy [--json]
       the static centre-of-gravity experiment, steps 1 and 2: ~/capture_cg_baseline
       (body at rest without the dummy mass) or ~/capture_cg_dummy (with it, at rig.yaml
@@ -39,18 +42,33 @@ from rclpy.utilities import remove_ros_args
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
+from ..export import AXES, convention_lines
 from . import common
 
-KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+#: the tensor entries in the order of every rig-identify table and option (moments, then products)
+KEYS = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")
+PRODUCTS = ("ixy", "ixz", "iyz")
+NOT_DETERMINED = "not determined"
+#: the verdict line when the answer has no model validation (the identifier node's streaming fit)
+UNVALIDATED = ("verdict: none — this fit was not validated (the identifier node does not run rig-identify's "
+               "model-validation checks): record the run (rig-record) and take the verdict from "
+               "`rig-identify inertia RUN`")
 
 
 def format_table(result: dict, truth: dict | None, cg_answer: str | None = None, name: str = "/identifier") -> str:
-    """The mass-properties table (see module docstring) as text."""
+    """The mass-properties table (see module docstring) as text: the verdict first, then the
+    conventions (as ``rig-identify inertia``: frame, units, the tensor's off-diagonal entries
+    are the negated products of inertia), the window, the table of mass, CG and tensor entries
+    (``null`` entries, which the recording does not determine, as "not determined"), the
+    products of inertia with the vehicle-dynamics sign, notes and warnings."""
     lines = []
     w = result.get("window", {})
     head = f"Mass properties identified by {name}"
     lines.append(head)
     lines.append("=" * len(head))
+    summary = (result.get("validation") or {}).get("summary")
+    lines.append(summary or UNVALIDATED)
+    lines += convention_lines(AXES["body"])
     if w:
         span = w.get("end", 0.0) - w.get("start", 0.0)
         rel = ""
@@ -86,16 +104,23 @@ def format_table(result: dict, truth: dict | None, cg_answer: str | None = None,
     Jt = truth["inertia_about_cg"] if has_truth else None
     big = max(abs(Jt["ixx"]), abs(Jt["iyy"]), abs(Jt["izz"])) if Jt else None
     for k in KEYS:
-        diag = k in ("ixx", "iyy", "izz")
+        diag = k not in PRODUCTS
         err = "—"
-        if Jt is not None:
+        if Jt is not None and J.get(k) is not None:
             ref = abs(Jt[k]) if diag else big
             err = f"{100 * (J[k] - Jt[k]) / ref:+.3f} %" + ("" if diag else "*")
-        row(k.capitalize(), "kg·m²", f"{J[k]:.2f}", f"{std[k]:.2f}" if k in std else "—",
+        if J.get(k) is None:
+            lines.append(f"{k:<10}{'kg·m²':>7}  {NOT_DETERMINED}")
+            continue
+        row(k, "kg·m²", f"{J[k]:.2f}", f"{std[k]:.2f}" if std.get(k) is not None else "—",
             f"{Jt[k]:.2f}" if Jt else "—", err)
     lines.append("mass and CG: the known values of rig.yaml (the dynamic experiment identifies the tensor)")
     if has_truth:
         lines.append("error: % of the true value; * products of inertia: % of the largest true diagonal entry")
+    products = [f"I{k[1:]} " + (NOT_DETERMINED if J.get(k) is None else f"{-J[k] + 0.0:+.2f}"
+                                + (f" ± {std[k]:.2f}" if std.get(k) is not None else "")) for k in PRODUCTS]
+    lines.append("products of inertia about the CG, vehicle-dynamics sign (Ixy = ∫xy dm = −ixy): "
+                 + ", ".join(products) + " kg·m²")
     for wd in result.get("weakly_determined", [])[:1]:
         if isinstance(wd, dict) and wd.get("text"):
             lines.append("note: " + wd["text"])

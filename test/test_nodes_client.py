@@ -1,0 +1,68 @@
+"""mass_properties_client's table (``client.format_table``) says what ``rig-identify inertia``
+says: the verdict first (or that the node's fit has none), the conventions (body frame, SI
+units, the tensor's off-diagonal entries are the negated products of inertia), the entries in
+rig-identify's order with their truth, the products with the vehicle-dynamics sign, and
+"not determined" for a null entry instead of a crash.
+
+The answer is a real fit's JSON (``InertiaResult.to_dict``, what ~/identify_inertia returns)
+of the clean reference recording (--quick, a few seconds); no DDS."""
+import copy
+import json
+
+import pytest
+
+pytest.importorskip("rclpy")
+
+from conftest import recording  # noqa: E402
+from rig_identification.nodes.client import KEYS, UNVALIDATED, format_table  # noqa: E402
+from rig_identification.pipeline import identify_recording  # noqa: E402
+from rig_identification.recording import read_recording  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def answer():
+    rec = read_recording(recording("visible_case16_clean"))
+    d = json.loads(json.dumps(identify_recording(rec, refine=False).to_dict(t0=float(rec.sensors.t_start))))
+    return d, rec.truth
+
+
+def rows(text: str) -> dict[str, str]:
+    return {line.split()[0]: line for line in text.splitlines() if line.split() and line.split()[0] in KEYS}
+
+
+def test_verdict_first_then_the_conventions(answer):
+    d, truth = answer
+    lines = format_table(d, truth).splitlines()
+    assert lines[2] == d["validation"]["summary"] and lines[2].startswith("verdict: ok")
+    assert lines[3].startswith("frame: the body frame of rig.yaml") and "SI units" in lines[3]
+    assert "NEGATED products of inertia" in lines[4]
+    # the node's own answer has no validation: the table says so instead of leaving it out
+    unvalidated = dict(d, validation=None)
+    assert format_table(unvalidated, truth).splitlines()[2] == UNVALIDATED
+
+
+def test_entries_in_rig_identify_order_with_truth_and_products_sign(answer):
+    d, truth = answer
+    text = format_table(d, truth)
+    r = rows(text)
+    assert list(r) == ["ixx", "iyy", "izz", "ixy", "ixz", "iyz"]
+    J, Jt = d["inertia_about_cg"], truth["inertia_about_cg"]
+    for k in KEYS:
+        cells = r[k].split()
+        assert float(cells[2]) == pytest.approx(J[k], abs=0.006)                 # identified
+        assert float(cells[3]) == pytest.approx(d["inertia_std"][k], abs=0.006)  # ±1σ
+        assert float(cells[4]) == pytest.approx(Jt[k], abs=0.006)                # truth.yaml
+    # the products with the vehicle-dynamics sign: Iyz = −iyz (truth: iyz −102, so Iyz ≈ +102.7)
+    line = next(x for x in text.splitlines() if x.startswith("products of inertia"))
+    iyz = float(line.split("Iyz ")[1].split()[0])
+    assert iyz == pytest.approx(-J["iyz"], abs=0.006) and iyz > 0 and abs(iyz + Jt["iyz"]) < 1.0
+
+
+def test_undetermined_entry_prints_not_determined(answer):
+    d, truth = answer
+    d = copy.deepcopy(d)
+    d["inertia_about_cg"]["ixy"] = d["inertia_std"]["ixy"] = None   # as in a not_identifiable answer
+    text = format_table(d, truth)
+    assert "not determined" in rows(text)["ixy"]
+    assert "Ixy not determined" in text
+    assert float(rows(text)["ixx"].split()[2]) == pytest.approx(d["inertia_about_cg"]["ixx"], abs=0.006)
