@@ -5,7 +5,8 @@ restamped to "now" so that time runs on as on the rig); the lab's procedure is r
 client's verbs — ``mass_properties_client cg-capture baseline``, ``cg-capture dummy``,
 ``cg-estimate [--json]`` (which call ~/capture_cg_baseline, ~/capture_cg_dummy and
 ~/estimate_cg) — and the CG is checked against truth.yaml and against `rig-identify cg` on
-the same recordings, and the published /rig/mass_properties.  rig.yaml has no centre of
+the same recordings, and the published /rig/mass_properties; the ``--json`` answer saved to a
+file is read back as ``rig-identify inertia --cg`` reads it.  rig.yaml has no centre of
 gravity (static experiment).
 """
 from __future__ import annotations
@@ -25,6 +26,7 @@ rclpy = pytest.importorskip("rclpy")
 from conftest import recording  # noqa: E402
 from test_nodes import Listener, wait_until  # noqa: E402
 
+from rig_identification.cg_cli import load_cg_result  # noqa: E402
 from rig_identification.nodes import common  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.recording import read_recording  # noqa: E402
@@ -85,6 +87,13 @@ def test_cg_services_on_the_reference_pair(tmp_path):
         p = client(g, "cg-estimate", "--json")
         assert p.returncode == 0, p.stdout + p.stderr
         d = json.loads(p.stdout)
+        # the hand-over to the shake: `cg-estimate --json > cg.json` is a file `rig-identify inertia --cg` reads
+        saved_path = tmp_path / "cg.json"
+        saved_path.write_text(p.stdout)
+        saved = load_cg_result(saved_path)
+        np.testing.assert_array_equal(saved.center_of_gravity, d["center_of_gravity"])
+        np.testing.assert_array_equal(saved.center_of_gravity_std, d["center_of_gravity_std"])
+        assert saved.verdict == d["validation"]["verdict"] and saved.mass == d["mass"]
         text = client(g, "cg-estimate")  # the table: the same numbers
         assert text.returncode == 0, text.stderr
         row = next(line for line in text.stdout.splitlines() if line.startswith("CG z"))

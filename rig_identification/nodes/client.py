@@ -172,7 +172,8 @@ def format_cg(answer: dict, truth: dict | None, name: str = "/identifier") -> st
         sd_text = f"{m_lc_sd:>10.3f}" if m_lc_sd is not None else f"{'—':>10}"
         lines.append(f"{'mass (LC)':<10}{'kg':>6}{m_lc:>12.3f}{sd_text}   from the load cells")
     lines += [f"warning: {w}" for w in answer.get("warnings", [])]
-    lines.append("put center_of_gravity into rig.yaml (body.center_of_gravity) before the dynamic experiment")
+    lines.append("put center_of_gravity into rig.yaml (body.center_of_gravity) before the dynamic experiment; "
+                 "`cg-estimate --json > cg.json` saves it for `rig-identify inertia RUN --cg cg.json`")
     return "\n".join(lines)
 
 
