@@ -92,28 +92,21 @@ from dataclasses import dataclass, field
 from dataclasses import replace as _replace
 
 import numpy as np
-from scipy.optimize import least_squares
-from scipy.signal import butter, sosfiltfilt, welch
-from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
+from .effect_candidates import CORRECTIONS, body_inertia, candidates, corrected, with_stiffness
 from .effects import EFFECT_NAMES
-from .identification import (KEYS, IdentificationError, auto_band, basis, consistent_from_params, cumulative_integral,
-                             from_tensor, params_from_consistent, step_indices, to_tensor)
-from .quality import check_motion, check_units, clean_sensors
+from .identification import KEYS, IdentificationError, from_tensor, identify_inertia
+from .model_extension import Fit, Model, Window, fit_model, prepare_window
 from .recording import Recording, RecordingError
-from .tracker import pass_compliance, replay
-from .yaw_anchor import anchor_yaw
+from .residual_analysis import (channel_residuals, effective_samples, exciter_phase, locate, rms, synchronous,
+                                synchronous_rms)
 
 ALPHA = 0.01          # family-wise false-alarm probability of the selection
 MIN_REDUCTION = 0.05  # an effect must reduce some channel's residual RMS by at least this fraction
 MAX_EFFECTS = 3
-CORRECTIONS = ("sensor_delay", "load_cell_scale", "imu_offset", "imu_misalignment", "gyro_bias", "gyro_scale",
-               "accelerometer_bias", "body_mass")
-"""Effects that are errors of the data, not missing physics: :func:`corrected` removes them."""
 EXACT_SCREEN = 3      # sensor/rig-error candidates evaluated exactly (re-tracked) per selection step
 REWEIGHT_ITER = 2     # reweighting iterations of the final fit (per-axis residual scales)
-ALPHA_LP = 3.0        # angular acceleration: gyro low-passed at this multiple of the band's upper edge
 GAIN_STEP = 0.02      # load-cell gain steps of the exact screening (relative)
 CABLE_MASS_STEP = 2e-3  # cables' mass steps of the exact screening: body anchors' share of the body's mass
 MASSES = ("cable_mass", "body_mass")
@@ -121,698 +114,9 @@ MASSES = ("cable_mass", "body_mass")
 PROFILED = ("load_cell_scale",) + MASSES
 """One-parameter errors placed by their exact profile likelihood (:func:`_exact_profile`)."""
 WEIGHT_SURPLUS_SIGMA = 3.0   # the masses are evaluated exactly when the cells carry this many σ more (or less) than the weight
-DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
-WEIGHT_SIGMA = 5e-4   # relative σ of the load cells' mean vertical force against rig.yaml's weight:
-                      # the cells' calibration (class C3 cells: 0.02–0.05 % of their load)
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
 PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
 STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml stiffness are not "steel-like"
-SYNC_BINS = 36        # exciter-phase bins of the time-synchronous average (10° each)
-SYNC_MIN_REVOLUTIONS = 10   # fewer exciter revolutions in the window: no synchronous residual
-ROT, TR = ("gyro_x", "gyro_y", "gyro_z"), ("accel_x", "accel_y", "accel_z")
-
-
-# --- data ---------------------------------------------------------------------------------
-
-@dataclass
-class Window:
-    """Everything the diagnosis needs, on the IMU stamps of the window (N samples).
-
-    t (N,) s; omega (N,3) rad/s body axes (gyro); f (N,3) m/s² specific force at the IMU,
-    body axes; R (N,3,3) body -> world; v (N,3) CG velocity, body axes, m/s;
-    tensions (N,n) N; u (N,n,3) cable directions, body axes; r_cables (n,3) body anchors
-    − CG, m; f_exc (N,3) exciter force, body axes, N; r_exc (3,) exciter − CG, m;
-    rho (3,) IMU − CG, m; mass kg; g m/s²; imu_rot (3,3) IMU -> body.
-    """
-
-    t: np.ndarray
-    omega: np.ndarray
-    f: np.ndarray
-    R: np.ndarray
-    v: np.ndarray
-    tensions: np.ndarray
-    u: np.ndarray
-    r_cables: np.ndarray
-    f_exc: np.ndarray
-    r_exc: np.ndarray
-    rho: np.ndarray
-    mass: float
-    g: float
-    imu_rot: np.ndarray
-    cable_names: list
-    exc_rot: np.ndarray = field(default_factory=lambda: np.eye(3))
-    imu_rot_yaml: np.ndarray = field(default_factory=lambda: np.eye(3))   # rig.yaml's IMU -> body
-    stiffness: np.ndarray | None = None     # cable stiffness the pose was tracked with, N/m (inf: rigid)
-    stiffness_std: float | None = None      # std of the fitted stiffness (tracker's compliance fit), N/m
-    sensors: object = None       # the cleaned SensorData (for exact re-alignment of a stream)
-    shifts: dict = field(default_factory=dict)   # stream -> delay applied, s
-
-    def shifted(self, stream: str, delay: float) -> "Window":
-        """A copy with ``stream`` (load_cells | exciter) re-sampled at t + delay: the stream's
-        stamps lag by ``delay`` s (linear interpolation of the cleaned samples)."""
-        s = self.sensors
-        tq = self.t + delay
-        if stream == "load_cells":
-            T = np.column_stack([np.interp(tq, s.load_cells[n].t, s.load_cells[n].data[:, 0]) for n in self.cable_names])
-            return _replace(self, tensions=T, shifts={**self.shifts, stream: delay})
-        if stream == "exciter":
-            fe = s.exciter.interp(tq) @ self.exc_rot[:, :2].T
-            return _replace(self, f_exc=fe, shifts={**self.shifts, stream: delay})
-        raise ValueError(f"cannot re-align stream {stream!r}")
-
-    @property
-    def cable_force(self) -> np.ndarray:
-        return self.tensions[:, :, None] * self.u
-
-    @property
-    def force(self) -> np.ndarray:
-        return self.cable_force.sum(1) + self.f_exc
-
-    @property
-    def cable_moment(self) -> np.ndarray:
-        return np.cross(self.r_cables[None], self.cable_force)       # (N,n,3)
-
-    @property
-    def torque(self) -> np.ndarray:
-        return self.cable_moment.sum(1) + np.cross(self.r_exc, self.f_exc)
-
-    @property
-    def g_body(self) -> np.ndarray:
-        return -self.g * self.R[:, 2, :]                               # Rᵀ (0,0,-g)
-
-
-def _track(rig, s, cables: str):
-    """Tracked poses and the cable stiffness used (N,) N/m.  cables: ``"declared"``: the
-    rig.yaml stiffness, fitted by the tracker where rig.yaml gives none (as
-    :func:`~rig_identification.tracker.track`); ``"rigid"``: inextensible where rig.yaml
-    gives none; ``"fitted"``: fitted for every cable, whatever rig.yaml says."""
-
-    if cables == "fitted":
-        rig = _replace(rig, cables=tuple(_replace(c, stiffness=None) for c in rig.cables))
-    known = np.isfinite(rig.cable_stiffness)
-    if known.all() or cables == "rigid":
-        rig_t = _replace(rig, cables=tuple(c if c.stiffness is not None else _replace(c, stiffness=1e15) for c in rig.cables))
-        out, _ = replay(rig_t, s)
-        return out, np.where(known, rig.cable_stiffness, np.inf), None
-    out, tracker = replay(rig, s)
-    hist = tracker.compliance_history
-    if not hist:
-        return out, np.where(known, rig.cable_stiffness, np.inf), None
-    H = np.array([h[1] for h in hist[len(hist) // 2:]])
-    c_ls = pass_compliance(tracker, out)
-    c = np.median(H, axis=0) if c_ls is None else np.where(known, H[0], c_ls)
-    # the tracker's updates are ~2 s apart, over a ~60 s forgetting horizon: ~30 updates per
-    # independent estimate
-    c_std = np.std(H, axis=0) / np.sqrt(max(1.0, len(H) / 30.0)) / np.sqrt(max(1, (~known).sum()))
-    k = np.where(known, rig.cable_stiffness, 1.0 / np.maximum(c, 1e-12))
-    rig_t = _replace(rig, cables=tuple(_replace(cb, stiffness=float(ki)) for cb, ki in zip(rig.cables, k)))
-    out, _ = replay(rig_t, s)
-    k_std = float(np.median(k[~known]) ** 2 * np.median(c_std[~known]))
-    return out, k, k_std
-
-
-def prepare_window(rec: Recording, settle: float = 5.0, warnings: list | None = None,
-                   cables: str = "declared", imu_rot_yaml: np.ndarray | None = None) -> Window:
-    """Clean the recording, track the pose and collect the :class:`Window` (the same
-    cleaning and tracker as ``rig-identify inertia``; ``cables`` as :func:`_track`).
-    Raises RecordingError, RigError, TrackerError."""
-    rig = rec.rig
-    cg = rig.require_cg()
-    if rig.exciter is not None and rec.sensors.exciter is None:
-        raise RecordingError(f"{rec.path}: rig.yaml describes an exciter but the bag has no /rig/exciter/wrench topic")
-    check_units(rec)
-    warnings = [] if warnings is None else warnings
-    s = clean_sensors(rec, warnings)
-    check_motion(rec, s)
-    poses, stiffness, stiffness_std = _track(rig, s, cables)
-    lo = max([c.t[0] for c in s.load_cells.values()] + ([s.exciter.t[0]] if s.exciter is not None else []))
-    hi = min([c.t[-1] for c in s.load_cells.values()] + ([s.exciter.t[-1]] if s.exciter is not None else []))
-    lo = max(lo, s.t_start + min(settle, 0.1 * (s.t_end - s.t_start)))
-    poses, _ = anchor_yaw(rig, poses, s, lo, hi)   # as every fit's replay (pipeline.replay_window)
-    m = (poses.t >= lo) & (poses.t <= hi)
-    t = poses.t[m]
-    R = Rotation.from_quat(poses.quaternion[m]).as_matrix()
-    imu = s.imu.interp(t)
-    Rimu = rig.imu.rotation.as_matrix()
-    omega, f = imu[:, :3] @ Rimu.T, imu[:, 3:] @ Rimu.T
-    T = np.column_stack([np.interp(t, s.load_cells[n].t, s.load_cells[n].data[:, 0]) for n in rig.cable_names])
-    rel = np.einsum("mji,mnj->mni", R, rig.ceiling_anchors[None] - poses.position[m][:, None]) - rig.body_anchors[None]
-    u = rel / np.linalg.norm(rel, axis=2)[:, :, None]
-    if rig.exciter is not None and s.exciter is not None:
-        f_exc = s.exciter.interp(t) @ rig.exciter.rotation.as_matrix()[:, :2].T
-        r_exc = rig.exciter.position - cg
-    else:
-        f_exc, r_exc = np.zeros((len(t), 3)), np.zeros(3)
-    v_world = poses.velocity[m] + np.einsum("nij,nj->ni", R, np.cross(omega, cg))
-    v = np.einsum("nji,nj->ni", R, v_world)
-    return Window(t, omega, f, R, v, T, u, rig.body_anchors - cg, f_exc, r_exc, rig.imu.position - cg,
-                  rig.mass, rig.gravity, Rimu, list(rig.cable_names),
-                  rig.exciter.rotation.as_matrix() if rig.exciter is not None else np.eye(3), sensors=s,
-                  imu_rot_yaml=Rimu if imu_rot_yaml is None else imu_rot_yaml, stiffness=stiffness,
-                  stiffness_std=stiffness_std)
-
-
-# --- the extended model ---------------------------------------------------------------------
-
-@dataclass
-class Column:
-    """One linear parameter of an effect: its contributions to the model (see module doc).
-
-    rot_D (N,3): moment added to the Euler equation per unit parameter, N·m, body;
-    rot_O (N,3): correction added to the band-passed measured ω (already filtered);
-    tr_D (N,3): specific force added to Newton's prediction, m/s², body;
-    tr_O (N,3): correction added to the band-passed measured specific force (filtered);
-    dcg (3,), dca (3,): change of the mean-level residuals per unit parameter.
-    """
-
-    name: str
-    rot_D: np.ndarray | None = None
-    rot_O: np.ndarray | None = None
-    tr_D: np.ndarray | None = None
-    tr_O: np.ndarray | None = None
-    dcg: np.ndarray | None = None
-    dca: np.ndarray | None = None
-
-
-@dataclass
-class Candidate:
-    """An effect hypothesis: ``name`` (effects.EFFECT_NAMES), its columns, and how to turn
-    the fitted column values (and covariance) into the effect's reported parameters."""
-
-    name: str
-    columns: list
-    report: callable
-    label: str = ""
-    gyroscopic: bool = False     # frees the scale of ω × Jω instead of adding columns
-    stream: str | None = None    # sensor_delay: the stream, re-aligned exactly once selected
-    exact: bool = False          # a sensor or rig error: once selected, the data are corrected and re-tracked
-
-    @property
-    def key(self) -> tuple:
-        return (self.name, self.label)
-
-
-class Model:
-    """The band-passed model terms of one window (precomputed), evaluated for a tensor,
-    a gyroscopic scale and effect columns."""
-
-    def __init__(self, w: Window, band: tuple[float, float] | None = None):
-        self.w = w
-        t = w.t
-        dt = np.diff(t)
-        self.fs = fs = 1.0 / float(np.median(dt))
-        if band is None:
-            lo, hi = auto_band(w.omega, fs)
-            lo = max(lo, 2.0 / (t[-1] - t[0]))
-        else:
-            lo, hi = band
-        self.band = (lo, min(hi, 0.4 * fs))
-        self.sos = butter(4, list(self.band), btype="bandpass", fs=fs, output="sos")
-        self.n_eff = max(10.0, len(t) * 2 * (self.band[1] - self.band[0]) / fs)
-        self.n_eff_group: dict = {}   # per residual group, from the baseline fit (effective_samples)
-        self.y = self.filt(w.omega)
-        self.steps = step_indices(w.torque)   # stepped inputs: integrated without interpolation across them
-        self.IM = self.integ(w.torque)
-        self.G = np.stack([self.integ(np.cross(w.omega, w.omega @ Em.T)) for Em in basis()])
-        # angular acceleration from the gyro low-passed at ALPHA_LP × the band's upper edge:
-        # the derivative of the raw gyro noise (×ρ) would swamp the accelerometer's own
-        # noise, and a cut-off at the edge itself (−3 dB there, −2 % of α in the band, then
-        # band-passed again) left an in-band error of α × ρ that looked like an IMU offset
-        # of ~8 mm on clean recordings and biased a load cell's gain by 15–25 %
-        lp = butter(4, min(ALPHA_LP * self.band[1], 0.4 * fs), fs=fs, output="sos")
-        self.alpha = np.gradient(sosfiltfilt(lp, w.omega, axis=0), t, axis=0)
-        a_rel = np.cross(self.alpha, w.rho) + np.cross(w.omega, np.cross(w.omega, w.rho))
-        newton = w.force / w.mass + a_rel
-        self.ya = self.filt(w.f)
-        self.A = self.filt(newton)
-        T = t[-1] - t[0]
-        net = Rotation.from_matrix(w.R[0].T @ w.R[-1]).as_rotvec()
-        self.dcg0 = w.omega.mean(0) - w.R[0].T @ w.R[0] @ net / T
-        self.dca0 = (w.f - newton).mean(0)
-        # mean moment: over the window, J mean(ω̇) + mean(ω × Jω) = mean(M)
-        self.dcm_M = w.torque.mean(0)
-        self.dcm_G = np.stack([np.cross(w.omega, w.omega @ Em.T).mean(0) for Em in basis()])   # (6,3)
-        self.dcm_W = (w.omega[-1] - w.omega[0]) / T
-        n = len(t)
-        sg = _white_sigma(w.omega, fs)
-        sa = _white_sigma(w.f, fs)
-        self.sigma_dcg = np.sqrt((sg / np.sqrt(n)) ** 2 + 1e-4 ** 2)
-        self.sigma_dca = np.sqrt((sa / np.sqrt(n)) ** 2 + 2e-3 ** 2)
-        self.sigma_dcm = DCM_FLOOR
-        # weight: the cells' (and exciter's) mean vertical force, world axes, against rig.yaml's
-        # m g plus the mean vertical acceleration (Newton's second law over the window), in
-        # σ of the cells' calibration.  The accelerometer does not enter it: a body heavier than
-        # rig.yaml says, or cables hanging on it, fail it; an accelerometer bias does not
-        fz = np.einsum("nj,nj->n", w.R[:, 2, :], w.force)
-        vz = np.einsum("j,j->", w.R[-1, 2, :], w.v[-1]) - np.einsum("j,j->", w.R[0, 2, :], w.v[0])
-        self.dcw = float((fz.mean() / w.mass - w.g - vz / T) / (WEIGHT_SIGMA * w.g))
-
-    def filt(self, x):
-        return sosfiltfilt(self.sos, x, axis=0)
-
-    def integ(self, x):
-        return self.filt(cumulative_integral(x, self.w.t, self.steps))
-
-    # rot residual: y + Σβ O − P (IM − κ G j + Σβ I(D))
-    def residuals(self, j, kappa, beta, cols, prepared):
-        P = np.linalg.inv(to_tensor(j))
-        u = self.IM - kappa * np.einsum("m,mni->ni", j, self.G)
-        yc = self.y.copy()
-        ya = self.ya.copy()
-        A = self.A.copy()
-        dcg = self.dcg0.copy()
-        dca = self.dca0.copy()
-        Jt = to_tensor(j)
-        dcm = self.dcm_M - kappa * j @ self.dcm_G - Jt @ self.dcm_W
-        for b, c, p in zip(beta, cols, prepared):
-            if p["rot_ID"] is not None:
-                u = u + b * p["rot_ID"]
-                dcm = dcm + b * p["rot_mean"]
-            if c.rot_O is not None:
-                yc = yc + b * c.rot_O
-            if p["tr_FD"] is not None:
-                A = A + b * p["tr_FD"]
-            if c.tr_O is not None:
-                ya = ya + b * c.tr_O
-            if c.dcg is not None:
-                dcg = dcg + b * c.dcg
-            if c.dca is not None:
-                dca = dca + b * c.dca
-        yhat = u @ P.T
-        return yc - yhat, ya - A, dcg, dca, dcm, P, yhat, u
-
-    def prepare(self, cols):
-        return [{"rot_ID": None if c.rot_D is None else self.integ(c.rot_D),
-                 "rot_mean": None if c.rot_D is None else c.rot_D.mean(0),
-                 "tr_FD": None if c.tr_D is None else self.filt(c.tr_D)} for c in cols]
-
-
-def _white_sigma(x: np.ndarray, fs: float) -> float:
-    f, P = welch(x, fs=fs, nperseg=min(len(x), 1024), axis=0)
-    return float(np.sqrt(np.median(P[f > fs / 4].mean(1)) * fs / 2))
-
-
-@dataclass
-class Fit:
-    """A fitted model: tensor (3,3), gyroscopic scale, effect column values and covariance,
-    residuals per group, RMS per channel."""
-
-    J: np.ndarray
-    kappa: float
-    beta: np.ndarray
-    cov: np.ndarray            # (6 + k (+1)) covariance: tensor entries, columns, [kappa]
-    rot: np.ndarray
-    tr: np.ndarray
-    dcg: np.ndarray
-    dca: np.ndarray
-    dcm: np.ndarray
-    yhat: np.ndarray
-    u: np.ndarray
-    cols: list = field(default_factory=list)
-    free_kappa: bool = False
-    dcw: float = 0.0           # the weight's mean-level residual in its σ (Model.dcw)
-
-    def cost(self, scales) -> dict:
-        """Per-group residual sums of squares in units of the baseline scales."""
-        sr, sa, sg, sa_dc, sm = scales
-        return {"rot": float(np.sum((self.rot / sr) ** 2)), "tr": float(np.sum((self.tr / sa) ** 2)),
-                "dcg": float(np.sum((self.dcg / sg) ** 2)), "dca": float(np.sum((self.dca / sa_dc) ** 2)),
-                "dcm": float(np.sum((self.dcm / sm) ** 2)), "dcw": self.dcw ** 2}
-
-
-def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales, j0: np.ndarray,
-              block_s: float = 4.0) -> Fit:
-    """Levenberg–Marquardt fit (scipy ``least_squares``, analytic Jacobian) of the tensor
-    (consistent parametrisation), the effect columns and optionally the gyroscopic scale
-    κ.  Each group is weighted by its baseline scale and its effective sample count, so
-    that the cost is −2 log L up to a constant (see module docstring)."""
-    sr, sa, sg, sdc, sm = scales
-    n = len(model.w.t)
-    # per-axis weights (3,): the axes' residual scales differ (a weakly excited axis, a
-    # pitch axis with more tracker error), and pooling them biases the tensor — the
-    # identifier also weights per axis
-    wr = np.broadcast_to(np.sqrt(model.n_eff / n) / np.asarray(sr, float), (3,))
-    wa = np.broadcast_to(np.sqrt(model.n_eff / n) / np.asarray(sa, float), (3,))
-    prepared = model.prepare(cols)
-    k = len(cols)
-    E = basis()
-    zeros = np.zeros((n, 3))
-    # the parts of the Jacobian that do not depend on the parameters
-    dTr = np.stack([(c.tr_O if c.tr_O is not None else zeros) - (p["tr_FD"] if p["tr_FD"] is not None else zeros)
-                    for c, p in zip(cols, prepared)], axis=-1) if k else np.zeros((n, 3, 0))
-    dG = np.array([c.dcg if c.dcg is not None else np.zeros(3) for c in cols]).T.reshape(3, k)
-    dA = np.array([c.dca if c.dca is not None else np.zeros(3) for c in cols]).T.reshape(3, k)
-    dMm = np.array([p["rot_mean"] if p["rot_mean"] is not None else np.zeros(3) for p in prepared]).T.reshape(3, k)
-
-    def unpack(x):
-        j, dj = consistent_from_params(x[:6])
-        beta = x[6:6 + k]
-        kappa = x[6 + k] if free_kappa else kappa0
-        return j, dj, beta, kappa
-
-    def fun(x):
-        j, _, beta, kappa = unpack(x)
-        r, a, dg, da, dm, *_ = model.residuals(j, kappa, beta, cols, prepared)
-        return np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc, dm / sm])
-
-    nlin = k + (1 if free_kappa else 0)
-    rows = 6 * n + 9
-
-    def lin_jac(j, P):
-        """Jacobian columns of the parameters the residual is linear in (β, κ): they
-        depend on the tensor only, (rows, nlin)."""
-        Jl = np.zeros((rows, nlin))
-        Jr = Jl[:3 * n].reshape(n, 3, nlin)
-        for i, (c, p) in enumerate(zip(cols, prepared)):
-            if c.rot_O is not None:
-                Jr[:, :, i] += c.rot_O
-            if p["rot_ID"] is not None:
-                Jr[:, :, i] -= p["rot_ID"] @ P.T
-        if free_kappa:
-            Jr[:, :, -1] = np.einsum("m,mni->ni", j, model.G) @ P.T
-        Jr *= wr[None, :, None]
-        Jl[3 * n:6 * n] = (dTr * wa[None, :, None]).reshape(-1, k) if k else 0.0
-        Jd = Jl[6 * n:]
-        Jd[:3, :k] = dG / sg
-        Jd[3:6, :k] = dA / sdc
-        Jd[6:, :k] = dMm / sm
-        if free_kappa:
-            Jd[6:, -1] = -(j @ model.dcm_G) / sm
-        return Jl
-
-    def tensor_jac(dj, kappa, P, yhat):
-        """Jacobian columns of the 6 tensor parameters, (rows, 6)."""
-        Jt = np.zeros((rows, 6))
-        M = (np.matmul(yhat, E.transpose(0, 2, 1)) + kappa * model.G) @ P.T     # (6, n, 3): P (E_m ŷ + κ G_m)
-        Jt[:3 * n] = ((M.transpose(1, 2, 0) * wr[None, :, None]).reshape(-1, 6) @ dj)
-        E6 = np.stack([kappa * model.dcm_G[m] + E[m] @ model.dcm_W for m in range(6)], axis=1)   # (3,6)
-        Jt[6 * n + 6:] = -(E6 @ dj) / sm
-        return Jt
-
-    def jac(x):
-        j, dj, beta, kappa = unpack(x)
-        _, _, _, _, _, P, yhat, _ = model.residuals(j, kappa, beta, cols, prepared)
-        return np.concatenate([tensor_jac(dj, kappa, P, yhat), lin_jac(j, P)], axis=1)
-
-    # variable projection (Golub & Pereyra 1973): the residual is linear in the effect
-    # columns and in κ, so for each tensor they are solved by linear least squares and
-    # Levenberg–Marquardt runs on the 6 tensor parameters alone, with Kaufman's
-    # projected Jacobian (Kaufman, BIT 15, 1975)
-    cache = {}
-
-    def full(th):
-        """(x, residual, tensor Jacobian, orthonormal basis U of the linear columns) at the
-        tensor parameters th, with the linear parameters solved."""
-        key = th.tobytes()
-        if key not in cache:
-            x, U = np.r_[th, np.zeros(nlin)], None
-            j, dj, _, _ = unpack(x)
-            if nlin:
-                P = np.linalg.inv(to_tensor(j))
-                A = lin_jac(j, P)
-                Ua, sv, Vt = np.linalg.svd(A, full_matrices=False)
-                keep = sv > sv[0] * max(A.shape) * np.finfo(float).eps if sv[0] > 0 else np.zeros(len(sv), bool)
-                U = Ua[:, keep]
-                b = -(Vt[keep].T @ ((U.T @ fun(x)) / sv[keep]))
-                x = np.r_[th, b]
-            _, _, beta, kappa = unpack(x)
-            r, a, dg, da, dm, P, yhat, _ = model.residuals(j, kappa, beta, cols, prepared)
-            res = np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc, dm / sm])
-            cache.clear()
-            cache[key] = (x, res, tensor_jac(dj, kappa, P, yhat), U)
-        return cache[key]
-
-    def fun_vp(th):
-        return full(th)[1]
-
-    def jac_vp(th):
-        _, _, Jt, U = full(th)
-        return Jt if U is None else Jt - U @ (U.T @ Jt)
-
-    th0 = params_from_consistent(to_tensor(j0))
-    sol = least_squares(fun_vp, th0, jac=jac_vp, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10,
-                        max_nfev=200)
-    sol.x, sol.fun = full(sol.x)[:2]
-    j, dj, beta, kappa = unpack(sol.x)
-    r, a, dg, da, dm, P, yhat, u = model.residuals(j, kappa, beta, cols, prepared)
-    # covariance of (tensor entries, beta, kappa): sandwich with batch means over time blocks
-    T = np.eye(len(sol.x))
-    T[:6, :6] = np.linalg.pinv(dj)          # d theta / d entries
-    A = jac(sol.x) @ T                        # Jacobian with respect to (entries, beta, kappa)
-    cov = _sandwich(A, sol.fun, n, 6, int(round(block_s * model.fs)))
-    return Fit(to_tensor(j), float(kappa), np.asarray(beta, float), cov, r, a, dg, da, dm, yhat, u, cols,
-               free_kappa, model.dcw)
-
-
-def _sandwich(A: np.ndarray, res: np.ndarray, n: int, per_row: int, nb: int) -> np.ndarray:
-    """Covariance (AᵀA)⁻¹ S (AᵀA)⁻¹ with S from batch means of the time rows (the first
-    n·per_row rows, sample-major within each group of n·3 rows) plus the DC rows."""
-    p = A.shape[1]
-    bread = np.linalg.pinv(A.T @ A)
-    n_time = n * per_row
-    H = A[:n_time] * res[:n_time, None]
-    # rows are [rot (n,3) ravel, tr (n,3) ravel]: sample index of each row
-    idx = np.concatenate([np.repeat(np.arange(n), 3)] * (per_row // 3))
-    nb = max(1, min(nb, n // 8))
-    blk = idx // nb
-    S = np.zeros((blk.max() + 1, p))
-    np.add.at(S, blk, H)
-    meat = S.T @ S
-    D = A[n_time:]
-    meat += D.T @ D
-    return bread @ meat @ bread
-
-
-# --- the effect library ---------------------------------------------------------------
-
-def _unit(x, floor_frac=0.1):
-    nrm = np.linalg.norm(x, axis=1)
-    floor = floor_frac * max(np.percentile(nrm, 95), 1e-12)
-    return np.where(nrm[:, None] > floor, x / np.maximum(nrm, 1e-300)[:, None], 0.0)
-
-
-def _lowpass(model: Model, x: np.ndarray) -> np.ndarray:
-    """x zero-phase low-passed at the band's upper edge: the regressors that are nonlinear in
-    a noisy signal (|ω| ω, sign ω) are formed from it, so the noise does not bias them."""
-    sos = butter(4, model.band[1], fs=model.fs, output="sos")
-    return sosfiltfilt(sos, x, axis=0)
-
-
-def _vec(vals, stds, key, applied=None):
-    a = np.zeros(len(vals)) if applied is None else np.asarray(applied, float)
-    return {key: [float(x) for x in a + np.asarray(vals, float)]}, {key: [float(x) for x in stds]}
-
-
-def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None = None,
-               allow_elasticity: bool = False, profiled: dict | None = None) -> list[Candidate]:
-    """The effect library as model extensions for this window (names: effects.EFFECT_NAMES).
-
-    applied: corrections already made to the data (key -> accumulated value, see
-    :func:`corrected`), added to the reported parameters.  profiled: keys whose value was
-    found by the exact profile likelihood (key -> σ, :func:`_exact_profile`): they carry
-    no column and report the applied value."""
-    applied = applied or {}
-    profiled = profiled or {}
-    m = w.mass
-    om, v = w.omega, w.v
-    E = np.eye(3)
-    out = []
-
-    def scal(keys):
-        def rep(vals, stds):
-            return ({k: float(x) for k, x in zip(keys, vals)}, {k: float(s) for k, s in zip(keys, stds)})
-        return rep
-
-    # viscous damping: M = -c_a ω, F = -c_l v
-    out.append(Candidate("viscous_damping", [Column("angular", rot_D=-om), Column("linear", tr_D=-v / m)],
-                         scal(["angular", "linear"])))
-    # air drag (quadratic) and Coulomb friction (regularised sign, as the simulator), from
-    # the low-passed motion
-    om_s, v_s = _lowpass(model, om), _lowpass(model, v)
-    nw, nv = np.linalg.norm(om_s, axis=1)[:, None], np.linalg.norm(v_s, axis=1)[:, None]
-    out.append(Candidate("air_drag", [Column("angular", rot_D=-nw * om_s), Column("linear", tr_D=-nv * v_s / m)],
-                         scal(["angular", "linear"])))
-    eps = 1e-3
-    out.append(Candidate("coulomb_friction",
-                         [Column("torque", rot_D=-om_s / np.sqrt(nw**2 + eps**2)),
-                          Column("force", tr_D=-v_s / np.sqrt(nv**2 + eps**2) / m)],
-                         scal(["torque", "force"])))
-    # the exciter's rotor: its weight turning with the unbalanced mass, M = U û × g
-    if np.any(w.f_exc):
-        uh = _unit(w.f_exc)
-        out.append(Candidate("exciter_rotor", [Column("unbalance", rot_D=np.cross(uh, w.g_body))],
-                             scal(["unbalance"])))
-    # sensor delays (first order): the stream lags by d -> true = measured + d d/dt(measured)
-    # (only the readings lag, not the pose: d/dt of the tension, not of T u)
-    t = w.t
-    Fd = np.gradient(w.tensions, t, axis=0)[:, :, None] * w.u
-    streams = [("load_cells", Fd.sum(1), np.cross(w.r_cables[None], Fd).sum(1))]
-    if np.any(w.f_exc):
-        dfe = np.gradient(w.f_exc, t, axis=0)
-        streams.append(("exciter", dfe, np.cross(w.r_exc, dfe)))
-    for stream, F, Mo in streams:
-        done = float(applied.get(("sensor_delay", stream), 0.0))
-
-        def rep_d(vals, stds, stream=stream, done=done):
-            return {"stream": stream, "delay": done + float(vals[0])}, {"delay": float(stds[0])}
-        out.append(Candidate("sensor_delay", [Column("delay", rot_D=Mo, tr_D=F / m)], rep_d, label=stream,
-                             stream=stream, exact=True))
-    # load-cell gains, one candidate per cable (a gain error is one cell's fault; the four
-    # gains together are nearly collinear with an accelerometer bias and the static pose):
-    # true T_i = T_meas,i (1 - e_i) -> -e_i times cable i's wrench
-    for i, name in enumerate(w.cable_names):
-        Fi = w.cable_force[:, i]
-        done_e = float(applied.get(("load_cell_scale", name), 0.0))
-
-        if ("load_cell_scale", name) in profiled:   # σ looked up when reported: the profile sets it last
-            out.append(Candidate("load_cell_scale", [], lambda vals, stds, name=name, e=done_e: (
-                {"cable": name, "scale": 1.0 / (1.0 - e)},
-                {"scale": profiled[("load_cell_scale", name)] / (1.0 - e) ** 2}), label=name, exact=True))
-            continue
-
-        def rep_scale(vals, stds, name=name, done_e=done_e):
-            keep = (1.0 - done_e) * (1.0 - float(vals[0]))      # true / measured
-            return {"cable": name, "scale": 1.0 / keep}, {"scale": float(stds[0]) / keep}
-        out.append(Candidate("load_cell_scale", [Column(f"gain_error_{name}", rot_D=-w.cable_moment[:, i],
-                                                        tr_D=-Fi / m, dca=(Fi / m).mean(0))],
-                             rep_scale, label=name, exact=True))
-    # IMU offset δ (body axes): the specific force at the true point is α×δ + ω×(ω×δ) more
-    cols = []
-    for k in range(3):
-        d = np.cross(model.alpha, E[k]) + np.cross(om, np.cross(om, E[k]))
-        cols.append(Column(f"offset_{'xyz'[k]}", tr_D=d, dca=-d.mean(0)))
-    out.append(Candidate("imu_offset", cols,
-                         lambda vals, stds: _vec(vals, stds, "offset", applied.get(("imu_offset", ""))),
-                         exact=True))
-    # IMU misalignment δ (body axes, small): true ω = ω_meas + δ × ω_meas, same for f
-    cols = [Column(f"rot_{'xyz'[k]}", rot_O=np.cross(E[k], model.y), tr_O=np.cross(E[k], model.ya),
-                   dcg=np.cross(E[k], w.omega.mean(0)), dca=np.cross(E[k], w.f.mean(0))) for k in range(3)]
-    done_rv = np.asarray(applied.get(("imu_misalignment", ""), np.zeros(3)), float)
-    R0 = w.imu_rot_yaml
-
-    def rep_mis(vals, stds):
-        Rb = Rotation.from_rotvec(np.asarray(vals, float)) * Rotation.from_rotvec(done_rv)   # body axes
-        Rd = Rotation.from_matrix(R0.T @ Rb.as_matrix() @ R0)                               # IMU axes
-        return {"rpy": [float(x) for x in Rd.as_euler("xyz")]}, {"rpy": [float(s) for s in stds]}
-    out.append(Candidate("imu_misalignment", cols, rep_mis, exact=True))
-    # biases (IMU axes): mean-level offsets
-    Rimu = w.imu_rot
-    cols = [Column(f"bias_{'xyz'[k]}", dcg=-(Rimu @ E[k])) for k in range(3)]
-    out.append(Candidate("gyro_bias", cols,
-                         lambda vals, stds: _vec(vals, stds, "bias", applied.get(("gyro_bias", ""))), exact=True))
-    # (no gyro_scale candidate: a scale factor on the gyro is the tensor scaled, to first order —
-    # ω_meas = S P ∫M — and only the asymmetry of S P tells them apart; the exact iteration ran
-    # off to a zero gyro on clean rigs.  corrected() removes a known one; the validation flags one)
-    cols = [Column(f"bias_{'xyz'[k]}", dca=-(Rimu @ E[k])) for k in range(3)]
-    out.append(Candidate("accelerometer_bias", cols,
-                         lambda vals, stds: _vec(vals, stds, "bias", applied.get(("accelerometer_bias", ""))),
-                         exact=True))
-    # cable mass: half of each cable (mass μ per anchor) moves with the body, outside the load cell
-    f_cg = w.force / m
-    Dm = np.zeros_like(om)
-    Fm = np.zeros_like(om)
-    for r in w.r_cables:
-        a_i = f_cg + np.cross(model.alpha, r) + np.cross(om, np.cross(om, r))   # anchor specific force
-        Dm -= np.cross(r, a_i)
-        Fm -= a_i
-    # (the first-order column is no guide: the selection evaluates the mass exactly, the rig's
-    # body given the cables' lower halves, :func:`corrected`, and places it by its profile)
-    key, done_mu = ("cable_mass", ""), float(applied.get(("cable_mass", ""), 0.0))
-    if key in profiled:
-        out.append(Candidate("cable_mass", [], lambda vals, stds, mu=done_mu: (
-            {"mass": 2 * mu}, {"mass": 2 * profiled[("cable_mass", "")]}), exact=True))
-    else:
-        out.append(Candidate("cable_mass", [Column("mass_half", rot_D=Dm, tr_D=Fm / m, dca=-(Fm / m).mean(0))],
-                             lambda vals, stds, mu=done_mu: ({"mass": 2 * (mu + float(vals[0]))},
-                                                             {"mass": 2 * float(stds[0])}), exact=True))
-    # body mass: rig.yaml's body.mass is off by δ kg (a weighing error; evaluated exactly, as
-    # the cables' mass, which it competes with: the same weight surplus, without the cables'
-    # lever arms)
-    key_b, done_b = ("body_mass", ""), float(applied.get(("body_mass", ""), 0.0))
-    if key_b in profiled:
-        out.append(Candidate("body_mass", [], lambda vals, stds, d=done_b: (
-            {"mass_error": d}, {"mass_error": profiled[("body_mass", "")]}), exact=True))
-    else:
-        out.append(Candidate("body_mass", [Column("mass_error", tr_D=-f_cg / m, dca=(f_cg / m).mean(0))],
-                             lambda vals, stds, d=done_b: ({"mass_error": d + float(vals[0])},
-                                                           {"mass_error": float(stds[0])}), exact=True))
-    # cable elasticity: the pose re-tracked with stretching cables (compliance fitted by the tracker)
-    if allow_elasticity:
-        out.append(Candidate("cable_elasticity", [], lambda vals, stds: ({"stiffness": float(vals[0])},
-                                                                         {"stiffness": float(stds[0])}),
-                             exact=True))
-    # gyroscopic coupling: only a model without it can miss it
-    if base_kappa == 0.0:
-        out.append(Candidate("gyroscopic_coupling", [], lambda vals, stds: ({"scale": float(vals[0])},
-                                                                            {"scale": float(stds[0])}),
-                             gyroscopic=True))
-    return out
-
-
-def corrected(rec: Recording, applied: dict) -> Recording:
-    """The recording with the sensor and rig errors of ``applied`` removed (key -> value):
-    ("sensor_delay", stream) s: the stream's stamps − d; ("load_cell_scale", cable) e:
-    the cable's tension T (1 − e); ("imu_offset", "") (3,) m body: imu.position + δ; ("imu_misalignment", "")
-    (3,) rotation vector, body axes: IMU axes turned by it; ("gyro_scale", "") (3,) ε per IMU
-    axis: the gyro divided by 1 + ε (after the bias); ("gyro_bias" | "accelerometer_bias",
-    "") (3,) IMU axes: subtracted; ("body_mass", "") δ kg: body.mass + δ; ("cable_mass", "") μ kg: the rig's body carries μ at each
-    body anchor (the lower half of each cable, outside its load cell at the ceiling): mass
-    + n μ, the centre of gravity moved to the combined one (the tensor fitted is then the
-    combined body's, :func:`body_inertia` gives the body's).  ("cable_elasticity", "") is
-    handled by the tracker."""
-
-    from .recording import SensorData, TimeSeries
-    rig, s = rec.rig, rec.sensors
-    imu = s.imu.data.copy()
-    imu[:, :3] -= np.asarray(applied.get(("gyro_bias", ""), np.zeros(3)))
-    imu[:, :3] /= 1.0 + np.asarray(applied.get(("gyro_scale", ""), np.zeros(3)))
-    imu[:, 3:] -= np.asarray(applied.get(("accelerometer_bias", ""), np.zeros(3)))
-    cells = {}
-    d_cells = applied.get(("sensor_delay", "load_cells"), 0.0)
-    gains = np.array([float(applied.get(("load_cell_scale", n), 0.0)) for n in rig.cable_names])
-    for n, ts in s.load_cells.items():
-        cells[n] = TimeSeries(ts.t - d_cells, ts.data * (1.0 - gains[rig.cable_names.index(n)]))
-    exc = s.exciter
-    if exc is not None and ("sensor_delay", "exciter") in applied:
-        exc = TimeSeries(exc.t - applied[("sensor_delay", "exciter")], exc.data)
-    s2 = SensorData(TimeSeries(s.imu.t, imu), cells, exc, s.inclinometer)
-    imu_m = rig.imu
-    if ("imu_offset", "") in applied:
-        imu_m = _replace(imu_m, position=imu_m.position + np.asarray(applied[("imu_offset", "")]))
-    if ("imu_misalignment", "") in applied:
-        Rb = Rotation.from_rotvec(np.asarray(applied[("imu_misalignment", "")], float))
-        imu_m = _replace(imu_m, rpy=(Rb * imu_m.rotation).as_euler("xyz"))
-    rig = _replace(rig, imu=imu_m, mass=rig.mass + float(applied.get(("body_mass", ""), 0.0)))
-    mu = float(applied.get(("cable_mass", ""), 0.0))
-    if mu:
-        rig = _replace(rig, mass=rig.mass + mu * len(rig.cables), center_of_gravity=_combined_cg(rig, mu))
-    return _replace(rec, rig=rig, sensors=s2)
-
-
-def _combined_cg(rig, mu: float) -> np.ndarray:
-    """Centre of gravity (3,) m, body frame, of the rig's body with μ kg at each body anchor."""
-    m, b = rig.mass, rig.body_anchors
-    return (m * rig.require_cg() + mu * b.sum(0)) / (m + mu * len(b))
-
-
-def with_stiffness(rec: Recording, k: np.ndarray) -> Recording:
-    """``rec`` with every cable's axial stiffness (n,) N/m set in its rig."""
-    return _replace(rec, rig=_replace(rec.rig, cables=tuple(_replace(c, stiffness=float(ki))
-                                                            for c, ki in zip(rec.rig.cables, k))))
-
-
-def body_inertia(J: np.ndarray, rig, mu: float) -> np.ndarray:
-    """The body's inertia tensor about its own centre of gravity (3,3) kg·m² from ``J``
-    (3,3), that of the body with μ kg at each body anchor about their combined centre of
-    gravity (:func:`corrected`'s cable mass): parallel-axis theorem (Huygens–Steiner),
-    J_b = J − m S(c_b − c) − μ Σ S(r_i − c), S(d) = |d|² I − d dᵀ; ``rig`` the rig.yaml's
-    (with the body's mass as diagnosed)."""
-    if not mu:
-        return J
-    m, cb, b = rig.mass, rig.require_cg(), rig.body_anchors
-    c = _combined_cg(rig, mu)
-    S = lambda d: float(d @ d) * np.eye(3) - np.outer(d, d)  # noqa: E731
-    return J - m * S(cb - c) - mu * sum(S(r - c) for r in b)
 
 
 # --- diagnosis ------------------------------------------------------------------------------
@@ -935,30 +239,6 @@ def implausible(entry: dict, rig, effect_share: float | None = None, unbalance: 
     return None
 
 
-def unexplained(located: dict, duration: float, limit: int = 6) -> list[dict]:
-    """Where the rigid-body fit's residuals show the mismatch, from :func:`locate`'s
-    analysis: one entry per spectral line of a channel's residual (the largest first)
-    ``{"channel", "band_hz": [lo, hi] Hz, "time_s": [start, end] s from the window's start,
-    "size": power over the residual's median in-band level, "is": what the frequency is}``;
-    a channel with no line but a residual that is not white (Ljung–Box p < 1e-3) gives one
-    entry over the whole band (size: its RMS).  ``time_s`` is the tenth of the window where
-    the channel's residual is largest when that is over twice the median tenth, else the
-    whole window.  At most ``limit`` entries."""
-    out = []
-    for ch, a in located.items():
-        seg = np.asarray(a.get("rms_by_tenth") or [0.0])
-        med = float(np.median(seg))
-        i = int(np.argmax(seg))
-        span = [i * duration / 10, (i + 1) * duration / 10] if med > 0 and seg[i] > 2 * med else [0.0, duration]
-        for pk in a.get("peaks", []):
-            out.append({"channel": ch, "band_hz": [round(max(pk["hz"] - 0.05, 0.0), 3), round(pk["hz"] + 0.05, 3)],
-                        "time_s": [round(x, 1) for x in span], "size": pk["power_over_floor"], "is": pk["is"]})
-        if not a.get("peaks") and a.get("whiteness_p", 1.0) < 1e-3:
-            out.append({"channel": ch, "band_hz": None, "time_s": [round(x, 1) for x in span],
-                        "size": a.get("rms"), "is": "a coloured residual (not white)"})
-    out.sort(key=lambda e: -(e["size"] or 0.0) if e["band_hz"] is not None else 0.0)
-    return out[:limit]
-
 
 def fmt_value(v) -> str:
     """A parameter value of an effect's JSON as text (numbers to 4 digits; lists, dicts)."""
@@ -977,194 +257,6 @@ def effect_parameters_text(e: dict) -> str:
     return ", ".join(f"{k} = {fmt_value(v)}" + (f" ± {fmt_value(std[k])}" if k in std else "")
                      for k, v in e["parameters"].items())
 
-
-def channel_residuals(model: Model, fit: Fit) -> dict:
-    """Residual time series (N,) per channel: gyro and accelerometer (band-passed, plus
-    the mean-level residual), torque and force (Newton–Euler equation errors, N·m and N),
-    and each load cell (least-squares tension correction, N)."""
-    w = model.w
-    out = {}
-    for k in range(3):
-        out[ROT[k]] = fit.rot[:, k] + fit.dcg[k]
-        out[TR[k]] = fit.tr[:, k] + fit.dca[k]
-    # Newton–Euler equation errors, band-passed: torque = J α + ω×Jω − M − ΔM  (in-band)
-    J = fit.J
-    # torque residual from the output error: J (d/dt) of the rotational residual
-    torque = np.gradient(fit.rot, w.t, axis=0) @ J.T + fit.dcm
-    force = fit.tr * w.mass
-    for k, a in enumerate("xyz"):
-        out[f"torque_{a}"] = torque[:, k]
-        out[f"force_{a}"] = force[:, k]
-    # load cells: tension corrections δT that best explain the wrench residual
-    W = np.concatenate([w.u, np.cross(w.r_cables[None], w.u)], axis=2)      # (N,n,6)
-    wr = np.concatenate([force, torque], axis=1)                             # (N,6)
-    scale = np.array([1, 1, 1, 1 / 1.5, 1 / 1.5, 1 / 1.5])                   # N vs N·m over ~1.5 m
-    Ws = W * scale
-    dT = np.einsum("nij,nj->ni", np.linalg.pinv(np.transpose(Ws, (0, 2, 1))), wr * scale)
-    for i, name in enumerate(w.cable_names):
-        out[f"load_cell_{name}"] = dT[:, i]
-    return out
-
-
-def _rms(d: dict) -> dict:
-    return {k: float(np.sqrt(np.mean(v**2))) for k, v in d.items()}
-
-
-def exciter_phase(w: Window) -> np.ndarray | None:
-    """The rotating exciter force's phase (N,) rad, unwrapped, from its two components in the
-    exciter's spin plane (``f_exc`` in the exciter frame); NaN where the force is below a
-    fifth of its median magnitude (stopped, spinning up).  None without a rotating exciter:
-    no exciter, or fewer than :data:`SYNC_MIN_REVOLUTIONS` turns in the window."""
-    fe = w.f_exc @ w.exc_rot[:, :2]
-    mag = np.linalg.norm(fe, axis=1)
-    if not np.any(mag > 0):
-        return None
-    ph = np.unwrap(np.arctan2(fe[:, 1], fe[:, 0]))
-    ph[mag < 0.2 * np.median(mag)] = np.nan
-    ok = np.isfinite(ph)
-    if ok.sum() < 2 or abs(ph[ok][-1] - ph[ok][0]) < 2 * np.pi * SYNC_MIN_REVOLUTIONS:
-        return None
-    return ph
-
-
-def synchronous_rms(series: dict, phase: np.ndarray, bins: int = SYNC_BINS) -> dict:
-    """RMS per channel of the time-synchronous average of its residual (N,): the mean over the
-    exciter's revolutions in ``bins`` bins of its phase (N,) rad (NaN: left out), RMS over the
-    bins weighted by their samples.  What is locked to the forcing (its frequency, harmonics
-    and the mean) stays; the sensor noise and the free modes average out, by about √(number
-    of revolutions) for the noise: the model error under a noise floor becomes measurable.
-    Source: Braun, "The extraction of periodic waveforms by time domain averaging", Acustica
-    32 (1975); McFadden, Mech. Syst. Signal Process. 1 (1987) 83–95."""
-    from scipy.stats import binned_statistic
-    ok = np.isfinite(phase)
-    th = np.mod(phase[ok], 2 * np.pi)
-    names = list(series)
-    means = binned_statistic(th, [np.asarray(series[k])[ok] for k in names], "mean", bins=bins,
-                             range=(0.0, 2 * np.pi)).statistic                      # (channels, bins)
-    n = np.histogram(th, bins=bins, range=(0.0, 2 * np.pi))[0]
-    filled = n > 0
-    return {k: float(np.sqrt(np.sum(n[filled] * means[i, filled] ** 2) / n[filled].sum()))
-            for i, k in enumerate(names)}
-
-
-def _sync(model: "Model", ch: dict) -> tuple:
-    """(synchronous RMS per channel or None, revolutions or None) of a window's residuals."""
-    ph = exciter_phase(model.w)
-    if ph is None:
-        return None, None
-    ok = np.isfinite(ph)
-    return synchronous_rms(ch, ph), float(abs(ph[ok][-1] - ph[ok][0]) / (2 * np.pi))
-
-
-def locate(model: Model, fit: Fit, rig, inertia) -> dict:
-    """Where the residuals of the fit show a mismatch: in time (RMS per tenth of the window,
-    and while the exciter runs vs not), in frequency (Welch peaks, each named: the forcing,
-    its harmonics, a natural frequency of the rig, or unexplained), whiteness (Ljung–Box on
-    the residual decimated to the band) and correlation with the inputs and states."""
-    from scipy.stats import chi2 as _chi2
-    w = model.w
-    ch = channel_residuals(model, fit)
-    fs = model.fs
-    lo, hi = model.band
-    # exciter frequency from the exciter force direction's rotation
-    f_exc = None
-    if np.any(w.f_exc):
-        ang = np.unwrap(np.arctan2(w.f_exc[:, 1], w.f_exc[:, 0]))
-        on = np.linalg.norm(w.f_exc, axis=1) > 0.5 * np.percentile(np.linalg.norm(w.f_exc, axis=1), 95)
-        if on.sum() > 10:
-            f_exc = abs(float(np.polyfit(w.t[on], ang[on], 1)[0])) / (2 * np.pi)
-    try:
-        from .modes import natural_modes
-        k = rig.cable_stiffness if np.isfinite(rig.cable_stiffness).all() else None
-        nat = [m.frequency for m in natural_modes(rig, rig.mass, rig.require_cg(), inertia, k)]
-    except Exception:  # noqa: BLE001 — the modes are an aid to naming peaks, not required
-        nat = []
-    states = {"omega_x": w.omega[:, 0], "omega_y": w.omega[:, 1], "omega_z": w.omega[:, 2],
-              "|omega|": np.linalg.norm(w.omega, axis=1), "v_x": w.v[:, 0], "v_y": w.v[:, 1], "v_z": w.v[:, 2],
-              "|v|": np.linalg.norm(w.v, axis=1)}
-    for i, n in enumerate(w.cable_names):
-        states[f"tension_{n}"] = w.tensions[:, i]
-    if f_exc is not None:
-        states["exciter_force_x"] = w.f_exc[:, 0]
-        states["exciter_force_y"] = w.f_exc[:, 1]
-    filt_states = {k: model.filt(v - v.mean()) for k, v in states.items()}
-    step = max(1, int(fs / (2 * hi)))
-    out = {}
-    for name, r in ch.items():
-        rr = r - r.mean()
-        tenths = np.array_split(rr, 10)
-        seg = [float(np.sqrt(np.mean(x**2))) for x in tenths]
-        f, P = welch(rr, fs=fs, nperseg=min(len(rr), int(2 ** np.ceil(np.log2(20 * fs)))))
-        inb = (f >= lo) & (f <= hi)
-        peaks = []
-        if inb.sum() > 3:
-            Pi = P[inb]
-            fl = np.median(Pi)
-            order = np.argsort(Pi)[::-1]
-            for i in order[:40]:
-                if Pi[i] < 10 * fl or len(peaks) >= 3:
-                    break
-                fr = float(f[inb][i])
-                if any(abs(fr - p["hz"]) < 0.1 for p in peaks):
-                    continue
-                peaks.append({"hz": round(fr, 3), "power_over_floor": round(float(Pi[i] / fl), 1),
-                              "is": _name_peak(fr, f_exc, nat)})
-        d = rr[::step]
-        nlag = 10
-        ac = np.array([np.corrcoef(d[:-L], d[L:])[0, 1] for L in range(1, nlag + 1)])
-        q = len(d) * (len(d) + 2) * np.sum(ac**2 / (len(d) - np.arange(1, nlag + 1)))
-        corr = sorted(((abs(float(np.corrcoef(rr, s)[0, 1])), k)
-                       for k, s in filt_states.items() if np.std(s) > 0), reverse=True)[:3]
-        out[name] = {"rms": float(np.sqrt(np.mean(r**2))), "mean": float(r.mean()),
-                     "rms_by_tenth": [round(x, 9) for x in seg],
-                     "grows_at": _grows(seg, w.t),
-                     "peaks": peaks, "whiteness_p": float(_chi2.sf(q, nlag)),
-                     "correlates_with": [{"signal": k, "correlation": round(c, 3)} for c, k in corr]}
-    return out
-
-
-def _name_peak(fr, f_exc, nat) -> str:
-    if f_exc:
-        for h in range(1, 6):
-            if abs(fr - h * f_exc) < 0.03 * h * f_exc + 0.02:
-                return "forcing" if h == 1 else f"forcing harmonic {h}"
-    for i, fn in enumerate(nat):
-        if abs(fr - fn) < 0.03 * fn + 0.02:
-            return f"natural frequency {fn:.3f} Hz"
-    if f_exc and nat:
-        for fn in nat:
-            if abs(fr - (fn + f_exc)) < 0.04 or abs(fr - abs(fn - f_exc)) < 0.04:
-                return "intermodulation of the forcing and a mode"
-    return "unexplained (no rigid-body mode or forcing harmonic)"
-
-
-def _grows(seg, t) -> str | None:
-    seg = np.asarray(seg)
-    med = np.median(seg)
-    if med <= 0:
-        return None
-    i = int(np.argmax(seg))
-    if seg[i] > 2 * med:
-        T = t[-1] - t[0]
-        return f"{i * T / 10:.0f}–{(i + 1) * T / 10:.0f} s into the window ({seg[i] / med:.1f}× the median RMS)"
-    return None
-
-
-def effective_samples(r: np.ndarray) -> float:
-    """Number of independent samples in a residual series (N, k): N over the integrated
-    autocorrelation time τ = 1 + 2 Σ ρ_k, summed over the initial positive sequence of
-    lag pairs (Geyer, Statistical Science 7, 1992), averaged over the columns."""
-    n = len(r)
-    taus = []
-    for x in np.atleast_2d(r.T):
-        x = x - x.mean()
-        f = np.fft.rfft(x, 2 * n)
-        ac = np.fft.irfft(f * np.conj(f))[:n]
-        ac = ac / ac[0]
-        pairs = ac[1:-1:2] + ac[2::2]
-        stop = np.argmax(pairs <= 0) if np.any(pairs <= 0) else len(pairs)
-        taus.append(max(1.0, 1.0 + 2.0 * (ac[1:2 * stop + 1].sum())))
-    return float(n / np.mean(taus))
 
 
 def _lr(cost0: dict, cost1: dict, model: Model) -> float:
@@ -1291,7 +383,7 @@ def _exact_screen(e: dict, state: dict, build, keys: list, cost_ref: dict, rms_r
     else:
         d, lam = offsets[best], max(lams)
     fit, M = fits[best]
-    rms1 = _rms(channel_residuals(M, fit))
+    rms1 = rms(channel_residuals(M, fit))
     e.update(lam=float(lam), fit=fit, red={k: 1 - rms1[k] / rms_ref[k] for k in rms1 if rms_ref[k] > 0},
              exact_state=({**state["applied"], key: x0 + d}, None, None, None))
 
@@ -1356,7 +448,6 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     Returns a :class:`Diagnosis`.  Raises RecordingError, RigError, TrackerError,
     IdentificationError for recordings no fit can be made of.
     """
-    from .identification import identify_inertia
     if model not in ("pem", "thesis"):
         raise ValueError(f"unknown model {model!r} (pem or thesis)")
     warnings: list[str] = []
@@ -1403,7 +494,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     state["n_eff_group"] = M.n_eff_group = {"rot": min(M.n_eff, effective_samples(base.rot)),
                                             "tr": min(M.n_eff, effective_samples(base.tr))}
     M0, ch0 = M, channel_residuals(M, base)
-    rms0 = _rms(ch0)
+    rms0 = rms(ch0)
     threshold_p = alpha / max(1, len(cands))
     keys: list = []
     entries: list = []
@@ -1414,7 +505,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     state["cands"] = cands
     for step in range(1, max_effects + 1):
         cost_cur = cur_fit.cost(scales)
-        rms_cur = _rms(channel_residuals(M, cur_fit))
+        rms_cur = rms(channel_residuals(M, cur_fit))
         base_cols = _columns(cands, keys)
         screened = []
         for c in cands:
@@ -1446,7 +537,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
                                   "max_rms_reduction": 0.0, "exact": False,
                                   "below_practical_floor": PRACTICAL_FLOOR[c.name]})
                     continue
-            rms1 = _rms(channel_residuals(Mc, fit))
+            rms1 = rms(channel_residuals(Mc, fit))
             red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
             screened.append({"c": c, "lam": lam, "fit": fit, "red": red, "dof": dof, "exact_state": None})
         # sensor and rig errors move the tracked pose too: the most promising ones are
@@ -1479,7 +570,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
                 e["lam"] = -np.inf
                 continue
             e["lam"] = _lr(cost_cur, fe.cost(scales), Me)
-            rms1 = _rms(channel_residuals(Me, fe))
+            rms1 = rms(channel_residuals(Me, fe))
             e["red"] = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
             e["fit"] = fe
             e["exact_state"] = (applied, we, Me, ce)
@@ -1528,7 +619,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         state["cands"] = cands
         if "steel" in state:
             state["steel"] = w.stiffness
-        rms1 = _rms(channel_residuals(M, fit))
+        rms1 = rms(channel_residuals(M, fit))
         red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
         lam = _lr(cost_cur, fit.cost(scales), M)
         cur_fit = fit
@@ -1622,8 +713,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     located = locate(M0, base, rec.rig, base.J)
     std_of = lambda f: np.sqrt(np.clip(np.diag(f.cov)[:6], 0, None))  # noqa: E731
     ch1 = channel_residuals(M, cur_fit)
-    (sync0, revs), (sync1, _) = _sync(M0, ch0), _sync(M, ch1)
-    return Diagnosis(bool(entries), entries, located, rms0, _rms(ch1), base.J,
+    (sync0, revs), (sync1, _) = synchronous(M0, ch0), synchronous(M, ch1)
+    return Diagnosis(bool(entries), entries, located, rms0, rms(ch1), base.J,
                      body_inertia(cur_fit.J, _replace(rec.rig, mass=rec.rig.mass + float(state["applied"].get(
                          ("body_mass", ""), 0.0))), float(state["applied"].get(("cable_mass", ""), 0.0))),
                      std_of(base), std_of(cur_fit), tried, band, model, warnings + list(rec.warnings),
@@ -1634,4 +725,6 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
                      applied=dict(state["applied"]), stiffness=w.stiffness.copy() if state["elastic"] else None)
 
 
-__all__ = ["Diagnosis", "diagnose", "prepare_window", "candidates", "locate", "EFFECT_NAMES", "IdentificationError"]
+# the diagnosis as a whole: diagnose() and what its callers take of the modules it is made of
+__all__ = ["Diagnosis", "EffectWrench", "diagnose", "prepare_window", "candidates", "corrected", "body_inertia",
+           "with_stiffness", "locate", "exciter_phase", "synchronous_rms", "EFFECT_NAMES", "IdentificationError"]

@@ -8,12 +8,13 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .diagnosis import body_inertia, corrected, diagnose, effect_parameters_text, unexplained, with_stiffness
+from .diagnosis import body_inertia, corrected, diagnose, effect_parameters_text, with_stiffness
 from .identification import (KEYS, InertiaResult, from_tensor, identify_inertia, identify_inertia_joint,
                              identify_inertia_thesis, physically_consistent, to_tensor, weak_directions)
 from .preprocessor import preprocess
 from .quality import check_motion, check_units, clean_sensors
 from .recording import Recording, RecordingError, crop
+from .residual_analysis import unexplained
 from .tracker import track
 from .uncertainty import noise_replays, propagated, sensor_noise
 from .noise import white_sigma
@@ -390,7 +391,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
       (:func:`~.diagnosis.body_inertia`);
     * otherwise nothing is named: ``result`` stays the rigid-body fit with its
       ``model_error`` verdict and widened σ, and ``diagnosis`` says where the mismatch is
-      (``unexplained``: channel, band, time, size; :func:`~.diagnosis.unexplained`) with
+      (``unexplained``: channel, band, time, size; :func:`~.residual_analysis.unexplained`) with
       diagnose's candidates as ``hypotheses``, not findings.
 
     ``diagnosis`` also keeps the residual RMS before/after; ``rigid_body`` the rigid-body

@@ -18,7 +18,8 @@ LAYERS = {
     1: ["simulator", "modes"],                                                                            # model
     2: ["tracker_kernel", "tracker", "preprocessor", "identification", "quality", "yaw_anchor",          # estimation
         "propagation", "uncertainty", "validation"],
-    3: ["diagnosis", "planning", "statics", "cg_capture", "scenarios"],                                   # diagnosis, design
+    3: ["model_extension", "effect_candidates", "residual_analysis", "diagnosis", "planning", "statics",  # diagnosis,
+        "cg_capture", "scenarios"],                                                                       # design
     4: ["pipeline", "thesis_table"],                                                                      # application
     5: ["report", "report_html", "report_mass", "report_verdict", "report_diagnosis", "report_identifiability",
         "report_figures", "report_modes", "diagnosis_report", "cli", "cli_inertia", "cli_diagnose", "cli_plan",
