@@ -31,7 +31,8 @@ import numpy as np
 from scipy.signal import butter, sosfreqz
 from scipy.spatial.transform import Rotation
 
-from .identification import KEYS, basis, to_tensor
+from .experiment import DEFAULT_STIFFNESS
+from .identification import KEYS, basis, physically_consistent, to_tensor
 from .propagation import (REFERENCE_NOISE, REFERENCE_RATES, PlanError, Prediction, Trajectory, channel_sigmas,
                           combine, predict_from_trajectory, stationary_e_response, tracker_model, wrench_jacobians)
 from .rig import Rig
@@ -811,8 +812,6 @@ def make_body(rig: Rig, mass: float | None, inertia_entries, stiffness=None, noi
     inertia_entries (6,) in :data:`KEYS` order, kg·m² (tensor entries: products negated).
     Raises :class:`PlanError` for a non-positive mass, a missing CG or a tensor that is not
     physically consistent."""
-    from .identification import physically_consistent
-    from .simulator import DEFAULT_STIFFNESS
     if rig.center_of_gravity is None:
         raise PlanError(f"{rig.source}: body.center_of_gravity is required (estimate it first: rig-identify cg)")
     m = float(rig.mass if mass is None else mass)

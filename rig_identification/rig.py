@@ -341,3 +341,20 @@ def dump_rig(rig: Rig, comment: str | None = None) -> str:
     ``comment`` (each of its lines a ``# `` comment line)."""
     head = "".join(f"# {line}\n" for line in comment.splitlines()) if comment else ""
     return head + yaml.safe_dump(rig.to_dict(), sort_keys=False, default_flow_style=None)
+
+
+# --- inertia entries (truth.yaml, experiment files) ---------------------------------------------
+
+INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+
+
+def inertia_tensor(d: dict) -> np.ndarray:
+    """(3, 3) tensor from the truth.yaml entries ixx..izz (off-diagonals = negated products)."""
+    xx, xy, xz, yy, yz, zz = (float(d[k]) for k in INERTIA_KEYS)
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+
+def inertia_entries(J: np.ndarray) -> dict:
+    """truth.yaml entries ixx..izz of a (3, 3) tensor."""
+    return {"ixx": float(J[0, 0]), "ixy": float(J[0, 1]), "ixz": float(J[0, 2]),
+            "iyy": float(J[1, 1]), "iyz": float(J[1, 2]), "izz": float(J[2, 2])}

@@ -15,7 +15,7 @@ PKG = Path(__file__).resolve().parents[1] / "rig_identification"
 # the layer of every module (a new module must be placed here)
 LAYERS = {
     0: ["atomic", "bag_decode", "bag_raw", "noise", "rig", "recording", "effects", "verdict", "export"],   # io, conventions
-    1: ["simulator", "modes"],                                                                            # model
+    1: ["suspension", "experiment", "simulator", "modes"],                                                # model
     2: ["tracker_kernel", "tracker", "preprocessor", "identification", "quality", "yaw_anchor",          # estimation
         "propagation", "uncertainty", "validation"],
     3: ["model_extension", "effect_candidates", "residual_analysis", "diagnosis", "planning", "statics",  # diagnosis,
