@@ -33,7 +33,7 @@ import yaml
 from .verdict import KEYS
 
 INERTIA_SCHEMA = "rig_identification.inertia_result"    # the JSON of rig-identify inertia --json
-INERTIA_SCHEMA_VERSION = 1
+INERTIA_SCHEMA_VERSION = 2   # 2: validation.segments[].start/end in s from the first IMU sample (were stamps)
 EXPORT_SCHEMA = "rig_identification.inertia_export"     # the YAML file of rig-identify inertia --yaml
 EXPORT_SCHEMA_VERSION = 1
 
@@ -221,6 +221,13 @@ UNITS = {
     "weight_surplus": "1: load cells' mean vertical force over rig.yaml's weight, − 1", "replay_sigma_factor": "1",
     "sensor_noise.gyro": "rad/s", "sensor_noise.accelerometer": "m/s²", "sensor_noise.load_cell": "N",
     "sensor_noise.exciter": "N", "sensor_noise.inclinometer": "rad",
+    "validation.segments.start": "s from the first IMU sample of the segment's recording",
+    "validation.segments.end": "s from the first IMU sample of the segment's recording",
+    "validation.segments.start_stamp": "s, header stamps", "validation.segments.end_stamp": "s, header stamps",
+    "validation.segments.inertia_about_cg": "kg·m², body axes, tensor entries",
+    "validation.sub_bands.band_hz": "Hz", "validation.sub_bands.inertia_about_cg": "kg·m², body axes, tensor entries",
+    "validation.spread_std": "kg·m²", "validation.sigma_factor": "1",
+    "validation.checks.statistic": "as its threshold (the check's detail says what it measures)",
 }
 """Units of the fields of the inertia JSON (``"units"`` of :meth:`~.identification.InertiaResult.to_dict`)."""
 

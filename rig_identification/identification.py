@@ -179,7 +179,9 @@ class InertiaResult:
         absolute stamps are ``start_stamp``/``end_stamp``; without it (a stream, no first
         sample known) ``start``/``end`` are the absolute stamps too.  A joint fit takes one t0
         per recording (``series`` order): each of ``recordings`` gets its own window, and the
-        overall ``window.start``/``end`` are None (no common origin)."""
+        overall ``window.start``/``end`` are None (no common origin).  The validation's time
+        segments (``validation.segments[].start``/``end``) count from the same origin as their
+        recording's window (the stamps in ``start_stamp``/``end_stamp``)."""
         theta = from_tensor(self.inertia)
         gone = set(self.undetermined)
         ex = express(self.mass, self.center_of_gravity, self.inertia, self.inertia_std, gone)
@@ -201,16 +203,33 @@ class InertiaResult:
 
         origins = list(t0) if isinstance(t0, (list, tuple)) else [t0] * len(self.series)
 
+        def segment_origins():
+            # the first IMU stamp of each validation segment's recording: a recording's segments
+            # follow each other in series order, the first starting at its series' first sample
+            v = self.validation
+            if t0 is None or v is None or v.segment_times is None:
+                return None
+            if not isinstance(t0, (list, tuple)):
+                return [t0] * len(v.segment_times)
+            firsts = [float(s.t[0]) for s in self.series]
+            out, i = [], -1
+            for a, _ in v.segment_times:
+                if i + 1 < len(firsts) and float(a) == firsts[i + 1]:
+                    i += 1
+                out.append(origins[max(i, 0)])
+            return out
+
         scale = float(np.trace(self.inertia)) / 3 if np.all(np.isfinite(self.inertia)) else None
         weak = [describe_direction(s, D, scale=scale, weakest=i == 0, undetermined=gone)
                 for i, (s, D) in enumerate(self.weak_directions)]
         pm = ex.principal_dict()
-        units = dict(UNITS) if t0 is not None else UNITS | dict.fromkeys(("window.start", "window.end"), "s, stamps")
+        units = dict(UNITS) if t0 is not None else UNITS | dict.fromkeys(
+            ("window.start", "window.end", "validation.segments.start", "validation.segments.end"), "s, stamps")
         return {
             "schema": INERTIA_SCHEMA, "schema_version": INERTIA_SCHEMA_VERSION, "units": units,
             "mass": float(self.mass),
             "center_of_gravity": [float(x) for x in self.center_of_gravity],
-            "validation": None if self.validation is None else self.validation.to_dict(),
+            "validation": None if self.validation is None else self.validation.to_dict(segment_origins()),
             "inertia_about_cg": {k: entry(k, v) for k, v in zip(KEYS, theta)},
             "inertia_std": {k: entry(k, v) for k, v in zip(KEYS, self.inertia_std)},
             "inertia_crb_std": per_key(self.crb_std),

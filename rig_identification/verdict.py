@@ -82,14 +82,24 @@ class Validation:
                 + ", ".join(NAMES[k] for k in self.undetermined) + " (reported as null)"
                 + ("; " + "; ".join(self.advice) if self.advice else ""))
 
-    def to_dict(self) -> dict:
+    def to_dict(self, origins: list[float] | None = None) -> dict:
+        """The validation as JSON (``"validation"`` of
+        :meth:`~.identification.InertiaResult.to_dict`).  origins: one stamp (s) per time
+        segment, the first IMU sample of its recording: each segment's ``start``/``end`` are
+        then seconds from it (as the window's), the header stamps in ``start_stamp``/
+        ``end_stamp``; None: ``start``/``end`` are the stamps too."""
         def rows(a):
             return None if a is None else [{k: float(v) for k, v in zip(KEYS, r)} for r in a]
+
+        def segment(i, t0, t1, r):
+            o = 0.0 if origins is None else float(origins[i])
+            return {"start": float(t0) - o, "end": float(t1) - o, "start_stamp": float(t0), "end_stamp": float(t1),
+                    "inertia_about_cg": r}
         return {"verdict": self.verdict, "summary": self.summary, "checks": [c.to_dict() for c in self.checks],
                 "undetermined": list(self.undetermined), "advice": list(self.advice),
                 "segments": None if self.segment_inertia is None else
-                [{"start": float(t0), "end": float(t1), "inertia_about_cg": r}
-                 for (t0, t1), r in zip(self.segment_times, rows(self.segment_inertia))],
+                [segment(i, t0, t1, r) for i, ((t0, t1), r) in enumerate(zip(self.segment_times,
+                                                                            rows(self.segment_inertia)))],
                 "sub_bands": None if self.band_inertia is None else
                 [{"band_hz": [float(self.band_edges[i]), float(self.band_edges[i + 1])], "inertia_about_cg": r}
                  for i, r in enumerate(rows(self.band_inertia))],

@@ -80,12 +80,23 @@ def test_progress_on_stderr_and_quiet_silences_it(text_run, json_run):
 
 def test_json_schema_units_window_and_derived_quantities(json_run):
     d, _, _ = json_run
-    assert d["schema"] == "rig_identification.inertia_result" and d["schema_version"] == 1
+    assert d["schema"] == "rig_identification.inertia_result" and d["schema_version"] == 2
     assert {"mass", "inertia_about_cg", "window.start", "principal_moments"} <= set(d["units"])
     assert d["correlation"]["keys"] == list(KEYS) and len(d["correlation"]["matrix"]) == 6
     w = d["window"]
     assert w["start"] == pytest.approx(5.0, abs=0.01) and w["end"] == pytest.approx(120.0, abs=0.01)
     assert w["end_stamp"] - w["start_stamp"] == pytest.approx(w["end"] - w["start"])
+    # the validation's time segments: s from the first IMU sample as the window, stamps beside, units said
+    segs = d["validation"]["segments"]
+    assert len(segs) == 4 and segs[0]["start"] == pytest.approx(w["start"], abs=0.01)
+    assert segs[-1]["end"] == pytest.approx(w["end"], abs=0.05)
+    assert all(a["end"] <= b["start"] for a, b in zip(segs, segs[1:]))
+    for sg in segs:
+        assert sg["start_stamp"] - sg["start"] == pytest.approx(w["start_stamp"] - w["start"])
+    assert d["units"]["validation.segments.start"] == d["units"]["validation.segments.end"] == \
+        "s from the first IMU sample of the segment's recording"
+    assert d["units"]["validation.segments.start_stamp"] == "s, header stamps"
+    assert d["units"]["validation.sub_bands.band_hz"] == "Hz"
     J = to_tensor([d["inertia_about_cg"][k] for k in KEYS])
     for k, name in (("ixy", "Ixy"), ("ixz", "Ixz"), ("iyz", "Iyz")):
         assert d["products_of_inertia"][name] == -d["inertia_about_cg"][k]
@@ -179,6 +190,23 @@ def test_undetermined_entries_print_as_not_determined(capsys):
     json.dumps(d, allow_nan=False)   # never NaN
     assert export.urdf_inertial(export.express(res.mass, res.center_of_gravity, res.inertia, res.inertia_std,
                                                res.undetermined)).startswith("<!-- no URDF <inertial>")
+
+
+def test_segment_times_of_a_joint_fit_count_from_their_own_recording():
+    """Joint fit: each time segment's start/end from the first IMU sample of its own recording;
+    without t0 (a stream) they stay the stamps and the units say so."""
+    res = _partial_result()
+    t1, t2 = np.linspace(100.0, 160.0, 61), np.linspace(500.0, 560.0, 61)
+    res.series = [identification.FitSeries(t, np.zeros((61, 3)), np.zeros((61, 3)), (0.4, 3.0), lab)
+                  for t, lab in ((t1, "a"), (t2, "b"))]
+    times = np.array([[100.0, 129.0], [130.0, 160.0], [500.0, 529.0], [530.0, 560.0]])
+    res.validation = Validation("ok", (), segment_inertia=np.zeros((4, 6)), segment_times=times)
+    segs = res.to_dict(t0=[90.0, 480.0])["validation"]["segments"]
+    assert [(sg["start"], sg["end"]) for sg in segs] == [(10.0, 39.0), (40.0, 70.0), (20.0, 49.0), (50.0, 80.0)]
+    assert [sg["start_stamp"] for sg in segs] == [100.0, 130.0, 500.0, 530.0]
+    d = res.to_dict()
+    assert [sg["start"] for sg in d["validation"]["segments"]] == [100.0, 130.0, 500.0, 530.0]
+    assert d["units"]["validation.segments.start"] == "s, stamps"
 
 
 def test_direction_words_are_one_scale():
