@@ -154,17 +154,25 @@ outside its load cell, a load cell's gain, a wrong body.mass): about a vehicle s
 accuracy.  Clean simulated recordings and the clean references: below 1e-4."""
 
 
+def force_weight_surplus(rig, quaternion: np.ndarray, force: np.ndarray) -> float:
+    """The mean vertical force of the generalized force ``force`` (N,3) N, body axes (the
+    load cells' and the exciter's, weight excluded: :func:`~.preprocessor.generalized_wrench`),
+    turned to world axes by the tracked orientation ``quaternion`` (N,4) x, y, z, w (body to
+    world, at the same stamps), relative to rig.yaml's weight: mean(F_z) / (m g) − 1 (over a
+    window of bounded motion the mean vertical acceleration vanishes, so the mean force is the
+    weight; Newton's second law).  Dimensionless; positive when the cells carry more.  The
+    formula of :func:`weight_surplus` and of the identifier node's validation."""
+    fz = Rotation.from_quat(quaternion).apply(force)[:, 2]
+    return float(np.mean(fz) / (rig.mass * rig.gravity) - 1.0)
+
+
 def weight_surplus(prep: PreparedRecording) -> float:
     """The load cells' (and the exciter's) mean vertical force over the fit window, world
-    axes, relative to rig.yaml's weight: mean(F_z) / (m g) − 1, F the preprocessor's
-    generalized force (``prep.force``, :func:`~.preprocessor.generalized_wrench`) turned to
-    world axes at the tracked pose (over a window of bounded motion the mean vertical
-    acceleration vanishes, so the mean force is the weight; Newton's second law).
-    Dimensionless; positive when the cells carry more."""
-    rig, P = prep.rec.rig, prep.poses
+    axes, relative to rig.yaml's weight (:func:`force_weight_surplus` of ``prep.force`` at
+    the tracked pose).  Dimensionless; positive when the cells carry more."""
+    P = prep.poses
     q = P.quaternion[np.searchsorted(P.t, prep.t)]     # prep.t are pose stamps
-    fz = Rotation.from_quat(q).apply(prep.force)[:, 2]
-    return float(np.mean(fz) / (rig.mass * rig.gravity) - 1.0)
+    return force_weight_surplus(prep.rec.rig, q, prep.force)
 
 
 def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, seed: int = 0) -> InertiaResult:
@@ -305,14 +313,22 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     result.warnings[:0] = rec.warnings + prep.warnings
     result.weight_surplus = weight_surplus(prep)
     validate_fit([prep], result)
-    if abs(result.weight_surplus) > WEIGHT_TOLERANCE:
-        # the rotational residual cannot see this: the heavier body is still a rigid body
-        result.warnings.append(
-            f"the load cells carry {100 * result.weight_surplus:+.2f} % of rig.yaml's weight "
-            f"({result.weight_surplus * rig.mass:+.1f} kg) beyond it: the tensions do not move the body rig.yaml "
-            "describes (each cable's lower half hanging outside its load cell, a load cell's gain, or a wrong "
-            "body.mass); rig-identify diagnose looks for the cause")
+    note = weight_warning(result.weight_surplus, rig)
+    if note is not None:
+        result.warnings.append(note)
     return result
+
+
+def weight_warning(surplus: float | None, rig) -> str | None:
+    """The warning of a weight surplus (:func:`force_weight_surplus`, dimensionless) beyond
+    :data:`WEIGHT_TOLERANCE`, naming it in % and kg of rig.yaml's ``body.mass``; None within
+    it (or for None)."""
+    if surplus is None or abs(surplus) <= WEIGHT_TOLERANCE:
+        return None
+    # the rotational residual cannot see this: the heavier body is still a rigid body
+    return (f"the load cells carry {100 * surplus:+.2f} % of rig.yaml's weight ({surplus * rig.mass:+.1f} kg) beyond "
+            "it: the tensions do not move the body rig.yaml describes (each cable's lower half hanging outside its "
+            "load cell, a load cell's gain, or a wrong body.mass); rig-identify diagnose looks for the cause")
 
 
 def unidentified(rig, prep: PreparedRecording, reason: str) -> InertiaResult:
@@ -332,12 +348,22 @@ def accel_inputs(preps: list[PreparedRecording], result: InertiaResult) -> list[
     out = []
     bands = [s.band_hz for s in result.series] if len(result.series) == len(preps) else [result.band_hz] * len(preps)
     for p, band in zip(preps, bands):
-        rig = p.rec.rig
-        acc = rig.imu.rotation.apply(p.sensors.imu.interp(p.t)[:, 3:6])
-        noise = white_sigma(p.sensors.imu.data[:, 3:6])
-        out.append(AccelInput(p.t, p.gyro_body, p.torque, p.force, acc, rig.mass, rig.imu.position - rig.require_cg(),
-                              tuple(band), noise, tuple(p.replays[-2:]) if len(p.replays) >= 2 else ()))
+        out.append(accel_input(p.rec.rig, p.t, p.gyro_body, p.torque, p.force, p.sensors.imu.interp(p.t)[:, 3:6],
+                               white_sigma(p.sensors.imu.data[:, 3:6]), band,
+                               tuple(p.replays[-2:]) if len(p.replays) >= 2 else ()))
     return out
+
+
+def accel_input(rig, t: np.ndarray, gyro_body: np.ndarray, torque: np.ndarray, force: np.ndarray,
+                accel_imu: np.ndarray, accel_noise: float, band_hz, replays: tuple = ()) -> AccelInput:
+    """The accelerometer check's input (:class:`~.validation.AccelInput`) of one fit window:
+    t (N,) s the fit's stamps; gyro_body (N,3) rad/s, torque (N,3) N·m about the CG and force
+    (N,3) N (generalized, weight excluded), body axes, at t; accel_imu (N,3) m/s² the measured
+    specific force at t, IMU axes (turned to body axes here); accel_noise m/s² its white σ
+    (:func:`~.noise.white_sigma`); band_hz the fit's band; replays: see AccelInput.  Used by
+    :func:`accel_inputs` and by the identifier node."""
+    return AccelInput(t, gyro_body, torque, force, rig.imu.rotation.apply(accel_imu), rig.mass,
+                      rig.imu.position - rig.require_cg(), tuple(band_hz), float(accel_noise), tuple(replays))
 
 
 def validate_fit(preps: list[PreparedRecording], result: InertiaResult) -> InertiaResult:
@@ -349,8 +375,20 @@ def validate_fit(preps: list[PreparedRecording], result: InertiaResult) -> Inert
     entries reported as null and what to change.  Returns ``result``, updated in place."""
     log.info("validating the fit")
     surplus = [weight_surplus(p) for p in preps]
-    v = validate(result, accel_inputs(preps, result) if result.series else None,
-                 max(surplus, key=abs), preps[0].rec.rig)
+    return apply_validation(result, accel_inputs(preps, result) if result.series else None,
+                            max(surplus, key=abs), preps[0].rec.rig)
+
+
+def apply_validation(result: InertiaResult, accel: list[AccelInput] | None, surplus: float | None,
+                     rig) -> InertiaResult:
+    """The model validation of a fit from its inputs, as :func:`validate_fit` makes it (the
+    one core the offline path and the identifier node run): :func:`~.validation.validate`
+    with the accelerometer check's inputs ``accel`` (None: skipped), the load cells' weight
+    surplus ``surplus`` (:func:`force_weight_surplus`; None: skipped) and the ``rig`` (for
+    the advice); ``result.validation`` set, σ and covariance widened
+    (:func:`~.validation.widened_std`), the verdict's summary a warning unless ``ok``.
+    Returns ``result``, updated in place."""
+    v = validate(result, accel, surplus, rig)
     result.validation = v
     w = widened_std(result.inertia_std, v)
     if np.any(w > result.inertia_std):

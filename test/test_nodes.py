@@ -26,7 +26,8 @@ rclpy = pytest.importorskip("rclpy")
 
 from rig_identification.nodes import common  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
-from rig_identification.recording import write_recording  # noqa: E402
+from rig_identification.pipeline import identify_recording  # noqa: E402
+from rig_identification.recording import read_recording, write_recording  # noqa: E402
 from rig_identification.simulator import load_experiment, simulate  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
@@ -250,6 +251,31 @@ def test_identify_service_returns_json(graph):
     assert d["received"]["wrench"] == lis.diag["/preprocessor"]["tx /rig/generalized_wrench"]
 
 
+def test_identify_service_validates_as_rig_identify(graph):
+    """~/identify_inertia runs rig-identify's model validation (the same core: the checks of
+    ``rig-identify inertia --quick`` on the recording the driver replays, with the same
+    outcome) and answers with its verdict; the validation's segment times in s from the first
+    IMU sample, as the window's (test_nodes_validation: the null entries of a rig that does
+    not determine them)."""
+    g, lis, sim, rec = graph
+    d = json.loads(lis.call("/identifier/identify_inertia").message)
+    offline_rec = read_recording(rec)
+    off = identify_recording(offline_rec, refine=False).to_dict(t0=float(offline_rec.sensors.t_start))
+    v, vo = d["validation"], off["validation"]
+    assert v is not None, "the node's answer has no validation"
+    assert v["verdict"] == vo["verdict"]
+    assert [c["name"] for c in v["checks"]] == [c["name"] for c in vo["checks"]]
+    assert {"accelerometer", "weight", "segments"} <= {c["name"] for c in v["checks"]}
+    assert [c["passed"] for c in v["checks"]] == [c["passed"] for c in vo["checks"]]
+    # the statistics differ a little (the streaming tracker's poses are not the offline tracker's)
+    assert abs(d["weight_surplus"]) < 1e-3 and abs(off["weight_surplus"]) < 1e-3
+    # segments: s from the first IMU sample, covering the window
+    segs = v["segments"]
+    assert segs[0]["start"] == pytest.approx(d["window"]["start"], abs=0.05)
+    assert segs[-1]["end"] == pytest.approx(d["window"]["end"], abs=0.05)
+    assert d["units"]["validation.segments.start"] == "s from the first IMU sample of the segment's recording"
+
+
 def core_in_stamp_order(rig, sensors, settle: float) -> dict:
     """The streaming core classes fed in header-stamp order in this process (no ROS): what the
     nodes must reproduce (ties as tracker.track: inclinometer, tensions, IMU, exciter)."""
@@ -317,7 +343,7 @@ def test_mass_properties_latched_for_a_late_subscriber(graph):
     assert [m.inertia.com.x, m.inertia.com.y, m.inertia.com.z] == pytest.approx(d["center_of_gravity"])
     for k in KEYS:
         assert getattr(m.inertia, k) == pytest.approx(d["inertia_about_cg"][k]), k
-    assert common.stamp_to_sec(m.header.stamp) == pytest.approx(d["window"]["end"], abs=1e-6)
+    assert common.stamp_to_sec(m.header.stamp) == pytest.approx(d["window"]["end_stamp"], abs=1e-6)
 
 
 def test_second_call_during_a_fit_is_answered_busy(graph):

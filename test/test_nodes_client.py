@@ -36,7 +36,7 @@ def test_verdict_first_then_the_conventions(answer):
     assert lines[2] == d["validation"]["summary"] and lines[2].startswith("verdict: ok")
     assert lines[3].startswith("frame: the body frame of rig.yaml") and "SI units" in lines[3]
     assert "NEGATED products of inertia" in lines[4]
-    # the node's own answer has no validation: the table says so instead of leaving it out
+    # an answer without validation (an identifier older than the client): the table says so
     unvalidated = dict(d, validation=None)
     assert format_table(unvalidated, truth).splitlines()[2] == UNVALIDATED
 

@@ -9,10 +9,12 @@ Verbs (ROS arguments may follow ``--ros-args``; ``--identifier NAME`` picks the 
       ``/rig/sim_truth``, when a sensor driver publishes one) with the error of each entry:
       % of the true value for mass and the diagonal of the tensor, % of the largest true
       diagonal entry for the products of inertia, mm for the centre of gravity.  First the
-      verdict (the node's fit has none: it says so) and the conventions of ``rig-identify
+      verdict of the node's model validation (ok | model_error | not_identifiable, as
+      ``rig-identify inertia --quick`` gives it) and the conventions of ``rig-identify
       inertia`` (body frame, SI units, tensor entries ixx..iyz in its order, whose off-diagonal
-      ones are the negated products of inertia); then the products with the vehicle-dynamics
-      sign.  When the identifier is busy with another request's fit, the client asks again.
+      ones are the negated products of inertia; an entry the recording does not determine is
+      "not determined"); then the products with the vehicle-dynamics sign.  When the
+      identifier is busy with another request's fit, the client asks again.
   mass_properties_client cg-capture baseline|dummy [--json]
       the static centre-of-gravity experiment, steps 1 and 2: ~/capture_cg_baseline
       (body at rest without the dummy mass) or ~/capture_cg_dummy (with it, at rig.yaml
@@ -49,10 +51,9 @@ from . import common
 KEYS = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")
 PRODUCTS = ("ixy", "ixz", "iyz")
 NOT_DETERMINED = "not determined"
-#: the verdict line when the answer has no model validation (the identifier node's streaming fit)
-UNVALIDATED = ("verdict: none — this fit was not validated (the identifier node does not run rig-identify's "
-               "model-validation checks): record the run (rig-record) and take the verdict from "
-               "`rig-identify inertia RUN`")
+#: the verdict line when the answer has no model validation (an identifier older than this client)
+UNVALIDATED = ("verdict: none — this answer carries no model validation (an identifier older than this client?): "
+               "record the run (rig-record) and take the verdict from `rig-identify inertia RUN`")
 
 
 def format_table(result: dict, truth: dict | None, cg_answer: str | None = None, name: str = "/identifier") -> str:

@@ -1,7 +1,8 @@
 """identifier: buffers the gyro and the generalized wrench; fits the inertia tensor on request.
 
 Thin node around rig_identification.identification.InertiaIdentifier (the same fit as
-the offline ``rig-identify``).
+the offline ``rig-identify``), validated by the offline core (fit_validation: the verdict,
+widened σ and null undetermined entries of ``rig-identify inertia --quick``).
 
 Parameters (the window ones are read at each request; set them with ros2 param set):
   rig (string, required)   path of the rig description (rig.yaml, with body.center_of_gravity)
@@ -32,7 +33,9 @@ Parameters (the window ones are read at each request; set them with ros2 param s
   executor (string, events)  executor of the data node (events | single)
   imu_frame (imu), load_cell_frame (load_cell_{cable}), exciter_frame (exciter),
   inclinometer_frame (inclinometer)  expected frame ids of the raw inputs (frames.py)
-  body_frame (body)        expected frame of /rig/generalized_wrench, written on /rig/mass_properties
+  body_frame (body)        expected frame of /rig/generalized_wrench (and child frame of /rig/pose),
+                           written on /rig/mass_properties
+  world_frame (world)      expected frame of /rig/pose
 
 The rig parameter may also name a recording folder or an experiment file.  Topic names are
 remapped the ROS way (--ros-args -r /rig/imu:=/my/imu); the node logs its resolved inputs,
@@ -48,12 +51,21 @@ to the window's end.
 
 Subscribes (RELIABLE, KEEP_ALL):
   /rig/imu                 sensor_msgs/Imu, frame imu_frame (gyro, rad/s; specific force for the CG states)
-  /rig/generalized_wrench  geometry_msgs/WrenchStamped, frame body_frame (torque about the CG, N·m)
+  /rig/generalized_wrench  geometry_msgs/WrenchStamped, frame body_frame (torque about the CG, N·m;
+                           the force, N, for the validation's accelerometer and weight checks)
+  /rig/pose                nav_msgs/Odometry, world_frame -> body_frame (the tracked orientation, for
+                           the validation's weight check)
   /rig/load_cells/<cable>, /rig/exciter/wrench, /rig/inclinometer  raw streams of the static
                            CG experiment (averaged on capture)
 
 Services (std_srvs/Trigger; ``message`` is JSON):
-  ~/identify_inertia  fit over the window; success=true: InertiaResult.to_dict() plus
+  ~/identify_inertia  fit over the window, validated as ``rig-identify inertia --quick``
+                      validates (fit_validation; pipeline.apply_validation); success=true: the
+                      JSON of ``rig-identify inertia --json`` (InertiaResult.to_dict with t0 the
+                      first IMU sample: "validation" with the verdict ok | model_error |
+                      not_identifiable, its checks and segments, σ widened, undetermined entries
+                      null; window and segment times in s from the first IMU sample, the stamps in
+                      start_stamp/end_stamp; start_relative/end_relative = start/end) plus
                       "received" counts; success=false: {"error": "..."} (too little data,
                       no motion, a gap in the window, or "busy" while another fit runs)
   ~/capture_cg_baseline  the static CG experiment, step 1: average the last
@@ -72,7 +84,9 @@ Services (std_srvs/Trigger; ``message`` is JSON):
 Publishes:
   /rig/mass_properties  geometry_msgs/InertiaStamped after each successful fit or CG
                         estimate, frame body_frame: m kg, com = CG m (the estimate after
-                        estimate_cg), ixx..izz kg·m² (tensor entries; zero until identified).
+                        estimate_cg), ixx..izz kg·m² (tensor entries; zero until identified;
+                        every entry of the fit, also those the verdict says are not
+                        determined: the service's JSON has them null).
                         RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1 (a late subscriber receives it)
   /diagnostics          message counts; one status per input topic (OK / WARN stale / ERROR
                         stopped, age, rate, stamp gaps: common.Diagnostics)
@@ -95,11 +109,13 @@ import sys
 import threading
 import time
 
+import numpy as np
 from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 
 from . import common
 from .common import LATCHED_QOS
+from .fit_validation import ValidationBuffer, validate_stream_fit
 
 
 class IdentifierNode(Node):
@@ -125,11 +141,13 @@ class IdentifierNode(Node):
         self.fit_params = common.core_params(self, identify_inertia, skip=("rig", "t", "omega_body", "torque"))
         buf_params = common.core_params(self, InertiaIdentifier.__init__, skip=("self", "rig"))
         qos_in = common.input_qos(self)
-        frames = common.declare_frame_ids(self, ("imu", "load_cell", "exciter", "inclinometer", "body"))
+        frames = common.declare_frame_ids(self, ("imu", "load_cell", "exciter", "inclinometer", "world", "body"))
         self.frames = frames
         rig = common.load_rig_param(self)
         self.rig = rig
         self.identifier = InertiaIdentifier(rig, **buf_params) if rig.center_of_gravity is not None else None
+        # the streams the model validation reads beside the fit's (fit_validation): as long as the fit's buffer
+        self.validation_buffer = ValidationBuffer(self.identifier.max_seconds if self.identifier is not None else 0.0)
         self.declare_parameter("cg_capture_seconds", 10.0)
         self.declare_parameter("dummy_mass", None, ParameterDescriptor(dynamic_typing=True))
         self.declare_parameter("dummy_position", None, ParameterDescriptor(dynamic_typing=True))
@@ -154,7 +172,9 @@ class IdentifierNode(Node):
         self.inputs = [(R(self, self.guard, common.IMU_TOPIC, common.imu_layout(frames.imu, parameter="imu_frame"),
                           qos_in), self._add_imu),
                        (R(self, self.guard, common.WRENCH_TOPIC, common.wrench_layout(frames.body, "body_frame"),
-                          qos_in), self._add_wrench)]
+                          qos_in), self._add_wrench),
+                       (R(self, self.guard, common.POSE_TOPIC,
+                          common.odometry_layout(frames.world, frames.body, hinted=True), qos_in), self._add_pose)]
         for name in rig.cable_names:
             self.inputs.append((R(self, self.guard, common.LOAD_CELL_PREFIX + name,
                                   common.wrench_layout(frames.load_cell_frame(name), "load_cell_frame"), qos_in),
@@ -194,8 +214,9 @@ class IdentifierNode(Node):
 
     def _add_imu(self, ts: list, vals) -> None:
         rows = vals.tolist()
+        kept = []
         with self.lock:
-            for t, r in zip(ts, rows):
+            for i, (t, r) in enumerate(zip(ts, rows)):
                 try:
                     self.cg_session.add_imu(t, r[:3], r[3:])
                     self.diag_buffer.add_imu(t, r[:3], r[3:])
@@ -204,23 +225,42 @@ class IdentifierNode(Node):
                 except ValueError as e:
                     self.guard.core_error(common.IMU_TOPIC, e)
                     continue
+                kept.append(i)
                 if self.t_first_imu is None:
                     self.t_first_imu = t
                 self.n_imu += 1
+            if self.identifier is not None and kept:
+                self.validation_buffer.add_imu([ts[i] for i in kept], vals[kept])
 
     def _add_wrench(self, ts: list, vals) -> None:
         from ..preprocessor import Wrench
         if self.identifier is None:
             return
+        kept = []
         with self.lock:
-            for t, f, tq in zip(ts, vals[:, :3], vals[:, 3:]):
+            for i, (t, f, tq) in enumerate(zip(ts, vals[:, :3], vals[:, 3:])):
                 try:
                     self.identifier.add_wrench(Wrench(t, f, tq))
                 except ValueError as e:
                     self.guard.core_error(common.WRENCH_TOPIC, e)
                     continue
+                kept.append(i)
                 self.t_last_wrench = t
                 self.n_wrench += 1
+            if kept:
+                self.validation_buffer.add_wrench([ts[i] for i in kept], vals[kept])
+
+    def _add_pose(self, ts: list, vals) -> None:
+        """Tracked orientations (unit quaternions; another is refused, as the preprocessor
+        does) for the validation's weight check."""
+        if self.identifier is None:
+            return
+        q = vals[:, 3:7]
+        unit = np.abs(np.einsum("ij,ij->i", q, q) - 1.0) <= 1e-3
+        for i in np.nonzero(~unit)[0].tolist():
+            self.guard.reject(common.POSE_TOPIC, f"orientation is not a unit quaternion (|q|^2 = {q[i] @ q[i]:.4f})")
+        with self.lock:
+            self.validation_buffer.add_pose([t for t, u in zip(ts, unit) if u], q[unit])
 
     def _to_cg(self, topic, method: str, rows) -> None:
         """Raw samples into the CG session and the diagnosis buffer (``method``: add_tension,
@@ -392,6 +432,7 @@ class IdentifierNode(Node):
                 lo = after
                 gaps = self.guard.gaps_in(lo, hi, topics)
             snap = self._snapshot(lo, hi)
+            streams = self.validation_buffer.snapshot(lo, hi)
         snap.fit_params = params
         if gaps:
             raise ValueError(f"the window t={lo - t0:.1f} to {hi - t0:.1f} s contains a gap: {_describe_gaps(gaps, t0)}"
@@ -404,12 +445,14 @@ class IdentifierNode(Node):
                              + (f" [{notes[0]}]" if notes else ""))
         t_fit = time.monotonic()
         result = snap.identify(start=lo, end=hi)
+        # the model validation of rig-identify inertia (--quick: the node propagates no noise), same core
+        validate_stream_fit(self.rig, result, streams, lo, hi)
         delay = float(self.get_parameter("debug_fit_delay").value)
         if delay > 0:
             time.sleep(delay)
-        d = result.to_dict()
-        d["window"]["start_relative"] = d["window"]["start"] - t0
-        d["window"]["end_relative"] = d["window"]["end"] - t0
+        d = result.to_dict(t0=t0)   # window and segment times in s from the first IMU sample, as the CLI's
+        d["window"]["start_relative"] = d["window"]["start"]   # the names of earlier answers
+        d["window"]["end_relative"] = d["window"]["end"]
         d["received"] = received
         d["fit_seconds"] = time.monotonic() - t_fit
         d["warnings"] = list(d.get("warnings", [])) + notes
@@ -417,7 +460,8 @@ class IdentifierNode(Node):
         self._publish_mass_properties(result.t_end, result.mass, result.center_of_gravity, J)
         self.last_inertia = J
         self.get_logger().info(f"identified: Ixx {J[0, 0]:.1f} Iyy {J[1, 1]:.1f} Izz {J[2, 2]:.1f} kg m^2 "
-                               f"over {result.t_end - result.t_start:.1f} s ({result.n_samples} samples)")
+                               f"over {result.t_end - result.t_start:.1f} s ({result.n_samples} samples); "
+                               f"verdict {result.validation.verdict}")
         return d
 
 

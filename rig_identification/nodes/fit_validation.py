@@ -1,0 +1,148 @@
+"""The identifier node's model validation, with the offline core.
+
+``rig-identify inertia`` validates every fit (:func:`~rig_identification.pipeline.validate_fit`:
+the verdict ok | model_error | not_identifiable, σ widened, undetermined entries null).  Besides
+the fit's own gyro and torque, the checks read three streams the fit does not use: the
+accelerometer (the ``accelerometer`` check), the generalized force and the tracked orientation
+(the ``weight`` check).  :class:`ValidationBuffer` keeps them as the identifier node receives
+them (``/rig/imu``, ``/rig/generalized_wrench``, ``/rig/pose``); :func:`validate_stream_fit`
+cuts them to the fit's window the way the node's fit cuts its buffer
+(:meth:`~rig_identification.identification.InertiaIdentifier.identify`) and hands them to the
+same core function the offline path runs (:func:`~rig_identification.pipeline.apply_validation`,
+inputs built by :func:`~rig_identification.pipeline.accel_input` and
+:func:`~rig_identification.pipeline.force_weight_surplus`).  The node's fit does not propagate
+the sensors' noise (no replays), so its validation is that of ``rig-identify inertia --quick``.
+
+ROS-free (plain numpy): the node only feeds it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..identification import InertiaResult
+from ..noise import white_sigma
+from ..pipeline import accel_input, apply_validation, force_weight_surplus, weight_warning
+from ..rig import Rig
+
+STAMP_MATCH = 1e-6   # s: a pose and a wrench sample are the same instant (the wrench carries the pose's stamp)
+
+
+class StampedRows:
+    """Stamped rows of one stream (stamps strictly increasing, as the node's input guard
+    accepts them), kept as the batches they arrive in; batches older than ``max_seconds``
+    before the newest stamp are dropped.  ``width``: values per row."""
+
+    def __init__(self, width: int, max_seconds: float):
+        self.width = width
+        self.max_seconds = float(max_seconds)
+        self.batches: list[tuple[np.ndarray, np.ndarray]] = []
+
+    def add(self, t, rows) -> None:
+        """Append stamps ``t`` (n,) s and rows (n, width)."""
+        t = np.asarray(t, float)
+        if not len(t):
+            return
+        rows = np.asarray(rows, float).reshape(len(t), self.width)
+        self.batches.append((t.copy(), rows.copy()))
+        newest = float(t[-1])
+        while len(self.batches) > 1 and self.batches[0][0][-1] < newest - self.max_seconds:
+            self.batches.pop(0)
+
+    def between(self, lo: float, hi: float) -> tuple[np.ndarray, np.ndarray]:
+        """The rows stamped in [lo, hi] s: stamps (n,) and rows (n, width), copies."""
+        keep = [(t, v) for t, v in self.batches if t[-1] >= lo and t[0] <= hi]
+        if not keep:
+            return np.empty(0), np.empty((0, self.width))
+        t = np.concatenate([k[0] for k in keep])
+        v = np.concatenate([k[1] for k in keep])
+        m = (t >= lo) & (t <= hi)
+        return t[m], v[m]
+
+
+@dataclass(frozen=True)
+class ValidationWindow:
+    """The validation's streams around a fit window (:meth:`ValidationBuffer.snapshot`).
+
+    imu_t (n,) s, imu (n,6): gyro rad/s and specific force m/s², IMU axes; wrench_t (m,) s,
+    wrench (m,6): generalized force N and torque N·m about the CG, body axes; pose_t (k,) s,
+    quaternion (k,4) x, y, z, w: the tracked orientation, body to world."""
+
+    imu_t: np.ndarray
+    imu: np.ndarray
+    wrench_t: np.ndarray
+    wrench: np.ndarray
+    pose_t: np.ndarray
+    quaternion: np.ndarray
+
+
+class ValidationBuffer:
+    """What the identifier node keeps for the validation of its fits (see module docstring):
+    the IMU (gyro and accelerometer), the generalized wrench and the tracked orientation, the
+    last ``max_seconds`` of each (the fit buffer's length)."""
+
+    def __init__(self, max_seconds: float = 900.0):
+        self.imu = StampedRows(6, max_seconds)
+        self.wrench = StampedRows(6, max_seconds)
+        self.pose = StampedRows(4, max_seconds)
+
+    def add_imu(self, t, rows) -> None:
+        """IMU samples: stamps (n,) s, rows (n,6) gyro rad/s then specific force m/s², IMU axes."""
+        self.imu.add(t, rows)
+
+    def add_wrench(self, t, rows) -> None:
+        """Generalized wrench samples: stamps (n,) s, rows (n,6) force N then torque N·m, body axes."""
+        self.wrench.add(t, rows)
+
+    def add_pose(self, t, quaternion) -> None:
+        """Tracked orientations: stamps (n,) s, quaternions (n,4) x, y, z, w, body to world."""
+        self.pose.add(t, quaternion)
+
+    def snapshot(self, lo: float, hi: float, margin: float = 1.0) -> ValidationWindow:
+        """Copies of the streams over [lo − margin, hi + margin] s (take it under the node's
+        lock, with the fit's own snapshot)."""
+        a, b = lo - margin, hi + margin
+        (ti, vi), (tw, vw), (tp, vp) = (s.between(a, b) for s in (self.imu, self.wrench, self.pose))
+        return ValidationWindow(ti, vi, tw, vw, tp, vp)
+
+
+def validate_stream_fit(rig: Rig, result: InertiaResult, win: ValidationWindow, lo: float,
+                        hi: float) -> InertiaResult:
+    """Validate the node's fit ``result`` over the window [lo, hi] (absolute stamps, s) with the
+    offline core (:func:`~rig_identification.pipeline.apply_validation`).
+
+    The samples are those of the fit: the wrench stamps in [lo, hi] inside the IMU's span, the
+    gyro and the specific force interpolated to them and turned to body axes (as
+    :meth:`~rig_identification.identification.InertiaIdentifier.identify` and
+    :func:`~rig_identification.pipeline.accel_inputs` do); the accelerometer's noise is
+    :func:`~rig_identification.noise.white_sigma` of the window's samples.  The weight check
+    uses the poses stamped as the wrench samples; with fewer than 90 % of them matched (no
+    ``/rig/pose`` received) it is skipped and a warning says so.  Sets ``result.validation``,
+    ``result.weight_surplus``; widens σ; adds the verdict's and the weight's warnings.
+    Returns ``result``, updated in place.  Never raises on bad numbers (the core does not)."""
+    tw, ti = win.wrench_t, win.imu_t
+    m = (tw >= lo) & (tw <= hi)
+    if len(ti):
+        m &= (tw >= ti[0]) & (tw <= ti[-1])
+    t = tw[m]
+    accel = None
+    if len(t) >= 10 and len(ti) >= 10 and result.series:
+        imu = np.column_stack([np.interp(t, ti, c) for c in win.imu.T])
+        accel = [accel_input(rig, t, rig.imu.rotation.apply(imu[:, :3]), win.wrench[m, 3:], win.wrench[m, :3],
+                             imu[:, 3:6], white_sigma(win.imu[:, 3:6]), result.series[0].band_hz)]
+    surplus = None
+    if len(t) >= 10 and len(win.pose_t):
+        i = np.clip(np.searchsorted(win.pose_t, t), 0, len(win.pose_t) - 1)
+        same = np.abs(win.pose_t[i] - t) <= STAMP_MATCH
+        if same.mean() >= 0.9:
+            surplus = force_weight_surplus(rig, win.quaternion[i[same]], win.wrench[m][same, :3])
+    if surplus is None:
+        result.warnings.append("the weight check did not run: no tracked orientation (/rig/pose) at the fit's "
+                               "samples")
+    result.weight_surplus = surplus
+    apply_validation(result, accel, surplus, rig)
+    note = weight_warning(surplus, rig)
+    if note is not None:
+        result.warnings.append(note)
+    return result
