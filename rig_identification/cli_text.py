@@ -1,5 +1,6 @@
 """Text blocks of the ``rig-identify`` printouts: the tensor table, the products, the principal
-axes, the tensor about the origin, effect parameters with their units.
+axes, the tensor about the origin, effect parameters with their units (:func:`~.export.effect_text`,
+the one text of them, also in the core's warnings: re-exported here).
 
 Undetermined entries print as "not determined", never as a number or ``nan``
 (:data:`~.export.NOT_DETERMINED`).  Entry order everywhere: :data:`~.export.ORDER` (ixx iyy izz
@@ -9,60 +10,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .export import NOT_DETERMINED, ORDER, PRODUCTS, Expressed
+from .export import EFFECT_UNITS, NOT_DETERMINED, ORDER, PRODUCTS, Expressed, effect_text, value_text
 from .verdict import fmt_p
-
-EFFECT_UNITS = {
-    "viscous_damping": {"angular": "N·m·s/rad", "linear": "N·s/m"},
-    "air_drag": {"angular": "N·m·s²/rad²", "linear": "N·s²/m²"},
-    "coulomb_friction": {"torque": "N·m", "force": "N", "velocity_scale": "rad/s or m/s"},
-    "cable_elasticity": {"stiffness": "N/m", "declared_stiffness": "N/m"},
-    "cable_mass": {"mass": "kg"},
-    "body_mass": {"mass_error": "kg"},
-    "exciter_rotor": {"unbalance": "kg·m", "rotor_inertia": "kg·m²"},
-    "imu_offset": {"offset": "m"},
-    "imu_misalignment": {"rpy": "rad"},
-    "sensor_delay": {"delay": "s"},
-    "gyro_bias": {"bias": "rad/s"},
-    "accelerometer_bias": {"bias": "m/s²"},
-    "load_cell_scale": {"scale": "(reading / tension)"},
-    "gyroscopic_coupling": {"scale": "(κ, 1 = the full ω × Jω)"},
-    "gyro_bias_drift": {"random_walk": "rad/s/√s"},
-    "gyro_scale": {"scale": "(reading / rate)"},
-    "structural_mode": {"frequency": "Hz", "damping_ratio": "", "participation": ""},
-    "compliant_body": {"mass_share": "", "frequencies": "Hz", "damping_ratio": "", "lock_frequency": "Hz",
-                       "sprung_cg": "m"},
-}
-"""Units of the effects' parameters (SI, as :mod:`~.effects` lists them); a parameter not here
-(a name: ``stream``, ``cable``) has none."""
-
 
 def fmt(x, spec: str = ".2f", width: int = 0) -> str:
     """A number, or "not determined" for None / not finite; right-aligned to ``width``."""
     text = NOT_DETERMINED if x is None or not np.isfinite(x) else format(float(x), spec)
     return f"{text:>{width}s}"
-
-
-def value_text(v, spec: str = ".4g") -> str:
-    """A parameter value (number, list, dict, name) as text."""
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{k}: {value_text(x, spec)}" for k, x in v.items()) + "}"
-    if isinstance(v, (list, tuple, np.ndarray)):
-        return "[" + ", ".join(value_text(x, spec) for x in v) + "]"
-    if isinstance(v, (float, np.floating)):
-        return format(float(v), spec) if np.isfinite(v) else "nan"
-    return str(v)
-
-
-def effect_text(e: dict) -> str:
-    """``name = v ± σ unit, …`` of one effect (an entry of :attr:`~.diagnosis.Diagnosis.effects`)."""
-    units = EFFECT_UNITS.get(e["name"], {})
-    std = e.get("parameters_std", {})
-    out = []
-    for k, v in e["parameters"].items():
-        s = f"{k} = {value_text(v)}" + (f" ± {value_text(std[k])}" if k in std else "")
-        out.append(s + (f" {units[k]}" if units.get(k) else ""))
-    return ", ".join(out)
 
 
 def evidence_text(e: dict) -> str:

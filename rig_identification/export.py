@@ -20,7 +20,9 @@ did not determine stay undetermined in everything derived from them: ``None`` in
 "not determined" in text; the principal moments need every entry.
 
 Exports: :func:`urdf_inertial` (a URDF ``<inertial>`` element) and :func:`yaml_text` (the
-YAML file of ``rig-identify inertia --yaml``).  Pure numpy; no ROS.
+YAML file of ``rig-identify inertia --yaml``).  Units: of the JSON's fields (:data:`UNITS`)
+and of the diagnosed effects' parameters (:data:`EFFECT_UNITS`, :func:`effect_text`: the one
+text of them, in the printouts and the core's warnings).  Pure numpy; no ROS.
 """
 from __future__ import annotations
 
@@ -232,6 +234,58 @@ UNITS = {
 """Units of the fields of the inertia JSON (``"units"`` of :meth:`~.identification.InertiaResult.to_dict`)."""
 
 
+# --- effect parameters with their units ------------------------------------------------------------
+
+EFFECT_UNITS = {
+    "viscous_damping": {"angular": "N·m·s/rad", "linear": "N·s/m"},
+    "air_drag": {"angular": "N·m·s²/rad²", "linear": "N·s²/m²"},
+    "coulomb_friction": {"torque": "N·m", "force": "N", "velocity_scale": "rad/s or m/s"},
+    "cable_elasticity": {"stiffness": "N/m", "declared_stiffness": "N/m"},
+    "cable_mass": {"mass": "kg"},
+    "body_mass": {"mass_error": "kg"},
+    "exciter_rotor": {"unbalance": "kg·m", "rotor_inertia": "kg·m²"},
+    "imu_offset": {"offset": "m"},
+    "imu_misalignment": {"rpy": "rad"},
+    "sensor_delay": {"delay": "s"},
+    "gyro_bias": {"bias": "rad/s"},
+    "accelerometer_bias": {"bias": "m/s²"},
+    "load_cell_scale": {"scale": "(reading / tension)"},
+    "gyroscopic_coupling": {"scale": "(κ, 1 = the full ω × Jω)"},
+    "gyro_bias_drift": {"random_walk": "rad/s/√s"},
+    "gyro_scale": {"scale": "(reading / rate)"},
+    "structural_mode": {"frequency": "Hz", "damping_ratio": "", "participation": ""},
+    "compliant_body": {"mass_share": "", "frequencies": "Hz", "damping_ratio": "", "lock_frequency": "Hz",
+                       "sprung_cg": "m"},
+}
+"""Units of the effects' parameters (SI, as :mod:`~.effects` lists them); a parameter not here
+(a name: ``stream``, ``cable``) has none."""
+
+
+def value_text(v, spec: str = ".4g") -> str:
+    """A parameter value (number, list, dict, name) as text."""
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k}: {value_text(x, spec)}" for k, x in v.items()) + "}"
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(value_text(x, spec) for x in v) + "]"
+    if isinstance(v, (float, np.floating)):
+        return format(float(v), spec) if np.isfinite(v) else "nan"
+    return str(v)
+
+
+def effect_text(e: dict) -> str:
+    """``name = v ± σ unit, …`` of one effect (an entry of :attr:`~.diagnosis.Diagnosis.effects`,
+    a dict with ``name``, ``parameters`` and optionally ``parameters_std``), units from
+    :data:`EFFECT_UNITS`: the one text of effect parameters, in the CLI's printouts and in the
+    warning of a diagnosed model error (:func:`~.pipeline.with_diagnosis`)."""
+    units = EFFECT_UNITS.get(e["name"], {})
+    std = e.get("parameters_std", {})
+    out = []
+    for k, v in e["parameters"].items():
+        s = f"{k} = {value_text(v)}" + (f" ± {value_text(std[k])}" if k in std else "")
+        out.append(s + (f" {units[k]}" if units.get(k) else ""))
+    return ", ".join(out)
+
+
 def axes_block(ex: Expressed) -> dict:
     """The mass properties of ``ex`` for a JSON block in other axes (``"sae_j670"`` of
     ``rig-identify inertia --json --axes sae``): the same fields as the body-axes ones."""
@@ -272,7 +326,8 @@ def yaml_text(content: dict) -> str:
             "inertia\n" + yaml.safe_dump(content, sort_keys=False, allow_unicode=True, default_flow_style=None))
 
 
-__all__ = ["AXES", "Axes", "ENTRY_NAMES", "EXPORT_SCHEMA", "EXPORT_SCHEMA_VERSION", "Expressed", "INERTIA_SCHEMA",
-           "INERTIA_SCHEMA_VERSION", "NOT_DETERMINED", "ORDER", "PRODUCTS", "UNITS", "VEHICLE_SIGN", "axes_block",
-           "convention_lines", "entries_from_option", "export_dict", "express", "finite_or_none", "parallel_axis",
-           "principal", "sign_in", "tensor_from_option", "urdf_inertial", "yaml_text"]
+__all__ = ["AXES", "Axes", "EFFECT_UNITS", "ENTRY_NAMES", "EXPORT_SCHEMA", "EXPORT_SCHEMA_VERSION", "Expressed",
+           "INERTIA_SCHEMA", "INERTIA_SCHEMA_VERSION", "NOT_DETERMINED", "ORDER", "PRODUCTS", "UNITS", "VEHICLE_SIGN",
+           "axes_block", "convention_lines", "effect_text", "entries_from_option", "export_dict", "express",
+           "finite_or_none", "parallel_axis", "principal", "sign_in", "tensor_from_option", "urdf_inertial",
+           "value_text", "yaml_text"]

@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .diagnosis import body_inertia, corrected, diagnose, effect_parameters_text, with_stiffness
+from .diagnosis import body_inertia, corrected, diagnose, with_stiffness
+from .export import effect_text
 from .identification import (KEYS, InertiaResult, from_tensor, identify_inertia, identify_inertia_joint,
                              identify_inertia_thesis, physically_consistent, to_tensor, weak_directions)
 from .preprocessor import preprocess
@@ -491,7 +492,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
             + ("; the mismatch is in " + ", ".join(f"{u['channel']} at {u['band_hz'][0] + 0.05:.2f} Hz"
                                                    for u in where if u["band_hz"]) if where else ""))
         return result
-    found = "; ".join(f"{e['name']} ({effect_parameters_text(e)})" for e in d.effects)
+    found = "; ".join(f"{e['name']} ({effect_text(e)})" for e in d.effects)   # with units, as the CLI's
     mu = float(d.applied.get(("cable_mass", ""), 0.0))
     if mu:   # the fit's tensor is the body's with the cables' lower halves, about their combined CG
         body_rig = replace(rec.rig, mass=rec.rig.mass + float(d.applied.get(("body_mass", ""), 0.0)))

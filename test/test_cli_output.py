@@ -229,6 +229,30 @@ def test_effect_parameters_carry_units_and_p_values_underflow():
     assert evidence_text(e) == "likelihood ratio 5000.0 (p < 1e-300)"
 
 
+def test_diagnosed_model_error_warning_gives_effect_parameters_with_units(monkeypatch):
+    """The warning "model error diagnosed: …" of inertia's diagnosis (pipeline.with_diagnosis)
+    names each effect's parameters with their units, in the CLI's own words (export.effect_text).
+    diagnose and the second fit are stand-ins: only the warning's text is under test."""
+    from types import SimpleNamespace
+
+    from rig_identification import pipeline
+    effect = {"name": "viscous_damping", "parameters": {"angular": 300.9, "linear": 148.7},
+              "parameters_std": {"angular": 1.0, "linear": 3.2}, "plausible": True}
+    rigid = _partial_result(undetermined=())
+    rigid.validation = Validation("model_error", (Check("segments", 9.0, 1.0, False, "apart"),), failed=("segments",))
+    again = _partial_result(undetermined=())
+    again.validation = Validation("ok", ())
+    d = SimpleNamespace(effects=[effect], mismatch=True, applied={}, stiffness=None, effect_wrench=None,
+                        covariance_after=None, series={}, located={}, rms_before={}, rms_after={}, band=(0.4, 3.0))
+    monkeypatch.setattr(pipeline, "diagnose", lambda rec: d)
+    monkeypatch.setattr(pipeline, "corrected", lambda rec, applied: rec)
+    monkeypatch.setattr(pipeline, "identify_recording", lambda rec, **kw: again)
+    out = pipeline.with_diagnosis(SimpleNamespace(rig=None, sensors=None), rigid)
+    line = next(w for w in out.warnings if w.startswith("model error diagnosed: "))
+    assert "viscous_damping (angular = 300.9 ± 1 N·m·s/rad, linear = 148.7 ± 3.2 N·s/m)" in line, line
+    assert effect_text(effect) in line
+
+
 def test_diagnose_prints_the_rigid_body_fit_of_inertia(monkeypatch, json_run):
     """diagnose's rigid-body fit is rig-identify inertia --quick --no-diagnose's, number for number
     (the effect search itself is test_diagnose's: stubbed here)."""
