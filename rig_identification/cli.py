@@ -102,10 +102,10 @@ def add_inertia_parser(sub) -> None:
                    help="also print a URDF <inertial> element (origin at the CG, mass, tensor entries; always in "
                         "rig.yaml's body axes, REP-103, whatever --axes says)")
     p.add_argument("--yaml", metavar="FILE", help="also write the mass properties to FILE (YAML, atomically)")
-    p.add_argument("--axes", choices=("body", "sae"), default="body",
+    p.add_argument("--axes", choices=("body", "sae"), default=None,
                    help="axes of the printout and the YAML: body (rig.yaml's body frame, REP-103: x forward, y left, "
-                        "z up; default) or sae (SAE J670: x forward, y right, z down). The JSON stays in body axes "
-                        "and gains a 'sae_j670' block")
+                        "z up) or sae (SAE J670: x forward, y right, z down); default: rig.yaml's output_axes, else "
+                        "body. The JSON stays in body axes and gains a 'sae_j670' block")
     p.add_argument("--start", type=float, metavar="S", help="window start, s from the first IMU sample")
     p.add_argument("--end", type=float, metavar="S", help="window end, s from the first IMU sample")
     p.add_argument("--band", type=float, nargs=2, metavar=("LOW_HZ", "HIGH_HZ"),

@@ -169,6 +169,21 @@ def with_saved_cg(recs: list, cg_file: str) -> tuple[list, str]:
     return out, note
 
 
+def output_axes(option: str | None, recs: list) -> tuple[str, str | None]:
+    """The axes of the printout and the YAML: ``--axes`` when given, else the recordings'
+    rig.yaml ``output_axes`` (when they state one and agree), else ``body``.  Returns (axes, a
+    warning or None: recordings whose rig.yaml state different axes)."""
+    if option is not None:
+        return option, None
+    stated = {r.rig.output_axes for r in recs if r.rig.output_axes is not None}
+    if len(stated) == 1:
+        return stated.pop(), None
+    if stated:
+        return "body", (f"the recordings' rig.yaml state different output_axes ({', '.join(sorted(stated))}): "
+                        "body axes; --axes chooses")
+    return "body", None
+
+
 def check_options(args) -> None:
     """Refuse option combinations that cannot run, before reading any bag."""
     paths = args.recording
@@ -213,6 +228,9 @@ def cmd_inertia(args) -> int:
     if args.cg:
         recs, cg_note = with_saved_cg(recs, args.cg)
         cg_source = f"from {args.cg}"
+    axes, axes_note = output_axes(args.axes, recs)
+    if axes_note is not None:
+        warn(axes_note)
     result = identify(args, recs)
     if cg_note is not None:
         result.warnings.insert(0, cg_note)
@@ -229,7 +247,7 @@ def cmd_inertia(args) -> int:
     body = expressed(result, "body")
     urdf = urdf_inertial(body) if args.urdf else None
     if args.yaml:
-        ex = expressed(result, args.axes)
+        ex = expressed(result, axes)
         d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
         content = export_dict(ex, verdict=None if result.validation is None else result.validation.verdict,
                               summary=None if result.validation is None else result.validation.summary,
@@ -240,14 +258,14 @@ def cmd_inertia(args) -> int:
     args.progress.finish()
     if args.json:
         d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
-        if args.axes == "sae":
+        if axes == "sae":
             d["sae_j670"] = axes_block(expressed(result, "sae"))
         if urdf is not None:
             d["urdf_inertial"] = urdf
         print(json.dumps(d))
     else:
         print_inertia(result, common_truth(recs) if len(recs) > 1 else recs[0].truth,
-                      [r.path for r in recs], t0s, args.axes, cg_source)
+                      [r.path for r in recs], t0s, axes, cg_source)
         if urdf is not None:
             print("URDF inertial element (link frame: rig.yaml's body frame; ixy, ixz, iyz: the tensor's entries):")
             print(urdf)

@@ -98,9 +98,9 @@ def package_version() -> str:
 
 
 def rig_label(rig: Rig) -> str:
-    """The rig's name when it has one, else where it was read from (rig.yaml's path)."""
-    name = getattr(rig, "name", None)       # rig.yaml has no name field yet; a Rig built with one shows it
-    return f"{name} ({rig.source})" if name else str(rig.source)
+    """The rig's name (rig.yaml ``name``) with where it was read from, or only the latter when
+    rig.yaml names none."""
+    return f"{rig.name} ({rig.source})" if rig.name else str(rig.source)
 
 
 def header_html(result: InertiaResult, recs: list[Recording], labels: list[str], truth: dict | None,

@@ -26,6 +26,8 @@ import numpy as np
 import yaml
 from scipy.spatial.transform import Rotation
 
+from .export import AXES
+
 CABLE_NAME = re.compile(r"^[a-z0-9_]+$")
 
 
@@ -77,6 +79,10 @@ class Rig:
     ``center_of_gravity`` is ``None`` when unknown (static experiment).
     ``exciter``, ``inclinometer`` and ``dummy_mass`` are ``None`` when absent.  ``extra``:
     kept for callers that build a Rig by hand; rig.yaml files cannot have other fields.
+    ``name``: the rig's name (rig.yaml ``name``, optional; reports show it).  ``output_axes``:
+    the axes outputs are given in by default (rig.yaml ``output_axes``: a key of
+    :data:`~.export.AXES`, ``body`` or ``sae``; None: not stated, ``body``) — rig.yaml's own
+    geometry is always in the body frame (REP-103).
     """
 
     gravity: float
@@ -89,6 +95,8 @@ class Rig:
     dummy_mass: DummyMass | None = None
     source: str = "<memory>"
     extra: dict = field(default_factory=dict)
+    name: str | None = None
+    output_axes: str | None = None
 
     # --- convenient stacked views -------------------------------------------------
     @property
@@ -136,8 +144,10 @@ class Rig:
             if c.stiffness is not None:
                 d["stiffness"] = float(c.stiffness)
             cables.append(d)
-        out: dict[str, Any] = {"gravity": float(self.gravity), "cables": cables,
-                               "body": {"mass": float(self.mass)}}
+        out: dict[str, Any] = {} if self.name is None else {"name": self.name}
+        if self.output_axes is not None:
+            out["output_axes"] = self.output_axes
+        out |= {"gravity": float(self.gravity), "cables": cables, "body": {"mass": float(self.mass)}}
         if self.center_of_gravity is not None:
             out["body"]["center_of_gravity"] = vec(self.center_of_gravity)
         out["imu"] = {"position": vec(self.imu.position), "rpy": vec(self.imu.rpy)}
@@ -197,7 +207,7 @@ def _mount(d, name: str, src: str, with_position: bool = True) -> Mount:
     return Mount(position=pos, rpy=rpy)
 
 
-KNOWN_TOP = {"gravity", "cables", "body", "imu", "exciter", "inclinometer", "dummy_mass"}
+KNOWN_TOP = {"name", "output_axes", "gravity", "cables", "body", "imu", "exciter", "inclinometer", "dummy_mass"}
 # the fields of each mapping of rig.yaml (RECORDING_FORMAT.md); any other is an error
 KNOWN_FIELDS = {"": KNOWN_TOP, "cable": {"name", "ceiling_anchor", "body_anchor", "length", "stiffness"},
                 "body": {"mass", "center_of_gravity"}, "imu": {"position", "rpy"}, "exciter": {"position", "rpy"},
@@ -260,12 +270,27 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     did you mean ``body.center_of_gravity``?); a value that is not a finite number (or list of
     3); gravity outside 9–10.5 m/s²; fewer than 3 cables, a duplicate or malformed cable name;
     a length, stiffness, body mass or dummy mass <= 0; collinear body anchors; cable geometry
-    no pose can hold with every cable taut (:func:`check_reach`: e.g. anchors in mm).
+    no pose can hold with every cable taut (:func:`check_reach`: e.g. anchors in mm); a ``name``
+    that is not a non-empty one-line text; an ``output_axes`` that is not a key of
+    :data:`~.export.AXES` (with the closest one).
     """
     src = source
     if not isinstance(d, dict):
         raise RigError(f"{src}: the rig description must be a YAML mapping")
     _check_fields(d, "", "", src)
+    rig_name = _get(d, "name", "", src, required=False)
+    if rig_name is not None:
+        if isinstance(rig_name, (int, float)) and not isinstance(rig_name, bool):
+            rig_name = str(rig_name)    # name: 7 is a name
+        if not isinstance(rig_name, str) or not rig_name.strip() or "\n" in rig_name.strip():
+            raise RigError(f"{src}: field name must be a one-line text (the rig's name), got {rig_name!r}")
+        rig_name = rig_name.strip()
+    output_axes = _get(d, "output_axes", "", src, required=False)
+    if output_axes is not None and (not isinstance(output_axes, str) or output_axes not in AXES):
+        close = difflib.get_close_matches(str(output_axes).lower(), sorted(AXES), n=1, cutoff=0.5)
+        raise RigError(f"{src}: field output_axes must be one of {', '.join(sorted(AXES))} (the axes rig-identify "
+                       f"prints and exports in by default), got {output_axes!r}"
+                       + (f" (did you mean {close[0]}?)" if close else ""))
     gravity = _number(_get(d, "gravity", "", src), "gravity", src, positive=True)
     if not 9.0 < gravity < 10.5:
         raise RigError(f"{src}: field gravity = {gravity} m/s^2 is not an Earth gravity (units?)")
@@ -313,7 +338,7 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
             _check_fields(dm_raw, "dummy_mass", "dummy_mass", src)
         dummy = DummyMass(_number(_get(dm_raw, "mass", "dummy_mass", src), "dummy_mass.mass", src, positive=True),
                           _vector(_get(dm_raw, "position", "dummy_mass", src), "dummy_mass.position", src))
-    return Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src)
+    return Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, name=rig_name, output_axes=output_axes)
 
 
 def read_yaml(path: str | Path, error: type[ValueError], what: str):

@@ -209,6 +209,35 @@ def test_segment_times_of_a_joint_fit_count_from_their_own_recording():
     assert d["units"]["validation.segments.start"] == "s, stamps"
 
 
+def test_rig_output_axes_is_the_default_of_axes(tmp_path):
+    """rig.yaml ``output_axes: sae``: inertia prints in SAE J670 axes without --axes, and
+    --axes body still chooses the body axes."""
+    from types import SimpleNamespace
+
+    from rig_identification.cli_inertia import output_axes
+    rec = tmp_path / "rec"
+    rec.mkdir()
+    (rec / "bag").symlink_to(recording("visible_case16_clean") / "bag")
+    d = yaml.safe_load((recording("visible_case16_clean") / "rig.yaml").read_text())
+    (rec / "rig.yaml").write_text(yaml.safe_dump(d | {"name": "test rig", "output_axes": "sae"}))
+    code, out, err = run("inertia", rec, "--quick", "--quiet")
+    assert code == 0, err
+    assert "frame: SAE J670 vehicle axes" in out.splitlines()[2], out.splitlines()[:4]
+    sae = {ln.split()[0]: float(ln.split()[1]) for ln in out.splitlines() if ln.split() and ln.split()[0] in KEYS}
+    code, body, err = run("inertia", rec, "--quick", "--quiet", "--axes", "body")
+    assert code == 0, err
+    assert "frame: the body frame of rig.yaml" in body.splitlines()[2]
+    bod = {ln.split()[0]: float(ln.split()[1]) for ln in body.splitlines() if ln.split() and ln.split()[0] in KEYS}
+    assert sae["ixy"] == pytest.approx(-bod["ixy"]) and sae["iyz"] == pytest.approx(bod["iyz"])
+    # several recordings: their rig.yaml's axes when they agree, else body with a warning
+    rig = lambda axes: SimpleNamespace(rig=SimpleNamespace(output_axes=axes))  # noqa: E731
+    assert output_axes(None, [rig("sae"), rig("sae")]) == ("sae", None)
+    assert output_axes(None, [rig(None)]) == ("body", None)
+    assert output_axes("body", [rig("sae")]) == ("body", None)
+    axes, note = output_axes(None, [rig("sae"), rig("body")])
+    assert axes == "body" and "different output_axes" in note
+
+
 def test_direction_words_are_one_scale():
     # "not determined" is the validation's own limit, and only the weakest is "the most weakly determined"
     assert identification.DIRECTION_NOT_DETERMINED == validation.REL_STD_LIMIT

@@ -25,6 +25,26 @@ def test_reference_rig_loads(rig_dict):
     assert rig.cable_stiffness.tolist() == [np.inf] * 4
 
 
+def test_name_and_output_axes_are_optional_and_kept(rig_dict, tmp_path):
+    """rig.yaml's optional ``name`` (the report shows it) and ``output_axes`` (the default of
+    rig-identify inertia --axes) are read, written back by dump_rig (so --write-rig copies keep
+    them) and absent by default."""
+    from rig_identification.report import rig_label
+    plain = rig_from_dict(rig_dict, "rig.yaml")
+    assert plain.name is None and plain.output_axes is None
+    assert "name" not in plain.to_dict() and "output_axes" not in plain.to_dict()
+    assert rig_label(plain) == "rig.yaml"
+    d = copy.deepcopy(rig_dict) | {"name": "Hall 3 rig, 4 cables", "output_axes": "sae"}
+    rig = rig_from_dict(d, "rig.yaml")
+    assert rig.name == "Hall 3 rig, 4 cables" and rig.output_axes == "sae"
+    assert rig_label(rig) == "Hall 3 rig, 4 cables (rig.yaml)"
+    p = tmp_path / "rig.yaml"
+    p.write_text(dump_rig(rig.with_cg([0.01, 0.0, 0.0])))
+    back = load_rig(p)
+    assert back.name == rig.name and back.output_axes == "sae"
+    assert list(yaml.safe_load(p.read_text()))[:2] == ["name", "output_axes"]
+
+
 def test_round_trip(rig_dict, tmp_path):
     rig = rig_from_dict(rig_dict)
     p = tmp_path / "rig.yaml"
@@ -89,6 +109,13 @@ def test_unreadable_file(tmp_path):
      "field cables[1].ceiling_anchor[1] must be finite"),
     (lambda d: d.__setitem__("dummy_mass", {"mass": 0.0, "position": [0, 0, 0]}), "field dummy_mass.mass must be > 0"),
     (lambda d: d["body"].__setitem__("mass", 0), "field body.mass must be > 0"),
+    (lambda d: d.__setitem__("nmae", "rig A"), "unknown field nmae (did you mean name?)"),
+    (lambda d: d.__setitem__("output_axis", "sae"), "unknown field output_axis (did you mean output_axes?)"),
+    (lambda d: d.__setitem__("output_axes", "SAE"),
+     "field output_axes must be one of body, sae (the axes rig-identify prints and exports in by default), got "
+     "'SAE' (did you mean sae?)"),
+    (lambda d: d.__setitem__("name", ["rig", "A"]), "field name must be a one-line text"),
+    (lambda d: d.__setitem__("name", "  "), "field name must be a one-line text"),
 ])
 def test_unknown_or_impossible_field_is_named(rig_dict, mutate, message):
     d = copy.deepcopy(rig_dict)
