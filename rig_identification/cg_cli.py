@@ -40,7 +40,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -196,7 +196,7 @@ def run_cg(args):
     return estimate_cg(rig, sb, sd, _options(args)), rb, rd
 
 
-def _check_rig_target(out: Path, force: bool, recordings: list[Path]) -> None:
+def check_rig_target(out: Path, force: bool, recordings: list[Path]) -> None:
     """Refuse a --write-rig target that exists (unless ``force``) or is a recording's own rig.yaml."""
     for rec in recordings:
         own = rec / "rig.yaml"
@@ -209,25 +209,34 @@ def _check_rig_target(out: Path, force: bool, recordings: list[Path]) -> None:
         raise CgResultError(f"{out}: already exists; refusing to overwrite it (pass --force to replace it)")
 
 
-def rig_with_cg_text(rig: Rig, result: CgResult, sources: list[str], created: str, original: str | None = None) -> str:
-    """rig.yaml text: ``rig`` with ``body.center_of_gravity`` set to ``result``'s estimate,
-    headed by comment lines (``created``, the σ with and without the geometry, the
-    validation verdict, the ``sources``) and the leading comment lines of ``original`` (the
-    source rig.yaml's text, if given).  The values are written exactly (YAML floats round-trip)."""
+def rig_with_cg_text(rig: Rig, result: "CgResult | SavedCgResult", sources: list[str], created: str,
+                     original: str | None = None, by: str = "rig-identify cg") -> str:
+    """rig.yaml text: ``rig`` with ``body.center_of_gravity`` set to ``result``'s estimate (a
+    :class:`~.statics.CgResult`, or the :class:`SavedCgResult` of its JSON: what
+    ``mass_properties_client cg-estimate`` receives from the identifier node), headed by
+    comment lines (``created``, ``by`` what, the σ with and without the geometry, the validation
+    verdict, the ``sources``: the static recordings, or what captured the states) and the
+    leading comment lines of ``original`` (the source rig.yaml's text, if given).  The values
+    are written exactly (YAML floats round-trip); rig.yaml's other fields are kept
+    (:func:`~.rig.dump_rig`)."""
     c, sd = result.center_of_gravity, result.center_of_gravity_std
     mm = ", ".join(f"{x * 1e3:.2f}" for x in sd)
     noise = result.center_of_gravity_std_noise
     geo = result.geometry_std
+    if isinstance(result, SavedCgResult):
+        verdict, failed = result.verdict, result.failed
+    else:
+        verdict, failed = (None, ()) if result.validation is None else (result.validation.verdict,
+                                                                          result.validation.failed)
     cg_text = ", ".join(f"{x:.5f}" for x in c)
-    lines = [f"body.center_of_gravity = [{cg_text}] m estimated by rig-identify cg on {created}",
+    lines = [f"body.center_of_gravity = [{cg_text}] m estimated by {by} on {created}",
              f"σ {mm} mm (x, y, z: measurement noise and geometry, anchors {geo.get('anchors', 0) * 1e3:g} mm, "
              f"cable lengths {geo.get('cable_lengths', 0) * 1e3:g} mm, dummy position "
              f"{geo.get('dummy_position', 0) * 1e3:g} mm)"
              + ("" if noise is None else "; noise only " + ", ".join(f"{x * 1e3:.2f}" for x in noise) + " mm"),
-             "validation: " + ("not run" if result.validation is None else result.validation.verdict
-                               + (f" ({', '.join(result.validation.failed)} failed)"
-                                  if result.validation.failed else "")),
-             "from the static recordings " + " and ".join(sources)]
+             "validation: " + ("not run" if verdict is None else verdict
+                               + (f" ({', '.join(failed)} failed)" if failed else "")),
+             "from " + " and ".join(sources)]
     head = "".join(f"# {x}\n" for x in lines)
     if original:
         lead = []
@@ -243,7 +252,7 @@ def cmd_cg(args) -> int:
     """``rig-identify cg``: print the CG estimate (text or ``--json``), write ``--write-rig``; returns 0."""
     out = Path(args.write_rig) if getattr(args, "write_rig", None) else None
     if out is not None:
-        _check_rig_target(out, args.force, [Path(args.baseline), Path(args.dummy)])
+        check_rig_target(out, args.force, [Path(args.baseline), Path(args.dummy)])
     res, rb, rd = run_cg(args)
     created = datetime.now(timezone.utc).isoformat(timespec="seconds")
     d = res.to_dict()
@@ -255,9 +264,10 @@ def cmd_cg(args) -> int:
         d["center_of_gravity_without_tare_std"] = [float(x) for x in s]
     d["written_rig"] = None
     if out is not None:
-        _check_rig_target(out, args.force, [rb.path, rd.path])     # again: the fit took a while
+        check_rig_target(out, args.force, [rb.path, rd.path])     # again: the fit took a while
         src = rb.path / "rig.yaml"
-        text = rig_with_cg_text(rb.rig, res, [str(rb.path), str(rd.path)], created, src.read_text(encoding="utf-8"))
+        text = rig_with_cg_text(rb.rig, res, [f"the static recordings {rb.path}", str(rd.path)], created,
+                                src.read_text(encoding="utf-8"))
         atomic_write_text(out, text)
         d["written_rig"] = str(out)
     if args.json:
@@ -370,7 +380,9 @@ class SavedCgResult:
     geometry); center_of_gravity_std_noise (3,) m or None (files before schema version 1);
     covariance (3, 3) m² or None; mass kg or None; verdict: the validation's (``ok``,
     ``model_error``) or None; schema_version (0: a file without ``schema``, written before
-    the field existed); source: the file."""
+    the field existed); source: the file; geometry_std: the geometry's σ the estimate assumed
+    (``uncertainty.geometry_std``: anchors, cable_lengths, dummy_position, m; empty when the
+    file has none); failed: the names of the validation's failed checks."""
 
     center_of_gravity: np.ndarray
     center_of_gravity_std: np.ndarray
@@ -380,6 +392,8 @@ class SavedCgResult:
     verdict: str | None
     schema_version: int
     source: str
+    geometry_std: dict = field(default_factory=dict)
+    failed: tuple[str, ...] = ()
 
 
 def _vec3(d: dict, key: str, src: str, positive: bool = False, required: bool = True) -> np.ndarray | None:
@@ -423,6 +437,13 @@ def load_cg_result(path: str | Path) -> SavedCgResult:
     except json.JSONDecodeError as e:
         raise CgResultError(f"{src}: not JSON ({e.msg} at line {e.lineno}, column {e.colno}); save the output of "
                             "rig-identify cg --json") from None
+    return cg_result_from_dict(d, src)
+
+
+def cg_result_from_dict(d, src: str) -> SavedCgResult:
+    """:class:`SavedCgResult` of a CG result's JSON object ``d`` (as :func:`load_cg_result`
+    reads it from a file; also the identifier node's ~/estimate_cg answer); ``src`` names it
+    in errors.  Raises :class:`CgResultError` as :func:`load_cg_result`."""
     if not isinstance(d, dict):
         raise CgResultError(f"{src}: a CG result is a JSON object, got {type(d).__name__}")
     schema = d.get("schema")
@@ -461,7 +482,12 @@ def load_cg_result(path: str | Path) -> SavedCgResult:
         raise CgResultError(f"{src}: field mass must be a number > 0, got {mass!r}")
     val = d.get("validation")
     verdict = val.get("verdict") if isinstance(val, dict) else None
-    return SavedCgResult(c, sd, sdn, cov, None if mass is None else float(mass), verdict, int(version), src)
+    failed = tuple(str(x) for x in val.get("failed") or ()) if isinstance(val, dict) else ()
+    unc = d.get("uncertainty")
+    geo = unc.get("geometry_std") if isinstance(unc, dict) else None
+    geo = {str(k): float(v) for k, v in geo.items() if isinstance(v, (int, float)) and not isinstance(v, bool)} \
+        if isinstance(geo, dict) else {}
+    return SavedCgResult(c, sd, sdn, cov, None if mass is None else float(mass), verdict, int(version), src, geo, failed)
 
 
 # --- cg-plan -------------------------------------------------------------------------------------

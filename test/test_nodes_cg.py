@@ -6,8 +6,9 @@ client's verbs — ``mass_properties_client cg-capture baseline``, ``cg-capture 
 ``cg-estimate [--json]`` (which call ~/capture_cg_baseline, ~/capture_cg_dummy and
 ~/estimate_cg) — and the CG is checked against truth.yaml and against `rig-identify cg` on
 the same recordings, and the published /rig/mass_properties; the ``--json`` answer saved to a
-file is read back as ``rig-identify inertia --cg`` reads it.  rig.yaml has no centre of
-gravity (static experiment).
+file is read back as ``rig-identify inertia --cg`` reads it, and ``cg-estimate --write-rig``
+writes the identifier's rig.yaml with the estimated CG as ``rig-identify cg --write-rig`` does
+(no hand edit before the shake).  rig.yaml has no centre of gravity (static experiment).
 """
 from __future__ import annotations
 
@@ -26,10 +27,11 @@ rclpy = pytest.importorskip("rclpy")
 from conftest import recording  # noqa: E402
 from test_nodes import Listener, wait_until  # noqa: E402
 
-from rig_identification.cg_cli import load_cg_result  # noqa: E402
+from rig_identification.cg_cli import cg_result_from_dict, load_cg_result, rig_with_cg_text  # noqa: E402
 from rig_identification.nodes import common  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.recording import read_recording  # noqa: E402
+from rig_identification.rig import dump_rig, load_rig  # noqa: E402
 from rig_identification.statics import StaticState, estimate_cg  # noqa: E402
 
 WAIT_FOR = ["/rig/imu:1", "/rig/load_cells/*:1", "/rig/inclinometer:1"]
@@ -105,6 +107,33 @@ def test_cg_services_on_the_reference_pair(tmp_path):
         offline = estimate_cg(base.rig, StaticState.from_recording(base, label="baseline"),
                               StaticState.from_recording(read_recording(dummy_path), label="dummy"))
         np.testing.assert_allclose(cg, offline.center_of_gravity, atol=3 * sd.max())
+        # --write-rig: the identifier's rig.yaml (its rig parameter) with the CG, as rig-identify cg --write-rig
+        out = tmp_path / "rig_with_cg.yaml"
+        w = client(g, "cg-estimate", "--write-rig", str(out))
+        assert w.returncode == 0, w.stdout + w.stderr
+        assert f"written: {out}" in w.stdout and f"rig:={out}" in w.stdout
+        copy = load_rig(out)
+        np.testing.assert_array_equal(copy.center_of_gravity, cg)
+        assert copy.to_dict() == base.rig.with_cg(cg).to_dict()      # everything else as the identifier's rig.yaml
+        text = out.read_text()
+        head = [line for line in text.splitlines() if line.startswith("#")]
+        assert head[0].startswith(f"# body.center_of_gravity = [{', '.join(f'{x:.5f}' for x in cg)}] m estimated by "
+                                  "mass_properties_client cg-estimate (/identifier/estimate_cg)")
+        assert head[1].startswith("# σ " + ", ".join(f"{x * 1e3:.2f}" for x in sd) + " mm")
+        assert head[2] == f"# validation: {d['validation']['verdict']}"
+        assert head[4] == "# rig description (refsim scenario visible_case16_static)"   # the original's comment
+        # the same core as the offline --write-rig (rig_with_cg_text): its text from the answer
+        same = rig_with_cg_text(base.rig, cg_result_from_dict(d, "answer"), ["x"], "T", None, by="y")
+
+        def body(t):
+            return "\n".join(line for line in t.splitlines() if not line.startswith("#"))
+        assert body(text) == body(same) == body(dump_rig(base.rig.with_cg(cg)))
+        assert same.splitlines()[1:3] == head[1:3]
+        again = client(g, "cg-estimate", "--write-rig", str(out))         # an existing file: refused first
+        assert again.returncode == 2 and "already exists" in again.stderr, again.stderr
+        forced = client(g, "cg-estimate", "--json", "--write-rig", str(out), "--force", "--rig", rig)
+        assert forced.returncode == 0, forced.stderr
+        assert json.loads(forced.stdout)["written_rig"] == str(out)
         wait_until(lambda: "msg" in got, 10.0, "/rig/mass_properties")
         com = got["msg"].inertia.com
         np.testing.assert_allclose([com.x, com.y, com.z], cg, atol=1e-9)

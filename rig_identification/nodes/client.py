@@ -20,10 +20,17 @@ Verbs (ROS arguments may follow ``--ros-args``; ``--identifier NAME`` picks the 
       (body at rest without the dummy mass) or ~/capture_cg_dummy (with it, at rig.yaml
       dummy_mass.position): the identifier averages the last cg_capture_seconds of the raw
       streams; prints the seconds averaged and the cable tensions (N, rig.yaml order).
-  mass_properties_client cg-estimate [--json]
+  mass_properties_client cg-estimate [--json] [--write-rig OUT.yaml [--rig RIG] [--force]]
       step 3: ~/estimate_cg; prints the centre of gravity (body frame, m) with its standard
       deviation (and the error against /rig/sim_truth when there is one, mm).  The estimate
-      is also published on /rig/mass_properties.
+      is also published on /rig/mass_properties.  ``--write-rig OUT.yaml`` writes a copy of
+      the rig description with ``body.center_of_gravity`` set to the estimate (atomically;
+      the comment lines of ``rig-identify cg --write-rig``, the same core:
+      ``cg_cli.rig_with_cg_text``): RIG is the identifier's ``rig`` parameter unless
+      ``--rig`` names it (a rig.yaml, a recording folder or an experiment file; its body.mass
+      must be the identifier's); an existing OUT is replaced only with ``--force``.  The
+      dynamic experiment's tracker, preprocessor and identifier then start with
+      ``rig:=OUT.yaml``.
   mass_properties_client status [--json]
       ~/status: samples buffered by the identifier.
 
@@ -37,14 +44,21 @@ import argparse
 import json
 import sys
 import time
+from datetime import datetime, timezone
+from pathlib import Path
 
 import rclpy
+import yaml
 from rclpy.node import Node
+from rclpy.parameter_client import AsyncParameterClient
 from rclpy.utilities import remove_ros_args
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
+from ..atomic import atomic_write_text
+from ..cg_cli import CgResultError, check_rig_target, cg_result_from_dict, rig_with_cg_text
 from ..export import AXES, convention_lines
+from ..rig import RigError
 from . import common
 
 #: the tensor entries in the order of every rig-identify table and option (moments, then products)
@@ -173,8 +187,9 @@ def format_cg(answer: dict, truth: dict | None, name: str = "/identifier") -> st
         sd_text = f"{m_lc_sd:>10.3f}" if m_lc_sd is not None else f"{'—':>10}"
         lines.append(f"{'mass (LC)':<10}{'kg':>6}{m_lc:>12.3f}{sd_text}   from the load cells")
     lines += [f"warning: {w}" for w in answer.get("warnings", [])]
-    lines.append("put center_of_gravity into rig.yaml (body.center_of_gravity) before the dynamic experiment; "
-                 "`cg-estimate --json > cg.json` saves it for `rig-identify inertia RUN --cg cg.json`")
+    lines.append("before the dynamic experiment: `cg-estimate --write-rig OUT.yaml` writes a copy of rig.yaml with "
+                 "this body.center_of_gravity (start the nodes with rig:=OUT.yaml); `cg-estimate --json > cg.json` "
+                 "saves it for `rig-identify inertia RUN --cg cg.json`")
     return "\n".join(lines)
 
 
@@ -216,6 +231,14 @@ def parser(verb: str) -> argparse.ArgumentParser:
     ap.add_argument("--identifier", default="/identifier", help="identifier node (default /identifier)")
     ap.add_argument("--timeout", type=float, default=60.0, help="wait this long for the services, s (default 60)")
     ap.add_argument("--json", action="store_true", help="print the identifier's answer as one JSON object")
+    if verb == "cg-estimate":
+        ap.add_argument("--write-rig", metavar="OUT.yaml",
+                        help="also write a copy of the rig description with body.center_of_gravity set to the "
+                             "estimate (as rig-identify cg --write-rig)")
+        ap.add_argument("--rig", metavar="RIG",
+                        help="the rig description to copy (rig.yaml, recording folder or experiment file; default: "
+                             "the identifier's rig parameter)")
+        ap.add_argument("--force", action="store_true", help="let --write-rig replace an existing file")
     if verb in ("identify", "cg-estimate"):
         ap.add_argument("--truth-timeout", type=float, default=3.0 if verb == "identify" else 1.0,
                         help="wait this long for /rig/sim_truth (simulations only), s")
@@ -288,6 +311,13 @@ def run(verb: str, args, node: Node) -> int:
         return 2
     if verb == "identify":
         return identify(args, node, idf, truth)
+    target = None
+    if getattr(args, "write_rig", None):
+        try:   # before the estimate, as rig-identify cg checks before its fit
+            target = RigTarget.resolve(args, node, idf)
+        except (RigError, CgResultError) as e:
+            log(f"mass_properties_client: error: {e}")
+            return 2
     r = idf.call(first, 60.0)
     if r is None:
         log(f"mass_properties_client: error: no answer from {idf.base}/{first} within 60 s")
@@ -296,6 +326,12 @@ def run(verb: str, args, node: Node) -> int:
         log(f"mass_properties_client: {first} refused: {error_text(r.message)}")
         return 1
     answer = json.loads(r.message)
+    if target is not None:
+        try:
+            answer["written_rig"] = target.write(answer, idf.base)
+        except (RigError, CgResultError, OSError) as e:
+            log(f"mass_properties_client: error: {e}")
+            return 2
     if args.json:
         print(json.dumps(answer))
     elif verb == "cg-capture":
@@ -303,9 +339,67 @@ def run(verb: str, args, node: Node) -> int:
     elif verb == "cg-estimate":
         wait_truth(node, truth, args.truth_timeout)
         print(format_cg(answer, truth or None, idf.base))
+        if target is not None:
+            print(f"written: {answer['written_rig']} (rig description {target.source} with this "
+                  "body.center_of_gravity): start tracker, preprocessor and identifier with "
+                  f"rig:={answer['written_rig']} for the dynamic experiment")
     else:
         print("\n".join(f"{k}: {v}" for k, v in answer.items()))
     return 0
+
+
+def rig_parameter(node: Node, base: str, timeout: float) -> str | None:
+    """The identifier ``base``'s ``rig`` parameter (its parameter service), or None when it
+    does not answer within ``timeout`` s or the parameter is empty."""
+    cli = AsyncParameterClient(node, base)
+    if not cli.wait_for_services(timeout_sec=timeout):
+        return None
+    fut = cli.get_parameters(["rig"])
+    rclpy.spin_until_future_complete(node, fut, timeout_sec=timeout)
+    if not fut.done() or fut.result() is None or not fut.result().values:
+        return None
+    return fut.result().values[0].string_value or None
+
+
+class RigTarget:
+    """``cg-estimate --write-rig``: the rig description to copy and where to write the copy."""
+
+    def __init__(self, out: Path, source: str, force: bool):
+        self.out, self.source, self.force = out, source, force
+        self.rig = common.load_rig_source(source)
+        p = Path(source)
+        self.rig_file = p / "rig.yaml" if p.is_dir() else p
+        self.recordings = [p] if p.is_dir() else []
+        check_rig_target(out, force, self.recordings)
+
+    @classmethod
+    def resolve(cls, args, node: Node, idf: IdentifierClient) -> "RigTarget":
+        """From the options: ``--rig``, else the identifier's ``rig`` parameter.  Raises
+        RigError (unreadable rig, no parameter) or CgResultError (the target exists, ...)."""
+        source = args.rig or rig_parameter(node, idf.base, 10.0)
+        if not source:
+            raise RigError(f"--write-rig: the rig parameter of {idf.base} could not be read; name the rig "
+                           "description to copy with --rig RIG")
+        return cls(Path(args.write_rig), source, args.force)
+
+    def write(self, answer: dict, base: str) -> str:
+        """Write the copy with the CG of ``answer`` (~/estimate_cg's JSON); returns its path.
+        Raises CgResultError when the answer is not a CG result or describes another body."""
+        saved = cg_result_from_dict(answer, f"{base}/estimate_cg")
+        if saved.mass is not None and abs(saved.mass - self.rig.mass) > 1e-9 * max(self.rig.mass, 1.0):
+            raise CgResultError(f"{self.source}: body.mass {self.rig.mass:g} kg, but {base} estimated the CG of a "
+                                f"{saved.mass:g} kg body: another rig description (name the identifier's with --rig)")
+        check_rig_target(self.out, self.force, self.recordings)   # again: the capture took a while
+        original = None   # a rig.yaml's leading comment lines are kept (not an experiment file's)
+        if self.rig_file.is_file():
+            text = self.rig_file.read_text(encoding="utf-8")
+            d = yaml.safe_load(text)
+            original = text if isinstance(d, dict) and "cables" in d else None
+        created = datetime.now(timezone.utc).isoformat(timespec="seconds")
+        atomic_write_text(self.out, rig_with_cg_text(
+            self.rig, saved, [f"the static states captured by {base} (capture_cg_baseline, capture_cg_dummy)"],
+            created, original, by=f"mass_properties_client cg-estimate ({base}/estimate_cg)"))
+        return str(self.out)
 
 
 def identify(args, node: Node, idf: IdentifierClient, truth: dict) -> int:

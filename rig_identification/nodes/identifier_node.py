@@ -24,7 +24,8 @@ Parameters (the window ones are read at each request; set them with ros2 param s
   dummy_mass (double, unset), dummy_position (double[3], unset)  the dummy mass, kg, and the
                            body-frame position of its CG, m, if rig.yaml has no dummy_mass
   (rig.yaml may omit body.center_of_gravity: then only the CG services work, and
-  identify_inertia says to put the estimated CG into rig.yaml first)
+  identify_inertia says to write the estimated CG into a rig.yaml first:
+  ``mass_properties_client cg-estimate --write-rig OUT.yaml``)
   input_reliability (string, reliable)  reliable | best_effort (QoS of the subscriptions)
   batch_period (double, 0.01)  the inputs are taken serialized and decoded in batches every
                            this many s (common.RawInput)
@@ -401,8 +402,9 @@ class IdentifierNode(Node):
             params["band_hz"] = (lo_hz, hi_hz)
         if self.identifier is None:
             raise ValueError(f"{self.rig.source} has no body.center_of_gravity: run the static experiment "
-                             "(capture_cg_baseline, capture_cg_dummy, estimate_cg), put the CG into rig.yaml "
-                             "and restart the tracker, preprocessor and identifier")
+                             "(capture_cg_baseline, capture_cg_dummy, estimate_cg; `mass_properties_client "
+                             "cg-estimate --write-rig OUT.yaml` writes rig.yaml with the CG) and restart the "
+                             "tracker, preprocessor and identifier with rig:=OUT.yaml")
         with self.lock:
             if self.t_first_imu is None or self.t_last_wrench is None:
                 raise ValueError("no data received yet (are the sensor driver, tracker and preprocessor running?)")
