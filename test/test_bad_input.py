@@ -1,6 +1,8 @@
 """Bad recordings (issue 6): each gets a clear error (exit 2) or a warning naming topic and span."""
+import contextlib
 import copy
 import dataclasses
+import io
 import json
 import subprocess
 import sys
@@ -10,6 +12,7 @@ import numpy as np
 import pytest
 import yaml
 
+from rig_identification.cli import identify_main
 from rig_identification.recording import write_recording
 
 REPO = Path(__file__).resolve().parents[1]
@@ -37,15 +40,19 @@ def base_result(base):
 
 
 def run(path, *extra, quick=True):
+    """`rig-identify inertia PATH --json --quiet [--quick] EXTRA` in this process
+    (``identify_main``, as test_cli_output does; the command as a process is run by
+    test_reference_recordings and test_report): (exit status, JSON or None, stderr).  An
+    exception the command does not turn into exit status 2 and one line propagates."""
     # --quick: these tests are about what bad input does to the replay and the fit; the
     # uncertainty refinement re-runs the same replay (test_refined_run_on_bad_input).
     # --quiet: stderr holds the warnings and the error only (no progress lines)
-    p = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(path), "--json", "--quiet",
-                        *extra, *(["--quick"] if quick else [])],
-                       capture_output=True, text=True, cwd=REPO, timeout=120)
-    assert "Traceback" not in p.stderr, p.stderr
-    out = json.loads(p.stdout) if p.returncode == 0 else None
-    return p.returncode, out, p.stderr
+    argv = ["inertia", str(path), "--json", "--quiet", *map(str, extra), *(["--quick"] if quick else [])]
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = identify_main(argv)
+    assert "Traceback" not in err.getvalue(), err.getvalue()
+    return code, json.loads(out.getvalue()) if code == 0 else None, err.getvalue()
 
 
 def make(sim, tmp_path, mutate=None, storage="mcap", rig=None):
