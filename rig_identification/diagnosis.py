@@ -251,13 +251,6 @@ def fmt_value(v) -> str:
     return str(v)
 
 
-def effect_parameters_text(e: dict) -> str:
-    """``k = v ± σ, …`` of one entry of :attr:`Diagnosis.effects`."""
-    std = e.get("parameters_std", {})
-    return ", ".join(f"{k} = {fmt_value(v)}" + (f" ± {fmt_value(std[k])}" if k in std else "")
-                     for k, v in e["parameters"].items())
-
-
 
 def _lr(cost0: dict, cost1: dict, model: Model) -> float:
     lam = 0.0
