@@ -1,4 +1,17 @@
+"""Shared helpers of the test suite.
+
+Background jobs: a module whose tests rest on heavy, self-contained computations (simulations
+and fits that return plain data) declares them with :func:`background` when it is imported,
+and its fixtures take the results with :func:`gather`.  Once collection is done, the jobs of
+the selected modules start in ``RIG_TEST_WORKERS`` worker processes (default 1: the
+machine's second core) while the other modules' tests run in this process, and the modules
+that declared jobs run last; :func:`gather` computes here, last first, whatever no worker
+has started yet.  ``RIG_TEST_WORKERS=0`` computes everything in this process, at the
+fixture.  What is computed, and what is asserted on it, is the same either way.
+"""
+import multiprocessing
 import os
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -6,6 +19,7 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("RIG_SHARED", REPO.parent / "shared"))
 RECORDINGS = SHARED / "recordings"
+WORKERS = int(os.environ.get("RIG_TEST_WORKERS", "1"))
 
 
 def recording(name: str) -> Path:
@@ -13,3 +27,74 @@ def recording(name: str) -> Path:
     if not p.exists():
         pytest.fail(f"reference recording {p} is missing (../shared/recordings must sit beside the repository)")
     return p
+
+
+_groups: dict = {}      # group -> (module file, {key: (fn, args)}), in the order declared
+_futures: dict = {}     # group -> {key: Future}, when a worker pool took them
+_done: dict = {}        # group -> {key: result} taken by gather
+_pool = None
+
+
+def background(group: str, module_file: str, fn, jobs: dict) -> None:
+    """Declare the jobs of ``group`` (``{key: args}``; each is ``fn(*args)``, ``fn`` a
+    module-level function returning picklable data) for the module ``module_file``.  List
+    the longest first: workers take them from the front."""
+    _groups[group] = (str(Path(module_file).resolve()), {k: (fn, tuple(a)) for k, a in jobs.items()})
+
+
+def gather(group: str, *keys) -> dict:
+    """``{key: fn(*args)}`` of ``group``'s jobs (those of ``keys``, default all): the ones no
+    worker has started are computed here (from the last, one at a time, so that the workers
+    keep taking the first ones), then the workers' results are waited for."""
+    _, jobs = _groups[group]
+    keys = list(keys or jobs)
+    futures = _futures.get(group, {})
+    out = _done.setdefault(group, {})
+    for key in reversed(keys):
+        if key in out:
+            continue
+        f = futures.get(key)
+        if f is None or f.cancel():
+            fn, args = jobs[key]
+            out[key] = fn(*args)
+    for key in keys:
+        if key not in out:
+            out[key] = futures[key].result()
+    return {key: out[key] for key in keys}
+
+
+def _module(item) -> str:
+    return str(Path(item.path).resolve())
+
+
+@pytest.hookimpl(trylast=True)
+def pytest_collection_modifyitems(session, config, items):
+    """The modules with background jobs run last (in the order they declared them)."""
+    order = {mod: i for i, (mod, _) in enumerate(_groups.values())}
+    items.sort(key=lambda it: order.get(_module(it), -1))
+
+
+def pytest_collection_finish(session):
+    global _pool
+    if WORKERS <= 0 or session.config.option.collectonly:
+        return
+    selected = {_module(it) for it in session.items}
+    todo = [(group, jobs) for group, (mod, jobs) in _groups.items() if mod in selected]
+    if not todo:
+        return
+    # forked now, before any test has started a thread (rclpy, DDS)
+    _pool = ProcessPoolExecutor(WORKERS, mp_context=multiprocessing.get_context("fork"))
+    for group, jobs in todo:
+        _futures[group] = {key: _pool.submit(fn, *args) for key, (fn, args) in jobs.items()}
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Stop the workers (a session cut short by -x or Ctrl-C does not wait for their jobs)."""
+    if _pool is None:
+        return
+    procs = list((_pool._processes or {}).values())
+    _pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        if p.is_alive():
+            p.terminate()
+        p.join(timeout=10)
