@@ -18,7 +18,7 @@ from rig_identification.recording import Recording
 from rig_identification.simulator import load_experiment, simulate
 from rig_identification.uncertainty import add_noise
 
-from conftest import REPO
+from conftest import REPO, background, gather
 
 DEFAULT = REPO / "config" / "rigs" / "default.yaml"   # thesis case 16, reference sensors
 
@@ -151,43 +151,68 @@ def test_geometry_variants_hang_the_body_near_where_the_rig_does():
         assert max(abs(a / b - 1) for a, b in zip(f[:3], f0[:3])) > 0.02, (label, f, f0)
 
 
-def test_second_run_on_another_cable_geometry_stays_within_the_limits():
-    """plan_experiment with one other cable geometry (ceiling anchors 1 m farther apart in
-    y; a narrowed search, 30 s runs) searches it for the second run: its best second run
-    there, simulated again on that geometry, keeps every cable above 20 % of its static
-    tension and the rotation below 3° as the plan says (on the rig's own cables it would
-    not behave the same); the plan is chosen between it and the best run done twice."""
+def _limits_in_simulation(body, run) -> tuple[float, float]:
+    """Lowest tension ratio and peak rotation (deg) of ``run`` (30 s) simulated on ``body``."""
     from dataclasses import replace
+    sim = simulate(body.experiment(replace(run, duration=30.0)))
+    T = sim.states.tensions
+    rot = sim.states.rotation
+    return (float(np.min(T / T[0][None, :])),
+            float(np.degrees(np.max(np.linalg.norm((rot * rot[0].inv()).as_rotvec(), axis=1)))))
+
+
+def _second_geometry_plan():
+    """Job of test_second_run_on_another_cable_geometry_stays_within_the_limits: the plan, and
+    its other geometry's best second run simulated again on that geometry and on the rig's
+    own cables.  Returns (body, label, variant rig, plan, (limits there, limits on the rig))."""
     from rig_identification.planning import Run, geometry_variants, plan_experiment
-    from rig_identification.propagation import combine
     body = _default_body()
     rig = body.rig
     label, vr = next((lab, r) for lab, r in geometry_variants(body, 1.0) if "farther apart along world y" in lab)
     base = Run(1.05, 200.0, tuple(rig.exciter.position), "z", 30.0, 2.0, tuple(rig.exciter.rpy))
     kw = dict(duration=30.0, refine=1, frequencies=(1.3, 1.6), positions=[(0.8, 1.25, 1.29), (0.8, -1.25, -0.46)])
     plan = plan_experiment(body, base, geometries=[(label, vr)], **kw)
+    limits = None
+    if len(plan.other_geometries) == 1:
+        c = plan.other_geometries[0]
+        limits = (_limits_in_simulation(c.body, c.run), _limits_in_simulation(body, c.run))
+    return body, label, vr, plan, limits
+
+
+background("second_geometry", __file__, _second_geometry_plan, {"run": ()})
+
+
+def test_second_run_on_another_cable_geometry_stays_within_the_limits():
+    """plan_experiment with one other cable geometry (ceiling anchors 1 m farther apart in
+    y; a narrowed search, 30 s runs) searches it for the second run: its best second run
+    there, simulated again on that geometry, keeps every cable above 20 % of its static
+    tension and the rotation below 3° as the plan says (on the rig's own cables it would
+    not behave the same); the plan is chosen between it and the best run done twice, and
+    no pair it could make of the runs it reports (each of its runs twice, its two runs, a
+    run of it with the other geometry's) does better.
+
+    (That last holds here, but not in general: with 20 s runs the plan is a pair whose first
+    run, done twice, does better — 0.306 against the plan's 0.388 of the baseline's σ — since
+    plan_experiment compares pairs only with the best screened single run done twice.)"""
+    from rig_identification.propagation import combine
+    body, label, vr, plan, limits = gather("second_geometry")["run"]
     assert len(plan.other_geometries) == 1
     c = plan.other_geometries[0]
     assert c.geometry == label and c.body.rig.cables is vr.cables
-
-    def limits(b):
-        sim = simulate(b.experiment(replace(c.run, duration=30.0)))
-        T = sim.states.tensions
-        rot = sim.states.rotation
-        return (float(np.min(T / T[0][None, :])),
-                float(np.degrees(np.max(np.linalg.norm((rot * rot[0].inv()).as_rotvec(), axis=1)))))
-
-    tmin, peak = limits(c.body)
+    (tmin, peak), on_rig = limits
     assert tmin == pytest.approx(c.min_tension_ratio, abs=1e-6) and peak == pytest.approx(c.peak_rotation_deg, abs=1e-6)
     assert tmin >= 0.2 * 0.999 and peak <= 3.0 * 1.001
-    assert limits(body) != pytest.approx((tmin, peak), rel=0.02)   # the geometry matters
+    assert on_rig != pytest.approx((tmin, peak), rel=0.02)   # the geometry matters
     d = c.to_dict()["cable_geometry"]
     assert d["label"] == label and [x["length"] for x in d["cables"]] == list(vr.cable_lengths)
+    ref = plan.baseline.prediction.std
     first = plan.runs[0]
     best = min([combine([first.prediction, first.prediction]), combine([first.prediction, c.prediction])],
-               key=lambda p: p.worst(plan.baseline.prediction.std))
-    assert plan.prediction.worst(plan.baseline.prediction.std) == pytest.approx(
-        best.worst(plan.baseline.prediction.std), rel=1e-9)
+               key=lambda p: p.worst(ref))
+    assert plan.prediction.worst(ref) == pytest.approx(best.worst(ref), rel=1e-9)
+    own = [r.prediction for r in plan.runs]
+    pairs = [(a, a) for a in own] + [(own[0], own[-1])] + [(a, c.prediction) for a in own]
+    assert plan.prediction.worst(ref) <= min(combine(list(p)).worst(ref) for p in pairs) * (1 + 1e-9)
 
 
 def test_spin_axes_point_where_their_names_say():
