@@ -21,17 +21,31 @@ from rig_identification.scenarios import simulate_random
 from rig_identification.validation import ALPHA, EFFECT_FACTOR, chi2_check, widened_std
 from rig_identification.verdict import Validation
 
+from conftest import background, gather
+
 DURATION = 45.0
 
 
 def _identify(seed, cables=4, layout="wide", effects=(), duration=DURATION, diagnose=False):
+    """Job: simulate a random rig, identify it (and diagnose under model error).  Returns
+    (truth, rigid-body result, result)."""
     _, sim = simulate_random(seed, cables, layout, list(effects), duration)
     rec = Recording(sim.rig, sim.sensors, sim.truth, None)
     res = identify_recording(rec)
     rigid = res
     if diagnose:
         res = with_diagnosis(rec, res)
-    return sim, rigid, res
+    return sim.truth, rigid, res
+
+
+# the longest first
+background("validation", __file__, _identify, {
+    "compliant": (7700, 4, "wide", [{"name": "compliant_body", "mass_share": 0.68, "frequencies": [1.6, 1.3, 2.2],
+                                     "damping_ratio": 0.2}], DURATION, True),
+    "parallel": (3100, 4, "parallel"),
+    "damped": (8200, 4, "wide", [{"name": "viscous_damping", "linear": 150.0, "angular": 300.0}], DURATION, True),
+    "clean": (101,),
+})
 
 
 def _errors(res, truth):
@@ -55,15 +69,15 @@ def _finite_json(d) -> bool:
 
 @pytest.fixture(scope="module")
 def clean():
-    return _identify(101)
+    return gather("validation", "clean")["clean"]
 
 
 def test_clean_rig_is_ok_and_within_three_sigma(clean):
-    sim, _, res = clean
+    truth, _, res = clean
     v = res.validation
     assert isinstance(v, Validation) and v.verdict == "ok", v.summary
     assert all(c.passed is not False for c in v.checks), [(c.name, c.detail) for c in v.checks]
-    for k, (pct, z) in _errors(res, sim.truth).items():
+    for k, (pct, z) in _errors(res, truth).items():
         assert abs(pct) < 1.0 and abs(z) < 3.0, (k, pct, z)
     d = res.to_dict()
     assert d["validation"]["verdict"] == "ok" and _finite_json(d)
@@ -76,7 +90,7 @@ def test_near_parallel_cables_are_not_identifiable():
     """2 cm of splay over the cable length: roll and pitch ride on the cables' stretch and the
     recording does not determine them — verdict not_identifiable, those entries null, advice
     to splay the cables, and never a non-finite number."""
-    sim, _, res = _identify(3100, layout="parallel")
+    truth, _, res = gather("validation", "parallel")["parallel"]
     v = res.validation
     assert v.verdict == "not_identifiable", v.summary
     assert {"ixx", "iyy"} <= set(v.undetermined)
@@ -85,7 +99,7 @@ def test_near_parallel_cables_are_not_identifiable():
     assert all(d["inertia_about_cg"][k] is None for k in v.undetermined)
     assert any("splay" in a or "turned" in a for a in v.advice), v.advice
     # the entries it still gives are honest: within 3 σ of the truth
-    for k, (pct, z) in _errors(res, sim.truth).items():
+    for k, (pct, z) in _errors(res, truth).items():
         if k not in v.undetermined:
             assert abs(z) < 3.0, (k, pct, z)
 
@@ -105,11 +119,11 @@ def test_failed_consistency_widens_sigma_whatever_the_verdict():
 
 @pytest.fixture(scope="module")
 def damped():
-    return _identify(8200, effects=[{"name": "viscous_damping", "linear": 150.0, "angular": 300.0}], diagnose=True)
+    return gather("validation", "damped")["damped"]
 
 
 def test_unmodelled_damping_is_model_error_then_named_and_validated(damped):
-    sim, rigid, res = damped
+    truth, rigid, res = damped
     assert rigid.validation.verdict == "model_error", rigid.validation.summary
     # the rigid-body fit is off, and its σ widened beyond what the noise says
     assert np.all(rigid.inertia_std >= rigid.crb_std)
@@ -117,7 +131,7 @@ def test_unmodelled_damping_is_model_error_then_named_and_validated(damped):
     assert res.validation.verdict == "ok", res.validation.summary
     # honest: every entry within 3 σ (this rig's roll is weakly excited: Ixx's σ is several per
     # cent), and the entries the damping moved most brought back
-    before, after = _errors(rigid, sim.truth), _errors(res, sim.truth)
+    before, after = _errors(rigid, truth), _errors(res, truth)
     for k, (pct, z) in after.items():
         assert abs(z) < 3.0, (k, pct, z)
     worst = max(before, key=lambda k: abs(before[k][0]))
@@ -130,9 +144,7 @@ def test_physics_outside_the_library_is_not_given_a_name():
     """A sprung body on its unlocked suspension (not rigid): the rigid-body fit's verdict is
     model_error, and diagnosis names no effect of its library (none is a compliant body) —
     the result says where the mismatch is and keeps the rigid-body fit, σ widened."""
-    sim, rigid, res = _identify(7700, effects=[{"name": "compliant_body", "mass_share": 0.68,
-                                                "frequencies": [1.6, 1.3, 2.2], "damping_ratio": 0.2}],
-                                diagnose=True)
+    _, rigid, res = gather("validation", "compliant")["compliant"]
     assert rigid.validation.verdict != "ok", rigid.validation.summary
     assert res.validation.verdict != "ok"
     if res.diagnosis is not None:
