@@ -5,9 +5,11 @@ and fits that return plain data) declares them with :func:`background` when it i
 and its fixtures take the results with :func:`gather`.  Once collection is done, the jobs of
 the selected modules start in ``RIG_TEST_WORKERS`` worker processes (default 1: the
 machine's second core) while the other modules' tests run in this process, and the modules
-that declared jobs run last; :func:`gather` computes here, last first, whatever no worker
-has started yet.  ``RIG_TEST_WORKERS=0`` computes everything in this process, at the
-fixture.  What is computed, and what is asserted on it, is the same either way.
+that declared jobs run last, in the reverse order of their jobs: the workers take the jobs
+from the front (the ``first`` groups, then in the order declared), and :func:`gather` computes
+here whatever no worker has started yet, so the two meet in the middle.
+``RIG_TEST_WORKERS=0`` computes everything in this process, at the fixture.  What is
+computed, and what is asserted on it, is the same either way.
 """
 import multiprocessing
 import os
@@ -29,17 +31,27 @@ def recording(name: str) -> Path:
     return p
 
 
-_groups: dict = {}      # group -> (module file, {key: (fn, args)}), in the order declared
+_groups: dict = {}      # group -> (module file, {key: (fn, args)}), in the order the workers take them
 _futures: dict = {}     # group -> {key: Future}, when a worker pool took them
 _done: dict = {}        # group -> {key: result} taken by gather
+_first: set = set()   # the groups declared with first=True
 _pool = None
 
 
-def background(group: str, module_file: str, fn, jobs: dict) -> None:
+def background(group: str, module_file: str, fn, jobs: dict, first: bool = False) -> None:
     """Declare the jobs of ``group`` (``{key: args}``; each is ``fn(*args)``, ``fn`` a
     module-level function returning picklable data) for the module ``module_file``.  List
-    the longest first: workers take them from the front."""
-    _groups[group] = (str(Path(module_file).resolve()), {k: (fn, tuple(a)) for k, a in jobs.items()})
+    the longest first; ``first``: before the groups declared without it (the longest jobs of
+    the suite, so that none is left alone at the end)."""
+    entry = (str(Path(module_file).resolve()), {k: (fn, tuple(a)) for k, a in jobs.items()})
+    if first:
+        items = list(_groups.items())
+        items.insert(len(_first), (group, entry))
+        _groups.clear()
+        _groups.update(items)
+        _first.add(group)
+    else:
+        _groups[group] = entry
 
 
 def gather(group: str, *keys) -> dict:
@@ -69,9 +81,11 @@ def _module(item) -> str:
 
 @pytest.hookimpl(trylast=True)
 def pytest_collection_modifyitems(session, config, items):
-    """The modules with background jobs run last (in the order they declared them)."""
-    order = {mod: i for i, (mod, _) in enumerate(_groups.values())}
-    items.sort(key=lambda it: order.get(_module(it), -1))
+    """The modules with background jobs run last, the one whose jobs the workers take last first."""
+    order: dict = {}
+    for i, (mod, _) in enumerate(_groups.values()):
+        order.setdefault(mod, i)
+    items.sort(key=lambda it: -order.get(_module(it), len(_groups)))
 
 
 def pytest_collection_finish(session):

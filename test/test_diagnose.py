@@ -146,7 +146,7 @@ def _jobs() -> dict:
     return jobs
 
 
-background("diagnose", __file__, _run, _jobs())
+background("diagnose", __file__, _run, _jobs(), first=True)
 
 
 @pytest.fixture(scope="module")

@@ -82,17 +82,27 @@ def test_predicted_std_matches_noisy_replays():
     assert pred.scaled(2.0).std == pytest.approx(pred.std / np.sqrt(2), rel=1e-9)
 
 
+def _plan_cli():
+    """Job of test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation: `rig-identify
+    plan` (a process).  Returns (exit status, stdout, stderr)."""
+    cmd = [sys.executable, "-m", "rig_identification.cli", "plan", str(DEFAULT), "--inertia", "2894", "695", "3101",
+           "0", "0", "-102", "--json", "--quiet", "--duration", "30", "--runs", "1", "--refine", "1", "--frequencies", "1.3", "1.6",
+           "--position", "0.8", "1.25", "1.29", "--position", "0.8", "-1.25", "1.29"]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=REPO)
+    return p.returncode, p.stdout, p.stderr
+
+
+background("plan_cli", __file__, _plan_cli, {"run": ()})
+
+
 def test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation():
     """rig-identify plan on the config rig (short runs, a narrowed search to keep it quick):
     modes, runs, predictions, identifiability; the recommended run keeps every cable above
     20 % of its static tension and the rotation below 3° in simulation, and every entry's
     predicted σ is smaller than with the thesis's 200 N at 1.05 Hz."""
-    cmd = [sys.executable, "-m", "rig_identification.cli", "plan", str(DEFAULT), "--inertia", "2894", "695", "3101",
-           "0", "0", "-102", "--json", "--quiet", "--duration", "30", "--runs", "1", "--refine", "1", "--frequencies", "1.3", "1.6",
-           "--position", "0.8", "1.25", "1.29", "--position", "0.8", "-1.25", "1.29"]
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=REPO)
-    assert p.returncode == 0, p.stderr
-    d = json.loads(p.stdout)
+    code, stdout, stderr = gather("plan_cli")["run"]
+    assert code == 0, stderr
+    d = json.loads(stdout)
     assert {"modes", "runs", "prediction", "baseline", "improvement", "limits"} <= set(d)
     assert [round(m["frequency_hz"], 2) for m in d["modes"][:3]] == [0.85, 1.18, 2.78]
     run = d["runs"][0]
@@ -179,7 +189,7 @@ def _second_geometry_plan():
     return body, label, vr, plan, limits
 
 
-background("second_geometry", __file__, _second_geometry_plan, {"run": ()})
+background("second_geometry", __file__, _second_geometry_plan, {"run": ()}, first=True)
 
 
 def test_second_run_on_another_cable_geometry_stays_within_the_limits():
