@@ -13,6 +13,30 @@ from rig_identification.planning import Run, make_body, plan_experiment
 from rig_identification.recording import Recording
 from rig_identification.scenarios import CABLE_STIFFNESS, simulate_random
 
+from conftest import background, gather
+
+
+def _identified(cables: int, seed: int):
+    """Job: a random rig with ``cables`` cables (seed), 45 s, identified.  Returns (truth, result)."""
+    _, sim = simulate_random(seed, cables, "wide", [], 45.0)
+    return sim.truth, identify_recording(Recording(sim.rig, sim.sensors, sim.truth, None))
+
+
+def _three_cable_plan():
+    """Job of test_plan_on_a_three_cable_rig_keeps_the_cables_taut: the plan."""
+    d, sim = simulate_random(7102, 3, "wide", [], 10.0)
+    tru = sim.truth["inertia_about_cg"]
+    body = make_body(sim.rig, None, [tru[k] for k in KEYS], stiffness=CABLE_STIFFNESS)
+    ex = d["excitation"]["rotating"]
+    rig = sim.rig
+    base = Run(ex["frequency"], ex["amplitude"], tuple(rig.exciter.position), "z", 30.0, 2.0, tuple(rig.exciter.rpy))
+    return plan_experiment(body, base, duration=30.0, refine=1, max_runs=1, frequencies=(0.8, 1.6),
+                           positions=[tuple(rig.exciter.position)])
+
+
+background("any_rig_plan", __file__, _three_cable_plan, {"run": ()})
+background("any_rig", __file__, _identified, {(3, 7101): (3, 7101), (5, 7206): (5, 7206)})
+
 
 @pytest.mark.parametrize("cables,seed", [(3, 7101), (5, 7206)])
 def test_three_and_five_cable_rigs_are_identified_within_three_sigma(cables, seed):
@@ -20,10 +44,9 @@ def test_three_and_five_cable_rigs_are_identified_within_three_sigma(cables, see
     moment), verdict ok.  Seed 7101's 3-cable rig is the one whose yaw, left free by its
     radially splayed cables, put three entries 4–5 σ off before the moment balance anchored
     it (yaw_anchor.py)."""
-    _, sim = simulate_random(seed, cables, "wide", [], 45.0)
-    res = identify_recording(Recording(sim.rig, sim.sensors, sim.truth, None))
+    truth, res = gather("any_rig", (cables, seed))[(cables, seed)]
     assert res.validation.verdict == "ok", res.validation.summary
-    tru = sim.truth["inertia_about_cg"]
+    tru = truth["inertia_about_cg"]
     big = max(tru["ixx"], tru["iyy"], tru["izz"])
     for k, v, s in zip(KEYS, from_tensor(res.inertia), res.inertia_std):
         ref = abs(tru[k]) if k in ("ixx", "iyy", "izz") else big
@@ -35,14 +58,7 @@ def test_plan_on_a_three_cable_rig_keeps_the_cables_taut():
     predicts σ for every entry, its run keeps every cable above 20 % of its static tension
     and the rotation below 3°, and it is no worse than the baseline on the least-improved
     entry."""
-    d, sim = simulate_random(7102, 3, "wide", [], 10.0)
-    tru = sim.truth["inertia_about_cg"]
-    body = make_body(sim.rig, None, [tru[k] for k in KEYS], stiffness=CABLE_STIFFNESS)
-    ex = d["excitation"]["rotating"]
-    rig = sim.rig
-    base = Run(ex["frequency"], ex["amplitude"], tuple(rig.exciter.position), "z", 30.0, 2.0, tuple(rig.exciter.rpy))
-    plan = plan_experiment(body, base, duration=30.0, refine=1, max_runs=1, frequencies=(0.8, 1.6),
-                           positions=[tuple(rig.exciter.position)])
+    plan = gather("any_rig_plan")["run"]
     run = plan.runs[0]
     assert np.all(np.isfinite(plan.prediction.std)) and np.all(plan.prediction.std > 0)
     assert run.min_tension_ratio >= 0.2 * 0.999 and run.peak_rotation_deg <= 3.0 * 1.001

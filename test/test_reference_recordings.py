@@ -15,13 +15,46 @@ from rig_identification.identification import KEYS, physically_consistent
 from rig_identification.pipeline import compare_to_truth, identify_recording
 from rig_identification.recording import read_recording
 
-from conftest import recording
+from conftest import background, gather, recording
+
+
+def _cli(name: str, report: bool, *args: str):
+    """Job: `rig-identify inertia` (a process) on the reference recording ``name`` with
+    ``args`` (and, with ``report``, ``--report`` into a temporary folder).  Returns (exit status, stdout,
+    stderr, the report's index.html or None)."""
+    import shutil
+    import tempfile
+    from pathlib import Path
+    tmp = Path(tempfile.mkdtemp(prefix="test_reference_recordings_"))
+    try:
+        out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(recording(name)), *args,
+                              *(["--report", str(tmp / "report")] if report else [])],
+                             capture_output=True, text=True, timeout=600)
+        page = tmp / "report" / "index.html"
+        return out.returncode, out.stdout, out.stderr, page.read_text() if page.is_file() else None
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _identified(name: str):
+    """Job: identify_recording on the reference recording ``name``."""
+    return identify_recording(read_recording(recording(name)))
+
+
+# the longest first
+background("reference_cli", __file__, _cli, {
+    "diagnosed": ("visible_case16_damped", True, "--json", "--end", "60"),
+    "no_diagnose": ("visible_case16_damped", False, "--json", "--end", "60", "--no-diagnose"),
+    "json_keys": ("visible_case14_clean", False, "--json", "--end", "60"),
+})
+background("reference_identified", __file__, _identified,
+           {"visible_case16_clean": ("visible_case16_clean",), "visible_case14_clean": ("visible_case14_clean",)})
 
 
 @pytest.mark.parametrize("name", ["visible_case16_clean", "visible_case14_clean"])
 def test_identify_reference_recording(name):
     rec = read_recording(recording(name))
-    res = identify_recording(rec)
+    res = gather("reference_identified", name)[name]
     cmp = compare_to_truth(res, rec.truth)
     for k in KEYS:
         assert abs(cmp[k]["error_percent"]) < 0.5, (k, cmp[k])
@@ -53,10 +86,9 @@ def damped_rigid_body():
     """`rig-identify inertia --no-diagnose --json` on the first 60 s of the damped reference
     recording: the rigid-body fit."""
     rec = read_recording(recording("visible_case16_damped"))
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(rec.path), "--json",
-                          "--end", "60", "--no-diagnose"], capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stderr
-    return rec, json.loads(out.stdout)
+    code, stdout, stderr, _ = gather("reference_cli", "no_diagnose")["no_diagnose"]
+    assert code == 0, stderr
+    return rec, json.loads(stdout)
 
 
 def test_model_error_falls_back_to_the_residuals(damped_rigid_body):
@@ -76,7 +108,7 @@ def test_model_error_falls_back_to_the_residuals(damped_rigid_body):
     assert all(abs(d["inertia_about_cg"][k] - tru[k]) < 3.0 * d["inertia_std"][k] for k in KEYS), d
 
 
-def test_cli_inertia_diagnoses_model_error(tmp_path, damped_rigid_body):
+def test_cli_inertia_diagnoses_model_error(damped_rigid_body):
     """`rig-identify inertia` on the damped reference recording: the rigid-body fit shows
     model error, so the recording is diagnosed and the tensor of the fit with the damping
     is reported — within 0.5 % (products: of the largest diagonal) and 3 σ, where the
@@ -84,11 +116,9 @@ def test_cli_inertia_diagnoses_model_error(tmp_path, damped_rigid_body):
     report says what was added.  First 60 s (the whole recording: bench figures in the
     README)."""
     rec, rigid = damped_rigid_body
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(rec.path), "--json",
-                          "--end", "60", "--report", str(tmp_path / "report")],
-                         capture_output=True, text=True, timeout=600)
-    assert out.returncode == 0, out.stderr
-    d = json.loads(out.stdout)
+    code, stdout, stderr, page = gather("reference_cli", "diagnosed")["diagnosed"]
+    assert code == 0, stderr
+    d = json.loads(stdout)
     tru = rec.truth["inertia_about_cg"]
     big = max(tru["ixx"], tru["iyy"], tru["izz"])
     assert [e["name"] for e in d["diagnosis"]["effects"]] == ["viscous_damping"]
@@ -100,18 +130,16 @@ def test_cli_inertia_diagnoses_model_error(tmp_path, damped_rigid_body):
         assert abs(err) < 0.005 * ref and abs(err) < 3 * d["inertia_std"][k], (k, d["inertia_about_cg"][k], tru[k])
     assert abs(d["rigid_body"]["inertia_about_cg"]["izz"] / tru["izz"] - 1) > 0.01
     assert any("model error diagnosed: viscous_damping" in w for w in d["warnings"])
-    page = (tmp_path / "report" / "index.html").read_text()
+    assert page is not None, "no index.html in the report folder"
     assert "Model error: what diagnosis found" in page and "viscous_damping" in page
     # --no-diagnose: the rigid-body fit, as before
     assert rigid["inertia_about_cg"] == d["rigid_body"]["inertia_about_cg"]
 
 
 def test_cli_json_keys():
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia",
-                          str(recording("visible_case14_clean")), "--json", "--end", "60"],
-                         capture_output=True, text=True, timeout=300)
-    assert out.returncode == 0, out.stderr
-    d = json.loads(out.stdout)
+    code, stdout, stderr, _ = gather("reference_cli", "json_keys")["json_keys"]
+    assert code == 0, stderr
+    d = json.loads(stdout)
     assert set(d["inertia_about_cg"]) == set(KEYS) == set(d["inertia_std"])
     assert d["frame"] == "body" and d["mass"] == 1145.0 and len(d["center_of_gravity"]) == 3
     # negated products: the yz entry of this vehicle is negative

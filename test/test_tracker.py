@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-from conftest import recording
+from conftest import background, gather, recording
 from scipy.spatial.transform import Rotation
 
 from rig_identification import tracker_kernel
@@ -43,6 +43,20 @@ def default_dict():
     return d
 
 
+def _drift_run():
+    """Job of test_no_drift_over_ten_minutes: four minutes of the default rig at 100 Hz with
+    gyro and accelerometer biases, tracked.  Returns (t, position error, rotation error)."""
+    d = default_dict()
+    d["duration"] = 240.0
+    d["sensors"]["rates_hz"].update(imu=100.0, load_cells=100.0, exciter=100.0)
+    d["sensors"]["bias"] = {"gyro": [0.003, -0.002, 0.004], "accelerometer": [0.02, -0.03, 0.01]}
+    sim = simulate(experiment_from_dict(d, "four minutes"))
+    return pose_errors(sim, track(sim.rig, sim.sensors))
+
+
+background("tracker_drift", __file__, _drift_run, {"run": ()})
+
+
 def test_no_drift_over_ten_minutes():
     """Four minutes (the simulation is the cost: 600 s took 77 s of the suite) with gyro and
     accelerometer biases: the error at the noise level once the bias estimate has converged,
@@ -50,12 +64,7 @@ def test_no_drift_over_ten_minutes():
     enough that ten minutes of it stay within 4× those bounds (on the 600 s run the fitted rate
     was a tenth of the 240 s one: the short fit's slope is the wander of the noise, not drift;
     a tracker integrating the 3 mrad/s gyro bias would be 1.8 rad off after ten minutes)."""
-    d = default_dict()
-    d["duration"] = 240.0
-    d["sensors"]["rates_hz"].update(imu=100.0, load_cells=100.0, exciter=100.0)
-    d["sensors"]["bias"] = {"gyro": [0.003, -0.002, 0.004], "accelerometer": [0.02, -0.03, 0.01]}
-    sim = simulate(experiment_from_dict(d, "four minutes"))
-    t, dp, dr = pose_errors(sim, track(sim.rig, sim.sensors))
+    t, dp, dr = gather("tracker_drift")["run"]
     after = t > 60.0  # the gyro-bias estimate has converged (PI loop, slowest pole ~10 s)
     rms = lambda x: np.sqrt((x**2).mean(0))  # noqa: E731
     assert np.all(rms(dr[after]) < 4e-4), rms(dr[after])  # noise: inclinometer 0.2 mrad, gyro
@@ -71,16 +80,24 @@ def test_no_drift_over_ten_minutes():
     assert np.all(np.abs(rate_p) * 600.0 < 4 * 0.6e-3), rate_p
 
 
+def _offset_sim(inclinometer: bool):
+    """Job: the offset rig simulated (with or without inclinometer)."""
+    return simulate(offset_rig_experiment(inclinometer))
+
+
+background("tracker_offset", __file__, _offset_sim, {"inclinometer": (True,), "no_inclinometer": (False,)})
+
+
 @pytest.fixture(scope="module")
 def offset_sim():
     """The offset rig with an inclinometer (simulated once for the module)."""
-    return simulate(offset_rig_experiment(inclinometer=True))
+    return gather("tracker_offset", "inclinometer")["inclinometer"]
 
 
 @pytest.fixture(scope="module")
 def offset_sim_no_inclinometer():
     """The offset rig without inclinometer (simulated once for the module)."""
-    return simulate(offset_rig_experiment(inclinometer=False))
+    return gather("tracker_offset", "no_inclinometer")["no_inclinometer"]
 
 
 @pytest.fixture(scope="module")

@@ -12,6 +12,8 @@ from rig_identification.recording import Recording
 from rig_identification.simulator import experiment_from_dict, simulate
 from rig_identification.noise import white_sigma
 
+from conftest import background, gather
+
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"
 
 
@@ -27,20 +29,28 @@ def test_white_sigma_ignores_slow_motion_and_steps():
     assert white_sigma(x) < 0.05 * sig
 
 
-@pytest.fixture(scope="module")
-def case16_noisy():
-    """Thesis case 16 (config/rigs/default.yaml: reference noise), 120 s."""
+def _case16_noisy():
+    """Job: thesis case 16 (config/rigs/default.yaml: reference noise), 120 s, identified.
+    Returns (truth, result)."""
     d = yaml.safe_load(DEFAULT.read_text())
     d["rig"].pop("dummy_mass", None)
     sim = simulate(experiment_from_dict(d, "case 16"))
-    return sim, identify_recording(Recording(sim.rig, sim.sensors, sim.truth))
+    return sim.truth, identify_recording(Recording(sim.rig, sim.sensors, sim.truth))
+
+
+background("case16_noisy", __file__, _case16_noisy, {"run": ()})
+
+
+@pytest.fixture(scope="module")
+def case16_noisy():
+    return gather("case16_noisy")["run"]
 
 
 def test_bias_correction_matches_the_monte_carlo_bias(case16_noisy):
     """bench/bench_montecarlo_inertia.py measured the uncorrected estimator's bias on this
     case: Iyy +0.035 kg·m² (0.3 of its spread; with the true pose it vanishes).  One
     antithetic pair on one recording must find it (its own scatter is ~0.006)."""
-    sim, res = case16_noisy
+    _, res = case16_noisy
     corr = dict(zip(KEYS, res.bias_correction))
     assert 0.015 < corr["iyy"] < 0.06, corr
     # and the correction is small against the σ everywhere (second order)
@@ -52,8 +62,8 @@ def test_propagated_std_accounts_for_more_than_the_gyro(case16_noisy):
     whole chain, from noise levels the recording itself gives, and the truth lies within
     3 of them.  (That these σ are the spread of the estimator — 0.99–1.01 of it on 200
     replays — is bench/bench_montecarlo_inertia.py's measurement, not a test's.)"""
-    sim, res = case16_noisy
-    truth = np.array([sim.truth["inertia_about_cg"][k] for k in KEYS])
+    tru, res = case16_noisy
+    truth = np.array([tru["inertia_about_cg"][k] for k in KEYS])
     err = from_tensor(res.inertia) - truth
     assert np.all(np.abs(err) < 3 * res.inertia_std), (err, res.inertia_std)
     assert res.sensor_noise["gyro"] == pytest.approx(0.002, rel=0.05)
