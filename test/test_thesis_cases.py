@@ -18,8 +18,10 @@ CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
 
 @pytest.mark.parametrize("case", ["case10", "case16"])
 def test_noise_free_case(case):
+    # 30 s: the largest error 0.036 % (case 10) and 0.0017 % (case 16) of the 0.1 % (60 s:
+    # 0.021 % and 0.0002 %; case 10 wanders 0.02–0.04 % between 30 and 60 s)
     exp = load_experiment(CASES / f"{case}.yaml")
-    sim = simulate(replace(exp, duration=60.0))
+    sim = simulate(replace(exp, duration=30.0))
     res = identify_recording(Recording(sim.rig, sim.sensors, sim.truth), refine=False)  # noise-free
     for k, c in compare_to_truth(res, sim.truth).items():
         assert abs(c["error_percent"]) < 0.1, (case, k, c)
