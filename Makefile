@@ -35,7 +35,8 @@ browser:
 	       "else test/test_report.py fails"; \
 	fi
 
-# one BLAS thread per process: test_diagnose.py runs two worker processes on the two cores
+# one BLAS thread per process: the tests run in this process and the heavy simulations of some
+# modules in one background worker on the second core (test/conftest.py; RIG_TEST_WORKERS=0: none)
 test: setup browser
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q test
 
