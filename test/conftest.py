@@ -16,6 +16,8 @@ needs, and yield it to the tests that replay recordings in real time over DDS (t
 timing) and to other users of the machine; once the modules with jobs begin (the last), the
 workers get this process's priority back where the system allows it.
 """
+import contextlib
+import io
 import multiprocessing
 import os
 from concurrent.futures import ProcessPoolExecutor
@@ -23,11 +25,21 @@ from pathlib import Path
 
 import pytest
 
+from rig_identification.cli import identify_main
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("RIG_SHARED", REPO.parent / "shared"))
 RECORDINGS = SHARED / "recordings"
 WORKERS = int(os.environ.get("RIG_TEST_WORKERS", "1"))
 WORKER_NICE = int(os.environ.get("RIG_TEST_WORKER_NICE", "10"))
+
+
+def run_cli(*argv) -> tuple[int, str, str]:
+    """``rig-identify`` in this process (``identify_main``): (exit status, stdout, stderr)."""
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        code = identify_main([str(a) for a in argv])
+    return code, out.getvalue(), err.getvalue()
 
 
 def recording(name: str) -> Path:

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 import yaml
 
-from conftest import recording
+from conftest import recording, run_cli
 from rig_identification import cli_diagnose, export, identification, validation
 from rig_identification.cli import TENSOR, build_parser, identify_main
 from rig_identification.cli_inertia import print_inertia
@@ -29,12 +29,7 @@ CLEAN = str(recording("visible_case16_clean"))
 ORDER = ["ixx", "iyy", "izz", "ixy", "ixz", "iyz"]
 
 
-def run(*argv) -> tuple[int, str, str]:
-    """identify_main in-process: (exit status, stdout, stderr)."""
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = identify_main([str(a) for a in argv])
-    return code, out.getvalue(), err.getvalue()
+run = run_cli
 
 
 @pytest.fixture(scope="module")

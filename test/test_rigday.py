@@ -5,28 +5,21 @@ report's header names cg.json and its σ instead of "rig.yaml body.center_of_gra
 
 The shake is the clean reference recording (--quick: a few seconds), the static pair the
 reference pair (its CG 2.2 mm below truth.yaml's, the body origin)."""
-import contextlib
 import html
-import io
 import json
 
 import numpy as np
 import pytest
 import yaml
 
-from conftest import recording
-from rig_identification.cli import identify_main
+from conftest import recording, run_cli
 
 CLEAN = recording("visible_case16_clean")
 BASE = recording("visible_case16_static/static_baseline")
 DUMMY = recording("visible_case16_static/static_dummy")
 
 
-def run(*argv) -> tuple[int, str, str]:
-    out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        code = identify_main([str(a) for a in argv])
-    return code, out.getvalue(), err.getvalue()
+run = run_cli
 
 
 @pytest.fixture(scope="module")
