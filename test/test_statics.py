@@ -15,8 +15,9 @@ import pytest
 from rig_identification.recording import SensorData, TimeSeries, read_recording
 from rig_identification.rig import DummyMass
 from rig_identification.simulator import experiment_from_dict, load_experiment, simulate
-from rig_identification.statics import (CgOptions, SensorNoise, StaticState, StaticsError, _Global, _Model,
-                                        estimate_cg, plan_static_test, predict_cg_std, static_equilibrium)
+from rig_identification.statics import (CgOptions, SensorNoise, StaticState, StaticsError, estimate_cg,
+                                        plan_static_test, predict_cg_std, static_equilibrium)
+from rig_identification.statics.model import GlobalUnknowns, StaticModel, skew
 
 from conftest import REPO, recording
 
@@ -309,9 +310,11 @@ def test_any_number_of_cables(layout):
 
 def test_equation_jacobian_matches_finite_differences(reference_pair):
     rig = reference_pair[0].rig
+    from scipy.linalg import expm
     from scipy.spatial.transform import Rotation
-    model = _Model(rig, CgOptions(), True, True, True)
-    gl = _Global(np.array([0.05, -0.1, 0.2]), np.full(4, 3e-7), 1800.0, 1.0, np.zeros(2), rig.cable_lengths.copy())
+    model = StaticModel(rig, CgOptions(), True, True, True)
+    gl = GlobalUnknowns(np.array([0.05, -0.1, 0.2]), np.full(4, 3e-7), 1800.0, 1.0, np.zeros(2),
+                        rig.cable_lengths.copy())
     R = Rotation.from_rotvec([0.05, -0.08, 0.02]).as_matrix()
     p, T = np.array([2.0, 2.6, -2.4]), np.array([9000.0, 6000.0, 8000.0, 6500.0])
     w_add = np.array([10.0, 20.0, 5.0])
@@ -321,8 +324,7 @@ def test_equation_jacobian_matches_finite_differences(reference_pair):
         d = np.zeros(10)
         d[j] = h * (1e3 if j >= 6 else 1.0)
         def at(s):
-            from rig_identification.statics import _expm
-            return model.equations(_expm(s * d[:3]) @ R, p + s * d[3:6], T + s * d[6:], gl, 40.0, w_add)
+            return model.equations(expm(skew(s * d[:3])) @ R, p + s * d[3:6], T + s * d[6:], gl, 40.0, w_add)
         num = (at(1) - at(-1)) / (2 * d[j])
         assert np.allclose(Fy[:, j], num, rtol=1e-5, atol=1e-8 * np.abs(Fy).max()), j
     # the anchors' columns (fitted with their survey σ): ceiling anchors world, body anchors body frame

@@ -1,0 +1,239 @@
+"""A static state of the suspended body: the mean of every sensor stream over a window at rest.
+
+The static experiment (thesis chapter 2, section 2.2) records the body at rest; each stream's
+window is tested for stationarity (batch means against the sample-to-sample noise, a χ² test)
+and averaged, with the σ of the mean.  A :class:`StaticState` is what
+:func:`~rig_identification.statics.estimation.estimate_cg` takes.  :class:`StaticsError`, the
+error of the whole static experiment, is defined here, in the package's lowest module.
+
+Frames and units (RECORDING_FORMAT.md): sensor frames; SI units (m, kg, N, rad, s).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+from scipy.stats import chi2 as _chi2
+
+from ..recording import SensorData, TimeSeries
+from ..rig import DummyMass, Rig
+
+MOTION_P = 1e-4                  # per-channel p-value below which a state is "moving"
+
+
+class StaticsError(ValueError):
+    """Inconsistent static-experiment input (slack cable, ineffective dummy, unreachable
+    angles, moving body, contradictory geometry, missing data)."""
+
+
+
+# --- stream statistics and static states ------------------------------------------------------
+
+@dataclass
+class StreamStats:
+    """Mean of one sensor stream over a window.
+
+    mean, std_of_mean, scatter: (k,) per channel (std_of_mean = scatter / sqrt(n) for a
+    stationary stream, the batch-means standard error when motion is accepted).
+    n: samples.  motion_p: (k,) p-value of the stationarity test (batch means vs the
+    sample-to-sample noise; small = the stream still moves).
+    """
+
+    mean: np.ndarray
+    std_of_mean: np.ndarray
+    scatter: np.ndarray
+    n: int
+    motion_p: np.ndarray
+
+
+def _batch_test(x: np.ndarray, K: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Stationarity test of samples x (n, k) in K consecutive batches.
+
+    Returns (p-value (k,), noise σ from first differences (k,), batch-means standard error
+    of the mean (k,)).  Under white noise Σ n_b (x̄_b - x̄)² / σ² ~ χ²(K - 1).
+    """
+    n = len(x)
+    edges = np.linspace(0, n, K + 1).astype(int)
+    bm = np.array([x[a:b].mean(0) for a, b in zip(edges[:-1], edges[1:])])
+    nb = np.diff(edges)[:, None]
+    mean = x.mean(0)
+    sd = np.sqrt(np.mean(np.diff(x, axis=0) ** 2, axis=0) / 2.0) if n > 2 else np.zeros(x.shape[1])
+    floor = 1e-9 * (np.abs(mean) + 1.0)
+    sd = np.maximum(sd, floor)
+    q = np.sum(nb * (bm - mean) ** 2, axis=0) / sd**2
+    p = _chi2.sf(q, K - 1)
+    se_batch = np.sqrt(np.sum((bm - mean) ** 2, axis=0) / (K * (K - 1)))
+    return p, sd, se_batch
+
+
+def _stats(x: np.ndarray, K: int, accept_motion: bool) -> StreamStats:
+    p, sd, se_b = _batch_test(x, K)
+    n = len(x)
+    scatter = x.std(0, ddof=1) if n > 1 else np.zeros(x.shape[1])
+    floor = 1e-9 * (np.abs(x.mean(0)) + 1.0)
+    scatter = np.maximum(scatter, floor)
+    se = scatter / math.sqrt(n)
+    if accept_motion:
+        se = np.maximum(se, se_b)
+    return StreamStats(x.mean(0), se, scatter, n, p)
+
+
+@dataclass
+class StaticState:
+    """One static state of the body: the mean of every sensor stream over a window at rest.
+
+    Attributes (means over the window, sensor frames of RECORDING_FORMAT.md):
+
+    * ``cable_names`` (N,) and ``tensions`` (N,) N with ``tensions_std`` (N,) N (std of the
+      mean), or ``None`` without load cells;
+    * ``elevations`` (2,) rad, ``elevations_std`` (2,) rad: inclinometer x, y elevations
+      (thesis's c31, c32 as angles), or ``None``;
+    * ``specific_force`` (3,) m/s², ``specific_force_std`` (3,): accelerometer, IMU axes, or ``None``;
+    * ``added``: dummy masses fixed on the body in this state (body frame), ``None`` = let
+      :func:`estimate_cg` decide (baseline: none; dummy: ``rig.dummy_mass``);
+    * ``window`` (t0, t1) header stamps s actually averaged, ``samples`` per stream,
+      ``label``, ``warnings`` (e.g. the body still moved at the start and was trimmed),
+      ``moving`` (accepted although the stationarity test failed), ``stats``
+      (:class:`StreamStats` per stream: ``imu``, ``load_cell:<name>``, ``inclinometer``,
+      ``exciter``) and ``exciter_force`` (2,) N (mean exciter reading, ignored by the fit).
+
+    A node captures a state by buffering the live topics into a :class:`SensorData` and
+    calling :meth:`from_window`; :func:`estimate_cg` then takes two (or more) states.
+    """
+
+    cable_names: tuple[str, ...] | None = None
+    tensions: np.ndarray | None = None
+    tensions_std: np.ndarray | None = None
+    elevations: np.ndarray | None = None
+    elevations_std: np.ndarray | None = None
+    specific_force: np.ndarray | None = None
+    specific_force_std: np.ndarray | None = None
+    added: tuple[DummyMass, ...] | None = None
+    window: tuple[float, float] = (0.0, 0.0)
+    samples: dict = field(default_factory=dict)
+    label: str = "state"
+    warnings: list[str] = field(default_factory=list)
+    moving: bool = False
+    stats: dict = field(default_factory=dict)
+    exciter_force: np.ndarray | None = None
+
+    @classmethod
+    def from_window(cls, sensors: SensorData, t0: float | None = None, t1: float | None = None,
+                    label: str = "state", settle: bool = True, allow_motion: bool = False,
+                    batch_seconds: float = 1.0, min_fraction: float = 0.4,
+                    added: Sequence[DummyMass] | None = None) -> "StaticState":
+        """Average every stream of ``sensors`` over header stamps [t0, t1] s (default: all).
+
+        Stationarity: each channel's window is cut into ~``batch_seconds`` batches (5 to 20);
+        if their means scatter more than the sample-to-sample noise allows (χ² test,
+        p < 1e-4 on any channel: the body still swings or drifts) and ``settle`` is true,
+        leading batches are dropped until the rest is at rest (at least ``min_fraction`` of
+        the window); a warning says so.  If no quiet tail exists: :class:`StaticsError`
+        ("the body still moves"), unless ``allow_motion`` (then the batch-means standard
+        error is used and a warning is added).  ``added``: the dummy masses fixed in this
+        state (body frame), if known here.  Raises :class:`StaticsError` for an empty window.
+        """
+        t0 = -np.inf if t0 is None else float(t0)
+        t1 = np.inf if t1 is None else float(t1)
+        streams: dict[str, TimeSeries] = {"imu": sensors.imu}
+        for name, ts in sensors.load_cells.items():
+            streams["load_cell:" + name] = ts
+        if sensors.inclinometer is not None:
+            streams["inclinometer"] = sensors.inclinometer
+        if sensors.exciter is not None:
+            streams["exciter"] = sensors.exciter
+        win = {}
+        for k, ts in streams.items():
+            w = ts.window(t0, t1)
+            if len(w) < 10:
+                raise StaticsError(f"{label}: stream {k} has {len(w)} sample(s) in the window "
+                                   f"[{t0:.3f}, {t1:.3f}] s; at least 10 are needed")
+            win[k] = w
+        a = max(w.t[0] for w in win.values())
+        b = min(w.t[-1] for w in win.values())
+        if b - a <= 0:
+            raise StaticsError(f"{label}: the streams do not overlap in time")
+        K = int(np.clip(round((b - a) / batch_seconds), 5, 20))
+
+        def test(ta: float) -> tuple[float, str]:
+            worst, what = 1.0, ""
+            for k, w in win.items():
+                x = w.window(ta, b).data
+                if len(x) < 2 * K:
+                    return 0.0, f"{k}: too few samples"
+                p, _, _ = _batch_test(x, K)
+                if p.min() < worst:
+                    worst, what = float(p.min()), f"{k}[{int(np.argmin(p))}]"
+            return worst, what
+
+        warnings: list[str] = []
+        start, moving = a, False
+        p, what = test(a)
+        if p < MOTION_P:
+            found = False
+            if settle:
+                step = (b - a) / K
+                j = 1
+                while (b - (a + j * step)) >= min_fraction * (b - a) - 1e-9:
+                    pj, _ = test(a + j * step)
+                    if pj >= MOTION_P:
+                        found, start = True, a + j * step
+                        break
+                    j += 1
+            if found:
+                warnings.append(f"{label}: the body still moved during the first {start - a:.1f} s "
+                                f"({what} not stationary); averaged the last {b - start:.1f} s")
+            elif allow_motion:
+                moving = True
+                warnings.append(f"{label}: the body still moves over the whole window ({what} not "
+                                f"stationary, p = {p:.1e}); averaged anyway with the batch-means "
+                                "uncertainty")
+            else:
+                raise StaticsError(f"{label}: the body still moves ({what} is not stationary over "
+                                   f"{b - a:.1f} s, p = {p:.1e}): no state at rest to use; wait until it "
+                                   "settles and record again")
+        st = {}
+        for k, w in win.items():
+            x = w.window(start, b).data
+            st[k] = _stats(x, K, moving)
+        names = tuple(sensors.load_cells)
+        tens = np.array([st["load_cell:" + n].mean[0] for n in names]) if names else None
+        tens_sd = np.array([st["load_cell:" + n].std_of_mean[0] for n in names]) if names else None
+        inc = st.get("inclinometer")
+        imu = st["imu"]
+        exc = st.get("exciter")
+        if exc is not None:
+            f = exc.mean
+            if np.linalg.norm(f) > max(1.0, 5 * np.linalg.norm(exc.std_of_mean)):
+                warnings.append(f"{label}: the exciter load cells read a mean force of "
+                                f"{np.linalg.norm(f):.1f} N at rest; ignored (is the exciter off?)")
+        return cls(cable_names=names or None, tensions=tens, tensions_std=tens_sd,
+                   elevations=None if inc is None else inc.mean,
+                   elevations_std=None if inc is None else inc.std_of_mean,
+                   specific_force=imu.mean[3:6], specific_force_std=imu.std_of_mean[3:6],
+                   added=None if added is None else tuple(added), window=(float(start), float(b)),
+                   samples={k: v.n for k, v in st.items()}, label=label, warnings=warnings,
+                   moving=moving, stats=st, exciter_force=None if exc is None else exc.mean)
+
+    @classmethod
+    def from_recording(cls, recording, label: str = "state", **kw) -> "StaticState":
+        """:meth:`from_window` over a whole :class:`~.recording.Recording`."""
+        st = cls.from_window(recording.sensors, label=label, **kw)
+        st.warnings = [f"{recording.path}: {w}" for w in recording.warnings] + st.warnings
+        return st
+
+    def tensions_for(self, rig: Rig) -> tuple[np.ndarray, np.ndarray] | None:
+        """(tensions (N,), std (N,)) in rig.yaml cable order, or None without load cells.
+
+        Raises :class:`StaticsError` if a cable of the rig has no load cell here."""
+        if self.tensions is None:
+            return None
+        idx = {n: i for i, n in enumerate(self.cable_names)}
+        missing = [n for n in rig.cable_names if n not in idx]
+        if missing:
+            raise StaticsError(f"{self.label}: no load-cell reading for cable(s) {', '.join(missing)}")
+        order = [idx[n] for n in rig.cable_names]
+        return self.tensions[order], self.tensions_std[order]
+
