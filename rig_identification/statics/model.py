@@ -17,11 +17,11 @@ units (m, kg, N, rad, s).  Errors: :class:`~rig_identification.statics.state.Sta
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import NamedTuple, Sequence
 
 import numpy as np
+from scipy.linalg import expm
 
 from ..rig import DummyMass, Rig
 from ..simulator import CableModel, SimulationError, equilibrium
@@ -59,15 +59,6 @@ def skews(a: np.ndarray) -> np.ndarray:
     out[:, 1, 0], out[:, 1, 2] = a[:, 2], -a[:, 0]
     out[:, 2, 0], out[:, 2, 1] = -a[:, 1], a[:, 0]
     return out
-
-
-def _expm(phi: np.ndarray) -> np.ndarray:
-    """Rotation matrix exp([phi]x) (Rodrigues)."""
-    t = float(np.linalg.norm(phi))
-    K = skew(phi)
-    if t < 1e-8:
-        return np.eye(3) + K + 0.5 * K @ K
-    return np.eye(3) + (math.sin(t) / t) * K + ((1 - math.cos(t)) / t**2) * K @ K
 
 
 @dataclass
@@ -359,7 +350,7 @@ class StaticModel:
     def solve_state(self, gl: GlobalUnknowns, m_add: float, w_add: np.ndarray, y0: tuple, label: str = "state"):
         """Equilibrium (R (3, 3), p (3,) m, T (N,) N) of one state for the globals ``gl``: Newton
         from ``y0`` = (R, p, T) with the analytic Jacobian of :meth:`equations`, steps damped far
-        from the solution, the rotation updated as R <- exp([s δφ]×) R (Rodrigues).
+        from the solution, the rotation updated as R <- exp([s δφ]×) R (``scipy.linalg.expm``).
         Raises :class:`~rig_identification.statics.state.StaticsError` (naming ``label``) when
         no equilibrium is found."""
         R, p, T = y0[0].copy(), y0[1].copy(), y0[2].copy()
@@ -378,7 +369,7 @@ class StaticModel:
             big = max(np.abs(d[:3]).max() / 0.2, np.abs(d[3:6]).max() / 0.5, 1.0)
             if big > 1.0:
                 s = 1.0 / big
-            R = _expm(s * d[:3]) @ R
+            R = expm(skew(s * d[:3])) @ R
             p = p + s * d[3:6]
             T = T + s * d[6:] * tsc
             if np.abs(d[:6]).max() < 1e-13 and np.abs(d[6:]).max() < 1e-13 and s == 1.0:
