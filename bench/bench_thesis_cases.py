@@ -10,7 +10,8 @@ import time
 from pathlib import Path
 
 
-from rig_identification.identification import KEYS, PAIRS
+from rig_identification.identification import KEYS
+from rig_identification.parametrisation import PAIRS
 from rig_identification.pipeline import compare_to_truth, identify_recording
 from rig_identification.recording import Recording
 from rig_identification.simulator import load_experiment, simulate

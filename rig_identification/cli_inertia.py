@@ -124,10 +124,13 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
     if result.diagnosis is not None:
         for line in diagnosis_lines(result):
             print(line)
-    if result.bias_correction is not None:
-        print(("second-order bias removed (kg·m², tensor entries): " if result.bias_applied else
-               "second-order bias measured, NOT removed (beyond σ on some entry: evidence of trouble) (kg·m², "
-               "tensor entries): ") + entries_line(dict(zip(KEYS, result.bias_correction)), spec="+.3g"))
+    eiv = result.errors_in_variables
+    if eiv is not None:
+        print(f"noise in the fit's input (errors in variables): {100 * min(eiv.share, 9.99):.3g} % of it along its "
+              "noisiest direction; "
+              + ("the least-squares bias it causes, removed (kg·m², tensor entries): " if result.bias_applied else
+                 "too large to compensate; the least-squares bias NOT removed: ")
+              + entries_line(dict(zip(KEYS, result.bias_correction)), spec="+.3g"))
     if result.validation is not None:
         for c in result.validation.checks:
             mark = "pass" if c.passed else ("FAIL" if c.passed is False else "n/a ")

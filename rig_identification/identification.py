@@ -38,43 +38,18 @@ from scipy.signal import butter, decimate, sosfiltfilt
 
 from .export import (AXES, ENTRY_NAMES, INERTIA_SCHEMA, INERTIA_SCHEMA_VERSION, UNITS, VEHICLE_SIGN,
                      convention_lines, express, finite_or_none)
+from .errors_in_variables import Compensation, NoiseRealisations, compensate
+from .parametrisation import (basis, consistent_from_params, from_tensor, params_from_consistent,
+                              physically_consistent, to_tensor)
 from .rig import Rig
 from .verdict import KEYS, Validation
-
-STAGE1_CONDITION = 100.0   # largest / smallest principal moment of the Levenberg–Marquardt start
-FIT_RATE = 200.0  # Hz: streams sampled ≥ 2× faster are decimated to about this rate before the fit
-# index pairs of the six independent tensor entries
-PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-
 
 class IdentificationError(ValueError):
     """The data cannot give a trustworthy inertia estimate (too short, gaps, no motion)."""
 
 
-def basis() -> np.ndarray:
-    """(6, 3, 3) symmetric basis: tensor = sum_k theta_k E_k, theta in :data:`KEYS` order."""
-    E = np.zeros((6, 3, 3))
-    for k, (i, j) in enumerate(PAIRS):
-        E[k, i, j] = E[k, j, i] = 1.0
-    return E
-
-
-def to_tensor(theta) -> np.ndarray:
-    """(6,) entries (ixx, ixy, ixz, iyy, iyz, izz) -> (3,3) symmetric tensor."""
-    return np.einsum("k,kij->ij", np.asarray(theta, float), basis())
-
-
-def from_tensor(J: np.ndarray) -> np.ndarray:
-    """(3,3) -> (6,) entries in :data:`KEYS` order."""
-    return np.array([J[i, j] for i, j in PAIRS])
-
-
-def physically_consistent(J: np.ndarray) -> bool:
-    """Positive definite and obeying the triangle inequalities of the principal moments."""
-    ev = np.linalg.eigvalsh(0.5 * (J + J.T))
-    return bool(ev[0] > 0 and ev[0] + ev[1] >= ev[2] * (1 - 1e-9))
-
-
+STAGE1_CONDITION = 100.0   # largest / smallest principal moment of the Levenberg–Marquardt start
+FIT_RATE = 200.0  # Hz: streams sampled ≥ 2× faster are decimated to about this rate before the fit
 @dataclass
 class FitSeries:
     """The fit's output over one segment (one recording's window): t (N,) s; measured
@@ -92,6 +67,11 @@ class FitSeries:
     jacobian: np.ndarray | None = None
     axis_scale: np.ndarray | None = None
     fs: float | None = None
+    # first-order noise realisations of the Jacobian (K,N,3,6) and of the residual (K,N,3) at
+    # the fitted tensor (:mod:`.errors_in_variables`), when the fit was compensated: the
+    # validation's sub-band and segment fits compensate with them too
+    noise_jacobian: np.ndarray | None = None
+    noise_residual: np.ndarray | None = None
 
     @property
     def residual(self) -> np.ndarray:
@@ -153,6 +133,9 @@ class InertiaResult:
     # exceeds σ: then it is evidence of trouble, validation's check "bias_correction")
     validation: Validation | None = None
     bias_applied: bool = False
+    # filled by a fit compensated for the noise in its input (pipeline.refine_uncertainty):
+    # errors_in_variables.Compensation (share of noise in the regressor, the correction, its σ)
+    errors_in_variables: Compensation | None = None
 
     @property
     def correlation(self) -> np.ndarray:
@@ -243,6 +226,11 @@ class InertiaResult:
             "inertia_sandwich_std": per_key(self.sandwich_std),
             "bias_correction": per_key(self.bias_correction),
             "bias_correction_applied": bool(self.bias_applied),
+            "errors_in_variables": None if self.errors_in_variables is None else {
+                "noise_share": num(self.errors_in_variables.share),
+                "direction": {k: num(x) for k, x in zip(KEYS, self.errors_in_variables.direction)},
+                "correction_std": per_key(self.errors_in_variables.correction_std),
+                "realisations": int(self.errors_in_variables.count)},
             "replay_sigma_factor": num(self.replay_factor),
             "sensor_noise": None if self.sensor_noise is None else {k: num(v) for k, v in self.sensor_noise.items()},
             "principal_moments": None if pm is None else pm["moments"],
@@ -414,43 +402,6 @@ def auto_band(omega: np.ndarray, fs: float, f_min: float = 0.15) -> tuple[float,
     return lo, min(0.4 * fs, max(1.5 * f[sig[-1]], 2.0 * lo))
 
 
-def consistent_from_params(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Physically consistent tensor from 6 free parameters, and d(entries)/d(theta).
-
-    J = tr(Σ) I − Σ with the second-moment matrix Σ = ∫ρρᵀ dm = L Lᵀ (log-Cholesky: L
-    lower triangular, positive diagonal exp(θ)); every J of this form is positive
-    definite and obeys the triangle inequalities, and every such J has this form
-    (Wensing, Kim & Slotine, "Linear matrix inequalities for physically consistent
-    inertial parameter identification", IEEE RA-L 2017).  theta order: L00, L10, L11,
-    L20, L21, L22.  Returns entries (6,) in :data:`KEYS` order and the (6,6) Jacobian.
-    """
-    idx = ((0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2))
-    L = np.zeros((3, 3))
-    dL = np.zeros((6, 3, 3))
-    for k, (i, j) in enumerate(idx):
-        if i == j:
-            L[i, j] = np.exp(np.clip(theta[k], -30.0, 30.0))  # a wild LM trial step must not overflow
-            dL[k, i, j] = L[i, j]
-        else:
-            L[i, j] = theta[k]
-            dL[k, i, j] = 1.0
-    S = L @ L.T
-    J = np.trace(S) * np.eye(3) - S
-    dS = dL @ L.T + L @ dL.transpose(0, 2, 1)
-    dJ = np.trace(dS, axis1=1, axis2=2)[:, None, None] * np.eye(3) - dS
-    return from_tensor(J), np.array([from_tensor(d) for d in dJ]).T
-
-
-def params_from_consistent(J: np.ndarray) -> np.ndarray:
-    """Inverse of :func:`consistent_from_params`; a J that is not consistent is first
-    projected (eigenvalues of Σ = ½ tr(J) I − J clipped to ≥ 1e-6 of their largest)."""
-    S = 0.5 * np.trace(J) * np.eye(3) - J
-    ev, V = np.linalg.eigh(0.5 * (S + S.T))
-    ev = np.maximum(ev, 1e-6 * max(ev.max(), 1e-12))
-    L = np.linalg.cholesky(V @ np.diag(ev) @ V.T)
-    return np.array([np.log(L[0, 0]), L[1, 0], np.log(L[1, 1]), L[2, 0], L[2, 1], np.log(L[2, 2])])
-
-
 def _batch_means_meat(A3: np.ndarray, resid: np.ndarray, nb: int) -> np.ndarray:
     """(p,p) "meat" of the batch-means sandwich: Σ over blocks of nb samples of (Σ AᵀR)(Σ AᵀR)ᵀ,
     scaled to all samples.  A3: (N,3,p) Jacobian of the prediction; resid: (N,3)."""
@@ -541,10 +492,20 @@ def prepare_segment(t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
     return Segment(t, w, fs, (lo, hi), filt, y, IM, G, label)
 
 
-def _fit_segments(rig: Rig, segs: list[Segment], block_s: float, consistent: bool) -> InertiaResult:
-    """The two-stage fit of :func:`identify_inertia` over one or more segments with a
-    common tensor: residuals and Jacobians stacked, sandwich meat and Cramér–Rao
-    information summed over the segments (they are independent)."""
+def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent: bool = True,
+                 noise: list[NoiseRealisations] | None = None) -> InertiaResult:
+    """The two-stage fit of :func:`identify_inertia` over one or more prepared segments
+    (:func:`prepare_segment`) with a common tensor: residuals and Jacobians stacked,
+    sandwich meat and Cramér–Rao information summed over the segments (they are independent).
+
+    noise: one :class:`~.errors_in_variables.NoiseRealisations` per segment (the regressor's
+    and output's first-order noise, from replays with fresh noise): the least-squares
+    estimate is then compensated for the noise in its input (bias-compensated least squares,
+    :func:`compensate`; ``result.errors_in_variables``), and the result's series carry the
+    noise realisations of the Jacobian and residual.  When the noise dominates a direction
+    (share ≥ 1) the compensation is impossible: the least-squares estimate is kept with a
+    warning and ``errors_in_variables.share`` says it.  Raises :class:`IdentificationError`
+    for mismatched noise."""
     from scipy.optimize import least_squares
 
     E = basis()
@@ -593,6 +554,15 @@ def _fit_segments(rig: Rig, segs: list[Segment], block_s: float, consistent: boo
                             xtol=1e-12, ftol=1e-12)
         j, _ = consistent_from_params(sol.x)
         method += "; Levenberg–Marquardt on a physically consistent parametrisation"
+    comp = None
+    eiv_warnings = []
+    if noise is not None:
+        if len(noise) != len(segs) or any(nz.du.shape[1:] != s.y.shape for nz, s in zip(noise, segs)):
+            raise IdentificationError("identifier: one noise realisation set (K,N,3) per segment is needed")
+        j, comp, eiv_warnings = compensate(segs, j, sigma, noise, consistent)
+        if not eiv_warnings:
+            method += (f"; compensated for the noise in its input (bias-compensated least squares, "
+                       f"{comp.count} noise realisations)")
     if len(segs) > 1:
         method += f"; joint fit of {len(segs)} recordings with a common tensor"
     J = to_tensor(j)
@@ -620,7 +590,7 @@ def _fit_segments(rig: Rig, segs: list[Segment], block_s: float, consistent: boo
     y_all = np.concatenate([s.y for s in segs])
     res_rms = np.sqrt(np.mean(resid**2, axis=0))
     r2 = 1 - np.sum(resid**2, 0) / np.sum(y_all**2, 0)
-    warnings = []
+    warnings = list(eiv_warnings)
     if not physically_consistent(J):
         warnings.append("the identified tensor is not physically consistent (not positive definite "
                         "or violates the triangle inequality): the window does not excite the body enough")
@@ -633,6 +603,13 @@ def _fit_segments(rig: Rig, segs: list[Segment], block_s: float, consistent: boo
     res.gyro_noise = sgs[0] if len(sgs) == 1 else float(np.sqrt(np.mean(np.square(sgs))))
     res.series = [FitSeries(s.t, s.y, yh, s.band, s.label, A3, sigma.copy(), s.fs)
                   for s, yh, A3 in zip(segs, yhats, A3s)]
+    if comp is not None:
+        res.errors_in_variables = comp
+        P = np.linalg.inv(J)
+        for ser, nz in zip(res.series, noise):
+            dyh = nz.du @ P.T                                         # (K,N,3) P Δu
+            ser.noise_jacobian = -np.einsum("ij,knjq->kniq", P, np.einsum("qjl,knl->knjq", E, dyh))
+            ser.noise_residual = nz.dy - dyh
     return res
 
 
@@ -675,7 +652,7 @@ def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np
     Raises :class:`IdentificationError` for too little data, gaps or no motion.
     """
     seg = prepare_segment(t, omega_body, torque, band_hz)
-    return _fit_segments(rig, [seg], block_s, consistent)
+    return fit_segments(rig, [seg], block_s, consistent)
 
 
 def identify_inertia_joint(rig_list: list[Rig], segments: list, band_hz=None, block_s: float = 4.0,
@@ -711,7 +688,7 @@ def identify_inertia_joint(rig_list: list[Rig], segments: list, band_hz=None, bl
         bands = list(band_hz)
     segs = [prepare_segment(t, w, m, b, what=f"identifier ({lab})", label=lab)
             for (t, w, m), b, lab in zip(segments, bands, labels)]
-    return _fit_segments(rig_list[0], segs, block_s, consistent)
+    return fit_segments(rig_list[0], segs, block_s, consistent)
 
 
 def identify_inertia_thesis(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,

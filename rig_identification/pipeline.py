@@ -10,8 +10,9 @@ from scipy.spatial.transform import Rotation
 
 from .diagnosis import body_inertia, corrected, diagnose, with_stiffness
 from .export import effect_text
-from .identification import (KEYS, InertiaResult, from_tensor, identify_inertia, identify_inertia_joint,
-                             identify_inertia_thesis, physically_consistent, to_tensor, weak_directions)
+from .errors_in_variables import NoiseRealisations, antithetic_realisations
+from .identification import (KEYS, InertiaResult, fit_segments, from_tensor, identify_inertia, identify_inertia_joint,
+                             identify_inertia_thesis, prepare_segment, weak_directions)
 from .preprocessor import preprocess
 from .quality import check_motion, check_units, clean_sensors
 from .recording import Recording, RecordingError, crop
@@ -20,13 +21,12 @@ from .tracker import track
 from .uncertainty import noise_replays, propagated, sensor_noise
 from .noise import white_sigma
 from .propagation import PlanError, combine
-from .validation import BIAS_LIMIT, AccelInput, validate, widened_std
+from .validation import AccelInput, validate, widened_std
 from .yaw_anchor import YawAnchor, anchor_yaw
 
 log = logging.getLogger(__name__)   # steps (INFO) and warnings as they happen: cli_progress shows them
 
-BIAS_SHARE = 0.3   # of the second-order bias correction counted in σ (the correction's own uncertainty)
-REPLAY_PAIRS = 3   # antithetic pairs of replays with fresh noise: the bias and a check of the propagated σ
+REPLAY_PAIRS = 3   # antithetic pairs of replays with fresh noise: the input-noise compensation, a check of σ
 
 
 def default_initial_guess(rig) -> np.ndarray:
@@ -177,81 +177,88 @@ def weight_surplus(prep: PreparedRecording) -> float:
 
 
 def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, seed: int = 0) -> InertiaResult:
-    """Remove the second-order bias from a prediction-error estimate and give it the σ that
-    the sensors' noise causes along the recordings' trajectories (:mod:`.uncertainty`).
+    """Compensate a prediction-error estimate for the noise in its input and give it the σ
+    that the sensors' noise causes along the recordings' trajectories (:mod:`.uncertainty`).
 
     preps: the prepared recording(s) the result was fitted to (one, or several for a joint
     fit, in the order of ``result.series``).  The white-noise σ of every stream is
-    estimated from each recording (:func:`~.uncertainty.sensor_noise`); the bias is
-    measured by re-running tracker, preprocessor and identifier (same windows and bands)
-    with an antithetic pair of fresh noise realisations
-    (:func:`~.uncertainty.antithetic_bias`; ``bias_correction``) and subtracted when it is within
-    the propagated σ of every entry (``bias_applied``; a larger one is evidence of trouble,
-    which the validation reports, and is not subtracted); the covariance is the
+    estimated from each recording (:func:`~.uncertainty.sensor_noise`); tracker,
+    preprocessor and identifier (same windows and bands) are re-run with
+    :data:`REPLAY_PAIRS` antithetic pairs of fresh noise at those levels
+    (:func:`~.uncertainty.noise_replays`).  Their regressors and outputs are realisations of
+    the noise the chain puts into the fit — the gyro's through the tracked pose into the
+    moment included — and the fit is re-solved with the noise's second moments removed from
+    its normal equations (bias-compensated least squares, :mod:`.errors_in_variables`;
+    ``errors_in_variables``; ``bias_correction`` the least-squares estimate's bias it removed).  The covariance is the
     linearised propagation of that noise through the same chain
-    (:func:`~.uncertainty.propagated`, recordings combined by :func:`~.propagation.combine`):
-    ``crb_std`` holds it, and ``inertia_std`` and ``covariance`` too unless the fit's residual
-    RMS exceeds the one the noise predicts by more than :data:`MODEL_ERROR_RATIO` on a gyro
-    axis (``residual_excess``): that is model error, and the identifier's sandwich σ (from
-    the residuals; always in ``sandwich_std``) is kept.  If the propagation fails (too little motion) or the corrected
-    tensor is not physically consistent, the result keeps the sandwich σ (or the
-    uncorrected tensor) with a warning.  Returns ``result``, updated in place.
+    (:func:`~.uncertainty.propagated`, recordings combined by :func:`~.propagation.combine`),
+    mapped onto the compensated estimate, with the compensation's own jackknife σ in
+    quadrature: ``crb_std`` holds it, and ``inertia_std`` and ``covariance`` too unless the
+    fit's residual RMS exceeds the one the noise predicts (the replays' residual
+    realisations) by more than :data:`MODEL_ERROR_RATIO` on a gyro axis
+    (``residual_excess``): that is model error, and the identifier's sandwich σ (from the
+    residuals; always in ``sandwich_std``) is kept.  If the propagation fails (too little
+    motion) the result keeps the sandwich σ with a warning.  Returns ``result``, updated in
+    place.
     """
 
     rigs = [p.rec.rig for p in preps]
     bands = [tuple(s.band_hz) for s in result.series] if len(result.series) == len(preps) else \
         [tuple(result.band_hz)] * len(preps)
-    labels = [s.label for s in result.series] if len(result.series) == len(preps) else None
+    labels = [s.label for s in result.series] if len(result.series) == len(preps) else [""] * len(preps)
     est = [sensor_noise(r, p.sensors) for r, p in zip(rigs, preps)]
     noises = [e[0] for e in est]
     result.sensor_noise = {k: float(np.sqrt(np.mean([n[k] ** 2 for n in noises]))) for k in noises[0]}
     result.sandwich_std = result.inertia_std.copy()
+    logs: list[list] = [[] for _ in preps]   # each replay's prepared segment, in call order (+m, −m, …)
 
-    def replay(r, s, p):
+    def replay(i, r, s, p):
         rp = replay_window(r, s, *p.window)
         t, gyro, torque, force = rp.t, rp.gyro_body, rp.torque, rp.force
         if p.extra_torque is not None and len(t) == len(p.t):
             torque, force = torque + p.extra_torque, force + p.extra_force
-        if len(t) == len(p.t):
+        seg = prepare_segment(t, gyro, torque, bands[i], label=labels[i])
+        same = len(t) == len(p.t)
+        if same:
             p.replays.append((torque, force))
-        return t, gyro, torque
+        logs[i].append(seg if same else None)
+        return seg
 
     def fit(sensor_list):
-        segs = [replay(r, s, p) for r, s, p in zip(rigs, sensor_list, preps)]
-        if len(segs) == 1:
-            res = identify_inertia(rigs[0], *segs[0], band_hz=bands[0])
-        else:
-            res = identify_inertia_joint(rigs, segs, band_hz=bands, labels=labels)
-        return from_tensor(res.inertia)
+        segs = [replay(i, r, s, p) for i, (r, s, p) in enumerate(zip(rigs, sensor_list, preps))]
+        return from_tensor(fit_segments(rigs[0], segs).inertia)
 
     theta = from_tensor(result.inertia)
     log.info("σ: %d replays with fresh sensor noise", 2 * REPLAY_PAIRS)
     replays = noise_replays(fit, theta, [p.sensors for p in preps], noises, seed, pairs=REPLAY_PAIRS)
-    bias = replays.bias
-    result.bias_correction = bias
+    noise = noise_realisations(logs)
+    if noise is not None:
+        log.info("compensating the fit for the noise in its input (errors in variables)")
+        base = [prepare_segment(p.t, p.gyro_body, p.torque, b, label=lab) for p, b, lab in zip(preps, bands, labels)]
+        comp = fit_segments(rigs[0], base, noise=noise)
+        result.inertia, result.residual_rms, result.fit_r2 = comp.inertia, comp.residual_rms, comp.fit_r2
+        result.series, result.method = comp.series, comp.method
+        result.inertia_std, result.covariance = comp.inertia_std, comp.covariance
+        result.sandwich_std = comp.inertia_std.copy()
+        result.errors_in_variables = comp.errors_in_variables
+        result.warnings.extend(comp.warnings)
+        result.bias_correction = -comp.errors_in_variables.correction   # the least-squares bias, removed
+        result.bias_applied = not comp.warnings
     log.info("propagating the sensor noise")
     try:
         pred = combine([propagated(r, p.poses, p.sensors, p.t, result.inertia, b, n, rt)
                         for r, p, b, (n, rt) in zip(rigs, preps, bands, est)])
     except (PlanError, np.linalg.LinAlgError, ValueError) as e:
-        result.warnings.append(f"noise propagation failed ({e}); σ from the fit's residuals (sandwich); the "
-                               "second-order bias correction not applied")
+        result.warnings.append(f"noise propagation failed ({e}); σ from the fit's residuals (sandwich)")
         return result
-    # a correction beyond σ is evidence of trouble (validation's check "bias_correction"), not
-    # something to subtract quietly
-    J = to_tensor(theta - bias)
-    within = bool(np.all(np.abs(bias) <= BIAS_LIMIT * pred.std))
-    std = pred.std
-    if within and physically_consistent(J):
-        result.inertia = J
-        result.bias_applied = True
-        result.method += "; second-order bias removed (antithetic SIMEX)"
-        # the correction's own uncertainty (its estimate from one antithetic pair spreads
-        # 10–20 % over SIMEX seeds on clean random rigs): a third of it, in quadrature
-        std = np.sqrt(pred.std**2 + (BIAS_SHARE * bias) ** 2)
-    elif within:
-        result.warnings.append("the second-order bias correction would make the tensor physically inconsistent; "
-                               "not applied")
+    cov = pred.covariance
+    eiv = result.errors_in_variables
+    if eiv is not None and result.bias_applied:
+        # the same noise moves the compensated estimate by G times the least-squares one; the
+        # finite number of realisations adds the jackknife σ of the correction
+        cov = eiv.sensitivity @ cov @ eiv.sensitivity.T + np.diag(np.nan_to_num(eiv.correction_std) ** 2)
+    std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
+    result.crb_std = std.copy()
     # the linearised propagation checked against the replays' own spread (their Birge ratio
     # over 6 × REPLAY_PAIRS degrees of freedom): where the replays spread more, σ follows them —
     # a tracker or rig the linearisation misses (a 3-cable rig: 1.47 over 6 pairs, 1.3–1.5 in
@@ -259,9 +266,14 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     factor, dof = replays.sigma_factor(pred.covariance)
     if factor > 1.0:
         std = std * factor
+        cov = cov * factor**2
         result.replay_factor = factor
-    result.crb_std = pred.std
-    r = np.asarray(result.residual_rms) / pred.residual_rms
+    # the residual the noise leaves at the fitted tensor: the replays' residual realisations
+    # (every path of the noise, the input's included), else the propagation's prediction
+    real = [s.noise_residual for s in result.series if s.noise_residual is not None]
+    expected = (np.sqrt(np.mean(np.concatenate([r.reshape(-1, 3) for r in real]) ** 2, axis=0))
+                if len(real) == len(result.series) and real else pred.residual_rms)
+    r = np.asarray(result.residual_rms) / expected
     result.residual_excess = r
     if np.max(r) > MODEL_ERROR_RATIO:
         # the residual is not the noise: model error, whose effect on the estimate the
@@ -269,12 +281,27 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
         result.uncertainty = "sandwich (model error)"
     else:
         result.inertia_std = std
-        result.covariance = pred.covariance * (std[:, None] * std[None, :]) / np.outer(pred.std, pred.std)
+        result.covariance = cov
         result.uncertainty = "propagated sensor noise" + (
             f" (widened {result.replay_factor:.2f}× to the spread of replays with fresh noise)"
             if result.replay_factor else "")
     result.weak_directions = weak_directions(result.inertia, result.covariance)
     return result
+
+
+def noise_realisations(logs: list[list]) -> list[NoiseRealisations] | None:
+    """The :class:`~.errors_in_variables.NoiseRealisations` of each recording from its
+    replays' prepared segments (``logs[i]``: in call order +m₁, −m₁, +m₂, …; None for a
+    replay whose window came out with another length); None when some recording has no
+    complete pair."""
+    out = []
+    for lg in logs:
+        pairs = [(a, b) for a, b in zip(lg[0::2], lg[1::2]) if a is not None and b is not None]
+        if not pairs:
+            return None
+        out.append(antithetic_realisations([a.IM for a, _ in pairs], [b.IM for _, b in pairs],
+                                           [a.y for a, _ in pairs], [b.y for _, b in pairs]))
+    return out
 
 
 def identify_recording(rec: Recording, start: float | None = None, end: float | None = None,

@@ -142,7 +142,8 @@ def sigma_note(result: InertiaResult) -> str:
         txt = ("σ: the sensors' noise, estimated from the recording, propagated through tracker, preprocessor and "
                "identifier (the propagated-noise column), or the fit's own sandwich σ where the residual shows "
                f"model error; here: {result.uncertainty}. "
-               + ("Second-order bias removed. " if result.bias_applied else ""))
+               + ("Compensated for the noise in the fit's input (errors in variables: the gyro's noise reaches the "
+                  "moment through the tracked pose). " if result.bias_applied else ""))
     else:
         txt = ("σ: the identifier's sandwich (batch-means) standard deviation, calibrated for coloured residuals. ")
     return txt + "σ %: of the entry for moments, of the largest moment for products (so are the error %)."

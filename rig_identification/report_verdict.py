@@ -24,7 +24,8 @@ CHECKS = {
     "whiteness": ("no spectral line in the residual (over its local level)", "ratio"),
     "accelerometer": ("the accelerometer, which the fit does not use, is predicted (RMS ratio)", "ratio"),
     "weight": ("the load cells carry rig.yaml's weight", "fraction"),
-    "bias_correction": ("the second-order bias correction is small against σ", "sigma"),
+    "errors_in_variables": ("the sensors' noise is a minor share of the fit's input (along its noisiest "
+                            "direction)", "fraction"),
     "identifiable": ("every entry is determined (largest σ over its scale)", "fraction"),
 }
 

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from .export import ORDER
-from .identification import KEYS, PAIRS, IdentificationError
+from .identification import KEYS, IdentificationError
+from .parametrisation import PAIRS
 from .pipeline import compare_to_truth, identify_recording
 from .recording import Recording
 from .simulator import load_experiment, simulate

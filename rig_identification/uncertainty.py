@@ -1,4 +1,4 @@
-"""What the noise does to a recording's inertia estimate: its σ and its second-order bias.
+"""What the noise does to a recording's inertia estimate: its σ, and draws of its noise.
 
 The identifier's own sandwich covariance (:func:`~.identification.identify_inertia`) sees
 the fit's residuals only; the noise reaches the estimate by more paths than the output
@@ -11,17 +11,15 @@ the load cells, the exciter; see :mod:`.planning`).  For a recording, this modul
   identifier along the recording's own tracked trajectory
   (:func:`~.propagation.predict_from_trajectory`; :func:`propagated`): the Cramér–Rao-type
   bound of this estimator for the recording's excitation, coloured residuals included;
-* removes the estimator's second-order bias (:func:`antithetic_bias`).  The tracker's
-  pose carries the integrated gyro noise into the torque, the output carries the same
-  gyro noise: the regressor and the output error are correlated — an errors-in-variables
-  bias of order σ² (on thesis case 16 at the reference noise, +0.035 kg·m² on Iyy, a third
-  of its σ; with the true pose there is none).  The bias is measured on the recording: the
-  chain is re-run with a fresh noise realisation ``m`` of the estimated levels added and
-  subtracted.  Writing the estimate as ``θ(n) = θ₀ + L n + Q(n, n) + …``, the antithetic
-  mean ``½[θ(n + m) + θ(n − m)] − θ(n) = Q(m, m) + O(σ³)`` has the expectation of the bias
-  and none of the first-order error; subtracting it is the antithetic form of SIMEX
-  (Cook & Stefanski, JASA 89 (1994) 1314, simulation–extrapolation with λ = 1, linear
-  extrapolation to λ = −1).
+* re-runs the chain with fresh noise at those levels (:func:`noise_replays`, antithetic
+  pairs ``s ± m``): ``½[x(s + m) − x(s − m)]`` of any quantity x of the chain is a draw of
+  its first-order noise.  The identifier's draws check the propagated σ
+  (:meth:`NoiseReplays.sigma_factor`); the regressor's and output's are the realisations
+  with which the fit is compensated for the noise in its input
+  (:mod:`.errors_in_variables`: the tracker's pose carries the integrated gyro noise into
+  the torque while the output carries the same gyro noise — an errors-in-variables bias,
+  on thesis case 16 at the reference noise +0.035 kg·m² on Iyy, a third of its σ; on an
+  axis the body hardly turns, many σ).
 """
 from __future__ import annotations
 
@@ -119,8 +117,9 @@ def add_noise(sensors, noise: dict, rng: np.random.Generator, sign: float = 1.0)
 class NoiseReplays:
     """What replays with fresh noise say of an estimate (:func:`noise_replays`).
 
-    bias (6,) kg·m²: the second-order bias, the mean over the antithetic pairs of
-    ``½[θ(s + m) + θ(s − m)] − θ(s)``; draws (K,6) kg·m²: ``½[θ(s + m) − θ(s − m)]`` per pair,
+    bias (6,) kg·m²: the mean over the antithetic pairs of ``½[θ(s + m) + θ(s − m)] − θ(s)``,
+    SIMEX's second-order estimate of the bias (Cook & Stefanski 1994; it sees only part of
+    the errors-in-variables bias, which :mod:`.errors_in_variables` removes); draws (K,6) kg·m²: ``½[θ(s + m) − θ(s − m)]`` per pair,
     each a draw of the estimate's first-order error at the recording's noise levels (the
     linear term ``L m``; the noise already in the data moves only the point it is taken at)."""
 
@@ -142,8 +141,8 @@ class NoiseReplays:
 
 def noise_replays(fit, base: np.ndarray, sensors: list, noises: list, seed: int = 0, pairs: int = 1) -> NoiseReplays:
     """The estimate re-run on the recording(s) with ``pairs`` antithetic pairs of fresh white
-    noise at the estimated levels (:func:`add_noise`): the second-order bias (antithetic
-    SIMEX, module docstring) and draws of the first-order error (:class:`NoiseReplays`).
+    noise at the estimated levels (:func:`add_noise`): draws of the first-order error and
+    the antithetic mean shift (:class:`NoiseReplays`).
 
     fit(list of SensorData) -> (6,) entries (the whole chain with the estimate's band and
     window); base: ``fit(sensors)``; sensors, noises: per recording.  ``fit`` is called
@@ -161,19 +160,3 @@ def noise_replays(fit, base: np.ndarray, sensors: list, noises: list, seed: int 
     return NoiseReplays(np.mean(bias, axis=0), np.array(draws))
 
 
-def antithetic_bias(fit, base: np.ndarray, sensors: list, noises: list, seed: int = 0) -> np.ndarray:
-    """Second-order bias (6,) of an estimate, in :data:`~.identification.KEYS` order, kg·m².
-
-    fit(list of SensorData) -> (6,) entries: the whole chain (tracker, preprocessor,
-    identifier with the band and window of the estimate being corrected) over one recording
-    or several fitted jointly; base: ``fit(sensors)``, the estimate itself; sensors,
-    noises: per recording (noise levels as :func:`sensor_noise`).  Returns
-    ``½[fit(s + m) + fit(s − m)] − base`` for one white realisation ``m`` of the levels per
-    recording (see the module docstring; Cook & Stefanski 1994, antithetic SIMEX); ``fit``
-    is called twice."""
-    base = np.asarray(base, float)
-    out = []
-    for sign in (+1.0, -1.0):
-        out.append(np.asarray(fit([add_noise(s, n, np.random.default_rng([seed, i]), sign)
-                                   for i, (s, n) in enumerate(zip(sensors, noises))]), float))
-    return 0.5 * (out[0] + out[1]) - base

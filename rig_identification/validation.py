@@ -54,9 +54,12 @@ detail):
 ``weight``
     the load cells' mean vertical force against rig.yaml's weight
     (:func:`~.pipeline.weight_surplus`), within :data:`WEIGHT_TOLERANCE`.
-``bias_correction``
-    the second-order bias correction (:func:`~.uncertainty.antithetic_bias`) within
-    σ on every entry: a larger one is itself evidence of trouble.
+``errors_in_variables``
+    the share of the fit's input that is the sensors' noise (the gyro's reaches the moment
+    through the tracked pose), along its noisiest direction, within
+    :data:`~.errors_in_variables.EIV_LIMIT`: the fit is compensated for that noise
+    (:mod:`.errors_in_variables`), which holds to first order; beyond the limit the noise
+    is as large as the signal and the entries along that direction are not determined.
 ``identifiable``
     every entry's σ within :data:`REL_STD_LIMIT` of its scale (its own value for a moment,
     the largest moment for a product), every number finite, a physically consistent
@@ -78,13 +81,13 @@ from scipy.ndimage import median_filter
 from scipy.signal import butter, sosfiltfilt
 from scipy.stats import chi2
 
+from .errors_in_variables import EIV_LIMIT, capped
 from .identification import KEYS, FitSeries, InertiaResult, from_tensor, physically_consistent, weak_directions
 from .verdict import Check, Validation, fmt_p
 
 ALPHA = 1e-3                # significance of each statistical check
 EFFECT_FACTOR = 2.0         # a consistency check fails beyond this multiple of its significance threshold
 WHITENESS_FACTOR = 3.0      # the whiteness check fails beyond this multiple of its significance threshold
-BIAS_LIMIT = 3.0            # a second-order bias beyond this many σ: the entry is not determined
 RESIDUAL_RATIO = 1.6        # residual RMS / the noise's, per gyro axis
 ACCEL_RATIO = 1.6           # accelerometer residual RMS / its in-band noise, per axis
 REL_STD_LIMIT = 0.10        # σ of an entry beyond this fraction of its scale: not determined
@@ -109,6 +112,8 @@ class Spectra:
     A: np.ndarray
     y: np.ndarray
     S: np.ndarray
+    dA: np.ndarray | None = None     # (K,B,3,6) the noise realisations of A (FitSeries.noise_jacobian)
+    dr: np.ndarray | None = None     # (K,B,3) and of r (FitSeries.noise_residual)
 
 
 def spectra(series: FitSeries, rows: slice = slice(None)) -> Spectra:
@@ -129,24 +134,20 @@ def spectra(series: FitSeries, rows: slice = slice(None)) -> Spectra:
     width = max(5, int(round(SMOOTH_HZ * n / fs)) | 1)
     S = median_filter(P, size=(width, 1), mode="nearest") / np.log(2)
     S = np.maximum(S, 1e-12 * max(float(S.max()), 1e-300))
-    return Spectra(f[m], R, np.fft.rfft(A, axis=0)[m], np.fft.rfft(y, axis=0)[m], S)
+    dA = dr = None
+    if series.noise_jacobian is not None and series.noise_residual is not None:
+        dA = np.fft.rfft(series.noise_jacobian[:, rows], axis=1)[:, m]
+        dr = np.fft.rfft(series.noise_residual[:, rows], axis=1)[:, m]
+    return Spectra(f[m], R, np.fft.rfft(A, axis=0)[m], np.fft.rfft(y, axis=0)[m], S, dA, dr)
 
 
 def wls_step(sp: Spectra, bins=None, extra=None) -> tuple[np.ndarray, np.ndarray]:
-    """Weighted least-squares step over the DFT bins (Whittle weights 1/S).
+    """Weighted least-squares step over the DFT bins (Whittle weights 1/S), compensated for
+    the noise in the input when the spectra carry its realisations (:func:`wls_step_joint`).
 
     extra: optional (B,3,q) further regressors.  Returns (step (6+q,), covariance (6+q,6+q))
     of the tensor entries (kg·m²) and of the extra coefficients."""
-    A = sp.A if extra is None else np.concatenate([sp.A, extra], axis=2)
-    if bins is not None:
-        A, r, S = A[bins], sp.r[bins], sp.S[bins]
-    else:
-        r, S = sp.r, sp.S
-    W = 1.0 / S                                                     # (B,3)
-    info = np.einsum("bip,bi,biq->pq", A.conj(), W, A).real
-    g = np.einsum("bip,bi,bi->p", A.conj(), W, r).real
-    cov = 0.5 * np.linalg.pinv(info, rcond=1e-12, hermitian=True)
-    return 2.0 * cov @ g, cov
+    return wls_step_joint([sp], None if bins is None else [bins], None if extra is None else [extra])
 
 
 def wald(d: np.ndarray, V: np.ndarray) -> tuple[float, int]:
@@ -191,12 +192,16 @@ def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray)
     D = np.diag(scale)
     ests, times, stat, dof = [], [], 0.0, 0
     for s in series:
-        d0, _ = wls_step(spectra(s))
+        full = spectra(s)
+        d0, _ = wls_step(full)
         K = n_segments(float(s.t[-1] - s.t[0]))
         edges = np.linspace(0, len(s.t), K + 1).astype(int)
         for a, b in zip(edges[:-1], edges[1:]):
-            d, V = wls_step(spectra(s, slice(a, b)))
-            x, k = wald(d - d0, D @ V @ D)
+            part = spectra(s, slice(a, b))
+            mom = [piece_noise(full, part, (b - a) / len(s.t))]
+            d, V = wls_step_joint([part], moments=mom)
+            B = determined([part], moments=mom)
+            x, k = wald(B.T @ (d - d0), B.T @ D @ V @ D @ B)
             stat += x
             dof += k
             ests.append(theta + d)
@@ -208,6 +213,22 @@ def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray)
     detail = (f"{len(ests)} segments of the window fitted on their own; largest departure from the whole "
               f"window's tensor {KEYS[big]} {worst[big]:.3g} kg·m²")
     return chi2_check("segments", stat, max(dof, 1), detail), ests, np.array(times)
+
+
+def piece_noise(full: Spectra, part: Spectra, fraction: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """The noise moments of the compensated step (:func:`wls_step_joint`) of a piece of a
+    record — ``fraction`` of its samples, spectra ``part`` — from the whole record's noise
+    realisations (``full``): the noise is stationary, so its cross-spectrum is estimated
+    from the whole record (far more bins than the piece's own realisations have: a quarter
+    of a 90 s record compensated with its own three realisations scattered 3× beyond its
+    σ), weighted with the piece's own residual level and scaled to its length (a piece's
+    periodogram and level are ``fraction`` of the whole's, its bins ``fraction`` as many).
+    Returns (N (K,6,6), n (K,6)) per realisation, or None when ``full`` has none."""
+    if full.dA is None or full.dr is None:
+        return None
+    W = 1.0 / np.column_stack([np.interp(full.f, part.f, part.S[:, i]) for i in range(3)])
+    return (fraction**2 * np.einsum("kbip,bi,kbiq->kpq", full.dA.conj(), W, full.dA).real,
+            fraction**2 * np.einsum("kbip,bi,kbi->kp", full.dA.conj(), W, full.dr).real)
 
 
 def noise_scale(series: list[FitSeries], std: np.ndarray | None) -> np.ndarray:
@@ -241,7 +262,12 @@ def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) ->
         halves.append((np.arange(k), np.arange(k, len(sp.f))))
     (d1, V1), (d2, V2) = [wls_step_joint(sps, [h[i] for h in halves]) for i in (0, 1)]
     D = np.diag(scale)
-    stat, dof = wald(d1 - d2, D @ (V1 + V2) @ D)
+    B1, B2 = [determined(sps, [h[i] for h in halves]) for i in (0, 1)]
+    # the directions both halves determine (the complement of the union of the noisy ones)
+    U, sv, _ = np.linalg.svd(np.eye(6) - _projector(B1) @ _projector(B2) @ _projector(B1) if B1.shape[1] < 6 or
+                             B2.shape[1] < 6 else np.zeros((6, 6)))
+    B = U[:, sv < 0.5]
+    stat, dof = wald(B.T @ (d1 - d2), B.T @ D @ (V1 + V2) @ D @ B)
     f = sps[0].f
     split = 0.5 * (f[halves[0][0][-1]] + f[halves[0][1][0]])
     edges = (float(series[0].band_hz[0]), float(split), float(series[0].band_hz[1]))
@@ -252,19 +278,103 @@ def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) ->
     return chi2_check("sub_bands", stat, dof, detail), np.array([theta + d1, theta + d2]), edges
 
 
-def wls_step_joint(sps: list[Spectra], bins: list | None = None, extras: list | None = None):
-    """:func:`wls_step` pooled over several segments' spectra (one tensor)."""
-    info, g = 0.0, 0.0
+def _normal(sps: list[Spectra], bins: list | None, extras: list | None, moments: list | None):
+    """The Whittle-weighted normal equations pooled over ``sps`` (see :func:`wls_step_joint`):
+    info (p,p), g (p,), the noise moments per realisation Nk (K,p,p), nk (K,p), and Cq (p,p)
+    the covariance of the gradient's noise × noise term (the sample covariance over the
+    realisations, bin by bin, summed: the bins are independent) — 0.0 when the spectra carry
+    no realisations."""
+    info, g, Nk, nk, Cq = 0.0, 0.0, 0.0, 0.0, 0.0
     for i, sp in enumerate(sps):
         A = sp.A if extras is None else np.concatenate([sp.A, extras[i]], axis=2)
         r, S = sp.r, sp.S
+        dA, dr = sp.dA, sp.dr
+        if dA is not None and extras is not None:
+            dA = np.concatenate([dA, np.zeros(dA.shape[:3] + (extras[i].shape[2],), complex)], axis=3)
         if bins is not None:
             A, r, S = A[bins[i]], r[bins[i]], S[bins[i]]
+            if dA is not None:
+                dA, dr = dA[:, bins[i]], dr[:, bins[i]]
         W = 1.0 / S
         info = info + np.einsum("bip,bi,biq->pq", A.conj(), W, A).real
         g = g + np.einsum("bip,bi,bi->p", A.conj(), W, r).real
+        if dA is not None:
+            t = np.einsum("kbip,bi,kbi->kbp", dA.conj(), W, dr).real       # per realisation and bin
+            if len(t) >= 2:
+                dev = t - t.mean(0)
+                Cq = Cq + np.einsum("kbp,kbq->pq", dev, dev) / (len(t) - 1)
+        if moments is not None and moments[i] is not None:
+            Nk, nk = Nk + moments[i][0], nk + moments[i][1]
+        elif dA is not None:     # per realisation (K,p,p), (K,p)
+            Nk = Nk + np.einsum("kbip,bi,kbiq->kpq", dA.conj(), W, dA).real
+            nk = nk + t.sum(1)
+    return info, g, Nk, nk, Cq
+
+
+def wls_step_joint(sps: list[Spectra], bins: list | None = None, extras: list | None = None,
+                   moments: list | None = None):
+    """:func:`wls_step` pooled over several segments' spectra (one tensor).
+
+    When the spectra carry the noise realisations of the fit (``dA``, ``dr``: a fit
+    compensated for the noise in its input, :mod:`.errors_in_variables`), the step is
+    compensated the same way: the realisations' mean second moments are removed from the
+    information and the gradient (the extra regressors are taken as noise-free), each
+    direction's share capped at :data:`~.errors_in_variables.SHARE_CAP`; the covariance is
+    then the sandwich I_c⁻¹ (½ I + C_q) I_c⁻¹ (C_q: the fluctuation of the noise × noise term
+    of the gradient about its removed mean, :func:`_normal`) plus the jackknife covariance of the step over the
+    realisations (their finite number makes the compensation uncertain).  moments: per
+    spectra, the noise moments (N (K,p,p), n (K,p)) to use instead of its own realisations'
+    (:func:`piece_noise`), or None for them."""
+    info, g, Nk, nk, Cq = _normal(sps, bins, extras, moments)
+    if np.ndim(Nk):
+        try:
+            def solve(keep):
+                Ic = np.linalg.pinv(info - capped(info, Nk[keep].mean(0)), rcond=1e-12, hermitian=True)
+                return Ic @ (g - nk[keep].mean(0)), Ic
+
+            K = len(Nk)
+            step, Ic = solve(np.arange(K))
+            # the noise's own product in the gradient (input noise × output noise) fluctuates
+            # about the mean that is removed: its variance, per bin from the realisations
+            cov = Ic @ (0.5 * info + Cq) @ Ic
+            if K >= 2:
+                # the realisations' finite number: the jackknife of the compensated step
+                loo = np.array([solve(np.delete(np.arange(K), k))[0] for k in range(K)])
+                dev = loo - loo.mean(0)
+                cov = cov + (K - 1) / K * dev.T @ dev
+            return step, cov
+        except np.linalg.LinAlgError:
+            pass
     cov = 0.5 * np.linalg.pinv(info, rcond=1e-12, hermitian=True)
     return 2.0 * cov @ g, cov
+
+
+def _projector(B: np.ndarray) -> np.ndarray:
+    """Orthogonal projector onto the columns of B (6, q)."""
+    Q, _ = np.linalg.qr(B)
+    return Q @ Q.T
+
+
+def determined(sps: list[Spectra], bins: list | None = None, moments: list | None = None) -> np.ndarray:
+    """(6, q) B: the combinations ``Bᵀ θ`` of the tensor entries that a piece of the record
+    determines despite the noise in the input — the coordinates along the generalized
+    eigenvectors (of the noise moments and the information,
+    :func:`~.errors_in_variables.noise_share`) whose noise share is within
+    :data:`~.errors_in_variables.EIV_LIMIT`, blind to the others.  Along the others the compensated step is the
+    noise's (a quarter of a damped record whose roll has died away: share 1.0, Ixx moved
+    600 kg·m² at "σ" 360), and the consistency checks leave them out.  The identity when the
+    spectra carry no realisations."""
+    info, _, Nk, _, _ = _normal(sps, bins, None, moments)
+    if not np.ndim(Nk):
+        return np.eye(6)
+    try:
+        L = np.linalg.cholesky(0.5 * (info + info.T))
+    except np.linalg.LinAlgError:
+        return np.eye(6)
+    N = Nk.mean(0)
+    S = np.linalg.solve(L, np.linalg.solve(L, 0.5 * (N + N.T)).T)
+    ev, V = np.linalg.eigh(0.5 * (S + S.T))
+    return L @ V[:, ev <= EIV_LIMIT]
 
 
 def quadrature_check(series: list[FitSeries]) -> Check:
@@ -492,14 +602,19 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
                             f"the load cells carry {100 * weight_surplus:+.3f} % of rig.yaml's weight beyond it"))
     factor = max([1.0] + [c.sigma_factor for c in checks])
     biased: tuple[str, ...] = ()
-    if result.bias_correction is not None and finite:
-        ratio = np.abs(np.asarray(result.bias_correction)) / np.maximum(std, 1e-300)
-        k = int(np.argmax(ratio))
-        biased = tuple(key for key, r in zip(KEYS, ratio) if r > BIAS_LIMIT)
-        checks.append(Check("bias_correction", float(ratio[k]), BIAS_LIMIT, not biased,
-                            f"the second-order bias correction is {ratio[k]:.2f} σ on {KEYS[k]}"
-                            + (f" (beyond {BIAS_LIMIT:g} σ: the estimate is in its non-linear regime, the "
-                               "recording does not determine it)" if biased else "")))
+    eiv = result.errors_in_variables
+    if eiv is not None and finite:
+        if not eiv.share <= EIV_LIMIT:
+            biased = tuple(k for k, x in zip(KEYS, eiv.direction) if abs(x) >= WEAK_SHARE) or tuple(KEYS)
+        main = KEYS[int(np.argmax(np.abs(eiv.direction)))]
+        moved = np.abs(eiv.correction) / np.maximum(std, 1e-300)
+        k = int(np.argmax(moved))
+        checks.append(Check("errors_in_variables", float(eiv.share), EIV_LIMIT, not biased,
+                            f"the sensors' noise is {100 * min(eiv.share, 9.99):.3g} % of the fit's input along its "
+                            f"noisiest direction (mostly {main}); the compensation for it moved {KEYS[k]} by "
+                            f"{moved[k]:.2f} σ"
+                            + (f" (beyond {100 * EIV_LIMIT:g} %: the entries along that direction are not determined; "
+                               "the body hardly turns about it)" if biased else "")))
     # whether the recording determines an entry is the noise's question (the propagated σ, checked
     # against the replays): a model error's residuals widen the sandwich σ of an entry the
     # excitation determines well (unmodelled damping: Ixx's σ 4 % from the noise, 20 % widened)
@@ -513,7 +628,7 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     if bands is not None:
         parts.append(np.abs(bands[0] - bands[1]))
     spread = np.max(parts, axis=0)
-    failed = tuple(c.name for c in checks if c.passed is False and c.name not in ("identifiable", "bias_correction"))
+    failed = tuple(c.name for c in checks if c.passed is False and c.name not in ("identifiable", "errors_in_variables"))
     if bad:
         verdict = "not_identifiable"
     elif failed:

@@ -72,10 +72,13 @@ def test_identify_reference_recording(name):
     assert res.uncertainty.startswith("propagated sensor noise")
     assert res.validation.verdict == "ok", res.validation.summary
     assert all(c.passed for c in res.validation.checks), [(c.name, c.detail) for c in res.validation.checks]
-    # σ: the propagated noise, a third of the (second-order) bias correction, and never narrower
-    # than the spread of the replays with fresh noise
-    np.testing.assert_allclose(res.inertia_std, np.sqrt(res.crb_std**2 + (0.3 * res.bias_correction) ** 2)
-                               * (res.replay_factor or 1.0), rtol=1e-12)
+    # σ: the propagated noise (mapped onto the estimate compensated for the noise in its input,
+    # with the compensation's own jackknife σ in it), never narrower than the spread of the
+    # replays with fresh noise
+    eiv = res.errors_in_variables
+    assert eiv is not None and res.bias_applied and eiv.share < 0.05, eiv
+    assert np.all(res.crb_std >= eiv.correction_std)
+    np.testing.assert_allclose(res.inertia_std, res.crb_std * (res.replay_factor or 1.0), rtol=1e-12)
     assert res.replay_factor is None or res.replay_factor < 1.5, res.replay_factor
     # the load cells carry the weight rig.yaml states (Newton: mean vertical force = m g)
     assert abs(res.weight_surplus) < 1e-4, res.weight_surplus
