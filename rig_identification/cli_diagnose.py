@@ -20,7 +20,7 @@ from __future__ import annotations
 import json
 import sys
 
-from .cli_inertia import expressed, truth_columns, window_line
+from .cli_inertia import truth_columns, window_line
 from .cli_progress import step
 from .cli_text import effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
 from .diagnosis import diagnose
@@ -56,7 +56,7 @@ def print_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> Non
     print(f"rigid-body fit (the same as {same_as(model)}):")
     print("  " + (result.validation.summary if result.validation is not None else "verdict: none"))
     print("  " + window_line(result, t0))
-    ex = expressed(result, "body")
+    ex = result.expressed("body")
     for line in tensor_table(ex, truth_columns(result, rec.truth, "body")):
         print("  " + line)
     name = "ours (Newton–Euler with ω × Jω)" if model == "pem" else "the thesis (no ω × Jω)"

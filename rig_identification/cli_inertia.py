@@ -25,7 +25,7 @@ from .cg_cli import load_cg_result
 from .cli import version
 from .cli_progress import step, warn
 from .cli_text import (effect_text, entries_line, fmt, origin_line, principal_lines, products_line, tensor_table)
-from .export import AXES, axes_block, convention_lines, entries_from_option, export_dict, express, sign_in, \
+from .export import AXES, axes_block, convention_lines, entries_from_option, export_dict, sign_in, \
     urdf_inertial, yaml_text
 from .identification import KEYS, IdentificationError, InertiaResult
 from .pipeline import (check_same_body, compare_to_truth, identify_recording, identify_recordings, recording_labels,
@@ -33,12 +33,6 @@ from .pipeline import (check_same_body, compare_to_truth, identify_recording, id
 from .recording import read_recording
 from .report import ReportError, check_report_dir, common_truth, write_report
 from .rig import load_rig
-
-
-def expressed(result: InertiaResult, axes: str):
-    """The result's mass properties in ``axes`` (:func:`~.export.express`)."""
-    return express(result.mass, result.center_of_gravity, result.inertia, result.inertia_std,
-                   result.undetermined, axes)
 
 
 def truth_columns(result: InertiaResult, truth: dict | None, axes: str) -> dict | None:
@@ -96,7 +90,7 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
                   cg_source: str) -> None:
     """The text output of ``rig-identify inertia`` (see the module docstring)."""
     d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
-    ex = expressed(result, axes)
+    ex = result.expressed(axes)
     print(result.validation.summary if result.validation is not None else
           "verdict: none — this fit has no model validation (the thesis's baseline)")
     if len(paths) == 1:
@@ -244,13 +238,14 @@ def cmd_inertia(args) -> int:
         try:
             # the report says where the CG came from: "from CG.json (σ x, y, z mm)"
             index = write_report(args.report, result, recs,
-                                 cg_source=None if cg_note is None else cg_note.removeprefix("centre of gravity "))
+                                 cg_source=None if cg_note is None else cg_note.removeprefix("centre of gravity "),
+                                 axes=axes)
         except OSError as e:
             raise ReportError(f"{args.report}: cannot write the report ({e.strerror or e})") from None
-    body = expressed(result, "body")
+    body = result.expressed("body")
     urdf = urdf_inertial(body) if args.urdf else None
     if args.yaml:
-        ex = expressed(result, axes)
+        ex = result.expressed(axes)
         d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
         content = export_dict(ex, verdict=None if result.validation is None else result.validation.verdict,
                               summary=None if result.validation is None else result.validation.summary,
@@ -262,7 +257,7 @@ def cmd_inertia(args) -> int:
     if args.json:
         d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
         if axes == "sae":
-            d["sae_j670"] = axes_block(expressed(result, "sae"))
+            d["sae_j670"] = axes_block(result.expressed("sae"))
         if urdf is not None:
             d["urdf_inertial"] = urdf
         print(json.dumps(d))

@@ -144,6 +144,12 @@ class InertiaResult:
             s = np.sqrt(np.clip(np.diag(self.covariance), 0, None))
             return self.covariance / np.outer(s, s)
 
+    def expressed(self, axes: str = "body"):
+        """The mass properties in ``axes`` (a name of :data:`~.export.AXES`: ``body`` — rig.yaml's,
+        REP-103 — or ``sae``, SAE J670), the undetermined entries left out: an
+        :class:`~.export.Expressed` (:func:`~.export.express`).  Raises KeyError for an unknown name."""
+        return express(self.mass, self.center_of_gravity, self.inertia, self.inertia_std, self.undetermined, axes)
+
     @property
     def undetermined(self) -> tuple[str, ...]:
         """Entries the recording does not determine (validation verdict ``not_identifiable``):

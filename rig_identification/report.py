@@ -50,7 +50,8 @@ from .report_diagnosis import diagnosis_html, effects_text
 from .report_figures import edge_seconds, ellipse_figure, ellipsoid_figure, fit_figure, residual_figure
 from .report_html import GENERATOR, bullets, esc, json_safe, num, page, table
 from .report_identifiability import axis_signal, identifiability, identifiability_html
-from .report_mass import CONVENTION, mass_properties, matrices_html, moments_table, principal_html, to_json, truth_rows
+from .report_mass import (CONVENTION, axes_html, mass_properties, matrices_html, moments_table,
+                          principal_html, to_json, truth_rows)
 from .report_modes import modes_section
 from .report_verdict import checks_table, verdict_html
 from .rig import Rig
@@ -171,7 +172,8 @@ def recordings_html(result: InertiaResult, recs: list[Recording], labels: list[s
 
 
 def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None, title: str | None = None,
-                 modes: bool = True, rig: Rig | None = None, cg_source: str | None = None) -> Path:
+                 modes: bool = True, rig: Rig | None = None, cg_source: str | None = None,
+                 axes: str = "body") -> Path:
     """Write the HTML report of ``result`` to the folder ``out_dir`` (replaced if it exists).
 
     result: from :func:`~.pipeline.identify_recording` or
@@ -182,7 +184,10 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
     geometry-vs-recording modes table (about 2 s per recording).  rig: the rig drawn under the
     principal axes and named in the header (default: the first recording's).  cg_source: where
     the CG came from when not from rig.yaml (``rig-identify inertia --cg FILE``: the static
-    test's file and σ), said beside the CG.  Returns the path of
+    test's file and σ), said beside the CG.  axes: the axes the lab reads its numbers in
+    (rig.yaml ``output_axes``, ``--axes``; a name of :data:`~.export.AXES`): other than
+    ``body``, a section gives the mass properties in them too (the page's tables stay in
+    rig.yaml's body axes, as the JSON).  Returns the path of
     ``index.html``.  Raises :class:`ReportError` (no fit series: the thesis baseline; ``out_dir``
     is a file or a non-empty folder that is not an earlier report), OSError (cannot write).
     """
@@ -220,6 +225,13 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
         parts.append(f'<p class="note" id="convention">{esc(CONVENTION)} {esc(sigma_note(result))}</p>')
         parts.append("<h3>The tensor as a matrix</h3>" + matrices_html(mp))
         parts.append("<h3>Principal moments and axes</h3>" + principal_html(mp))
+        in_axes = None
+        if axes != "body":
+            ex = result.expressed(axes)
+            parts.append(f"<h3>In {esc(ex.axes.name.upper())} axes</h3>" + axes_html(ex))
+            in_axes = {"axes": ex.axes.name, "label": ex.axes.label, "center_of_gravity": [float(x) for x in ex.cg],
+                       "inertia_about_cg": ex.entries(), "products_of_inertia": ex.products(),
+                       "inertia_about_origin": ex.entries("origin")}
         if ellipsoid_figure(tmp / "principal_axes.png", mp, rig):
             parts.append('<p class="note">Principal axes about the CG, each drawn as the semi-axis of the equimomental '
                          "ellipsoid along it (the uniform solid ellipsoid with the body's mass and tensor: the mass is "
@@ -267,6 +279,8 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
 
         report_data = {"result": result.to_dict(), "report": head_data, "mass_properties": to_json(mp, errors),
                        "diagnosis": diag_data, "identifiability": ident, "modes": mode_data}
+        if in_axes is not None:
+            report_data["output_axes"] = in_axes
         (tmp / "index.html").write_text(page(title, parts), encoding="utf-8")
         (tmp / "report.json").write_text(json.dumps(json_safe(report_data), indent=1, allow_nan=False))
     return out_dir / "index.html"

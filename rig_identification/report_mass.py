@@ -24,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .export import Expressed
 from .identification import KEYS, InertiaResult, from_tensor
 from .pipeline import compare_to_truth
 from .report_html import MISSING, NOT_DETERMINED, Cell, esc, finite, num, table
@@ -251,3 +252,30 @@ def to_json(mp: MassProperties, errors: dict | None) -> dict:
 __all__ = ["SIGN", "ORDER", "SYMBOL", "MEANING", "CONVENTION", "MassProperties", "mass_properties", "parallel_axis",
            "principal_std", "equimomental_semi_axes", "truth_rows", "moments_table", "matrices_html",
            "principal_html", "to_json"]
+
+
+def axes_html(ex: Expressed) -> str:
+    """The mass properties in other axes than rig.yaml's body frame (rig.yaml ``output_axes``,
+    ``rig-identify inertia --axes``): the frame in words, the CG, then per entry the tensor entry
+    about the CG, its σ, the moment or product of inertia with the vehicle-dynamics sign and
+    the entry about the body frame's origin; the principal moments.  A half turn only flips
+    signs, so σ are those of the body axes."""
+    c = ", ".join(num(x, ".4f") for x in ex.cg)
+    rows = []
+    for i in ORDER:
+        k = KEYS[i]
+        v, sg, vo = ex.entry(k), ex.sigma(k), ex.entry(k, "origin")
+        if v is None:
+            rows.append([SYMBOL[k], MEANING[k], NOT_DETERMINED, MISSING, NOT_DETERMINED, MISSING])
+            continue
+        rows.append([SYMBOL[k], MEANING[k], num(v, ".2f"), num(sg, ".3g"), num(SIGN[i] * v + 0.0, ".2f"),
+                     num(vo, ".2f")])
+    pm = ("principal moments " + ", ".join(num(x, ".2f") for x in ex.principal) + " kg·m² (the same in any axes)"
+          if ex.principal is not None else "principal moments: not determined")
+    return (f'<p class="note">{esc(ex.axes.label)}; SI units. Centre of gravity in these axes ({c}) m.</p>'
+            + table(["entry", "meaning", "tensor entry about the CG kg·m²", "σ kg·m²",
+                     "moment / product of inertia (vehicle sign) kg·m²", "tensor entry about the origin kg·m²"], rows)
+            + f'<p class="note">{esc(pm)}.</p>')
+
+
+

@@ -357,3 +357,27 @@ def test_report_refuses_foreign_folder_and_thesis_model(tmp_path, capsys):
     # several recordings: --model thesis is refused too (the joint fit is the prediction-error model's)
     code, err = run(rec, rec, "--model", "thesis")
     assert code == 2 and "one recording at a time" in err, err
+
+
+def test_report_in_sae_axes(fitted, tmp_path):
+    """rig.yaml output_axes / --axes sae: the page gives the mass properties in SAE J670 axes
+    too (x forward, y right, z down: a half turn about x), and report.json holds them — the
+    y and z coordinates and the products with x flip sign, Iyz does not; σ unchanged."""
+    res = copy.deepcopy(fitted)
+    res.center_of_gravity = np.array([0.1, 0.2, 0.3])
+    out = tmp_path / "sae"
+    report.write_report(out, res, [], modes=False, rig=RIG, axes="sae")
+    data = json.loads((out / "report.json").read_text())
+    sae = data["output_axes"]
+    assert sae["axes"] == "sae" and sae["center_of_gravity"] == pytest.approx([0.1, -0.2, -0.3])
+    body = data["result"]["inertia_about_cg"]
+    for k, sign in (("ixx", 1), ("iyy", 1), ("izz", 1), ("ixy", -1), ("ixz", -1), ("iyz", 1)):
+        assert sae["inertia_about_cg"][k] == pytest.approx(sign * body[k], rel=1e-9, abs=1e-9), k
+    # products with the vehicle-dynamics sign: the negated tensor entries in those axes
+    assert sae["products_of_inertia"]["Ixy"] == pytest.approx(-sae["inertia_about_cg"]["ixy"], abs=1e-9)
+    page = (out / "index.html").read_text()
+    assert "In SAE axes" in page and "y right, z down" in page
+    # the body-axes page has no such section
+    plain = tmp_path / "body"
+    report.write_report(plain, res, [], modes=False, rig=RIG)
+    assert "output_axes" not in json.loads((plain / "report.json").read_text())
