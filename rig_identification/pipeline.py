@@ -330,6 +330,7 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
         guess = default_initial_guess(rig) if initial_guess is None else np.asarray(initial_guess, float)
         result = identify_inertia_thesis(rig, prep.t, prep.gyro_body, prep.torque, guess)
     elif model == "pem":
+        log.info("fitting the inertia tensor (prediction error, %.0f s of data)", prep.t[-1] - prep.t[0])
         try:
             result = identify_inertia(rig, prep.t, prep.gyro_body, prep.torque, band_hz=band_hz)
         except np.linalg.LinAlgError as e:
@@ -606,6 +607,7 @@ def identify_recordings(recs: list[Recording], start: float | None = None, end: 
     check_same_body(recs, mass_rtol, cg_tol)
     labels = recording_labels(recs)
     preps = [prepare_recording(r, start, end, settle) for r in recs]
+    log.info("fitting one inertia tensor to %d recordings (prediction error)", len(preps))
     result = identify_inertia_joint([p.rec.rig for p in preps], [(p.t, p.gyro_body, p.torque) for p in preps],
                                     band_hz=band_hz, labels=labels)
     if refine:
