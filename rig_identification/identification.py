@@ -111,9 +111,9 @@ class InertiaResult:
     gyro_noise: float | None = None
     series: list = field(default_factory=list)
     # filled by pipeline.refine_uncertainty (None otherwise): the identifier's own sandwich
-    # σ (6,), the subtracted second-order bias (6,) kg·m², the estimated white-noise σ per
-    # sensor source, and the per-gyro-axis ratio (3,) of the fit's residual RMS to the one
-    # the propagated noise predicts
+    # σ (6,), the least-squares bias removed by the compensation for the noise in the input
+    # (6,) kg·m², the estimated white-noise σ per sensor source, and the per-gyro-axis ratio
+    # (3,) of the fit's residual RMS to the one the noise's replays predict
     sandwich_std: np.ndarray | None = None
     bias_correction: np.ndarray | None = None
     sensor_noise: dict | None = None
@@ -129,8 +129,8 @@ class InertiaResult:
     rigid_body: dict | None = None
     diagnosis: dict | None = None
     # filled by pipeline.identify_recording(s): the model validation's verdict and checks
-    # (validation.validate); whether bias_correction was subtracted (it is not when it
-    # exceeds σ: then it is evidence of trouble, validation's check "bias_correction")
+    # (validation.validate); whether bias_correction was removed (it is not when the noise
+    # dominates a direction of the input: then the compensation is impossible)
     validation: Validation | None = None
     bias_applied: bool = False
     # filled by a fit compensated for the noise in its input (pipeline.refine_uncertainty):

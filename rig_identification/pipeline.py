@@ -231,7 +231,7 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     theta = from_tensor(result.inertia)
     log.info("σ: %d replays with fresh sensor noise", 2 * REPLAY_PAIRS)
     replays = noise_replays(fit, theta, [p.sensors for p in preps], noises, seed, pairs=REPLAY_PAIRS)
-    noise = noise_realisations(logs)
+    noise = noise_realisations(logs, theta)
     if noise is not None:
         log.info("compensating the fit for the noise in its input (errors in variables)")
         base = [prepare_segment(p.t, p.gyro_body, p.torque, b, label=lab) for p, b, lab in zip(preps, bands, labels)]
@@ -289,17 +289,22 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     return result
 
 
-def noise_realisations(logs: list[list]) -> list[NoiseRealisations] | None:
+def noise_realisations(logs: list[list], theta: np.ndarray) -> list[NoiseRealisations] | None:
     """The :class:`~.errors_in_variables.NoiseRealisations` of each recording from its
     replays' prepared segments (``logs[i]``: in call order +m₁, −m₁, +m₂, …; None for a
     replay whose window came out with another length); None when some recording has no
-    complete pair."""
+    complete pair.  The regressor is the fit's, ``u = ∫(M − ω × Jω)`` band-passed, with the
+    gyroscopic term at the entries ``theta`` (6,) kg·m² (the least-squares estimate): the
+    measured ω in it carries the gyro's noise into the input too."""
+    def u(seg):
+        return seg.IM - np.einsum("m,mni->ni", theta, seg.G)
+
     out = []
     for lg in logs:
         pairs = [(a, b) for a, b in zip(lg[0::2], lg[1::2]) if a is not None and b is not None]
         if not pairs:
             return None
-        out.append(antithetic_realisations([a.IM for a, _ in pairs], [b.IM for _, b in pairs],
+        out.append(antithetic_realisations([u(a) for a, _ in pairs], [u(b) for _, b in pairs],
                                            [a.y for a, _ in pairs], [b.y for _, b in pairs]))
     return out
 
@@ -311,8 +316,8 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     """Identify the inertia tensor of a dynamic recording.
 
     start/end/settle: the window, see :func:`prepare_recording`.  model: ``"pem"`` (ours;
-    with ``refine``, :func:`refine_uncertainty`: second-order bias removed, σ propagated
-    from the estimated sensor noise — about three times the work of the plain fit)
+    with ``refine``, :func:`refine_uncertainty`: compensated for the noise in its input, σ
+    propagated from the estimated sensor noise — about three times the work of the plain fit)
     or ``"thesis"`` (the thesis's model and estimator,
     :func:`~rig_identification.identification.identify_inertia_thesis`, from
     ``initial_guess`` (6,) tensor entries or :func:`default_initial_guess`).  effect_wrench:
