@@ -8,7 +8,7 @@ mode, so roll hardly moves), identified the ordinary way (``identify_recording``
 TRUE damping moment −C ω (ω from the simulator's states, noise-free) added to the measured
 wrench — the model is then complete.  The sensor noise is the reference (`REFERENCE_NOISE`)
 scaled by 0.1, with one sensor at a time left at the reference, then all at the reference.
-Prints per case: verdict, failed checks, the share of the fit's input that is noise along its
+Prints per case: verdict, failed checks (and, below, what each failed check saw), the share of the fit's input that is noise along its
 noisiest direction (``errors_in_variables.share``), Ixx's error of the least-squares fit
 before the compensation for that noise, and the reported (compensated) entries' error %
 and error/σ.
@@ -64,7 +64,8 @@ def run(seed: int, duration: float, angular: float, noise: dict) -> str:
     ls = "-" if r.bias_correction is None else f"{c['ixx']['error_percent'] + 100 * r.bias_correction[0] / ixx:+7.2f}%"
     share = "-" if r.errors_in_variables is None else f"{r.errors_in_variables.share:.3f}"
     entries = " ".join(f"{k} {c[k]['error_percent']:+6.2f}% ({c[k]['error_sigma']:+5.1f}σ)" for k in KEYS)
-    return f"{v.verdict:17s} {','.join(v.failed) or '-':24s} noise share {share:>5s}  LS ixx {ls:>8s}  {entries}"
+    failed = "".join(f"\n    {c.name}: {c.detail}" for c in v.checks if c.passed is False)
+    return f"{v.verdict:17s} {','.join(v.failed) or '-':24s} noise share {share:>5s}  LS ixx {ls:>8s}  {entries}{failed}"
 
 
 def paths(seed: int, duration: float, angular: float) -> None:
