@@ -22,7 +22,7 @@ from scipy.signal import butter, sosfiltfilt
 from rig_identification.identification import KEYS, from_tensor, identify_inertia, to_tensor
 from rig_identification.preprocessor import preprocess
 from rig_identification.recording import read_recording
-from rig_identification.tracker import track
+from rig_identification.tracker_replay import track
 
 REC = Path(__file__).resolve().parents[2] / "shared" / "recordings" / "visible_case16_clean"
 

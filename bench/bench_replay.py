@@ -13,7 +13,7 @@ from rig_identification.identification import identify_inertia
 from rig_identification.pipeline import compare_to_truth
 from rig_identification.preprocessor import preprocess
 from rig_identification.recording import read_recording
-from rig_identification.tracker import track
+from rig_identification.tracker_replay import track
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 

@@ -30,7 +30,7 @@ from .identification import (auto_band, basis, consistent_from_params, cumulativ
                              step_indices, to_tensor)
 from .quality import check_motion, check_units, clean_sensors
 from .recording import Recording, RecordingError
-from .tracker import pass_compliance, replay
+from .tracker_replay import pass_compliance, replay
 from .yaw_anchor import anchor_yaw
 
 ALPHA_LP = 3.0        # angular acceleration: gyro low-passed at this multiple of the band's upper edge

@@ -17,7 +17,7 @@ from .preprocessor import preprocess
 from .quality import check_motion, check_units, clean_sensors
 from .recording import Recording, RecordingError, crop
 from .residual_analysis import unexplained
-from .tracker import track
+from .tracker_replay import track
 from .uncertainty import noise_replays, propagated, sensor_noise
 from .noise import white_sigma
 from .propagation import PlanError, combine

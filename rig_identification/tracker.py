@@ -30,12 +30,8 @@ puts the step half a sample early, which moved Ixx of thesis case 2 by +0.27 %. 
 is recognised one sample late (it needs the next sample), so the velocity and position
 of that sample are corrected then.
 
-Offline replay (:func:`track`, :func:`replay`): the streams of a recording are merged in
-stamp order (:func:`merge_events`) and fed to the tracker as the node feeds them; after
-the initialisation (Python) the per-sample filter runs compiled with numba
-(:mod:`~rig_identification.tracker_kernel`, the same arithmetic, ~30x faster); without
-numba, or with ``compiled=False``, the :class:`PoseTracker` methods run per sample — the
-reference, which the tests hold the compiled filter to (1e-9).
+Offline replay over a recording (merged streams, the compiled filter):
+:mod:`~rig_identification.tracker_replay`.
 
 Frames: ``position`` is the world position of the body-frame origin (m); the
 quaternion (x, y, z, w) rotates body axes to world axes; ``omega`` is the angular
@@ -43,11 +39,8 @@ velocity in body axes (rad/s); ``velocity`` is the origin's velocity in world (m
 """
 from __future__ import annotations
 
-import importlib
 import math
-import warnings
-from dataclasses import dataclass, replace
-from types import ModuleType
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -57,8 +50,6 @@ from .rig import Rig
 
 Z = np.array([0.0, 0.0, 1.0])
 YAW_PRIOR = 1e-3   # yaw regularisation of the cable-length correction, relative to the position information
-# kinds of merged events, also their rank among equal stamps (as the tracker node merges them)
-EVENT_INCLINOMETER, EVENT_TENSIONS, EVENT_IMU, EVENT_EXCITER = 0, 1, 2, 3
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -108,8 +99,8 @@ class PoseTrack:
 
     @classmethod
     def from_estimates(cls, poses: "list[PoseEstimate] | PoseTrack") -> "PoseTrack":
-        """The track of a list of poses; a :class:`PoseTrack` (what :func:`replay` returns)
-        is returned as it is."""
+        """The track of a list of poses; a :class:`PoseTrack` (what
+        :func:`~.tracker_replay.replay` returns) is returned as it is."""
         if isinstance(poses, PoseTrack):
             return poses
         quat = Rotation.from_matrix(np.array([p.matrix for p in poses])).as_quat()
@@ -366,6 +357,27 @@ class PoseTracker:
     def gyro_bias(self) -> np.ndarray:
         """Current gyro-bias estimate (3,) rad/s, body axes."""
         return np.array(self._gyro_bias)
+
+    # the whole filter by name (attribute without its underscore), for the compiled replay
+    # (tracker_replay): STATE changes with every sample, SETUP is fixed at the initialisation
+    STATE = ("R", "p", "v", "v_prev", "omega", "omega_prev2", "dphi", "a_hist", "a_bias", "gyro_bias", "lengths",
+             "compliance", "tensions", "hp_e", "hp_T", "S", "blk", "t", "t_adapt", "t_incl", "t_incl_used",
+             "incl_pending", "n_steps")
+    SETUP = ("imu_f", "incl_f", "anchors_f", "ceiling_f", "r_imu_f", "gravity", "adapt", "l0", "T0")
+
+    def filter_state(self) -> dict:
+        """{name: value} of :attr:`STATE` and :attr:`SETUP`, in the types the per-sample methods
+        keep (floats, tuples, lists; R (9,) row-major body -> world; p, v the IMU point, world,
+        m, m/s; t* stamps s; None where unset).  Raises :class:`TrackerError` before the
+        initialisation."""
+        if self._R is None:
+            raise TrackerError("the tracker is not initialised yet")
+        return {k: getattr(self, "_" + k) for k in self.STATE + self.SETUP}
+
+    def load_filter_state(self, state: dict) -> None:
+        """Set the filter's :attr:`STATE` from ``state`` (names and types of :meth:`filter_state`)."""
+        for k in self.STATE:
+            setattr(self, "_" + k, state[k])
 
     # --- internals ----------------------------------------------------------------
     def _initialise(self):
@@ -761,231 +773,3 @@ def _solve_spd4(a00, a01, a02, a03, a11, a12, a13, a22, a23, a33, b0, b1, b2, b3
     x1 = (z1 - l21 * x2 - l31 * x3) / l11
     x0 = (z0 - l10 * x1 - l20 * x2 - l30 * x3) / l00
     return x0, x1, x2, x3
-
-
-@dataclass(frozen=True)
-class Events:
-    """The samples of a recording merged in stamp order, as the tracker takes them.
-
-    t: (E,) s, header stamps, ascending; among equal stamps by ``kind`` (EVENT_INCLINOMETER,
-    EVENT_TENSIONS, EVENT_IMU, EVENT_EXCITER: the tracker node's ranks), then by ``index``.
-    kind: (E,) int8.  index: (E,) int64, the event's row in its stream's array.  imu: (n, 6)
-    gyro rad/s then specific force m/s², IMU axes.  tensions: (m, N) N in rig cable order.
-    inclinometer: (k, 2) rad (zero rows without one).  exciter: (j, 2) N, exciter frame
-    (zero rows without one).
-    """
-
-    t: np.ndarray
-    kind: np.ndarray
-    index: np.ndarray
-    imu: np.ndarray
-    tensions: np.ndarray
-    inclinometer: np.ndarray
-    exciter: np.ndarray
-
-
-def merge_events(rig: Rig, sensors, init_time: float) -> Events:
-    """Merge the streams of ``sensors`` (:class:`~rig_identification.recording.SensorData`)
-    for the tracker: every IMU, inclinometer and tension sample, and the exciter samples of
-    the first ``2 init_time`` s (they only enter the initial pose).  Load cells that share
-    one clock give one tension event per sample; on different clocks they are interpolated
-    at the IMU stamps.  Ordering: (stamp, kind, index), see :class:`Events`."""
-    imu_t = np.asarray(sensors.imu.t, float)
-    streams = [(imu_t, EVENT_IMU)]   # (stamps, kind), sorted by kind below
-    incl = np.zeros((0, 2))
-    if sensors.inclinometer is not None:
-        incl = np.ascontiguousarray(sensors.inclinometer.data[:, :2], dtype=float)
-        streams.append((np.asarray(sensors.inclinometer.t, float), EVENT_INCLINOMETER))
-    exc = np.zeros((0, 2))
-    if sensors.exciter is not None:
-        n_exc = int(np.searchsorted(sensors.exciter.t, sensors.imu.t[0] + 2 * init_time))
-        exc = np.ascontiguousarray(sensors.exciter.data[:n_exc, :2], dtype=float)
-        streams.append((np.asarray(sensors.exciter.t[:n_exc], float), EVENT_EXCITER))
-    cells = [sensors.load_cells[n] for n in rig.cable_names]
-    if all(len(c) == len(cells[0]) and np.array_equal(c.t, cells[0].t) for c in cells):
-        tens = np.column_stack([c.data[:, 0] for c in cells])
-        streams.append((np.asarray(cells[0].t, float), EVENT_TENSIONS))
-    else:  # load cells on different clocks: sample them at the IMU stamps
-        tens = np.column_stack([np.interp(imu_t, c.t, c.data[:, 0]) for c in cells])
-        streams.append((imu_t, EVENT_TENSIONS))
-    streams.sort(key=lambda s: s[1])
-    t = np.concatenate([ts for ts, _ in streams])
-    kind = np.concatenate([np.full(len(ts), k, np.int8) for ts, k in streams])
-    index = np.concatenate([np.arange(len(ts), dtype=np.int64) for ts, _ in streams])
-    order = np.argsort(t, kind="stable")   # equal stamps keep the (kind, index) order of the concatenation
-    return Events(t[order], kind[order], index[order], np.ascontiguousarray(sensors.imu.data[:, :6], dtype=float),
-                  np.ascontiguousarray(tens, dtype=float), incl, exc)
-
-
-def track(rig: Rig, sensors, *, compiled: bool | None = None, **params) -> PoseTrack:
-    """Run :class:`PoseTracker` over recorded sensor data (offline replay, same filter as the node).
-
-    sensors: :class:`~rig_identification.recording.SensorData`, merged in header-stamp
-    order (:func:`merge_events`).  When rig.yaml gives no cable stiffness, a first pass
-    refines the cables' compliance online (as the node does); the replay is then run
-    again with the pass's least-squares compliance over its second half fixed
-    (:func:`pass_compliance`), so that the start of the recording is tracked as well as its
-    end.  compiled: as :func:`replay`.  params: :class:`PoseTracker`'s.  Returns the
-    :class:`PoseTrack` at the IMU stamps after initialisation.  Raises :class:`TrackerError`.
-    """
-    poses, tracker = replay(rig, sensors, compiled=compiled, **params)
-    c = pass_compliance(tracker, poses)
-    if c is not None:
-        poses, _ = replay(with_compliance(rig, c), sensors, compiled=compiled, **params)
-    return poses
-
-
-def pass_compliance(tracker: PoseTracker, poses: PoseTrack) -> float | None:
-    """The compliance (m/N) of the cables rig.yaml gives no stiffness, from a first replay
-    pass (:func:`replay`'s tracker and poses): :meth:`PoseTracker.compliance_estimate` over
-    the pass's second half.  None when every stiffness is known or the pass did not adapt."""
-    if np.isfinite(tracker.rig.cable_stiffness).all() or not tracker.compliance_sums or len(poses.t) == 0:
-        return None
-    return tracker.compliance_estimate(0.5 * (poses.t[0] + poses.t[-1]))
-
-
-def with_compliance(rig: Rig, c: float) -> Rig:
-    """``rig`` with the stiffness 1/c N/m on every cable rig.yaml gives none."""
-    return replace(rig, cables=tuple(replace(cb, stiffness=cb.stiffness if cb.stiffness is not None
-                                             else 1.0 / max(c, 1e-12)) for cb in rig.cables))
-
-
-def replay(rig: Rig, sensors, *, compiled: bool | None = None, **params) -> tuple[PoseTrack, PoseTracker]:
-    """One pass of a :class:`PoseTracker` over recorded sensor data.
-
-    sensors: :class:`~rig_identification.recording.SensorData`, merged by
-    :func:`merge_events`.  compiled: None — the compiled filter when numba imports, else
-    the Python methods with a warning; True — compiled (ImportError without numba); False —
-    the Python methods (the reference).  params: :class:`PoseTracker`'s.  Returns the poses
-    at the IMU stamps from the initialisation on and the tracker after the last sample (its
-    ``steps``, ``compliance_history``, ``compliance_sums`` and state are the same either
-    way).  Raises :class:`TrackerError` when the recording is shorter than the
-    initialisation or an IMU stamp does not increase.
-    """
-    tracker = PoseTracker(rig, **params)
-    events = merge_events(rig, sensors, tracker.init_time)
-    kernel = None if compiled is False else compiled_kernel(required=bool(compiled))
-    out: list[PoseEstimate] = []
-    k = 0
-    if kernel is None:   # the Python methods for every sample
-        for t, kind, row in zip(events.t.tolist(), events.kind.tolist(), events.index.tolist()):
-            pose = _feed(tracker, events, t, kind, row)
-            if pose is not None:
-                out.append(pose)
-    else:   # the Python methods up to the initialisation (its least-squares pose), then compiled
-        while k < len(events.t) and not out:
-            pose = _feed(tracker, events, float(events.t[k]), int(events.kind[k]), int(events.index[k]))
-            if pose is not None:
-                out.append(pose)
-            k += 1
-    if not out:
-        raise TrackerError("the recording is shorter than the tracker's initialisation time")
-    if kernel is None:
-        return PoseTrack.from_estimates(out), tracker
-    return _run_kernel(kernel, tracker, events, k, out[0]), tracker
-
-
-def _feed(tracker: PoseTracker, events: Events, t: float, kind: int, row: int) -> PoseEstimate | None:
-    """Hand one merged event to the tracker's Python methods; the pose of an IMU sample."""
-    if kind == EVENT_IMU:
-        return tracker.add_imu(t, events.imu[row, :3], events.imu[row, 3:])
-    if kind == EVENT_TENSIONS:
-        tracker.add_tensions(t, events.tensions[row])
-    elif kind == EVENT_EXCITER:
-        tracker.add_exciter(t, events.exciter[row])
-    else:
-        tracker.add_inclinometer(t, events.inclinometer[row])
-    return None
-
-
-def compiled_kernel(required: bool = False) -> ModuleType | None:
-    """The compiled filter (:mod:`~rig_identification.tracker_kernel`), imported on first
-    use (numba is a heavy import, ~0.5 s, which the tracker node does not need).  None, with
-    a warning (shown once: Python's default warning filter), when numba cannot be imported;
-    ``required``: raise its ImportError then."""
-    try:   # lazy: numba is an optional, heavy dependency
-        return importlib.import_module(f"{__package__}.tracker_kernel")
-    except ImportError as exc:
-        if required:
-            raise
-        warnings.warn(f"numba unavailable ({exc}): the tracker replays in pure Python (~30x slower)",
-                      RuntimeWarning, stacklevel=2)
-        return None
-
-
-def _run_kernel(kernel: ModuleType, tracker: PoseTracker, events: Events, start: int,
-                first: PoseEstimate) -> PoseTrack:
-    """Feed the events ``start:`` to the initialised ``tracker`` through the compiled
-    filter; its state, steps and compliance updates are written back to ``tracker``.
-    ``first``: the pose at the initialisation.  Returns the poses from ``first`` on."""
-    n = len(tracker._lengths)
-    m = int(np.count_nonzero(events.kind[start:] == EVENT_IMU))
-    const = kernel.Constants(
-        imu_m=np.array(tracker._imu_f), incl_m=np.array(tracker._incl_f if tracker._incl_f is not None else (0.0,) * 9),
-        has_incl=tracker._incl_f is not None, anchors=np.array(tracker._anchors_f, float).reshape(n, 3),
-        ceiling=np.array(tracker._ceiling_f, float).reshape(n, 3), r_imu=np.array(tracker._r_imu_f, float),
-        gravity=float(tracker._gravity), step_accel=float(tracker.step_accel), tau_tilt=float(tracker.tau_tilt),
-        tau_yaw=float(tracker.tau_yaw), f_position=float(tracker.f_position), tau_bias=float(tracker.tau_bias),
-        tau_tilt_accel=float(tracker.tau_tilt_accel), yaw_prior=float(YAW_PRIOR), adapt=bool(tracker._adapt),
-        fit=~np.isfinite(tracker.rig.cable_stiffness), l0=np.array(tracker._l0, float),
-        T0=np.array(tracker._T0, float))
-    state = _kernel_state(kernel, tracker)
-    out = kernel.Outputs(t=np.empty(m), position=np.empty((m, 3)), quaternion=np.empty((m, 4)),
-                         omega=np.empty((m, 3)), velocity=np.empty((m, 3)), steps=np.empty(m),
-                         history_t=np.empty(m), history_c=np.empty((m, n)), sums=np.empty((m, 4)),
-                         counts=np.zeros(4, np.int64))
-    status = kernel.run(events.t, events.kind, events.index, start, events.imu, events.tensions,
-                        events.inclinometer, const, state, out)
-    _load_kernel_state(kernel, tracker, state, out)
-    if status >= 0:
-        raise TrackerError(f"IMU stamp {events.t[status]:.6f} s is not after the previous one "
-                           f"({tracker._t:.6f} s)")
-    k = int(out.counts[kernel.POSES])
-    return PoseTrack(np.r_[first.t, out.t[:k]], np.concatenate([first.position[None], out.position[:k]]),
-                     np.concatenate([first.quaternion[None], out.quaternion[:k]]),
-                     np.concatenate([first.omega[None], out.omega[:k]]),
-                     np.concatenate([first.velocity[None], out.velocity[:k]]))
-
-
-def _kernel_state(kernel: ModuleType, tracker: PoseTracker):
-    """The initialised tracker's filter state as :class:`~rig_identification.tracker_kernel.State`."""
-    n = len(tracker._lengths)
-    clock = np.array([tracker._t, tracker._t_adapt, np.nan if tracker._t_incl is None else tracker._t_incl,
-                      tracker._t_incl_used], float)
-    flags = np.array([tracker._n_steps, tracker._omega_prev2 is not None, tracker._tensions is not None,
-                      tracker._incl_pending is not None], np.int64)
-    vec = lambda x: np.array(x, float)  # noqa: E731
-    return kernel.State(
-        R=vec(tracker._R), p=vec(tracker._p), v=vec(tracker._v), v_prev=vec(tracker._v_prev),
-        omega=vec(tracker._omega), omega_prev2=vec(tracker._omega_prev2 or (0.0, 0.0, 0.0)), dphi=vec(tracker._dphi),
-        a_hist=vec(tracker._a_hist).reshape(3, 3), a_bias=vec(tracker._a_bias), gyro_bias=vec(tracker._gyro_bias),
-        lengths=vec(tracker._lengths), compliance=vec(tracker._compliance),
-        tensions=vec(tracker._tensions if tracker._tensions is not None else (0.0,) * n),
-        hp_e=vec(tracker._hp_e), hp_T=vec(tracker._hp_T), S=vec(tracker._S), blk=vec(tracker._blk), clock=clock,
-        incl_pending=vec(tracker._incl_pending or (0.0, 0.0)), flags=flags)
-
-
-def _load_kernel_state(kernel: ModuleType, tracker: PoseTracker, s, out) -> None:
-    """Write the compiled filter's state ``s`` and records ``out`` back into ``tracker``
-    (the attributes its Python methods keep, in their types)."""
-    tup = lambda x: tuple(x.tolist())  # noqa: E731
-    flags, clock = s.flags.tolist(), s.clock.tolist()
-    tracker._R, tracker._p, tracker._v, tracker._v_prev = tup(s.R), tup(s.p), tup(s.v), tup(s.v_prev)
-    tracker._omega = tup(s.omega)
-    tracker._omega_prev2 = tup(s.omega_prev2) if flags[kernel.HAS_OMEGA_PREV2] else None
-    tracker._dphi, tracker._a_hist = tup(s.dphi), tuple(tup(a) for a in s.a_hist)
-    tracker._a_bias, tracker._gyro_bias = tup(s.a_bias), tup(s.gyro_bias)
-    tracker._lengths, tracker._compliance = tup(s.lengths), tup(s.compliance)
-    tracker._tensions = tup(s.tensions) if flags[kernel.HAS_TENSIONS] else None
-    tracker._hp_e, tracker._hp_T, tracker._S = s.hp_e.tolist(), s.hp_T.tolist(), s.S.tolist()
-    tracker._blk = [float(s.blk[0]), float(s.blk[1]), int(s.blk[2])]
-    tracker._t, tracker._t_adapt = clock[kernel.T], clock[kernel.T_ADAPT]
-    tracker._t_incl = None if math.isnan(clock[kernel.T_INCL]) else clock[kernel.T_INCL]
-    tracker._t_incl_used = clock[kernel.T_INCL_USED]
-    tracker._incl_pending = tup(s.incl_pending) if flags[kernel.INCL_PENDING] else None
-    tracker._n_steps = flags[kernel.N_STEPS]
-    counts = out.counts.tolist()
-    tracker.steps.extend(out.steps[:counts[kernel.STEPS]].tolist())
-    tracker.compliance_history.extend((t, c.copy()) for t, c in zip(out.history_t[:counts[kernel.HISTORY]].tolist(),
-                                                                   out.history_c[:counts[kernel.HISTORY]]))
-    tracker.compliance_sums.extend((t, a, b, int(k)) for t, a, b, k in out.sums[:counts[kernel.SUMS]].tolist())

@@ -16,8 +16,8 @@ PKG = Path(__file__).resolve().parents[1] / "rig_identification"
 LAYERS = {
     0: ["atomic", "bag_decode", "bag_raw", "noise", "rig", "recording", "effects", "verdict", "export"],   # io, conventions
     1: ["suspension", "experiment", "simulator", "modes"],                                                # model
-    2: ["tracker_kernel", "tracker", "preprocessor", "parametrisation", "errors_in_variables", "identification",  # estim.
-        "quality", "yaw_anchor",
+    2: ["tracker_kernel", "tracker", "tracker_replay", "preprocessor", "parametrisation", "errors_in_variables",  # estim.
+        "identification", "quality", "yaw_anchor",
         "propagation", "uncertainty", "validation"],
     3: ["model_extension", "effect_candidates", "residual_analysis", "diagnosis", "planning", "statics",  # diagnosis,
         "cg_capture", "scenarios"],                                                                       # design

@@ -21,8 +21,9 @@ from rig_identification.pipeline import compare_to_truth, identify_recording
 from rig_identification.recording import Recording, crop, read_recording
 from rig_identification.scenarios import simulate_random
 from rig_identification.simulator import experiment_from_dict, load_experiment, simulate
-from rig_identification.tracker import (EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS, PoseTrack,
-                                        TrackerError, merge_events, replay, track)
+from rig_identification.tracker import PoseTrack, TrackerError
+from rig_identification.tracker_replay import (EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS,
+                                               merge_events, replay, track)
 
 CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
 
