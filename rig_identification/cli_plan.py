@@ -17,7 +17,8 @@ from .export import ORDER, entries_from_option, tensor_from_option
 from .identification import KEYS, from_tensor
 from .modes import estimate_modes, match_modes, natural_modes
 from .pipeline import identify_recording
-from .planning import PlanError, Run, geometry_variants, load_plan_input, make_body, plan_experiment
+from .planning import PlanError, geometry_variants, plan_experiment
+from .planning_run import Run, load_plan_input, make_body
 from .recording import read_recording
 from .simulator import ExperimentError, SimulationError
 from .thesis_table import print_summary, print_table, run_case

@@ -1,12 +1,15 @@
-"""Know before you shake: predicted inertia uncertainty of a planned run, and experiment design.
+"""Know before you shake: the experiment design search — which exciter run(s) to do on a rig.
 
-The prediction of a run's σ is :mod:`.propagation`'s (:func:`~.propagation.predict_from_trajectory`).
+The prediction of a run's σ is :mod:`.propagation`'s (:func:`~.propagation.predict_from_trajectory`);
+the planned run and the nominal body are :mod:`.planning_run`'s, the linearised screen
+:mod:`.planning_screen`'s (the names users import from here are re-exported).
 
 Design
 ------
 :func:`plan_experiment` searches the exciter frequency, mounting point (corners of the box
 spanned by the body anchors and the rig's exciter position), spin axis (body x, y, z or a
-diagonal between two of them, :data:`SPIN_AXES`), sense of rotation and force amplitude: a fast screen of the linearised rig (:func:`linear_rig`)
+diagonal between two of them, :data:`~.planning_run.SPIN_AXES`), sense of rotation and force
+amplitude: a fast screen of the linearised rig (:func:`~.planning_screen.linear_rig`)
 driven from rest by the spinning-up force and the stationary form of the noise model, then
 simulations of the best candidates with the full predictor; the amplitude is the largest for
 which the simulated run keeps every cable above ``min_tension_ratio`` of its static tension,
@@ -28,268 +31,16 @@ import math
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-from scipy.signal import butter, sosfreqz
-from scipy.spatial.transform import Rotation
 
-from .experiment import DEFAULT_STIFFNESS
-from .identification import KEYS, basis, physically_consistent, to_tensor
-from .propagation import (REFERENCE_NOISE, REFERENCE_RATES, PlanError, Prediction, Trajectory, channel_sigmas,
-                          combine, predict_from_trajectory, stationary_e_response, tracker_model, wrench_jacobians)
+from .identification import KEYS
+from .planning_run import SPIN_AXES, Body, Run, load_plan_input, make_body, recommended_band
+from .planning_screen import DesignScreen, linear_rig
+from .propagation import PlanError, Prediction, Trajectory, combine, predict_from_trajectory
 from .rig import Rig
 
-_DIAGONALS = {"x+y": (1, 1, 0), "x-y": (1, -1, 0), "x+z": (1, 0, 1), "x-z": (1, 0, -1), "y+z": (0, 1, 1),
-              "y-z": (0, 1, -1)}
-
-
-def _spin_rpy(v) -> tuple:
-    """Exciter rpy (extrinsic xyz, rad) whose z axis is the body-frame direction ``v``."""
-    v = np.asarray(v, float) / np.linalg.norm(v)
-    R, _ = Rotation.align_vectors([v], [[0.0, 0.0, 1.0]])
-    return tuple(float(a) for a in R.as_euler("xyz"))
-
-
-SPIN_AXES = {"x": (0.0, math.pi / 2, 0.0), "y": (-math.pi / 2, 0.0, 0.0), "z": (0.0, 0.0, 0.0),
-             **{k: _spin_rpy(v) for k, v in _DIAGONALS.items()}}
-"""Exciter rpy (body -> exciter frame) whose z axis (the spin axis) is body x, y, z or the
-diagonal between two of them ("x+y": along (1, 1, 0)/√2, "x-y": along (1, −1, 0)/√2, …).
-A diagonal axis turns the force in a plane that holds one body axis and the other two's
-diagonal: on the thesis rig it drives roll and pitch in phase, which the products of
-inertia need (case 16: Ixy's σ 3.1× below the thesis excitation's, against 2.8× with the
-body axes alone)."""
-
-
-# --- the linear noise model --------------------------------------------------------------
-
-# --- experiment design --------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class Run:
-    """One planned exciter run: rotating force ``amplitude`` N at ``frequency`` Hz, acting at
-    ``position`` (3,) body frame m, spinning about body ``spin_axis`` (a key of :data:`SPIN_AXES`),
-    for ``duration`` s (spin-up ramp ``ramp_time`` s, as the reference simulator)."""
-
-    frequency: float
-    amplitude: float
-    position: tuple
-    spin_axis: str
-    duration: float = 120.0
-    ramp_time: float = 2.0
-    rpy: tuple | None = None    # exciter rpy if not one of SPIN_AXES (e.g. the rig's own)
-    direction: int = 1          # sense of rotation about the spin axis (+1: x toward y of the exciter frame)
-
-    @property
-    def exciter_rpy(self) -> tuple:
-        return tuple(self.rpy) if self.rpy is not None else SPIN_AXES[self.spin_axis]
-
-    def to_dict(self) -> dict:
-        return {"frequency_hz": float(self.frequency), "amplitude_n": float(self.amplitude),
-                "exciter_position_body_m": [float(x) for x in self.position], "spin_axis_body": self.spin_axis,
-                "spin_axis_unit_body": [round(float(x), 6) + 0.0 for x in
-                                        Rotation.from_euler("xyz", self.exciter_rpy).apply([0, 0, 1])],
-                "exciter_rpy": [float(x) for x in self.exciter_rpy], "direction": int(self.direction),
-                "duration_s": float(self.duration),
-                "ramp_time_s": float(self.ramp_time), "ramp_shape": "spin_up"}
-
-
-@dataclass
-class Body:
-    """The rig and the nominal body: rig (CG from rig.yaml), mass kg, inertia (3,3) kg·m²
-    about the CG, body axes; cable stiffness (N,) N/m of the simulation (rig.yaml's, else
-    the simulator's 5e6); rates Hz and noise σ of the sensors."""
-
-    rig: Rig
-    mass: float
-    inertia: np.ndarray
-    stiffness: np.ndarray
-    rates: dict
-    noise: dict
-
-    def experiment(self, run: Run, seed: int = 0):
-        """The noise-free :class:`~.simulator.Experiment` of ``run``."""
-        from .simulator import experiment_from_dict, inertia_entries
-        rig = self.rig.to_dict()
-        rig.pop("dummy_mass", None)
-        rig["body"]["mass"] = float(self.mass)
-        rig["body"]["center_of_gravity"] = [float(x) for x in self.rig.require_cg()]
-        rig["exciter"] = {"position": [float(x) for x in run.position], "rpy": [float(x) for x in run.exciter_rpy]}
-        d = {"name": "plan", "rig": rig, "inertia_about_cg": inertia_entries(self.inertia),
-             "cable_model": {"type": "spring", "stiffness": [float(k) for k in self.stiffness]},
-             "initial": {"equilibrium": True},
-             "excitation": {"rotating": {"amplitude": float(run.amplitude), "frequency": float(run.frequency),
-                                         "ramp_time": float(run.ramp_time), "ramp_shape": "spin_up", "phase": 0.0,
-                                         "direction": int(run.direction), "start_time": 0.0}},
-             "duration": float(run.duration),
-             "sensors": {"rates_hz": dict(self.rates), "noise": {k: 0.0 for k in REFERENCE_NOISE}},
-             "seed": seed}
-        return experiment_from_dict(d, "planned run")
-
-
-@dataclass
-class LinearRig:
-    """The rig linearised about its static equilibrium (coordinates q = [dp_cg (3, world, m),
-    φ (3, world rotation, rad)]): mass M, stiffness K, cable damping C (6,6); length
-    Jacobian G (N,6); static tensions T0 (N,) N; cable stiffness k and damping c (N,);
-    equilibrium origin position (3,) and rotation R0 (3,3) body -> world."""
-
-    M: np.ndarray
-    K: np.ndarray
-    C: np.ndarray
-    G: np.ndarray
-    T0: np.ndarray
-    k: np.ndarray
-    c: np.ndarray
-    position: np.ndarray
-    R0: np.ndarray
-    cg: np.ndarray
-
-
-def linear_rig(body: Body) -> LinearRig:
-    """Linearise the spring-cable rig about its equilibrium (as :func:`~.modes.natural_modes`,
-    plus the cables' damping), for the steady-state response of the design screen."""
-    from .modes import gradients, length_fn, length_hessians
-    from .simulator import CableModel, equilibrium
-    rig = body.rig
-    cg = rig.require_cg()
-    cm = CableModel.spring(rig, body.mass, stiffness=body.stiffness)
-    pos, R0, T = equilibrium(rig, body.mass, cg, cm)
-    p_cg = pos + R0.apply(cg)
-    R = R0.as_matrix()
-    M = np.zeros((6, 6))
-    M[:3, :3] = body.mass * np.eye(3)
-    M[3:, 3:] = R @ body.inertia @ R.T
-    G, _ = gradients(rig, p_cg, R0, cg)
-    H = length_hessians(length_fn(rig, p_cg, R0, cg), len(rig.cables))
-    taut = T > 0
-    K = np.einsum("i,iab->ab", T, H) + np.einsum("i,ia,ib->ab", cm.stiffness * taut, G, G)
-    C = np.einsum("i,ia,ib->ab", cm.damping * taut, G, G)
-    return LinearRig(M, 0.5 * (K + K.T), C, G, T, cm.stiffness, cm.damping, pos, R, cg)
-
-
-def _spin_up(f: float, t: np.ndarray, ramp: float) -> tuple[np.ndarray, np.ndarray]:
-    """cos θ and sin θ times the amplitude factor of a unit rotating force with a spin-up
-    ramp (as :class:`~.simulator.RotatingForce` with ramp_shape spin_up, direction +1)."""
-    t = np.asarray(t, float)
-    if ramp > 0:
-        amp = np.where(t < ramp, (t / ramp) ** 2, 1.0)
-        th = np.where(t < ramp, np.pi * f * t**2 / ramp, 2 * np.pi * f * (t - ramp / 2))
-    else:
-        amp, th = np.ones_like(t), 2 * np.pi * f * t
-    return amp * np.cos(th), amp * np.sin(th)
-
-
-class _Screen:
-    """Fast design screen: the linearised rig (:func:`linear_rig`) driven by the rotating
-    force from rest (spin-up, transients and steady state), sampled at ``fs_screen``, and
-    the stationary form of the noise model (no filter edges, time-averaged sensitivities)."""
-
-    def __init__(self, body: Body, lin: LinearRig, duration: float, settle: float, ramp: float = 2.0,
-                 fs_screen: float = 50.0, tracker_params: dict | None = None):
-        from scipy.linalg import expm
-        self.body, self.lin, self.duration, self.settle, self.ramp = body, lin, duration, settle, ramp
-        rig = body.rig
-        self.fs = float(body.rates["imu"])
-        self.fss = fs_screen
-        self.t = np.arange(int(round(duration * fs_screen)) + 1) / fs_screen
-        self.win = self.t >= settle
-        Mi = np.linalg.inv(lin.M)
-        A = np.zeros((12, 12))
-        A[:6, 6:] = np.eye(6)
-        A[6:, :6] = -Mi @ lin.K
-        A[6:, 6:] = -Mi @ lin.C
-        Z = np.zeros((18, 18))
-        Z[:12, :12] = A
-        Z[6:12, 12:] = Mi
-        Ed = expm(Z / fs_screen)
-        self.Ad, self.Bd = Ed[:12, :12], Ed[:12, 12:]
-        self.D = wrench_jacobians(rig, lin.position[None], lin.R0[None], lin.T0[None], None)
-        self.D = (self.D[0], self.D[1], self.D[2], np.zeros((1, 3, 2)))
-        self.tm = tracker_model(rig, lin.position, lin.R0, tracker_params)
-        self.P = np.linalg.inv(body.inertia)
-        sig, _ = channel_sigmas(body.noise, body.rates, self.fs, len(rig.cables), rig.inclinometer is not None)
-        self.sig = sig[:8 + len(rig.cables)]
-        self.R_imu = rig.imu.rotation.as_matrix()
-
-    def responses(self, f: float) -> np.ndarray:
-        """(n_t, 12, 2, 6) state response to unit wrench components driven by cos θ (…, 0, j)
-        and sin θ (…, 1, j) of a unit rotating force at f Hz."""
-        c, s = _spin_up(f, self.t, self.ramp)
-        n = len(self.t)
-        X = np.zeros((n, 12, 2, 6))
-        x = np.zeros((12, 2, 6))
-        Bd = self.Bd
-        for i in range(1, n):
-            u_c, u_s = c[i - 1], s[i - 1]
-            x = np.einsum("ij,jab->iab", self.Ad, x)
-            x[:, 0, :] += Bd * u_c
-            x[:, 1, :] += Bd * u_s
-            X[i] = x
-        return X
-
-    def band(self, f: float, rot_f) -> tuple[float, float]:
-        return recommended_band(f, rot_f, self.duration - self.settle, self.fs)
-
-    def noise_density(self, band) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Per-sample (fs) residual density S (K,3,3) on the screen's rfft grid, the filter's
-        |F|² there, and the per-axis residual variance (3,)."""
-        nw = int(self.win.sum())
-        f = np.fft.rfftfreq(nw, 1 / self.fss)
-        sos = butter(4, band, btype="bandpass", fs=self.fs, output="sos")
-        H = stationary_e_response(self.tm, self.D, self.P, sos, self.fs, f, self.R_imu)[:, :, :len(self.sig)]
-        S = np.einsum("kad,d,kbd->kab", H, self.sig**2, H.conj())
-        _, hf = sosfreqz(sos, worN=f, fs=self.fs)
-        fg = np.linspace(band[0] * 0.3, min(band[1] * 3, 0.45 * self.fs), 600)
-        Hg = stationary_e_response(self.tm, self.D, self.P, sos, self.fs, fg, self.R_imu)[:, :, :len(self.sig)]
-        var = 2 * np.trapezoid(np.einsum("kad,d,kad->ka", Hg, self.sig**2, Hg.conj()).real, fg, axis=0) / self.fs
-        return S, np.abs(hf) ** 2, var
-
-    def candidate(self, X: np.ndarray, position, rpy, limits: dict, noise_dens, band, amplitude=None,
-                  direction: int = 1):
-        """Amplitude within the limits and the screen prediction for one mounting.
-        Returns (amplitude N, binding limit, peak rotation deg, min tension ratio, Prediction)."""
-        lin = self.lin
-        Re = Rotation.from_euler("xyz", rpy).as_matrix()[:, :2]
-        Fw = lin.R0 @ Re
-        r = lin.R0 @ (np.asarray(position, float) - lin.cg)
-        L = np.vstack([Fw, np.cross(r, Fw.T).T]) * np.array([1.0, float(direction)])   # (6,2) per (cos, sin)
-        x = np.einsum("nicj,jc->ni", X, L)                             # (n,12) per newton
-        phi = x[:, 3:6]
-        rot_unit = float(np.max(np.linalg.norm(phi, axis=1)))
-        dT = (lin.k * (x[:, :6] @ lin.G.T)) + lin.c * (x[:, 6:] @ lin.G.T)
-        drop_unit = float(np.max(-dT / lin.T0[None, :]))
-        lim = {"force": limits["max_force_n"],
-               "rotation": np.radians(limits["max_rotation_deg"]) / max(rot_unit, 1e-300),
-               "tension": (1 - limits["min_tension_ratio"]) / max(drop_unit, 1e-300)}
-        key = min(lim, key=lim.get)
-        amp = 0.95 * lim[key] if key != "force" else lim[key]
-        if amplitude is not None:
-            amp, key = float(amplitude), "given"
-        omega = (x[self.win, 9:12] @ lin.R0) * amp                     # body rate (n,3)
-        return amp, key, np.degrees(rot_unit * amp), 1 - drop_unit * amp, self.predict(omega, noise_dens, band)
-
-    def predict(self, omega: np.ndarray, noise_dens, band) -> Prediction | None:
-        """Screen prediction for the body rate ``omega`` (n,3) rad/s, body axes, sampled at
-        the screen's rate over the fitted window."""
-        S, F2, var = noise_dens
-        nw = len(omega)
-        Om = np.fft.rfft(omega, axis=0)                                # (K,3)
-        E = basis()
-        Ah = -F2[:, None, None] * np.einsum("ij,kjl,fl->fik", self.P, E, Om)   # (K,3,6)
-        mult = np.full(len(Om), 2.0)
-        mult[0] = 1.0
-        if nw % 2 == 0:
-            mult[-1] = 1.0
-        scale = (self.fs / self.fss) / nw
-        axis_bread = scale * np.einsum("f,fak,fal->akl", mult, Ah.conj(), Ah).real
-        axis_meat = scale * np.einsum("f,fak,fab,fbl->abkl", mult, Ah.conj(), S, Ah).real
-        white = axis_bread.sum(0)
-        white_meat = scale * self.body.noise["gyro"] ** 2 * np.einsum("f,f,fak,fal->kl", mult, F2**2, Ah.conj(),
-                                                                      Ah).real
-        rot_rms = np.sqrt(np.mean(np.fft.irfft(Om * F2[:, None], n=nw, axis=0) ** 2, axis=0))
-        try:
-            return Prediction.assemble(self.body.inertia, axis_bread, {"noise": axis_meat}, white, white_meat, var,
-                                       band, self.duration - self.settle, int(nw * self.fs / self.fss), rot_rms)
-        except np.linalg.LinAlgError:
-            return None
+# the public names, with those of planning_run that users import from here
+__all__ = ["SPIN_AXES", "Body", "Candidate", "Plan", "PlanError", "Run", "amplitude_at_limits", "candidate_positions",
+           "geometry_variants", "load_plan_input", "make_body", "plan_experiment", "resonances"]
 
 
 @dataclass
@@ -357,13 +108,6 @@ def candidate_positions(rig: Rig) -> list[np.ndarray]:
     pts = np.array(pts)
     lo, hi = pts.min(0), pts.max(0)
     return [np.array([x, y, z]) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
-
-
-def recommended_band(f0: float, rot_f, duration: float, fs: float) -> tuple[float, float]:
-    """Pass band (Hz) around the exciter frequency ``f0`` and the rotational modes below 5 Hz
-    (``rot_f``), widened like :func:`~.identification.auto_band` (0.6x below, 1.5x above)."""
-    fr = [f0] + [x for x in rot_f if x < 5.0]
-    return (max(0.15, 0.6 * min(fr), 2.0 / duration), min(1.5 * max(fr), 0.4 * fs))
 
 
 def _sim_check(body: Body, run: Run, limits: dict, settle: float, tracker_params,
@@ -502,7 +246,7 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
     modes = natural_modes(rig, body.mass, rig.require_cg(), body.inertia, body.stiffness)
     rot_f = _rotational(modes)
     rot_fs = {None: rot_f}   # per cable geometry: its rotational modes (Hz), for the identification band
-    screen = _Screen(body, linear_rig(body), duration, settle, tracker_params=tracker_params)
+    screen = DesignScreen(body, linear_rig(body), duration, settle, tracker_params=tracker_params)
     # --- the baseline, simulated in full and screened (each stage compares like with like)
     say(f"simulating the baseline ({baseline.amplitude:.0f} N at {baseline.frequency:.2f} Hz, {duration:.0f} s) ...")
     base, _ = _sim_check(body, replace(baseline, duration=duration), limits, settle, tracker_params)
@@ -520,7 +264,7 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
         ref_screen = ref_sim = base.prediction.scale
     done: dict = {}
 
-    def search(b: Body, label: str | None, scr: _Screen | None = None, partner: Candidate | None = None):
+    def search(b: Body, label: str | None, scr: DesignScreen | None = None, partner: Candidate | None = None):
         """Screen frequencies, mounting points and spin axes on the body ``b`` (cable
         geometry ``label``; None: the rig's own), then simulate the best distinct
         ``refine`` of them (``short`` s, amplitude brought to the limits): best alone and,
@@ -530,7 +274,7 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
         ms = modes if label is None else natural_modes(b.rig, b.mass, b.rig.require_cg(), b.inertia, b.stiffness)
         mf = np.array([m.frequency for m in ms])
         rf = rot_fs.setdefault(label, _rotational(ms))
-        scr = scr or _Screen(b, linear_rig(b), duration, settle, tracker_params=tracker_params)
+        scr = scr or DesignScreen(b, linear_rig(b), duration, settle, tracker_params=tracker_params)
         say(f"screening frequencies, mounting points and spin axes (linearised rig{where}) ...")
         avoid = resonances(mf)
         freqs = [f for f in np.geomspace(frequencies[0], frequencies[1], 30)
@@ -780,59 +524,3 @@ def _distinct(cands: list[Candidate], n: int) -> list[Candidate]:
         if len(out) >= n:
             break
     return out
-
-
-def load_plan_input(path) -> tuple[Rig, dict | None, np.ndarray | None]:
-    """The rig of ``path`` — a rig.yaml, an experiment file (config/cases, config/rigs) or a
-    recording folder — with its cable stiffness if known (rig.yaml ``stiffness`` or the
-    experiment's spring ``cable_model``) and, for an experiment file, its rotating
-    excitation ({amplitude, frequency, ramp_time}) as the baseline.  Raises
-    :class:`~.rig.RigError`, :class:`~.recording.RecordingError`, FileNotFoundError."""
-    from pathlib import Path
-
-    from .recording import RecordingError
-    from .rig import RigError, load_rig, read_yaml
-    p = Path(path)
-    if p.is_dir():
-        if not (p / "rig.yaml").exists():
-            raise RecordingError(f"{p}: no rig.yaml in the recording folder")
-        p = p / "rig.yaml"
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: no such file")
-    d = read_yaml(p, RigError, "rig description")
-    if isinstance(d, dict) and "rig" in d and "gravity" not in d:
-        from .simulator import ExperimentError, load_experiment
-        try:
-            exp = load_experiment(p)
-        except ExperimentError as e:
-            raise RigError(str(e)) from None
-        k = exp.cable_model.stiffness if exp.cable_model.type == "spring" else None
-        rot = exp.excitation.rotating
-        base = None if rot is None else {"amplitude": rot.amplitude, "frequency": rot.frequency,
-                                         "ramp_time": rot.ramp_time}
-        return exp.rig, base, None if k is None else np.asarray(k, float)
-    rig = load_rig(p)
-    k = rig.cable_stiffness
-    return rig, None, (k if np.all(np.isfinite(k)) else None)
-
-
-def make_body(rig: Rig, mass: float | None, inertia_entries, stiffness=None, noise: dict | None = None,
-              rates: dict | None = None) -> Body:
-    """A :class:`Body` from the command line's numbers: mass kg (default rig.yaml's),
-    inertia_entries (6,) in :data:`KEYS` order, kg·m² (tensor entries: products negated).
-    Raises :class:`PlanError` for a non-positive mass, a missing CG or a tensor that is not
-    physically consistent."""
-    if rig.center_of_gravity is None:
-        raise PlanError(f"{rig.source}: body.center_of_gravity is required (estimate it first: rig-identify cg)")
-    m = float(rig.mass if mass is None else mass)
-    if not (math.isfinite(m) and m > 0):
-        raise PlanError(f"--mass must be > 0 kg, got {mass}")
-    J = to_tensor(np.asarray(inertia_entries, float))
-    if not np.all(np.isfinite(J)) or not physically_consistent(J):
-        raise PlanError("--inertia: the tensor is not physically consistent (it must be positive definite and "
-                        "each principal moment at most the sum of the other two); order IXX IYY IZZ IXY IXZ IYZ, "
-                        "kg·m², products negated as in truth.yaml")
-    n = len(rig.cables)
-    k = np.full(n, DEFAULT_STIFFNESS) if stiffness is None else np.broadcast_to(np.asarray(stiffness, float), (n,))
-    return Body(replace(rig, mass=m), m, J, np.array(k, float), dict(rates or REFERENCE_RATES),
-                dict(noise or REFERENCE_NOISE))

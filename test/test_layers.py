@@ -19,8 +19,8 @@ LAYERS = {
     2: ["tracker_kernel", "tracker", "tracker_replay", "preprocessor", "parametrisation", "errors_in_variables",  # estim.
         "identification", "quality", "yaw_anchor",
         "propagation", "uncertainty", "validation"],
-    3: ["model_extension", "effect_candidates", "residual_analysis", "diagnosis", "planning", "statics",  # diagnosis,
-        "cg_capture", "scenarios"],                                                                       # design
+    3: ["model_extension", "effect_candidates", "residual_analysis", "diagnosis", "planning_run", "planning_screen",
+        "planning", "statics", "cg_capture", "scenarios"],                                                # diagnosis, design
     4: ["pipeline", "thesis_table"],                                                                      # application
     5: ["report", "report_html", "report_mass", "report_verdict", "report_diagnosis", "report_identifiability",
         "report_figures", "report_modes", "diagnosis_report", "cli", "cli_inertia", "cli_diagnose", "cli_plan",
