@@ -421,17 +421,6 @@ def _batch_means_meat(A3: np.ndarray, resid: np.ndarray, nb: int) -> np.ndarray:
     return S.T @ S * (len(H) / (nblocks * nb))
 
 
-def _batch_means_cov(A3: np.ndarray, resid: np.ndarray, nb: int) -> np.ndarray:
-    """Sandwich covariance of least squares with correlated residuals (batch means).
-
-    A3: (N,3,p) Jacobian of the prediction; resid: (N,3).  Blocks of nb samples,
-    longer than the residuals' correlation time, make the block sums independent.
-    """
-    A = A3.reshape(-1, A3.shape[2])
-    bread = np.linalg.inv(A.T @ A)
-    return bread @ _batch_means_meat(A3, resid, nb) @ bread
-
-
 def gyro_noise_sigma(omega: np.ndarray, fs: float) -> float:
     """White-noise σ (rad/s) of the gyro from the flat top of its Welch spectrum (scipy)."""
     from scipy.signal import welch

@@ -112,7 +112,7 @@ class Window:
 def _track(rig, s, cables: str):
     """Tracked poses and the cable stiffness used (N,) N/m.  cables: ``"declared"``: the
     rig.yaml stiffness, fitted by the tracker where rig.yaml gives none (as
-    :func:`~rig_identification.tracker.track`); ``"rigid"``: inextensible where rig.yaml
+    :func:`~rig_identification.tracker_replay.track`); ``"rigid"``: inextensible where rig.yaml
     gives none; ``"fitted"``: fitted for every cable, whatever rig.yaml says."""
 
     if cables == "fitted":

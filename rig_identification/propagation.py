@@ -593,7 +593,7 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
     if _adapts_compliance(rig, tracker_params):
         # the tracker's cable compliance (rig.yaml without stiffness): its estimate
         # δc = <e_len, ΔT>/<ΔT, ΔT> over the first pass's second half
-        # (tracker.pass_compliance) is a linear function γᵀn of the noise, and lengthens
+        # (tracker_replay.pass_compliance) is a linear function γᵀn of the noise, and lengthens
         # every constraint by ΔT(t)·δc
         dT = traj.tensions - traj.tensions[t < t[0] + 0.1 + 1e-9].mean(0)
         late = t >= t[0] + 0.5 * (t[-1] - t[0])

@@ -1,7 +1,7 @@
 """Compiled per-sample filter of :class:`~rig_identification.tracker.PoseTracker` (numba).
 
 :func:`run` takes the tracker, once initialised, over the rest of a merged event stream
-(:func:`~rig_identification.tracker.merge_events`) in one compiled loop: the same formulas,
+(:func:`~rig_identification.tracker_replay.merge_events`) in one compiled loop: the same formulas,
 in the same order, as ``PoseTracker.add_imu`` → ``_step`` → ``_tilt_correction``,
 ``_constraint_correction`` → ``_refine_compliance`` and ``_estimate`` (the Python methods
 are the reference; ``test/test_tracker.py`` holds the two to 1e-9), and scipy's
@@ -26,7 +26,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-# event kinds: the tracker's ranks for equal stamps (tracker.EVENT_*; a test checks they agree)
+# event kinds: the tracker's ranks for equal stamps (tracker_replay.EVENT_*; a test checks they agree)
 INCLINOMETER, TENSIONS, IMU, EXCITER = 0, 1, 2, 3
 # State.clock fields
 T, T_ADAPT, T_INCL, T_INCL_USED = 0, 1, 2, 3

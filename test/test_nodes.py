@@ -278,7 +278,7 @@ def test_identify_service_validates_as_rig_identify(graph):
 
 def core_in_stamp_order(rig, sensors, settle: float) -> dict:
     """The streaming core classes fed in header-stamp order in this process (no ROS): what the
-    nodes must reproduce (ties as tracker.track: inclinometer, tensions, IMU, exciter)."""
+    nodes must reproduce (ties as tracker_replay.track: inclinometer, tensions, IMU, exciter)."""
     from rig_identification.identification import InertiaIdentifier
     from rig_identification.preprocessor import WrenchPreprocessor
     from rig_identification.tracker import PoseTracker

@@ -141,7 +141,7 @@ class TrackerNode(Node):
         self.get_logger().info(f"ready: rig {rig.source}, {len(self.names)} cables, parameters {params}")
 
     # --- inputs: validated, then merged in stamp order -----------------------------------
-    # ranks for equal stamps, as tracker.track(): inclinometer, tensions, IMU, exciter
+    # ranks for equal stamps, as tracker_replay.track(): inclinometer, tensions, IMU, exciter
     RANK = {common.INCLINOMETER_TOPIC: 0, common.IMU_TOPIC: 2, common.EXCITER_TOPIC: 3}
 
     def _drain(self) -> None:
