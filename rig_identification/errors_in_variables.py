@@ -164,7 +164,8 @@ class Compensation:
     correction_std (6,) kg·m²: the jackknife σ of the compensated entries over the noise
     realisations (the finite number of replays); sensitivity (6,6): d(compensated entries) /
     d(least-squares entries) for the same noise (maps the least-squares covariance onto the
-    compensated estimate); count: the realisations used."""
+    compensated estimate); count: the realisations used; applied: False when the fit could
+    not be compensated (the least-squares estimate kept, :func:`compensate`)."""
 
     share: float
     direction: np.ndarray
@@ -172,6 +173,7 @@ class Compensation:
     correction_std: np.ndarray
     sensitivity: np.ndarray
     count: int
+    applied: bool = True
 
 
 def _inverse_entries(j: np.ndarray) -> np.ndarray:
@@ -190,9 +192,10 @@ def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRe
     the gyroscopic term is evaluated); sigma (3,) rad/s the fit's per-axis residual scale
     (weights 1/σ²); noise: one realisation set per segment.  Returns (entries (6,) kg·m²,
     :class:`~.errors_in_variables.Compensation`, warnings); when the noise's share of some
-    direction reaches 1 (or beyond :data:`~.errors_in_variables.EIV_LIMIT` the correction is
-    still made, and the validation reports the direction) the least-squares j is returned
-    with a warning."""
+    direction is beyond :data:`EIV_LIMIT`, or the corrected normal equations are not positive
+    definite (a jackknife subset, the gyroscopic term re-evaluated), the least-squares j is
+    returned with a warning (the correction zero, its σ NaN) and the validation reports the
+    direction's entries as not determined."""
     E = basis()
     w = 1.0 / np.asarray(sigma, float) ** 2
     mom = sum((noise_moments(E, nz, w) for nz in noise[1:]), noise_moments(E, noise[0], w))
@@ -231,27 +234,39 @@ def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRe
     except np.linalg.LinAlgError:
         share, v = float("inf"), np.zeros(6)
     direction = _direction_entries(j_ls, v)
-    if not share < 1.0:
-        comp = Compensation(share, direction, np.zeros(6), np.full(6, np.nan), np.eye(6), mom.count)
-        return j_ls, comp, [f"the noise makes {100 * min(share, 9.99):.0f} % of the regressor along one direction: "
-                            "the fit cannot be compensated for it (errors in variables); the least-squares "
-                            "estimate is kept and is biased along that direction"]
-    jc = j_ls
-    for _ in range(2):                  # the gyroscopic term re-evaluated at the compensated tensor
-        jc = solve(A, b, N, n, jc)
-        A, b = normal(jc)
-    # jackknife over the realisations: the correction's own uncertainty
-    K = mom.count
-    if K >= 2:
-        loo = np.array([solve(A, b, *mom.mean(leave_out=k), jc) for k in range(K)])
-        cstd = np.sqrt((K - 1) / K * np.sum((loo - loo.mean(0)) ** 2, axis=0))
-    else:
-        cstd = np.full(6, np.nan)
-    # first order: the same noise moves p_ls by A⁻¹δb and p_c by (A − N)⁻¹δb
-    M = np.linalg.solve(A - N, A)
-    Jl, Jc = to_tensor(j_ls), to_tensor(jc)
-    Pl = np.linalg.inv(Jl)
-    G = np.array([from_tensor(-Jc @ to_tensor(M @ from_tensor(-Pl @ Ek @ Pl)) @ Jc) for Ek in E]).T
+    def kept(why):
+        comp = Compensation(share, direction, np.zeros(6), np.full(6, np.nan), np.eye(6), mom.count, False)
+        return j_ls, comp, [f"the noise makes {100 * min(share, 9.99):.3g} % of the fit's input along one direction "
+                            f"({why}): the fit is not compensated for it (errors in variables); the least-squares "
+                            "estimate is kept, biased along that direction, whose entries are not determined"]
+
+    if not share <= EIV_LIMIT:
+        # beyond the limit the first-order compensation is no better than least squares (and near
+        # a share of 1 it divides by almost nothing): the direction is reported undetermined
+        return kept(f"beyond {100 * EIV_LIMIT:g} %")
+    try:
+        jc = j_ls
+        for _ in range(2):                  # the gyroscopic term re-evaluated at the compensated tensor
+            jc = solve(A, b, N, n, jc)
+            A, b = normal(jc)
+        # jackknife over the realisations: the correction's own uncertainty
+        K = mom.count
+        if K >= 2:
+            loo = np.array([solve(A, b, *mom.mean(leave_out=k), jc) for k in range(K)])
+            cstd = np.sqrt((K - 1) / K * np.sum((loo - loo.mean(0)) ** 2, axis=0))
+        else:
+            cstd = np.full(6, np.nan)
+        # first order: the same noise moves p_ls by A⁻¹δb and p_c by (A − N)⁻¹δb
+        M = np.linalg.solve(A - N, A)
+        Jl, Jc = to_tensor(j_ls), to_tensor(jc)
+        Pl = np.linalg.inv(Jl)
+        G = np.array([from_tensor(-Jc @ to_tensor(M @ from_tensor(-Pl @ Ek @ Pl)) @ Jc) for Ek in E]).T
+    except np.linalg.LinAlgError:
+        # a realisation left out (the jackknife) or the gyroscopic term re-evaluated can leave the
+        # corrected information indefinite: the noise is too large a share to compensate
+        return kept("the corrected normal equations are not positive definite")
+    if not (np.all(np.isfinite(jc)) and np.all(np.isfinite(G))):
+        return kept("the compensated fit is not finite")
     return jc, Compensation(share, direction, jc - j_ls, cstd, G, K), []
 
 

@@ -604,7 +604,7 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     biased: tuple[str, ...] = ()
     eiv = result.errors_in_variables
     if eiv is not None and finite:
-        if not eiv.share <= EIV_LIMIT:
+        if not (eiv.share <= EIV_LIMIT and eiv.applied):
             biased = tuple(k for k, x in zip(KEYS, eiv.direction) if abs(x) >= WEAK_SHARE) or tuple(KEYS)
         main = KEYS[int(np.argmax(np.abs(eiv.direction)))]
         moved = np.abs(eiv.correction) / np.maximum(std, 1e-300)
@@ -613,8 +613,10 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
                             f"the sensors' noise is {100 * min(eiv.share, 9.99):.3g} % of the fit's input along its "
                             f"noisiest direction (mostly {main}); the compensation for it moved {KEYS[k]} by "
                             f"{moved[k]:.2f} σ"
-                            + (f" (beyond {100 * EIV_LIMIT:g} %: the entries along that direction are not determined; "
-                               "the body hardly turns about it)" if biased else "")))
+                            + ((f" (beyond {100 * EIV_LIMIT:g} %: " if not eiv.share <= EIV_LIMIT else
+                                " (the fit could not be compensated for it: ")
+                               + "the entries along that direction are not determined; the body hardly turns about "
+                               "it)" if biased else "")))
     # whether the recording determines an entry is the noise's question (the propagated σ, checked
     # against the replays): a model error's residuals widen the sandwich σ of an entry the
     # excitation determines well (unmodelled damping: Ixx's σ 4 % from the noise, 20 % widened)
