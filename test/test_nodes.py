@@ -35,6 +35,7 @@ DURATION = 30.0
 RATE = 3.0
 FIT_DELAY = 2.0
 KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+SETTLE = common.SERVICE_SETTLE_SECONDS
 
 
 class Listener:
@@ -102,6 +103,7 @@ class Listener:
         cli = self.node.create_client(Trigger, service)
         try:
             assert cli.wait_for_service(timeout_sec=20.0), f"service {service} not available"
+            time.sleep(SETTLE)   # the service's side of the discovery (common.SERVICE_SETTLE_SECONDS)
             fut = cli.call_async(Trigger.Request())
             end = time.monotonic() + timeout
             while not fut.done() and time.monotonic() < end:
@@ -122,6 +124,12 @@ def wait_until(cond, timeout: float, what: str, graph: Graph | None = None, step
             return
         if graph is not None and graph.dead():
             dead = graph.dead()
+            # a node that ends by design (exit_when_done) may exit before its last message reaches us
+            grace = time.monotonic() + 3.0
+            while time.monotonic() < grace:
+                if cond():
+                    return
+                time.sleep(step)
             pytest.fail(f"node(s) {dead} died while waiting for {what}:\n"
                         + "\n".join(graph.log(n)[-3000:] for n in dead))
         time.sleep(step)

@@ -225,7 +225,9 @@ def test_compliant_body_at_rest_is_the_rigid_equilibrium(static):
     whole_body_check(exp, res)
     st = res.states
     assert np.abs(st.suspension).max() < 1e-10           # the sprung body sits at its nominal place
-    assert np.abs(st.velocity).max() < 1e-9 and np.abs(st.omega).max() < 1e-9
+    # at rest to the integrator's tolerance (COMPLIANT_RTOL 1e-9 on a 36-state system): measured
+    # 0.7-14 nm/s and nrad/s over 2 s depending on the BLAS build, against 1e-4 rad/s of gyro noise
+    assert np.abs(st.velocity).max() < 1e-7 and np.abs(st.omega).max() < 1e-7
     np.testing.assert_allclose(st.position, rigid.states.position, atol=1e-9)
     assert (st.rotation * rigid.states.rotation.inv()).magnitude().max() < 1e-10
     np.testing.assert_allclose(st.tensions, rigid.states.tensions, rtol=1e-8)

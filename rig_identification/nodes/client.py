@@ -206,8 +206,14 @@ class IdentifierClient:
         return self.clients[service]
 
     def wait(self, service: str, timeout: float) -> bool:
-        """True once ``<base>/<service>`` is available (within ``timeout`` s)."""
-        return self.client(service).wait_for_service(timeout_sec=timeout)
+        """True once ``<base>/<service>`` is available (within ``timeout`` s), and
+        :data:`~.common.SERVICE_SETTLE_SECONDS` more for the server's side of the discovery."""
+        if not self.client(service).wait_for_service(timeout_sec=timeout):
+            return False
+        end = time.monotonic() + common.SERVICE_SETTLE_SECONDS
+        while time.monotonic() < end:
+            rclpy.spin_once(self.node, timeout_sec=max(0.0, end - time.monotonic()))
+        return True
 
     def call(self, service: str, timeout: float) -> Trigger.Response | None:
         """Call ``<base>/<service>``; the response, or None without an answer within ``timeout`` s."""

@@ -104,6 +104,10 @@ MASS_PROPERTIES_TOPIC = "/rig/mass_properties"
 TRUTH_TOPIC = "/rig/sim_truth"
 DRIVER_STATUS_TOPIC = "/rig/sensor_driver/status"
 DIAGNOSTICS_TOPIC = "/diagnostics"
+# a service client waits this long after wait_for_service() before its first call: the server's side
+# of the discovery (its response writer matched with our reader) can lag the client's, and a response
+# sent before it is dropped by Fast DDS ("failed to send response (timeout)"; ros2/ros2#1017)
+SERVICE_SETTLE_SECONDS = 0.5
 
 # default frame ids (RECORDING_FORMAT.md); the nodes take theirs from parameters (frames.py)
 

@@ -53,12 +53,16 @@ import time
 from pathlib import Path
 
 import numpy as np
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.task import Future
 
 from . import common
 from .common import LATCHED_QOS, SENSOR_QOS
+
+# with exit_when_done, the longest wait for the readers' acknowledgements after the last message, s
+LINGER_SECONDS = 5.0
 
 
 class _Stream:
@@ -301,6 +305,9 @@ class SensorDriver(Node):
                 self._begin()
                 self._publish_status()
             return
+        if self.state == "done":
+            self._linger(now)
+            return
         if self.state != "publishing":
             return
         target = self.t_first + (now - self.wall0) * self.rate
@@ -326,10 +333,19 @@ class SensorDriver(Node):
             self.get_logger().info(f"done: published {n} messages in {wall:.1f} s "
                                    f"({self.achieved['rate']:.2f}x real time)")
             self._publish_status()
-            if self.exit_when_done:
-                self.stop_future.set_result(True)
+            self._t_done = now
         elif now - self._last_status > 1.0:
             self._publish_status()
+
+    def _linger(self, now: float) -> None:
+        """With exit_when_done: stop once every reliable reader has acknowledged every message
+        (the latched status included), at most :data:`LINGER_SECONDS` after the last one. A
+        process that exits at once loses what DDS has not yet delivered."""
+        if not self.exit_when_done or self.stop_future.done():
+            return
+        pubs = [s.publisher for s in self.streams] + [self.status_pub]
+        if all(p.wait_for_all_acked(Duration(seconds=0)) for p in pubs) or now - self._t_done > LINGER_SECONDS:
+            self.stop_future.set_result(True)
 
     def _diag_values(self) -> dict:
         d = {"state": self.state, "back-pressure stalls": getattr(self, "stalls", 0)}
