@@ -40,7 +40,7 @@ setup(
     tests_require=["pytest"],
     entry_points={
         "console_scripts": [f"{k} = {v}" for k, v in NODES.items()]
-        + ["rig-identify = rig_identification.cli:identify_main", "rig-sim = rig_identification.cli:sim_main",
+        + ["rig-identify = rig_identification.cli.main:identify_main", "rig-sim = rig_identification.cli.main:sim_main",
            "rig-record = rig_identification.nodes.recorder:record_main"],
     },
 )

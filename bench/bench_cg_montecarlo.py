@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rig_identification.recording import SensorData, TimeSeries
-from rig_identification.rig import DummyMass
-from rig_identification.simulator import load_experiment, simulate
+from rig_identification.io.recording import SensorData, TimeSeries
+from rig_identification.io.rig import DummyMass
+from rig_identification.model.simulator import load_experiment, simulate
 from rig_identification.statics import CgOptions, StaticsError, StaticState, estimate_cg
 
 CASES = Path(__file__).resolve().parents[1] / "config" / "cases"

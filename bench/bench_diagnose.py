@@ -38,8 +38,8 @@ def _job(args):
     from test_diagnose import CASES, _run, check_inertia, check_parameters
     t0 = time.perf_counter()
     if kind == "ref":
-        from rig_identification.diagnosis import diagnose
-        from rig_identification.recording import read_recording
+        from rig_identification.diagnosis.selection import diagnose
+        from rig_identification.io.recording import read_recording
         rec = read_recording(ROOT.parent / "shared" / "recordings" / name)
         res = diagnose(rec).to_dict()
         res["truth"] = rec.truth

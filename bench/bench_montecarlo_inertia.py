@@ -18,12 +18,12 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from rig_identification.identification import KEYS, from_tensor
-from rig_identification.pipeline import identify_recording
-from rig_identification.propagation import REFERENCE_NOISE
-from rig_identification.recording import Recording
-from rig_identification.simulator import experiment_from_dict, simulate
-from rig_identification.uncertainty import add_noise
+from rig_identification.estimation.identification import KEYS, from_tensor
+from rig_identification.pipeline.offline import identify_recording
+from rig_identification.estimation.propagation import REFERENCE_NOISE
+from rig_identification.io.recording import Recording
+from rig_identification.model.simulator import experiment_from_dict, simulate
+from rig_identification.estimation.uncertainty import add_noise
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"
 _SIM = None

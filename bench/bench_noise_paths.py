@@ -2,7 +2,7 @@
 
 Usage: python bench/bench_noise_paths.py [--seed S] [--duration S] [--angular C] [--paths]
 
-One random rig of the trust benchmark (:mod:`rig_identification.scenarios`, 4 wide cables)
+One random rig of the trust benchmark (:mod:`rig_identification.design.scenarios`, 4 wide cables)
 with viscous angular damping C N·m·s/rad concealed (default 300: it damps the roll pendulum
 mode, so roll hardly moves), identified the ordinary way (``identify_recording``) with the
 TRUE damping moment −C ω (ω from the simulator's states, noise-free) added to the measured
@@ -23,7 +23,7 @@ What it shows (docs/results.md): the output-error fit is unbiased for noise on i
 (the gyro as measured), but the gyro also drives the tracker's orientation, whose cable
 directions make the measured moment: gyro noise reaches the input too (errors in variables)
 and biases the entries whose axis moves little — unless the fit is compensated for it
-(:mod:`rig_identification.errors_in_variables`), as it now is.
+(:mod:`rig_identification.estimation.errors_in_variables`), as it now is.
 """
 from __future__ import annotations
 
@@ -38,15 +38,15 @@ from scipy.spatial.transform import Rotation, Slerp
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig_identification.diagnosis import EffectWrench  # noqa: E402
-from rig_identification.identification import KEYS  # noqa: E402
-from rig_identification.pipeline import (compare_to_truth, identify_recording, prepare_recording,  # noqa: E402
+from rig_identification.diagnosis.selection import EffectWrench  # noqa: E402
+from rig_identification.estimation.identification import KEYS  # noqa: E402
+from rig_identification.pipeline.offline import (compare_to_truth, identify_recording, prepare_recording,  # noqa: E402
                                          replay_window, with_effect_wrench)
-from rig_identification.identification import identify_inertia  # noqa: E402
-from rig_identification.preprocessor import generalized_wrench  # noqa: E402
-from rig_identification.uncertainty import add_noise, sensor_noise  # noqa: E402
-from rig_identification.recording import Recording  # noqa: E402
-from rig_identification.scenarios import REFERENCE_NOISE, simulate_random  # noqa: E402
+from rig_identification.estimation.identification import identify_inertia  # noqa: E402
+from rig_identification.estimation.preprocessor import generalized_wrench  # noqa: E402
+from rig_identification.estimation.uncertainty import add_noise, sensor_noise  # noqa: E402
+from rig_identification.io.recording import Recording  # noqa: E402
+from rig_identification.design.scenarios import REFERENCE_NOISE, simulate_random  # noqa: E402
 
 
 def run(seed: int, duration: float, angular: float, noise: dict) -> str:

@@ -19,10 +19,10 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 
-from rig_identification.identification import KEYS, from_tensor, identify_inertia, to_tensor
-from rig_identification.preprocessor import preprocess
-from rig_identification.recording import read_recording
-from rig_identification.tracker_replay import track
+from rig_identification.estimation.identification import KEYS, from_tensor, identify_inertia, to_tensor
+from rig_identification.estimation.preprocessor import preprocess
+from rig_identification.io.recording import read_recording
+from rig_identification.estimation.tracker_replay import track
 
 REC = Path(__file__).resolve().parents[2] / "shared" / "recordings" / "visible_case16_clean"
 
@@ -67,7 +67,7 @@ def main():
         t1 = time.perf_counter()
         print(f"{'naive least_squares, FD Jacobian, solve_ivp':44s} {t1 - t0:8.2f} "
               f"{100 * np.abs(j - truth).max() / big:30.3f}")
-    from rig_identification.pipeline import identify_recording
+    from rig_identification.pipeline.offline import identify_recording
     print(f"\n{'whole path (recording in memory)':44s} {'s':>8s}")
     for refine in (False, True):
         t0 = time.perf_counter()

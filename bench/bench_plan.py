@@ -6,7 +6,7 @@ and the experiment design for case 16.
 recordings' rates and noise (gyro 0.002 rad/s,
 accelerometer 0.01 m/s², load cells and exciter 0.5 N, inclinometer 0.2 mrad; 200/200/200/50
 Hz).  Per case: one noise-free simulation; the prediction of
-:func:`rig_identification.propagation.predict_from_trajectory` (before the run); RUNS noisy
+:func:`rig_identification.estimation.propagation.predict_from_trajectory` (before the run); RUNS noisy
 copies (fresh white noise on every sensor, the simulator's noise model) replayed through
 tracker -> preprocessor -> identifier; per entry the Monte Carlo spread / predicted σ, with
 the spread's own sampling uncertainty (±1/sqrt(2(RUNS-1))), and the identifier's white-gyro
@@ -23,7 +23,7 @@ Jeep Cherokee, 120 s runs) against the thesis's own excitation (200 N at 1.05 Hz
 exciter), then CONFIRM noisy simulations of the plan (its runs identified jointly, as
 ``rig-identify inertia REC1 REC2``) and of the baseline, with the ordinary pipeline: their
 RMS errors against the predictions.  ``vary``: the second run may also use another cable
-geometry (:func:`rig_identification.planning.geometry_variants`, ceiling anchors moved 1 m;
+geometry (:func:`rig_identification.design.planning.geometry_variants`, ceiling anchors moved 1 m;
 ``rig-identify plan --vary-geometry 1``).
 
 Usage: bench_plan.py [crb [RUNS=30] [PROCESSES=2] [CASES...]] | [plan [CONFIRM=8] [PROCESSES=2] [vary]]
@@ -36,12 +36,12 @@ from pathlib import Path
 
 import numpy as np
 
-from rig_identification.identification import KEYS, from_tensor
-from rig_identification.pipeline import identify_recording
-from rig_identification.propagation import REFERENCE_NOISE, REFERENCE_RATES, Trajectory, predict_from_trajectory
-from rig_identification.recording import Recording
-from rig_identification.simulator import load_experiment, simulate
-from rig_identification.uncertainty import add_noise
+from rig_identification.estimation.identification import KEYS, from_tensor
+from rig_identification.pipeline.offline import identify_recording
+from rig_identification.estimation.propagation import REFERENCE_NOISE, REFERENCE_RATES, Trajectory, predict_from_trajectory
+from rig_identification.io.recording import Recording
+from rig_identification.model.simulator import load_experiment, simulate
+from rig_identification.estimation.uncertainty import add_noise
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = [f"case{i}" for i in range(10, 18)]
@@ -149,7 +149,7 @@ def crb_table(runs=30, procs=2, cases=None):
 
 
 def plan_table(confirm=8, procs=2, vary=False):
-    from rig_identification.planning import Body, Run, geometry_variants, plan_experiment
+    from rig_identification.design.planning import Body, Run, geometry_variants, plan_experiment
     t0 = time.perf_counter()
     exp = load_experiment(ROOT / "config" / "rigs" / "default.yaml")
     rig = exp.rig
@@ -198,7 +198,7 @@ _EXP_SIMS: dict = {}
 def one_run_plan(args):
     """Worker: noisy copies (seed, seed+1, ...) of the noise-free simulations of ``exps``
     (cached per worker), identified jointly when there are several."""
-    from rig_identification.pipeline import identify_recordings
+    from rig_identification.pipeline.offline import identify_recordings
     key, exps, seed, band = args
     if key not in _EXP_SIMS:
         _EXP_SIMS.clear()

@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from rig_identification.recording import SensorData, load_rig, read_sensor_data, write_recording
+from rig_identification.io.recording import SensorData, load_rig, read_sensor_data, write_recording
 
 REPO = Path(__file__).resolve().parents[1]
 REFERENCES = REPO.parent / "shared" / "recordings"
@@ -67,7 +67,7 @@ def peak_mb(rec: Path, bulk: bool) -> float:
 
 
 def synthetic(out: Path, storage: str) -> Path:
-    from rig_identification.simulator import load_experiment, simulate
+    from rig_identification.model.simulator import load_experiment, simulate
     if out.exists():
         return out
     exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=180.0)

@@ -3,7 +3,7 @@
 Usage: python bench/bench_residual_spectrum.py ROW SEED [--duration S] [--every K]
 
 One recording of the trust benchmark (``bench_trust.py``'s ROW and SEED: the same random rig
-of :mod:`rig_identification.scenarios`), identified the ordinary way (``identify_recording``:
+of :mod:`rig_identification.design.scenarios`), identified the ordinary way (``identify_recording``:
 the fit compensated for the noise in its input, validated).  Prints the residual excess per
 gyro axis (``residual_excess``), then, on the axis with the largest, per frequency of the fit
 band (Welch, 2048 samples, every K-th bin): the residual's spectral level over the one the
@@ -27,9 +27,9 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 from bench_trust import ROWS  # noqa: E402
-from rig_identification.pipeline import identify_recording  # noqa: E402
-from rig_identification.recording import Recording  # noqa: E402
-from rig_identification.scenarios import simulate_random  # noqa: E402
+from rig_identification.pipeline.offline import identify_recording  # noqa: E402
+from rig_identification.io.recording import Recording  # noqa: E402
+from rig_identification.design.scenarios import simulate_random  # noqa: E402
 
 
 def main(argv=None) -> int:

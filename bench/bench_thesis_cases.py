@@ -10,11 +10,11 @@ import time
 from pathlib import Path
 
 
-from rig_identification.identification import KEYS
-from rig_identification.parametrisation import PAIRS
-from rig_identification.pipeline import compare_to_truth, identify_recording
-from rig_identification.recording import Recording
-from rig_identification.simulator import load_experiment, simulate
+from rig_identification.estimation.identification import KEYS
+from rig_identification.model.parametrisation import PAIRS
+from rig_identification.pipeline.offline import compare_to_truth, identify_recording
+from rig_identification.io.recording import Recording
+from rig_identification.model.simulator import load_experiment, simulate
 
 CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
 

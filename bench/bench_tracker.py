@@ -25,18 +25,18 @@ from pathlib import Path
 
 import numpy as np
 
-from rig_identification.recording import read_recording
-from rig_identification.scenarios import random_experiment
-from rig_identification.simulator import experiment_from_dict, simulate
-from rig_identification.tracker_replay import compiled_kernel, merge_events, replay, track
+from rig_identification.io.recording import read_recording
+from rig_identification.design.scenarios import random_experiment
+from rig_identification.model.simulator import experiment_from_dict, simulate
+from rig_identification.estimation.tracker_replay import compiled_kernel, merge_events, replay, track
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 REFERENCE = "visible_case16_clean"
 COLD = """
 import time, sys
 t0 = time.perf_counter()
-from rig_identification.recording import read_recording, crop
-from rig_identification.tracker_replay import replay, compiled_kernel
+from rig_identification.io.recording import read_recording, crop
+from rig_identification.estimation.tracker_replay import replay, compiled_kernel
 rec = read_recording(sys.argv[1])
 s = crop(rec.sensors, rec.sensors.t_start, rec.sensors.t_start + 2.0)
 t1 = time.perf_counter(); compiled_kernel(required=True)

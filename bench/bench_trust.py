@@ -2,7 +2,7 @@
 
 Usage: python bench/bench_trust.py [--seeds N] [--procs P] [--duration S] [--only ROW,ROW] [--no-diagnose]
 
-Builds, with the package's own simulator (:mod:`rig_identification.scenarios`: random NHTSA
+Builds, with the package's own simulator (:mod:`rig_identification.design.scenarios`: random NHTSA
 vehicles in carrying frames, the body frame off the CG, random exciter placement, realistic
 noise, 200 Hz), N random rigs (default 2) for each row below, runs the whole inertia command
 on each (identification, uncertainty, validation and — unless --no-diagnose — diagnosis) and
@@ -33,7 +33,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-# row name -> (cables, layout, effects, clean?[, exciter placement]) (rig_identification.scenarios)
+# row name -> (cables, layout, effects, clean?[, exciter placement]) (rig_identification.design.scenarios)
 ROWS = {
     "clean_4_wide": (4, "wide", [], True),
     "clean_3_wide": (3, "wide", [], True),
@@ -65,12 +65,12 @@ def _job(args):
     name, seed, duration, diagnose = args
     import warnings
     warnings.simplefilter("ignore")
-    from rig_identification.identification import KEYS, from_tensor, identify_inertia, to_tensor
-    from rig_identification.pipeline import identify_recording, prepare_recording, with_diagnosis
-    from rig_identification.uncertainty import propagated, sensor_noise
-    from rig_identification.validation import REL_STD_LIMIT
-    from rig_identification.recording import Recording
-    from rig_identification.scenarios import simulate_random
+    from rig_identification.estimation.identification import KEYS, from_tensor, identify_inertia, to_tensor
+    from rig_identification.pipeline.offline import identify_recording, prepare_recording, with_diagnosis
+    from rig_identification.estimation.uncertainty import propagated, sensor_noise
+    from rig_identification.estimation.validation import REL_STD_LIMIT
+    from rig_identification.io.recording import Recording
+    from rig_identification.design.scenarios import simulate_random
     cables, layout, effects, clean, *rest = ROWS[name]
     exciter = rest[0] if rest else "corner"
     t0 = time.perf_counter()

@@ -3,8 +3,8 @@
 Usage: python bench/bench_validation_null.py [--seeds N] [--procs P] [--durations 30,60,120]
                                               [--layouts 4splayed,3splayed,...] [--json FILE]
 
-On clean random rigs of the package's own simulator (:mod:`rig_identification.scenarios`)
-every check of :func:`rig_identification.validation.validate` should pass about as often as
+On clean random rigs of the package's own simulator (:mod:`rig_identification.design.scenarios`)
+every check of :func:`rig_identification.estimation.validation.validate` should pass about as often as
 its false-alarm rate says: this prints, per check, the fraction of clean recordings on
 which it failed, the median and largest statistic over its threshold, and per recording the
 verdict and the largest |error|/σ — the null distribution the thresholds are set against.
@@ -28,10 +28,10 @@ def _job(args):
     seed, cables, layout, duration = args
     import warnings
     warnings.simplefilter("ignore")
-    from rig_identification.identification import KEYS, from_tensor
-    from rig_identification.pipeline import identify_recording
-    from rig_identification.recording import Recording
-    from rig_identification.scenarios import simulate_random
+    from rig_identification.estimation.identification import KEYS, from_tensor
+    from rig_identification.pipeline.offline import identify_recording
+    from rig_identification.io.recording import Recording
+    from rig_identification.design.scenarios import simulate_random
     t0 = time.perf_counter()
     row = {"seed": seed, "cables": cables, "layout": layout, "duration": duration}
     try:

@@ -25,7 +25,7 @@ from pathlib import Path
 
 import pytest
 
-from rig_identification.cli import identify_main
+from rig_identification.cli.main import identify_main
 
 REPO = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("RIG_SHARED", REPO.parent / "shared"))

@@ -1,17 +1,17 @@
 """Any legitimate rig: 3 or 5 cables, the exciter at a corner — identified right, and planned.
 
 Random NHTSA vehicles in carrying frames (the body frame off the CG), cables splayed so that
-their lines cross near the CG (rig_identification.scenarios, layout "wide"), reference noise,
+their lines cross near the CG (rig_identification.design.scenarios, layout "wide"), reference noise,
 45 s at 200 Hz.  The sweep over many rigs is bench/bench_trust.py.
 """
 import numpy as np
 import pytest
 
-from rig_identification.identification import KEYS, from_tensor
-from rig_identification.pipeline import identify_recording
-from rig_identification.planning import Run, make_body, plan_experiment
-from rig_identification.recording import Recording
-from rig_identification.scenarios import CABLE_STIFFNESS, simulate_random
+from rig_identification.estimation.identification import KEYS, from_tensor
+from rig_identification.pipeline.offline import identify_recording
+from rig_identification.design.planning import Run, make_body, plan_experiment
+from rig_identification.io.recording import Recording
+from rig_identification.design.scenarios import CABLE_STIFFNESS, simulate_random
 
 from conftest import background, gather
 

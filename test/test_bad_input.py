@@ -12,15 +12,15 @@ import numpy as np
 import pytest
 import yaml
 
-from rig_identification.cli import identify_main
-from rig_identification.recording import write_recording
+from rig_identification.cli.main import identify_main
+from rig_identification.io.recording import write_recording
 
 REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
 def sim():
-    from rig_identification.simulator import load_experiment, simulate
+    from rig_identification.model.simulator import load_experiment, simulate
     exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=35.0)
     rates = {k: min(v, 100.0) for k, v in exp.sensors.rates.items()}
     exp = dataclasses.replace(exp, sensors=dataclasses.replace(exp.sensors, rates=rates))
@@ -63,7 +63,7 @@ def make(sim, tmp_path, mutate=None, storage="mcap", rig=None):
 
 
 def vec(out):
-    from rig_identification.identification import KEYS
+    from rig_identification.estimation.identification import KEYS
     return np.array([out["inertia_about_cg"][k] for k in KEYS])
 
 
@@ -73,7 +73,7 @@ def assert_close(out, ref, tol=0.01):
 
 
 def assert_good(out, truth, pct=1.0):
-    from rig_identification.identification import KEYS
+    from rig_identification.estimation.identification import KEYS
     tru = truth["inertia_about_cg"]
     big = max(abs(tru[k]) for k in ("ixx", "iyy", "izz"))
     for k, v in zip(KEYS, vec(out)):
@@ -98,12 +98,12 @@ def test_missing_load_cell(sim, tmp_path):
 
 def test_missing_imu(sim, tmp_path):
     sensors = copy.deepcopy(sim.sensors)
-    from rig_identification.recording import write_bag
+    from rig_identification.io.recording import write_bag
     (tmp_path / "rec").mkdir()
     (tmp_path / "rec" / "rig.yaml").write_text((Path(sim_rec_dir(sim, tmp_path)) / "rig.yaml").read_text())
     # a bag without /rig/imu: write the load cells only
     sensors.imu = dataclasses.replace(sensors.imu) if False else sensors.imu
-    from rig_identification import recording as R
+    from rig_identification.io import recording as R
     orig = R.sensor_messages
 
     def no_imu(rig, s):
@@ -156,7 +156,7 @@ def test_sqlite3_equals_mcap(sim, tmp_path, base_result):
 
 # 4. unknown extra topics ----------------------------------------------------------------
 def test_unknown_topics_ignored(sim, tmp_path, base_result):
-    from rig_identification import recording as R
+    from rig_identification.io import recording as R
     orig = R.sensor_messages
 
     def extra(rig, s):
@@ -192,7 +192,7 @@ def test_nan_samples_dropped(sim, tmp_path):
 
 # 6. duplicated / out-of-order stamps ----------------------------------------------------------
 def test_duplicated_and_unordered_stamps(sim, tmp_path, base_result):
-    from rig_identification import recording as R
+    from rig_identification.io import recording as R
     orig = R.sensor_messages
 
     def swapped(rig, s):  # two /rig/load_cells/c0 messages written out of stamp order
@@ -290,7 +290,7 @@ def test_noise_free_steps_are_not_saturation(sim):
     """A noise-free stream that holds a value exactly (a simulated stepped force, the thesis's
     case studies 1–9) is not a saturated sensor; the same run of identical samples in a
     noisy channel is."""
-    from rig_identification.recording import TimeSeries, find_bad_spans
+    from rig_identification.io.recording import TimeSeries, find_bad_spans
     s = copy.deepcopy(sim.sensors)
     t = s.exciter.t
     step = np.where((t > t[0] + 5) & (t < t[0] + 8), 200.0, 0.0)
@@ -365,7 +365,7 @@ def test_tensions_in_kN(sim, tmp_path):
 
 # 11. static recording ----------------------------------------------------------------------------
 def test_static_recording(sim, tmp_path):
-    from rig_identification.simulator import load_experiment, simulate
+    from rig_identification.model.simulator import load_experiment, simulate
     exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=30.0, static="baseline")
     st = simulate(exp)
     rec = write_recording(tmp_path / "static", sim.rig, st.sensors, st.truth)  # sim.rig: with the CG
@@ -384,7 +384,7 @@ def test_missing_paths_are_named_at_once(tmp_path):
              ["inertia", str(ref), "--yaml", str(missing / "out.yaml")],
              ["inertia", str(ref), "--cg", str(tmp_path / "cg.json")],
              ["cg", str(missing), str(ref)]]    # last: its parser (cg_cli) loads scipy
-    code = ("import json, sys\nfrom rig_identification.cli import identify_main\n"
+    code = ("import json, sys\nfrom rig_identification.cli.main import identify_main\n"
             f"codes = [identify_main(a) for a in {cases[:-1]!r}]\n"
             "heavy = sorted(m for m in sys.modules if m.split('.')[0] in ('scipy', 'rosbags', 'matplotlib'))\n"
             f"codes.append(identify_main({cases[-1]!r}))\n"

@@ -9,8 +9,8 @@ validation passes.
 import numpy as np
 import pytest
 
-from rig_identification.scenarios import random_experiment
-from rig_identification.simulator import experiment_from_dict, simulate
+from rig_identification.design.scenarios import random_experiment
+from rig_identification.model.simulator import experiment_from_dict, simulate
 from rig_identification.statics import CgOptions, StaticState, estimate_cg
 
 

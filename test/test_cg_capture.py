@@ -3,8 +3,8 @@ fed sample by sample as the node would; it agrees with `rig-identify cg` on the 
 import numpy as np
 import pytest
 
-from rig_identification.cg_capture import CgSession
-from rig_identification.recording import read_recording
+from rig_identification.statics.capture import CgSession
+from rig_identification.io.recording import read_recording
 from rig_identification.statics import StaticsError, StaticState, estimate_cg
 
 from conftest import recording

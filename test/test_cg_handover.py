@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 import yaml
 
-from rig_identification.cg_cli import CgResultError, load_cg_result
-from rig_identification.cli import identify_main
-from rig_identification.rig import load_rig
+from rig_identification.cli.cg import CgResultError, load_cg_result
+from rig_identification.cli.main import identify_main
+from rig_identification.io.rig import load_rig
 from rig_identification.statics import CG_RESULT_SCHEMA, CG_RESULT_SCHEMA_VERSION, StaticsError
 
 from conftest import recording

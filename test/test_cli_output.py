@@ -17,13 +17,16 @@ import pytest
 import yaml
 
 from conftest import recording, run_cli
-from rig_identification import cli_diagnose, export, identification, validation
-from rig_identification.cli import TENSOR, build_parser, identify_main
-from rig_identification.cli_inertia import print_inertia
-from rig_identification.cli_text import effect_text, evidence_text
-from rig_identification.identification import (KEYS, InertiaResult, describe_direction, from_tensor, to_tensor,
+from rig_identification.cli import diagnose as cli_diagnose
+from rig_identification.io import export
+from rig_identification.estimation import identification
+from rig_identification.estimation import validation
+from rig_identification.cli.main import TENSOR, build_parser, identify_main
+from rig_identification.cli.inertia import print_inertia
+from rig_identification.cli.text import effect_text, evidence_text
+from rig_identification.estimation.identification import (KEYS, InertiaResult, describe_direction, from_tensor, to_tensor,
                                                weak_directions)
-from rig_identification.verdict import Check, Validation
+from rig_identification.io.verdict import Check, Validation
 
 CLEAN = str(recording("visible_case16_clean"))
 ORDER = ["ixx", "iyy", "izz", "ixy", "ixz", "iyz"]
@@ -209,7 +212,7 @@ def test_rig_output_axes_is_the_default_of_axes(tmp_path):
     --axes body still chooses the body axes."""
     from types import SimpleNamespace
 
-    from rig_identification.cli_inertia import output_axes
+    from rig_identification.cli.inertia import output_axes
     rec = tmp_path / "rec"
     rec.mkdir()
     (rec / "bag").symlink_to(recording("visible_case16_clean") / "bag")
@@ -259,7 +262,7 @@ def test_diagnosed_model_error_warning_gives_effect_parameters_with_units(monkey
     diagnose and the second fit are stand-ins: only the warning's text is under test."""
     from types import SimpleNamespace
 
-    from rig_identification import pipeline
+    from rig_identification.pipeline import offline as pipeline
     effect = {"name": "viscous_damping", "parameters": {"angular": 300.9, "linear": 148.7},
               "parameters_std": {"angular": 1.0, "linear": 3.2}, "plausible": True}
     rigid = _partial_result(undetermined=())
@@ -280,7 +283,7 @@ def test_diagnosed_model_error_warning_gives_effect_parameters_with_units(monkey
 def test_diagnose_prints_the_rigid_body_fit_of_inertia(monkeypatch, json_run):
     """diagnose's rigid-body fit is rig-identify inertia --quick --no-diagnose's, number for number
     (the effect search itself is test_diagnose's: stubbed here)."""
-    from rig_identification.diagnosis import Diagnosis
+    from rig_identification.diagnosis.selection import Diagnosis
     J = np.eye(3)
 
     def stub(rec, model="pem"):
@@ -298,7 +301,7 @@ def test_version_and_help(capsys):
         identify_main(["--version"])
     assert e.value.code == 0 and version("rig_identification") in capsys.readouterr().out
     # --help loads none of the heavy dependencies (and so is quick); no RST markup in it
-    code = ("import sys\nfrom rig_identification.cli import identify_main\n"
+    code = ("import sys\nfrom rig_identification.cli.main import identify_main\n"
             "for argv in (['--help'], ['inertia', '--help'], ['diagnose', '--help']):\n"
             "    try:\n        identify_main(argv)\n    except SystemExit:\n        pass\n"
             "print('HEAVY', sorted(m for m in sys.modules if m.split('.')[0] in "
@@ -315,17 +318,17 @@ def test_core_log_records_become_steps_and_warnings():
     shows; a warning shown as it happened is not repeated with the result's warnings."""
     import logging
 
-    from rig_identification.cli_progress import attached
+    from rig_identification.cli.progress import attached
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         with attached() as printer:
-            logging.getLogger("rig_identification.pipeline").info("tracking the pose ...")
-            logging.getLogger("rig_identification.pipeline").warning("gap in /rig/imu")
-            logging.getLogger("rig_identification.pipeline").info("fitting")
+            logging.getLogger("rig_identification.pipeline.offline").info("tracking the pose ...")
+            logging.getLogger("rig_identification.pipeline.offline").warning("gap in /rig/imu")
+            logging.getLogger("rig_identification.pipeline.offline").info("fitting")
             printer.finish()                    # as the commands do before their output
             printer.warn_rest(["gap in /rig/imu", "another"])
         with attached(quiet=True) as printer:
-            logging.getLogger("rig_identification.diagnosis").info("selection step 1")
+            logging.getLogger("rig_identification.diagnosis.selection").info("selection step 1")
     lines = err.getvalue().splitlines()
     assert lines[0] == "rig-identify: tracking the pose …"          # the step's line, cut by the warning
     assert lines[1] == "warning: gap in /rig/imu"

@@ -71,8 +71,8 @@ def random_experiment(seed: int, effects: list, duration: float = DURATION) -> d
                              "izz": J[2, 2]}
     # the exciter between the two lowest natural frequencies, as in the thesis's case 16 (at a
     # mode, the 200 N would swing the body until a cable goes slack)
-    from rig_identification.modes import natural_modes
-    from rig_identification.rig import rig_from_dict
+    from rig_identification.model.modes import natural_modes
+    from rig_identification.io.rig import rig_from_dict
     r = rig_from_dict(rig, "random rig")
     f = sorted(m.frequency for m in natural_modes(r, r.mass, r.require_cg(), J, 5e6))
     d["excitation"]["rotating"]["frequency"] = float(0.5 * (f[0] + f[1]))
@@ -83,10 +83,10 @@ def random_experiment(seed: int, effects: list, duration: float = DURATION) -> d
 def at_planned_amplitude(d: dict) -> dict:
     """``d`` with its exciter (position, spin axis, frequency kept) at the largest force the
     planner allows by its default limits (``rig-identify plan``: rotation ≤ 3°, every cable
-    ≥ 20 % of its static tension; :func:`~rig_identification.planning.amplitude_at_limits`,
+    ≥ 20 % of its static tension; :func:`~rig_identification.design.planning.amplitude_at_limits`,
     noise-free 60 s simulations)."""
-    from rig_identification.planning import Body, Run, amplitude_at_limits
-    from rig_identification.simulator import experiment_from_dict
+    from rig_identification.design.planning import Body, Run, amplitude_at_limits
+    from rig_identification.model.simulator import experiment_from_dict
     exp = experiment_from_dict(d, "random")
     ex, n = d["excitation"]["rotating"], len(exp.rig.cables)
     body = Body(exp.rig, exp.mass, exp.inertia, np.broadcast_to(np.asarray(d["cable_model"]["stiffness"], float), (n,)),
@@ -103,7 +103,7 @@ def simulate_taut(seed: int, effects: list, duration: float | None = None, plann
     """Simulate :func:`random_experiment` (``planned``: :func:`at_planned_amplitude`); a draw
     in which a cable goes slack (tension below 10 % of its share of the weight: beyond the
     rig's limits) is redrawn with the next seed.  Returns (experiment mapping, SimResult)."""
-    from rig_identification.simulator import experiment_from_dict, simulate
+    from rig_identification.model.simulator import experiment_from_dict, simulate
     duration = DURATION if duration is None else duration
     for k in range(5):
         d = random_experiment(seed + 1000 * k, effects, duration)
@@ -118,8 +118,8 @@ def simulate_taut(seed: int, effects: list, duration: float | None = None, plann
 
 def _run(seed, effects, model, duration, planned):
     """Job: simulate and diagnose; returns plain data (JSON-safe)."""
-    from rig_identification.diagnosis import diagnose
-    from rig_identification.recording import Recording
+    from rig_identification.diagnosis.selection import diagnose
+    from rig_identification.io.recording import Recording
     d, sim = simulate_taut(seed, effects, duration, planned)
     out = diagnose(Recording(sim.rig, sim.sensors, sim.truth, "simulated"), model=model).to_dict()
     out["truth"] = sim.truth
@@ -252,8 +252,8 @@ def test_thesis_model_misses_the_gyroscopic_coupling(results):
 
 
 def test_reference_clean_recording_has_no_mismatch():
-    from rig_identification.diagnosis import diagnose
-    from rig_identification.recording import read_recording
+    from rig_identification.diagnosis.selection import diagnose
+    from rig_identification.io.recording import read_recording
     d = diagnose(read_recording(recording("visible_case16_clean")))
     assert not d.mismatch, [e["name"] for e in d.effects]
 
@@ -269,7 +269,7 @@ def _damped_cli():
     from pathlib import Path
     tmp = Path(tempfile.mkdtemp(prefix="test_diagnose_"))
     try:
-        out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "diagnose",
+        out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "diagnose",
                               str(recording("visible_case16_damped")), "--json", "--report", str(tmp / "report")],
                              capture_output=True, text=True, timeout=600)
         files = sorted(p.name for p in (tmp / "report").iterdir()) if (tmp / "report").is_dir() else []
@@ -285,7 +285,7 @@ def test_reference_damped_recording_names_the_damping():
     """visible_case16_damped conceals viscous damping (its truth.yaml lists the coefficients):
     named first, both coefficients within 15 %, inertia back within the bounds; the CLI's
     JSON and report hold the same."""
-    from rig_identification.recording import read_recording
+    from rig_identification.io.recording import read_recording
     rec = read_recording(recording("visible_case16_damped"))
     tru = next(e for e in rec.truth["effects"] if e["name"] == "viscous_damping")
     code, stdout, stderr, files = gather("damped_cli")["run"]
@@ -314,9 +314,9 @@ def _default_rig_pipeline(name: str, effect: dict, refine: bool) -> tuple:
     Returns (truth, the body's mass in rig.yaml, rigid-body result, result)."""
     from pathlib import Path
 
-    from rig_identification.pipeline import identify_recording, with_diagnosis
-    from rig_identification.recording import Recording
-    from rig_identification.simulator import experiment_from_dict, simulate
+    from rig_identification.pipeline.offline import identify_recording, with_diagnosis
+    from rig_identification.io.recording import Recording
+    from rig_identification.model.simulator import experiment_from_dict, simulate
     d = yaml.safe_load((Path(__file__).resolve().parents[1] / DEFAULT).read_text())
     d["rig"].pop("dummy_mass", None)
     d["duration"] = DURATION
@@ -339,7 +339,7 @@ def test_inertia_removes_a_diagnosed_sensor_delay_and_identifies_again():
     by several percent; diagnose names the delay, it is removed from the data and the
     recording identified again — within 0.5 % (products: of the largest diagonal) and 3 σ,
     with the propagated-noise σ, since the residual is the noise's again."""
-    from rig_identification.pipeline import compare_to_truth
+    from rig_identification.pipeline.offline import compare_to_truth
     truth, _, rigid, res = gather("delay_pipeline")["run"]
     assert max(abs(c["error_percent"]) for c in compare_to_truth(rigid, truth).values()) > 5.0
     assert [e["name"] for e in res.diagnosis["effects"]] == ["sensor_delay"]
@@ -355,10 +355,10 @@ def test_cable_mass_rig_and_tensor_invert_the_simulated_body():
     """`corrected` with a cable mass gives the heavier body the simulator moves (its half-cable
     point masses at the body anchors: mass and centre of gravity), and `body_inertia` takes
     their share off that body's tensor (parallel-axis theorem), back to the vehicle's own."""
-    from rig_identification.diagnosis import body_inertia, corrected
-    from rig_identification.recording import Recording
-    from rig_identification.rig import DummyMass
-    from rig_identification.simulator import _with_dummy, experiment_from_dict, inertia_tensor, simulate
+    from rig_identification.diagnosis.selection import body_inertia, corrected
+    from rig_identification.io.recording import Recording
+    from rig_identification.io.rig import DummyMass
+    from rig_identification.model.simulator import _with_dummy, experiment_from_dict, inertia_tensor, simulate
     d = random_experiment(7, [], duration=1.0)
     sim = simulate(experiment_from_dict(d, "random"))
     rig, mu = sim.rig, 1.7
@@ -384,7 +384,7 @@ def test_inertia_diagnoses_a_weight_surplus_the_residual_does_not_show():
     rig.yaml's weight, which `pipeline.with_diagnosis` (what `rig-identify inertia` does)
     takes as model error: diagnose names the cables' mass within 15 %, and the body's own
     tensor comes back within 0.5 % (products: of the largest diagonal) and 3 σ."""
-    from rig_identification.pipeline import WEIGHT_TOLERANCE, compare_to_truth
+    from rig_identification.pipeline.offline import WEIGHT_TOLERANCE, compare_to_truth
     truth, mass, rigid, res = gather("weight_pipeline")["run"]
     assert max(abs(c["error_percent"]) for c in compare_to_truth(rigid, truth).values()) > 0.5
     assert rigid.weight_surplus == pytest.approx(4 * 1.5 / mass, rel=0.1)
@@ -400,7 +400,7 @@ def test_synchronous_rms_keeps_what_is_locked_to_the_forcing():
     + a free oscillation at an incommensurate frequency + white noise 3× the waveform:
     the synchronous RMS is the waveform's, within the noise left after averaging; the plain
     RMS is the noise's."""
-    from rig_identification.diagnosis import synchronous_rms
+    from rig_identification.diagnosis.selection import synchronous_rms
     rng = np.random.default_rng(5)
     fs, f_exc, T = 200.0, 0.91, 120.0
     t = np.arange(0.0, T, 1 / fs)
@@ -419,7 +419,7 @@ def test_synchronous_rms_keeps_what_is_locked_to_the_forcing():
 
 
 def test_exciter_phase_needs_a_rotating_exciter():
-    from rig_identification.diagnosis import exciter_phase
+    from rig_identification.diagnosis.selection import exciter_phase
     t = np.arange(0.0, 30.0, 0.005)
     exc_rot = np.eye(3)
     rot = 200.0 * np.column_stack([np.cos(2 * np.pi * t), np.sin(2 * np.pi * t), 0 * t])

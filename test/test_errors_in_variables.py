@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 from scipy.signal import butter, lfilter, sosfiltfilt
 
-from rig_identification.errors_in_variables import (NoiseRealisations, antithetic_realisations, capped,
+from rig_identification.estimation.errors_in_variables import (NoiseRealisations, antithetic_realisations, capped,
                                                     noise_share)
-from rig_identification.identification import KEYS, Segment, fit_segments
-from rig_identification.parametrisation import from_tensor
-from rig_identification.experiment import load_experiment
+from rig_identification.estimation.identification import KEYS, Segment, fit_segments
+from rig_identification.model.parametrisation import from_tensor
+from rig_identification.model.experiment import load_experiment
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"
 FS = 200.0

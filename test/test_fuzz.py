@@ -8,8 +8,8 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rig_identification.recording import RecordingError, read_sensor_data, write_recording
-from rig_identification.rig import RigError, load_rig, rig_from_dict
+from rig_identification.io.recording import RecordingError, read_sensor_data, write_recording
+from rig_identification.io.rig import RigError, load_rig, rig_from_dict
 
 REPO = Path(__file__).resolve().parents[1]
 SETTINGS = settings(max_examples=100, deadline=None, suppress_health_check=list(HealthCheck))
@@ -22,8 +22,8 @@ values = st.recursive(scalars, lambda ch: st.one_of(st.lists(ch, max_size=4),
 
 
 def _valid_rig_dict(tmp):
-    from rig_identification.rig import dump_rig
-    from rig_identification.simulator import load_experiment
+    from rig_identification.io.rig import dump_rig
+    from rig_identification.model.simulator import load_experiment
     return yaml.safe_load(dump_rig(load_experiment(str(REPO / "config/rigs/default.yaml")).rig))
 
 
@@ -93,7 +93,7 @@ def test_load_rig_random_bytes(tmp_path_factory, b):
 @pytest.fixture(scope="module", params=["mcap", "sqlite3"])
 def small_bag(request, tmp_path_factory):
     import dataclasses
-    from rig_identification.simulator import load_experiment, simulate
+    from rig_identification.model.simulator import load_experiment, simulate
     exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=2.0)
     exp = dataclasses.replace(exp, sensors=dataclasses.replace(
         exp.sensors, rates={k: min(v, 20.0) for k, v in exp.sensors.rates.items()}))

@@ -4,9 +4,9 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from rig_identification.identification import (KEYS, consistent_from_params, from_tensor, identify_inertia,
+from rig_identification.estimation.identification import (KEYS, consistent_from_params, from_tensor, identify_inertia,
                                                params_from_consistent, physically_consistent, to_tensor)
-from rig_identification.rig import rig_from_dict
+from rig_identification.io.rig import rig_from_dict
 
 RIG = rig_from_dict({"gravity": 9.80665, "cables": [
     {"name": f"c{i}", "ceiling_anchor": [x, y, 0.0], "body_anchor": [x / 2, y / 2, 1.0], "length": 2.0}
@@ -73,7 +73,7 @@ def test_integral_places_a_step_at_the_sample_that_shows_it():
     across the jump errs by a third to a half sample × the step."""
     from scipy.integrate import cumulative_simpson
 
-    from rig_identification.identification import cumulative_integral, step_indices
+    from rig_identification.estimation.identification import cumulative_integral, step_indices
     t = np.arange(101) / 100.0
     step = 5.0 * (t >= 0.5 - 1e-9)
     x = np.column_stack([np.sin(2 * np.pi * t) + step, np.cos(3 * t)])
@@ -89,7 +89,7 @@ def test_no_steps_in_smooth_or_noisy_signals():
     rng = np.random.default_rng(5)
     t = np.arange(24000) / 200.0
     smooth = 600.0 * np.column_stack([np.cos(2 * np.pi * 1.5 * t), np.sin(2 * np.pi * 1.5 * t), 0 * t])
-    from rig_identification.identification import step_indices
+    from rig_identification.estimation.identification import step_indices
     assert len(step_indices(smooth)) == 0
     noisy = smooth + rng.normal(0, 0.5, smooth.shape)
     assert len(step_indices(noisy)) == 0
@@ -101,9 +101,9 @@ def test_model_error_diagnosis_that_cannot_run_keeps_the_rigid_body_fit(monkeypa
     """`pipeline.with_diagnosis`: a fit without model error is returned as it is; with model
     error but a recording diagnose cannot handle, the rigid-body fit stays, with a warning
     that says why (the inertia command must not fail where the plain fit succeeded)."""
-    import rig_identification.pipeline as pipeline
-    from rig_identification.identification import IdentificationError
-    from rig_identification.pipeline import with_diagnosis
+    import rig_identification.pipeline.offline as pipeline
+    from rig_identification.estimation.identification import IdentificationError
+    from rig_identification.pipeline.offline import with_diagnosis
     t, w, M = euler_data(T=40.0)
     res = identify_inertia(RIG, t, w, M, band_hz=(0.5, 5.0))
     J = res.inertia.copy()

@@ -14,11 +14,11 @@ import sys
 import numpy as np
 import pytest
 
-from rig_identification import pipeline
-from rig_identification.identification import KEYS, identify_inertia, identify_inertia_joint, physically_consistent
-from rig_identification.recording import Recording, RecordingError
-from rig_identification.rig import RigError, dump_rig, read_yaml
-from rig_identification.simulator import experiment_from_dict, simulate
+from rig_identification.pipeline import offline as pipeline
+from rig_identification.estimation.identification import KEYS, identify_inertia, identify_inertia_joint, physically_consistent
+from rig_identification.io.recording import Recording, RecordingError
+from rig_identification.io.rig import RigError, dump_rig, read_yaml
+from rig_identification.model.simulator import experiment_from_dict, simulate
 
 from conftest import REPO
 
@@ -136,7 +136,7 @@ def test_cli_different_bodies_exit_2(recs, tmp_path):
         rig = recs["A"].rig if mass is None else dataclasses.replace(recs["A"].rig, mass=mass)
         (tmp_path / name).mkdir()
         (tmp_path / name / "rig.yaml").write_text(dump_rig(rig))
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(tmp_path / "light"),
+    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "inertia", str(tmp_path / "light"),
                           str(tmp_path / "heavy")], capture_output=True, text=True, timeout=120)
     assert out.returncode == 2, out.stderr
     err = out.stderr.strip()

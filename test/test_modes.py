@@ -4,10 +4,10 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rig_identification.modes import estimate_modes, match_modes, natural_modes
-from rig_identification.recording import Recording, read_recording
-from rig_identification.rig import rig_from_dict
-from rig_identification.simulator import inertia_tensor, load_experiment, simulate
+from rig_identification.model.modes import estimate_modes, match_modes, natural_modes
+from rig_identification.io.recording import Recording, read_recording
+from rig_identification.io.rig import rig_from_dict
+from rig_identification.model.simulator import inertia_tensor, load_experiment, simulate
 
 from conftest import REPO, recording
 

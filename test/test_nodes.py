@@ -26,9 +26,9 @@ rclpy = pytest.importorskip("rclpy")
 
 from rig_identification.nodes import common  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
-from rig_identification.pipeline import identify_recording  # noqa: E402
-from rig_identification.recording import read_recording, write_recording  # noqa: E402
-from rig_identification.simulator import load_experiment, simulate  # noqa: E402
+from rig_identification.pipeline.offline import identify_recording  # noqa: E402
+from rig_identification.io.recording import read_recording, write_recording  # noqa: E402
+from rig_identification.model.simulator import load_experiment, simulate  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 DURATION = 30.0
@@ -287,9 +287,9 @@ def test_identify_service_validates_as_rig_identify(graph):
 def core_in_stamp_order(rig, sensors, settle: float) -> dict:
     """The streaming core classes fed in header-stamp order in this process (no ROS): what the
     nodes must reproduce (ties as tracker_replay.track: inclinometer, tensions, IMU, exciter)."""
-    from rig_identification.identification import InertiaIdentifier
-    from rig_identification.preprocessor import WrenchPreprocessor
-    from rig_identification.tracker import PoseTracker
+    from rig_identification.estimation.identification import InertiaIdentifier
+    from rig_identification.estimation.preprocessor import WrenchPreprocessor
+    from rig_identification.estimation.tracker import PoseTracker
     tr, pp, idf = PoseTracker(rig), WrenchPreprocessor(rig), InertiaIdentifier(rig)
     names = rig.cable_names
     ev = [(t, 2, 0, i) for i, t in enumerate(sensors.imu.t)]

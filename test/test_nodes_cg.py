@@ -27,11 +27,11 @@ rclpy = pytest.importorskip("rclpy")
 from conftest import recording  # noqa: E402
 from test_nodes import Listener, wait_until  # noqa: E402
 
-from rig_identification.cg_cli import cg_result_from_dict, load_cg_result, rig_with_cg_text  # noqa: E402
+from rig_identification.cli.cg import cg_result_from_dict, load_cg_result, rig_with_cg_text  # noqa: E402
 from rig_identification.nodes import common  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
-from rig_identification.recording import read_recording  # noqa: E402
-from rig_identification.rig import dump_rig, load_rig  # noqa: E402
+from rig_identification.io.recording import read_recording  # noqa: E402
+from rig_identification.io.rig import dump_rig, load_rig  # noqa: E402
 from rig_identification.statics import StaticState, estimate_cg  # noqa: E402
 
 WAIT_FOR = ["/rig/imu:1", "/rig/load_cells/*:1", "/rig/inclinometer:1"]

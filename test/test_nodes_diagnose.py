@@ -13,7 +13,7 @@ rclpy = pytest.importorskip("rclpy")
 
 from conftest import recording  # noqa: E402
 
-from rig_identification.recording import read_recording  # noqa: E402
+from rig_identification.io.recording import read_recording  # noqa: E402
 
 
 def test_diagnose_service_names_the_damping():

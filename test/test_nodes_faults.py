@@ -28,8 +28,8 @@ from test_nodes import Listener, wait_until  # noqa: E402
 
 from rig_identification.nodes import codec, common  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
-from rig_identification.recording import read_recording, write_recording  # noqa: E402
-from rig_identification.simulator import load_experiment, simulate  # noqa: E402
+from rig_identification.io.recording import read_recording, write_recording  # noqa: E402
+from rig_identification.model.simulator import load_experiment, simulate  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 RATE = 4.0

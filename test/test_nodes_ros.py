@@ -19,7 +19,7 @@ from test_nodes import Listener, wait_until  # noqa: E402
 
 from rig_identification.nodes import common  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
-from rig_identification.rig import rig_from_dict  # noqa: E402
+from rig_identification.io.rig import rig_from_dict  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 EXPERIMENT = REPO / "config" / "rigs" / "default.yaml"

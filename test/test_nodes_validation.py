@@ -22,9 +22,9 @@ import numpy as np
 import pytest
 
 from conftest import recording
-from rig_identification.identification import identify_inertia
-from rig_identification.pipeline import identify_recording, prepare_recording
-from rig_identification.recording import read_recording, write_recording
+from rig_identification.estimation.identification import identify_inertia
+from rig_identification.pipeline.offline import identify_recording, prepare_recording
+from rig_identification.io.recording import read_recording, write_recording
 
 ENTRIES = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
@@ -95,7 +95,7 @@ def parallel_graph(tmp_path_factory):
     from test_nodes import Listener, wait_until
 
     from rig_identification.nodes.demo import Graph
-    from rig_identification.scenarios import simulate_random
+    from rig_identification.design.scenarios import simulate_random
     _, sim = simulate_random(3100, 4, "parallel", [], DURATION)
     tmp = tmp_path_factory.mktemp("parallel")
     rec = write_recording(tmp / "recording", sim.rig, sim.sensors, sim.truth)

@@ -8,15 +8,15 @@ import pytest
 from scipy.integrate import cumulative_trapezoid
 from scipy.signal import butter, sosfiltfilt
 
-from rig_identification.identification import from_tensor
-from rig_identification.modes import natural_modes
-from rig_identification.pipeline import identify_recording
-from rig_identification.planning import SPIN_AXES, resonances
-from rig_identification.propagation import (REFERENCE_NOISE, Trajectory, cumtrapz_adjoint, predict_from_trajectory,
+from rig_identification.estimation.identification import from_tensor
+from rig_identification.model.modes import natural_modes
+from rig_identification.pipeline.offline import identify_recording
+from rig_identification.design.planning import SPIN_AXES, resonances
+from rig_identification.estimation.propagation import (REFERENCE_NOISE, Trajectory, cumtrapz_adjoint, predict_from_trajectory,
                                             sosfiltfilt_adjoint)
-from rig_identification.recording import Recording
-from rig_identification.simulator import load_experiment, simulate
-from rig_identification.uncertainty import add_noise
+from rig_identification.io.recording import Recording
+from rig_identification.model.simulator import load_experiment, simulate
+from rig_identification.estimation.uncertainty import add_noise
 
 from conftest import REPO, background, gather
 
@@ -85,7 +85,7 @@ def test_predicted_std_matches_noisy_replays():
 def _plan_cli():
     """Job of test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation: `rig-identify
     plan` (a process).  Returns (exit status, stdout, stderr)."""
-    cmd = [sys.executable, "-m", "rig_identification.cli", "plan", str(DEFAULT), "--inertia", "2894", "695", "3101",
+    cmd = [sys.executable, "-m", "rig_identification.cli.main", "plan", str(DEFAULT), "--inertia", "2894", "695", "3101",
            "0", "0", "-102", "--json", "--quiet", "--duration", "30", "--runs", "1", "--refine", "1", "--frequencies", "1.3", "1.6",
            "--position", "0.8", "1.25", "1.29", "--position", "0.8", "-1.25", "1.29"]
     p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=REPO)
@@ -121,15 +121,15 @@ def test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation():
     (["--inertia", "2894", "695", "3101", "0", "0", "-102", "--mass", "-5"], "--mass"),
 ])
 def test_plan_cli_user_errors(args, words):
-    p = subprocess.run([sys.executable, "-m", "rig_identification.cli", "plan", str(DEFAULT), *args],
+    p = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "plan", str(DEFAULT), *args],
                        capture_output=True, text=True, timeout=120, cwd=REPO)
     assert p.returncode == 2
     assert words in p.stderr and "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
 
 
 def _default_body():
-    from rig_identification.planning import Body
-    from rig_identification.propagation import REFERENCE_RATES
+    from rig_identification.design.planning import Body
+    from rig_identification.estimation.propagation import REFERENCE_RATES
     exp = load_experiment(DEFAULT)
     return Body(exp.rig, exp.mass, exp.inertia, np.full(len(exp.rig.cables), 5e6), dict(REFERENCE_RATES),
                 dict(REFERENCE_NOISE))
@@ -140,8 +140,8 @@ def test_geometry_variants_hang_the_body_near_where_the_rig_does():
     re-sets the lengths to the rig's equilibrium pose: the body settles near it (within
     5 cm and 3°: the new cable directions balance the weight at a nearby pose), every cable
     taut, and the modes change."""
-    from rig_identification.planning import geometry_variants
-    from rig_identification.simulator import CableModel, equilibrium
+    from rig_identification.design.planning import geometry_variants
+    from rig_identification.model.simulator import CableModel, equilibrium
     body = _default_body()
     rig = body.rig
     cg = rig.require_cg()
@@ -175,7 +175,7 @@ def _second_geometry_plan():
     """Job of test_second_run_on_another_cable_geometry_stays_within_the_limits: the plan, and
     its other geometry's best second run simulated again on that geometry and on the rig's
     own cables.  Returns (body, label, variant rig, plan, (limits there, limits on the rig))."""
-    from rig_identification.planning import Run, geometry_variants, plan_experiment
+    from rig_identification.design.planning import Run, geometry_variants, plan_experiment
     body = _default_body()
     rig = body.rig
     label, vr = next((lab, r) for lab, r in geometry_variants(body, 1.0) if "farther apart along world y" in lab)
@@ -205,7 +205,7 @@ def test_second_run_on_another_cable_geometry_stays_within_the_limits():
     for a pair done twice: the plan was a pair at 0.388 of the baseline's σ while its first run
     done twice gave 0.306; it now plans that run twice, 0.306 — a 20 s plan is too slow for the
     suite, measured when the selection was fixed.)"""
-    from rig_identification.propagation import combine
+    from rig_identification.estimation.propagation import combine
     body, label, vr, plan, limits = gather("second_geometry")["run"]
     assert len(plan.other_geometries) == 1
     c = plan.other_geometries[0]
@@ -231,7 +231,7 @@ def test_spin_axes_point_where_their_names_say():
     them) is the z axis of its exciter rpy, and the plan's JSON gives that unit vector."""
     from scipy.spatial.transform import Rotation
 
-    from rig_identification.planning import Run
+    from rig_identification.design.planning import Run
     assert len(SPIN_AXES) == 9
     for name, rpy in SPIN_AXES.items():
         v = np.zeros(3)

@@ -27,8 +27,8 @@ from test_nodes import Listener, wait_until  # noqa: E402
 from rig_identification.nodes import common  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.nodes.recorder import partial_folder  # noqa: E402
-from rig_identification.recording import RecordingError, read_recording  # noqa: E402
-from rig_identification.simulator import load_experiment, simulate  # noqa: E402
+from rig_identification.io.recording import RecordingError, read_recording  # noqa: E402
+from rig_identification.model.simulator import load_experiment, simulate  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 EXPERIMENT = REPO / "config" / "rigs" / "default.yaml"

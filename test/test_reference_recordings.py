@@ -11,9 +11,9 @@ import sys
 import numpy as np
 import pytest
 
-from rig_identification.identification import KEYS, physically_consistent
-from rig_identification.pipeline import compare_to_truth, identify_recording
-from rig_identification.recording import read_recording
+from rig_identification.estimation.identification import KEYS, physically_consistent
+from rig_identification.pipeline.offline import compare_to_truth, identify_recording
+from rig_identification.io.recording import read_recording
 
 from conftest import background, gather, recording
 
@@ -27,7 +27,7 @@ def _cli(name: str, report: bool, *args: str):
     from pathlib import Path
     tmp = Path(tempfile.mkdtemp(prefix="test_reference_recordings_"))
     try:
-        out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(recording(name)), *args,
+        out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "inertia", str(recording(name)), *args,
                               *(["--report", str(tmp / "report")] if report else [])],
                              capture_output=True, text=True, timeout=600)
         page = tmp / "report" / "index.html"
@@ -150,7 +150,7 @@ def test_cli_json_keys():
 
 
 def test_cli_user_error_no_traceback(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia", str(tmp_path)],
+    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "inertia", str(tmp_path)],
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 2
     assert "no rig.yaml" in out.stderr and "Traceback" not in out.stderr

@@ -23,11 +23,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rig_identification import report
-from rig_identification.cli import identify_main
-from rig_identification.identification import KEYS, InertiaResult, identify_inertia
-from rig_identification.report_verdict import headline
-from rig_identification.verdict import Check, Validation
+from rig_identification.report import page as report
+from rig_identification.cli.main import identify_main
+from rig_identification.estimation.identification import KEYS, InertiaResult, identify_inertia
+from rig_identification.report.verdict import headline
+from rig_identification.io.verdict import Check, Validation
 
 from conftest import recording
 from test_identification import RIG, euler_data
@@ -125,7 +125,7 @@ def assert_readable(out: Path, seen: dict, result: InertiaResult | None = None) 
 @pytest.fixture(scope="module")
 def made(tmp_path_factory):
     out = tmp_path_factory.mktemp("report") / "case16"
-    run = subprocess.run([sys.executable, "-m", "rig_identification.cli", "inertia",
+    run = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "inertia",
                           str(recording("visible_case16_clean")), "--json", "--report", str(out)],
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr

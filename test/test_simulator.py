@@ -1,4 +1,4 @@
-"""Physics tests of the ROS-free simulator (rig_identification.simulator) and of rig-sim.
+"""Physics tests of the ROS-free simulator (rig_identification.model.simulator) and of rig-sim.
 
 Every check recomputes the physics independently from the simulator's outputs (poses,
 sensor streams, rig geometry) instead of comparing with stored numbers, and validates the
@@ -14,10 +14,10 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
-from rig_identification.recording import read_recording
-from rig_identification.rig import load_rig
-from rig_identification.sim_cli import sim_main
-from rig_identification.simulator import (CableModel, ExperimentError, SimulationError, equilibrium,
+from rig_identification.io.recording import read_recording
+from rig_identification.io.rig import load_rig
+from rig_identification.cli.sim import sim_main
+from rig_identification.model.simulator import (CableModel, ExperimentError, SimulationError, equilibrium,
                                           experiment_from_dict, inertia_tensor, load_experiment, simulate)
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -1,4 +1,4 @@
-"""Physics tests of the simulator's newer concealed effects (rig_identification.effects):
+"""Physics tests of the simulator's newer concealed effects (rig_identification.model.effects):
 gyro_bias_drift, gyro_scale, structural_mode and compliant_body.
 
 Each test compares the effect's recording with the same experiment simulated without it
@@ -16,8 +16,8 @@ import pytest
 import yaml
 from scipy.spatial.transform import Rotation
 
-from rig_identification.scenarios import simulate_random
-from rig_identification.simulator import (ExperimentError, equilibrium, experiment_from_dict, mode_response,
+from rig_identification.design.scenarios import simulate_random
+from rig_identification.model.simulator import (ExperimentError, equilibrium, experiment_from_dict, mode_response,
                                           simulate, split_body)
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -230,7 +230,9 @@ def test_compliant_body_at_rest_is_the_rigid_equilibrium(static):
     assert np.abs(st.velocity).max() < 1e-7 and np.abs(st.omega).max() < 1e-7
     np.testing.assert_allclose(st.position, rigid.states.position, atol=1e-9)
     assert (st.rotation * rigid.states.rotation.inv()).magnitude().max() < 1e-10
-    np.testing.assert_allclose(st.tensions, rigid.states.tensions, rtol=1e-8)
+    # tensions to the integrator's tolerance on the stiff cables: k · COMPLIANT_ATOL = 5e6 N/m · 1e-11 m
+    # = 5e-5 N per step (seen: 8e-5 N), against 0.5 N of load-cell noise
+    np.testing.assert_allclose(st.tensions, rigid.states.tensions, rtol=0, atol=1e-3)
     np.testing.assert_allclose(res.sensors.imu.data, rigid.sensors.imu.data, atol=1e-6)   # 1e-7 g
     np.testing.assert_allclose(res.sensors.inclinometer.data, rigid.sensors.inclinometer.data, atol=1e-12)
     # the load cells carry the whole weight (with the dummy's)

@@ -12,9 +12,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from rig_identification.recording import SensorData, TimeSeries, read_recording
-from rig_identification.rig import DummyMass
-from rig_identification.simulator import experiment_from_dict, load_experiment, simulate
+from rig_identification.io.recording import SensorData, TimeSeries, read_recording
+from rig_identification.io.rig import DummyMass
+from rig_identification.model.simulator import experiment_from_dict, load_experiment, simulate
 from rig_identification.statics import (CgOptions, SensorNoise, StaticState, StaticsError, estimate_cg,
                                         plan_static_test, predict_cg_std, static_equilibrium)
 from rig_identification.statics.model import GlobalUnknowns, StaticModel, skew
@@ -100,7 +100,7 @@ def test_reference_pair_within_bounds(reference_pair):
 
 def test_cli_json(reference_pair):
     b, d = reference_pair
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "cg", str(b.path), str(d.path), "--json"],
+    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "cg", str(b.path), str(d.path), "--json"],
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     j = json.loads(out.stdout)
@@ -112,12 +112,12 @@ def test_cli_json(reference_pair):
 
 def test_cli_user_errors_one_line(tmp_path, reference_pair):
     b, _ = reference_pair
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "cg", str(b.path), str(tmp_path)],
+    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "cg", str(b.path), str(tmp_path)],
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and "Traceback" not in out.stderr
     assert len(out.stderr.strip().splitlines()) == 1 and "no rig.yaml" in out.stderr
     # the baseline twice: the "dummy" state carries no extra weight
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "cg", str(b.path), str(b.path)],
+    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "cg", str(b.path), str(b.path)],
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and "dummy mass attached" in out.stderr and "Traceback" not in out.stderr
 
@@ -245,7 +245,7 @@ def test_two_rigs_must_match(tmp_path, reference_pair):
     shutil.copytree(d.path, other)
     text = (other / "rig.yaml").read_text().replace("mass: 1810.0", "mass: 1811.0")
     (other / "rig.yaml").write_text(text)
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "cg", str(b.path), str(other)],
+    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "cg", str(b.path), str(other)],
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 2 and "different rigs" in out.stderr and "body" in out.stderr
 
@@ -367,7 +367,7 @@ def test_prediction_and_plan(reference_pair):
 
 def test_cg_plan_cli(reference_pair):
     b, _ = reference_pair
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli", "cg-plan", str(b.path), "--json",
+    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "cg-plan", str(b.path), "--json",
                           "--masses", "50", "--position", "0.8", "1.25", "1.29", "--cg-guess", "0", "0", "0",
                           "--anchor-std", "0", "--length-std", "0", "--dummy-position-std", "0"],
                          capture_output=True, text=True, timeout=120)

@@ -9,9 +9,9 @@ from pathlib import Path
 
 import pytest
 
-from rig_identification.pipeline import compare_to_truth, identify_recording
-from rig_identification.recording import Recording
-from rig_identification.simulator import load_experiment, simulate
+from rig_identification.pipeline.offline import compare_to_truth, identify_recording
+from rig_identification.io.recording import Recording
+from rig_identification.model.simulator import load_experiment, simulate
 
 CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
 
@@ -32,7 +32,7 @@ def test_pulse_cases_run_through_the_table():
     sensor) go through `rig-identify thesis-table` with both models, within the issue's
     0.05 %: case 4 (identification on the free motion after the pulses), cases 1 and 2 (the
     pulses themselves, sampled at 100 Hz without anti-aliasing; the thesis: 0.4–8 %)."""
-    from rig_identification.thesis_table import run_case
+    from rig_identification.pipeline.thesis_table import run_case
     for name, bound in (("case04", 0.05), ("case01", 0.05), ("case02", 0.05), ("case07", 0.05)):
         row = run_case(name)
         assert isinstance(row["ours"], dict) and isinstance(row["thesis_model"], dict), row

@@ -16,13 +16,13 @@ import yaml
 from conftest import background, gather, recording
 from scipy.spatial.transform import Rotation
 
-from rig_identification import tracker_kernel
-from rig_identification.pipeline import compare_to_truth, identify_recording
-from rig_identification.recording import Recording, crop, read_recording
-from rig_identification.scenarios import simulate_random
-from rig_identification.simulator import experiment_from_dict, load_experiment, simulate
-from rig_identification.tracker import PoseTrack, TrackerError
-from rig_identification.tracker_replay import (EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS,
+from rig_identification.estimation import tracker_kernel
+from rig_identification.pipeline.offline import compare_to_truth, identify_recording
+from rig_identification.io.recording import Recording, crop, read_recording
+from rig_identification.design.scenarios import simulate_random
+from rig_identification.model.simulator import experiment_from_dict, load_experiment, simulate
+from rig_identification.estimation.tracker import PoseTrack, TrackerError
+from rig_identification.estimation.tracker_replay import (EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS,
                                                merge_events, replay, track)
 
 CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
@@ -262,7 +262,7 @@ def test_compiled_replay_equals_python_without_inclinometer(offset_sim_no_inclin
 def test_without_numba_the_python_path_runs_with_a_warning(reference_window, monkeypatch):
     rig, s = reference_window
     s = crop(s, s.t_start, s.t_start + 3.0)
-    monkeypatch.setitem(sys.modules, "rig_identification.tracker_kernel", None)   # as when numba is missing
+    monkeypatch.setitem(sys.modules, "rig_identification.estimation.tracker_kernel", None)   # as when numba is missing
     with pytest.warns(RuntimeWarning, match="numba"):
         poses, _ = replay(rig, s)
     with pytest.raises(ImportError):

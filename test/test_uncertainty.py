@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import yaml
 
-from rig_identification.identification import KEYS, from_tensor
-from rig_identification.pipeline import identify_recording
-from rig_identification.recording import Recording
-from rig_identification.simulator import experiment_from_dict, simulate
-from rig_identification.noise import white_sigma
+from rig_identification.estimation.identification import KEYS, from_tensor
+from rig_identification.pipeline.offline import identify_recording
+from rig_identification.io.recording import Recording
+from rig_identification.model.simulator import experiment_from_dict, simulate
+from rig_identification.io.noise import white_sigma
 
 from conftest import background, gather
 

@@ -55,10 +55,10 @@ from rclpy.utilities import remove_ros_args
 from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
-from ..atomic import atomic_write_text
-from ..cg_cli import CgResultError, check_rig_target, cg_result_from_dict, rig_with_cg_text
-from ..export import AXES, convention_lines
-from ..rig import RigError
+from ..io.atomic import atomic_write_text
+from ..cli.cg import CgResultError, check_rig_target, cg_result_from_dict, rig_with_cg_text
+from ..io.export import AXES, convention_lines
+from ..io.rig import RigError
 from . import common
 
 #: the tensor entries in the order of every rig-identify table and option (moments, then products)

@@ -70,7 +70,7 @@ import rclpy
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from ..rig import Rig, RigError
+from ..io.rig import Rig, RigError
 from .codec import (IMU_FIELDS, ODOMETRY_FIELDS, VECTOR_FIELDS, WRENCH_FIELDS, MessageLayout,  # noqa: F401
                     PersistentReason, imu_layout, odometry_layout, split_stamps, vector_layout, wrench_layout)
 from .frames import (BODY_FRAME, EXCITER_FRAME, IMU_FRAME, INCLINOMETER_FRAME, WORLD_FRAME,  # noqa: F401
@@ -199,7 +199,7 @@ def load_rig_source(path: str | Path) -> Rig:
     sensor_driver's simulation of that file writes as rig.yaml, unless the experiment has
     effects that change rig.yaml — then give the driver's ``rig_out`` file).
 
-    Raises :class:`~rig_identification.rig.RigError` naming the file (missing file, no
+    Raises :class:`~rig_identification.io.rig.RigError` naming the file (missing file, no
     rig.yaml in the folder, bad field)."""
     p = Path(path)
     if p.is_dir():
@@ -208,7 +208,7 @@ def load_rig_source(path: str | Path) -> Rig:
                            "recording folder)")
         p = p / "rig.yaml"
     # simulator (scipy.integrate) imported only here: the nodes that take no rig file skip it
-    from ..simulator import load_rig_or_experiment
+    from ..model.simulator import load_rig_or_experiment
     return load_rig_or_experiment(p)
 
 
@@ -216,7 +216,7 @@ def load_rig_param(node: Node) -> Rig:
     """Load the rig description named by the node's ``rig`` parameter: a rig.yaml, a
     recording folder or an experiment file (:func:`load_rig_source`).
 
-    Raises :class:`~rig_identification.rig.RigError` with a clear message.
+    Raises :class:`~rig_identification.io.rig.RigError` with a clear message.
     """
     path = node.get_parameter("rig").value
     if not path:
@@ -286,13 +286,13 @@ class InputGuard:
 
     Gaps: two consecutive accepted stamps of a topic further apart than
     ``max(max_gap, 1.5 × the topic's typical sampling period)`` (the offline rule of
-    :func:`~rig_identification.recording.find_bad_spans`) are recorded in ``gaps[topic]``
+    :func:`~rig_identification.io.recording.find_bad_spans`) are recorded in ``gaps[topic]``
     as (t0, t1) header stamps (the last ``keep_gaps``).  ``last_arrival[topic]`` is the
     monotonic wall time of the latest message (silence: see :class:`Diagnostics`).
     """
 
     def __init__(self, node: Node, period: float = 5.0, max_gap: float | None = None, keep_gaps: int = 100):
-        from ..recording import SHORT_GAP
+        from ..io.recording import SHORT_GAP
         self.node = node
         self.period = period
         self.max_gap = SHORT_GAP if max_gap is None else max_gap

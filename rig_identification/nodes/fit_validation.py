@@ -1,16 +1,16 @@
 """The identifier node's model validation, with the offline core.
 
-``rig-identify inertia`` validates every fit (:func:`~rig_identification.pipeline.validate_fit`:
+``rig-identify inertia`` validates every fit (:func:`~rig_identification.pipeline.offline.validate_fit`:
 the verdict ok | model_error | not_identifiable, σ widened, undetermined entries null).  Besides
 the fit's own gyro and torque, the checks read three streams the fit does not use: the
 accelerometer (the ``accelerometer`` check), the generalized force and the tracked orientation
 (the ``weight`` check).  :class:`ValidationBuffer` keeps them as the identifier node receives
 them (``/rig/imu``, ``/rig/generalized_wrench``, ``/rig/pose``); :func:`validate_stream_fit`
 cuts them to the fit's window the way the node's fit cuts its buffer
-(:meth:`~rig_identification.identification.InertiaIdentifier.identify`) and hands them to the
-same core function the offline path runs (:func:`~rig_identification.pipeline.apply_validation`,
-inputs built by :func:`~rig_identification.pipeline.accel_input` and
-:func:`~rig_identification.pipeline.force_weight_surplus`).  The node's fit does not propagate
+(:meth:`~rig_identification.estimation.identification.InertiaIdentifier.identify`) and hands them to the
+same core function the offline path runs (:func:`~rig_identification.pipeline.offline.apply_validation`,
+inputs built by :func:`~rig_identification.pipeline.offline.accel_input` and
+:func:`~rig_identification.pipeline.offline.force_weight_surplus`).  The node's fit does not propagate
 the sensors' noise (no replays), so its validation is that of ``rig-identify inertia --quick``.
 
 ROS-free (plain numpy): the node only feeds it.
@@ -21,10 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..identification import InertiaResult
-from ..noise import white_sigma
-from ..pipeline import accel_input, apply_validation, force_weight_surplus, weight_warning
-from ..rig import Rig
+from ..estimation.identification import InertiaResult
+from ..io.noise import white_sigma
+from ..pipeline.offline import accel_input, apply_validation, force_weight_surplus, weight_warning
+from ..io.rig import Rig
 
 STAMP_MATCH = 1e-6   # s: a pose and a wrench sample are the same instant (the wrench carries the pose's stamp)
 
@@ -110,13 +110,13 @@ class ValidationBuffer:
 def validate_stream_fit(rig: Rig, result: InertiaResult, win: ValidationWindow, lo: float,
                         hi: float) -> InertiaResult:
     """Validate the node's fit ``result`` over the window [lo, hi] (absolute stamps, s) with the
-    offline core (:func:`~rig_identification.pipeline.apply_validation`).
+    offline core (:func:`~rig_identification.pipeline.offline.apply_validation`).
 
     The samples are those of the fit: the wrench stamps in [lo, hi] inside the IMU's span, the
     gyro and the specific force interpolated to them and turned to body axes (as
-    :meth:`~rig_identification.identification.InertiaIdentifier.identify` and
-    :func:`~rig_identification.pipeline.accel_inputs` do); the accelerometer's noise is
-    :func:`~rig_identification.noise.white_sigma` of the window's samples.  The weight check
+    :meth:`~rig_identification.estimation.identification.InertiaIdentifier.identify` and
+    :func:`~rig_identification.pipeline.offline.accel_inputs` do); the accelerometer's noise is
+    :func:`~rig_identification.io.noise.white_sigma` of the window's samples.  The weight check
     uses the poses stamped as the wrench samples; with fewer than 90 % of them matched (no
     ``/rig/pose`` received) it is skipped and a warning says so.  Sets ``result.validation``,
     ``result.weight_surplus``; widens σ; adds the verdict's and the weight's warnings.

@@ -1,6 +1,6 @@
 """identifier: buffers the gyro and the generalized wrench; fits the inertia tensor on request.
 
-Thin node around rig_identification.identification.InertiaIdentifier (the same fit as
+Thin node around rig_identification.estimation.identification.InertiaIdentifier (the same fit as
 the offline ``rig-identify``), validated by the offline core (fit_validation: the verdict,
 widened σ and null undetermined entries of ``rig-identify inertia --quick``).
 
@@ -76,7 +76,7 @@ Services (std_srvs/Trigger; ``message`` is JSON):
   ~/estimate_cg       step 3: the CG from the two states (rig_identification.statics, as
                       ``rig-identify cg``); success=true: CgResult.to_dict(); publishes it
   ~/diagnose          where the rigid-body model and the last ``diagnose_seconds`` of the raw
-                      streams disagree and which physics is missing (rig_identification.diagnosis,
+                      streams disagree and which physics is missing (rig_identification.diagnosis.selection,
                       as ``rig-identify diagnose``); success=true: the diagnosis JSON; the improved
                       tensor (inertia_about_cg_after) is published on /rig/mass_properties
   ~/status            buffered samples: {"imu": n, "wrench": n, "duration": s, "busy": bool, ...}
@@ -126,7 +126,7 @@ class IdentifierNode(Node):
         super().__init__("identifier")
         from geometry_msgs.msg import InertiaStamped
 
-        from ..identification import InertiaIdentifier, identify_inertia
+        from ..estimation.identification import InertiaIdentifier, identify_inertia
         self.declare_parameter("rig", "")
         self.declare_parameter("executor", "events")
         dyn = ParameterDescriptor(dynamic_typing=True,
@@ -155,7 +155,7 @@ class IdentifierNode(Node):
         self.cg_session = self._new_cg_session()
         # the raw streams of the last diagnose_seconds, for ~/diagnose (same buffer class)
         self.declare_parameter("diagnose_seconds", 120.0)
-        from ..cg_capture import CgSession
+        from ..statics.capture import CgSession
         self.diag_buffer = CgSession(rig, float(self.get_parameter("diagnose_seconds").value))
         self.last_inertia = None
         self.last_cg = rig.center_of_gravity
@@ -234,7 +234,7 @@ class IdentifierNode(Node):
                 self.validation_buffer.add_imu([ts[i] for i in kept], vals[kept])
 
     def _add_wrench(self, ts: list, vals) -> None:
-        from ..preprocessor import Wrench
+        from ..estimation.preprocessor import Wrench
         if self.identifier is None:
             return
         kept = []
@@ -276,8 +276,8 @@ class IdentifierNode(Node):
 
     # --- the static CG experiment -----------------------------------------------------
     def _new_cg_session(self):
-        from ..cg_capture import CgSession
-        from ..rig import DummyMass
+        from ..statics.capture import CgSession
+        from ..io.rig import DummyMass
         dm, dp = self.get_parameter("dummy_mass").value, self.get_parameter("dummy_position").value
         dummy = None
         if dm is not None or dp is not None:
@@ -327,8 +327,8 @@ class IdentifierNode(Node):
         with a clear message."""
         from pathlib import Path
 
-        from ..diagnosis import diagnose
-        from ..recording import Recording
+        from ..diagnosis.selection import diagnose
+        from ..io.recording import Recording
         if self.rig.center_of_gravity is None:
             raise ValueError("rig.yaml has no body.center_of_gravity: diagnose needs it (run the CG experiment)")
         with self.lock:

@@ -1,6 +1,6 @@
 """preprocessor: cable tensions + tracked pose + exciter force -> generalized wrench.
 
-Thin node around rig_identification.preprocessor.WrenchPreprocessor (the same code as
+Thin node around rig_identification.estimation.preprocessor.WrenchPreprocessor (the same code as
 the offline ``rig-identify``): aligns the streams by header stamp and publishes, for each
 pose that every stream covers, the force and the moment about the CG on the body.
 
@@ -58,7 +58,7 @@ class PreprocessorNode(Node):
         super().__init__("preprocessor")
         from geometry_msgs.msg import WrenchStamped
 
-        from ..preprocessor import WrenchPreprocessor
+        from ..estimation.preprocessor import WrenchPreprocessor
         self.declare_parameter("rig", "")
         self.declare_parameter("executor", "events")
         self.declare_parameter("batch_period", 0.005)

@@ -67,8 +67,8 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
-from ..atomic import atomic_directory
-from ..rig import RigError, dump_rig, read_yaml
+from ..io.atomic import atomic_directory
+from ..io.rig import RigError, dump_rig, read_yaml
 from . import common
 
 #: suffix of the folder a recording is written into before it is renamed to OUTPUT
@@ -102,7 +102,7 @@ def partial_folder(output: Path) -> Path:
 def rig_text(source: str | Path) -> str:
     """rig.yaml text for the rig description ``source``: a rig.yaml file as is (comments
     kept), a recording folder's rig.yaml, or an experiment file's ``rig:`` section written
-    out.  Validated first (raises :class:`~rig_identification.rig.RigError`)."""
+    out.  Validated first (raises :class:`~rig_identification.io.rig.RigError`)."""
     rig = common.load_rig_source(source)
     p = Path(source)
     if p.is_dir():

@@ -1,6 +1,6 @@
 """tracker: pose of the suspended body from the IMU, inclinometer and load cells.
 
-Thin node around rig_identification.tracker.PoseTracker (the same code as the offline
+Thin node around rig_identification.estimation.tracker.PoseTracker (the same code as the offline
 ``rig-identify``).
 
 Parameters:
@@ -75,7 +75,7 @@ class TrackerNode(Node):
         super().__init__("tracker")
         from nav_msgs.msg import Odometry
 
-        from ..tracker import PoseTracker
+        from ..estimation.tracker import PoseTracker
         self.declare_parameter("rig", "")
         self.declare_parameter("use_tensions", True)
         self.declare_parameter("max_delay", 5.0)
@@ -221,7 +221,7 @@ class TrackerNode(Node):
             tr = self.tracker
             if tr.initialised and t - tr._t > self.reinit_gap:
                 # no integration across a hole in the IMU stream: start again from the data after it
-                from ..tracker import PoseTracker
+                from ..estimation.tracker import PoseTracker
                 self.get_logger().warn(f"no IMU data for {t - tr._t:.2f} s: re-initialising the tracker")
                 self.tracker = PoseTracker(self.rig, **self.params)
                 self.reinitialised += 1

@@ -60,7 +60,7 @@ from scipy.spatial.transform import Rotation
 from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ..rig import Rig
+from ..io.rig import Rig
 from . import common
 
 try:  # on a ROS computer; the pip wheels of this package's setup have no tf2_msgs

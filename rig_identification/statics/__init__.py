@@ -63,7 +63,7 @@ names, so ``from rig_identification.statics import X`` works for all of them):
   Newton solve and the predicted measurements (:class:`~.model.StaticModel`,
   :class:`~.model.GlobalUnknowns`); :class:`CgOptions` and the survey σ defaults; the forward
   model :func:`static_equilibrium`;
-* :mod:`.validation` -- model validation of a fit (:class:`CgValidation`);
+* :mod:`rig_identification.estimation.validation` -- model validation of a fit (:class:`CgValidation`);
 * :mod:`.result` -- the estimate (:class:`CgResult`, :class:`StatePose`) and its JSON schema;
 * :mod:`.estimation` -- the fit, :func:`estimate_cg`;
 * :mod:`.plan` -- design of the static test (:class:`SensorNoise`, :func:`predict_cg_std`,

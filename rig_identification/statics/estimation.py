@@ -17,9 +17,9 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.stats import chi2 as _chi2
 
-from ..rig import DummyMass, Rig
-from ..tracker import TrackerError, inclinometer_elevations, static_pose
-from ..verdict import Check
+from ..io.rig import DummyMass, Rig
+from ..estimation.tracker import TrackerError, inclinometer_elevations, static_pose
+from ..io.verdict import Check
 from .model import DEFAULT_COMPLIANCE, Z, CgOptions, GlobalUnknowns, StaticModel, skew
 from .result import CgResult, StatePose
 from .state import StaticsError, StaticState

@@ -23,8 +23,8 @@ from typing import NamedTuple, Sequence
 import numpy as np
 from scipy.linalg import expm
 
-from ..rig import DummyMass, Rig
-from ..simulator import CableModel, SimulationError, equilibrium
+from ..io.rig import DummyMass, Rig
+from ..model.simulator import CableModel, SimulationError, equilibrium
 from .state import StaticsError
 
 Z = np.array([0.0, 0.0, 1.0])    # world z, up (gravity is -g Z)

@@ -16,7 +16,7 @@ from typing import Sequence
 
 import numpy as np
 
-from ..rig import DummyMass, Rig
+from ..io.rig import DummyMass, Rig
 from .estimation import estimate_cg
 from .model import Z, CgOptions, static_equilibrium
 from .result import CgResult

@@ -17,8 +17,8 @@ from typing import Sequence
 import numpy as np
 from scipy.stats import chi2 as _chi2
 
-from ..recording import SensorData, TimeSeries
-from ..rig import DummyMass, Rig
+from ..io.recording import SensorData, TimeSeries
+from ..io.rig import DummyMass, Rig
 
 MOTION_P = 1e-4                  # per-channel p-value below which a state is "moving"
 
@@ -219,7 +219,7 @@ class StaticState:
 
     @classmethod
     def from_recording(cls, recording, label: str = "state", **kw) -> "StaticState":
-        """:meth:`from_window` over a whole :class:`~.recording.Recording`."""
+        """:meth:`from_window` over a whole :class:`~rig_identification.io.recording.Recording`."""
         st = cls.from_window(recording.sensors, label=label, **kw)
         st.warnings = [f"{recording.path}: {w}" for w in recording.warnings] + st.warnings
         return st

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.stats import chi2 as _chi2
 from scipy.stats import norm as _norm
 
-from ..verdict import Check
+from ..io.verdict import Check
 
 CHI2_P_WARN = 0.01               # global fit: p-value below which σ are inflated (Birge ratio)
 # Model validation of the CG fit (CgValidation): a check fails beyond the two-sided 3 σ of a
@@ -29,7 +29,7 @@ CG_MODEL_CHECKS = ("fit_chi2", "tilt_change", "inclinometer_level")
 @dataclass(frozen=True)
 class CgValidation:
     """Model validation of a CG fit: ``verdict`` (one of :data:`CG_VERDICTS`: ``model_error``
-    when a check of :data:`CG_MODEL_CHECKS` failed) and the :class:`~rig_identification.verdict.Check` list:
+    when a check of :data:`CG_MODEL_CHECKS` failed) and the :class:`~rig_identification.io.verdict.Check` list:
 
     * ``fit_chi2``: χ²/dof of the whole fit (threshold: its 99th percentile);
     * ``tilt_change``: the inclinometer's change of elevation between the baseline and each
@@ -92,7 +92,7 @@ def validate_fit(r: np.ndarray, U: np.ndarray, incl_rows: list, labels: list[str
 
     labels: the states' labels (baseline first); chi2, dof: the fit's χ² and degrees of
     freedom; mass_check: the load cells' weight against the scale's (a
-    :class:`~rig_identification.verdict.Check`, or None without load cells), appended as is;
+    :class:`~rig_identification.io.verdict.Check`, or None without load cells), appended as is;
     offset_fitted: the inclinometer's offsets were fitted (then ``inclinometer_level`` is not
     testable).  Checks and thresholds: :class:`CgValidation`."""
     checks = []

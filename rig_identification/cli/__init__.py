@@ -1,0 +1,1 @@
+"""The command lines rig-identify and rig-sim. Layer 6."""

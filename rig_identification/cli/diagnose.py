@@ -1,0 +1,125 @@
+"""``rig-identify diagnose``: where the rigid-body model and a recording disagree, and why.
+
+Two fits, said apart:
+
+* the rigid-body fit — the same pipeline as ``rig-identify inertia --quick --no-diagnose``
+  (:func:`~rig_identification.pipeline.offline.identify_recording` without the σ replays: tracker, preprocessor,
+  identifier, validation), so that both commands print the same rigid-body tensor for a
+  recording;
+* diagnose's own model fit (:func:`~rig_identification.diagnosis.selection.diagnose`): the tensor fitted jointly with the
+  effects found, on its own residual groups (gyro, accelerometer, mean levels), which is what
+  its likelihood ratios compare.  Its rigid-body baseline (``inertia_about_cg_before`` in the
+  JSON) weighs the accelerometer and the mean moment too, and so differs from the rigid-body
+  fit by a fraction of σ to a few σ under model error; the text output does not print it.
+
+Effect parameters print with their units (:data:`~rig_identification.cli.text.EFFECT_UNITS`), p-values as
+``p < 1e-300`` when they underflow.
+"""
+from __future__ import annotations
+
+import json
+import sys
+
+from .inertia import truth_columns, window_line
+from .progress import step
+from .text import effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
+from ..diagnosis.selection import diagnose
+from ..report.diagnosis_page import write_report
+from ..io.export import AXES, ORDER, convention_lines
+from ..estimation.identification import KEYS, InertiaResult
+from ..pipeline.offline import identify_recording
+from ..io.recording import read_recording
+
+
+def same_as(model: str) -> str:
+    """The ``rig-identify inertia`` command line whose fit is diagnose's rigid-body fit."""
+    return "rig-identify inertia --quick --no-diagnose" + (" --model thesis" if model == "thesis" else "")
+
+
+def rigid_body_dict(result: InertiaResult, t0: float, model: str) -> dict:
+    """The rigid-body fit's part of diagnose's JSON: what ``rig-identify inertia --quick
+    --no-diagnose --json`` says of the tensor, its σ, verdict, window and band."""
+    d = result.to_dict(t0=t0)
+    keep = ("inertia_about_cg", "inertia_std", "products_of_inertia", "uncertainty", "window", "band_hz",
+            "residual_rms_rad_s", "method")
+    return {"as": same_as(model), **{k: d[k] for k in keep},
+            "verdict": None if result.validation is None else result.validation.verdict,
+            "summary": None if result.validation is None else result.validation.summary}
+
+
+def print_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> None:
+    """The text output of ``rig-identify diagnose``."""
+    t0 = float(rec.sensors.t_start)
+    print(f"recording: {rec.path}")
+    for line in convention_lines(AXES["body"]):
+        print(line)
+    print(f"rigid-body fit (the same as {same_as(model)}):")
+    print("  " + (result.validation.summary if result.validation is not None else "verdict: none"))
+    print("  " + window_line(result, t0))
+    ex = result.expressed("body")
+    for line in tensor_table(ex, truth_columns(result, rec.truth, "body")):
+        print("  " + line)
+    name = "ours (Newton–Euler with ω × Jω)" if model == "pem" else "the thesis (no ω × Jω)"
+    print(f"diagnose: model {name}; "
+          f"band {d.band[0]:.2f}–{d.band[1]:.2f} Hz")
+    if not d.mismatch:
+        if d.tried:
+            best = max(d.tried, key=lambda c: c["likelihood_ratio"])
+            print("no significant mismatch: the rigid-body model explains the recording (best candidate "
+                  f"{best['name']}, p {p_text(best['p_value'])})")
+        else:
+            print("no significant mismatch: the rigid-body model explains the recording")
+    for e in out["effects"]:
+        red = ", ".join(f"{k} −{100 * r:.0f} %" for k, r in list(e["evidence"]["rms_reduction"].items())[:4])
+        plausible = "" if e.get("plausible", True) else f" — NOT plausible: {e.get('implausible')}"
+        print(f"effect: {e['name']}: {effect_text(e)}{plausible}")
+        print(f"   evidence: {evidence_text(e)}; residual RMS {red}")
+    s0, s1 = out["residual_rms_synchronous_before"], out["residual_rms_synchronous_after"]
+    if d.mismatch and s0 is not None and s1 is not None:
+        red = sorted(((1 - s1[k] / s0[k], k) for k in s0 if s0[k] > 0), reverse=True)[:4]
+        print(f"   synchronous residual ({out['synchronous_revolutions']:.0f} exciter revolutions averaged): "
+              + ", ".join(f"{k} −{100 * r:.0f} %" for r, k in red))
+    if d.mismatch:
+        std = dict(zip(KEYS, d.inertia_std_after))
+        print("tensor with the effects (diagnose's joint fit of the tensor and the effects), kg·m²: "
+              + entries_line(out["inertia_about_cg_after"], {k: std[k] for k in ORDER}))
+        if rec.truth and "inertia_about_cg" in rec.truth:
+            print("truth (truth.yaml), kg·m²: " + entries_line(rec.truth["inertia_about_cg"]))
+        print("(rig-identify inertia adds what diagnose names to the model, fits again and validates: its tensor "
+              "is the one to use)")
+    for name, loc in out["located"].items():
+        if (loc["peaks"] or loc["grows_at"]) and mismatch_channel(out, name):
+            where = [f"peak {fmt(p['hz'], '.3g')} Hz ({p['is']})" for p in loc["peaks"][:2]]
+            if loc["grows_at"]:
+                where.append("grows " + loc["grows_at"])
+            print(f"located: {name}: " + "; ".join(where))
+
+
+def mismatch_channel(out: dict, name: str) -> bool:
+    """A channel worth naming: the effects found reduced its residual by ≥ 10 %."""
+    return any(name in e["evidence"]["rms_reduction"] for e in out["effects"])
+
+
+def cmd_diagnose(args) -> int:
+    """``rig-identify diagnose``; returns the exit status (user errors raise)."""
+    step(f"reading {args.recording}")
+    rec = read_recording(args.recording)
+    step("rigid-body fit (tracker, preprocessor, fit, validation)")
+    result = identify_recording(rec, refine=False, model=args.model)
+    step("diagnosing (effect library, likelihood-ratio selection)")
+    d = diagnose(rec, model=args.model)
+    if args.report:
+        step(f"writing the report to {args.report}")
+        write_report(d, args.report, title=f"diagnosis of {rec.path}")
+    args.progress.finish()
+    out = d.to_dict()
+    out["rigid_body_fit"] = rigid_body_dict(result, float(rec.sensors.t_start), args.model)
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print_diagnosis(rec, result, d, out, args.model)
+    args.progress.warn_rest(result.warnings + d.warnings)
+    if result.validation is not None and result.validation.verdict != "ok":
+        print(f"note: the rigid-body fit's verdict is {result.validation.verdict}: rig-identify inertia (without "
+              "--no-diagnose) adds what diagnose names to the model and reports that fit", file=sys.stderr)
+    return 0

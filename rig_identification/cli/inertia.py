@@ -1,0 +1,276 @@
+"""``rig-identify inertia``: identify the inertia tensor of one or more dynamic recordings.
+
+Prints, in this order: the verdict (:attr:`~rig_identification.io.verdict.Validation.summary`), the recording(s),
+the conventions (frame, units, sign: :func:`~rig_identification.io.export.convention_lines`), mass and CG, the
+window, the tensor about the CG with σ (and the truth when truth.yaml is there), the products
+of inertia with the vehicle-dynamics sign, the principal moments and axes, the tensor about the
+body frame's origin, what σ is, the diagnosis, the bias correction, the validation's checks and
+the most weakly determined combination.  ``--json`` prints :meth:`~rig_identification.estimation.identification.InertiaResult.to_dict`
+instead; ``--urdf`` adds a URDF ``<inertial>`` element and ``--yaml FILE`` writes
+:func:`~rig_identification.io.export.export_dict` (atomically).
+"""
+from __future__ import annotations
+
+import json
+import sys
+from dataclasses import replace
+from datetime import datetime, timezone
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+
+from ..io.atomic import atomic_write_text
+from .cg import load_cg_result
+from .main import version
+from .progress import step, warn
+from .text import (effect_text, entries_line, fmt, origin_line, principal_lines, products_line, tensor_table)
+from ..io.export import AXES, axes_block, convention_lines, entries_from_option, export_dict, sign_in, \
+    urdf_inertial, yaml_text
+from ..estimation.identification import KEYS, IdentificationError, InertiaResult
+from ..pipeline.offline import (check_same_body, compare_to_truth, identify_recording, identify_recordings, recording_labels,
+                       with_diagnosis)
+from ..io.recording import read_recording
+from ..report.page import ReportError, check_report_dir, common_truth, write_report
+from ..io.rig import load_rig
+
+
+def truth_columns(result: InertiaResult, truth: dict | None, axes: str) -> dict | None:
+    """truth.yaml's comparison (:func:`~rig_identification.pipeline.offline.compare_to_truth`) in ``axes`` (signs turned)."""
+    if not truth or "inertia_about_cg" not in truth:
+        return None
+    cmp = compare_to_truth(result, truth)
+    return {k: {f: s * cmp[k][f] + 0.0 for f in ("truth", "error_percent", "error_sigma")}
+            for k, s in zip(KEYS, sign_in(axes))}
+
+
+def window_line(result: InertiaResult, t0: float) -> str:
+    """The fit window in seconds from the first IMU sample (as --start/--end take them)."""
+    return (f"window: {result.t_start - t0:.1f}–{result.t_end - t0:.1f} s from the first IMU sample "
+            f"({result.t_end - result.t_start:.1f} s, {result.n_samples} samples); "
+            f"band {fmt(result.band_hz[0])}–{fmt(result.band_hz[1])} Hz")
+
+
+def diagnosis_lines(result: InertiaResult) -> list[str]:
+    """What the diagnosis of a model error found (effects with units), or where the mismatch is."""
+    dg = result.diagnosis
+    rb = result.rigid_body or {}
+    rigid = entries_line(rb.get("inertia_about_cg", {}))
+    if dg["effects"]:
+        lines = [f"model error diagnosed ({dg['handled']}); the tensor above is the fit with it, validated; "
+                 f"rigid-body fit (verdict {rb.get('validation')}): {rigid} kg·m²"]
+        lines += [f"  effect {e['name']}: {effect_text(e)}" for e in dg["effects"]]
+        return lines
+    lines = ["model error NOT explained (" + dg["handled"].removeprefix("not: ") + "); the tensor above is the "
+             "rigid-body fit's, σ widened"]
+    for u in dg.get("unexplained", []):
+        band = "" if u["band_hz"] is None else f" {u['band_hz'][0]:.2f}–{u['band_hz'][1]:.2f} Hz"
+        lines.append(f"  unexplained: {u['channel']}{band}, t = {u['time_s'][0]:.0f}–{u['time_s'][1]:.0f} s, "
+                     f"size {fmt(u['size'], '.3g')} ({u['is']})")
+    for e in dg.get("hypotheses", []):
+        lines.append(f"  hypothesis (not a finding): {e['name']}: {effect_text(e)}")
+    return lines
+
+
+def std_line(result: InertiaResult) -> str:
+    """What σ is: the propagated sensor noise or the fit's residuals."""
+    n = result.sensor_noise
+    if n is None:
+        return (f"σ: from the fit's residuals ({result.uncertainty}; --quick and --model thesis do not propagate "
+                "the sensors' noise)")
+    noise = (f"gyro {n['gyro']:.2g} rad/s, accelerometer {n['accelerometer']:.2g} m/s², load cells "
+             f"{n['load_cell']:.2g} N, exciter {n['exciter']:.2g} N, inclinometer {1000 * n['inclinometer']:.2g} mrad")
+    if result.uncertainty.startswith("propagated"):
+        return (f"σ: the sensors' noise, estimated from the recording ({noise}), propagated through tracker, "
+                "preprocessor and identifier")
+    return f"σ: from the fit's residuals (sandwich): they exceed what the sensors' noise ({noise}) explains"
+
+
+def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: list[float], axes: str,
+                  cg_source: str) -> None:
+    """The text output of ``rig-identify inertia`` (see the module docstring)."""
+    d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
+    ex = result.expressed(axes)
+    print(result.validation.summary if result.validation is not None else
+          "verdict: none — this fit has no model validation (the thesis's baseline)")
+    if len(paths) == 1:
+        print(f"recording: {paths[0]}")
+    else:
+        print(f"recordings (joint fit, one tensor): {len(paths)}")
+    for line in convention_lines(AXES[axes]):
+        print(line)
+    print(f"mass {ex.mass:.2f} kg (rig.yaml body.mass) and centre of gravity ({', '.join(f'{x:.4f}' for x in ex.cg)}) "
+          f"m ({cg_source}): given, not identified by the dynamic test")
+    if len(paths) == 1:
+        print(window_line(result, t0s[0]))
+    else:
+        for p, s, t0 in zip(paths, result.series, t0s):
+            print(f"  {p}: window {s.t[0] - t0:.1f}–{s.t[-1] - t0:.1f} s from its first IMU sample, "
+                  f"{len(s.t)} samples; band {s.band_hz[0]:.2f}–{s.band_hz[1]:.2f} Hz")
+    print("inertia tensor about the CG:")
+    for line in tensor_table(ex, truth_columns(result, truth, axes)):
+        print(line)
+    print(products_line(ex))
+    for line in principal_lines(ex):
+        print(line)
+    print(origin_line(ex))
+    print(std_line(result))
+    if result.diagnosis is not None:
+        for line in diagnosis_lines(result):
+            print(line)
+    eiv = result.errors_in_variables
+    if eiv is not None:
+        print(f"noise in the fit's input (errors in variables): {100 * min(eiv.share, 9.99):.3g} % of it along its "
+              "noisiest direction; "
+              + ("the least-squares bias it causes, removed (kg·m², tensor entries): " if result.bias_applied else
+                 "too large to compensate; the least-squares bias NOT removed: ")
+              + entries_line(dict(zip(KEYS, result.bias_correction)), spec="+.3g"))
+    if result.validation is not None:
+        for c in result.validation.checks:
+            mark = "pass" if c.passed else ("FAIL" if c.passed is False else "n/a ")
+            print(f"check {mark} {c.name}: {c.detail}")
+    for w in d["weakly_determined"][:1]:
+        print("note: " + w["text"])
+
+
+def read_all(paths: list[str]) -> list:
+    """Read the recordings (one progress step each); their reader warnings shown at once."""
+    recs = []
+    for p in paths:
+        step(f"reading {p}")
+        recs.append(read_recording(p))
+    if len(recs) == 1:
+        for w in recs[0].warnings:
+            warn(w)
+    else:
+        for lab, r in zip(recording_labels(recs), recs):
+            for w in r.warnings:
+                warn(f"{lab}: {w}")
+    return recs
+
+
+def with_saved_cg(recs: list, cg_file: str) -> tuple[list, str]:
+    """The recordings with the CG of a saved ``rig-identify cg --json`` result, and the note."""
+    saved = load_cg_result(cg_file)
+    out = []
+    for r in recs:
+        own = r.rig.center_of_gravity
+        if own is not None and np.any(np.abs(own - saved.center_of_gravity) > 3 * saved.center_of_gravity_std):
+            warn(f"{r.path}: rig.yaml's body.center_of_gravity {np.round(own, 4).tolist()} m differs from "
+                 f"{cg_file}'s {np.round(saved.center_of_gravity, 4).tolist()} m by more than 3 σ; using {cg_file}")
+        out.append(replace(r, rig=r.rig.with_cg(saved.center_of_gravity)))
+    note = f"centre of gravity from {cg_file} (σ " + ", ".join(f"{1e3 * x:.2g}" for x in
+                                                               saved.center_of_gravity_std) + " mm)"
+    if saved.verdict == "model_error":
+        note += ": its static fit's verdict was model_error, the CG may be off"
+    return out, note
+
+
+def output_axes(option: str | None, recs: list) -> tuple[str, str | None]:
+    """The axes of the printout and the YAML: ``--axes`` when given, else the recordings'
+    rig.yaml ``output_axes`` (when they state one and agree), else ``body``.  Returns (axes, a
+    warning or None: recordings whose rig.yaml state different axes)."""
+    if option is not None:
+        return option, None
+    stated = {r.rig.output_axes for r in recs if r.rig.output_axes is not None}
+    if len(stated) == 1:
+        return stated.pop(), None
+    if stated:
+        return "body", (f"the recordings' rig.yaml state different output_axes ({', '.join(sorted(stated))}): "
+                        "body axes; --axes chooses")
+    return "body", None
+
+
+def check_options(args) -> None:
+    """Refuse option combinations that cannot run, before reading any bag."""
+    paths = args.recording
+    if len(paths) > 1:
+        if args.model != "pem":
+            raise IdentificationError("--model thesis fits one recording at a time: give one RECORDING "
+                                      "(the joint fit of several recordings is the prediction-error model's)")
+        if all((Path(p) / "rig.yaml").is_file() for p in paths):  # different bodies: say so before reading bags
+            check_same_body([SimpleNamespace(path=Path(p), rig=load_rig(Path(p) / "rig.yaml")) for p in paths])
+    if args.report:
+        if args.model != "pem":
+            raise IdentificationError("--report needs --model pem (the thesis baseline has no predicted output "
+                                      "to plot)")
+        check_report_dir(Path(args.report))  # before the fit, not after it
+
+
+def identify(args, recs: list) -> InertiaResult:
+    """The fit the options ask for (one recording or a joint fit; diagnosis of a model error)."""
+    band = tuple(args.band) if args.band else None
+    refine = not args.quick
+    what = "tracker, preprocessor, fit" + (", σ from replays with fresh noise" if refine and args.model == "pem"
+                                           else "") + ", validation"
+    step(f"identifying ({what})")
+    if len(recs) > 1:
+        return identify_recordings(recs, start=args.start, end=args.end, band_hz=band, refine=refine)
+    guess = None if args.initial_guess is None else entries_from_option(args.initial_guess)
+    result = identify_recording(recs[0], start=args.start, end=args.end, band_hz=band, model=args.model,
+                                initial_guess=guess, refine=refine)
+    if args.model == "pem" and refine and not args.no_diagnose:
+        if result.validation is not None and result.validation.verdict != "ok":
+            step("diagnosing the model error (rig-identify diagnose, then the fit again)")
+        result = with_diagnosis(recs[0], result, args.start, args.end, band)
+    return result
+
+
+def cmd_inertia(args) -> int:
+    """``rig-identify inertia``; returns the exit status (user errors raise, see cli.user_errors)."""
+    check_options(args)
+    recs = read_all(args.recording)
+    cg_source = "rig.yaml body.center_of_gravity"
+    cg_note = None
+    if args.cg:
+        recs, cg_note = with_saved_cg(recs, args.cg)
+        cg_source = f"from {args.cg}"
+    axes, axes_note = output_axes(args.axes, recs)
+    if axes_note is not None:
+        warn(axes_note)
+    result = identify(args, recs)
+    if cg_note is not None:
+        result.warnings.insert(0, cg_note)
+    t0s = [float(r.sensors.t_start) for r in recs]
+    index = None
+    if args.report:
+        step(f"writing the report to {args.report}")
+        try:
+            # the report says where the CG came from: "from CG.json (σ x, y, z mm)"
+            index = write_report(args.report, result, recs,
+                                 cg_source=None if cg_note is None else cg_note.removeprefix("centre of gravity "),
+                                 axes=axes)
+        except OSError as e:
+            raise ReportError(f"{args.report}: cannot write the report ({e.strerror or e})") from None
+    body = result.expressed("body")
+    urdf = urdf_inertial(body) if args.urdf else None
+    if args.yaml:
+        ex = result.expressed(axes)
+        d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
+        content = export_dict(ex, verdict=None if result.validation is None else result.validation.verdict,
+                              summary=None if result.validation is None else result.validation.summary,
+                              std_kind=result.uncertainty, sources=[str(r.path) for r in recs],
+                              window=d["window"] if len(recs) == 1 else None,
+                              created=datetime.now(timezone.utc).isoformat(timespec="seconds"), version=version())
+        atomic_write_text(args.yaml, yaml_text(content))
+    args.progress.finish()
+    if args.json:
+        d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
+        if axes == "sae":
+            d["sae_j670"] = axes_block(result.expressed("sae"))
+        if urdf is not None:
+            d["urdf_inertial"] = urdf
+        print(json.dumps(d))
+    else:
+        print_inertia(result, common_truth(recs) if len(recs) > 1 else recs[0].truth,
+                      [r.path for r in recs], t0s, axes, cg_source)
+        if urdf is not None:
+            print("URDF inertial element (link frame: rig.yaml's body frame; ixy, ixz, iyz: the tensor's entries):")
+            print(urdf)
+    args.progress.warn_rest(result.warnings)   # those not shown as they happened; also in the JSON
+    out = sys.stderr if args.json else sys.stdout
+    if args.yaml:
+        print(f"yaml: {args.yaml}", file=out)
+    if index is not None:
+        print(f"report: {index}", file=out)
+    return 0

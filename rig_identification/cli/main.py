@@ -1,0 +1,308 @@
+"""rig-identify: identify mass, centre of gravity and inertia tensor from rig recordings, offline.
+
+The sub-commands replay recording folders (rig.yaml + bag/) through the same tracker,
+preprocessor and identifier code as the ROS nodes.  This module builds the command line and
+runs the chosen command; the commands are in cli_inertia, cli_diagnose, cli_plan and cg_cli,
+imported only when they run (``rig-identify --help`` does not load scipy).  User errors (a
+missing path, bad files, inconsistent input) print one line ``rig-identify: error: …`` and
+exit with status 2, no traceback; a path that does not exist is refused before any work.
+Progress goes to stderr (one line per step, warnings as they happen; ``--quiet``: warnings only).
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import os
+import sys
+from importlib.metadata import PackageNotFoundError
+from importlib.metadata import version as dist_version
+from typing import Callable
+
+from .progress import attached
+
+DESCRIPTION = """\
+Identify the mass properties of a vehicle hung on cables, offline, from recording folders
+(rig.yaml + bag/): the same tracker, preprocessor and identifier code as the ROS nodes.
+
+Every inertia output says its conventions: tensor about the centre of gravity, body frame
+of rig.yaml (REP-103: x forward, y left, z up), SI units; the tensor's off-diagonal entries
+ixy, ixz, iyz are the negated products of inertia (Ixy = -ixy, the vehicle-dynamics sign).
+Options that take a tensor all take ixx iyy izz ixy ixz iyz, in that order.
+"""
+
+EPILOG = """\
+a rig day:
+  rig-identify cg-plan RIG                       plan the static test
+  rig-identify cg BASE DUMMY --write-rig R.yaml  centre of gravity from the two static recordings
+  rig-identify plan RIG --inertia ...            plan the exciter run(s)
+  rig-identify inertia REC                       verdict, tensor, products, principal axes
+  rig-identify inertia REC --json                one JSON object (schema rig_identification.inertia_result)
+  rig-identify inertia REC --urdf --yaml F.yaml  a URDF <inertial> element; a YAML file
+  rig-identify diagnose REC                      where the model and the recording disagree, and why
+Exit status: 0 done, 2 a user error (one line on stderr, naming the file or the option)."""
+
+
+class UsageError(ValueError):
+    """A command line that cannot run: a path that does not exist, an output that cannot be
+    written, options that do not go together.  Names the path or the option."""
+
+
+def lazy(module: str, name: str) -> Callable:
+    """The command ``module.name``, imported when it runs (the heavy modules stay out of --help)."""
+    def run(args) -> int:
+        return getattr(importlib.import_module(module), name)(args)
+    run.__qualname__ = f"{module}.{name}"
+    return run
+
+
+def version() -> str:
+    """The installed package's version (importlib.metadata), or "unknown" when not installed."""
+    try:
+        return dist_version("rig_identification")
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+TENSOR = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")   # metavars of every option that takes a tensor (export.ORDER)
+TENSOR_HELP = ("tensor entries about the CG, body axes of rig.yaml, kg·m², in the order ixx iyy izz ixy ixz iyz "
+               "(moments, then products: the order of every option); ixy, ixz, iyz are the tensor's off-diagonal "
+               "entries as in truth.yaml and the JSON, i.e. the negated products of inertia (ixy = −Ixy)")
+
+
+def add_command(sub, name: str, help: str, description: str, run: Callable, inputs=(),
+                outputs=()) -> argparse.ArgumentParser:
+    """A sub-command parser with a description paragraph, its runner, the destinations of its
+    input paths (checked to exist before any work) and of its output files (their folder must
+    exist)."""
+    p = sub.add_parser(name, help=help, description=description)
+    p.set_defaults(func=run, inputs=tuple(inputs), outputs=tuple(outputs))
+    p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress lines on stderr (warnings still)")
+    return p
+
+
+def add_inertia_parser(sub) -> None:
+    p = add_command(sub, "inertia", "identify the inertia tensor from one or more dynamic recordings",
+                    "Replay dynamic recording(s) through tracker, preprocessor and identifier and print the mass "
+                    "properties: the verdict first (ok / model_error / not_identifiable), then the frame and "
+                    "sign convention, the tensor about the CG with σ (and the truth when truth.yaml is there), "
+                    "the products of inertia with the vehicle-dynamics sign, the principal moments and axes and "
+                    "the tensor about the body frame's origin. Entries the recording does not determine print as "
+                    "\"not determined\" (null in JSON/YAML). Several recordings of the same body are fitted "
+                    "jointly with one tensor.",
+                    lazy("rig_identification.cli.inertia", "cmd_inertia"), inputs=("recording", "cg"),
+                    outputs=("yaml",))
+    p.add_argument("recording", nargs="+",
+                   help="recording folder (rig.yaml + bag/); several recordings of the same body (other exciter "
+                        "frequencies or positions, cable geometries) are fitted jointly with one tensor")
+    p.add_argument("--report", metavar="DIR", help="also write an HTML report (index.html + figures) to the folder DIR")
+    p.add_argument("--json", action="store_true",
+                   help="print one JSON object (schema rig_identification.inertia_result, with units per field)")
+    p.add_argument("--urdf", action="store_true",
+                   help="also print a URDF <inertial> element (origin at the CG, mass, tensor entries; always in "
+                        "rig.yaml's body axes, REP-103, whatever --axes says)")
+    p.add_argument("--yaml", metavar="FILE", help="also write the mass properties to FILE (YAML, atomically)")
+    p.add_argument("--axes", choices=("body", "sae"), default=None,
+                   help="axes of the printout and the YAML: body (rig.yaml's body frame, REP-103: x forward, y left, "
+                        "z up) or sae (SAE J670: x forward, y right, z down); default: rig.yaml's output_axes, else "
+                        "body. The JSON stays in body axes and gains a 'sae_j670' block")
+    p.add_argument("--start", type=float, metavar="S", help="window start, s from the first IMU sample")
+    p.add_argument("--end", type=float, metavar="S", help="window end, s from the first IMU sample")
+    p.add_argument("--band", type=float, nargs=2, metavar=("LOW_HZ", "HIGH_HZ"),
+                   help="pass band of the fit (default: around the spectral peaks of the gyro)")
+    p.add_argument("--model", choices=["pem", "thesis"], default="pem",
+                   help="pem: ours (default); thesis: the thesis's model and estimator, as a baseline")
+    p.add_argument("--initial-guess", type=float, nargs=6, metavar=TENSOR,
+                   help="starting tensor for --model thesis: " + TENSOR_HELP)
+    p.add_argument("--quick", action="store_true",
+                   help="the plain fit: not compensated for the noise in its input, σ from the fit's residuals (sandwich) "
+                        "instead of the propagated sensor noise, no diagnosis; about half the time (docs/results.md)")
+    p.add_argument("--cg", metavar="CG.json",
+                   help="take the centre of gravity from a saved 'rig-identify cg --json' result instead of "
+                        "rig.yaml's body.center_of_gravity")
+    p.add_argument("--no-diagnose", action="store_true",
+                   help="report the rigid-body fit even when its residual shows model error (by default one "
+                        "recording with model error is diagnosed, as rig-identify diagnose, and the tensor of the "
+                        "fit with the physics found is reported)")
+
+
+def add_diagnose_parser(sub) -> None:
+    dp = add_command(sub, "diagnose",
+                     "where the rigid-body model and a recording disagree, and which physics is missing",
+                     "Fit the rigid-body model as 'rig-identify inertia' does and print its fit and verdict; then test "
+                     "the effect library (damping, drag, sensor delays and gains, IMU pose, cable mass and elasticity, "
+                     "…) by likelihood-ratio selection and print the effects found, their parameters with units and "
+                     "evidence, and the tensor of the model with them.",
+                     lazy("rig_identification.cli.diagnose", "cmd_diagnose"), inputs=("recording",))
+    dp.add_argument("recording", help="recording folder (rig.yaml + bag/)")
+    dp.add_argument("--json", action="store_true", help="print one JSON object")
+    dp.add_argument("--report", metavar="DIR", help="write plots (residuals and spectra before/after) and the JSON")
+    dp.add_argument("--model", choices=["pem", "thesis"], default="pem",
+                    help="pem: ours (default); thesis: the thesis's model without gyroscopic terms")
+
+
+def add_plan_parser(sub) -> None:
+    pp = add_command(sub, "plan", "know before you shake: the rig's modes, predicted inertia σ and the recommended "
+                     "exciter run(s) for a nominal body",
+                     "Experiment design for the dynamic test: the rig's natural modes, the σ a baseline exciter run "
+                     "would give the tensor of a nominal body, and the run(s) that would do better within the rig's "
+                     "limits (rotation, cable tension, exciter force and frequency).",
+                     lazy("rig_identification.cli.plan", "cmd_plan"), inputs=("rig", "geometry"))
+    pp.add_argument("rig", help="rig.yaml, experiment file or recording folder (CG from rig.yaml)")
+    pp.add_argument("--inertia", type=float, nargs=6, required=True, metavar=TENSOR,
+                    help="nominal " + TENSOR_HELP)
+    pp.add_argument("--mass", type=float, metavar="KG", help="nominal mass (default: rig.yaml body.mass)")
+    pp.add_argument("--duration", type=float, default=120.0, metavar="S", help="length of each run (default 120)")
+    pp.add_argument("--max-force", type=float, default=float("inf"), metavar="N",
+                    help="largest force amplitude the exciter can make (default: no limit but the rig's)")
+    pp.add_argument("--max-rotation", type=float, default=3.0, metavar="DEG",
+                    help="largest rotation of the body, start-up included (default 3)")
+    pp.add_argument("--min-tension", type=float, default=0.2, metavar="RATIO",
+                    help="lowest cable tension as a fraction of its static tension (default 0.2)")
+    pp.add_argument("--frequencies", type=float, nargs=2, default=(0.3, 4.0), metavar=("LO_HZ", "HI_HZ"),
+                    help="exciter frequency range (default 0.3 4)")
+    pp.add_argument("--position", type=float, nargs=3, action="append", metavar=("X", "Y", "Z"),
+                    help="a candidate exciter mounting point, body frame m (repeatable; default: the corners of the "
+                         "box spanned by the body anchors and the rig's exciter)")
+    pp.add_argument("--runs", type=int, choices=(1, 2), default=2, help="at most this many runs (default 2)")
+    pp.add_argument("--objective", choices=("baseline", "relative"), default="baseline",
+                    help="baseline: improve the least-improved entry over the baseline most (default); relative: "
+                         "minimise the largest relative σ")
+    pp.add_argument("--baseline-force", type=float, metavar="N",
+                    help="baseline force amplitude (default: the experiment file's, else the thesis's 200 N)")
+    pp.add_argument("--baseline-frequency", type=float, metavar="HZ",
+                    help="baseline frequency (default: the experiment file's, else the thesis's 1.05 Hz)")
+    pp.add_argument("--baseline-position", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                    help="baseline exciter position, body m (default: rig.yaml exciter)")
+    pp.add_argument("--refine", type=int, default=3, metavar="N",
+                    help="how many screened runs to simulate before choosing (default 3; 1 is quicker)")
+    pp.add_argument("--geometry", action="append", metavar="RIG.yaml",
+                    help="another cable geometry the rig can take, for the second run (rig.yaml, experiment file or "
+                         "recording folder: its cables are used, the body is this one; repeatable)")
+    pp.add_argument("--vary-geometry", type=float, metavar="M",
+                    help="also try, for the second run, the ceiling anchors moved M m farther apart (and closer "
+                         "together) along world x and along world y, cable lengths re-set to the same hanging pose")
+    pp.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def add_modes_parser(sub) -> None:
+    mp = add_command(sub, "modes", "natural frequencies: from the geometry vs estimated from a recording",
+                     "The rig's natural modes from its geometry (cables, mass, CG and a tensor) beside the modes "
+                     "estimated from a recording's gyro, matched one to one.",
+                     lazy("rig_identification.cli.plan", "cmd_modes"), inputs=("recording",))
+    mp.add_argument("recording", help="recording folder (rig.yaml + bag/)")
+    mp.add_argument("--json", action="store_true", help="print one JSON object")
+    mp.add_argument("--inertia", type=float, nargs=6, metavar=TENSOR,
+                    help=TENSOR_HELP + "; default: identified from the recording")
+    mp.add_argument("--stiffness", type=float, metavar="N_PER_M",
+                    help="cable stiffness for the model (default: rig.yaml's, else inextensible cables)")
+
+
+def add_thesis_table_parser(sub) -> None:
+    t = add_command(sub, "thesis-table", "the thesis's 17 case studies: reported errors vs ours vs --model thesis",
+                    "Simulate the thesis's case studies (config/cases) noise-free, identify each with our method and "
+                    "with the thesis's, and print the errors beside those the thesis reported.",
+                    lazy("rig_identification.cli.plan", "cmd_thesis_table"))
+    t.add_argument("cases", nargs="*", help="case names (default: case01 … case17)")
+    t.add_argument("--json", action="store_true", help="print one JSON list")
+
+
+STATIC = {"cg": ("centre of gravity from the two static recordings (without and with the dummy mass)",
+                 ("baseline", "dummy")),
+          "cg-plan": ("predict the CG uncertainty of a planned static test and recommend one reaching ±2.5 mm",
+                      ("rig", "noise_from"))}
+"""The static-test commands of cg_cli: their one-line help (for the top-level help, which does
+not import cg_cli) and the destinations of their input paths."""
+
+
+def add_static_parser(sub, name: str, wanted: str | None) -> None:
+    """cg or cg-plan (:mod:`rig_identification.cli.cg`, which loads scipy): the real parser only when it is the
+    command; otherwise a placeholder that carries its one-line help."""
+    if wanted != name:
+        sub.add_parser(name, help=STATIC[name][0], add_help=False)
+        return
+    from .cg import add_cg_parser, add_cg_plan_parser
+    p = (add_cg_parser if name == "cg" else add_cg_plan_parser)(sub)
+    p.set_defaults(inputs=STATIC[name][1], outputs=())
+    p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress lines on stderr (warnings still)")
+
+
+def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
+    """The ``rig-identify`` parser; ``argv`` tells which command will run (only its heavy parser,
+    if any, is built)."""
+    argv = sys.argv[1:] if argv is None else argv
+    wanted = next((a for a in argv if not a.startswith("-")), None)
+    ap = argparse.ArgumentParser(prog="rig-identify", description=DESCRIPTION, epilog=EPILOG,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--version", action="version", version=f"rig-identify (rig_identification) {version()}")
+    ap.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr (warnings still)")
+    sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    add_inertia_parser(sub)
+    add_diagnose_parser(sub)
+    add_static_parser(sub, "cg", wanted)
+    add_static_parser(sub, "cg-plan", wanted)
+    add_plan_parser(sub)
+    add_modes_parser(sub)
+    add_thesis_table_parser(sub)
+    return ap
+
+
+def check_paths(args) -> None:
+    """Refuse, before any work, an input path that does not exist and an output file whose folder
+    does not: :class:`UsageError` naming it."""
+    for dest in getattr(args, "inputs", ()):
+        value = getattr(args, dest, None)
+        for p in ([] if value is None else [value] if isinstance(value, str) else value):
+            if not os.path.exists(p):
+                raise UsageError(f"{p}: no such file or directory ({dest.replace('_', '-')})")
+    for dest in getattr(args, "outputs", ()):
+        value = getattr(args, dest, None)
+        if value is not None:
+            folder = os.path.dirname(os.path.abspath(value))
+            if not os.path.isdir(folder):
+                raise UsageError(f"{value}: cannot write it: no folder {folder} (--{dest})")
+            if os.path.isdir(value):
+                raise UsageError(f"{value}: is a folder (--{dest} takes a file)")
+
+
+def user_errors() -> tuple:
+    """The exceptions that are the user's to fix: printed as one line, exit status 2."""
+    from ..estimation.identification import IdentificationError
+    from ..io.recording import RecordingError
+    from ..io.rig import RigError
+    from ..statics import StaticsError
+    from ..estimation.tracker import TrackerError
+    return (UsageError, RecordingError, RigError, IdentificationError, TrackerError, StaticsError, FileNotFoundError)
+
+
+def identify_main(argv: list[str] | None = None) -> int:
+    """Entry point of ``rig-identify``: parse, check the paths, run the command with progress on
+    stderr.  Returns the exit status (0, or 2 on a user error)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    args = build_parser(argv).parse_args(argv)
+    with attached(quiet=args.quiet) as printer:
+        try:
+            check_paths(args)
+            args.progress = printer
+            return args.func(args)
+        except UsageError as e:
+            printer.fail()
+            print(f"rig-identify: error: {e}", file=sys.stderr)
+            return 2
+        except Exception as e:  # noqa: BLE001 — sorted below: the user's errors become one line
+            printer.fail()
+            if isinstance(e, user_errors()):
+                print(f"rig-identify: error: {e}", file=sys.stderr)
+                return 2
+            raise
+
+
+def sim_main(argv: list[str] | None = None) -> int:
+    """Entry point of ``rig-sim`` (implemented in :mod:`rig_identification.cli.sim`)."""
+    from .sim import sim_main as run
+    return run(argv)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(identify_main())

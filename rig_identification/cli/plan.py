@@ -1,0 +1,197 @@
+"""``rig-identify plan``, ``modes`` and ``thesis-table``: experiment design, natural modes, the
+thesis's case studies.
+
+Tensors on the command line (``plan --inertia``, ``modes --inertia``) are six tensor entries
+in the order ixx iyy izz ixy ixz iyz (:data:`~rig_identification.io.export.ORDER`, :func:`~rig_identification.io.export.tensor_from_option`),
+as every option of ``rig-identify`` takes them.
+"""
+from __future__ import annotations
+
+import json
+import sys
+
+import numpy as np
+
+from .progress import step
+from ..io.export import ORDER, entries_from_option, tensor_from_option
+from ..estimation.identification import KEYS, from_tensor
+from ..model.modes import estimate_modes, match_modes, natural_modes
+from ..pipeline.offline import identify_recording
+from ..design.planning import PlanError, geometry_variants, plan_experiment
+from ..design.run import Run, load_plan_input, make_body
+from ..io.recording import read_recording
+from ..model.simulator import ExperimentError, SimulationError
+from ..pipeline.thesis_table import print_summary, print_table, run_case
+
+
+def cmd_thesis_table(args) -> int:
+    """``rig-identify thesis-table``: one progress step per case."""
+    rows = []
+    for name in args.cases or [f"case{i:02d}" for i in range(1, 18)]:
+        step(f"{name}: simulating and identifying (ours and --model thesis)")
+        rows.append(run_case(name))
+        args.progress.finish()
+        if not args.json:
+            print_table(rows[-1:])
+    if args.json:
+        print(json.dumps(rows))
+    else:
+        print_summary(rows)
+    return 0
+
+
+def cmd_modes(args) -> int:
+    """``rig-identify modes``: geometric natural modes beside the recording's."""
+    step(f"reading {args.recording}")
+    rec = read_recording(args.recording)
+    rig = rec.rig
+    cg = rig.require_cg()
+    if args.inertia is not None:
+        J = tensor_from_option(args.inertia)
+        source = "--inertia"
+    else:
+        step("identifying the tensor (rig-identify inertia --quick)")
+        J = identify_recording(rec, refine=False).inertia
+        source = "identified from the recording"
+    if args.stiffness is not None:
+        k, kname = args.stiffness, f"spring cables k = {args.stiffness:g} N/m"
+    elif all(c.stiffness is not None for c in rig.cables):
+        k, kname = rig.cable_stiffness, "spring cables (rig.yaml stiffness)"
+    else:
+        k, kname = None, "inextensible cables"
+    step("natural modes from the geometry, and from the recording")
+    geo = natural_modes(rig, rig.mass, cg, J, k)
+    est = estimate_modes(rec)
+    pairs = match_modes(geo, est.modes)
+    args.progress.finish()
+    if args.json:
+        print(json.dumps({"recording": str(rec.path), "inertia_source": source, "cable_model": kname,
+                          "inertia": [float(x) for x in from_tensor(J)], "inertia_keys": list(KEYS),
+                          "exciter_frequency_hz": est.exciter_frequency,
+                          "geometric": [m.to_dict() for m in geo],
+                          "estimated": [e.to_dict() for e in est.modes],
+                          "matches": [{"geometric_hz": m.frequency, "estimated_hz": None if e is None else e.frequency,
+                                       "difference_percent": d} for m, e, d in pairs],
+                          "warnings": est.warnings}))
+        return 0
+    print(f"recording: {rec.path}")
+    print(f"model: mass {rig.mass:.1f} kg, CG from rig.yaml, inertia {source} ("
+          + ", ".join(f"{kk} {J[i, j]:.1f}" for kk, (i, j) in zip(ORDER, ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2),
+                                                                          (1, 2)))) + f" kg·m²), {kname}")
+    if est.exciter_frequency is not None:
+        print(f"exciter: {est.exciter_frequency:.4f} Hz (excluded with its harmonics)")
+    print(f"{'geometry Hz':>11s}  {'mode shape (world axes)':32s} {'recording Hz':>12s} {'diff %':>8s} "
+          f"{'damping':>8s}  gyro")
+    for m, e, d in pairs:
+        if e is None:
+            print(f"{m.frequency:11.4f}  {m.description:32s} {'-':>12s}")
+        else:
+            print(f"{m.frequency:11.4f}  {m.description:32s} {e.frequency:12.4f} {d:+8.2f} "
+                  f"{e.damping_ratio:8.4f}  {e.axes}")
+    used = {id(e) for _, e, _ in pairs if e is not None}
+    for e in est.modes:
+        if id(e) not in used:
+            print(f"{'-':>11s}  {'(no geometric mode)':32s} {e.frequency:12.4f} {'':8s} {e.damping_ratio:8.4f}  "
+                  f"{e.axes}")
+    for w in est.warnings:
+        print("note: " + w)
+    return 0
+
+
+def plan_from_args(args):
+    """The rig, the nominal body and the plan (:func:`~rig_identification.design.planning.plan_experiment`) the options
+    ask for.  Raises PlanError, ExperimentError, SimulationError."""
+    rig, base_exc, k = load_plan_input(args.rig)
+    body = make_body(rig, args.mass, entries_from_option(args.inertia), k)
+    if rig.exciter is None and args.baseline_position is None:
+        raise PlanError(f"{rig.source}: no exciter in rig.yaml; give the baseline's mounting point with "
+                        "--baseline-position X Y Z")
+    pos = args.baseline_position if args.baseline_position is not None else rig.exciter.position
+    rpy = rig.exciter.rpy if (rig.exciter is not None and args.baseline_position is None) else (0.0, 0.0, 0.0)
+    amp = args.baseline_force if args.baseline_force is not None else (base_exc or {}).get("amplitude", 200.0)
+    freq = args.baseline_frequency if args.baseline_frequency is not None else (base_exc or {}).get("frequency", 1.05)
+    baseline = Run(float(freq), float(amp), tuple(float(x) for x in pos), "z", args.duration, 2.0,
+                   tuple(float(x) for x in rpy))
+    geometries = []
+    for g in args.geometry or []:
+        grig, _, _ = load_plan_input(g)
+        geometries.append((f"cables of {g}", grig))
+    if args.vary_geometry:
+        if not args.vary_geometry > 0:
+            raise PlanError(f"--vary-geometry {args.vary_geometry:g}: the shift must be > 0 m")
+        geometries += geometry_variants(body, args.vary_geometry)
+    if geometries and args.runs < 2:
+        raise PlanError("--geometry / --vary-geometry are for a second run: they need --runs 2")
+    plan = plan_experiment(body, baseline, duration=args.duration, max_force=args.max_force,
+                           max_rotation_deg=args.max_rotation, min_tension_ratio=args.min_tension,
+                           frequencies=tuple(args.frequencies), positions=args.position, max_runs=args.runs,
+                           objective=args.objective, refine=max(1, args.refine), geometries=geometries,
+                           progress=step)
+    return rig, body, plan
+
+
+def describe_run(c, title: str) -> None:
+    """One exciter run of a plan, with its limits and band."""
+    r = c.run
+    axis = f"spin axis body {r.spin_axis}" if r.rpy is None else f"exciter rpy {np.round(r.exciter_rpy, 3).tolist()}"
+    band = "" if c.band is None else f"; identify with --band {c.band[0]:.2f} {c.band[1]:.2f}"
+    print(f"{title}: {r.amplitude:.0f} N rotating at {r.frequency:.3f} Hz, exciter at "
+          f"({', '.join(f'{x:.2f}' for x in r.position)}) m body, {axis}, {r.duration:.0f} s — peak rotation "
+          f"{c.peak_rotation_deg:.2f}°, lowest tension {100 * c.min_tension_ratio:.0f} % of static{band}")
+    if c.geometry is not None:
+        print(f"  on another cable geometry ({c.geometry}): "
+              + "; ".join(f"{cb.name} ceiling anchor ({', '.join(f'{x:.2f}' for x in cb.ceiling_anchor)}) m, "
+                          f"length {cb.length:.3f} m" for cb in c.body.rig.cables))
+
+
+def cmd_plan(args) -> int:
+    """``rig-identify plan``: the rig's modes, the predicted σ of the baseline excitation and the
+    recommended exciter run(s) (:mod:`rig_identification.design.planning`); returns 0 (2 on a user error)."""
+    try:
+        rig, body, plan = plan_from_args(args)
+    except (PlanError, ExperimentError, SimulationError) as e:
+        args.progress.fail()
+        print(f"rig-identify: error: {e}", file=sys.stderr)
+        return 2
+    args.progress.finish()
+    if args.json:
+        out = plan.to_dict()
+        out.update({"rig": str(rig.source), "mass": body.mass,
+                    "center_of_gravity": [float(x) for x in rig.center_of_gravity],
+                    "inertia": {kk: float(v) for kk, v in zip(KEYS, from_tensor(body.inertia))},
+                    "cable_stiffness": [float(x) for x in body.stiffness], "noise": body.noise, "rates_hz": body.rates})
+        print(json.dumps(out))
+        return 0
+    print(f"rig: {rig.source}; body {body.mass:.1f} kg, CG " + ", ".join(f"{x:.3f}" for x in rig.center_of_gravity)
+          + " m (body); cables: springs " + ", ".join(f"{x:.3g}" for x in sorted(set(body.stiffness))) + " N/m")
+    print("natural modes (linearised about the equilibrium):")
+    for m in plan.modes:
+        print(f"  {m.frequency:7.3f} Hz  {m.description}")
+    lim = plan.limits
+    print(f"limits: rotation ≤ {lim['max_rotation_deg']:g}° (peak, start-up included), every cable ≥ "
+          f"{100 * lim['min_tension_ratio']:.0f} % of its static tension, force ≤ {lim['max_force_n']:g} N; exciter "
+          f"{lim['frequency_range_hz'][0]:g}–{lim['frequency_range_hz'][1]:g} Hz, "
+          f"≥ {100 * lim['mode_margin']:.0f} % "
+          "from every mode, its double and every sum of two (parametric resonance)")
+    describe_run(plan.baseline, "baseline")
+    for i, c in enumerate(plan.runs, 1):
+        if i > 1 and c is plan.runs[0]:
+            print(f"recommended run {i}: the same run again")
+            continue
+        describe_run(c, f"recommended run {i}" if len(plan.runs) > 1 else "recommended run")
+    bp, pp = plan.baseline.prediction, plan.prediction
+    print(f"predicted σ at the noise levels {', '.join(f'{kk} {v:g}' for kk, v in body.noise.items())} "
+          "(rad/s, m/s², N, N, rad):")
+    print(f"{'entry':6s} {'value':>9s} {'baseline σ':>11s} {'plan σ':>9s} {'ratio':>6s} {'plan σ rel.':>11s}")
+    theta = from_tensor(body.inertia)
+    for kk in ORDER:
+        i = KEYS.index(kk)
+        b, p, rel = bp.std[i], pp.std[i], pp.relative_std[i]
+        print(f"{kk:6s} {theta[i]:9.1f} {b:11.3f} {p:9.3f} {b / p:6.1f} {100 * rel:10.4f}%")
+    print("(tensor entries, kg·m²; relative: of the entry for moments, of the largest moment for products)")
+    for title, pr in (("baseline", bp), ("plan", pp)):
+        for w in pr.weak(1):
+            print(f"{title}: {w['text']}")
+    for n in plan.notes:
+        print("note: " + n)
+    return 0

@@ -1,0 +1,102 @@
+"""Text blocks of the ``rig-identify`` printouts: the tensor table, the products, the principal
+axes, the tensor about the origin, effect parameters with their units (:func:`~rig_identification.io.export.effect_text`,
+the one text of them, also in the core's warnings: re-exported here).
+
+Undetermined entries print as "not determined", never as a number or ``nan``
+(:data:`~rig_identification.io.export.NOT_DETERMINED`).  Entry order everywhere: :data:`~rig_identification.io.export.ORDER` (ixx iyy izz
+ixy ixz iyz).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..io.export import EFFECT_UNITS, NOT_DETERMINED, ORDER, PRODUCTS, Expressed, effect_text, value_text
+from ..io.verdict import fmt_p
+
+def fmt(x, spec: str = ".2f", width: int = 0) -> str:
+    """A number, or "not determined" for None / not finite; right-aligned to ``width``."""
+    text = NOT_DETERMINED if x is None or not np.isfinite(x) else format(float(x), spec)
+    return f"{text:>{width}s}"
+
+
+def evidence_text(e: dict) -> str:
+    """The likelihood-ratio evidence of an effect: ``likelihood ratio 812.3 (p < 1e-300)``."""
+    ev = e["evidence"]
+    return f"likelihood ratio {ev['likelihood_ratio']:.1f} (p {p_text(ev['p_value'])})"
+
+
+def p_text(p: float) -> str:
+    """``= 0.012`` or ``< 1e-300`` (:func:`~rig_identification.io.verdict.fmt_p`)."""
+    s = fmt_p(p)
+    return s if s.startswith("<") else f"= {s}"
+
+
+def tensor_table(ex: Expressed, truth: dict | None = None) -> list[str]:
+    """The tensor about the CG, one entry a line in :data:`ORDER`: value and σ; with ``truth``
+    ({key: {"truth", "error_percent", "error_sigma"}}, in ``ex``'s axes) its columns too."""
+    head = f"{'entry':6s} {'kg·m²':>14s} {'σ':>9s}"
+    if truth:
+        head += f" {'truth':>10s} {'error':>9s} {'err/σ':>7s}"
+    lines = [head]
+    for k in ORDER:
+        v = ex.entry(k)
+        if v is None:
+            line = f"{k:6s} {NOT_DETERMINED:>14s} {'':>9s}"
+            if truth:
+                line += f" {truth[k]['truth']:10.2f}"
+        else:
+            line = f"{k:6s} {v:14.2f} {fmt(ex.sigma(k), '.3g', 9)}"
+            if truth:
+                c = truth[k]
+                line += f" {c['truth']:10.2f} {c['error_percent']:+8.3f}% {c['error_sigma']:+7.2f}"
+        lines.append(line)
+    if truth:
+        lines.append("(error: % of the entry for moments, % of the largest moment for products)")
+    return lines
+
+
+def products_line(ex: Expressed) -> str:
+    """The products of inertia with the vehicle-dynamics sign, about the CG."""
+    parts = []
+    for k, name in PRODUCTS.items():
+        v = ex.products()[name]
+        parts.append(f"{name} {NOT_DETERMINED}" if v is None else f"{name} {v:+.2f} ± {fmt(ex.sigma(k), '.3g')}")
+    return ("products of inertia about the CG, vehicle-dynamics sign (Ixy = ∫xy dm = −ixy; SAE J670 / ISO 8855): "
+            + ", ".join(parts) + " kg·m²")
+
+
+def principal_lines(ex: Expressed) -> list[str]:
+    """Principal moments (ascending) and axes (direction cosines, nearest axis and angle to it)."""
+    if ex.principal is None:
+        gone = ", ".join(k for k in ORDER if k in ex.undetermined)
+        return [f"principal moments and axes: {NOT_DETERMINED} (they need every entry; not determined: {gone})"]
+    lines = ["principal moments (kg·m², ascending) and axes (unit vectors x, y, z in these axes):"]
+    for i in range(3):
+        v = ex.principal_axes[:, i]
+        near = int(np.argmax(np.abs(v)))
+        ang = float(np.degrees(np.arccos(min(1.0, abs(float(v[near]))))))
+        lines.append(f"  I{i + 1} {ex.principal[i]:10.2f}  axis ({', '.join(f'{x:+.4f}' for x in v)})  "
+                     f"{ang:.2f}° from {'xyz'[near]}")
+    return lines
+
+
+def origin_line(ex: Expressed) -> str:
+    """The tensor about the body frame's origin (parallel-axis theorem)."""
+    same = bool(np.allclose(ex.cg, 0.0))
+    vals = ", ".join(f"{k} {fmt(ex.entry(k, 'origin'))}" for k in ORDER)
+    return ("tensor about the body-frame origin (parallel-axis theorem, J + m (|c|² I − c cᵀ), "
+            f"mass {ex.mass:g} kg, "
+            f"CG c above{'; the CG is at the origin: the same' if same else ''}): {vals} kg·m²")
+
+
+def entries_line(d: dict, std: dict | None = None, spec: str = ".2f") -> str:
+    """A {KEYS: value} dict (tensor entries) as ``ixx 2894.00, iyy …`` in :data:`ORDER`."""
+    def one(k):
+        v = d.get(k)
+        s = "" if std is None or std.get(k) is None else f" ± {fmt(std[k], '.3g')}"
+        return f"{k} {fmt(v, spec)}{s}" if v is not None else f"{k} {NOT_DETERMINED}"
+    return ", ".join(one(k) for k in ORDER if k in d)
+
+
+__all__ = ["EFFECT_UNITS", "effect_text", "entries_line", "evidence_text", "fmt", "origin_line", "p_text",
+           "principal_lines", "products_line", "tensor_table", "value_text"]

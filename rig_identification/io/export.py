@@ -1,0 +1,335 @@
+"""An identified inertia tensor as a lab uses it: conventions, derived quantities, exports.
+
+Conventions (every output states them):
+
+* Frame: the body frame of rig.yaml (REP-103: x forward, y left, z up; origin at the
+  reference point rig.yaml's geometry is given from).  ``--axes sae`` turns every printed and
+  exported quantity to the SAE J670 vehicle axes (x forward, y right, z down): a half turn
+  about x, ``R = diag(1, −1, −1)``; it assumes rig.yaml's body x points to the vehicle's front.
+* Units: SI — kg, m, kg·m².
+* The tensor ``J`` about the centre of gravity (CG) has the entries ``ixx … izz`` of
+  ``geometry_msgs/Inertia``, URDF's ``<inertia>``, truth.yaml and the JSON: its
+  off-diagonal entries are the *negated* products of inertia.  Vehicle dynamics (SAE J670,
+  ISO 8855) uses the products themselves: ``Ixy = ∫ x y dm = −ixy``, ``Ixz = −ixz``,
+  ``Iyz = −iyz``; the moments are the diagonal entries (``Ixx = ixx``).
+
+Derived quantities (:class:`Expressed`): the tensor about the body frame's origin (parallel-axis
+theorem, ``J_O = J + m (|c|² I − c cᵀ)``, c the CG), the principal moments (ascending) and axes
+(eigen-decomposition; each axis with its largest component positive).  Entries the validation
+did not determine stay undetermined in everything derived from them: ``None`` in JSON and YAML,
+"not determined" in text; the principal moments need every entry.
+
+Exports: :func:`urdf_inertial` (a URDF ``<inertial>`` element) and :func:`yaml_text` (the
+YAML file of ``rig-identify inertia --yaml``).  Units: of the JSON's fields (:data:`UNITS`)
+and of the diagnosed effects' parameters (:data:`EFFECT_UNITS`, :func:`effect_text`: the one
+text of them, in the printouts and the core's warnings).  Pure numpy; no ROS.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+import yaml
+
+from .verdict import KEYS
+
+INERTIA_SCHEMA = "rig_identification.inertia_result"    # the JSON of rig-identify inertia --json
+INERTIA_SCHEMA_VERSION = 2   # 2: validation.segments[].start/end in s from the first IMU sample (were stamps)
+EXPORT_SCHEMA = "rig_identification.inertia_export"     # the YAML file of rig-identify inertia --yaml
+EXPORT_SCHEMA_VERSION = 1
+
+ORDER = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")
+"""The entry order of every table and every option that takes a tensor (the vehicle-dynamics
+habit: the moments, then the products).  The JSON's dictionaries are keyed by name."""
+MOMENTS = ("ixx", "iyy", "izz")
+PRODUCTS = {"ixy": "Ixy", "ixz": "Ixz", "iyz": "Iyz"}   # tensor entry -> vehicle-dynamics product (its negation)
+VEHICLE_SIGN = np.array([1.0, -1.0, -1.0, 1.0, -1.0, 1.0])   # KEYS order: tensor entry -> moment / product
+ENTRY_NAMES = {"ixx": "roll moment Ixx", "iyy": "pitch moment Iyy", "izz": "yaw moment Izz",
+               "ixy": "product Ixy", "ixz": "product Ixz", "iyz": "product Iyz"}
+INDEX = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
+NOT_DETERMINED = "not determined"
+
+
+def tensor_from_option(values) -> np.ndarray:
+    """(3,3) tensor from an option's six numbers in :data:`ORDER` (ixx iyy izz ixy ixz iyz)."""
+    d = dict(zip(ORDER, (float(v) for v in values)))
+    J = np.empty((3, 3))
+    for k, (i, j) in INDEX.items():
+        J[i, j] = J[j, i] = d[k]
+    return J
+
+
+def entries_from_option(values) -> np.ndarray:
+    """(6,) entries in :data:`~rig_identification.io.verdict.KEYS` order (ixx ixy ixz iyy iyz izz) from an option's
+    six numbers in :data:`ORDER`."""
+    d = dict(zip(ORDER, (float(v) for v in values)))
+    return np.array([d[k] for k in KEYS])
+
+
+@dataclass(frozen=True)
+class Axes:
+    """A set of body axes the outputs can be given in: ``name`` (``body`` or ``sae``),
+    ``label`` (text for the output), ``rotation`` (3,3): vectors in these axes = rotation @
+    vectors in rig.yaml's body axes."""
+
+    name: str
+    label: str
+    rotation: np.ndarray
+
+
+AXES = {
+    "body": Axes("body", "the body frame of rig.yaml (REP-103: x forward, y left, z up)", np.eye(3)),
+    "sae": Axes("sae", "SAE J670 vehicle axes (x forward, y right, z down: rig.yaml's body frame, REP-103, "
+                       "turned half a turn about x)", np.diag([1.0, -1.0, -1.0])),
+}
+
+
+def convention_lines(axes: Axes) -> list[str]:
+    """The lines every text output starts its numbers with: frame, units, sign convention."""
+    return [f"frame: {axes.label}; origin at rig.yaml's body-frame origin; SI units (kg, m, kg·m²)",
+            "tensor: about the CG, in these axes; its off-diagonal entries ixy, ixz, iyz (geometry_msgs/Inertia, "
+            "URDF, truth.yaml, the JSON) are the NEGATED products of inertia: Ixy = ∫xy dm = −ixy (vehicle "
+            "dynamics, SAE J670 / ISO 8855)"]
+
+
+def parallel_axis(J: np.ndarray, mass: float, c: np.ndarray) -> np.ndarray:
+    """(3,3) tensor about the body frame's origin from ``J`` (3,3) kg·m² about the CG at ``c``
+    (3,) m, the same axes, for ``mass`` kg: J + m (|c|² I − c cᵀ) (Huygens–Steiner)."""
+    c = np.asarray(c, float)
+    return np.asarray(J, float) + mass * (float(c @ c) * np.eye(3) - np.outer(c, c))
+
+
+def principal(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Principal moments (3,) kg·m², ascending, and axes (3,3): unit columns in the tensor's
+    axes, each with its largest component positive (numpy ``eigh`` of the symmetric part)."""
+    moments, axes = np.linalg.eigh(0.5 * (J + J.T))
+    axes = axes * np.where(axes[np.argmax(np.abs(axes), axis=0), range(3)] < 0, -1.0, 1.0)
+    return moments, axes
+
+
+def finite_or_none(x) -> float | None:
+    """A float for JSON/YAML: None when ``x`` is None or not finite (never NaN)."""
+    return None if x is None or not np.isfinite(x) else float(x)
+
+
+@dataclass(frozen=True)
+class Expressed:
+    """An identified result's mass properties in one set of :class:`Axes`.
+
+    mass kg; cg (3,) m, from the body frame's origin; tensor_cg and tensor_origin (3,3)
+    kg·m² about the CG and about the body frame's origin; std (6,) kg·m² σ of the entries
+    (:data:`~rig_identification.io.verdict.KEYS` order); undetermined: the entries (KEYS) the recording does not
+    determine, or that are not finite; principal (3,) kg·m² ascending and principal_axes
+    (3,3) unit columns, None unless every entry is determined."""
+
+    axes: Axes
+    mass: float
+    cg: np.ndarray
+    tensor_cg: np.ndarray
+    tensor_origin: np.ndarray
+    std: np.ndarray
+    undetermined: frozenset
+    principal: np.ndarray | None
+    principal_axes: np.ndarray | None
+
+    def entry(self, k: str, about: str = "cg") -> float | None:
+        """Tensor entry ``k`` (KEYS name) about the CG or the ``origin``; None when undetermined."""
+        if k in self.undetermined:
+            return None
+        i, j = INDEX[k]
+        v = finite_or_none((self.tensor_cg if about == "cg" else self.tensor_origin)[i, j])
+        return None if v is None else v + 0.0     # + 0.0: a sign flip of 0 prints no "-0.00"
+
+    def entries(self, about: str = "cg") -> dict:
+        """{ixx … iyz: value or None} in :data:`ORDER`."""
+        return {k: self.entry(k, about) for k in ORDER}
+
+    def sigma(self, k: str) -> float | None:
+        """σ of entry ``k`` (the same for the product, whose sign alone differs); None when undetermined."""
+        return None if k in self.undetermined else finite_or_none(self.std[KEYS.index(k)])
+
+    def products(self, about: str = "cg") -> dict:
+        """Products of inertia with the vehicle-dynamics sign: {"Ixy": −ixy, "Ixz", "Iyz"} (None
+        when undetermined)."""
+        out = {}
+        for k, name in PRODUCTS.items():
+            v = self.entry(k, about)
+            out[name] = None if v is None else -v + 0.0    # + 0.0: no negative zero
+        return out
+
+    def principal_dict(self) -> dict | None:
+        """{"moments": [3] ascending, "axes": [[x, y, z] per moment]} or None (not determined)."""
+        if self.principal is None:
+            return None
+        return {"moments": [float(x) for x in self.principal],
+                "axes": [[float(x) for x in self.principal_axes[:, i]] for i in range(3)]}
+
+
+def express(mass: float, cg, J, std, undetermined=(), axes: str | Axes = "body") -> Expressed:
+    """The mass properties (``mass`` kg, ``cg`` (3,) m and ``J`` (3,3) kg·m² about it in rig.yaml's
+    body axes, ``std`` (6,) KEYS order, ``undetermined`` entries) in ``axes`` (name or
+    :class:`Axes`): see :class:`Expressed`."""
+    ax = AXES[axes] if isinstance(axes, str) else axes
+    R = ax.rotation
+    J = np.asarray(J, float)
+    std = np.asarray(std, float)
+    gone = set(undetermined) | {k for k, (i, j) in INDEX.items() if not np.isfinite(J[i, j])}
+    c = R @ np.asarray(cg, float)
+    Jr = R @ np.where(np.isfinite(J), J, 0.0) @ R.T
+    Jr[~np.isfinite(J)] = np.nan      # a half turn only changes signs: entries keep their place
+    Jo = parallel_axis(Jr, mass, c)
+    pm = pa = None
+    if not gone:
+        pm, pa = principal(Jr)
+    return Expressed(ax, float(mass), c, Jr, Jo, std, frozenset(gone), pm, pa)
+
+
+def sign_in(axes: str | Axes) -> np.ndarray:
+    """(6,) ±1 per entry (KEYS order): how an entry in rig.yaml's body axes changes sign in
+    ``axes`` (a half turn about a body axis only flips signs)."""
+    ax = AXES[axes] if isinstance(axes, str) else axes
+    R = ax.rotation
+    return np.array([R[i, i] * R[j, j] for i, j in (INDEX[k] for k in KEYS)])
+
+
+def urdf_inertial(ex: Expressed, fmt: str = ".7g") -> str:
+    """A URDF ``<inertial>`` element for a link whose frame is rig.yaml's body frame (URDF frames
+    are REP-103: pass an :class:`Expressed` in the ``body`` axes): origin at the CG, axes parallel
+    to the link's, mass, and the tensor's entries — URDF's ``ixy`` etc. are the matrix's
+    off-diagonal entries (the negated products), as geometry_msgs/Inertia.  When the recording
+    does not determine some entry, an XML comment saying so instead (no numbers)."""
+    if ex.axes.name != "body":
+        raise ValueError("a URDF <inertial> is in the link's (REP-103) axes: express it in the 'body' axes")
+    if ex.undetermined:
+        gone = ", ".join(k for k in ORDER if k in ex.undetermined)
+        return f"<!-- no URDF <inertial>: the recording does not determine {gone} -->"
+    xyz = " ".join(format(float(x), fmt) for x in ex.cg)
+    ent = " ".join(f"{k}={quoteattr(format(ex.entry(k), fmt))}" for k in KEYS)
+    return (f"<inertial>\n  <origin xyz=\"{xyz}\" rpy=\"0 0 0\"/>\n  <mass value=\"{format(ex.mass, fmt)}\"/>\n"
+            f"  <inertia {ent}/>\n</inertial>")
+
+
+UNITS = {
+    "mass": "kg", "center_of_gravity": "m, body frame", "inertia_about_cg": "kg·m², body axes, tensor entries",
+    "inertia_about_origin": "kg·m², body axes, tensor entries", "inertia_std": "kg·m²",
+    "inertia_crb_std": "kg·m²", "inertia_sandwich_std": "kg·m²", "bias_correction": "kg·m²: the least-squares estimate's bias removed",
+    "errors_in_variables.noise_share": "1: share of the fit's input that is noise, along its noisiest direction",
+    "errors_in_variables.direction": "1: unit vector of tensor entries", "errors_in_variables.correction_std": "kg·m²",
+    "products_of_inertia": "kg·m², body axes, vehicle-dynamics sign (Ixy = −ixy)",
+    "principal_moments": "kg·m², ascending", "principal_axes": "1: unit vectors, body axes, one per principal moment",
+    "correlation": "1", "weakly_determined.relative_std": "1: σ over tr J / 3", "weakly_determined.std": "kg·m²",
+    "window.start": "s from the recording's first IMU sample", "window.end": "s from the recording's first IMU sample",
+    "window.start_stamp": "s, header stamps", "window.end_stamp": "s, header stamps", "band_hz": "Hz",
+    "residual_rms_rad_s": "rad/s", "residual_excess": "1: residual RMS over the noise's", "fit_r2": "1",
+    "weight_surplus": "1: load cells' mean vertical force over rig.yaml's weight, − 1", "replay_sigma_factor": "1",
+    "sensor_noise.gyro": "rad/s", "sensor_noise.accelerometer": "m/s²", "sensor_noise.load_cell": "N",
+    "sensor_noise.exciter": "N", "sensor_noise.inclinometer": "rad",
+    "validation.segments.start": "s from the first IMU sample of the segment's recording",
+    "validation.segments.end": "s from the first IMU sample of the segment's recording",
+    "validation.segments.start_stamp": "s, header stamps", "validation.segments.end_stamp": "s, header stamps",
+    "validation.segments.inertia_about_cg": "kg·m², body axes, tensor entries",
+    "validation.sub_bands.band_hz": "Hz", "validation.sub_bands.inertia_about_cg": "kg·m², body axes, tensor entries",
+    "validation.spread_std": "kg·m²", "validation.sigma_factor": "1",
+    "validation.checks.statistic": "as its threshold (the check's detail says what it measures)",
+}
+"""Units of the fields of the inertia JSON (``"units"`` of :meth:`~rig_identification.estimation.identification.InertiaResult.to_dict`)."""
+
+
+# --- effect parameters with their units ------------------------------------------------------------
+
+EFFECT_UNITS = {
+    "viscous_damping": {"angular": "N·m·s/rad", "linear": "N·s/m"},
+    "air_drag": {"angular": "N·m·s²/rad²", "linear": "N·s²/m²"},
+    "coulomb_friction": {"torque": "N·m", "force": "N", "velocity_scale": "rad/s or m/s"},
+    "cable_elasticity": {"stiffness": "N/m", "declared_stiffness": "N/m"},
+    "cable_mass": {"mass": "kg"},
+    "body_mass": {"mass_error": "kg"},
+    "exciter_rotor": {"unbalance": "kg·m", "rotor_inertia": "kg·m²"},
+    "imu_offset": {"offset": "m"},
+    "imu_misalignment": {"rpy": "rad"},
+    "sensor_delay": {"delay": "s"},
+    "gyro_bias": {"bias": "rad/s"},
+    "accelerometer_bias": {"bias": "m/s²"},
+    "load_cell_scale": {"scale": "(reading / tension)"},
+    "gyroscopic_coupling": {"scale": "(κ, 1 = the full ω × Jω)"},
+    "gyro_bias_drift": {"random_walk": "rad/s/√s"},
+    "gyro_scale": {"scale": "(reading / rate)"},
+    "structural_mode": {"frequency": "Hz", "damping_ratio": "", "participation": ""},
+    "compliant_body": {"mass_share": "", "frequencies": "Hz", "damping_ratio": "", "lock_frequency": "Hz",
+                       "sprung_cg": "m"},
+}
+"""Units of the effects' parameters (SI, as :mod:`~rig_identification.model.effects` lists them); a parameter not here
+(a name: ``stream``, ``cable``) has none."""
+
+
+def value_text(v, spec: str = ".4g") -> str:
+    """A parameter value (number, list, dict, name) as text."""
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k}: {value_text(x, spec)}" for k, x in v.items()) + "}"
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(value_text(x, spec) for x in v) + "]"
+    if isinstance(v, (float, np.floating)):
+        return format(float(v), spec) if np.isfinite(v) else "nan"
+    return str(v)
+
+
+def effect_text(e: dict) -> str:
+    """``name = v ± σ unit, …`` of one effect (an entry of :attr:`~rig_identification.diagnosis.selection.Diagnosis.effects`,
+    a dict with ``name``, ``parameters`` and optionally ``parameters_std``), units from
+    :data:`EFFECT_UNITS`: the one text of effect parameters, in the CLI's printouts and in the
+    warning of a diagnosed model error (:func:`~rig_identification.pipeline.offline.with_diagnosis`)."""
+    units = EFFECT_UNITS.get(e["name"], {})
+    std = e.get("parameters_std", {})
+    out = []
+    for k, v in e["parameters"].items():
+        s = f"{k} = {value_text(v)}" + (f" ± {value_text(std[k])}" if k in std else "")
+        out.append(s + (f" {units[k]}" if units.get(k) else ""))
+    return ", ".join(out)
+
+
+def axes_block(ex: Expressed) -> dict:
+    """The mass properties of ``ex`` for a JSON block in other axes (``"sae_j670"`` of
+    ``rig-identify inertia --json --axes sae``): the same fields as the body-axes ones."""
+    pm = ex.principal_dict()
+    return {"axes": ex.axes.label, "center_of_gravity": [float(x) for x in ex.cg],
+            "inertia_about_cg": {k: ex.entry(k) for k in KEYS}, "inertia_std": {k: ex.sigma(k) for k in KEYS},
+            "products_of_inertia": ex.products(), "inertia_about_origin": {k: ex.entry(k, "origin") for k in KEYS},
+            "principal_moments": None if pm is None else pm["moments"],
+            "principal_axes": None if pm is None else pm["axes"]}
+
+
+def export_dict(ex: Expressed, *, verdict: str | None, summary: str | None, std_kind: str, sources: list[str],
+                window: dict | None, created: str, version: str) -> dict:
+    """The content of the YAML export (:func:`yaml_text`): schema, conventions, the mass
+    properties in ``ex``'s axes (tensor about the CG and the origin, σ, products with the
+    vehicle-dynamics sign, principal moments and axes; undetermined entries null), the verdict,
+    the recordings, the window, when and with which version."""
+    return {
+        "schema": EXPORT_SCHEMA, "schema_version": EXPORT_SCHEMA_VERSION,
+        "created": created, "tool": f"rig_identification {version}",
+        "axes": ex.axes.name, "frame": ex.axes.label,
+        "convention": "tensor entries ixx..izz as geometry_msgs/Inertia and URDF: off-diagonal entries are the "
+                      "negated products of inertia; products_of_inertia carry the vehicle-dynamics sign "
+                      "(Ixy = integral of x*y dm = -ixy)",
+        "units": {"mass": "kg", "center_of_gravity": "m", "inertia": "kg*m^2"},
+        "verdict": verdict, "verdict_summary": summary, "sources": list(sources), "window_s": window,
+        "mass": ex.mass, "center_of_gravity": [float(x) for x in ex.cg],
+        "inertia_about_cg": ex.entries("cg"), "inertia_std": {k: ex.sigma(k) for k in ORDER}, "std_is": std_kind,
+        "products_of_inertia_about_cg": ex.products("cg"),
+        "inertia_about_origin": ex.entries("origin"), "principal": ex.principal_dict(),
+        "undetermined": [k for k in ORDER if k in ex.undetermined],
+    }
+
+
+def yaml_text(content: dict) -> str:
+    """YAML of :func:`export_dict`'s content, with a comment line naming the schema."""
+    return (f"# {content['schema']} v{content['schema_version']}: mass properties identified by rig-identify "
+            "inertia\n" + yaml.safe_dump(content, sort_keys=False, allow_unicode=True, default_flow_style=None))
+
+
+__all__ = ["AXES", "Axes", "EFFECT_UNITS", "ENTRY_NAMES", "EXPORT_SCHEMA", "EXPORT_SCHEMA_VERSION", "Expressed",
+           "INERTIA_SCHEMA", "INERTIA_SCHEMA_VERSION", "NOT_DETERMINED", "ORDER", "PRODUCTS", "UNITS", "VEHICLE_SIGN",
+           "axes_block", "convention_lines", "effect_text", "entries_from_option", "export_dict", "express",
+           "finite_or_none", "parallel_axis", "principal", "sign_in", "tensor_from_option", "urdf_inertial",
+           "value_text", "yaml_text"]

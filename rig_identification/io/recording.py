@@ -1,0 +1,513 @@
+"""Recordings: the rig's sensor streams as arrays, read from and written to rosbag2.
+
+A recording folder (``RECORDING_FORMAT.md``) holds ``rig.yaml``, ``bag/`` (rosbag2,
+MCAP or sqlite3) and, for simulated recordings, ``truth.yaml``.  Bags are read and
+written with ``rosbags`` (no ROS installation needed); the rig topics are read in bulk,
+numpy over the raw CDR bytes (:mod:`rig_identification.io.bag_raw`, :mod:`rig_identification.io.bag_decode`), with rosbags'
+per-message deserialisation as the reference and the fallback.
+
+Topics (all stamped; consumers align them by ``header.stamp``):
+
+* ``/rig/imu`` sensor_msgs/msg/Imu, frame ``imu``: gyro rad/s, specific force m/s^2.
+* ``/rig/load_cells/<cable>`` geometry_msgs/msg/WrenchStamped: ``wrench.force.z`` = tension, N.
+* ``/rig/exciter/wrench`` geometry_msgs/msg/WrenchStamped: ``force.x``, ``force.y`` in the exciter frame, N.
+* ``/rig/inclinometer`` geometry_msgs/msg/Vector3Stamped: ``vector.x``/``vector.y`` elevation of the
+  inclinometer's x/y axes above the horizontal, rad.
+
+Errors: :class:`RecordingError` (a ``ValueError``) naming the file and topic.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .bag_decode import IMU_TYPE, TYPE_HASHES, VECTOR_TYPE, WRENCH_TYPE, decode_stamped
+from .rig import Rig, RigError, dump_rig, load_rig
+from .noise import white_sigma
+
+IMU_TOPIC = "/rig/imu"
+LOAD_CELL_PREFIX = "/rig/load_cells/"
+EXCITER_TOPIC = "/rig/exciter/wrench"
+INCLINOMETER_TOPIC = "/rig/inclinometer"
+
+
+class RecordingError(ValueError):
+    """A recording that cannot be read or is inconsistent with its rig description."""
+
+
+@dataclass
+class TimeSeries:
+    """Samples of one stream.  t: (N,) header stamps, s.  data: (N, k)."""
+
+    t: np.ndarray
+    data: np.ndarray
+
+    def __post_init__(self):
+        self.t = np.asarray(self.t, float)
+        self.data = np.asarray(self.data, float)
+        if self.data.ndim == 1:
+            self.data = self.data[:, None]
+
+    def __len__(self) -> int:
+        return len(self.t)
+
+    def window(self, t0: float, t1: float) -> "TimeSeries":
+        m = (self.t >= t0) & (self.t <= t1)
+        return TimeSeries(self.t[m], self.data[m])
+
+    def interp(self, t: np.ndarray) -> np.ndarray:
+        """Linear interpolation of every column at times ``t`` (M,) -> (M, k)."""
+        return np.column_stack([np.interp(t, self.t, c) for c in self.data.T])
+
+
+@dataclass
+class SensorData:
+    """All sensor streams of one experiment.
+
+    imu.data: (N, 6) gyro x,y,z rad/s then specific force x,y,z m/s^2, IMU axes.
+    load_cells[name].data: (N, 1) cable tension, N.
+    exciter.data: (N, 2) exciter force x, y in the exciter frame, N (or None).
+    inclinometer.data: (N, 2) elevation of the x and y axes, rad (or None).
+    """
+
+    imu: TimeSeries
+    load_cells: dict[str, TimeSeries]
+    exciter: TimeSeries | None = None
+    inclinometer: TimeSeries | None = None
+
+    @property
+    def t_start(self) -> float:
+        return float(self.imu.t[0])
+
+    @property
+    def t_end(self) -> float:
+        return float(self.imu.t[-1])
+
+
+@dataclass
+class Recording:
+    """A recording folder in memory: rig description, sensor data, optional truth."""
+
+    rig: Rig
+    sensors: SensorData
+    truth: dict | None = None
+    path: Path | None = None
+    warnings: list[str] = field(default_factory=list)
+
+
+# --- reading --------------------------------------------------------------------------
+
+#: A topic whose write order departs from its stamp order by less than this fraction of its
+#: sampling period is sorted silently: the format says a consumer aligns by stamp, and
+#: drivers that stamp at acquisition and publish from several threads write so.  Not 1:
+#: float64 stamps near 1.75e9 s resolve 2.4e-7 s (2.4e-4 of a 1 kHz period), and two
+#: neighbours of a regular stream written swapped — a disorder of exactly one period — warn.
+QUIET_DISORDER = 0.99
+
+
+def _typestore():
+    from rosbags.typesys import Stores, get_typestore
+    return get_typestore(Stores.ROS2_JAZZY)
+
+
+def _stamp(msg) -> float:
+    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+
+
+def _message_row(topic: str, msg) -> tuple[float, ...]:
+    """One row of a topic's samples from a deserialised message: stamp, s, then the values
+    :func:`_bulk_fields` names, in the same order."""
+    if topic == IMU_TOPIC:
+        w, a = msg.angular_velocity, msg.linear_acceleration
+        return (_stamp(msg), w.x, w.y, w.z, a.x, a.y, a.z)
+    if topic == EXCITER_TOPIC:
+        return (_stamp(msg), msg.wrench.force.x, msg.wrench.force.y)
+    if topic == INCLINOMETER_TOPIC:
+        return (_stamp(msg), msg.vector.x, msg.vector.y)
+    return (_stamp(msg), msg.wrench.force.z)
+
+
+def _bulk_fields(topic: str) -> tuple[str, ...]:
+    """The float64 fields (:data:`~rig_identification.io.bag_decode.DOUBLE_FIELDS` names) of :func:`_message_row`."""
+    if topic == IMU_TOPIC:
+        return ("angular_velocity.x", "angular_velocity.y", "angular_velocity.z",
+                "linear_acceleration.x", "linear_acceleration.y", "linear_acceleration.z")
+    if topic == EXCITER_TOPIC:
+        return ("wrench.force.x", "wrench.force.y")
+    if topic == INCLINOMETER_TOPIC:
+        return ("vector.x", "vector.y")
+    return ("wrench.force.z",)
+
+
+def _deserialize(reader, bag: Path, conn_topic: str, msgtype: str, raw) -> object:
+    from rosbags.highlevel import AnyReaderError
+    try:
+        return reader.deserialize(raw, msgtype)
+    except AnyReaderError as e:
+        raise RecordingError(f"{bag}: topic {conn_topic}: cannot decode a {msgtype} message ({e})") from None
+
+
+def _open_reader(bag: Path, bulk: bool):
+    """An open AnyReader.  Bulk reading builds the default typestore (0.1 s) only for a
+    bag without embedded message definitions; the per-message path builds it always, as
+    it always has."""
+    from rosbags.highlevel import AnyReader, AnyReaderError
+    if bulk:
+        reader = AnyReader([bag])
+        try:
+            reader.open()
+            return reader
+        except AnyReaderError:
+            pass   # no definitions in the bag (or unreadable: the second open says why)
+    reader = AnyReader([bag], default_typestore=_typestore())
+    reader.open()
+    return reader
+
+
+def _per_message_rows(reader, bag: Path, conns) -> dict[str, list]:
+    """Rows of every wanted message, deserialised one at a time (the reference path)."""
+    columns: dict[str, list] = {}
+    for conn, _, raw in reader.messages(connections=conns):
+        msg = _deserialize(reader, bag, conn.topic, conn.msgtype, raw)
+        columns.setdefault(conn.topic, []).append(_message_row(conn.topic, msg))
+    return columns
+
+
+def _bulk_rows(reader, bag: Path, conns) -> dict[str, np.ndarray]:
+    """Rows of every wanted message, decoded in bulk (:mod:`rig_identification.io.bag_decode`) over the raw bytes
+    (:mod:`rig_identification.io.bag_raw`); messages the bulk decoder does not vouch for, and topics whose type
+    definition in the bag is not the standard one, are deserialised one at a time."""
+    from .bag_raw import read_topics  # imports rosbags: like the rest of this module, only when a bag is read
+    msgtypes = {c.topic: c.msgtype for c in conns}
+    standard = {}
+    for mtype in set(msgtypes.values()):
+        try:
+            standard[mtype] = reader.typestore.hash_rihs01(mtype) == TYPE_HASHES[mtype]
+        except Exception:  # noqa: BLE001 - an incomplete definition: rosbags will say what is wrong
+            standard[mtype] = False
+
+    def decode(topic: str, buf: np.ndarray, offsets: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+        mtype = msgtypes[topic]
+        if standard[mtype]:
+            rows, done = decode_stamped(buf, offsets, sizes, mtype, _bulk_fields(topic))
+        else:
+            rows, done = np.full((len(offsets), 1 + len(_bulk_fields(topic))), np.nan), np.zeros(len(offsets), bool)
+        view = memoryview(buf)
+        for i in np.nonzero(~done)[0].tolist():
+            raw = bytes(view[int(offsets[i]):int(offsets[i] + sizes[i])])
+            rows[i] = _message_row(topic, _deserialize(reader, bag, topic, mtype, raw))
+        return rows
+
+    return read_topics(reader, conns, decode)
+
+
+def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | None = None,
+                     bulk: bool = True) -> SensorData:
+    """Read the rig topics of a rosbag2 folder (or a single .mcap/.db3 file).
+
+    Samples are sorted by header stamp.  Non-finite samples and duplicated stamps are
+    dropped with a warning appended to ``warnings``; a topic written out of stamp order by
+    a sampling period or more (:data:`QUIET_DISORDER`) is sorted with a warning, a smaller
+    disorder silently.  Unknown topics are ignored.  Frame ids are not checked (they are
+    node parameters, docs/ros.md).
+
+    bulk: decode the messages in bulk over their raw bytes (:mod:`rig_identification.io.bag_decode`,
+    :mod:`rig_identification.io.bag_raw`), ~10-20x faster; False deserialises every message with rosbags (the
+    reference the bulk path is tested to equal exactly, and its fallback).
+
+    Raises :class:`RecordingError` for a missing or unreadable bag, a message that cannot be
+    decoded (naming its topic), a topic of the wrong type, a load-cell topic of a cable
+    rig.yaml does not list, a missing topic, or a cable in ``cable_names`` without a
+    load-cell topic.
+    """
+    warnings = [] if warnings is None else warnings
+    bag = Path(bag)
+    if not bag.exists():
+        raise RecordingError(f"{bag}: no bag here")
+    try:
+        reader = _open_reader(bag, bulk)
+        try:
+            wanted = {IMU_TOPIC: IMU_TYPE, EXCITER_TOPIC: WRENCH_TYPE, INCLINOMETER_TOPIC: VECTOR_TYPE}
+            for name in cable_names:
+                wanted[LOAD_CELL_PREFIX + name] = WRENCH_TYPE
+            conns = []
+            for c in reader.connections:
+                if c.topic in wanted:
+                    if c.msgtype != wanted[c.topic]:
+                        raise RecordingError(f"{bag}: topic {c.topic} has type {c.msgtype}, expected {wanted[c.topic]}")
+                    conns.append(c)
+                elif c.topic.startswith(LOAD_CELL_PREFIX):
+                    raise RecordingError(f"{bag}: topic {c.topic} is a load cell of cable "
+                                         f"{c.topic[len(LOAD_CELL_PREFIX):]!r}, which rig.yaml does not list "
+                                         f"(rig.yaml cables: {', '.join(cable_names)}); rig.yaml and the bag "
+                                         "do not describe the same rig")
+            if not conns:
+                columns = {}
+            elif bulk and reader.is2:
+                columns = _bulk_rows(reader, bag, conns)
+            else:
+                columns = _per_message_rows(reader, bag, conns)
+        finally:
+            reader.close()
+    except RecordingError:
+        raise
+    except Exception as e:  # rosbags raises several exception types for broken bags
+        raise RecordingError(f"{bag}: cannot read the bag ({type(e).__name__}: {e})") from None
+
+    def series(topic: str, required: bool) -> TimeSeries | None:
+        rows = columns.get(topic)
+        if rows is None or not len(rows):
+            if required:
+                raise RecordingError(f"{bag}: topic {topic} is missing or empty")
+            return None
+        a = np.asarray(rows, float)
+        finite = np.isfinite(a).all(axis=1)
+        if not finite.all():
+            bad = a[~finite, 0]
+            warnings.append(f"{bag}: topic {topic}: {int((~finite).sum())} non-finite (NaN/inf) sample(s) "
+                            f"between t={bad.min():.3f} and t={bad.max():.3f} s dropped")
+            a = a[finite]
+        order = np.argsort(a[:, 0], kind="stable")
+        if np.any(order != np.arange(len(order))):
+            late = float(np.max(np.maximum.accumulate(a[:, 0]) - a[:, 0]))
+            step = np.diff(a[order, 0])
+            period = float(np.median(step[step > 0])) if np.any(step > 0) else np.nan
+            if not late < QUIET_DISORDER * period:
+                warnings.append(f"{bag}: topic {topic}: samples out of stamp order (a sample written up to "
+                                f"{late:.3g} s after a later-stamped one; sampling period {period:.3g} s); "
+                                "sorted by header.stamp")
+            a = a[order]
+        dup = np.concatenate([[False], np.diff(a[:, 0]) <= 0])
+        if dup.any():
+            warnings.append(f"{bag}: topic {topic}: {int(dup.sum())} duplicated stamp(s) dropped")
+            a = a[~dup]
+        if len(a) < 2:
+            raise RecordingError(f"{bag}: topic {topic} has fewer than 2 valid samples")
+        return TimeSeries(a[:, 0], a[:, 1:])
+
+    imu = series(IMU_TOPIC, True)
+    cells = {n: series(LOAD_CELL_PREFIX + n, True) for n in cable_names}
+    return SensorData(imu, cells, series(EXCITER_TOPIC, False), series(INCLINOMETER_TOPIC, False))
+
+
+# --- screening for bad spans -------------------------------------------------------------
+
+SHORT_GAP = 0.1          # s: gaps up to this are bridged by interpolation, longer ones are excluded
+SATURATION_RUN = 5       # identical samples at a channel's extreme that make a saturated run
+SLACK_FRACTION = 0.05    # tension below this fraction of the cable's share of the weight = slack
+
+
+@dataclass
+class BadSpan:
+    """A span of one topic where the data cannot be trusted (``reason``); stamps in s."""
+
+    topic: str
+    t0: float
+    t1: float
+    reason: str
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Index ranges [i, j] (inclusive) of consecutive True in ``mask``."""
+    d = np.diff(np.r_[0, mask.astype(np.int8), 0])
+    return list(zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0] - 1))
+
+
+def find_bad_spans(rig: Rig, sensors: SensorData) -> list[BadSpan]:
+    """Spans to exclude from a fit: gaps longer than :data:`SHORT_GAP` (dropped messages),
+    saturated channels (runs of >= :data:`SATURATION_RUN` identical samples at the
+    channel's extreme, in a channel that is noisy elsewhere — :func:`~rig_identification.io.noise.white_sigma`
+    of the other samples above zero) and slack cables (tension below :data:`SLACK_FRACTION` of the
+    cable's share of the weight)."""
+    spans: list[BadSpan] = []
+    streams = [(IMU_TOPIC, sensors.imu)] + [(LOAD_CELL_PREFIX + n, s) for n, s in sensors.load_cells.items()]
+    if sensors.exciter is not None and rig.exciter is not None:
+        streams.append((EXCITER_TOPIC, sensors.exciter))
+    for topic, s in streams:
+        if len(s) < 3:
+            continue
+        dt = np.diff(s.t)
+        med = float(np.median(dt))
+        for i in np.nonzero(dt > max(SHORT_GAP, 1.5 * med))[0]:
+            spans.append(BadSpan(topic, float(s.t[i]), float(s.t[i + 1]),
+                                 f"gap of {dt[i]:.2f} s (dropped messages)"))
+        for k, col in enumerate(s.data.T):
+            if np.ptp(col) == 0:
+                continue
+            runs = [(ext, i, j) for ext in (col.max(), col.min()) for i, j in _runs(col == ext)
+                    if j - i + 1 >= SATURATION_RUN]
+            if not runs:
+                continue
+            # a sensor that saturates is noisy elsewhere; a noise-free stream (a simulation:
+            # stepped forces, say) may hold a value exactly and is not saturated
+            inside = np.zeros(len(col), bool)
+            for _, i, j in runs:
+                inside[i:j + 1] = True
+            if white_sigma(col[~inside]) == 0.0:
+                continue
+            for ext, i, j in runs:
+                spans.append(BadSpan(topic, float(s.t[i]), float(s.t[j]),
+                                     f"saturated (channel {k} stuck at {ext:.6g} for {j - i + 1} samples)"))
+    share = rig.mass * rig.gravity / len(rig.cables)
+    for name, s in sensors.load_cells.items():
+        for i, j in _runs(s.data[:, 0] < SLACK_FRACTION * share):
+            spans.append(BadSpan(LOAD_CELL_PREFIX + name, float(s.t[max(i - 1, 0)]),
+                                 float(s.t[min(j + 1, len(s) - 1)]),
+                                 f"cable {name} slack (tension below {SLACK_FRACTION * share:.0f} N; "
+                                 "the rigid-cable model does not hold)"))
+    return spans
+
+
+def crop(sensors: SensorData, t0: float, t1: float) -> SensorData:
+    """The sensor streams within [t0, t1] (stamps in s)."""
+    w = lambda s: None if s is None else s.window(t0, t1)  # noqa: E731
+    return SensorData(w(sensors.imu), {n: w(s) for n, s in sensors.load_cells.items()},
+                      w(sensors.exciter), w(sensors.inclinometer))
+
+
+def fill_short_gaps(ts: TimeSeries) -> tuple[TimeSeries, list[tuple[float, float]]]:
+    """Insert linearly interpolated samples into gaps of a nearly uniform stream.
+
+    Returns the filled series and the filled spans (t0, t1)."""
+    if len(ts) < 3:
+        return ts, []
+    dt = np.diff(ts.t)
+    med = float(np.median(dt))
+    idx = np.nonzero(dt > 1.5 * med)[0]
+    if not len(idx):
+        return ts, []
+    new = [np.arange(ts.t[i] + med, ts.t[i + 1] - 0.5 * med, med) for i in idx]
+    t = np.sort(np.concatenate([ts.t, *new]))
+    return TimeSeries(t, ts.interp(t)), [(float(ts.t[i]), float(ts.t[i + 1])) for i in idx]
+
+
+def read_recording(path: str | Path) -> Recording:
+    """Read a recording folder (``rig.yaml`` + ``bag/`` [+ ``truth.yaml``]).
+
+    Raises :class:`RecordingError` or :class:`~rig_identification.io.rig.RigError`.
+    """
+    p = Path(path)
+    if not p.is_dir():
+        raise RecordingError(f"{p}: not a recording folder")
+    rig_path = p / "rig.yaml"
+    if not rig_path.exists():
+        raise RecordingError(f"{p}: no rig.yaml in the recording folder")
+    rig = load_rig(rig_path)
+    warnings: list[str] = []
+    sensors = read_sensor_data(p / "bag", rig.cable_names, warnings)
+    truth = None
+    if (p / "truth.yaml").exists():
+        try:
+            truth = yaml.safe_load((p / "truth.yaml").read_text())
+        except yaml.YAMLError as e:
+            raise RecordingError(f"{p / 'truth.yaml'}: not valid YAML ({e})") from None
+    return Recording(rig, sensors, truth, p, warnings)
+
+
+# --- writing --------------------------------------------------------------------------
+
+def _header(types, t: float, frame: str):
+    sec = int(np.floor(t))
+    nsec = int(round((t - sec) * 1e9))
+    if nsec >= 1_000_000_000:
+        sec, nsec = sec + 1, nsec - 1_000_000_000
+    return types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
+                                        frame_id=frame)
+
+
+def sensor_messages(rig: Rig, sensors: SensorData):
+    """Yield ``(topic, msgtype, stamp_s, message)`` for every sample, in stamp order.
+
+    Messages are rosbags typestore objects, ready for ``typestore.serialize_cdr``.
+    """
+    ts = _typestore()
+    T = ts.types
+    Vec, Quat = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
+    streams = []
+    zero_cov = np.zeros(9)
+    orient_cov = np.zeros(9)
+    orient_cov[0] = -1.0
+
+    def imu_msg(t, row):
+        return T[IMU_TYPE](header=_header(T, t, "imu"), orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0),
+                           orientation_covariance=orient_cov,
+                           angular_velocity=Vec(x=row[0], y=row[1], z=row[2]), angular_velocity_covariance=zero_cov,
+                           linear_acceleration=Vec(x=row[3], y=row[4], z=row[5]),
+                           linear_acceleration_covariance=zero_cov)
+
+    def wrench_msg(frame, fx, fy, fz):
+        def f(t, row):
+            r = [0.0, 0.0, 0.0]
+            vals = (fx, fy, fz)
+            for i, v in enumerate(vals):
+                if v is not None:
+                    r[i] = float(row[v])
+            return T[WRENCH_TYPE](header=_header(T, t, frame),
+                                  wrench=T["geometry_msgs/msg/Wrench"](force=Vec(x=r[0], y=r[1], z=r[2]),
+                                                                        torque=Vec(x=0.0, y=0.0, z=0.0)))
+        return f
+
+    def incl_msg(t, row):
+        return T[VECTOR_TYPE](header=_header(T, t, "inclinometer"), vector=Vec(x=row[0], y=row[1], z=0.0))
+
+    streams.append((IMU_TOPIC, IMU_TYPE, sensors.imu, imu_msg))
+    for name, s in sensors.load_cells.items():
+        streams.append((LOAD_CELL_PREFIX + name, WRENCH_TYPE, s, wrench_msg(f"load_cell_{name}", None, None, 0)))
+    if sensors.exciter is not None:
+        streams.append((EXCITER_TOPIC, WRENCH_TYPE, sensors.exciter, wrench_msg("exciter", 0, 1, None)))
+    if sensors.inclinometer is not None:
+        streams.append((INCLINOMETER_TOPIC, VECTOR_TYPE, sensors.inclinometer, incl_msg))
+    events = []
+    for k, (_, _, s, _) in enumerate(streams):
+        events.extend((float(t), k, i) for i, t in enumerate(s.t))
+    events.sort()
+    for t, k, i in events:
+        topic, mtype, s, make = streams[k]
+        yield topic, mtype, t, make(t, s.data[i])
+
+
+def write_bag(bag_dir: Path, rig: Rig, sensors: SensorData, storage: str = "mcap") -> int:
+    """Write the sensor streams as a rosbag2 at ``bag_dir`` (must not exist).
+
+    The bag timestamp of each message is its header stamp.  Returns the number of
+    messages written.  ``storage``: ``"mcap"`` or ``"sqlite3"``.
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    ts = _typestore()
+    plugin = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}[storage]
+    n = 0
+    with Writer(bag_dir, version=9, storage_plugin=plugin) as w:
+        conns = {}
+        for topic, mtype, t, msg in sensor_messages(rig, sensors):
+            if topic not in conns:
+                conns[topic] = w.add_connection(topic, mtype, typestore=ts)
+            w.write(conns[topic], int(round(t * 1e9)), ts.serialize_cdr(msg, mtype))
+            n += 1
+    return n
+
+
+def write_recording(out: str | Path, rig: Rig, sensors: SensorData, truth: dict | None = None,
+                    storage: str = "mcap", rig_comment: str | None = None, overwrite: bool = False) -> Path:
+    """Write a recording folder atomically: it appears whole at ``out`` or not at all.
+
+    Builds the folder next to ``out`` and renames it into place.  Raises
+    :class:`RecordingError` if ``out`` exists and ``overwrite`` is false.
+    """
+    from .atomic import atomic_directory
+    out = Path(out)
+    if out.exists() and not overwrite:
+        raise RecordingError(f"{out}: already exists (refusing to overwrite)")
+    with atomic_directory(out, overwrite=overwrite) as tmp:
+        (tmp / "rig.yaml").write_text(dump_rig(rig, rig_comment))
+        if truth is not None:
+            (tmp / "truth.yaml").write_text(yaml.safe_dump(truth, sort_keys=False, default_flow_style=None))
+        write_bag(tmp / "bag", rig, sensors, storage)
+    return out
+
+
+__all__ = ["BadSpan", "find_bad_spans", "crop", "fill_short_gaps", "TimeSeries", "SensorData", "Recording", "RecordingError", "RigError", "read_recording",
+           "read_sensor_data", "write_recording", "write_bag", "sensor_messages", "load_rig"]

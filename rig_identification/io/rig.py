@@ -1,0 +1,385 @@
+"""Rig description: geometry and known quantities of the suspended-body rig.
+
+Loads and validates ``rig.yaml`` exactly as specified in ``RECORDING_FORMAT.md``
+(shared with the rig and the reference simulator).  Every length is in metres,
+masses in kg, angles in rad.  Frames (REP-103, right-handed):
+
+* ``world``: z up, gravity along -z, origin at a reference point on the ceiling.
+* ``body``: fixed to the carrying frame, origin at any reference point on it
+  (not necessarily the centre of gravity).
+* ``imu``, ``exciter``, ``inclinometer``: sensor frames given by a position (body
+  frame) and roll-pitch-yaw (fixed-axis XYZ) relative to the body axes.
+
+Errors: :class:`RigError` (a ``ValueError``) naming the file and the field.
+"""
+from __future__ import annotations
+
+import difflib
+import itertools
+import math
+import re
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+from scipy.spatial.transform import Rotation
+
+from .export import AXES
+
+CABLE_NAME = re.compile(r"^[a-z0-9_]+$")
+
+
+class RigError(ValueError):
+    """A rig description that is missing a field or holds a wrong value."""
+
+
+@dataclass(frozen=True)
+class Cable:
+    """One suspension cable.
+
+    ceiling_anchor: (3,) world frame, m.  body_anchor: (3,) body frame, m.
+    length: unstretched length, m.  stiffness: axial stiffness EA/L in N/m, or
+    ``None`` for an inextensible cable.
+    """
+
+    name: str
+    ceiling_anchor: np.ndarray
+    body_anchor: np.ndarray
+    length: float
+    stiffness: float | None = None
+
+
+@dataclass(frozen=True)
+class Mount:
+    """A sensor or actuator frame on the body: position (3,) m and rotation to body axes."""
+
+    position: np.ndarray
+    rpy: np.ndarray
+
+    @property
+    def rotation(self) -> Rotation:
+        """Rotation from the mount's axes to the body axes (fixed-axis XYZ rpy)."""
+        return Rotation.from_euler("xyz", self.rpy)
+
+
+@dataclass(frozen=True)
+class DummyMass:
+    """A point mass fixed on the body: mass kg, position (3,) body frame m (its own CG)."""
+
+    mass: float
+    position: np.ndarray
+
+
+@dataclass(frozen=True)
+class Rig:
+    """The validated content of ``rig.yaml``.
+
+    ``center_of_gravity`` is ``None`` when unknown (static experiment).
+    ``exciter``, ``inclinometer`` and ``dummy_mass`` are ``None`` when absent.  ``extra``:
+    kept for callers that build a Rig by hand; rig.yaml files cannot have other fields.
+    ``name``: the rig's name (rig.yaml ``name``, optional; reports show it).  ``output_axes``:
+    the axes outputs are given in by default (rig.yaml ``output_axes``: a key of
+    :data:`~rig_identification.io.export.AXES`, ``body`` or ``sae``; None: not stated, ``body``) — rig.yaml's own
+    geometry is always in the body frame (REP-103).
+    """
+
+    gravity: float
+    cables: tuple[Cable, ...]
+    mass: float
+    center_of_gravity: np.ndarray | None
+    imu: Mount
+    exciter: Mount | None = None
+    inclinometer: Mount | None = None
+    dummy_mass: DummyMass | None = None
+    source: str = "<memory>"
+    extra: dict = field(default_factory=dict)
+    name: str | None = None
+    output_axes: str | None = None
+
+    # --- convenient stacked views -------------------------------------------------
+    @property
+    def cable_names(self) -> list[str]:
+        return [c.name for c in self.cables]
+
+    @property
+    def ceiling_anchors(self) -> np.ndarray:
+        """(N, 3) world frame, m."""
+        return np.array([c.ceiling_anchor for c in self.cables])
+
+    @property
+    def body_anchors(self) -> np.ndarray:
+        """(N, 3) body frame, m."""
+        return np.array([c.body_anchor for c in self.cables])
+
+    @property
+    def cable_lengths(self) -> np.ndarray:
+        """(N,) unstretched lengths, m."""
+        return np.array([c.length for c in self.cables])
+
+    @property
+    def cable_stiffness(self) -> np.ndarray:
+        """(N,) axial stiffness N/m; ``inf`` for inextensible cables."""
+        return np.array([np.inf if c.stiffness is None else c.stiffness for c in self.cables])
+
+    def require_cg(self) -> np.ndarray:
+        if self.center_of_gravity is None:
+            raise RigError(f"{self.source}: body.center_of_gravity is required for this job "
+                           "(estimate it first with the static experiment: rig-identify cg)")
+        return self.center_of_gravity
+
+    def with_cg(self, cg) -> "Rig":
+        """A copy with ``body.center_of_gravity`` replaced, (3,) body frame, m."""
+        return replace(self, center_of_gravity=np.asarray(cg, float))
+
+    def to_dict(self) -> dict:
+        """The rig.yaml mapping (inverse of :func:`rig_from_dict`)."""
+        def vec(v):
+            return [float(x) for x in v]
+        cables = []
+        for c in self.cables:
+            d = {"name": c.name, "ceiling_anchor": vec(c.ceiling_anchor),
+                 "body_anchor": vec(c.body_anchor), "length": float(c.length)}
+            if c.stiffness is not None:
+                d["stiffness"] = float(c.stiffness)
+            cables.append(d)
+        out: dict[str, Any] = {} if self.name is None else {"name": self.name}
+        if self.output_axes is not None:
+            out["output_axes"] = self.output_axes
+        out |= {"gravity": float(self.gravity), "cables": cables, "body": {"mass": float(self.mass)}}
+        if self.center_of_gravity is not None:
+            out["body"]["center_of_gravity"] = vec(self.center_of_gravity)
+        out["imu"] = {"position": vec(self.imu.position), "rpy": vec(self.imu.rpy)}
+        if self.exciter is not None:
+            out["exciter"] = {"position": vec(self.exciter.position), "rpy": vec(self.exciter.rpy)}
+        if self.inclinometer is not None:
+            out["inclinometer"] = {"rpy": vec(self.inclinometer.rpy)}
+        if self.dummy_mass is not None:
+            out["dummy_mass"] = {"mass": float(self.dummy_mass.mass),
+                                 "position": vec(self.dummy_mass.position)}
+        return out
+
+
+# --- validation helpers -------------------------------------------------------------
+
+def _get(d: Any, key: str, where: str, src: str, required: bool = True):
+    if not isinstance(d, dict):
+        raise RigError(f"{src}: {where} must be a mapping, got {type(d).__name__}")
+    if key not in d or d[key] is None:
+        if required:
+            raise RigError(f"{src}: missing field {where}.{key}" if where else f"{src}: missing field {key}")
+        return None
+    return d[key]
+
+
+FLOAT_12 = re.compile(r"^[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)?$")
+
+
+def _number(v, name: str, src: str, positive: bool = False, nonneg: bool = False) -> float:
+    # PyYAML implements YAML 1.1, which reads "5.0e6" (valid YAML 1.2 float) as a string
+    if isinstance(v, str) and FLOAT_12.match(v.strip()):
+        v = float(v)
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise RigError(f"{src}: field {name} must be a number, got {v!r}")
+    x = float(v)
+    if not math.isfinite(x):
+        raise RigError(f"{src}: field {name} must be finite, got {v!r}")
+    if positive and x <= 0:
+        raise RigError(f"{src}: field {name} must be > 0, got {v!r}")
+    if nonneg and x < 0:
+        raise RigError(f"{src}: field {name} must be >= 0, got {v!r}")
+    return x
+
+
+def _vector(v, name: str, src: str, n: int = 3) -> np.ndarray:
+    if not isinstance(v, (list, tuple)) or len(v) != n:
+        raise RigError(f"{src}: field {name} must be a list of {n} numbers, got {v!r}")
+    return np.array([_number(x, f"{name}[{i}]", src) for i, x in enumerate(v)], float)
+
+
+def _mount(d, name: str, src: str, with_position: bool = True) -> Mount:
+    if isinstance(d, dict):
+        _check_fields(d, name, name, src)
+    pos = _vector(_get(d, "position", name, src), f"{name}.position", src) if with_position else np.zeros(3)
+    rpy_raw = _get(d, "rpy", name, src, required=False)
+    rpy = np.zeros(3) if rpy_raw is None else _vector(rpy_raw, f"{name}.rpy", src)
+    return Mount(position=pos, rpy=rpy)
+
+
+KNOWN_TOP = {"name", "output_axes", "gravity", "cables", "body", "imu", "exciter", "inclinometer", "dummy_mass"}
+# the fields of each mapping of rig.yaml (RECORDING_FORMAT.md); any other is an error
+KNOWN_FIELDS = {"": KNOWN_TOP, "cable": {"name", "ceiling_anchor", "body_anchor", "length", "stiffness"},
+                "body": {"mass", "center_of_gravity"}, "imu": {"position", "rpy"}, "exciter": {"position", "rpy"},
+                "inclinometer": {"rpy"}, "dummy_mass": {"mass", "position"}}
+UNKNOWN_HINTS = {"inclinometer.position": "an inclinometer's reading does not depend on where it sits: leave it out"}
+# geometry that no pose can realise: for two cables i, j the ceiling anchors A_i, A_j, the body
+# anchors' points P_i, P_j and the cables form a closed quadrilateral A_i-P_i-P_j-A_j, so none of
+# its sides |A_i - A_j|, |B_i - B_j| (the body is rigid), L_i, L_j can exceed the sum of the other
+# three when both cables are taut; allowed: REACH_SLACK of the sum (stretch under load: ~1e-3)
+REACH_SLACK = 0.02
+
+
+def _check_fields(d: dict, kind: str, where: str, src: str) -> None:
+    """Raise :class:`RigError` for a key of mapping ``d`` (a ``kind`` of :data:`KNOWN_FIELDS`,
+    at ``where``) that rig.yaml does not have, with the closest known field (difflib)."""
+    known = KNOWN_FIELDS[kind]
+    for key in d:
+        if key in known:
+            continue
+        name = f"{where}.{key}" if where else str(key)
+        hint = UNKNOWN_HINTS.get(name)
+        if hint is None:
+            close = difflib.get_close_matches(str(key), sorted(known), n=1, cutoff=0.6)
+            hint = (f"did you mean {where + '.' if where else ''}{close[0]}?" if close
+                    else "known: " + ", ".join(sorted(known)))
+        raise RigError(f"{src}: unknown field {name} ({hint})")
+
+
+def check_reach(cables, src: str) -> None:
+    """Refuse cable geometry no pose of a rigid body can hold with every cable taut.
+
+    For every pair of cables (i, j), the closed chain ceiling anchor A_i -> body anchor P_i ->
+    body anchor P_j -> ceiling anchor A_j -> A_i has sides a = |A_i - A_j| (world), d = |B_i - B_j|
+    (body frame: the same in every pose), L_i and L_j; each must be at most the sum of the other
+    three (polygon inequality), with :data:`REACH_SLACK` for the stretch.  Catches anchors in
+    other units (mm for m), a cable length in mm, anchors swapped between ceiling and body.
+    Raises :class:`RigError` naming both cables."""
+    for (i, ci), (j, cj) in itertools.combinations(enumerate(cables), 2):
+        a = float(np.linalg.norm(ci.ceiling_anchor - cj.ceiling_anchor))
+        d = float(np.linalg.norm(ci.body_anchor - cj.body_anchor))
+        sides = {"their ceiling anchors' distance": a, "their body anchors' distance": d,
+                 f"cable {ci.name}'s length": ci.length, f"cable {cj.name}'s length": cj.length}
+        total = sum(sides.values())
+        for what, x in sides.items():
+            rest = total - x
+            if x > (1.0 + REACH_SLACK) * rest + 1e-3:
+                raise RigError(
+                    f"{src}: field cables[{i}], cables[{j}]: cables {ci.name} and {cj.name} cannot both be taut in "
+                    f"any pose: {what} is {x:.4g} m but the other three sides of the chain ceiling anchor - cable - "
+                    f"body anchor - body anchor - cable - ceiling anchor add up to {rest:.4g} m "
+                    f"(ceiling anchors {a:.4g} m apart, body anchors {d:.4g} m apart, lengths {ci.length:.4g} and "
+                    f"{cj.length:.4g} m; rig.yaml is in metres -- units?)")
+
+
+def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
+    """Validate a rig.yaml mapping and build a :class:`Rig`.
+
+    Refused, each with a :class:`RigError` naming ``source`` and the field: a missing field; a
+    field rig.yaml does not have (with the closest known one: ``body.centre_of_gravity`` ->
+    did you mean ``body.center_of_gravity``?); a value that is not a finite number (or list of
+    3); gravity outside 9–10.5 m/s²; fewer than 3 cables, a duplicate or malformed cable name;
+    a length, stiffness, body mass or dummy mass <= 0; collinear body anchors; cable geometry
+    no pose can hold with every cable taut (:func:`check_reach`: e.g. anchors in mm); a ``name``
+    that is not a non-empty one-line text; an ``output_axes`` that is not a key of
+    :data:`~rig_identification.io.export.AXES` (with the closest one).
+    """
+    src = source
+    if not isinstance(d, dict):
+        raise RigError(f"{src}: the rig description must be a YAML mapping")
+    _check_fields(d, "", "", src)
+    rig_name = _get(d, "name", "", src, required=False)
+    if rig_name is not None:
+        if isinstance(rig_name, (int, float)) and not isinstance(rig_name, bool):
+            rig_name = str(rig_name)    # name: 7 is a name
+        if not isinstance(rig_name, str) or not rig_name.strip() or "\n" in rig_name.strip():
+            raise RigError(f"{src}: field name must be a one-line text (the rig's name), got {rig_name!r}")
+        rig_name = rig_name.strip()
+    output_axes = _get(d, "output_axes", "", src, required=False)
+    if output_axes is not None and (not isinstance(output_axes, str) or output_axes not in AXES):
+        close = difflib.get_close_matches(str(output_axes).lower(), sorted(AXES), n=1, cutoff=0.5)
+        raise RigError(f"{src}: field output_axes must be one of {', '.join(sorted(AXES))} (the axes rig-identify "
+                       f"prints and exports in by default), got {output_axes!r}"
+                       + (f" (did you mean {close[0]}?)" if close else ""))
+    gravity = _number(_get(d, "gravity", "", src), "gravity", src, positive=True)
+    if not 9.0 < gravity < 10.5:
+        raise RigError(f"{src}: field gravity = {gravity} m/s^2 is not an Earth gravity (units?)")
+    raw_cables = _get(d, "cables", "", src)
+    if not isinstance(raw_cables, list):
+        raise RigError(f"{src}: field cables must be a list")
+    if len(raw_cables) < 3:
+        raise RigError(f"{src}: field cables lists {len(raw_cables)} cable(s); at least 3 are needed")
+    cables = []
+    seen = set()
+    for i, c in enumerate(raw_cables):
+        w = f"cables[{i}]"
+        name = _get(c, "name", w, src)
+        _check_fields(c, "cable", w, src)
+        if not isinstance(name, str) or not CABLE_NAME.match(name):
+            raise RigError(f"{src}: field {w}.name must match [a-z0-9_]+, got {name!r}")
+        if name in seen:
+            raise RigError(f"{src}: field {w}.name: duplicate cable name {name!r}")
+        seen.add(name)
+        ca = _vector(_get(c, "ceiling_anchor", w, src), f"{w}.ceiling_anchor", src)
+        ba = _vector(_get(c, "body_anchor", w, src), f"{w}.body_anchor", src)
+        length = _number(_get(c, "length", w, src), f"{w}.length", src, positive=True)
+        k_raw = _get(c, "stiffness", w, src, required=False)
+        k = None if k_raw is None else _number(k_raw, f"{w}.stiffness", src, positive=True)
+        cables.append(Cable(name, ca, ba, length, k))
+    anchors = np.array([c.body_anchor for c in cables])
+    if np.linalg.matrix_rank(anchors - anchors.mean(0), tol=1e-6) < 2:
+        raise RigError(f"{src}: field cables: the body anchors are collinear; the body could spin freely")
+    check_reach(cables, src)
+    body = _get(d, "body", "", src)
+    if isinstance(body, dict):
+        _check_fields(body, "body", "body", src)
+    mass = _number(_get(body, "mass", "body", src), "body.mass", src, positive=True)
+    cg_raw = _get(body, "center_of_gravity", "body", src, required=False)
+    cg = None if cg_raw is None else _vector(cg_raw, "body.center_of_gravity", src)
+    imu = _mount(_get(d, "imu", "", src), "imu", src)
+    ex_raw = _get(d, "exciter", "", src, required=False)
+    exciter = None if ex_raw is None else _mount(ex_raw, "exciter", src)
+    inc_raw = _get(d, "inclinometer", "", src, required=False)
+    incl = None if inc_raw is None else _mount(inc_raw, "inclinometer", src, with_position=False)
+    dm_raw = _get(d, "dummy_mass", "", src, required=False)
+    dummy = None
+    if dm_raw is not None:
+        if isinstance(dm_raw, dict):
+            _check_fields(dm_raw, "dummy_mass", "dummy_mass", src)
+        dummy = DummyMass(_number(_get(dm_raw, "mass", "dummy_mass", src), "dummy_mass.mass", src, positive=True),
+                          _vector(_get(dm_raw, "position", "dummy_mass", src), "dummy_mass.position", src))
+    return Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, name=rig_name, output_axes=output_axes)
+
+
+def read_yaml(path: str | Path, error: type[ValueError], what: str):
+    """Parse a YAML file; an unreadable, non-UTF-8 or invalid file raises ``error`` naming it."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as e:
+        raise error(f"{p}: cannot read the {what} ({e.strerror})") from None
+    except UnicodeDecodeError as e:
+        raise error(f"{p}: not a text file (byte {e.start} is not UTF-8)") from None
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as e:
+        raise error(f"{p}: not valid YAML ({str(e).splitlines()[0]})") from None
+
+
+def load_rig(path: str | Path) -> Rig:
+    """Load and validate a ``rig.yaml`` file.  Raises :class:`RigError`."""
+    return rig_from_dict(read_yaml(path, RigError, "rig description"), str(path))
+
+
+def dump_rig(rig: Rig, comment: str | None = None) -> str:
+    """rig.yaml text for ``rig`` (flow-style vectors, as in the format spec), headed by
+    ``comment`` (each of its lines a ``# `` comment line)."""
+    head = "".join(f"# {line}\n" for line in comment.splitlines()) if comment else ""
+    return head + yaml.safe_dump(rig.to_dict(), sort_keys=False, default_flow_style=None)
+
+
+# --- inertia entries (truth.yaml, experiment files) ---------------------------------------------
+
+INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+
+
+def inertia_tensor(d: dict) -> np.ndarray:
+    """(3, 3) tensor from the truth.yaml entries ixx..izz (off-diagonals = negated products)."""
+    xx, xy, xz, yy, yz, zz = (float(d[k]) for k in INERTIA_KEYS)
+    return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+
+
+def inertia_entries(J: np.ndarray) -> dict:
+    """truth.yaml entries ixx..izz of a (3, 3) tensor."""
+    return {"ixx": float(J[0, 0]), "ixy": float(J[0, 1]), "ixz": float(J[0, 2]),
+            "iyy": float(J[1, 1]), "iyz": float(J[1, 2]), "izz": float(J[2, 2])}

@@ -1,0 +1,76 @@
+"""The inertia tensor's six entries and its physically consistent parametrisation.
+
+The entries in :data:`~rig_identification.io.verdict.KEYS` order (ixx, ixy, ixz, iyy, iyz, izz; off-diagonals as
+geometry_msgs/Inertia, the negated products of inertia), the symmetric basis that maps them
+to the (3,3) tensor, and the log-Cholesky parametrisation of Wensing, Kim & Slotine (IEEE
+RA-L 2017) under which every tensor is positive definite and obeys the triangle
+inequalities.  Used by the identifier (:mod:`rig_identification.estimation.identification`) and by the
+errors-in-variables compensation (:mod:`rig_identification.estimation.errors_in_variables`).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+# index pairs of the six independent tensor entries
+PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+
+
+def basis() -> np.ndarray:
+    """(6, 3, 3) symmetric basis: tensor = sum_k theta_k E_k, theta in :data:`~rig_identification.io.verdict.KEYS` order."""
+    E = np.zeros((6, 3, 3))
+    for k, (i, j) in enumerate(PAIRS):
+        E[k, i, j] = E[k, j, i] = 1.0
+    return E
+
+
+def to_tensor(theta) -> np.ndarray:
+    """(6,) entries (ixx, ixy, ixz, iyy, iyz, izz) -> (3,3) symmetric tensor."""
+    return np.einsum("k,kij->ij", np.asarray(theta, float), basis())
+
+
+def from_tensor(J: np.ndarray) -> np.ndarray:
+    """(3,3) -> (6,) entries in :data:`~rig_identification.io.verdict.KEYS` order."""
+    return np.array([J[i, j] for i, j in PAIRS])
+
+
+def physically_consistent(J: np.ndarray) -> bool:
+    """Positive definite and obeying the triangle inequalities of the principal moments."""
+    ev = np.linalg.eigvalsh(0.5 * (J + J.T))
+    return bool(ev[0] > 0 and ev[0] + ev[1] >= ev[2] * (1 - 1e-9))
+
+
+def consistent_from_params(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Physically consistent tensor from 6 free parameters, and d(entries)/d(theta).
+
+    J = tr(Σ) I − Σ with the second-moment matrix Σ = ∫ρρᵀ dm = L Lᵀ (log-Cholesky: L
+    lower triangular, positive diagonal exp(θ)); every J of this form is positive
+    definite and obeys the triangle inequalities, and every such J has this form
+    (Wensing, Kim & Slotine, "Linear matrix inequalities for physically consistent
+    inertial parameter identification", IEEE RA-L 2017).  theta order: L00, L10, L11,
+    L20, L21, L22.  Returns entries (6,) in :data:`~rig_identification.io.verdict.KEYS` order and the (6,6) Jacobian.
+    """
+    idx = ((0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2))
+    L = np.zeros((3, 3))
+    dL = np.zeros((6, 3, 3))
+    for k, (i, j) in enumerate(idx):
+        if i == j:
+            L[i, j] = np.exp(np.clip(theta[k], -30.0, 30.0))  # a wild LM trial step must not overflow
+            dL[k, i, j] = L[i, j]
+        else:
+            L[i, j] = theta[k]
+            dL[k, i, j] = 1.0
+    S = L @ L.T
+    J = np.trace(S) * np.eye(3) - S
+    dS = dL @ L.T + L @ dL.transpose(0, 2, 1)
+    dJ = np.trace(dS, axis1=1, axis2=2)[:, None, None] * np.eye(3) - dS
+    return from_tensor(J), np.array([from_tensor(d) for d in dJ]).T
+
+
+def params_from_consistent(J: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`consistent_from_params`; a J that is not consistent is first
+    projected (eigenvalues of Σ = ½ tr(J) I − J clipped to ≥ 1e-6 of their largest)."""
+    S = 0.5 * np.trace(J) * np.eye(3) - J
+    ev, V = np.linalg.eigh(0.5 * (S + S.T))
+    ev = np.maximum(ev, 1e-6 * max(ev.max(), 1e-12))
+    L = np.linalg.cholesky(V @ np.diag(ev) @ V.T)
+    return np.array([np.log(L[0, 0]), L[1, 0], np.log(L[1, 1]), L[2, 0], L[2, 1], np.log(L[2, 2])])

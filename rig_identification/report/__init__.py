@@ -1,0 +1,1 @@
+"""The HTML reports (rig-identify inertia --report, diagnose --report). Layer 5."""

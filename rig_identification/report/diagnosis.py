@@ -1,0 +1,197 @@
+"""The model-error section of the report: what diagnosis found, or where the mismatch is.
+
+``result.diagnosis`` (:func:`~rig_identification.pipeline.offline.with_diagnosis`) is one of two things:
+
+* effects *named* (``effects`` non-empty, ``handled`` says how: removed from the data, added
+  to the model): the fit with them passed its validation — a *finding*.  The page lists each
+  effect in words with its parameters, their σ and SI units, the evidence, and the rigid-body
+  fit beside the reported one;
+* nothing named (``handled`` starts with "not: " and the reason): the rigid-body fit stays,
+  ``unexplained`` says where its residual shows the mismatch (channel, band, time, size) and
+  ``hypotheses`` holds diagnose's candidates — labelled as hypotheses, not findings.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..estimation.identification import KEYS, InertiaResult, from_tensor
+from .html import MISSING, Cell, esc, finite, num, table
+from .mass import ORDER, SIGN, SYMBOL
+
+# effect -> what it is, in words (effects.py's library)
+EFFECT_TEXT = {
+    "viscous_damping": "viscous damping: a force −c v on the CG and a moment −c ω on the body",
+    "air_drag": "aerodynamic drag: a force −c |v| v and a moment −c |ω| ω",
+    "coulomb_friction": "dry friction in the cable anchors' pivots, lumped on the body",
+    "cable_elasticity": "the cables stretch more than rig.yaml says",
+    "cable_mass": "the cables' mass: each lower half hangs on the body, outside the load cells",
+    "body_mass": "the body is heavier than rig.yaml's body.mass",
+    "exciter_rotor": "the exciter's rotor: its weight and spin angular momentum",
+    "imu_offset": "the IMU is not where rig.yaml puts it",
+    "imu_misalignment": "the IMU axes are turned against rig.yaml's imu.rpy",
+    "sensor_delay": "a stream's stamps lag the IMU's",
+    "gyro_bias": "a constant gyro bias",
+    "accelerometer_bias": "a constant accelerometer bias",
+    "load_cell_scale": "a load cell's gain is off",
+    "gyroscopic_coupling": "the gyroscopic term ω × Jω",
+    "gyro_bias_drift": "a drifting gyro bias (random walk)",
+    "gyro_scale": "a gyro scale factor per axis",
+    "structural_mode": "a flexible mode of the carrying frame between the body and a sensor",
+    "compliant_body": "a sprung body on its suspension inside the frame (not rigid)",
+}
+# (effect, parameter) -> SI unit ("" dimensionless)
+UNITS = {
+    ("viscous_damping", "linear"): "N·s/m", ("viscous_damping", "angular"): "N·m·s/rad",
+    ("air_drag", "linear"): "N·s²/m²", ("air_drag", "angular"): "N·m·s²/rad²",
+    ("coulomb_friction", "torque"): "N·m", ("coulomb_friction", "force"): "N",
+    ("coulomb_friction", "velocity_scale"): "rad/s or m/s",
+    ("cable_elasticity", "stiffness"): "N/m", ("cable_elasticity", "declared_stiffness"): "N/m",
+    ("cable_mass", "mass"): "kg per cable", ("body_mass", "mass_error"): "kg",
+    ("exciter_rotor", "unbalance"): "kg·m", ("exciter_rotor", "rotor_inertia"): "kg·m²",
+    ("imu_offset", "offset"): "m, body axes", ("imu_misalignment", "rpy"): "rad",
+    ("sensor_delay", "delay"): "s", ("gyro_bias", "bias"): "rad/s, IMU axes",
+    ("accelerometer_bias", "bias"): "m/s², IMU axes", ("load_cell_scale", "scale"): "reading / tension",
+    ("gyro_bias_drift", "random_walk"): "rad/s/√s", ("gyro_scale", "scale"): "reading / rate",
+    ("structural_mode", "frequency"): "Hz", ("structural_mode", "damping_ratio"): "",
+    ("compliant_body", "frequencies"): "Hz", ("compliant_body", "mass_share"): "",
+}
+CHANNEL_UNITS = {"gyro": "rad/s", "accel": "m/s²", "torque": "N·m", "force": "N", "load_cell": "N"}
+
+
+def channel_unit(channel: str) -> str:
+    """SI unit of a diagnosis channel (gyro_x, accel_y, torque_z, force_x, load_cell_c0, …)."""
+    return next((u for p, u in CHANNEL_UNITS.items() if channel.startswith(p)), "")
+
+
+def plus_minus(v, s) -> str:
+    """``v ± s`` with ``s`` to two significant digits and ``v`` to the same decimals; lists
+    element-wise; text as it is; a missing or non-finite σ left out."""
+    if isinstance(v, str):
+        return v
+    if isinstance(v, (list, tuple, np.ndarray)):
+        ss = list(s) if isinstance(s, (list, tuple, np.ndarray)) and len(s) == len(v) else [None] * len(v)
+        return "[" + ", ".join(plus_minus(a, b) for a, b in zip(v, ss)) + "]"
+    if not finite(v):
+        return MISSING
+    if not finite(s) or float(s) <= 0:
+        return num(v, ".4g")
+    d = max(0, 1 - int(math.floor(math.log10(float(s)))))
+    return f"{num(v, f'.{d}f')} ± {num(s, f'.{d}f')}"
+
+
+def parameters_text(e: dict) -> str:
+    """An effect's parameters in words with σ and SI units, e.g. "angular = 300.5 ± 1.5
+    N·m·s/rad, linear = 145.0 ± 3.5 N·s/m"."""
+    std = e.get("parameters_std") or {}
+    parts = []
+    for k, v in (e.get("parameters") or {}).items():
+        unit = UNITS.get((e.get("name"), k), "")
+        parts.append(f"{k} = {plus_minus(v, std.get(k))}" + (f" {unit}" if unit else ""))
+    return ", ".join(parts) if parts else "no parameters"
+
+
+def effects_text(d: dict) -> str:
+    """The named effects in one phrase, e.g. "viscous damping (angular = …, linear = …)"."""
+    return "; ".join(f"{e['name'].replace('_', ' ')} ({parameters_text(e)})" for e in d.get("effects", []))
+
+
+def evidence_text(e: dict) -> str:
+    """The likelihood-ratio evidence of an effect as text."""
+    ev = e.get("evidence") or {}
+    lr, p = ev.get("likelihood_ratio"), ev.get("p_value")
+    out = f"likelihood ratio {num(lr, '.1f')}" + (f" ({ev['dof']} dof)" if "dof" in ev else "")
+    if finite(p):
+        out += ", p < 1e-300" if p < 1e-300 else f", p = {p:.2g}"
+    return out
+
+
+def effects_table(effects: list[dict], ident: str) -> str:
+    """Effects (named or hypotheses) as a table: name, what it is, parameters, evidence,
+    plausibility."""
+    rows = [[e["name"], Cell(EFFECT_TEXT.get(e["name"], ""), "text"), Cell(parameters_text(e), "text"),
+             Cell(evidence_text(e), "text"),
+             Cell("plausible" if e.get("plausible", True) else f"not plausible: {e.get('implausible', '')}",
+                  "text")] for e in effects]
+    return table(["effect", "what it is", "parameters (± σ, SI)", "evidence", "physically"], rows, ident=ident,
+                 text_cols=range(5))
+
+
+def rigid_body_table(result: InertiaResult) -> str:
+    """The rigid-body fit (model_error) beside the reported fit with the effects, moments and
+    products of inertia about the CG (vehicle-dynamics sign), kg·m²."""
+    rb = result.rigid_body or {}
+    val, std = rb.get("inertia_about_cg") or {}, rb.get("inertia_std") or {}
+    theta = SIGN * from_tensor(result.inertia)
+    rows = []
+    for i in ORDER:
+        k = KEYS[i]
+        r = SIGN[i] * val[k] if finite(val.get(k)) else None
+        rows.append([SYMBOL[k], num(r, ".2f"), num(std.get(k), ".3g"), num(theta[i], ".2f"),
+                     num(result.inertia_std[i], ".3g"), num(None if r is None else theta[i] - r, "+.3g")])
+    return table(["quantity", "rigid-body fit kg·m²", "σ kg·m² (widened)", "with the effects kg·m²", "σ kg·m²",
+                  "difference kg·m²"], rows, ident="rigid-body-table")
+
+
+def size_text(u: dict) -> str:
+    """The size of an ``unexplained`` entry: a line's power over the residual's in-band median,
+    or a coloured residual's RMS in the channel's unit."""
+    if u.get("band_hz"):
+        return f"{num(u.get('size'), '.3g')}× the in-band median power"
+    return f"RMS {num(u.get('size'), '.3g')} {channel_unit(u['channel'])}".rstrip()
+
+
+def unexplained_table(where: list[dict]) -> str:
+    """Where the mismatch is: channel, band, time from the window's start, size, what the
+    frequency is."""
+    rows = [[u["channel"], f"{num(u['band_hz'][0], '.2f')}–{num(u['band_hz'][1], '.2f')}" if u.get("band_hz")
+             else "the whole fit band",
+             f"{num(u['time_s'][0], '.1f')}–{num(u['time_s'][1], '.1f')}" if u.get("time_s") else MISSING,
+             size_text(u), Cell(u.get("is", ""), "text")] for u in where]
+    return table(["channel", "band Hz", "time s (from the window start)", "size", "what the frequency is"], rows,
+                 ident="unexplained-table", text_cols=(4,))
+
+
+def diagnosis_html(result: InertiaResult) -> tuple[str, dict | None]:
+    """The model-error section (HTML) and its numbers for report.json (None when the result
+    was not diagnosed)."""
+    d = result.diagnosis
+    if d is None:
+        return "", None
+    handled = str(d.get("handled", ""))
+    if d.get("effects") and not handled.startswith("not"):
+        html = ("<h2>Model error: what diagnosis found</h2>"
+                '<div class="finding"><p>The rigid-body fit failed its validation (model error). '
+                "<code>rig-identify diagnose</code> named the effects below; they were "
+                f"{esc(handled)}, the recording identified again, and that fit passed its validation: it is the "
+                "fit this page reports (its tensor, σ and plots).</p>"
+                + effects_table(d["effects"], "effects-table") + "</div>"
+                "<h3>The rigid-body fit beside the reported fit</h3>" + rigid_body_table(result)
+                + '<p class="note">Moments and products of inertia about the CG (vehicle-dynamics sign). The '
+                "rigid-body fit's σ were widened by its model_error verdict.</p>")
+        data = {"found": True, "handled": handled,
+                "effects": [{"name": e["name"], "text": parameters_text(e)} for e in d["effects"]]}
+        return html, data
+    why = handled.removeprefix("not: ") or "no effect of diagnose's library explains the misfit"
+    where = d.get("unexplained") or []
+    hyp = d.get("hypotheses") or []
+    html = ("<h2>Model error: not explained</h2>"
+            f"<p>Diagnosis named nothing: {esc(why)}. The tensor is the rigid-body fit's (σ widened, not "
+            "trustworthy).</p><h3>Where the mismatch is</h3>"
+            + (unexplained_table(where) + '<p class="note">Spectral lines of each channel\'s rigid-body residual '
+               "(size: power over the residual's median level in the fit band), or a residual that is not white "
+               "(size: its RMS); time: the tenth of the window where the residual is largest when it stands out, "
+               "else the whole window.</p>" if where else "<p>No line or coloured residual stands out in any "
+               "channel.</p>")
+            + '<div class="hypothesis"><h3>Hypotheses — not findings</h3>'
+            + ("<p>diagnose's best candidates. None is adopted: with them the fit still fails its validation, or "
+               "their parameters are not physically plausible. They are leads for the next test, not "
+               "corrections of this one.</p>" + effects_table(hyp, "hypotheses-table") if hyp else
+               "<p>diagnose had no candidate that reduces the misfit significantly.</p>") + "</div>")
+    data = {"found": False, "why": why, "unexplained": where,
+            "hypotheses": [{"name": e["name"], "text": parameters_text(e)} for e in hyp]}
+    return html, data
+
+
+__all__ = ["diagnosis_html", "effects_text", "parameters_text", "plus_minus", "channel_unit", "EFFECT_TEXT", "UNITS"]

@@ -1,0 +1,290 @@
+"""HTML report of an inertia identification (``rig-identify inertia … --report DIR``).
+
+One folder, written atomically (:func:`~rig_identification.io.atomic.atomic_directory`: it appears whole or
+not at all) with ``index.html``, PNG figures (matplotlib, Agg, no pyplot state) linked
+relatively, and ``report.json`` with the page's numbers.  The page, in the order a test
+engineer signs it:
+
+* the validation verdict in words (:attr:`~rig_identification.io.verdict.Validation.summary`) and what it means
+  for the numbers (:mod:`rig_identification.report.verdict`): ``model_error`` — the tensor is not trustworthy,
+  σ widened; ``not_identifiable`` — the undetermined entries shown as "not determined", with
+  what to change;
+* date, package version, recordings, rig, method, frame (body axes, REP-103) and units (SI);
+  mass and the centre of gravity the tensor is about;
+* the moments and products of inertia about the CG (products with the vehicle-dynamics sign,
+  the convention stated once), their σ, the errors against ``truth.yaml`` when there is one,
+  the same about the body frame's origin (parallel-axis theorem), the tensor as matrices,
+  the principal moments and axes, the equimomental ellipsoid on the body (:mod:`rig_identification.report.mass`);
+* the validation checks as a table;
+* when the fit showed model error: what diagnosis found (effects with parameters and units,
+  the fit with them validated) or where the mismatch is and the hypotheses, labelled as such
+  (:mod:`rig_identification.report.diagnosis`);
+* the identifiability table (:mod:`rig_identification.report.identifiability`), the uncertainty ellipses, per
+  recording the fit of the reported model (measured vs predicted angular velocity, as the
+  thesis's "comparison of the identified and measured systems"), its residuals and their
+  spectrum (:mod:`rig_identification.report.figures`), and the natural modes from the geometry beside those
+  in the recording (:mod:`rig_identification.report.modes`).
+
+No number on the page or in report.json is ``nan`` or ``inf``: what does not exist is "—"
+on the page and null in the JSON, an undetermined entry "not determined".
+``report.json``: ``result`` (:meth:`~rig_identification.estimation.identification.InertiaResult.to_dict`, tensor entries
+as geometry_msgs/Inertia), ``report`` (date, version, recordings, rig), ``mass_properties``
+(the page's table, products with the vehicle-dynamics sign), ``diagnosis``,
+``identifiability``, ``modes``.
+"""
+from __future__ import annotations
+
+import json
+import os
+from datetime import datetime, timezone
+from importlib.metadata import PackageNotFoundError, version
+from pathlib import Path
+
+import numpy as np
+
+from ..io.atomic import atomic_directory
+from ..estimation.identification import KEYS, IdentificationError, InertiaResult
+from ..pipeline.offline import recording_labels
+from ..io.recording import Recording
+from .diagnosis import diagnosis_html, effects_text
+from .figures import edge_seconds, ellipse_figure, ellipsoid_figure, fit_figure, residual_figure
+from .html import GENERATOR, bullets, esc, json_safe, num, page, table
+from .identifiability import axis_signal, identifiability, identifiability_html
+from .mass import (CONVENTION, axes_html, mass_properties, matrices_html, moments_table,
+                          principal_html, to_json, truth_rows)
+from .modes import modes_section
+from .verdict import checks_table, verdict_html
+from ..io.rig import Rig
+
+PACKAGE = "rig_identification"
+
+
+class ReportError(IdentificationError):
+    """The result cannot be reported (the thesis baseline has no fit output series), or
+    the report folder would replace something that is not an earlier report."""
+
+
+def check_report_dir(out: Path) -> None:
+    """Refuse to replace a file, or a non-empty folder that is not an earlier report."""
+    if not out.exists():
+        return
+    if not out.is_dir():
+        raise ReportError(f"{out}: exists and is not a folder (refusing to replace it with the report)")
+    index = out / "index.html"
+    if any(out.iterdir()) and not (index.is_file() and GENERATOR in index.read_text(errors="replace")[:2000]):
+        raise ReportError(f"{out}: exists and is not an earlier rig-identify report (refusing to replace it); "
+                          "give a new folder")
+
+
+def common_truth(recs) -> dict | None:
+    """truth.yaml of the recordings if every one has it and their ``inertia_about_cg`` agree
+    (to 1e-9 relative), else None."""
+    truths = [getattr(r, "truth", None) for r in recs]
+    if not truths or any(not t or "inertia_about_cg" not in t for t in truths):
+        return None
+    ref = np.array([truths[0]["inertia_about_cg"][k] for k in KEYS], float)
+    for t in truths[1:]:
+        v = np.array([t["inertia_about_cg"][k] for k in KEYS], float)
+        if np.any(np.abs(v - ref) > 1e-9 * np.abs(ref).max()):
+            return None
+    return truths[0]
+
+
+def package_version() -> str:
+    """The installed version of this package, or "unknown" when it is not installed."""
+    try:
+        return version(PACKAGE)
+    except PackageNotFoundError:
+        return "unknown (not installed)"
+
+
+def rig_label(rig: Rig) -> str:
+    """The rig's name (rig.yaml ``name``) with where it was read from, or only the latter when
+    rig.yaml names none."""
+    return f"{rig.name} ({rig.source})" if rig.name else str(rig.source)
+
+
+def header_html(result: InertiaResult, recs: list[Recording], labels: list[str], truth: dict | None,
+                when: str, rig: Rig | None, cg_source: str | None) -> tuple[str, dict]:
+    """Metadata, mass and CG (HTML) and the same for report.json.  cg_source: where the CG
+    came from when not from rig.yaml (e.g. a static test's result file, with its σ)."""
+    paths = [str(Path(r.path).resolve()) if r.path is not None else lab for r, lab in zip(recs, labels)] if recs \
+        else labels
+    rigs = sorted({rig_label(r.rig) for r in recs}) if recs else [rig_label(rig) if rig is not None else
+                                                                  "not given (in-memory fit)"]
+    ver = package_version()
+    rows = [["generated", when], ["software", f"{PACKAGE} {ver}"],
+            ["recording" + ("s" if len(paths) > 1 else ""), "; ".join(paths) or "not given (in-memory fit)"],
+            ["rig", "; ".join(rigs)],
+            ["method", result.method], ["frame and units", "body axes of rig.yaml (REP-103: x forward, y left, z up), "
+                                        "origin the body frame's; SI units (kg, m, kg·m², s, rad)"]]
+    meta = "<table class=\"meta\"><tbody>" + "".join(f"<tr><th>{esc(a)}</th><td>{esc(b)}</td></tr>"
+                                                    for a, b in rows) + "</tbody></table>"
+    cg = ", ".join(num(x, ".4f") for x in result.center_of_gravity)
+    tcg = truth.get("center_of_gravity") if truth else None
+    where = esc(cg_source) if cg_source else \
+        "rig.yaml body.center_of_gravity, as measured — e.g. with <code>rig-identify cg</code>"
+    declared = rig.mass if rig is not None else result.mass
+    msrc = "rig.yaml body.mass" if abs(result.mass - declared) <= 1e-9 * abs(declared) else \
+        f"rig.yaml's {num(declared, 'g')} kg corrected by the diagnosis"
+    mass = (f"<p>Mass <b>{num(result.mass, 'g')} kg</b> ({esc(msrc)}), centre of gravity "
+            f"<b>[{cg}] m</b> in body axes ({where}): the tensor below is about this point."
+            + (f" truth.yaml: {num(truth.get('mass'), 'g')} kg at [{', '.join(num(x, '.4f') for x in tcg)}] m."
+               if tcg is not None and len(tcg) == 3 else "") + "</p>")
+    data = {"generated": when, "software": PACKAGE, "version": ver, "recordings": paths, "rigs": rigs,
+            "center_of_gravity_source": cg_source or "rig.yaml body.center_of_gravity",
+            "method": result.method, "frame": "body (REP-103: x forward, y left, z up)", "units": "SI"}
+    return meta + mass, data
+
+
+def sigma_note(result: InertiaResult) -> str:
+    """What the σ of the tensor table are."""
+    if result.sandwich_std is not None:
+        txt = ("σ: the sensors' noise, estimated from the recording, propagated through tracker, preprocessor and "
+               "identifier (the propagated-noise column), or the fit's own sandwich σ where the residual shows "
+               f"model error; here: {result.uncertainty}. "
+               + ("Compensated for the noise in the fit's input (errors in variables: the gyro's noise reaches the "
+                  "moment through the tracked pose). " if result.bias_applied else ""))
+    else:
+        txt = ("σ: the identifier's sandwich (batch-means) standard deviation, calibrated for coloured residuals. ")
+    return txt + "σ %: of the entry for moments, of the largest moment for products (so are the error %)."
+
+
+def recordings_html(result: InertiaResult, recs: list[Recording], labels: list[str]) -> str:
+    """The fitted recordings: window, samples, band, residual RMS per axis; then the warnings."""
+    rows = []
+    for n, (lab, s) in enumerate(zip(labels, result.series)):
+        rec = recs[n] if len(recs) == len(result.series) else None
+        rms = np.sqrt(np.mean(s.residual ** 2, 0))
+        rows.append([lab if rec is None or rec.path is None else str(Path(rec.path).resolve()),
+                     num(s.t[-1] - s.t[0], ".1f"),
+                     str(len(s.t)), f"{num(s.band_hz[0], '.2f')}–{num(s.band_hz[1], '.2f')}",
+                     ", ".join(num(1e3 * x, ".3g") for x in rms)])
+    out = table(["recording", "window s", "samples", "band Hz", "residual RMS x, y, z mrad/s"], rows) if rows else \
+        "<p>No fit output: the fit could not be made.</p>"
+    v = result.validation
+    skip = {v.summary} if v is not None else set()
+    warns = [w for w in result.warnings if w not in skip and not w.startswith(("model error diagnosed:",
+                                                                              "model error not explained:"))]
+    if warns:
+        out += '<h3>Warnings</h3><div class="warn">' + bullets(warns) + "</div>"
+    return out
+
+
+def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None, title: str | None = None,
+                 modes: bool = True, rig: Rig | None = None, cg_source: str | None = None,
+                 axes: str = "body") -> Path:
+    """Write the HTML report of ``result`` to the folder ``out_dir`` (replaced if it exists).
+
+    result: from :func:`~rig_identification.pipeline.offline.identify_recording` or
+    :func:`~rig_identification.pipeline.offline.identify_recordings` (model pem: it needs ``result.series`` — except a
+    fit that could not be made at all, whose page says so); recs: the Recording(s) it was
+    fitted to, in the same order (may be empty for an in-memory fit).  truth: truth.yaml
+    mapping (default: :func:`common_truth` of the recordings).  modes: include the
+    geometry-vs-recording modes table (about 2 s per recording).  rig: the rig drawn under the
+    principal axes and named in the header (default: the first recording's).  cg_source: where
+    the CG came from when not from rig.yaml (``rig-identify inertia --cg FILE``: the static
+    test's file and σ), said beside the CG.  axes: the axes the lab reads its numbers in
+    (rig.yaml ``output_axes``, ``--axes``; a name of :data:`~rig_identification.io.export.AXES`): other than
+    ``body``, a section gives the mass properties in them too (the page's tables stay in
+    rig.yaml's body axes, as the JSON).  Returns the path of
+    ``index.html``.  Raises :class:`ReportError` (no fit series: the thesis baseline; ``out_dir``
+    is a file or a non-empty folder that is not an earlier report), OSError (cannot write).
+    """
+    recs = list(recs)
+    if not result.series and np.all(np.isfinite(result.inertia)):
+        raise ReportError("--report needs the prediction-error fit (--model pem): the thesis baseline has no "
+                          "predicted output to plot")
+    if truth is None:
+        truth = common_truth(recs)
+    matched = bool(recs) and len(recs) == len(result.series)
+    labels = recording_labels(recs) if (matched or not result.series) and recs else \
+        [s.label or f"recording {i + 1}" for i, s in enumerate(result.series)]
+    title = title or ("inertia identification" + (": " + ", ".join(labels) if labels else ""))
+    out_dir = Path(out_dir)
+    check_report_dir(out_dir)
+    when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
+    mp = mass_properties(result)
+    errors = truth_rows(result, truth)
+    diag_html, diag_data = diagnosis_html(result)
+    found = effects_text(result.diagnosis) if result.diagnosis else ""
+    parts: list[str] = [f"<h1>{esc(title)}</h1>", verdict_html(result, found)]
+    rig = rig if rig is not None else recs[0].rig if recs else None
+    head, head_data = header_html(result, recs, labels, truth, when, rig, cg_source)
+    parts.append(head)
+    with atomic_directory(out_dir) as tmp:
+        os.chmod(tmp, 0o755)  # a temporary folder is private (0700); a report is for reading
+        v = result.validation
+        untrusted = v is not None and v.verdict == "model_error"
+        parts.append("<h2>Moments and products of inertia about the CG</h2>")
+        if untrusted:
+            parts.append('<p class="untrusted">Not trustworthy (verdict model_error): the σ are a lower bound of '
+                         "the error.</p>")
+        parts.append(moments_table(mp, errors, "σ propagated sensor noise" if result.sandwich_std is not None
+                                   else "σ white gyro noise alone"))
+        parts.append(f'<p class="note" id="convention">{esc(CONVENTION)} {esc(sigma_note(result))}</p>')
+        parts.append("<h3>The tensor as a matrix</h3>" + matrices_html(mp))
+        parts.append("<h3>Principal moments and axes</h3>" + principal_html(mp))
+        in_axes = None
+        if axes != "body":
+            ex = result.expressed(axes)
+            parts.append(f"<h3>In {esc(ex.axes.name.upper())} axes</h3>" + axes_html(ex))
+            in_axes = {"axes": ex.axes.name, "label": ex.axes.label, "center_of_gravity": [float(x) for x in ex.cg],
+                       "inertia_about_cg": ex.entries(), "products_of_inertia": ex.products(),
+                       "inertia_about_origin": ex.entries("origin")}
+        if ellipsoid_figure(tmp / "principal_axes.png", mp, rig):
+            parts.append('<p class="note">Principal axes about the CG, each drawn as the semi-axis of the equimomental '
+                         "ellipsoid along it (the uniform solid ellipsoid with the body's mass and tensor: the mass is "
+                         "spread farthest along the axis of the smallest moment).</p>"
+                         '<img src="principal_axes.png" alt="principal axes and equimomental ellipsoid on the body">')
+
+        parts.append("<h2>Validation checks</h2>")
+        parts.append(checks_table(v) if v is not None and v.checks else "<p>No validation was run on this fit.</p>")
+        parts.append(diag_html)
+
+        parts.append("<h2>Recordings fitted</h2>" + recordings_html(result, recs, labels))
+
+        parts.append("<h2>Identifiability: which combinations the recording determines well and poorly</h2>")
+        ident = identifiability(result)
+        parts.append(identifiability_html(result, ident))
+
+        parts.append("<h2>Uncertainty ellipses</h2>")
+        if ellipse_figure(tmp / "ellipses.png", result, truth):
+            parts.append('<img src="ellipses.png" alt="uncertainty ellipses of pairs of moments and products">'
+                         '<p class="note">2-D marginals of the covariance: the 1σ ellipse holds 39 % of a 2-D '
+                         "Gaussian, the 2σ 86 %.</p>")
+        else:
+            parts.append("<p>Not drawn: the covariance is not determined.</p>")
+
+        for n, (lab, s) in enumerate(zip(labels, result.series), 1):
+            fit_figure(tmp / f"fit_{n}.png", s, lab)
+            residual_figure(tmp / f"residuals_{n}.png", s, lab)
+            parts.append(f"<h2>Measured vs predicted: {esc(lab)}</h2>")
+            parts.append(f'<img src="fit_{n}.png" alt="measured and predicted angular velocity, {esc(lab)}">')
+            parts.append('<p class="note">The model whose tensor this page reports'
+                         + (" (with the diagnosed effects)" if found else "")
+                         + f". Shaded: the band-pass filter's edge transients ({edge_seconds(s):.1f} s at each "
+                         "end).</p>")
+            parts.append(f"<h2>Residuals: {esc(lab)}</h2>")
+            parts.append(f'<img src="residuals_{n}.png" alt="residuals and their spectrum, {esc(lab)}">')
+
+        mode_data = []
+        if modes and matched:
+            for lab, rec in zip(labels, recs):
+                parts.append(f"<h2>Natural modes: {esc(lab)} — geometry vs recording</h2>")
+                sec, notes, mdata = modes_section(rec, result, truth)
+                mode_data.append({"recording": lab, **mdata})
+                parts.append(sec)
+                parts.extend(f'<p class="note">note: {esc(w)}</p>' for w in notes)
+
+        report_data = {"result": result.to_dict(), "report": head_data, "mass_properties": to_json(mp, errors),
+                       "diagnosis": diag_data, "identifiability": ident, "modes": mode_data}
+        if in_axes is not None:
+            report_data["output_axes"] = in_axes
+        (tmp / "index.html").write_text(page(title, parts), encoding="utf-8")
+        (tmp / "report.json").write_text(json.dumps(json_safe(report_data), indent=1, allow_nan=False))
+    return out_dir / "index.html"
+
+
+__all__ = ["write_report", "check_report_dir", "identifiability", "common_truth", "axis_signal", "ReportError",
+           "json_safe", "package_version", "rig_label"]

@@ -1,0 +1,113 @@
+"""The validation verdict of the report, first on the page: the verdict in words
+(:attr:`~rig_identification.io.verdict.Validation.summary`), what it means for the numbers below, and the checks
+as a table (name, what it tests, statistic, threshold, pass/fail, detail).
+
+Verdicts (:mod:`rig_identification.estimation.validation`): ``ok`` — the σ are calibrated; ``model_error`` — the tensor is
+not trustworthy and its σ is widened to the spread the checks saw (a lower bound of the
+error); ``not_identifiable`` — the entries the recording does not determine are shown as
+"not determined", with what to change on the rig or the excitation.
+"""
+from __future__ import annotations
+
+from ..estimation.identification import InertiaResult
+from .html import NOT_DETERMINED, Cell, bullets, esc, finite, num, table
+from .mass import SYMBOL
+from ..io.verdict import Check, Validation
+
+# what each check tests, and how its statistic reads: "ratio" (×), "chi2" (χ²/dof), "fraction"
+# (shown in %), "sigma" (σ)
+CHECKS = {
+    "residual_level": ("the gyro residual is at the sensors' noise (RMS ratio)", "ratio"),
+    "segments": ("time segments of the window give the same tensor", "chi2"),
+    "sub_bands": ("the lower and upper half of the fit band give the same tensor", "chi2"),
+    "input_correlation": ("the residual is not correlated with the input", "chi2"),
+    "whiteness": ("no spectral line in the residual (over its local level)", "ratio"),
+    "accelerometer": ("the accelerometer, which the fit does not use, is predicted (RMS ratio)", "ratio"),
+    "weight": ("the load cells carry rig.yaml's weight", "fraction"),
+    "errors_in_variables": ("the sensors' noise is a minor share of the fit's input (along its noisiest "
+                            "direction)", "fraction"),
+    "identifiable": ("every entry is determined (largest σ over its scale)", "fraction"),
+}
+
+
+def statistic_text(kind: str, x) -> str:
+    """A check's statistic or threshold as text in its unit (see :data:`CHECKS`)."""
+    if not finite(x):
+        return "—"
+    if kind == "fraction":
+        return f"{num(100 * x, '.3g')} %"
+    if kind == "chi2":
+        return f"{num(x, '.3g')} χ²/dof"
+    if kind == "sigma":
+        return f"{num(x, '.3g')} σ"
+    return f"{num(x, '.3g')}×"
+
+
+def checks_table(v: Validation) -> str:
+    """The checks of ``v`` as a table; failed rows highlighted."""
+    rows, cls = [], []
+    c: Check
+    for c in v.checks:
+        what, kind = CHECKS.get(c.name, ("", "ratio"))
+        verdict = (Cell("pass", "pass") if c.passed else Cell("FAIL", "fail") if c.passed is False
+                   else Cell("does not apply", "na"))
+        widened = f" (σ widened {c.sigma_factor:.2f}×)" if c.sigma_factor > 1.0 and "widened" not in c.detail else ""
+        rows.append([c.name, Cell(what, "text"), statistic_text(kind, c.statistic),
+                     "≤ " + statistic_text(kind, c.threshold) if finite(c.threshold) else "—", verdict,
+                     Cell(c.detail + widened, "text")])
+        cls.append("failed" if c.passed is False else "")
+    return table(["check", "what it tests", "statistic", "threshold", "result", "detail"], rows, cls="checks",
+                 ident="checks-table", row_cls=cls, text_cols=(1, 5))
+
+
+def headline(v: Validation) -> str:
+    """The verdict sentence: :attr:`~rig_identification.io.verdict.Validation.summary` without the advice it ends
+    with (the page lists the advice on its own)."""
+    s = v.summary
+    tail = "; " + "; ".join(v.advice)
+    return s[:-len(tail)] if v.advice and s.endswith(tail) else s
+
+
+def diagnosed_named(result: InertiaResult) -> bool:
+    """True when diagnosis named the model error's cause and the reported fit is the one
+    with it (validated)."""
+    d = result.diagnosis
+    return bool(d and d.get("effects") and not str(d.get("handled", "")).startswith("not"))
+
+
+def verdict_html(result: InertiaResult, effects_text: str = "") -> str:
+    """The verdict box (HTML, element id ``verdict``): the sentence, what it means for the
+    tensor below, and the advice.  effects_text: the named effects in words, for a fit
+    that diagnosis made valid."""
+    v = result.validation
+    if v is None:
+        return ('<div class="verdict none" id="verdict"><p class="sentence">No validation verdict: this fit was not '
+                "validated (an identifier run outside the pipeline); its σ are the identifier's own.</p></div>")
+    cls = ' untrusted' if v.verdict == "model_error" else ""
+    parts = [f'<p class="sentence{cls}">{esc(headline(v))}</p>']
+    if v.verdict == "ok" and diagnosed_named(result):
+        rb = (result.rigid_body or {}).get("validation") or "model_error"
+        parts.append(f"<p>The rigid-body model alone did not explain the recording (its verdict: {esc(rb)}). "
+                     f"Diagnosis found {esc(effects_text)}; {esc(result.diagnosis['handled'])}, the recording was "
+                     "identified again, and that fit — whose tensor and plots this page reports — passed every "
+                     "validation check below.</p>")
+    elif v.verdict == "model_error":
+        if "not trustworthy" not in v.summary:
+            parts.append('<p class="untrusted">The tensor below is not trustworthy: the recording disagrees with the '
+                         "rigid-body model. Its σ is widened to the spread the checks saw between time segments and "
+                         "frequency sub-bands — a lower bound of the error, not a calibrated σ.</p>")
+        d = result.diagnosis
+        if d is not None and not diagnosed_named(result):
+            why = str(d.get("handled", "")).removeprefix("not: ")
+            parts.append(f"<p>Diagnosis could not name the cause ({esc(why)}). Where the mismatch is, and the "
+                         "hypotheses it tried, are in the section “Model error: not explained” below.</p>")
+    elif v.verdict == "not_identifiable":
+        gone = ", ".join(SYMBOL[k] for k in v.undetermined)
+        parts.append(f"<p>Shown as “{NOT_DETERMINED}” below (null in report.json): {esc(gone)}. Nothing derived "
+                     "from them (principal moments, the ellipsoid) is given.</p>")
+        if v.advice:
+            parts.append("<p>What to change:</p>" + bullets(v.advice))
+    return f'<div class="verdict {v.verdict}" id="verdict">' + "".join(parts) + "</div>"
+
+
+__all__ = ["CHECKS", "checks_table", "headline", "verdict_html", "diagnosed_named", "statistic_text"]
