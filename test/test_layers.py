@@ -96,6 +96,26 @@ def test_no_import_cycle():
     assert not cycles, "import cycles: " + "; ".join(" -> ".join(c) for c in cycles)
 
 
+# modules allowed to import the package's own modules inside a function, and why
+LAZY = {
+    "cli.main": "rig-identify's sub-commands are imported when they run: --help loads no scipy",
+}
+
+
+def test_no_package_import_inside_a_function():
+    """The package's own modules are imported at the top of a module (an import in a function
+    hides the dependency, and is the usual way to dodge a cycle); only :data:`LAZY` may."""
+    bad = []
+    for name, path in modules().items():
+        if name in LAZY:
+            continue
+        for f in ast.walk(ast.parse(path.read_text())):
+            if isinstance(f, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                bad += [f"{name}:{n.lineno} in {f.name}()" for n in ast.walk(f)
+                        if isinstance(n, ast.ImportFrom) and n.level]
+    assert not bad, "package imports inside functions:\n" + "\n".join(bad)
+
+
 def test_the_check_sees_an_upward_import(tmp_path):
     """The walk finds imports inside functions too (the usual way to hide a cycle)."""
     f = tmp_path / "x.py"

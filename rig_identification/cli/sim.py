@@ -15,6 +15,9 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from ..io.recording import RecordingError, write_recording
+from ..io.rig import DummyMass, RigError
+from ..model.simulator import ExperimentError, SimulationError, load_experiment, simulate
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -52,9 +55,6 @@ def sim_main(argv: list[str] | None = None) -> int:
     # the simulator (scipy) only once the command line is known good: rig-sim --help stays quick
     import numpy as np
 
-    from ..io.recording import RecordingError, write_recording
-    from ..io.rig import DummyMass, RigError
-    from ..model.simulator import ExperimentError, SimulationError, load_experiment, simulate
     dummy = None
     if args.dummy_mass is not None:
         dummy = DummyMass(float(args.dummy_mass), np.array(args.dummy_position, float))

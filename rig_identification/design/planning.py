@@ -37,6 +37,8 @@ from .run import SPIN_AXES, Body, Run, load_plan_input, make_body, recommended_b
 from .screen import DesignScreen, linear_rig
 from ..estimation.propagation import PlanError, Prediction, Trajectory, combine, predict_from_trajectory
 from ..io.rig import Rig
+from ..model.simulator import simulate, SimulationError, CableModel, equilibrium
+from ..model.modes import natural_modes
 
 # the public names, with those of planning_run that users import from here
 __all__ = ["SPIN_AXES", "Body", "Candidate", "Plan", "PlanError", "Run", "amplitude_at_limits", "candidate_positions",
@@ -115,7 +117,6 @@ def _sim_check(body: Body, run: Run, limits: dict, settle: float, tracker_params
     """Simulate ``run`` without noise, measure its peak rotation, lowest tension ratio and
     whether the swing keeps growing (last third against the middle third), and predict.
     Returns (Candidate, SimResult)."""
-    from ..model.simulator import simulate
     sim = simulate(body.experiment(run))
     rot = sim.states.rotation
     ang = np.linalg.norm((rot * rot[0].inv()).as_rotvec(), axis=1)
@@ -229,8 +230,6 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
     progress: optional callable(str) for status lines.
     Raises :class:`PlanError`, :class:`~rig_identification.model.simulator.SimulationError`.
     """
-    from ..model.modes import natural_modes
-    from ..model.simulator import SimulationError
     say = progress or (lambda s: None)
     limits = _limits(max_force, max_rotation_deg, min_tension_ratio)
     if not 0 < frequencies[0] < frequencies[1]:
@@ -437,7 +436,6 @@ def geometry_variants(body: Body, shift: float = 1.0) -> list[tuple[str, Rig]]:
     stiffness is kept).  The body settles near that pose: the new cable directions
     balance its weight at a slightly different one (on the thesis rig within 5 cm and
     3°).  A variant whose cables would lean inward is left out.  Returns [(label, Rig)]."""
-    from ..model.simulator import CableModel, equilibrium
     rig = body.rig
     cm = CableModel.spring(rig, body.mass, stiffness=body.stiffness)
     pos, R0, _ = equilibrium(rig, body.mass, rig.require_cg(), cm)

@@ -17,7 +17,9 @@ from scipy.spatial.transform import Rotation
 from ..model.experiment import DEFAULT_STIFFNESS
 from ..estimation.identification import physically_consistent, to_tensor
 from ..estimation.propagation import REFERENCE_NOISE, REFERENCE_RATES, PlanError
-from ..io.rig import Rig
+from ..io.rig import Rig, RigError, load_rig, read_yaml
+from ..io.recording import RecordingError
+from ..model.simulator import ExperimentError, load_experiment, experiment_from_dict, inertia_entries
 
 _DIAGONALS = {"x+y": (1, 1, 0), "x-y": (1, -1, 0), "x+z": (1, 0, 1), "x-z": (1, 0, -1), "y+z": (0, 1, 1),
               "y-z": (0, 1, -1)}
@@ -84,7 +86,6 @@ class Body:
 
     def experiment(self, run: Run, seed: int = 0):
         """The noise-free :class:`~rig_identification.model.simulator.Experiment` of ``run``."""
-        from ..model.simulator import experiment_from_dict, inertia_entries
         rig = self.rig.to_dict()
         rig.pop("dummy_mass", None)
         rig["body"]["mass"] = float(self.mass)
@@ -117,8 +118,6 @@ def load_plan_input(path) -> tuple[Rig, dict | None, np.ndarray | None]:
     :class:`~rig_identification.io.rig.RigError`, :class:`~rig_identification.io.recording.RecordingError`, FileNotFoundError."""
     from pathlib import Path
 
-    from ..io.recording import RecordingError
-    from ..io.rig import RigError, load_rig, read_yaml
     p = Path(path)
     if p.is_dir():
         if not (p / "rig.yaml").exists():
@@ -128,7 +127,6 @@ def load_plan_input(path) -> tuple[Rig, dict | None, np.ndarray | None]:
         raise FileNotFoundError(f"{p}: no such file")
     d = read_yaml(p, RigError, "rig description")
     if isinstance(d, dict) and "rig" in d and "gravity" not in d:
-        from ..model.simulator import ExperimentError, load_experiment
         try:
             exp = load_experiment(p)
         except ExperimentError as e:

@@ -18,6 +18,8 @@ from scipy.spatial.transform import Rotation
 from ..estimation.identification import basis
 from .run import Body, recommended_band
 from ..estimation.propagation import Prediction, channel_sigmas, stationary_e_response, tracker_model, wrench_jacobians
+from ..model.modes import gradients, length_fn, length_hessians
+from ..model.simulator import CableModel, equilibrium
 
 
 @dataclass
@@ -42,8 +44,6 @@ class LinearRig:
 def linear_rig(body: Body) -> LinearRig:
     """Linearise the spring-cable rig about its equilibrium (as :func:`~rig_identification.model.modes.natural_modes`,
     plus the cables' damping), for the steady-state response of the design screen."""
-    from ..model.modes import gradients, length_fn, length_hessians
-    from ..model.simulator import CableModel, equilibrium
     rig = body.rig
     cg = rig.require_cg()
     cm = CableModel.spring(rig, body.mass, stiffness=body.stiffness)

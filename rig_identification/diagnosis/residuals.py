@@ -16,6 +16,7 @@ import numpy as np
 from scipy.signal import welch
 
 from .model_extension import ROT, TR, Fit, Model, Window
+from ..model.modes import natural_modes
 
 SYNC_BINS = 36        # exciter-phase bins of the time-synchronous average (10° each)
 SYNC_MIN_REVOLUTIONS = 10   # fewer exciter revolutions in the window: no synchronous residual
@@ -117,7 +118,6 @@ def locate(model: Model, fit: Fit, rig, inertia) -> dict:
         if on.sum() > 10:
             f_exc = abs(float(np.polyfit(w.t[on], ang[on], 1)[0])) / (2 * np.pi)
     try:
-        from ..model.modes import natural_modes
         k = rig.cable_stiffness if np.isfinite(rig.cable_stiffness).all() else None
         nat = [m.frequency for m in natural_modes(rig, rig.mass, rig.require_cg(), inertia, k)]
     except Exception:  # noqa: BLE001 — the modes are an aid to naming peaks, not required

@@ -48,7 +48,9 @@ from scipy.spatial.transform import Rotation
 from .identification import KEYS, auto_band, basis, from_tensor, prepare_segment, weak_directions
 from .preprocessor import generalized_wrench
 from ..io.rig import Rig
-from .tracker import YAW_PRIOR
+from .tracker import PoseTracker, YAW_PRIOR
+from .quality import clean_sensors
+from ..io.recording import Recording, RecordingError
 
 DRIFT_LEAK = 1e-3   # 1/s: leak of the linearised tracker's uncorrected rotation directions (tracker_model)
 
@@ -280,7 +282,6 @@ def tracker_model(rig: Rig, position: np.ndarray, R0: np.ndarray, tracker_params
                   ) -> _TrackerModel:
     """Linearise :class:`~rig_identification.estimation.tracker.PoseTracker` (default parameters, or ``tracker_params``)
     about the pose (origin ``position`` (3,) world m, ``R0`` (3,3) body -> world)."""
-    from .tracker import PoseTracker
     tp = PoseTracker(rig, **(tracker_params or {}))
     R_imu = rig.imu.rotation.as_matrix()
     r_imu_w = R0 @ rig.imu.position
@@ -430,8 +431,6 @@ class Trajectory:
         keep = np.ones(len(st.t), bool)
         warnings: list[str] = []
         if clean:
-            from .quality import clean_sensors
-            from ..io.recording import Recording, RecordingError
             try:
                 s = clean_sensors(Recording(sim.rig, sim.sensors, sim.truth, "planned run"), warnings)
             except RecordingError as e:

@@ -27,6 +27,8 @@ import yaml
 from .bag_decode import IMU_TYPE, TYPE_HASHES, VECTOR_TYPE, WRENCH_TYPE, decode_stamped
 from .rig import Rig, RigError, dump_rig, load_rig
 from .noise import white_sigma
+from .bag_raw import read_topics
+from .atomic import atomic_directory
 
 IMU_TOPIC = "/rig/imu"
 LOAD_CELL_PREFIX = "/rig/load_cells/"
@@ -180,7 +182,6 @@ def _bulk_rows(reader, bag: Path, conns) -> dict[str, np.ndarray]:
     """Rows of every wanted message, decoded in bulk (:mod:`rig_identification.io.bag_decode`) over the raw bytes
     (:mod:`rig_identification.io.bag_raw`); messages the bulk decoder does not vouch for, and topics whose type
     definition in the bag is not the standard one, are deserialised one at a time."""
-    from .bag_raw import read_topics  # imports rosbags: like the rest of this module, only when a bag is read
     msgtypes = {c.topic: c.msgtype for c in conns}
     standard = {}
     for mtype in set(msgtypes.values()):
@@ -497,7 +498,6 @@ def write_recording(out: str | Path, rig: Rig, sensors: SensorData, truth: dict 
     Builds the folder next to ``out`` and renames it into place.  Raises
     :class:`RecordingError` if ``out`` exists and ``overwrite`` is false.
     """
-    from .atomic import atomic_directory
     out = Path(out)
     if out.exists() and not overwrite:
         raise RecordingError(f"{out}: already exists (refusing to overwrite)")

@@ -607,5 +607,4 @@ def load_rig_or_experiment(path: str | Path) -> Rig:
 
 def load_experiment(path: str | Path) -> Experiment:
     """Load and validate an experiment YAML file.  Raises :class:`ExperimentError`."""
-    from ..io.rig import read_yaml
     return experiment_from_dict(read_yaml(path, ExperimentError, "experiment file"), str(path))

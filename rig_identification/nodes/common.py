@@ -76,6 +76,8 @@ from .codec import (IMU_FIELDS, ODOMETRY_FIELDS, VECTOR_FIELDS, WRENCH_FIELDS, M
 from .frames import (BODY_FRAME, EXCITER_FRAME, IMU_FRAME, INCLINOMETER_FRAME, WORLD_FRAME,  # noqa: F401
                      Endpoint, FrameIds, declare_frame_ids, log_interface)
 from .merge import StampMerger  # noqa: F401
+from ..model.simulator import load_rig_or_experiment
+from ..io.recording import SHORT_GAP
 
 PACKAGE = "rig_identification"
 
@@ -208,7 +210,6 @@ def load_rig_source(path: str | Path) -> Rig:
                            "recording folder)")
         p = p / "rig.yaml"
     # simulator (scipy.integrate) imported only here: the nodes that take no rig file skip it
-    from ..model.simulator import load_rig_or_experiment
     return load_rig_or_experiment(p)
 
 
@@ -292,7 +293,6 @@ class InputGuard:
     """
 
     def __init__(self, node: Node, period: float = 5.0, max_gap: float | None = None, keep_gaps: int = 100):
-        from ..io.recording import SHORT_GAP
         self.node = node
         self.period = period
         self.max_gap = SHORT_GAP if max_gap is None else max_gap

@@ -28,6 +28,8 @@ import time
 from pathlib import Path
 
 import yaml
+from . import common
+from .common import ros_env, diagnostic_values
 
 NODE_MODULES = {
     "sensor_driver": "rig_identification.nodes.sensor_driver",
@@ -47,7 +49,6 @@ class Graph:
     """
 
     def __init__(self, workdir: Path | None = None, domain_id: int | None = None, python: str | None = None):
-        from .common import ros_env
         self.dir = Path(workdir) if workdir else Path(tempfile.mkdtemp(prefix="rig_graph_"))
         self.dir.mkdir(parents=True, exist_ok=True)
         self.domain_id = domain_id if domain_id is not None else random.Random().randint(20, 99)
@@ -119,7 +120,6 @@ class Monitor:
         from rclpy.executors import SingleThreadedExecutor
         from std_msgs.msg import String
 
-        from . import common
         from rclpy.signals import SignalHandlerOptions
         # discovery limited to this machine, like the node processes (read by the rmw at init)
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
@@ -138,7 +138,6 @@ class Monitor:
         self.status = json.loads(msg.data)
 
     def _on_diag(self, msg):
-        from .common import diagnostic_values
         for st in msg.status:
             self.diagnostics[st.name] = diagnostic_values(st)
 
@@ -175,7 +174,6 @@ def main(argv=None) -> int:
     ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: random 20-99)")
     ap.add_argument("--keep-logs", action="store_true", help="print where the node logs are and keep them")
     args = ap.parse_args(argv)
-    from . import common
 
     t_start = time.monotonic()
     graph = Graph(domain_id=args.domain_id)

@@ -117,6 +117,12 @@ from rcl_interfaces.msg import ParameterDescriptor
 from . import common
 from .common import LATCHED_QOS
 from .fit_validation import ValidationBuffer, validate_stream_fit
+from ..estimation.identification import InertiaIdentifier, identify_inertia
+from ..statics.capture import CgSession
+from ..estimation.preprocessor import Wrench
+from ..io.rig import DummyMass
+from ..diagnosis.selection import diagnose
+from ..io.recording import Recording
 
 
 class IdentifierNode(Node):
@@ -126,7 +132,6 @@ class IdentifierNode(Node):
         super().__init__("identifier")
         from geometry_msgs.msg import InertiaStamped
 
-        from ..estimation.identification import InertiaIdentifier, identify_inertia
         self.declare_parameter("rig", "")
         self.declare_parameter("executor", "events")
         dyn = ParameterDescriptor(dynamic_typing=True,
@@ -155,7 +160,6 @@ class IdentifierNode(Node):
         self.cg_session = self._new_cg_session()
         # the raw streams of the last diagnose_seconds, for ~/diagnose (same buffer class)
         self.declare_parameter("diagnose_seconds", 120.0)
-        from ..statics.capture import CgSession
         self.diag_buffer = CgSession(rig, float(self.get_parameter("diagnose_seconds").value))
         self.last_inertia = None
         self.last_cg = rig.center_of_gravity
@@ -234,7 +238,6 @@ class IdentifierNode(Node):
                 self.validation_buffer.add_imu([ts[i] for i in kept], vals[kept])
 
     def _add_wrench(self, ts: list, vals) -> None:
-        from ..estimation.preprocessor import Wrench
         if self.identifier is None:
             return
         kept = []
@@ -276,8 +279,6 @@ class IdentifierNode(Node):
 
     # --- the static CG experiment -----------------------------------------------------
     def _new_cg_session(self):
-        from ..statics.capture import CgSession
-        from ..io.rig import DummyMass
         dm, dp = self.get_parameter("dummy_mass").value, self.get_parameter("dummy_position").value
         dummy = None
         if dm is not None or dp is not None:
@@ -327,8 +328,6 @@ class IdentifierNode(Node):
         with a clear message."""
         from pathlib import Path
 
-        from ..diagnosis.selection import diagnose
-        from ..io.recording import Recording
         if self.rig.center_of_gravity is None:
             raise ValueError("rig.yaml has no body.center_of_gravity: diagnose needs it (run the CG experiment)")
         with self.lock:

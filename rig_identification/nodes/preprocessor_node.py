@@ -49,6 +49,7 @@ from scipy.spatial.transform import Rotation
 
 from . import common
 from .common import SENSOR_QOS
+from ..estimation.preprocessor import WrenchPreprocessor
 
 
 class PreprocessorNode(Node):
@@ -58,7 +59,6 @@ class PreprocessorNode(Node):
         super().__init__("preprocessor")
         from geometry_msgs.msg import WrenchStamped
 
-        from ..estimation.preprocessor import WrenchPreprocessor
         self.declare_parameter("rig", "")
         self.declare_parameter("executor", "events")
         self.declare_parameter("batch_period", 0.005)

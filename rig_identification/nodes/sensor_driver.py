@@ -60,6 +60,10 @@ from rclpy.task import Future
 
 from . import common
 from .common import LATCHED_QOS, SENSOR_QOS
+from ..io.recording import SensorData, TimeSeries, read_recording
+from ..io.atomic import atomic_write_text
+from ..io.rig import dump_rig
+from ..model.simulator import load_experiment, simulate
 
 # with exit_when_done, the longest wait for the readers' acknowledgements after the last message, s
 LINGER_SECONDS = 5.0
@@ -140,8 +144,6 @@ class SensorDriver(Node):
         rig, sensors, truth = self._load(get("experiment"), get("recording"), float(get("duration")))
         self.rig = rig
         if get("rig_out"):
-            from ..io.atomic import atomic_write_text
-            from ..io.rig import dump_rig
             out = Path(get("rig_out"))
             out.parent.mkdir(parents=True, exist_ok=True)
             # atomic: readers never see half a file
@@ -186,7 +188,6 @@ class SensorDriver(Node):
         if experiment and recording:
             raise ValueError("give either parameter experiment or recording, not both")
         if recording:
-            from ..io.recording import read_recording
             rec = read_recording(recording)
             for w in rec.warnings:
                 self.get_logger().warn(w)
@@ -196,7 +197,6 @@ class SensorDriver(Node):
                 sensors = _cut(sensors, sensors.t_start + duration)
             self.get_logger().info(f"replaying {self.source}: {sensors.t_end - sensors.t_start:.1f} s of data")
             return rec.rig, sensors, rec.truth
-        from ..model.simulator import load_experiment, simulate
         path = experiment or str(common.default_experiment())
         exp = load_experiment(path)
         if duration > 0:
@@ -370,7 +370,6 @@ class SensorDriver(Node):
 
 def _cut(sensors, t_end: float):
     """SensorData restricted to stamps <= t_end."""
-    from ..io.recording import SensorData, TimeSeries
 
     def cut(s):
         if s is None:

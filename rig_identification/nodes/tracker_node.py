@@ -66,6 +66,7 @@ from rclpy.node import Node
 
 from . import common
 from .common import SENSOR_QOS
+from ..estimation.tracker import PoseTracker
 
 
 class TrackerNode(Node):
@@ -75,7 +76,6 @@ class TrackerNode(Node):
         super().__init__("tracker")
         from nav_msgs.msg import Odometry
 
-        from ..estimation.tracker import PoseTracker
         self.declare_parameter("rig", "")
         self.declare_parameter("use_tensions", True)
         self.declare_parameter("max_delay", 5.0)
@@ -221,7 +221,6 @@ class TrackerNode(Node):
             tr = self.tracker
             if tr.initialised and t - tr._t > self.reinit_gap:
                 # no integration across a hole in the IMU stream: start again from the data after it
-                from ..estimation.tracker import PoseTracker
                 self.get_logger().warn(f"no IMU data for {t - tr._t:.2f} s: re-initialising the tracker")
                 self.tracker = PoseTracker(self.rig, **self.params)
                 self.reinitialised += 1
