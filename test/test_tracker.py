@@ -1,12 +1,12 @@
-"""Tracker against the simulator's true trajectory, and its compiled replay against the Python one.
+"""Tracker against the simulator's true trajectory, and its offline replay against the node's per-sample path.
 
 * 4 minutes with realistic noise and gyro/accelerometer biases: no drift (its rate over ten minutes bounded).
 * An IMU away from the CG and rotated, a body origin that is not the CG, no inclinometer.
-* The compiled per-sample filter (numba, tracker_kernel) equals the Python methods to 1e-9
-  on a reference recording, a random rig without stiffness (compliance refined online),
-  stepped inputs and a rig without inclinometer; the Python path without numba.
+* The offline replay (the compiled filter, tracker_kernel, in one loop over a recording) equals
+  the tracker node's path (PoseTracker.add_* per sample, one call of the filter each) to 1e-9 on
+  a reference recording, a random rig without stiffness (compliance refined online), stepped
+  inputs and a rig without inclinometer.
 """
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -16,7 +16,6 @@ import yaml
 from conftest import background, gather, recording
 from scipy.spatial.transform import Rotation
 
-from rig_identification.estimation import tracker_kernel
 from rig_identification.pipeline.offline import compare_to_truth, identify_recording
 from rig_identification.io.recording import Recording, crop, read_recording
 from rig_identification.design.scenarios import simulate_random
@@ -175,7 +174,7 @@ def test_starts_on_a_swinging_body():
     assert np.linalg.norm(dr, axis=1).max() < 2e-4, np.linalg.norm(dr, axis=1).max()
 
 
-# --- the compiled replay (tracker_kernel) against the Python methods ---------------------
+# --- the offline replay (one compiled loop) against the node's path (a call per sample) ---
 
 TOL = 1e-9   # relative: the largest difference over the largest magnitude of each quantity
 
@@ -187,8 +186,8 @@ def rel_diff(a, b) -> float:
 
 
 def assert_same_replay(rig, sensors, **params):
-    """Compiled and Python replays: same poses, steps, compliance updates and final state."""
-    (pc, tc), (pp, tp) = (replay(rig, sensors, compiled=c, **params) for c in (True, False))
+    """The replay in one loop and per sample: same poses, steps, compliance updates and final state."""
+    (pc, tc), (pp, tp) = (replay(rig, sensors, per_sample=c, **params) for c in (False, True))
     assert np.array_equal(pc.t, pp.t)
     for f in ("position", "quaternion", "omega", "velocity"):
         assert rel_diff(getattr(pc, f), getattr(pp, f)) < TOL, f
@@ -203,9 +202,10 @@ def assert_same_replay(rig, sensors, **params):
     if tp.compliance_sums:
         assert rel_diff([s[1:3] for s in tc.compliance_sums], [s[1:3] for s in tp.compliance_sums]) < TOL
     # the tracker after the last sample: the same state, whichever path ran
-    for name in ("_R", "_p", "_v", "_omega", "_gyro_bias", "_a_bias", "_lengths", "_compliance"):
-        assert rel_diff(getattr(tc, name), getattr(tp, name)) < TOL, name
-    assert (tc._t, tc._n_steps) == (tp._t, tp._n_steps)
+    for name in ("R", "p", "v", "omega", "gyro_bias", "a_bias", "lengths", "compliance"):
+        assert rel_diff(getattr(tc.filter_state, name), getattr(tp.filter_state, name)) < TOL, name
+    assert np.array_equal(tc.filter_state.clock, tp.filter_state.clock, equal_nan=True)
+    assert np.array_equal(tc.filter_state.flags, tp.filter_state.flags)   # the step count among them
     return pc, tc, pp, tp
 
 
@@ -217,7 +217,7 @@ def reference_window():
 
 
 def test_merged_events_keep_the_order_of_a_tuple_sort(reference_window):
-    """merge_events orders as sorting (stamp, kind, index) tuples did; the kernel's kinds are the tracker's."""
+    """merge_events orders as sorting (stamp, kind, index) tuples did."""
     rig, s = reference_window
     ev = merge_events(rig, s, 0.1)
     ref = [(t, EVENT_IMU, i) for i, t in enumerate(s.imu.t)] + [(t, EVENT_INCLINOMETER, i)
@@ -225,61 +225,45 @@ def test_merged_events_keep_the_order_of_a_tuple_sort(reference_window):
     ref += [(t, EVENT_EXCITER, i) for i, t in enumerate(s.exciter.t[:np.searchsorted(s.exciter.t, s.t_start + 0.2)])]
     ref += [(t, EVENT_TENSIONS, i) for i, t in enumerate(s.load_cells[rig.cable_names[0]].t)]
     assert list(zip(ev.t.tolist(), ev.kind.tolist(), ev.index.tolist())) == sorted(ref)
-    assert (tracker_kernel.INCLINOMETER, tracker_kernel.TENSIONS, tracker_kernel.IMU, tracker_kernel.EXCITER) == \
-        (EVENT_INCLINOMETER, EVENT_TENSIONS, EVENT_IMU, EVENT_EXCITER)
 
 
-def test_compiled_replay_equals_python_on_the_reference_recording(reference_window):
+def test_replay_equals_the_node_path_on_the_reference_recording(reference_window):
     rig, s = reference_window
     _, tc, _, _ = assert_same_replay(rig, s)
     assert tc.compliance_history   # the compliance was refined online: that path is compared too
 
 
-def test_compiled_track_equals_python_on_a_random_rig_without_stiffness():
+def test_track_equals_the_node_path_on_a_random_rig_without_stiffness():
     """A random 3-cable rig, rig.yaml without stiffness: both passes of track (the second with
     the first's compliance), and the online refinement of the first."""
     _, sim = simulate_random(11, 3, "wide", [], 30.0)
     assert not np.isfinite(sim.rig.cable_stiffness).any()
     _, tc, _, _ = assert_same_replay(sim.rig, sim.sensors)
     assert tc.compliance_history
-    a, b = (track(sim.rig, sim.sensors, compiled=c) for c in (True, False))
+    a, b = (track(sim.rig, sim.sensors, per_sample=c) for c in (False, True))
     for f in ("position", "quaternion", "omega", "velocity"):
         assert rel_diff(getattr(a, f), getattr(b, f)) < TOL, f
 
 
-def test_compiled_replay_equals_python_with_stepped_inputs(case02):
+def test_replay_equals_the_node_path_with_stepped_inputs(case02):
     _, tc, _, _ = assert_same_replay(case02.rig, case02.sensors)
     assert len(tc.steps) == 3
     assert_same_replay(case02.rig, case02.sensors, step_accel=np.inf, tau_tilt=1.0)
 
 
-def test_compiled_replay_equals_python_without_inclinometer(offset_sim_no_inclinometer):
+def test_replay_equals_the_node_path_without_inclinometer(offset_sim_no_inclinometer):
     sim = offset_sim_no_inclinometer
     assert sim.rig.inclinometer is None
     assert_same_replay(sim.rig, sim.sensors)
 
 
-def test_without_numba_the_python_path_runs_with_a_warning(reference_window, monkeypatch):
-    rig, s = reference_window
-    s = crop(s, s.t_start, s.t_start + 3.0)
-    monkeypatch.setitem(sys.modules, "rig_identification.estimation.tracker_kernel", None)   # as when numba is missing
-    with pytest.warns(RuntimeWarning, match="numba"):
-        poses, _ = replay(rig, s)
-    with pytest.raises(ImportError):
-        replay(rig, s, compiled=True)
-    monkeypatch.undo()
-    assert isinstance(poses, PoseTrack)
-    ref, _ = replay(rig, s, compiled=True)
-    assert rel_diff(poses.position, ref.position) < TOL
-
-
-def test_compiled_replay_rejects_a_stamp_that_does_not_increase(reference_window):
-    """As the Python path: TrackerError naming the stamp."""
+def test_replay_rejects_a_stamp_that_does_not_increase(reference_window):
+    """As the node's path: TrackerError naming the stamp."""
     rig, s = reference_window
     s = crop(s, s.t_start, s.t_start + 3.0)
     t = s.imu.t.copy()
     t[300] = t[299]
     bad = replace(s, imu=replace(s.imu, t=t))
-    for compiled in (True, False):
+    for per_sample in (False, True):
         with pytest.raises(TrackerError, match="not after the previous one"):
-            replay(rig, bad, compiled=compiled)
+            replay(rig, bad, per_sample=per_sample)

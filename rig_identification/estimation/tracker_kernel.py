@@ -1,19 +1,18 @@
-"""Compiled per-sample filter of :class:`~rig_identification.estimation.tracker.PoseTracker` (numba).
+"""The per-sample filter of :class:`~rig_identification.estimation.tracker.PoseTracker`, compiled with numba.
 
-:func:`run` takes the tracker, once initialised, over the rest of a merged event stream
-(:func:`~rig_identification.estimation.tracker_replay.merge_events`) in one compiled loop: the same formulas,
-in the same order, as ``PoseTracker.add_imu`` → ``_step`` → ``_tilt_correction``,
-``_constraint_correction`` → ``_refine_compliance`` and ``_estimate`` (the Python methods
-are the reference; ``test/test_tracker.py`` holds the two to 1e-9), and scipy's
-``Rotation.from_matrix`` (Markley's quaternion) for the re-orthonormalisation every 200
-steps and the poses' quaternions.  Numba neither reorders nor contracts floating-point
-operations (no fastmath), so the two agree bit for bit in the tests; they allow 1e-9 for
-an ulp of a libm function (sin, cos, asin, sqrt are LLVM's or the C library's here, the
-C library's in CPython).
+:func:`run` takes the initialised filter over a run of merged events (inclinometer, tensions,
+IMU, exciter samples in stamp order) in one compiled loop: the strapdown step, the tilt and
+cable-length corrections, the online compliance refinement and the body pose of every IMU
+sample.  It is the tracker's only implementation of the filter: the offline replay
+(:mod:`~rig_identification.estimation.tracker_replay`) runs it once over a whole recording, the
+tracker node (through ``PoseTracker.add_*``) once per sample; both give the same numbers
+(``test/test_tracker.py``).  scipy's ``Rotation.from_matrix`` (Markley's quaternion) is
+reproduced for the re-orthonormalisation every 200 steps and the poses' quaternions.  Numba
+neither reorders nor contracts floating-point operations (no fastmath).
 
-Importing this module imports numba (ImportError without it); the functions compile on
-first use and are cached on disk (``cache=True``: numba's cache next to this file, or its
-user-wide cache when that folder is read-only).
+numba is a hard dependency; the functions compile on first use and are cached on disk
+(``cache=True``: numba's cache next to this file, or its user-wide cache when that folder is
+read-only).
 
 Frames and units as :mod:`~rig_identification.estimation.tracker`: R row-major body -> world, the
 filter state at the IMU point in world (m, m/s), angular rates in body axes (rad/s).
@@ -26,15 +25,16 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-# event kinds: the tracker's ranks for equal stamps (tracker_replay.EVENT_*; a test checks they agree)
-INCLINOMETER, TENSIONS, IMU, EXCITER = 0, 1, 2, 3
+# event kinds, also their rank among equal stamps: the one order in which the offline replay
+# (tracker_replay.merge_events) and the tracker node hand a sample to the filter
+EVENT_INCLINOMETER, EVENT_TENSIONS, EVENT_IMU, EVENT_EXCITER = 0, 1, 2, 3
 # State.clock fields
 T, T_ADAPT, T_INCL, T_INCL_USED = 0, 1, 2, 3
 # State.flags fields
 N_STEPS, HAS_OMEGA_PREV2, HAS_TENSIONS, INCL_PENDING = 0, 1, 2, 3
 # Outputs.counts fields
 POSES, STEPS, HISTORY, SUMS = 0, 1, 2, 3
-REORTHONORMALISE = 200  # steps between re-orthonormalisations of the attitude (as PoseTracker._step)
+REORTHONORMALISE = 200  # steps between re-orthonormalisations of the attitude
 
 
 class Constants(NamedTuple):
@@ -126,28 +126,41 @@ class Outputs(NamedTuple):
     counts: np.ndarray
 
 
+def outputs(m: int, n: int) -> Outputs:
+    """Empty :class:`Outputs` for ``m`` IMU samples of a rig with ``n`` cables (counts zero)."""
+    return Outputs(t=np.empty(m), position=np.empty((m, 3)), quaternion=np.empty((m, 4)), omega=np.empty((m, 3)),
+                   velocity=np.empty((m, 3)), steps=np.empty(m), history_t=np.empty(m), history_c=np.empty((m, n)),
+                   sums=np.empty((m, 4)), counts=np.zeros(4, np.int64))
+
+
 @numba.njit(cache=True)
-def rotvec_matrix(x: float, y: float, z: float) -> tuple:
-    """Rotation matrix (row-major 9-tuple) of the rotation vector (x, y, z) rad
-    (tracker._rotvec_matrix: through the unit quaternion, series below 1e-3 rad)."""
-    angle2 = x * x + y * y + z * z
-    angle = math.sqrt(angle2)
-    if angle <= 1e-3:
-        scale = 0.5 - angle2 / 48 + angle2 * angle2 / 3840
-    else:
-        scale = math.sin(angle / 2) / angle
-    qx, qy, qz, qw = x * scale, y * scale, z * scale, math.cos(angle / 2)
-    xx, yy, zz, ww = qx * qx, qy * qy, qz * qz, qw * qw
-    xy, zw, xz, yw, yz, xw = qx * qy, qz * qw, qx * qz, qy * qw, qy * qz, qx * qw
+def quaternion_matrix(x: float, y: float, z: float, w: float) -> tuple:
+    """Rotation matrix (row-major 9-tuple) of the unit quaternion (x, y, z, w), as scipy's
+    ``Rotation.from_quat(...).as_matrix()``."""
+    xx, yy, zz, ww = x * x, y * y, z * z, w * w
+    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
     return (xx - yy - zz + ww, 2 * (xy - zw), 2 * (xz + yw),
             2 * (xy + zw), -xx + yy - zz + ww, 2 * (yz - xw),
             2 * (xz - yw), 2 * (yz + xw), -xx - yy + zz + ww)
 
 
 @numba.njit(cache=True)
+def rotvec_matrix(x: float, y: float, z: float) -> tuple:
+    """Rotation matrix (row-major 9-tuple) of the rotation vector (x, y, z) rad, through the
+    unit quaternion as scipy ``Rotation.from_rotvec(...).as_matrix()`` (same series below
+    1e-3 rad)."""
+    angle2 = x * x + y * y + z * z
+    angle = math.sqrt(angle2)
+    if angle <= 1e-3:
+        scale = 0.5 - angle2 / 48 + angle2 * angle2 / 3840
+    else:
+        scale = math.sin(angle / 2) / angle
+    return quaternion_matrix(x * scale, y * scale, z * scale, math.cos(angle / 2))
+
+
+@numba.njit(cache=True)
 def solve_spd4(a00, a01, a02, a03, a11, a12, a13, a22, a23, a33, b0, b1, b2, b3) -> tuple:
-    """Solve A x = b, A symmetric positive-definite 4x4 (upper triangle; Cholesky), as
-    tracker._solve_spd4."""
+    """Solve A x = b, A symmetric positive-definite 4x4 (upper triangle given; Cholesky)."""
     l00 = math.sqrt(a00)
     l10, l20, l30 = a01 / l00, a02 / l00, a03 / l00
     l11 = math.sqrt(a11 - l10 * l10)
@@ -199,14 +212,33 @@ def quaternion(R: tuple) -> tuple:
 @numba.njit(cache=True)
 def orthonormalise(R: tuple) -> tuple:
     """The rotation matrix (row-major 9-tuple) of R's unit quaternion: scipy's
-    ``Rotation.from_matrix(R).as_matrix()`` for an R orthogonal to within 1e-12, as
-    ``PoseTracker._step`` re-orthonormalises."""
+    ``Rotation.from_matrix(R).as_matrix()`` for an R orthogonal to within 1e-12."""
     x, y, z, w = quaternion(R)
-    xx, yy, zz, ww = x * x, y * y, z * z, w * w
-    xy, zw, xz, yw, yz, xw = x * y, z * w, x * z, y * w, y * z, x * w
-    return (xx - yy - zz + ww, 2 * (xy - zw), 2 * (xz + yw),
-            2 * (xy + zw), -xx + yy - zz + ww, 2 * (yz - xw),
-            2 * (xz - yw), 2 * (yz + xw), -xx - yy + zz + ww)
+    return quaternion_matrix(x, y, z, w)
+
+
+@numba.njit(cache=True)
+def write_pose(out: Outputs, row: int, t: float, R: tuple, p: tuple, v: tuple, omega: tuple, r_imu: tuple) -> None:
+    """Write the body pose of the filter state into row ``row`` of ``out``'s poses.
+
+    R: row-major 9-tuple body -> world.  p, v: the IMU point's world position m and
+    velocity m/s.  omega: rad/s body.  r_imu: the IMU position, body axes, m.  The body
+    origin is p − R r_imu, its velocity v − (R ω) × (R r_imu).
+    """
+    r00, r01, r02, r10, r11, r12, r20, r21, r22 = R
+    i0, i1, i2 = r_imu
+    o0, o1, o2 = omega
+    qq0, qq1, qq2 = r00 * i0 + r01 * i1 + r02 * i2, r10 * i0 + r11 * i1 + r12 * i2, r20 * i0 + r21 * i1 + r22 * i2
+    ss0, ss1, ss2 = r00 * o0 + r01 * o1 + r02 * o2, r10 * o0 + r11 * o1 + r12 * o2, r20 * o0 + r21 * o1 + r22 * o2
+    out.t[row] = t
+    out.position[row, 0] = p[0] - qq0
+    out.position[row, 1] = p[1] - qq1
+    out.position[row, 2] = p[2] - qq2
+    out.quaternion[row, 0], out.quaternion[row, 1], out.quaternion[row, 2], out.quaternion[row, 3] = quaternion(R)
+    out.omega[row, 0], out.omega[row, 1], out.omega[row, 2] = o0, o1, o2
+    out.velocity[row, 0] = v[0] - (ss1 * qq2 - ss2 * qq1)
+    out.velocity[row, 1] = v[1] - (ss2 * qq0 - ss0 * qq2)
+    out.velocity[row, 2] = v[2] - (ss0 * qq1 - ss1 * qq0)
 
 
 @numba.njit(cache=True)
@@ -214,7 +246,7 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
         tens: np.ndarray, incl: np.ndarray, c: Constants, s: State, out: Outputs) -> int:
     """Feed the events ``start:`` to the initialised filter (see the module docstring).
 
-    ev_t (E,) s, ev_kind (E,) int8 (INCLINOMETER, TENSIONS, IMU, EXCITER), ev_index (E,)
+    ev_t (E,) s, ev_kind (E,) int8 (EVENT_INCLINOMETER, EVENT_TENSIONS, EVENT_IMU, EVENT_EXCITER), ev_index (E,)
     int64 row of the event in imu (n, 6) gyro rad/s + specific force m/s² IMU axes, tens
     (m, N) N, incl (k, 2) rad.  Exciter events are ignored (they only enter the initial
     pose).  Reads and updates ``s``, appends to ``out``.  Returns -1, or the index of the
@@ -256,19 +288,19 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
     for e in range(start, ev_t.shape[0]):
         kind = ev_kind[e]
         row = ev_index[e]
-        if kind == INCLINOMETER:                                     # PoseTracker.add_inclinometer
+        if kind == EVENT_INCLINOMETER:   # used by the next IMU sample's tilt correction
             t_incl = ev_t[e]
             m0, m1 = incl[row, 0], incl[row, 1]
             pending = True
             continue
-        if kind == TENSIONS:                                         # PoseTracker.add_tensions
+        if kind == EVENT_TENSIONS:       # the cables' stretch T/k in the length constraints
             for i in range(n):
                 tensions[i] = tens[row, i]
             has_tens = True
             continue
-        if kind != IMU:
+        if kind != EVENT_IMU:
             continue
-        # --- PoseTracker.add_imu ---
+        # --- one IMU sample: gyro and specific force in body axes, gyro bias removed ---
         t_new = ev_t[e]
         dt = t_new - t
         if dt <= 0:
@@ -282,10 +314,17 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
         f0 = im[0] * ax + im[1] * ay + im[2] * az
         f1 = im[3] * ax + im[4] * ay + im[5] * az
         f2 = im[6] * ax + im[7] * ay + im[8] * az
-        # --- PoseTracker._step ---
+        # --- the strapdown step ---
         if not has_w:
             w0, w1, w2 = o0, o1, o2
         h = dt / 12
+        # a stepped input at the previous sample (tracker's module docstring): recognised now
+        # that the sample after it shows the specific force stayed there; the world-frame
+        # acceleration is re-derived with the previous attitude (a jump of >= 0.2 m/s² is not
+        # confused with the rotation's own change)
+        # (second differences D₋₁ = a₋₁ − 2a₋₂ + a₋₃ and D₀ = a₀ − 2a₋₁ + a₋₂: a step Δ at the
+        # previous sample gives D₋₁ ≈ Δ, D₀ ≈ −Δ whatever the slope; see
+        # identification.step_indices)
         b0 = r00 * f0 + r01 * f1 + r02 * f2 - c0
         b1 = r10 * f0 + r11 * f1 + r12 * f2 - c1
         b2 = r20 * f0 + r21 * f1 + r22 * f2 - gravity - c2
@@ -294,6 +333,12 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
         step = (n1 > c.step_accel
                 and math.sqrt((b0 - a10 - a20 + a30) ** 2 + (b1 - a11_ - a21_ + a31_) ** 2
                               + (b2 - a12_ - a22_ + a32_) ** 2) < 0.5 * n1)
+        # rotation increment over the interval: third-order Adams–Moulton quadrature of ω
+        # through the last three samples (the midpoint rule's (ωh)²/12 amplitude error would
+        # bias the tensor by ~0.05 % at 100 Hz sampling) — the trapezoidal rule right after a
+        # step, where ω has a kink; the previous step's world-frame correction dphi is applied
+        # here, in body axes (exp(dphi) R exp(theta) = R exp(R^T dphi + theta) to
+        # O(|dphi||theta|) ~ 1e-9 rad)
         if step:
             q0, q1, q2 = (g0 + o0) * 6 * h, (g1 + o1) * 6 * h, (g2 + o2) * 6 * h
         else:
@@ -309,10 +354,17 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
         w0, w1, w2 = o0, o1, o2
         has_w = True
         o0, o1, o2 = g0, g1, g2
+        # the filter tracks the IMU point, whose acceleration the accelerometer gives without
+        # lever-arm terms: a = R f + g; each sample is rotated with its own attitude, then
+        # velocity and position follow by the same third-order quadrature (the trapezoidal
+        # rule's amplitude error biased Iyy by 0.01 %)
         k0 = r00 * f0 + r01 * f1 + r02 * f2 - c0
         k1 = r10 * f0 + r11 * f1 + r12 * f2 - c1
         k2 = r20 * f0 + r21 * f1 + r22 * f2 - gravity - c2
         if step:
+            # the previous interval, before the step: from the samples before it
+            # ((3a₋₂ − a₋₃)/2 instead of Adams–Moulton's (5a₋₁ + 8a₋₂ − a₋₃)/12 per dt), and
+            # its effect on the position; this interval by the trapezoidal rule
             out.steps[n_step] = t
             n_step += 1
             cv0, cv1, cv2 = (-5 * h * (a10 - 2 * a20 + a30), -5 * h * (a11_ - 2 * a21_ + a31_),
@@ -333,7 +385,7 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
         a10, a11_, a12_ = k0, k1, k2
         vp0, vp1, vp2 = v0, v1, v2
         v0, v1, v2 = u0, u1, u2
-        # --- PoseTracker._tilt_correction ---
+        # --- tilt correction: world-frame rotation toward the inclinometer, else gravity ---
         t0 = t1 = 0.0
         if c.has_incl:
             if pending:
@@ -344,6 +396,8 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
                     r20 * n01 + r21 * n11 + r22 * n21
                 px = math.asin(min(1.0, max(-1.0, ax2)))
                 py = math.asin(min(1.0, max(-1.0, ay2)))
+                # d elevation / d(world rotation phi) = (a x z) / cos(elevation);
+                # H^T (H H^T)^-1 (meas - pred), H (2,3) with a zero third column
                 cx, cy = math.cos(px), math.cos(py)
                 h00, h01 = ax1 / cx, -ax0 / cx
                 h10, h11 = ay1 / cy, -ay0 / cy
@@ -354,13 +408,16 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
                 gain = min(1.0, (t_incl - t_incl_used) / c.tau_tilt)
                 t_incl_used = t_incl
                 t0, t1 = gain * (h00 * y0 + h10 * y1), gain * (h01 * y0 + h11 * y1)
-        else:
+        else:   # no inclinometer: align the measured specific force with gravity, slowly
             z0, z1, z2 = r00 * f0 + r01 * f1 + r02 * f2, r10 * f0 + r11 * f1 + r12 * f2, r20 * f0 + r21 * f1 + r22 * f2
             nz = math.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
             if not nz < 1e-6:
                 ct = dt / c.tau_tilt_accel
                 t0, t1 = ct * z1 / nz, ct * -z0 / nz
-        # --- PoseTracker._constraint_correction ---
+        # --- cable-length correction: position (third-order complementary filter) and yaw ---
+        # normal equations G^T G delta = -G^T r accumulated over the cables, with the rows
+        # G_i = (-u_i, -(R b_i x u_i)_z): d l_i = -u_i . dp - (R b_i x u_i) . dphi, unknowns dp (3)
+        # and the yaw about world z
         A00 = A01 = A02 = A03 = A11 = A12 = A13 = A22 = A23 = A33 = 0.0
         y0 = y1 = y2 = y3 = 0.0
         for i in range(n):
@@ -391,7 +448,10 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
             y2 -= G2 * r
             y3 -= G3 * r
         if c.adapt and has_tens:
-            # --- PoseTracker._refine_compliance (stamp: the previous sample's, as there) ---
+            # --- online compliance: the in-band length residual regressed on the tension ---
+            # variation (both high-passed, 5 s; sums forgotten over ~60 s): in the band where the
+            # pose follows the inertial sensors, a residual that follows the tension is
+            # unmodelled stretch, delta_c = <e T> / <T T>; stamp: the previous sample's
             a = min(1.0, dt / 5.0)
             s_et = s_tt = s_e0t = 0.0
             for i in range(n):
@@ -401,7 +461,7 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
                 dT = tensions[i] - hp_T[i]
                 s_et += ei * dT
                 s_tt += dT * dT
-                s_e0t += (ei + comp[i] * dT) * dT
+                s_e0t += (ei + comp[i] * dT) * dT   # the residual of an inextensible cable
             lam = 1.0 - dt / 60.0
             S0 = lam * S0 + s_et
             S1 = lam * S1 + s_tt
@@ -417,6 +477,7 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
                 n_sums += 1
                 blk0 = blk1 = 0.0
                 blk2 = 0.0
+                # enough tension variation: at least ~50 N RMS per cable over the horizon
                 if S1 > (50.0 ** 2) * n * (60.0 / dt) * 0.1:
                     dc = S0 / S1
                     for i in range(n):
@@ -427,16 +488,25 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
                     out.history_t[n_hist] = t
                     n_hist += 1
                     S0 = S1 = 0.0
+        # regularised: (G^T G + Λ) delta = -G^T r, Λ = 1e-12 tr(G^T G) on the position and
+        # YAW_PRIOR tr on the yaw: cables splayed radially from the body's centre (their
+        # horizontal directions through the anchors' centroid, a common rig) leave the yaw
+        # undetermined by the lengths to first order — the unregularised solve turned the
+        # tilt's and the stretch's small residuals into yaw corrections and diverged (a 5.9 m
+        # frame on four such cables: 0.3 rad within 2 s); there the yaw follows the gyro
         eps = 1e-12 * (A00 + A11 + A22 + A33)
         lam_yaw = c.yaw_prior * (A00 + A11 + A22)
         x0, x1, x2, x3 = solve_spd4(A00 + eps, A01, A02, A03, A11 + eps, A12, A13, A22 + eps, A23, A33 + lam_yaw,
                                     y0, y1, y2, y3)
+        # third-order complementary filter (poles at -wn): the integral state absorbs a
+        # constant acceleration error (tilt error x g, accelerometer bias)
         kp, kv, ka = 3 * wn * dt, 3 * wn * wn * dt, wn ** 3 * dt
         p0, p1, p2 = p0 + kp * x0, p1 + kp * x1, p2 + kp * x2
         v0, v1, v2 = v0 + kv * x0, v1 + kv * x1, v2 + kv * x2
         c0, c1, c2 = c0 - ka * x0, c1 - ka * x1, c2 - ka * x2
         yaw = min(1.0, dt / c.tau_yaw) * x3
-        # --- back in PoseTracker._step ---
+        # --- the corrections, applied at the next step; integral action: a steady correction
+        # is a gyro bias (PI complementary filter, natural frequency 1/tau_bias) ---
         d0, d1, d2 = t0, t1, 0.0 + yaw
         gb0, gb1, gb2 = (gb0 - k_bias * (r00 * d0 + r10 * d1 + r20 * d2),
                          gb1 - k_bias * (r01 * d0 + r11 * d1 + r21 * d2),
@@ -446,19 +516,8 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
             r00, r01, r02, r10, r11, r12, r20, r21, r22 = orthonormalise((r00, r01, r02, r10, r11, r12,
                                                                           r20, r21, r22))
         t = t_new
-        # --- PoseTracker._estimate ---
-        qq0, qq1, qq2 = r00 * i0 + r01 * i1 + r02 * i2, r10 * i0 + r11 * i1 + r12 * i2, r20 * i0 + r21 * i1 + r22 * i2
-        ss0, ss1, ss2 = r00 * o0 + r01 * o1 + r02 * o2, r10 * o0 + r11 * o1 + r12 * o2, r20 * o0 + r21 * o1 + r22 * o2
-        out.t[n_pose] = t
-        out.position[n_pose, 0] = p0 - qq0
-        out.position[n_pose, 1] = p1 - qq1
-        out.position[n_pose, 2] = p2 - qq2
-        (out.quaternion[n_pose, 0], out.quaternion[n_pose, 1], out.quaternion[n_pose, 2],
-         out.quaternion[n_pose, 3]) = quaternion((r00, r01, r02, r10, r11, r12, r20, r21, r22))
-        out.omega[n_pose, 0], out.omega[n_pose, 1], out.omega[n_pose, 2] = o0, o1, o2
-        out.velocity[n_pose, 0] = v0 - (ss1 * qq2 - ss2 * qq1)
-        out.velocity[n_pose, 1] = v1 - (ss2 * qq0 - ss0 * qq2)
-        out.velocity[n_pose, 2] = v2 - (ss0 * qq1 - ss1 * qq0)
+        write_pose(out, n_pose, t, (r00, r01, r02, r10, r11, r12, r20, r21, r22), (p0, p1, p2), (v0, v1, v2),
+                   (o0, o1, o2), (i0, i1, i2))
         n_pose += 1
     # write the state back
     s.R[0], s.R[1], s.R[2], s.R[3], s.R[4], s.R[5], s.R[6], s.R[7], s.R[8] = r00, r01, r02, r10, r11, r12, r20, r21, r22

@@ -62,11 +62,13 @@ import sys
 import time
 
 import numpy as np
+from nav_msgs.msg import Odometry
 from rclpy.node import Node
 
 from . import common
 from .common import SENSOR_QOS
 from ..estimation.tracker import PoseTracker
+from ..estimation.tracker_replay import EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS
 
 
 class TrackerNode(Node):
@@ -74,8 +76,6 @@ class TrackerNode(Node):
 
     def __init__(self):
         super().__init__("tracker")
-        from nav_msgs.msg import Odometry
-
         self.declare_parameter("rig", "")
         self.declare_parameter("use_tensions", True)
         self.declare_parameter("max_delay", 5.0)
@@ -141,8 +141,9 @@ class TrackerNode(Node):
         self.get_logger().info(f"ready: rig {rig.source}, {len(self.names)} cables, parameters {params}")
 
     # --- inputs: validated, then merged in stamp order -----------------------------------
-    # ranks for equal stamps, as tracker_replay.track(): inclinometer, tensions, IMU, exciter
-    RANK = {common.INCLINOMETER_TOPIC: 0, common.IMU_TOPIC: 2, common.EXCITER_TOPIC: 3}
+    # ranks for equal stamps: the core's event kinds (tracker_replay.merge_events' order)
+    RANK = {common.INCLINOMETER_TOPIC: EVENT_INCLINOMETER, common.IMU_TOPIC: EVENT_IMU,
+            common.EXCITER_TOPIC: EVENT_EXCITER}
 
     def _drain(self) -> None:
         """Take every queued message, merge by stamp, run the tracker, publish the poses."""
@@ -174,7 +175,7 @@ class TrackerNode(Node):
             self._last_push = time.monotonic()
 
     def _push(self, topic: str, ts: list, rows: list) -> None:
-        events, refused = self.merger.push_many(topic, ts, self.RANK.get(topic, 1), rows)
+        events, refused = self.merger.push_many(topic, ts, self.RANK.get(topic, EVENT_TENSIONS), rows)
         for i in refused:
             self.guard.reject(topic, f"stamp {ts[i]:.6f} s arrived after newer samples were processed")
         apply = self._apply
@@ -219,9 +220,9 @@ class TrackerNode(Node):
     def _apply(self, topic: str, t: float, data) -> None:
         if topic == common.IMU_TOPIC:
             tr = self.tracker
-            if tr.initialised and t - tr._t > self.reinit_gap:
+            if tr.initialised and t - tr.t > self.reinit_gap:
                 # no integration across a hole in the IMU stream: start again from the data after it
-                self.get_logger().warn(f"no IMU data for {t - tr._t:.2f} s: re-initialising the tracker")
+                self.get_logger().warn(f"no IMU data for {t - tr.t:.2f} s: re-initialising the tracker")
                 self.tracker = PoseTracker(self.rig, **self.params)
                 self.reinitialised += 1
             try:
@@ -264,11 +265,10 @@ class TrackerNode(Node):
         poses, self._poses = self._poses, []
         if not poses:
             return
-        from scipy.spatial.transform import Rotation
         t = np.array([p.t for p in poses])
         M = np.array([p.matrix for p in poses])
         vel = np.array([p.velocity for p in poses])
-        vals = np.column_stack([np.array([p.position for p in poses]), Rotation.from_matrix(M).as_quat(),
+        vals = np.column_stack([np.array([p.position for p in poses]), np.array([p.quaternion for p in poses]),
                                 np.array([p.omega for p in poses]),
                                 np.einsum("nji,nj->ni", M, vel)])  # velocity in body axes: R^T v
         sent = 0
