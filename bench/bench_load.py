@@ -35,7 +35,13 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from rig_identification.nodes import common
+from rig_identification.nodes.codec import wrench_layout
+from rig_identification.nodes.diagnostics import diagnostic_values
+from rig_identification.nodes.frames import BODY_FRAME
+from rig_identification.nodes.qos import DIAGNOSTICS_QOS, LATCHED_QOS, SENSOR_QOS
+from rig_identification.nodes.runtime import BackgroundSpin
+from rig_identification.nodes.topics import (DIAGNOSTICS_TOPIC, DRIVER_STATUS_TOPIC, IMU_TOPIC, POSE_TOPIC,
+                                             TRUTH_TOPIC, WRENCH_TOPIC)
 from rig_identification.nodes.demo import Graph
 
 REPO = Path(__file__).resolve().parents[1]
@@ -67,17 +73,17 @@ class Listener:
         def on_wrench(raw, now=time.time, arr=self.arrivals.append, keep=self.raws.append):
             arr(now())
             keep(raw)
-        self.node.create_subscription(WrenchStamped, common.WRENCH_TOPIC, on_wrench, common.SENSOR_QOS, raw=True)
-        self.node.create_subscription(String, common.DRIVER_STATUS_TOPIC,
-                                      lambda m: setattr(self, "status", json.loads(m.data)), common.LATCHED_QOS)
-        self.node.create_subscription(String, common.TRUTH_TOPIC,
-                                      lambda m: setattr(self, "truth", json.loads(m.data)), common.LATCHED_QOS)
-        self.node.create_subscription(DiagnosticArray, common.DIAGNOSTICS_TOPIC, self._on_diag, common.DIAGNOSTICS_QOS)
-        self._spin = common.BackgroundSpin(EventsExecutor(context=self.ctx), self.node, self.ctx)
+        self.node.create_subscription(WrenchStamped, WRENCH_TOPIC, on_wrench, SENSOR_QOS, raw=True)
+        self.node.create_subscription(String, DRIVER_STATUS_TOPIC,
+                                      lambda m: setattr(self, "status", json.loads(m.data)), LATCHED_QOS)
+        self.node.create_subscription(String, TRUTH_TOPIC,
+                                      lambda m: setattr(self, "truth", json.loads(m.data)), LATCHED_QOS)
+        self.node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diag, DIAGNOSTICS_QOS)
+        self._spin = BackgroundSpin(EventsExecutor(context=self.ctx), self.node, self.ctx)
 
     def _on_diag(self, msg):
         for st in msg.status:
-            self.diag[st.name] = common.diagnostic_values(st)
+            self.diag[st.name] = diagnostic_values(st)
             self.levels[st.name] = max(self.levels.get(st.name, 0), int.from_bytes(st.level, "little")
                                        if isinstance(st.level, bytes) else int(st.level))
 
@@ -178,8 +184,8 @@ def main(argv=None) -> int:
         end = time.monotonic() + 30.0
         while time.monotonic() < end:
             d = lis.diag.get("/identifier", {})
-            sent = lis.diag.get("/preprocessor", {}).get(f"tx {common.WRENCH_TOPIC}")
-            if d.get(f"rx {common.WRENCH_TOPIC}") == sent and d.get(f"rx {common.IMU_TOPIC}") == total[common.IMU_TOPIC]:
+            sent = lis.diag.get("/preprocessor", {}).get(f"tx {WRENCH_TOPIC}")
+            if d.get(f"rx {WRENCH_TOPIC}") == sent and d.get(f"rx {IMU_TOPIC}") == total[IMU_TOPIC]:
                 break
             time.sleep(0.2)
         time.sleep(1.5)
@@ -201,11 +207,11 @@ def main(argv=None) -> int:
         print(header)
         drops = 0
         rows = [(t, pub.get(t, 0)) for t in sorted(total)]
-        rows.append((common.POSE_TOPIC, diag.get("/tracker", {}).get(f"tx {common.POSE_TOPIC}", 0)))
-        rows.append((common.WRENCH_TOPIC, diag.get("/preprocessor", {}).get(f"tx {common.WRENCH_TOPIC}", 0)))
+        rows.append((POSE_TOPIC, diag.get("/tracker", {}).get(f"tx {POSE_TOPIC}", 0)))
+        rows.append((WRENCH_TOPIC, diag.get("/preprocessor", {}).get(f"tx {WRENCH_TOPIC}", 0)))
         for topic, n_pub in rows:
             rx = {node: diag.get(node, {}).get(f"rx {topic}") for node in ("/tracker", "/preprocessor", "/identifier")}
-            if topic == common.WRENCH_TOPIC:
+            if topic == WRENCH_TOPIC:
                 rx["bench"] = len(lis.arrivals)
             rej = sum(diag.get(node, {}).get(f"rejected {topic}", 0) for node in rx if node.startswith("/"))
             got = [v for v in rx.values() if v is not None]
@@ -224,7 +230,7 @@ def main(argv=None) -> int:
                 print(f"{n:<16}{c:>9.1f}{100 * c / wall:>16.1f}%")
         print(f"{'all nodes':<16}{tot:>9.1f}{100 * tot / wall:>16.1f}%  (of {os.cpu_count()} cores)")
 
-        lay = common.wrench_layout(common.BODY_FRAME)
+        lay = wrench_layout(BODY_FRAME)
         stamps, _, _ = lay.decode(lis.raws)
         lat = (np.array(lis.arrivals) - stamps) * 1e3
         skip = int(2.0 * args.rate_hz)  # the first 2 s: tracker initialisation, DDS warm-up

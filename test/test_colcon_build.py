@@ -103,7 +103,7 @@ def test_every_node_answers_help(workspace):
 
 def test_installed_code_and_data_are_used(workspace):
     ws, env = workspace
-    p = sourced(ws, env, f"{sys.executable} -c 'import rig_identification.nodes.common as c; "
+    p = sourced(ws, env, f"{sys.executable} -c 'import rig_identification.nodes.environment as c; "
                          "print(c.__file__); print(c.default_experiment())'")
     assert p.returncode == 0, p.stderr
     code, data = p.stdout.split()

@@ -24,7 +24,15 @@ from scipy.spatial.transform import Rotation
 
 rclpy = pytest.importorskip("rclpy")
 
-from rig_identification.nodes import common  # noqa: E402
+from rig_identification.nodes.diagnostics import diagnostic_values  # noqa: E402
+from rig_identification.nodes.environment import ros_env  # noqa: E402
+from rig_identification.nodes.merge import StampMerger  # noqa: E402
+from rig_identification.nodes.messages import set_stamp, stamp_to_sec  # noqa: E402
+from rig_identification.nodes.qos import DIAGNOSTICS_QOS, LATCHED_QOS, SENSOR_QOS, SERVICE_SETTLE_SECONDS  # noqa: E402
+from rig_identification.nodes.runtime import BackgroundSpin  # noqa: E402
+from rig_identification.nodes.topics import (DIAGNOSTICS_TOPIC, DRIVER_STATUS_TOPIC, EXCITER_TOPIC,  # noqa: E402
+                                             IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX, MASS_PROPERTIES_TOPIC,
+                                             POSE_TOPIC, TRUTH_TOPIC, WRENCH_TOPIC)
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.pipeline.offline import identify_recording  # noqa: E402
 from rig_identification.io.recording import read_recording, write_recording  # noqa: E402
@@ -35,7 +43,7 @@ DURATION = 30.0
 RATE = 3.0
 FIT_DELAY = 2.0
 KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
-SETTLE = common.SERVICE_SETTLE_SECONDS
+SETTLE = SERVICE_SETTLE_SECONDS
 
 
 class Listener:
@@ -59,17 +67,17 @@ class Listener:
         self.diag: dict[str, dict] = {}
         self.diag_times: dict[str, list[float]] = {}
         self.truth: dict = {}
-        topics = {common.IMU_TOPIC: Imu, common.EXCITER_TOPIC: WrenchStamped,
-                  common.INCLINOMETER_TOPIC: Vector3Stamped, common.WRENCH_TOPIC: WrenchStamped}
-        topics.update({common.LOAD_CELL_PREFIX + c: WrenchStamped for c in cables})
+        topics = {IMU_TOPIC: Imu, EXCITER_TOPIC: WrenchStamped,
+                  INCLINOMETER_TOPIC: Vector3Stamped, WRENCH_TOPIC: WrenchStamped}
+        topics.update({LOAD_CELL_PREFIX + c: WrenchStamped for c in cables})
         for topic, mtype in topics.items():
-            self.node.create_subscription(mtype, topic, lambda m, t=topic: self._count(t, m), common.SENSOR_QOS)
-        self.node.create_subscription(Odometry, common.POSE_TOPIC, self._pose, common.SENSOR_QOS)
-        self.node.create_subscription(String, common.DRIVER_STATUS_TOPIC,
-                                      lambda m: setattr(self, "status", json.loads(m.data)), common.LATCHED_QOS)
-        self.node.create_subscription(String, common.TRUTH_TOPIC,
-                                      lambda m: setattr(self, "truth", json.loads(m.data)), common.LATCHED_QOS)
-        self.node.create_subscription(DiagnosticArray, common.DIAGNOSTICS_TOPIC, self._diag, common.DIAGNOSTICS_QOS)
+            self.node.create_subscription(mtype, topic, lambda m, t=topic: self._count(t, m), SENSOR_QOS)
+        self.node.create_subscription(Odometry, POSE_TOPIC, self._pose, SENSOR_QOS)
+        self.node.create_subscription(String, DRIVER_STATUS_TOPIC,
+                                      lambda m: setattr(self, "status", json.loads(m.data)), LATCHED_QOS)
+        self.node.create_subscription(String, TRUTH_TOPIC,
+                                      lambda m: setattr(self, "truth", json.loads(m.data)), LATCHED_QOS)
+        self.node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._diag, DIAGNOSTICS_QOS)
         self.InertiaStamped = InertiaStamped
         if executor == "events":
             from rclpy.experimental import EventsExecutor
@@ -77,7 +85,7 @@ class Listener:
         else:
             from rclpy.executors import SingleThreadedExecutor
             ex = SingleThreadedExecutor(context=self.ctx)
-        self._spin = common.BackgroundSpin(ex, self.node, self.ctx)
+        self._spin = BackgroundSpin(ex, self.node, self.ctx)
 
     def _count(self, topic, msg):
         with self.lock:
@@ -87,14 +95,14 @@ class Listener:
     def _pose(self, m):
         p, q, tw = m.pose.pose.position, m.pose.pose.orientation, m.twist.twist
         with self.lock:
-            self.counts[common.POSE_TOPIC] = self.counts.get(common.POSE_TOPIC, 0) + 1
-            self.frames.setdefault(common.POSE_TOPIC, set()).add((m.header.frame_id, m.child_frame_id))
-            self.poses.append((common.stamp_to_sec(m.header.stamp), p.x, p.y, p.z, q.x, q.y, q.z, q.w,
+            self.counts[POSE_TOPIC] = self.counts.get(POSE_TOPIC, 0) + 1
+            self.frames.setdefault(POSE_TOPIC, set()).add((m.header.frame_id, m.child_frame_id))
+            self.poses.append((stamp_to_sec(m.header.stamp), p.x, p.y, p.z, q.x, q.y, q.z, q.w,
                                tw.angular.x, tw.angular.y, tw.angular.z, tw.linear.x, tw.linear.y, tw.linear.z))
 
     def _diag(self, msg):
         for st in msg.status:
-            self.diag[st.name] = common.diagnostic_values(st)
+            self.diag[st.name] = diagnostic_values(st)
             self.diag_times.setdefault(st.name, []).append(time.monotonic())
 
     def call(self, service: str, timeout: float = 60.0):
@@ -103,7 +111,7 @@ class Listener:
         cli = self.node.create_client(Trigger, service)
         try:
             assert cli.wait_for_service(timeout_sec=20.0), f"service {service} not available"
-            time.sleep(SETTLE)   # the service's side of the discovery (common.SERVICE_SETTLE_SECONDS)
+            time.sleep(SETTLE)   # the service's side of the discovery (qos.SERVICE_SETTLE_SECONDS)
             fut = cli.call_async(Trigger.Request())
             end = time.monotonic() + timeout
             while not fut.done() and time.monotonic() < end:
@@ -167,8 +175,8 @@ def graph(sim, tmp_path_factory):
             wrenches = d.get("/preprocessor", {}).get("tx /rig/generalized_wrench", -1)
             poses = d.get("/tracker", {}).get("tx /rig/pose", -1)
             return (d.get("/identifier", {}).get("rx /rig/generalized_wrench") == wrenches
-                    and d.get("/tracker", {}).get("rx /rig/imu") == total[common.IMU_TOPIC]
-                    and c.get(common.WRENCH_TOPIC) == wrenches and c.get(common.POSE_TOPIC) == poses
+                    and d.get("/tracker", {}).get("rx /rig/imu") == total[IMU_TOPIC]
+                    and c.get(WRENCH_TOPIC) == wrenches and c.get(POSE_TOPIC) == poses
                     and all(c.get(t) == n for t, n in total.items()))
         # every node (and this listener) has processed everything
         wait_until(drained, 120.0, "the pipeline to drain", g, info=state)
@@ -184,37 +192,37 @@ def test_every_topic_arrives_without_drops(graph):
     g, lis, sim, rec = graph
     total = lis.status["total"]
     s = sim.sensors
-    expected = {common.IMU_TOPIC: len(s.imu), common.EXCITER_TOPIC: len(s.exciter),
-                common.INCLINOMETER_TOPIC: len(s.inclinometer)}
-    expected.update({common.LOAD_CELL_PREFIX + n: len(v) for n, v in s.load_cells.items()})
+    expected = {IMU_TOPIC: len(s.imu), EXCITER_TOPIC: len(s.exciter),
+                INCLINOMETER_TOPIC: len(s.inclinometer)}
+    expected.update({LOAD_CELL_PREFIX + n: len(v) for n, v in s.load_cells.items()})
     assert total == expected
     assert lis.status["published"] == expected
     for topic, n in expected.items():
         assert lis.counts.get(topic) == n, f"{topic}: listener got {lis.counts.get(topic)} of {n}"
     # each node received every message it subscribes to, none rejected
-    for node, topics in {"/tracker": list(expected), "/preprocessor": [t for t in expected if t != common.IMU_TOPIC
-                                                                       and t != common.INCLINOMETER_TOPIC],
-                         "/identifier": [common.IMU_TOPIC]}.items():
+    for node, topics in {"/tracker": list(expected), "/preprocessor": [t for t in expected if t != IMU_TOPIC
+                                                                       and t != INCLINOMETER_TOPIC],
+                         "/identifier": [IMU_TOPIC]}.items():
         d = lis.diag[node]
         for topic in topics:
             assert d[f"rx {topic}"] == expected[topic], (node, topic, d)
             assert d[f"rejected {topic}"] == 0, (node, topic, d)
     # derived streams: one pose per IMU sample after the tracker's initialisation, no loss downstream
     poses_tx = lis.diag["/tracker"]["tx /rig/pose"]
-    assert expected[common.IMU_TOPIC] - 25 <= poses_tx < expected[common.IMU_TOPIC]
-    assert lis.counts[common.POSE_TOPIC] == poses_tx
+    assert expected[IMU_TOPIC] - 25 <= poses_tx < expected[IMU_TOPIC]
+    assert lis.counts[POSE_TOPIC] == poses_tx
     assert lis.diag["/preprocessor"]["rx /rig/pose"] == poses_tx
     wrench_tx = lis.diag["/preprocessor"]["tx /rig/generalized_wrench"]
     assert wrench_tx >= poses_tx - 5
-    assert lis.counts[common.WRENCH_TOPIC] == wrench_tx
+    assert lis.counts[WRENCH_TOPIC] == wrench_tx
     assert lis.diag["/identifier"]["rx /rig/generalized_wrench"] == wrench_tx
     # frames of RECORDING_FORMAT.md
-    assert lis.frames[common.IMU_TOPIC] == {"imu"}
-    assert lis.frames[common.EXCITER_TOPIC] == {"exciter"}
-    assert lis.frames[common.INCLINOMETER_TOPIC] == {"inclinometer"}
-    assert lis.frames[common.LOAD_CELL_PREFIX + "c0"] == {"load_cell_c0"}
-    assert lis.frames[common.WRENCH_TOPIC] == {"body"}
-    assert lis.frames[common.POSE_TOPIC] == {("world", "body")}
+    assert lis.frames[IMU_TOPIC] == {"imu"}
+    assert lis.frames[EXCITER_TOPIC] == {"exciter"}
+    assert lis.frames[INCLINOMETER_TOPIC] == {"inclinometer"}
+    assert lis.frames[LOAD_CELL_PREFIX + "c0"] == {"load_cell_c0"}
+    assert lis.frames[WRENCH_TOPIC] == {"body"}
+    assert lis.frames[POSE_TOPIC] == {("world", "body")}
 
 
 def test_pose_matches_simulated_truth(graph):
@@ -339,8 +347,8 @@ def test_mass_properties_latched_for_a_late_subscriber(graph):
     assert r.success, r.message
     d = json.loads(r.message)
     got = []
-    sub = lis.node.create_subscription(lis.InertiaStamped, common.MASS_PROPERTIES_TOPIC, got.append,
-                                       common.LATCHED_QOS)
+    sub = lis.node.create_subscription(lis.InertiaStamped, MASS_PROPERTIES_TOPIC, got.append,
+                                       LATCHED_QOS)
     try:
         wait_until(lambda: got, 10.0, "the latched /rig/mass_properties")
     finally:
@@ -351,7 +359,7 @@ def test_mass_properties_latched_for_a_late_subscriber(graph):
     assert [m.inertia.com.x, m.inertia.com.y, m.inertia.com.z] == pytest.approx(d["center_of_gravity"])
     for k in KEYS:
         assert getattr(m.inertia, k) == pytest.approx(d["inertia_about_cg"][k]), k
-    assert common.stamp_to_sec(m.header.stamp) == pytest.approx(d["window"]["end_stamp"], abs=1e-6)
+    assert stamp_to_sec(m.header.stamp) == pytest.approx(d["window"]["end_stamp"], abs=1e-6)
 
 
 def test_second_call_during_a_fit_is_answered_busy(graph):
@@ -418,48 +426,48 @@ def test_malformed_messages_are_dropped_and_nodes_survive(graph):
     node = lis.node
     before = {n: dict(lis.diag[n]) for n in ("/tracker", "/preprocessor", "/identifier")}
     t_last = float(sim.sensors.imu.t[-1])
-    pubs = {t: node.create_publisher(m, t, common.SENSOR_QOS) for t, m in
-            ((common.IMU_TOPIC, Imu), (common.WRENCH_TOPIC, WrenchStamped), (common.POSE_TOPIC, Odometry),
-             (common.LOAD_CELL_PREFIX + "c0", WrenchStamped))}
+    pubs = {t: node.create_publisher(m, t, SENSOR_QOS) for t, m in
+            ((IMU_TOPIC, Imu), (WRENCH_TOPIC, WrenchStamped), (POSE_TOPIC, Odometry),
+             (LOAD_CELL_PREFIX + "c0", WrenchStamped))}
     wait_until(lambda: all(p.get_subscription_count() >= 1 for p in pubs.values()), 10.0, "test publishers to match")
 
     def imu(t, frame="imu", gx=0.0):
         m = Imu()
-        common.set_stamp(m.header, t, frame)
+        set_stamp(m.header, t, frame)
         m.angular_velocity.x = gx
         m.linear_acceleration.z = 9.8
         m.orientation_covariance[0] = -1.0
         return m
-    pubs[common.IMU_TOPIC].publish(imu(t_last + 1.0, gx=math.nan))         # NaN
-    pubs[common.IMU_TOPIC].publish(imu(t_last + 1.0, frame="camera"))      # wrong frame
-    pubs[common.IMU_TOPIC].publish(imu(t_last - 10.0))                     # stamp going backwards
+    pubs[IMU_TOPIC].publish(imu(t_last + 1.0, gx=math.nan))         # NaN
+    pubs[IMU_TOPIC].publish(imu(t_last + 1.0, frame="camera"))      # wrong frame
+    pubs[IMU_TOPIC].publish(imu(t_last - 10.0))                     # stamp going backwards
     w = WrenchStamped()
-    common.set_stamp(w.header, t_last + 1.0, "body")
+    set_stamp(w.header, t_last + 1.0, "body")
     w.wrench.torque.y = math.inf
-    pubs[common.WRENCH_TOPIC].publish(w)                                   # inf torque
+    pubs[WRENCH_TOPIC].publish(w)                                   # inf torque
     o = Odometry()
-    common.set_stamp(o.header, t_last + 1.0, "world")
+    set_stamp(o.header, t_last + 1.0, "world")
     o.child_frame_id = "base_link"
     o.pose.pose.orientation.w = 1.0
-    pubs[common.POSE_TOPIC].publish(o)                                     # wrong child frame
+    pubs[POSE_TOPIC].publish(o)                                     # wrong child frame
     c = WrenchStamped()
-    common.set_stamp(c.header, t_last - 5.0, "load_cell_c0")
-    pubs[common.LOAD_CELL_PREFIX + "c0"].publish(c)                        # stamp going backwards
+    set_stamp(c.header, t_last - 5.0, "load_cell_c0")
+    pubs[LOAD_CELL_PREFIX + "c0"].publish(c)                        # stamp going backwards
 
     def rejected(node_name, topic):
         return lis.diag[node_name].get(f"rejected {topic}", 0) - before[node_name].get(f"rejected {topic}", 0)
-    wait_until(lambda: rejected("/tracker", common.IMU_TOPIC) == 3
-               and rejected("/identifier", common.IMU_TOPIC) == 3
-               and rejected("/identifier", common.WRENCH_TOPIC) == 1
-               and rejected("/preprocessor", common.POSE_TOPIC) == 1
-               and rejected("/preprocessor", common.LOAD_CELL_PREFIX + "c0") == 1
-               and rejected("/tracker", common.LOAD_CELL_PREFIX + "c0") == 1, 15.0, "the rejections", g)
+    wait_until(lambda: rejected("/tracker", IMU_TOPIC) == 3
+               and rejected("/identifier", IMU_TOPIC) == 3
+               and rejected("/identifier", WRENCH_TOPIC) == 1
+               and rejected("/preprocessor", POSE_TOPIC) == 1
+               and rejected("/preprocessor", LOAD_CELL_PREFIX + "c0") == 1
+               and rejected("/tracker", LOAD_CELL_PREFIX + "c0") == 1, 15.0, "the rejections", g)
     assert not g.dead()
     assert "dropped a malformed message on /rig/imu" in g.log("tracker")
     # still serving, with the same data as before
     r = lis.call("/identifier/identify_inertia")
     assert r.success, r.message
-    assert json.loads(r.message)["received"]["imu"] == lis.status["total"][common.IMU_TOPIC]
+    assert json.loads(r.message)["received"]["imu"] == lis.status["total"][IMU_TOPIC]
     for p in pubs.values():
         node.destroy_publisher(p)
 
@@ -475,14 +483,14 @@ def test_nodes_refuse_a_bad_rig_description(tmp_path):
     bad.write_text(yaml.safe_dump({"gravity": 9.81, "cables": []}))
     for module in ("tracker_node", "preprocessor_node", "identifier_node"):
         p = subprocess.run([sys.executable, "-m", f"rig_identification.nodes.{module}", "--ros-args",
-                            "-p", f"rig:={bad}"], env=common.ros_env(random.Random().randint(200, 230)),
+                            "-p", f"rig:={bad}"], env=ros_env(random.Random().randint(200, 230)),
                            capture_output=True, text=True, timeout=60)
         assert p.returncode == 2, (module, p.stderr)
         assert "cables" in p.stderr and "Traceback" not in p.stderr, (module, p.stderr)
 
 
 def test_stamp_merger_orders_streams_and_does_not_wait_for_a_silent_one():
-    m = common.StampMerger(["a", "b"], max_delay=1.0)
+    m = StampMerger(["a", "b"], max_delay=1.0)
     assert m.push("a", 1.0, 2, "a1") == []          # b has said nothing yet
     assert m.push("a", 1.1, 2, "a2") == []
     out = m.push("b", 1.05, 1, "b1")                # b reached 1.05: a1 and b1 can go

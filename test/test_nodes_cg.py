@@ -28,7 +28,7 @@ from conftest import recording  # noqa: E402
 from test_nodes import Listener, wait_until  # noqa: E402
 
 from rig_identification.cli.cg import cg_result_from_dict, load_cg_result, rig_with_cg_text  # noqa: E402
-from rig_identification.nodes import common  # noqa: E402
+from rig_identification.nodes.qos import LATCHED_QOS  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.io.recording import read_recording  # noqa: E402
 from rig_identification.io.rig import dump_rig, load_rig  # noqa: E402
@@ -85,7 +85,7 @@ def test_cg_services_on_the_reference_pair(tmp_path):
         assert json.loads(p.stdout)["captured"] == "dummy"
         got = {}
         lis.node.create_subscription(lis.InertiaStamped, "/rig/mass_properties",
-                                     lambda m: got.setdefault("msg", m), common.LATCHED_QOS)
+                                     lambda m: got.setdefault("msg", m), LATCHED_QOS)
         p = client(g, "cg-estimate", "--json")
         assert p.returncode == 0, p.stdout + p.stderr
         d = json.loads(p.stdout)

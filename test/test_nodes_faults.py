@@ -26,7 +26,11 @@ rclpy = pytest.importorskip("rclpy")
 
 from test_nodes import Listener, wait_until  # noqa: E402
 
-from rig_identification.nodes import codec, common  # noqa: E402
+from rig_identification.nodes import codec  # noqa: E402
+from rig_identification.nodes.diagnostics import diagnostic_values  # noqa: E402
+from rig_identification.nodes.merge import StampMerger  # noqa: E402
+from rig_identification.nodes.messages import stamp_to_sec  # noqa: E402
+from rig_identification.nodes.topics import IMU_TOPIC, LOAD_CELL_PREFIX, WRENCH_TOPIC  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.io.recording import read_recording, write_recording  # noqa: E402
 from rig_identification.model.simulator import load_experiment, simulate  # noqa: E402
@@ -50,7 +54,7 @@ class StatusListener(Listener):
         now = time.monotonic()
         for st in msg.status:
             lvl = st.level if isinstance(st.level, int) else int.from_bytes(st.level, "little")
-            self.history.append((now, st.name, lvl, st.message, common.diagnostic_values(st)))
+            self.history.append((now, st.name, lvl, st.message, diagnostic_values(st)))
 
     def set_params(self, node: str, values: dict) -> None:
         from rclpy.parameter import Parameter
@@ -84,9 +88,9 @@ def start_graph(tmp: Path, rec: Path, cables, driver_extra=None, identifier_extr
 def drained(lis: Listener) -> bool:
     d, total = lis.diag, lis.status.get("total", {})
     return (lis.status.get("state") == "done"
-            and d.get("/identifier", {}).get(f"rx {common.IMU_TOPIC}") == total.get(common.IMU_TOPIC)
-            and d.get("/identifier", {}).get(f"rx {common.WRENCH_TOPIC}")
-            == d.get("/preprocessor", {}).get(f"tx {common.WRENCH_TOPIC}"))
+            and d.get("/identifier", {}).get(f"rx {IMU_TOPIC}") == total.get(IMU_TOPIC)
+            and d.get("/identifier", {}).get(f"rx {WRENCH_TOPIC}")
+            == d.get("/preprocessor", {}).get(f"tx {WRENCH_TOPIC}"))
 
 
 def relative_errors(d: dict, truth: dict) -> dict:
@@ -96,7 +100,7 @@ def relative_errors(d: dict, truth: dict) -> dict:
 
 def test_a_silent_load_cell_is_reported_and_not_fitted_over(recording, tmp_path):
     rec, sim = recording
-    topic = common.LOAD_CELL_PREFIX + "c1"
+    topic = LOAD_CELL_PREFIX + "c1"
     g, lis = start_graph(tmp_path, rec, sim.rig.cable_names, {"silence": [f"{topic}:10.0:22.0"]})
     try:
         wait_until(lambda: drained(lis), 120.0, "the replay to finish and drain", g)
@@ -107,7 +111,7 @@ def test_a_silent_load_cell_is_reported_and_not_fitted_over(recording, tmp_path)
             assert seen and "stopped" in seen[0][3], (node, [h[1:4] for h in lis.history if h[1].startswith(node)])
             # ... while the IMU stream of the same node stayed OK at that moment
             t_err = seen[0][0]
-            imu = [h for h in lis.history if h[1] == f"{node}: {common.IMU_TOPIC}" and abs(h[0] - t_err) < 0.5]
+            imu = [h for h in lis.history if h[1] == f"{node}: {IMU_TOPIC}" and abs(h[0] - t_err) < 0.5]
             if node != "/preprocessor":
                 assert imu and imu[-1][2] == 0, (node, imu)
             top = [h for h in lis.history if h[1] == node and abs(h[0] - t_err) < 0.01]
@@ -168,7 +172,7 @@ def test_tracker_killed_and_restarted_mid_run_recovers(recording, tmp_path):
         wait_until(lambda: drained(lis), 150.0, "the replay to finish and drain", g)
         time.sleep(1.2)
         # the outage was reported (the identifier's wrench input stale or stopped), and ended
-        wr = [h for h in lis.history if h[1] == f"/identifier: {common.WRENCH_TOPIC}"]
+        wr = [h for h in lis.history if h[1] == f"/identifier: {WRENCH_TOPIC}"]
         assert any(h[2] >= 1 and h[0] - t0 > killed_at for h in wr), [h[2:4] for h in wr]
         t_err = next(h[0] for h in wr if h[2] >= 1 and h[0] - t0 > killed_at)
         assert any(h[2] == 0 and h[0] > t_err for h in wr), [h[2:4] for h in wr]
@@ -186,7 +190,7 @@ def test_tracker_killed_and_restarted_mid_run_recovers(recording, tmp_path):
         assert lis.status["published"] == lis.status["total"]
         # the killed reader held the reliable writers back for the DDS lease (3 s) at most
         assert lis.status["achieved"]["rate"] > 0.6 * 3.0, lis.status["achieved"]
-        assert lis.diag["/identifier"]["rx /rig/imu"] == lis.status["total"][common.IMU_TOPIC]
+        assert lis.diag["/identifier"]["rx /rig/imu"] == lis.status["total"][IMU_TOPIC]
     finally:
         lis.close()
         g.stop()
@@ -203,18 +207,18 @@ def test_message_layout_matches_the_rclpy_serializer():
     from sensor_msgs.msg import Imu
     rng = np.random.default_rng(6)
     t = 1.75e9 + np.cumsum(rng.uniform(0.001, 0.002, 5))
-    for layout, mtype in ((common.imu_layout(), Imu), (common.odometry_layout(), Odometry),
-                          (common.wrench_layout("load_cell_c0"), WrenchStamped)):
+    for layout, mtype in ((codec.imu_layout(), Imu), (codec.odometry_layout(), Odometry),
+                          (codec.wrench_layout("load_cell_c0"), WrenchStamped)):
         vals = rng.normal(size=(5, len(layout.fields)))
         raws = layout.encode(t, vals)
         for i, raw in enumerate(raws):
             m = deserialize_message(raw, mtype)
-            assert common.stamp_to_sec(m.header.stamp) == pytest.approx(t[i], abs=1e-9)
+            assert stamp_to_sec(m.header.stamp) == pytest.approx(t[i], abs=1e-9)
             got = [float(codec.get_path(m, p)) for p in layout.fields]
             assert got == vals[i].tolist()
             # and back (alignment padding is not defined: compare what decodes, not bytes)
             tt, vv, bad = layout.decode([serialize_message(m)])
-            assert not bad and vv[0].tolist() == vals[i].tolist() and tt[0] == common.stamp_to_sec(m.header.stamp)
+            assert not bad and vv[0].tolist() == vals[i].tolist() and tt[0] == stamp_to_sec(m.header.stamp)
         # a foreign frame id and a message of another size among them
         odd = mtype()
         odd.header.frame_id = "camera"
@@ -229,7 +233,7 @@ def test_message_layout_matches_the_rclpy_serializer():
 def test_stamp_merger_lookahead_keeps_stamp_order():
     """A slow stream (50 Hz) does not hold a fast one (1 kHz) back for a whole period, and the
     merged feed is still in stamp order."""
-    m = common.StampMerger(["fast", "slow"], max_delay=5.0, lookahead=0.75)
+    m = StampMerger(["fast", "slow"], max_delay=5.0, lookahead=0.75)
     fast = 100.0 + np.arange(0, 1.0, 0.001)
     slow = 100.0 + np.arange(0, 1.0, 0.02)
     out, lag = [], []
@@ -273,15 +277,15 @@ def test_recording_round_trip_keeps_every_message(tmp_path):
 
 
 def test_a_node_that_hangs_at_shutdown_still_stops():
-    """nodes.common.shutdown_watchdog: once rclpy's context is shut down (Ctrl-C), a process
+    """nodes.runtime.shutdown_watchdog: once rclpy's context is shut down (Ctrl-C), a process
     whose clean-up hangs ends after the grace period with status 0, and says why on stderr
     with every thread's stack (where it hung)."""
     import subprocess
     import sys
     code = ("import time, rclpy\n"
-            "from rig_identification.nodes import common\n"
+            "from rig_identification.nodes.runtime import shutdown_watchdog\n"
             "rclpy.init()\n"
-            "common.shutdown_watchdog('hanging', grace=0.5)\n"
+            "shutdown_watchdog('hanging', grace=0.5)\n"
             "rclpy.shutdown()\n"
             "def stuck_in_cleanup():\n"
             "    time.sleep(60)\n"

@@ -17,7 +17,9 @@ rclpy = pytest.importorskip("rclpy")
 
 from test_nodes import Listener, wait_until  # noqa: E402
 
-from rig_identification.nodes import common  # noqa: E402
+from rig_identification.nodes.messages import set_stamp, set_xyz, stamp_to_sec  # noqa: E402
+from rig_identification.nodes.qos import LATCHED_QOS, SENSOR_QOS  # noqa: E402
+from rig_identification.nodes.topics import LOAD_CELL_PREFIX, MASS_PROPERTIES_TOPIC, POSE_TOPIC  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.io.rig import rig_from_dict  # noqa: E402
 
@@ -28,7 +30,7 @@ EXPERIMENT = REPO / "config" / "rigs" / "default.yaml"
 def imu_msg(t: float, frame: str):
     from sensor_msgs.msg import Imu
     m = Imu()
-    common.set_stamp(m.header, t, frame)
+    set_stamp(m.header, t, frame)
     m.angular_velocity.x = 0.01
     m.linear_acceleration.z = 9.81
     m.orientation_covariance[0] = -1.0
@@ -46,7 +48,7 @@ def test_frame_ids_are_parameters_and_topics_remap(tmp_path):
         g.start("identifier", {"rig": str(EXPERIMENT), "imu_frame": "imu_link"},
                 args=["--ros-args", "-r", "/rig/imu:=/lab/imu"])
         wait_until(lambda: "ready" in g.log("identifier"), 30.0, "the identifier to start", g)
-        pub = lis.node.create_publisher(Imu, "/lab/imu", common.SENSOR_QOS)
+        pub = lis.node.create_publisher(Imu, "/lab/imu", SENSOR_QOS)
         wait_until(lambda: pub.get_subscription_count() >= 1, 20.0, "the identifier to subscribe to /lab/imu", g)
         t0 = 1.75e9
         sent = {"good": 0, "bad": 0}
@@ -100,10 +102,10 @@ def test_visualizer_publishes_transform_and_markers(tmp_path):
     try:
         g.start("rig_visualizer", {"rig": str(EXPERIMENT), "rate": 20.0},
                 module="rig_identification.nodes.visualizer")
-        pose_pub = node.create_publisher(Odometry, common.POSE_TOPIC, common.SENSOR_QOS)
-        cells = {n: node.create_publisher(WrenchStamped, common.LOAD_CELL_PREFIX + n, common.SENSOR_QOS)
+        pose_pub = node.create_publisher(Odometry, POSE_TOPIC, SENSOR_QOS)
+        cells = {n: node.create_publisher(WrenchStamped, LOAD_CELL_PREFIX + n, SENSOR_QOS)
                  for n in rig.cable_names}
-        mp_pub = node.create_publisher(InertiaStamped, common.MASS_PROPERTIES_TOPIC, common.LATCHED_QOS)
+        mp_pub = node.create_publisher(InertiaStamped, MASS_PROPERTIES_TOPIC, LATCHED_QOS)
         wait_until(lambda: pose_pub.get_subscription_count() >= 1 and all(
             c.get_subscription_count() >= 1 for c in cells.values()), 30.0, "the visualizer to subscribe", g)
         R = Rotation.from_euler("xyz", [0.02, -0.03, 0.5])
@@ -113,16 +115,16 @@ def test_visualizer_publishes_transform_and_markers(tmp_path):
 
         def publish(k):
             o = Odometry()
-            common.set_stamp(o.header, t + 0.01 * k, "world")
+            set_stamp(o.header, t + 0.01 * k, "world")
             o.child_frame_id = "body"
-            common.set_xyz(o.pose.pose.position, p)
+            set_xyz(o.pose.pose.position, p)
             q = R.as_quat()
             o.pose.pose.orientation.x, o.pose.pose.orientation.y = q[0], q[1]
             o.pose.pose.orientation.z, o.pose.pose.orientation.w = q[2], q[3]
             pose_pub.publish(o)
             for i, (n, pub) in enumerate(cells.items()):
                 w = WrenchStamped()
-                common.set_stamp(w.header, t + 0.01 * k, f"load_cell_{n}")
+                set_stamp(w.header, t + 0.01 * k, f"load_cell_{n}")
                 w.wrench.force.z = share * (1.0, 0.0, 2.0, 1.0)[i]
                 pub.publish(w)
 
@@ -135,14 +137,14 @@ def test_visualizer_publishes_transform_and_markers(tmp_path):
             sent[0] += 1
             m = got["markers"]
             return bool(got["tf"] and m and len(m[-1].markers) == 5 and m[-1].markers[2].colors[0].g > 0.99
-                        and common.stamp_to_sec(got["tf"][-1].header.stamp) > t)
+                        and stamp_to_sec(got["tf"][-1].header.stamp) > t)
         wait_until(fed_and_drawn, 20.0, "markers", g, step=0.05)
         tf = got["tf"][-1]
         assert (tf.header.frame_id, tf.child_frame_id) == ("world", "body")
         tr, rq = tf.transform.translation, tf.transform.rotation
         np.testing.assert_allclose([tr.x, tr.y, tr.z], p)
         np.testing.assert_allclose((Rotation.from_quat([rq.x, rq.y, rq.z, rq.w]) * R.inv()).magnitude(), 0, atol=1e-9)
-        k = (common.stamp_to_sec(tf.header.stamp) - t) / 0.01  # the stamp of one of the poses sent
+        k = (stamp_to_sec(tf.header.stamp) - t) / 0.01  # the stamp of one of the poses sent
         assert abs(k - round(k)) < 1e-3 and 0 < round(k) < sent[0], k
         ms = {m.ns: m for m in got["markers"][-1].markers}
         assert set(ms) == {"ceiling_anchors", "body_anchors", "cables", "body", "center_of_gravity"}
@@ -164,9 +166,9 @@ def test_visualizer_publishes_transform_and_markers(tmp_path):
         np.testing.assert_allclose([bp.x, bp.y, bp.z], p + R.apply(0.5 * (lo + hi)), atol=1e-9)
         # an identified tensor: the inertia ellipsoid appears, at the published CG
         m = InertiaStamped()
-        common.set_stamp(m.header, t, "body")
+        set_stamp(m.header, t, "body")
         m.inertia.m, (m.inertia.ixx, m.inertia.iyy, m.inertia.izz) = 1810.0, (2894.0, 695.0, 3101.0)
-        common.set_xyz(m.inertia.com, [0.01, -0.02, 0.03])
+        set_xyz(m.inertia.com, [0.01, -0.02, 0.03])
         mp_pub.publish(m)
         n_before = len(got["markers"])
         wait_until(lambda: len(got["markers"]) > n_before and len(got["markers"][-1].markers) == 6, 20.0,

@@ -24,7 +24,7 @@ rclpy = pytest.importorskip("rclpy")
 
 from test_nodes import Listener, wait_until  # noqa: E402
 
-from rig_identification.nodes import common  # noqa: E402
+from rig_identification.nodes.topics import EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.nodes.recorder import partial_folder  # noqa: E402
 from rig_identification.io.recording import RecordingError, read_recording  # noqa: E402
@@ -38,9 +38,9 @@ BIN = Path(sys.executable).parent
 
 def streams(sensors) -> dict:
     """topic -> TimeSeries of a SensorData."""
-    out = {common.IMU_TOPIC: sensors.imu, common.EXCITER_TOPIC: sensors.exciter,
-           common.INCLINOMETER_TOPIC: sensors.inclinometer}
-    out.update({common.LOAD_CELL_PREFIX + n: s for n, s in sensors.load_cells.items()})
+    out = {IMU_TOPIC: sensors.imu, EXCITER_TOPIC: sensors.exciter,
+           INCLINOMETER_TOPIC: sensors.inclinometer}
+    out.update({LOAD_CELL_PREFIX + n: s for n, s in sensors.load_cells.items()})
     return out
 
 
@@ -113,11 +113,11 @@ def test_a_killed_recorder_leaves_no_recording_but_a_recoverable_prefix(run, tmp
     assert f"recovered {out_b}" in p.stdout
     rec = read_recording(out_b)
     got, want = streams(rec.sensors), streams(sim.sensors)
-    n_imu = len(got[common.IMU_TOPIC])
+    n_imu = len(got[IMU_TOPIC])
     # rosbags writes a chunk per MiB (~5 s of these streams): 12 s of data leave 2 complete
     # chunks on disk and lose the rest
-    assert 0.3 * total[common.IMU_TOPIC] < n_imu < total[common.IMU_TOPIC], (n_imu, total)
-    t_cut = got[common.IMU_TOPIC].t[-1]
+    assert 0.3 * total[IMU_TOPIC] < n_imu < total[IMU_TOPIC], (n_imu, total)
+    t_cut = got[IMU_TOPIC].t[-1]
     for topic, s in want.items():
         k = len(got[topic].t)
         assert 0 < k < len(s.t), topic

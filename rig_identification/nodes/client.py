@@ -59,7 +59,9 @@ from ..io.atomic import atomic_write_text
 from ..cli.cg import CgResultError, check_rig_target, cg_result_from_dict, rig_with_cg_text
 from ..io.export import AXES, convention_lines
 from ..io.rig import RigError
-from . import common
+from .parameters import load_rig_source
+from .qos import LATCHED_QOS, SERVICE_SETTLE_SECONDS
+from .topics import TRUTH_TOPIC
 
 #: the tensor entries in the order of every rig-identify table and option (moments, then products)
 KEYS = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")
@@ -207,10 +209,10 @@ class IdentifierClient:
 
     def wait(self, service: str, timeout: float) -> bool:
         """True once ``<base>/<service>`` is available (within ``timeout`` s), and
-        :data:`~.common.SERVICE_SETTLE_SECONDS` more for the server's side of the discovery."""
+        :data:`~.qos.SERVICE_SETTLE_SECONDS` more for the server's side of the discovery."""
         if not self.client(service).wait_for_service(timeout_sec=timeout):
             return False
-        end = time.monotonic() + common.SERVICE_SETTLE_SECONDS
+        end = time.monotonic() + SERVICE_SETTLE_SECONDS
         while time.monotonic() < end:
             rclpy.spin_once(self.node, timeout_sec=max(0.0, end - time.monotonic()))
         return True
@@ -295,7 +297,7 @@ def truth_listener(node: Node) -> dict:
             truth.update(json.loads(msg.data))
         except ValueError:
             pass
-    node.create_subscription(String, common.TRUTH_TOPIC, on_truth, common.LATCHED_QOS)
+    node.create_subscription(String, TRUTH_TOPIC, on_truth, LATCHED_QOS)
     return truth
 
 
@@ -372,7 +374,7 @@ class RigTarget:
 
     def __init__(self, out: Path, source: str, force: bool):
         self.out, self.source, self.force = out, source, force
-        self.rig = common.load_rig_source(source)
+        self.rig = load_rig_source(source)
         p = Path(source)
         self.rig_file = p / "rig.yaml" if p.is_dir() else p
         self.recordings = [p] if p.is_dir() else []

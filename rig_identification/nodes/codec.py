@@ -13,7 +13,10 @@ import copy
 import struct
 
 import numpy as np
+from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+from nav_msgs.msg import Odometry
 from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import Imu
 
 from .frames import BODY_FRAME, IMU_FRAME, WORLD_FRAME
 
@@ -21,7 +24,7 @@ from .frames import BODY_FRAME, IMU_FRAME, WORLD_FRAME
 class PersistentReason(str):
     """Why a message was refused, when every later message of the topic will be refused for
     the same reason until the configuration changes (a frame id that is not the expected
-    one).  A ``str``; :meth:`~.common.InputGuard.reject` warns once per such reason and topic
+    one).  A ``str``; :meth:`~.inputs.InputGuard.reject` warns once per such reason and topic
     instead of every few seconds."""
 
 
@@ -212,25 +215,21 @@ def frame_hint(parameter: str | None) -> dict:
 def imu_layout(frame: str = IMU_FRAME, template=None, parameter: str | None = None) -> MessageLayout:
     """sensor_msgs/Imu: gyro (rad/s) and specific force (m/s²) in ``frame``; ``parameter``: the
     node parameter that sets ``frame`` (named when a message is refused)."""
-    from sensor_msgs.msg import Imu
     return MessageLayout(Imu, IMU_FIELDS, {"header.frame_id": frame}, template, frame_hint(parameter))
 
 
 def wrench_layout(frame: str, parameter: str | None = None) -> MessageLayout:
     """geometry_msgs/WrenchStamped: force (N) and torque (N·m) in ``frame``."""
-    from geometry_msgs.msg import WrenchStamped
     return MessageLayout(WrenchStamped, WRENCH_FIELDS, {"header.frame_id": frame}, hints=frame_hint(parameter))
 
 
 def vector_layout(frame: str, parameter: str | None = None) -> MessageLayout:
     """geometry_msgs/Vector3Stamped in ``frame``."""
-    from geometry_msgs.msg import Vector3Stamped
     return MessageLayout(Vector3Stamped, VECTOR_FIELDS, {"header.frame_id": frame}, hints=frame_hint(parameter))
 
 
 def odometry_layout(world: str = WORLD_FRAME, body: str = BODY_FRAME, hinted: bool = False) -> MessageLayout:
     """nav_msgs/Odometry of the body: header.frame_id ``world``, child_frame_id ``body``;
     ``hinted``: name the parameters world_frame / body_frame when a message is refused."""
-    from nav_msgs.msg import Odometry
     hints = {"header.frame_id": "parameter world_frame", "child_frame_id": "parameter body_frame"} if hinted else {}
     return MessageLayout(Odometry, ODOMETRY_FIELDS, {"header.frame_id": world, "child_frame_id": body}, hints=hints)

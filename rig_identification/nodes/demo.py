@@ -20,6 +20,7 @@ import argparse
 import json
 import os
 import random
+import shutil
 import signal
 import subprocess
 import sys
@@ -27,9 +28,18 @@ import tempfile
 import time
 from pathlib import Path
 
+import rclpy
 import yaml
-from . import common
-from .common import ros_env, diagnostic_values
+from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.signals import SignalHandlerOptions
+from std_msgs.msg import String
+
+from .diagnostics import diagnostic_values
+from .environment import default_experiment, ros_env
+from .qos import DIAGNOSTICS_QOS, LATCHED_QOS
+from .runtime import BackgroundSpin
+from .topics import DIAGNOSTICS_TOPIC, DRIVER_STATUS_TOPIC
 
 NODE_MODULES = {
     "sensor_driver": "rig_identification.nodes.sensor_driver",
@@ -115,12 +125,6 @@ class Monitor:
     latest driver status and each node's /diagnostics values."""
 
     def __init__(self, domain_id: int):
-        import rclpy
-        from diagnostic_msgs.msg import DiagnosticArray
-        from rclpy.executors import SingleThreadedExecutor
-        from std_msgs.msg import String
-
-        from rclpy.signals import SignalHandlerOptions
         # discovery limited to this machine, like the node processes (read by the rmw at init)
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
         os.environ.pop("ROS_LOCALHOST_ONLY", None)
@@ -129,10 +133,10 @@ class Monitor:
         self.node = rclpy.create_node("demo_monitor", context=self.context)
         self.status: dict = {}
         self.diagnostics: dict[str, dict] = {}
-        self.node.create_subscription(String, common.DRIVER_STATUS_TOPIC, self._on_status, common.LATCHED_QOS)
-        self.node.create_subscription(DiagnosticArray, common.DIAGNOSTICS_TOPIC, self._on_diag,
-                                      common.DIAGNOSTICS_QOS)
-        self._spin = common.BackgroundSpin(SingleThreadedExecutor(context=self.context), self.node, self.context)
+        self.node.create_subscription(String, DRIVER_STATUS_TOPIC, self._on_status, LATCHED_QOS)
+        self.node.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diag,
+                                      DIAGNOSTICS_QOS)
+        self._spin = BackgroundSpin(SingleThreadedExecutor(context=self.context), self.node, self.context)
 
     def _on_status(self, msg):
         self.status = json.loads(msg.data)
@@ -191,7 +195,7 @@ def main(argv=None) -> int:
             driver["recording"] = str(Path(args.recording).resolve())
         else:
             driver["experiment"] = str(Path(args.experiment).resolve() if args.experiment
-                                       else common.default_experiment())
+                                       else default_experiment())
         graph.start("sensor_driver", driver)
         monitor = Monitor(graph.domain_id)
         say("sensor_driver: " + (f"replaying {driver['recording']}" if args.recording
@@ -245,7 +249,6 @@ def main(argv=None) -> int:
         if rc != 0 or args.keep_logs:
             print(f"node logs: {graph.dir}", file=sys.stderr)
         else:
-            import shutil
             shutil.rmtree(graph.dir, ignore_errors=True)
     return rc
 

@@ -28,7 +28,7 @@ Parameters (the window ones are read at each request; set them with ros2 param s
   ``mass_properties_client cg-estimate --write-rig OUT.yaml``)
   input_reliability (string, reliable)  reliable | best_effort (QoS of the subscriptions)
   batch_period (double, 0.01)  the inputs are taken serialized and decoded in batches every
-                           this many s (common.RawInput)
+                           this many s (inputs.RawInput)
   stale_after, stopped_after (double, 0.5, 2.0)  /diagnostics: an input silent this long (wall
                            time, s) is reported WARN stale, ERROR stopped
   executor (string, events)  executor of the data node (events | single)
@@ -90,7 +90,7 @@ Publishes:
                         determined: the service's JSON has them null).
                         RELIABLE, TRANSIENT_LOCAL, KEEP_LAST 1 (a late subscriber receives it)
   /diagnostics          message counts; one status per input topic (OK / WARN stale / ERROR
-                        stopped, age, rate, stamp gaps: common.Diagnostics)
+                        stopped, age, rate, stamp gaps: diagnostics.Diagnostics)
 
 Threading: the subscriptions run on the EventsExecutor in the main thread.  The rclpy
 7.1.6 EventsExecutor ignores callback groups, runs only one callback at a time and cannot
@@ -104,18 +104,32 @@ lock, so incoming samples never wait for it.
 """
 from __future__ import annotations
 
+import bisect
 import copy
 import math
 import sys
 import threading
 import time
+from pathlib import Path
 
 import numpy as np
-from rclpy.node import Node
+from geometry_msgs.msg import InertiaStamped
 from rcl_interfaces.msg import ParameterDescriptor
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import MultiThreadedExecutor
+from rclpy.node import Node
+from std_srvs.srv import Trigger
 
-from . import common
-from .common import LATCHED_QOS
+from .codec import imu_layout, odometry_layout, vector_layout, wrench_layout
+from .diagnostics import Diagnostics
+from .frames import declare_frame_ids, Endpoint, log_interface
+from .inputs import InputGuard, RawInput
+from .messages import set_stamp, set_xyz, to_json
+from .parameters import core_params, load_rig_param
+from .qos import input_qos, LATCHED_QOS
+from .runtime import run
+from .topics import (EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX, MASS_PROPERTIES_TOPIC,
+                     POSE_TOPIC, WRENCH_TOPIC)
 from .fit_validation import ValidationBuffer, validate_stream_fit
 from ..estimation.identification import InertiaIdentifier, identify_inertia
 from ..statics.capture import CgSession
@@ -130,8 +144,6 @@ class IdentifierNode(Node):
 
     def __init__(self):
         super().__init__("identifier")
-        from geometry_msgs.msg import InertiaStamped
-
         self.declare_parameter("rig", "")
         self.declare_parameter("executor", "events")
         dyn = ParameterDescriptor(dynamic_typing=True,
@@ -144,12 +156,12 @@ class IdentifierNode(Node):
         self.declare_parameter("band_hz", None, ParameterDescriptor(
             dynamic_typing=True, description="[low, high] Hz pass band of the fit; unset or [] = automatic"))
         self.declare_parameter("debug_fit_delay", 0.0)
-        self.fit_params = common.core_params(self, identify_inertia, skip=("rig", "t", "omega_body", "torque"))
-        buf_params = common.core_params(self, InertiaIdentifier.__init__, skip=("self", "rig"))
-        qos_in = common.input_qos(self)
-        frames = common.declare_frame_ids(self, ("imu", "load_cell", "exciter", "inclinometer", "world", "body"))
+        self.fit_params = core_params(self, identify_inertia, skip=("rig", "t", "omega_body", "torque"))
+        buf_params = core_params(self, InertiaIdentifier.__init__, skip=("self", "rig"))
+        qos_in = input_qos(self)
+        frames = declare_frame_ids(self, ("imu", "load_cell", "exciter", "inclinometer", "world", "body"))
         self.frames = frames
-        rig = common.load_rig_param(self)
+        rig = load_rig_param(self)
         self.rig = rig
         self.identifier = InertiaIdentifier(rig, **buf_params) if rig.center_of_gravity is not None else None
         # the streams the model validation reads beside the fit's (fit_validation): as long as the fit's buffer
@@ -168,43 +180,43 @@ class IdentifierNode(Node):
         self.t_first_imu: float | None = None
         self.t_last_wrench: float | None = None
         self.n_imu = self.n_wrench = 0
-        self.guard = common.InputGuard(self)
-        self.diag = common.Diagnostics(self, self.guard, extra=self._diag_extra)
-        self.pub = self.create_publisher(InertiaStamped, common.MASS_PROPERTIES_TOPIC, LATCHED_QOS)
-        # inputs: raw subscriptions, decoded in batches every batch_period s (common.RawInput)
+        self.guard = InputGuard(self)
+        self.diag = Diagnostics(self, self.guard, extra=self._diag_extra)
+        self.pub = self.create_publisher(InertiaStamped, MASS_PROPERTIES_TOPIC, LATCHED_QOS)
+        # inputs: raw subscriptions, decoded in batches every batch_period s (inputs.RawInput)
         self.declare_parameter("batch_period", 0.01)
-        R = common.RawInput
-        self.inputs = [(R(self, self.guard, common.IMU_TOPIC, common.imu_layout(frames.imu, parameter="imu_frame"),
+        R = RawInput
+        self.inputs = [(R(self, self.guard, IMU_TOPIC, imu_layout(frames.imu, parameter="imu_frame"),
                           qos_in), self._add_imu),
-                       (R(self, self.guard, common.WRENCH_TOPIC, common.wrench_layout(frames.body, "body_frame"),
+                       (R(self, self.guard, WRENCH_TOPIC, wrench_layout(frames.body, "body_frame"),
                           qos_in), self._add_wrench),
-                       (R(self, self.guard, common.POSE_TOPIC,
-                          common.odometry_layout(frames.world, frames.body, hinted=True), qos_in), self._add_pose)]
+                       (R(self, self.guard, POSE_TOPIC,
+                          odometry_layout(frames.world, frames.body, hinted=True), qos_in), self._add_pose)]
         for name in rig.cable_names:
-            self.inputs.append((R(self, self.guard, common.LOAD_CELL_PREFIX + name,
-                                  common.wrench_layout(frames.load_cell_frame(name), "load_cell_frame"), qos_in),
+            self.inputs.append((R(self, self.guard, LOAD_CELL_PREFIX + name,
+                                  wrench_layout(frames.load_cell_frame(name), "load_cell_frame"), qos_in),
                                 lambda t, v, n=name: self._to_cg(
-                                    common.LOAD_CELL_PREFIX + n, "add_tension",
+                                    LOAD_CELL_PREFIX + n, "add_tension",
                                     [(n, ti, x) for ti, x in zip(t, v[:, 2].tolist())])))
         if rig.exciter is not None:
-            self.inputs.append((R(self, self.guard, common.EXCITER_TOPIC,
-                                  common.wrench_layout(frames.exciter, "exciter_frame"), qos_in),
-                                lambda t, v: self._to_cg(common.EXCITER_TOPIC, "add_exciter",
+            self.inputs.append((R(self, self.guard, EXCITER_TOPIC,
+                                  wrench_layout(frames.exciter, "exciter_frame"), qos_in),
+                                lambda t, v: self._to_cg(EXCITER_TOPIC, "add_exciter",
                                                          [(ti, x, y) for ti, (x, y) in zip(t, v[:, :2].tolist())])))
         if rig.inclinometer is not None:
-            self.inputs.append((R(self, self.guard, common.INCLINOMETER_TOPIC,
-                                  common.vector_layout(frames.inclinometer, "inclinometer_frame"), qos_in),
-                                lambda t, v: self._to_cg(common.INCLINOMETER_TOPIC, "add_inclinometer",
+            self.inputs.append((R(self, self.guard, INCLINOMETER_TOPIC,
+                                  vector_layout(frames.inclinometer, "inclinometer_frame"), qos_in),
+                                lambda t, v: self._to_cg(INCLINOMETER_TOPIC, "add_inclinometer",
                                                          [(ti, xy) for ti, xy in zip(t, v[:, :2].tolist())])))
         self.create_timer(float(self.get_parameter("batch_period").value), self._drain)
         self.service_node = IdentifierServices(self)
-        common.log_interface(self, [inp.endpoint() for inp, _ in self.inputs],
-                             [common.Endpoint(self.pub, f"frame {frames.body}, latched")], self.service_node.trigger_services)
+        log_interface(self, [inp.endpoint() for inp, _ in self.inputs],
+                             [Endpoint(self.pub, f"frame {frames.body}, latched")], self.service_node.trigger_services)
         self.get_logger().info(f"ready: rig {rig.source}; services {self.get_fully_qualified_name()}/"
                                "identify_inertia, diagnose, capture_cg_baseline, capture_cg_dummy, estimate_cg, status")
 
     def close(self) -> None:
-        """Stop and destroy the service node (called by :func:`~.common.run` at shutdown)."""
+        """Stop and destroy the service node (called by :func:`~.runtime.run` at shutdown)."""
         self.service_node.stop()
         self.service_node.destroy_node()
 
@@ -228,7 +240,7 @@ class IdentifierNode(Node):
                     if self.identifier is not None:
                         self.identifier.add_imu(t, r[:3])
                 except ValueError as e:
-                    self.guard.core_error(common.IMU_TOPIC, e)
+                    self.guard.core_error(IMU_TOPIC, e)
                     continue
                 kept.append(i)
                 if self.t_first_imu is None:
@@ -246,7 +258,7 @@ class IdentifierNode(Node):
                 try:
                     self.identifier.add_wrench(Wrench(t, f, tq))
                 except ValueError as e:
-                    self.guard.core_error(common.WRENCH_TOPIC, e)
+                    self.guard.core_error(WRENCH_TOPIC, e)
                     continue
                 kept.append(i)
                 self.t_last_wrench = t
@@ -262,7 +274,7 @@ class IdentifierNode(Node):
         q = vals[:, 3:7]
         unit = np.abs(np.einsum("ij,ij->i", q, q) - 1.0) <= 1e-3
         for i in np.nonzero(~unit)[0].tolist():
-            self.guard.reject(common.POSE_TOPIC, f"orientation is not a unit quaternion (|q|^2 = {q[i] @ q[i]:.4f})")
+            self.guard.reject(POSE_TOPIC, f"orientation is not a unit quaternion (|q|^2 = {q[i] @ q[i]:.4f})")
         with self.lock:
             self.validation_buffer.add_pose([t for t, u in zip(ts, unit) if u], q[unit])
 
@@ -326,8 +338,6 @@ class IdentifierNode(Node):
         """``~/diagnose``: the diagnosis of the buffered raw streams (runs in a service thread);
         publishes the improved tensor.  Raises ValueError (RecordingError, IdentificationError...)
         with a clear message."""
-        from pathlib import Path
-
         if self.rig.center_of_gravity is None:
             raise ValueError("rig.yaml has no body.center_of_gravity: diagnose needs it (run the CG experiment)")
         with self.lock:
@@ -345,13 +355,12 @@ class IdentifierNode(Node):
     def _publish_mass_properties(self, stamp: float | None, mass: float, cg, J) -> None:
         """/rig/mass_properties (InertiaStamped, frame body): mass kg, CG m, tensor entries
         kg·m² (zero when J is None); stamp s (None: now)."""
-        from geometry_msgs.msg import InertiaStamped
         msg = InertiaStamped()
         if stamp is None:
             stamp = float(self.get_clock().now().nanoseconds) * 1e-9
-        common.set_stamp(msg.header, stamp, self.frames.body)
+        set_stamp(msg.header, stamp, self.frames.body)
         msg.inertia.m = float(mass)
-        common.set_xyz(msg.inertia.com, cg)
+        set_xyz(msg.inertia.com, cg)
         if J is not None:
             i = msg.inertia
             i.ixx, i.ixy, i.ixz = float(J[0, 0]), float(J[0, 1]), float(J[0, 2])
@@ -470,7 +479,6 @@ def _window_lists(snap, lo: float, hi: float, margin: float = 1.0) -> bool:
     """Cut the snapshot's sample lists to [lo - margin, hi + margin] (the fit then converts
     120 s of samples rather than the whole buffer, up to max_seconds; same result: the gyro
     is interpolated inside the window).  False if the buffer is not laid out as expected."""
-    import bisect
     pairs = (("_imu_t", "_gyro"), ("_w_t", "_torque"))
     if not all(isinstance(getattr(snap, a, None), list) and isinstance(getattr(snap, b, None), list)
                for a, b in pairs):
@@ -486,7 +494,7 @@ def _window_lists(snap, lo: float, hi: float, margin: float = 1.0) -> bool:
 def _describe_gaps(gaps: list[tuple[str, float, float]], t0: float, most: int = 4) -> str:
     """"no data on TOPIC from t=A to B s ..." for the gaps (topic, t0, t1), the sensor streams
     first (a gap in the derived wrench stream follows from them), times after ``t0``."""
-    gaps = sorted(gaps, key=lambda g: (g[0] == common.WRENCH_TOPIC, g[1]))
+    gaps = sorted(gaps, key=lambda g: (g[0] == WRENCH_TOPIC, g[1]))
     text = "; ".join(f"no data on {topic} from t={a - t0:.2f} to {b - t0:.2f} s ({b - a:.2f} s)"
                      for topic, a, b in gaps[:most])
     more = f" (and {len(gaps) - most} more)" if len(gaps) > most else ""
@@ -499,8 +507,6 @@ class IdentifierServices(Node):
     def __init__(self, owner: IdentifierNode):
         super().__init__(f"{owner.get_name()}_services", namespace=owner.get_namespace(),
                          context=owner.context, start_parameter_services=False)
-        from rclpy.callback_groups import ReentrantCallbackGroup
-        from std_srvs.srv import Trigger
         self.owner = owner
         base = owner.get_fully_qualified_name()
         group = ReentrantCallbackGroup()
@@ -522,7 +528,6 @@ class IdentifierServices(Node):
         self._thread.start()
 
     def _spin(self) -> None:
-        from rclpy.executors import MultiThreadedExecutor
         ex = MultiThreadedExecutor(num_threads=3, context=self.context)
         ex.add_node(self)
         try:
@@ -551,26 +556,26 @@ class IdentifierServices(Node):
         JSON errors; a bug is logged and answered, never kills the node."""
         if not self.owner.busy.acquire(blocking=False):
             response.success = False
-            response.message = common.to_json({"error": "busy: a fit is already running; call again when it ends"})
+            response.message = to_json({"error": "busy: a fit is already running; call again when it ends"})
             return response
         try:
-            response.message = common.to_json(action())
+            response.message = to_json(action())
             response.success = True
         except ValueError as e:  # StaticsError is a ValueError
             self.owner.get_logger().warn(f"{what}: {e}")
             response.success = False
-            response.message = common.to_json({"error": str(e)})
+            response.message = to_json({"error": str(e)})
         except Exception as e:  # a bug must not kill the node
             self.owner.get_logger().error(f"{what} failed: {type(e).__name__}: {e}")
             response.success = False
-            response.message = common.to_json({"error": f"internal error: {type(e).__name__}: {e}"})
+            response.message = to_json({"error": f"internal error: {type(e).__name__}: {e}"})
         finally:
             self.owner.busy.release()
         return response
 
     def on_status(self, request, response):
         response.success = True
-        response.message = common.to_json(self.owner.status())
+        response.message = to_json(self.owner.status())
         return response
 
 
@@ -582,7 +587,7 @@ def _started() -> IdentifierNode:
 
 
 def main(argv=None) -> int:
-    return common.run(_started, argv, "identifier", __doc__)
+    return run(_started, argv, "identifier", __doc__)
 
 
 if __name__ == "__main__":

@@ -44,11 +44,18 @@ from __future__ import annotations
 import sys
 
 import numpy as np
+from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
 from scipy.spatial.transform import Rotation
 
-from . import common
-from .common import SENSOR_QOS
+from .codec import odometry_layout, wrench_layout
+from .diagnostics import Diagnostics
+from .frames import declare_frame_ids, Endpoint, log_interface
+from .inputs import InputGuard, RawInput
+from .parameters import core_params, load_rig_param
+from .qos import input_qos, publish_blocking, SENSOR_QOS
+from .runtime import run
+from .topics import EXCITER_TOPIC, LOAD_CELL_PREFIX, POSE_TOPIC, WRENCH_TOPIC
 from ..estimation.preprocessor import WrenchPreprocessor
 
 
@@ -57,36 +64,35 @@ class PreprocessorNode(Node):
 
     def __init__(self):
         super().__init__("preprocessor")
-        from geometry_msgs.msg import WrenchStamped
 
         self.declare_parameter("rig", "")
         self.declare_parameter("executor", "events")
         self.declare_parameter("batch_period", 0.005)
-        params = common.core_params(self, WrenchPreprocessor.__init__, skip=("self", "rig"))
-        qos_in = common.input_qos(self)
-        frames = common.declare_frame_ids(self, ("load_cell", "exciter", "world", "body"))
-        rig = common.load_rig_param(self)
+        params = core_params(self, WrenchPreprocessor.__init__, skip=("self", "rig"))
+        qos_in = input_qos(self)
+        frames = declare_frame_ids(self, ("load_cell", "exciter", "world", "body"))
+        rig = load_rig_param(self)
         self.pre = WrenchPreprocessor(rig, **params)
-        self.guard = common.InputGuard(self)
-        self.diag = common.Diagnostics(self, self.guard, extra=lambda: {"poses not aligned": self.pre.dropped,
+        self.guard = InputGuard(self)
+        self.diag = Diagnostics(self, self.guard, extra=lambda: {"poses not aligned": self.pre.dropped,
                                                                         "poses in stream gaps": self.pre.gaps})
-        self.pub = self.create_publisher(WrenchStamped, common.WRENCH_TOPIC, SENSOR_QOS)
-        self.diag.add_writer(common.WRENCH_TOPIC, self.pub)
-        self.out_layout = common.wrench_layout(frames.body)
+        self.pub = self.create_publisher(WrenchStamped, WRENCH_TOPIC, SENSOR_QOS)
+        self.diag.add_writer(WRENCH_TOPIC, self.pub)
+        self.out_layout = wrench_layout(frames.body)
         # inputs: raw subscriptions, decoded in batches every batch_period s
-        self.poses = common.RawInput(self, self.guard, common.POSE_TOPIC,
-                                     common.odometry_layout(frames.world, frames.body, hinted=True), qos_in)
-        self.cells = {name: common.RawInput(self, self.guard, common.LOAD_CELL_PREFIX + name,
-                                            common.wrench_layout(frames.load_cell_frame(name), "load_cell_frame"),
+        self.poses = RawInput(self, self.guard, POSE_TOPIC,
+                                     odometry_layout(frames.world, frames.body, hinted=True), qos_in)
+        self.cells = {name: RawInput(self, self.guard, LOAD_CELL_PREFIX + name,
+                                            wrench_layout(frames.load_cell_frame(name), "load_cell_frame"),
                                             qos_in)
                       for name in rig.cable_names}
         self.exciter = None
         if rig.exciter is not None:
-            self.exciter = common.RawInput(self, self.guard, common.EXCITER_TOPIC,
-                                           common.wrench_layout(frames.exciter, "exciter_frame"), qos_in)
+            self.exciter = RawInput(self, self.guard, EXCITER_TOPIC,
+                                           wrench_layout(frames.exciter, "exciter_frame"), qos_in)
         self.create_timer(float(self.get_parameter("batch_period").value), self._drain)
         inputs = [self.poses, *self.cells.values()] + ([self.exciter] if self.exciter is not None else [])
-        common.log_interface(self, [i.endpoint() for i in inputs], [common.Endpoint(self.pub, f"frame {frames.body}")])
+        log_interface(self, [i.endpoint() for i in inputs], [Endpoint(self.pub, f"frame {frames.body}")])
         self.get_logger().info(f"ready: rig {rig.source}, cables {', '.join(rig.cable_names)}, "
                                f"exciter {'yes' if rig.exciter is not None else 'no'}")
 
@@ -104,7 +110,7 @@ class PreprocessorNode(Node):
             n2 = np.einsum("ij,ij->i", q, q)
             unit = np.abs(n2 - 1.0) <= 1e-3
             for i in np.nonzero(~unit)[0].tolist():
-                self.guard.reject(common.POSE_TOPIC, f"orientation is not a unit quaternion (|q|^2 = {n2[i]:.4f})")
+                self.guard.reject(POSE_TOPIC, f"orientation is not a unit quaternion (|q|^2 = {n2[i]:.4f})")
             if not unit.all():
                 t, v = t[unit], v[unit]
             if len(t):
@@ -118,16 +124,16 @@ class PreprocessorNode(Node):
         sent = 0
         for raw in self.out_layout.encode(w.t, np.column_stack([w.force, w.torque])):
             try:
-                common.publish_blocking(self.pub, raw)
+                publish_blocking(self.pub, raw)
             except Exception as e:  # blocked too long by a slow reader: lost, say so
-                self.guard.reject(common.WRENCH_TOPIC + " (publish)", f"{type(e).__name__}: {e}")
+                self.guard.reject(WRENCH_TOPIC + " (publish)", f"{type(e).__name__}: {e}")
                 continue
             sent += 1
-        self.diag.count_tx(common.WRENCH_TOPIC, sent)
+        self.diag.count_tx(WRENCH_TOPIC, sent)
 
 
 def main(argv=None) -> int:
-    return common.run(PreprocessorNode, argv, "preprocessor", __doc__)
+    return run(PreprocessorNode, argv, "preprocessor", __doc__)
 
 
 if __name__ == "__main__":

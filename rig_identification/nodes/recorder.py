@@ -69,7 +69,14 @@ from rosbags.typesys import Stores, get_typestore
 
 from ..io.atomic import atomic_directory
 from ..io.rig import RigError, dump_rig, read_yaml
-from . import common
+from .diagnostics import Diagnostics
+from .frames import Endpoint, log_interface
+from .inputs import InputGuard
+from .parameters import load_rig_source
+from .qos import DIAGNOSTICS_QOS, input_qos, LATCHED_QOS
+from .runtime import run
+from .topics import (DIAGNOSTICS_TOPIC, EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX,
+                     MASS_PROPERTIES_TOPIC, POSE_TOPIC, TRUTH_TOPIC, WRENCH_TOPIC)
 
 #: suffix of the folder a recording is written into before it is renamed to OUTPUT
 PARTIAL_SUFFIX = ".partial"
@@ -78,13 +85,13 @@ BAG_VERSION = 9
 
 #: the extra topics the recorder can store: name -> (ROS type name, latched?)
 EXTRA_TOPICS = {
-    common.POSE_TOPIC: ("nav_msgs/msg/Odometry", False),
-    common.WRENCH_TOPIC: ("geometry_msgs/msg/WrenchStamped", False),
-    common.MASS_PROPERTIES_TOPIC: ("geometry_msgs/msg/InertiaStamped", True),
+    POSE_TOPIC: ("nav_msgs/msg/Odometry", False),
+    WRENCH_TOPIC: ("geometry_msgs/msg/WrenchStamped", False),
+    MASS_PROPERTIES_TOPIC: ("geometry_msgs/msg/InertiaStamped", True),
     "/rig/markers": ("visualization_msgs/msg/MarkerArray", False),
     "/rig/transform": ("geometry_msgs/msg/TransformStamped", False),
-    common.TRUTH_TOPIC: ("std_msgs/msg/String", True),
-    common.DIAGNOSTICS_TOPIC: ("diagnostic_msgs/msg/DiagnosticArray", False),
+    TRUTH_TOPIC: ("std_msgs/msg/String", True),
+    DIAGNOSTICS_TOPIC: ("diagnostic_msgs/msg/DiagnosticArray", False),
 }
 
 
@@ -103,7 +110,7 @@ def rig_text(source: str | Path) -> str:
     """rig.yaml text for the rig description ``source``: a rig.yaml file as is (comments
     kept), a recording folder's rig.yaml, or an experiment file's ``rig:`` section written
     out.  Validated first (raises :class:`~rig_identification.io.rig.RigError`)."""
-    rig = common.load_rig_source(source)
+    rig = load_rig_source(source)
     p = Path(source)
     if p.is_dir():
         p = p / "rig.yaml"
@@ -149,7 +156,7 @@ class RecorderNode(Node):
         self.declare_parameter("write_period", 0.05)
         self.declare_parameter("executor", "events")
         get = lambda n: self.get_parameter(n).value  # noqa: E731
-        qos_in = common.input_qos(self)
+        qos_in = input_qos(self)
         self.stop_future = Future()
         self.exit_code = 0
         out = str(get("output"))
@@ -169,7 +176,7 @@ class RecorderNode(Node):
             raise ValueError(f"parameter extra_topics: {', '.join(unknown)} not recordable (choose from "
                              f"{', '.join(EXTRA_TOPICS)})")
         text = rig_text(rig_path)
-        rig = common.load_rig_source(rig_path)
+        rig = load_rig_source(rig_path)
         self.output = Path(out).absolute()
         self.partial = partial_folder(self.output)
         if self.output.exists():
@@ -190,32 +197,32 @@ class RecorderNode(Node):
         self.written: dict[str, int] = {}
         self.t_first: float | None = None
         self.closed = False
-        self.guard = common.InputGuard(self)
-        self.diag = common.Diagnostics(self, self.guard, extra=lambda: {
+        self.guard = InputGuard(self)
+        self.diag = Diagnostics(self, self.guard, extra=lambda: {
             "written": sum(self.written.values()), "output": str(self.output)})
-        topics = {common.IMU_TOPIC: ("sensor_msgs/msg/Imu", False)}
-        topics.update({common.LOAD_CELL_PREFIX + n: ("geometry_msgs/msg/WrenchStamped", False)
+        topics = {IMU_TOPIC: ("sensor_msgs/msg/Imu", False)}
+        topics.update({LOAD_CELL_PREFIX + n: ("geometry_msgs/msg/WrenchStamped", False)
                        for n in rig.cable_names})
-        topics[common.EXCITER_TOPIC] = ("geometry_msgs/msg/WrenchStamped", False)
-        topics[common.INCLINOMETER_TOPIC] = ("geometry_msgs/msg/Vector3Stamped", False)
+        topics[EXCITER_TOPIC] = ("geometry_msgs/msg/WrenchStamped", False)
+        topics[INCLINOMETER_TOPIC] = ("geometry_msgs/msg/Vector3Stamped", False)
         topics.update({t: EXTRA_TOPICS[t] for t in extras})
         self.subs = []
         for topic, (type_name, latched) in topics.items():
             self.types[topic] = type_name
-            qos = common.LATCHED_QOS if latched else (common.DIAGNOSTICS_QOS if topic == common.DIAGNOSTICS_TOPIC
+            qos = LATCHED_QOS if latched else (DIAGNOSTICS_QOS if topic == DIAGNOSTICS_TOPIC
                                                       else qos_in)
             self.subs.append(self.create_subscription(message_class(type_name), topic,
                                                       lambda raw, t=topic: self._arrived(t, raw), qos, raw=True))
-            if topic != common.DIAGNOSTICS_TOPIC:
+            if topic != DIAGNOSTICS_TOPIC:
                 self.guard.expect(topic)
         self.create_timer(float(get("write_period")), self._write_queued)
-        common.log_interface(self, [common.Endpoint(s) for s in self.subs], [common.Endpoint(self.diag.pub)])
+        log_interface(self, [Endpoint(s) for s in self.subs], [Endpoint(self.diag.pub)])
         self.get_logger().info(f"ready: recording to {self.output} (written into {self.partial} until stopped)"
                                + (f", for {self.duration:g} s" if self.duration else ", until stopped (Ctrl-C)"))
 
     def _arrived(self, topic: str, raw: bytes) -> None:
         self.queue.append((time.time_ns(), topic, raw))
-        if topic != common.DIAGNOSTICS_TOPIC:
+        if topic != DIAGNOSTICS_TOPIC:
             g = self.guard
             g.received[topic] = g.received.get(topic, 0) + 1
             g.last_arrival[topic] = time.monotonic()
@@ -239,7 +246,7 @@ class RecorderNode(Node):
 
     def close(self) -> None:
         """Finish the bag (summary, metadata.yaml), put it on disk and rename the partial
-        folder to OUTPUT (called by :func:`~.common.run` at a clean stop)."""
+        folder to OUTPUT (called by :func:`~.runtime.run` at a clean stop)."""
         if self.closed:
             return
         self.closed = True
@@ -253,7 +260,7 @@ class RecorderNode(Node):
         finally:
             os.close(fd)
         counts = ", ".join(f"{t} {n}" for t, n in self.written.items()) or "nothing"
-        needed = [t for t in self.types if t == common.IMU_TOPIC or t.startswith(common.LOAD_CELL_PREFIX)]
+        needed = [t for t in self.types if t == IMU_TOPIC or t.startswith(LOAD_CELL_PREFIX)]
         missing = [t for t in needed if not self.written.get(t)]
         # after Ctrl-C the context is shut down: the ROS logger could not reach /rosout any more
         say = (lambda text: print(f"recorder: {text}", file=sys.stderr, flush=True)) if not self.context.ok() \
@@ -401,7 +408,7 @@ def recover(partial: str | Path, output: str | Path | None = None) -> Recovered:
 
 def main(argv=None) -> int:
     """``recorder``: the node (parameters after --ros-args)."""
-    return common.run(RecorderNode, argv, "recorder", __doc__)
+    return run(RecorderNode, argv, "recorder", __doc__)
 
 
 def record_main(argv=None) -> int:
@@ -441,7 +448,7 @@ def record_main(argv=None) -> int:
     if args.best_effort:
         overrides.append(Parameter("input_reliability", value="best_effort"))
     ros = argv[argv.index("--ros-args"):] if "--ros-args" in argv else []
-    return common.run(lambda: RecorderNode(overrides), [argv[0], *ros], "rig-record", __doc__)
+    return run(lambda: RecorderNode(overrides), [argv[0], *ros], "rig-record", __doc__)
 
 
 if __name__ == "__main__":

@@ -53,13 +53,25 @@ import time
 from pathlib import Path
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import Vector3Stamped, WrenchStamped
 from rclpy.duration import Duration
 from rclpy.node import Node
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.task import Future
+from sensor_msgs.msg import Imu
+from std_msgs.msg import String
 
-from . import common
-from .common import LATCHED_QOS, SENSOR_QOS
+from .codec import imu_layout, vector_layout, wrench_layout
+from .diagnostics import Diagnostics
+from .environment import default_experiment
+from .frames import declare_frame_ids, Endpoint, log_interface
+from .inputs import InputGuard
+from .messages import to_json
+from .qos import DIAGNOSTICS_QOS, LATCHED_QOS, SENSOR_QOS
+from .runtime import run
+from .topics import (DIAGNOSTICS_TOPIC, DRIVER_STATUS_TOPIC, EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC,
+                     LOAD_CELL_PREFIX, TRUTH_TOPIC)
 from ..io.recording import SensorData, TimeSeries, read_recording
 from ..io.atomic import atomic_write_text
 from ..io.rig import dump_rig
@@ -70,7 +82,7 @@ LINGER_SECONDS = 5.0
 
 
 class _Stream:
-    """One topic's samples, published serialized (common.MessageLayout): the samples due at a
+    """One topic's samples, published serialized (codec.MessageLayout): the samples due at a
     tick are encoded in one batch.  cols: the layout fields that ``data``'s columns fill."""
 
     def __init__(self, topic: str, publisher, layout, cols, t: np.ndarray, data: np.ndarray):
@@ -113,7 +125,7 @@ class SensorDriver(Node):
         p("exit_when_done", False)
         p("silence", None, ParameterDescriptor(dynamic_typing=True, description="TOPIC:T0:T1 list"))
         p("executor", "events")
-        self.frames = common.declare_frame_ids(self, ("imu", "load_cell", "exciter", "inclinometer"))
+        self.frames = declare_frame_ids(self, ("imu", "load_cell", "exciter", "inclinometer"))
         get = lambda n: self.get_parameter(n).value  # noqa: E731
         self.rate = float(get("rate"))
         if not self.rate > 0:
@@ -127,16 +139,14 @@ class SensorDriver(Node):
         self.stop_future = Future()
         self.exit_code = 0
 
-        from std_msgs.msg import String
-        self.status_pub = self.create_publisher(String, common.DRIVER_STATUS_TOPIC, LATCHED_QOS)
-        self.truth_pub = self.create_publisher(String, common.TRUTH_TOPIC, LATCHED_QOS)
-        self.guard = common.InputGuard(self)
-        self.diag = common.Diagnostics(self, self.guard, extra=self._diag_values)
-        from diagnostic_msgs.msg import DiagnosticArray
+        self.status_pub = self.create_publisher(String, DRIVER_STATUS_TOPIC, LATCHED_QOS)
+        self.truth_pub = self.create_publisher(String, TRUTH_TOPIC, LATCHED_QOS)
+        self.guard = InputGuard(self)
+        self.diag = Diagnostics(self, self.guard, extra=self._diag_values)
         self._matched: dict[str, dict[str, int]] = {}  # topic -> {node: matched readers}
         if self.wait_for:
-            self._diag_sub = self.create_subscription(DiagnosticArray, common.DIAGNOSTICS_TOPIC, self._on_diag,
-                                                      common.DIAGNOSTICS_QOS)
+            self._diag_sub = self.create_subscription(DiagnosticArray, DIAGNOSTICS_TOPIC, self._on_diag,
+                                                      DIAGNOSTICS_QOS)
         self.state = "loading"
         self.source = ""
         self._publish_status()
@@ -150,13 +160,13 @@ class SensorDriver(Node):
             atomic_write_text(out, dump_rig(rig, f"rig description published by sensor_driver ({self.source})"))
             self.get_logger().info(f"wrote the rig description to {out}")
         if truth is not None:
-            self.truth_pub.publish(String(data=common.to_json(truth)))
+            self.truth_pub.publish(String(data=to_json(truth)))
         self.streams = self._make_streams(rig, sensors)
-        fr = {common.IMU_TOPIC: self.frames.imu, common.EXCITER_TOPIC: self.frames.exciter,
-              common.INCLINOMETER_TOPIC: self.frames.inclinometer}
-        common.log_interface(self, [], [common.Endpoint(st.publisher, "frame " + fr.get(
-            st.topic, self.frames.load_cell_frame(st.topic[len(common.LOAD_CELL_PREFIX):]))) for st in self.streams]
-            + [common.Endpoint(self.truth_pub, "latched"), common.Endpoint(self.status_pub, "latched")])
+        fr = {IMU_TOPIC: self.frames.imu, EXCITER_TOPIC: self.frames.exciter,
+              INCLINOMETER_TOPIC: self.frames.inclinometer}
+        log_interface(self, [], [Endpoint(st.publisher, "frame " + fr.get(
+            st.topic, self.frames.load_cell_frame(st.topic[len(LOAD_CELL_PREFIX):]))) for st in self.streams]
+            + [Endpoint(self.truth_pub, "latched"), Endpoint(self.status_pub, "latched")])
         # merged publication order: by stamp, ties in stream order (as recording.sensor_messages)
         t_all = np.concatenate([s.t for s in self.streams])
         k_all = np.concatenate([np.full(len(s.t), k) for k, s in enumerate(self.streams)])
@@ -197,7 +207,7 @@ class SensorDriver(Node):
                 sensors = _cut(sensors, sensors.t_start + duration)
             self.get_logger().info(f"replaying {self.source}: {sensors.t_end - sensors.t_start:.1f} s of data")
             return rec.rig, sensors, rec.truth
-        path = experiment or str(common.default_experiment())
+        path = experiment or str(default_experiment())
         exp = load_experiment(path)
         if duration > 0:
             exp = exp.with_overrides(duration=duration)
@@ -208,8 +218,6 @@ class SensorDriver(Node):
         return sim.rig, sim.sensors, sim.truth
 
     def _make_streams(self, rig, sensors) -> list[_Stream]:
-        from geometry_msgs.msg import Vector3Stamped, WrenchStamped
-        from sensor_msgs.msg import Imu
         streams = []
 
         def pub(topic, mtype):
@@ -219,20 +227,20 @@ class SensorDriver(Node):
         imu.orientation.w = 1.0
         imu.orientation_covariance[0] = -1.0
         fr = self.frames
-        streams.append(_Stream(common.IMU_TOPIC, pub(common.IMU_TOPIC, Imu), common.imu_layout(fr.imu, imu),
+        streams.append(_Stream(IMU_TOPIC, pub(IMU_TOPIC, Imu), imu_layout(fr.imu, imu),
                                range(6), sensors.imu.t, sensors.imu.data))
         for name in rig.cable_names:
-            topic = common.LOAD_CELL_PREFIX + name
+            topic = LOAD_CELL_PREFIX + name
             s = sensors.load_cells[name]
-            streams.append(_Stream(topic, pub(topic, WrenchStamped), common.wrench_layout(fr.load_cell_frame(name)),
+            streams.append(_Stream(topic, pub(topic, WrenchStamped), wrench_layout(fr.load_cell_frame(name)),
                                    [2], s.t, s.data))
         if sensors.exciter is not None:
-            streams.append(_Stream(common.EXCITER_TOPIC, pub(common.EXCITER_TOPIC, WrenchStamped),
-                                   common.wrench_layout(fr.exciter), [0, 1], sensors.exciter.t,
+            streams.append(_Stream(EXCITER_TOPIC, pub(EXCITER_TOPIC, WrenchStamped),
+                                   wrench_layout(fr.exciter), [0, 1], sensors.exciter.t,
                                    sensors.exciter.data))
         if sensors.inclinometer is not None:
-            streams.append(_Stream(common.INCLINOMETER_TOPIC, pub(common.INCLINOMETER_TOPIC, Vector3Stamped),
-                                   common.vector_layout(fr.inclinometer), [0, 1], sensors.inclinometer.t,
+            streams.append(_Stream(INCLINOMETER_TOPIC, pub(INCLINOMETER_TOPIC, Vector3Stamped),
+                                   vector_layout(fr.inclinometer), [0, 1], sensors.inclinometer.t,
                                    sensors.inclinometer.data))
         return streams
 
@@ -354,7 +362,6 @@ class SensorDriver(Node):
         return d
 
     def _publish_status(self) -> None:
-        from std_msgs.msg import String
         self._last_status = time.monotonic()
         d = {"state": self.state, "source": self.source, "rate": self.rate}
         if hasattr(self, "streams"):
@@ -365,7 +372,7 @@ class SensorDriver(Node):
             d["cables"] = self.rig.cable_names
         if getattr(self, "achieved", None):
             d["achieved"] = self.achieved
-        self.status_pub.publish(String(data=common.to_json(d)))
+        self.status_pub.publish(String(data=to_json(d)))
 
 
 def _cut(sensors, t_end: float):
@@ -381,7 +388,7 @@ def _cut(sensors, t_end: float):
 
 
 def main(argv=None) -> int:
-    return common.run(SensorDriver, argv, "sensor_driver", __doc__)
+    return run(SensorDriver, argv, "sensor_driver", __doc__)
 
 
 if __name__ == "__main__":

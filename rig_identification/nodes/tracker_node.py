@@ -30,7 +30,7 @@ Parameters:
   exciter_frame (exciter)    expected header.frame_id of the inputs (frames.py)
   world_frame (world), body_frame (body)  frames written on /rig/pose
 
-The rig parameter may also name a recording folder or an experiment file (common.load_rig_source).
+The rig parameter may also name a recording folder or an experiment file (parameters.load_rig_source).
 Topic names are remapped the ROS way (--ros-args -r /rig/imu:=/my/imu); the node logs its
 resolved inputs and outputs once at start-up ("interface: ...").
 
@@ -65,8 +65,15 @@ import numpy as np
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 
-from . import common
-from .common import SENSOR_QOS
+from .codec import imu_layout, odometry_layout, vector_layout, wrench_layout
+from .diagnostics import Diagnostics
+from .frames import declare_frame_ids, Endpoint, log_interface
+from .inputs import InputGuard, RawInput
+from .merge import StampMerger
+from .parameters import core_params, load_rig_param
+from .qos import input_qos, publish_blocking, SENSOR_QOS
+from .runtime import run
+from .topics import EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX, POSE_TOPIC
 from ..estimation.tracker import PoseTracker
 from ..estimation.tracker_replay import EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS
 
@@ -82,47 +89,47 @@ class TrackerNode(Node):
         self.declare_parameter("batch_period", 0.005)
         self.declare_parameter("reinit_gap", 0.1)
         self.declare_parameter("executor", "events")
-        params = common.core_params(self, PoseTracker.__init__, skip=("self", "rig"))
+        params = core_params(self, PoseTracker.__init__, skip=("self", "rig"))
         self.params = params
         self.reinit_gap = float(self.get_parameter("reinit_gap").value)
         self.reinitialised = 0
-        qos_in = common.input_qos(self)
-        frames = common.declare_frame_ids(self)
+        qos_in = input_qos(self)
+        frames = declare_frame_ids(self)
         self.frames = frames
-        rig = common.load_rig_param(self)
+        rig = load_rig_param(self)
         self.rig = rig
         self.tracker = PoseTracker(rig, **params)
-        self.guard = common.InputGuard(self)
-        self.diag = common.Diagnostics(self, self.guard, extra=lambda: {"reinitialised": self.reinitialised,
+        self.guard = InputGuard(self)
+        self.diag = Diagnostics(self, self.guard, extra=lambda: {"reinitialised": self.reinitialised,
                                                                         "skipped at start-up": self.skipped_at_start})
-        self.pub = self.create_publisher(Odometry, common.POSE_TOPIC, SENSOR_QOS)
-        self.diag.add_writer(common.POSE_TOPIC, self.pub)
-        self.out_layout = common.odometry_layout(frames.world, frames.body)
+        self.pub = self.create_publisher(Odometry, POSE_TOPIC, SENSOR_QOS)
+        self.diag.add_writer(POSE_TOPIC, self.pub)
+        self.out_layout = odometry_layout(frames.world, frames.body)
         self.names = rig.cable_names
         self._pending: dict[float, dict[str, float]] = {}
         self._latest: dict[str, float] = {}
         self._cells_async = False
         self._poses: list = []
-        # inputs: raw subscriptions, decoded in batches (common.RawInput) every batch_period s
-        R = common.RawInput
-        self.inputs = [(R(self, self.guard, common.IMU_TOPIC, common.imu_layout(frames.imu, parameter="imu_frame"),
-                          qos_in), common.IMU_TOPIC)]
+        # inputs: raw subscriptions, decoded in batches (inputs.RawInput) every batch_period s
+        R = RawInput
+        self.inputs = [(R(self, self.guard, IMU_TOPIC, imu_layout(frames.imu, parameter="imu_frame"),
+                          qos_in), IMU_TOPIC)]
         if rig.inclinometer is not None:
-            self.inputs.append((R(self, self.guard, common.INCLINOMETER_TOPIC,
-                                  common.vector_layout(frames.inclinometer, "inclinometer_frame"), qos_in),
-                                common.INCLINOMETER_TOPIC))
+            self.inputs.append((R(self, self.guard, INCLINOMETER_TOPIC,
+                                  vector_layout(frames.inclinometer, "inclinometer_frame"), qos_in),
+                                INCLINOMETER_TOPIC))
         if self.get_parameter("use_tensions").value:
             for name in self.names:
-                topic = common.LOAD_CELL_PREFIX + name
+                topic = LOAD_CELL_PREFIX + name
                 self.inputs.append((R(self, self.guard, topic,
-                                      common.wrench_layout(frames.load_cell_frame(name), "load_cell_frame"), qos_in),
+                                      wrench_layout(frames.load_cell_frame(name), "load_cell_frame"), qos_in),
                                     topic))
         if rig.exciter is not None:
-            self.inputs.append((R(self, self.guard, common.EXCITER_TOPIC,
-                                  common.wrench_layout(frames.exciter, "exciter_frame"), qos_in),
-                                common.EXCITER_TOPIC))
+            self.inputs.append((R(self, self.guard, EXCITER_TOPIC,
+                                  wrench_layout(frames.exciter, "exciter_frame"), qos_in),
+                                EXCITER_TOPIC))
         # the core wants its inputs in stamp order (as the offline replay sorts them)
-        self.merger = common.StampMerger([t for _, t in self.inputs], float(self.get_parameter("max_delay").value))
+        self.merger = StampMerger([t for _, t in self.inputs], float(self.get_parameter("max_delay").value))
         # start-up: streams whose subscriptions match later (discovery, a restart in the middle
         # of a run) must not find the tracker initialised without them; hold the feed until
         # every stream has delivered (or start_timeout s of wall time), then start where all
@@ -136,14 +143,14 @@ class TrackerNode(Node):
         self._last_push = time.monotonic()
         self.create_timer(float(self.get_parameter("batch_period").value), self._drain)
         self.create_timer(0.25, self._flush_idle)
-        common.log_interface(self, [inp.endpoint() for inp, _ in self.inputs],
-                             [common.Endpoint(self.pub, f"frame {frames.world}, child {frames.body}")])
+        log_interface(self, [inp.endpoint() for inp, _ in self.inputs],
+                             [Endpoint(self.pub, f"frame {frames.world}, child {frames.body}")])
         self.get_logger().info(f"ready: rig {rig.source}, {len(self.names)} cables, parameters {params}")
 
     # --- inputs: validated, then merged in stamp order -----------------------------------
     # ranks for equal stamps: the core's event kinds (tracker_replay.merge_events' order)
-    RANK = {common.INCLINOMETER_TOPIC: EVENT_INCLINOMETER, common.IMU_TOPIC: EVENT_IMU,
-            common.EXCITER_TOPIC: EVENT_EXCITER}
+    RANK = {INCLINOMETER_TOPIC: EVENT_INCLINOMETER, IMU_TOPIC: EVENT_IMU,
+            EXCITER_TOPIC: EVENT_EXCITER}
 
     def _drain(self) -> None:
         """Take every queued message, merge by stamp, run the tracker, publish the poses."""
@@ -153,14 +160,14 @@ class TrackerNode(Node):
             if not len(t):
                 continue
             got = True
-            if topic == common.EXCITER_TOPIC:
+            if topic == EXCITER_TOPIC:
                 if self.tracker.initialised:  # only the initial pose uses it: stop waiting for it
                     self.merger.drop_stream(topic)
                     continue
                 rows = vals[:, :2].tolist()
-            elif topic == common.IMU_TOPIC:
+            elif topic == IMU_TOPIC:
                 rows = vals.tolist()
-            elif topic == common.INCLINOMETER_TOPIC:
+            elif topic == INCLINOMETER_TOPIC:
                 rows = vals[:, :2].tolist()
             else:
                 rows = vals[:, 2].tolist()
@@ -218,7 +225,7 @@ class TrackerNode(Node):
             self._publish()
 
     def _apply(self, topic: str, t: float, data) -> None:
-        if topic == common.IMU_TOPIC:
+        if topic == IMU_TOPIC:
             tr = self.tracker
             if tr.initialised and t - tr.t > self.reinit_gap:
                 # no integration across a hole in the IMU stream: start again from the data after it
@@ -232,13 +239,13 @@ class TrackerNode(Node):
                 return
             if pose is not None:
                 self._poses.append(pose)
-        elif topic == common.INCLINOMETER_TOPIC:
+        elif topic == INCLINOMETER_TOPIC:
             self.tracker.add_inclinometer(t, data)
-        elif topic == common.EXCITER_TOPIC:
+        elif topic == EXCITER_TOPIC:
             if not self.tracker.initialised:
                 self.tracker.add_exciter(t, data)
         else:
-            self._add_tension(topic[len(common.LOAD_CELL_PREFIX):], t, data)
+            self._add_tension(topic[len(LOAD_CELL_PREFIX):], t, data)
 
     def _add_tension(self, name: str, t: float, tension: float) -> None:
         self._latest[name] = tension
@@ -274,16 +281,16 @@ class TrackerNode(Node):
         sent = 0
         for raw in self.out_layout.encode(t, vals):
             try:
-                common.publish_blocking(self.pub, raw)
+                publish_blocking(self.pub, raw)
             except Exception as e:  # blocked too long by a slow reader: the pose is lost, say so
-                self.guard.reject(common.POSE_TOPIC + " (publish)", f"{type(e).__name__}: {e}")
+                self.guard.reject(POSE_TOPIC + " (publish)", f"{type(e).__name__}: {e}")
                 continue
             sent += 1
-        self.diag.count_tx(common.POSE_TOPIC, sent)
+        self.diag.count_tx(POSE_TOPIC, sent)
 
 
 def main(argv=None) -> int:
-    return common.run(TrackerNode, argv, "tracker", __doc__)
+    return run(TrackerNode, argv, "tracker", __doc__)
 
 
 if __name__ == "__main__":

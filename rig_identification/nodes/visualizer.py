@@ -61,7 +61,15 @@ from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..io.rig import Rig
-from . import common
+from .codec import odometry_layout, PersistentReason, wrench_layout
+from .diagnostics import Diagnostics
+from .frames import declare_frame_ids, Endpoint, log_interface
+from .inputs import InputGuard, RawInput
+from .messages import set_stamp, set_xyz, xyz
+from .parameters import load_rig_param
+from .qos import LATCHED_QOS
+from .runtime import run
+from .topics import LOAD_CELL_PREFIX, MASS_PROPERTIES_TOPIC, POSE_TOPIC
 
 try:  # on a ROS computer; the pip wheels of this package's setup have no tf2_msgs
     from tf2_msgs.msg import TFMessage
@@ -144,26 +152,26 @@ class VisualizerNode(Node):
         self.declare_parameter("rate", 20.0)
         self.declare_parameter("publish_tf", True)
         self.declare_parameter("executor", "events")
-        self.frames = frames = common.declare_frame_ids(self, ("load_cell", "world", "body"))
+        self.frames = frames = declare_frame_ids(self, ("load_cell", "world", "body"))
         rate = float(self.get_parameter("rate").value)
         if not rate > 0:
             raise ValueError(f"parameter rate = {rate}: must be > 0 Hz")
-        rig = common.load_rig_param(self)
+        rig = load_rig_param(self)
         self.rig = rig
         self.share = rig.mass * rig.gravity / len(rig.cables)
-        self.guard = common.InputGuard(self)
-        self.diag = common.Diagnostics(self, self.guard)
-        self.pose_in = common.RawInput(self, self.guard, common.POSE_TOPIC,
-                                       common.odometry_layout(frames.world, frames.body, hinted=True), VIEW_QOS)
-        self.cells = {n: common.RawInput(self, self.guard, common.LOAD_CELL_PREFIX + n,
-                                         common.wrench_layout(frames.load_cell_frame(n), "load_cell_frame"), VIEW_QOS)
+        self.guard = InputGuard(self)
+        self.diag = Diagnostics(self, self.guard)
+        self.pose_in = RawInput(self, self.guard, POSE_TOPIC,
+                                       odometry_layout(frames.world, frames.body, hinted=True), VIEW_QOS)
+        self.cells = {n: RawInput(self, self.guard, LOAD_CELL_PREFIX + n,
+                                         wrench_layout(frames.load_cell_frame(n), "load_cell_frame"), VIEW_QOS)
                       for n in rig.cable_names}
-        self.mp_sub = self.create_subscription(InertiaStamped, common.MASS_PROPERTIES_TOPIC, self._on_mass_properties,
-                                               common.LATCHED_QOS)
+        self.mp_sub = self.create_subscription(InertiaStamped, MASS_PROPERTIES_TOPIC, self._on_mass_properties,
+                                               LATCHED_QOS)
         self.tf_pub = self.create_publisher(TransformStamped, TRANSFORM_TOPIC, 10)
         self.marker_pub = self.create_publisher(MarkerArray, MARKERS_TOPIC, 10)
-        outputs = [common.Endpoint(self.tf_pub, f"{frames.world} -> {frames.body}"),
-                   common.Endpoint(self.marker_pub, f"frame {frames.world}")]
+        outputs = [Endpoint(self.tf_pub, f"{frames.world} -> {frames.body}"),
+                   Endpoint(self.marker_pub, f"frame {frames.world}")]
         self.tf2_pub = None
         if self.get_parameter("publish_tf").value:
             if TFMessage is None:
@@ -171,27 +179,27 @@ class VisualizerNode(Node):
                                        f"{TRANSFORM_TOPIC} and every marker is in frame {frames.world}")
             else:
                 self.tf2_pub = self.create_publisher(TFMessage, TF_TOPIC, 100)
-                outputs.append(common.Endpoint(self.tf2_pub, f"{frames.world} -> {frames.body}"))
+                outputs.append(Endpoint(self.tf2_pub, f"{frames.world} -> {frames.body}"))
         self.pose: tuple[float, np.ndarray, np.ndarray] | None = None  # stamp s, position (3,), quaternion xyzw
         self.tension = {n: float("nan") for n in rig.cable_names}
         self.cg = rig.center_of_gravity
         self.ellipsoid: Ellipsoid | None = None
         self.fresh, self.t_sent = False, -KEEP_ALIVE
         self.create_timer(1.0 / rate, self._tick)
-        common.log_interface(self, [self.pose_in.endpoint(), *(c.endpoint() for c in self.cells.values()),
-                                    common.Endpoint(self.mp_sub, f"frame {frames.body}, latched")], outputs)
+        log_interface(self, [self.pose_in.endpoint(), *(c.endpoint() for c in self.cells.values()),
+                                    Endpoint(self.mp_sub, f"frame {frames.body}, latched")], outputs)
         self.get_logger().info(f"ready: rig {rig.source}, {rate:g} Hz")
 
     def _on_mass_properties(self, msg) -> None:
         if msg.header.frame_id != self.frames.body:
-            self.guard.reject(common.MASS_PROPERTIES_TOPIC, common.PersistentReason(
+            self.guard.reject(MASS_PROPERTIES_TOPIC, PersistentReason(
                 f"frame_id {msg.header.frame_id!r}, expected {self.frames.body!r} (set by parameter body_frame)"))
             return
         i = msg.inertia
         J = np.array([[i.ixx, i.ixy, i.ixz], [i.ixy, i.iyy, i.iyz], [i.ixz, i.iyz, i.izz]], float)
-        com = np.array(common.xyz(i.com), float)
+        com = np.array(xyz(i.com), float)
         if not np.isfinite(com).all() or not np.isfinite(J).all():
-            self.guard.reject(common.MASS_PROPERTIES_TOPIC, "non-finite centre of gravity or tensor")
+            self.guard.reject(MASS_PROPERTIES_TOPIC, "non-finite centre of gravity or tensor")
             return
         self.cg = com
         self.fresh = True
@@ -199,7 +207,7 @@ class VisualizerNode(Node):
             try:
                 self.ellipsoid = inertia_ellipsoid(i.m, J)
             except ValueError as e:
-                self.guard.reject(common.MASS_PROPERTIES_TOPIC, str(e))
+                self.guard.reject(MASS_PROPERTIES_TOPIC, str(e))
 
     def _tick(self) -> None:
         """Take the latest inputs; publish when something new arrived, else once per
@@ -223,9 +231,9 @@ class VisualizerNode(Node):
         self.fresh, self.t_sent = False, now
         stamp, p, q = self.pose
         tf = TransformStamped()
-        common.set_stamp(tf.header, stamp, self.frames.world)
+        set_stamp(tf.header, stamp, self.frames.world)
         tf.child_frame_id = self.frames.body
-        common.set_xyz(tf.transform.translation, p)
+        set_xyz(tf.transform.translation, p)
         o = tf.transform.rotation
         o.x, o.y, o.z, o.w = (float(x) for x in q)
         self.tf_pub.publish(tf)
@@ -243,14 +251,14 @@ class VisualizerNode(Node):
 
         def marker(ns: str, kind: int, rgba, scale) -> Marker:
             m = Marker(ns=ns, id=0, type=kind, action=Marker.ADD)
-            common.set_stamp(m.header, stamp, self.frames.world)
+            set_stamp(m.header, stamp, self.frames.world)
             m.pose.orientation.w = 1.0
             m.color = ColorRGBA(r=float(rgba[0]), g=float(rgba[1]), b=float(rgba[2]), a=float(rgba[3]))
-            common.set_xyz(m.scale, scale)
+            set_xyz(m.scale, scale)
             return m
 
         def place(m: Marker, centre_body: np.ndarray, rot: Rotation) -> None:
-            common.set_xyz(m.pose.position, p + R.apply(centre_body))
+            set_xyz(m.pose.position, p + R.apply(centre_body))
             o = m.pose.orientation
             o.x, o.y, o.z, o.w = (float(x) for x in rot.as_quat())
 
@@ -289,7 +297,7 @@ class VisualizerNode(Node):
 
 
 def main(argv=None) -> int:
-    return common.run(VisualizerNode, argv, "rig_visualizer", __doc__)
+    return run(VisualizerNode, argv, "rig_visualizer", __doc__)
 
 
 if __name__ == "__main__":
