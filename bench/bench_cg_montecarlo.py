@@ -26,7 +26,8 @@ import numpy as np
 
 from rig_identification.io.recording import SensorData, TimeSeries
 from rig_identification.io.rig import DummyMass
-from rig_identification.model.simulator import load_experiment, simulate
+from rig_identification.model.experiment import load_experiment
+from rig_identification.model.simulator import simulate
 from rig_identification.statics import CgOptions, StaticsError, StaticState, estimate_cg
 
 CASES = Path(__file__).resolve().parents[1] / "config" / "cases"

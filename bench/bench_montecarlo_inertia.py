@@ -22,7 +22,8 @@ from rig_identification.estimation.identification import KEYS, from_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.estimation.propagation import REFERENCE_NOISE
 from rig_identification.io.recording import Recording
-from rig_identification.model.simulator import experiment_from_dict, simulate
+from rig_identification.model.experiment import experiment_from_dict
+from rig_identification.model.simulator import simulate
 from rig_identification.estimation.uncertainty import add_noise
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"

@@ -40,7 +40,8 @@ from rig_identification.estimation.identification import KEYS, from_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.estimation.propagation import REFERENCE_NOISE, REFERENCE_RATES, Trajectory, predict_from_trajectory
 from rig_identification.io.recording import Recording
-from rig_identification.model.simulator import load_experiment, simulate
+from rig_identification.model.experiment import load_experiment
+from rig_identification.model.simulator import simulate
 from rig_identification.estimation.uncertainty import add_noise
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -67,7 +67,8 @@ def peak_mb(rec: Path, bulk: bool) -> float:
 
 
 def synthetic(out: Path, storage: str) -> Path:
-    from rig_identification.model.simulator import load_experiment, simulate
+    from rig_identification.model.experiment import load_experiment
+    from rig_identification.model.simulator import simulate
     if out.exists():
         return out
     exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=180.0)

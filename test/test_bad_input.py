@@ -20,7 +20,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def sim():
-    from rig_identification.model.simulator import load_experiment, simulate
+    from rig_identification.model.experiment import load_experiment
+    from rig_identification.model.simulator import simulate
     exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=35.0)
     rates = {k: min(v, 100.0) for k, v in exp.sensors.rates.items()}
     exp = dataclasses.replace(exp, sensors=dataclasses.replace(exp.sensors, rates=rates))
@@ -365,7 +366,8 @@ def test_tensions_in_kN(sim, tmp_path):
 
 # 11. static recording ----------------------------------------------------------------------------
 def test_static_recording(sim, tmp_path):
-    from rig_identification.model.simulator import load_experiment, simulate
+    from rig_identification.model.experiment import load_experiment
+    from rig_identification.model.simulator import simulate
     exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=30.0, static="baseline")
     st = simulate(exp)
     rec = write_recording(tmp_path / "static", sim.rig, st.sensors, st.truth)  # sim.rig: with the CG

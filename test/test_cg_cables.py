@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from rig_identification.design.scenarios import random_experiment
-from rig_identification.model.simulator import experiment_from_dict, simulate
+from rig_identification.model.experiment import experiment_from_dict
+from rig_identification.model.simulator import simulate
 from rig_identification.statics import CgOptions, StaticState, estimate_cg
 
 

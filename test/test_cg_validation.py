@@ -23,7 +23,8 @@ import pytest
 from rig_identification.cli.main import identify_main
 from rig_identification.io.recording import SensorData, TimeSeries, read_recording, write_recording
 from rig_identification.io.rig import DummyMass
-from rig_identification.model.simulator import load_experiment, simulate
+from rig_identification.model.experiment import load_experiment
+from rig_identification.model.simulator import simulate
 from rig_identification.statics import VALIDATION_SIGMA, CgOptions, StaticState, estimate_cg, static_equilibrium
 
 from conftest import REPO, recording

@@ -23,7 +23,7 @@ values = st.recursive(scalars, lambda ch: st.one_of(st.lists(ch, max_size=4),
 
 def _valid_rig_dict(tmp):
     from rig_identification.io.rig import dump_rig
-    from rig_identification.model.simulator import load_experiment
+    from rig_identification.model.experiment import load_experiment
     return yaml.safe_load(dump_rig(load_experiment(str(REPO / "config/rigs/default.yaml")).rig))
 
 
@@ -93,7 +93,8 @@ def test_load_rig_random_bytes(tmp_path_factory, b):
 @pytest.fixture(scope="module", params=["mcap", "sqlite3"])
 def small_bag(request, tmp_path_factory):
     import dataclasses
-    from rig_identification.model.simulator import load_experiment, simulate
+    from rig_identification.model.experiment import load_experiment
+    from rig_identification.model.simulator import simulate
     exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=2.0)
     exp = dataclasses.replace(exp, sensors=dataclasses.replace(
         exp.sensors, rates={k: min(v, 20.0) for k, v in exp.sensors.rates.items()}))

@@ -18,7 +18,8 @@ from rig_identification.pipeline import offline as pipeline
 from rig_identification.estimation.identification import KEYS, identify_inertia, identify_inertia_joint, physically_consistent
 from rig_identification.io.recording import Recording, RecordingError
 from rig_identification.io.rig import RigError, dump_rig, read_yaml
-from rig_identification.model.simulator import experiment_from_dict, simulate
+from rig_identification.model.experiment import experiment_from_dict
+from rig_identification.model.simulator import simulate
 
 from conftest import REPO
 

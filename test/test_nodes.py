@@ -36,7 +36,8 @@ from rig_identification.nodes.topics import (DIAGNOSTICS_TOPIC, DRIVER_STATUS_TO
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.pipeline.offline import identify_recording  # noqa: E402
 from rig_identification.io.recording import read_recording, write_recording  # noqa: E402
-from rig_identification.model.simulator import load_experiment, simulate  # noqa: E402
+from rig_identification.model.experiment import load_experiment  # noqa: E402
+from rig_identification.model.simulator import simulate  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 DURATION = 30.0

@@ -33,7 +33,8 @@ from rig_identification.nodes.messages import stamp_to_sec  # noqa: E402
 from rig_identification.nodes.topics import IMU_TOPIC, LOAD_CELL_PREFIX, WRENCH_TOPIC  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.io.recording import read_recording, write_recording  # noqa: E402
-from rig_identification.model.simulator import load_experiment, simulate  # noqa: E402
+from rig_identification.model.experiment import load_experiment  # noqa: E402
+from rig_identification.model.simulator import simulate  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 RATE = 4.0

@@ -15,7 +15,8 @@ from rig_identification.design.planning import SPIN_AXES, resonances
 from rig_identification.estimation.propagation import (REFERENCE_NOISE, Trajectory, cumtrapz_adjoint, predict_from_trajectory,
                                             sosfiltfilt_adjoint)
 from rig_identification.io.recording import Recording
-from rig_identification.model.simulator import load_experiment, simulate
+from rig_identification.model.experiment import load_experiment
+from rig_identification.model.simulator import simulate
 from rig_identification.estimation.uncertainty import add_noise
 
 from conftest import REPO, background, gather
@@ -141,7 +142,8 @@ def test_geometry_variants_hang_the_body_near_where_the_rig_does():
     5 cm and 3°: the new cable directions balance the weight at a nearby pose), every cable
     taut, and the modes change."""
     from rig_identification.design.planning import geometry_variants
-    from rig_identification.model.simulator import CableModel, equilibrium
+    from rig_identification.model.experiment import CableModel
+    from rig_identification.model.equilibrium import equilibrium
     body = _default_body()
     rig = body.rig
     cg = rig.require_cg()

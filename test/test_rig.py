@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from rig_identification.io.rig import RigError, dump_rig, load_rig, rig_from_dict
-from rig_identification.model.simulator import load_experiment
+from rig_identification.model.experiment import load_experiment
 
 from conftest import REPO, recording
 

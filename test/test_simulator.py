@@ -17,8 +17,11 @@ from scipy.spatial.transform import Rotation
 from rig_identification.io.recording import read_recording
 from rig_identification.io.rig import load_rig
 from rig_identification.cli.sim import sim_main
-from rig_identification.model.simulator import (CableModel, ExperimentError, SimulationError, equilibrium,
-                                          experiment_from_dict, inertia_tensor, load_experiment, simulate)
+from rig_identification.model.experiment import CableModel, experiment_from_dict, ExperimentError, load_experiment
+from rig_identification.model.dynamics import SimulationError
+from rig_identification.model.equilibrium import equilibrium
+from rig_identification.io.rig import inertia_tensor
+from rig_identification.model.simulator import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "config" / "rigs" / "default.yaml"

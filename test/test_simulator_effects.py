@@ -17,8 +17,11 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from rig_identification.design.scenarios import simulate_random
-from rig_identification.model.simulator import (ExperimentError, equilibrium, experiment_from_dict, mode_response,
-                                          simulate, split_body)
+from rig_identification.model.experiment import experiment_from_dict, ExperimentError
+from rig_identification.model.equilibrium import equilibrium
+from rig_identification.model.sensors import mode_response
+from rig_identification.model.simulator import simulate
+from rig_identification.model.suspension import split_body
 
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "config" / "rigs" / "default.yaml"

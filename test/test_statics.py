@@ -14,7 +14,8 @@ import pytest
 
 from rig_identification.io.recording import SensorData, TimeSeries, read_recording
 from rig_identification.io.rig import DummyMass
-from rig_identification.model.simulator import experiment_from_dict, load_experiment, simulate
+from rig_identification.model.experiment import experiment_from_dict, load_experiment
+from rig_identification.model.simulator import simulate
 from rig_identification.statics import (CgOptions, SensorNoise, StaticState, StaticsError, estimate_cg,
                                         plan_static_test, predict_cg_std, static_equilibrium)
 from rig_identification.statics.model import GlobalUnknowns, StaticModel, skew

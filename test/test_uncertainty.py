@@ -9,7 +9,8 @@ import yaml
 from rig_identification.estimation.identification import KEYS, from_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.io.recording import Recording
-from rig_identification.model.simulator import experiment_from_dict, simulate
+from rig_identification.model.experiment import experiment_from_dict
+from rig_identification.model.simulator import simulate
 from rig_identification.io.noise import white_sigma
 
 from conftest import background, gather

@@ -49,7 +49,7 @@ import numpy as np
 from ..io.atomic import atomic_write_text
 from ..io.recording import RecordingError, read_recording
 from ..io.rig import DummyMass, Rig, RigError, dump_rig, load_rig
-from ..model.simulator import load_rig_or_experiment
+from ..model.experiment import load_rig_or_experiment
 from ..statics import (CG_RESULT_SCHEMA, CG_RESULT_SCHEMA_VERSION, DEFAULT_ANCHOR_STD, DEFAULT_DUMMY_POSITION_STD,
                       DEFAULT_LENGTH_STD, CgOptions, CgResult, SensorNoise, StaticsError, StaticState, estimate_cg,
                       plan_static_test, predict_cg_std)

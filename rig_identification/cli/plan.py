@@ -20,7 +20,8 @@ from ..pipeline.offline import identify_recording
 from ..design.planning import PlanError, geometry_variants, plan_experiment
 from ..design.run import Run, load_plan_input, make_body
 from ..io.recording import read_recording
-from ..model.simulator import ExperimentError, SimulationError
+from ..model.experiment import ExperimentError
+from ..model.dynamics import SimulationError
 from ..pipeline.thesis_table import print_summary, print_table, run_case
 
 

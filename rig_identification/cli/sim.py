@@ -17,7 +17,9 @@ import math
 import sys
 from ..io.recording import RecordingError, write_recording
 from ..io.rig import DummyMass, RigError
-from ..model.simulator import ExperimentError, SimulationError, load_experiment, simulate
+from ..model.experiment import ExperimentError, load_experiment
+from ..model.dynamics import SimulationError
+from ..model.simulator import simulate
 
 
 def _parser() -> argparse.ArgumentParser:

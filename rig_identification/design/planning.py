@@ -37,7 +37,10 @@ from .run import SPIN_AXES, Body, Run, load_plan_input, make_body, recommended_b
 from .screen import DesignScreen, linear_rig
 from ..estimation.propagation import PlanError, Prediction, Trajectory, combine, predict_from_trajectory
 from ..io.rig import Rig
-from ..model.simulator import simulate, SimulationError, CableModel, equilibrium
+from ..model.simulator import simulate
+from ..model.dynamics import SimulationError
+from ..model.experiment import CableModel
+from ..model.equilibrium import equilibrium
 from ..model.modes import natural_modes
 
 # the public names, with those of planning_run that users import from here

@@ -36,7 +36,9 @@ from scipy.ndimage import maximum_filter1d, median_filter
 from scipy.spatial.transform import Rotation
 
 from ..io.rig import Rig
-from .simulator import CableModel, SimulationError, equilibrium
+from .experiment import CableModel
+from .dynamics import SimulationError
+from .equilibrium import equilibrium
 
 DOF_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 

@@ -8,7 +8,7 @@ from pathlib import Path
 from rclpy.node import Node
 
 from ..io.rig import Rig, RigError
-from ..model.simulator import load_rig_or_experiment
+from ..model.experiment import load_rig_or_experiment
 
 
 def load_rig_source(path: str | Path) -> Rig:

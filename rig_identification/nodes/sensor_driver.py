@@ -75,7 +75,8 @@ from .topics import (DIAGNOSTICS_TOPIC, DRIVER_STATUS_TOPIC, EXCITER_TOPIC, IMU_
 from ..io.recording import SensorData, TimeSeries, read_recording
 from ..io.atomic import atomic_write_text
 from ..io.rig import dump_rig
-from ..model.simulator import load_experiment, simulate
+from ..model.experiment import load_experiment
+from ..model.simulator import simulate
 
 # with exit_when_done, the longest wait for the readers' acknowledgements after the last message, s
 LINGER_SECONDS = 5.0

@@ -16,7 +16,8 @@ from ..estimation.identification import KEYS, IdentificationError
 from ..model.parametrisation import PAIRS
 from .offline import compare_to_truth, identify_recording
 from ..io.recording import Recording
-from ..model.simulator import load_experiment, simulate
+from ..model.experiment import load_experiment
+from ..model.simulator import simulate
 
 CASES = Path(__file__).resolve().parents[2] / "config" / "cases"
 

@@ -10,7 +10,8 @@ from ..estimation.identification import InertiaResult
 from ..model.modes import estimate_modes, natural_modes
 from ..io.recording import Recording
 from .html import MISSING, esc, num, table
-from ..model.simulator import SimulationError, inertia_tensor
+from ..model.dynamics import SimulationError
+from ..io.rig import inertia_tensor
 
 
 def modes_section(rec: Recording, result: InertiaResult, truth: dict | None) -> tuple[str, list[str], dict]:

@@ -24,7 +24,9 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..io.rig import DummyMass, Rig
-from ..model.simulator import CableModel, SimulationError, equilibrium
+from ..model.experiment import CableModel
+from ..model.dynamics import SimulationError, skew, skews
+from ..model.equilibrium import equilibrium
 from .state import StaticsError
 
 Z = np.array([0.0, 0.0, 1.0])    # world z, up (gravity is -g Z)
@@ -39,26 +41,6 @@ DEFAULT_COMPLIANCE = 2e-7        # m/N: a steel cable of a few metres (k = 5e6 N
 DEFAULT_ANCHOR_STD = 1e-3        # m: every ceiling anchor (world) and body anchor (body) coordinate
 DEFAULT_LENGTH_STD = 1e-3        # m: every unstretched cable length
 DEFAULT_DUMMY_POSITION_STD = 1e-3  # m: every coordinate of the dummy mass's centre of gravity
-
-
-# --- small rotation helpers ------------------------------------------------------------------
-
-def skew(a) -> np.ndarray:
-    """Cross-product matrix [a]× (3, 3) of a vector a (3,): ``skew(a) @ x == np.cross(a, x)``.
-
-    The rotation by a rotation vector φ (3,) rad is its matrix exponential,
-    ``scipy.linalg.expm(skew(φ))`` (numerically equal to Rodrigues' formula)."""
-    x, y, z = a
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-
-
-def skews(a: np.ndarray) -> np.ndarray:
-    """Cross-product matrices (N, 3, 3) of the rows of a (N, 3): ``skews(a)[i] == skew(a[i])``."""
-    out = np.zeros((len(a), 3, 3))
-    out[:, 0, 1], out[:, 0, 2] = -a[:, 2], a[:, 1]
-    out[:, 1, 0], out[:, 1, 2] = a[:, 2], -a[:, 0]
-    out[:, 2, 0], out[:, 2, 1] = -a[:, 1], a[:, 0]
-    return out
 
 
 @dataclass
