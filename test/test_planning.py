@@ -142,7 +142,7 @@ def test_geometry_variants_hang_the_body_near_where_the_rig_does():
     5 cm and 3°: the new cable directions balance the weight at a nearby pose), every cable
     taut, and the modes change."""
     from rig_identification.design.planning import geometry_variants
-    from rig_identification.model.experiment import CableModel
+    from rig_identification.model.cables import CableModel
     from rig_identification.model.equilibrium import equilibrium
     body = _default_body()
     rig = body.rig

@@ -39,7 +39,7 @@ from ..estimation.propagation import PlanError, Prediction, Trajectory, combine,
 from ..io.rig import Rig
 from ..model.simulator import simulate
 from ..model.dynamics import SimulationError
-from ..model.experiment import CableModel
+from ..model.cables import CableModel
 from ..model.equilibrium import equilibrium
 from ..model.modes import natural_modes
 

@@ -14,13 +14,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..model.experiment import DEFAULT_STIFFNESS
+from ..model.cables import DEFAULT_STIFFNESS
 from ..estimation.identification import physically_consistent, to_tensor
 from ..estimation.propagation import REFERENCE_NOISE, REFERENCE_RATES, PlanError
-from ..io.rig import Rig, RigError, load_rig, read_yaml
+from ..io.rig import Rig, RigError, inertia_entries, load_rig, read_yaml
 from ..io.recording import RecordingError
 from ..model.experiment import experiment_from_dict, ExperimentError, load_experiment
-from ..io.rig import inertia_entries
 
 _DIAGONALS = {"x+y": (1, 1, 0), "x-y": (1, -1, 0), "x+z": (1, 0, 1), "x-z": (1, 0, -1), "y+z": (0, 1, 1),
               "y-z": (0, 1, -1)}

@@ -19,7 +19,7 @@ from ..estimation.identification import basis
 from .run import Body, recommended_band
 from ..estimation.propagation import Prediction, channel_sigmas, stationary_e_response, tracker_model, wrench_jacobians
 from ..model.modes import gradients, length_fn, length_hessians
-from ..model.experiment import CableModel
+from ..model.cables import CableModel
 from ..model.equilibrium import equilibrium
 
 

@@ -44,7 +44,8 @@ import numpy as np
 from scipy.linalg.lapack import dposv
 from scipy.spatial.transform import Rotation
 
-from .experiment import CableModel, Excitation
+from .cables import CableModel
+from .excitation import Excitation
 from .suspension import Suspension
 from ..io.rig import Rig
 

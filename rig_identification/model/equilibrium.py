@@ -12,7 +12,9 @@ from scipy.optimize import least_squares, minimize, root
 from scipy.spatial.transform import Rotation
 
 from .dynamics import RigDynamics, SimulationError
-from .experiment import CableModel, Excitation, Initial
+from .cables import CableModel
+from .excitation import Excitation
+from .experiment import Initial
 from ..io.rig import Rig
 
 

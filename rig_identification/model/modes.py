@@ -36,7 +36,7 @@ from scipy.ndimage import maximum_filter1d, median_filter
 from scipy.spatial.transform import Rotation
 
 from ..io.rig import Rig
-from .experiment import CableModel
+from .cables import CableModel
 from .dynamics import SimulationError
 from .equilibrium import equilibrium
 

@@ -24,7 +24,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from ..io.rig import DummyMass, Rig
-from ..model.experiment import CableModel
+from ..model.cables import CableModel
 from ..model.dynamics import SimulationError, skew, skews
 from ..model.equilibrium import equilibrium
 from .state import StaticsError
