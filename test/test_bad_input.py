@@ -385,7 +385,7 @@ def test_missing_paths_are_named_at_once(tmp_path):
              ["modes", str(missing)], ["plan", str(missing), "--inertia", "1", "1", "1", "0", "0", "0"],
              ["inertia", str(ref), "--yaml", str(missing / "out.yaml")],
              ["inertia", str(ref), "--cg", str(tmp_path / "cg.json")],
-             ["cg", str(missing), str(ref)]]    # last: its parser (cg_cli) loads scipy
+             ["cg", str(missing), str(ref)]]    # last: its parser (cli.cg) loads scipy
     code = ("import json, sys\nfrom rig_identification.cli.main import identify_main\n"
             f"codes = [identify_main(a) for a in {cases[:-1]!r}]\n"
             "heavy = sorted(m for m in sys.modules if m.split('.')[0] in ('scipy', 'rosbags', 'matplotlib'))\n"

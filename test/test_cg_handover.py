@@ -3,7 +3,7 @@
 ``rig-identify cg BASELINE DUMMY --write-rig OUT.yaml`` writes the recordings' rig.yaml with
 body.center_of_gravity set (comment lines: date, σ, sources), refuses an existing OUT unless
 --force, never a recording's own rig.yaml; ``--json`` has a schema, a version and units, and
-a saved copy is read back by ``cg_cli.load_cg_result`` (for ``rig-identify inertia --cg``),
+a saved copy is read back by ``statics.handover.load_cg_result`` (for ``rig-identify inertia --cg``),
 whose errors name the file and the field.
 """
 import contextlib
@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from rig_identification.cli.cg import CgResultError, load_cg_result
+from rig_identification.statics.handover import CgResultError, load_cg_result
 from rig_identification.cli.main import identify_main
 from rig_identification.io.rig import load_rig
 from rig_identification.statics import CG_RESULT_SCHEMA, CG_RESULT_SCHEMA_VERSION, StaticsError

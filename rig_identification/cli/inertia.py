@@ -21,7 +21,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..io.atomic import atomic_write_text
-from .cg import load_cg_result
+from ..statics.handover import load_cg_result
 from .main import version
 from .progress import step, warn
 from .text import (effect_text, entries_line, fmt, origin_line, principal_lines, products_line, tensor_table)

@@ -2,7 +2,7 @@
 
 The sub-commands replay recording folders (rig.yaml + bag/) through the same tracker,
 preprocessor and identifier code as the ROS nodes.  This module builds the command line and
-runs the chosen command; the commands are in cli_inertia, cli_diagnose, cli_plan and cg_cli,
+runs the chosen command; the commands are in cli.inertia, cli.diagnose, cli.plan, cli.cg and cli.cg_plan,
 imported only when they run (``rig-identify --help`` does not load scipy).  User errors (a
 missing path, bad files, inconsistent input) print one line ``rig-identify: error: …`` and
 exit with status 2, no traceback; a path that does not exist is refused before any work.
@@ -211,18 +211,22 @@ STATIC = {"cg": ("centre of gravity from the two static recordings (without and 
                  ("baseline", "dummy")),
           "cg-plan": ("predict the CG uncertainty of a planned static test and recommend one reaching ±2.5 mm",
                       ("rig", "noise_from"))}
-"""The static-test commands of cg_cli: their one-line help (for the top-level help, which does
-not import cg_cli) and the destinations of their input paths."""
+"""The static-test commands (cli.cg, cli.cg_plan): their one-line help (for the top-level help, which does
+not import them) and the destinations of their input paths."""
 
 
 def add_static_parser(sub, name: str, wanted: str | None) -> None:
-    """cg or cg-plan (:mod:`rig_identification.cli.cg`, which loads scipy): the real parser only when it is the
-    command; otherwise a placeholder that carries its one-line help."""
+    """cg or cg-plan (:mod:`rig_identification.cli.cg`, :mod:`rig_identification.cli.cg_plan`, which load
+    scipy): the real parser only when it is the command; otherwise a placeholder that carries its
+    one-line help."""
     if wanted != name:
         sub.add_parser(name, help=STATIC[name][0], add_help=False)
         return
-    from .cg import add_cg_parser, add_cg_plan_parser
-    p = (add_cg_parser if name == "cg" else add_cg_plan_parser)(sub)
+    if name == "cg":
+        from .cg import add_cg_parser as add_parser
+    else:
+        from .cg_plan import add_cg_plan_parser as add_parser
+    p = add_parser(sub)
     p.set_defaults(inputs=STATIC[name][1], outputs=())
     p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
                    help="no progress lines on stderr (warnings still)")

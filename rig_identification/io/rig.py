@@ -341,15 +341,22 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     return Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, name=rig_name, output_axes=output_axes)
 
 
-def read_yaml(path: str | Path, error: type[ValueError], what: str):
-    """Parse a YAML file; an unreadable, non-UTF-8 or invalid file raises ``error`` naming it."""
+def read_text(path: str | Path, error: type[ValueError], what: str) -> str:
+    """The text of a UTF-8 file; an unreadable or non-UTF-8 file raises ``error`` naming it
+    and ``what`` it should hold."""
     p = Path(path)
     try:
-        text = p.read_text(encoding="utf-8")
+        return p.read_text(encoding="utf-8")
     except OSError as e:
         raise error(f"{p}: cannot read the {what} ({e.strerror})") from None
     except UnicodeDecodeError as e:
         raise error(f"{p}: not a text file (byte {e.start} is not UTF-8)") from None
+
+
+def read_yaml(path: str | Path, error: type[ValueError], what: str):
+    """Parse a YAML file; an unreadable, non-UTF-8 or invalid file raises ``error`` naming it."""
+    p = Path(path)
+    text = read_text(p, error, what)
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as e:

@@ -26,7 +26,7 @@ Verbs (ROS arguments may follow ``--ros-args``; ``--identifier NAME`` picks the 
       is also published on /rig/mass_properties.  ``--write-rig OUT.yaml`` writes a copy of
       the rig description with ``body.center_of_gravity`` set to the estimate (atomically;
       the comment lines of ``rig-identify cg --write-rig``, the same core:
-      ``cg_cli.rig_with_cg_text``): RIG is the identifier's ``rig`` parameter unless
+      ``statics.handover.rig_with_cg_text``): RIG is the identifier's ``rig`` parameter unless
       ``--rig`` names it (a rig.yaml, a recording folder or an experiment file; its body.mass
       must be the identifier's); an existing OUT is replaced only with ``--force``.  The
       dynamic experiment's tracker, preprocessor and identifier then start with
@@ -56,7 +56,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from ..io.atomic import atomic_write_text
-from ..cli.cg import CgResultError, check_rig_target, cg_result_from_dict, rig_with_cg_text
+from ..statics.handover import CgResultError, cg_result_from_dict, check_rig_target, rig_with_cg_text
 from ..io.export import AXES, convention_lines
 from ..io.rig import RigError
 from .parameters import load_rig_source

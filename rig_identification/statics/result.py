@@ -1,6 +1,6 @@
 """The result of the static experiment's CG fit: :class:`CgResult` (the CG with its σ, σ budget,
 sensitivities and validation), the fitted pose of each state (:class:`StatePose`), and the
-schema of its JSON (``rig-identify cg --json``, read back by ``cg_cli.load_cg_result``).
+schema of its JSON (``rig-identify cg --json``, read back by :func:`~.handover.load_cg_result`).
 
 Frames and units: CG in the body frame, poses in the world frame (z up); SI units.
 """
@@ -125,7 +125,7 @@ class CgResult:
     def to_dict(self) -> dict:
         """JSON-ready mapping (lists and floats only): the file format ``rig-identify cg --json``
         prints, ``schema`` :data:`CG_RESULT_SCHEMA` version :data:`CG_RESULT_SCHEMA_VERSION`,
-        ``units`` per field (:data:`CG_RESULT_UNITS`); read back by ``cg_cli.load_cg_result``."""
+        ``units`` per field (:data:`CG_RESULT_UNITS`); read back by :func:`~.handover.load_cg_result`."""
         def f(x):
             return None if x is None else float(x)
 
