@@ -65,6 +65,8 @@ names, so ``from rig_identification.statics import X`` works for all of them):
   model :func:`static_equilibrium`;
 * :mod:`rig_identification.estimation.validation` -- model validation of a fit (:class:`CgValidation`);
 * :mod:`.result` -- the estimate (:class:`CgResult`, :class:`StatePose`) and its JSON schema;
+* :mod:`.checks` -- the states checked before the fit (taut cables, a pose per state, the dummy's
+  load and tilt);
 * :mod:`.estimation` -- the fit, :func:`estimate_cg`;
 * :mod:`.plan` -- design of the static test (:class:`SensorNoise`, :func:`predict_cg_std`,
   :class:`CgPlan`, :func:`plan_static_test`).
@@ -77,8 +79,9 @@ from .state import StaticsError, StaticState, StreamStats
 from .validation import CG_MODEL_CHECKS, CG_VERDICTS, VALIDATION_SIGMA, CgValidation
 
 # the module-level constants statics.py had besides its __all__, still importable from here
-from .estimation import (CONTRADICTION_CHI2, DEFAULT_SCALE_REL_STD, MASS_COVERAGE, SLACK_FRACTION,  # noqa: F401
-                         TOL_ACCEL, TOL_GEOMETRY, TOL_INCL, TOL_TENSION_REL)
+from .checks import SLACK_FRACTION  # noqa: F401
+from .estimation import (CONTRADICTION_CHI2, DEFAULT_SCALE_REL_STD, MASS_COVERAGE, TOL_ACCEL, TOL_GEOMETRY,  # noqa: F401
+                         TOL_INCL, TOL_TENSION_REL)
 from .model import DEFAULT_COMPLIANCE, Z  # noqa: F401
 from .state import MOTION_P  # noqa: F401
 from .validation import CHI2_P_WARN  # noqa: F401

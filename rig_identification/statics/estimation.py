@@ -18,16 +18,16 @@ from scipy.optimize import least_squares
 from scipy.stats import chi2 as _chi2
 
 from ..io.rig import DummyMass, Rig
-from ..estimation.tracker import TrackerError, inclinometer_elevations, static_pose
 from ..io.verdict import Check
 from .model import DEFAULT_COMPLIANCE, Z, CgOptions, GlobalUnknowns, StaticModel, skew
+from .checks import (SLACK_FRACTION, check_dummy_load, check_taut, check_tilt_change, initial_pose,
+                     vertical_loads)
 from .result import CgResult, StatePose
 from .state import StaticsError, StaticState
 from .validation import CHI2_P_WARN, validate_fit
 
 DEFAULT_SCALE_REL_STD = 1e-3     # the scale's reading: 0.1 % (a typical floor scale), 1 σ
 MASS_COVERAGE = 3.0              # mass disagreement warning: |Δ| > 3 σ combined
-SLACK_FRACTION = 0.01            # a cable carrying < 1 % of an even share of the weight is slack
 # physical tolerances above which a misfit means contradictory input (not noise)
 TOL_INCL = 5e-4                  # rad
 TOL_TENSION_REL = 5e-3           # of the mean tension per cable
@@ -49,35 +49,6 @@ def _added(rig: Rig, st: StaticState, is_baseline: bool) -> tuple[DummyMass, ...
         raise StaticsError(f"{rig.source}: the rig description has no dummy_mass (mass and position of "
                            "the dummy mass of the static experiment)")
     return (rig.dummy_mass,)
-
-
-def _initial_pose(rig: Rig, tens, elev, label: str):
-    """Pose at rest from the lengths, tensions and angles (tracker.static_pose); diagnoses
-    which input is out of line when no pose fits."""
-    try:
-        return static_pose(rig, tensions=tens, elevations=elev)
-    except TrackerError:
-        pass
-    deg = "°, ".join(f"{np.degrees(x):.3f}" for x in (elev if elev is not None else [])) + "°"
-    if elev is not None:
-        try:
-            static_pose(rig, tensions=None, elevations=elev)
-        except TrackerError:
-            raise StaticsError(f"{label}: the inclinometer reads {deg} but no pose of the body on these cables "
-                               "has that tilt: angles outside the geometry's reach (check rig.yaml's cable "
-                               "lengths and anchors, and inclinometer.rpy)") from None
-        if tens is not None:
-            try:
-                ps = static_pose(rig, tensions=tens, elevations=None)
-            except TrackerError:
-                pass
-            else:
-                e = inclinometer_elevations(ps.rotation, rig.inclinometer.rotation)
-                raise StaticsError(f"{label}: the inclinometer reads {deg} but the cables and load cells hold the "
-                                   f"body at {np.degrees(e[0]):.3f}°, {np.degrees(e[1]):.3f}°: angles outside what "
-                                   "the geometry allows (check inclinometer.rpy and its mounting)")
-    raise StaticsError(f"{label}: no pose of the body matches the cable lengths and the load cells "
-                       "(contradictory geometry: check rig.yaml's anchors and cable lengths)")
 
 
 def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[StaticState],
@@ -124,46 +95,15 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
         raise StaticsError("no state carries a dummy mass (dummy_mass missing or zero)")
     tens = [s.tensions_for(rig) if have_T else None for s in states]
 
-    # --- input checks: slack cables, dummy effect
-    W_scale = rig.mass * rig.gravity
+    # --- input checks: slack cables, the pose of each state, the dummy's load and tilt
     if have_T:
-        for s, (T, Tsd) in zip(states, tens):
-            share = W_scale / len(T)
-            slack = np.flatnonzero(T < SLACK_FRACTION * share)
-            if slack.size:
-                i = slack[0]
-                raise StaticsError(f"{s.label}: cable {rig.cable_names[i]} is slack (mean tension {T[i]:.1f} N, "
-                                   f"an even share of the weight is {share:.0f} N); the static experiment "
-                                   "needs every cable taut")
-    poses = [_initial_pose(rig, None if t is None else t[0], s.elevations if have_e else None, s.label)
+        check_taut(rig, states, [t[0] for t in tens])
+    poses = [initial_pose(rig, None if t is None else t[0], s.elevations if have_e else None, s.label)
              for s, t in zip(states, tens)]
     if have_T:
-        Wz = []
-        for (T, _), ps in zip(tens, poses):
-            v = rig.ceiling_anchors - (ps.position + ps.rotation.apply(rig.body_anchors))
-            Wz.append(float(T @ (v[:, 2] / np.linalg.norm(v, axis=1))))
-        for s, Wd, md in zip(states[1:], Wz[1:], m_add[1:]):
-            ratio = (Wd - Wz[0]) / (md * rig.gravity) if md > 0 else 1.0
-            if md > 0 and ratio < 0.3:
-                hint = " (are the two recordings swapped?)" if ratio < -0.3 else " (was the dummy mass attached?)"
-                raise StaticsError(f"{s.label}: the load cells carry {(Wd - Wz[0]) / rig.gravity:+.1f} kg more than "
-                                   f"in the baseline, but the dummy mass is {md:g} kg{hint}")
-            if md > 0 and not 0.8 < ratio < 1.25:
-                warnings.append(f"{s.label}: the load cells see {(Wd - Wz[0]) / rig.gravity:.1f} kg added, the "
-                                f"dummy mass is {md:g} kg (load-cell gain {1 / ratio:.3f}?)")
-    # tilt change: measured by the inclinometer when there is one, else from the tension poses
-    for s, ps in zip(states[1:], poses[1:]):
-        if have_e:
-            d = s.elevations - baseline.elevations
-            sd = np.hypot(s.elevations_std, baseline.elevations_std)
-        else:
-            d = (ps.rotation * poses[0].rotation.inv()).as_rotvec()[:2]
-            sd = np.full(2, 1e-6)
-        if not np.any(np.abs(d) > np.maximum(5 * sd, 1e-7)):
-            raise StaticsError(f"{s.label}: the dummy mass did not change the inclination (change "
-                               f"{d[0] * 1e6:+.1f}, {d[1] * 1e6:+.1f} µrad, noise σ {sd[0] * 1e6:.1f}, "
-                               f"{sd[1] * 1e6:.1f} µrad): the CG height cannot be found; fix the dummy mass "
-                               "farther from the vertical through the CG")
+        Wz = vertical_loads(rig, [t[0] for t in tens], poses)
+        warnings += check_dummy_load(rig, states, Wz, m_add)
+    check_tilt_change(states, poses, have_e)
 
     model = StaticModel(rig, opts, have_T, have_e, have_a, len(states))
     lay = model.layout
