@@ -13,7 +13,7 @@ import pytest
 import yaml
 
 from rig_identification.cli.main import identify_main
-from rig_identification.io.recording import write_recording
+from rig_identification.io.recording_writer import write_recording
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -99,12 +99,12 @@ def test_missing_load_cell(sim, tmp_path):
 
 def test_missing_imu(sim, tmp_path):
     sensors = copy.deepcopy(sim.sensors)
-    from rig_identification.io.recording import write_bag
+    from rig_identification.io.recording_writer import write_bag
     (tmp_path / "rec").mkdir()
     (tmp_path / "rec" / "rig.yaml").write_text((Path(sim_rec_dir(sim, tmp_path)) / "rig.yaml").read_text())
     # a bag without /rig/imu: write the load cells only
     sensors.imu = dataclasses.replace(sensors.imu) if False else sensors.imu
-    from rig_identification.io import recording as R
+    from rig_identification.io import recording_writer as R
     orig = R.sensor_messages
 
     def no_imu(rig, s):
@@ -157,7 +157,7 @@ def test_sqlite3_equals_mcap(sim, tmp_path, base_result):
 
 # 4. unknown extra topics ----------------------------------------------------------------
 def test_unknown_topics_ignored(sim, tmp_path, base_result):
-    from rig_identification.io import recording as R
+    from rig_identification.io import recording_writer as R
     orig = R.sensor_messages
 
     def extra(rig, s):
@@ -193,7 +193,7 @@ def test_nan_samples_dropped(sim, tmp_path):
 
 # 6. duplicated / out-of-order stamps ----------------------------------------------------------
 def test_duplicated_and_unordered_stamps(sim, tmp_path, base_result):
-    from rig_identification.io import recording as R
+    from rig_identification.io import recording_writer as R
     orig = R.sensor_messages
 
     def swapped(rig, s):  # two /rig/load_cells/c0 messages written out of stamp order
@@ -291,7 +291,8 @@ def test_noise_free_steps_are_not_saturation(sim):
     """A noise-free stream that holds a value exactly (a simulated stepped force, the thesis's
     case studies 1–9) is not a saturated sensor; the same run of identical samples in a
     noisy channel is."""
-    from rig_identification.io.recording import TimeSeries, find_bad_spans
+    from rig_identification.io.recording import TimeSeries
+    from rig_identification.io.bad_spans import find_bad_spans
     s = copy.deepcopy(sim.sensors)
     t = s.exciter.t
     step = np.where((t > t[0] + 5) & (t < t[0] + 8), 200.0, 0.0)

@@ -15,8 +15,10 @@ from rosbags.typesys import Stores, get_typestore
 from rig_identification.io import recording as R
 from rig_identification.io.bag_raw import IndexMismatch, chunk_messages, read_chunk
 from rig_identification.io.bag_decode import DOUBLE_FIELDS, TYPE_HASHES, decode_stamped, payload_offset
-from rig_identification.io.recording import (IMU_TOPIC, LOAD_CELL_PREFIX, RecordingError, SensorData, TimeSeries,
-                                          load_rig, read_sensor_data, sensor_messages)
+from rig_identification.io.recording import (IMU_TOPIC, LOAD_CELL_PREFIX, read_sensor_data, RecordingError,
+                                             SensorData, TimeSeries)
+from rig_identification.io.rig import load_rig
+from rig_identification.io.recording_writer import sensor_messages
 
 from conftest import recording
 

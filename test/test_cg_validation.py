@@ -21,7 +21,8 @@ import numpy as np
 import pytest
 
 from rig_identification.cli.main import identify_main
-from rig_identification.io.recording import SensorData, TimeSeries, read_recording, write_recording
+from rig_identification.io.recording import read_recording, SensorData, TimeSeries
+from rig_identification.io.recording_writer import write_recording
 from rig_identification.io.rig import DummyMass
 from rig_identification.model.experiment import load_experiment
 from rig_identification.model.simulator import simulate

@@ -8,7 +8,8 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rig_identification.io.recording import RecordingError, read_sensor_data, write_recording
+from rig_identification.io.recording import read_sensor_data, RecordingError
+from rig_identification.io.recording_writer import write_recording
 from rig_identification.io.rig import RigError, load_rig, rig_from_dict
 
 REPO = Path(__file__).resolve().parents[1]

@@ -35,7 +35,8 @@ from rig_identification.nodes.topics import (DIAGNOSTICS_TOPIC, DRIVER_STATUS_TO
                                              POSE_TOPIC, TRUTH_TOPIC, WRENCH_TOPIC)
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.pipeline.offline import identify_recording  # noqa: E402
-from rig_identification.io.recording import read_recording, write_recording  # noqa: E402
+from rig_identification.io.recording import read_recording  # noqa: E402
+from rig_identification.io.recording_writer import write_recording  # noqa: E402
 from rig_identification.model.experiment import load_experiment  # noqa: E402
 from rig_identification.model.simulator import simulate  # noqa: E402
 

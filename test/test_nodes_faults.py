@@ -32,7 +32,8 @@ from rig_identification.nodes.merge import StampMerger  # noqa: E402
 from rig_identification.nodes.messages import stamp_to_sec  # noqa: E402
 from rig_identification.nodes.topics import IMU_TOPIC, LOAD_CELL_PREFIX, WRENCH_TOPIC  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402
-from rig_identification.io.recording import read_recording, write_recording  # noqa: E402
+from rig_identification.io.recording import read_recording  # noqa: E402
+from rig_identification.io.recording_writer import write_recording  # noqa: E402
 from rig_identification.model.experiment import load_experiment  # noqa: E402
 from rig_identification.model.simulator import simulate  # noqa: E402
 

@@ -24,7 +24,8 @@ import pytest
 from conftest import recording
 from rig_identification.estimation.identification import identify_inertia
 from rig_identification.pipeline.offline import identify_recording, prepare_recording
-from rig_identification.io.recording import read_recording, write_recording
+from rig_identification.io.recording import read_recording
+from rig_identification.io.recording_writer import write_recording
 
 ENTRIES = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 

@@ -15,7 +15,8 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from ..io.recording import RecordingError, write_recording
+from ..io.recording import RecordingError
+from ..io.recording_writer import write_recording
 from ..io.rig import DummyMass, RigError
 from ..model.experiment import ExperimentError, load_experiment
 from ..model.dynamics import SimulationError

@@ -1,9 +1,10 @@
-"""Recordings: the rig's sensor streams as arrays, read from and written to rosbag2.
+"""Recordings: the rig's sensor streams as arrays, read from rosbag2.
 
 A recording folder (``RECORDING_FORMAT.md``) holds ``rig.yaml``, ``bag/`` (rosbag2,
 MCAP or sqlite3) and, for simulated recordings, ``truth.yaml``.  Bags are read and
 written with ``rosbags`` (no ROS installation needed); the rig topics are read in bulk,
-numpy over the raw CDR bytes (:mod:`rig_identification.io.bag_raw`, :mod:`rig_identification.io.bag_decode`), with rosbags'
+numpy over the raw CDR bytes (:mod:`rig_identification.io.bag_raw`,
+:mod:`rig_identification.io.bag_decode`), with rosbags'
 per-message deserialisation as the reference and the fallback.
 
 Topics (all stamped; consumers align them by ``header.stamp``):
@@ -13,6 +14,9 @@ Topics (all stamped; consumers align them by ``header.stamp``):
 * ``/rig/exciter/wrench`` geometry_msgs/msg/WrenchStamped: ``force.x``, ``force.y`` in the exciter frame, N.
 * ``/rig/inclinometer`` geometry_msgs/msg/Vector3Stamped: ``vector.x``/``vector.y`` elevation of the
   inclinometer's x/y axes above the horizontal, rad.
+
+Writing a recording: :mod:`~rig_identification.io.recording_writer`; the spans a fit must leave
+out (gaps, saturation, slack cables): :mod:`~rig_identification.io.bad_spans`.
 
 Errors: :class:`RecordingError` (a ``ValueError``) naming the file and topic.
 """
@@ -25,10 +29,8 @@ import numpy as np
 import yaml
 
 from .bag_decode import IMU_TYPE, TYPE_HASHES, VECTOR_TYPE, WRENCH_TYPE, decode_stamped
-from .rig import Rig, RigError, dump_rig, load_rig
-from .noise import white_sigma
+from .rig import Rig, load_rig
 from .bag_raw import read_topics
-from .atomic import atomic_directory
 
 IMU_TOPIC = "/rig/imu"
 LOAD_CELL_PREFIX = "/rig/load_cells/"
@@ -110,7 +112,8 @@ class Recording:
 QUIET_DISORDER = 0.99
 
 
-def _typestore():
+def typestore():
+    """rosbags' ROS 2 Jazzy type store (message classes and CDR serialisation)."""
     from rosbags.typesys import Stores, get_typestore
     return get_typestore(Stores.ROS2_JAZZY)
 
@@ -164,7 +167,7 @@ def _open_reader(bag: Path, bulk: bool):
             return reader
         except AnyReaderError:
             pass   # no definitions in the bag (or unreadable: the second open says why)
-    reader = AnyReader([bag], default_typestore=_typestore())
+    reader = AnyReader([bag], default_typestore=typestore())
     reader.open()
     return reader
 
@@ -294,95 +297,11 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
     return SensorData(imu, cells, series(EXCITER_TOPIC, False), series(INCLINOMETER_TOPIC, False))
 
 
-# --- screening for bad spans -------------------------------------------------------------
-
-SHORT_GAP = 0.1          # s: gaps up to this are bridged by interpolation, longer ones are excluded
-SATURATION_RUN = 5       # identical samples at a channel's extreme that make a saturated run
-SLACK_FRACTION = 0.05    # tension below this fraction of the cable's share of the weight = slack
-
-
-@dataclass
-class BadSpan:
-    """A span of one topic where the data cannot be trusted (``reason``); stamps in s."""
-
-    topic: str
-    t0: float
-    t1: float
-    reason: str
-
-
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    """Index ranges [i, j] (inclusive) of consecutive True in ``mask``."""
-    d = np.diff(np.r_[0, mask.astype(np.int8), 0])
-    return list(zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0] - 1))
-
-
-def find_bad_spans(rig: Rig, sensors: SensorData) -> list[BadSpan]:
-    """Spans to exclude from a fit: gaps longer than :data:`SHORT_GAP` (dropped messages),
-    saturated channels (runs of >= :data:`SATURATION_RUN` identical samples at the
-    channel's extreme, in a channel that is noisy elsewhere — :func:`~rig_identification.io.noise.white_sigma`
-    of the other samples above zero) and slack cables (tension below :data:`SLACK_FRACTION` of the
-    cable's share of the weight)."""
-    spans: list[BadSpan] = []
-    streams = [(IMU_TOPIC, sensors.imu)] + [(LOAD_CELL_PREFIX + n, s) for n, s in sensors.load_cells.items()]
-    if sensors.exciter is not None and rig.exciter is not None:
-        streams.append((EXCITER_TOPIC, sensors.exciter))
-    for topic, s in streams:
-        if len(s) < 3:
-            continue
-        dt = np.diff(s.t)
-        med = float(np.median(dt))
-        for i in np.nonzero(dt > max(SHORT_GAP, 1.5 * med))[0]:
-            spans.append(BadSpan(topic, float(s.t[i]), float(s.t[i + 1]),
-                                 f"gap of {dt[i]:.2f} s (dropped messages)"))
-        for k, col in enumerate(s.data.T):
-            if np.ptp(col) == 0:
-                continue
-            runs = [(ext, i, j) for ext in (col.max(), col.min()) for i, j in _runs(col == ext)
-                    if j - i + 1 >= SATURATION_RUN]
-            if not runs:
-                continue
-            # a sensor that saturates is noisy elsewhere; a noise-free stream (a simulation:
-            # stepped forces, say) may hold a value exactly and is not saturated
-            inside = np.zeros(len(col), bool)
-            for _, i, j in runs:
-                inside[i:j + 1] = True
-            if white_sigma(col[~inside]) == 0.0:
-                continue
-            for ext, i, j in runs:
-                spans.append(BadSpan(topic, float(s.t[i]), float(s.t[j]),
-                                     f"saturated (channel {k} stuck at {ext:.6g} for {j - i + 1} samples)"))
-    share = rig.mass * rig.gravity / len(rig.cables)
-    for name, s in sensors.load_cells.items():
-        for i, j in _runs(s.data[:, 0] < SLACK_FRACTION * share):
-            spans.append(BadSpan(LOAD_CELL_PREFIX + name, float(s.t[max(i - 1, 0)]),
-                                 float(s.t[min(j + 1, len(s) - 1)]),
-                                 f"cable {name} slack (tension below {SLACK_FRACTION * share:.0f} N; "
-                                 "the rigid-cable model does not hold)"))
-    return spans
-
-
 def crop(sensors: SensorData, t0: float, t1: float) -> SensorData:
     """The sensor streams within [t0, t1] (stamps in s)."""
     w = lambda s: None if s is None else s.window(t0, t1)  # noqa: E731
     return SensorData(w(sensors.imu), {n: w(s) for n, s in sensors.load_cells.items()},
                       w(sensors.exciter), w(sensors.inclinometer))
-
-
-def fill_short_gaps(ts: TimeSeries) -> tuple[TimeSeries, list[tuple[float, float]]]:
-    """Insert linearly interpolated samples into gaps of a nearly uniform stream.
-
-    Returns the filled series and the filled spans (t0, t1)."""
-    if len(ts) < 3:
-        return ts, []
-    dt = np.diff(ts.t)
-    med = float(np.median(dt))
-    idx = np.nonzero(dt > 1.5 * med)[0]
-    if not len(idx):
-        return ts, []
-    new = [np.arange(ts.t[i] + med, ts.t[i + 1] - 0.5 * med, med) for i in idx]
-    t = np.sort(np.concatenate([ts.t, *new]))
-    return TimeSeries(t, ts.interp(t)), [(float(ts.t[i]), float(ts.t[i + 1])) for i in idx]
 
 
 def read_recording(path: str | Path) -> Recording:
@@ -406,108 +325,3 @@ def read_recording(path: str | Path) -> Recording:
         except yaml.YAMLError as e:
             raise RecordingError(f"{p / 'truth.yaml'}: not valid YAML ({e})") from None
     return Recording(rig, sensors, truth, p, warnings)
-
-
-# --- writing --------------------------------------------------------------------------
-
-def _header(types, t: float, frame: str):
-    sec = int(np.floor(t))
-    nsec = int(round((t - sec) * 1e9))
-    if nsec >= 1_000_000_000:
-        sec, nsec = sec + 1, nsec - 1_000_000_000
-    return types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
-                                        frame_id=frame)
-
-
-def sensor_messages(rig: Rig, sensors: SensorData):
-    """Yield ``(topic, msgtype, stamp_s, message)`` for every sample, in stamp order.
-
-    Messages are rosbags typestore objects, ready for ``typestore.serialize_cdr``.
-    """
-    ts = _typestore()
-    T = ts.types
-    Vec, Quat = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
-    streams = []
-    zero_cov = np.zeros(9)
-    orient_cov = np.zeros(9)
-    orient_cov[0] = -1.0
-
-    def imu_msg(t, row):
-        return T[IMU_TYPE](header=_header(T, t, "imu"), orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0),
-                           orientation_covariance=orient_cov,
-                           angular_velocity=Vec(x=row[0], y=row[1], z=row[2]), angular_velocity_covariance=zero_cov,
-                           linear_acceleration=Vec(x=row[3], y=row[4], z=row[5]),
-                           linear_acceleration_covariance=zero_cov)
-
-    def wrench_msg(frame, fx, fy, fz):
-        def f(t, row):
-            r = [0.0, 0.0, 0.0]
-            vals = (fx, fy, fz)
-            for i, v in enumerate(vals):
-                if v is not None:
-                    r[i] = float(row[v])
-            return T[WRENCH_TYPE](header=_header(T, t, frame),
-                                  wrench=T["geometry_msgs/msg/Wrench"](force=Vec(x=r[0], y=r[1], z=r[2]),
-                                                                        torque=Vec(x=0.0, y=0.0, z=0.0)))
-        return f
-
-    def incl_msg(t, row):
-        return T[VECTOR_TYPE](header=_header(T, t, "inclinometer"), vector=Vec(x=row[0], y=row[1], z=0.0))
-
-    streams.append((IMU_TOPIC, IMU_TYPE, sensors.imu, imu_msg))
-    for name, s in sensors.load_cells.items():
-        streams.append((LOAD_CELL_PREFIX + name, WRENCH_TYPE, s, wrench_msg(f"load_cell_{name}", None, None, 0)))
-    if sensors.exciter is not None:
-        streams.append((EXCITER_TOPIC, WRENCH_TYPE, sensors.exciter, wrench_msg("exciter", 0, 1, None)))
-    if sensors.inclinometer is not None:
-        streams.append((INCLINOMETER_TOPIC, VECTOR_TYPE, sensors.inclinometer, incl_msg))
-    events = []
-    for k, (_, _, s, _) in enumerate(streams):
-        events.extend((float(t), k, i) for i, t in enumerate(s.t))
-    events.sort()
-    for t, k, i in events:
-        topic, mtype, s, make = streams[k]
-        yield topic, mtype, t, make(t, s.data[i])
-
-
-def write_bag(bag_dir: Path, rig: Rig, sensors: SensorData, storage: str = "mcap") -> int:
-    """Write the sensor streams as a rosbag2 at ``bag_dir`` (must not exist).
-
-    The bag timestamp of each message is its header stamp.  Returns the number of
-    messages written.  ``storage``: ``"mcap"`` or ``"sqlite3"``.
-    """
-    from rosbags.rosbag2 import StoragePlugin, Writer
-
-    ts = _typestore()
-    plugin = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}[storage]
-    n = 0
-    with Writer(bag_dir, version=9, storage_plugin=plugin) as w:
-        conns = {}
-        for topic, mtype, t, msg in sensor_messages(rig, sensors):
-            if topic not in conns:
-                conns[topic] = w.add_connection(topic, mtype, typestore=ts)
-            w.write(conns[topic], int(round(t * 1e9)), ts.serialize_cdr(msg, mtype))
-            n += 1
-    return n
-
-
-def write_recording(out: str | Path, rig: Rig, sensors: SensorData, truth: dict | None = None,
-                    storage: str = "mcap", rig_comment: str | None = None, overwrite: bool = False) -> Path:
-    """Write a recording folder atomically: it appears whole at ``out`` or not at all.
-
-    Builds the folder next to ``out`` and renames it into place.  Raises
-    :class:`RecordingError` if ``out`` exists and ``overwrite`` is false.
-    """
-    out = Path(out)
-    if out.exists() and not overwrite:
-        raise RecordingError(f"{out}: already exists (refusing to overwrite)")
-    with atomic_directory(out, overwrite=overwrite) as tmp:
-        (tmp / "rig.yaml").write_text(dump_rig(rig, rig_comment))
-        if truth is not None:
-            (tmp / "truth.yaml").write_text(yaml.safe_dump(truth, sort_keys=False, default_flow_style=None))
-        write_bag(tmp / "bag", rig, sensors, storage)
-    return out
-
-
-__all__ = ["BadSpan", "find_bad_spans", "crop", "fill_short_gaps", "TimeSeries", "SensorData", "Recording", "RecordingError", "RigError", "read_recording",
-           "read_sensor_data", "write_recording", "write_bag", "sensor_messages", "load_rig"]

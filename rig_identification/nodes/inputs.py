@@ -21,7 +21,7 @@ import time
 import numpy as np
 from rclpy.node import Node
 
-from ..io.recording import SHORT_GAP
+from ..io.bad_spans import SHORT_GAP
 from .codec import MessageLayout, PersistentReason
 from .frames import Endpoint
 

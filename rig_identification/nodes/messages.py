@@ -5,18 +5,12 @@ from __future__ import annotations
 import json
 import math
 
+from ..io.recording_writer import split_stamp
+
+
 def stamp_to_sec(stamp) -> float:
     """builtin_interfaces/Time -> float seconds."""
     return stamp.sec + stamp.nanosec * 1e-9
-
-
-def split_stamp(t: float) -> tuple[int, int]:
-    """Float seconds -> (sec, nanosec) with 0 <= nanosec < 1e9."""
-    sec = math.floor(t)
-    nsec = int(round((t - sec) * 1e9))
-    if nsec >= 1_000_000_000:
-        sec, nsec = sec + 1, nsec - 1_000_000_000
-    return int(sec), nsec
 
 
 def set_stamp(header, t: float, frame_id: str | None = None) -> None:

@@ -1,0 +1,97 @@
+"""The spans of a recording a fit must leave out: gaps (dropped messages), saturated channels,
+slack cables; and short gaps bridged by interpolation.
+
+:func:`find_bad_spans` finds them (the offline rule; the identifier node's gap rule is the
+same, :class:`~rig_identification.nodes.inputs.InputGuard`), :func:`fill_short_gaps` bridges
+the gaps up to :data:`SHORT_GAP`.  Stamps in s.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .noise import white_sigma
+from .recording import EXCITER_TOPIC, IMU_TOPIC, LOAD_CELL_PREFIX, SensorData, TimeSeries
+from .rig import Rig
+
+SHORT_GAP = 0.1          # s: gaps up to this are bridged by interpolation, longer ones are excluded
+SATURATION_RUN = 5       # identical samples at a channel's extreme that make a saturated run
+SLACK_FRACTION = 0.05    # tension below this fraction of the cable's share of the weight = slack
+
+
+@dataclass
+class BadSpan:
+    """A span of one topic where the data cannot be trusted (``reason``); stamps in s."""
+
+    topic: str
+    t0: float
+    t1: float
+    reason: str
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Index ranges [i, j] (inclusive) of consecutive True in ``mask``."""
+    d = np.diff(np.r_[0, mask.astype(np.int8), 0])
+    return list(zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0] - 1))
+
+
+def find_bad_spans(rig: Rig, sensors: SensorData) -> list[BadSpan]:
+    """Spans to exclude from a fit: gaps longer than :data:`SHORT_GAP` (dropped messages),
+    saturated channels (runs of >= :data:`SATURATION_RUN` identical samples at the
+    channel's extreme, in a channel that is noisy elsewhere — :func:`~rig_identification.io.noise.white_sigma`
+    of the other samples above zero) and slack cables (tension below :data:`SLACK_FRACTION` of the
+    cable's share of the weight)."""
+    spans: list[BadSpan] = []
+    streams = [(IMU_TOPIC, sensors.imu)] + [(LOAD_CELL_PREFIX + n, s) for n, s in sensors.load_cells.items()]
+    if sensors.exciter is not None and rig.exciter is not None:
+        streams.append((EXCITER_TOPIC, sensors.exciter))
+    for topic, s in streams:
+        if len(s) < 3:
+            continue
+        dt = np.diff(s.t)
+        med = float(np.median(dt))
+        for i in np.nonzero(dt > max(SHORT_GAP, 1.5 * med))[0]:
+            spans.append(BadSpan(topic, float(s.t[i]), float(s.t[i + 1]),
+                                 f"gap of {dt[i]:.2f} s (dropped messages)"))
+        for k, col in enumerate(s.data.T):
+            if np.ptp(col) == 0:
+                continue
+            runs = [(ext, i, j) for ext in (col.max(), col.min()) for i, j in _runs(col == ext)
+                    if j - i + 1 >= SATURATION_RUN]
+            if not runs:
+                continue
+            # a sensor that saturates is noisy elsewhere; a noise-free stream (a simulation:
+            # stepped forces, say) may hold a value exactly and is not saturated
+            inside = np.zeros(len(col), bool)
+            for _, i, j in runs:
+                inside[i:j + 1] = True
+            if white_sigma(col[~inside]) == 0.0:
+                continue
+            for ext, i, j in runs:
+                spans.append(BadSpan(topic, float(s.t[i]), float(s.t[j]),
+                                     f"saturated (channel {k} stuck at {ext:.6g} for {j - i + 1} samples)"))
+    share = rig.mass * rig.gravity / len(rig.cables)
+    for name, s in sensors.load_cells.items():
+        for i, j in _runs(s.data[:, 0] < SLACK_FRACTION * share):
+            spans.append(BadSpan(LOAD_CELL_PREFIX + name, float(s.t[max(i - 1, 0)]),
+                                 float(s.t[min(j + 1, len(s) - 1)]),
+                                 f"cable {name} slack (tension below {SLACK_FRACTION * share:.0f} N; "
+                                 "the rigid-cable model does not hold)"))
+    return spans
+
+
+def fill_short_gaps(ts: TimeSeries) -> tuple[TimeSeries, list[tuple[float, float]]]:
+    """Insert linearly interpolated samples into gaps of a nearly uniform stream.
+
+    Returns the filled series and the filled spans (t0, t1)."""
+    if len(ts) < 3:
+        return ts, []
+    dt = np.diff(ts.t)
+    med = float(np.median(dt))
+    idx = np.nonzero(dt > 1.5 * med)[0]
+    if not len(idx):
+        return ts, []
+    new = [np.arange(ts.t[i] + med, ts.t[i + 1] - 0.5 * med, med) for i in idx]
+    t = np.sort(np.concatenate([ts.t, *new]))
+    return TimeSeries(t, ts.interp(t)), [(float(ts.t[i]), float(ts.t[i + 1])) for i in idx]
