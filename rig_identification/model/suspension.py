@@ -97,11 +97,6 @@ def without(mass: float, cg: np.ndarray, J: np.ndarray, part: RigidPart) -> Rigi
     return RigidPart(m, c, J - part.inertia - _steiner(part.mass, part.cg - cg) - _steiner(m, c - cg))
 
 
-def _vee_antisym(A: np.ndarray) -> np.ndarray:
-    """vee(A − Aᵀ) (3,) of a (3, 3) matrix: (A − Aᵀ) b = vee(A − Aᵀ) × b."""
-    return np.array([A[2, 1] - A[1, 2], A[0, 2] - A[2, 0], A[1, 0] - A[0, 1]])
-
-
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a × b of two (3,) vectors (np.cross is slow on single vectors)."""
     return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])

@@ -44,11 +44,12 @@ outputs and services once at start-up ("interface: ...").
 
 Gaps: two consecutive stamps of an input stream (any of the subscriptions below) further
 apart than max(0.1 s, 1.5 sampling periods) are a gap (a sensor or a node that stopped; the
-offline rule of recording.find_bad_spans).  No fit runs over one: a window that contains a
-gap is refused, naming the topic and the span (a window that only ends or starts inside one
-is cut at its edge); with no window set, the fit uses the data after the last gap plus
-settle_after_gap (and says so in "warnings").  A stream silent until now counts as a gap up
-to the window's end.
+offline rule of io.bad_spans.find_bad_spans).  The window rule is the core's
+(estimation.fit_window): no fit runs over a gap; a window that contains one is refused,
+naming the topic and the span (a window that only ends or starts inside one is cut at its
+edge); with no window set, the fit uses the data after the last gap plus settle_after_gap
+(and says so in "warnings").  A stream silent until now counts as a gap up to the window's
+end.
 
 Subscribes (RELIABLE, KEEP_ALL):
   /rig/imu                 sensor_msgs/Imu, frame imu_frame (gyro, rad/s; specific force for the CG states)
@@ -96,7 +97,7 @@ Threading: the subscriptions run on the EventsExecutor in the main thread.  The 
 7.1.6 EventsExecutor ignores callback groups, runs only one callback at a time and cannot
 run ``async`` service callbacks (rclpy issue #1473, fixed in 7.1.11), so a fit inside a
 service callback would stop the message flow.  The services therefore live on a second
-node (``<name>_services``, service names ``/<name>/identify_inertia`` ...) spun by a
+node (identifier_services: ``<name>_services``, service names ``/<name>/identify_inertia`` ...) spun by a
 MultiThreadedExecutor in a background thread with a ReentrantCallbackGroup: a fit runs
 in its own thread while the main thread keeps receiving, and a second request during a
 fit is answered "busy" at once.  The fit runs on a snapshot of the buffer taken under a
@@ -115,22 +116,21 @@ from pathlib import Path
 import numpy as np
 from geometry_msgs.msg import InertiaStamped
 from rcl_interfaces.msg import ParameterDescriptor
-from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
-from std_srvs.srv import Trigger
 
 from .codec import imu_layout, odometry_layout, vector_layout, wrench_layout
 from .diagnostics import Diagnostics
 from .frames import declare_frame_ids, Endpoint, log_interface
 from .inputs import InputGuard, RawInput
-from .messages import set_stamp, set_xyz, to_json
+from .messages import set_stamp, set_xyz
 from .parameters import core_params, load_rig_param
 from .qos import input_qos, LATCHED_QOS
 from .runtime import run
 from .topics import (EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX, MASS_PROPERTIES_TOPIC,
                      POSE_TOPIC, WRENCH_TOPIC)
 from .fit_validation import ValidationBuffer, validate_stream_fit
+from .identifier_services import IdentifierServices
+from ..estimation.fit_window import fit_window
 from ..estimation.identification import InertiaIdentifier, identify_inertia
 from ..statics.capture import CgSession
 from ..estimation.preprocessor import Wrench
@@ -419,40 +419,12 @@ class IdentifierNode(Node):
             t0, t_last = self.t_first_imu, self.t_last_wrench
             received = {"imu": self.n_imu, "wrench": self.n_wrench}
             topics = [inp.topic for inp, _ in self.inputs]
-            lo = t0 + max(start if start is not None else 0.0, settle)
-            hi = t_last if end is None else min(t0 + end, t_last)
-            if last is not None:
-                lo = max(lo, hi - last)
-            gaps = self.guard.gaps_in(lo, hi, topics)
-            notes = []
-            # a window that ends (starts) inside a gap ends (starts) at its edge: no data there anyway
-            for topic, a, b in gaps:
-                if a < hi <= b and a > lo:
-                    hi = a
-                    notes.append(f"window end moved to t={hi - t0:.2f} s, where {topic} stops")
-                if a <= lo < b and b < hi:
-                    lo = b
-                    notes.append(f"window start moved to t={lo - t0:.2f} s, where {topic} resumes")
-            gaps = self.guard.gaps_in(lo, hi, topics) if notes else gaps
-            if gaps and start is None and end is None and last is None:
-                # no window asked for: the data after the last gap (a sensor or node that stopped)
-                after = max(b for _, _, b in gaps) + settle_gap
-                notes.append(f"gap in the data: {_describe_gaps(gaps, t0)}; the fit uses the data after it "
-                             f"(from t={after - t0:.1f} s, settle_after_gap {settle_gap:g} s included)")
-                lo = after
-                gaps = self.guard.gaps_in(lo, hi, topics)
+            window = fit_window(t0, t_last, lambda a, b: self.guard.gaps_in(a, b, topics), start, end, last,
+                                settle, settle_gap, min_duration, derived=(WRENCH_TOPIC,))
+            lo, hi, notes = window.start, window.end, list(window.notes)
             snap = self._snapshot(lo, hi)
             streams = self.validation_buffer.snapshot(lo, hi)
         snap.fit_params = params
-        if gaps:
-            raise ValueError(f"the window t={lo - t0:.1f} to {hi - t0:.1f} s contains a gap: {_describe_gaps(gaps, t0)}"
-                             + "; no fit over missing data: choose a window without it "
-                             "(window_start / window_end / window_last)")
-        if hi - lo < min_duration:
-            raise ValueError(f"the window holds {max(hi - lo, 0.0):.1f} s of data "
-                             f"({lo - t0:.1f} to {hi - t0:.1f} s after the first IMU sample); "
-                             f"min_duration is {min_duration:g} s: wait for more data or widen the window"
-                             + (f" [{notes[0]}]" if notes else ""))
         t_fit = time.monotonic()
         result = snap.identify(start=lo, end=hi)
         # the model validation of rig-identify inertia (--quick: the node propagates no noise), same core
@@ -489,94 +461,6 @@ def _window_lists(snap, lo: float, hi: float, margin: float = 1.0) -> bool:
         setattr(snap, ta, ts[i:j])
         setattr(snap, va, getattr(snap, va)[i:j])
     return True
-
-
-def _describe_gaps(gaps: list[tuple[str, float, float]], t0: float, most: int = 4) -> str:
-    """"no data on TOPIC from t=A to B s ..." for the gaps (topic, t0, t1), the sensor streams
-    first (a gap in the derived wrench stream follows from them), times after ``t0``."""
-    gaps = sorted(gaps, key=lambda g: (g[0] == WRENCH_TOPIC, g[1]))
-    text = "; ".join(f"no data on {topic} from t={a - t0:.2f} to {b - t0:.2f} s ({b - a:.2f} s)"
-                     for topic, a, b in gaps[:most])
-    more = f" (and {len(gaps) - most} more)" if len(gaps) > most else ""
-    return f"{text}{more} (times after the first IMU sample)"
-
-
-class IdentifierServices(Node):
-    """The identifier's services, on their own node and executor thread (see module docstring)."""
-
-    def __init__(self, owner: IdentifierNode):
-        super().__init__(f"{owner.get_name()}_services", namespace=owner.get_namespace(),
-                         context=owner.context, start_parameter_services=False)
-        self.owner = owner
-        base = owner.get_fully_qualified_name()
-        group = ReentrantCallbackGroup()
-        srv = lambda name, cb: self.create_service(Trigger, f"{base}/{name}", cb, callback_group=group)  # noqa: E731
-        self.trigger_services = [
-            srv("identify_inertia", self.on_identify),
-            srv("estimate_cg", self.on_estimate_cg),
-            srv("capture_cg_baseline",
-                lambda rq, rs: self._guarded_call(rs, lambda: owner.capture_cg("baseline"), "capture_cg_baseline")),
-            srv("capture_cg_dummy",
-                lambda rq, rs: self._guarded_call(rs, lambda: owner.capture_cg("dummy"), "capture_cg_dummy")),
-            srv("status", self.on_status),
-            srv("diagnose", lambda rq, rs: self._guarded_call(rs, owner.diagnose, "diagnose"))]
-        self._thread: threading.Thread | None = None
-        self._stop = threading.Event()
-
-    def start(self) -> None:
-        self._thread = threading.Thread(target=self._spin, name="identifier-services", daemon=True)
-        self._thread.start()
-
-    def _spin(self) -> None:
-        ex = MultiThreadedExecutor(num_threads=3, context=self.context)
-        ex.add_node(self)
-        try:
-            while self.context.ok() and not self._stop.is_set():
-                ex.spin_once(timeout_sec=0.2)
-        except Exception:  # context shut down under our feet
-            if self.context.ok():
-                raise
-        finally:
-            ex.shutdown(timeout_sec=1.0)
-
-    def stop(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=3.0)
-
-    def on_identify(self, request, response):
-        return self._guarded_call(response, self.owner.identify, "identify_inertia")
-
-    def on_estimate_cg(self, request, response):
-        return self._guarded_call(response, self.owner.estimate_cg, "estimate_cg")
-
-    def _guarded_call(self, response, action, what: str):
-        """Run a fit or a CG step, one at a time: a call while another runs is answered
-        "busy"; user errors (IdentificationError, StaticsError: ValueErrors) come back as
-        JSON errors; a bug is logged and answered, never kills the node."""
-        if not self.owner.busy.acquire(blocking=False):
-            response.success = False
-            response.message = to_json({"error": "busy: a fit is already running; call again when it ends"})
-            return response
-        try:
-            response.message = to_json(action())
-            response.success = True
-        except ValueError as e:  # StaticsError is a ValueError
-            self.owner.get_logger().warn(f"{what}: {e}")
-            response.success = False
-            response.message = to_json({"error": str(e)})
-        except Exception as e:  # a bug must not kill the node
-            self.owner.get_logger().error(f"{what} failed: {type(e).__name__}: {e}")
-            response.success = False
-            response.message = to_json({"error": f"internal error: {type(e).__name__}: {e}"})
-        finally:
-            self.owner.busy.release()
-        return response
-
-    def on_status(self, request, response):
-        response.success = True
-        response.message = to_json(self.owner.status())
-        return response
 
 
 def _started() -> IdentifierNode:
