@@ -32,11 +32,11 @@ ENTRIES = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
 def node_validation(rec):
     """The node's path on a recording: the fit of the streams (as InertiaIdentifier fits them),
-    validated by fit_validation from a ValidationBuffer fed as the node feeds it."""
-    from rig_identification.nodes.fit_validation import ValidationBuffer, validate_stream_fit
+    validated by fit_validation from a StreamBuffer fed as the node feeds it."""
+    from rig_identification.nodes.fit_validation import StreamBuffer, validate_stream_fit
     prep = prepare_recording(rec)
     result = identify_inertia(rec.rig, prep.t, prep.gyro_body, prep.torque)
-    buf = ValidationBuffer(900.0)
+    buf = StreamBuffer(900.0)
     buf.add_imu(prep.sensors.imu.t, prep.sensors.imu.data)
     buf.add_wrench(prep.t, np.column_stack([prep.force, prep.torque]))
     buf.add_pose(prep.poses.t, prep.poses.quaternion)
@@ -70,11 +70,11 @@ def test_node_validation_is_rig_identify_quick(name, verdict):
 
 
 def test_node_validation_without_poses_skips_the_weight_check_and_says_so():
-    from rig_identification.nodes.fit_validation import ValidationBuffer, validate_stream_fit
+    from rig_identification.nodes.fit_validation import StreamBuffer, validate_stream_fit
     rec = read_recording(recording("visible_case16_clean"))
     prep = prepare_recording(rec)
     result = identify_inertia(rec.rig, prep.t, prep.gyro_body, prep.torque)
-    buf = ValidationBuffer(900.0)
+    buf = StreamBuffer(900.0)
     buf.add_imu(prep.sensors.imu.t, prep.sensors.imu.data)
     buf.add_wrench(prep.t, np.column_stack([prep.force, prep.torque]))
     lo, hi = prep.window

@@ -1,13 +1,18 @@
-"""The identifier node's model validation, with the offline core.
+"""The identifier node's fit over its buffered streams, and its model validation, with the offline core.
+
+:class:`StreamBuffer` keeps the last ``max_seconds`` of what the fit and its validation read, as the
+identifier node receives it (``/rig/imu``, ``/rig/generalized_wrench``, ``/rig/pose``);
+:func:`identify_window` fits a window of it (:func:`~rig_identification.estimation.identification.identify_inertia`
+on the wrench samples in the window, the gyro interpolated to their stamps: the rule of
+:meth:`~rig_identification.estimation.identification.InertiaIdentifier.identify`), and
+:func:`validate_stream_fit` validates the fit.
 
 ``rig-identify inertia`` validates every fit (:func:`~rig_identification.pipeline.offline.validate_fit`:
 the verdict ok | model_error | not_identifiable, σ widened, undetermined entries null).  Besides
 the fit's own gyro and torque, the checks read three streams the fit does not use: the
 accelerometer (the ``accelerometer`` check), the generalized force and the tracked orientation
-(the ``weight`` check).  :class:`ValidationBuffer` keeps them as the identifier node receives
-them (``/rig/imu``, ``/rig/generalized_wrench``, ``/rig/pose``); :func:`validate_stream_fit`
-cuts them to the fit's window the way the node's fit cuts its buffer
-(:meth:`~rig_identification.estimation.identification.InertiaIdentifier.identify`) and hands them to the
+(the ``weight`` check).  :func:`validate_stream_fit` cuts them to the fit's window as
+:func:`identify_window` cuts it and hands them to the
 same core function the offline path runs (:func:`~rig_identification.pipeline.offline.apply_validation`,
 inputs built by :func:`~rig_identification.pipeline.offline.accel_input` and
 :func:`~rig_identification.pipeline.offline.force_weight_surplus`).  The node's fit does not propagate
@@ -21,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..estimation.identification import InertiaResult
+from ..estimation.identification import IdentificationError, InertiaResult, identify_inertia
 from ..io.noise import white_sigma
 from ..pipeline.offline import accel_input, apply_validation, force_weight_surplus, weight_warning
 from ..io.rig import Rig
@@ -62,8 +67,8 @@ class StampedRows:
 
 
 @dataclass(frozen=True)
-class ValidationWindow:
-    """The validation's streams around a fit window (:meth:`ValidationBuffer.snapshot`).
+class StreamWindow:
+    """The fit's and the validation's streams around a fit window (:meth:`StreamBuffer.snapshot`).
 
     imu_t (n,) s, imu (n,6): gyro rad/s and specific force m/s², IMU axes; wrench_t (m,) s,
     wrench (m,6): generalized force N and torque N·m about the CG, body axes; pose_t (k,) s,
@@ -77,10 +82,10 @@ class ValidationWindow:
     quaternion: np.ndarray
 
 
-class ValidationBuffer:
-    """What the identifier node keeps for the validation of its fits (see module docstring):
+class StreamBuffer:
+    """What the identifier node keeps for its fits and their validation (see module docstring):
     the IMU (gyro and accelerometer), the generalized wrench and the tracked orientation, the
-    last ``max_seconds`` of each (the fit buffer's length)."""
+    last ``max_seconds`` s of each."""
 
     def __init__(self, max_seconds: float = 900.0):
         self.imu = StampedRows(6, max_seconds)
@@ -99,22 +104,46 @@ class ValidationBuffer:
         """Tracked orientations: stamps (n,) s, quaternions (n,4) x, y, z, w, body to world."""
         self.pose.add(t, quaternion)
 
-    def snapshot(self, lo: float, hi: float, margin: float = 1.0) -> ValidationWindow:
+    def snapshot(self, lo: float, hi: float, margin: float = 1.0) -> StreamWindow:
         """Copies of the streams over [lo − margin, hi + margin] s (take it under the node's
-        lock, with the fit's own snapshot)."""
+        lock)."""
         a, b = lo - margin, hi + margin
         (ti, vi), (tw, vw), (tp, vp) = (s.between(a, b) for s in (self.imu, self.wrench, self.pose))
-        return ValidationWindow(ti, vi, tw, vw, tp, vp)
+        return StreamWindow(ti, vi, tw, vw, tp, vp)
 
 
-def validate_stream_fit(rig: Rig, result: InertiaResult, win: ValidationWindow, lo: float,
+def fit_samples(win: StreamWindow, lo: float, hi: float) -> np.ndarray:
+    """The (m,) mask of the wrench samples a fit over [lo, hi] (stamps s) uses: stamped in the
+    window and inside the IMU's span (their gyro is interpolated, never extrapolated)."""
+    tw, ti = win.wrench_t, win.imu_t
+    m = (tw >= lo) & (tw <= hi)
+    if len(ti):
+        m &= (tw >= ti[0]) & (tw <= ti[-1])
+    return m
+
+
+def identify_window(rig: Rig, win: StreamWindow, lo: float, hi: float, **fit_params) -> InertiaResult:
+    """The node's fit over [lo, hi] (stamps s):
+    :func:`~rig_identification.estimation.identification.identify_inertia` on the wrench samples
+    of :func:`fit_samples` (torque N·m about the CG, body axes) and the gyro interpolated to
+    their stamps, turned to body axes.  fit_params: identify_inertia's.  Raises
+    :class:`~rig_identification.estimation.identification.IdentificationError` with fewer than
+    10 samples."""
+    m = fit_samples(win, lo, hi)
+    if m.sum() < 10 or len(win.imu_t) < 10:
+        raise IdentificationError(f"identifier: no samples in the window [{lo:.3f}, {hi:.3f}] s")
+    t = win.wrench_t[m]
+    gyro = np.column_stack([np.interp(t, win.imu_t, win.imu[:, k]) for k in range(3)])
+    return identify_inertia(rig, t, rig.imu.rotation.apply(gyro), win.wrench[m, 3:], **fit_params)
+
+
+def validate_stream_fit(rig: Rig, result: InertiaResult, win: StreamWindow, lo: float,
                         hi: float) -> InertiaResult:
     """Validate the node's fit ``result`` over the window [lo, hi] (absolute stamps, s) with the
     offline core (:func:`~rig_identification.pipeline.offline.apply_validation`).
 
-    The samples are those of the fit: the wrench stamps in [lo, hi] inside the IMU's span, the
-    gyro and the specific force interpolated to them and turned to body axes (as
-    :meth:`~rig_identification.estimation.identification.InertiaIdentifier.identify` and
+    The samples are those of the fit (:func:`fit_samples`), the gyro and the specific force
+    interpolated to them and turned to body axes (as :func:`identify_window` and
     :func:`~rig_identification.pipeline.offline.accel_inputs` do); the accelerometer's noise is
     :func:`~rig_identification.io.noise.white_sigma` of the window's samples.  The weight check
     uses the poses stamped as the wrench samples; with fewer than 90 % of them matched (no
@@ -122,9 +151,7 @@ def validate_stream_fit(rig: Rig, result: InertiaResult, win: ValidationWindow, 
     ``result.weight_surplus``; widens σ; adds the verdict's and the weight's warnings.
     Returns ``result``, updated in place.  Never raises on bad numbers (the core does not)."""
     tw, ti = win.wrench_t, win.imu_t
-    m = (tw >= lo) & (tw <= hi)
-    if len(ti):
-        m &= (tw >= ti[0]) & (tw <= ti[-1])
+    m = fit_samples(win, lo, hi)
     t = tw[m]
     accel = None
     if len(t) >= 10 and len(ti) >= 10 and result.series:

@@ -1,8 +1,9 @@
 """identifier: buffers the gyro and the generalized wrench; fits the inertia tensor on request.
 
-Thin node around rig_identification.estimation.identification.InertiaIdentifier (the same fit as
-the offline ``rig-identify``), validated by the offline core (fit_validation: the verdict,
-widened σ and null undetermined entries of ``rig-identify inertia --quick``).
+Thin node around rig_identification.estimation.identification.identify_inertia (the same fit as
+the offline ``rig-identify``) over its buffered streams, validated by the offline core
+(fit_validation: the verdict, widened σ and null undetermined entries of ``rig-identify inertia
+--quick``).
 
 Parameters (the window ones are read at each request; set them with ros2 param set):
   rig (string, required)   path of the rig description (rig.yaml, with body.center_of_gravity)
@@ -18,7 +19,7 @@ Parameters (the window ones are read at each request; set them with ros2 param s
   min_duration (double, 10.0)  refuse to fit a window shorter than this, s
   band_hz (double[2], [] = auto)  pass band of the fit, Hz
   block_s, iterations      identify_inertia parameters (defaults: the core's)
-  max_seconds (double)     seconds of data kept in the buffer (InertiaIdentifier default)
+  max_seconds (double, 900.0)  seconds of data kept in the buffer (fit_validation.StreamBuffer)
   debug_fit_delay (double, 0.0)  testing aid: each fit takes this much longer, s
   cg_capture_seconds (double, 10.0)  averaging window of a static CG state, s
   dummy_mass (double, unset), dummy_position (double[3], unset)  the dummy mass, kg, and the
@@ -105,8 +106,6 @@ lock, so incoming samples never wait for it.
 """
 from __future__ import annotations
 
-import bisect
-import copy
 import math
 import sys
 import threading
@@ -128,12 +127,11 @@ from .qos import input_qos, LATCHED_QOS
 from .runtime import run
 from .topics import (EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX, MASS_PROPERTIES_TOPIC,
                      POSE_TOPIC, WRENCH_TOPIC)
-from .fit_validation import ValidationBuffer, validate_stream_fit
+from .fit_validation import StreamBuffer, identify_window, validate_stream_fit
 from .identifier_services import IdentifierServices
 from ..estimation.fit_window import fit_window
-from ..estimation.identification import InertiaIdentifier, identify_inertia
+from ..estimation.identification import identify_inertia
 from ..statics.capture import CgSession
-from ..estimation.preprocessor import Wrench
 from ..io.rig import DummyMass
 from ..diagnosis.selection import diagnose
 from ..io.recording import Recording
@@ -157,15 +155,15 @@ class IdentifierNode(Node):
             dynamic_typing=True, description="[low, high] Hz pass band of the fit; unset or [] = automatic"))
         self.declare_parameter("debug_fit_delay", 0.0)
         self.fit_params = core_params(self, identify_inertia, skip=("rig", "t", "omega_body", "torque"))
-        buf_params = core_params(self, InertiaIdentifier.__init__, skip=("self", "rig"))
+        buf_params = core_params(self, StreamBuffer.__init__, skip=("self",))
         qos_in = input_qos(self)
         frames = declare_frame_ids(self, ("imu", "load_cell", "exciter", "inclinometer", "world", "body"))
         self.frames = frames
         rig = load_rig_param(self)
         self.rig = rig
-        self.identifier = InertiaIdentifier(rig, **buf_params) if rig.center_of_gravity is not None else None
-        # the streams the model validation reads beside the fit's (fit_validation): as long as the fit's buffer
-        self.validation_buffer = ValidationBuffer(self.identifier.max_seconds if self.identifier is not None else 0.0)
+        # the streams the fit and its model validation read (fit_validation); only with the CG known
+        self.fits = rig.center_of_gravity is not None
+        self.buffer = StreamBuffer(**buf_params) if self.fits else None
         self.declare_parameter("cg_capture_seconds", 10.0)
         self.declare_parameter("dummy_mass", None, ParameterDescriptor(dynamic_typing=True))
         self.declare_parameter("dummy_position", None, ParameterDescriptor(dynamic_typing=True))
@@ -237,8 +235,6 @@ class IdentifierNode(Node):
                 try:
                     self.cg_session.add_imu(t, r[:3], r[3:])
                     self.diag_buffer.add_imu(t, r[:3], r[3:])
-                    if self.identifier is not None:
-                        self.identifier.add_imu(t, r[:3])
                 except ValueError as e:
                     self.guard.core_error(IMU_TOPIC, e)
                     continue
@@ -246,37 +242,29 @@ class IdentifierNode(Node):
                 if self.t_first_imu is None:
                     self.t_first_imu = t
                 self.n_imu += 1
-            if self.identifier is not None and kept:
-                self.validation_buffer.add_imu([ts[i] for i in kept], vals[kept])
+            if self.fits and kept:
+                self.buffer.add_imu([ts[i] for i in kept], vals[kept])
 
     def _add_wrench(self, ts: list, vals) -> None:
-        if self.identifier is None:
+        """Generalized wrench samples (validated by the input guard: finite, stamps increasing)."""
+        if not self.fits:
             return
-        kept = []
         with self.lock:
-            for i, (t, f, tq) in enumerate(zip(ts, vals[:, :3], vals[:, 3:])):
-                try:
-                    self.identifier.add_wrench(Wrench(t, f, tq))
-                except ValueError as e:
-                    self.guard.core_error(WRENCH_TOPIC, e)
-                    continue
-                kept.append(i)
-                self.t_last_wrench = t
-                self.n_wrench += 1
-            if kept:
-                self.validation_buffer.add_wrench([ts[i] for i in kept], vals[kept])
+            self.buffer.add_wrench(ts, vals)
+            self.t_last_wrench = ts[-1]
+            self.n_wrench += len(ts)
 
     def _add_pose(self, ts: list, vals) -> None:
         """Tracked orientations (unit quaternions; another is refused, as the preprocessor
         does) for the validation's weight check."""
-        if self.identifier is None:
+        if not self.fits:
             return
         q = vals[:, 3:7]
         unit = np.abs(np.einsum("ij,ij->i", q, q) - 1.0) <= 1e-3
         for i in np.nonzero(~unit)[0].tolist():
             self.guard.reject(POSE_TOPIC, f"orientation is not a unit quaternion (|q|^2 = {q[i] @ q[i]:.4f})")
         with self.lock:
-            self.validation_buffer.add_pose([t for t, u in zip(ts, unit) if u], q[unit])
+            self.buffer.add_pose([t for t, u in zip(ts, unit) if u], q[unit])
 
     def _to_cg(self, topic, method: str, rows) -> None:
         """Raw samples into the CG session and the diagnosis buffer (``method``: add_tension,
@@ -323,16 +311,6 @@ class IdentifierNode(Node):
         c = result.center_of_gravity
         self.get_logger().info(f"centre of gravity: {c[0]:.4f}, {c[1]:.4f}, {c[2]:.4f} m (body)")
         return d
-
-    def _snapshot(self, lo: float, hi: float):
-        """A copy of the identifier buffer for a fit over [lo, hi] (call under the lock):
-        the window's samples (never mutated) shared, the lists copied."""
-        snap = copy.copy(self.identifier)
-        if not _window_lists(snap, lo, hi):
-            for k, v in vars(snap).items():
-                if isinstance(v, list):
-                    setattr(snap, k, list(v))
-        return snap
 
     def diagnose(self) -> dict:
         """``~/diagnose``: the diagnosis of the buffered raw streams (runs in a service thread);
@@ -408,7 +386,7 @@ class IdentifierNode(Node):
             if not ok:
                 raise ValueError(f"parameter band_hz = {band!r}: expected [low, high] Hz with 0 < low < high")
             params["band_hz"] = (lo_hz, hi_hz)
-        if self.identifier is None:
+        if not self.fits:
             raise ValueError(f"{self.rig.source} has no body.center_of_gravity: run the static experiment "
                              "(capture_cg_baseline, capture_cg_dummy, estimate_cg; `mass_properties_client "
                              "cg-estimate --write-rig OUT.yaml` writes rig.yaml with the CG) and restart the "
@@ -422,11 +400,9 @@ class IdentifierNode(Node):
             window = fit_window(t0, t_last, lambda a, b: self.guard.gaps_in(a, b, topics), start, end, last,
                                 settle, settle_gap, min_duration, derived=(WRENCH_TOPIC,))
             lo, hi, notes = window.start, window.end, list(window.notes)
-            snap = self._snapshot(lo, hi)
-            streams = self.validation_buffer.snapshot(lo, hi)
-        snap.fit_params = params
+            streams = self.buffer.snapshot(lo, hi)
         t_fit = time.monotonic()
-        result = snap.identify(start=lo, end=hi)
+        result = identify_window(self.rig, streams, lo, hi, **params)
         # the model validation of rig-identify inertia (--quick: the node propagates no noise), same core
         validate_stream_fit(self.rig, result, streams, lo, hi)
         delay = float(self.get_parameter("debug_fit_delay").value)
@@ -445,22 +421,6 @@ class IdentifierNode(Node):
                                f"over {result.t_end - result.t_start:.1f} s ({result.n_samples} samples); "
                                f"verdict {result.validation.verdict}")
         return d
-
-
-def _window_lists(snap, lo: float, hi: float, margin: float = 1.0) -> bool:
-    """Cut the snapshot's sample lists to [lo - margin, hi + margin] (the fit then converts
-    120 s of samples rather than the whole buffer, up to max_seconds; same result: the gyro
-    is interpolated inside the window).  False if the buffer is not laid out as expected."""
-    pairs = (("_imu_t", "_gyro"), ("_w_t", "_torque"))
-    if not all(isinstance(getattr(snap, a, None), list) and isinstance(getattr(snap, b, None), list)
-               for a, b in pairs):
-        return False
-    for ta, va in pairs:
-        ts = getattr(snap, ta)
-        i, j = bisect.bisect_left(ts, lo - margin), bisect.bisect_right(ts, hi + margin)
-        setattr(snap, ta, ts[i:j])
-        setattr(snap, va, getattr(snap, va)[i:j])
-    return True
 
 
 def _started() -> IdentifierNode:
