@@ -34,7 +34,8 @@ def stamp_seconds(sec, nanosec) -> float:
 
 
 def split_stamps(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Float seconds (n,) -> (sec, nanosec) int arrays, as :func:`~rig_identification.io.recording_writer.split_stamp` does per stamp."""
+    """Float seconds (n,) -> (sec, nanosec) int arrays, as
+    :func:`~rig_identification.io.recording_writer.split_stamp` does per stamp."""
     t = np.asarray(t, float)
     sec = np.floor(t)
     nsec = np.rint((t - sec) * 1e9)

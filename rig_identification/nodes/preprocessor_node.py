@@ -53,7 +53,7 @@ from .diagnostics import Diagnostics
 from .frames import declare_frame_ids, Endpoint, log_interface
 from .inputs import InputGuard, RawInput
 from .parameters import core_params, load_rig_param
-from .qos import input_qos, publish_blocking, SENSOR_QOS
+from .qos import input_qos, publish_batch, SENSOR_QOS
 from .runtime import run
 from .topics import EXCITER_TOPIC, LOAD_CELL_PREFIX, POSE_TOPIC, WRENCH_TOPIC
 from ..estimation.preprocessor import WrenchPreprocessor
@@ -121,15 +121,8 @@ class PreprocessorNode(Node):
         """Publish a WrenchSeries (one serialized batch)."""
         if not len(w.t):
             return
-        sent = 0
-        for raw in self.out_layout.encode(w.t, np.column_stack([w.force, w.torque])):
-            try:
-                publish_blocking(self.pub, raw)
-            except Exception as e:  # blocked too long by a slow reader: lost, say so
-                self.guard.reject(WRENCH_TOPIC + " (publish)", f"{type(e).__name__}: {e}")
-                continue
-            sent += 1
-        self.diag.count_tx(WRENCH_TOPIC, sent)
+        publish_batch(self.pub, self.out_layout.encode(w.t, np.column_stack([w.force, w.torque])), WRENCH_TOPIC,
+                      self.guard, self.diag)
 
 
 def main(argv=None) -> int:

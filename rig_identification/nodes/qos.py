@@ -35,6 +35,7 @@ QoS (one choice for the whole pipeline, see :data:`SENSOR_QOS`):
 from __future__ import annotations
 
 import time
+from typing import Iterable
 
 import rclpy
 from rclpy.node import Node
@@ -74,6 +75,23 @@ def publish_blocking(publisher, msg, patience: float = 30.0) -> None:
         except Exception:
             if time.monotonic() > end or not rclpy.ok():
                 raise
+
+
+def publish_batch(publisher, messages: Iterable, topic: str, guard, diagnostics) -> None:
+    """Publish serialized ``messages`` (a batch, :meth:`~.codec.MessageLayout.encode`) on
+    ``topic`` with :func:`publish_blocking`; a message still blocked after its patience is lost:
+    the input guard (:class:`~.inputs.InputGuard`) counts and warns it as ``<topic> (publish)``,
+    and the rest are published.  The diagnostics (:class:`~.diagnostics.Diagnostics`) count what
+    was sent."""
+    sent = 0
+    for raw in messages:
+        try:
+            publish_blocking(publisher, raw)
+        except Exception as e:  # blocked too long by a slow reader: lost, say so
+            guard.reject(topic + " (publish)", f"{type(e).__name__}: {e}")
+            continue
+        sent += 1
+    diagnostics.count_tx(topic, sent)
 
 
 def input_qos(node: Node) -> QoSProfile:

@@ -71,7 +71,7 @@ from .frames import declare_frame_ids, Endpoint, log_interface
 from .inputs import InputGuard, RawInput
 from .merge import StampMerger
 from .parameters import core_params, load_rig_param
-from .qos import input_qos, publish_blocking, SENSOR_QOS
+from .qos import input_qos, publish_batch, SENSOR_QOS
 from .runtime import run
 from .topics import EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX, POSE_TOPIC
 from ..estimation.tracker import PoseTracker
@@ -278,15 +278,7 @@ class TrackerNode(Node):
         vals = np.column_stack([np.array([p.position for p in poses]), np.array([p.quaternion for p in poses]),
                                 np.array([p.omega for p in poses]),
                                 np.einsum("nji,nj->ni", M, vel)])  # velocity in body axes: R^T v
-        sent = 0
-        for raw in self.out_layout.encode(t, vals):
-            try:
-                publish_blocking(self.pub, raw)
-            except Exception as e:  # blocked too long by a slow reader: the pose is lost, say so
-                self.guard.reject(POSE_TOPIC + " (publish)", f"{type(e).__name__}: {e}")
-                continue
-            sent += 1
-        self.diag.count_tx(POSE_TOPIC, sent)
+        publish_batch(self.pub, self.out_layout.encode(t, vals), POSE_TOPIC, self.guard, self.diag)
 
 
 def main(argv=None) -> int:

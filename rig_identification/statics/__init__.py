@@ -79,9 +79,8 @@ from .state import StaticsError, StaticState, StreamStats
 from .validation import CG_MODEL_CHECKS, CG_VERDICTS, VALIDATION_SIGMA, CgValidation
 
 # the module-level constants statics.py had besides its __all__, still importable from here
-from .checks import SLACK_FRACTION  # noqa: F401
-from .estimation import (CONTRADICTION_CHI2, DEFAULT_SCALE_REL_STD, MASS_COVERAGE, TOL_ACCEL, TOL_GEOMETRY,  # noqa: F401
-                         TOL_INCL, TOL_TENSION_REL)
+from .checks import SLACK_FRACTION, TOL_ACCEL, TOL_INCL, TOL_TENSION_REL  # noqa: F401
+from .estimation import CONTRADICTION_CHI2, DEFAULT_SCALE_REL_STD, MASS_COVERAGE, TOL_GEOMETRY  # noqa: F401
 from .model import DEFAULT_COMPLIANCE, Z  # noqa: F401
 from .state import MOTION_P  # noqa: F401
 from .validation import CHI2_P_WARN  # noqa: F401

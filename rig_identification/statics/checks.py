@@ -1,7 +1,7 @@
-"""The static states checked before the CG fit: every cable taut, a pose that fits each state,
-and a dummy mass that changed both the load and the tilt (:func:`~.estimation.estimate_cg`
-refuses the input otherwise, with a :class:`~.state.StaticsError` that names the state and
-the cause).
+"""The static states checked around the CG fit: before it, every cable taut, a pose that fits
+each state, and a dummy mass that changed both the load and the tilt; after it, no stream that
+contradicts the fitted equilibrium (:func:`~.estimation.estimate_cg` refuses the input
+otherwise, with a :class:`~.state.StaticsError` that names the state and the cause).
 """
 from __future__ import annotations
 
@@ -12,6 +12,10 @@ from ..io.rig import Rig
 from .state import StaticsError, StaticState
 
 SLACK_FRACTION = 0.01            # a cable carrying < 1 % of an even share of the weight is slack
+# physical tolerances above which a misfit of more than 20 σ means contradictory input (not noise)
+TOL_INCL = 5e-4                  # rad
+TOL_TENSION_REL = 5e-3           # of the mean tension per cable
+TOL_ACCEL = 5e-3                 # m/s^2
 
 
 def check_taut(rig: Rig, states: list[StaticState], tensions: list[np.ndarray]) -> None:
@@ -100,3 +104,38 @@ def check_tilt_change(states: list[StaticState], poses: list[StaticPose], have_i
                                f"{d[0] * 1e6:+.1f}, {d[1] * 1e6:+.1f} µrad, noise σ {sd[0] * 1e6:.1f}, "
                                f"{sd[1] * 1e6:.1f} µrad): the CG height cannot be found; fix the dummy mass "
                                "farther from the vertical through the CG")
+
+
+def stream_misfits(label: str, rig: Rig, streams: list[str], measured: np.ndarray, predicted: np.ndarray,
+                   sigma: np.ndarray) -> dict:
+    """The misfit of each stream of one state at the fitted equilibrium: {stream: {"misfit": d,
+    "normalised": d / σ}}, d = measured − predicted, in the measurement vector's order (streams
+    among ``load_cells`` (N,) N, ``inclinometer`` (2,) rad, ``accelerometer`` (3,) m/s²).
+    Raises :class:`StaticsError` naming the state (``label``) and the stream where a misfit is
+    both > 20 σ and beyond its physical tolerance (:data:`TOL_TENSION_REL` of the tension,
+    :data:`TOL_INCL`, :data:`TOL_ACCEL`): contradictory geometry or data."""
+    res, k = {}, 0
+    for name in streams:
+        w = {"load_cells": len(rig.cables), "inclinometer": 2, "accelerometer": 3}[name]
+        m, pr = measured[k:k + w], predicted[k:k + w]
+        d = m - pr
+        rn = d / sigma[k:k + w]
+        res[name] = {"misfit": d, "normalised": rn}
+        tol = {"load_cells": TOL_TENSION_REL * np.abs(m), "inclinometer": TOL_INCL, "accelerometer": TOL_ACCEL}[name]
+        bad = (np.abs(rn) > 20) & (np.abs(d) > tol)
+        if bad.any():
+            j = int(np.flatnonzero(bad)[0])
+            if name == "load_cells":
+                why = (f"the load cell of cable {rig.cable_names[j]} reads {m[j]:.1f} N but the best equilibrium of "
+                       f"this geometry needs {pr[j]:.1f} N: contradictory geometry or data (check rig.yaml's "
+                       "anchors, lengths, masses)")
+            elif name == "inclinometer":
+                why = (f"the inclinometer reads {np.degrees(m[0]):.3f}°, {np.degrees(m[1]):.3f}° but the body's "
+                       f"equilibrium on these cables has {np.degrees(pr[0]):.3f}°, {np.degrees(pr[1]):.3f}°: angles "
+                       "outside what the geometry allows (contradictory geometry or inclinometer mounting)")
+            else:
+                why = ("the accelerometer's gravity direction contradicts the equilibrium pose (check imu.rpy or "
+                       "use_accelerometer=False)")
+            raise StaticsError(f"{label}: {why}")
+        k += w
+    return res

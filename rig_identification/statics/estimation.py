@@ -21,17 +21,13 @@ from ..io.rig import DummyMass, Rig
 from ..io.verdict import Check
 from .model import DEFAULT_COMPLIANCE, Z, CgOptions, GlobalUnknowns, StaticModel, skew
 from .checks import (SLACK_FRACTION, check_dummy_load, check_taut, check_tilt_change, initial_pose,
-                     vertical_loads)
+                     stream_misfits, vertical_loads)
 from .result import CgResult, StatePose
 from .state import StaticsError, StaticState
 from .validation import CHI2_P_WARN, validate_fit
 
 DEFAULT_SCALE_REL_STD = 1e-3     # the scale's reading: 0.1 % (a typical floor scale), 1 σ
 MASS_COVERAGE = 3.0              # mass disagreement warning: |Δ| > 3 σ combined
-# physical tolerances above which a misfit means contradictory input (not noise)
-TOL_INCL = 5e-4                  # rad
-TOL_TENSION_REL = 5e-3           # of the mean tension per cable
-TOL_ACCEL = 5e-3                 # m/s^2
 # contradictory geometry: the fit's χ² exceeds its dof by more than 20² (a 20 σ misfit, as the
 # per-stream contradiction checks) and it needed an input moved by > 10 of its σ and > 5 mm
 CONTRADICTION_CHI2 = 400.0
@@ -317,36 +313,7 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
             j = int(np.argmin(T))
             raise StaticsError(f"{s.label}: cable {rig.cable_names[j]} would be slack at the fitted equilibrium "
                                f"(tension {T[j]:.1f} N): contradictory geometry or data")
-        res = {}
-        k = 0
-        if have_T:
-            d = meas[i][k:k + model.n] - pred[k:k + model.n]
-            rn = d / sig[i][k:k + model.n]
-            res["load_cells"] = {"misfit": d, "normalised": rn}
-            bad = (np.abs(rn) > 20) & (np.abs(d) > TOL_TENSION_REL * np.abs(meas[i][k:k + model.n]))
-            if bad.any():
-                j = int(np.flatnonzero(bad)[0])
-                raise StaticsError(f"{s.label}: the load cell of cable {rig.cable_names[j]} reads {meas[i][k + j]:.1f} N "
-                                   f"but the best equilibrium of this geometry needs {pred[k + j]:.1f} N: "
-                                   "contradictory geometry or data (check rig.yaml's anchors, lengths, masses)")
-            k += model.n
-        if have_e:
-            d = meas[i][k:k + 2] - pred[k:k + 2]
-            rn = d / sig[i][k:k + 2]
-            res["inclinometer"] = {"misfit": d, "normalised": rn}
-            if np.any((np.abs(rn) > 20) & (np.abs(d) > TOL_INCL)):
-                raise StaticsError(f"{s.label}: the inclinometer reads {np.degrees(meas[i][k]):.3f}°, "
-                                   f"{np.degrees(meas[i][k + 1]):.3f}° but the body's equilibrium on these cables "
-                                   f"has {np.degrees(pred[k]):.3f}°, {np.degrees(pred[k + 1]):.3f}°: angles outside "
-                                   "what the geometry allows (contradictory geometry or inclinometer mounting)")
-            k += 2
-        if have_a:
-            d = meas[i][k:k + 3] - pred[k:k + 3]
-            rn = d / sig[i][k:k + 3]
-            res["accelerometer"] = {"misfit": d, "normalised": rn}
-            if np.any((np.abs(rn) > 20) & (np.abs(d) > TOL_ACCEL)):
-                raise StaticsError(f"{s.label}: the accelerometer's gravity direction contradicts the equilibrium "
-                                   "pose (check imu.rpy or use_accelerometer=False)")
+        res = stream_misfits(s.label, rig, stream_names, meas[i], pred, sig[i])
         poses_out.append(StatePose(s.label, p, R, T, float(m_add[i]), s.window, res))
 
     # --- systematic inputs the data need moved far beyond their σ: contradictory rig.yaml
