@@ -39,6 +39,7 @@ Cable models (``cable_model``)
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.linalg.lapack import dposv
@@ -52,6 +53,19 @@ from ..io.rig import Rig
 
 class SimulationError(RuntimeError):
     """The chosen physical model cannot represent the experiment (or a solver failed)."""
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """What :meth:`RigDynamics.evaluate` finds at K states: ``R`` (K, 3, 3) orthonormalised body
+    -> world, ``a`` (K, 3) CG acceleration world m/s², ``alpha`` (K, 3) dω/dt body rad/s², ``T``
+    (K, N) cable tensions N, ``exciter`` (K, 2) N: the exciter's reading in its frame."""
+
+    R: np.ndarray
+    a: np.ndarray
+    alpha: np.ndarray
+    T: np.ndarray
+    exciter: np.ndarray
 
 
 def skew(a) -> np.ndarray:
@@ -241,18 +255,13 @@ class RigDynamics:
         qdd = MinvQ + MinvB.T @ T
         return qdd[:3], qdd[3:], T
 
-    def evaluate(self, t: np.ndarray, Y: np.ndarray) -> dict:
-        """:meth:`evaluate_one` at times t (K,) and states Y (K, size).
-
-        Returns a dict: ``R`` (K, 3, 3) orthonormalised body->world, ``a`` (K, 3) CG
-        acceleration world m/s², ``alpha`` (K, 3) dω/dt body rad/s², ``T`` (K, N) tensions N,
-        ``exciter`` (K, 2) N.
-        """
+    def evaluate(self, t: np.ndarray, Y: np.ndarray) -> Evaluation:
+        """:meth:`evaluate_one` at times t (K,) and states Y (K, size): an :class:`Evaluation`."""
         out = [self.evaluate_one(tk, yk) for tk, yk in zip(np.atleast_1d(t), np.atleast_2d(Y))]
         dY = np.array([o[0] for o in out])
-        return {"R": Rotation.from_matrix(np.atleast_2d(Y)[:, 3:12].reshape(-1, 3, 3)).as_matrix(),
-                "a": dY[:, 12:15], "alpha": dY[:, 15:18], "T": np.array([o[1] for o in out]),
-                "exciter": np.array([o[2] for o in out])}
+        return Evaluation(R=Rotation.from_matrix(np.atleast_2d(Y)[:, 3:12].reshape(-1, 3, 3)).as_matrix(),
+                          a=dY[:, 12:15], alpha=dY[:, 15:18], T=np.array([o[1] for o in out]),
+                          exciter=np.array([o[2] for o in out]))
 
     def static_wrench(self, p_cg: np.ndarray, R: np.ndarray, T: np.ndarray) -> np.ndarray:
         """Net force (world, N) and moment about the CG (world, N m) of cables + weight at rest, (6,)."""

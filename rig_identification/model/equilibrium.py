@@ -7,6 +7,8 @@ displaced and projected back onto the cable lengths).  Frames as
 """
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from scipy.optimize import least_squares, minimize, root
 from scipy.spatial.transform import Rotation
@@ -16,6 +18,24 @@ from .cables import CableModel
 from .excitation import Excitation
 from .experiment import Initial
 from ..io.rig import Rig
+
+
+class RestState(NamedTuple):
+    """The body of a :class:`RigDynamics` at rest: ``p_cg`` (3,) world m, ``R`` (3, 3) body ->
+    world, ``tensions`` (N,) N."""
+
+    p_cg: np.ndarray
+    R: np.ndarray
+    tensions: np.ndarray
+
+
+class Equilibrium(NamedTuple):
+    """The body hanging at rest (:func:`equilibrium`): ``position`` (3,) world position of the
+    BODY-FRAME ORIGIN m, ``rotation`` body -> world, ``tensions`` (N,) N."""
+
+    position: np.ndarray
+    rotation: Rotation
+    tensions: np.ndarray
 
 
 def _pose(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -52,9 +72,9 @@ def _solve_or_fail(fun, x0, what: str, tol: float, scale: float):
     return sol.x
 
 
-def hanging_equilibrium(model: RigDynamics) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(p_cg (3,) world m, R (3, 3) body -> world, tensions (N,) N) of ``model`` at static
-    equilibrium (thesis eqs. 2.20–2.25).  Raises :class:`SimulationError`."""
+def hanging_equilibrium(model: RigDynamics) -> RestState:
+    """The :class:`RestState` of ``model`` at static equilibrium (thesis eqs. 2.20–2.25).
+    Raises :class:`SimulationError`."""
     n = len(model.L)
     weight = model.m * np.linalg.norm(model.g)
     # 1) inextensible hanging pose: lowest CG with every cable no longer than its length
@@ -72,7 +92,7 @@ def hanging_equilibrium(model: RigDynamics) -> tuple[np.ndarray, np.ndarray, np.
 
         x = _solve_or_fail(residual, x, "spring cables", 1e-7, weight)
         p, R = _pose(x)
-        return p, R, model.spring_tension_at_rest(p, R)
+        return RestState(p, R, model.spring_tension_at_rest(p, R))
     # 2) inextensible: the 6 equilibrium equations + the length equations of the taut cables,
     #    unknowns pose + tensions; a cable whose tension comes out negative is slack.
     active = np.ones(n, bool)
@@ -95,7 +115,7 @@ def hanging_equilibrium(model: RigDynamics) -> tuple[np.ndarray, np.ndarray, np.
         T[idx] = z[6:] * weight
         if T.min() >= 0 or model.cables.compression:
             p, R = _pose(z[:6])
-            return p, R, T
+            return RestState(p, R, T)
         active[np.argmin(T)] = False
         x, T0 = z[:6], T / weight
         if active.sum() < 3:
@@ -122,7 +142,7 @@ def _project(model: RigDynamics, p_cg: np.ndarray, R: np.ndarray, target: np.nda
     return p_cg, R
 
 
-def equilibrium(rig: Rig, mass: float, cg, cable_model: CableModel) -> tuple[np.ndarray, Rotation, np.ndarray]:
+def equilibrium(rig: Rig, mass: float, cg, cable_model: CableModel) -> Equilibrium:
     """Static equilibrium of the body hanging at rest (thesis section 2.2, eqs. 2.13–2.25).
 
     rig: geometry (its own body mass/CG are ignored); mass: kg; cg: (3,) body frame, m.
@@ -130,14 +150,13 @@ def equilibrium(rig: Rig, mass: float, cg, cable_model: CableModel) -> tuple[np.
     plus the length equations of the taut cables (slack cables get tension 0; with
     ``compression`` every cable keeps its length).
 
-    Returns (position (3,) world position of the BODY-FRAME ORIGIN m, Rotation body->world,
-    tensions (N,) N).  The net force and the moment about the CG vanish to < 1e-6 N, N m.
+    Returns the :class:`Equilibrium` (position of the body-frame origin, rotation, tensions).  The net force and the moment about the CG vanish to < 1e-6 N, N m.
     Raises :class:`SimulationError` (no equilibrium; inextensible with N > 6).
     """
     cg = np.asarray(cg, float)
     model = RigDynamics(rig, mass, cg, np.eye(3), cable_model, Excitation())
     p_cg, R, T = hanging_equilibrium(model)
-    return p_cg - R @ cg, Rotation.from_matrix(R), T
+    return Equilibrium(p_cg - R @ cg, Rotation.from_matrix(R), T)
 
 
 def initial_state(model: RigDynamics, initial: Initial, eq: tuple | None = None) -> np.ndarray:

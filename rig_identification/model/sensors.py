@@ -15,14 +15,14 @@ the sampled readings (:func:`mode_response`, :func:`random_walk`).
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Callable, NamedTuple
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.signal import cont2discrete, lfilter
 from scipy.spatial.transform import Rotation
 
-from .dynamics import RigDynamics, SimulationError
+from .dynamics import Evaluation, RigDynamics, SimulationError
 from .effects import Effect
 from .experiment import Experiment
 from ..io.recording import SensorData, TimeSeries
@@ -31,6 +31,15 @@ from ..io.rig import Rig
 STATIC_STREAMS = {"baseline": 1, "dummy": 2}   # static recordings: noise from default_rng([seed, stream])
 MODE_FILTER_RATE = 2000.0          # Hz: structural_mode's filter runs at >= this rate (and >= 40 x the
                                    # mode frequency), on a cubic spline of the sensor's samples
+
+
+class Sampled(NamedTuple):
+    """The true motion at one sensor rate: simulation times t (K,) s, states Y (K, size)
+    (:class:`~rig_identification.model.dynamics.RigDynamics`'s layout) and their evaluation."""
+
+    t: np.ndarray
+    Y: np.ndarray
+    evaluation: Evaluation
 
 
 def sample_times(duration: float, rate: float) -> np.ndarray:
@@ -42,7 +51,7 @@ def sample_sensors(exp: Experiment, model: RigDynamics, traj: Callable[[np.ndarr
                    duration: float, cache: dict) -> SensorData:
     """Sample every sensor of ``exp`` on its own time grid (module docstring) from the true
     motion ``traj`` (simulation times (K,) s -> states (K, size)) of ``model``; ``rig``: the
-    rig.yaml written (sensor placement).  ``cache`` keeps (t, Y, ``model.evaluate``) per rate.
+    rig.yaml written (sensor placement).  ``cache`` keeps the :class:`Sampled` motion per rate.
     Returns the streams with stamps ``exp.stamp_origin + t``.  Raises :class:`SimulationError`
     when an inextensible cable goes slack."""
     spec = exp.sensors
@@ -54,7 +63,7 @@ def sample_sensors(exp: Experiment, model: RigDynamics, traj: Callable[[np.ndarr
         if rate not in cache:
             t = sample_times(duration, rate)
             Y = traj(t)
-            cache[rate] = (t, Y, model.evaluate(t, Y))
+            cache[rate] = Sampled(t, Y, model.evaluate(t, Y))
         return cache[rate]
 
     def noisy(x, key):
@@ -70,13 +79,13 @@ def sample_sensors(exp: Experiment, model: RigDynamics, traj: Callable[[np.ndarr
     R_imu = rig.imu.rotation.as_matrix()
     if "imu_misalignment" in eff:   # true IMU axes: turned beyond rig.yaml's imu.rpy
         R_imu = R_imu @ Rotation.from_euler("xyz", eff["imu_misalignment"].get("rpy")).as_matrix()
-    omega, alpha = Y[:, 15:18], ev["alpha"]
+    omega, alpha = Y[:, 15:18], ev.alpha
     rho = rig.imu.position - model.cg
     if "imu_offset" in eff:         # true IMU position: rig.yaml's + offset
         rho = rho + eff["imu_offset"].get("offset")
     a_rel_body = np.cross(alpha, rho) + np.cross(omega, np.cross(omega, rho))
-    a_imu = ev["a"] + np.einsum("kij,kj->ki", ev["R"], a_rel_body)
-    f_body = np.einsum("kji,kj->ki", ev["R"], a_imu - g_world)
+    a_imu = ev.a + np.einsum("kij,kj->ki", ev.R, a_rel_body)
+    f_body = np.einsum("kji,kj->ki", ev.R, a_imu - g_world)
     gyro_true, acc_true = omega @ R_imu, f_body @ R_imu
     if "imu" in mode:               # the IMU's mount rings: ω + θ̇, specific force + ẍ
         gyro_true = gyro_true + mode_response(t, gyro_true, mode["imu"])
@@ -93,8 +102,8 @@ def sample_sensors(exp: Experiment, model: RigDynamics, traj: Callable[[np.ndarr
     # load cells
     t, Y, ev = at(spec.rates["load_cells"])
     if model.cables.type == "inextensible" and not model.cables.compression:
-        check_taut(rig, t, ev["T"], model.m * np.linalg.norm(g_world))
-    T = ev["T"].copy()
+        check_taut(rig, t, ev.T, model.m * np.linalg.norm(g_world))
+    T = ev.T.copy()
     if "load_cells" in mode:        # each load cell reads its flexible anchor's spring force
         T = T + mode_response(t, T, mode["load_cells"])
     for e in exp.effects:
@@ -107,12 +116,12 @@ def sample_sensors(exp: Experiment, model: RigDynamics, traj: Callable[[np.ndarr
     exc = None
     if rig.exciter is not None:
         t, Y, ev = at(spec.rates["exciter"])
-        exc = TimeSeries(exp.stamp_origin + t + delay.get("exciter", 0.0), noisy(ev["exciter"], "exciter"))
+        exc = TimeSeries(exp.stamp_origin + t + delay.get("exciter", 0.0), noisy(ev.exciter, "exciter"))
     # inclinometer
     inc = None
     if rig.inclinometer is not None:
         t, Y, ev = at(spec.rates["inclinometer"])
-        axes = ev["R"] @ rig.inclinometer.rotation.as_matrix()
+        axes = ev.R @ rig.inclinometer.rotation.as_matrix()
         angles = np.arcsin(np.clip(axes[:, 2, :2], -1.0, 1.0))
         inc = TimeSeries(exp.stamp_origin + t + delay.get("inclinometer", 0.0), noisy(angles, "inclinometer"))
     if "gyro_bias_drift" in eff:    # drawn last: every other stream's noise stays as without it

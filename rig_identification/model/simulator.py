@@ -44,7 +44,7 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from .cables import CableModel
-from .dynamics import RigDynamics, SimulationError
+from .dynamics import Evaluation, RigDynamics, SimulationError
 from .equilibrium import hanging_equilibrium, initial_state
 from .excitation import Excitation
 from .experiment import Experiment, Initial, experiment_from_dict
@@ -160,13 +160,13 @@ class SimResult:
         return true_states(self.model, self.experiment.stamp_origin, t, Y, self.model.evaluate(t, Y))
 
 
-def true_states(model: RigDynamics, stamp_origin: float, t: np.ndarray, Y: np.ndarray, ev: dict) -> States:
+def true_states(model: RigDynamics, stamp_origin: float, t: np.ndarray, Y: np.ndarray, ev: Evaluation) -> States:
     """The :class:`States` of ``model`` at simulation times t (K,) s from its states Y (K, size)
     and their evaluation ``ev`` (:meth:`RigDynamics.evaluate`); stamps ``stamp_origin + t``."""
-    R, c = ev["R"], model.cg
+    R, c = ev.R, model.cg
     return States(t=stamp_origin + t, position=Y[:, 0:3] - R @ c, quaternion=Rotation.from_matrix(R).as_quat(),
                   velocity=Y[:, 12:15] - np.einsum("kij,kj->ki", R, np.cross(Y[:, 15:18], c)),
-                  omega=Y[:, 15:18].copy(), tensions=ev["T"],
+                  omega=Y[:, 15:18].copy(), tensions=ev.T,
                   suspension=None if model.suspension is None else model.suspension.relative(Y))
 
 
@@ -223,7 +223,7 @@ def simulate(exp: Experiment) -> SimResult:
         y_whole = initial_state(model, initial, eq)
         sprung, _ = split_body(exp.mass, exp.cg, exp.inertia, compliant)
         frame = without(mass, cg, J, sprung)     # the rest of the body + dummy and cable masses
-        suspension = Suspension(sprung, frame.cg, compliant, exp.rig.gravity, eq[1])
+        suspension = Suspension(sprung, frame.cg, compliant, exp.rig.gravity, eq.R)
         model = RigDynamics(exp.rig, frame.mass, frame.cg, frame.inertia, cables, excitation, exp.effects, suspension)
         y0 = suspension.state_from_whole(y_whole, cg, frame.cg)
         rtol, atol = COMPLIANT_RTOL, COMPLIANT_ATOL
