@@ -23,7 +23,7 @@ from ..model.cables import CableModel
 from ..model.equilibrium import equilibrium
 
 
-@dataclass
+@dataclass(frozen=True)
 class LinearRig:
     """The rig linearised about its static equilibrium (coordinates q = [dp_cg (3, world, m),
     φ (3, world rotation, rad)]): mass M, stiffness K, cable damping C (6,6); length

@@ -84,7 +84,7 @@ class PoseEstimate:
         return Rotation.from_matrix(self.matrix)
 
 
-@dataclass
+@dataclass(frozen=True)
 class PoseTrack:
     """A tracked trajectory: t (N,), position (N,3), quaternion (N,4) xyzw, omega (N,3), velocity (N,3)."""
 
@@ -119,7 +119,7 @@ def cable_vectors(rig: Rig, position: np.ndarray, rotation: Rotation) -> np.ndar
     return rig.ceiling_anchors - (position + rotation.apply(rig.body_anchors))
 
 
-@dataclass
+@dataclass(frozen=True)
 class StaticPose:
     """Pose at rest: position (3,) world m, rotation body->world, cable compliance (N,) m/N
     (1/stiffness; fitted when rig.yaml gives none), effective unstretched lengths (N,) m

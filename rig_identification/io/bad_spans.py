@@ -20,7 +20,7 @@ SATURATION_RUN = 5       # identical samples at a channel's extreme that make a 
 SLACK_FRACTION = 0.05    # tension below this fraction of the cable's share of the weight = slack
 
 
-@dataclass
+@dataclass(frozen=True)
 class BadSpan:
     """A span of one topic where the data cannot be trusted (``reason``); stamps in s."""
 

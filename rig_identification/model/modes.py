@@ -43,7 +43,7 @@ from .equilibrium import equilibrium
 DOF_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 
 
-@dataclass
+@dataclass(frozen=True)
 class Mode:
     """One natural mode.
 
@@ -66,7 +66,7 @@ class Mode:
                 "shape_units": "dp_cg m (world axes), rotation rad (world axes)"}
 
 
-@dataclass
+@dataclass(frozen=True)
 class EstimatedMode:
     """A free-vibration peak of a recording: frequency Hz, damping ratio (from the decay of
     the fitted damped sinusoid, may be ~0), gyro share (3,) of the mode's amplitude on the

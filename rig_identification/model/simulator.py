@@ -109,7 +109,7 @@ def integrate(model: RigDynamics, y0: np.ndarray, duration: float, rtol: float =
 
 # --- results ---------------------------------------------------------------------------------
 
-@dataclass
+@dataclass(frozen=True)
 class States:
     """True motion at given times.
 
@@ -134,7 +134,7 @@ class States:
         return Rotation.from_quat(self.quaternion)
 
 
-@dataclass
+@dataclass(frozen=True)
 class SimResult:
     """Output of :func:`simulate`.
 

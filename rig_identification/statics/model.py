@@ -43,7 +43,7 @@ DEFAULT_LENGTH_STD = 1e-3        # m: every unstretched cable length
 DEFAULT_DUMMY_POSITION_STD = 1e-3  # m: every coordinate of the dummy mass's centre of gravity
 
 
-@dataclass
+@dataclass(frozen=True)
 class CgOptions:
     """What the fit uses and assumes.
 

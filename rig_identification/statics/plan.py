@@ -23,7 +23,7 @@ from .result import CgResult
 from .state import StaticsError, StaticState
 
 
-@dataclass
+@dataclass(frozen=True)
 class SensorNoise:
     """White-noise σ and rates of the rig's sensors (defaults: the reference recordings).
 
@@ -97,7 +97,7 @@ def predict_cg_std(rig: Rig, cg, dummy: DummyMass, duration: float, noise: Senso
     return estimate_cg(rig, b, d, replace(opts, inflate=False))
 
 
-@dataclass
+@dataclass(frozen=True)
 class CgPlan:
     """A planned static test: dummy mass kg, position (3,) body m, averaging time s per
     state, predicted CG σ (3,) m, the tilt change it causes rad, the lowest cable

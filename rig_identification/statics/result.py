@@ -20,7 +20,7 @@ def _rpy(R: np.ndarray) -> np.ndarray:
 
 # --- result ---------------------------------------------------------------------------------------
 
-@dataclass
+@dataclass(frozen=True)
 class StatePose:
     """Fitted equilibrium of one state: position (3,) world m of the body origin, rotation
     (3, 3) body -> world, rpy (3,) fixed-axis XYZ rad, tensions (N,) N (true, i.e. κ·reading),

@@ -31,7 +31,7 @@ class StaticsError(ValueError):
 
 # --- stream statistics and static states ------------------------------------------------------
 
-@dataclass
+@dataclass(frozen=True)
 class StreamStats:
     """Mean of one sensor stream over a window.
 
