@@ -8,8 +8,6 @@ error naming the files (exit status 2 from the command line).
 import copy
 import dataclasses
 import inspect
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -21,7 +19,7 @@ from rig_identification.io.rig import RigError, dump_rig, read_yaml
 from rig_identification.model.experiment import experiment_from_dict
 from rig_identification.model.simulator import simulate
 
-from conftest import REPO
+from conftest import REPO, run_cli
 
 DEFAULT = REPO / "config" / "rigs" / "default.yaml"
 # exciter A: the thesis's (corner, below the CG), 1.05 Hz; B: the opposite corner, 0.95 Hz
@@ -137,10 +135,9 @@ def test_cli_different_bodies_exit_2(recs, tmp_path):
         rig = recs["A"].rig if mass is None else dataclasses.replace(recs["A"].rig, mass=mass)
         (tmp_path / name).mkdir()
         (tmp_path / name / "rig.yaml").write_text(dump_rig(rig))
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "inertia", str(tmp_path / "light"),
-                          str(tmp_path / "heavy")], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 2, out.stderr
-    err = out.stderr.strip()
+    code, _, err = run_cli("inertia", tmp_path / "light", tmp_path / "heavy")
+    assert code == 2, err
+    err = err.strip()
     assert "Traceback" not in err and len(err.splitlines()) == 1, err
     assert str(tmp_path / "light" / "rig.yaml") in err and str(tmp_path / "heavy" / "rig.yaml") in err
     assert "body.mass" in err and "1810" in err and "1900" in err

@@ -1,7 +1,5 @@
 """Issue 7 part A: predicted inertia σ before the run, and the experiment design (rig-identify plan)."""
 import json
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -19,7 +17,7 @@ from rig_identification.model.experiment import load_experiment
 from rig_identification.model.simulator import simulate
 from rig_identification.estimation.uncertainty import add_noise
 
-from conftest import REPO, background, gather
+from conftest import REPO, background, gather, run_cli
 
 DEFAULT = REPO / "config" / "rigs" / "default.yaml"   # thesis case 16, reference sensors
 
@@ -85,12 +83,10 @@ def test_predicted_std_matches_noisy_replays():
 
 def _plan_cli():
     """Job of test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation: `rig-identify
-    plan` (a process).  Returns (exit status, stdout, stderr)."""
-    cmd = [sys.executable, "-m", "rig_identification.cli.main", "plan", str(DEFAULT), "--inertia", "2894", "695", "3101",
-           "0", "0", "-102", "--json", "--quiet", "--duration", "30", "--runs", "1", "--refine", "1", "--frequencies", "1.3", "1.6",
-           "--position", "0.8", "1.25", "1.29", "--position", "0.8", "-1.25", "1.29"]
-    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, cwd=REPO)
-    return p.returncode, p.stdout, p.stderr
+    plan` (in the worker's process).  Returns (exit status, stdout, stderr)."""
+    return run_cli("plan", DEFAULT, "--inertia", "2894", "695", "3101", "0", "0", "-102", "--json", "--quiet",
+                   "--duration", "30", "--runs", "1", "--refine", "1", "--frequencies", "1.3", "1.6",
+                   "--position", "0.8", "1.25", "1.29", "--position", "0.8", "-1.25", "1.29")
 
 
 background("plan_cli", __file__, _plan_cli, {"run": ()})
@@ -122,10 +118,9 @@ def test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation():
     (["--inertia", "2894", "695", "3101", "0", "0", "-102", "--mass", "-5"], "--mass"),
 ])
 def test_plan_cli_user_errors(args, words):
-    p = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "plan", str(DEFAULT), *args],
-                       capture_output=True, text=True, timeout=120, cwd=REPO)
-    assert p.returncode == 2
-    assert words in p.stderr and "Traceback" not in p.stderr and len(p.stderr.strip().splitlines()) == 1
+    code, _, err = run_cli("plan", DEFAULT, *args)
+    assert code == 2
+    assert words in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
 
 
 def _default_body():

@@ -5,8 +5,9 @@ diagonal, each error within 3 reported standard deviations (issue 4); the sensor
 σ are propagated from is estimated from the recording as truth.yaml states it.
 """
 import json
-import subprocess
-import sys
+import shutil
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -15,23 +16,19 @@ from rig_identification.estimation.identification import KEYS, physically_consis
 from rig_identification.pipeline.offline import compare_to_truth, identify_recording
 from rig_identification.io.recording import read_recording
 
-from conftest import background, gather, recording
+from conftest import background, gather, recording, run_cli
 
 
 def _cli(name: str, report: bool, *args: str):
-    """Job: `rig-identify inertia` (a process) on the reference recording ``name`` with
-    ``args`` (and, with ``report``, ``--report`` into a temporary folder).  Returns (exit status, stdout,
-    stderr, the report's index.html or None)."""
-    import shutil
-    import tempfile
-    from pathlib import Path
+    """Job: `rig-identify inertia` (``identify_main`` in the worker's process) on the reference
+    recording ``name`` with ``args`` (and, with ``report``, ``--report`` into a temporary folder).
+    Returns (exit status, stdout, stderr, the report's index.html or None)."""
     tmp = Path(tempfile.mkdtemp(prefix="test_reference_recordings_"))
     try:
-        out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "inertia", str(recording(name)), *args,
-                              *(["--report", str(tmp / "report")] if report else [])],
-                             capture_output=True, text=True, timeout=600)
+        code, stdout, stderr = run_cli("inertia", recording(name), *args,
+                                       *(["--report", tmp / "report"] if report else []))
         page = tmp / "report" / "index.html"
-        return out.returncode, out.stdout, out.stderr, page.read_text() if page.is_file() else None
+        return code, stdout, stderr, page.read_text() if page.is_file() else None
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
 
@@ -150,7 +147,6 @@ def test_cli_json_keys():
 
 
 def test_cli_user_error_no_traceback(tmp_path):
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "inertia", str(tmp_path)],
-                         capture_output=True, text=True, timeout=60)
-    assert out.returncode == 2
-    assert "no rig.yaml" in out.stderr and "Traceback" not in out.stderr
+    code, _, err = run_cli("inertia", tmp_path)
+    assert code == 2
+    assert "no rig.yaml" in err and "Traceback" not in err

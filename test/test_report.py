@@ -17,7 +17,6 @@ import os
 import re
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +28,7 @@ from rig_identification.estimation.identification import KEYS, InertiaResult, id
 from rig_identification.report.verdict import headline
 from rig_identification.io.verdict import Check, Validation
 
-from conftest import recording
+from conftest import recording, run_cli
 from test_identification import RIG, euler_data
 
 CHROMIUM = os.environ.get("RIG_CHROMIUM", "/usr/bin/chromium")
@@ -125,12 +124,10 @@ def assert_readable(out: Path, seen: dict, result: InertiaResult | None = None) 
 @pytest.fixture(scope="module")
 def made(tmp_path_factory):
     out = tmp_path_factory.mktemp("report") / "case16"
-    run = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "inertia",
-                          str(recording("visible_case16_clean")), "--json", "--report", str(out)],
-                         capture_output=True, text=True, timeout=300)
-    assert run.returncode == 0, run.stderr
-    assert f"report: {out / 'index.html'}" in run.stderr
-    return out, json.loads(run.stdout)
+    code, stdout, stderr = run_cli("inertia", recording("visible_case16_clean"), "--json", "--report", out)
+    assert code == 0, stderr
+    assert f"report: {out / 'index.html'}" in stderr
+    return out, json.loads(stdout)
 
 
 @pytest.fixture(scope="module")

@@ -5,8 +5,6 @@ Acceptance: the thesis's Table 2.1 case noise-free within 0.1 mm; the reference 
 clear errors for inconsistent input.  (Monte Carlo calibration: bench/bench_cg_montecarlo.py.)
 """
 import json
-import subprocess
-import sys
 from dataclasses import replace
 
 import numpy as np
@@ -20,7 +18,7 @@ from rig_identification.statics import (CgOptions, SensorNoise, StaticState, Sta
                                         plan_static_test, predict_cg_std, static_equilibrium)
 from rig_identification.statics.model import GlobalUnknowns, StaticModel, skew
 
-from conftest import REPO, recording
+from conftest import REPO, recording, run_cli
 
 TABLE = REPO / "config" / "cases" / "table2_1_static.yaml"
 FRAME_MASS, FRAME_CG = 262.0, np.array([2.0, 1.0, 1.0])
@@ -101,10 +99,9 @@ def test_reference_pair_within_bounds(reference_pair):
 
 def test_cli_json(reference_pair):
     b, d = reference_pair
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "cg", str(b.path), str(d.path), "--json"],
-                         capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    j = json.loads(out.stdout)
+    code, stdout, stderr = run_cli("cg", b.path, d.path, "--json")
+    assert code == 0, stderr
+    j = json.loads(stdout)
     for k in ("center_of_gravity", "center_of_gravity_std", "mass", "mass_from_load_cells", "weakly_determined"):
         assert k in j
     assert len(j["center_of_gravity"]) == 3 and len(j["center_of_gravity_std"]) == 3 and j["frame"] == "body"
@@ -113,14 +110,12 @@ def test_cli_json(reference_pair):
 
 def test_cli_user_errors_one_line(tmp_path, reference_pair):
     b, _ = reference_pair
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "cg", str(b.path), str(tmp_path)],
-                         capture_output=True, text=True, timeout=60)
-    assert out.returncode == 2 and "Traceback" not in out.stderr
-    assert len(out.stderr.strip().splitlines()) == 1 and "no rig.yaml" in out.stderr
+    code, _, err = run_cli("cg", b.path, tmp_path)
+    assert code == 2 and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and "no rig.yaml" in err
     # the baseline twice: the "dummy" state carries no extra weight
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "cg", str(b.path), str(b.path)],
-                         capture_output=True, text=True, timeout=60)
-    assert out.returncode == 2 and "dummy mass attached" in out.stderr and "Traceback" not in out.stderr
+    code, _, err = run_cli("cg", b.path, b.path)
+    assert code == 2 and "dummy mass attached" in err and "Traceback" not in err
 
 
 # --- bad input ------------------------------------------------------------------------------------
@@ -246,9 +241,8 @@ def test_two_rigs_must_match(tmp_path, reference_pair):
     shutil.copytree(d.path, other)
     text = (other / "rig.yaml").read_text().replace("mass: 1810.0", "mass: 1811.0")
     (other / "rig.yaml").write_text(text)
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "cg", str(b.path), str(other)],
-                         capture_output=True, text=True, timeout=60)
-    assert out.returncode == 2 and "different rigs" in out.stderr and "body" in out.stderr
+    code, _, err = run_cli("cg", b.path, other)
+    assert code == 2 and "different rigs" in err and "body" in err
 
 
 # --- any number of cables, any geometry -------------------------------------------------------------
@@ -368,12 +362,11 @@ def test_prediction_and_plan(reference_pair):
 
 def test_cg_plan_cli(reference_pair):
     b, _ = reference_pair
-    out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "cg-plan", str(b.path), "--json",
-                          "--masses", "50", "--position", "0.8", "1.25", "1.29", "--cg-guess", "0", "0", "0",
-                          "--anchor-std", "0", "--length-std", "0", "--dummy-position-std", "0"],
-                         capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    j = json.loads(out.stdout)
+    code, stdout, stderr = run_cli("cg-plan", b.path, "--json", "--masses", "50", "--position", "0.8", "1.25", "1.29",
+                                   "--cg-guess", "0", "0", "0", "--anchor-std", "0", "--length-std", "0",
+                                   "--dummy-position-std", "0")
+    assert code == 0, stderr
+    j = json.loads(stdout)
     assert j["planned"]["reaches_target"] and j["recommended"]["dummy_mass"] == 50.0
     assert all(h <= 2.5e-3 for h in j["recommended"]["half_width_95"])
 
