@@ -17,6 +17,7 @@ import os
 import re
 import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -28,7 +29,7 @@ from rig_identification.estimation.identification import KEYS, InertiaResult, id
 from rig_identification.report.verdict import headline
 from rig_identification.io.verdict import Check, Validation
 
-from conftest import recording, run_cli
+from conftest import background, gather, recording, run_cli
 from test_identification import RIG, euler_data
 
 CHROMIUM = os.environ.get("RIG_CHROMIUM", "/usr/bin/chromium")
@@ -121,13 +122,25 @@ def assert_readable(out: Path, seen: dict, result: InertiaResult | None = None) 
         assert headline(result.validation) in seen["verdict"]
 
 
-@pytest.fixture(scope="module")
-def made(tmp_path_factory):
-    out = tmp_path_factory.mktemp("report") / "case16"
+def _made():
+    """Job: `rig-identify inertia visible_case16_clean --json --report OUT` (in the worker's
+    process), OUT in a fresh temporary folder that the module's tests read and the fixture
+    removes.  Returns (OUT, exit status, stdout, stderr)."""
+    out = Path(tempfile.mkdtemp(prefix="test_report_")) / "case16"
     code, stdout, stderr = run_cli("inertia", recording("visible_case16_clean"), "--json", "--report", out)
+    return out, code, stdout, stderr
+
+
+background("report", __file__, _made, {"case16": ()})
+
+
+@pytest.fixture(scope="module")
+def made():
+    out, code, stdout, stderr = gather("report")["case16"]
     assert code == 0, stderr
     assert f"report: {out / 'index.html'}" in stderr
-    return out, json.loads(stdout)
+    yield out, json.loads(stdout)
+    shutil.rmtree(out.parent, ignore_errors=True)
 
 
 @pytest.fixture(scope="module")
