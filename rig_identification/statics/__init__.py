@@ -54,8 +54,9 @@ Frames and units (RECORDING_FORMAT.md): world z up, gravity (0, 0, -g); body fra
 to the carrying frame; SI units (m, kg, N, rad, s).  Errors: :class:`StaticsError` (a
 ``ValueError``) with one clear message.
 
-**Modules** (each imports only the ones listed before it; this package re-exports their public
-names, so ``from rig_identification.statics import X`` works for all of them):
+**Modules** (each imports only the ones listed before it; this package re-exports the public
+names of the fit's modules — the CG's twenty-odd importers use ``from rig_identification.statics
+import X``):
 
 * :mod:`.state` -- a static state: every stream averaged over a window at rest and tested for
   stationarity (:class:`StaticState`, :class:`StreamStats`); :class:`StaticsError`;
@@ -63,13 +64,16 @@ names, so ``from rig_identification.statics import X`` works for all of them):
   Newton solve and the predicted measurements (:class:`~.model.StaticModel`,
   :class:`~.model.GlobalUnknowns`); :class:`CgOptions` and the survey σ defaults; the forward
   model :func:`static_equilibrium`;
-* :mod:`rig_identification.estimation.validation` -- model validation of a fit (:class:`CgValidation`);
+* :mod:`.validation` -- model validation of a fit (:class:`CgValidation`);
 * :mod:`.result` -- the estimate (:class:`CgResult`, :class:`StatePose`) and its JSON schema;
-* :mod:`.checks` -- the states checked before the fit (taut cables, a pose per state, the dummy's
-  load and tilt);
+* :mod:`.checks` -- the states checked around the fit (taut cables, a pose per state, the dummy's
+  load and tilt; no stream contradicting the fitted equilibrium);
 * :mod:`.estimation` -- the fit, :func:`estimate_cg`;
 * :mod:`.plan` -- design of the static test (:class:`SensorNoise`, :func:`predict_cg_std`,
-  :class:`CgPlan`, :func:`plan_static_test`).
+  :class:`CgPlan`, :func:`plan_static_test`);
+* :mod:`.capture` -- live capture of the states (the identifier node's CG services);
+* :mod:`.handover` -- the CG handed on: a saved result read back, rig.yaml written with the CG
+  (not re-exported).
 """
 from .estimation import estimate_cg
 from .model import DEFAULT_ANCHOR_STD, DEFAULT_DUMMY_POSITION_STD, DEFAULT_LENGTH_STD, CgOptions, static_equilibrium
@@ -78,14 +82,8 @@ from .result import CG_RESULT_SCHEMA, CG_RESULT_SCHEMA_VERSION, CG_RESULT_UNITS,
 from .state import StaticsError, StaticState, StreamStats
 from .validation import CG_MODEL_CHECKS, CG_VERDICTS, VALIDATION_SIGMA, CgValidation
 
-# the module-level constants statics.py had besides its __all__, still importable from here
-from .checks import SLACK_FRACTION, TOL_ACCEL, TOL_INCL, TOL_TENSION_REL  # noqa: F401
-from .estimation import CONTRADICTION_CHI2, DEFAULT_SCALE_REL_STD, MASS_COVERAGE, TOL_GEOMETRY  # noqa: F401
-from .model import DEFAULT_COMPLIANCE, Z  # noqa: F401
-from .state import MOTION_P  # noqa: F401
-from .validation import CHI2_P_WARN  # noqa: F401
-
 __all__ = ["CG_MODEL_CHECKS", "CG_RESULT_SCHEMA", "CG_RESULT_SCHEMA_VERSION", "CG_RESULT_UNITS", "CG_VERDICTS",
-           "DEFAULT_ANCHOR_STD", "DEFAULT_DUMMY_POSITION_STD", "DEFAULT_LENGTH_STD", "VALIDATION_SIGMA", "CgOptions", "CgPlan", "CgResult", "CgValidation", "SensorNoise", "StatePose", "StaticState",
+           "DEFAULT_ANCHOR_STD", "DEFAULT_DUMMY_POSITION_STD", "DEFAULT_LENGTH_STD", "VALIDATION_SIGMA", "CgOptions",
+           "CgPlan", "CgResult", "CgValidation", "SensorNoise", "StatePose", "StaticState",
            "StaticsError", "StreamStats", "candidate_positions", "estimate_cg", "plan_static_test",
            "predict_cg_std", "static_equilibrium"]
