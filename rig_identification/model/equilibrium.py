@@ -150,7 +150,8 @@ def equilibrium(rig: Rig, mass: float, cg, cable_model: CableModel) -> Equilibri
     plus the length equations of the taut cables (slack cables get tension 0; with
     ``compression`` every cable keeps its length).
 
-    Returns the :class:`Equilibrium` (position of the body-frame origin, rotation, tensions).  The net force and the moment about the CG vanish to < 1e-6 N, N m.
+    Returns the :class:`Equilibrium` (position of the body-frame origin, rotation, tensions).
+    The net force and the moment about the CG vanish to < 1e-6 N, N m.
     Raises :class:`SimulationError` (no equilibrium; inextensible with N > 6).
     """
     cg = np.asarray(cg, float)

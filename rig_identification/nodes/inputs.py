@@ -2,15 +2,15 @@
 
 Inputs at 1 kHz: the consumer nodes subscribe with ``raw=True`` (the callback only queues the
 serialized bytes) and decode each topic's queue in one ``np.frombuffer`` every few ms
-(:class:`~.codec.MessageLayout` in ``codec.py``, :class:`RawInput`); they publish their outputs serialized the same
-way.  A Python message object per sample cost ~35 µs in rclpy, a raw take ~10 µs (6 topics
+(:class:`~.codec.MessageLayout`, :class:`RawInput`); they publish their outputs serialized the
+same way.  A Python message object per sample cost ~35 µs in rclpy, a raw take ~10 µs (6 topics
 at 1 kHz, measured).  Validation (:class:`InputGuard`) and the stamp-order merge
-(:class:`StampMerger`) work on the batches.
+(:class:`~.merge.StampMerger`) work on the batches.
 
 Faults: :class:`InputGuard` records stamp gaps per input topic, :class:`~.diagnostics.Diagnostics`
 reports each input OK / WARN stale / ERROR stopped on /diagnostics.  A node process that is
 killed leaves its readers matched to the reliable KEEP_ALL writers until its DDS participant
-lease expires; :func:`dds_profile` shortens that lease to 3 s (``config/dds/fastdds.xml``)
+lease expires; :func:`~.environment.dds_profile` shortens that lease to 3 s (``config/dds/fastdds.xml``)
 so that the writers are not held back for Fast DDS's default 20 s.
 """
 from __future__ import annotations
