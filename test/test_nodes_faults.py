@@ -8,7 +8,8 @@ need no DDS: the serialized-message codec the nodes use at 1 kHz, and the record
   on the moving body and the identifier fits a window after the restart;
 * a recording written and read back has every message of every topic.
 
-Each graph test has its own ROS_DOMAIN_ID; 60 s of data replayed at 4x real time.
+Each graph test has its own ROS_DOMAIN_ID; 60 s of data replayed at 4x real time (the restart:
+90 s at 3x).
 """
 from __future__ import annotations
 
@@ -68,11 +69,23 @@ class StatusListener(Listener):
         assert all(r.successful for r in fut.result().results), fut.result()
 
 
-@pytest.fixture(scope="module")
-def recording(tmp_path_factory):
-    exp = load_experiment(REPO / "config" / "rigs" / "default.yaml").with_overrides(duration=60.0)
+def default_recording(tmp_path_factory, duration: float):
+    exp = load_experiment(REPO / "config" / "rigs" / "default.yaml").with_overrides(duration=duration)
     sim = simulate(exp)
     return write_recording(tmp_path_factory.mktemp("faults") / "recording", sim.rig, sim.sensors, sim.truth), sim
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    return default_recording(tmp_path_factory, 60.0)
+
+
+@pytest.fixture(scope="module")
+def long_recording(tmp_path_factory):
+    # 90 s: under load the restarted tracker's streams were seen matching up to ~5 s of wall
+    # time (15 s of data at 3x) apart, each re-initialising it; 20 s settle after the last
+    # re-initialisation must still leave a window of well over min_duration
+    return default_recording(tmp_path_factory, 90.0)
 
 
 def start_graph(tmp: Path, rec: Path, cables, driver_extra=None, identifier_extra=None, rate=RATE):
@@ -156,8 +169,8 @@ def test_a_silent_load_cell_is_reported_and_not_fitted_over(recording, tmp_path)
         g.stop()
 
 
-def test_tracker_killed_and_restarted_mid_run_recovers(recording, tmp_path):
-    rec, sim = recording
+def test_tracker_killed_and_restarted_mid_run_recovers(long_recording, tmp_path):
+    rec, sim = long_recording
     # 3x: a process restart takes a few s of wall time, the fit needs 20 s + 10 s after it
     g, lis = start_graph(tmp_path, rec, sim.rig.cable_names, rate=3.0)
     try:
@@ -170,7 +183,10 @@ def test_tracker_killed_and_restarted_mid_run_recovers(recording, tmp_path):
         killed_at = time.monotonic() - t0
         del g.procs["tracker"]
         time.sleep(0.5)
-        g.start("tracker", {"rig": str(rec / "rig.yaml")})
+        # start_timeout 0: the new tracker starts on whatever stream came first, the others
+        # join later (what a slow discovery did on CI: Izz 13 % off when the tracker tracked
+        # on without them); it must re-initialise with every stream
+        g.start("tracker", {"rig": str(rec / "rig.yaml"), "start_timeout": 0.0})
         wait_until(lambda: drained(lis), 150.0, "the replay to finish and drain", g)
         time.sleep(1.2)
         # the outage was reported (the identifier's wrench input stale or stopped), and ended
@@ -187,7 +203,9 @@ def test_tracker_killed_and_restarted_mid_run_recovers(recording, tmp_path):
         d = json.loads(r.message)
         assert any("gap" in w for w in d["warnings"]), d["warnings"]
         assert d["window"]["start_relative"] > 8.0 + 20.0
-        assert max(relative_errors(d, sim.truth).values()) < 0.03, relative_errors(d, sim.truth)
+        errs = relative_errors(d, sim.truth)
+        assert max(errs.values()) < 0.03, (errs, d["window"], d["inertia_std"], d.get("validation", {}).get("verdict"),
+                                          d["warnings"])
         # and nothing was lost on the way apart from the outage itself
         assert lis.status["published"] == lis.status["total"]
         # the killed reader held the reliable writers back for the DDS lease (3 s) at most
