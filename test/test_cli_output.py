@@ -72,7 +72,9 @@ def test_progress_on_stderr_and_quiet_silences_it(text_run, json_run):
     _, err = text_run
     steps = [ln for ln in err.splitlines() if ln.startswith("rig-identify: ")]
     assert any(ln.startswith("rig-identify: reading ") for ln in steps), err
-    assert any(ln.startswith("rig-identify: identifying (") and ln.endswith(" s") for ln in steps), err
+    # the stage that is made of the steps below it is a heading, not a step of 0.0 s
+    assert any(ln.startswith("rig-identify: identifying (") and ln.endswith("):") for ln in steps), err
+    assert any(ln.startswith("rig-identify: fitting the inertia tensor") and ln.endswith(" s") for ln in steps), err
     assert "rig-identify: " not in json_run[2], json_run[2]
 
 
@@ -318,10 +320,11 @@ def test_core_log_records_become_steps_and_warnings():
     shows; a warning shown as it happened is not repeated with the result's warnings."""
     import logging
 
-    from rig_identification.cli.progress import attached
+    from rig_identification.cli.progress import attached, heading
     err = io.StringIO()
     with contextlib.redirect_stderr(err):
         with attached() as printer:
+            heading("identifying (tracker, fit)")
             logging.getLogger("rig_identification.pipeline.offline").info("tracking the pose ...")
             logging.getLogger("rig_identification.pipeline.offline").warning("gap in /rig/imu")
             logging.getLogger("rig_identification.pipeline.offline").info("fitting")
@@ -329,7 +332,10 @@ def test_core_log_records_become_steps_and_warnings():
             printer.warn_rest(["gap in /rig/imu", "another"])
         with attached(quiet=True) as printer:
             logging.getLogger("rig_identification.diagnosis.selection").info("selection step 1")
+        with attached(quiet=True) as printer:
+            heading("a stage")
     lines = err.getvalue().splitlines()
+    assert lines.pop(0) == "rig-identify: identifying (tracker, fit):"   # a heading: no duration
     assert lines[0] == "rig-identify: tracking the pose …"          # the step's line, cut by the warning
     assert lines[1] == "warning: gap in /rig/imu"
     assert lines[2].startswith("rig-identify: tracking the pose … ") and lines[2].endswith(" s")   # closed

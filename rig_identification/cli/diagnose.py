@@ -21,7 +21,7 @@ import json
 import sys
 
 from .inertia import truth_columns, window_line
-from .progress import step
+from .progress import heading, step
 from .text import effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
 from ..diagnosis.selection import diagnose
 from ..report.diagnosis_page import write_report
@@ -104,7 +104,7 @@ def cmd_diagnose(args) -> int:
     """``rig-identify diagnose``; returns the exit status (user errors raise)."""
     step(f"reading {args.recording}")
     rec = read_recording(args.recording)
-    step("rigid-body fit (tracker, preprocessor, fit, validation)")
+    heading(f"the rigid-body fit, as {same_as(args.model)} (tracker, preprocessor, fit, validation)")
     result = identify_recording(rec, refine=False, model=args.model)
     step("diagnosing (effect library, likelihood-ratio selection)")
     d = diagnose(rec, model=args.model)

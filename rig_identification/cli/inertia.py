@@ -23,7 +23,7 @@ import numpy as np
 from ..io.atomic import atomic_write_text
 from ..statics.handover import load_cg_result
 from .main import version
-from .progress import step, warn
+from .progress import heading, step, warn
 from .text import (effect_text, entries_line, fmt, origin_line, principal_lines, products_line, tensor_table)
 from ..io.export import AXES, axes_block, convention_lines, entries_from_option, export_dict, sign_in, \
     urdf_inertial, yaml_text
@@ -203,7 +203,7 @@ def identify(args, recs: list) -> InertiaResult:
     refine = not args.quick
     what = "tracker, preprocessor, fit" + (", σ from replays with fresh noise" if refine and args.model == "pem"
                                            else "") + ", validation"
-    step(f"identifying ({what})")
+    heading(f"identifying ({what})")
     if len(recs) > 1:
         return identify_recordings(recs, start=args.start, end=args.end, band_hz=band, refine=refine)
     guess = None if args.initial_guess is None else entries_from_option(args.initial_guess)
@@ -211,7 +211,7 @@ def identify(args, recs: list) -> InertiaResult:
                                 initial_guess=guess, refine=refine)
     if args.model == "pem" and refine and not args.no_diagnose:
         if result.validation is not None and result.validation.verdict != "ok":
-            step("diagnosing the model error (rig-identify diagnose, then the fit again)")
+            heading("model error: diagnosing it (rig-identify diagnose), then identifying again with what it names")
         result = with_diagnosis(recs[0], result, args.start, args.end, band)
     return result
 

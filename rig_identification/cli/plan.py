@@ -12,7 +12,7 @@ import sys
 
 import numpy as np
 
-from .progress import step
+from .progress import heading, step
 from ..io.export import ORDER, entries_from_option, tensor_from_option
 from ..estimation.identification import KEYS, from_tensor
 from ..model.modes import estimate_modes, match_modes, natural_modes
@@ -51,7 +51,7 @@ def cmd_modes(args) -> int:
         J = tensor_from_option(args.inertia)
         source = "--inertia"
     else:
-        step("identifying the tensor (rig-identify inertia --quick)")
+        heading("identifying the tensor (rig-identify inertia --quick)")
         J = identify_recording(rec, refine=False).inertia
         source = "identified from the recording"
     if args.stiffness is not None:

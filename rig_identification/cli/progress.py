@@ -5,7 +5,10 @@ The core modules say what they are doing through Python's :mod:`logging`, under 
 record is a warning to show now.  :class:`StepPrinter` is the handler the command line attaches
 (:func:`attached`): it prints ``rig-identify: tracking the pose …`` when a step starts and its
 duration (`` 2.8 s``) when the next one starts or the command ends, and ``warning: …`` lines
-as they come; ``--quiet`` keeps the steps off and the warnings on.  Without the handler (a
+as they come; ``--quiet`` keeps the steps off and the warnings on.  A heading (:func:`heading`:
+a record with ``extra={"heading": True}``) names a stage made of the steps that follow it: it
+prints ``rig-identify: identifying (…):`` on a line of its own, without a duration (it would
+read 0.0 s: the stage's time is that of its steps).  Without the handler (a
 library user, a node) the records go where the application's logging sends them.
 """
 from __future__ import annotations
@@ -54,6 +57,9 @@ class StepPrinter(logging.Handler):
                     self._partial = False
                 self._write(f"warning: {msg}\n")
                 self.shown.add(msg)
+            elif not self.quiet and getattr(record, "heading", False):
+                self._close_step()
+                self._write(f"{self.prog}: {msg.rstrip(' .…:')}:\n")
             elif not self.quiet:
                 self._close_step()
                 msg = msg.rstrip(" .…")     # "simulating the baseline ..." -> one ellipsis, ours
@@ -100,6 +106,11 @@ def attached(quiet: bool = False):
 def step(message: str) -> None:
     """Start a step of the command line itself (``rig_identification.cli.main`` logger, INFO)."""
     logging.getLogger(LOGGER + ".cli").info(message)
+
+
+def heading(message: str) -> None:
+    """Name a stage of the command line whose steps follow (printed without a duration)."""
+    logging.getLogger(LOGGER + ".cli").info(message, extra={"heading": True})
 
 
 def warn(message: str) -> None:
