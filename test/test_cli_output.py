@@ -293,9 +293,28 @@ def test_diagnose_prints_the_rigid_body_fit_of_inertia(monkeypatch, json_run):
     monkeypatch.setattr(cli_diagnose, "diagnose", stub)
     code, out, err = run("diagnose", CLEAN, "--json", "-q")
     assert code == 0, err
-    rb = json.loads(out)["rigid_body_fit"]
+    d = json.loads(out)
+    rb = d["rigid_body_fit"]
     assert rb["inertia_about_cg"] == json_run[0]["inertia_about_cg"]
     assert rb["as"] == "rig-identify inertia --quick --no-diagnose" and rb["verdict"] == "ok"
+    # a schema, and a unit for every numeric field; each tensor says which fit it is
+    assert d["schema"] == "rig_identification.diagnosis_result" and d["schema_version"] == 1
+    def numbers(v):   # a number, or a list / dict of numbers
+        vals = list(v.values()) if isinstance(v, dict) else v if isinstance(v, list) else [v]
+        return len(vals) > 0 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in vals)
+    numeric = [k for k, v in d.items() if k != "schema_version" and v is not None and numbers(v)]
+    assert numeric and all(k in d["units"] for k in numeric), [k for k in numeric if k not in d["units"]]
+    assert set(d["fits"]) == {"rigid_body_fit", "inertia_about_cg_before", "inertia_about_cg_after"}
+
+
+def test_diagnose_json_gives_the_units_of_every_effect_parameter():
+    from rig_identification.report.diagnosis import diagnosis_json
+    d = diagnosis_json({"effects": [{"name": "viscous_damping", "parameters": {"angular": 300.9, "linear": 148.7}}],
+                        "candidates": [{"name": "sensor_delay"}, {"name": "viscous_damping"}],
+                        "inertia_about_cg_before": {}})
+    assert d["units"]["effects.parameters"] == {"viscous_damping": {"angular": "N·m·s/rad", "linear": "N·s/m"},
+                                                "sensor_delay": {"delay": "s"}}
+    assert "not a result to quote" in d["fits"]["inertia_about_cg_before"] and "rigid_body_fit" not in d["fits"]
 
 
 def test_version_and_help(capsys):

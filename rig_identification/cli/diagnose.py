@@ -24,6 +24,7 @@ from .inertia import truth_columns, window_line
 from .progress import heading, step
 from .text import effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
 from ..diagnosis.selection import diagnose
+from ..report.diagnosis import diagnosis_json
 from ..report.diagnosis_page import write_report
 from ..io.export import AXES, ORDER, convention_lines
 from ..estimation.identification import KEYS, InertiaResult
@@ -115,7 +116,7 @@ def cmd_diagnose(args) -> int:
     out = d.to_dict()
     out["rigid_body_fit"] = rigid_body_dict(result, float(rec.sensors.t_start), args.model)
     if args.json:
-        print(json.dumps(out))
+        print(json.dumps(diagnosis_json(out)))
     else:
         print_diagnosis(rec, result, d, out, args.model)
     args.progress.warn_rest(result.warnings + d.warnings)

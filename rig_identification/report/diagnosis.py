@@ -59,6 +59,45 @@ UNITS = {
 }
 CHANNEL_UNITS = {"gyro": "rad/s", "accel": "m/s²", "torque": "N·m", "force": "N", "load_cell": "N"}
 
+DIAGNOSIS_SCHEMA = "rig_identification.diagnosis_result"   # rig-identify diagnose --json, diagnosis.json
+DIAGNOSIS_SCHEMA_VERSION = 1
+_PER_CHANNEL = "per channel: gyro_* rad/s, accel_* m/s², torque_* N·m, force_* N, load_cell_* N"
+DIAGNOSIS_UNITS = {
+    "residual_rms_before": _PER_CHANNEL, "residual_rms_after": _PER_CHANNEL,
+    "residual_rms_synchronous_before": _PER_CHANNEL, "residual_rms_synchronous_after": _PER_CHANNEL,
+    "located.rms": _PER_CHANNEL, "located.mean": _PER_CHANNEL, "located.rms_by_tenth": _PER_CHANNEL,
+    "located.peaks.hz": "Hz", "located.peaks.power_over_floor": "1: the peak's power over the local median",
+    "inertia_about_cg_before": "kg·m², body axes, tensor entries (negated products)",
+    "inertia_about_cg_after": "kg·m², body axes, tensor entries (negated products)",
+    "inertia_std_before": "kg·m²", "inertia_std_after": "kg·m²", "band_hz": "Hz",
+    "effects.evidence.likelihood_ratio": "1", "effects.evidence.p_value": "1",
+    "effects.evidence.rms_reduction": "1: share of the channel's residual RMS removed",
+    "candidates.likelihood_ratio": "1", "candidates.p_value": "1", "synchronous_revolutions": "1",
+    "rigid_body_fit.inertia_about_cg": "kg·m², body axes, tensor entries (negated products)",
+    "rigid_body_fit.inertia_std": "kg·m²", "rigid_body_fit.window.start": "s from the first IMU sample",
+    "rigid_body_fit.window.end": "s from the first IMU sample", "rigid_body_fit.band_hz": "Hz",
+}
+FITS = {
+    "rigid_body_fit": "the rigid-body fit and its verdict, the same as the command in its 'as' (the tensor "
+                      "rig-identify inertia reports when it does not diagnose)",
+    "inertia_about_cg_before": "diagnose's own rigid-body baseline, on its residual groups (gyro, accelerometer, "
+                               "mean levels) against which its likelihood ratios are computed; not a result to quote",
+    "inertia_about_cg_after": "diagnose's joint fit of the tensor and the effects found; rig-identify inertia adds "
+                              "the effects to the model, fits again and validates: its tensor is the one to use",
+}
+
+
+def diagnosis_json(d: dict) -> dict:
+    """Diagnose's JSON (:meth:`~rig_identification.diagnosis.selection.Diagnosis.to_dict`, with
+    ``rigid_body_fit`` when the command line adds it) with its schema, version, the unit of
+    every numeric field (``units``; ``effects.parameters``: {effect: {parameter: unit}} of the
+    effects and candidates present) and what each of its tensors is (``fits``)."""
+    names = {e["name"] for e in d.get("effects") or []} | {c["name"] for c in d.get("candidates") or []}
+    effect_units = {n: {p: u for (e, p), u in UNITS.items() if e == n} for n in sorted(names)}
+    fits = {k: v for k, v in FITS.items() if k in d}
+    return {"schema": DIAGNOSIS_SCHEMA, "schema_version": DIAGNOSIS_SCHEMA_VERSION,
+            "units": {**DIAGNOSIS_UNITS, "effects.parameters": effect_units}, "fits": fits, **d}
+
 
 def channel_unit(channel: str) -> str:
     """SI unit of a diagnosis channel (gyro_x, accel_y, torque_z, force_x, load_cell_c0, …)."""
@@ -194,4 +233,5 @@ def diagnosis_html(result: InertiaResult) -> tuple[str, dict | None]:
     return html, data
 
 
-__all__ = ["diagnosis_html", "effects_text", "parameters_text", "plus_minus", "channel_unit", "EFFECT_TEXT", "UNITS"]
+__all__ = ["diagnosis_html", "diagnosis_json", "effects_text", "parameters_text", "plus_minus", "channel_unit", "EFFECT_TEXT",
+           "UNITS", "DIAGNOSIS_SCHEMA", "DIAGNOSIS_UNITS"]

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.signal import welch
 
 from ..io.atomic import atomic_directory
-from .diagnosis import channel_unit, effects_table
+from .diagnosis import channel_unit, diagnosis_json, effects_table
 from .figures import figure, robust_limit
 from .html import esc, json_safe, num, page, table
 
@@ -104,7 +104,7 @@ def write_report(diag, out: str | Path, title: str = "diagnosis") -> Path:
     cells = [k for k in ser["before"] if k.startswith("load_cell_")]
     if cells:
         groups["load cells"] = (cells, "N")
-    d = json_safe(diag.to_dict())
+    d = json_safe(diagnosis_json(diag.to_dict()))
     with atomic_directory(out) as tmp:
         (tmp / "diagnosis.json").write_text(json.dumps(d, indent=1, allow_nan=False))
         imgs = []
