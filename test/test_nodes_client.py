@@ -66,3 +66,15 @@ def test_undetermined_entry_prints_not_determined(answer):
     assert "not determined" in rows(text)["ixy"]
     assert "Ixy not determined" in text
     assert float(rows(text)["ixx"].split()[2]) == pytest.approx(d["inertia_about_cg"]["ixx"], abs=0.006)
+
+
+def test_the_top_level_help_describes_every_verb_and_the_cg_procedure():
+    from rig_identification.nodes.client import VERBS, parser
+    text = parser("identify").format_help()
+    for verb in VERBS:
+        assert f"\n  {verb} " in text or f"\n  [{verb}] " in text, verb
+    steps = [text.index(f"mass_properties_client {v}") for v in ("cg-capture baseline", "cg-capture dummy",
+                                                                   "cg-estimate --write-rig")]
+    assert steps == sorted(steps)               # in the order of the procedure
+    assert all(len(line) <= 100 for line in text.splitlines())
+    assert "cg-capture baseline|dummy" in parser("cg-capture").format_help()   # each verb's help has it too

@@ -231,8 +231,8 @@ class IdentifierClient:
 def parser(verb: str) -> argparse.ArgumentParser:
     """The command line of ``verb`` (one of :data:`VERBS`)."""
     prog = "mass_properties_client" + ("" if verb == "identify" else f" {verb}")
-    ap = argparse.ArgumentParser(prog=prog, description=VERBS[verb], epilog="ROS arguments may follow --ros-args. "
-                                 "Verbs: " + ", ".join(VERBS) + " (default identify).")
+    ap = argparse.ArgumentParser(prog=prog, description=VERBS[verb], epilog=EPILOG,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
     if verb == "cg-capture":
         ap.add_argument("state", choices=("baseline", "dummy"),
                         help="baseline: the body at rest without the dummy mass; dummy: with it")
@@ -265,6 +265,18 @@ VERBS = {
     "status": "Print the identifier's buffer status (~/status).",
 }
 
+#: every help's closing text: the verbs, each with what it does, and the static CG procedure
+EPILOG = ("verbs (mass_properties_client VERB --help for each):\n"
+          "  [identify]                 fit the inertia tensor; print the mass properties, verdict first\n"
+          "  cg-capture baseline|dummy  CG steps 1, 2: capture the body at rest without / with the dummy\n"
+          "  cg-estimate                CG step 3: the centre of gravity and its σ from the two captures\n"
+          "  status                     samples buffered by the identifier\n"
+          "\nthe static centre of gravity, the body at rest each time (docs/ros.md):\n"
+          "  mass_properties_client cg-capture baseline     # without the dummy mass\n"
+          "  mass_properties_client cg-capture dummy        # with it, at rig.yaml dummy_mass.position\n"
+          "  mass_properties_client cg-estimate --write-rig rig_with_cg.yaml\n"
+          "\nROS arguments may follow --ros-args.  Exit status: 0 done; 1 the identifier refused or failed\n"
+          "(its reason printed); 2 the identifier is not reachable, or a bad command line.")
 
 def main(argv=None) -> int:
     argv = list(sys.argv if argv is None else argv)
