@@ -360,3 +360,19 @@ def test_core_log_records_become_steps_and_warnings():
     assert lines[2].startswith("rig-identify: tracking the pose … ") and lines[2].endswith(" s")   # closed
     assert lines[3].startswith("rig-identify: fitting … ") and lines[3].endswith(" s")
     assert lines[4:] == ["warning: another"]                      # quiet: no step line
+
+
+def test_the_rigid_body_fit_beside_a_diagnosed_one_says_which_command_gives_it():
+    """inertia's rigid-body line names its command (--no-diagnose), diagnose's names its own
+    (--quick --no-diagnose): the two tensors printed for one recording are told apart."""
+    from types import SimpleNamespace
+
+    from rig_identification.cli.inertia import diagnosis_lines
+    effect = {"name": "viscous_damping", "parameters": {"angular": 300.9, "linear": 148.7},
+              "parameters_std": {"angular": 1.0, "linear": 3.2}}
+    r = SimpleNamespace(diagnosis={"effects": [effect], "handled": "added to the model"},
+                        rigid_body={"inertia_about_cg": dict(zip(ORDER, [2901.7, 698.0, 3200.4, -1.3, -5.2, -101.3])),
+                                    "validation": "model_error"})
+    first = diagnosis_lines(r)[0]
+    assert "rigid-body fit (as rig-identify inertia --no-diagnose; verdict model_error): ixx 2901.70" in first, first
+    assert cli_diagnose.same_as("pem") == "rig-identify inertia --quick --no-diagnose"

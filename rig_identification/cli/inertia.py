@@ -58,7 +58,8 @@ def diagnosis_lines(result: InertiaResult) -> list[str]:
     rigid = entries_line(rb.get("inertia_about_cg", {}))
     if dg["effects"]:
         lines = [f"model error diagnosed ({dg['handled']}); the tensor above is the fit with it, validated; "
-                 f"rigid-body fit (verdict {rb.get('validation')}): {rigid} kg·m²"]
+                 f"rigid-body fit (as rig-identify inertia --no-diagnose; verdict {rb.get('validation')}): "
+                 f"{rigid} kg·m²"]
         lines += [f"  effect {e['name']}: {effect_text(e)}" for e in dg["effects"]]
         return lines
     lines = ["model error NOT explained (" + dg["handled"].removeprefix("not: ") + "); the tensor above is the "
