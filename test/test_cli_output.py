@@ -64,6 +64,7 @@ def test_text_says_the_verdict_first_and_the_conventions(text_run):
     assert "products of inertia about the CG, vehicle-dynamics sign" in out
     assert "principal moments (kg·m², ascending)" in out and out.count("  I") >= 3
     assert "tensor about the body-frame origin (parallel-axis theorem" in out
+    assert "σ leaves out the mass and centre of gravity given above: they are taken as exact" in out
     assert "The most weakly determined combination is" in out and out.count("most weakly determined") == 1
     assert "nan" not in out.lower().replace("nanoseconds", "")
 

@@ -73,6 +73,11 @@ def diagnosis_lines(result: InertiaResult) -> list[str]:
     return lines
 
 
+#: what σ leaves out, said with every tensor (a CG error moves the tensor: the tutorial's step 6)
+GIVEN_EXACT = ("σ leaves out the mass and centre of gravity given above: they are taken as exact; the tensor's "
+               "error from an error of the CG is not in σ (docs/tutorial.md, step 6)")
+
+
 def std_line(result: InertiaResult) -> str:
     """What σ is: the propagated sensor noise or the fit's residuals."""
     n = result.sensor_noise
@@ -116,6 +121,7 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
         print(line)
     print(origin_line(ex))
     print(std_line(result))
+    print(GIVEN_EXACT)
     if result.diagnosis is not None:
         for line in diagnosis_lines(result):
             print(line)

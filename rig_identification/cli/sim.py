@@ -1,4 +1,4 @@
-"""``rig-sim``: simulate an experiment file and write a recording folder (RECORDING_FORMAT.md).
+"""``rig-sim``: simulate an experiment file and write a recording folder (docs/recording_format.md).
 
     rig-sim CONFIG OUTDIR [--duration S] [--seed N] [--noise-free] [--storage mcap|sqlite3]
             [--static baseline|dummy [--dummy-mass KG --dummy-position X Y Z]] [--overwrite]
