@@ -56,3 +56,16 @@ def test_the_report_says_where_the_cg_came_from(day):
     page = html.unescape((report / "index.html").read_text())
     assert f"in body axes ({source})" in page
     assert "rig.yaml body.center_of_gravity, as measured" not in page
+
+
+def test_cg_json_gives_each_state_window_as_start_and_end_take_it(day):
+    """cg.json's state windows in s from each recording's first IMU sample (the header stamps
+    beside): what --start/--end would take to average the same stretch again."""
+    from rig_identification.io.recording import read_recording
+    cg = day[0]
+    assert [s["label"] for s in cg["states"]] == ["baseline", "dummy"]
+    for s, path in zip(cg["states"], (BASE, DUMMY)):
+        t0 = float(read_recording(path).sensors.t_start)
+        np.testing.assert_allclose(s["window_s"], np.array(s["window"]) - t0, rtol=0, atol=1e-9)
+        assert 0.0 <= s["window_s"][0] < s["window_s"][1] <= 10.0 + 1e-6
+    assert cg["units"]["states.window_s"].startswith("s from the first IMU sample")

@@ -180,6 +180,12 @@ def cmd_cg(args) -> int:
     created = datetime.now(timezone.utc).isoformat(timespec="seconds")
     d = res.to_dict()
     d["baseline"], d["dummy"], d["created"] = str(rb.path), str(rd.path), created
+    # each state's window also in s from its recording's first IMU sample, as --start/--end take it
+    first = {"baseline": float(rb.sensors.t_start), "dummy": float(rd.sensors.t_start)}
+    for s in d["states"]:
+        if s.get("label") in first and s.get("window") is not None:
+            s["window_s"] = [float(w) - first[s["label"]] for w in s["window"]]
+    d["units"]["states.window_s"] = "s from the first IMU sample of the state's recording (as --start/--end)"
     if args.tare is not None:
         c, s = res.without(args.tare[0], args.tare[1:])
         d["tare"] = {"mass": float(args.tare[0]), "center_of_gravity": [float(x) for x in args.tare[1:]]}
