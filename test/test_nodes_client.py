@@ -78,3 +78,10 @@ def test_the_top_level_help_describes_every_verb_and_the_cg_procedure():
     assert steps == sorted(steps)               # in the order of the procedure
     assert all(len(line) <= 100 for line in text.splitlines())
     assert "cg-capture baseline|dummy" in parser("cg-capture").format_help()   # each verb's help has it too
+
+
+def test_the_table_says_sigma_leaves_out_the_given_mass_and_cg(answer):
+    d, truth = answer
+    text = format_table(d, truth)
+    assert "mass and CG: the known values of rig.yaml" in text
+    assert "taken as exact: the tensor's error from an error of the CG is not in its σ" in text

@@ -131,7 +131,8 @@ def format_table(result: dict, truth: dict | None, cg_answer: str | None = None,
             continue
         row(k, "kg·m²", f"{J[k]:.2f}", f"{std[k]:.2f}" if std.get(k) is not None else "—",
             f"{Jt[k]:.2f}" if Jt else "—", err)
-    lines.append("mass and CG: the known values of rig.yaml (the dynamic experiment identifies the tensor)")
+    lines.append("mass and CG: the known values of rig.yaml (the dynamic experiment identifies the tensor), taken "
+                 "as exact: the tensor's error from an error of the CG is not in its σ")
     if has_truth:
         lines.append("error: % of the true value; * products of inertia: % of the largest true diagonal entry")
     products = [f"I{k[1:]} " + (NOT_DETERMINED if J.get(k) is None else f"{-J[k] + 0.0:+.2f}"
