@@ -69,3 +69,17 @@ def test_cg_json_gives_each_state_window_as_start_and_end_take_it(day):
         np.testing.assert_allclose(s["window_s"], np.array(s["window"]) - t0, rtol=0, atol=1e-9)
         assert 0.0 <= s["window_s"][0] < s["window_s"][1] <= 10.0 + 1e-6
     assert cg["units"]["states.window_s"].startswith("s from the first IMU sample")
+
+
+def test_cg_plan_says_what_it_is_doing_on_stderr():
+    """Progress lines for cg-plan (its search takes ~10 s), silenced by -q.  (cg itself reads and
+    fits in ~0.3 s after its imports: no progress lines.)"""
+    code, out, err = run("cg-plan", BASE, "--cg-guess", "0", "0", "0", "--masses", "50", "--position", "0.5", "0.5",
+                         "0.3")
+    assert code == 0, err
+    steps = [ln.split(" … ")[0] for ln in err.splitlines() if ln.startswith("rig-identify: ")]
+    assert steps == [f"rig-identify: reading {BASE} (its sensor noise)",
+                     "rig-identify: predicting the CG σ of the planned test",
+                     "rig-identify: searching dummy masses (50 kg) and positions for ±2.5 mm"], err
+    assert out.startswith("rig: ")
+    assert "rig-identify: " not in run("cg-plan", BASE, "--masses", "50", "--position", "0.5", "0.5", "0.3", "-q")[2]

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from .cg import add_geometry_options, cg_options, number
+from .progress import step
 from ..io.recording import RecordingError, read_recording
 from ..io.rig import DummyMass, load_rig
 from ..model.experiment import load_rig_or_experiment
@@ -77,6 +78,7 @@ def cmd_cg_plan(args) -> int:
     else:
         rig = load_rig_or_experiment(src)
     if args.noise_from is not None:
+        step(f"reading {args.noise_from} (its sensor noise)")
         rec = read_recording(args.noise_from)
         noise = SensorNoise.from_state(StaticState.from_window(rec.sensors, label=str(rec.path), allow_motion=True))
         noise_src = f"measured in {rec.path}"
@@ -107,18 +109,23 @@ def cmd_cg_plan(args) -> int:
                  "noise": {k: float(v) for k, v in vars(noise).items()}, "noise_source": noise_src,
                  "geometry_std": opts.geometry_std()}
     if planned is not None:
+        step("predicting the CG σ of the planned test")
         r = predict_cg_std(rig, guess, planned, args.duration, noise, opts)
         out["planned"] = {"dummy_mass": planned.mass, "dummy_position": [float(x) for x in planned.position],
                           "duration": args.duration, "center_of_gravity_std": [float(x) for x in r.center_of_gravity_std],
                           "half_width_95": [float(1.96 * x) for x in r.center_of_gravity_std],
                           "reaches_target": bool(np.all(1.96 * r.center_of_gravity_std <= target)),
                           "tilt_change_rad": r.weakly_determined["tilt_change_rad"]}
-    best, plans = plan_static_test(rig, guess, masses=args.masses or (25.0, 50.0, 100.0, 200.0),
+    masses = args.masses or (25.0, 50.0, 100.0, 200.0)
+    step(f"searching dummy masses ({', '.join(f'{m:g}' for m in masses)} kg) and positions for ±{args.target_mm:g} mm")
+    best, plans = plan_static_test(rig, guess, masses=masses,
                                    positions=args.position, target=target, noise=noise,
                                    max_duration=args.max_duration, options=opts)
     out["recommended"] = None if best is None else best.to_dict()
     out["candidates"] = [p.to_dict() for p in sorted(plans, key=lambda p: (not p.reaches_target, p.duration,
                                                                             p.dummy.mass))]
+    if getattr(args, "progress", None) is not None:
+        args.progress.finish()
     if args.json:
         print(json.dumps(out))
         return 0
