@@ -377,3 +377,27 @@ def test_the_rigid_body_fit_beside_a_diagnosed_one_says_which_command_gives_it()
     first = diagnosis_lines(r)[0]
     assert "rigid-body fit (as rig-identify inertia --no-diagnose; verdict model_error): ixx 2901.70" in first, first
     assert cli_diagnose.same_as("pem") == "rig-identify inertia --quick --no-diagnose"
+
+
+def test_rig_sim_help_is_quick_and_the_simulation_says_what_it_does(tmp_path, capsys):
+    """rig-sim --help (and a usage error) answer without importing the simulator; a run prints
+    its steps on stderr (-q: none) and the closing line on stdout."""
+    code = ("import sys\nfrom rig_identification.cli.main import sim_main\n"
+            "for argv in (['--help'], ['a.yaml', 'out', '--dummy-mass', '3']):\n"
+            "    try:\n        sim_main(argv)\n    except SystemExit as e:\n        print('EXIT', e.code)\n"
+            "print('HEAVY', sorted(m for m in sys.modules if m.split('.')[0] in ('scipy', 'rosbags', 'numba')))")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    assert "usage: rig-sim" in p.stdout and "EXIT 0" in p.stdout and "EXIT 2" in p.stdout, p.stdout
+    assert "HEAVY []" in p.stdout, p.stdout.splitlines()[-1]
+    assert "--dummy-mass and --dummy-position go together" in p.stderr
+    from rig_identification.cli.sim import sim_main
+    from pathlib import Path
+    config = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"
+    assert sim_main([str(config), str(tmp_path / "a"), "--duration", "1"]) == 0
+    out, err = capsys.readouterr()
+    steps = [ln.split(" … ")[0] for ln in err.splitlines()]
+    assert steps == ["rig-sim: simulating default (dynamic, 1 s)", f"rig-sim: writing {tmp_path / 'a'}"], err
+    assert all(ln.endswith(" s") for ln in err.splitlines()) and out.startswith("rig-sim: wrote ")
+    assert sim_main([str(config), str(tmp_path / "b"), "--duration", "1", "-q"]) == 0
+    assert capsys.readouterr().err == ""

@@ -19,6 +19,7 @@ from importlib.metadata import version as dist_version
 from typing import Callable
 
 from .progress import attached
+from .sim_args import parse_sim_args
 
 DESCRIPTION = """\
 Identify the mass properties of a vehicle hung on cables, offline, from recording folders
@@ -303,7 +304,10 @@ def identify_main(argv: list[str] | None = None) -> int:
 
 
 def sim_main(argv: list[str] | None = None) -> int:
-    """Entry point of ``rig-sim`` (implemented in :mod:`rig_identification.cli.sim`)."""
+    """Entry point of ``rig-sim`` (implemented in :mod:`rig_identification.cli.sim`): its command
+    line is checked first (:mod:`~rig_identification.cli.sim_args`), so that ``--help`` and usage
+    errors answer without importing the simulator (scipy)."""
+    parse_sim_args(argv)
     from .sim import sim_main as run
     return run(argv)
 

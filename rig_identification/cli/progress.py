@@ -87,11 +87,12 @@ class StepPrinter(logging.Handler):
 
 
 @contextmanager
-def attached(quiet: bool = False):
-    """Attach a :class:`StepPrinter` to the ``rig_identification`` logger (level INFO) for the
-    duration of the block; yields it.  The last step is closed on the way out."""
+def attached(quiet: bool = False, prog: str = "rig-identify"):
+    """Attach a :class:`StepPrinter` (its lines prefixed ``prog:``) to the ``rig_identification``
+    logger (level INFO) for the duration of the block; yields it.  The last step is closed on
+    the way out."""
     log = logging.getLogger(LOGGER)
-    printer = StepPrinter(quiet)
+    printer = StepPrinter(quiet, prog)
     old_level = log.level
     log.addHandler(printer)
     log.setLevel(logging.INFO)

@@ -1,0 +1,43 @@
+"""The command line of ``rig-sim`` (argparse only, no scipy): ``rig-sim --help`` and usage
+errors answer before the simulator is imported (:func:`~rig_identification.cli.main.sim_main`)."""
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def sim_parser() -> argparse.ArgumentParser:
+    """The ``rig-sim`` parser."""
+    p = argparse.ArgumentParser(prog="rig-sim", description="Simulate a rig experiment and write a recording "
+                                "folder (rig.yaml, bag/, truth.yaml).")
+    p.add_argument("config", help="experiment file (YAML), e.g. config/cases/case16.yaml")
+    p.add_argument("outdir", help="recording folder to create")
+    p.add_argument("--duration", type=float, metavar="S", help="override the experiment duration, s")
+    p.add_argument("--seed", type=int, metavar="N", help="override the sensor-noise seed")
+    p.add_argument("--noise-free", action="store_true", help="no sensor noise (biases are kept)")
+    p.add_argument("--storage", choices=("mcap", "sqlite3"), default="mcap", help="rosbag2 storage (default mcap)")
+    p.add_argument("--static", choices=("baseline", "dummy"),
+                   help="static CG recording at rest: without (baseline) or with the dummy mass")
+    p.add_argument("--dummy-mass", type=float, metavar="KG", help="dummy mass, kg (default: rig.dummy_mass)")
+    p.add_argument("--dummy-position", type=float, nargs=3, metavar=("X", "Y", "Z"),
+                   help="dummy mass position, body frame, m (default: rig.dummy_mass)")
+    p.add_argument("--overwrite", action="store_true", help="replace OUTDIR if it exists")
+    p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr (warnings still)")
+    return p
+
+
+def parse_sim_args(argv: list[str] | None) -> argparse.Namespace:
+    """Parse and check ``rig-sim``'s arguments; a usage error exits with status 2 (argparse)."""
+    parser = sim_parser()
+    args = parser.parse_args(argv)
+    if (args.dummy_mass is None) != (args.dummy_position is None):
+        parser.error("--dummy-mass and --dummy-position go together")
+    if args.dummy_mass is not None and args.static is None:
+        parser.error("--dummy-mass/--dummy-position need --static baseline|dummy")
+    if args.dummy_mass is not None and not (math.isfinite(args.dummy_mass) and args.dummy_mass > 0):
+        parser.error(f"--dummy-mass must be > 0, got {args.dummy_mass}")
+    if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
+        parser.error(f"--duration must be > 0, got {args.duration}")
+    if args.seed is not None and args.seed < 0:
+        parser.error(f"--seed must be >= 0, got {args.seed}")
+    return args
