@@ -83,3 +83,19 @@ def test_cg_plan_says_what_it_is_doing_on_stderr():
                      "rig-identify: searching dummy masses (50 kg) and positions for ±2.5 mm"], err
     assert out.startswith("rig: ")
     assert "rig-identify: " not in run("cg-plan", BASE, "--masses", "50", "--position", "0.5", "0.5", "0.3", "-q")[2]
+
+
+def test_the_exports_say_where_the_cg_came_from(day, tmp_path):
+    """--json and --yaml carry the CG's source as the report's header says it (an archived
+    result names cg.json and its σ); without --cg: rig.yaml's."""
+    cg, cg_file, report, _, _ = day
+    source = json.loads((report / "report.json").read_text())["report"]["center_of_gravity_source"]
+    path = tmp_path / "mass_properties.yaml"
+    code, out, err = run("inertia", CLEAN, "--quick", "--cg", cg_file, "--json", "--yaml", path, "-q")
+    assert code == 0, err
+    d, exported = json.loads(out), yaml.safe_load(path.read_text())
+    assert d["center_of_gravity_source"] == exported["center_of_gravity_source"] == source
+    assert source.startswith(f"from {cg_file} (σ ")
+    np.testing.assert_allclose(exported["center_of_gravity"], cg["center_of_gravity"], rtol=0, atol=1e-12)
+    code, out, err = run("inertia", CLEAN, "--quick", "--json", "-q")
+    assert json.loads(out)["center_of_gravity_source"] == "rig.yaml body.center_of_gravity"

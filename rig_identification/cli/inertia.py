@@ -239,13 +239,14 @@ def cmd_inertia(args) -> int:
     if cg_note is not None:
         result.warnings.insert(0, cg_note)
     t0s = [float(r.sensors.t_start) for r in recs]
+    # where the CG came from, as the report's header says it: "from CG.json (σ x, y, z mm)" or rig.yaml's
+    cg_origin = cg_source if cg_note is None else cg_note.removeprefix("centre of gravity ")
     index = None
     if args.report:
         step(f"writing the report to {args.report}")
         try:
             # the report says where the CG came from: "from CG.json (σ x, y, z mm)"
-            index = write_report(args.report, result, recs,
-                                 cg_source=None if cg_note is None else cg_note.removeprefix("centre of gravity "),
+            index = write_report(args.report, result, recs, cg_source=None if cg_note is None else cg_origin,
                                  axes=axes)
         except OSError as e:
             raise ReportError(f"{args.report}: cannot write the report ({e.strerror or e})") from None
@@ -259,10 +260,12 @@ def cmd_inertia(args) -> int:
                               std_kind=result.uncertainty, sources=[str(r.path) for r in recs],
                               window=d["window"] if len(recs) == 1 else None,
                               created=datetime.now(timezone.utc).isoformat(timespec="seconds"), version=version())
+        content["center_of_gravity_source"] = cg_origin   # an archived result says where its CG came from
         atomic_write_text(args.yaml, yaml_text(content))
     args.progress.finish()
     if args.json:
         d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
+        d["center_of_gravity_source"] = cg_origin
         if axes == "sae":
             d["sae_j670"] = axes_block(result.expressed("sae"))
         if urdf is not None:
