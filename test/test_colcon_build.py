@@ -105,6 +105,8 @@ def test_every_node_answers_help(workspace):
         stdout, stderr = p.communicate(timeout=60)
         assert p.returncode == 0, (name, stdout, stderr)
         assert "usage" in stdout.lower(), (name, stdout)
+        # plain text for a terminal, not the docstring's reStructuredText
+        assert "``" not in stdout and ":class:`" not in stdout and ":func:`" not in stdout, (name, stdout)
 
 
 def test_installed_code_and_data_are_used(workspace):

@@ -108,7 +108,7 @@ class PoseTrack:
 def inclinometer_elevations(rotation: Rotation, incl_to_body: Rotation) -> np.ndarray:
     """Elevations (2,) rad of the inclinometer's x and y axes above the horizontal.
 
-    ``asin(z_world . x_incl)``, ``asin(z_world . y_incl)`` (RECORDING_FORMAT.md).
+    ``asin(z_world . x_incl)``, ``asin(z_world . y_incl)`` (docs/recording_format.md).
     """
     m = (rotation * incl_to_body).as_matrix()
     return np.arcsin(np.clip(m[2, :2], -1.0, 1.0))
@@ -297,7 +297,7 @@ class PoseTracker:
 
     # --- inputs -------------------------------------------------------------------
     def add_inclinometer(self, t: float, angles) -> None:
-        """Inclinometer elevations (2,) rad (RECORDING_FORMAT.md) at stamp ``t`` s."""
+        """Inclinometer elevations (2,) rad (docs/recording_format.md) at stamp ``t`` s."""
         a = np.asarray(angles, float)[:2]
         if self._state is None:
             self._t_incl = t

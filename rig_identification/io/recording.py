@@ -1,6 +1,6 @@
 """Recordings: the rig's sensor streams as arrays, read from rosbag2.
 
-A recording folder (``RECORDING_FORMAT.md``) holds ``rig.yaml``, ``bag/`` (rosbag2,
+A recording folder (``docs/recording_format.md``) holds ``rig.yaml``, ``bag/`` (rosbag2,
 MCAP or sqlite3) and, for simulated recordings, ``truth.yaml``.  Bags are read and
 written with ``rosbags`` (no ROS installation needed); the rig topics are read in bulk,
 numpy over the raw CDR bytes (:mod:`rig_identification.io.bag_raw`,

@@ -1,7 +1,7 @@
 """Recordings written: the sensor streams as a rosbag2 (MCAP or sqlite3), and a whole recording
 folder (rig.yaml, bag/, truth.yaml) that appears atomically.
 
-Messages as ``RECORDING_FORMAT.md`` (:mod:`~rig_identification.io.recording` lists the topics),
+Messages as ``docs/recording_format.md`` (:mod:`~rig_identification.io.recording` lists the topics),
 written with ``rosbags``; the bag timestamp of each message is its header stamp.
 """
 from __future__ import annotations

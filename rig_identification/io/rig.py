@@ -1,6 +1,6 @@
 """Rig description: geometry and known quantities of the suspended-body rig.
 
-Loads and validates ``rig.yaml`` exactly as specified in ``RECORDING_FORMAT.md``
+Loads and validates ``rig.yaml`` exactly as specified in ``docs/recording_format.md``
 (shared with the rig and the reference simulator).  Every length is in metres,
 masses in kg, angles in rad.  Frames (REP-103, right-handed):
 
@@ -208,7 +208,7 @@ def _mount(d, name: str, src: str, with_position: bool = True) -> Mount:
 
 
 KNOWN_TOP = {"name", "output_axes", "gravity", "cables", "body", "imu", "exciter", "inclinometer", "dummy_mass"}
-# the fields of each mapping of rig.yaml (RECORDING_FORMAT.md); any other is an error
+# the fields of each mapping of rig.yaml (docs/recording_format.md); any other is an error
 KNOWN_FIELDS = {"": KNOWN_TOP, "cable": {"name", "ceiling_anchor", "body_anchor", "length", "stiffness"},
                 "body": {"mass", "center_of_gravity"}, "imu": {"position", "rpy"}, "exciter": {"position", "rpy"},
                 "inclinometer": {"rpy"}, "dummy_mass": {"mass", "position"}}

@@ -16,7 +16,7 @@ Experiment file schema (YAML)
     name: case16                    # [a-zA-Z0-9_.-]+, default: the file stem
     description: "..."              # free text
     source: {thesis_section: "4.16", table: "4.16"}   # free mapping (provenance)
-    rig: {...}                      # exactly a rig.yaml mapping (RECORDING_FORMAT.md);
+    rig: {...}                      # exactly a rig.yaml mapping (docs/recording_format.md);
                                     # body.center_of_gravity is REQUIRED (it is the truth)
     inertia_about_cg: {ixx: 2894, ixy: 0, ixz: 0, iyy: 695, iyz: -102, izz: 3101}  # kg m^2
     cable_model:                    # default {type: spring}

@@ -5,7 +5,7 @@ the ceiling on N >= 3 cables and is shaken by an unbalanced-mass exciter or by f
 pulses.  :func:`simulate` finds its equilibrium (:mod:`~rig_identification.model.equilibrium`),
 integrates the full Newton–Euler equations (:mod:`~rig_identification.model.dynamics`) with
 scipy's DOP853 (rtol 1e-10, atol 1e-12, dense output), then samples the dense solution at
-each sensor's own times and writes the sensor streams of ``RECORDING_FORMAT.md``
+each sensor's own times and writes the sensor streams of ``docs/recording_format.md``
 (:mod:`~rig_identification.model.sensors`: IMU, load cells, exciter, inclinometer).
 
 The ``compliant_body`` effect makes the body two: the carrying frame (hung on the cables,

@@ -1,7 +1,7 @@
 """Frame ids and topic names of the rig nodes: node parameters, and the start-up line that
 says what a node reads and writes.
 
-Frame ids (``header.frame_id``; defaults as in RECORDING_FORMAT.md) are ROS parameters of the
+Frame ids (``header.frame_id``; defaults as in docs/recording_format.md) are ROS parameters of the
 nodes that check or write them, so that a driver publishing the usual ROS names (an IMU in
 ``imu_link``) is accepted without a relay:
 

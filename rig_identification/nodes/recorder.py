@@ -1,6 +1,6 @@
 """recorder: writes the rig's sensor topics to a recording folder, without ``ros2 bag``.
 
-The folder is the one of RECORDING_FORMAT.md (docs/recording_format.md): ``rig.yaml`` (a copy
+The folder is the one of docs/recording_format.md: ``rig.yaml`` (a copy
 of the rig description given) and ``bag/``, a rosbag2 with storage MCAP written with the
 ``rosbags`` library (``rosbags.rosbag2.Writer``, ``StoragePlugin.MCAP``, version 9), readable by
 ``rig-identify``, ``read_recording``, ``ros2 bag play`` and Foxglove.  Messages are stored as

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import faulthandler
 import os
+import re
 import sys
 import threading
 import time
@@ -26,8 +27,24 @@ from ..io.rig import RigError
 from .environment import dds_profile
 
 
+# reStructuredText inline markup of the modules' docstrings: :role:`title <target>`,
+# :role:`~a.b.name`, :role:`name`, ``literal``
+_ROLE_TITLED = re.compile(r":[a-z]+:`([^`<]+?)\s*<[^`>]+>`")
+_ROLE = re.compile(r":[a-z]+:`~?([^`]+)`")
+_LITERAL = re.compile(r"``([^`]+)``")
+
+
+def plain_text(doc: str) -> str:
+    """``doc`` (a module docstring, reStructuredText) as plain text for a terminal: roles
+    become their title or target (``:class:`~a.b.C``` -> ``C``), ``literals`` their text."""
+    doc = _ROLE_TITLED.sub(r"\1", doc)
+    doc = _ROLE.sub(lambda m: m.group(1).rsplit(".", 1)[-1] if m.group(0).count("~") else m.group(1), doc)
+    return _LITERAL.sub(r"\1", doc)
+
+
 def handle_help(argv: list[str] | None, prog: str, doc: str) -> list[str]:
-    """Print the node's documentation and exit 0 on ``-h``/``--help`` (before any ROS set-up).
+    """Print the node's documentation (:func:`plain_text`) and exit 0 on ``-h``/``--help``
+    (before any ROS set-up).
 
     ROS arguments (after ``--ros-args``) are left for ``rclpy.init``.  Returns ``argv``.
     """
@@ -35,7 +52,7 @@ def handle_help(argv: list[str] | None, prog: str, doc: str) -> list[str]:
     user = argv[1:argv.index("--ros-args")] if "--ros-args" in argv else argv[1:]
     if "-h" in user or "--help" in user:
         print(f"usage: {prog} [--ros-args -p NAME:=VALUE ... | --params-file FILE]\n")
-        print(doc.strip())
+        print(plain_text(doc).strip())
         raise SystemExit(0)
     unknown = [a for a in user if a.startswith("-")]
     if unknown:

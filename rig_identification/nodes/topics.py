@@ -1,4 +1,4 @@
-"""The topic names of the rig's node graph (RECORDING_FORMAT.md and the node contract).
+"""The topic names of the rig's node graph (docs/recording_format.md and the node contract).
 
 Each node takes these as its defaults; a lab remaps them the ROS way
 (``--ros-args -r /rig/imu:=/my/imu``).  Their QoS: :mod:`.qos`.

@@ -50,7 +50,7 @@ geometry.  The CG height is found only through the tilt change the dummy mass ca
 it is the poorly determined coordinate (:attr:`CgResult.weakly_determined`);
 :func:`plan_static_test` predicts the CG σ of a planned test and recommends one.
 
-Frames and units (RECORDING_FORMAT.md): world z up, gravity (0, 0, -g); body frame fixed
+Frames and units (docs/recording_format.md): world z up, gravity (0, 0, -g); body frame fixed
 to the carrying frame; SI units (m, kg, N, rad, s).  Errors: :class:`StaticsError` (a
 ``ValueError``) with one clear message.
 

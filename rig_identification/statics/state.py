@@ -6,7 +6,7 @@ and averaged, with the σ of the mean.  A :class:`StaticState` is what
 :func:`~rig_identification.statics.estimation.estimate_cg` takes.  :class:`StaticsError`, the
 error of the whole static experiment, is defined here, in the package's lowest module.
 
-Frames and units (RECORDING_FORMAT.md): sensor frames; SI units (m, kg, N, rad, s).
+Frames and units (docs/recording_format.md): sensor frames; SI units (m, kg, N, rad, s).
 """
 from __future__ import annotations
 
@@ -84,7 +84,7 @@ def _stats(x: np.ndarray, K: int, accept_motion: bool) -> StreamStats:
 class StaticState:
     """One static state of the body: the mean of every sensor stream over a window at rest.
 
-    Attributes (means over the window, sensor frames of RECORDING_FORMAT.md):
+    Attributes (means over the window, sensor frames of docs/recording_format.md):
 
     * ``cable_names`` (N,) and ``tensions`` (N,) N with ``tensions_std`` (N,) N (std of the
       mean), or ``None`` without load cells;
