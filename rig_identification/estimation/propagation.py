@@ -22,7 +22,7 @@ motion (a noise-free simulation, cut to the span the identifier would fit): the 
 linearised about the equilibrium (its complementary filters — tilt, yaw, gyro-bias integral,
 third-order position filter — as transfer functions, parameters read from
 :class:`~rig_identification.estimation.tracker.PoseTracker`), ``D_φ(t)``, ``D_p(t)`` and the load cells' lever arms are
-differentiated from :func:`~rig_identification.estimation.preprocessor.generalized_wrench` at every sample (so a slow
+the derivatives of :func:`~rig_identification.estimation.preprocessor.generalized_wrench` at every sample (so a slow
 pose error modulated by the tension swing lands at the exciter frequency), and the
 identifier's own band-pass (``sosfiltfilt``, edge transients included) and integration are
 applied through their transposes, so that ``Cov δj = B⁻¹ (Σ_c σ_c² Γ_cᵀΓ_c) B⁻¹`` (B = AᵀWA,
@@ -42,6 +42,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.fft import irfft, next_fast_len, rfft
 from scipy.signal import butter, sosfilt, sosfilt_zi, sosfreqz
 from scipy.spatial.transform import Rotation
 
@@ -257,7 +258,6 @@ class _TrackerModel:
         f = np.asarray(f, float)
         n_in = self.C_noise.shape[1]
         out = np.zeros((len(f), 6, n_in), complex)
-        nz = np.ones(len(f), bool)
         s = 2j * np.pi * np.maximum(f, 1e-7)   # f = 0: the limit (finite for the length inputs, 0 for noise)
         gain = 1.0 + self.k_bias / s                                   # PI: correction + bias integral
         A = s[:, None, None] * np.eye(3) - gain[:, None, None] * self.C_phi
@@ -273,8 +273,8 @@ class _TrackerModel:
         Xd = np.zeros((len(s), 3, n_in), complex)
         Xd[:, :, 3:6] = hp[:, None, None] * (self.R0 @ self.R_imu)
         Xd[:, :, 8:] = lp[:, None, None] * self.L[:3]
-        out[nz, :3] = Phi
-        out[nz, 3:] = (Xphi + _skew(self.r_imu_w)) @ Phi + Xd           # origin = IMU point + r × φ
+        out[:, :3] = Phi
+        out[:, 3:] = (Xphi + _skew(self.r_imu_w)) @ Phi + Xd           # origin = IMU point + r × φ
         return out
 
 
@@ -323,35 +323,39 @@ def tracker_model(rig: Rig, position: np.ndarray, R0: np.ndarray, tracker_params
 
 
 def wrench_jacobians(rig: Rig, position: np.ndarray, R: np.ndarray, tensions: np.ndarray,
-                     exciter_xy: np.ndarray | None, h: float = 1e-6):
+                     exciter_xy: np.ndarray | None):
     """Torque sensitivities of :func:`~rig_identification.estimation.preprocessor.generalized_wrench` at every sample.
 
     position (M,3) world m; R (M,3,3) body -> world; tensions (M,N) N; exciter_xy (M,2) N or
-    None.  Returns D_phi (M,3,3) N·m/rad (world-frame rotation of the pose), D_p (M,3,3)
-    N·m/m (world position), W_T (M,3,N) m (per newton of tension), W_e (M,3,2) m (per
-    newton of exciter force), by central / forward differences (the torque is linear in
-    the forces)."""
-    def tq(p, Rm, T, e):
-        return generalized_wrench(rig, p, Rm, T, e)[1]
+    None.  Returns D_phi (M,3,3) N·m/rad (world-frame rotation of the pose, R -> exp(φ×) R),
+    D_p (M,3,3) N·m/m (world position), W_T (M,3,N) m (per newton of tension), W_e (M,3,2) m
+    (per newton of exciter force).  Analytic: the torque about the CG is
+    M = Σ_i T_i (b_i − c) × u_i with u_i = r_i/|r_i|, r_i = Rᵀ(A_i − p) − b_i (body axes; the
+    preprocessor's geometry, thesis eqs. 2.13–2.19), so ∂M/∂x = Σ_i T_i (b_i − c) × (I − u_i u_iᵀ)
+    ∂r_i/∂x / |r_i| with ∂r_i/∂φ_j = −Rᵀ(e_j × (A_i − p)) and ∂r_i/∂p_j = −Rᵀ e_j; the exciter's
+    force is measured in body axes, so the pose does not turn it."""
+    c = rig.require_cg()
+    b, arm = rig.body_anchors, rig.body_anchors - c
+    w = rig.ceiling_anchors[None] - position[:, None, :]          # (M,N,3) world, origin -> ceiling anchor
+    rel = np.einsum("mji,mnj->mni", R, w) - b[None]              # (M,N,3) body axes, anchor -> ceiling
+    length = np.sqrt(np.einsum("mni,mni->mn", rel, rel))[:, :, None]
+    u = rel / length
+
+    def d_torque(d_rel):   # (M,N,3) or (M,1,3) -> (M,3)
+        du = (d_rel - u * np.einsum("mni,mni->mn", u, d_rel)[:, :, None]) / length
+        return np.einsum("mn,mni->mi", tensions, np.cross(arm[None], du))
+
     M = len(position)
     D_phi = np.zeros((M, 3, 3))
     D_p = np.zeros((M, 3, 3))
     for j in range(3):
-        d = np.zeros(3)
-        d[j] = h
-        Rp, Rm = Rotation.from_rotvec(d).as_matrix(), Rotation.from_rotvec(-d).as_matrix()
-        D_phi[:, :, j] = (tq(position, Rp @ R, tensions, exciter_xy) - tq(position, Rm @ R, tensions, exciter_xy)) / (2 * h)
-        D_p[:, :, j] = (tq(position + d, R, tensions, exciter_xy) - tq(position - d, R, tensions, exciter_xy)) / (2 * h)
-    base = tq(position, R, tensions, None)
-    n = tensions.shape[1]
-    W_T = np.zeros((M, 3, n))
-    for i in range(n):
-        T = tensions.copy()
-        T[:, i] += 1.0
-        W_T[:, :, i] = tq(position, R, T, None) - base
+        e = np.zeros(3)
+        e[j] = 1.0
+        D_phi[:, :, j] = d_torque(-np.einsum("mji,mnj->mni", R, np.cross(e, w)))
+        D_p[:, :, j] = d_torque(-R[:, j, None, :])
+    W_T = np.cross(arm[None], u).transpose(0, 2, 1).copy()
     W_e = np.zeros((M, 3, 2))
     if exciter_xy is not None and rig.exciter is not None:
-        c = rig.require_cg()
         Re = rig.exciter.rotation.as_matrix()[:, :2]
         for i in range(2):
             W_e[:, :, i] = np.cross(rig.exciter.position - c, Re[:, i])
@@ -549,47 +553,56 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
     sig, src = channel_sigmas(noise, traj.rates, fs, traj.tensions.shape[1], rig.inclinometer is not None)
     resid_var = _weights_stationary(tm, rig, D, P, sos, fs, sig, len(tw))
     # adjoint, one gyro axis at a time: Γ_a,k = d(Σ_t A_t,aᵀ e_t,a)/d noise (unweighted);
-    # the weighted estimator's Γ = Σ_a w_a Γ_a
+    # the weighted estimator's Γ = Σ_a w_a Γ_a.  Column (a, k) sees the residual of axis a
+    # only: the adjoints of the band-pass and of the integral (linear, column by column) act
+    # once on A3's 18 columns, and the moment's path (e = −P z) scales them by P[a, ·]
     Nw = len(tw)
-    V = np.zeros((Nw, 3, 3, 6))                                  # (n, axis of e, weight axis a, k)
-    for a in range(3):
-        V[:, a, a, :] = A3[:, a, :]
-    Vf = V.reshape(Nw, 54)
-    g_direct = sosfiltfilt_adjoint(sos, Vf).reshape(Nw, 3, 18)  # d/d(gyro noise, body), direct path
-    gz = -np.einsum("nbx,ba->nax", V.reshape(Nw, 3, 18), P)      # e = -P z, z = F ∫ δM
-    gz = sosfiltfilt_adjoint(sos, gz.reshape(Nw, 54))
-    gM = cumtrapz_adjoint(gz, 1.0 / fs).reshape(Nw, 3, 18)      # d/d δM (window)
-    gM_all = np.zeros((K, 3, 18))
-    gM_all[m] = gM
+    i0 = K - Nw                                                  # the window: the trajectory's tail
+    H1 = sosfiltfilt_adjoint(sos, A3.reshape(Nw, 18))            # d/d(gyro noise, body), direct path
+    h = cumtrapz_adjoint(H1, 1.0 / fs).T.reshape(3, 6, Nw)       # (a, k, n) d/d z per unit P
+    H1 = H1.T.reshape(3, 6, Nw)
     R_imu = rig.imu.rotation.as_matrix()
+    D_phi, D_p, W_T, W_e = (x[i0:] for x in D)
+
+    def through_moment(Dm):
+        """Γ (c, a, k, Nw) of the c noise channels whose moment error (body axes) is Dm (Nw,3,c)
+        times the channel: −(P Dm)[a, c] h[a, k]."""
+        return -np.einsum("ab,nbc->can", P, Dm)[:, :, None, :] * h[None]
+
     # gyroscopic term: δM -= ω × J n + n × J ω (n: body-axis gyro noise)
-    Om = traj.omega
-    Sk = np.zeros((K, 3, 3))
+    Om = traj.omega[i0:]
+    Sk = np.zeros((Nw, 3, 3))
     Sk[:, 0, 1], Sk[:, 0, 2], Sk[:, 1, 2] = -Om[:, 2], Om[:, 1], -Om[:, 0]
     Sk -= Sk.transpose(0, 2, 1)
     JO = Om @ J.T
-    SJ = np.zeros((K, 3, 3))
+    SJ = np.zeros((Nw, 3, 3))
     SJ[:, 0, 1], SJ[:, 0, 2], SJ[:, 1, 2] = -JO[:, 2], JO[:, 1], -JO[:, 0]
     SJ -= SJ.transpose(0, 2, 1)
-    C = Sk @ J - SJ
-    g_body = np.zeros((K, 3, 18))
-    g_body[m] = g_direct
-    g_body -= np.einsum("nai,nax->nix", C, gM_all)
-    D_phi, D_p, W_T, W_e = D
-    g_pe = np.concatenate([np.einsum("nai,nax->nix", D_phi, gM_all), np.einsum("nai,nax->nix", D_p, gM_all)], axis=1)
-    g_T = np.einsum("nai,nax->nix", W_T, gM_all)
-    g_e = np.einsum("nai,nax->nix", W_e, gM_all)
-    # the tracker is causal LTI from the start; its adjoint is the correlation with its response
-    nfft = 2 * K
+    n_T = W_T.shape[2]
+    Gam = np.zeros((8 + n_T + 2, 3, 6, K))                       # Γ (channel d, a, k, n)
+    # body gyro noise = R_imu · IMU-axis noise: the direct path, the gyroscopic moment's
+    Gam[:3, :, :, i0:] = R_imu.T[:, :, None, None] * H1[None] - through_moment((Sk @ J - SJ) @ R_imu)
+    Gam[8:8 + n_T, :, :, i0:] = through_moment(W_T)
+    Gam[8 + n_T:, :, :, i0:] = through_moment(W_e)
+    g_pe = np.concatenate([through_moment(D_phi), through_moment(D_p)])   # (6, a, k, Nw) pose errors
+    # the tracker is causal LTI from the start; its adjoint is the correlation with its response,
+    # by FFT over ≥ 2K samples (a fast length: 2K may be twice a prime)
+    adapts = _adapts_compliance(rig, tracker_params)
+    nfft = next_fast_len(2 * K, real=True)
     f = np.fft.rfftfreq(nfft, 1 / fs)
-    Ht = tm.response(f)                                          # (F,6,8+N)
-    # Ht^H per frequency times the spectra: a batched matmul (7x faster than the einsum)
-    g_all = np.fft.irfft(np.matmul(Ht.conj().transpose(0, 2, 1), np.fft.rfft(g_pe, n=nfft, axis=0)), n=nfft,
-                         axis=0)[:K]                             # (K,8+N,18)
-    g_tr = g_all[:, :8]
-    g_tr[:, :3] += np.einsum("ab,nax->nbx", R_imu, g_body)       # body gyro noise = R_imu · IMU-axis noise
-    Gam = np.concatenate([g_tr, g_T, g_e], axis=1)               # (K, d, 18)
-    if _adapts_compliance(rig, tracker_params):
+    n_in = 8 + n_T if adapts else 8                              # the length inputs: for the compliance
+    HtH = np.ascontiguousarray(tm.response(f)[:, :, :n_in].conj().transpose(0, 2, 1))    # (F, input, 6)
+    gsens = np.zeros((3, 6))
+    x = np.zeros((6, 6, K))
+    for a in range(3):   # a weight axis at a time: a third of the spectra in memory
+        x[..., i0:] = g_pe[:, a]
+        S = rfft(x, n=nfft, axis=-1)                             # (6, k, F)
+        g_tr = irfft(np.matmul(HtH, S.transpose(2, 0, 1)).transpose(1, 2, 0), n=nfft, axis=-1)[..., :K]   # (in, k, K)
+        Gam[:8, a] += g_tr[:8]
+        if adapts:
+            gsens[a] = np.einsum("ni,ikn->k", traj.tensions, g_tr[8:])   # estimating equation per unit δc
+    del g_pe, x
+    if adapts:
         # the tracker's cable compliance (rig.yaml without stiffness): its estimate
         # δc = <e_len, ΔT>/<ΔT, ΔT> over the first pass's second half
         # (tracker_replay.pass_compliance) is a linear function γᵀn of the noise, and lengthens
@@ -601,24 +614,20 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
             # a compliance error δc lengthens the constraints by T(t)·δc: the static part
             # offsets the pose for the whole run (seen through the tension swing in D(t)),
             # the dynamic part pulls the pose at the exciter frequency
-            gsens = np.einsum("ni,nix->x", traj.tensions, g_all[:, 8:])   # estimating equation per unit δc
             e_phi = -(tm.V - tm.U @ _skew(tm.r_imu_w))              # e_len = e_phi φ - U δp_o
-            gam_pe = np.zeros((K, 6))
-            gam_pe[late, :3] = dT[late] @ e_phi / S1
-            gam_pe[late, 3:] = -dT[late] @ tm.U / S1
-            gam = np.fft.irfft(np.einsum("fod,fo->fd", Ht[:, :, :8].conj(), np.fft.rfft(gam_pe, n=nfft, axis=0)),
-                               n=nfft, axis=0)[:K]               # (K,8)
-            Gam[:, :8] += gam[:, :, None] * gsens[None, None, :]
-    Gam = Gam.reshape(K, -1, 3, 6)                                # (K, d, a, k)
-    src_arr = np.array(src)
+            gam_pe = np.zeros((6, K))
+            gam_pe[:3, late] = (dT[late] @ e_phi / S1).T
+            gam_pe[3:, late] = (-dT[late] @ tm.U / S1).T
+            gam = irfft(np.einsum("fdo,of->df", HtH[:, :8], rfft(gam_pe, n=nfft, axis=-1)), n=nfft, axis=-1)[:, :K]
+            Gam[:8] += gam[:, None, None, :] * gsens[None, :, :, None]
+    G = Gam.reshape(len(Gam), 18, K)
     axis_meats = {}
     for s_name in SOURCES:
-        sel = (src_arr == s_name) & (sig > 0)
-        if sel.any():
-            Gs = Gam[:, sel] * sig[sel][None, :, None, None]
-            # Σ_nd Gs[n,d,a,k] Gs[n,d,b,l]: one matrix product over the (n, d) rows
-            F = Gs.reshape(-1, 18)
-            axis_meats[s_name] = (F.T @ F).reshape(3, 6, 3, 6).transpose(0, 2, 1, 3)
+        sel = np.nonzero((np.array(src) == s_name) & (sig > 0))[0]
+        if len(sel):
+            # Σ_nd σ_d² Γ[d,a,k,n] Γ[d,b,l,n]
+            M = sum(sig[i] ** 2 * (G[i] @ G[i].T) for i in sel)
+            axis_meats[s_name] = M.reshape(3, 6, 3, 6).transpose(0, 2, 1, 3)
     axis_bread = np.einsum("nai,naj->aij", A3, A3)
     A = A3.reshape(-1, 6)
     FA = seg.filt(A3.reshape(Nw, -1)).reshape(-1, 6)
@@ -626,5 +635,5 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
                                seg.band, float(duration), Nw, np.sqrt(np.mean(seg.y**2, axis=0)))
     if gyro_sensitivity:   # δj = B⁻¹ Σ_a w_a Γ_aᵀ ν, the same pieces as the sandwich
         Bi = np.linalg.inv(np.einsum("a,aij->ij", pred.weights, axis_bread))
-        pred.gyro_sensitivity = np.einsum("kl,ndl->ndk", Bi, np.einsum("a,ndak->ndk", pred.weights, Gam[:, :3]))
+        pred.gyro_sensitivity = np.einsum("kl,ndl->ndk", Bi, np.einsum("a,dakn->ndk", pred.weights, Gam[:3]))
     return pred
