@@ -53,6 +53,7 @@ from .tracker import PoseTracker, YAW_PRIOR
 from .quality import clean_sensors
 from ..io.recording import Recording, RecordingError
 
+FREQ_BLOCK = 4096   # frequencies per evaluation of the tracker's response (memory, not results)
 DRIFT_LEAK = 1e-3   # 1/s: leak of the linearised tracker's uncorrected rotation directions (tracker_model)
 
 REFERENCE_NOISE = {"gyro": 0.002, "accelerometer": 0.01, "load_cell": 0.5, "exciter": 0.5, "inclinometer": 0.0002}
@@ -456,12 +457,16 @@ def _weights_stationary(tm: _TrackerModel, rig: Rig, D: tuple, P: np.ndarray, so
     """Per-axis variance (3,) of the residual e predicted by the stationary form of the
     noise model (time-averaged sensitivities): the identifier's LM weights are 1/σ²."""
     f = np.fft.rfftfreq(n, 1 / fs)
-    Hf = stationary_e_response(tm, D, P, sos, fs, f, rig.imu.rotation.as_matrix())
     mult = np.full(len(f), 2.0)
     mult[0] = 1.0
     if n % 2 == 0:
         mult[-1] = 1.0
-    return np.einsum("k,kad,d,kad->a", mult, Hf, sig**2, Hf.conj()).real / n
+    R_imu = rig.imu.rotation.as_matrix()
+    var = np.zeros(3)
+    for lo in range(0, len(f), FREQ_BLOCK):   # a block of frequencies at a time (memory)
+        Hf = stationary_e_response(tm, D, P, sos, fs, f[lo:lo + FREQ_BLOCK], R_imu)
+        var += np.einsum("k,kad,d,kad->a", mult[lo:lo + FREQ_BLOCK], Hf, sig**2, Hf.conj()).real
+    return var / n
 
 
 def stationary_e_response(tm, D, P, sos, fs, f, R_imu):
@@ -579,54 +584,75 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
     SJ[:, 0, 1], SJ[:, 0, 2], SJ[:, 1, 2] = -JO[:, 2], JO[:, 1], -JO[:, 0]
     SJ -= SJ.transpose(0, 2, 1)
     n_T = W_T.shape[2]
-    Gam = np.zeros((8 + n_T + 2, 3, 6, K))                       # Γ (channel d, a, k, n)
-    # body gyro noise = R_imu · IMU-axis noise: the direct path, the gyroscopic moment's
-    Gam[:3, :, :, i0:] = R_imu.T[:, :, None, None] * H1[None] - through_moment((Sk @ J - SJ) @ R_imu)
-    Gam[8:8 + n_T, :, :, i0:] = through_moment(W_T)
-    Gam[8 + n_T:, :, :, i0:] = through_moment(W_e)
-    g_pe = np.concatenate([through_moment(D_phi), through_moment(D_p)])   # (6, a, k, Nw) pose errors
+    # Γ's products per channel d, Σ_n Γ[d,a,k,n] Γ[d,b,l,n] (18,18): the load cells' and the
+    # exciter's (zero before the window) now, the others once Γ (channels 0-7) is complete
+    meat = [None] * (8 + n_T + 2)
+    for d0, Dm in ((8, W_T), (8 + n_T, W_e)):
+        for c, g in enumerate(through_moment(Dm).reshape(-1, 18, Nw)):
+            meat[d0 + c] = g @ g.T
+    # the pose errors' channels, −(P D)[a, c] (c: rotation 3, position 3), times h[a] per weight axis
+    Q_pe = -np.einsum("ab,nbc->can", P, np.concatenate([D_phi, D_p], axis=2))   # (6, a, Nw)
     # the tracker is causal LTI from the start; its adjoint is the correlation with its response,
-    # by FFT over ≥ 2K samples (a fast length: 2K may be twice a prime)
+    # by FFT over ≥ 2K samples (a fast length: 2K may be twice a prime).  Its inputs in blocks of
+    # four (memory: one block's response and Γ at a time): the cable lengths' first — they give
+    # the compliance's estimating equation (when the tracker adapts it) — then channels 0-7
     adapts = _adapts_compliance(rig, tracker_params)
     nfft = next_fast_len(2 * K, real=True)
     f = np.fft.rfftfreq(nfft, 1 / fs)
-    n_in = 8 + n_T if adapts else 8                              # the length inputs: for the compliance
-    HtH = np.ascontiguousarray(tm.response(f)[:, :, :n_in].conj().transpose(0, 2, 1))    # (F, input, 6)
-    gsens = np.zeros((3, 6))
-    x = np.zeros((6, 6, K))
-    for a in range(3):   # a weight axis at a time: a third of the spectra in memory
-        x[..., i0:] = g_pe[:, a]
-        S = rfft(x, n=nfft, axis=-1)                             # (6, k, F)
-        g_tr = irfft(np.matmul(HtH, S.transpose(2, 0, 1)).transpose(1, 2, 0), n=nfft, axis=-1)[..., :K]   # (in, k, K)
-        Gam[:8, a] += g_tr[:8]
-        if adapts:
-            gsens[a] = np.einsum("ni,ikn->k", traj.tensions, g_tr[8:])   # estimating equation per unit δc
-    del g_pe, x
+    blocks = ([(8, 8 + n_T)] if adapts else []) + [(0, 4), (4, 8)]
+    gsens = np.zeros((3, 6))                                      # the estimating equation per unit δc
+    gam_spec = None
     if adapts:
         # the tracker's cable compliance (rig.yaml without stiffness): its estimate
         # δc = <e_len, ΔT>/<ΔT, ΔT> over the first pass's second half
         # (tracker_replay.pass_compliance) is a linear function γᵀn of the noise, and lengthens
-        # every constraint by ΔT(t)·δc
+        # every constraint by ΔT(t)·δc: the static part offsets the pose for the whole run (seen
+        # through the tension swing in D(t)), the dynamic part pulls the pose at the exciter
+        # frequency
         dT = traj.tensions - traj.tensions[t < t[0] + 0.1 + 1e-9].mean(0)
         late = t >= t[0] + 0.5 * (t[-1] - t[0])
         S1 = float(np.sum(dT[late] ** 2))
         if S1 > 0:
-            # a compliance error δc lengthens the constraints by T(t)·δc: the static part
-            # offsets the pose for the whole run (seen through the tension swing in D(t)),
-            # the dynamic part pulls the pose at the exciter frequency
             e_phi = -(tm.V - tm.U @ _skew(tm.r_imu_w))              # e_len = e_phi φ - U δp_o
             gam_pe = np.zeros((6, K))
             gam_pe[:3, late] = (dT[late] @ e_phi / S1).T
             gam_pe[3:, late] = (-dT[late] @ tm.U / S1).T
-            gam = irfft(np.einsum("fdo,of->df", HtH[:, :8], rfft(gam_pe, n=nfft, axis=-1)), n=nfft, axis=-1)[:, :K]
-            Gam[:8] += gam[:, None, None, :] * gsens[None, :, :, None]
-    G = Gam.reshape(len(Gam), 18, K)
+            gam_spec = rfft(gam_pe, n=nfft, axis=-1)                 # (6, F)
+    x = np.zeros((6, 3, nfft))
+    gyro_gam = None
+    for r0, r1 in blocks:
+        Hb = np.empty((len(f), r1 - r0, 6), complex)              # conjugated response (F, inputs, 6)
+        for lo in range(0, len(f), FREQ_BLOCK):
+            Hb[lo:lo + FREQ_BLOCK] = tm.response(f[lo:lo + FREQ_BLOCK])[:, :, r0:r1].conj().transpose(0, 2, 1)
+        Gb = np.zeros((r1 - r0, 3, 6, K)) if r0 < 8 else None     # Γ (channel, a, k, n)
+        if r0 == 0:   # body gyro noise = R_imu · IMU-axis noise: the direct path, the gyroscopic moment's
+            Gb[:3, :, :, i0:] = R_imu.T[:, :, None, None] * H1[None] - through_moment((Sk @ J - SJ) @ R_imu)
+        for a in range(3):   # a weight axis and three entries at a time
+            for k in (slice(0, 3), slice(3, 6)):
+                x[..., i0:K] = Q_pe[:, a, None, :] * h[a, k][None]
+                S = rfft(x, axis=-1).transpose(2, 0, 1)           # (F, 6, 3)
+                g_tr = irfft(np.matmul(Hb, S).transpose(1, 2, 0), n=nfft, axis=-1)[..., :K]   # (inputs, 3, K)
+                if Gb is None:
+                    gsens[a, k] = np.einsum("ni,ikn->k", traj.tensions, g_tr)
+                else:
+                    Gb[:, a, k] += g_tr
+                del S, g_tr
+        if Gb is not None:
+            if gam_spec is not None:
+                gam = irfft(np.einsum("fdo,of->df", Hb, gam_spec), n=nfft, axis=-1)[:, :K]
+                Gb += gam[:, None, None, :] * gsens[None, :, :, None]
+            for d, g in enumerate(Gb.reshape(r1 - r0, 18, K)):
+                meat[r0 + d] = g @ g.T
+            if r0 == 0 and gyro_sensitivity:
+                gyro_gam = Gb[:3]
+        del Hb, Gb
+    del x
     axis_meats = {}
     for s_name in SOURCES:
         sel = np.nonzero((np.array(src) == s_name) & (sig > 0))[0]
         if len(sel):
             # Σ_nd σ_d² Γ[d,a,k,n] Γ[d,b,l,n]
-            M = sum(sig[i] ** 2 * (G[i] @ G[i].T) for i in sel)
+            M = sum(sig[i] ** 2 * meat[i] for i in sel)
             axis_meats[s_name] = M.reshape(3, 6, 3, 6).transpose(0, 2, 1, 3)
     axis_bread = np.einsum("nai,naj->aij", A3, A3)
     A = A3.reshape(-1, 6)
@@ -635,5 +661,5 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
                                seg.band, float(duration), Nw, np.sqrt(np.mean(seg.y**2, axis=0)))
     if gyro_sensitivity:   # δj = B⁻¹ Σ_a w_a Γ_aᵀ ν, the same pieces as the sandwich
         Bi = np.linalg.inv(np.einsum("a,aij->ij", pred.weights, axis_bread))
-        pred.gyro_sensitivity = np.einsum("kl,ndl->ndk", Bi, np.einsum("a,dakn->ndk", pred.weights, Gam[:3]))
+        pred.gyro_sensitivity = np.einsum("kl,ndl->ndk", Bi, np.einsum("a,dakn->ndk", pred.weights, gyro_gam))
     return pred

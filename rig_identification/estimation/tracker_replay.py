@@ -85,10 +85,12 @@ def track(rig: Rig, sensors, *, per_sample: bool = False, **params) -> PoseTrack
     end.  per_sample: as :func:`replay`.  params: :class:`PoseTracker`'s.  Returns the
     :class:`PoseTrack` at the IMU stamps after initialisation.  Raises :class:`TrackerError`.
     """
-    poses, tracker = replay(rig, sensors, per_sample=per_sample, **params)
+    events = merge_events(rig, sensors, PoseTracker(rig, **params).init_time)   # the same for both passes
+    poses, tracker = replay(rig, sensors, per_sample=per_sample, events=events, **params)
     c = pass_compliance(tracker, poses)
     if c is not None:
-        poses, _ = replay(with_compliance(rig, c), sensors, per_sample=per_sample, **params)
+        del poses, tracker   # (memory: the second pass replaces them)
+        poses, _ = replay(with_compliance(rig, c), sensors, per_sample=per_sample, events=events, **params)
     return poses
 
 
@@ -107,11 +109,13 @@ def with_compliance(rig: Rig, c: float) -> Rig:
                                              else 1.0 / max(c, 1e-12)) for cb in rig.cables))
 
 
-def replay(rig: Rig, sensors, *, per_sample: bool = False, **params) -> tuple[PoseTrack, PoseTracker]:
+def replay(rig: Rig, sensors, *, per_sample: bool = False, events: Events | None = None,
+           **params) -> tuple[PoseTrack, PoseTracker]:
     """One pass of a :class:`PoseTracker` over recorded sensor data.
 
     sensors: :class:`~rig_identification.io.recording.SensorData`, merged by
-    :func:`merge_events`.  per_sample: feed every sample through the tracker's ``add_*``
+    :func:`merge_events` (or ``events``, its result for these sensors, this rig's cables and
+    the tracker's ``init_time``).  per_sample: feed every sample through the tracker's ``add_*``
     methods (the tracker node's path) instead of one compiled loop after the
     initialisation; the same numbers.  params: :class:`PoseTracker`'s.  Returns the poses
     at the IMU stamps from the initialisation on and the tracker after the last sample (its
@@ -120,7 +124,8 @@ def replay(rig: Rig, sensors, *, per_sample: bool = False, **params) -> tuple[Po
     stamp does not increase.
     """
     tracker = PoseTracker(rig, **params)
-    events = merge_events(rig, sensors, tracker.init_time)
+    if events is None:
+        events = merge_events(rig, sensors, tracker.init_time)
     out: list[PoseEstimate] = []
     k = 0
     while k < len(events.t) and (per_sample or not out):

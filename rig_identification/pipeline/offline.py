@@ -210,7 +210,8 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     noises = [e[0] for e in est]
     result.sensor_noise = {k: float(np.sqrt(np.mean([n[k] ** 2 for n in noises]))) for k in noises[0]}
     result.sandwich_std = result.inertia_std.copy()
-    logs: list[list] = [[] for _ in preps]   # each replay's prepared segment, in call order (+m, −m, …)
+    theta = from_tensor(result.inertia)
+    logs: list[list] = [[] for _ in preps]   # each replay's fit input (u, y), in call order (+m, −m, …)
 
     def replay(i, r, s, p):
         rp = replay_window(r, s, *p.window)
@@ -221,17 +222,17 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
         same = len(t) == len(p.t)
         if same:
             p.replays.append((torque, force))
-        logs[i].append(seg if same else None)
+            del p.replays[:-2]   # the last antithetic pair is all the validation uses (memory)
+        logs[i].append(fit_input(seg, theta) if same else None)
         return seg
 
     def fit(sensor_list):
         segs = [replay(i, r, s, p) for i, (r, s, p) in enumerate(zip(rigs, sensor_list, preps))]
         return from_tensor(fit_segments(rigs[0], segs).inertia)
 
-    theta = from_tensor(result.inertia)
     log.info("σ: %d replays with fresh sensor noise", 2 * REPLAY_PAIRS)
     replays = noise_replays(fit, theta, [p.sensors for p in preps], noises, seed, pairs=REPLAY_PAIRS)
-    noise = noise_realisations(logs, theta)
+    noise = noise_realisations(logs)
     if noise is not None:
         log.info("compensating the fit for the noise in its input (errors in variables)")
         base = [prepare_segment(p.t, p.gyro_body, p.torque, b, label=lab) for p, b, lab in zip(preps, bands, labels)]
@@ -289,23 +290,27 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     return result
 
 
-def noise_realisations(logs: list[list], theta: np.ndarray) -> list[NoiseRealisations] | None:
-    """The :class:`~rig_identification.estimation.errors_in_variables.NoiseRealisations` of each recording from its
-    replays' prepared segments (``logs[i]``: in call order +m₁, −m₁, +m₂, …; None for a
-    replay whose window came out with another length); None when some recording has no
-    complete pair.  The regressor is the fit's, ``u = ∫(M − ω × Jω)`` band-passed, with the
-    gyroscopic term at the entries ``theta`` (6,) kg·m² (the least-squares estimate): the
-    measured ω in it carries the gyro's noise into the input too."""
-    def u(seg):
-        return seg.IM - np.einsum("m,mni->ni", theta, seg.G)
+def fit_input(seg, theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The fit's regressor and output of a prepared segment
+    (:func:`~rig_identification.estimation.identification.prepare_segment`): u (N,3) N·m·s, the band-passed
+    ``∫(M − ω × Jω)`` with the gyroscopic term at the entries ``theta`` (6,) kg·m² (the
+    least-squares estimate; the measured ω in it carries the gyro's noise into the input too),
+    and y (N,3) rad/s, the band-passed gyro."""
+    return seg.IM - np.einsum("m,mni->ni", theta, seg.G), seg.y
 
+
+def noise_realisations(logs: list[list]) -> list[NoiseRealisations] | None:
+    """The :class:`~rig_identification.estimation.errors_in_variables.NoiseRealisations` of each recording from its
+    replays' fit inputs (``logs[i]``: :func:`fit_input`'s (u, y) in call order +m₁, −m₁, +m₂, …;
+    None for a replay whose window came out with another length); None when some recording
+    has no complete pair."""
     out = []
     for lg in logs:
         pairs = [(a, b) for a, b in zip(lg[0::2], lg[1::2]) if a is not None and b is not None]
         if not pairs:
             return None
-        out.append(antithetic_realisations([u(a) for a, _ in pairs], [u(b) for _, b in pairs],
-                                           [a.y for a, _ in pairs], [b.y for _, b in pairs]))
+        out.append(antithetic_realisations([a[0] for a, _ in pairs], [b[0] for _, b in pairs],
+                                           [a[1] for a, _ in pairs], [b[1] for _, b in pairs]))
     return out
 
 
