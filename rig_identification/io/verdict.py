@@ -52,7 +52,9 @@ class Validation:
     the tensor entries fitted on each time segment and frequency sub-band (kg·m²), band_edges
     (3,) Hz; spread_std (6,) kg·m²: the spread the checks saw (segments and sub-bands), which
     widens σ whenever a consistency check failed; failed: the names of the failed checks; sigma_factor ≥ 1: the
-    largest :attr:`Check.sigma_factor`, by which σ is widened whatever the verdict."""
+    largest :attr:`Check.sigma_factor`, by which σ is widened whatever the verdict; model: the
+    model the checks validated, in words ("the rigid-body model", or with the effects a
+    diagnosis added: "the rigid-body model with viscous_damping")."""
 
     verdict: str
     checks: tuple[Check, ...]
@@ -65,17 +67,18 @@ class Validation:
     spread_std: np.ndarray | None = None
     failed: tuple[str, ...] = field(default=())
     sigma_factor: float = 1.0
+    model: str = "the rigid-body model"
 
     @property
     def summary(self) -> str:
         """The verdict in words, first line of every output."""
         if self.verdict == "ok":
-            return ("verdict: ok — the rigid-body model explains the recording (every validation check passed); "
+            return (f"verdict: ok — {self.model} explains the recording (every validation check passed); "
                     + ("the σ below are calibrated" if self.sigma_factor <= 1.0 else
                        f"the σ below are the noise's widened {self.sigma_factor:.2f}× for what the consistency "
                        "checks saw beyond the noise"))
         if self.verdict == "model_error":
-            return ("verdict: MODEL ERROR — the recording disagrees with the rigid-body model ("
+            return (f"verdict: MODEL ERROR — the recording disagrees with {self.model} ("
                     + ", ".join(self.failed) + " failed): the tensor below is not trustworthy; its σ is widened "
                     "to the spread the checks saw and is a lower bound of the error")
         return ("verdict: NOT IDENTIFIABLE — the recording does not determine "
@@ -95,7 +98,7 @@ class Validation:
             o = 0.0 if origins is None else float(origins[i])
             return {"start": float(t0) - o, "end": float(t1) - o, "start_stamp": float(t0), "end_stamp": float(t1),
                     "inertia_about_cg": r}
-        return {"verdict": self.verdict, "summary": self.summary, "checks": [c.to_dict() for c in self.checks],
+        return {"verdict": self.verdict, "model": self.model, "summary": self.summary, "checks": [c.to_dict() for c in self.checks],
                 "undetermined": list(self.undetermined), "advice": list(self.advice),
                 "segments": None if self.segment_inertia is None else
                 [segment(i, t0, t1, r) for i, ((t0, t1), r) in enumerate(zip(self.segment_times,
