@@ -233,11 +233,14 @@ def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray)
         full = spectra(s)
         d0, _ = wls_step(full)
         K = n_segments(float(s.t[-1] - s.t[0]))
+        # the segments partition the window (their stamps say so); each is fitted over its
+        # samples in the interior (the first and last lose the band-pass's edge transients)
         inner = interior(s)
-        edges = np.linspace(inner.start, inner.stop, K + 1).astype(int)
+        edges = np.linspace(0, len(s.t), K + 1).astype(int)
         for a, b in zip(edges[:-1], edges[1:]):
-            part = spectra(s, slice(a, b))
-            mom = [piece_noise(full, part, (b - a) / (inner.stop - inner.start))]
+            lo, hi = max(a, inner.start), min(b, inner.stop)
+            part = spectra(s, slice(lo, hi))
+            mom = [piece_noise(full, part, (hi - lo) / (inner.stop - inner.start))]
             d, V = wls_step_joint([part], moments=mom)
             B = determined([part], moments=mom)
             x, k = wald(B.T @ (d - d0), B.T @ D @ V @ D @ B)
