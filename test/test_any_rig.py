@@ -2,7 +2,7 @@
 
 Random NHTSA vehicles in carrying frames (the body frame off the CG), cables splayed so that
 their lines cross near the CG (rig_identification.design.scenarios, layout "wide"), reference noise,
-45 s at 200 Hz.  The sweep over many rigs is bench/bench_trust.py.
+45 s at 200 Hz.  The sweep over many rigs is bench/bench_any_rig.py (and bench_trust.py).
 """
 import numpy as np
 import pytest
@@ -11,7 +11,10 @@ from rig_identification.estimation.identification import KEYS, from_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.design.planning import Run, make_body, plan_experiment
 from rig_identification.io.recording import Recording
-from rig_identification.design.scenarios import CABLE_STIFFNESS, simulate_random
+from rig_identification.design.scenarios import CABLE_STIFFNESS, random_experiment, simulate_random
+from rig_identification.model.experiment import experiment_from_dict
+from rig_identification.model.simulator import simulate
+from rig_identification.statics import StaticState, estimate_cg
 
 from conftest import background, gather
 
@@ -22,19 +25,21 @@ def _identified(cables: int, seed: int):
     return sim.truth, identify_recording(Recording(sim.rig, sim.sensors, sim.truth, None))
 
 
-def _three_cable_plan():
-    """Job of test_plan_on_a_three_cable_rig_keeps_the_cables_taut: the plan."""
-    d, sim = simulate_random(7102, 3, "wide", [], 10.0)
+def _plan(cables: int, seed: int, frequencies: tuple):
+    """Job: `rig-identify plan`'s search (design.planning) on a random 'wide' rig, narrowed: 30 s
+    runs, the rig's exciter position, the given frequencies (Hz; None: the rig's own), one run."""
+    d, sim = simulate_random(seed, cables, "wide", [], 10.0)
     tru = sim.truth["inertia_about_cg"]
     body = make_body(sim.rig, None, [tru[k] for k in KEYS], stiffness=CABLE_STIFFNESS)
     ex = d["excitation"]["rotating"]
     rig = sim.rig
     base = Run(ex["frequency"], ex["amplitude"], tuple(rig.exciter.position), "z", 30.0, 2.0, tuple(rig.exciter.rpy))
-    return plan_experiment(body, base, duration=30.0, refine=1, max_runs=1, frequencies=(0.8, 1.6),
+    freqs = tuple(ex["frequency"] if f is None else f for f in frequencies)
+    return plan_experiment(body, base, duration=30.0, refine=1, max_runs=1, frequencies=freqs,
                            positions=[tuple(rig.exciter.position)])
 
 
-background("any_rig_plan", __file__, _three_cable_plan, {"run": ()})
+background("any_rig_plan", __file__, _plan, {"3": (3, 7102, (0.8, 1.6)), "5": (5, 7206, (0.8, None, 1.6))})
 background("any_rig", __file__, _identified, {(3, 7101): (3, 7101), (5, 7206): (5, 7206)})
 
 
@@ -58,8 +63,44 @@ def test_plan_on_a_three_cable_rig_keeps_the_cables_taut():
     predicts σ for every entry, its run keeps every cable above 20 % of its static tension
     and the rotation below 3°, and it is no worse than the baseline on the least-improved
     entry."""
-    plan = gather("any_rig_plan")["run"]
+    plan = gather("any_rig_plan", "3")["3"]
     run = plan.runs[0]
     assert np.all(np.isfinite(plan.prediction.std)) and np.all(plan.prediction.std > 0)
     assert run.min_tension_ratio >= 0.2 * 0.999 and run.peak_rotation_deg <= 3.0 * 1.001
     assert plan.prediction.worst(plan.baseline.prediction.std) <= 1.0 + 1e-9
+
+
+@pytest.mark.parametrize("cables,seed,layout", [(3, 7101, "wide"), (5, 7206, "wide"), (3, 21022, "random"),
+                                                (5, 21011, "random")])
+def test_static_cg_on_the_same_rigs(cables, seed, layout):
+    """The static CG fit (``statics.estimate_cg``, the geometry as surveyed) on the rigs the
+    inertia is identified on above, and on two of bench_any_rig's "random" rigs (each cable
+    its own splay, the ceiling anchors at heights within ±0.3 m, the body hanging a little
+    tilted): a 50 kg dummy 0.3 m below the first body anchor, 10 s baseline and dummy with
+    reference noise; the CG within 3 σ of the truth and the validation ok."""
+    d = random_experiment(seed, cables, layout, duration=10.0)
+    b = np.array([c["body_anchor"] for c in d["rig"]["cables"]])
+    d["rig"]["dummy_mass"] = {"mass": 50.0, "position": (b[0] + [0.0, 0.0, -0.3]).tolist()}
+    states = []
+    for kind in ("baseline", "dummy"):
+        d["static"] = {"kind": kind, "duration": 10.0}
+        sim = simulate(experiment_from_dict(d, d["name"]))
+        states.append(StaticState.from_window(sim.sensors, label=kind))
+    res = estimate_cg(sim.rig, states[0], states[1])
+    err = res.center_of_gravity - np.array(d["rig"]["body"]["center_of_gravity"], float)
+    assert len(sim.rig.cables) == cables
+    assert np.all(np.abs(err) <= 3 * res.center_of_gravity_std), err / res.center_of_gravity_std
+    assert res.validation.verdict == "ok", res.validation.failed
+
+
+def test_plan_on_the_five_cable_rig_keeps_the_cables_taut():
+    """`rig-identify plan`'s search on the 5-cable rig identified above (seed 7206; 30 s runs,
+    the rig's exciter position, 0.8 Hz, its own frequency and 1.6 Hz): σ predicted for every
+    entry, the run within the limits (every cable above 20 % of its static tension, the
+    rotation below 3°).  Not asserted: that it beats the baseline — the screen's ranking
+    and the full simulation disagree by a few per cent here (the plan's least-improved entry
+    1.03× the baseline's σ)."""
+    plan = gather("any_rig_plan", "5")["5"]
+    run = plan.runs[0]
+    assert np.all(np.isfinite(plan.prediction.std)) and np.all(plan.prediction.std > 0)
+    assert run.min_tension_ratio >= 0.2 * 0.999 and run.peak_rotation_deg <= 3.0 * 1.001

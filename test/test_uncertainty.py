@@ -12,6 +12,7 @@ from rig_identification.io.recording import Recording
 from rig_identification.model.experiment import experiment_from_dict
 from rig_identification.model.simulator import simulate
 from rig_identification.io.noise import white_sigma
+from rig_identification.estimation.uncertainty import NoiseReplays
 
 from conftest import background, gather
 
@@ -78,3 +79,20 @@ def test_propagated_std_accounts_for_more_than_the_gyro(case16_noisy):
     assert res.validation.verdict == "ok", res.validation.summary
     np.testing.assert_allclose(res.inertia_std, res.crb_std * res.validation.sigma_factor * (res.replay_factor or 1.0),
                                rtol=1e-12)
+
+
+def test_replays_widen_sigma_only_beyond_their_significance():
+    """NoiseReplays.sigma_factor: the replays' Birge ratio widens σ only where their χ² is
+    significant (beyond the 95 % quantile): three pairs (18 dof) spreading 1.2× the
+    covariance's σ are within the noise of the comparison (χ² 25.9 < 28.9) and leave σ alone;
+    spreading 3× they widen it 3×."""
+    rng = np.random.default_rng(3)
+    C = np.diag([4.0, 1.0, 9.0, 0.25, 1.0, 16.0])
+    L = np.linalg.cholesky(C)
+    z = rng.standard_normal((3, 6))
+    z *= np.sqrt(18 / np.sum(z**2))                 # Σ dᵀ C⁻¹ d = 18 exactly: ratio 1
+    for scale, factor in ((1.0, 1.0), (1.2, 1.0), (3.0, 3.0)):
+        rep = NoiseReplays(bias=np.zeros(6), draws=scale * z @ L.T)
+        ratio, dof = rep.birge_ratio(C)
+        assert dof == 18 and ratio == pytest.approx(scale, rel=1e-9)
+        assert rep.sigma_factor(C)[0] == pytest.approx(factor, rel=1e-9)

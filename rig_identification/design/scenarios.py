@@ -16,13 +16,17 @@ package has not been tuned on:
   ``"splayed"`` (ceiling anchors 0.3–0.8 m outward of the body anchors: roll and pitch
   ride on the cables' stretch, stiff modes well above the forcing, and are weakly
   determined), ``"parallel"`` (2 cm of splay over the cable length: roll and pitch hardly
-  restored by the geometry) or ``"mixed"`` (each cable its own splay, the ceiling anchors at
-  different heights); the unstretched lengths are set so that at the level reference pose
+  restored by the geometry), ``"mixed"`` (each cable its own splay, the ceiling anchors at
+  different heights) or ``"random"`` (the whole range: a splay drawn log-uniformly from
+  near-parallel, 0.008 m per m of cable, to wide, 0.8 m per m, each cable within ±30 % of
+  it, the ceiling anchors at heights within ±0.3 m); the unstretched lengths are set so that at the level reference pose
   the cables share the weight as evenly as static equilibrium allows (non-negative least
   squares, scipy ``lsq_linear``), as a lab adjusts its turnbuckles;
 * the exciter (``exciter`` ``"corner"``, a lab's choice: at a bottom corner of the frame,
   its spin axis vertical or along a horizontal body axis; ``"anywhere"``: a random point
-  of the frame's surface, spin axis along a random body axis), a rotating force of
+  of the frame's surface, spin axis along a random body axis; ``"top_corner"``: a top
+  corner of the frame, spinning about body x; ``"random"``: a random point of the frame's
+  surface, spin axis a uniformly random direction), a rotating force of
   180–220 N at a frequency 10 % away from every natural frequency, its double and every
   sum of two (:func:`~rig_identification.design.planning.resonances`), preferably 1.15–1.4 Hz;
 :func:`random_experiment` returns the experiment mapping; :func:`simulate_random` simulates
@@ -44,8 +48,8 @@ from .planning import resonances
 from ..io.rig import rig_from_dict
 from ..model.simulator import SimResult, SimulationError, experiment_from_dict, simulate
 
-LAYOUTS = ("wide", "splayed", "parallel", "mixed")
-EXCITER_PLACEMENTS = ("corner", "anywhere")
+LAYOUTS = ("wide", "splayed", "parallel", "mixed", "random")
+EXCITER_PLACEMENTS = ("corner", "anywhere", "top_corner", "random")
 CABLE_STIFFNESS = 5.0e6          # N/m: steel cables of the simulated rigs (rig.yaml states none)
 REFERENCE_NOISE = {"gyro": 0.002, "accelerometer": 0.01, "load_cell": 0.5, "exciter": 0.5, "inclinometer": 0.0002}
 RATES = {"imu": 200.0, "load_cells": 200.0, "exciter": 200.0, "inclinometer": 50.0}
@@ -55,7 +59,10 @@ PREFERRED_HZ = (1.15, 1.4)       # the exciter's frequency, when the modes leave
 MODE_MARGIN = 0.10               # relative distance of the exciter frequency from every resonance
 MIN_TENSION = 0.2                # every cable keeps this fraction of its static tension
 MIN_SHARE = 0.25                 # every cable carries at least this fraction of an even share at rest
-MIXED_TRIES = 50                 # draws of a "mixed" layout until the level pose is an equilibrium
+SLACK_SHARE = 0.05               # a cable below this fraction of the mean tension at rest is slack: no rig
+MIXED_TRIES = 50                 # draws of a "mixed"/"random" layout until the level pose is an equilibrium
+RANDOM_SPLAY = (0.008, 0.8)      # m per m of cable: the "random" layout's splay, near-parallel to wide
+HEIGHTS = 0.3                    # m: the ceiling anchors' heights differ by up to ± this ("mixed", "random")
 
 
 @dataclass(frozen=True)
@@ -244,19 +251,28 @@ def random_experiment(seed: int, cables: int = 4, layout: str = "wide", effects:
         offset = np.zeros_like(b)            # drawn below
     # reference pose: body level, its anchors' centroid below the ceiling anchors' centroid
     p0 = np.array([3.0, 3.0, -length - body.size[2]])
-    if layout == "mixed":
+    if layout in ("mixed", "random"):
         # each cable its own splay and ceiling height, drawn until the cables can share the
-        # weight at the level pose (else the body swings to where one goes slack)
+        # weight at the level pose (else the body swings to where one goes slack), at most
+        # MIXED_TRIES times; then the draw nearest to sharing it, as "splayed" does (three cables
+        # at different heights never share it exactly): the body hangs a little tilted, and
+        # simulate_random checks that every cable stays taut
+        level = float(np.exp(rng.uniform(*np.log(RANDOM_SPLAY)))) if layout == "random" else 0.0
+        best = None
         for _ in range(MIXED_TRIES):
-            offset = out * rng.uniform(0.2, 0.8, len(b))[:, None]
-            heights = rng.uniform(-0.3, 0.3, len(b))
+            if layout == "mixed":
+                offset = out * rng.uniform(0.2, 0.8, len(b))[:, None]
+            else:
+                offset = out * (level * length * rng.uniform(0.7, 1.3, len(b)))[:, None]
+            heights = rng.uniform(-HEIGHTS, HEIGHTS, len(b))
             ceiling = p0 + b + offset
             ceiling[:, 2] = heights
             lengths, resid = shared_lengths(ceiling, p0 + b, b, body.cg, body.mass, 9.80665, CABLE_STIFFNESS)
+            if best is None or resid < best[2]:
+                best = (ceiling, lengths, resid)
             if resid < 1e-4:
                 break
-        else:
-            raise SimulationError(f"random rig {seed}: no mixed layout in {MIXED_TRIES} draws shares the weight")
+        ceiling, lengths, _ = best
     else:
         ceiling = p0 + b + offset
         ceiling[:, 2] = heights
@@ -267,6 +283,12 @@ def random_experiment(seed: int, cables: int = 4, layout: str = "wide", effects:
         pos = np.array([sx * body.size[0] / 2 * rng.uniform(0.85, 1.0), sy * body.size[1] / 2 * rng.uniform(0.85, 1.0),
                         rng.uniform(0.0, 0.1) * body.size[2]])
         spin = int(rng.choice([2, 2, 0, 1]))
+    elif exciter == "top_corner":
+        # a top corner of the frame (a little inside it), spinning about body x
+        sx, sy = rng.choice([-1.0, 1.0], 2)
+        pos = np.array([sx * body.size[0] / 2 * rng.uniform(0.85, 1.0), sy * body.size[1] / 2 * rng.uniform(0.85, 1.0),
+                        rng.uniform(0.9, 1.0) * body.size[2]])
+        spin = 0
     else:
         face = int(rng.integers(6))                          # ±x, ±y, floor, top
         pos = np.array([rng.uniform(-0.5, 0.5) * body.size[0], rng.uniform(-0.5, 0.5) * body.size[1],
@@ -275,8 +297,12 @@ def random_experiment(seed: int, cables: int = 4, layout: str = "wide", effects:
             pos[face // 2] = (1 if face % 2 else -1) * body.size[face // 2] / 2
         else:
             pos[2] = 0.0 if face == 4 else body.size[2]
-        spin = int(rng.integers(3))
-    rpy = [[0.0, np.pi / 2, 0.0], [-np.pi / 2, 0.0, 0.0], [0.0, 0.0, 0.0]][spin]   # exciter z along body x, y, z
+        spin = int(rng.integers(3)) if exciter == "anywhere" else 3
+    # the exciter's z (its spin axis) along body x, y, z, or (spin 3) a uniformly random direction
+    rpy = ([[0.0, np.pi / 2, 0.0], [-np.pi / 2, 0.0, 0.0], [0.0, 0.0, 0.0]][spin] if spin < 3
+           else Rotation.random(rng=rng).as_euler("xyz").tolist())
+    axis = "xyz"[spin] if spin < 3 else "({:+.2f}, {:+.2f}, {:+.2f})".format(
+        *Rotation.from_euler("xyz", rpy).as_matrix()[:, 2])
     imu = np.array([rng.uniform(-0.4, 0.4) * body.size[0], rng.uniform(-0.4, 0.4) * body.size[1],
                     rng.uniform(0.1, 0.9) * body.size[2]])
     rig = {"gravity": 9.80665,
@@ -294,7 +320,7 @@ def random_experiment(seed: int, cables: int = 4, layout: str = "wide", effects:
         "name": f"random_{seed}_{cables}{layout}",
         "description": f"{body.vehicle} in a {body.size[0]:.1f}×{body.size[1]:.1f}×{body.size[2]:.1f} m frame on "
                        f"{cables} {layout} cables, exciter at ({pos[0]:.2f}, {pos[1]:.2f}, {pos[2]:.2f}) m spinning "
-                       f"about body {'xyz'[spin]}",
+                       f"about body {axis}",
         "rig": rig,
         "inertia_about_cg": {"ixx": J[0, 0], "ixy": J[0, 1], "ixz": J[0, 2], "iyy": J[1, 1], "iyz": J[1, 2],
                              "izz": J[2, 2]},
@@ -317,12 +343,17 @@ def simulate_random(seed: int, cables: int = 4, layout: str = "wide", effects: l
     """Simulate :func:`random_experiment`; while a cable drops below :data:`MIN_TENSION` of
     its static tension, the force is lowered by a third (at most four times).  Returns the
     experiment mapping and the :class:`~rig_identification.model.simulator.SimResult`.  Raises
-    :class:`~rig_identification.model.simulator.SimulationError` if no force keeps the cables taut."""
+    :class:`~rig_identification.model.simulator.SimulationError` if no force keeps the cables taut, or a
+    cable carries less than :data:`SLACK_SHARE` of the mean tension at rest."""
     d = random_experiment(seed, cables, layout, effects, duration, noise=noise, exciter=exciter)
     for _ in range(5):
         sim = simulate(experiment_from_dict(d, d["name"]))
         T = np.column_stack([sim.sensors.load_cells[n].data[:, 0] for n in sim.rig.cable_names])
         static = np.median(T[: max(2, int(0.5 * RATES["load_cells"]))], axis=0)
+        if static.min() < SLACK_SHARE * static.mean():
+            raise SimulationError(f"{d['name']}: cable {sim.rig.cable_names[int(np.argmin(static))]} carries "
+                                  f"{100 * static.min() / static.mean():.1f} % of the mean tension at rest: "
+                                  "slack, not the rig drawn")
         if np.all(T.min(axis=0) >= MIN_TENSION * static):
             return d, sim
         d["excitation"]["rotating"]["amplitude"] *= 2 / 3

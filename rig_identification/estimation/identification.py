@@ -569,7 +569,12 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
         A3s.append(jac_entries(j, P, yhat, s))
     # sandwich covariance: bread from all segments, meat summed over the independent segments
     As = [A3.reshape(-1, 6) for A3 in A3s]
-    B = np.linalg.inv(sum(A.T @ A for A in As))  # A.T @ A of one buffer: BLAS syrk, as before
+    # A.T @ A of one buffer: BLAS syrk.  Pseudo-inverse: a fit that ran off to J → ∞ along a
+    # direction (the noise swamped it: a replay of a weakly excited rig, bench_any_rig's seed
+    # 21014) has no information there; its covariance is then singular along it, which the
+    # validation reports as not determined (validation.DEGENERATE), instead of a LinAlgError
+    # ending the command
+    B = np.linalg.pinv(sum(A.T @ A for A in As), rcond=1e-13, hermitian=True)
     meat = sum(_batch_means_meat(A3, r, max(1, int(round(block_s * s.fs)))) for A3, r, s in zip(A3s, resids, segs))
     cov_J = B @ meat @ B
     std = np.sqrt(np.clip(np.diag(cov_J), 0, None))
