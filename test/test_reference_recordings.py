@@ -124,6 +124,9 @@ def test_cli_inertia_diagnoses_model_error(damped_rigid_body):
     assert [e["name"] for e in d["diagnosis"]["effects"]] == ["viscous_damping"]
     # the fit with the damping passes the same validation as every fit
     assert d["validation"]["verdict"] == "ok", d["validation"]["summary"]
+    # ... and the verdict says which model it validated: not the rigid body's alone
+    assert d["validation"]["model"] == "the rigid-body model with viscous_damping"
+    assert d["validation"]["summary"].startswith("verdict: ok — the rigid-body model with viscous_damping explains")
     for k in KEYS:
         ref = abs(tru[k]) if k in ("ixx", "iyy", "izz") else big
         err = d["inertia_about_cg"][k] - tru[k]

@@ -548,6 +548,8 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
                "removed from the data and added to the model")
     diagnosis["effects"], diagnosis["hypotheses"], diagnosis["unexplained"] = d.effects, [], []
     again.rigid_body, again.diagnosis = rigid_body, {**diagnosis, "handled": handled}
+    # the verdict is on the model with the effects, not the rigid body's alone
+    again.validation = replace(again.validation, model=f"the rigid-body model with {', '.join(names)}")
     again.method += f"; {', '.join(names)} diagnosed (rig-identify diagnose), {handled}, validated"
     rigid_verdict = result.validation.summary if result.validation is not None else None
     again.warnings = [w for w in result.warnings if w != rigid_verdict] + [
