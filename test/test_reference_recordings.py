@@ -122,6 +122,9 @@ def test_cli_inertia_diagnoses_model_error(damped_rigid_body):
     tru = rec.truth["inertia_about_cg"]
     big = max(tru["ixx"], tru["iyy"], tru["izz"])
     assert [e["name"] for e in d["diagnosis"]["effects"]] == ["viscous_damping"]
+    # its parameters carry their units in the JSON too
+    assert d["diagnosis"]["effects"][0]["units"] == {"angular": "N·m·s/rad", "linear": "N·s/m"}
+    assert set(d["diagnosis"]["effects"][0]["parameters"]) <= set(d["diagnosis"]["effects"][0]["units"])
     # the fit with the damping passes the same validation as every fit
     assert d["validation"]["verdict"] == "ok", d["validation"]["summary"]
     # ... and the verdict says which model it validated: not the rigid body's alone

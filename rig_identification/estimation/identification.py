@@ -37,7 +37,7 @@ from scipy.integrate import cumulative_simpson, cumulative_trapezoid
 from scipy.signal import butter, decimate, sosfiltfilt
 
 from ..io.export import (AXES, ENTRY_NAMES, INERTIA_SCHEMA, INERTIA_SCHEMA_VERSION, UNITS, VEHICLE_SIGN,
-                     convention_lines, express, finite_or_none)
+                     convention_lines, express, finite_or_none, with_effect_units)
 from .errors_in_variables import Compensation, NoiseRealisations, compensate
 from ..model.parametrisation import (basis, consistent_from_params, from_tensor, params_from_consistent,
                               physically_consistent, to_tensor)
@@ -252,7 +252,8 @@ class InertiaResult:
             "fit_r2": [num(x) for x in self.fit_r2],
             "method": self.method,
             "warnings": list(self.warnings),
-        } | ({"rigid_body": self.rigid_body, "diagnosis": self.diagnosis} if self.diagnosis is not None else {}) \
+        } | ({"rigid_body": self.rigid_body, "diagnosis": with_effect_units(self.diagnosis)}
+             if self.diagnosis is not None else {}) \
           | ({"recordings": [{"label": s.label, "window": window(float(s.t[0]), float(s.t[-1]), len(s.t), o),
                                "band_hz": [float(s.band_hz[0]), float(s.band_hz[1])],
                                "residual_rms_rad_s": [float(x) for x in np.sqrt(np.mean(s.residual**2, 0))]}

@@ -219,6 +219,9 @@ UNITS = {
     "products_of_inertia": "kg·m², body axes, vehicle-dynamics sign (Ixy = −ixy)",
     "principal_moments": "kg·m², ascending", "principal_axes": "1: unit vectors, body axes, one per principal moment",
     "correlation": "1", "weakly_determined.relative_std": "1: σ over tr J / 3", "weakly_determined.std": "kg·m²",
+    "weakly_determined.direction": "1: unit vector of tensor entries (ixx..izz, Frobenius norm; 'combination' is the "
+                                   "same direction in products of inertia with the vehicle-dynamics sign)",
+    "diagnosis.effects.parameters": "per effect: its 'units'",
     "window.start": "s from the recording's first IMU sample", "window.end": "s from the recording's first IMU sample",
     "window.start_stamp": "s, header stamps", "window.end_stamp": "s, header stamps", "band_hz": "Hz",
     "residual_rms_rad_s": "rad/s", "residual_excess": "1: residual RMS over the noise's", "fit_r2": "1",
@@ -288,6 +291,16 @@ def effect_text(e: dict) -> str:
     return ", ".join(out)
 
 
+def with_effect_units(diagnosis: dict) -> dict:
+    """``diagnosis`` (the JSON's ``"diagnosis"``) with ``"units"`` beside the ``"parameters"``
+    of every effect and hypothesis: :data:`EFFECT_UNITS` of its name (a parameter without
+    one is a name or dimensionless)."""
+    def unit(e):
+        return {**e, "units": dict(EFFECT_UNITS.get(e.get("name"), {}))} if isinstance(e, dict) and "name" in e else e
+    return {**diagnosis, **{k: [unit(e) for e in diagnosis[k]] for k in ("effects", "hypotheses")
+                            if isinstance(diagnosis.get(k), list)}}
+
+
 def axes_block(ex: Expressed) -> dict:
     """The mass properties of ``ex`` for a JSON block in other axes (``"sae_j670"`` of
     ``rig-identify inertia --json --axes sae``): the same fields as the body-axes ones."""
@@ -328,7 +341,7 @@ def yaml_text(content: dict) -> str:
             "inertia\n" + yaml.safe_dump(content, sort_keys=False, allow_unicode=True, default_flow_style=None))
 
 
-__all__ = ["AXES", "Axes", "EFFECT_UNITS", "ENTRY_NAMES", "EXPORT_SCHEMA", "EXPORT_SCHEMA_VERSION", "Expressed",
+__all__ = ["AXES", "Axes", "EFFECT_UNITS", "with_effect_units", "ENTRY_NAMES", "EXPORT_SCHEMA", "EXPORT_SCHEMA_VERSION", "Expressed",
            "INERTIA_SCHEMA", "INERTIA_SCHEMA_VERSION", "NOT_DETERMINED", "ORDER", "PRODUCTS", "UNITS", "VEHICLE_SIGN",
            "axes_block", "convention_lines", "effect_text", "entries_from_option", "export_dict", "express",
            "finite_or_none", "parallel_axis", "principal", "sign_in", "tensor_from_option", "urdf_inertial",
