@@ -36,7 +36,7 @@ browser:
 	fi
 
 # one BLAS thread per process: the tests run in this process and the heavy simulations of some
-# modules in background workers, one per core (test/conftest.py; RIG_TEST_WORKERS=N sets how many, 0: none)
+# modules in one background worker on the second core (test/conftest.py; RIG_TEST_WORKERS=N sets how many, 0: none)
 test: setup browser
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q test
 
