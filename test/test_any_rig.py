@@ -11,12 +11,11 @@ from rig_identification.estimation.identification import KEYS, from_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.design.planning import Run, make_body, plan_experiment
 from rig_identification.io.recording import Recording
-from rig_identification.design.scenarios import CABLE_STIFFNESS, random_experiment, simulate_random
-from rig_identification.model.experiment import experiment_from_dict
-from rig_identification.model.simulator import simulate
-from rig_identification.statics import StaticState, estimate_cg
+from rig_identification.design.scenarios import CABLE_STIFFNESS, simulate_random
+from rig_identification.statics import estimate_cg
 
 from conftest import background, gather
+from test_cg_cables import static_pair
 
 
 def _identified(cables: int, seed: int):
@@ -78,17 +77,10 @@ def test_static_cg_on_the_same_rigs(cables, seed, layout):
     its own splay, the ceiling anchors at heights within ±0.3 m, the body hanging a little
     tilted): a 50 kg dummy 0.3 m below the first body anchor, 10 s baseline and dummy with
     reference noise; the CG within 3 σ of the truth and the validation ok."""
-    d = random_experiment(seed, cables, layout, duration=10.0)
-    b = np.array([c["body_anchor"] for c in d["rig"]["cables"]])
-    d["rig"]["dummy_mass"] = {"mass": 50.0, "position": (b[0] + [0.0, 0.0, -0.3]).tolist()}
-    states = []
-    for kind in ("baseline", "dummy"):
-        d["static"] = {"kind": kind, "duration": 10.0}
-        sim = simulate(experiment_from_dict(d, d["name"]))
-        states.append(StaticState.from_window(sim.sensors, label=kind))
-    res = estimate_cg(sim.rig, states[0], states[1])
-    err = res.center_of_gravity - np.array(d["rig"]["body"]["center_of_gravity"], float)
-    assert len(sim.rig.cables) == cables
+    rig, baseline, dummy, truth = static_pair(seed, cables, layout)
+    res = estimate_cg(rig, baseline, dummy)
+    err = res.center_of_gravity - truth
+    assert len(rig.cables) == cables
     assert np.all(np.abs(err) <= 3 * res.center_of_gravity_std), err / res.center_of_gravity_std
     assert res.validation.verdict == "ok", res.validation.failed
 

@@ -15,10 +15,11 @@ from rig_identification.model.simulator import simulate
 from rig_identification.statics import CgOptions, StaticState, estimate_cg
 
 
-def static_pair(seed: int, cables: int):
+def static_pair(seed: int, cables: int, layout: str = "wide"):
     """(rig, baseline StaticState, dummy StaticState, true CG): a 50 kg dummy 0.3 m below the
-    first body anchor (a corner of the carrying frame's top)."""
-    d = random_experiment(seed, cables, "wide", duration=10.0)
+    first body anchor (a corner of the carrying frame's top); ``layout`` as
+    scenarios.random_experiment's."""
+    d = random_experiment(seed, cables, layout, duration=10.0)
     b = np.array([c["body_anchor"] for c in d["rig"]["cables"]])
     d["rig"]["dummy_mass"] = {"mass": 50.0, "position": (b[0] + [0.0, 0.0, -0.3]).tolist()}
     states = []
