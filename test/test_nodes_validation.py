@@ -1,7 +1,7 @@
 """The identifier node validates its fits with rig-identify's core (issue 18: a lab on ROS gets
 the verdict, the widened σ and null entries for what the recording does not determine).
 
-* No DDS: ``nodes.fit_validation`` fed with a prepared recording's streams (the IMU, the
+* No DDS: ``pipeline.stream_fit`` fed with a prepared recording's streams (the IMU, the
   generalized wrench, the tracked orientation, as the node buffers them) gives the validation
   of ``rig-identify inertia --quick`` (``pipeline.identify_recording(refine=False)``): the
   same checks and statistics, the same widened σ, on the clean and on the damped reference
@@ -32,8 +32,8 @@ ENTRIES = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
 def node_validation(rec):
     """The node's path on a recording: the fit of the streams (as InertiaIdentifier fits them),
-    validated by fit_validation from a StreamBuffer fed as the node feeds it."""
-    from rig_identification.nodes.fit_validation import StreamBuffer, validate_stream_fit
+    validated by pipeline.stream_fit from a StreamBuffer fed as the node feeds it."""
+    from rig_identification.pipeline.stream_fit import StreamBuffer, validate_stream_fit
     prep = prepare_recording(rec)
     result = identify_inertia(rec.rig, prep.t, prep.gyro_body, prep.torque)
     buf = StreamBuffer(900.0)
@@ -70,7 +70,7 @@ def test_node_validation_is_rig_identify_quick(name, verdict):
 
 
 def test_node_validation_without_poses_skips_the_weight_check_and_says_so():
-    from rig_identification.nodes.fit_validation import StreamBuffer, validate_stream_fit
+    from rig_identification.pipeline.stream_fit import StreamBuffer, validate_stream_fit
     rec = read_recording(recording("visible_case16_clean"))
     prep = prepare_recording(rec)
     result = identify_inertia(rec.rig, prep.t, prep.gyro_body, prep.torque)

@@ -2,7 +2,7 @@
 
 Thin node around rig_identification.estimation.identification.identify_inertia (the same fit as
 the offline ``rig-identify``) over its buffered streams, validated by the offline core
-(fit_validation: the verdict, widened σ and null undetermined entries of ``rig-identify inertia
+(pipeline.stream_fit: the verdict, widened σ and null undetermined entries of ``rig-identify inertia
 --quick``).
 
 Parameters (the window ones are read at each request; set them with ros2 param set):
@@ -19,7 +19,7 @@ Parameters (the window ones are read at each request; set them with ros2 param s
   min_duration (double, 10.0)  refuse to fit a window shorter than this, s
   band_hz (double[2], [] = auto)  pass band of the fit, Hz
   block_s, iterations      identify_inertia parameters (defaults: the core's)
-  max_seconds (double, 900.0)  seconds of data kept in the buffer (fit_validation.StreamBuffer)
+  max_seconds (double, 900.0)  seconds of data kept in the buffer (pipeline.stream_fit.StreamBuffer)
   debug_fit_delay (double, 0.0)  testing aid: each fit takes this much longer, s
   cg_capture_seconds (double, 10.0)  averaging window of a static CG state, s
   dummy_mass (double, unset), dummy_position (double[3], unset)  the dummy mass, kg, and the
@@ -63,7 +63,7 @@ Subscribes (RELIABLE, KEEP_ALL):
 
 Services (std_srvs/Trigger; ``message`` is JSON):
   ~/identify_inertia  fit over the window, validated as ``rig-identify inertia --quick``
-                      validates (fit_validation; pipeline.apply_validation); success=true: the
+                      validates (pipeline.stream_fit; pipeline.apply_validation); success=true: the
                       JSON of ``rig-identify inertia --json`` (InertiaResult.to_dict with t0 the
                       first IMU sample: "validation" with the verdict ok | model_error |
                       not_identifiable, its checks and segments, σ widened, undetermined entries
@@ -127,7 +127,7 @@ from .qos import input_qos, LATCHED_QOS
 from .runtime import run
 from .topics import (EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX, MASS_PROPERTIES_TOPIC,
                      POSE_TOPIC, WRENCH_TOPIC)
-from .fit_validation import StreamBuffer, identify_window, validate_stream_fit
+from ..pipeline.stream_fit import StreamBuffer, identify_window, validate_stream_fit
 from .identifier_services import IdentifierServices
 from ..estimation.fit_window import fit_window
 from ..estimation.identification import identify_inertia
@@ -161,7 +161,7 @@ class IdentifierNode(Node):
         self.frames = frames
         rig = load_rig_param(self)
         self.rig = rig
-        # the streams the fit and its model validation read (fit_validation); only with the CG known
+        # the streams the fit and its model validation read (pipeline.stream_fit); only with the CG known
         self.fits = rig.center_of_gravity is not None
         self.buffer = StreamBuffer(**buf_params) if self.fits else None
         self.declare_parameter("cg_capture_seconds", 10.0)

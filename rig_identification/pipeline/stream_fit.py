@@ -18,7 +18,7 @@ inputs built by :func:`~rig_identification.pipeline.offline.accel_input` and
 :func:`~rig_identification.pipeline.offline.force_weight_surplus`).  The node's fit does not propagate
 the sensors' noise (no replays), so its validation is that of ``rig-identify inertia --quick``.
 
-ROS-free (plain numpy): the node only feeds it.
+ROS-free (plain numpy), in the core: the identifier node only feeds it.
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ import numpy as np
 
 from ..estimation.identification import IdentificationError, InertiaResult, identify_inertia
 from ..io.noise import white_sigma
-from ..pipeline.offline import accel_input, apply_validation, force_weight_surplus, weight_warning
+from .offline import accel_input, apply_validation, force_weight_surplus, weight_warning
 from ..io.rig import Rig
 
 STAMP_MATCH = 1e-6   # s: a pose and a wrench sample are the same instant (the wrench carries the pose's stamp)
