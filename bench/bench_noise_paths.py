@@ -39,7 +39,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from rig_identification.diagnosis.selection import EffectWrench  # noqa: E402
-from rig_identification.estimation.identification import KEYS  # noqa: E402
+from rig_identification.io.verdict import KEYS
 from rig_identification.pipeline.offline import (compare_to_truth, identify_recording, prepare_recording,  # noqa: E402
                                          replay_window, with_effect_wrench)
 from rig_identification.estimation.identification import identify_inertia  # noqa: E402

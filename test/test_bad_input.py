@@ -64,7 +64,7 @@ def make(sim, tmp_path, mutate=None, storage="mcap", rig=None):
 
 
 def vec(out):
-    from rig_identification.estimation.identification import KEYS
+    from rig_identification.io.verdict import KEYS
     return np.array([out["inertia_about_cg"][k] for k in KEYS])
 
 
@@ -74,7 +74,7 @@ def assert_close(out, ref, tol=0.01):
 
 
 def assert_good(out, truth, pct=1.0):
-    from rig_identification.estimation.identification import KEYS
+    from rig_identification.io.verdict import KEYS
     tru = truth["inertia_about_cg"]
     big = max(abs(tru[k]) for k in ("ixx", "iyy", "izz"))
     for k, v in zip(KEYS, vec(out)):

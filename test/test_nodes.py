@@ -297,7 +297,7 @@ def test_identify_service_validates_as_rig_identify(graph):
 def core_in_stamp_order(rig, sensors, settle: float) -> dict:
     """The streaming core classes fed in header-stamp order in this process (no ROS): what the
     nodes must reproduce (ties as tracker_replay.track: inclinometer, tensions, IMU, exciter)."""
-    from rig_identification.estimation.identification import InertiaIdentifier
+    from rig_identification.estimation.streaming_identifier import InertiaIdentifier
     from rig_identification.estimation.preprocessor import WrenchPreprocessor
     from rig_identification.estimation.tracker import PoseTracker
     tr, pp, idf = PoseTracker(rig), WrenchPreprocessor(rig), InertiaIdentifier(rig)

@@ -6,7 +6,7 @@ import pytest
 from scipy.integrate import cumulative_trapezoid
 from scipy.signal import butter, sosfiltfilt
 
-from rig_identification.estimation.identification import from_tensor
+from rig_identification.model.parametrisation import from_tensor
 from rig_identification.model.modes import natural_modes
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.design.planning import SPIN_AXES, resonances

@@ -15,7 +15,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..model.cables import DEFAULT_STIFFNESS
-from ..estimation.identification import physically_consistent, to_tensor
+from ..model.parametrisation import physically_consistent, to_tensor
 from ..estimation.propagation import REFERENCE_NOISE, REFERENCE_RATES, PlanError
 from ..io.rig import Rig, RigError, inertia_entries, load_rig, read_yaml
 from ..io.recording import RecordingError
@@ -105,7 +105,7 @@ class Body:
 
 def recommended_band(f0: float, rot_f, duration: float, fs: float) -> tuple[float, float]:
     """Pass band (Hz) around the exciter frequency ``f0`` and the rotational modes below 5 Hz
-    (``rot_f``), widened like :func:`~rig_identification.estimation.identification.auto_band` (0.6x below, 1.5x above)."""
+    (``rot_f``), widened like :func:`~rig_identification.estimation.signals.auto_band` (0.6x below, 1.5x above)."""
     fr = [f0] + [x for x in rot_f if x < 5.0]
     return (max(0.15, 0.6 * min(fr), 2.0 / duration), min(1.5 * max(fr), 0.4 * fs))
 
@@ -144,7 +144,7 @@ def load_plan_input(path) -> tuple[Rig, dict | None, np.ndarray | None]:
 def make_body(rig: Rig, mass: float | None, inertia_entries, stiffness=None, noise: dict | None = None,
               rates: dict | None = None) -> Body:
     """A :class:`Body` from the command line's numbers: mass kg (default rig.yaml's),
-    inertia_entries (6,) in :data:`~rig_identification.estimation.identification.KEYS` order, kg·m² (tensor entries: products negated).
+    inertia_entries (6,) in :data:`~rig_identification.io.verdict.KEYS` order, kg·m² (tensor entries: products negated).
     Raises :class:`PlanError` for a non-positive mass, a missing CG or a tensor that is not
     physically consistent."""
     if rig.center_of_gravity is None:

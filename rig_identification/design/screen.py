@@ -15,7 +15,7 @@ import numpy as np
 from scipy.signal import butter, sosfreqz
 from scipy.spatial.transform import Rotation
 
-from ..estimation.identification import basis
+from ..model.parametrisation import basis
 from .run import Body, recommended_band
 from ..estimation.propagation import Prediction, channel_sigmas, stationary_e_response, tracker_model, wrench_jacobians
 from ..model.modes import gradients, length_fn, length_hessians

@@ -46,7 +46,11 @@ from scipy.fft import irfft, next_fast_len, rfft
 from scipy.signal import butter, sosfilt, sosfilt_zi, sosfreqz
 from scipy.spatial.transform import Rotation
 
-from .identification import KEYS, auto_band, basis, from_tensor, prepare_segment, weak_directions
+from .identification import prepare_segment
+from .directions import weak_directions
+from .signals import auto_band
+from ..io.verdict import KEYS
+from ..model.parametrisation import basis, from_tensor
 from .preprocessor import generalized_wrench
 from ..io.rig import Rig
 from .tracker import PoseTracker, YAW_PRIOR
@@ -519,7 +523,7 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
     noise: σ per source (keys of :data:`REFERENCE_NOISE`; default the reference levels),
     at ``traj.rates``.  settle: s skipped at the start, as
     :func:`~rig_identification.pipeline.offline.identify_recording`.  band_hz: the fit's pass band (default: what
-    :func:`~rig_identification.estimation.identification.auto_band` picks on the gyro with this noise, seeded by
+    :func:`~rig_identification.estimation.signals.auto_band` picks on the gyro with this noise, seeded by
     ``seed``).  gyro_sensitivity: also return the per-sample linear map from the gyro
     noise to the estimate error (``Prediction.gyro_sensitivity``).  Raises
     :class:`PlanError` when the body hardly moves.

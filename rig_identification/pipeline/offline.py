@@ -11,8 +11,12 @@ from scipy.spatial.transform import Rotation
 from ..diagnosis.selection import body_inertia, corrected, diagnose, with_stiffness
 from ..io.export import effect_text
 from ..estimation.errors_in_variables import NoiseRealisations, antithetic_realisations
-from ..estimation.identification import (KEYS, InertiaResult, fit_segments, from_tensor, identify_inertia, identify_inertia_joint,
-                             identify_inertia_thesis, prepare_segment, weak_directions)
+from ..estimation.identification import fit_segments, identify_inertia, identify_inertia_joint, prepare_segment
+from ..estimation.directions import weak_directions
+from ..estimation.inertia_result import InertiaResult
+from ..estimation.thesis_estimator import identify_inertia_thesis
+from ..io.verdict import KEYS
+from ..model.parametrisation import from_tensor
 from ..estimation.preprocessor import preprocess
 from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..io.recording import Recording, RecordingError, crop
@@ -327,7 +331,7 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     with ``refine``, :func:`refine_uncertainty`: compensated for the noise in its input, σ
     propagated from the estimated sensor noise — about three times the work of the plain fit)
     or ``"thesis"`` (the thesis's model and estimator,
-    :func:`~rig_identification.estimation.identification.identify_inertia_thesis`, from
+    :func:`~rig_identification.estimation.thesis_estimator.identify_inertia_thesis`, from
     ``initial_guess`` (6,) tensor entries or :func:`default_initial_guess`).  effect_wrench:
     physics added to the model (:class:`~rig_identification.diagnosis.selection.EffectWrench`, :func:`with_effect_wrench`).
     Every fit is validated (:func:`validate_fit`: ``result.validation``).  Raises

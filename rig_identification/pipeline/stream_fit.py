@@ -4,7 +4,7 @@
 identifier node receives it (``/rig/imu``, ``/rig/generalized_wrench``, ``/rig/pose``);
 :func:`identify_window` fits a window of it (:func:`~rig_identification.estimation.identification.identify_inertia`
 on the wrench samples in the window, the gyro interpolated to their stamps: the rule of
-:meth:`~rig_identification.estimation.identification.InertiaIdentifier.identify`), and
+:meth:`~rig_identification.estimation.streaming_identifier.InertiaIdentifier.identify`), and
 :func:`validate_stream_fit` validates the fit.
 
 ``rig-identify inertia`` validates every fit (:func:`~rig_identification.pipeline.offline.validate_fit`:
@@ -26,7 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..estimation.identification import IdentificationError, InertiaResult, identify_inertia
+from ..estimation.identification import IdentificationError, identify_inertia
+from ..estimation.inertia_result import InertiaResult
 from ..io.noise import white_sigma
 from .offline import accel_input, apply_validation, force_weight_surplus, weight_warning
 from ..io.rig import Rig

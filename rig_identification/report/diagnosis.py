@@ -16,7 +16,9 @@ import math
 
 import numpy as np
 
-from ..estimation.identification import KEYS, InertiaResult, from_tensor
+from ..estimation.inertia_result import InertiaResult
+from ..io.verdict import KEYS
+from ..model.parametrisation import from_tensor
 from .html import MISSING, Cell, esc, finite, num, table
 from .mass import ORDER, SIGN, SYMBOL
 
