@@ -16,7 +16,8 @@ from scipy.spatial.transform import Rotation
 
 from ..model.cables import DEFAULT_STIFFNESS
 from ..model.parametrisation import physically_consistent, to_tensor
-from ..estimation.propagation import REFERENCE_NOISE, REFERENCE_RATES, PlanError
+from ..estimation.propagation import REFERENCE_NOISE, REFERENCE_RATES
+from ..estimation.prediction import PlanError
 from ..io.rig import Rig, RigError, inertia_entries, load_rig, read_yaml
 from ..io.recording import RecordingError
 from ..model.experiment import experiment_from_dict, ExperimentError, load_experiment

@@ -17,7 +17,9 @@ from scipy.spatial.transform import Rotation
 
 from ..model.parametrisation import basis
 from .run import Body, recommended_band
-from ..estimation.propagation import Prediction, channel_sigmas, stationary_e_response, tracker_model, wrench_jacobians
+from ..estimation.propagation import channel_sigmas, stationary_e_response
+from ..estimation.linearisation import tracker_model, wrench_jacobians
+from ..estimation.prediction import Prediction
 from ..model.modes import gradients, length_fn, length_hessians
 from ..model.cables import CableModel
 from ..model.equilibrium import equilibrium
@@ -81,7 +83,7 @@ class DesignScreen:
 
     body: :class:`~rig_identification.design.run.Body`; lin: its :func:`linear_rig`; duration, settle and
     ramp s: the run, the start of the fitted window, the spin-up; fs_screen Hz;
-    tracker_params: the tracker's (:func:`~rig_identification.estimation.propagation.tracker_model`).  Raises
+    tracker_params: the tracker's (:func:`~rig_identification.estimation.linearisation.tracker_model`).  Raises
     numpy.linalg.LinAlgError when the linearised mass matrix is singular (not for a body
     from :func:`~rig_identification.design.run.make_body`)."""
 

@@ -24,7 +24,7 @@ from ..diagnosis.residuals import unexplained
 from ..estimation.tracker_replay import track
 from ..estimation.uncertainty import noise_replays, propagated, sensor_noise
 from ..io.noise import white_sigma
-from ..estimation.propagation import PlanError, combine
+from ..estimation.prediction import PlanError, combine
 from ..estimation.validation import AccelInput, residual_excess, validate, widened_std
 from ..estimation.yaw_anchor import YawAnchor, anchor_yaw
 
@@ -195,7 +195,7 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     its normal equations (bias-compensated least squares, :mod:`rig_identification.estimation.errors_in_variables`;
     ``errors_in_variables``; ``bias_correction`` the least-squares estimate's bias it removed).  The covariance is the
     linearised propagation of that noise through the same chain
-    (:func:`~rig_identification.estimation.uncertainty.propagated`, recordings combined by :func:`~rig_identification.estimation.propagation.combine`),
+    (:func:`~rig_identification.estimation.uncertainty.propagated`, recordings combined by :func:`~rig_identification.estimation.prediction.combine`),
     mapped onto the compensated estimate, with the compensation's own jackknife σ in
     quadrature: ``crb_std`` holds it, and ``inertia_std`` and ``covariance`` too unless the
     fit's residual RMS exceeds the one the noise predicts (the replays' residual
