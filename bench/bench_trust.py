@@ -68,7 +68,8 @@ def _job(args):
     from rig_identification.estimation.identification import identify_inertia
     from rig_identification.io.verdict import KEYS
     from rig_identification.model.parametrisation import from_tensor, to_tensor
-    from rig_identification.pipeline.offline import identify_recording, prepare_recording, with_diagnosis
+    from rig_identification.pipeline.offline import identify_recording, with_diagnosis
+    from rig_identification.pipeline.prepare import prepare_recording
     from rig_identification.estimation.uncertainty import propagated, sensor_noise
     from rig_identification.estimation.validation import REL_STD_LIMIT
     from rig_identification.io.recording import Recording

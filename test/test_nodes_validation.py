@@ -23,7 +23,8 @@ import pytest
 
 from conftest import recording
 from rig_identification.estimation.identification import identify_inertia
-from rig_identification.pipeline.offline import identify_recording, prepare_recording
+from rig_identification.pipeline.offline import identify_recording
+from rig_identification.pipeline.prepare import prepare_recording
 from rig_identification.io.recording import read_recording
 from rig_identification.io.recording_writer import write_recording
 

@@ -94,7 +94,7 @@ class Trajectory:
     def from_simulation(sim, clean: bool = True) -> "Trajectory":
         """From a noise-free :class:`~rig_identification.model.simulator.SimResult` (its States at the IMU samples).
         clean: keep only the span the identifier would fit — the longest one free of slack
-        cables, saturation and gaps (:func:`~rig_identification.pipeline.offline.clean_sensors`) — with its warnings.
+        cables, saturation and gaps (:func:`~rig_identification.estimation.quality.clean_sensors`) — with its warnings.
         Raises :class:`PlanError` if less than the identifier's minimum is clean."""
         st = sim.states
         keep = np.ones(len(st.t), bool)
