@@ -32,7 +32,7 @@ ENTRIES = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
 
 def node_validation(rec):
-    """The node's path on a recording: the fit of the streams (as InertiaIdentifier fits them),
+    """The node's path on a recording: the fit of the streams (as pipeline.stream_fit.identify_window fits them),
     validated by pipeline.stream_fit from a StreamBuffer fed as the node feeds it."""
     from rig_identification.pipeline.stream_fit import StreamBuffer, validate_stream_fit
     prep = prepare_recording(rec)

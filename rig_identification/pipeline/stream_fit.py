@@ -3,8 +3,7 @@
 :class:`StreamBuffer` keeps the last ``max_seconds`` of what the fit and its validation read, as the
 identifier node receives it (``/rig/imu``, ``/rig/generalized_wrench``, ``/rig/pose``);
 :func:`identify_window` fits a window of it (:func:`~rig_identification.estimation.identification.identify_inertia`
-on the wrench samples in the window, the gyro interpolated to their stamps: the rule of
-:meth:`~rig_identification.estimation.streaming_identifier.InertiaIdentifier.identify`), and
+on the wrench samples in the window, the gyro interpolated to their stamps), and
 :func:`validate_stream_fit` validates the fit.
 
 ``rig-identify inertia`` validates every fit (:func:`~rig_identification.pipeline.fit_validation.validate_fit`:
