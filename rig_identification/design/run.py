@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -117,8 +118,6 @@ def load_plan_input(path) -> tuple[Rig, dict | None, np.ndarray | None]:
     experiment's spring ``cable_model``) and, for an experiment file, its rotating
     excitation ({amplitude, frequency, ramp_time}) as the baseline.  Raises
     :class:`~rig_identification.io.rig.RigError`, :class:`~rig_identification.io.recording.RecordingError`, FileNotFoundError."""
-    from pathlib import Path
-
     p = Path(path)
     if p.is_dir():
         if not (p / "rig.yaml").exists():

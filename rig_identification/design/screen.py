@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import expm
 from scipy.signal import butter, sosfreqz
 from scipy.spatial.transform import Rotation
 
@@ -89,7 +90,6 @@ class DesignScreen:
 
     def __init__(self, body: Body, lin: LinearRig, duration: float, settle: float, ramp: float = 2.0,
                  fs_screen: float = 50.0, tracker_params: dict | None = None):
-        from scipy.linalg import expm
         self.body, self.lin, self.duration, self.settle, self.ramp = body, lin, duration, settle, ramp
         rig = body.rig
         self.fs = float(body.rates["imu"])
