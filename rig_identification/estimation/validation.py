@@ -223,11 +223,12 @@ def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray)
     recording) is cut into :func:`n_segments` pieces; each piece's tensor is the full fit
     moved by its own weighted least-squares step.  With K independent pieces of covariance
     V_k about their common mean, Σ (θ_k − θ̄)ᵀ V_k⁻¹ (θ_k − θ̄) is χ² with 6 (K − 1) degrees of
-    freedom; the whole window's estimate stands for θ̄.  scale (6,): the factor by which each
-    entry's σ exceeds the frequency-domain one (the noise that reaches the estimate through
-    the tracker's pose, which the residual's spectrum does not show; see :func:`noise_scale`).
+    freedom; the whole window's estimate stands for θ̄.  scale (6,6): the map T of
+    the frequency-domain covariance onto the propagated one (the noise that reaches the
+    estimate through the tracker's pose, which the residual's spectrum does not show; see
+    :func:`noise_map`): each piece's covariance is T V_k Tᵀ.
     Returns the check, the segments' entries (K,6) kg·m² and their (start, end) stamps (K,2) s."""
-    D = np.diag(scale)
+    T = np.asarray(scale, float)
     ests, times, stat, dof = [], [], 0.0, 0
     for s in series:
         full = spectra(s)
@@ -243,7 +244,7 @@ def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray)
             mom = [piece_noise(full, part, (hi - lo) / (inner.stop - inner.start))]
             d, V = wls_step_joint([part], moments=mom)
             B = determined([part], moments=mom)
-            x, k = wald(B.T @ (d - d0), B.T @ D @ V @ D @ B)
+            x, k = wald(B.T @ (d - d0), B.T @ T @ V @ T.T @ B)
             stat += x
             dof += k
             ests.append(theta + d)
@@ -287,14 +288,34 @@ def residual_excess(series: list[FitSeries]) -> np.ndarray | None:
     return np.sqrt(num / np.maximum(den, 1e-300))
 
 
-def noise_scale(series: list[FitSeries], std: np.ndarray | None) -> np.ndarray:
-    """(6,) ≥ 1: the propagated σ of each entry (``std``: the noise's, through tracker,
-    preprocessor and identifier) over the frequency-domain σ of the same fit, which sees
-    the output's residual only.  Ones when ``std`` is None."""
-    if std is None:
-        return np.ones(6)
+def noise_map(series: list[FitSeries], cov: np.ndarray | None) -> np.ndarray:
+    """(6,6) T with T V Tᵀ = C₊: the map of the frequency-domain covariance V of the whole
+    fit (:func:`wls_step_joint`, which sees the output's residual only) onto the propagated
+    one C (``cov``: the noise's, through tracker, preprocessor and identifier) where C
+    exceeds it — C₊ = V + (C − V)₊, the positive part, so that no direction is narrowed;
+    T = C₊^½ V^−½ (symmetric roots).  The identity when ``cov`` is None or not finite, or V
+    singular.
+
+    The noise the residual's spectrum misses (the gyro's, through the tracked pose into the
+    cables' moment) lies along tensor directions of its own, not along the entries: the
+    per-entry factor √(C_ii / V_ii) used before put a clean 4-cable rig's segments' variance
+    along Ixy at about 2.8× what the check assumed and the rest at 0.2–0.8× (bench_any_rig's
+    seed 21008 over 15 noise seeds, 60 segments: eigenvalues of the covariance of the
+    segments' whitened departures from the truth 0.21–0.80 and 2.81; with T 0.19–1.30), and
+    that seed's own noise failed ``segments`` at χ²/dof 4.76.  Each piece k of the record
+    (a time segment, a sub-band) gets the same shape: T V_k Tᵀ."""
+    if cov is None or not np.all(np.isfinite(cov)):
+        return np.eye(6)
     _, V = wls_step_joint([spectra(s) for s in series])
-    return np.maximum(1.0, np.asarray(std, float) / np.sqrt(np.maximum(np.diag(V), 1e-300)))
+    V = 0.5 * (V + V.T)
+    ev, U = np.linalg.eigh(V)
+    if not np.all(np.isfinite(ev)) or ev.min() <= 1e-12 * max(ev.max(), 1e-300):
+        return np.eye(6)
+    ex_ev, ex_U = np.linalg.eigh(0.5 * (cov + cov.T) - V)
+    Cp = V + (ex_U * np.clip(ex_ev, 0.0, None)) @ ex_U.T
+    c_ev, c_U = np.linalg.eigh(0.5 * (Cp + Cp.T))
+    root = (c_U * np.sqrt(np.clip(c_ev, 0.0, None))) @ c_U.T
+    return root @ (U / np.sqrt(ev)) @ U.T
 
 
 def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) -> tuple[Check | None, np.ndarray | None, tuple | None]:
@@ -302,7 +323,8 @@ def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) ->
     information (trace of the covariance-weighted information of the bins) reaches half,
     both halves fitted, their difference tested.  Returns the check (None when the band
     has fewer than 8 bins per half), the halves' entries (2,6) kg·m² and the edges (3,) Hz
-    (of the first series)."""
+    (of the first series).  scale (6,6): :func:`noise_map`'s T, each half's covariance
+    T V Tᵀ."""
     sps = [spectra(s) for s in series]
     _, V = wls_step_joint(sps)
     halves = []
@@ -317,13 +339,13 @@ def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) ->
             return None, None, None
         halves.append((np.arange(k), np.arange(k, len(sp.f))))
     (d1, V1), (d2, V2) = [wls_step_joint(sps, [h[i] for h in halves]) for i in (0, 1)]
-    D = np.diag(scale)
+    T = np.asarray(scale, float)
     B1, B2 = [determined(sps, [h[i] for h in halves]) for i in (0, 1)]
     # the directions both halves determine (the complement of the union of the noisy ones)
     U, sv, _ = np.linalg.svd(np.eye(6) - _projector(B1) @ _projector(B2) @ _projector(B1) if B1.shape[1] < 6 or
                              B2.shape[1] < 6 else np.zeros((6, 6)))
     B = U[:, sv < 0.5]
-    stat, dof = wald(B.T @ (d1 - d2), B.T @ D @ (V1 + V2) @ D @ B)
+    stat, dof = wald(B.T @ (d1 - d2), B.T @ T @ (V1 + V2) @ T.T @ B)
     f = sps[0].f
     split = 0.5 * (f[halves[0][0][-1]] + f[halves[0][1][0]])
     edges = (float(series[0].band_hz[0]), float(split), float(series[0].band_hz[1]))
@@ -632,6 +654,20 @@ def advice(bad: tuple[str, ...], rig=None) -> tuple[str, ...]:
     return tuple(out)
 
 
+def propagated_covariance(result: InertiaResult) -> np.ndarray | None:
+    """(6,6) kg²·m⁴: the covariance the sensors' noise gives the estimate — its σ
+    ``result.crb_std`` (propagated through the chain) with the correlations of
+    ``result.covariance`` (the propagated covariance's when σ is; the sandwich's under a
+    residual excess); None without ``crb_std``."""
+    if result.crb_std is None:
+        return None
+    C = np.asarray(result.covariance, float)
+    with np.errstate(all="ignore"):
+        c = np.sqrt(np.clip(np.diag(C), 1e-300, None))
+        corr = np.nan_to_num(C / np.outer(c, c))
+    return corr * np.outer(result.crb_std, result.crb_std)
+
+
 def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weight_surplus: float | None = None,
              rig=None) -> Validation:
     """The verdict on an inertia fit (see module docstring).
@@ -660,7 +696,7 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     if series and finite:
         with np.errstate(all="ignore"):
             try:
-                scale = noise_scale(series, result.crb_std)
+                scale = noise_map(series, propagated_covariance(result))
                 c, segs, times = segment_check(series, theta, scale)
                 checks.append(c)
                 c, bands, edges = band_check(series, theta, scale)
