@@ -223,12 +223,12 @@ def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray)
     recording) is cut into :func:`n_segments` pieces; each piece's tensor is the full fit
     moved by its own weighted least-squares step.  With K independent pieces of covariance
     V_k about their common mean, Σ (θ_k − θ̄)ᵀ V_k⁻¹ (θ_k − θ̄) is χ² with 6 (K − 1) degrees of
-    freedom; the whole window's estimate stands for θ̄.  scale (6,6): the map T of
-    the frequency-domain covariance onto the propagated one (the noise that reaches the
+    freedom; the whole window's estimate stands for θ̄.  scale (6,6): E, the covariance
+    of the whole fit that its frequency-domain one misses (the noise that reaches the
     estimate through the tracker's pose, which the residual's spectrum does not show; see
-    :func:`noise_map`): each piece's covariance is T V_k Tᵀ.
+    :func:`missed_noise`): a piece with a fraction f of the samples has V_k + E / f.
     Returns the check, the segments' entries (K,6) kg·m² and their (start, end) stamps (K,2) s."""
-    T = np.asarray(scale, float)
+    E = np.asarray(scale, float)
     ests, times, stat, dof = [], [], 0.0, 0
     for s in series:
         full = spectra(s)
@@ -241,10 +241,11 @@ def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray)
         for a, b in zip(edges[:-1], edges[1:]):
             lo, hi = max(a, inner.start), min(b, inner.stop)
             part = spectra(s, slice(lo, hi))
-            mom = [piece_noise(full, part, (hi - lo) / (inner.stop - inner.start))]
+            frac = (hi - lo) / (inner.stop - inner.start)
+            mom = [piece_noise(full, part, frac)]
             d, V = wls_step_joint([part], moments=mom)
             B = determined([part], moments=mom)
-            x, k = wald(B.T @ (d - d0), B.T @ T @ V @ T.T @ B)
+            x, k = wald(B.T @ (d - d0), B.T @ (V + E / frac) @ B)
             stat += x
             dof += k
             ests.append(theta + d)
@@ -288,34 +289,24 @@ def residual_excess(series: list[FitSeries]) -> np.ndarray | None:
     return np.sqrt(num / np.maximum(den, 1e-300))
 
 
-def noise_map(series: list[FitSeries], cov: np.ndarray | None) -> np.ndarray:
-    """(6,6) T with T V Tᵀ = C₊: the map of the frequency-domain covariance V of the whole
-    fit (:func:`wls_step_joint`, which sees the output's residual only) onto the propagated
-    one C (``cov``: the noise's, through tracker, preprocessor and identifier) where C
-    exceeds it — C₊ = V + (C − V)₊, the positive part, so that no direction is narrowed;
-    T = C₊^½ V^−½ (symmetric roots).  The identity when ``cov`` is None or not finite, or V
-    singular.
+def missed_noise(series: list[FitSeries], cov: np.ndarray | None) -> np.ndarray:
+    """(6,6) kg²·m⁴ E = (C − V)₊: the covariance the noise gives the whole fit (``cov``, C:
+    propagated through tracker, preprocessor and identifier) beyond the frequency-domain one
+    V (:func:`wls_step_joint`, which sees the output's residual only), its positive part.
+    Zeros when ``cov`` is None or not finite.  A piece of the record holding a fraction f of
+    its information has V_k + E / f (the missed noise is the record's own, like the rest).
 
     The noise the residual's spectrum misses (the gyro's, through the tracked pose into the
     cables' moment) lies along tensor directions of its own, not along the entries: the
-    per-entry factor √(C_ii / V_ii) used before put a clean 4-cable rig's segments' variance
-    along Ixy at about 2.8× what the check assumed and the rest at 0.2–0.8× (bench_any_rig's
-    seed 21008 over 15 noise seeds, 60 segments: eigenvalues of the covariance of the
-    segments' whitened departures from the truth 0.21–0.80 and 2.81; with T 0.19–1.30), and
-    that seed's own noise failed ``segments`` at χ²/dof 4.76.  Each piece k of the record
-    (a time segment, a sub-band) gets the same shape: T V_k Tᵀ."""
+    per-entry factor √(C_ii / V_ii) used before left a clean 4-cable rig's time segments
+    short along Ixy and wide along the rest (bench_any_rig's seed 21008: its own noise failed
+    ``segments`` at χ²/dof 4.76; ``bench/bench_validation_null.py --any-rig 21008`` measures
+    the check's null over noise seeds)."""
     if cov is None or not np.all(np.isfinite(cov)):
-        return np.eye(6)
+        return np.zeros((6, 6))
     _, V = wls_step_joint([spectra(s) for s in series])
-    V = 0.5 * (V + V.T)
-    ev, U = np.linalg.eigh(V)
-    if not np.all(np.isfinite(ev)) or ev.min() <= 1e-12 * max(ev.max(), 1e-300):
-        return np.eye(6)
-    ex_ev, ex_U = np.linalg.eigh(0.5 * (cov + cov.T) - V)
-    Cp = V + (ex_U * np.clip(ex_ev, 0.0, None)) @ ex_U.T
-    c_ev, c_U = np.linalg.eigh(0.5 * (Cp + Cp.T))
-    root = (c_U * np.sqrt(np.clip(c_ev, 0.0, None))) @ c_U.T
-    return root @ (U / np.sqrt(ev)) @ U.T
+    ev, U = np.linalg.eigh(0.5 * (cov + cov.T) - 0.5 * (V + V.T))
+    return (U * np.clip(ev, 0.0, None)) @ U.T
 
 
 def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) -> tuple[Check | None, np.ndarray | None, tuple | None]:
@@ -323,8 +314,8 @@ def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) ->
     information (trace of the covariance-weighted information of the bins) reaches half,
     both halves fitted, their difference tested.  Returns the check (None when the band
     has fewer than 8 bins per half), the halves' entries (2,6) kg·m² and the edges (3,) Hz
-    (of the first series).  scale (6,6): :func:`noise_map`'s T, each half's covariance
-    T V Tᵀ."""
+    (of the first series).  scale (6,6): :func:`missed_noise`'s E; each half holds half the
+    information, its covariance V_h + 2 E."""
     sps = [spectra(s) for s in series]
     _, V = wls_step_joint(sps)
     halves = []
@@ -339,13 +330,13 @@ def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) ->
             return None, None, None
         halves.append((np.arange(k), np.arange(k, len(sp.f))))
     (d1, V1), (d2, V2) = [wls_step_joint(sps, [h[i] for h in halves]) for i in (0, 1)]
-    T = np.asarray(scale, float)
+    E = np.asarray(scale, float)
     B1, B2 = [determined(sps, [h[i] for h in halves]) for i in (0, 1)]
     # the directions both halves determine (the complement of the union of the noisy ones)
     U, sv, _ = np.linalg.svd(np.eye(6) - _projector(B1) @ _projector(B2) @ _projector(B1) if B1.shape[1] < 6 or
                              B2.shape[1] < 6 else np.zeros((6, 6)))
     B = U[:, sv < 0.5]
-    stat, dof = wald(B.T @ (d1 - d2), B.T @ T @ (V1 + V2) @ T.T @ B)
+    stat, dof = wald(B.T @ (d1 - d2), B.T @ (V1 + V2 + 4.0 * E) @ B)
     f = sps[0].f
     split = 0.5 * (f[halves[0][0][-1]] + f[halves[0][1][0]])
     edges = (float(series[0].band_hz[0]), float(split), float(series[0].band_hz[1]))
@@ -696,7 +687,7 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     if series and finite:
         with np.errstate(all="ignore"):
             try:
-                scale = noise_map(series, propagated_covariance(result))
+                scale = missed_noise(series, propagated_covariance(result))
                 c, segs, times = segment_check(series, theta, scale)
                 checks.append(c)
                 c, bands, edges = band_check(series, theta, scale)
