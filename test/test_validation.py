@@ -19,7 +19,8 @@ from rig_identification.model.parametrisation import from_tensor
 from rig_identification.pipeline.offline import identify_recording, with_diagnosis
 from rig_identification.io.recording import Recording
 from rig_identification.design.scenarios import simulate_random
-from rig_identification.estimation.validation import ALPHA, EFFECT_FACTOR, chi2_check, widened_std
+from rig_identification.estimation.validation import (ALPHA, EFFECT_FACTOR, chi2_check, missed_noise, spectra, widened_std,
+                                                      wls_step_joint)
 
 from conftest import background, gather
 
@@ -163,3 +164,26 @@ def test_chi2_check_widens_sigma_between_significance_and_failure():
     assert quiet.passed and quiet.sigma_factor == 1.0
     assert mild.passed and mild.sigma_factor == pytest.approx(math.sqrt(1.5 * thr / dof))
     assert loud.passed is False and loud.sigma_factor == 1.0
+
+
+def test_missed_noise_is_the_propagated_covariance_beyond_the_frequency_domain_one(clean):
+    """The segments and sub_bands checks give each piece of the record the covariance the
+    frequency-domain fit misses, E = (C − V)₊ over the whole fit, in its own directions
+    (validation.missed_noise): a direction that is no single entry keeps all of it (the
+    per-entry factor √(C_ii / V_ii) used before left such a direction short: bench_any_rig's
+    seed 21008, a false segments alarm), a direction where the propagated covariance is below
+    V gets none (never narrower), and no propagated covariance means none."""
+    _, _, res = clean
+    series = [s for s in res.series if s.jacobian is not None]
+    _, V = wls_step_joint([spectra(s) for s in series])
+    V = 0.5 * (V + V.T)
+    sd = np.sqrt(np.diag(V))
+    u = np.array([1.0, -1.0, 0.0, 1.0, 0.0, 0.0]) * sd / np.sqrt(3.0)     # Ixx − Ixy + Iyy, in σ units
+    C = V + 3.0 * np.outer(u, u)                                          # the missed noise along u
+    E = missed_noise(series, C)
+    assert np.allclose(V + E, C, rtol=1e-6, atol=1e-9 * np.max(np.abs(C)))
+    D = np.diag(np.sqrt(np.diag(C) / np.diag(V)))                         # the per-entry factor
+    w = np.linalg.solve(C, u)
+    assert (w @ D @ V @ D @ w) < 0.8 * (w @ C @ w)                        # which fell short along u
+    assert np.allclose(missed_noise(series, 0.5 * V), 0.0, atol=1e-12 * np.max(np.abs(V)))
+    assert np.allclose(missed_noise(series, None), 0.0)

@@ -72,8 +72,8 @@ def propagated(rig: Rig, poses, sensors, t_fit: np.ndarray, inertia: np.ndarray,
     the fitted window's stamps; inertia (3,3) kg·m² the identified tensor (the linearisation
     point); band_hz: the fit's pass band; noise, rates: from :func:`sensor_noise`.  Streams
     faster than about ``max_rate`` Hz are sampled down for the prediction with the noise
-    density kept.  Returns a :class:`~rig_identification.estimation.propagation.Prediction` (σ, covariance, per-source
-    contributions).  Raises :class:`~rig_identification.estimation.propagation.PlanError` when the body hardly moves.
+    density kept.  Returns a :class:`~rig_identification.estimation.prediction.Prediction` (σ, covariance, per-source
+    contributions).  Raises :class:`~rig_identification.estimation.prediction.PlanError` when the body hardly moves.
     """
 
     keep = poses.t <= t_fit[-1] + 1e-9

@@ -56,7 +56,7 @@ detail):
     delay or gain fail it.
 ``weight``
     the load cells' mean vertical force against rig.yaml's weight
-    (:func:`~rig_identification.pipeline.offline.weight_surplus`), within :data:`WEIGHT_TOLERANCE`.
+    (:func:`~rig_identification.pipeline.fit_validation.weight_surplus`), within :data:`WEIGHT_TOLERANCE`.
 ``errors_in_variables``
     the share of the fit's input that is the sensors' noise (the gyro's reaches the moment
     through the tracked pose), along its noisiest direction, within
@@ -225,11 +225,12 @@ def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray)
     recording) is cut into :func:`n_segments` pieces; each piece's tensor is the full fit
     moved by its own weighted least-squares step.  With K independent pieces of covariance
     V_k about their common mean, Σ (θ_k − θ̄)ᵀ V_k⁻¹ (θ_k − θ̄) is χ² with 6 (K − 1) degrees of
-    freedom; the whole window's estimate stands for θ̄.  scale (6,): the factor by which each
-    entry's σ exceeds the frequency-domain one (the noise that reaches the estimate through
-    the tracker's pose, which the residual's spectrum does not show; see :func:`noise_scale`).
+    freedom; the whole window's estimate stands for θ̄.  scale (6,6): E, the covariance
+    of the whole fit that its frequency-domain one misses (the noise that reaches the
+    estimate through the tracker's pose, which the residual's spectrum does not show; see
+    :func:`missed_noise`): a piece with a fraction f of the samples has V_k + E / f.
     Returns the check, the segments' entries (K,6) kg·m² and their (start, end) stamps (K,2) s."""
-    D = np.diag(scale)
+    E = np.asarray(scale, float)
     ests, times, stat, dof = [], [], 0.0, 0
     for s in series:
         full = spectra(s)
@@ -242,10 +243,11 @@ def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray)
         for a, b in zip(edges[:-1], edges[1:]):
             lo, hi = max(a, inner.start), min(b, inner.stop)
             part = spectra(s, slice(lo, hi))
-            mom = [piece_noise(full, part, (hi - lo) / (inner.stop - inner.start))]
+            frac = (hi - lo) / (inner.stop - inner.start)
+            mom = [piece_noise(full, part, frac)]
             d, V = wls_step_joint([part], moments=mom)
             B = determined([part], moments=mom)
-            x, k = wald(B.T @ (d - d0), B.T @ D @ V @ D @ B)
+            x, k = wald(B.T @ (d - d0), B.T @ (V + E / frac) @ B)
             stat += x
             dof += k
             ests.append(theta + d)
@@ -289,14 +291,24 @@ def residual_excess(series: list[FitSeries]) -> np.ndarray | None:
     return np.sqrt(num / np.maximum(den, 1e-300))
 
 
-def noise_scale(series: list[FitSeries], std: np.ndarray | None) -> np.ndarray:
-    """(6,) ≥ 1: the propagated σ of each entry (``std``: the noise's, through tracker,
-    preprocessor and identifier) over the frequency-domain σ of the same fit, which sees
-    the output's residual only.  Ones when ``std`` is None."""
-    if std is None:
-        return np.ones(6)
+def missed_noise(series: list[FitSeries], cov: np.ndarray | None) -> np.ndarray:
+    """(6,6) kg²·m⁴ E = (C − V)₊: the covariance the noise gives the whole fit (``cov``, C:
+    propagated through tracker, preprocessor and identifier) beyond the frequency-domain one
+    V (:func:`wls_step_joint`, which sees the output's residual only), its positive part.
+    Zeros when ``cov`` is None or not finite.  A piece of the record holding a fraction f of
+    its information has V_k + E / f (the missed noise is the record's own, like the rest).
+
+    The noise the residual's spectrum misses (the gyro's, through the tracked pose into the
+    cables' moment) lies along tensor directions of its own, not along the entries: the
+    per-entry factor √(C_ii / V_ii) used before left a clean 4-cable rig's time segments
+    short along Ixy and wide along the rest (bench_any_rig's seed 21008: its own noise failed
+    ``segments`` at χ²/dof 4.76; ``bench/bench_validation_null.py --any-rig 21008`` measures
+    the check's null over noise seeds)."""
+    if cov is None or not np.all(np.isfinite(cov)):
+        return np.zeros((6, 6))
     _, V = wls_step_joint([spectra(s) for s in series])
-    return np.maximum(1.0, np.asarray(std, float) / np.sqrt(np.maximum(np.diag(V), 1e-300)))
+    ev, U = np.linalg.eigh(0.5 * (cov + cov.T) - 0.5 * (V + V.T))
+    return (U * np.clip(ev, 0.0, None)) @ U.T
 
 
 def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) -> tuple[Check | None, np.ndarray | None, tuple | None]:
@@ -304,7 +316,8 @@ def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) ->
     information (trace of the covariance-weighted information of the bins) reaches half,
     both halves fitted, their difference tested.  Returns the check (None when the band
     has fewer than 8 bins per half), the halves' entries (2,6) kg·m² and the edges (3,) Hz
-    (of the first series)."""
+    (of the first series).  scale (6,6): :func:`missed_noise`'s E; each half holds half the
+    information, its covariance V_h + 2 E."""
     sps = [spectra(s) for s in series]
     _, V = wls_step_joint(sps)
     halves = []
@@ -319,13 +332,13 @@ def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) ->
             return None, None, None
         halves.append((np.arange(k), np.arange(k, len(sp.f))))
     (d1, V1), (d2, V2) = [wls_step_joint(sps, [h[i] for h in halves]) for i in (0, 1)]
-    D = np.diag(scale)
+    E = np.asarray(scale, float)
     B1, B2 = [determined(sps, [h[i] for h in halves]) for i in (0, 1)]
     # the directions both halves determine (the complement of the union of the noisy ones)
     U, sv, _ = np.linalg.svd(np.eye(6) - _projector(B1) @ _projector(B2) @ _projector(B1) if B1.shape[1] < 6 or
                              B2.shape[1] < 6 else np.zeros((6, 6)))
     B = U[:, sv < 0.5]
-    stat, dof = wald(B.T @ (d1 - d2), B.T @ D @ (V1 + V2) @ D @ B)
+    stat, dof = wald(B.T @ (d1 - d2), B.T @ (V1 + V2 + 4.0 * E) @ B)
     f = sps[0].f
     split = 0.5 * (f[halves[0][0][-1]] + f[halves[0][1][0]])
     edges = (float(series[0].band_hz[0]), float(split), float(series[0].band_hz[1]))
@@ -497,7 +510,7 @@ class AccelInput:
     accel (N,3) m/s² the measured specific force, body axes; mass kg; rho (3,) m from the CG to
     the IMU, body axes; band_hz; noise m/s² the accelerometer's white σ; replays: (torque,
     force) pairs of the same window replayed with a fresh realisation of the sensors' noise
-    added and subtracted (:func:`~rig_identification.pipeline.offline.refine_uncertainty`'s antithetic pair): half their
+    added and subtracted (:func:`~rig_identification.pipeline.sigma.refine_uncertainty`'s antithetic pair): half their
     difference is a draw of the prediction's own noise (the tracker's pose error seen through
     the tensions' lever arms), which the check adds to the accelerometer's."""
 
@@ -634,15 +647,29 @@ def advice(bad: tuple[str, ...], rig=None) -> tuple[str, ...]:
     return tuple(out)
 
 
+def propagated_covariance(result: InertiaResult) -> np.ndarray | None:
+    """(6,6) kg²·m⁴: the covariance the sensors' noise gives the estimate — its σ
+    ``result.crb_std`` (propagated through the chain) with the correlations of
+    ``result.covariance`` (the propagated covariance's when σ is; the sandwich's under a
+    residual excess); None without ``crb_std``."""
+    if result.crb_std is None:
+        return None
+    C = np.asarray(result.covariance, float)
+    with np.errstate(all="ignore"):
+        c = np.sqrt(np.clip(np.diag(C), 1e-300, None))
+        corr = np.nan_to_num(C / np.outer(c, c))
+    return corr * np.outer(result.crb_std, result.crb_std)
+
+
 def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weight_surplus: float | None = None,
              rig=None) -> Validation:
     """The verdict on an inertia fit (see module docstring).
 
     result: the fit (:func:`~rig_identification.estimation.identification.identify_inertia`, with ``series`` carrying
     the Jacobian; ``residual_excess`` and ``bias_correction`` from
-    :func:`~rig_identification.pipeline.offline.refine_uncertainty` are used when set).  accel: the accelerometer
+    :func:`~rig_identification.pipeline.sigma.refine_uncertainty` are used when set).  accel: the accelerometer
     check's inputs, one per fitted recording.  weight_surplus: see
-    :func:`~rig_identification.pipeline.offline.weight_surplus`.  rig: for the advice on geometry.  Never raises on
+    :func:`~rig_identification.pipeline.fit_validation.weight_surplus`.  rig: for the advice on geometry.  Never raises on
     bad numbers: a fit that produced them is ``not_identifiable``.
     """
     checks: list[Check] = []
@@ -662,7 +689,7 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     if series and finite:
         with np.errstate(all="ignore"):
             try:
-                scale = noise_scale(series, result.crb_std)
+                scale = missed_noise(series, propagated_covariance(result))
                 c, segs, times = segment_check(series, theta, scale)
                 checks.append(c)
                 c, bands, edges = band_check(series, theta, scale)
