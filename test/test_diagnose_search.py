@@ -19,8 +19,8 @@ from conftest import background, gather
 from rig_identification.diagnosis.retracked import bias_path, knots, random_walk
 from rig_identification.diagnosis.structural import Transfer, fit_mode, mode_filter, response
 from rig_identification.model.effects import Effect
-from rig_identification.model.simulator import mode_response
-from rig_identification.model.simulator import random_walk as simulated_walk
+from rig_identification.model.sensors import mode_response
+from rig_identification.model.sensors import random_walk as simulated_walk
 
 
 def synthetic_transfer(sensor: str, frequency: float, zeta: float, p: float, sigma: float, seed: int = 1):
@@ -60,7 +60,7 @@ def test_no_structural_mode_in_noise():
 
 
 def test_mode_filter_removes_the_simulated_mode():
-    """The simulator's mount (model.simulator.mode_response, 8 Hz, ζ 0.03) on a 1.1 Hz + 2.3 Hz
+    """The simulator's mount (model.sensors.mode_response, 8 Hz, ζ 0.03) on a 1.1 Hz + 2.3 Hz
     signal, removed by mode_filter: back to the signal within 1e-4 of the mode's effect, away
     from the ends."""
     t = np.arange(0.0, 60.0, 0.005)
@@ -74,7 +74,7 @@ def test_mode_filter_removes_the_simulated_mode():
 
 
 def test_random_walk_from_knots():
-    """A simulated random-walk bias (model.simulator.random_walk, 1e-4 rad/s/√s, 3 axes, 200 Hz,
+    """A simulated random-walk bias (model.sensors.random_walk, 1e-4 rad/s/√s, 3 axes, 200 Hz,
     600 s) read at knots 10 s apart with σ 2e-5 rad/s of estimation noise: its intensity
     within 20 % (3(K − 1) = 177 increments: the χ² spread is 5 %)."""
     rng = np.random.default_rng(3)
