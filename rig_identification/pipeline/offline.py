@@ -470,7 +470,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
       propagated σ, validation).
 
     The first combination whose fit's validation says ``ok`` and whose every effect is
-    physically plausible (:func:`~rig_identification.diagnosis.selection.implausible`) is *named*;
+    physically plausible (:func:`~rig_identification.diagnosis.plausible.implausible`) is *named*;
     the result is then that fit (σ: the propagated noise, or diagnose's joint fit's where
     larger — it carries the effects' own uncertainty), the cables' share taken off when their
     mass was found (:func:`~rig_identification.diagnosis.selection.body_inertia`).  A
