@@ -88,6 +88,7 @@ ratio and information criteria for model structure selection).
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from dataclasses import replace as _replace
 from itertools import combinations
@@ -125,6 +126,7 @@ REWEIGHT_ITER = 2     # reweighting iterations of the final fit (per-axis residu
 WEIGHT_SURPLUS_SIGMA = 3.0   # the masses are evaluated exactly when the cells carry this many σ more (or less) than the weight
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
 PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
+WINDOW_CACHE = 8      # re-tracked windows kept (by their corrections): the joint search re-uses them
 STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml stiffness are not "steel-like"
 
 
@@ -239,12 +241,23 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     state = {"applied": {}, "elastic": False, "band": band_hz, "candidate": True, "retracked": {}}
     declared = np.isfinite(rec.rig.cable_stiffness).all()
 
+    windows: OrderedDict = OrderedDict()   # the last WINDOW_CACHE windows, by their corrections
+
     def window_of(applied, elastic=False, keep_stretch=False):
         mode = "fitted" if elastic else ("declared" if declared else "rigid")
         # keep_stretch: the steel stretch fitted last is kept (one tracker pass, not two)
-        src = with_stiffness(rec, state["steel"]) if keep_stretch and "steel" in state else rec
-        return prepare_window(corrected(src, applied), warnings=[] if state["band"] else warnings,
-                              cables=mode, imu_rot_yaml=R_yaml)
+        steel = keep_stretch and "steel" in state
+        key = (mode, _applied_key(applied), _array_key(state["steel"]) if steel else None)
+        if key in windows:
+            windows.move_to_end(key)
+            return windows[key]
+        src = with_stiffness(rec, state["steel"]) if steel else rec
+        w = prepare_window(corrected(src, applied), warnings=[] if state["band"] else warnings,
+                           cables=mode, imu_rot_yaml=R_yaml)
+        windows[key] = w
+        if len(windows) > WINDOW_CACHE:
+            windows.popitem(last=False)
+        return w
 
     def build(applied, elastic, profiled=None, keep_stretch=False):
         w = window_of(applied, elastic, keep_stretch)
@@ -368,6 +381,20 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
                      rms_sync_before=sync0, rms_sync_after=sync1, revolutions=revs,
                      effect_wrench=a["effect_wrench"], applied=dict(a["applied"]), stiffness=a["stiffness"],
                      alternatives=alternatives, joint=joints, out_of_band=state.get("out_of_band", []))
+
+
+def _array_key(x) -> tuple:
+    """A hashable, exact key of a correction's value (a number, an array or a tuple of them)."""
+    if isinstance(x, tuple):
+        return tuple(_array_key(v) for v in x)
+    a = np.asarray(x, float)
+    return (a.shape, a.tobytes())
+
+
+def _applied_key(applied: dict) -> tuple:
+    """A hashable, exact key of the corrections ``applied`` (key -> value): equal keys, equal
+    corrected recordings (:func:`corrected`), so equal re-tracked windows."""
+    return tuple(sorted((k, _array_key(v)) for k, v in applied.items()))
 
 
 def _retracked(state: dict, window_of, w: Window, M: Model, warnings: list) -> dict:
