@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io.export import EFFECT_UNITS
+
 PLAUSIBLE = {
     "viscous_damping": {"angular": (0.0, np.inf), "linear": (0.0, np.inf)},
     "air_drag": {"angular": (0.0, np.inf), "linear": (0.0, np.inf)},
@@ -25,8 +27,8 @@ PLAUSIBLE = {
     "cable_elasticity": {"stiffness": (1e4, 1e9)},
     "gyroscopic_coupling": {"scale": (0.5, 1.5)},
 }
-"""The range (SI) each effect's parameters must fall in to be named: a fit that needs a
-dissipation of the wrong sign, a sensor delay of a tenth of a second or an IMU a metre from
+"""The range (SI, in the units of :data:`~rig_identification.io.export.EFFECT_UNITS`) each
+effect's parameters must fall in to be named: a fit that needs a dissipation of the wrong sign, a sensor delay of a tenth of a second or an IMU a metre from
 where rig.yaml puts it has found a stand-in for other physics, not the effect.  Units:
 rad/s (gyro bias, the drift's ``bias_range`` over the window), rad/s/√s (the drift's
 ``random_walk``: a MEMS gyro's rate random walk is 1e-5–1e-3), m/s², m, rad, s, N/m, Hz (a
@@ -49,7 +51,8 @@ def implausible(entry: dict, rig, effect_share: float | None = None, unbalance: 
     for k, (lo, hi) in PLAUSIBLE.get(name, {}).items():
         v = np.atleast_1d(np.asarray(par.get(k, 0.0), float))
         if np.any(v < lo) or np.any(v > hi):
-            return f"{k} = {fmt_value(par.get(k))} outside {lo:g}…{hi:g}"
+            unit = EFFECT_UNITS.get(name, {}).get(k, "").strip("()")
+            return f"{k} = {fmt_value(par.get(k))} outside {lo:g}…{hi:g}" + (f" {unit}" if unit else "")
     if name == "cable_mass" and not 0.0 <= par.get("mass", 0.0) <= 0.05 * rig.mass:
         return f"mass {par['mass']:.3g} kg per cable outside 0…{0.05 * rig.mass:.3g} kg"
     if name == "body_mass" and abs(par.get("mass_error", 0.0)) > 0.1 * rig.mass:
