@@ -88,3 +88,72 @@ def test_random_walk_from_knots():
     assert 0 < sq < 0.3 * q
     assert bias_path(t, kn, c).shape == (len(t), 3)
     np.testing.assert_allclose(bias_path(kn, kn, c), c.reshape(3, -1).T, atol=1e-15)   # through the knots
+
+
+# --- the whole chain on short simulated rigs ---------------------------------------------------
+
+E2E_DURATION = 60.0
+
+
+def _pipeline(seed: int, effects: list, duration: float = E2E_DURATION) -> dict:
+    """Job: a random 4-cable rig (design.scenarios.simulate_random, ``wide`` layout, the
+    bench_trust rows' physics) with ``effects``, the rigid-body fit and `pipeline.with_diagnosis`
+    on it (what `rig-identify inertia` does).  Returns the JSON-safe result: verdict, the
+    named effects, the truth."""
+    from rig_identification.design.scenarios import simulate_random
+    from rig_identification.io.recording import Recording
+    from rig_identification.pipeline.offline import identify_recording, with_diagnosis
+    _, sim = simulate_random(seed, 4, "wide", effects, duration)
+    rec = Recording(sim.rig, sim.sensors, sim.truth, None)
+    res = with_diagnosis(rec, identify_recording(rec))
+    diag = res.diagnosis or {}
+    return json.loads(json.dumps({"verdict": res.validation.verdict if res.validation else None,
+                                  "effects": diag.get("effects", []), "unexplained": diag.get("unexplained", []),
+                                  "truth": sim.truth}, default=float))
+
+
+# seeds of their own (not bench_trust's), 60 s each
+E2E = {
+    "gyro_bias_drift": (8900, [{"name": "gyro_bias_drift", "random_walk": 1e-4}]),
+    "structural_mode": (8901, [{"name": "structural_mode", "sensor": "imu", "frequency": 8.0, "damping_ratio": 0.03}]),
+    "pair": (8902, [{"name": "sensor_delay", "stream": "load_cells", "delay": 0.02},
+                    {"name": "viscous_damping", "linear": 150.0, "angular": 300.0}]),
+}
+background("diagnose_search", __file__, _pipeline, {k: v for k, v in E2E.items()})
+
+
+def _named(res: dict) -> list:
+    return [e["name"] for e in res["effects"]]
+
+
+def test_gyro_bias_drift_is_named_with_its_random_walk():
+    """A random-walk gyro bias of 1e-4 rad/s/√s (60 s, 4-cable rig): diagnosis names
+    gyro_bias_drift and nothing else; the fit with it passes validation; its intensity within
+    a factor 2 of the simulator's (7 knots 10 s apart, 18 increments over the three axes: the
+    χ² spread of the estimate alone is ~17 %, the realised walk's another ~17 %)."""
+    res = gather("diagnose_search", "gyro_bias_drift")["gyro_bias_drift"]
+    assert _named(res) == ["gyro_bias_drift"], (_named(res), res["unexplained"][:2])
+    assert res["verdict"] == "ok"
+    q = res["effects"][0]["parameters"]["random_walk"]
+    assert 0.5e-4 < q < 2e-4, res["effects"][0]
+
+
+def test_structural_mode_is_named_at_its_frequency():
+    """An 8 Hz mode (ζ 0.03) of the IMU's mount (60 s, 4-cable rig): named on the IMU's side,
+    its frequency within 3 %, and nothing else named."""
+    res = gather("diagnose_search", "structural_mode")["structural_mode"]
+    assert _named(res) == ["structural_mode"], (_named(res), res["unexplained"][:2])
+    p = res["effects"][0]["parameters"]
+    assert p["sensor"] == "imu" and abs(p["frequency"] - 8.0) < 0.24, p
+
+
+def test_two_effects_are_named_together():
+    """Load cells 20 ms late and viscous damping at once (60 s, 4-cable rig): both named, each
+    parameter within 15 %, nothing else; the fit with both passes validation."""
+    res = gather("diagnose_search", "pair")["pair"]
+    assert sorted(_named(res)) == ["sensor_delay", "viscous_damping"], (_named(res), res["unexplained"][:2])
+    assert res["verdict"] == "ok"
+    p = {e["name"]: e["parameters"] for e in res["effects"]}
+    assert abs(p["sensor_delay"]["delay"] / 0.02 - 1) < 0.15, p
+    for k, v in (("linear", 150.0), ("angular", 300.0)):
+        assert abs(p["viscous_damping"][k] / v - 1) < 0.15, p

@@ -427,26 +427,29 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
     nlin = k + (1 if free_kappa else 0)
     rows = 6 * n + 9
 
+    # the linear columns' parts that do not depend on the tensor, once (rows, nlin)
+    Jl0 = np.zeros((rows, nlin))
+    Jr0 = Jl0[:3 * n].reshape(n, 3, nlin)
+    for i, c in enumerate(cols):
+        if c.rot_O is not None:
+            Jr0[:, :, i] = c.rot_O * wr
+    Jl0[3 * n:6 * n] = (dTr * wa[None, :, None]).reshape(-1, k) if k else 0.0
+    Jd0 = Jl0[6 * n:]
+    Jd0[:3, :k] = dG / sg
+    Jd0[3:6, :k] = dA / sdc
+    Jd0[6:, :k] = dMm / sm
+    with_ID = [i for i, p in enumerate(prepared) if p["rot_ID"] is not None]
+
     def lin_jac(j, P):
         """Jacobian columns of the parameters the residual is linear in (β, κ): they
         depend on the tensor only, (rows, nlin)."""
-        Jl = np.zeros((rows, nlin))
+        Jl = Jl0.copy()
         Jr = Jl[:3 * n].reshape(n, 3, nlin)
-        for i, (c, p) in enumerate(zip(cols, prepared)):
-            if c.rot_O is not None:
-                Jr[:, :, i] += c.rot_O
-            if p["rot_ID"] is not None:
-                Jr[:, :, i] -= p["rot_ID"] @ P.T
+        for i in with_ID:
+            Jr[:, :, i] -= (prepared[i]["rot_ID"] @ P.T) * wr
         if free_kappa:
-            Jr[:, :, -1] = np.einsum("m,mni->ni", j, model.G) @ P.T
-        Jr *= wr[None, :, None]
-        Jl[3 * n:6 * n] = (dTr * wa[None, :, None]).reshape(-1, k) if k else 0.0
-        Jd = Jl[6 * n:]
-        Jd[:3, :k] = dG / sg
-        Jd[3:6, :k] = dA / sdc
-        Jd[6:, :k] = dMm / sm
-        if free_kappa:
-            Jd[6:, -1] = -(j @ model.dcm_G) / sm
+            Jr[:, :, -1] = (np.einsum("m,mni->ni", j, model.G) @ P.T) * wr
+            Jl[6 * n + 6:, -1] = -(j @ model.dcm_G) / sm
         return Jl
 
     def tensor_jac(dj, kappa, P, yhat):

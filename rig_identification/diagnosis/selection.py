@@ -297,7 +297,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     extra_lam = _retracked(state, window_of, w, M, warnings)
     cands = candidates(w, M, kappa0, state["applied"], allow_elasticity=state["candidate"],
                        profiled=state.get("profiled"), retracked=state["retracked"])
-    threshold_p = alpha / max(1, len(cands))
+    # the bias drift counts in the family of candidates whether or not its gate opens
+    threshold_p = alpha / max(1, len(cands) + 1)
     cost0 = base.cost(scales)
     n_ic = 3 * sum(M.n_eff_group.values()) + 10     # independent residuals: the two groups' and the mean levels
     state["cands"] = cands
@@ -305,6 +306,17 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     ctx = {"w": w, "M": M, "cands": cands, "fit": base, "applied": dict(state["applied"]), "keys": [],
            "elastic": False, "free_kappa": False, "rms": rms0, "cost": cost0}
     screened = _screen(ctx, state, build, kappa0, scales, threshold_p, extra_lam, tried, warnings, step=1)
+    # the gyro's bias drift (3K columns, 3K re-tracks: the costliest candidate) only where a
+    # constant gyro bias is significant: a drift the constant cannot stand in for at all
+    # (zero mean over the window on every axis) is not looked for
+    bias = next((e for e in screened if e["c"].name == "gyro_bias"), None)
+    if (bias is not None and chi2.sf(max(bias["lam_first"], 0.0), bias["dof"]) < threshold_p
+            and _drift_columns(state, window_of, w, M, warnings)):
+        cands = candidates(w, M, kappa0, state["applied"], allow_elasticity=state["candidate"],
+                           profiled=state.get("profiled"), retracked=state["retracked"])
+        state["cands"] = cands
+        ctx_d = {**ctx, "cands": [c for c in cands if c.name == "gyro_bias_drift"], "applied": dict(state["applied"])}
+        screened += _screen(ctx_d, state, build, kappa0, scales, threshold_p, extra_lam, tried, warnings, step=1)
     pool = _pool(screened, threshold_p)
     evals: dict = {}
 
@@ -383,6 +395,32 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
                      alternatives=alternatives, joint=joints, out_of_band=state.get("out_of_band", []))
 
 
+def _drift_columns(state: dict, window_of, w: Window, M: Model, warnings: list) -> bool:
+    """The first-order columns of the gyro's bias drift (one per axis and knot, by finite
+    differences of re-tracked windows: :mod:`~rig_identification.diagnosis.retracked`) into
+    ``state["retracked"]["drift"]``, its knots into ``state["applied"]``.  Returns whether
+    they could be made."""
+    applied = state["applied"]
+    try:
+        ref = window_of(applied, False, True)
+        kn = knots(w.t[0], w.t[-1])
+        n = 3 * len(kn)
+        trials = []
+        for a in range(3):
+            for k in range(len(kn)):
+                c = np.zeros(n)
+                c[a * len(kn) + k] = DRIFT_STEP
+                trials.append((f"bias_{'xyz'[a]}_{k}", {**applied, ("gyro_bias_drift", "knots"): kn,
+                                                         ("gyro_bias_drift", ""): c}, DRIFT_STEP))
+        state["retracked"]["drift"] = (retracked_columns(lambda ap: window_of(ap, False, True), ref, M, trials), kn)
+        applied[("gyro_bias_drift", "knots")] = kn
+        return True
+    except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
+        warnings.append(f"the gyro's bias drift could not be re-tracked ({err}); it is not tried")
+        state["retracked"].pop("drift", None)
+        return False
+
+
 def _array_key(x) -> tuple:
     """A hashable, exact key of a correction's value (a number, an array or a tuple of them)."""
     if isinstance(x, tuple):
@@ -409,22 +447,11 @@ def _retracked(state: dict, window_of, w: Window, M: Model, warnings: list) -> d
     extra = {}
     try:
         ref = window_of(applied, False, True)
-        kn = knots(w.t[0], w.t[-1])
-        applied[("gyro_bias_drift", "knots")] = kn
-        n = 3 * len(kn)
-        trials = []
-        for a in range(3):
-            for k in range(len(kn)):
-                c = np.zeros(n)
-                c[a * len(kn) + k] = DRIFT_STEP
-                trials.append((f"bias_{'xyz'[a]}_{k}", {**applied, ("gyro_bias_drift", ""): c}, DRIFT_STEP))
-        state["retracked"]["drift"] = (retracked_columns(lambda ap: window_of(ap, False, True), ref, M, trials), kn)
         trials = [(f"scale_{'xyz'[a]}", {**applied, ("gyro_scale", ""): SCALE_STEP * np.eye(3)[a]}, SCALE_STEP)
                   for a in range(3)]
         state["retracked"]["scale"] = retracked_columns(lambda ap: window_of(ap, False, True), ref, M, trials)
     except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
-        warnings.append(f"the gyro's drift and scale could not be re-tracked ({err}); they are not tried")
-        state["retracked"].pop("drift", None)
+        warnings.append(f"the gyro's scale could not be re-tracked ({err}); it is not tried")
         state["retracked"].pop("scale", None)
     tr = transfer(w, M)
     state["out_of_band"] = out_of_band(tr)
@@ -492,7 +519,7 @@ def _screen(ctx: dict, state: dict, build, kappa0: float, scales, threshold_p: f
         rms1 = rms(channel_residuals(Mc, fit))
         red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
         fixed = c.key in state.get("fixed", {})
-        screened.append({"c": c, "lam": lam, "fit": fit, "red": red, "dof": dof,
+        screened.append({"c": c, "lam": lam, "lam_first": lam, "fit": fit, "red": red, "dof": dof,
                          "exact_state": ({**st["applied"], c.key: state["fixed"][c.key]}, None, None, None)
                          if fixed else None})
     # sensor and rig errors move the tracked pose too: the most promising ones are
