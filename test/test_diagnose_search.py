@@ -126,6 +126,9 @@ def _named(res: dict) -> list:
     return [e["name"] for e in res["effects"]]
 
 
+@pytest.mark.xfail(strict=True, reason="open: measured on a370322, seed 8900 (60 s): gyro_bias_drift named alone, "
+                   "verdict ok, but random_walk 2.08e-4 rad/s/√s for the simulated 1e-4 (the knots' values "
+                   "overestimate the intensity on 7 knots)")
 def test_gyro_bias_drift_is_named_with_its_random_walk():
     """A random-walk gyro bias of 1e-4 rad/s/√s (60 s, 4-cable rig): diagnosis names
     gyro_bias_drift and nothing else; the fit with it passes validation; its intensity within
@@ -138,6 +141,9 @@ def test_gyro_bias_drift_is_named_with_its_random_walk():
     assert 0.5e-4 < q < 2e-4, res["effects"][0]
 
 
+@pytest.mark.xfail(strict=True, reason="open, a WRONG NAME: measured on a370322, seed 8901 (60 s): named "
+                   "structural_mode + imu_offset (the recording has no IMU offset); bench_trust's 90 s seeds "
+                   "8100/8101 name structural_mode alone")
 def test_structural_mode_is_named_at_its_frequency():
     """An 8 Hz mode (ζ 0.03) of the IMU's mount (60 s, 4-cable rig): named on the IMU's side,
     its frequency within 3 %, and nothing else named."""
@@ -147,6 +153,9 @@ def test_structural_mode_is_named_at_its_frequency():
     assert p["sensor"] == "imu" and abs(p["frequency"] - 8.0) < 0.24, p
 
 
+@pytest.mark.xfail(strict=True, reason="open: measured on a370322, seed 8902 (60 s): nothing named, unexplained "
+                   "accel_x/force_x at 1.32-1.42 Hz; bench_trust delay_damping names the pair on seed 7900 (90 s), "
+                   "not on 7901")
 def test_two_effects_are_named_together():
     """Load cells 20 ms late and viscous damping at once (60 s, 4-cable rig): both named, each
     parameter within 15 %, nothing else; the fit with both passes validation."""
