@@ -42,11 +42,13 @@ from pathlib import Path
 import numpy as np
 
 from rig_identification.design.scenarios import simulate_random
-from rig_identification.estimation.identification import KEYS, from_tensor, to_tensor
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.parametrisation import from_tensor, to_tensor
 from rig_identification.estimation.uncertainty import propagated, sensor_noise
 from rig_identification.estimation.validation import REL_STD_LIMIT
 from rig_identification.io.recording import Recording
-from rig_identification.pipeline.offline import identify_recording, prepare_recording
+from rig_identification.pipeline.offline import identify_recording
+from rig_identification.pipeline.prepare import prepare_recording
 
 CABLES = (3, 4, 5, 6)
 LAYOUTS = ("wide", "wide", "random", "random", "mixed", "splayed", "parallel")   # determined rigs weigh double

@@ -18,7 +18,8 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from rig_identification.estimation.identification import KEYS, from_tensor
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.parametrisation import from_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.estimation.propagation import REFERENCE_NOISE
 from rig_identification.io.recording import Recording

@@ -39,9 +39,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from rig_identification.diagnosis.selection import EffectWrench  # noqa: E402
-from rig_identification.estimation.identification import KEYS  # noqa: E402
-from rig_identification.pipeline.offline import (compare_to_truth, identify_recording, prepare_recording,  # noqa: E402
-                                         replay_window, with_effect_wrench)
+from rig_identification.io.verdict import KEYS
+from rig_identification.pipeline.offline import compare_to_truth, identify_recording
+from rig_identification.pipeline.prepare import prepare_recording, replay_window, with_effect_wrench
 from rig_identification.estimation.identification import identify_inertia  # noqa: E402
 from rig_identification.estimation.preprocessor import generalized_wrench  # noqa: E402
 from rig_identification.estimation.uncertainty import add_noise, sensor_noise  # noqa: E402

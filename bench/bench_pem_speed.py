@@ -19,7 +19,9 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 
-from rig_identification.estimation.identification import KEYS, from_tensor, identify_inertia, to_tensor
+from rig_identification.estimation.identification import identify_inertia
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.parametrisation import from_tensor, to_tensor
 from rig_identification.estimation.preprocessor import preprocess
 from rig_identification.io.recording import read_recording
 from rig_identification.estimation.tracker_replay import track

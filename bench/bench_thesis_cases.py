@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 
-from rig_identification.estimation.identification import KEYS
+from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import PAIRS
 from rig_identification.pipeline.offline import compare_to_truth, identify_recording
 from rig_identification.io.recording import Recording

@@ -65,8 +65,11 @@ def _job(args):
     name, seed, duration, diagnose = args
     import warnings
     warnings.simplefilter("ignore")
-    from rig_identification.estimation.identification import KEYS, from_tensor, identify_inertia, to_tensor
-    from rig_identification.pipeline.offline import identify_recording, prepare_recording, with_diagnosis
+    from rig_identification.estimation.identification import identify_inertia
+    from rig_identification.io.verdict import KEYS
+    from rig_identification.model.parametrisation import from_tensor, to_tensor
+    from rig_identification.pipeline.offline import identify_recording, with_diagnosis
+    from rig_identification.pipeline.prepare import prepare_recording
     from rig_identification.estimation.uncertainty import propagated, sensor_noise
     from rig_identification.estimation.validation import REL_STD_LIMIT
     from rig_identification.io.recording import Recording

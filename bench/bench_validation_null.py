@@ -28,7 +28,8 @@ def _job(args):
     seed, cables, layout, duration = args
     import warnings
     warnings.simplefilter("ignore")
-    from rig_identification.estimation.identification import KEYS, from_tensor
+    from rig_identification.io.verdict import KEYS
+    from rig_identification.model.parametrisation import from_tensor
     from rig_identification.pipeline.offline import identify_recording
     from rig_identification.io.recording import Recording
     from rig_identification.design.scenarios import simulate_random

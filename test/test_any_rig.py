@@ -7,7 +7,8 @@ their lines cross near the CG (rig_identification.design.scenarios, layout "wide
 import numpy as np
 import pytest
 
-from rig_identification.estimation.identification import KEYS, from_tensor
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.parametrisation import from_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.design.planning import Run, make_body, plan_experiment
 from rig_identification.io.recording import Recording

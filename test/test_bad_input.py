@@ -64,7 +64,7 @@ def make(sim, tmp_path, mutate=None, storage="mcap", rig=None):
 
 
 def vec(out):
-    from rig_identification.estimation.identification import KEYS
+    from rig_identification.io.verdict import KEYS
     return np.array([out["inertia_about_cg"][k] for k in KEYS])
 
 
@@ -74,7 +74,7 @@ def assert_close(out, ref, tol=0.01):
 
 
 def assert_good(out, truth, pct=1.0):
-    from rig_identification.estimation.identification import KEYS
+    from rig_identification.io.verdict import KEYS
     tru = truth["inertia_about_cg"]
     big = max(abs(tru[k]) for k in ("ixx", "iyy", "izz"))
     for k, v in zip(KEYS, vec(out)):
@@ -402,3 +402,29 @@ def test_missing_paths_are_named_at_once(tmp_path):
     for ln, what in zip(lines, [missing] * 5 + [missing / "out.yaml", tmp_path / "cg.json", missing]):
         assert str(what) in ln, ln
     assert "no such file or directory" in lines[0] and "cannot write it" in lines[5]
+
+
+def test_outputs_need_an_existing_folder(tmp_path, capsys):
+    """One rule for every output, file or folder (--yaml, --write-rig, --report): its folder must
+    exist.  Refused before any work, naming the path, the missing folder and the option; nothing
+    is created (`--report /nope/dir/x.html` used to create /nope/dir)."""
+    ref = str(REPO.parent / "shared" / "recordings" / "visible_case16_clean")
+    missing = tmp_path / "nope" / "dir"
+    cases = [(["inertia", ref, "--report", str(missing / "x.html")], "--report"),
+             (["inertia", ref, "--yaml", str(missing / "x.yaml")], "--yaml"),
+             (["diagnose", ref, "--report", str(missing / "report")], "--report"),
+             (["cg", ref, ref, "--write-rig", str(missing / "rig.yaml")], "--write-rig")]
+    for argv, option in cases:
+        assert identify_main(argv) == 2, argv
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("rig-identify: error: "), err
+        assert argv[-1] in err[0] and f"no folder {missing}" in err[0] and f"({option})" in err[0], err
+    assert not (tmp_path / "nope").exists()
+    # the other way round: a file where a folder goes, a folder where a file goes
+    plain = tmp_path / "notes.txt"
+    plain.write_text("keep me")
+    assert identify_main(["inertia", ref, "--report", str(plain)]) == 2
+    assert f"{plain}: is not a folder (--report takes a folder)" in capsys.readouterr().err
+    assert identify_main(["inertia", ref, "--yaml", str(tmp_path)]) == 2
+    assert f"{tmp_path}: is a folder (--yaml takes a file)" in capsys.readouterr().err
+    assert plain.read_text() == "keep me"

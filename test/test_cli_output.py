@@ -19,14 +19,15 @@ import yaml
 from conftest import recording, run_cli
 from rig_identification.cli import diagnose as cli_diagnose
 from rig_identification.io import export
-from rig_identification.estimation import identification
+from rig_identification.estimation import directions
 from rig_identification.estimation import validation
 from rig_identification.cli.main import TENSOR, build_parser, identify_main
 from rig_identification.cli.inertia import print_inertia
 from rig_identification.cli.text import effect_text, evidence_text
-from rig_identification.estimation.identification import (KEYS, InertiaResult, describe_direction, from_tensor, to_tensor,
-                                               weak_directions)
-from rig_identification.io.verdict import Check, Validation
+from rig_identification.estimation.directions import describe_direction, weak_directions
+from rig_identification.estimation.inertia_result import FitSeries, InertiaResult
+from rig_identification.io.verdict import KEYS, Check, Validation
+from rig_identification.model.parametrisation import from_tensor, to_tensor
 
 CLEAN = str(recording("visible_case16_clean"))
 ORDER = ["ixx", "iyy", "izz", "ixy", "ixz", "iyz"]
@@ -198,7 +199,7 @@ def test_segment_times_of_a_joint_fit_count_from_their_own_recording():
     without t0 (a stream) they stay the stamps and the units say so."""
     res = _partial_result()
     t1, t2 = np.linspace(100.0, 160.0, 61), np.linspace(500.0, 560.0, 61)
-    res.series = [identification.FitSeries(t, np.zeros((61, 3)), np.zeros((61, 3)), (0.4, 3.0), lab)
+    res.series = [FitSeries(t, np.zeros((61, 3)), np.zeros((61, 3)), (0.4, 3.0), lab)
                   for t, lab in ((t1, "a"), (t2, "b"))]
     times = np.array([[100.0, 129.0], [130.0, 160.0], [500.0, 529.0], [530.0, 560.0]])
     res.validation = Validation("ok", (), segment_inertia=np.zeros((4, 6)), segment_times=times)
@@ -241,7 +242,7 @@ def test_rig_output_axes_is_the_default_of_axes(tmp_path):
 
 def test_direction_words_are_one_scale():
     # "not determined" is the validation's own limit, and only the weakest is "the most weakly determined"
-    assert identification.DIRECTION_NOT_DETERMINED == validation.REL_STD_LIMIT
+    assert directions.DIRECTION_NOT_DETERMINED == validation.REL_STD_LIMIT
     D = to_tensor([0, 0, 0, 0, 0, 1.0])
     words = [describe_direction(r, D, scale=2000.0)["level"] for r in (5e-4, 5e-3, 5e-2, 0.2)]
     assert words == ["well determined", "fairly well determined", "weakly determined", "not determined"]

@@ -397,7 +397,8 @@ def test_inertia_diagnoses_a_weight_surplus_the_residual_does_not_show():
     rig.yaml's weight, which `pipeline.with_diagnosis` (what `rig-identify inertia` does)
     takes as model error: diagnose names the cables' mass within 15 %, and the body's own
     tensor comes back within 0.5 % (products: of the largest diagonal) and 3 σ."""
-    from rig_identification.pipeline.offline import WEIGHT_TOLERANCE, compare_to_truth
+    from rig_identification.pipeline.offline import compare_to_truth
+    from rig_identification.pipeline.fit_validation import WEIGHT_TOLERANCE
     truth, mass, rigid, res = gather("weight_pipeline")["run"]
     assert max(abs(c["error_percent"]) for c in compare_to_truth(rigid, truth).values()) > 0.5
     assert rigid.weight_surplus == pytest.approx(4 * 1.5 / mass, rel=0.1)

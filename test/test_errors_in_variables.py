@@ -10,7 +10,8 @@ from scipy.signal import butter, lfilter, sosfiltfilt
 
 from rig_identification.estimation.errors_in_variables import (NoiseRealisations, antithetic_realisations, capped,
                                                     noise_share)
-from rig_identification.estimation.identification import KEYS, Segment, fit_segments
+from rig_identification.estimation.identification import Segment, fit_segments
+from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import from_tensor
 from rig_identification.model.experiment import load_experiment
 

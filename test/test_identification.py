@@ -4,8 +4,10 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from rig_identification.estimation.identification import (KEYS, consistent_from_params, from_tensor, identify_inertia,
-                                               params_from_consistent, physically_consistent, to_tensor)
+from rig_identification.estimation.identification import identify_inertia
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.parametrisation import (consistent_from_params, from_tensor, params_from_consistent,
+                                                      physically_consistent, to_tensor)
 from rig_identification.io.rig import rig_from_dict
 
 RIG = rig_from_dict({"gravity": 9.80665, "cables": [
@@ -73,7 +75,7 @@ def test_integral_places_a_step_at_the_sample_that_shows_it():
     across the jump errs by a third to a half sample × the step."""
     from scipy.integrate import cumulative_simpson
 
-    from rig_identification.estimation.identification import cumulative_integral, step_indices
+    from rig_identification.estimation.signals import cumulative_integral, step_indices
     t = np.arange(101) / 100.0
     step = 5.0 * (t >= 0.5 - 1e-9)
     x = np.column_stack([np.sin(2 * np.pi * t) + step, np.cos(3 * t)])
@@ -89,7 +91,7 @@ def test_no_steps_in_smooth_or_noisy_signals():
     rng = np.random.default_rng(5)
     t = np.arange(24000) / 200.0
     smooth = 600.0 * np.column_stack([np.cos(2 * np.pi * 1.5 * t), np.sin(2 * np.pi * 1.5 * t), 0 * t])
-    from rig_identification.estimation.identification import step_indices
+    from rig_identification.estimation.signals import step_indices
     assert len(step_indices(smooth)) == 0
     noisy = smooth + rng.normal(0, 0.5, smooth.shape)
     assert len(step_indices(noisy)) == 0

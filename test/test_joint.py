@@ -13,7 +13,9 @@ import numpy as np
 import pytest
 
 from rig_identification.pipeline import offline as pipeline
-from rig_identification.estimation.identification import KEYS, identify_inertia, identify_inertia_joint, physically_consistent
+from rig_identification.estimation.identification import identify_inertia, identify_inertia_joint
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.parametrisation import physically_consistent
 from rig_identification.io.recording import Recording, RecordingError
 from rig_identification.io.rig import RigError, dump_rig, read_yaml
 from rig_identification.model.experiment import experiment_from_dict

@@ -35,6 +35,9 @@ from rig_identification.nodes.topics import (DIAGNOSTICS_TOPIC, DRIVER_STATUS_TO
                                              POSE_TOPIC, TRUTH_TOPIC, WRENCH_TOPIC)
 from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.pipeline.offline import identify_recording  # noqa: E402
+from rig_identification.pipeline.stream_fit import StreamBuffer, identify_window  # noqa: E402
+from rig_identification.estimation.preprocessor import WrenchPreprocessor  # noqa: E402
+from rig_identification.estimation.tracker import PoseTracker  # noqa: E402
 from rig_identification.io.recording import read_recording  # noqa: E402
 from rig_identification.io.recording_writer import write_recording  # noqa: E402
 from rig_identification.model.experiment import load_experiment  # noqa: E402
@@ -297,10 +300,7 @@ def test_identify_service_validates_as_rig_identify(graph):
 def core_in_stamp_order(rig, sensors, settle: float) -> dict:
     """The streaming core classes fed in header-stamp order in this process (no ROS): what the
     nodes must reproduce (ties as tracker_replay.track: inclinometer, tensions, IMU, exciter)."""
-    from rig_identification.estimation.identification import InertiaIdentifier
-    from rig_identification.estimation.preprocessor import WrenchPreprocessor
-    from rig_identification.estimation.tracker import PoseTracker
-    tr, pp, idf = PoseTracker(rig), WrenchPreprocessor(rig), InertiaIdentifier(rig)
+    tr, pp, buf = PoseTracker(rig), WrenchPreprocessor(rig), StreamBuffer()
     names = rig.cable_names
     ev = [(t, 2, 0, i) for i, t in enumerate(sensors.imu.t)]
     ev += [(t, 1, k, i) for k, n in enumerate(names) for i, t in enumerate(sensors.load_cells[n].t)]
@@ -311,7 +311,7 @@ def core_in_stamp_order(rig, sensors, settle: float) -> dict:
     for t, kind, k, i in ev:
         ws = []
         if kind == 2:
-            idf.add_imu(t, sensors.imu.data[i, :3])
+            buf.add_imu([t], [sensors.imu.data[i]])
             pose = tr.add_imu(t, sensors.imu.data[i, :3], sensors.imu.data[i, 3:])
             ws = pp.add_pose(pose) if pose is not None else []
         elif kind == 1:
@@ -328,8 +328,9 @@ def core_in_stamp_order(rig, sensors, settle: float) -> dict:
         else:
             tr.add_inclinometer(t, sensors.inclinometer.data[i])
         for w in ws:
-            idf.add_wrench(w)
-    return idf.identify(start=float(sensors.imu.t[0]) + settle).to_dict()
+            buf.add_wrench([w.t], [np.r_[w.force, w.torque]])
+    lo, hi = float(sensors.imu.t[0]) + settle, float(sensors.imu.t[-1])
+    return identify_window(rig, buf.snapshot(lo, hi), lo, hi).to_dict()
 
 
 def test_nodes_reproduce_the_core_fed_in_stamp_order(graph):

@@ -23,7 +23,8 @@ import pytest
 
 from conftest import recording
 from rig_identification.estimation.identification import identify_inertia
-from rig_identification.pipeline.offline import identify_recording, prepare_recording
+from rig_identification.pipeline.offline import identify_recording
+from rig_identification.pipeline.prepare import prepare_recording
 from rig_identification.io.recording import read_recording
 from rig_identification.io.recording_writer import write_recording
 
@@ -31,7 +32,7 @@ ENTRIES = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
 
 def node_validation(rec):
-    """The node's path on a recording: the fit of the streams (as InertiaIdentifier fits them),
+    """The node's path on a recording: the fit of the streams (as pipeline.stream_fit.identify_window fits them),
     validated by pipeline.stream_fit from a StreamBuffer fed as the node feeds it."""
     from rig_identification.pipeline.stream_fit import StreamBuffer, validate_stream_fit
     prep = prepare_recording(rec)

@@ -6,12 +6,12 @@ import pytest
 from scipy.integrate import cumulative_trapezoid
 from scipy.signal import butter, sosfiltfilt
 
-from rig_identification.estimation.identification import from_tensor
+from rig_identification.model.parametrisation import from_tensor
 from rig_identification.model.modes import natural_modes
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.design.planning import SPIN_AXES, resonances
-from rig_identification.estimation.propagation import (REFERENCE_NOISE, Trajectory, cumtrapz_adjoint, predict_from_trajectory,
-                                            sosfiltfilt_adjoint)
+from rig_identification.estimation.propagation import REFERENCE_NOISE, Trajectory, predict_from_trajectory
+from rig_identification.estimation.adjoints import cumtrapz_adjoint, sosfiltfilt_adjoint
 from rig_identification.io.recording import Recording
 from rig_identification.model.experiment import load_experiment
 from rig_identification.model.simulator import simulate
@@ -202,7 +202,7 @@ def test_second_run_on_another_cable_geometry_stays_within_the_limits():
     for a pair done twice: the plan was a pair at 0.388 of the baseline's σ while its first run
     done twice gave 0.306; it now plans that run twice, 0.306 — a 20 s plan is too slow for the
     suite, measured when the selection was fixed.)"""
-    from rig_identification.estimation.propagation import combine
+    from rig_identification.estimation.prediction import combine
     body, label, vr, plan, limits = gather("second_geometry")["run"]
     assert len(plan.other_geometries) == 1
     c = plan.other_geometries[0]

@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from rig_identification.estimation.identification import KEYS, physically_consistent
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.parametrisation import physically_consistent
 from rig_identification.pipeline.offline import compare_to_truth, identify_recording
 from rig_identification.io.recording import read_recording
 

@@ -25,9 +25,10 @@ import pytest
 
 from rig_identification.report import page as report
 from rig_identification.cli.main import identify_main
-from rig_identification.estimation.identification import KEYS, InertiaResult, identify_inertia
+from rig_identification.estimation.identification import identify_inertia
+from rig_identification.estimation.inertia_result import InertiaResult
+from rig_identification.io.verdict import KEYS, Check, Validation
 from rig_identification.report.verdict import headline
-from rig_identification.io.verdict import Check, Validation
 
 from conftest import background, gather, recording, run_cli
 from test_identification import RIG, euler_data

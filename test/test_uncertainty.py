@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 import yaml
 
-from rig_identification.estimation.identification import KEYS, from_tensor
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.parametrisation import from_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.io.recording import Recording
 from rig_identification.model.experiment import experiment_from_dict

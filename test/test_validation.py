@@ -14,12 +14,12 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from rig_identification.estimation.identification import KEYS, from_tensor
+from rig_identification.io.verdict import KEYS, Validation
+from rig_identification.model.parametrisation import from_tensor
 from rig_identification.pipeline.offline import identify_recording, with_diagnosis
 from rig_identification.io.recording import Recording
 from rig_identification.design.scenarios import simulate_random
 from rig_identification.estimation.validation import ALPHA, EFFECT_FACTOR, chi2_check, widened_std
-from rig_identification.io.verdict import Validation
 
 from conftest import background, gather
 

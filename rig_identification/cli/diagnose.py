@@ -27,7 +27,8 @@ from ..diagnosis.selection import diagnose
 from ..report.diagnosis import diagnosis_json
 from ..report.diagnosis_page import write_report
 from ..io.export import AXES, ORDER, convention_lines
-from ..estimation.identification import KEYS, InertiaResult
+from ..estimation.inertia_result import InertiaResult
+from ..io.verdict import KEYS
 from ..pipeline.offline import identify_recording
 from ..io.recording import read_recording
 

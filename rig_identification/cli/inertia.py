@@ -5,7 +5,7 @@ the conventions (frame, units, sign: :func:`~rig_identification.io.export.conven
 window, the tensor about the CG with σ (and the truth when truth.yaml is there), the products
 of inertia with the vehicle-dynamics sign, the principal moments and axes, the tensor about the
 body frame's origin, what σ is, the diagnosis, the bias correction, the validation's checks and
-the most weakly determined combination.  ``--json`` prints :meth:`~rig_identification.estimation.identification.InertiaResult.to_dict`
+the most weakly determined combination.  ``--json`` prints :meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`
 instead; ``--urdf`` adds a URDF ``<inertial>`` element and ``--yaml FILE`` writes
 :func:`~rig_identification.io.export.export_dict` (atomically).
 """
@@ -27,7 +27,9 @@ from .progress import heading, step, warn
 from .text import (effect_text, entries_line, fmt, origin_line, principal_lines, products_line, tensor_table)
 from ..io.export import AXES, axes_block, convention_lines, entries_from_option, export_dict, sign_in, \
     urdf_inertial, yaml_text
-from ..estimation.identification import KEYS, IdentificationError, InertiaResult
+from ..estimation.identification import IdentificationError
+from ..estimation.inertia_result import InertiaResult
+from ..io.verdict import KEYS
 from ..pipeline.offline import (check_same_body, compare_to_truth, identify_recording, identify_recordings, recording_labels,
                        with_diagnosis)
 from ..io.recording import read_recording

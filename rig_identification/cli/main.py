@@ -71,12 +71,12 @@ TENSOR_HELP = ("tensor entries about the CG, body axes of rig.yaml, kg·m², in 
 
 
 def add_command(sub, name: str, help: str, description: str, run: Callable, inputs=(),
-                outputs=()) -> argparse.ArgumentParser:
+                outputs=(), output_dirs=()) -> argparse.ArgumentParser:
     """A sub-command parser with a description paragraph, its runner, the destinations of its
-    input paths (checked to exist before any work) and of its output files (their folder must
-    exist)."""
+    input paths (checked to exist before any work), of its output files and of its output folders
+    (:func:`check_paths`: the folder an output goes into must exist)."""
     p = sub.add_parser(name, help=help, description=description)
-    p.set_defaults(func=run, inputs=tuple(inputs), outputs=tuple(outputs))
+    p.set_defaults(func=run, inputs=tuple(inputs), outputs=tuple(outputs), output_dirs=tuple(output_dirs))
     p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
                    help="no progress lines on stderr (warnings still)")
     return p
@@ -92,7 +92,7 @@ def add_inertia_parser(sub) -> None:
                     "\"not determined\" (null in JSON/YAML). Several recordings of the same body are fitted "
                     "jointly with one tensor.",
                     lazy("rig_identification.cli.inertia", "cmd_inertia"), inputs=("recording", "cg"),
-                    outputs=("yaml",))
+                    outputs=("yaml",), output_dirs=("report",))
     p.add_argument("recording", nargs="+",
                    help="recording folder (rig.yaml + bag/); several recordings of the same body (other exciter "
                         "frequencies or positions, cable geometries) are fitted jointly with one tensor")
@@ -134,7 +134,8 @@ def add_diagnose_parser(sub) -> None:
                      "the effect library (damping, drag, sensor delays and gains, IMU pose, cable mass and elasticity, "
                      "…) by likelihood-ratio selection and print the effects found, their parameters with units and "
                      "evidence, and the tensor of the model with them.",
-                     lazy("rig_identification.cli.diagnose", "cmd_diagnose"), inputs=("recording",))
+                     lazy("rig_identification.cli.diagnose", "cmd_diagnose"), inputs=("recording",),
+                     output_dirs=("report",))
     dp.add_argument("recording", help="recording folder (rig.yaml + bag/)")
     dp.add_argument("--json", action="store_true", help="print one JSON object")
     dp.add_argument("--report", metavar="DIR", help="write plots (residuals and spectra before/after) and the JSON")
@@ -209,11 +210,11 @@ def add_thesis_table_parser(sub) -> None:
 
 
 STATIC = {"cg": ("centre of gravity from the two static recordings (without and with the dummy mass)",
-                 ("baseline", "dummy")),
+                 ("baseline", "dummy"), ("write_rig",)),
           "cg-plan": ("predict the CG uncertainty of a planned static test and recommend one reaching ±2.5 mm",
-                      ("rig", "noise_from"))}
+                      ("rig", "noise_from"), ())}
 """The static-test commands (cli.cg, cli.cg_plan): their one-line help (for the top-level help, which does
-not import them) and the destinations of their input paths."""
+not import them), the destinations of their input paths and of their output files."""
 
 
 def add_static_parser(sub, name: str, wanted: str | None) -> None:
@@ -228,7 +229,7 @@ def add_static_parser(sub, name: str, wanted: str | None) -> None:
     else:
         from .cg_plan import add_cg_plan_parser as add_parser
     p = add_parser(sub)
-    p.set_defaults(inputs=STATIC[name][1], outputs=())
+    p.set_defaults(inputs=STATIC[name][1], outputs=STATIC[name][2], output_dirs=())
     p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
                    help="no progress lines on stderr (warnings still)")
 
@@ -254,21 +255,29 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
 
 
 def check_paths(args) -> None:
-    """Refuse, before any work, an input path that does not exist and an output file whose folder
-    does not: :class:`UsageError` naming it."""
+    """Refuse, before any work, an input path that does not exist, and an output — a file
+    (``outputs``: ``--yaml``, ``--write-rig``) or a folder (``output_dirs``: ``--report``) — whose
+    parent folder does not: one rule for every output, no folder is created but the output itself;
+    a file output that is a folder, or a folder output that is a file, is refused too.
+    :class:`UsageError` naming the path and the option."""
     for dest in getattr(args, "inputs", ()):
         value = getattr(args, dest, None)
         for p in ([] if value is None else [value] if isinstance(value, str) else value):
             if not os.path.exists(p):
                 raise UsageError(f"{p}: no such file or directory ({dest.replace('_', '-')})")
-    for dest in getattr(args, "outputs", ()):
+    for dest, kind in [(d, "file") for d in getattr(args, "outputs", ())] + \
+                      [(d, "folder") for d in getattr(args, "output_dirs", ())]:
         value = getattr(args, dest, None)
-        if value is not None:
-            folder = os.path.dirname(os.path.abspath(value))
-            if not os.path.isdir(folder):
-                raise UsageError(f"{value}: cannot write it: no folder {folder} (--{dest})")
-            if os.path.isdir(value):
-                raise UsageError(f"{value}: is a folder (--{dest} takes a file)")
+        if value is None:
+            continue
+        option = "--" + dest.replace("_", "-")
+        folder = os.path.dirname(os.path.abspath(value))
+        if not os.path.isdir(folder):
+            raise UsageError(f"{value}: cannot write it: no folder {folder} ({option})")
+        if kind == "file" and os.path.isdir(value):
+            raise UsageError(f"{value}: is a folder ({option} takes a file)")
+        if kind == "folder" and os.path.exists(value) and not os.path.isdir(value):
+            raise UsageError(f"{value}: is not a folder ({option} takes a folder)")
 
 
 def user_errors() -> tuple:

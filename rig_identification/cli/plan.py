@@ -14,7 +14,8 @@ import numpy as np
 
 from .progress import heading, step
 from ..io.export import ORDER, entries_from_option, tensor_from_option
-from ..estimation.identification import KEYS, from_tensor
+from ..io.verdict import KEYS
+from ..model.parametrisation import from_tensor
 from ..model.modes import estimate_modes, match_modes, natural_modes
 from ..pipeline.offline import identify_recording
 from ..design.planning import PlanError, geometry_variants, plan_experiment

@@ -32,10 +32,11 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..estimation.identification import KEYS
+from ..io.verdict import KEYS
 from .run import SPIN_AXES, Body, Run, load_plan_input, make_body, recommended_band
 from .screen import DesignScreen, linear_rig
-from ..estimation.propagation import PlanError, Prediction, Trajectory, combine, predict_from_trajectory
+from ..estimation.propagation import Trajectory, predict_from_trajectory
+from ..estimation.prediction import PlanError, Prediction, combine
 from ..io.rig import Rig
 from ..model.simulator import simulate
 from ..model.dynamics import SimulationError

@@ -10,13 +10,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..model.cables import DEFAULT_STIFFNESS
-from ..estimation.identification import physically_consistent, to_tensor
-from ..estimation.propagation import REFERENCE_NOISE, REFERENCE_RATES, PlanError
+from ..model.parametrisation import physically_consistent, to_tensor
+from ..estimation.propagation import REFERENCE_NOISE, REFERENCE_RATES
+from ..estimation.prediction import PlanError
 from ..io.rig import Rig, RigError, inertia_entries, load_rig, read_yaml
 from ..io.recording import RecordingError
 from ..model.experiment import experiment_from_dict, ExperimentError, load_experiment
@@ -105,7 +107,7 @@ class Body:
 
 def recommended_band(f0: float, rot_f, duration: float, fs: float) -> tuple[float, float]:
     """Pass band (Hz) around the exciter frequency ``f0`` and the rotational modes below 5 Hz
-    (``rot_f``), widened like :func:`~rig_identification.estimation.identification.auto_band` (0.6x below, 1.5x above)."""
+    (``rot_f``), widened like :func:`~rig_identification.estimation.signals.auto_band` (0.6x below, 1.5x above)."""
     fr = [f0] + [x for x in rot_f if x < 5.0]
     return (max(0.15, 0.6 * min(fr), 2.0 / duration), min(1.5 * max(fr), 0.4 * fs))
 
@@ -116,8 +118,6 @@ def load_plan_input(path) -> tuple[Rig, dict | None, np.ndarray | None]:
     experiment's spring ``cable_model``) and, for an experiment file, its rotating
     excitation ({amplitude, frequency, ramp_time}) as the baseline.  Raises
     :class:`~rig_identification.io.rig.RigError`, :class:`~rig_identification.io.recording.RecordingError`, FileNotFoundError."""
-    from pathlib import Path
-
     p = Path(path)
     if p.is_dir():
         if not (p / "rig.yaml").exists():
@@ -144,7 +144,7 @@ def load_plan_input(path) -> tuple[Rig, dict | None, np.ndarray | None]:
 def make_body(rig: Rig, mass: float | None, inertia_entries, stiffness=None, noise: dict | None = None,
               rates: dict | None = None) -> Body:
     """A :class:`Body` from the command line's numbers: mass kg (default rig.yaml's),
-    inertia_entries (6,) in :data:`~rig_identification.estimation.identification.KEYS` order, kg·m² (tensor entries: products negated).
+    inertia_entries (6,) in :data:`~rig_identification.io.verdict.KEYS` order, kg·m² (tensor entries: products negated).
     Raises :class:`PlanError` for a non-positive mass, a missing CG or a tensor that is not
     physically consistent."""
     if rig.center_of_gravity is None:

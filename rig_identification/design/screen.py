@@ -12,12 +12,15 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.linalg import expm
 from scipy.signal import butter, sosfreqz
 from scipy.spatial.transform import Rotation
 
-from ..estimation.identification import basis
+from ..model.parametrisation import basis
 from .run import Body, recommended_band
-from ..estimation.propagation import Prediction, channel_sigmas, stationary_e_response, tracker_model, wrench_jacobians
+from ..estimation.propagation import channel_sigmas, stationary_e_response
+from ..estimation.linearisation import tracker_model, wrench_jacobians
+from ..estimation.prediction import Prediction
 from ..model.modes import gradients, length_fn, length_hessians
 from ..model.cables import CableModel
 from ..model.equilibrium import equilibrium
@@ -81,13 +84,12 @@ class DesignScreen:
 
     body: :class:`~rig_identification.design.run.Body`; lin: its :func:`linear_rig`; duration, settle and
     ramp s: the run, the start of the fitted window, the spin-up; fs_screen Hz;
-    tracker_params: the tracker's (:func:`~rig_identification.estimation.propagation.tracker_model`).  Raises
+    tracker_params: the tracker's (:func:`~rig_identification.estimation.linearisation.tracker_model`).  Raises
     numpy.linalg.LinAlgError when the linearised mass matrix is singular (not for a body
     from :func:`~rig_identification.design.run.make_body`)."""
 
     def __init__(self, body: Body, lin: LinearRig, duration: float, settle: float, ramp: float = 2.0,
                  fs_screen: float = 50.0, tracker_params: dict | None = None):
-        from scipy.linalg import expm
         self.body, self.lin, self.duration, self.settle, self.ramp = body, lin, duration, settle, ramp
         rig = body.rig
         self.fs = float(body.rates["imu"])

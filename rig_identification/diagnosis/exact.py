@@ -18,7 +18,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 from scipy.stats import chi2
 
-from ..estimation.identification import from_tensor
+from ..model.parametrisation import from_tensor
 from .model_extension import Fit, Model, Window, fit_model
 from .residuals import channel_residuals, rms
 

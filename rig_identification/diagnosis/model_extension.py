@@ -26,8 +26,8 @@ from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt, welch
 from scipy.spatial.transform import Rotation
 
-from ..estimation.identification import (auto_band, basis, consistent_from_params, cumulative_integral, params_from_consistent,
-                             step_indices, to_tensor)
+from ..estimation.signals import auto_band, cumulative_integral, step_indices
+from ..model.parametrisation import basis, consistent_from_params, params_from_consistent, to_tensor
 from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..io.recording import Recording, RecordingError
 from ..estimation.tracker_replay import pass_compliance, replay

@@ -22,7 +22,7 @@ output corrections, mean offsets; a sensor delay to first order, ``M(t − d) �
 so the extended model is fitted jointly with the tensor by variable projection: the
 effect parameters by linear least squares for each tensor, Levenberg–Marquardt (scipy
 ``least_squares``) on the physically consistent log-Cholesky tensor parameters
-(:func:`~rig_identification.estimation.identification.consistent_from_params`).
+(:func:`~rig_identification.model.parametrisation.consistent_from_params`).
 
 The wrench components (force, torque: the Newton–Euler equation errors, the torque with
 the mean moment, which must vanish over a window) and each load cell (the tension
@@ -100,7 +100,9 @@ from .candidates import CORRECTIONS, body_inertia, candidates, corrected, with_s
 from .exact import (MASSES, PROFILED, columns_of, exact_iterate, exact_profile, exact_screen, likelihood_ratio,
                     log_sf, mass_builder, residual_scales, weight_surplus)
 from ..model.effects import EFFECT_NAMES
-from ..estimation.identification import KEYS, IdentificationError, from_tensor, identify_inertia
+from ..estimation.identification import IdentificationError, identify_inertia
+from ..io.verdict import KEYS
+from ..model.parametrisation import from_tensor
 from .model_extension import Model, Window, fit_model, prepare_window
 from .plausible import implausible
 from ..io.recording import Recording, RecordingError

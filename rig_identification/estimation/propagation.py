@@ -43,18 +43,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.fft import irfft, next_fast_len, rfft
-from scipy.signal import butter, sosfilt, sosfilt_zi, sosfreqz
+from scipy.signal import butter, sosfreqz
 from scipy.spatial.transform import Rotation
 
-from .identification import KEYS, auto_band, basis, from_tensor, prepare_segment, weak_directions
-from .preprocessor import generalized_wrench
-from ..io.rig import Rig
-from .tracker import PoseTracker, YAW_PRIOR
-from .quality import clean_sensors
 from ..io.recording import Recording, RecordingError
+from ..io.rig import Rig
+from ..model.dynamics import skew, skews
+from ..model.parametrisation import basis, from_tensor
+from .adjoints import cumtrapz_adjoint, sosfiltfilt_adjoint
+from .identification import prepare_segment
+from .linearisation import TrackerModel, tracker_model, wrench_jacobians
+from .prediction import PlanError, Prediction
+from .preprocessor import generalized_wrench
+from .quality import clean_sensors
+from .signals import auto_band
 
 FREQ_BLOCK = 4096   # frequencies per evaluation of the tracker's response (memory, not results)
-DRIFT_LEAK = 1e-3   # 1/s: leak of the linearised tracker's uncorrected rotation directions (tracker_model)
 
 REFERENCE_NOISE = {"gyro": 0.002, "accelerometer": 0.01, "load_cell": 0.5, "exciter": 0.5, "inclinometer": 0.0002}
 """σ of the reference recordings' white sensor noise (``/work/shared/recordings/*/truth.yaml``):
@@ -63,346 +67,6 @@ REFERENCE_RATES = {"imu": 200.0, "load_cells": 200.0, "exciter": 200.0, "inclino
 """Sample rates of the reference recordings, Hz."""
 SOURCES = ("gyro", "accelerometer", "inclinometer", "load_cell", "exciter")
 """Noise sources of the prediction (the tracker's compliance estimate enters through them)."""
-DIAG = (0, 3, 5)  # ixx, iyy, izz in KEYS order
-
-ENTRY_NAMES = {"ixx": "roll inertia Ixx", "iyy": "pitch inertia Iyy", "izz": "yaw inertia Izz",
-               "ixy": "product Ixy", "ixz": "product Ixz", "iyz": "product Iyz"}
-
-
-class PlanError(ValueError):
-    """The planned experiment cannot be predicted or designed (no motion, bad limits)."""
-
-
-# --- result types ----------------------------------------------------------------------
-
-@dataclass
-class Prediction:
-    """Predicted first-order uncertainty of the identified tensor for one run (or several
-    fitted jointly).
-
-    inertia: (3,3) nominal tensor, kg·m²; std: (6,) predicted σ in :data:`KEYS` order,
-    kg·m²; covariance (6,6); gyro_white_std (6,): the white-gyro-only bound (what the
-    identifier reports as ``crb_std``); contributions: {source: (6,) σ of that noise source
-    alone}; weights (3,) the identifier's per-gyro-axis weights 1/σ², (rad/s)⁻²;
-    residual_rms (3,) rad/s predicted residual of the band-passed fit; band_hz; duration s
-    (fitted windows, summed); n_samples; runs; rotation_rms (3,) rad/s band-passed body rate
-    per body axis.  axis_bread (3,6,6), axis_meats {source: (3,3,6,6)}, white_bread and
-    white_meat (6,6) keep the per-axis pieces of the sandwich so that runs can be combined
-    (:func:`combine`) with pooled weights: bread = Σ_a w_a B_a, meat = Σ_ab w_a w_b M_ab.
-    gyro_sensitivity (K,3,6), only when asked for (:func:`predict_from_trajectory`): the
-    linearised estimate error per gyro noise sample, ``δj ≈ Σ_n,d S[n,d] ν[n,d]`` for gyro
-    noise ν (K,3) rad/s in IMU axes at the trajectory's samples — lets a Monte Carlo
-    evaluate the first-order model on its own noise draws (a control variate).
-    """
-
-    inertia: np.ndarray
-    std: np.ndarray
-    covariance: np.ndarray
-    gyro_white_std: np.ndarray
-    contributions: dict
-    weights: np.ndarray
-    residual_rms: np.ndarray
-    band_hz: tuple
-    duration: float
-    n_samples: int
-    rotation_rms: np.ndarray
-    axis_bread: np.ndarray
-    axis_meats: dict
-    white_bread: np.ndarray
-    white_meat: np.ndarray
-    runs: int = 1
-    gyro_sensitivity: np.ndarray | None = None
-
-    @staticmethod
-    def assemble(inertia, axis_bread, axis_meats, white_bread, white_meat, residual_var, band_hz, duration,
-                 n_samples, rotation_rms, runs=1) -> "Prediction":
-        """Sandwich covariance from the per-axis pieces with weights 1/residual_var."""
-        w = 1.0 / np.asarray(residual_var, float)
-        bread = np.einsum("a,aij->ij", w, axis_bread)
-        Bi = np.linalg.inv(bread)
-        meats = {s: np.einsum("a,b,abij->ij", w, w, M) for s, M in axis_meats.items()}
-        cov = Bi @ sum(meats.values()) @ Bi.T
-        contrib = {s: np.sqrt(np.clip(np.diag(Bi @ M @ Bi.T), 0, None)) for s, M in meats.items()}
-        Bu = np.linalg.inv(white_bread)
-        gws = np.sqrt(np.clip(np.diag(Bu @ white_meat @ Bu), 0, None))
-        return Prediction(np.asarray(inertia, float), np.sqrt(np.clip(np.diag(cov), 0, None)), cov, gws, contrib,
-                          w, np.sqrt(residual_var), tuple(band_hz), float(duration), int(n_samples),
-                          np.asarray(rotation_rms, float), axis_bread, axis_meats, white_bread, white_meat, runs)
-
-    @property
-    def scale(self) -> np.ndarray:
-        """(6,) reference of each entry: diagonals themselves, products the largest diagonal."""
-        th = from_tensor(self.inertia)
-        big = max(abs(th[i]) for i in DIAG)
-        return np.array([abs(th[i]) if i in DIAG else big for i in range(6)])
-
-    @property
-    def relative_std(self) -> np.ndarray:
-        """(6,) σ / scale (dimensionless)."""
-        return self.std / self.scale
-
-    @property
-    def objective(self) -> float:
-        """The largest relative σ over the six entries."""
-        return float(np.max(self.relative_std))
-
-    def worst(self, ref: np.ndarray | None = None) -> float:
-        """max_k σ_k / ref_k (ref: (6,) per-entry reference, default :attr:`scale`)."""
-        return float(np.max(self.std / (self.scale if ref is None else ref)))
-
-    def scaled(self, factor: float) -> "Prediction":
-        """The same run lasting ``factor`` times as long (information × factor, σ / sqrt(factor))."""
-        return Prediction.assemble(self.inertia, self.axis_bread * factor,
-                                   {s: M * factor for s, M in self.axis_meats.items()}, self.white_bread * factor,
-                                   self.white_meat * factor, self.residual_rms**2, self.band_hz,
-                                   self.duration * factor, int(self.n_samples * factor), self.rotation_rms, self.runs)
-
-    def weak(self, n: int = 2) -> list[dict]:
-        """The ``n`` most weakly determined combinations, in words (see :func:`describe_weak`)."""
-        return [describe_weak(rel, D, self.rotation_rms) for rel, D in weak_directions(self.inertia, self.covariance, n)]
-
-    def to_dict(self) -> dict:
-        return {"std": {k: float(v) for k, v in zip(KEYS, self.std)},
-                "relative_std": {k: float(v) for k, v in zip(KEYS, self.relative_std)},
-                "gyro_white_std": {k: float(v) for k, v in zip(KEYS, self.gyro_white_std)},
-                "contributions": {s: {k: float(v) for k, v in zip(KEYS, c)} for s, c in self.contributions.items()},
-                "max_relative_std": self.objective,
-                "residual_rms_rad_s": [float(x) for x in self.residual_rms],
-                "rotation_rms_rad_s": [float(x) for x in self.rotation_rms],
-                "band_hz": [float(self.band_hz[0]), float(self.band_hz[1])],
-                "duration_s": float(self.duration), "runs": int(self.runs),
-                "weakly_determined": self.weak()}
-
-
-def combine(preds: list[Prediction]) -> Prediction:
-    """Joint prediction of independent runs fitted together with one tensor (the joint fit
-    of :func:`~rig_identification.estimation.identification.identify_inertia_joint`): information (AᵀWA) and noise
-    (meat) add over the runs, with the per-axis weights pooled over the runs (one gyro).
-    Raises :class:`PlanError` for an empty list."""
-    if not preds:
-        raise PlanError("no runs to combine")
-    if len(preds) == 1:
-        return preds[0]
-    n = np.array([p.n_samples for p in preds], float)
-    var = sum(ni * p.residual_rms**2 for ni, p in zip(n, preds)) / n.sum()
-    meats = {s: sum(p.axis_meats[s] for p in preds if s in p.axis_meats)
-             for s in dict.fromkeys(k for p in preds for k in p.axis_meats)}
-    rot = np.sqrt(sum(ni * p.rotation_rms**2 for ni, p in zip(n, preds)) / n.sum())
-    return Prediction.assemble(preds[0].inertia, sum(p.axis_bread for p in preds), meats,
-                               sum(p.white_bread for p in preds), sum(p.white_meat for p in preds), var,
-                               (min(p.band_hz[0] for p in preds), max(p.band_hz[1] for p in preds)),
-                               sum(p.duration for p in preds), int(n.sum()), rot, sum(p.runs for p in preds))
-
-
-# --- identifiability in words ----------------------------------------------------------
-
-AXIS_WORDS = {0: ("x", "roll"), 1: ("y", "pitch"), 2: ("z", "yaw")}
-
-
-def describe_weak(rel_std: float, D: np.ndarray, rotation_rms: np.ndarray | None = None) -> dict:
-    """A weakly determined tensor combination in a lab engineer's words.
-
-    rel_std: σ of the combination / (tr J / 3); D (3,3) unit-norm direction.  With
-    ``rotation_rms`` (3,) rad/s, body axes, the text says how much the body turned about
-    the axis involved ("the body hardly turned about z").
-    """
-    theta = from_tensor(D)
-    k = int(np.argmax(np.abs(theta)))
-    key = KEYS[k]
-    share = float(theta[k] ** 2 * (1 if k in DIAG else 2))
-    text = f"{ENTRY_NAMES[key]} is the most weakly determined combination (σ {100 * rel_std:.3f} % of the mean " \
-           f"diagonal; {100 * share:.0f} % of the direction)"
-    if rotation_rms is not None:
-        axes = sorted({i for i in (PAIRS_OF[key])})
-        r = np.asarray(rotation_rms, float)
-        weakest = min(axes, key=lambda a: r[a])
-        if r[weakest] < 0.5 * np.max(r):
-            ax, word = AXIS_WORDS[weakest]
-            text = (f"{ENTRY_NAMES[key]} is weakly determined: the body hardly turned about {ax} ({word} rate "
-                    f"{r[weakest]:.2g} rad/s RMS against {np.max(r):.2g} rad/s on the most excited axis; "
-                    f"σ {100 * rel_std:.3f} % of the mean diagonal)")
-    return {"relative_std": float(rel_std), "direction": {kk: round(float(v), 3) for kk, v in zip(KEYS, theta)},
-            "mostly": key, "text": text}
-
-
-PAIRS_OF = {"ixx": (0,), "iyy": (1,), "izz": (2,), "ixy": (0, 1), "ixz": (0, 2), "iyz": (1, 2)}
-
-
-def _skew(a) -> np.ndarray:
-    return np.array([[0.0, -a[2], a[1]], [a[2], 0.0, -a[0]], [-a[1], a[0], 0.0]])
-
-
-@dataclass
-class _TrackerModel:
-    """The tracker's complementary filters linearised about a pose (see module docstring).
-
-    Inputs (8 + N): gyro noise (3, IMU axes), accelerometer noise (3, IMU axes),
-    inclinometer noise (2), then an error of each cable's constraint length (N, m);
-    outputs (6): world-frame rotation error φ (rad) and world position error of the body
-    origin (m)."""
-
-    R0: np.ndarray          # body -> world at equilibrium
-    R_imu: np.ndarray       # IMU -> body
-    r_imu_w: np.ndarray     # IMU position from the body origin, world axes
-    C_phi: np.ndarray       # (3,3) correction rate per rotation error, 1/s
-    C_noise: np.ndarray     # (3,8+N) correction rate per input
-    LV: np.ndarray          # (4,3) constraint solution [dp (3); yaw] per rotation error
-    L: np.ndarray           # (4,N) constraint solution per length error
-    U: np.ndarray           # (N,3) cable directions (world, body anchor -> ceiling)
-    V: np.ndarray           # (N,3) d length / d φ = -V
-    k_bias: float           # bias integral gain: β' = -k_bias · correction
-    w_pos: float            # position filter natural frequency, rad/s
-    g: float
-
-    def response(self, f: np.ndarray) -> np.ndarray:
-        """(K, 6, 8+N) complex frequency response at f (K,) Hz."""
-        f = np.asarray(f, float)
-        n_in = self.C_noise.shape[1]
-        out = np.zeros((len(f), 6, n_in), complex)
-        s = 2j * np.pi * np.maximum(f, 1e-7)   # f = 0: the limit (finite for the length inputs, 0 for noise)
-        gain = 1.0 + self.k_bias / s                                   # PI: correction + bias integral
-        A = s[:, None, None] * np.eye(3) - gain[:, None, None] * self.C_phi
-        Bn = np.zeros((len(s), 3, n_in), complex)
-        Bn[:, :, :3] = self.R0 @ self.R_imu
-        Bn += gain[:, None, None] * self.C_noise
-        Phi = np.linalg.solve(A, Bn)                                    # φ per input
-        wn = self.w_pos
-        hp = s / (s + wn) ** 3                                          # x = hp·δa + lp·(constraint target)
-        lp = 1.0 - s**3 / (s + wn) ** 3
-        fw = np.array([0.0, 0.0, self.g])
-        Xphi = hp[:, None, None] * (-_skew(fw)) + lp[:, None, None] * self.LV[:3]
-        Xd = np.zeros((len(s), 3, n_in), complex)
-        Xd[:, :, 3:6] = hp[:, None, None] * (self.R0 @ self.R_imu)
-        Xd[:, :, 8:] = lp[:, None, None] * self.L[:3]
-        out[:, :3] = Phi
-        out[:, 3:] = (Xphi + _skew(self.r_imu_w)) @ Phi + Xd           # origin = IMU point + r × φ
-        return out
-
-
-def tracker_model(rig: Rig, position: np.ndarray, R0: np.ndarray, tracker_params: dict | None = None,
-                  ) -> _TrackerModel:
-    """Linearise :class:`~rig_identification.estimation.tracker.PoseTracker` (default parameters, or ``tracker_params``)
-    about the pose (origin ``position`` (3,) world m, ``R0`` (3,3) body -> world)."""
-    tp = PoseTracker(rig, **(tracker_params or {}))
-    R_imu = rig.imu.rotation.as_matrix()
-    r_imu_w = R0 @ rig.imu.position
-    p_imu = position + r_imu_w
-    rb = (rig.body_anchors - rig.imu.position) @ R0.T
-    v = rig.ceiling_anchors - (p_imu + rb)
-    u = v / np.linalg.norm(v, axis=1)[:, None]
-    V = np.cross(rb, u)                                  # d length / d φ = -V φ
-    G = np.column_stack([-u, -V[:, 2]])
-    GtG = G.T @ G
-    # the tracker's regularisation (PoseTracker._constraint_correction): the yaw by YAW_PRIOR
-    Lam = 1e-12 * np.trace(GtG) * np.eye(4)
-    Lam[3, 3] = YAW_PRIOR * float(np.trace(GtG[:3, :3]))
-    L = np.linalg.solve(GtG + Lam, G.T)
-    LV = L @ V
-    ez = np.array([0.0, 0.0, 1.0])
-    C_phi = (1.0 / tp.tau_yaw) * np.outer(ez, LV[3])
-    C_noise = np.zeros((3, 8 + len(u)))
-    C_noise[:, 8:] = (1.0 / tp.tau_yaw) * np.outer(ez, L[3])
-    g = rig.gravity
-    if rig.inclinometer is not None:
-        axes = (R0 @ rig.inclinometer.rotation.as_matrix())[:, :2].T
-        pred = np.arcsin(np.clip(axes[:, 2], -1, 1))
-        H = np.column_stack([axes[:, 1], -axes[:, 0], np.zeros(2)]) / np.cos(pred)[:, None]
-        Hp = np.linalg.pinv(H)
-        C_phi = C_phi - (1.0 / tp.tau_tilt) * Hp @ H
-        C_noise[:, 6:8] = (1.0 / tp.tau_tilt) * Hp
-    else:  # tilt from the accelerometer's gravity direction, slowly
-        C_phi = C_phi - (1.0 / tp.tau_tilt_accel) * np.diag([1.0, 1.0, 0.0])
-        C_noise[:, 3:6] = (1.0 / (tp.tau_tilt_accel * g)) * np.array([[0, 1, 0], [-1, 0, 0], [0, 0, 0]]) @ R0 @ R_imu
-    # a direction no reference corrects (the yaw of radially splayed cables) integrates the gyro
-    # noise: a pole at s = 0, whose response the FFT-based adjoint of predict_from_trajectory
-    # cannot represent on a finite record (the circular sawtooth of 1/s put σ 20× too large on a
-    # wide-splayed rig); a leak far slower than any fit band stands in for the band-pass that
-    # removes the drift
-    C_phi = C_phi - DRIFT_LEAK * np.eye(3)
-    return _TrackerModel(R0, R_imu, r_imu_w, C_phi, C_noise, LV, L, u, V, tp.tau_tilt / tp.tau_bias**2,
-                         2 * np.pi * tp.f_position, g)
-
-
-def wrench_jacobians(rig: Rig, position: np.ndarray, R: np.ndarray, tensions: np.ndarray,
-                     exciter_xy: np.ndarray | None):
-    """Torque sensitivities of :func:`~rig_identification.estimation.preprocessor.generalized_wrench` at every sample.
-
-    position (M,3) world m; R (M,3,3) body -> world; tensions (M,N) N; exciter_xy (M,2) N or
-    None.  Returns D_phi (M,3,3) N·m/rad (world-frame rotation of the pose, R -> exp(φ×) R),
-    D_p (M,3,3) N·m/m (world position), W_T (M,3,N) m (per newton of tension), W_e (M,3,2) m
-    (per newton of exciter force).  Analytic: the torque about the CG is
-    M = Σ_i T_i (b_i − c) × u_i with u_i = r_i/|r_i|, r_i = Rᵀ(A_i − p) − b_i (body axes; the
-    preprocessor's geometry, thesis eqs. 2.13–2.19), so ∂M/∂x = Σ_i T_i (b_i − c) × (I − u_i u_iᵀ)
-    ∂r_i/∂x / |r_i| with ∂r_i/∂φ_j = −Rᵀ(e_j × (A_i − p)) and ∂r_i/∂p_j = −Rᵀ e_j; the exciter's
-    force is measured in body axes, so the pose does not turn it."""
-    c = rig.require_cg()
-    b, arm = rig.body_anchors, rig.body_anchors - c
-    w = rig.ceiling_anchors[None] - position[:, None, :]          # (M,N,3) world, origin -> ceiling anchor
-    rel = np.einsum("mji,mnj->mni", R, w) - b[None]              # (M,N,3) body axes, anchor -> ceiling
-    length = np.sqrt(np.einsum("mni,mni->mn", rel, rel))[:, :, None]
-    u = rel / length
-
-    def d_torque(d_rel):   # (M,N,3) or (M,1,3) -> (M,3)
-        du = (d_rel - u * np.einsum("mni,mni->mn", u, d_rel)[:, :, None]) / length
-        return np.einsum("mn,mni->mi", tensions, np.cross(arm[None], du))
-
-    M = len(position)
-    D_phi = np.zeros((M, 3, 3))
-    D_p = np.zeros((M, 3, 3))
-    for j in range(3):
-        e = np.zeros(3)
-        e[j] = 1.0
-        D_phi[:, :, j] = d_torque(-np.einsum("mji,mnj->mni", R, np.cross(e, w)))
-        D_p[:, :, j] = d_torque(-R[:, j, None, :])
-    W_T = np.cross(arm[None], u).transpose(0, 2, 1).copy()
-    W_e = np.zeros((M, 3, 2))
-    if exciter_xy is not None and rig.exciter is not None:
-        Re = rig.exciter.rotation.as_matrix()[:, :2]
-        for i in range(2):
-            W_e[:, :, i] = np.cross(rig.exciter.position - c, Re[:, i])
-    return D_phi, D_p, W_T, W_e
-
-
-def sosfiltfilt_adjoint(sos: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Transpose of ``scipy.signal.sosfiltfilt(sos, ·, axis=0)`` (default odd padding)
-    applied to v (N, k): <sosfiltfilt(x), v> = <x, adjoint(v)> for every x."""
-    n_sec = sos.shape[0]
-    ntaps = 2 * n_sec + 1 - min((sos[:, 2] == 0).sum(), (sos[:, 5] == 0).sum())
-    pad = 3 * ntaps
-    N = v.shape[0]
-    L = N + 2 * pad
-    zi = sosfilt_zi(sos)
-    r = sosfilt(sos, np.zeros(L), zi=zi)[0]              # zero-input response per unit initial value
-
-    def causal_T(g):   # transpose of zero-state causal filtering: reverse, filter, reverse
-        return sosfilt(sos, g[::-1], axis=0)[::-1]
-
-    g3 = np.zeros((L,) + v.shape[1:])
-    g3[pad:pad + N] = v
-    g2 = g3[::-1]
-    gw = causal_T(g2)
-    gw[0] += np.tensordot(r, g2, axes=(0, 0))
-    gy1 = gw[::-1]
-    ge = causal_T(gy1)
-    ge[0] += np.tensordot(r, gy1, axes=(0, 0))
-    # odd extension: ext = [2 x0 - x[pad:0:-1], x, 2 x[-1] - x[-2:-(pad+2):-1]]
-    gx = ge[pad:pad + N].copy()
-    left, right = ge[:pad], ge[pad + N:]
-    gx[0] += 2 * left.sum(0)
-    gx[1:pad + 1] -= left[::-1]
-    gx[-1] += 2 * right.sum(0)
-    gx[N - 1 - pad:N - 1] -= right[::-1]
-    return gx
-
-
-def cumtrapz_adjoint(g: np.ndarray, dt: float) -> np.ndarray:
-    """Transpose of the cumulative trapezoid integral (initial 0) along axis 0 — the
-    identifier's cumulative Simpson rule to O((f dt)²) in the pass band."""
-    C = np.cumsum(g[::-1], axis=0)[::-1]   # C[k] = Σ_{i≥k} g[i]
-    out = np.zeros_like(g)
-    out[1:] += C[1:]
-    out[:-1] += C[1:]
-    return 0.5 * dt * out
 
 
 @dataclass
@@ -430,7 +94,7 @@ class Trajectory:
     def from_simulation(sim, clean: bool = True) -> "Trajectory":
         """From a noise-free :class:`~rig_identification.model.simulator.SimResult` (its States at the IMU samples).
         clean: keep only the span the identifier would fit — the longest one free of slack
-        cables, saturation and gaps (:func:`~rig_identification.pipeline.offline.clean_sensors`) — with its warnings.
+        cables, saturation and gaps (:func:`~rig_identification.estimation.quality.clean_sensors`) — with its warnings.
         Raises :class:`PlanError` if less than the identifier's minimum is clean."""
         st = sim.states
         keep = np.ones(len(st.t), bool)
@@ -452,7 +116,7 @@ class Trajectory:
                           rig, sim.experiment.inertia, dict(sim.experiment.sensors.rates), warnings)
 
 
-def _weights_stationary(tm: _TrackerModel, rig: Rig, D: tuple, P: np.ndarray, sos, fs: float,
+def _weights_stationary(tm: TrackerModel, rig: Rig, D: tuple, P: np.ndarray, sos, fs: float,
                         sig: np.ndarray, n: int) -> np.ndarray:
     """Per-axis variance (3,) of the residual e predicted by the stationary form of the
     noise model (time-averaged sensitivities): the identifier's LM weights are 1/σ²."""
@@ -519,7 +183,7 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
     noise: σ per source (keys of :data:`REFERENCE_NOISE`; default the reference levels),
     at ``traj.rates``.  settle: s skipped at the start, as
     :func:`~rig_identification.pipeline.offline.identify_recording`.  band_hz: the fit's pass band (default: what
-    :func:`~rig_identification.estimation.identification.auto_band` picks on the gyro with this noise, seeded by
+    :func:`~rig_identification.estimation.signals.auto_band` picks on the gyro with this noise, seeded by
     ``seed``).  gyro_sensitivity: also return the per-sample linear map from the gyro
     noise to the estimate error (``Prediction.gyro_sensitivity``).  Raises
     :class:`PlanError` when the body hardly moves.
@@ -576,13 +240,8 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
 
     # gyroscopic term: δM -= ω × J n + n × J ω (n: body-axis gyro noise)
     Om = traj.omega[i0:]
-    Sk = np.zeros((Nw, 3, 3))
-    Sk[:, 0, 1], Sk[:, 0, 2], Sk[:, 1, 2] = -Om[:, 2], Om[:, 1], -Om[:, 0]
-    Sk -= Sk.transpose(0, 2, 1)
-    JO = Om @ J.T
-    SJ = np.zeros((Nw, 3, 3))
-    SJ[:, 0, 1], SJ[:, 0, 2], SJ[:, 1, 2] = -JO[:, 2], JO[:, 1], -JO[:, 0]
-    SJ -= SJ.transpose(0, 2, 1)
+    Sk = skews(Om)
+    SJ = skews(Om @ J.T)
     n_T = W_T.shape[2]
     # Γ's products per channel d, Σ_n Γ[d,a,k,n] Γ[d,b,l,n] (18,18): the load cells' and the
     # exciter's (zero before the window) now, the others once Γ (channels 0-7) is complete
@@ -613,7 +272,7 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
         late = t >= t[0] + 0.5 * (t[-1] - t[0])
         S1 = float(np.sum(dT[late] ** 2))
         if S1 > 0:
-            e_phi = -(tm.V - tm.U @ _skew(tm.r_imu_w))              # e_len = e_phi φ - U δp_o
+            e_phi = -(tm.V - tm.U @ skew(tm.r_imu_w))              # e_len = e_phi φ - U δp_o
             gam_pe = np.zeros((6, K))
             gam_pe[:3, late] = (dT[late] @ e_phi / S1).T
             gam_pe[3:, late] = (-dT[late] @ tm.U / S1).T

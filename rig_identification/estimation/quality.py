@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
-from .identification import gyro_noise_sigma
+from .signals import gyro_noise_sigma
 from ..io.recording import crop, Recording, RecordingError
 from ..io.bad_spans import fill_short_gaps, find_bad_spans
 

@@ -85,8 +85,10 @@ from scipy.signal import butter, sosfiltfilt
 from scipy.stats import chi2
 
 from .errors_in_variables import EIV_LIMIT, capped
-from .identification import KEYS, FitSeries, InertiaResult, from_tensor, physically_consistent, weak_directions
-from ..io.verdict import Check, Validation, fmt_p
+from .directions import weak_directions
+from .inertia_result import FitSeries, InertiaResult
+from ..io.verdict import KEYS, Check, Validation, fmt_p
+from ..model.parametrisation import from_tensor, physically_consistent
 
 ALPHA = 1e-3                # significance of each statistical check
 EFFECT_FACTOR = 2.0         # a consistency check fails beyond this multiple of its significance threshold
@@ -552,7 +554,7 @@ def identifiability(result: InertiaResult, std: np.ndarray, cov: np.ndarray | No
                     ) -> tuple[Check, tuple[str, ...]]:
     """Which entries the recording determines (see module docstring): std (6,) kg·m² the σ the
     noise gives each entry; cov (6,6) their covariance (default: ``result.covariance``'s
-    correlations with ``std``) — a tensor direction (:func:`~rig_identification.estimation.identification.weak_directions`)
+    correlations with ``std``) — a tensor direction (:func:`~rig_identification.estimation.directions.weak_directions`)
     whose σ is beyond :data:`REL_STD_LIMIT` of tr J / 3 leaves every entry with a component of
     at least :data:`WEAK_SHARE` in it undetermined: the systematic errors of the chain act
     along it too, and move those entries far beyond their σ (a 5-cable rig whose roll and

@@ -236,7 +236,7 @@ UNITS = {
     "validation.spread_std": "kg·m²", "validation.sigma_factor": "1",
     "validation.checks.statistic": "as its threshold (the check's detail says what it measures)",
 }
-"""Units of the fields of the inertia JSON (``"units"`` of :meth:`~rig_identification.estimation.identification.InertiaResult.to_dict`)."""
+"""Units of the fields of the inertia JSON (``"units"`` of :meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`)."""
 
 
 # --- effect parameters with their units ------------------------------------------------------------

@@ -1,7 +1,7 @@
 """The verdict on an inertia fit, as data: :class:`Check` and :class:`Validation`.
 
 The checks themselves are in :mod:`rig_identification.estimation.validation`; this module holds the result types so
-that the identifier's result (:class:`~rig_identification.estimation.identification.InertiaResult`) can carry them.
+that the identifier's result (:class:`~rig_identification.estimation.inertia_result.InertiaResult`) can carry them.
 """
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ class Validation:
     """The verdict on a fit and its checks.
 
     verdict: one of :data:`VERDICTS`; checks: the :class:`Check` list; undetermined: the
-    entries (:data:`~rig_identification.estimation.identification.KEYS`) the recording does not determine; advice: what
+    entries (:data:`~rig_identification.io.verdict.KEYS`) the recording does not determine; advice: what
     to change (rig, excitation), in words; segment_inertia (K,6) and band_inertia (2,6):
     the tensor entries fitted on each time segment and frequency sub-band (kg·m²), band_edges
     (3,) Hz; spread_std (6,) kg·m²: the spread the checks saw (segments and sub-bands), which
@@ -87,7 +87,7 @@ class Validation:
 
     def to_dict(self, origins: list[float] | None = None) -> dict:
         """The validation as JSON (``"validation"`` of
-        :meth:`~rig_identification.estimation.identification.InertiaResult.to_dict`).  origins: one stamp (s) per time
+        :meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`).  origins: one stamp (s) per time
         segment, the first IMU sample of its recording: each segment's ``start``/``end`` are
         then seconds from it (as the window's), the header stamps in ``start_stamp``/
         ``end_stamp``; None: ``start``/``end`` are the stamps too."""

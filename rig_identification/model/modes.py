@@ -27,12 +27,14 @@ Rotation), the gradients analytically.
 """
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import eigh, null_space
 from scipy.optimize import least_squares
 from scipy.ndimage import maximum_filter1d, median_filter
+from scipy.signal import periodogram
 from scipy.spatial.transform import Rotation
 
 from ..io.rig import Rig
@@ -232,7 +234,6 @@ def exciter_frequency(rec, fs: float | None = None) -> float | None:
 def _combination(fr: float, base: list[float], tol: float, order: int = 4) -> bool:
     """True if ``fr`` is within ``tol`` of an integer combination Σ n_i f_i of the ``base``
     frequencies with 2 <= Σ|n_i| <= order (intermodulation / harmonics of a nonlinear response)."""
-    import itertools
     b = np.asarray(base, float)
     for coeffs in itertools.product(range(-order, order + 1), repeat=len(b)):
         c = np.abs(coeffs).sum()
@@ -258,7 +259,6 @@ def estimate_modes(rec, f_min: float = 0.2, f_max: float = 40.0, max_modes: int 
     sqrt(ω_d² + σ²)/2π.  Note: a large forced response shifts the pendulum frequencies
     (amplitude-dependent, about −0.8 % at 200 N on case 16).
     """
-    from scipy.signal import periodogram
     rig, s = rec.rig, rec.sensors
     fs = 1.0 / np.median(np.diff(s.imu.t))
     t0 = s.t_start + min(settle, 0.1 * (s.t_end - s.t_start))

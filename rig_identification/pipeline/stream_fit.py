@@ -3,19 +3,18 @@
 :class:`StreamBuffer` keeps the last ``max_seconds`` of what the fit and its validation read, as the
 identifier node receives it (``/rig/imu``, ``/rig/generalized_wrench``, ``/rig/pose``);
 :func:`identify_window` fits a window of it (:func:`~rig_identification.estimation.identification.identify_inertia`
-on the wrench samples in the window, the gyro interpolated to their stamps: the rule of
-:meth:`~rig_identification.estimation.identification.InertiaIdentifier.identify`), and
+on the wrench samples in the window, the gyro interpolated to their stamps), and
 :func:`validate_stream_fit` validates the fit.
 
-``rig-identify inertia`` validates every fit (:func:`~rig_identification.pipeline.offline.validate_fit`:
+``rig-identify inertia`` validates every fit (:func:`~rig_identification.pipeline.fit_validation.validate_fit`:
 the verdict ok | model_error | not_identifiable, σ widened, undetermined entries null).  Besides
 the fit's own gyro and torque, the checks read three streams the fit does not use: the
 accelerometer (the ``accelerometer`` check), the generalized force and the tracked orientation
 (the ``weight`` check).  :func:`validate_stream_fit` cuts them to the fit's window as
 :func:`identify_window` cuts it and hands them to the
-same core function the offline path runs (:func:`~rig_identification.pipeline.offline.apply_validation`,
-inputs built by :func:`~rig_identification.pipeline.offline.accel_input` and
-:func:`~rig_identification.pipeline.offline.force_weight_surplus`).  The node's fit does not propagate
+same core function the offline path runs (:func:`~rig_identification.pipeline.fit_validation.apply_validation`,
+inputs built by :func:`~rig_identification.pipeline.fit_validation.accel_input` and
+:func:`~rig_identification.pipeline.fit_validation.force_weight_surplus`).  The node's fit does not propagate
 the sensors' noise (no replays), so its validation is that of ``rig-identify inertia --quick``.
 
 ROS-free (plain numpy), in the core: the identifier node only feeds it.
@@ -26,9 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..estimation.identification import IdentificationError, InertiaResult, identify_inertia
+from ..estimation.identification import IdentificationError, identify_inertia
+from ..estimation.inertia_result import InertiaResult
 from ..io.noise import white_sigma
-from .offline import accel_input, apply_validation, force_weight_surplus, weight_warning
+from .fit_validation import accel_input, apply_validation, force_weight_surplus, weight_warning
 from ..io.rig import Rig
 
 STAMP_MATCH = 1e-6   # s: a pose and a wrench sample are the same instant (the wrench carries the pose's stamp)
@@ -140,11 +140,11 @@ def identify_window(rig: Rig, win: StreamWindow, lo: float, hi: float, **fit_par
 def validate_stream_fit(rig: Rig, result: InertiaResult, win: StreamWindow, lo: float,
                         hi: float) -> InertiaResult:
     """Validate the node's fit ``result`` over the window [lo, hi] (absolute stamps, s) with the
-    offline core (:func:`~rig_identification.pipeline.offline.apply_validation`).
+    offline core (:func:`~rig_identification.pipeline.fit_validation.apply_validation`).
 
     The samples are those of the fit (:func:`fit_samples`), the gyro and the specific force
     interpolated to them and turned to body axes (as :func:`identify_window` and
-    :func:`~rig_identification.pipeline.offline.accel_inputs` do); the accelerometer's noise is
+    :func:`~rig_identification.pipeline.fit_validation.accel_inputs` do); the accelerometer's noise is
     :func:`~rig_identification.io.noise.white_sigma` of the window's samples.  The weight check
     uses the poses stamped as the wrench samples; with fewer than 90 % of them matched (no
     ``/rig/pose`` received) it is skipped and a warning says so.  Sets ``result.validation``,

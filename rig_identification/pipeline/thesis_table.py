@@ -12,7 +12,8 @@ from pathlib import Path
 import numpy as np
 
 from ..io.export import ORDER
-from ..estimation.identification import KEYS, IdentificationError
+from ..estimation.identification import IdentificationError
+from ..io.verdict import KEYS
 from ..model.parametrisation import PAIRS
 from .offline import compare_to_truth, identify_recording
 from ..io.recording import Recording

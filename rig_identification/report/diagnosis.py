@@ -16,8 +16,10 @@ import math
 
 import numpy as np
 
+from ..estimation.inertia_result import InertiaResult
 from ..io.export import EFFECT_UNITS
-from ..estimation.identification import KEYS, InertiaResult, from_tensor
+from ..io.verdict import KEYS
+from ..model.parametrisation import from_tensor
 from .html import MISSING, Cell, esc, finite, num, table
 from .mass import ORDER, SIGN, SYMBOL
 

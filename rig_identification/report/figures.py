@@ -21,7 +21,9 @@ from pathlib import Path
 import numpy as np
 from scipy.signal import welch
 
-from ..estimation.identification import KEYS, FitSeries, InertiaResult, from_tensor
+from ..estimation.inertia_result import FitSeries, InertiaResult
+from ..io.verdict import KEYS
+from ..model.parametrisation import from_tensor
 from .mass import SIGN, SYMBOL, MassProperties
 from ..io.rig import Rig
 

@@ -2,7 +2,7 @@
 report's identifiability table).
 
 The six eigen-directions of the covariance (the inverse of the information matrix) of the
-tensor entries in the tensor's Frobenius metric (:func:`~rig_identification.estimation.identification.weak_directions`),
+tensor entries in the tensor's Frobenius metric (:func:`~rig_identification.estimation.directions.weak_directions`),
 weakest first, each with its σ and a sentence a lab engineer reads ("yaw moment Izz is weakly
 determined: the body hardly turned about z …"), explained by the signal-to-residual ratio of
 the band-passed gyro about each body axis.  Products are named and signed as on the rest of
@@ -12,7 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..estimation.identification import InertiaResult, describe_direction, weak_directions
+from ..estimation.directions import describe_direction, weak_directions
+from ..estimation.inertia_result import InertiaResult
 from .html import Cell, esc, num, table
 
 ENTRY_NAMES = {"ixx": "roll moment Ixx", "iyy": "pitch moment Iyy", "izz": "yaw moment Izz",
@@ -60,8 +61,8 @@ def identifiability(result: InertiaResult) -> list[dict]:
     ``direction`` {tensor entry (KEYS, geometry_msgs sign): coefficient} (unit Frobenius norm
     of the tensor), ``mostly`` (the entry with the largest share), ``combination`` (text in
     the page's notation, products with the vehicle-dynamics sign, e.g. "+0.96 Izz −0.29 Ixz"),
-    ``level`` (:func:`~rig_identification.estimation.identification.direction_level`: the CLI's and the JSON's words),
-    ``text`` (:func:`~rig_identification.estimation.identification.describe_direction`'s sentence with the reason, from the
+    ``level`` (:func:`~rig_identification.estimation.directions.direction_level`: the CLI's and the JSON's words),
+    ``text`` (:func:`~rig_identification.estimation.directions.describe_direction`'s sentence with the reason, from the
     signal-to-residual ratio per body axis).
     """
     J, C = np.asarray(result.inertia, float), np.asarray(result.covariance, float)
@@ -72,7 +73,7 @@ def identifiability(result: InertiaResult) -> list[dict]:
     snr = None if sig is None else sig / np.maximum(res, 1e-300)
     rows = []
     for i, (rel, D) in enumerate(weak_directions(J, C, n=6)):
-        # the one wording of the CLI, the JSON and the report (identification.describe_direction)
+        # the one wording of the CLI, the JSON and the report (directions.describe_direction)
         d = describe_direction(rel, D, scale=scale, weakest=i == 0, undetermined=result.undetermined)
         main, level = d["mostly"], d["level"]
         text = d["text"][0].upper() + d["text"][1:]

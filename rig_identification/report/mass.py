@@ -11,7 +11,7 @@ dynamics uses them); the inertia tensor is ::
          [−Ixz, −Iyz,  Izz]]
 
 so its off-diagonal entries — what ``geometry_msgs/Inertia``, the identifier
-(:class:`~rig_identification.estimation.identification.InertiaResult`) and ``report.json``'s ``result`` hold as ``ixy``,
+(:class:`~rig_identification.estimation.inertia_result.InertiaResult`) and ``report.json``'s ``result`` hold as ``ixy``,
 ``ixz``, ``iyz`` — are the negated products.  :func:`mass_properties` turns a result into the
 page's numbers: the moments and products about the CG with their σ, the same about the body
 frame's origin (parallel-axis theorem, J_O = J_G + m (|c|² I − c cᵀ), c the CG), the principal
@@ -25,7 +25,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..io.export import Expressed
-from ..estimation.identification import KEYS, InertiaResult, from_tensor
+from ..estimation.inertia_result import InertiaResult
+from ..io.verdict import KEYS
+from ..model.parametrisation import from_tensor
 from ..pipeline.offline import compare_to_truth
 from .html import MISSING, NOT_DETERMINED, Cell, esc, finite, num, table
 
@@ -48,7 +50,7 @@ class MassProperties:
     """The report's mass properties of one result.
 
     mass kg; cg (3,) m, body axes (the point the tensor is about); values (6,) kg·m² the
-    moments and products of inertia about the CG in :data:`~rig_identification.estimation.identification.KEYS` order,
+    moments and products of inertia about the CG in :data:`~rig_identification.io.verdict.KEYS` order,
     products with the vehicle-dynamics sign (:data:`SIGN`); std (6,) and crb_std (6,) or None
     their σ (the result's, and the propagated sensor noise's); about_origin (6,) the same
     about the body frame's origin; tensor_cg and tensor_origin (3,3) the tensors (off-diagonals

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..estimation.identification import InertiaResult
+from ..estimation.inertia_result import InertiaResult
 from ..model.modes import estimate_modes, natural_modes
 from ..io.recording import Recording
 from .html import MISSING, esc, num, table

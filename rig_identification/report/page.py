@@ -27,7 +27,7 @@ engineer signs it:
 
 No number on the page or in report.json is ``nan`` or ``inf``: what does not exist is "—"
 on the page and null in the JSON, an undetermined entry "not determined".
-``report.json``: ``result`` (:meth:`~rig_identification.estimation.identification.InertiaResult.to_dict`, tensor entries
+``report.json``: ``result`` (:meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`, tensor entries
 as geometry_msgs/Inertia), ``report`` (date, version, recordings, rig), ``mass_properties``
 (the page's table, products with the vehicle-dynamics sign), ``diagnosis``,
 ``identifiability``, ``modes``.
@@ -43,7 +43,9 @@ from pathlib import Path
 import numpy as np
 
 from ..io.atomic import atomic_directory
-from ..estimation.identification import KEYS, IdentificationError, InertiaResult
+from ..estimation.identification import IdentificationError
+from ..estimation.inertia_result import InertiaResult
+from ..io.verdict import KEYS
 from ..pipeline.offline import recording_labels
 from ..io.recording import Recording
 from .diagnosis import diagnosis_html, effects_text

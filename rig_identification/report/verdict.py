@@ -9,7 +9,7 @@ error); ``not_identifiable`` — the entries the recording does not determine ar
 """
 from __future__ import annotations
 
-from ..estimation.identification import InertiaResult
+from ..estimation.inertia_result import InertiaResult
 from .html import NOT_DETERMINED, Cell, bullets, esc, finite, num, table
 from .mass import SYMBOL
 from ..io.verdict import Check, Validation
