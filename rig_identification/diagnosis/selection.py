@@ -369,7 +369,12 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
                "dof": ev["dof"], "bic": ev["bic"], "admissible": ev.get("admissible", False),
                **({"why": ev["why"]} if ev.get("why") else {})} for ev in sorted(evals.values(), key=lambda e: e["bic"])]
     alternatives = []
-    for ev in ranked[:ALTERNATIVES]:
+    # the best combination's admissible proper subsets too (the caller names the smallest one
+    # that passes validation: an effect is named only when the model fails without it)
+    shown = ranked[:ALTERNATIVES]
+    if ranked and len(ranked[0]["members"]) > 1:
+        shown += [ev for ev in ranked[ALTERNATIVES:] if set(ev["keys"]) < set(ranked[0]["keys"])]
+    for ev in shown:
         try:
             alternatives.append(_report(ev, evals, rec, state, build, kappa0, scales, cost0, threshold_p, j0,
                                         warnings))
@@ -775,7 +780,7 @@ def _report(ev: dict, evals: dict, rec: Recording, state: dict, build, kappa0: f
     return {"effects": entries, "applied": applied, "effect_wrench": effect_wrench,
             "stiffness": w.stiffness.copy() if elastic else None, "inertia": body_inertia(cur_fit.J, body_rig, mu),
             "covariance": np.array(cur_fit.cov[:6, :6]), "relative_std": rel, "likelihood_ratio": ev["lam"],
-            "dof": ev["dof"],
+            "dof": ev["dof"], "keys": [tuple(k) for k in ev["keys"]],
             "bic": ev["bic"], "fit": cur_fit, "model": M, "window": w, "channels": channel_residuals(M, cur_fit)}
 
 

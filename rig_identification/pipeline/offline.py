@@ -96,7 +96,8 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     IMU sample) and test what it proposes the way every fit is tested.  diagnose fits the
     library's most significant effects jointly, in every combination, and ranks the admissible
     ones by an information criterion (:attr:`~rig_identification.diagnosis.selection.Diagnosis.alternatives`);
-    each, best first (at most :data:`~rig_identification.diagnosis.selection.ALTERNATIVES`):
+    each, best first (at most :data:`~rig_identification.diagnosis.selection.ALTERNATIVES`, and
+    the best one's admissible proper subsets):
 
     * the errors of the data it holds (a sensor delay, gain, bias or bias drift, gyro scale,
       a sensor mount's structural mode, the IMU's pose, the body's or the cables' mass, the
@@ -108,7 +109,9 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
       propagated σ, validation).
 
     The first combination whose fit's validation says ``ok`` and whose every effect is
-    physically plausible (:func:`~rig_identification.diagnosis.plausible.implausible`) is *named*;
+    physically plausible (:func:`~rig_identification.diagnosis.plausible.implausible`) is *named*
+    — unless one of its proper subsets passes too: then the smallest such is (an effect is named
+    only when the model fails its validation without it);
     the result is then that fit (σ: the propagated noise, or diagnose's joint fit's where
     larger — it carries the effects' own uncertainty), the cables' share taken off when their
     mass was found (:func:`~rig_identification.diagnosis.selection.body_inertia`).  A
@@ -154,6 +157,8 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
         "covariance": d.covariance_after}] if d.mismatch else [])
     hypotheses, again, chosen, whys = [], None, None, []
     for alt in alternatives:
+        if chosen is not None and not set(alt.get("keys", ())) < set(chosen.get("keys", ())):
+            continue   # after a validated combination, only its proper subsets are tried (parsimony)
         names = [e["name"] for e in alt["effects"]]
         bad = [e for e in alt["effects"] if not e.get("plausible", True)]
         hyp = {"effects": alt["effects"]}
@@ -179,8 +184,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
             hyp["failed_checks"] = list(failed)
             whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
             continue
-        again, chosen = fit, alt
-        break
+        again, chosen = fit, alt   # kept looking: a smaller combination that also validates is named instead
     diagnosis = {"effects": [], "hypotheses": [e for h in hypotheses for e in h["effects"]],
                  "combinations_tried": hypotheses, "unexplained": where,
                  "residual_rms_before": d.rms_before, "residual_rms_after": d.rms_after,
