@@ -19,10 +19,12 @@ from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
 from .model_extension import Candidate, Column, Model, Window
+from .retracked import bias_path, random_walk
+from .structural import mode_filter
 from ..io.recording import Recording, SensorData, TimeSeries
 
 CORRECTIONS = ("sensor_delay", "load_cell_scale", "imu_offset", "imu_misalignment", "gyro_bias", "gyro_scale",
-               "accelerometer_bias", "body_mass")
+               "accelerometer_bias", "body_mass", "gyro_bias_drift", "structural_mode")
 """Effects that are errors of the data, not missing physics: :func:`corrected` removes them."""
 
 
@@ -47,13 +49,19 @@ def _vec(vals, stds, key, applied=None):
 
 
 def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None = None,
-               allow_elasticity: bool = False, profiled: dict | None = None) -> list[Candidate]:
+               allow_elasticity: bool = False, profiled: dict | None = None,
+               retracked: dict | None = None) -> list[Candidate]:
     """The effect library as model extensions for this window (names: effects.EFFECT_NAMES).
 
     applied: corrections already made to the data (key -> accumulated value, see
     :func:`corrected`), added to the reported parameters.  profiled: keys whose value was
-    found by the exact profile likelihood (key -> σ, :func:`_exact_profile`): they carry
-    no column and report the applied value."""
+    found by the exact profile likelihood (key -> σ, :func:`~rig_identification.diagnosis.exact.exact_profile`):
+    they carry no column and report the applied value.  retracked: the first-order columns
+    of the errors that act through the tracker (:func:`~rig_identification.diagnosis.retracked.columns`),
+    measured once at the baseline — ``"drift"``: (3K columns, knot stamps (K,) s) of
+    ``gyro_bias_drift``; ``"scale"``: 3 columns of ``gyro_scale``; ``"modes"``: {sensor:
+    :class:`~rig_identification.diagnosis.structural.ModeFit`} of ``structural_mode`` (no
+    column: its parameters come from the transfer above the band)."""
     applied = applied or {}
     profiled = profiled or {}
     m = w.mass
@@ -184,6 +192,7 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
         out.append(Candidate("cable_elasticity", [], lambda vals, stds: ({"stiffness": float(vals[0])},
                                                                          {"stiffness": float(stds[0])}),
                              exact=True))
+    out.extend(_retracked_candidates(retracked or {}, applied))
     # gyroscopic coupling: only a model without it can miss it
     if base_kappa == 0.0:
         out.append(Candidate("gyroscopic_coupling", [], lambda vals, stds: ({"scale": float(vals[0])},
@@ -192,13 +201,53 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
     return out
 
 
+def _retracked_candidates(retracked: dict, applied: dict) -> list[Candidate]:
+    """``gyro_bias_drift``, ``gyro_scale`` and ``structural_mode`` from their re-tracked
+    columns (:func:`candidates`' ``retracked``); the reported values add what ``applied``
+    already removed from the data."""
+    out = []
+    if "drift" in retracked:
+        cols, knot_t = retracked["drift"]
+        done = np.asarray(applied.get(("gyro_bias_drift", ""), np.zeros(len(cols))), float)
+
+        def rep_drift(vals, stds, done=done, knot_t=knot_t):
+            c = done + np.asarray(vals, float)
+            q, sq = random_walk(c, stds, knot_t)
+            return ({"random_walk": q, "knot_spacing": float(np.mean(np.diff(knot_t))),
+                     "bias_range": [float(np.ptp(x)) for x in c.reshape(3, -1)]},
+                    {"random_walk": sq})
+        out.append(Candidate("gyro_bias_drift", cols, rep_drift, exact=True))
+    if "scale" in retracked:
+        done_s = np.asarray(applied.get(("gyro_scale", ""), np.zeros(3)), float)
+
+        def rep_scale(vals, stds, done=done_s):
+            return ({"scale": [float(1.0 + x) for x in done + np.asarray(vals, float)]},
+                    {"scale": [float(x) for x in stds]})
+        out.append(Candidate("gyro_scale", retracked["scale"], rep_scale, exact=True))
+    for sensor, fit in retracked.get("modes", {}).items():
+        def rep_mode(vals, stds, sensor=sensor, fit=fit):
+            return ({"sensor": sensor, "frequency": fit.frequency, "damping_ratio": fit.damping_ratio,
+                     "participation": fit.participation}, dict(fit.std))
+        # no column: the mode is placed by the transfer above the band (inside it, the tensor
+        # absorbs most of it), and evaluated exactly with those values (the selection's FIXED)
+        out.append(Candidate("structural_mode", [], rep_mode, label=sensor, exact=True))
+    return out
+
+
 def corrected(rec: Recording, applied: dict) -> Recording:
     """The recording with the sensor and rig errors of ``applied`` removed (key -> value):
     ("sensor_delay", stream) s: the stream's stamps − d; ("load_cell_scale", cable) e:
     the cable's tension T (1 − e); ("imu_offset", "") (3,) m body: imu.position + δ; ("imu_misalignment", "")
-    (3,) rotation vector, body axes: IMU axes turned by it; ("gyro_scale", "") (3,) ε per IMU
-    axis: the gyro divided by 1 + ε (after the bias); ("gyro_bias" | "accelerometer_bias",
-    "") (3,) IMU axes: subtracted; ("body_mass", "") δ kg: body.mass + δ; ("cable_mass", "") μ kg: the rig's body carries μ at each
+    (3,) rotation vector, body axes: IMU axes turned by it; ("gyro_bias" | "accelerometer_bias",
+    "") (3,) IMU axes: subtracted; ("gyro_bias_drift", "") (3K,) rad/s: the drifting bias
+    through those knot values (axis-major) at the knot stamps ("gyro_bias_drift", "knots")
+    (K,) s, subtracted (:func:`~rig_identification.diagnosis.retracked.bias_path`);
+    ("gyro_scale", "") (3,) ε per IMU axis: the gyro divided by 1 + ε (after the biases);
+    ("structural_mode", sensor) participation p of a mode of shape ("structural_mode",
+    sensor + " shape") = (frequency Hz, damping ratio): removed from that sensor's readings
+    (``imu``: gyro and accelerometer, after their biases and scale; ``load_cells``: every
+    tension, after its gain; :func:`~rig_identification.diagnosis.structural.mode_filter`);
+    ("body_mass", "") δ kg: body.mass + δ; ("cable_mass", "") μ kg: the rig's body carries μ at each
     body anchor (the lower half of each cable, outside its load cell at the ceiling): mass
     + n μ, the centre of gravity moved to the combined one (the tensor fitted is then the
     combined body's, :func:`body_inertia` gives the body's).  ("cable_elasticity", "") is
@@ -207,13 +256,22 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     rig, s = rec.rig, rec.sensors
     imu = s.imu.data.copy()
     imu[:, :3] -= np.asarray(applied.get(("gyro_bias", ""), np.zeros(3)))
+    if ("gyro_bias_drift", "") in applied:
+        imu[:, :3] -= bias_path(s.imu.t, applied[("gyro_bias_drift", "knots")], applied[("gyro_bias_drift", "")])
     imu[:, :3] /= 1.0 + np.asarray(applied.get(("gyro_scale", ""), np.zeros(3)))
     imu[:, 3:] -= np.asarray(applied.get(("accelerometer_bias", ""), np.zeros(3)))
+    p_imu = float(applied.get(("structural_mode", "imu"), 0.0))
+    if p_imu:
+        imu = mode_filter(s.imu.t, imu, *applied[("structural_mode", "imu shape")], p_imu)
     cells = {}
     d_cells = applied.get(("sensor_delay", "load_cells"), 0.0)
     gains = np.array([float(applied.get(("load_cell_scale", n), 0.0)) for n in rig.cable_names])
+    p_cells = float(applied.get(("structural_mode", "load_cells"), 0.0))
     for n, ts in s.load_cells.items():
-        cells[n] = TimeSeries(ts.t - d_cells, ts.data * (1.0 - gains[rig.cable_names.index(n)]))
+        T = ts.data * (1.0 - gains[rig.cable_names.index(n)])
+        if p_cells:
+            T = mode_filter(ts.t, T, *applied[("structural_mode", "load_cells shape")], p_cells)
+        cells[n] = TimeSeries(ts.t - d_cells, T)
     exc = s.exciter
     if exc is not None and ("sensor_delay", "exciter") in applied:
         exc = TimeSeries(exc.t - applied[("sensor_delay", "exciter")], exc.data)

@@ -34,6 +34,7 @@ from ..estimation.tracker_replay import pass_compliance, replay
 from ..estimation.yaw_anchor import anchor_yaw
 
 ALPHA_LP = 3.0        # angular acceleration: gyro low-passed at this multiple of the band's upper edge
+GRAM_RCOND = 1e-7     # relative singular value below which a combination of effect columns is not fitted
 DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose and lever-arm errors)
 WEIGHT_SIGMA = 5e-4   # relative σ of the load cells' mean vertical force against rig.yaml's weight:
                       # the cells' calibration (class C3 cells: 0.02–0.05 % of their load)
@@ -139,6 +140,46 @@ def _track(rig, s, cables: str):
     return out, k, k_std
 
 
+ANCHOR_TURNS = 4      # at most this many turns of the yaw anchor (diagnosis trials: see anchored)
+ANCHOR_CONVERGED = 2e-3   # rad: a turn this small leaves a linearisation error of ~1e-6 rad, no further turn
+
+
+def anchored(rig, poses, s, lo: float, hi: float):
+    """The poses with the yaw anchored by the moment balance over [lo, hi], as every fit's
+    replay (:func:`~rig_identification.estimation.yaw_anchor.anchor_yaw`) — and, where the
+    balance asks for a turn beyond :data:`ANCHOR_CONVERGED` (the anchor's one linearised step
+    then leaves ~1 mrad) or beyond its ``MAX_OFFSET`` (which it leaves alone), turned and
+    anchored again (at most :data:`ANCHOR_TURNS` turns).  A diagnosis trial of a data error can ask
+    for it: where the cable lengths leave the yaw free, the tracker's initial pose at rest
+    takes the yaw from the moment balance of the tensions, so a load cell's gain 0.4 % off
+    turned it by 35–80 mrad on a random 4-cable rig; the pipeline's anchor leaves a turn
+    beyond 50 mrad alone (not a tracker's starting error), and the trial's fit was then
+    wrecked (its likelihood ratio −10⁷ beside +1.8·10⁴ 0.2 % away), and a 35 mrad turn left
+    ~1 mrad, enough to move the fit's cost by thousands: the exact profile of the gain had
+    holes and steps that hid the right cell and value."""
+    for _ in range(ANCHOR_TURNS):
+        poses, a = anchor_yaw(rig, poses, s, lo, hi)
+        if not np.isfinite(a.offset):
+            break
+        if not a.applied:
+            poses = turned(rig, poses, a.offset)
+        if abs(a.offset) <= ANCHOR_CONVERGED:
+            break
+    return poses
+
+
+def turned(rig, track, psi: float):
+    """``track`` turned by ψ rad about the vertical through the centre of gravity (attitude
+    and the body origin's position; the CG's position and the velocities unchanged), as
+    :func:`~rig_identification.estimation.yaw_anchor.anchor_yaw` turns it."""
+    cg = rig.require_cg()
+    Rz = Rotation.from_rotvec([0.0, 0.0, psi])
+    R_all = Rotation.from_quat(track.quaternion)
+    cg_w = track.position + R_all.apply(cg)
+    R_new = Rz * R_all
+    return _replace(track, position=cg_w - R_new.apply(cg), quaternion=R_new.as_quat())
+
+
 def prepare_window(rec: Recording, settle: float = 5.0, warnings: list | None = None,
                    cables: str = "declared", imu_rot_yaml: np.ndarray | None = None) -> Window:
     """Clean the recording, track the pose and collect the :class:`Window` (the same
@@ -156,7 +197,7 @@ def prepare_window(rec: Recording, settle: float = 5.0, warnings: list | None = 
     lo = max([c.t[0] for c in s.load_cells.values()] + ([s.exciter.t[0]] if s.exciter is not None else []))
     hi = min([c.t[-1] for c in s.load_cells.values()] + ([s.exciter.t[-1]] if s.exciter is not None else []))
     lo = max(lo, s.t_start + min(settle, 0.1 * (s.t_end - s.t_start)))
-    poses, _ = anchor_yaw(rig, poses, s, lo, hi)   # as every fit's replay (pipeline.replay_window)
+    poses = anchored(rig, poses, s, lo, hi)
     m = (poses.t >= lo) & (poses.t <= hi)
     t = poses.t[m]
     R = Rotation.from_quat(poses.quaternion[m]).as_matrix()
@@ -386,26 +427,29 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
     nlin = k + (1 if free_kappa else 0)
     rows = 6 * n + 9
 
+    # the linear columns' parts that do not depend on the tensor, once (rows, nlin)
+    Jl0 = np.zeros((rows, nlin))
+    Jr0 = Jl0[:3 * n].reshape(n, 3, nlin)
+    for i, c in enumerate(cols):
+        if c.rot_O is not None:
+            Jr0[:, :, i] = c.rot_O * wr
+    Jl0[3 * n:6 * n] = (dTr * wa[None, :, None]).reshape(-1, k) if k else 0.0
+    Jd0 = Jl0[6 * n:]
+    Jd0[:3, :k] = dG / sg
+    Jd0[3:6, :k] = dA / sdc
+    Jd0[6:, :k] = dMm / sm
+    with_ID = [i for i, p in enumerate(prepared) if p["rot_ID"] is not None]
+
     def lin_jac(j, P):
         """Jacobian columns of the parameters the residual is linear in (β, κ): they
         depend on the tensor only, (rows, nlin)."""
-        Jl = np.zeros((rows, nlin))
+        Jl = Jl0.copy()
         Jr = Jl[:3 * n].reshape(n, 3, nlin)
-        for i, (c, p) in enumerate(zip(cols, prepared)):
-            if c.rot_O is not None:
-                Jr[:, :, i] += c.rot_O
-            if p["rot_ID"] is not None:
-                Jr[:, :, i] -= p["rot_ID"] @ P.T
+        for i in with_ID:
+            Jr[:, :, i] -= (prepared[i]["rot_ID"] @ P.T) * wr
         if free_kappa:
-            Jr[:, :, -1] = np.einsum("m,mni->ni", j, model.G) @ P.T
-        Jr *= wr[None, :, None]
-        Jl[3 * n:6 * n] = (dTr * wa[None, :, None]).reshape(-1, k) if k else 0.0
-        Jd = Jl[6 * n:]
-        Jd[:3, :k] = dG / sg
-        Jd[3:6, :k] = dA / sdc
-        Jd[6:, :k] = dMm / sm
-        if free_kappa:
-            Jd[6:, -1] = -(j @ model.dcm_G) / sm
+            Jr[:, :, -1] = (np.einsum("m,mni->ni", j, model.G) @ P.T) * wr
+            Jl[6 * n + 6:, -1] = -(j @ model.dcm_G) / sm
         return Jl
 
     def tensor_jac(dj, kappa, P, yhat):
@@ -429,8 +473,12 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
     cache = {}
 
     def full(th):
-        """(x, residual, tensor Jacobian, orthonormal basis U of the linear columns) at the
-        tensor parameters th, with the linear parameters solved."""
+        """(x, residual, tensor Jacobian, projector basis of the linear columns) at the
+        tensor parameters th, with the linear parameters solved.  The basis is (A, G⁺) with
+        G = AᵀA of the unit-norm columns A (their Gram matrix; its pseudo-inverse drops the
+        directions below :data:`GRAM_RCOND` of the largest singular value): the projection
+        A G⁺ Aᵀ costs O(rows × columns) instead of an SVD's basis of the rows (the fit's
+        hot spot: a 30-column bias drift over 17 000 samples)."""
         key = th.tobytes()
         if key not in cache:
             x, U = np.r_[th, np.zeros(nlin)], None
@@ -438,10 +486,14 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
             if nlin:
                 P = np.linalg.inv(to_tensor(j))
                 A = lin_jac(j, P)
-                Ua, sv, Vt = np.linalg.svd(A, full_matrices=False)
-                keep = sv > sv[0] * max(A.shape) * np.finfo(float).eps if sv[0] > 0 else np.zeros(len(sv), bool)
-                U = Ua[:, keep]
-                b = -(Vt[keep].T @ ((U.T @ fun(x)) / sv[keep]))
+                norm = np.linalg.norm(A, axis=0)
+                norm = np.where(norm > 0, norm, 1.0)
+                As = A / norm
+                lam, V = np.linalg.eigh(As.T @ As)
+                keep = lam > max(lam[-1], 0.0) * GRAM_RCOND ** 2 if lam[-1] > 0 else np.zeros(len(lam), bool)
+                Ginv = (V[:, keep] / lam[keep]) @ V[:, keep].T
+                U = (As, Ginv)
+                b = -(Ginv @ (As.T @ fun(x))) / norm
                 x = np.r_[th, b]
             _, _, beta, kappa = unpack(x)
             r, a, dg, da, dm, P, yhat, _ = model.residuals(j, kappa, beta, cols, prepared)
@@ -455,7 +507,10 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
 
     def jac_vp(th):
         _, _, Jt, U = full(th)
-        return Jt if U is None else Jt - U @ (U.T @ Jt)
+        if U is None:
+            return Jt
+        As, Ginv = U
+        return Jt - As @ (Ginv @ (As.T @ Jt))
 
     th0 = params_from_consistent(to_tensor(j0))
     sol = least_squares(fun_vp, th0, jac=jac_vp, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10,

@@ -48,8 +48,8 @@ re-tracked, the model refitted, Broyden iterations on the first-order remainder 
 selected one is iterated to convergence.  A load cell's gain (one candidate per cable)
 moves the tracker's static pose (it balances forces and moments with the tensions) so
 much that its first-order column points the wrong way: every significant one is
-evaluated exactly at ±:data:`GAIN_STEP` (:func:`_exact_screen`), and the selected one is
-found by its exact profile likelihood (:func:`_exact_profile`).  So is ``cable_mass``,
+evaluated exactly at ±:data:`GAIN_STEP` (:func:`exact_screen`), and the selected one is
+found by its exact profile likelihood (:func:`exact_profile`).  So is ``cable_mass``,
 always: the lower half of each cable (μ kg) hangs on its body anchor, outside the load
 cell at the ceiling, so the body the tensions move is heavier, its centre of gravity
 higher and its tensor larger than rig.yaml's (:func:`corrected` gives the rig that body;
@@ -88,36 +88,47 @@ ratio and information criteria for model structure selection).
 from __future__ import annotations
 
 import math
+from collections import OrderedDict
 from dataclasses import dataclass, field
 from dataclasses import replace as _replace
+from itertools import combinations
 
 import numpy as np
 from scipy.stats import chi2
 
 from .candidates import CORRECTIONS, body_inertia, candidates, corrected, with_stiffness
+from .exact import (MASSES, PROFILED, columns_of, exact_iterate, exact_profile, exact_screen, likelihood_ratio,
+                    log_sf, mass_builder, residual_scales, weight_surplus)
 from ..model.effects import EFFECT_NAMES
 from ..estimation.identification import IdentificationError, identify_inertia
 from ..io.verdict import KEYS
 from ..model.parametrisation import from_tensor
-from .model_extension import Fit, Model, Window, fit_model, prepare_window
+from .model_extension import Model, Window, fit_model, prepare_window
+from .plausible import implausible
 from ..io.recording import Recording, RecordingError
 from .residuals import (channel_residuals, effective_samples, exciter_phase, locate, rms, synchronous,
-                                synchronous_rms)
+                        synchronous_rms)
+from .retracked import DRIFT_STEP, SCALE_STEP, knots
+from .retracked import columns as retracked_columns
+from .structural import SENSORS as MODE_SENSORS
+from .structural import fit_mode, gain_std, out_of_band, transfer
 
 ALPHA = 0.01          # family-wise false-alarm probability of the selection
 MIN_REDUCTION = 0.05  # an effect must reduce some channel's residual RMS by at least this fraction
 MAX_EFFECTS = 3
-EXACT_SCREEN = 3      # sensor/rig-error candidates evaluated exactly (re-tracked) per selection step
+EXACT_SCREEN = 4      # sensor/rig-error candidates evaluated exactly (re-tracked) per screening
+POOL = 5              # the most significant screened candidates searched jointly
+TRIPLES_FROM = 4      # triples among the first this many of the pool
+MASKED = 2            # candidates significant only given the best combination, fitted with it
+ALTERNATIVES = 3      # admissible combinations reported (and validated by the caller), the best first
+EXCLUSIVE = ({"gyro_bias", "gyro_bias_drift"},)
+"""Effects of which one contains the other (a constant bias is a drift with equal knots):
+never fitted together."""
 REWEIGHT_ITER = 2     # reweighting iterations of the final fit (per-axis residual scales)
-GAIN_STEP = 0.02      # load-cell gain steps of the exact screening (relative)
-CABLE_MASS_STEP = 2e-3  # cables' mass steps of the exact screening: body anchors' share of the body's mass
-MASSES = ("cable_mass", "body_mass")
-"""Errors of the mass the tensions move: they change no tension (their trials keep the steel stretch)."""
-PROFILED = ("load_cell_scale",) + MASSES
-"""One-parameter errors placed by their exact profile likelihood (:func:`_exact_profile`)."""
 WEIGHT_SURPLUS_SIGMA = 3.0   # the masses are evaluated exactly when the cells carry this many σ more (or less) than the weight
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
 PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
+WINDOW_CACHE = 8      # re-tracked windows kept (by their corrections): the joint search re-uses them
 STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml stiffness are not "steel-like"
 
 
@@ -177,6 +188,16 @@ class Diagnosis:
     # cables' mass included), and the cables' stiffness (n,) N/m when their elasticity was found
     applied: dict = field(default_factory=dict)
     stiffness: np.ndarray | None = None
+    # the admissible combinations, best (smallest BIC) first, the first being the fields above:
+    # {"effects", "applied", "effect_wrench", "stiffness", "inertia", "covariance",
+    #  "likelihood_ratio", "dof", "bic"}; the caller validates them in that order
+    alternatives: list = field(default_factory=list)
+    # every combination fitted: {"effects": [(name, label)], "likelihood_ratio", "dof", "bic",
+    # "admissible", "why"}, by BIC
+    joint: list = field(default_factory=list)
+    # where the accelerometer departs from Newton's prediction from the load cells above the
+    # fit band (:func:`~rig_identification.diagnosis.structural.out_of_band`)
+    out_of_band: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         ent = lambda J: {k: float(x) for k, x in zip(KEYS, from_tensor(J))}  # noqa: E731
@@ -190,245 +211,11 @@ class Diagnosis:
                 "warnings": self.warnings,
                 "residual_rms_synchronous_before": self.rms_sync_before,
                 "residual_rms_synchronous_after": self.rms_sync_after,
-                "synchronous_revolutions": self.revolutions}
-
-
-PLAUSIBLE = {
-    "viscous_damping": {"angular": (0.0, np.inf), "linear": (0.0, np.inf)},
-    "air_drag": {"angular": (0.0, np.inf), "linear": (0.0, np.inf)},
-    "coulomb_friction": {"torque": (0.0, np.inf), "force": (0.0, np.inf)},
-    "sensor_delay": {"delay": (-0.1, 0.1)},
-    "load_cell_scale": {"scale": (0.8, 1.25)},
-    "gyro_bias": {"bias": (-0.05, 0.05)},
-    "gyro_scale": {"scale": (0.9, 1.1)},
-    "accelerometer_bias": {"bias": (-0.5, 0.5)},
-    "imu_misalignment": {"rpy": (-0.1, 0.1)},
-    "imu_offset": {"offset": (-1.0, 1.0)},
-    "cable_elasticity": {"stiffness": (1e4, 1e9)},
-    "gyroscopic_coupling": {"scale": (0.5, 1.5)},
-}
-"""The range (SI) each effect's parameters must fall in to be named: a fit that needs a
-dissipation of the wrong sign, a sensor delay of a tenth of a second or an IMU a metre from
-where rig.yaml puts it has found a stand-in for other physics, not the effect.  Besides:
-``cable_mass`` between 0 and 5 % of the body's mass per cable, ``body_mass`` within 10 %
-of rig.yaml's, the exciter's rotor ``unbalance`` within 0.3–3× the mass that makes the
-measured force (F / (2π f)²), and a dissipative effect's moment at most
-:data:`MAX_EFFECT_SHARE` of the measured moment (RMS in the band: a rig's damping is small)."""
-MAX_EFFECT_SHARE = 0.3
-
-
-def implausible(entry: dict, rig, effect_share: float | None = None, unbalance: float | None = None) -> str | None:
-    """Why the effect ``entry`` (of :attr:`Diagnosis.effects`) cannot be the physics in the
-    recording (see :data:`PLAUSIBLE`), or None when it is plausible.  effect_share: the RMS
-    of its moment over the measured moment's; unbalance: kg·m that makes the measured
-    exciter force."""
-    name, par = entry["name"], entry["parameters"]
-    for k, (lo, hi) in PLAUSIBLE.get(name, {}).items():
-        v = np.atleast_1d(np.asarray(par.get(k, 0.0), float))
-        if np.any(v < lo) or np.any(v > hi):
-            return f"{k} = {fmt_value(par.get(k))} outside {lo:g}…{hi:g}"
-    if name == "cable_mass" and not 0.0 <= par.get("mass", 0.0) <= 0.05 * rig.mass:
-        return f"mass {par['mass']:.3g} kg per cable outside 0…{0.05 * rig.mass:.3g} kg"
-    if name == "body_mass" and abs(par.get("mass_error", 0.0)) > 0.1 * rig.mass:
-        return f"mass error {par['mass_error']:.3g} kg beyond 10 % of rig.yaml's {rig.mass:.6g} kg"
-    if name == "exciter_rotor" and unbalance:
-        u = par.get("unbalance", 0.0)
-        if not 0.3 * unbalance <= u <= 3.0 * unbalance:
-            return f"unbalance {u:.3g} kg·m outside 0.3–3× the {unbalance:.3g} kg·m that makes the measured force"
-    if name in ("viscous_damping", "air_drag", "coulomb_friction") and effect_share is not None \
-            and effect_share > MAX_EFFECT_SHARE:
-        return f"its moment is {100 * effect_share:.0f} % of the measured moment (at most {100 * MAX_EFFECT_SHARE:.0f} %)"
-    return None
-
-
-
-def fmt_value(v) -> str:
-    """A parameter value of an effect's JSON as text (numbers to 4 digits; lists, dicts)."""
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{k}: {fmt_value(x)}" for k, x in v.items()) + "}"
-    if isinstance(v, (list, tuple, np.ndarray)):
-        return "[" + ", ".join(fmt_value(x) for x in v) + "]"
-    if isinstance(v, (float, np.floating)):
-        return f"{v:.4g}"
-    return str(v)
-
-
-
-def _lr(cost0: dict, cost1: dict, model: Model) -> float:
-    lam = 0.0
-    for g in ("rot", "tr"):
-        # costs are in units of the baseline scales over n·3 samples; per-group likelihood
-        # ratio with the group's effective number of independent samples
-        if cost0[g] > 0 and cost1[g] > 0:
-            lam += model.n_eff_group.get(g, model.n_eff) * 3 * np.log(cost0[g] / cost1[g])
-    lam += sum(cost0[k] - cost1[k] for k in ("dcg", "dca", "dcm", "dcw"))
-    return float(lam)
-
-
-def _scales(M: Model, f0: Fit) -> tuple:
-    """The residual scales of the fit ``f0`` (the baseline's during the selection): per
-    axis (3,) for the rotational and translational groups, scalars for the mean levels."""
-    return (np.sqrt(np.mean(f0.rot**2, 0)), np.sqrt(np.mean(f0.tr**2, 0)),
-            float(np.mean(M.sigma_dcg)), float(np.mean(M.sigma_dca)), float(M.sigma_dcm))
-
-
-def _columns(cands: list, keys: list) -> list:
-    by = {c.key: c for c in cands}
-    return [col for k in keys if k in by for col in by[k].columns]
-
-
-def _exact_iterate(key, state: dict, build, keys: list, fit: Fit, n_iter: int, kappa0: float,
-                  free_kappa: bool, scales) -> tuple:
-    """Remove a selected sensor or rig error from the data and re-track, iterating its
-    value x so that the first-order column's fitted remainder β(x) vanishes: Broyden's
-    method (quasi-Newton; the starting Jacobian dβ/dx = −I is the first-order model, the
-    tracker's response updates it).  Returns (applied, w, M, cands, fit)."""
-    applied = dict(state["applied"])
-    beta = _beta_of(fit, None, keys, key, state)
-    x = np.zeros(len(beta)) + np.asarray(applied.get(key, 0.0), float)
-    B = -np.eye(len(x))
-    cands = None
-    w = M = None
-    for it in range(n_iter):
-        dx = -np.linalg.solve(B, beta)
-        x_new = x + dx
-        applied[key] = float(x_new[0]) if len(x_new) == 1 else x_new.copy()
-        w, M, cands = build(applied, state["elastic"])
-        fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, from_tensor(fit.J))
-        beta_new = _beta_of(fit, cands, keys, key, state)
-        dbeta = beta_new - beta
-        B = B + np.outer(dbeta - B @ dx, dx) / max(float(dx @ dx), 1e-300)
-        x, beta = x_new, beta_new
-        k0 = len(_columns(cands, keys[:keys.index(key)]))
-        n = len(beta)
-        std = np.sqrt(np.clip(np.diag(fit.cov)[6 + k0:6 + k0 + n], 0, None))
-        if np.all(np.abs(beta) <= 0.1 * std):
-            break
-    return applied, w, M, cands, fit
-
-
-def _beta_of(fit: Fit, cands, keys: list, key, state) -> np.ndarray:
-    """The fitted values of the columns of ``key`` in ``fit`` (columns ordered by ``keys``)."""
-    by = {c.key: c for c in (cands if cands is not None else state["cands"])}
-    k0 = sum(len(by[k].columns) for k in keys[:keys.index(key)] if k in by)
-    return np.asarray(fit.beta[k0:k0 + len(by[key].columns)], float)
-
-
-def _profile_steps(key, w: Window) -> tuple:
-    """(screening step, lower bound, curvature step) of the exact one-parameter evaluation
-    of ``key``: a load cell's gain error (relative) :data:`GAIN_STEP`, unbounded; the
-    half-cable mass per body anchor (kg) :data:`CABLE_MASS_STEP` of the body's mass shared
-    by the anchors, at least 0; the body's mass error (kg) that share of the body's mass,
-    unbounded."""
-    if key[0] == "cable_mass":
-        h = CABLE_MASS_STEP * w.mass / len(w.cable_names)
-        return h, 0.0, 0.1 * h
-    if key[0] == "body_mass":
-        h = CABLE_MASS_STEP * w.mass
-        return h, -np.inf, 0.1 * h
-    return GAIN_STEP, -np.inf, 2e-3
-
-
-def _builder(build, key):
-    """The re-track of ``key``'s trial values: a mass (the cables', the body's) changes no
-    tension, so its trials keep the steel stretch fitted last (one tracker pass, not two); a gain or a
-    delay changes what the stretch is fitted to, so theirs fit it again."""
-    if key[0] not in MASSES:
-        return build
-    return lambda applied, elastic, profiled=None: build(applied, elastic, profiled, keep_stretch=True)
-
-
-def _weight_surplus(M: Model, fit: Fit) -> float:
-    """How much more than the body's weight the load cells carry, in σ of the mean level:
-    the mean cable and exciter force / mass minus the mean specific force, along gravity
-    (body axes) — what the cables' mass does (each cable's lower half hangs on the body,
-    outside its load cell), or a body heavier than rig.yaml says; beyond
-    :data:`WEIGHT_SURPLUS_SIGMA` they are worth an exact evaluation.  ``fit.dca`` is the
-    mean measured minus modelled specific force."""
-    g_hat = -M.w.g_body.mean(0)
-    g_hat = g_hat / np.linalg.norm(g_hat)
-    return -float(fit.dca @ g_hat) / float(np.mean(M.sigma_dca))
-
-
-def _exact_screen(e: dict, state: dict, build, keys: list, cost_ref: dict, rms_ref: dict, kappa0: float,
-                  free_kappa: bool, scales, j0: np.ndarray, w: Window) -> None:
-    """Exact evidence of a one-parameter rig or data error (a load cell's gain, the cables'
-    or the body's mass; screening entry ``e``, updated in place): the error applied at two trial values
-    about its current one (±h, or +h and +2h at its lower bound; :func:`_profile_steps`),
-    the pose re-tracked and the model refitted; the likelihood ratio against ``cost_ref``
-    through those two points and the current fit (Λ = 0) is a parabola, whose maximum (at
-    most 3h away) is the evidence and the starting point of :func:`_exact_profile`."""
-    key = e["c"].key
-    h, lower, _ = _profile_steps(key, w)
-    x0 = float(state["applied"].get(key, 0.0))
-    offsets = (-h, h) if x0 - h >= lower else (h, 2 * h)
-    lams, fits = [], []
-    for d in offsets:
-        w1, M, cands = build({**state["applied"], key: x0 + d}, state["elastic"])
-        fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, j0)
-        lams.append(_lr(cost_ref, fit.cost(scales), M))
-        fits.append((fit, M))
-    (p1, p2), (l1, l2) = offsets, lams
-    A = (l2 / p2 - l1 / p1) / (p2 - p1)       # Λ(d) = A d² + B d through (0, 0), (p1, l1), (p2, l2)
-    B = l1 / p1 - A * p1
-    best = int(l2 >= l1)
-    if A < 0:
-        d = float(np.clip(-B / (2 * A), max(-3 * h, lower - x0), 3 * h))
-        lam = A * d * d + B * d
-    else:
-        d, lam = offsets[best], max(lams)
-    fit, M = fits[best]
-    rms1 = rms(channel_residuals(M, fit))
-    e.update(lam=float(lam), fit=fit, red={k: 1 - rms1[k] / rms_ref[k] for k in rms1 if rms_ref[k] > 0},
-             exact_state=({**state["applied"], key: x0 + d}, None, None, None))
-
-
-def _exact_profile(key, state: dict, build, keys: list, cost_ref: dict, kappa0: float, free_kappa: bool, scales,
-                   j0: np.ndarray, w: Window) -> tuple:
-    """The exact profile likelihood of a one-parameter rig or data error (a load cell's
-    gain, the cables' or the body's mass): the error applied at trial values x (:func:`corrected`), the
-    pose re-tracked and the model (without the error's first-order column) refitted; x
-    maximises the likelihood ratio against ``cost_ref`` (scipy ``minimize_scalar``,
-    bounded, ± a screening step about the current value and above the lower bound of
-    :func:`_profile_steps`, to 1 % of a step), σ from its curvature (Λ(x) ≈ Λ̂ − (x − x̂)²/σ²).
-    They move the tracker's static pose, so the first-order column's zero
-    (:func:`_exact_iterate`) is not the optimum.  Returns (applied, w, M, cands, fit, σ)."""
-    from scipy.optimize import minimize_scalar
-    others = [k for k in keys if k != key]
-    prof = {**state.get("profiled", {}), key: np.nan}
-    memo = {}
-
-    def evaluate(x):
-        x = float(x)
-        if x not in memo:
-            applied = {**state["applied"], key: x}
-            w, M, cands = build(applied, state["elastic"], prof)
-            fit = fit_model(M, _columns(cands, others), kappa0, free_kappa, scales, j0)
-            memo[x] = (_lr(cost_ref, fit.cost(scales), M), (applied, w, M, cands, fit))
-        return memo[x]
-
-    step, lower, h = _profile_steps(key, w)
-    x0 = float(state["applied"].get(key, 0.0))
-    sol = minimize_scalar(lambda x: -evaluate(x)[0], bounds=(max(lower, x0 - step), x0 + step),
-                          method="bounded", options={"xatol": 0.01 * step})
-    xh = max(float(sol.x), lower + h)
-    curv = 2 * evaluate(xh)[0] - evaluate(xh + h)[0] - evaluate(xh - h)[0]
-    sd = float(np.sqrt(2 * h * h / curv)) if curv > 0 else float("nan")
-    prof[key] = sd
-    state["profiled"] = prof
-    applied, w, M, cands, fit = evaluate(xh)[1]
-    return applied, w, M, cands, fit, sd
-
-
-def log_sf(x: float, dof: int) -> float:
-    """ln P(χ²_dof > x), finite however large x: scipy's ``chi2.logsf``, and where that
-    underflows its asymptotic form −x/2 + (dof/2 − 1) ln(x/2) − ln Γ(dof/2) (the upper
-    incomplete gamma function's leading term; Abramowitz & Stegun 6.5.32)."""
-    x = max(float(x), 0.0)
-    v = float(chi2.logsf(x, dof))
-    if np.isfinite(v):
-        return v
-    return -x / 2 + (dof / 2 - 1) * math.log(x / 2) - math.lgamma(dof / 2)
+                "synchronous_revolutions": self.revolutions,
+                "alternatives": [{"effects": [e["name"] for e in a["effects"]], "likelihood_ratio": a["likelihood_ratio"],
+                                  "dof": a["dof"], "bic": a["bic"]} for a in self.alternatives],
+                "combinations": [{**j, "effects": [f"{n} {lab}".strip() for n, lab in j["effects"]]} for j in self.joint],
+                "out_of_band": self.out_of_band}
 
 
 def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS, alpha: float = ALPHA,
@@ -437,9 +224,14 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
 
     model: ``"pem"`` (ours, with the gyroscopic term) or ``"thesis"`` (the thesis's model:
     no ω × Jω).  The baseline is the rig.yaml taken literally: cables without a stiffness
-    are inextensible.  Sensor and rig errors (delays, gains, biases, IMU pose, cable
-    elasticity), once selected, are removed from the data and the pose re-tracked
-    (:func:`corrected`), iterating the first-order estimate to convergence.
+    are inextensible.  Every candidate is screened alone against it; the most significant
+    (:data:`POOL`) are then fitted together in every combination of up to ``max_effects``
+    (triples among the first :data:`TRIPLES_FROM`), sensor and rig errors removed from the
+    data and the pose re-tracked (:func:`corrected`) jointly, and the admissible
+    combinations (every member significant given the others, and practical) are ranked by
+    the Bayesian information criterion.  The best is :attr:`Diagnosis.effects`; it and
+    the next ones are :attr:`Diagnosis.alternatives`, which the caller validates
+    (:func:`~rig_identification.pipeline.offline.with_diagnosis`).
     Returns a :class:`Diagnosis`.  Raises RecordingError, RigError, TrackerError,
     IdentificationError for recordings no fit can be made of.
     """
@@ -448,20 +240,35 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     warnings: list[str] = []
     kappa0 = 1.0 if model == "pem" else 0.0
     R_yaml = rec.rig.imu.rotation.as_matrix()
-    state = {"applied": {}, "elastic": False, "band": band_hz, "candidate": True}
+    state = {"applied": {}, "elastic": False, "band": band_hz, "candidate": True, "retracked": {}}
     declared = np.isfinite(rec.rig.cable_stiffness).all()
 
-    def build(applied, elastic, profiled=None, keep_stretch=False):
+    windows: OrderedDict = OrderedDict()   # the last WINDOW_CACHE windows, by their corrections
+
+    def window_of(applied, elastic=False, keep_stretch=False):
         mode = "fitted" if elastic else ("declared" if declared else "rigid")
         # keep_stretch: the steel stretch fitted last is kept (one tracker pass, not two)
-        src = with_stiffness(rec, state["steel"]) if keep_stretch and "steel" in state else rec
+        steel = keep_stretch and "steel" in state
+        key = (mode, _applied_key(applied), _array_key(state["steel"]) if steel else None)
+        if key in windows:
+            windows.move_to_end(key)
+            return windows[key]
+        src = with_stiffness(rec, state["steel"]) if steel else rec
         w = prepare_window(corrected(src, applied), warnings=[] if state["band"] else warnings,
                            cables=mode, imu_rot_yaml=R_yaml)
+        windows[key] = w
+        if len(windows) > WINDOW_CACHE:
+            windows.popitem(last=False)
+        return w
+
+    def build(applied, elastic, profiled=None, keep_stretch=False):
+        w = window_of(applied, elastic, keep_stretch)
         M = Model(w, state["band"])
         M.n_eff_group = state.get("n_eff_group", {})
         state["band"] = M.band
         return w, M, candidates(w, M, kappa0, applied, allow_elasticity=state["candidate"] and not elastic,
-                                profiled=state.get("profiled") if profiled is None else profiled)
+                                profiled=state.get("profiled") if profiled is None else profiled,
+                                retracked=state["retracked"])
 
     if not declared:
         # rig.yaml gives no stiffness: steel cables stretch 1-2 mm, which the baseline fits
@@ -474,7 +281,6 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
             state["candidate"] = False
             declared = True          # the fitted stiffness is the baseline's
             state["steel"] = k       # the last fitted (N/m per cable)
-            cands = candidates(w, M, kappa0, {}, allow_elasticity=False)
         else:
             warnings.append(f"the cables stretch {1e3 * stretch:.1f} mm under the static load (fitted stiffness "
                             f"{np.median(k):.3g} N/m), more than steel cables' 1-2 mm: cable elasticity is tested "
@@ -484,184 +290,449 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         w, M, cands = build({}, False)
     band = M.band
     j0 = from_tensor(identify_inertia(rec.rig, w.t, w.omega, w.torque, band_hz=band).inertia)
-    scales = _scales(M, fit_model(M, [], kappa0, False, (1.0, 1.0, 1.0, 1.0, 1e9), j0))
+    scales = residual_scales(M, fit_model(M, [], kappa0, False, (1.0, 1.0, 1.0, 1.0, 1e9), j0))
     base = fit_model(M, [], kappa0, False, scales, j0)
     state["n_eff_group"] = M.n_eff_group = {"rot": min(M.n_eff, effective_samples(base.rot)),
                                             "tr": min(M.n_eff, effective_samples(base.tr))}
     M0, ch0 = M, channel_residuals(M, base)
     rms0 = rms(ch0)
-    threshold_p = alpha / max(1, len(cands))
-    keys: list = []
-    entries: list = []
-    free_kappa = False
-    cur_fit = base
-    tried = []
-    elastic_cache = None
+    extra_lam = _retracked(state, window_of, w, M, warnings)
+    cands = candidates(w, M, kappa0, state["applied"], allow_elasticity=state["candidate"],
+                       profiled=state.get("profiled"), retracked=state["retracked"])
+    # the bias drift counts in the family of candidates whether or not its gate opens
+    threshold_p = alpha / max(1, len(cands) + 1)
+    cost0 = base.cost(scales)
+    n_ic = 3 * sum(M.n_eff_group.values()) + 10     # independent residuals: the two groups' and the mean levels
     state["cands"] = cands
-    for step in range(1, max_effects + 1):
-        cost_cur = cur_fit.cost(scales)
-        rms_cur = rms(channel_residuals(M, cur_fit))
-        base_cols = _columns(cands, keys)
-        screened = []
-        for c in cands:
-            if c.key in keys:
+    tried: list = []
+    ctx = {"w": w, "M": M, "cands": cands, "fit": base, "applied": dict(state["applied"]), "keys": [],
+           "elastic": False, "free_kappa": False, "rms": rms0, "cost": cost0}
+    screened = _screen(ctx, state, build, kappa0, scales, threshold_p, extra_lam, tried, warnings, step=1)
+    # the gyro's bias drift (3K columns, 3K re-tracks: the costliest candidate) only where a
+    # constant gyro bias is significant: a drift the constant cannot stand in for at all
+    # (zero mean over the window on every axis) is not looked for
+    bias = next((e for e in screened if e["c"].name == "gyro_bias"), None)
+    if (bias is not None and chi2.sf(max(bias["lam_first"], 0.0), bias["dof"]) < threshold_p
+            and _drift_columns(state, window_of, w, M, warnings)):
+        cands = candidates(w, M, kappa0, state["applied"], allow_elasticity=state["candidate"],
+                           profiled=state.get("profiled"), retracked=state["retracked"])
+        state["cands"] = cands
+        ctx_d = {**ctx, "cands": [c for c in cands if c.name == "gyro_bias_drift"], "applied": dict(state["applied"])}
+        screened += _screen(ctx_d, state, build, kappa0, scales, threshold_p, extra_lam, tried, warnings, step=1)
+    pool = _pool(screened, threshold_p)
+    evals: dict = {}
+
+    def joint(members) -> dict:
+        key = frozenset(m["c"].key for m in members)
+        if key not in evals:
+            evals[key] = _joint(members, state, build, kappa0, scales, cost0, j0, extra_lam, n_ic, warnings)
+        return evals[key]
+
+    size = min(max_effects, 3)
+    subsets = [(m,) for m in pool]
+    subsets += [s for s in combinations(pool, 2) if size >= 2]
+    subsets += [s for s in combinations(pool[:TRIPLES_FROM], 3) if size >= 3]
+    for s in subsets:
+        if _exclusive(s):
+            continue
+        joint(s)
+    # a bias drift is named only when it explains more than a constant bias would in its place
+    constant = next((e for e in screened if e["c"].name == "gyro_bias"), None)
+
+    def nested():
+        for ev in list(evals.values()):
+            if constant is not None and any(m["c"].name == "gyro_bias_drift" for m in ev["members"]):
+                joint(tuple(constant if m["c"].name == "gyro_bias_drift" else m for m in ev["members"]))
+
+    nested()
+    ranked = _admissible(evals, threshold_p, rms0)
+    # a candidate masked by the best combination's effects (significant only with them in the
+    # model): one more screening given that combination, its new significant candidates fitted
+    # with it
+    if ranked and len(ranked[0]["members"]) < size:
+        best = ranked[0]
+        bw, bM, bc = build(best["applied"], best["elastic"], best["profiled"], best["keep_stretch"])
+        ctx = {"w": bw, "M": bM, "cands": bc, "fit": best["fit"], "applied": best["applied"], "keys": best["keys"],
+               "elastic": best["elastic"], "free_kappa": best["free_kappa"], "rms": best["rms"],
+               "cost": best["fit"].cost(scales), "profiled": best["profiled"]}
+        more = [e for e in _pool(_screen(ctx, state, build, kappa0, scales, threshold_p, extra_lam, tried, warnings,
+                                         step=2), threshold_p) if e["c"].key not in best["keys"]][:MASKED]
+        for e in more:
+            s = tuple(best["members"]) + (e,)
+            if not _exclusive(s):
+                joint(s)
+                for m in best["members"]:
+                    joint(tuple(x for x in s if x is not m))
+        nested()
+        ranked = _admissible(evals, threshold_p, rms0)
+    joints = [{"effects": [(m["c"].name, m["c"].label) for m in ev["members"]], "likelihood_ratio": ev["lam"],
+               "dof": ev["dof"], "bic": ev["bic"], "admissible": ev.get("admissible", False),
+               **({"why": ev["why"]} if ev.get("why") else {})} for ev in sorted(evals.values(), key=lambda e: e["bic"])]
+    alternatives = []
+    # the best combination's admissible proper subsets too (the caller names the smallest one
+    # that passes validation: an effect is named only when the model fails without it)
+    shown = ranked[:ALTERNATIVES]
+    if ranked and len(ranked[0]["members"]) > 1:
+        shown += [ev for ev in ranked[ALTERNATIVES:] if set(ev["keys"]) < set(ranked[0]["keys"])]
+    for ev in shown:
+        try:
+            alternatives.append(_report(ev, evals, rec, state, build, kappa0, scales, cost0, threshold_p, j0,
+                                        warnings))
+        except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
+            warnings.append(f"combination {', '.join(m['c'].name for m in ev['members'])}: its report failed ({err})")
+    located = locate(M0, base, rec.rig, base.J)
+    std_of = lambda f: np.sqrt(np.clip(np.diag(f.cov)[:6], 0, None))  # noqa: E731
+    if alternatives:
+        a = alternatives[0]
+        fit1, M1, w1, ch1 = a.pop("fit"), a.pop("model"), a.pop("window"), a.pop("channels")
+        for b in alternatives[1:]:
+            for k in ("fit", "model", "window", "channels"):
+                b.pop(k)
+    else:
+        a = {"effects": [], "applied": {}, "effect_wrench": None, "stiffness": None, "inertia": base.J}
+        fit1, M1, w1, ch1 = base, M0, w, ch0
+    (sync0, revs), (sync1, _) = synchronous(M0, ch0), synchronous(M1, ch1)
+    return Diagnosis(bool(a["effects"]), a["effects"], located, rms0, rms(ch1), base.J, a["inertia"],
+                     std_of(base), std_of(fit1), tried, band, model, warnings + list(rec.warnings),
+                     series={"t": w1.t - w1.t[0], "fs": M1.fs, "before": ch0, "after": ch1},
+                     covariance_after=np.array(fit1.cov[:6, :6]),
+                     corrections={k: v for k, v in a["applied"].items() if k[0] in CORRECTIONS},
+                     rms_sync_before=sync0, rms_sync_after=sync1, revolutions=revs,
+                     effect_wrench=a["effect_wrench"], applied=dict(a["applied"]), stiffness=a["stiffness"],
+                     alternatives=alternatives, joint=joints, out_of_band=state.get("out_of_band", []))
+
+
+def _drift_columns(state: dict, window_of, w: Window, M: Model, warnings: list) -> bool:
+    """The first-order columns of the gyro's bias drift (one per axis and knot, by finite
+    differences of re-tracked windows: :mod:`~rig_identification.diagnosis.retracked`) into
+    ``state["retracked"]["drift"]``, its knots into ``state["applied"]``.  Returns whether
+    they could be made."""
+    applied = state["applied"]
+    try:
+        ref = window_of(applied, False, True)
+        kn = knots(w.t[0], w.t[-1])
+        n = 3 * len(kn)
+        trials = []
+        for a in range(3):
+            for k in range(len(kn)):
+                c = np.zeros(n)
+                c[a * len(kn) + k] = DRIFT_STEP
+                trials.append((f"bias_{'xyz'[a]}_{k}", {**applied, ("gyro_bias_drift", "knots"): kn,
+                                                         ("gyro_bias_drift", ""): c}, DRIFT_STEP))
+        state["retracked"]["drift"] = (retracked_columns(lambda ap: window_of(ap, False, True), ref, M, trials), kn)
+        applied[("gyro_bias_drift", "knots")] = kn
+        return True
+    except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
+        warnings.append(f"the gyro's bias drift could not be re-tracked ({err}); it is not tried")
+        state["retracked"].pop("drift", None)
+        return False
+
+
+def _array_key(x) -> tuple:
+    """A hashable, exact key of a correction's value (a number, an array or a tuple of them)."""
+    if isinstance(x, tuple):
+        return tuple(_array_key(v) for v in x)
+    a = np.asarray(x, float)
+    return (a.shape, a.tobytes())
+
+
+def _applied_key(applied: dict) -> tuple:
+    """A hashable, exact key of the corrections ``applied`` (key -> value): equal keys, equal
+    corrected recordings (:func:`corrected`), so equal re-tracked windows."""
+    return tuple(sorted((k, _array_key(v)) for k, v in applied.items()))
+
+
+def _retracked(state: dict, window_of, w: Window, M: Model, warnings: list) -> dict:
+    """The first-order columns of the gyro's bias drift and scale factors, by finite
+    differences of re-tracked windows (:mod:`~rig_identification.diagnosis.retracked`), and
+    the structural modes the transfer above the band shows
+    (:mod:`~rig_identification.diagnosis.structural`), into ``state["retracked"]``; the
+    drift's knots and the modes' shapes into ``state["applied"]`` (inert until their value
+    is set).  Returns the modes' out-of-band likelihood ratios (key -> Λ), evidence beyond
+    the fit band's."""
+    applied = state["applied"]
+    extra = {}
+    try:
+        ref = window_of(applied, False, True)
+        trials = [(f"scale_{'xyz'[a]}", {**applied, ("gyro_scale", ""): SCALE_STEP * np.eye(3)[a]}, SCALE_STEP)
+                  for a in range(3)]
+        state["retracked"]["scale"] = retracked_columns(lambda ap: window_of(ap, False, True), ref, M, trials)
+    except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
+        warnings.append(f"the gyro's scale could not be re-tracked ({err}); it is not tried")
+        state["retracked"].pop("scale", None)
+    tr = transfer(w, M)
+    state["out_of_band"] = out_of_band(tr)
+    for sensor in MODE_SENSORS:
+        fit = fit_mode(tr, sensor, M.fs)
+        if fit is None:
+            continue
+        state["retracked"].setdefault("modes", {})[sensor] = fit
+        applied[("structural_mode", sensor + " shape")] = (fit.frequency, fit.damping_ratio)
+        state.setdefault("fixed", {})[("structural_mode", sensor)] = fit.participation
+        extra[("structural_mode", sensor)] = fit.likelihood_ratio
+    return extra
+
+
+def _screen(ctx: dict, state: dict, build, kappa0: float, scales, threshold_p: float, extra_lam: dict, tried: list,
+            warnings: list, step: int) -> list:
+    """Every candidate not in ``ctx["keys"]`` added alone to the model of ``ctx`` (window,
+    model, candidates, fit, corrections, keys, residual RMS and cost): first order, and
+    exactly for the data errors (every significant load-cell gain and, when the cells carry
+    more or less than the weight, the masses at trial values; the most promising
+    :data:`EXACT_SCREEN` others iterated; the structural modes at their fitted values).
+    Appends each to ``tried``; returns the screening entries (dict: c, lam, dof, fit, red,
+    exact_state, log_p)."""
+    M, cands, cur_fit, keys = ctx["M"], ctx["cands"], ctx["fit"], ctx["keys"]
+    cost_cur, rms_cur, free_kappa = ctx["cost"], ctx["rms"], ctx["free_kappa"]
+    st = {**state, "applied": dict(ctx["applied"]), "elastic": ctx["elastic"], "cands": cands,
+          "profiled": dict(ctx.get("profiled") or {})}
+    prof = st["profiled"]
+
+    def bld(applied, elastic, profiled=None, keep_stretch=False):
+        return build(applied, elastic, prof if profiled is None else profiled, keep_stretch)
+
+    base_cols = columns_of(cands, keys)
+    screened = []
+    elastic_cache = None
+    for c in cands:
+        if c.key in keys:
+            continue
+        fk = free_kappa or c.gyroscopic
+        Mc = M
+        try:
+            if c.name == "cable_elasticity":
+                if elastic_cache is None:
+                    elastic_cache = build(st["applied"], True, prof)
+                _, Mc, ce = elastic_cache
+                fit = fit_model(Mc, columns_of(ce, keys), kappa0, fk, scales, from_tensor(cur_fit.J))
+            elif c.key in state.get("fixed", {}):
+                _, Mc, ce = bld({**st["applied"], c.key: state["fixed"][c.key]}, st["elastic"])
+                fit = fit_model(Mc, columns_of(ce, keys), kappa0, fk, scales, from_tensor(cur_fit.J))
+            else:
+                fit = fit_model(M, base_cols + c.columns, kappa0, fk, scales, from_tensor(cur_fit.J))
+        except (np.linalg.LinAlgError, ValueError, RecordingError) as e:
+            warnings.append(f"candidate {c.name} {c.label}: fit failed ({e})")
+            continue
+        lam = likelihood_ratio(cost_cur, fit.cost(scales), Mc) + extra_lam.get(c.key, 0.0)
+        dof = (len(c.columns) + (1 if c.gyroscopic else 0) + (1 if c.name == "cable_elasticity" else 0)
+               + (3 if c.name == "structural_mode" else 0))
+        if c.name in PRACTICAL_FLOOR:
+            size = float(np.linalg.norm(fit.beta[len(base_cols):len(base_cols) + len(c.columns)]))
+            if size + float(np.linalg.norm(np.atleast_1d(st["applied"].get(c.key, 0.0)))) < PRACTICAL_FLOOR[c.name]:
+                tried.append({"name": c.name, "label": c.label, "step": step, "likelihood_ratio": float(lam),
+                              "dof": dof, "p_value": float(chi2.sf(max(lam, 0.0), dof)), "max_rms_reduction": 0.0,
+                              "exact": False, "below_practical_floor": PRACTICAL_FLOOR[c.name]})
                 continue
-            fk = free_kappa or c.gyroscopic
-            Mc = M
+        rms1 = rms(channel_residuals(Mc, fit))
+        red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
+        fixed = c.key in state.get("fixed", {})
+        screened.append({"c": c, "lam": lam, "lam_first": lam, "fit": fit, "red": red, "dof": dof,
+                         "exact_state": ({**st["applied"], c.key: state["fixed"][c.key]}, None, None, None)
+                         if fixed else None})
+    # sensor and rig errors move the tracked pose too: the most promising ones are
+    # evaluated exactly (data corrected, re-tracked, two Broyden steps)
+    promising = sorted((e for e in screened if e["c"].exact and e["c"].name not in PROFILED
+                        and e["c"].name != "cable_elasticity" and e["exact_state"] is None
+                        and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p), key=lambda e: -e["lam"])
+    # a load cell's gain and the cables' or the body's mass move the tracker's static pose,
+    # so their first-order columns are no guide to their size or evidence: every
+    # significant gain, and the masses when the cells carry more (or less) than the weight
+    # (the cables' column is nearly collinear with the tensor), are evaluated exactly
+    surplus = weight_surplus(M, cur_fit)
+    for e in screened:
+        if (e["c"].name == "cable_mass" and surplus > WEIGHT_SURPLUS_SIGMA) or (
+                e["c"].name == "body_mass" and abs(surplus) > WEIGHT_SURPLUS_SIGMA) or (
+                e["c"].name == "load_cell_scale" and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p):
             try:
-                if c.name == "cable_elasticity":
-                    if elastic_cache is None or elastic_cache[0] != repr(state["applied"]):
-                        we, Me, ce = build(state["applied"], True)
-                        elastic_cache = (repr(state["applied"]), we, Me, ce)
-                    _, we, Mc, ce = elastic_cache
-                    fit = fit_model(Mc, _columns(ce, keys), kappa0, fk, scales, from_tensor(cur_fit.J))
-                else:
-                    fit = fit_model(M, base_cols + c.columns, kappa0, fk, scales, from_tensor(cur_fit.J))
-            except (np.linalg.LinAlgError, ValueError) as e:
-                warnings.append(f"candidate {c.name} {c.label}: fit failed ({e})")
-                continue
-            lam = _lr(cost_cur, fit.cost(scales), M)
-            dof = len(c.columns) + (1 if c.gyroscopic else 0) + (1 if c.name == "cable_elasticity" else 0)
-            if c.name in PRACTICAL_FLOOR:
-                k0 = len(base_cols)
-                size = float(np.linalg.norm(fit.beta[k0:k0 + len(c.columns)]))
-                if size + float(np.linalg.norm(np.atleast_1d(state["applied"].get(c.key, 0.0)))) < \
-                        PRACTICAL_FLOOR[c.name]:
-                    tried.append({"name": c.name, "label": c.label, "step": step, "likelihood_ratio": float(lam),
-                                  "dof": dof, "p_value": float(chi2.sf(max(lam, 0.0), dof)),
-                                  "max_rms_reduction": 0.0, "exact": False,
-                                  "below_practical_floor": PRACTICAL_FLOOR[c.name]})
-                    continue
-            rms1 = rms(channel_residuals(Mc, fit))
-            red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
-            screened.append({"c": c, "lam": lam, "fit": fit, "red": red, "dof": dof, "exact_state": None})
-        # sensor and rig errors move the tracked pose too: the most promising ones are
-        # evaluated exactly (data corrected, re-tracked, two Broyden steps) before choosing
-        promising = sorted((e for e in screened if e["c"].exact and e["c"].name not in PROFILED
-                            and e["c"].name != "cable_elasticity"
-                            and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p), key=lambda e: -e["lam"])
-        # a load cell's gain and the cables' or the body's mass move the tracker's static pose,
-        # so their first-order columns are no guide to their size or evidence: every
-        # significant gain, and the masses when the cells carry more (or less) than the weight
-        # (the cables' column is nearly collinear with the tensor), are evaluated exactly
-        surplus = _weight_surplus(M, cur_fit)
-        for e in screened:
-            if (e["c"].name == "cable_mass" and surplus > WEIGHT_SURPLUS_SIGMA) or (
-                    e["c"].name == "body_mass" and abs(surplus) > WEIGHT_SURPLUS_SIGMA) or (
-                    e["c"].name == "load_cell_scale" and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p):
-                try:
-                    _exact_screen(e, state, _builder(build, e["c"].key), keys, cost_cur, rms_cur, kappa0,
-                                  free_kappa, scales, from_tensor(cur_fit.J), w)
-                except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
-                    warnings.append(f"candidate {e['c'].name} {e['c'].label}: exact correction failed ({err})")
-                    e["lam"] = -np.inf
-        for e in promising[:EXACT_SCREEN]:
-            keys_e = keys + [e["c"].key]
-            try:
-                applied, we, Me, ce, fe = _exact_iterate(e["c"].key, state, build, keys_e, e["fit"], 2, kappa0,
-                                                         free_kappa, scales)
+                exact_screen(e, st, mass_builder(bld, e["c"].key), keys, cost_cur, rms_cur, kappa0,
+                             free_kappa, scales, from_tensor(cur_fit.J), ctx["w"])
             except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
                 warnings.append(f"candidate {e['c'].name} {e['c'].label}: exact correction failed ({err})")
                 e["lam"] = -np.inf
-                continue
-            e["lam"] = _lr(cost_cur, fe.cost(scales), Me)
-            rms1 = rms(channel_residuals(Me, fe))
-            e["red"] = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
-            e["fit"] = fe
-            e["exact_state"] = (applied, we, Me, ce)
-        best = None
-        for e in screened:
-            c = e["c"]
-            p = float(chi2.sf(max(e["lam"], 0.0), e["dof"])) if np.isfinite(e["lam"]) else 1.0
-            best_red = max(e["red"].values())
-            tried.append({"name": c.name, "label": c.label, "step": step, "likelihood_ratio": float(e["lam"]),
-                          "dof": e["dof"], "p_value": p, "max_rms_reduction": best_red,
-                          "exact": e["exact_state"] is not None})
-            if c.exact and c.name != "cable_elasticity" and e["exact_state"] is None:
-                continue   # not evaluated exactly: its first-order fit is no evidence
-            # the gyroscopic term is physics of known size (κ = 1), missing from the model
-            # by construction: its test is κ = 0 rejected, however small the residual's change
-            practical = best_red >= MIN_REDUCTION or c.gyroscopic
-            # the strongest evidence, its parameters counted: the smallest p-value (log, so that
-            # underflowing ones still rank) — a 3-parameter accelerometer bias with a likelihood
-            # ratio 3 above a 1-parameter body mass error is the weaker explanation
-            e["log_p"] = log_sf(e["lam"], e["dof"]) if np.isfinite(e["lam"]) else 0.0
-            if p < threshold_p and practical and (best is None or e["log_p"] < best[0]["log_p"]):
-                best = (e, p)
-        if best is None:
-            break
-        e, p = best
-        c, dof = e["c"], e["dof"]
-        keys.append(c.key)
-        free_kappa = free_kappa or c.gyroscopic
-        fit = e["fit"]
-        if c.name == "cable_elasticity":
-            state["elastic"] = True
-            _, w, M, cands = elastic_cache
-        elif c.name in PROFILED:
-            state["applied"] = e["exact_state"][0]
-            state["applied"], w, M, cands, fit, _ = _exact_profile(c.key, state, _builder(build, c.key), keys,
-                                                                   cost_cur, kappa0,
-                                                                   free_kappa, scales, from_tensor(fit.J), w)
-        elif c.exact:
-            state["applied"], w, M, cands = e["exact_state"]
-            state["applied"], w, M, cands, fit = _exact_iterate(c.key, {**state, "cands": cands}, build, keys,
-                                                                fit, 3, kappa0, free_kappa, scales)
-        if c.name in MASSES and "steel" in state:
-            # its trial re-tracks kept the steel stretch: fitted again with the mass in place
-            w, M, cands = build(state["applied"], False)
-            fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, scales, from_tensor(fit.J))
-        state["cands"] = cands
-        if "steel" in state:
-            state["steel"] = w.stiffness
-        rms1 = rms(channel_residuals(M, fit))
-        red = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
-        lam = _lr(cost_cur, fit.cost(scales), M)
-        cur_fit = fit
-        affected = sorted((k for k, r in red.items() if r >= 0.1), key=lambda k: -red[k])
-        entries.append({"name": c.name, "parameters": {}, "parameters_std": {},
-                        "evidence": {"likelihood_ratio": lam, "dof": dof, "p_value": p, "threshold_p": threshold_p,
-                                     "step": step, "rms_reduction": {k: round(red[k], 4) for k in affected[:8]}}})
-    # backward elimination: forward selection can pick a stand-in first (drag for a delay's
-    # quadrature) and keep it once the real effect is in; each physics effect (the first-order
-    # ones: the data corrections are tested again by the validation of the corrected fit) is
-    # dropped when the others explain the recording as well without it
-    by_key = {c.key: c for c in cands}
-    for key in [k for k in keys if k in by_key and not by_key[k].exact and not by_key[k].gyroscopic]:
-        if len(keys) < 2:
-            break
-        others = [k for k in keys if k != key]
+    for e in promising[:EXACT_SCREEN]:
+        keys_e = keys + [e["c"].key]
         try:
-            fit_wo = fit_model(M, _columns(cands, others), kappa0, free_kappa, scales, from_tensor(cur_fit.J))
-        except (np.linalg.LinAlgError, ValueError):
+            applied, we, Me, ce, fe = exact_iterate(e["c"].key, st, bld, keys_e, e["fit"], 2, kappa0, free_kappa,
+                                                    scales)
+        except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
+            warnings.append(f"candidate {e['c'].name} {e['c'].label}: exact correction failed ({err})")
+            e["lam"] = -np.inf
             continue
-        lam = _lr(fit_wo.cost(scales), cur_fit.cost(scales), M)
-        dof = len(by_key[key].columns)
-        if chi2.sf(max(lam, 0.0), dof) >= threshold_p:
-            i = keys.index(key)
-            keys.pop(i)
-            dropped = entries.pop(i)
-            warnings.append(f"{dropped['name']} dropped: with the other effects in the model it adds nothing "
-                            f"(likelihood ratio {lam:.3g}, {dof} dof)")
-            cur_fit = fit_wo
-    # the selection weighted each axis by the baseline's residual scale, which the missing
+        e["lam"] = likelihood_ratio(cost_cur, fe.cost(scales), Me)
+        rms1 = rms(channel_residuals(Me, fe))
+        e["red"] = {k: 1 - rms1[k] / rms_cur[k] for k in rms1 if rms_cur[k] > 0}
+        e["fit"] = fe
+        e["exact_state"] = (applied, None, None, None)
+    for e in screened:
+        c = e["c"]
+        p = float(chi2.sf(max(e["lam"], 0.0), e["dof"])) if np.isfinite(e["lam"]) else 1.0
+        e["log_p"] = log_sf(e["lam"], e["dof"]) if np.isfinite(e["lam"]) else 0.0
+        tried.append({"name": c.name, "label": c.label, "step": step, "likelihood_ratio": float(e["lam"]),
+                      "dof": e["dof"], "p_value": p, "max_rms_reduction": max(e["red"].values()),
+                      "exact": e["exact_state"] is not None})
+    return screened
+
+
+def _pool(screened: list, threshold_p: float) -> list:
+    """The candidates of the joint search: significant (p below ``threshold_p``), practical
+    (some channel's residual RMS down by :data:`MIN_REDUCTION`; the gyroscopic term exempt:
+    its size is known), data errors only once evaluated exactly; the strongest evidence first
+    (the smallest p-value, its parameters counted), at most :data:`POOL`."""
+    ok = [e for e in screened if np.isfinite(e["lam"])
+          and chi2.sf(max(e["lam"], 0.0), e["dof"]) < threshold_p
+          and (max(e["red"].values()) >= MIN_REDUCTION or e["c"].gyroscopic)
+          and (not e["c"].exact or e["c"].name == "cable_elasticity" or e["exact_state"] is not None)]
+    return sorted(ok, key=lambda e: e["log_p"])[:POOL]
+
+
+def _exclusive(members) -> bool:
+    """Whether ``members`` hold two effects one of which contains the other (:data:`EXCLUSIVE`)."""
+    names = {m["c"].name for m in members}
+    return any(pair <= names for pair in EXCLUSIVE)
+
+
+def _joint(members, state: dict, build, kappa0: float, scales, cost0: dict, j0: np.ndarray, extra_lam: dict,
+           n_ic: float, warnings: list) -> dict:
+    """The effects of ``members`` (screening entries) fitted together: the data errors
+    removed at their screened values (:func:`corrected`), the pose re-tracked, the model
+    refitted with every member's columns, each iterated data error moved by two more
+    Broyden steps with the others in place (:func:`~rig_identification.diagnosis.exact.exact_iterate`).
+    Returns the evaluation: members, keys, corrections, the fit, the likelihood ratio
+    against the rigid-body fit (plus the structural modes' out-of-band evidence), its dof and
+    the Bayesian information criterion −Λ + dof ln n (n: independent residuals)."""
+    keys = [m["c"].key for m in members]
+    applied = dict(state["applied"])
+    for m in members:
+        if m["exact_state"] is not None and m["c"].key in m["exact_state"][0]:
+            applied[m["c"].key] = m["exact_state"][0][m["c"].key]
+    elastic = any(m["c"].name == "cable_elasticity" for m in members)
+    profiled = {m["c"].key: np.nan for m in members if m["c"].name in PROFILED}
+    exact = [m for m in members if m["c"].exact and m["c"].name != "cable_elasticity"]
+    keep = bool(exact) and all(m["c"].name in MASSES for m in exact)
+    free_kappa = any(m["c"].gyroscopic for m in members)
+    dof = sum(m["dof"] for m in members)
+    out = {"members": list(members), "keys": keys, "elastic": elastic, "profiled": profiled, "keep_stretch": keep,
+           "free_kappa": free_kappa, "dof": dof, "lam": -np.inf, "bic": np.inf}
+
+    def bld(ap, el, pr=None, keep_stretch=False):
+        return build(ap, el, profiled if pr is None else pr, keep_stretch or keep)
+
+    try:
+        w, M, cands = bld(applied, elastic)
+        fit = fit_model(M, columns_of(cands, keys), kappa0, free_kappa, scales, j0)
+        for m in exact:
+            if m["c"].name in PROFILED or m["c"].key in state.get("fixed", {}):
+                continue
+            applied, w, M, cands, fit = exact_iterate(m["c"].key, {"applied": applied, "elastic": elastic,
+                                                                   "cands": cands}, bld, keys, fit, 2, kappa0,
+                                                      free_kappa, scales)
+    except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
+        warnings.append(f"combination {', '.join(m['c'].name for m in members)}: fit failed ({err})")
+        out["why"] = f"fit failed ({err})"
+        return out
+    lam = likelihood_ratio(cost0, fit.cost(scales), M) + sum(extra_lam.get(k, 0.0) for k in keys)
+    out.update(applied=applied, fit=fit, lam=float(lam), bic=float(-lam + dof * math.log(n_ic)),
+               rms=rms(channel_residuals(M, fit)))
+    return out
+
+
+def _admissible(evals: dict, threshold_p: float, rms0: dict) -> list:
+    """The combinations in which every member earns its place, by the Bayesian information
+    criterion (the smallest first): its likelihood ratio over the combination without it
+    significant at ``threshold_p`` (χ² of its dof; without it: the rigid-body fit, Λ = 0),
+    and some channel's residual RMS down by :data:`MIN_REDUCTION` (the gyroscopic term
+    exempt); a bias drift must beat a constant bias in its place (χ² of the dof it adds).
+    Marks every evaluation ``admissible`` (with ``why`` not) and each member's evidence."""
+    for ev in evals.values():
+        ev["admissible"], ev["why"], ev["evidence"] = False, ev.get("why"), {}
+        if not np.isfinite(ev["lam"]):
+            continue
+        why = None
+        for m in ev["members"]:
+            key = m["c"].key
+            rest = frozenset(k for k in ev["keys"] if k != key)
+            sub = evals.get(rest) if rest else {"lam": 0.0, "rms": rms0}
+            if sub is None or not np.isfinite(sub["lam"]):
+                why = f"{m['c'].name} not tested without it"
+                break
+            lam = ev["lam"] - sub["lam"]
+            p = float(chi2.sf(max(lam, 0.0), m["dof"]))
+            rms_ref = sub["rms"]
+            red = {k: 1 - ev["rms"][k] / rms_ref[k] for k in ev["rms"] if rms_ref.get(k, 0) > 0}
+            ev["evidence"][key] = {"likelihood_ratio": float(lam), "dof": m["dof"], "p_value": p,
+                                   "threshold_p": threshold_p, "rms_reduction": red}
+            if p >= threshold_p:
+                why = f"{m['c'].name} adds nothing significant to the others (Λ {lam:.3g}, {m['dof']} dof)"
+                break
+            if max(red.values()) < MIN_REDUCTION and not m["c"].gyroscopic:
+                why = f"{m['c'].name} reduces no channel's residual by {100 * MIN_REDUCTION:.0f} %"
+                break
+            if m["c"].name == "gyro_bias_drift":
+                const = frozenset(rest | {("gyro_bias", "")})
+                ref = evals.get(const)
+                if ref is not None and np.isfinite(ref["lam"]):
+                    extra = ev["lam"] - ref["lam"]
+                    dd = m["dof"] - 3
+                    if chi2.sf(max(extra, 0.0), dd) >= threshold_p:
+                        why = f"the drift explains no more than a constant gyro bias (Λ {extra:.3g}, {dd} dof)"
+                        break
+        ev["admissible"], ev["why"] = why is None, why
+    return sorted((ev for ev in evals.values() if ev["admissible"]), key=lambda e: e["bic"])
+
+
+def _report(ev: dict, evals: dict, rec: Recording, state: dict, build, kappa0: float, scales, cost0: dict,
+            threshold_p: float, j0: np.ndarray, warnings: list) -> dict:
+    """One admissible combination made a finding: each one-parameter rig or data error placed by
+    its exact profile likelihood, the final fit reweighted by its own residual scales, every
+    member's parameters (and σ) from it, the physics the model lacks as the wrench it adds,
+    plausibility (:func:`implausible`).  Returns {"effects", "applied", "effect_wrench",
+    "stiffness", "inertia", "covariance", "relative_std" (the relative σ of the tensor that
+    the corrections fixed from outside the band leave: a structural mode's
+    :func:`~rig_identification.diagnosis.structural.gain_std` at the band's centre),
+    "likelihood_ratio", "dof", "bic", and the fit, model, window and channel residuals}."""
+    keys, members = ev["keys"], ev["members"]
+    free_kappa, elastic = ev["free_kappa"], ev["elastic"]
+    st = {**state, "applied": dict(ev["applied"]), "elastic": elastic, "profiled": dict(ev["profiled"])}
+
+    def bld(ap, el, pr=None, keep_stretch=False):
+        return build(ap, el, st["profiled"] if pr is None else pr, keep_stretch or ev["keep_stretch"])
+
+    w, M, cands = bld(st["applied"], elastic)
+    cur_fit = ev["fit"]
+    for m in members:
+        if m["c"].name in PROFILED:
+            st["cands"] = cands
+            st["applied"], w, M, cands, cur_fit, _ = exact_profile(m["c"].key, st, mass_builder(bld, m["c"].key),
+                                                                   keys, cost0, kappa0, free_kappa, scales,
+                                                                   from_tensor(cur_fit.J), w)
+    if any(m["c"].name in MASSES for m in members) and "steel" in state:
+        # the trial re-tracks kept the steel stretch: fitted again with the mass in place
+        w, M, cands = build(st["applied"], elastic, st["profiled"])
+        cur_fit = fit_model(M, columns_of(cands, keys), kappa0, free_kappa, scales, from_tensor(cur_fit.J))
+    # the screening weighted each axis by the baseline's residual scale, which the missing
     # physics inflated on some axes: the final fit is reweighted by its own residual scales
     # (iteratively reweighted least squares: the maximum-likelihood estimate with unknown
     # per-axis noise levels)
-    for _ in range(REWEIGHT_ITER if entries else 0):
-        sr, sa = _scales(M, cur_fit)[:2]
-        cur_fit = fit_model(M, _columns(cands, keys), kappa0, free_kappa, (sr, sa) + tuple(scales[2:]),
+    for _ in range(REWEIGHT_ITER):
+        sr, sa = residual_scales(M, cur_fit)[:2]
+        cur_fit = fit_model(M, columns_of(cands, keys), kappa0, free_kappa, (sr, sa) + tuple(scales[2:]),
                             from_tensor(cur_fit.J))
-    # the parameters of every selected effect, from the final joint fit
-    pos = 0
     by = {cc.key: cc for cc in cands}
-    for e, key in zip(entries, keys):
+    entries, pos = [], 0
+    tq_add, f_add, phys, share = np.zeros_like(w.omega), np.zeros_like(w.omega), [], {}
+    for key in keys:
+        c = by[key] if key in by else next(m["c"] for m in members if m["c"].key == key)
+        evd = {k: v for k, v in ev["evidence"].get(key, {}).items() if k != "rms_reduction"}
+        red = ev["evidence"].get(key, {}).get("rms_reduction", {})
+        affected = sorted((k for k, r in red.items() if r >= 0.1), key=lambda k: -red[k])
+        evd["rms_reduction"] = {k: round(red[k], 4) for k in affected[:8]}
+        e = {"name": c.name, "parameters": {}, "parameters_std": {}, "evidence": evd}
+        entries.append(e)
         if key[0] == "cable_elasticity":
             k = w.stiffness[np.isfinite(w.stiffness)]
             e["parameters"], e["parameters_std"] = {"stiffness": float(np.median(k))}, \
                 {"stiffness": float(w.stiffness_std) if w.stiffness_std is not None else float("nan")}
             continue
-        c = by[key]
         if c.gyroscopic:
             vals, stds = [cur_fit.kappa], [float(np.sqrt(max(cur_fit.cov[-1, -1], 0.0)))]
         else:
@@ -669,17 +740,9 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
             stds = np.sqrt(np.clip(np.diag(cur_fit.cov)[6 + pos:6 + pos + len(c.columns)], 0, None))
             pos += len(c.columns)
         e["parameters"], e["parameters_std"] = c.report(vals, stds)
-    # the physics the model lacks (not an error of the data), as the wrench it adds
-    pos = 0
-    tq_add, f_add, phys, share = np.zeros_like(w.omega), np.zeros_like(w.omega), [], {}
-    for key in keys:
-        c = by.get(key)
-        if c is None or c.gyroscopic:
+        if c.exact or c.gyroscopic:
             continue
-        vals = cur_fit.beta[pos:pos + len(c.columns)]
-        pos += len(c.columns)
-        if c.exact:
-            continue
+        # the physics the model lacks (not an error of the data), as the wrench it adds
         phys.append(c.name)
         tq_c = np.zeros_like(w.omega)
         for b, col in zip(vals, c.columns):
@@ -704,20 +767,34 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
             e["implausible"] = why
         if e["name"] in share:
             e["evidence"]["moment_share"] = round(share[e["name"]], 4)
-    entries.sort(key=lambda e: -e["evidence"]["likelihood_ratio"])
-    located = locate(M0, base, rec.rig, base.J)
-    std_of = lambda f: np.sqrt(np.clip(np.diag(f.cov)[:6], 0, None))  # noqa: E731
-    ch1 = channel_residuals(M, cur_fit)
-    (sync0, revs), (sync1, _) = synchronous(M0, ch0), synchronous(M, ch1)
-    return Diagnosis(bool(entries), entries, located, rms0, rms(ch1), base.J,
-                     body_inertia(cur_fit.J, _replace(rec.rig, mass=rec.rig.mass + float(state["applied"].get(
-                         ("body_mass", ""), 0.0))), float(state["applied"].get(("cable_mass", ""), 0.0))),
-                     std_of(base), std_of(cur_fit), tried, band, model, warnings + list(rec.warnings),
-                     series={"t": w.t - w.t[0], "fs": M.fs, "before": ch0, "after": ch1},
-                     covariance_after=np.array(cur_fit.cov[:6, :6]),
-                     corrections={k: v for k, v in state["applied"].items() if k[0] in CORRECTIONS},
-                     rms_sync_before=sync0, rms_sync_after=sync1, revolutions=revs, effect_wrench=effect_wrench,
-                     applied=dict(state["applied"]), stiffness=w.stiffness.copy() if state["elastic"] else None)
+        e["evidence"]["combination"] = {"likelihood_ratio": ev["lam"], "dof": ev["dof"], "bic": ev["bic"]}
+    entries.sort(key=lambda e: -e["evidence"].get("likelihood_ratio", 0.0))
+    applied = _without_inert(st["applied"])
+    # the uncertainty of a correction fixed from outside the band (a structural mode's
+    # shape): the relative error of the readings it leaves in the band, about the tensor's
+    modes = state["retracked"].get("modes", {})
+    f_c = float(np.sqrt(M.band[0] * M.band[1]))
+    rel = float(np.sqrt(sum(gain_std(modes[k[1]], f_c) ** 2 for k in keys if k[0] == "structural_mode")))
+    mu = float(applied.get(("cable_mass", ""), 0.0))
+    body_rig = _replace(rec.rig, mass=rec.rig.mass + float(applied.get(("body_mass", ""), 0.0)))
+    return {"effects": entries, "applied": applied, "effect_wrench": effect_wrench,
+            "stiffness": w.stiffness.copy() if elastic else None, "inertia": body_inertia(cur_fit.J, body_rig, mu),
+            "covariance": np.array(cur_fit.cov[:6, :6]), "relative_std": rel, "likelihood_ratio": ev["lam"],
+            "dof": ev["dof"], "keys": [tuple(k) for k in ev["keys"]],
+            "bic": ev["bic"], "fit": cur_fit, "model": M, "window": w, "channels": channel_residuals(M, cur_fit)}
+
+
+def _without_inert(applied: dict) -> dict:
+    """``applied`` without the companions of corrections not made (the drift's knots, a
+    mode's shape: they only say how to make them)."""
+    out = {}
+    for k, v in applied.items():
+        if k == ("gyro_bias_drift", "knots") and ("gyro_bias_drift", "") not in applied:
+            continue
+        if k[0] == "structural_mode" and k[1].endswith(" shape") and (k[0], k[1][:-6]) not in applied:
+            continue
+        out[k] = v
+    return out
 
 
 # the diagnosis as a whole: diagnose() and what its callers take of the modules it is made of

@@ -246,24 +246,25 @@ EFFECT_UNITS = {
     "air_drag": {"angular": "N·m·s²/rad²", "linear": "N·s²/m²"},
     "coulomb_friction": {"torque": "N·m", "force": "N", "velocity_scale": "rad/s or m/s"},
     "cable_elasticity": {"stiffness": "N/m", "declared_stiffness": "N/m"},
-    "cable_mass": {"mass": "kg"},
+    "cable_mass": {"mass": "kg per cable"},
     "body_mass": {"mass_error": "kg"},
     "exciter_rotor": {"unbalance": "kg·m", "rotor_inertia": "kg·m²"},
-    "imu_offset": {"offset": "m"},
+    "imu_offset": {"offset": "m, body axes"},
     "imu_misalignment": {"rpy": "rad"},
     "sensor_delay": {"delay": "s"},
-    "gyro_bias": {"bias": "rad/s"},
-    "accelerometer_bias": {"bias": "m/s²"},
+    "gyro_bias": {"bias": "rad/s, IMU axes"},
+    "accelerometer_bias": {"bias": "m/s², IMU axes"},
     "load_cell_scale": {"scale": "(reading / tension)"},
     "gyroscopic_coupling": {"scale": "(κ, 1 = the full ω × Jω)"},
-    "gyro_bias_drift": {"random_walk": "rad/s/√s"},
-    "gyro_scale": {"scale": "(reading / rate)"},
+    "gyro_bias_drift": {"random_walk": "rad/s/√s", "knot_spacing": "s", "bias_range": "rad/s, IMU axes"},
+    "gyro_scale": {"scale": "(reading / rate), IMU axes"},
     "structural_mode": {"frequency": "Hz", "damping_ratio": "", "participation": ""},
     "compliant_body": {"mass_share": "", "frequencies": "Hz", "damping_ratio": "", "lock_frequency": "Hz",
                        "sprung_cg": "m"},
 }
-"""Units of the effects' parameters (SI, as :mod:`~rig_identification.model.effects` lists them); a parameter not here
-(a name: ``stream``, ``cable``) has none."""
+"""Units of the effects' parameters (SI, as :mod:`~rig_identification.model.effects` lists them; the one
+definition: the CLI, the JSON and the diagnosis report take theirs from it); a parameter not here (a name:
+``stream``, ``cable``, ``sensor``) has none, "" is dimensionless."""
 
 
 def value_text(v, spec: str = ".4g") -> str:

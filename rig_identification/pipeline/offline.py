@@ -93,24 +93,34 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     noise explains by :data:`MODEL_ERROR_RATIO`, or the load cells' mean vertical force
     differs from rig.yaml's weight by :data:`WEIGHT_TOLERANCE`), run
     :func:`~rig_identification.diagnosis.selection.diagnose` on the recording (cut to ``start``/``end``, s from the first
-    IMU sample) and test what it names the way every fit is tested:
+    IMU sample) and test what it proposes the way every fit is tested.  diagnose fits the
+    library's most significant effects jointly, in every combination, and ranks the admissible
+    ones by an information criterion (:attr:`~rig_identification.diagnosis.selection.Diagnosis.alternatives`);
+    each, best first (at most :data:`~rig_identification.diagnosis.selection.ALTERNATIVES`, and
+    the best one's admissible proper subsets):
 
-    * the errors of the data it names (a sensor delay, gain, bias, the IMU's pose, the body's
-      or the cables' mass, the cables' stiffness) are removed from the recording
-      (:func:`~rig_identification.diagnosis.selection.corrected`) and the physics it names (damping, drag, the exciter's
+    * the errors of the data it holds (a sensor delay, gain, bias or bias drift, gyro scale,
+      a sensor mount's structural mode, the IMU's pose, the body's or the cables' mass, the
+      cables' stiffness) are removed from the recording
+      (:func:`~rig_identification.diagnosis.selection.corrected`) and the physics (damping, drag, the exciter's
       rotor, …) is added to the model as the wrench it contributes
       (:class:`~rig_identification.diagnosis.selection.EffectWrench`, :func:`with_effect_wrench`);
     * the recording is identified again the ordinary way (same window and band: fit,
-      propagated σ, validation).  The effects are *named* only when that fit's validation
-      says ``ok`` and every effect's parameters are physically plausible
-      (:func:`~rig_identification.diagnosis.selection.implausible`); the result is then that fit (σ: the propagated
-      noise, or diagnose's joint fit's where larger — it carries the effects' own
-      uncertainty), the cables' share taken off when their mass was found
-      (:func:`~rig_identification.diagnosis.selection.body_inertia`);
-    * otherwise nothing is named: ``result`` stays the rigid-body fit with its
-      ``model_error`` verdict and widened σ, and ``diagnosis`` says where the mismatch is
-      (``unexplained``: channel, band, time, size; :func:`~rig_identification.diagnosis.residuals.unexplained`) with
-      diagnose's candidates as ``hypotheses``, not findings.
+      propagated σ, validation).
+
+    The first combination whose fit's validation says ``ok`` and whose every effect is
+    physically plausible (:func:`~rig_identification.diagnosis.plausible.implausible`) is *named*
+    — unless one of its proper subsets passes too: then the smallest such is (an effect is named
+    only when the model fails its validation without it);
+    the result is then that fit (σ: the propagated noise, or diagnose's joint fit's where
+    larger — it carries the effects' own uncertainty), the cables' share taken off when their
+    mass was found (:func:`~rig_identification.diagnosis.selection.body_inertia`).  A
+    combination with an implausible effect is not tried.  When none passes, nothing is
+    named: ``result`` stays the rigid-body fit with its ``model_error`` verdict and widened
+    σ, ``diagnosis`` says where the mismatch is (``unexplained``: channel, band, time, size;
+    :func:`~rig_identification.diagnosis.residuals.unexplained`, with the departures of the
+    accelerometer from the load cells above the fit band) and lists the combinations as
+    ``hypotheses`` (each with the checks its fit still failed), never their tensors.
 
     ``diagnosis`` also keeps the residual RMS before/after; ``rigid_body`` the rigid-body
     tensor and σ.  A fit without model error is returned as it was.
@@ -137,57 +147,92 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
                   "uncertainty": result.uncertainty,
                   "validation": None if result.validation is None else result.validation.verdict}
     duration = float(d.series["t"][-1]) if d.series else float(result.t_end - result.t_start)
-    where = unexplained(d.located, duration)
-    diagnosis = {"effects": [], "hypotheses": d.effects, "unexplained": where,
-                 "residual_rms_before": d.rms_before, "residual_rms_after": d.rms_after,
-                 "band_hz": [float(x) for x in d.band]}
-    names = [e["name"] for e in d.effects]
-    again, why = None, None
-    if not d.mismatch:
-        why = "diagnose found no effect of its library that explains the misfit"
-    elif not all(e.get("plausible", True) for e in d.effects):
-        why = "; ".join(f"{e['name']}: {e['implausible']}" for e in d.effects if not e.get("plausible", True))
-        why = f"what fits best is not physically plausible ({why})"
-    else:
-        fixed = corrected(full, d.applied)
-        if d.stiffness is not None:
-            fixed = with_stiffness(fixed, d.stiffness)
+    where = unexplained(d.located, duration) + [
+        {"channel": u["channel"], "band_hz": u["band_hz"], "time_s": [0.0, round(duration, 1)], "size": u["sigma"],
+         "is": f"above the fit band: the accelerometer over Newton's prediction from the load cells departs from 1 "
+               f"by {u['size']:.3g} ({u['sigma']:.0f} σ; size in σ) — a sensor mount's structural mode?"}
+        for u in getattr(d, "out_of_band", []) or []]
+    alternatives = getattr(d, "alternatives", None) or ([{
+        "effects": d.effects, "applied": d.applied, "effect_wrench": d.effect_wrench, "stiffness": d.stiffness,
+        "covariance": d.covariance_after}] if d.mismatch else [])
+    hypotheses, again, chosen, whys = [], None, None, []
+    for alt in alternatives:
+        if chosen is not None and not set(alt.get("keys", ())) < set(chosen.get("keys", ())):
+            continue   # after a validated combination, only its proper subsets are tried (parsimony)
+        names = [e["name"] for e in alt["effects"]]
+        bad = [e for e in alt["effects"] if not e.get("plausible", True)]
+        hyp = {"effects": alt["effects"]}
+        hypotheses.append(hyp)
+        if bad:
+            hyp["not_named"] = "not physically plausible: " + "; ".join(f"{e['name']}: {e['implausible']}" for e in bad)
+            whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
+            continue
+        fixed = corrected(full, alt["applied"])
+        if alt.get("stiffness") is not None:
+            fixed = with_stiffness(fixed, alt["stiffness"])
         log.info("identifying again with %s", ", ".join(names))
         try:
-            again = identify_recording(fixed, start=start, end=end, band_hz=band_hz, effect_wrench=d.effect_wrench)
+            fit = identify_recording(fixed, start=start, end=end, band_hz=band_hz,
+                                     effect_wrench=alt.get("effect_wrench"))
         except (ValueError, np.linalg.LinAlgError) as e:
-            why = f"the recording with {', '.join(names)} could not be identified again ({e})"
-        else:
-            if again.validation is None or again.validation.verdict != "ok":
-                failed = () if again.validation is None else again.validation.failed
-                why = (f"with {', '.join(names)} the fit still fails its validation ({', '.join(failed)}): they do "
-                       "not explain the recording")
-    if why is not None:
+            hyp["not_named"] = f"could not be identified again ({e})"
+            whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
+            continue
+        if fit.validation is None or fit.validation.verdict != "ok":
+            failed = () if fit.validation is None else fit.validation.failed
+            hyp["not_named"] = f"the fit with it still fails its validation ({', '.join(failed)})"
+            hyp["failed_checks"] = list(failed)
+            whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
+            continue
+        again, chosen = fit, alt   # kept looking: a smaller combination that also validates is named instead
+    diagnosis = {"effects": [], "hypotheses": [e for h in hypotheses for e in h["effects"]],
+                 "combinations_tried": hypotheses, "unexplained": where,
+                 "residual_rms_before": d.rms_before, "residual_rms_after": d.rms_after,
+                 "band_hz": [float(x) for x in d.band]}
+    if again is None:
+        why = ("diagnose found no effect of its library that explains the misfit" if not alternatives else
+               "no combination of the library's effects explains it: " + "; ".join(whys))
+        names = [e["name"] for h in hypotheses for e in h["effects"]]
         diagnosis["handled"] = "not: " + why
         result.rigid_body, result.diagnosis = rigid_body, diagnosis
         result.warnings.append(
             f"model error not explained: {why}; the tensor is the rigid-body fit's (σ widened, not trustworthy)"
-            + (f"; hypotheses, not findings: {', '.join(names)}" if names else "")
+            + (f"; hypotheses, not findings: {', '.join(dict.fromkeys(names))}" if names else "")
             + ("; the mismatch is in " + ", ".join(f"{u['channel']} at {u['band_hz'][0] + 0.05:.2f} Hz"
                                                    for u in where if u["band_hz"]) if where else ""))
         return result
-    found = "; ".join(f"{e['name']} ({effect_text(e)})" for e in d.effects)   # with units, as the CLI's
-    mu = float(d.applied.get(("cable_mass", ""), 0.0))
+    effects = chosen["effects"]
+    names = [e["name"] for e in effects]
+    found = "; ".join(f"{e['name']} ({effect_text(e)})" for e in effects)   # with units, as the CLI's
+    applied = chosen["applied"]
+    mu = float(applied.get(("cable_mass", ""), 0.0))
     if mu:   # the fit's tensor is the body's with the cables' lower halves, about their combined CG
-        body_rig = replace(rec.rig, mass=rec.rig.mass + float(d.applied.get(("body_mass", ""), 0.0)))
+        body_rig = replace(rec.rig, mass=rec.rig.mass + float(applied.get(("body_mass", ""), 0.0)))
         again.inertia = body_inertia(again.inertia, body_rig, mu)
         again.mass, again.center_of_gravity = body_rig.mass, body_rig.require_cg().copy()
-    if d.effect_wrench is not None and d.covariance_after is not None:
+    if chosen.get("effect_wrench") is not None and chosen.get("covariance") is not None:
         # the effects' own uncertainty: diagnose's joint fit of the tensor with them
-        joint = np.sqrt(np.clip(np.diag(d.covariance_after), 0, None))
+        joint = np.sqrt(np.clip(np.diag(chosen["covariance"]), 0, None))
         wider = np.maximum(joint, again.inertia_std)
         again.covariance = again.covariance + np.diag(wider**2 - again.inertia_std**2)
         again.inertia_std = wider
         again.uncertainty += "; at least diagnose's joint fit with the effects (their own uncertainty)"
-    handled = ("removed from the data" if d.effect_wrench is None else
-               "added to the model" if not d.applied and d.stiffness is None else
+    rel = float(chosen.get("relative_std") or 0.0)
+    if rel > 0:
+        # a correction fixed from outside the fit band (a structural mode's shape) leaves a
+        # relative error of the readings in the band, and so about of the tensor
+        th = from_tensor(again.inertia)
+        big = max(abs(th[0]), abs(th[3]), abs(th[5]))
+        ref = np.array([abs(th[0]), big, big, abs(th[3]), big, abs(th[5])])    # KEYS order; products: of the largest
+        wider = np.sqrt(again.inertia_std ** 2 + (rel * ref) ** 2)
+        again.covariance = again.covariance + np.diag(wider ** 2 - again.inertia_std ** 2)
+        again.inertia_std = wider
+        again.uncertainty += f"; with the {100 * rel:.3g} % the corrections fixed from outside the band leave"
+    handled = ("removed from the data" if chosen.get("effect_wrench") is None else
+               "added to the model" if not applied and chosen.get("stiffness") is None else
                "removed from the data and added to the model")
-    diagnosis["effects"], diagnosis["hypotheses"], diagnosis["unexplained"] = d.effects, [], []
+    diagnosis["effects"], diagnosis["hypotheses"], diagnosis["unexplained"] = effects, [], []
+    diagnosis["combinations_tried"] = hypotheses[:-1]
     again.rigid_body, again.diagnosis = rigid_body, {**diagnosis, "handled": handled}
     # the verdict is on the model with the effects, not the rigid body's alone
     again.validation = replace(again.validation, model=f"the rigid-body model with {', '.join(names)}")

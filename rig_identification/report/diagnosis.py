@@ -17,6 +17,7 @@ import math
 import numpy as np
 
 from ..estimation.inertia_result import InertiaResult
+from ..io.export import EFFECT_UNITS
 from ..io.verdict import KEYS
 from ..model.parametrisation import from_tensor
 from .html import MISSING, Cell, esc, finite, num, table
@@ -43,22 +44,8 @@ EFFECT_TEXT = {
     "structural_mode": "a flexible mode of the carrying frame between the body and a sensor",
     "compliant_body": "a sprung body on its suspension inside the frame (not rigid)",
 }
-# (effect, parameter) -> SI unit ("" dimensionless)
-UNITS = {
-    ("viscous_damping", "linear"): "N·s/m", ("viscous_damping", "angular"): "N·m·s/rad",
-    ("air_drag", "linear"): "N·s²/m²", ("air_drag", "angular"): "N·m·s²/rad²",
-    ("coulomb_friction", "torque"): "N·m", ("coulomb_friction", "force"): "N",
-    ("coulomb_friction", "velocity_scale"): "rad/s or m/s",
-    ("cable_elasticity", "stiffness"): "N/m", ("cable_elasticity", "declared_stiffness"): "N/m",
-    ("cable_mass", "mass"): "kg per cable", ("body_mass", "mass_error"): "kg",
-    ("exciter_rotor", "unbalance"): "kg·m", ("exciter_rotor", "rotor_inertia"): "kg·m²",
-    ("imu_offset", "offset"): "m, body axes", ("imu_misalignment", "rpy"): "rad",
-    ("sensor_delay", "delay"): "s", ("gyro_bias", "bias"): "rad/s, IMU axes",
-    ("accelerometer_bias", "bias"): "m/s², IMU axes", ("load_cell_scale", "scale"): "reading / tension",
-    ("gyro_bias_drift", "random_walk"): "rad/s/√s", ("gyro_scale", "scale"): "reading / rate",
-    ("structural_mode", "frequency"): "Hz", ("structural_mode", "damping_ratio"): "",
-    ("compliant_body", "frequencies"): "Hz", ("compliant_body", "mass_share"): "",
-}
+# (effect, parameter) -> SI unit ("" dimensionless): io.export.EFFECT_UNITS, the one definition
+UNITS = {(e, p): u for e, units in EFFECT_UNITS.items() for p, u in units.items()}
 CHANNEL_UNITS = {"gyro": "rad/s", "accel": "m/s²", "torque": "N·m", "force": "N", "load_cell": "N"}
 
 DIAGNOSIS_SCHEMA = "rig_identification.diagnosis_result"   # rig-identify diagnose --json, diagnosis.json

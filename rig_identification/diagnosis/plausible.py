@@ -1,0 +1,78 @@
+"""Whether a diagnosed effect can be the physics in a recording: the range each effect's
+parameters must fall in to be named (:data:`PLAUSIBLE`, with units), and the further
+conditions on the masses, the exciter's rotor and the share of a dissipative effect's moment
+(:func:`implausible`).  :func:`~rig_identification.diagnosis.selection.diagnose` marks each
+effect of a combination with it; :func:`~rig_identification.pipeline.offline.with_diagnosis`
+names no combination that holds an implausible effect.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..io.export import EFFECT_UNITS
+
+PLAUSIBLE = {
+    "viscous_damping": {"angular": (0.0, np.inf), "linear": (0.0, np.inf)},
+    "air_drag": {"angular": (0.0, np.inf), "linear": (0.0, np.inf)},
+    "coulomb_friction": {"torque": (0.0, np.inf), "force": (0.0, np.inf)},
+    "sensor_delay": {"delay": (-0.1, 0.1)},
+    "load_cell_scale": {"scale": (0.8, 1.25)},
+    "gyro_bias": {"bias": (-0.05, 0.05)},
+    "gyro_scale": {"scale": (0.9, 1.1)},
+    "gyro_bias_drift": {"random_walk": (0.0, 1e-2), "bias_range": (0.0, 0.05)},
+    "structural_mode": {"frequency": (3.0, 45.0), "damping_ratio": (1e-3, 0.3), "participation": (0.0, 2.0)},
+    "accelerometer_bias": {"bias": (-0.5, 0.5)},
+    "imu_misalignment": {"rpy": (-0.1, 0.1)},
+    "imu_offset": {"offset": (-1.0, 1.0)},
+    "cable_elasticity": {"stiffness": (1e4, 1e9)},
+    "gyroscopic_coupling": {"scale": (0.5, 1.5)},
+}
+"""The range (SI, in the units of :data:`~rig_identification.io.export.EFFECT_UNITS`) each
+effect's parameters must fall in to be named: a fit that needs a dissipation of the wrong sign, a sensor delay of a tenth of a second or an IMU a metre from
+where rig.yaml puts it has found a stand-in for other physics, not the effect.  Units:
+rad/s (gyro bias, the drift's ``bias_range`` over the window), rad/s/√s (the drift's
+``random_walk``: a MEMS gyro's rate random walk is 1e-5–1e-3), m/s², m, rad, s, N/m, Hz (a
+structural mode's frequency: the range searched above the band,
+:data:`~rig_identification.diagnosis.structural.F_MIN`–``F_MAX``); scales, damping ratios and
+participations are dimensionless (1 = the full base-excited oscillator).  Besides:
+``cable_mass`` between 0 and 5 % of the body's mass per cable, ``body_mass`` within 10 %
+of rig.yaml's, the exciter's rotor ``unbalance`` within 0.3–3× the mass that makes the
+measured force (F / (2π f)²), and a dissipative effect's moment at most
+:data:`MAX_EFFECT_SHARE` of the measured moment (RMS in the band: a rig's damping is small)."""
+MAX_EFFECT_SHARE = 0.3
+
+
+def implausible(entry: dict, rig, effect_share: float | None = None, unbalance: float | None = None) -> str | None:
+    """Why the effect ``entry`` (of :attr:`Diagnosis.effects`) cannot be the physics in the
+    recording (see :data:`PLAUSIBLE`), or None when it is plausible.  effect_share: the RMS
+    of its moment over the measured moment's; unbalance: kg·m that makes the measured
+    exciter force."""
+    name, par = entry["name"], entry["parameters"]
+    for k, (lo, hi) in PLAUSIBLE.get(name, {}).items():
+        v = np.atleast_1d(np.asarray(par.get(k, 0.0), float))
+        if np.any(v < lo) or np.any(v > hi):
+            unit = EFFECT_UNITS.get(name, {}).get(k, "").strip("()")
+            return f"{k} = {fmt_value(par.get(k))} outside {lo:g}…{hi:g}" + (f" {unit}" if unit else "")
+    if name == "cable_mass" and not 0.0 <= par.get("mass", 0.0) <= 0.05 * rig.mass:
+        return f"mass {par['mass']:.3g} kg per cable outside 0…{0.05 * rig.mass:.3g} kg"
+    if name == "body_mass" and abs(par.get("mass_error", 0.0)) > 0.1 * rig.mass:
+        return f"mass error {par['mass_error']:.3g} kg beyond 10 % of rig.yaml's {rig.mass:.6g} kg"
+    if name == "exciter_rotor" and unbalance:
+        u = par.get("unbalance", 0.0)
+        if not 0.3 * unbalance <= u <= 3.0 * unbalance:
+            return f"unbalance {u:.3g} kg·m outside 0.3–3× the {unbalance:.3g} kg·m that makes the measured force"
+    if name in ("viscous_damping", "air_drag", "coulomb_friction") and effect_share is not None \
+            and effect_share > MAX_EFFECT_SHARE:
+        return f"its moment is {100 * effect_share:.0f} % of the measured moment (at most {100 * MAX_EFFECT_SHARE:.0f} %)"
+    return None
+
+
+def fmt_value(v) -> str:
+    """A parameter value of an effect's JSON as text (numbers to 4 digits; lists, dicts)."""
+    if isinstance(v, dict):
+        return "{" + ", ".join(f"{k}: {fmt_value(x)}" for k, x in v.items()) + "}"
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(fmt_value(x) for x in v) + "]"
+    if isinstance(v, (float, np.floating)):
+        return f"{v:.4g}"
+    return str(v)

@@ -1,0 +1,168 @@
+"""diagnose's newer physics and its joint search: the structural mode located above the fit
+band, the gyro's bias drift as knots, a load cell's gain on the right cell, two effects named
+together — and none of them named where the recording does not hold them.
+
+The building blocks are tested on synthetic data (milliseconds); the whole chain
+(`pipeline.with_diagnosis`, what `rig-identify inertia` does under model error) on short
+simulations of random rigs (design.scenarios, the bench_trust rows' physics), as background
+jobs (conftest.background).
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from conftest import background, gather
+
+from rig_identification.diagnosis.retracked import bias_path, knots, random_walk
+from rig_identification.diagnosis.structural import Transfer, fit_mode, mode_filter, response
+from rig_identification.model.effects import Effect
+from rig_identification.model.sensors import mode_response
+from rig_identification.model.sensors import random_walk as simulated_walk
+
+
+def synthetic_transfer(sensor: str, frequency: float, zeta: float, p: float, sigma: float, seed: int = 1):
+    """A :class:`Transfer` as a rig with a mode of ``sensor``'s mount shows it above a band of
+    0.4–2 Hz: coherent frequencies 2–5 Hz every 0.1 Hz (the rig's higher modes), H = p G
+    (imu) or 1/(1 + p G) − 1 (load cells), complex noise of σ ``sigma``."""
+    rng = np.random.default_rng(seed)
+    f = np.arange(0.1, 10.0, 0.1)
+    g = p * response(f, frequency, zeta) if p else np.zeros(len(f), complex)
+    H = g if sensor == "imu" else 1.0 / (1.0 + g) - 1.0
+    H = H + sigma * (rng.standard_normal(len(f)) + 1j * rng.standard_normal(len(f))) / np.sqrt(2)
+    coh = np.where((f >= 2.0) & (f <= 5.0), 0.99, 0.2)
+    return Transfer(f, H, np.full(len(f), sigma ** 2), coh, (0.4, 2.0))
+
+
+@pytest.mark.parametrize("sensor", ["imu", "load_cells"])
+def test_structural_mode_is_located_from_the_transfer_above_the_band(sensor):
+    """A mode at 8 Hz (ζ 0.03, the physical oscillator p = 1) seen at 2–5 Hz through noise of
+    σ 0.002 (the H1 estimate's on a 90 s recording): found on the right sensor's side, its
+    frequency within 3 % and 3 σ; the other sensor's model finds nothing (None: no mode of
+    positive participation explains a departure of the other sign)."""
+    tr = synthetic_transfer(sensor, 8.0, 0.03, 1.0, 0.002)
+    fit = fit_mode(tr, sensor, 200.0)
+    assert fit is not None and fit.likelihood_ratio > 100, fit
+    assert abs(fit.frequency - 8.0) < min(0.03 * 8.0, 3 * fit.std["frequency"] + 0.05), fit
+    other = fit_mode(tr, "load_cells" if sensor == "imu" else "imu", 200.0)
+    assert other is None or other.likelihood_ratio < 5.0, other
+
+
+def test_no_structural_mode_in_noise():
+    """H = 0 plus noise: no mode (None, or a likelihood ratio a χ² of 3 dof reaches by chance)."""
+    for seed in range(5):
+        tr = synthetic_transfer("imu", 8.0, 0.03, 0.0, 0.002, seed=seed)
+        for sensor in ("imu", "load_cells"):
+            fit = fit_mode(tr, sensor, 200.0)
+            assert fit is None or fit.likelihood_ratio < 16.3, (seed, sensor, fit)   # χ²₃ at p = 0.001
+
+
+def test_mode_filter_removes_the_simulated_mode():
+    """The simulator's mount (model.sensors.mode_response, 8 Hz, ζ 0.03) on a 1.1 Hz + 2.3 Hz
+    signal, removed by mode_filter: back to the signal within 1e-4 of the mode's effect, away
+    from the ends."""
+    t = np.arange(0.0, 60.0, 0.005)
+    u = np.column_stack([np.sin(2 * np.pi * 1.1 * t) + 0.3 * np.sin(2 * np.pi * 2.3 * t + 0.4),
+                         np.cos(2 * np.pi * 0.7 * t)])
+    e = Effect("structural_mode", {"sensor": "imu", "frequency": 8.0, "damping_ratio": 0.03})
+    measured = u + mode_response(t, u, e)
+    back = mode_filter(t, measured, 8.0, 0.03, 1.0)
+    inner = slice(2000, -2000)
+    assert np.abs(back - u)[inner].max() < 1e-4 * np.abs(measured - u).max()
+
+
+def test_random_walk_from_knots():
+    """A simulated random-walk bias (model.sensors.random_walk, 1e-4 rad/s/√s, 3 axes, 200 Hz,
+    600 s) read at knots 10 s apart with σ 2e-5 rad/s of estimation noise: its intensity
+    within 20 % (3(K − 1) = 177 increments: the χ² spread is 5 %)."""
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 600.0, 0.005)
+    b = simulated_walk(rng, len(t), 0.005, 1e-4)
+    kn = knots(t[0], t[-1])
+    idx = np.searchsorted(t, kn).clip(0, len(t) - 1)
+    c = (b[idx] + 2e-5 * rng.standard_normal((len(kn), 3))).T.ravel()
+    q, sq = random_walk(c, np.full(c.size, 2e-5), kn)
+    assert abs(q - 1e-4) < 0.2e-4, (q, sq)
+    assert 0 < sq < 0.3 * q
+    assert bias_path(t, kn, c).shape == (len(t), 3)
+    np.testing.assert_allclose(bias_path(kn, kn, c), c.reshape(3, -1).T, atol=1e-15)   # through the knots
+
+
+# --- the whole chain on short simulated rigs ---------------------------------------------------
+
+E2E_DURATION = 60.0
+
+
+def _pipeline(seed: int, effects: list, duration: float = E2E_DURATION) -> dict:
+    """Job: a random 4-cable rig (design.scenarios.simulate_random, ``wide`` layout, the
+    bench_trust rows' physics) with ``effects``, the rigid-body fit and `pipeline.with_diagnosis`
+    on it (what `rig-identify inertia` does).  Returns the JSON-safe result: verdict, the
+    named effects, the truth."""
+    from rig_identification.design.scenarios import simulate_random
+    from rig_identification.io.recording import Recording
+    from rig_identification.pipeline.offline import identify_recording, with_diagnosis
+    _, sim = simulate_random(seed, 4, "wide", effects, duration)
+    rec = Recording(sim.rig, sim.sensors, sim.truth, None)
+    res = with_diagnosis(rec, identify_recording(rec))
+    diag = res.diagnosis or {}
+    return json.loads(json.dumps({"verdict": res.validation.verdict if res.validation else None,
+                                  "effects": diag.get("effects", []), "unexplained": diag.get("unexplained", []),
+                                  "truth": sim.truth}, default=float))
+
+
+# seeds of their own (not bench_trust's), 60 s each
+E2E = {
+    "gyro_bias_drift": (8900, [{"name": "gyro_bias_drift", "random_walk": 1e-4}]),
+    "structural_mode": (8901, [{"name": "structural_mode", "sensor": "imu", "frequency": 8.0, "damping_ratio": 0.03}]),
+    "pair": (8902, [{"name": "sensor_delay", "stream": "load_cells", "delay": 0.02},
+                    {"name": "viscous_damping", "linear": 150.0, "angular": 300.0}]),
+}
+background("diagnose_search", __file__, _pipeline, {k: v for k, v in E2E.items()})
+
+
+def _named(res: dict) -> list:
+    return [e["name"] for e in res["effects"]]
+
+
+@pytest.mark.xfail(strict=True, reason="open: measured on a370322, seed 8900 (60 s): gyro_bias_drift named alone, "
+                   "verdict ok, but random_walk 2.08e-4 rad/s/√s for the simulated 1e-4 (the knots' values "
+                   "overestimate the intensity on 7 knots)")
+def test_gyro_bias_drift_is_named_with_its_random_walk():
+    """A random-walk gyro bias of 1e-4 rad/s/√s (60 s, 4-cable rig): diagnosis names
+    gyro_bias_drift and nothing else; the fit with it passes validation; its intensity within
+    a factor 2 of the simulator's (7 knots 10 s apart, 18 increments over the three axes: the
+    χ² spread of the estimate alone is ~17 %, the realised walk's another ~17 %)."""
+    res = gather("diagnose_search", "gyro_bias_drift")["gyro_bias_drift"]
+    assert _named(res) == ["gyro_bias_drift"], (_named(res), res["unexplained"][:2])
+    assert res["verdict"] == "ok"
+    q = res["effects"][0]["parameters"]["random_walk"]
+    assert 0.5e-4 < q < 2e-4, res["effects"][0]
+
+
+@pytest.mark.xfail(strict=True, reason="open: seed 8901 (60 s): structural_mode named alone (verdict ok) since "
+                   "the parsimony rule (before it: + a wrong imu_offset), but at 6.47 Hz, ζ 0.001 (the range's "
+                   "bound) for 8 Hz, 0.03")
+def test_structural_mode_is_named_at_its_frequency():
+    """An 8 Hz mode (ζ 0.03) of the IMU's mount (60 s, 4-cable rig): named on the IMU's side,
+    its frequency within 3 %, and nothing else named."""
+    res = gather("diagnose_search", "structural_mode")["structural_mode"]
+    assert _named(res) == ["structural_mode"], (_named(res), res["unexplained"][:2])
+    p = res["effects"][0]["parameters"]
+    assert p["sensor"] == "imu" and abs(p["frequency"] - 8.0) < 0.24, p
+
+
+@pytest.mark.xfail(strict=True, reason="open: measured on a370322, seed 8902 (60 s): nothing named, unexplained "
+                   "accel_x/force_x at 1.32-1.42 Hz; bench_trust delay_damping names the pair on seed 7900 (90 s), "
+                   "not on 7901")
+def test_two_effects_are_named_together():
+    """Load cells 20 ms late and viscous damping at once (60 s, 4-cable rig): both named, each
+    parameter within 15 %, nothing else; the fit with both passes validation."""
+    res = gather("diagnose_search", "pair")["pair"]
+    assert sorted(_named(res)) == ["sensor_delay", "viscous_damping"], (_named(res), res["unexplained"][:2])
+    assert res["verdict"] == "ok"
+    p = {e["name"]: e["parameters"] for e in res["effects"]}
+    assert abs(p["sensor_delay"]["delay"] / 0.02 - 1) < 0.15, p
+    for k, v in (("linear", 150.0), ("angular", 300.0)):
+        assert abs(p["viscous_damping"][k] / v - 1) < 0.15, p
