@@ -38,7 +38,7 @@ from scipy.spatial.transform import Rotation, Slerp
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from rig_identification.diagnosis.selection import EffectWrench  # noqa: E402
+from rig_identification.diagnosis.result import EffectWrench  # noqa: E402
 from rig_identification.io.verdict import KEYS
 from rig_identification.pipeline.offline import compare_to_truth, identify_recording
 from rig_identification.pipeline.prepare import prepare_recording, replay_window, with_effect_wrench

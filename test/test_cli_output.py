@@ -287,7 +287,7 @@ def test_diagnosed_model_error_warning_gives_effect_parameters_with_units(monkey
 def test_diagnose_prints_the_rigid_body_fit_of_inertia(monkeypatch, json_run):
     """diagnose's rigid-body fit is rig-identify inertia --quick --no-diagnose's, number for number
     (the effect search itself is test_diagnose's: stubbed here)."""
-    from rig_identification.diagnosis.selection import Diagnosis
+    from rig_identification.diagnosis.result import Diagnosis
     J = np.eye(3)
 
     def stub(rec, model="pem"):

@@ -89,7 +89,6 @@ from __future__ import annotations
 
 import math
 from collections import OrderedDict
-from dataclasses import dataclass, field
 from dataclasses import replace as _replace
 from itertools import combinations
 
@@ -101,10 +100,10 @@ from .exact import (MASSES, PROFILED, columns_of, exact_iterate, exact_profile, 
                     log_sf, mass_builder, residual_scales, weight_surplus)
 from ..model.effects import EFFECT_NAMES
 from ..estimation.identification import IdentificationError, identify_inertia
-from ..io.verdict import KEYS
 from ..model.parametrisation import from_tensor
 from .model_extension import Model, Window, fit_model, prepare_window
 from .plausible import implausible
+from .result import Diagnosis, EffectWrench
 from ..io.recording import Recording, RecordingError
 from .residuals import (channel_residuals, effective_samples, exciter_phase, locate, rms, synchronous,
                         synchronous_rms)
@@ -133,90 +132,6 @@ STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml
 
 
 # --- diagnosis ------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class EffectWrench:
-    """The generalized wrench that the diagnosed physics adds to the measured one (the
-    extended model's moment and force columns times their fitted parameters; Newton–Euler:
-    J ω̇ + ω × Jω = M + M_effect, m a = F + F_effect).
-
-    t (N,) s, absolute stamps of the diagnosis window; torque (N,3) N·m about the CG and force
-    (N,3) N, body axes; names: the effects it holds."""
-
-    t: np.ndarray
-    torque: np.ndarray
-    force: np.ndarray
-    names: tuple
-
-    def at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(torque (M,3), force (M,3)) at the stamps ``t`` (M,) s: linear interpolation, the
-        end values held outside the window."""
-        tq = np.column_stack([np.interp(t, self.t, self.torque[:, k]) for k in range(3)])
-        fc = np.column_stack([np.interp(t, self.t, self.force[:, k]) for k in range(3)])
-        return tq, fc
-
-
-@dataclass
-class Diagnosis:
-    """Result of :func:`diagnose`; :meth:`to_dict` is the JSON of ``rig-identify diagnose``."""
-
-    mismatch: bool
-    effects: list
-    located: dict
-    rms_before: dict
-    rms_after: dict
-    inertia_before: np.ndarray
-    inertia_after: np.ndarray
-    inertia_std_before: np.ndarray
-    inertia_std_after: np.ndarray
-    tried: list
-    band: tuple
-    model: str
-    warnings: list = field(default_factory=list)
-    series: dict = field(default_factory=dict)
-    covariance_after: np.ndarray | None = None   # (6,6) of the entries of inertia_after, KEYS order
-    # the sensor and rig errors removed from the data (key -> value, as :func:`corrected` takes)
-    corrections: dict = field(default_factory=dict)
-    # time-synchronous residual RMS per channel (None: no rotating exciter), and the revolutions averaged
-    rms_sync_before: dict | None = None
-    rms_sync_after: dict | None = None
-    revolutions: float | None = None
-    # the physics added to the model (not errors of the data), as the generalized wrench it
-    # adds to the measured one along the window: :class:`EffectWrench` or None
-    effect_wrench: "EffectWrench | None" = None
-    # every correction made to the data or the rig (key -> value, :func:`corrected`; the
-    # cables' mass included), and the cables' stiffness (n,) N/m when their elasticity was found
-    applied: dict = field(default_factory=dict)
-    stiffness: np.ndarray | None = None
-    # the admissible combinations, best (smallest BIC) first, the first being the fields above:
-    # {"effects", "applied", "effect_wrench", "stiffness", "inertia", "covariance",
-    #  "likelihood_ratio", "dof", "bic"}; the caller validates them in that order
-    alternatives: list = field(default_factory=list)
-    # every combination fitted: {"effects": [(name, label)], "likelihood_ratio", "dof", "bic",
-    # "admissible", "why"}, by BIC
-    joint: list = field(default_factory=list)
-    # where the accelerometer departs from Newton's prediction from the load cells above the
-    # fit band (:func:`~rig_identification.diagnosis.structural.out_of_band`)
-    out_of_band: list = field(default_factory=list)
-
-    def to_dict(self) -> dict:
-        ent = lambda J: {k: float(x) for k, x in zip(KEYS, from_tensor(J))}  # noqa: E731
-        return {"mismatch": self.mismatch, "effects": self.effects, "located": self.located,
-                "residual_rms_before": self.rms_before, "residual_rms_after": self.rms_after,
-                "inertia_about_cg_before": ent(self.inertia_before),
-                "inertia_about_cg_after": ent(self.inertia_after),
-                "inertia_std_before": {k: float(x) for k, x in zip(KEYS, self.inertia_std_before)},
-                "inertia_std_after": {k: float(x) for k, x in zip(KEYS, self.inertia_std_after)},
-                "candidates": self.tried, "band_hz": [float(x) for x in self.band], "model": self.model,
-                "warnings": self.warnings,
-                "residual_rms_synchronous_before": self.rms_sync_before,
-                "residual_rms_synchronous_after": self.rms_sync_after,
-                "synchronous_revolutions": self.revolutions,
-                "alternatives": [{"effects": [e["name"] for e in a["effects"]], "likelihood_ratio": a["likelihood_ratio"],
-                                  "dof": a["dof"], "bic": a["bic"]} for a in self.alternatives],
-                "combinations": [{**j, "effects": [f"{n} {lab}".strip() for n, lab in j["effects"]]} for j in self.joint],
-                "out_of_band": self.out_of_band}
-
 
 def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS, alpha: float = ALPHA,
              band_hz: tuple[float, float] | None = None) -> Diagnosis:

@@ -279,7 +279,7 @@ def value_text(v, spec: str = ".4g") -> str:
 
 
 def effect_text(e: dict) -> str:
-    """``name = v ± σ unit, …`` of one effect (an entry of :attr:`~rig_identification.diagnosis.selection.Diagnosis.effects`,
+    """``name = v ± σ unit, …`` of one effect (an entry of :attr:`~rig_identification.diagnosis.result.Diagnosis.effects`,
     a dict with ``name``, ``parameters`` and optionally ``parameters_std``), units from
     :data:`EFFECT_UNITS`: the one text of effect parameters, in the CLI's printouts and in the
     warning of a diagnosed model error (:func:`~rig_identification.pipeline.offline.with_diagnosis`)."""

@@ -43,7 +43,7 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     three times the work of the plain fit) or ``"thesis"`` (the thesis's model and estimator,
     :func:`~rig_identification.estimation.thesis_estimator.identify_inertia_thesis`, from
     ``initial_guess`` (6,) tensor entries or :func:`default_initial_guess`).  effect_wrench:
-    physics added to the model (:class:`~rig_identification.diagnosis.selection.EffectWrench`,
+    physics added to the model (:class:`~rig_identification.diagnosis.result.EffectWrench`,
     :func:`~rig_identification.pipeline.prepare.with_effect_wrench`).  Every fit is validated
     (:func:`~rig_identification.pipeline.fit_validation.validate_fit`: ``result.validation``).  Raises
     :class:`~rig_identification.io.recording.RecordingError`,
@@ -95,7 +95,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     :func:`~rig_identification.diagnosis.selection.diagnose` on the recording (cut to ``start``/``end``, s from the first
     IMU sample) and test what it proposes the way every fit is tested.  diagnose fits the
     library's most significant effects jointly, in every combination, and ranks the admissible
-    ones by an information criterion (:attr:`~rig_identification.diagnosis.selection.Diagnosis.alternatives`);
+    ones by an information criterion (:attr:`~rig_identification.diagnosis.result.Diagnosis.alternatives`);
     each, best first (at most :data:`~rig_identification.diagnosis.selection.ALTERNATIVES`, and
     the best one's admissible proper subsets):
 
@@ -104,7 +104,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
       cables' stiffness) are removed from the recording
       (:func:`~rig_identification.diagnosis.selection.corrected`) and the physics (damping, drag, the exciter's
       rotor, …) is added to the model as the wrench it contributes
-      (:class:`~rig_identification.diagnosis.selection.EffectWrench`, :func:`with_effect_wrench`);
+      (:class:`~rig_identification.diagnosis.result.EffectWrench`, :func:`with_effect_wrench`);
     * the recording is identified again the ordinary way (same window and band: fit,
       propagated σ, validation).
 

@@ -65,7 +65,7 @@ class Replay:
 
 
 def with_effect_wrench(prep: PreparedRecording, effect) -> PreparedRecording:
-    """``prep`` with the wrench of the diagnosed physics (:class:`~rig_identification.diagnosis.selection.EffectWrench`,
+    """``prep`` with the wrench of the diagnosed physics (:class:`~rig_identification.diagnosis.result.EffectWrench`,
     interpolated onto ``prep.t``) added to the measured generalized wrench: the rigid-body
     identifier then fits the model extended by it (Newton–Euler with the effect's moment
     and force)."""

@@ -77,7 +77,7 @@ FITS = {
 
 
 def diagnosis_json(d: dict) -> dict:
-    """Diagnose's JSON (:meth:`~rig_identification.diagnosis.selection.Diagnosis.to_dict`, with
+    """Diagnose's JSON (:meth:`~rig_identification.diagnosis.result.Diagnosis.to_dict`, with
     ``rigid_body_fit`` when the command line adds it) with its schema, version, the unit of
     every numeric field (``units``; ``effects.parameters``: {effect: {parameter: unit}} of the
     effects and candidates present) and what each of its tensors is (``fits``)."""
