@@ -19,8 +19,8 @@ from rig_identification.model.parametrisation import from_tensor
 from rig_identification.pipeline.offline import identify_recording, with_diagnosis
 from rig_identification.io.recording import Recording
 from rig_identification.design.scenarios import simulate_random
-from rig_identification.estimation.validation import (ALPHA, EFFECT_FACTOR, chi2_check, missed_noise, spectra, widened_std,
-                                                      wls_step_joint)
+from rig_identification.estimation.spectral_wls import missed_noise, spectra, wls_step_joint
+from rig_identification.estimation.validation import ALPHA, EFFECT_FACTOR, chi2_check, widened_std
 
 from conftest import background, gather
 
@@ -169,7 +169,7 @@ def test_chi2_check_widens_sigma_between_significance_and_failure():
 def test_missed_noise_is_the_propagated_covariance_beyond_the_frequency_domain_one(clean):
     """The segments and sub_bands checks give each piece of the record the covariance the
     frequency-domain fit misses, E = (C − V)₊ over the whole fit, in its own directions
-    (validation.missed_noise): a direction that is no single entry keeps all of it (the
+    (spectral_wls.missed_noise): a direction that is no single entry keeps all of it (the
     per-entry factor √(C_ii / V_ii) used before left such a direction short: bench_any_rig's
     seed 21008, a false segments alarm), a direction where the propagated covariance is below
     V gets none (never narrower), and no propagated covariance means none."""

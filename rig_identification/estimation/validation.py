@@ -73,18 +73,20 @@ from the fitted tensor, on the fit's own linearisation ``FitSeries.jacobian``) o
 DFT bins of the band, each bin weighted by the residual's local spectral level (Whittle's
 approximation: DFT ordinates of a stationary process are nearly independent with variance
 its spectrum; Brillinger, *Time Series*, 1981, §4.4).  Their covariance is then
-½ (Σ Re Aᴴ S⁻¹ A)⁻¹ for the one-sided DFT.
+½ (Σ Re Aᴴ S⁻¹ A)⁻¹ for the one-sided DFT.  That machinery is
+:mod:`~rig_identification.estimation.spectral_wls`; this module holds the checks and the verdict.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import median_filter, uniform_filter1d
 from scipy.signal import butter, sosfiltfilt
 from scipy.stats import chi2
 
-from .errors_in_variables import EIV_LIMIT, capped
+from .errors_in_variables import EIV_LIMIT
+from .spectral_wls import (determined, interior, missed_noise, piece_noise, projector, residual_excess, spectra, wald,
+                           wls_step, wls_step_joint)
 from .directions import weak_directions
 from .inertia_result import FitSeries, InertiaResult
 from ..io.verdict import KEYS, Check, Validation, fmt_p
@@ -100,103 +102,8 @@ WEAK_SHARE = 0.3            # an entry with this share of an undetermined tensor
 DEGENERATE = 1e-6           # a σ (of an entry, or along a tensor direction) below this fraction of the largest
 #                             is a singular covariance, not an exact entry
 WEIGHT_TOLERANCE = 1e-3     # the load cells' mean vertical force vs rig.yaml's weight
-EDGE_PERIODS = 1.5          # periods of the band's low edge left out at each end of a series by the checks
 EDGE_MARGIN = 1.15          # the whiteness test skips the band's edges (the filter's skirts, where the
 #                             residual's level falls faster than its running median follows)
-SMOOTH_HZ = 0.25            # width of the running median that estimates the residual's spectrum (no realisations)
-NOISE_BINS = 5              # neighbouring bins over which the noise realisations' periodograms are averaged
-
-
-# --- frequency-domain weighted least squares on the fit's linearisation --------------------
-
-@dataclass(frozen=True)
-class Spectra:
-    """DFT of one fitted segment's residual, Jacobian and prediction over the bins of its band.
-
-    f (B,) Hz; r (B,3) residual; A (B,3,6) Jacobian; y (B,3) predicted output; S (B,3) the
-    noise's spectral level in the residual: where the fit carries the noise realisations of
-    its residual (a compensated fit), their periodograms averaged over the realisations and
-    :data:`NOISE_BINS` bins — the noise's own spectrum, peaks included (the noise the
-    tracker's pose passes through the cables' moment rises at the rig's modes: on a 6-cable
-    rig 8× its neighbours at the yaw mode, where the residual's running median saw a
-    spectral line 85× "the noise"); else the residual's running median of the periodogram /
-    ln 2 (:data:`SMOOTH_HZ`)."""
-
-    f: np.ndarray
-    r: np.ndarray
-    A: np.ndarray
-    y: np.ndarray
-    S: np.ndarray
-    dA: np.ndarray | None = None     # (K,B,3,6) the noise realisations of A (FitSeries.noise_jacobian)
-    dr: np.ndarray | None = None     # (K,B,3) and of r (FitSeries.noise_residual)
-    dof: int | None = None           # degrees of freedom of S when it is the realisations' (else None: the median's)
-
-
-def interior(series: FitSeries) -> slice:
-    """The samples of a fitted series the checks use: all but :data:`EDGE_PERIODS` periods of
-    the band's low edge at each end (at most a tenth of the series each).  There the
-    band-pass's start-up transient still rings: scipy ``sosfiltfilt``'s odd extension
-    reflects the output about its first and last *sample*, whose gyro noise (2e-3 rad/s, 9×
-    the noise left in the band) becomes a step at each edge that rings through the band for
-    about 1/f_lo; the regressor, an integral, has no such step.  Over a 60 s record with a
-    0.18 Hz low edge those transients carry as much noise power as all the rest.  They made
-    the ``residual_level`` false alarms of bench_trust's clean seeds 7312 (gyro z 1.73× the
-    noise over the whole series, 1.1× without 2 s at each end) and 7611 (gyro y 1.83×, 0.93×)."""
-    n = len(series.t)
-    fs = series.fs if series.fs else 1.0 / float(np.median(np.diff(series.t)))
-    c = int(min(n // 10, round(EDGE_PERIODS * fs / series.band_hz[0])))
-    return slice(c, n - c)
-
-
-def spectra(series: FitSeries, rows: slice | None = None) -> Spectra:
-    """:class:`Spectra` of ``series`` (its jacobian must be set) over the time ``rows``
-    (default its :func:`interior`).  Raises ValueError when the series has no Jacobian."""
-    if series.jacobian is None:
-        raise ValueError("validation needs the fit's Jacobian (FitSeries.jacobian)")
-    if rows is None:
-        rows = interior(series)
-    r = series.residual[rows]
-    A = series.jacobian[rows]
-    y = series.predicted[rows]
-    n = len(r)
-    fs = series.fs if series.fs else 1.0 / float(np.median(np.diff(series.t)))
-    f = np.fft.rfftfreq(n, 1.0 / fs)
-    lo, hi = series.band_hz
-    m = (f >= lo) & (f <= hi)
-    R = np.fft.rfft(r, axis=0)[m]
-    P = np.abs(R) ** 2
-    dA = dr = None
-    dof = None
-    if series.noise_jacobian is not None and series.noise_residual is not None:
-        dA = np.fft.rfft(series.noise_jacobian[:, rows], axis=1)[:, m]
-        dr = np.fft.rfft(series.noise_residual[:, rows], axis=1)[:, m]
-        # the noise's own spectrum: the realisations' periodograms, averaged over them and
-        # NOISE_BINS neighbouring bins (2·K·NOISE_BINS degrees of freedom per bin)
-        S = uniform_filter1d(np.mean(np.abs(dr) ** 2, axis=0), NOISE_BINS, axis=0, mode="nearest")
-        dof = 2 * len(dr) * NOISE_BINS
-    else:
-        width = max(5, int(round(SMOOTH_HZ * n / fs)) | 1)
-        S = median_filter(P, size=(width, 1), mode="nearest") / np.log(2)
-    S = np.maximum(S, 1e-12 * max(float(S.max()), 1e-300))
-    return Spectra(f[m], R, np.fft.rfft(A, axis=0)[m], np.fft.rfft(y, axis=0)[m], S, dA, dr, dof)
-
-
-def wls_step(sp: Spectra, bins=None, extra=None) -> tuple[np.ndarray, np.ndarray]:
-    """Weighted least-squares step over the DFT bins (Whittle weights 1/S), compensated for
-    the noise in the input when the spectra carry its realisations (:func:`wls_step_joint`).
-
-    extra: optional (B,3,q) further regressors.  Returns (step (6+q,), covariance (6+q,6+q))
-    of the tensor entries (kg·m²) and of the extra coefficients."""
-    return wls_step_joint([sp], None if bins is None else [bins], None if extra is None else [extra])
-
-
-def wald(d: np.ndarray, V: np.ndarray) -> tuple[float, int]:
-    """Wald statistic dᵀ V⁺ d and its degrees of freedom (rank of V, eigenvalues above 1e-9
-    of the largest)."""
-    ev, U = np.linalg.eigh(0.5 * (V + V.T))
-    keep = ev > 1e-9 * max(ev.max(), 1e-300)
-    z = U[:, keep].T @ d
-    return float(np.sum(z**2 / ev[keep])), int(keep.sum())
 
 
 def chi2_check(name: str, stat: float, dof: int, detail: str) -> Check:
@@ -261,56 +168,6 @@ def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray)
     return chi2_check("segments", stat, max(dof, 1), detail), ests, np.array(times)
 
 
-def piece_noise(full: Spectra, part: Spectra, fraction: float) -> tuple[np.ndarray, np.ndarray] | None:
-    """The noise moments of the compensated step (:func:`wls_step_joint`) of a piece of a
-    record — ``fraction`` of its samples, spectra ``part`` — from the whole record's noise
-    realisations (``full``): the noise is stationary, so its cross-spectrum is estimated
-    from the whole record (far more bins than the piece's own realisations have: a quarter
-    of a 90 s record compensated with its own three realisations scattered 3× beyond its
-    σ), weighted with the piece's own residual level and scaled to its length (a piece's
-    periodogram and level are ``fraction`` of the whole's, its bins ``fraction`` as many).
-    Returns (N (K,6,6), n (K,6)) per realisation, or None when ``full`` has none."""
-    if full.dA is None or full.dr is None:
-        return None
-    W = 1.0 / np.column_stack([np.interp(full.f, part.f, part.S[:, i]) for i in range(3)])
-    return (fraction**2 * np.einsum("kbip,bi,kbiq->kpq", full.dA.conj(), W, full.dA).real,
-            fraction**2 * np.einsum("kbip,bi,kbi->kp", full.dA.conj(), W, full.dr).real)
-
-
-def residual_excess(series: list[FitSeries]) -> np.ndarray | None:
-    """(3,) per gyro axis: the fit's residual RMS over the :func:`interior` of its series over the
-    RMS of the noise realisations of the residual there (every path of the noise: the
-    replays', :attr:`FitSeries.noise_residual`); None when a series has no realisations."""
-    num, den = np.zeros(3), np.zeros(3)
-    for s in series:
-        if s.noise_residual is None:
-            return None
-        rows = interior(s)
-        num += np.sum(s.residual[rows] ** 2, axis=0)
-        den += np.mean(np.sum(s.noise_residual[:, rows] ** 2, axis=1), axis=0)
-    return np.sqrt(num / np.maximum(den, 1e-300))
-
-
-def missed_noise(series: list[FitSeries], cov: np.ndarray | None) -> np.ndarray:
-    """(6,6) kg²·m⁴ E = (C − V)₊: the covariance the noise gives the whole fit (``cov``, C:
-    propagated through tracker, preprocessor and identifier) beyond the frequency-domain one
-    V (:func:`wls_step_joint`, which sees the output's residual only), its positive part.
-    Zeros when ``cov`` is None or not finite.  A piece of the record holding a fraction f of
-    its information has V_k + E / f (the missed noise is the record's own, like the rest).
-
-    The noise the residual's spectrum misses (the gyro's, through the tracked pose into the
-    cables' moment) lies along tensor directions of its own, not along the entries: the
-    per-entry factor √(C_ii / V_ii) used before left a clean 4-cable rig's time segments
-    short along Ixy and wide along the rest (bench_any_rig's seed 21008: its own noise failed
-    ``segments`` at χ²/dof 4.76; ``bench/bench_validation_null.py --any-rig 21008`` measures
-    the check's null over noise seeds)."""
-    if cov is None or not np.all(np.isfinite(cov)):
-        return np.zeros((6, 6))
-    _, V = wls_step_joint([spectra(s) for s in series])
-    ev, U = np.linalg.eigh(0.5 * (cov + cov.T) - 0.5 * (V + V.T))
-    return (U * np.clip(ev, 0.0, None)) @ U.T
-
-
 def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) -> tuple[Check | None, np.ndarray | None, tuple | None]:
     """Consistency across frequency (see module docstring): the band split where the
     information (trace of the covariance-weighted information of the bins) reaches half,
@@ -335,7 +192,7 @@ def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) ->
     E = np.asarray(scale, float)
     B1, B2 = [determined(sps, [h[i] for h in halves]) for i in (0, 1)]
     # the directions both halves determine (the complement of the union of the noisy ones)
-    U, sv, _ = np.linalg.svd(np.eye(6) - _projector(B1) @ _projector(B2) @ _projector(B1) if B1.shape[1] < 6 or
+    U, sv, _ = np.linalg.svd(np.eye(6) - projector(B1) @ projector(B2) @ projector(B1) if B1.shape[1] < 6 or
                              B2.shape[1] < 6 else np.zeros((6, 6)))
     B = U[:, sv < 0.5]
     stat, dof = wald(B.T @ (d1 - d2), B.T @ (V1 + V2 + 4.0 * E) @ B)
@@ -347,105 +204,6 @@ def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) ->
     detail = (f"the band split at {split:.2f} Hz (half the information below): {KEYS[big]} "
               f"{theta[big] + d1[big]:.4g} below vs {theta[big] + d2[big]:.4g} kg·m² above")
     return chi2_check("sub_bands", stat, dof, detail), np.array([theta + d1, theta + d2]), edges
-
-
-def _normal(sps: list[Spectra], bins: list | None, extras: list | None, moments: list | None):
-    """The Whittle-weighted normal equations pooled over ``sps`` (see :func:`wls_step_joint`):
-    info (p,p), g (p,), the noise moments per realisation Nk (K,p,p), nk (K,p), and Cq (p,p)
-    the covariance of the gradient's noise × noise term (the sample covariance over the
-    realisations, bin by bin, summed: the bins are independent) — 0.0 when the spectra carry
-    no realisations."""
-    info, g, Nk, nk, Cq = 0.0, 0.0, 0.0, 0.0, 0.0
-    for i, sp in enumerate(sps):
-        A = sp.A if extras is None else np.concatenate([sp.A, extras[i]], axis=2)
-        r, S = sp.r, sp.S
-        dA, dr = sp.dA, sp.dr
-        if dA is not None and extras is not None:
-            dA = np.concatenate([dA, np.zeros(dA.shape[:3] + (extras[i].shape[2],), complex)], axis=3)
-        if bins is not None:
-            A, r, S = A[bins[i]], r[bins[i]], S[bins[i]]
-            if dA is not None:
-                dA, dr = dA[:, bins[i]], dr[:, bins[i]]
-        W = 1.0 / S
-        info = info + np.einsum("bip,bi,biq->pq", A.conj(), W, A).real
-        g = g + np.einsum("bip,bi,bi->p", A.conj(), W, r).real
-        if dA is not None:
-            t = np.einsum("kbip,bi,kbi->kbp", dA.conj(), W, dr).real       # per realisation and bin
-            if len(t) >= 2:
-                dev = t - t.mean(0)
-                Cq = Cq + np.einsum("kbp,kbq->pq", dev, dev) / (len(t) - 1)
-        if moments is not None and moments[i] is not None:
-            Nk, nk = Nk + moments[i][0], nk + moments[i][1]
-        elif dA is not None:     # per realisation (K,p,p), (K,p)
-            Nk = Nk + np.einsum("kbip,bi,kbiq->kpq", dA.conj(), W, dA).real
-            nk = nk + t.sum(1)
-    return info, g, Nk, nk, Cq
-
-
-def wls_step_joint(sps: list[Spectra], bins: list | None = None, extras: list | None = None,
-                   moments: list | None = None):
-    """:func:`wls_step` pooled over several segments' spectra (one tensor).
-
-    When the spectra carry the noise realisations of the fit (``dA``, ``dr``: a fit
-    compensated for the noise in its input, :mod:`rig_identification.estimation.errors_in_variables`), the step is
-    compensated the same way: the realisations' mean second moments are removed from the
-    information and the gradient (the extra regressors are taken as noise-free), each
-    direction's share capped at :data:`~rig_identification.estimation.errors_in_variables.SHARE_CAP`; the covariance is
-    then the sandwich I_c⁻¹ (½ I + C_q) I_c⁻¹ (C_q: the fluctuation of the noise × noise term
-    of the gradient about its removed mean, :func:`_normal`) plus the jackknife covariance of the step over the
-    realisations (their finite number makes the compensation uncertain).  moments: per
-    spectra, the noise moments (N (K,p,p), n (K,p)) to use instead of its own realisations'
-    (:func:`piece_noise`), or None for them."""
-    info, g, Nk, nk, Cq = _normal(sps, bins, extras, moments)
-    if np.ndim(Nk):
-        try:
-            def solve(keep):
-                Ic = np.linalg.pinv(info - capped(info, Nk[keep].mean(0)), rcond=1e-12, hermitian=True)
-                return Ic @ (g - nk[keep].mean(0)), Ic
-
-            K = len(Nk)
-            step, Ic = solve(np.arange(K))
-            # the noise's own product in the gradient (input noise × output noise) fluctuates
-            # about the mean that is removed: its variance, per bin from the realisations
-            cov = Ic @ (0.5 * info + Cq) @ Ic
-            if K >= 2:
-                # the realisations' finite number: the jackknife of the compensated step
-                loo = np.array([solve(np.delete(np.arange(K), k))[0] for k in range(K)])
-                dev = loo - loo.mean(0)
-                cov = cov + (K - 1) / K * dev.T @ dev
-            return step, cov
-        except np.linalg.LinAlgError:
-            pass
-    cov = 0.5 * np.linalg.pinv(info, rcond=1e-12, hermitian=True)
-    return 2.0 * cov @ g, cov
-
-
-def _projector(B: np.ndarray) -> np.ndarray:
-    """Orthogonal projector onto the columns of B (6, q)."""
-    Q, _ = np.linalg.qr(B)
-    return Q @ Q.T
-
-
-def determined(sps: list[Spectra], bins: list | None = None, moments: list | None = None) -> np.ndarray:
-    """(6, q) B: the combinations ``Bᵀ θ`` of the tensor entries that a piece of the record
-    determines despite the noise in the input — the coordinates along the generalized
-    eigenvectors (of the noise moments and the information,
-    :func:`~rig_identification.estimation.errors_in_variables.noise_share`) whose noise share is within
-    :data:`~rig_identification.estimation.errors_in_variables.EIV_LIMIT`, blind to the others.  Along the others the compensated step is the
-    noise's (a quarter of a damped record whose roll has died away: share 1.0, Ixx moved
-    600 kg·m² at "σ" 360), and the consistency checks leave them out.  The identity when the
-    spectra carry no realisations."""
-    info, _, Nk, _, _ = _normal(sps, bins, None, moments)
-    if not np.ndim(Nk):
-        return np.eye(6)
-    try:
-        L = np.linalg.cholesky(0.5 * (info + info.T))
-    except np.linalg.LinAlgError:
-        return np.eye(6)
-    N = Nk.mean(0)
-    S = np.linalg.solve(L, np.linalg.solve(L, 0.5 * (N + N.T)).T)
-    ev, V = np.linalg.eigh(0.5 * (S + S.T))
-    return L @ V[:, ev <= EIV_LIMIT]
 
 
 def quadrature_check(series: list[FitSeries]) -> Check:
@@ -472,7 +230,7 @@ def quadrature_check(series: list[FitSeries]) -> Check:
 
 def whiteness_check(series: list[FitSeries]) -> Check:
     """Fisher's g-test for a spectral line in the residual (see module docstring): the
-    largest ratio of a periodogram ordinate to the noise's level there (:class:`Spectra`'s S:
+    largest ratio of a periodogram ordinate to the noise's level there (:class:`~rig_identification.estimation.spectral_wls.Spectra`'s S:
     the noise realisations' spectrum, the ratio then F(2, 2ν) distributed; without them the
     residual's running median, the ratio exponential), Bonferroni over the bins and axes.
     Statistic and threshold in units of that ratio."""

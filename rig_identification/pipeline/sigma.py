@@ -14,7 +14,7 @@ from ..estimation.identification import fit_segments, prepare_segment
 from ..estimation.inertia_result import InertiaResult
 from ..estimation.prediction import PlanError, combine
 from ..estimation.uncertainty import noise_replays, propagated, sensor_noise
-from ..estimation.validation import residual_excess
+from ..estimation.spectral_wls import residual_excess
 from ..model.parametrisation import from_tensor
 from .prepare import PreparedRecording, replay_window
 
@@ -49,7 +49,7 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     quadrature: ``crb_std`` holds it, and ``inertia_std`` and ``covariance`` too unless the
     fit's residual RMS exceeds the one the noise predicts (the replays' residual
     realisations, over the series' interior:
-    :func:`~rig_identification.estimation.validation.residual_excess`) by more than :data:`MODEL_ERROR_RATIO` on a gyro axis
+    :func:`~rig_identification.estimation.spectral_wls.residual_excess`) by more than :data:`MODEL_ERROR_RATIO` on a gyro axis
     (``residual_excess``): that is model error, and the identifier's sandwich σ (from the
     residuals; always in ``sandwich_std``) is kept.  If the propagation fails (too little
     motion) the result keeps the sandwich σ with a warning.  Returns ``result``, updated in
