@@ -36,19 +36,16 @@ import json
 import sys
 import time
 import warnings
-from concurrent.futures import ProcessPoolExecutor
-from pathlib import Path
 
 import numpy as np
 
 from rig_identification.design.scenarios import simulate_random
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import from_tensor, to_tensor
-from rig_identification.estimation.uncertainty import propagated, sensor_noise
+from rig_identification.model.parametrisation import from_tensor
 from rig_identification.estimation.validation import REL_STD_LIMIT
 from rig_identification.io.recording import Recording
 from rig_identification.pipeline.offline import identify_recording
-from rig_identification.pipeline.prepare import prepare_recording
+from scoring import entry_scales, predicted_rel_std, print_unscored, run_jobs, score_entries, worst
 
 CABLES = (3, 4, 5, 6)
 LAYOUTS = ("wide", "wide", "random", "random", "mixed", "splayed", "parallel")   # determined rigs weigh double
@@ -74,19 +71,13 @@ def job(seed: int) -> dict:
         return row | {"skipped": f"{type(e).__name__}: {e}"}
     row["description"] = d["description"]
     rec = Recording(sim.rig, sim.sensors, sim.truth, None)
-    tru = sim.truth["inertia_about_cg"]
-    th = np.array([tru[k] for k in KEYS])
-    big = max(th[0], th[3], th[5])
-    scale = np.array([th[0], big, big, th[3], big, th[5]])
+    th = np.array([sim.truth["inertia_about_cg"][k] for k in KEYS])
     try:
         res = identify_recording(rec)
     except ValueError as e:                     # a user error: refused, with its message
         return row | {"verdict": "refused", "error": str(e), "cpu_s": time.process_time() - t0}
     try:
-        prep = prepare_recording(rec)
-        noise, rates = sensor_noise(sim.rig, prep.sensors)
-        pred = propagated(sim.rig, prep.poses, prep.sensors, prep.t, to_tensor(th), res.band_hz, noise, rates)
-        rel = pred.std / scale
+        rel = predicted_rel_std(rec, th, res.band_hz)
         row["predicted_rel_std"] = dict(zip(KEYS, map(float, rel)))
         row["kind_truth"] = ("determined" if np.all(rel <= 0.5 * REL_STD_LIMIT) else
                              "undetermined" if np.any(rel > REL_STD_LIMIT) else "marginal")
@@ -95,17 +86,11 @@ def job(seed: int) -> dict:
         row.update(kind_truth=None, prediction_error=str(e))
     v = res.validation
     est = from_tensor(res.inertia)
-    entries = {}
-    for k, x, s, ref, t in zip(KEYS, est, res.inertia_std, scale, th):
-        if k in res.undetermined:
-            continue
-        entries[k] = {"error_pct": float(100 * (x - t) / ref), "z": float((x - t) / s) if s > 0 else float("inf"),
-                      "rel_std": float(s / ref), "finite": bool(np.isfinite(x) and np.isfinite(s))}
-    ok_e = [e for e in entries.values() if e["finite"]]
+    entries = score_entries(res, sim.truth["inertia_about_cg"])
+    max_pct, max_z = worst(entries)
     row.update(verdict=v.verdict, failed=list(v.failed), undetermined=list(res.undetermined), advice=list(v.advice),
                entries=entries, finite=all(e["finite"] for e in entries.values()),
-               max_err_pct=max((abs(e["error_pct"]) for e in ok_e), default=None),
-               max_err_sigma=max((abs(e["z"]) for e in ok_e), default=None),
+               max_err_pct=max_pct, max_err_sigma=max_z,
                checks={c.name: [c.statistic, c.threshold, c.passed] for c in v.checks},
                replay_factor=res.replay_factor, sigma_factor=v.sigma_factor,
                # the pieces of σ, for the calibration's analysis: the raw errors (6,) kg·m², the
@@ -118,7 +103,7 @@ def job(seed: int) -> dict:
                sandwich_std=list(res.sandwich_std if res.sandwich_std is not None else np.full(6, np.nan)),
                noise_share=None if res.errors_in_variables is None else res.errors_in_variables.share,
                residual_excess=None if res.residual_excess is None else list(res.residual_excess),
-               predicted_std_truth=list(pred.std) if row.get("kind_truth") else None,
+               predicted_std_truth=list(rel * entry_scales(th)) if row.get("kind_truth") else None,
                cpu_s=time.process_time() - t0)
     return json.loads(json.dumps(row, default=float))
 
@@ -137,22 +122,11 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     seeds = list(range(a.first_seed, a.first_seed + a.rigs))
     t0 = time.perf_counter()
-    rows = []
-    with ProcessPoolExecutor(a.procs) as ex:
-        for r in ex.map(job, seeds):
-            rows.append(r)
-            print(f"done {len(rows)}/{len(seeds)}: seed {r['seed']} {short(r)}: {r.get('verdict', 'skipped')} "
-                  f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
-            if a.json:
-                Path(a.json).write_text(json.dumps(rows, indent=1))
+    rows = run_jobs(job, seeds, a.procs, a.json, lambda r: f"seed {r['seed']} {short(r)}")
     print(f"{'seed':>6s} {'rig':27s} {'pred σ':>7s} {'truth':12s} {'verdict':16s} {'max e%':>7s} {'max|e|/σ':>8s}  "
           "failed | undetermined | what to change")
     for r in rows:
-        if "skipped" in r:
-            print(f"{r['seed']:6d} {short(r):27s} skipped: {r['skipped'][:80]}")
-            continue
-        if r["verdict"] == "refused":
-            print(f"{r['seed']:6d} {short(r):27s} refused: {r['error'][:80]}")
+        if print_unscored(r, f"{r['seed']:6d} {short(r):27s}", 0):
             continue
         ps = "-" if r.get("kind_truth") is None else f"{100 * max(r['predicted_rel_std'].values()):6.2f}%"
         ep = "-" if r["max_err_pct"] is None else f"{r['max_err_pct']:.2f}"

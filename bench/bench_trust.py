@@ -25,13 +25,14 @@ import argparse
 import json
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+
+from scoring import print_unscored, run_jobs  # noqa: E402  (bench/, beside this script)
 
 # row name -> (cables, layout, effects, clean?[, exciter placement]) (rig_identification.design.scenarios)
 ROWS = {
@@ -70,10 +71,10 @@ def _job(args):
     from rig_identification.model.parametrisation import from_tensor, to_tensor
     from rig_identification.pipeline.offline import identify_recording, with_diagnosis
     from rig_identification.pipeline.prepare import prepare_recording
-    from rig_identification.estimation.uncertainty import propagated, sensor_noise
     from rig_identification.estimation.validation import REL_STD_LIMIT
     from rig_identification.io.recording import Recording
     from rig_identification.design.scenarios import simulate_random
+    from scoring import predicted_rel_std, score_entries, worst
     cables, layout, effects, clean, *rest = ROWS[name]
     exciter = rest[0] if rest else "corner"
     t0 = time.perf_counter()
@@ -88,14 +89,10 @@ def _job(args):
     # gives each entry along this recording's trajectory with the true tensor (the planner's
     # propagation); "identifiable" when every entry's is within half the validation's limit
     try:
-        prep = prepare_recording(rec)
         J_true = to_tensor([sim.truth["inertia_about_cg"][k] for k in KEYS])
+        prep = prepare_recording(rec)
         band = identify_inertia(sim.rig, prep.t, prep.gyro_body, prep.torque).band_hz
-        noise, rates = sensor_noise(sim.rig, prep.sensors)
-        pred = propagated(sim.rig, prep.poses, prep.sensors, prep.t, J_true, band, noise, rates)
-        th = from_tensor(J_true)
-        big = max(th[0], th[3], th[5])
-        rel = pred.std / np.array([th[0], big, big, th[3], big, th[5]])
+        rel = predicted_rel_std(rec, from_tensor(J_true), band, prep)
         row["predicted_rel_std"] = {k: float(r) for k, r in zip(KEYS, rel)}
         row["identifiable_truth"] = bool(np.all(rel <= 0.5 * REL_STD_LIMIT))
     except Exception as e:   # noqa: BLE001 — the prediction is the bench's aid, not the tool's result
@@ -109,27 +106,15 @@ def _job(args):
         row.update(verdict="refused", error=str(e), seconds=time.perf_counter() - t0)
         return row
     out = res.to_dict()
-    tru = sim.truth["inertia_about_cg"]
-    big = max(tru["ixx"], tru["iyy"], tru["izz"])
-    errs, sig, zs = [], [], []
-    finite = True
-    for k, v, s in zip(KEYS, from_tensor(res.inertia), res.inertia_std):
-        if k in res.undetermined:
-            continue
-        if not (np.isfinite(v) and np.isfinite(s)):
-            finite = False
-            continue
-        ref = abs(tru[k]) if k in ("ixx", "iyy", "izz") else big
-        errs.append(100 * (v - tru[k]) / ref)
-        sig.append(abs(v - tru[k]) / s if s > 0 else np.inf)
-        zs.append((v - tru[k]) / s if s > 0 else np.inf)
+    entries = score_entries(res, sim.truth["inertia_about_cg"])
+    max_pct, max_z = worst(entries)
+    zs = [e["z"] for e in entries.values() if e["finite"]]
     v = res.validation
     diag = out.get("diagnosis") or {}
     row.update(checks={c.name: [c.statistic, c.threshold, c.passed] for c in v.checks} if v else {},
                verdict=v.verdict if v else "none", failed=list(v.failed) if v else [],
-               undetermined=list(res.undetermined), finite=finite,
-               max_err_pct=float(np.max(np.abs(errs))) if errs else None,
-               max_err_sigma=float(np.max(sig)) if sig else None, z=zs,
+               undetermined=list(res.undetermined), finite=all(e["finite"] for e in entries.values()),
+               max_err_pct=max_pct, max_err_sigma=max_z, z=zs,
                named=[e["name"] for e in diag.get("effects", [])],
                unexplained=diag.get("unexplained", []),
                truth_effects=[e["name"] for e in sim.truth.get("effects", [])],
@@ -154,22 +139,11 @@ def main(argv=None) -> int:
     jobs = [(n, 7000 + 100 * i + a.first_seed + k, a.duration, not a.no_diagnose)
             for i, n in enumerate(ROWS) if n in names for k in range(a.seeds)]
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(a.procs) as ex:
-        rows = []
-        for r in ex.map(_job, jobs):          # each row on stderr as it is done: a sweep takes tens of minutes
-            rows.append(r)
-            print(f"done {len(rows)}/{len(jobs)}: {r['row']} seed {r['seed']}: {r.get('verdict', 'skipped')}"
-                  f" ({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
-            if a.json:                        # after each recording: an interrupted sweep keeps what it measured
-                Path(a.json).write_text(json.dumps(rows, indent=1))
+    rows = run_jobs(_job, jobs, a.procs, a.json, lambda r: f"{r['row']} seed {r['seed']}")
     print(f"{'row':22s} {'seed':>5s} {'verdict':17s} {'max|e|/σ':>8s} {'max e %':>8s}  failed checks / undetermined; "
           "named; unexplained")
     for r in rows:
-        if "skipped" in r:
-            print(f"{r['row']:22s} {r['seed']:5d} skipped: {r['skipped'][:90]}")
-            continue
-        if r["verdict"] == "refused":
-            print(f"{r['row']:22s} {r['seed']:5d} {'refused':17s} {r['error'][:100]}")
+        if print_unscored(r, f"{r['row']:22s} {r['seed']:5d}", 17):
             continue
         es = "-" if r["max_err_sigma"] is None else f"{r['max_err_sigma']:.2f}"
         ep = "-" if r["max_err_pct"] is None else f"{r['max_err_pct']:.2f}"

@@ -1,0 +1,94 @@
+"""What the benches that judge fits against the simulator's truth share (bench_trust.py,
+bench_any_rig.py): the scale each entry's error is judged on, the σ the geometry and the
+excitation give each entry *with the true tensor* (decided from the truth, independently of
+the fit), each reported entry's error % and error/σ, the rows every table prints the same way
+(a rig the simulator could not make, a recording the tool refused), and the run over worker
+processes that says each recording on stderr as it is done and keeps what it measured.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+from rig_identification.estimation.inertia_result import InertiaResult
+from rig_identification.estimation.uncertainty import propagated, sensor_noise
+from rig_identification.io.recording import Recording
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.parametrisation import from_tensor, to_tensor
+from rig_identification.pipeline.prepare import prepare_recording
+
+
+def entry_scales(theta: np.ndarray) -> np.ndarray:
+    """(6,) kg·m², KEYS order: the scale an entry's error is judged on — a moment's own value,
+    the largest moment for a product (issue 17's "products: of the largest diagonal")."""
+    th = np.asarray(theta, float)
+    big = max(th[0], th[3], th[5])
+    return np.array([th[0], big, big, th[3], big, th[5]])
+
+
+def predicted_rel_std(rec: Recording, theta_true: np.ndarray, band_hz, prep=None) -> np.ndarray:
+    """(6,) the σ the recording's noise gives each entry along its own trajectory with the true
+    tensor ``theta_true`` (6,) kg·m² (the planner's propagation,
+    :func:`~rig_identification.estimation.uncertainty.propagated`), over :func:`entry_scales`.
+    ``prep``: the recording's :func:`~rig_identification.pipeline.prepare.prepare_recording`
+    when the caller has it.  Raises what the propagation raises (the caller keeps the bench going)."""
+    prep = prepare_recording(rec) if prep is None else prep
+    noise, rates = sensor_noise(rec.rig, prep.sensors)
+    pred = propagated(rec.rig, prep.poses, prep.sensors, prep.t, to_tensor(theta_true), band_hz, noise, rates)
+    return pred.std / entry_scales(theta_true)
+
+
+def score_entries(res: InertiaResult, truth: dict) -> dict:
+    """Each entry the fit gives (its undetermined ones left out), against ``truth``
+    (``inertia_about_cg``: KEYS -> kg·m²): {key: {"error_pct" (of :func:`entry_scales`), "z"
+    (error/σ; inf for σ 0), "rel_std", "finite"}}."""
+    th = np.array([truth[k] for k in KEYS])
+    scale = entry_scales(th)
+    out = {}
+    for k, x, s, ref, t in zip(KEYS, from_tensor(res.inertia), res.inertia_std, scale, th):
+        if k in res.undetermined:
+            continue
+        out[k] = {"error_pct": float(100 * (x - t) / ref), "z": float((x - t) / s) if s > 0 else float("inf"),
+                  "rel_std": float(s / ref), "finite": bool(np.isfinite(x) and np.isfinite(s))}
+    return out
+
+
+def worst(entries: dict) -> tuple[float | None, float | None]:
+    """(largest |error %|, largest |error/σ|) over the finite entries of :func:`score_entries`."""
+    fin = [e for e in entries.values() if e["finite"]]
+    return (max((abs(e["error_pct"]) for e in fin), default=None),
+            max((abs(e["z"]) for e in fin), default=None))
+
+
+def print_unscored(r: dict, label: str, width: int) -> bool:
+    """Print the row of a rig the simulator could not make ("skipped") or a recording the tool
+    refused, after ``label``; True when ``r`` was one of them."""
+    if "skipped" in r:
+        print(f"{label} skipped: {r['skipped'][:90]}")
+        return True
+    if r.get("verdict") == "refused":
+        print(f"{label} {'refused':{width}s} {r['error'][:100]}")
+        return True
+    return False
+
+
+def run_jobs(job, args: list, procs: int, json_path: str | None, label) -> list[dict]:
+    """``job`` over ``args`` in ``procs`` worker processes, in order: each row said on stderr as
+    it is done (``label(row)``, its verdict, the time so far: a sweep takes tens of minutes)
+    and, with ``json_path``, all rows so far written there after each (an interrupted sweep
+    keeps what it measured).  Returns the rows."""
+    t0 = time.perf_counter()
+    rows: list[dict] = []
+    with ProcessPoolExecutor(procs) as ex:
+        for r in ex.map(job, args):
+            rows.append(r)
+            print(f"done {len(rows)}/{len(args)}: {label(r)}: {r.get('verdict', 'skipped')} "
+                  f"({time.perf_counter() - t0:.0f} s)", file=sys.stderr, flush=True)
+            if json_path:
+                Path(json_path).write_text(json.dumps(rows, indent=1))
+    return rows
