@@ -37,13 +37,14 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import butter, decimate, sosfiltfilt
 
+from ..io.noise import white_sigma
 from ..io.rig import Rig
 from ..model.parametrisation import (basis, consistent_from_params, from_tensor, params_from_consistent,
                                      physically_consistent, to_tensor)
 from .directions import weak_directions
 from .errors_in_variables import NoiseRealisations, compensate
 from .inertia_result import FitSeries, InertiaResult
-from .signals import auto_band, cumulative_integral, gyro_noise_sigma, step_indices
+from .signals import auto_band, cumulative_integral, step_indices
 
 
 class IdentificationError(ValueError):
@@ -236,7 +237,7 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
     sgs, crb = [], 0
     for A3, s in zip(A3s, segs):
         FA = s.filt(A3.reshape(len(s.t), -1)).reshape(-1, 6)
-        sg = gyro_noise_sigma(s.w, s.fs)
+        sg = white_sigma(s.w)
         sgs.append(sg)
         crb = crb + sg**2 * B @ (FA.T @ FA) @ B
     resid = np.concatenate(resids)

@@ -12,7 +12,7 @@ from dataclasses import replace
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
-from .signals import gyro_noise_sigma
+from ..io.noise import white_sigma
 from ..io.recording import crop, Recording, RecordingError
 from ..io.bad_spans import fill_short_gaps, find_bad_spans
 
@@ -78,7 +78,7 @@ def clean_sensors(rec: Recording, warnings: list[str]):
 def check_motion(rec: Recording, s) -> None:
     """Refuse a static recording: the gyro low-passed at 10 Hz (zero-phase Butterworth,
     scipy) about its mean must stand out of the noise it would have in that band (σ from
-    the spectrum's flat top) by :data:`MOTION_SNR`, and be at least :data:`MIN_MOTION`.
+    its third differences, io.noise.white_sigma) by :data:`MOTION_SNR`, and be at least :data:`MIN_MOTION`.
     A body that moved, however little, is fitted: whether that motion determines each
     entry is the validation's verdict (``not_identifiable``), from the entries' σ.
     Raises :class:`RecordingError`."""
@@ -87,7 +87,7 @@ def check_motion(rec: Recording, s) -> None:
     f_lp = min(10.0, 0.4 * fs)
     sm = sosfiltfilt(butter(4, f_lp, fs=fs, output="sos"), g - g.mean(0), axis=0)
     rms = float(np.sqrt(np.mean(np.sum(sm**2, axis=1))))
-    noise = gyro_noise_sigma(g, fs) * np.sqrt(3 * 2 * f_lp / fs)
+    noise = white_sigma(g) * np.sqrt(3 * 2 * f_lp / fs)
     threshold = max(MOTION_SNR * noise, MIN_MOTION)
     if rms < threshold:
         raise RecordingError(f"{rec.path}: the body did not move (gyro RMS below 10 Hz {rms:.1e} rad/s, no more "

@@ -1,5 +1,5 @@
 """The identifier's signal helpers: stepped inputs found, integrated without smearing a step,
-the pass band around the motion, the gyro's white-noise level.
+the pass band around the motion (the white-noise level is io.noise.white_sigma, the one estimator).
 
 Used by the fit (:mod:`rig_identification.estimation.identification`), the data-quality check
 (:mod:`rig_identification.estimation.quality`), the noise propagation and the diagnosis window.
@@ -92,8 +92,3 @@ def auto_band(omega: np.ndarray, fs: float, f_min: float = 0.15) -> tuple[float,
     lo = max(f_min, 0.6 * f[sig[0]])
     return lo, min(0.4 * fs, max(1.5 * f[sig[-1]], 2.0 * lo))
 
-
-def gyro_noise_sigma(omega: np.ndarray, fs: float) -> float:
-    """White-noise σ (rad/s) of the gyro from the flat top of its Welch spectrum (scipy)."""
-    f, P = welch(omega, fs=fs, nperseg=min(len(omega), 1024), axis=0)
-    return float(np.sqrt(np.median(P[f > fs / 4].mean(1)) * fs / 2))
