@@ -40,6 +40,7 @@ DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose
 WEIGHT_SIGMA = 5e-4   # relative σ of the load cells' mean vertical force against rig.yaml's weight:
                       # the cells' calibration (class C3 cells: 0.02–0.05 % of their load)
 ROT, TR = ("gyro_x", "gyro_y", "gyro_z"), ("accel_x", "accel_y", "accel_z")
+GRAM_HADAMARD = 1e-6   # det / product of the diagonal of the cables' wrench Gram matrix below which it is near-singular
 WRENCH_SCALE = np.array([1, 1, 1, 1 / 1.5, 1 / 1.5, 1 / 1.5])   # force N vs torque N·m over ~1.5 m
 
 
@@ -117,10 +118,22 @@ class Window:
         of the generalized wrench (force N, torque N·m, the torque over ~1.5 m:
         :data:`WRENCH_SCALE`), ``δT = pinv(Wᵀ) s·(F, M)`` with W's rows the cables' unit wrench
         (u_i, r_i × u_i) in body axes.  It depends on the pose only, not on any fit: computed
-        once per window (numpy ``pinv``, one SVD per sample) and kept (a copy made by
-        :meth:`shifted` computes its own)."""
+        once per window and kept (a copy made by :meth:`shifted` computes its own).  With at
+        most six cables, ``pinv(Wᵀ) = (W Wᵀ)⁻¹ W`` (full rank: the normal equations, one
+        batched solve); numpy ``pinv`` (an SVD per sample) where W Wᵀ is near-singular (its
+        determinant below :data:`GRAM_HADAMARD` of its diagonal's product) or there are more
+        cables than wrench components."""
         W = np.concatenate([self.u, np.cross(self.r_cables[None], self.u)], axis=2) * WRENCH_SCALE   # (N,n,6)
-        return np.linalg.pinv(np.transpose(W, (0, 2, 1)))
+        if W.shape[1] > 6:
+            return np.linalg.pinv(np.transpose(W, (0, 2, 1)))
+        G = W @ np.transpose(W, (0, 2, 1))                                   # (N,n,n)
+        weak = np.linalg.det(G) <= GRAM_HADAMARD * np.prod(np.diagonal(G, axis1=1, axis2=2), axis=1)
+        out = np.empty_like(W)
+        if weak.any():
+            out[weak] = np.linalg.pinv(np.transpose(W[weak], (0, 2, 1)))
+        if not weak.all():
+            out[~weak] = np.linalg.solve(G[~weak], W[~weak])
+        return out
 
 
 def _track(rig, s, cables: str):
@@ -604,12 +617,11 @@ def _sandwich(A: np.ndarray, res: np.ndarray, n: int, per_row: int, nb: int) -> 
     bread = np.linalg.pinv(A.T @ A)
     n_time = n * per_row
     H = A[:n_time] * res[:n_time, None]
-    # rows are [rot (n,3) ravel, tr (n,3) ravel]: sample index of each row
-    idx = np.concatenate([np.repeat(np.arange(n), 3)] * (per_row // 3))
+    # rows are [rot (n,3) ravel, tr (n,3) ravel]: within each group sorted by sample, so a
+    # block of nb samples is a run of 3 nb rows, summed by reduceat (one pass, no scatter)
     nb = max(1, min(nb, n // 8))
-    blk = idx // nb
-    S = np.zeros((blk.max() + 1, p))
-    np.add.at(S, blk, H)
+    starts = np.arange(0, 3 * n, 3 * nb)
+    S = sum(np.add.reduceat(Hg, starts, axis=0) for Hg in H.reshape(per_row // 3, 3 * n, p))
     meat = S.T @ S
     D = A[n_time:]
     meat += D.T @ D
