@@ -111,8 +111,9 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
     # load-cell gains, one candidate per cable (a gain error is one cell's fault; the four
     # gains together are nearly collinear with an accelerometer bias and the static pose):
     # true T_i = T_meas,i (1 - e_i) -> -e_i times cable i's wrench
+    cable_force, cable_moment = w.cable_force, w.cable_moment     # (N,n,3) each: computed once, not per cable
     for i, name in enumerate(w.cable_names):
-        Fi = w.cable_force[:, i]
+        Fi = cable_force[:, i]
         done_e = float(applied.get(("load_cell_scale", name), 0.0))
 
         if ("load_cell_scale", name) in profiled:   # σ looked up when reported: the profile sets it last
@@ -124,7 +125,7 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
         def rep_scale(vals, stds, name=name, done_e=done_e):
             keep = (1.0 - done_e) * (1.0 - float(vals[0]))      # true / measured
             return {"cable": name, "scale": 1.0 / keep}, {"scale": float(stds[0]) / keep}
-        out.append(Candidate("load_cell_scale", [Column(f"gain_error_{name}", rot_D=-w.cable_moment[:, i],
+        out.append(Candidate("load_cell_scale", [Column(f"gain_error_{name}", rot_D=-cable_moment[:, i],
                                                         tr_D=-Fi / m, dca=(Fi / m).mean(0))],
                              rep_scale, label=name, exact=True))
     # IMU offset δ (body axes): the specific force at the true point is α×δ + ω×(ω×δ) more

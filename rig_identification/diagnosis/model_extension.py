@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from dataclasses import replace as _replace
+from functools import cached_property
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -39,6 +40,8 @@ DCM_FLOOR = 2.0       # N·m: systematic floor of the mean-moment residual (pose
 WEIGHT_SIGMA = 5e-4   # relative σ of the load cells' mean vertical force against rig.yaml's weight:
                       # the cells' calibration (class C3 cells: 0.02–0.05 % of their load)
 ROT, TR = ("gyro_x", "gyro_y", "gyro_z"), ("accel_x", "accel_y", "accel_z")
+GRAM_HADAMARD = 1e-6   # det / product of the diagonal of the cables' wrench Gram matrix below which it is near-singular
+WRENCH_SCALE = np.array([1, 1, 1, 1 / 1.5, 1 / 1.5, 1 / 1.5])   # force N vs torque N·m over ~1.5 m
 
 
 # --- data ---------------------------------------------------------------------------------
@@ -108,6 +111,29 @@ class Window:
     @property
     def g_body(self) -> np.ndarray:
         return -self.g * self.R[:, 2, :]                               # Rᵀ (0,0,-g)
+
+    @cached_property
+    def tension_map(self) -> np.ndarray:
+        """(N,n,6): per sample, the least-squares (minimum-norm) tension corrections δT (N)
+        of the generalized wrench (force N, torque N·m, the torque over ~1.5 m:
+        :data:`WRENCH_SCALE`), ``δT = pinv(Wᵀ) s·(F, M)`` with W's rows the cables' unit wrench
+        (u_i, r_i × u_i) in body axes.  It depends on the pose only, not on any fit: computed
+        once per window and kept (a copy made by :meth:`shifted` computes its own).  With at
+        most six cables, ``pinv(Wᵀ) = (W Wᵀ)⁻¹ W`` (full rank: the normal equations, one
+        batched solve); numpy ``pinv`` (an SVD per sample) where W Wᵀ is near-singular (its
+        determinant below :data:`GRAM_HADAMARD` of its diagonal's product) or there are more
+        cables than wrench components."""
+        W = np.concatenate([self.u, np.cross(self.r_cables[None], self.u)], axis=2) * WRENCH_SCALE   # (N,n,6)
+        if W.shape[1] > 6:
+            return np.linalg.pinv(np.transpose(W, (0, 2, 1)))
+        G = W @ np.transpose(W, (0, 2, 1))                                   # (N,n,n)
+        weak = np.linalg.det(G) <= GRAM_HADAMARD * np.prod(np.diagonal(G, axis1=1, axis2=2), axis=1)
+        out = np.empty_like(W)
+        if weak.any():
+            out[weak] = np.linalg.pinv(np.transpose(W[weak], (0, 2, 1)))
+        if not weak.all():
+            out[~weak] = np.linalg.solve(G[~weak], W[~weak])
+        return out
 
 
 def _track(rig, s, cables: str):
@@ -389,12 +415,56 @@ class Fit:
                 "dcm": float(np.sum((self.dcm / sm) ** 2)), "dcw": self.dcw ** 2}
 
 
+class _Compressed:
+    """The band-passed arrays of a :class:`Model` and of a fit's columns with their sample
+    rows compressed (see :func:`fit_model`): each group's arrays (N,3) side by side are
+    F = Q R (thin QR, numpy ``qr``), and each is replaced by its block of R (p,3), p the
+    group's number of columns.  Any linear combination ``F X`` then has ``‖F X‖ = ‖R X‖``
+    and the same inner products, so the least-squares cost, its gradient and the
+    Gauss–Newton matrix of the fit are unchanged — over p rows instead of N."""
+
+    residuals = Model.residuals
+
+    def __init__(self, model: Model, cols: list, prepared: list):
+        rot = [model.y, model.IM, *model.G] + [c.rot_O for c in cols if c.rot_O is not None] + \
+              [p["rot_ID"] for p in prepared if p["rot_ID"] is not None]
+        tr = [model.ya, model.A] + [c.tr_O for c in cols if c.tr_O is not None] + \
+             [p["tr_FD"] for p in prepared if p["tr_FD"] is not None]
+        rr = iter(np.split(np.linalg.qr(np.concatenate(rot, axis=1), mode="r"), len(rot), axis=1))
+        ra = iter(np.split(np.linalg.qr(np.concatenate(tr, axis=1), mode="r"), len(tr), axis=1))
+        self.y, self.IM = next(rr), next(rr)
+        self.G = np.stack([next(rr) for _ in range(len(model.G))])
+        self.ya, self.A = next(ra), next(ra)
+        rot_O = [next(rr) if c.rot_O is not None else None for c in cols]
+        tr_O = [next(ra) if c.tr_O is not None else None for c in cols]
+        self.prepared = [{"rot_ID": next(rr) if p["rot_ID"] is not None else None, "rot_mean": p["rot_mean"],
+                          "tr_FD": next(ra) if p["tr_FD"] is not None else None} for p in prepared]
+        self.cols = [_replace(c, rot_D=None, tr_D=None, rot_O=o, tr_O=a) for c, o, a in zip(cols, rot_O, tr_O)]
+        for name in ("dcg0", "dca0", "dcm_M", "dcm_G", "dcm_W"):
+            setattr(self, name, getattr(model, name))
+
+    @staticmethod
+    def worthwhile(model: Model, cols: list) -> bool:
+        """Whether the compression has fewer rows than the samples (by a margin)."""
+        p = 3 * (2 + len(model.G) + 2 * len(cols))
+        return 4 * p < len(model.w.t)
+
+
 def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales, j0: np.ndarray,
               block_s: float = 4.0) -> Fit:
     """Levenberg–Marquardt fit (scipy ``least_squares``, analytic Jacobian) of the tensor
     (consistent parametrisation), the effect columns and optionally the gyroscopic scale
     κ.  Each group is weighted by its baseline scale and its effective sample count, so
-    that the cost is −2 log L up to a constant (see module docstring)."""
+    that the cost is −2 log L up to a constant (see module docstring).
+
+    Every residual of a group is a linear combination of the same few band-passed arrays
+    (N,3) — the measured ω, ∫M, the gyroscopic terms ∫ω × E_m ω, the columns' — with
+    coefficients that depend on the parameters (the tensor's inverse among them).  The
+    Levenberg–Marquardt iterations therefore run on those arrays' QR-compressed rows
+    (:class:`_Compressed`: the cost, its gradient and Gauss–Newton matrix are the same over
+    3p instead of 3N rows; Golub & Van Loan, *Matrix Computations*, 4th ed., §5.3, the QR
+    solution of least squares); the residuals and the sandwich covariance, which need the
+    samples, are evaluated on the N rows once, at the solution."""
     sr, sa, sg, sdc, sm = scales
     n = len(model.w.t)
     # per-axis weights (3,): the axes' residual scales differ (a weakly excited axis, a
@@ -404,14 +474,8 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
     wa = np.broadcast_to(np.sqrt(model.n_eff / n) / np.asarray(sa, float), (3,))
     prepared = model.prepare(cols)
     k = len(cols)
+    nlin = k + (1 if free_kappa else 0)
     E = basis()
-    zeros = np.zeros((n, 3))
-    # the parts of the Jacobian that do not depend on the parameters
-    dTr = np.stack([(c.tr_O if c.tr_O is not None else zeros) - (p["tr_FD"] if p["tr_FD"] is not None else zeros)
-                    for c, p in zip(cols, prepared)], axis=-1) if k else np.zeros((n, 3, 0))
-    dG = np.array([c.dcg if c.dcg is not None else np.zeros(3) for c in cols]).T.reshape(3, k)
-    dA = np.array([c.dca if c.dca is not None else np.zeros(3) for c in cols]).T.reshape(3, k)
-    dMm = np.array([p["rot_mean"] if p["rot_mean"] is not None else np.zeros(3) for p in prepared]).T.reshape(3, k)
 
     def unpack(x):
         j, dj = consistent_from_params(x[:6])
@@ -419,110 +483,129 @@ def fit_model(model: Model, cols: list, kappa0: float, free_kappa: bool, scales,
         kappa = x[6 + k] if free_kappa else kappa0
         return j, dj, beta, kappa
 
-    def fun(x):
-        j, _, beta, kappa = unpack(x)
-        r, a, dg, da, dm, *_ = model.residuals(j, kappa, beta, cols, prepared)
-        return np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc, dm / sm])
+    def problem(src, cols, prepared):
+        """The weighted residual and its Jacobians over the rows of ``src`` (the model, or
+        its :class:`_Compressed` rows), as closures (fun, jac, full, fun_vp, jac_vp)."""
+        nr, na = len(src.y), len(src.ya)
+        nt = 3 * nr + 3 * na
+        rows = nt + 9
+        zeros = np.zeros((na, 3))
+        # the parts of the Jacobian that do not depend on the parameters
+        dTr = np.stack([(c.tr_O if c.tr_O is not None else zeros) - (p["tr_FD"] if p["tr_FD"] is not None else zeros)
+                        for c, p in zip(cols, prepared)], axis=-1) if k else np.zeros((na, 3, 0))
+        dG = np.array([c.dcg if c.dcg is not None else np.zeros(3) for c in cols]).T.reshape(3, k)
+        dA = np.array([c.dca if c.dca is not None else np.zeros(3) for c in cols]).T.reshape(3, k)
+        dMm = np.array([p["rot_mean"] if p["rot_mean"] is not None else np.zeros(3) for p in prepared]).T.reshape(3, k)
 
-    nlin = k + (1 if free_kappa else 0)
-    rows = 6 * n + 9
+        def fun(x):
+            j, _, beta, kappa = unpack(x)
+            r, a, dg, da, dm, *_ = src.residuals(j, kappa, beta, cols, prepared)
+            return np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc, dm / sm])
 
-    # the linear columns' parts that do not depend on the tensor, once (rows, nlin)
-    Jl0 = np.zeros((rows, nlin))
-    Jr0 = Jl0[:3 * n].reshape(n, 3, nlin)
-    for i, c in enumerate(cols):
-        if c.rot_O is not None:
-            Jr0[:, :, i] = c.rot_O * wr
-    Jl0[3 * n:6 * n] = (dTr * wa[None, :, None]).reshape(-1, k) if k else 0.0
-    Jd0 = Jl0[6 * n:]
-    Jd0[:3, :k] = dG / sg
-    Jd0[3:6, :k] = dA / sdc
-    Jd0[6:, :k] = dMm / sm
-    with_ID = [i for i, p in enumerate(prepared) if p["rot_ID"] is not None]
+        # the linear columns' parts that do not depend on the tensor, once (rows, nlin)
+        Jl0 = np.zeros((rows, nlin))
+        Jr0 = Jl0[:3 * nr].reshape(nr, 3, nlin)
+        for i, c in enumerate(cols):
+            if c.rot_O is not None:
+                Jr0[:, :, i] = c.rot_O * wr
+        Jl0[3 * nr:nt] = (dTr * wa[None, :, None]).reshape(-1, k) if k else 0.0
+        Jd0 = Jl0[nt:]
+        Jd0[:3, :k] = dG / sg
+        Jd0[3:6, :k] = dA / sdc
+        Jd0[6:, :k] = dMm / sm
+        with_ID = [i for i, p in enumerate(prepared) if p["rot_ID"] is not None]
 
-    def lin_jac(j, P):
-        """Jacobian columns of the parameters the residual is linear in (β, κ): they
-        depend on the tensor only, (rows, nlin)."""
-        Jl = Jl0.copy()
-        Jr = Jl[:3 * n].reshape(n, 3, nlin)
-        for i in with_ID:
-            Jr[:, :, i] -= (prepared[i]["rot_ID"] @ P.T) * wr
-        if free_kappa:
-            Jr[:, :, -1] = (np.einsum("m,mni->ni", j, model.G) @ P.T) * wr
-            Jl[6 * n + 6:, -1] = -(j @ model.dcm_G) / sm
-        return Jl
+        def lin_jac(j, P):
+            """Jacobian columns of the parameters the residual is linear in (β, κ): they
+            depend on the tensor only, (rows, nlin)."""
+            Jl = Jl0.copy()
+            Jr = Jl[:3 * nr].reshape(nr, 3, nlin)
+            for i in with_ID:
+                Jr[:, :, i] -= (prepared[i]["rot_ID"] @ P.T) * wr
+            if free_kappa:
+                Jr[:, :, -1] = (np.einsum("m,mni->ni", j, src.G) @ P.T) * wr
+                Jl[nt + 6:, -1] = -(j @ src.dcm_G) / sm
+            return Jl
 
-    def tensor_jac(dj, kappa, P, yhat):
-        """Jacobian columns of the 6 tensor parameters, (rows, 6)."""
-        Jt = np.zeros((rows, 6))
-        M = (np.matmul(yhat, E.transpose(0, 2, 1)) + kappa * model.G) @ P.T     # (6, n, 3): P (E_m ŷ + κ G_m)
-        Jt[:3 * n] = ((M.transpose(1, 2, 0) * wr[None, :, None]).reshape(-1, 6) @ dj)
-        E6 = np.stack([kappa * model.dcm_G[m] + E[m] @ model.dcm_W for m in range(6)], axis=1)   # (3,6)
-        Jt[6 * n + 6:] = -(E6 @ dj) / sm
-        return Jt
-
-    def jac(x):
-        j, dj, beta, kappa = unpack(x)
-        _, _, _, _, _, P, yhat, _ = model.residuals(j, kappa, beta, cols, prepared)
-        return np.concatenate([tensor_jac(dj, kappa, P, yhat), lin_jac(j, P)], axis=1)
-
-    # variable projection (Golub & Pereyra 1973): the residual is linear in the effect
-    # columns and in κ, so for each tensor they are solved by linear least squares and
-    # Levenberg–Marquardt runs on the 6 tensor parameters alone, with Kaufman's
-    # projected Jacobian (Kaufman, BIT 15, 1975)
-    cache = {}
-
-    def full(th):
-        """(x, residual, tensor Jacobian, projector basis of the linear columns) at the
-        tensor parameters th, with the linear parameters solved.  The basis is (A, G⁺) with
-        G = AᵀA of the unit-norm columns A (their Gram matrix; its pseudo-inverse drops the
-        directions below :data:`GRAM_RCOND` of the largest singular value): the projection
-        A G⁺ Aᵀ costs O(rows × columns) instead of an SVD's basis of the rows (the fit's
-        hot spot: a 30-column bias drift over 17 000 samples)."""
-        key = th.tobytes()
-        if key not in cache:
-            x, U = np.r_[th, np.zeros(nlin)], None
-            j, dj, _, _ = unpack(x)
-            if nlin:
-                P = np.linalg.inv(to_tensor(j))
-                A = lin_jac(j, P)
-                norm = np.linalg.norm(A, axis=0)
-                norm = np.where(norm > 0, norm, 1.0)
-                As = A / norm
-                lam, V = np.linalg.eigh(As.T @ As)
-                keep = lam > max(lam[-1], 0.0) * GRAM_RCOND ** 2 if lam[-1] > 0 else np.zeros(len(lam), bool)
-                Ginv = (V[:, keep] / lam[keep]) @ V[:, keep].T
-                U = (As, Ginv)
-                b = -(Ginv @ (As.T @ fun(x))) / norm
-                x = np.r_[th, b]
-            _, _, beta, kappa = unpack(x)
-            r, a, dg, da, dm, P, yhat, _ = model.residuals(j, kappa, beta, cols, prepared)
-            res = np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc, dm / sm])
-            cache.clear()
-            cache[key] = (x, res, tensor_jac(dj, kappa, P, yhat), U)
-        return cache[key]
-
-    def fun_vp(th):
-        return full(th)[1]
-
-    def jac_vp(th):
-        _, _, Jt, U = full(th)
-        if U is None:
+        def tensor_jac(dj, kappa, P, yhat):
+            """Jacobian columns of the 6 tensor parameters, (rows, 6)."""
+            Jt = np.zeros((rows, 6))
+            M = (np.matmul(yhat, E.transpose(0, 2, 1)) + kappa * src.G) @ P.T     # (6, n, 3): P (E_m ŷ + κ G_m)
+            Jt[:3 * nr] = ((M.transpose(1, 2, 0) * wr[None, :, None]).reshape(-1, 6) @ dj)
+            E6 = np.stack([kappa * src.dcm_G[m] + E[m] @ src.dcm_W for m in range(6)], axis=1)   # (3,6)
+            Jt[nt + 6:] = -(E6 @ dj) / sm
             return Jt
-        As, Ginv = U
-        return Jt - As @ (Ginv @ (As.T @ Jt))
 
+        def jac(x):
+            j, dj, beta, kappa = unpack(x)
+            _, _, _, _, _, P, yhat, _ = src.residuals(j, kappa, beta, cols, prepared)
+            return np.concatenate([tensor_jac(dj, kappa, P, yhat), lin_jac(j, P)], axis=1)
+
+        # variable projection (Golub & Pereyra 1973): the residual is linear in the effect
+        # columns and in κ, so for each tensor they are solved by linear least squares and
+        # Levenberg–Marquardt runs on the 6 tensor parameters alone, with Kaufman's
+        # projected Jacobian (Kaufman, BIT 15, 1975)
+        cache = {}
+
+        def full(th):
+            """(x, residual, tensor Jacobian, projector basis of the linear columns) at the
+            tensor parameters th, with the linear parameters solved.  The basis is (A, G⁺) with
+            G = AᵀA of the unit-norm columns A (their Gram matrix; its pseudo-inverse drops the
+            directions below :data:`GRAM_RCOND` of the largest singular value): the projection
+            A G⁺ Aᵀ costs O(rows × columns) instead of an SVD's basis of the rows."""
+            key = th.tobytes()
+            if key not in cache:
+                x, U = np.r_[th, np.zeros(nlin)], None
+                j, dj, _, _ = unpack(x)
+                if nlin:
+                    P = np.linalg.inv(to_tensor(j))
+                    A = lin_jac(j, P)
+                    norm = np.linalg.norm(A, axis=0)
+                    norm = np.where(norm > 0, norm, 1.0)
+                    As = A / norm
+                    lam, V = np.linalg.eigh(As.T @ As)
+                    keep = lam > max(lam[-1], 0.0) * GRAM_RCOND ** 2 if lam[-1] > 0 else np.zeros(len(lam), bool)
+                    Ginv = (V[:, keep] / lam[keep]) @ V[:, keep].T
+                    U = (As, Ginv)
+                    b = -(Ginv @ (As.T @ fun(x))) / norm
+                    x = np.r_[th, b]
+                _, _, beta, kappa = unpack(x)
+                r, a, dg, da, dm, P, yhat, _ = src.residuals(j, kappa, beta, cols, prepared)
+                res = np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc, dm / sm])
+                cache.clear()
+                cache[key] = (x, res, tensor_jac(dj, kappa, P, yhat), U)
+            return cache[key]
+
+        def fun_vp(th):
+            return full(th)[1]
+
+        def jac_vp(th):
+            _, _, Jt, U = full(th)
+            if U is None:
+                return Jt
+            As, Ginv = U
+            return Jt - As @ (Ginv @ (As.T @ Jt))
+
+        return jac, full, fun_vp, jac_vp
+
+    if _Compressed.worthwhile(model, cols):
+        small = _Compressed(model, cols, prepared)
+        _, full_c, fun_vp, jac_vp = problem(small, small.cols, small.prepared)
+    else:
+        _, full_c, fun_vp, jac_vp = problem(model, cols, prepared)
     th0 = params_from_consistent(to_tensor(j0))
     sol = least_squares(fun_vp, th0, jac=jac_vp, method="lm", x_scale="jac", xtol=1e-10, ftol=1e-10,
                         max_nfev=200)
-    sol.x, sol.fun = full(sol.x)[:2]
-    j, dj, beta, kappa = unpack(sol.x)
+    x = full_c(sol.x)[0]
+    jac, *_ = problem(model, cols, prepared)
+    j, dj, beta, kappa = unpack(x)
     r, a, dg, da, dm, P, yhat, u = model.residuals(j, kappa, beta, cols, prepared)
+    res = np.concatenate([(r * wr).ravel(), (a * wa).ravel(), dg / sg, da / sdc, dm / sm])
     # covariance of (tensor entries, beta, kappa): sandwich with batch means over time blocks
-    T = np.eye(len(sol.x))
+    T = np.eye(len(x))
     T[:6, :6] = np.linalg.pinv(dj)          # d theta / d entries
-    A = jac(sol.x) @ T                        # Jacobian with respect to (entries, beta, kappa)
-    cov = _sandwich(A, sol.fun, n, 6, int(round(block_s * model.fs)))
+    A = jac(x) @ T                        # Jacobian with respect to (entries, beta, kappa)
+    cov = _sandwich(A, res, n, 6, int(round(block_s * model.fs)))
     return Fit(to_tensor(j), float(kappa), np.asarray(beta, float), cov, r, a, dg, da, dm, yhat, u, cols,
                free_kappa, model.dcw)
 
@@ -534,12 +617,11 @@ def _sandwich(A: np.ndarray, res: np.ndarray, n: int, per_row: int, nb: int) -> 
     bread = np.linalg.pinv(A.T @ A)
     n_time = n * per_row
     H = A[:n_time] * res[:n_time, None]
-    # rows are [rot (n,3) ravel, tr (n,3) ravel]: sample index of each row
-    idx = np.concatenate([np.repeat(np.arange(n), 3)] * (per_row // 3))
+    # rows are [rot (n,3) ravel, tr (n,3) ravel]: within each group sorted by sample, so a
+    # block of nb samples is a run of 3 nb rows, summed by reduceat (one pass, no scatter)
     nb = max(1, min(nb, n // 8))
-    blk = idx // nb
-    S = np.zeros((blk.max() + 1, p))
-    np.add.at(S, blk, H)
+    starts = np.arange(0, 3 * n, 3 * nb)
+    S = sum(np.add.reduceat(Hg, starts, axis=0) for Hg in H.reshape(per_row // 3, 3 * n, p))
     meat = S.T @ S
     D = A[n_time:]
     meat += D.T @ D

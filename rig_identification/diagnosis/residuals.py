@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import welch
 
-from .model_extension import ROT, TR, Fit, Model, Window
+from .model_extension import ROT, TR, WRENCH_SCALE, Fit, Model, Window
 from ..model.modes import natural_modes
 
 SYNC_BINS = 36        # exciter-phase bins of the time-synchronous average (10° each)
@@ -40,11 +40,8 @@ def channel_residuals(model: Model, fit: Fit) -> dict:
         out[f"torque_{a}"] = torque[:, k]
         out[f"force_{a}"] = force[:, k]
     # load cells: tension corrections δT that best explain the wrench residual
-    W = np.concatenate([w.u, np.cross(w.r_cables[None], w.u)], axis=2)      # (N,n,6)
     wr = np.concatenate([force, torque], axis=1)                             # (N,6)
-    scale = np.array([1, 1, 1, 1 / 1.5, 1 / 1.5, 1 / 1.5])                   # N vs N·m over ~1.5 m
-    Ws = W * scale
-    dT = np.einsum("nij,nj->ni", np.linalg.pinv(np.transpose(Ws, (0, 2, 1))), wr * scale)
+    dT = np.einsum("nij,nj->ni", w.tension_map, wr * WRENCH_SCALE)
     for i, name in enumerate(w.cable_names):
         out[f"load_cell_{name}"] = dT[:, i]
     return out

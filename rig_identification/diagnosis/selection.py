@@ -126,6 +126,7 @@ WEIGHT_SURPLUS_SIGMA = 3.0   # the masses are evaluated exactly when the cells c
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
 PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
 WINDOW_CACHE = 8      # re-tracked windows kept (by their corrections): the joint search re-uses them
+MODEL_CACHE = 3       # models of the last re-tracked windows kept (each a dozen band-passed (N,3) arrays)
 STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml stiffness are not "steel-like"
 
 
@@ -174,9 +175,19 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
             windows.popitem(last=False)
         return w
 
+    models: OrderedDict = OrderedDict()    # id(window) -> (window, its Model in the band): one model per window
+
     def build(applied, elastic, profiled=None, keep_stretch=False):
         w = window_of(applied, elastic, keep_stretch)
-        M = Model(w, state["band"])
+        hit = models.get(id(w))
+        if hit is not None and hit[0] is w and hit[1].band == state["band"]:
+            M = hit[1]
+            models.move_to_end(id(w))
+        else:
+            M = Model(w, state["band"])
+            models[id(w)] = (w, M)
+            if len(models) > MODEL_CACHE:
+                models.popitem(last=False)
         M.n_eff_group = state.get("n_eff_group", {})
         state["band"] = M.band
         return w, M, candidates(w, M, kappa0, applied, allow_elasticity=state["candidate"] and not elastic,

@@ -89,17 +89,21 @@ def anchor_yaw(rig: Rig, track: PoseTrack, sensors, lo: float, hi: float) -> tup
     tens = np.column_stack([np.interp(t, sensors.load_cells[n].t, sensors.load_cells[n].data[:, 0])
                             for n in rig.cable_names])
     exc = sensors.exciter.interp(t) if (sensors.exciter is not None and rig.exciter is not None) else None
-    p_cg = track.position[m] + R.apply(cg)
-
-    def mean_yaw_moment(psi: float) -> float:
-        Rn = Rotation.from_rotvec([0.0, 0.0, psi]) * R
-        _, M = generalized_wrench(rig, p_cg - Rn.apply(cg), Rn.as_matrix(), tens, exc)
-        return float(np.mean(Rn.apply(M)[:, 2]))
-
-    K = (mean_yaw_moment(STEP) - mean_yaw_moment(-STEP)) / (2 * STEP)
+    # the mean world-z moment about the CG with the poses turned by +STEP, -STEP and 0 about
+    # the vertical through the CG: the attitude R_z(ψ) R, the body origin p_cg − R_z(ψ) R cg.
+    # The world z-axis is R_z's own, so the moment's world z-component is R's third row (as a
+    # matrix) times the body-axes moment: R, R cg once for the three trials
+    Rm = R.as_matrix()                                              # (n,3,3)
+    rc = R.apply(cg)                                                # (n,3) world
+    p_cg = track.position[m] + rc
+    mz = np.empty(3)
+    for k, Rz in enumerate(Rotation.from_rotvec(np.outer([STEP, -STEP, 0.0], [0.0, 0.0, 1.0])).as_matrix()):
+        _, M = generalized_wrench(rig, p_cg - rc @ Rz.T, np.matmul(Rz, Rm), tens, exc)
+        mz[k] = np.mean(np.einsum("nj,nj->n", Rm[:, 2, :], M))
+    K = float((mz[0] - mz[1]) / (2 * STEP))
     if not np.isfinite(K) or K == 0.0:
         return track, YawAnchor(info, note="the cables' forces do not hold the yaw either")
-    psi = -mean_yaw_moment(0.0) / K
+    psi = -float(mz[2]) / K
     if abs(psi) > MAX_OFFSET:
         return track, YawAnchor(info, psi, K, False, f"the moment balance asks for {psi:.3g} rad: not a tracker's "
                                                     "starting error, the poses are left as they are")
