@@ -2,7 +2,8 @@
 
 Usage: python bench/bench_validation_null.py [--seeds N] [--procs P] [--durations 30,60,120]
                                               [--layouts 4splayed,3splayed,...] [--json FILE]
-       python bench/bench_validation_null.py --any-rig SEED --noise-seeds N [--procs P] [--json FILE]
+       python bench/bench_validation_null.py --any-rig SEED --noise-seeds N [--first-noise-seed K] [--procs P]
+                                              [--json FILE]
 
 On clean random rigs of the package's own simulator (:mod:`rig_identification.design.scenarios`)
 every check of :func:`rig_identification.estimation.validation.validate` should pass about as often as
@@ -12,7 +13,7 @@ verdict and the largest |error|/σ — the null distribution the thresholds are 
 
 ``--any-rig SEED --noise-seeds N``: one rig of ``bench/bench_any_rig.py`` (its ``draw(SEED)``,
 the exciter force simulate_random settled on) recorded N times with independent sensor noise
-(noise seeds 1..N): per noise seed the verdict, each consistency check's χ²/dof and each
+(noise seeds K..K+N−1, default 1..N): per noise seed the verdict, each consistency check's χ²/dof and each
 entry's error/σ; then per check the mean χ²/dof (1 under its null) and how many exceed the χ²
 quantile 1 − ALPHA (the rate ALPHA says: σ widened) and the failure threshold, and per entry
 the RMS of error/σ (1 when σ is calibrated).  Whether a false alarm on one recording is the
@@ -107,10 +108,11 @@ def _noise_job(args):
 
 def noise_main(a) -> int:
     """The --any-rig mode (see module docstring)."""
-    from rig_identification.estimation.identification import KEYS
+    from rig_identification.io.verdict import KEYS
     from rig_identification.estimation.validation import EFFECT_FACTOR
     with ProcessPoolExecutor(a.procs) as ex:
-        rows = list(ex.map(_noise_job, [(a.any_rig, k) for k in range(1, a.noise_seeds + 1)]))
+        rows = list(ex.map(_noise_job, [(a.any_rig, k) for k in range(a.first_noise_seed,
+                                                                     a.first_noise_seed + a.noise_seeds)]))
     if a.json:
         Path(a.json).write_text(json.dumps(rows, indent=1))
     chi = ("segments", "sub_bands", "input_correlation")
@@ -157,7 +159,8 @@ def main(argv=None) -> int:
     ap.add_argument("--layouts", default="4splayed,3splayed,5mixed,6splayed")
     ap.add_argument("--json", metavar="FILE")
     ap.add_argument("--any-rig", type=int, metavar="SEED", help="one bench_any_rig rig under many noise seeds")
-    ap.add_argument("--noise-seeds", type=int, default=12, help="with --any-rig: noise seeds 1..N (default 12)")
+    ap.add_argument("--noise-seeds", type=int, default=12, help="with --any-rig: N noise seeds (default 12)")
+    ap.add_argument("--first-noise-seed", type=int, default=1, help="with --any-rig: the first noise seed (default 1)")
     a = ap.parse_args(argv)
     if a.any_rig is not None:
         return noise_main(a)
