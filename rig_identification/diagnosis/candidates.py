@@ -18,7 +18,8 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
-from .model_extension import Candidate, Column, Model, Window
+from .model_extension import Candidate, Column, Model
+from .window import Window
 from .retracked import bias_path, random_walk
 from .structural import mode_filter
 from ..io.recording import Recording, SensorData, TimeSeries

@@ -19,7 +19,8 @@ from scipy.optimize import minimize_scalar
 from scipy.stats import chi2
 
 from ..model.parametrisation import from_tensor
-from .model_extension import Fit, Model, Window, fit_model
+from .model_extension import Fit, Model, fit_model
+from .window import Window
 from .residuals import channel_residuals, rms
 
 GAIN_STEP = 0.02      # load-cell gain steps of the exact screening (relative)

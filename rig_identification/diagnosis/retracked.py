@@ -26,7 +26,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .model_extension import Column, Model, Window
+from .model_extension import Column, Model
+from .window import Window
 
 KNOT_SPACING = 10.0   # s: knots of the bias drift (a 1e-4 rad/s/√s walk: 10 s left the fit ok, 20 s did not)
 MIN_KNOTS = 3

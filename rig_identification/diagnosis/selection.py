@@ -100,7 +100,8 @@ from .exact import (MASSES, PROFILED, columns_of, exact_iterate, exact_screen, l
 from ..model.effects import EFFECT_NAMES
 from ..estimation.identification import IdentificationError, identify_inertia
 from ..model.parametrisation import from_tensor
-from .model_extension import Model, Window, fit_model, prepare_window
+from .model_extension import Model, fit_model
+from .window import Window, prepare_window
 from .finding import finding
 from .result import Diagnosis, EffectWrench
 from ..io.recording import Recording, RecordingError

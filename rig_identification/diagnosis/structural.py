@@ -35,7 +35,8 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import csd, welch
 
-from .model_extension import Model, Window
+from .model_extension import Model
+from .window import Window
 
 F_MIN = 3.0               # Hz: lowest mode frequency searched (and at least MIN_BAND_MULTIPLE × the band's top)
 F_MAX = 45.0              # Hz: highest (and at most 0.4 × the IMU rate)
