@@ -53,21 +53,6 @@ class Window:
     imu_rot_yaml: np.ndarray = field(default_factory=lambda: np.eye(3))   # rig.yaml's IMU -> body
     stiffness: np.ndarray | None = None     # cable stiffness the pose was tracked with, N/m (inf: rigid)
     stiffness_std: float | None = None      # std of the fitted stiffness (tracker's compliance fit), N/m
-    sensors: object = None       # the cleaned SensorData (for exact re-alignment of a stream)
-    shifts: dict = field(default_factory=dict)   # stream -> delay applied, s
-
-    def shifted(self, stream: str, delay: float) -> "Window":
-        """A copy with ``stream`` (load_cells | exciter) re-sampled at t + delay: the stream's
-        stamps lag by ``delay`` s (linear interpolation of the cleaned samples)."""
-        s = self.sensors
-        tq = self.t + delay
-        if stream == "load_cells":
-            T = np.column_stack([np.interp(tq, s.load_cells[n].t, s.load_cells[n].data[:, 0]) for n in self.cable_names])
-            return _replace(self, tensions=T, shifts={**self.shifts, stream: delay})
-        if stream == "exciter":
-            fe = s.exciter.interp(tq) @ self.exc_rot[:, :2].T
-            return _replace(self, f_exc=fe, shifts={**self.shifts, stream: delay})
-        raise ValueError(f"cannot re-align stream {stream!r}")
 
     @property
     def cable_force(self) -> np.ndarray:
@@ -95,7 +80,7 @@ class Window:
         of the generalized wrench (force N, torque N·m, the torque over ~1.5 m:
         :data:`WRENCH_SCALE`), ``δT = pinv(Wᵀ) s·(F, M)`` with W's rows the cables' unit wrench
         (u_i, r_i × u_i) in body axes.  It depends on the pose only, not on any fit: computed
-        once per window and kept (a copy made by :meth:`shifted` computes its own).  With at
+        once per window and kept.  With at
         most six cables, ``pinv(Wᵀ) = (W Wᵀ)⁻¹ W`` (full rank: the normal equations, one
         batched solve); numpy ``pinv`` (an SVD per sample) where W Wᵀ is near-singular (its
         determinant below :data:`GRAM_HADAMARD` of its diagonal's product) or there are more
@@ -219,6 +204,6 @@ def prepare_window(rec: Recording, settle: float = 5.0, warnings: list | None = 
     v = np.einsum("nji,nj->ni", R, v_world)
     return Window(t, omega, f, R, v, T, u, rig.body_anchors - cg, f_exc, r_exc, rig.imu.position - cg,
                   rig.mass, rig.gravity, Rimu, list(rig.cable_names),
-                  rig.exciter.rotation.as_matrix() if rig.exciter is not None else np.eye(3), sensors=s,
+                  rig.exciter.rotation.as_matrix() if rig.exciter is not None else np.eye(3),
                   imu_rot_yaml=Rimu if imu_rot_yaml is None else imu_rot_yaml, stiffness=stiffness,
                   stiffness_std=stiffness_std)
