@@ -19,16 +19,8 @@ from rig_identification.estimation.inertia_result import InertiaResult
 from rig_identification.estimation.uncertainty import propagated, sensor_noise
 from rig_identification.io.recording import Recording
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import from_tensor, to_tensor
+from rig_identification.model.parametrisation import entry_scales, from_tensor, to_tensor
 from rig_identification.pipeline.prepare import prepare_recording
-
-
-def entry_scales(theta: np.ndarray) -> np.ndarray:
-    """(6,) kg·m², KEYS order: the scale an entry's error is judged on — a moment's own value,
-    the largest moment for a product (issue 17's "products: of the largest diagonal")."""
-    th = np.asarray(theta, float)
-    big = max(th[0], th[3], th[5])
-    return np.array([th[0], big, big, th[3], big, th[5]])
 
 
 def predicted_rel_std(rec: Recording, theta_true: np.ndarray, band_hz, prep=None) -> np.ndarray:

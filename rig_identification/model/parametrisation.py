@@ -33,6 +33,15 @@ def from_tensor(J: np.ndarray) -> np.ndarray:
     return np.array([J[i, j] for i, j in PAIRS])
 
 
+def entry_scales(theta) -> np.ndarray:
+    """(6,) kg·m², the order of :func:`from_tensor` (ixx, ixy, ixz, iyy, iyz, izz): the scale
+    an entry's error or σ is judged on — a moment's own magnitude, the largest moment's for a
+    product (issue 17: "products: of the largest diagonal").  theta: (6,) kg·m²."""
+    th = np.abs(np.asarray(theta, float))
+    big = max(th[0], th[3], th[5])
+    return np.array([th[0], big, big, th[3], big, th[5]])
+
+
 def physically_consistent(J: np.ndarray) -> bool:
     """Positive definite and obeying the triangle inequalities of the principal moments."""
     ev = np.linalg.eigvalsh(0.5 * (J + J.T))

@@ -15,7 +15,7 @@ from ..estimation.thesis_estimator import identify_inertia_thesis
 from ..io.export import effect_text
 from ..io.recording import Recording, RecordingError, crop
 from ..io.verdict import KEYS
-from ..model.parametrisation import from_tensor
+from ..model.parametrisation import entry_scales, from_tensor
 from .fit_validation import WEIGHT_TOLERANCE, validate_fit, weight_surplus, weight_warning
 from .prepare import PreparedRecording, prepare_recording, with_effect_wrench
 from .sigma import MODEL_ERROR_RATIO, refine_uncertainty
@@ -221,10 +221,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     if rel > 0:
         # a correction fixed from outside the fit band (a structural mode's shape) leaves a
         # relative error of the readings in the band, and so about of the tensor
-        th = from_tensor(again.inertia)
-        big = max(abs(th[0]), abs(th[3]), abs(th[5]))
-        ref = np.array([abs(th[0]), big, big, abs(th[3]), big, abs(th[5])])    # KEYS order; products: of the largest
-        wider = np.sqrt(again.inertia_std ** 2 + (rel * ref) ** 2)
+        wider = np.sqrt(again.inertia_std ** 2 + (rel * entry_scales(from_tensor(again.inertia))) ** 2)
         again.covariance = again.covariance + np.diag(wider ** 2 - again.inertia_std ** 2)
         again.inertia_std = wider
         again.uncertainty += f"; with the {100 * rel:.3g} % the corrections fixed from outside the band leave"
@@ -322,11 +319,10 @@ def compare_to_truth(result: InertiaResult, truth: dict) -> dict:
     percentage is of the entry for diagonals and of the largest diagonal for products.
     """
     tru = truth["inertia_about_cg"]
-    big = max(abs(tru["ixx"]), abs(tru["iyy"]), abs(tru["izz"]))
+    refs = entry_scales([tru[k] for k in KEYS])
     out = {}
-    for k, v, s in zip(KEYS, from_tensor(result.inertia), result.inertia_std):
+    for k, v, s, ref in zip(KEYS, from_tensor(result.inertia), result.inertia_std, refs):
         e = float(v - tru[k])
-        ref = abs(tru[k]) if k in ("ixx", "iyy", "izz") else big
         out[k] = {"value": float(v), "truth": float(tru[k]), "error": e, "error_percent": 100 * e / ref,
                   "error_sigma": e / s if s > 0 else float(np.inf)}
     return out
