@@ -151,10 +151,8 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
         {"channel": u["channel"], "band_hz": u["band_hz"], "time_s": [0.0, round(duration, 1)], "size": u["sigma"],
          "is": f"above the fit band: the accelerometer over Newton's prediction from the load cells departs from 1 "
                f"by {u['size']:.3g} ({u['sigma']:.0f} σ; size in σ) — a sensor mount's structural mode?"}
-        for u in getattr(d, "out_of_band", []) or []]
-    alternatives = getattr(d, "alternatives", None) or ([{
-        "effects": d.effects, "applied": d.applied, "effect_wrench": d.effect_wrench, "stiffness": d.stiffness,
-        "covariance": d.covariance_after}] if d.mismatch else [])
+        for u in d.out_of_band]
+    alternatives = d.alternatives
     hypotheses, again, chosen, whys = [], None, None, []
     for alt in alternatives:
         if chosen is not None and not set(alt.get("keys", ())) < set(chosen.get("keys", ())):
