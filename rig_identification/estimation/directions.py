@@ -47,15 +47,37 @@ def direction_level(rel_std: float) -> str:
     return next((words for limit, words in DIRECTION_LEVELS if rel_std < limit), "weakly determined")
 
 
+ENTRY_AXES = {"ixx": (0,), "iyy": (1,), "izz": (2,), "ixy": (0, 1), "ixz": (0, 2), "iyz": (1, 2)}
+"""The body axes (0 x, 1 y, 2 z) whose rotation determines each tensor entry."""
+AXIS_WORDS = {0: ("x", "roll"), 1: ("y", "pitch"), 2: ("z", "yaw")}
+HARDLY_TURNED = 0.5
+"""An axis whose rotation rate (RMS) is below this share of the most excited axis's "hardly turned"."""
+
+
+def hardly_turned(main: str, rotation_rms: np.ndarray) -> str:
+    """The clause saying the body hardly turned about the axis entry ``main`` needs
+    (rotation_rms (3,) rad/s RMS, body axes), or "" when it turned at least
+    :data:`HARDLY_TURNED` of the most excited axis's rate."""
+    r = np.asarray(rotation_rms, float)
+    a = min(ENTRY_AXES[main], key=lambda i: r[i])
+    if not r[a] < HARDLY_TURNED * np.max(r):
+        return ""
+    ax, word = AXIS_WORDS[a]
+    return (f": the body hardly turned about {ax} ({word} rate {r[a]:.2g} rad/s RMS against {np.max(r):.2g} rad/s "
+            "on the most excited axis)")
+
+
 def describe_direction(rel_std: float, D: np.ndarray, scale: float | None = None, weakest: bool = False,
-                       undetermined=()) -> dict:
+                       undetermined=(), rotation_rms: np.ndarray | None = None) -> dict:
     """A tensor direction (of :func:`weak_directions`) in words a lab engineer reads — the one
     wording of the CLI, the JSON and the report.
 
     rel_std: σ along the unit direction over tr J / 3; D (3,3) unit-norm direction; scale: tr J / 3
     kg·m² (for σ in kg·m²; None: relative only); weakest: this is the weakest direction (only it
     is called "the most weakly determined"); undetermined: entries the validation did not
-    determine (a direction mostly along one of them is "not determined").
+    determine (a direction mostly along one of them is "not determined"); rotation_rms (3,)
+    rad/s RMS about the body axes (the planner's prediction): the text adds that the body
+    hardly turned about the axis the direction needs (:func:`hardly_turned`).
 
     Returns {"relative_std", "std" (kg·m² or None), "direction" {KEYS: coefficient, tensor
     entries}, "mostly" (the entry with the largest share), "combination" (e.g. "+0.96 Izz −0.29
@@ -77,6 +99,8 @@ def describe_direction(rel_std: float, D: np.ndarray, scale: float | None = None
     size = (f"σ {std:.3g} kg·m², " if std is not None else "σ ") + f"{100 * rel_std:.3g} % of tr J/3"
     text = (f"the most weakly determined combination is {what}: {level} ({size})" if weakest
             else f"{what if pure else 'the combination ' + what} is {level} ({size})")
+    if rotation_rms is not None and level != "well determined":
+        text += hardly_turned(main, rotation_rms)
     return {"relative_std": finite_or_none(rel_std), "std": std,
             "direction": {k: round(float(v), 3) for k, v in zip(KEYS, theta)}, "mostly": main,
             "combination": comb, "pure": bool(pure), "level": level, "weakest": bool(weakest),

@@ -12,13 +12,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..io.verdict import KEYS
-from ..model.parametrisation import from_tensor
-from .directions import weak_directions
+from ..model.parametrisation import entry_scales, from_tensor
+from .directions import describe_direction, weak_directions
 
-DIAG = (0, 3, 5)  # ixx, iyy, izz in KEYS order
-
-ENTRY_NAMES = {"ixx": "roll inertia Ixx", "iyy": "pitch inertia Iyy", "izz": "yaw inertia Izz",
-               "ixy": "product Ixy", "ixz": "product Ixz", "iyz": "product Iyz"}
 
 
 class PlanError(ValueError):
@@ -82,9 +78,7 @@ class Prediction:
     @property
     def scale(self) -> np.ndarray:
         """(6,) reference of each entry: diagonals themselves, products the largest diagonal."""
-        th = from_tensor(self.inertia)
-        big = max(abs(th[i]) for i in DIAG)
-        return np.array([abs(th[i]) if i in DIAG else big for i in range(6)])
+        return entry_scales(from_tensor(self.inertia))
 
     @property
     def relative_std(self) -> np.ndarray:
@@ -108,8 +102,12 @@ class Prediction:
                                    self.duration * factor, int(self.n_samples * factor), self.rotation_rms, self.runs)
 
     def weak(self, n: int = 2) -> list[dict]:
-        """The ``n`` most weakly determined combinations, in words (see :func:`describe_weak`)."""
-        return [describe_weak(rel, D, self.rotation_rms) for rel, D in weak_directions(self.inertia, self.covariance, n)]
+        """The ``n`` most weakly determined combinations, in the words of the CLI, the JSON and the
+        report (:func:`~rig_identification.estimation.directions.describe_direction`, with how
+        much the body turned about the axis each needs)."""
+        scale = float(np.trace(self.inertia)) / 3
+        return [describe_direction(rel, D, scale=scale, weakest=i == 0, rotation_rms=self.rotation_rms)
+                for i, (rel, D) in enumerate(weak_directions(self.inertia, self.covariance, n))]
 
     def to_dict(self) -> dict:
         return {"std": {k: float(v) for k, v in zip(KEYS, self.std)},
@@ -144,35 +142,3 @@ def combine(preds: list[Prediction]) -> Prediction:
                                sum(p.duration for p in preds), int(n.sum()), rot, sum(p.runs for p in preds))
 
 
-# --- identifiability in words ----------------------------------------------------------
-
-AXIS_WORDS = {0: ("x", "roll"), 1: ("y", "pitch"), 2: ("z", "yaw")}
-
-
-def describe_weak(rel_std: float, D: np.ndarray, rotation_rms: np.ndarray | None = None) -> dict:
-    """A weakly determined tensor combination in a lab engineer's words.
-
-    rel_std: σ of the combination / (tr J / 3); D (3,3) unit-norm direction.  With
-    ``rotation_rms`` (3,) rad/s, body axes, the text says how much the body turned about
-    the axis involved ("the body hardly turned about z").
-    """
-    theta = from_tensor(D)
-    k = int(np.argmax(np.abs(theta)))
-    key = KEYS[k]
-    share = float(theta[k] ** 2 * (1 if k in DIAG else 2))
-    text = f"{ENTRY_NAMES[key]} is the most weakly determined combination (σ {100 * rel_std:.3f} % of the mean " \
-           f"diagonal; {100 * share:.0f} % of the direction)"
-    if rotation_rms is not None:
-        axes = sorted({i for i in (PAIRS_OF[key])})
-        r = np.asarray(rotation_rms, float)
-        weakest = min(axes, key=lambda a: r[a])
-        if r[weakest] < 0.5 * np.max(r):
-            ax, word = AXIS_WORDS[weakest]
-            text = (f"{ENTRY_NAMES[key]} is weakly determined: the body hardly turned about {ax} ({word} rate "
-                    f"{r[weakest]:.2g} rad/s RMS against {np.max(r):.2g} rad/s on the most excited axis; "
-                    f"σ {100 * rel_std:.3f} % of the mean diagonal)")
-    return {"relative_std": float(rel_std), "direction": {kk: round(float(v), 3) for kk, v in zip(KEYS, theta)},
-            "mostly": key, "text": text}
-
-
-PAIRS_OF = {"ixx": (0,), "iyy": (1,), "izz": (2,), "ixy": (0, 1), "ixz": (0, 2), "iyz": (1, 2)}

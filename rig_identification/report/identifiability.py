@@ -12,13 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..estimation.directions import describe_direction, weak_directions
+from ..estimation.directions import ENTRY_AXES, describe_direction, weak_directions
+from ..io.export import ENTRY_NAMES
 from ..estimation.inertia_result import InertiaResult
 from .html import Cell, esc, num, table
 
-ENTRY_NAMES = {"ixx": "roll moment Ixx", "iyy": "pitch moment Iyy", "izz": "yaw moment Izz",
-               "ixy": "product Ixy", "ixz": "product Ixz", "iyz": "product Iyz"}
-ENTRY_AXES = {"ixx": (0,), "iyy": (1,), "izz": (2,), "ixy": (0, 1), "ixz": (0, 2), "iyz": (1, 2)}
 AXES = "xyz"
 LEVER = {"x": "an exciter force with a longer lever arm about the x axis",
          "y": "an exciter force with a longer lever arm about the y axis",
