@@ -228,8 +228,11 @@ def _retracked_candidates(retracked: dict, applied: dict) -> list[Candidate]:
         out.append(Candidate("gyro_scale", retracked["scale"], rep_scale, exact=True))
     for sensor, fit in retracked.get("modes", {}).items():
         def rep_mode(vals, stds, sensor=sensor, fit=fit):
+            # not located: only p / f_n² is determined, the frequency is the physical
+            # oscillator's (p = 1, no σ of its own) and says so
             return ({"sensor": sensor, "frequency": fit.frequency, "damping_ratio": fit.damping_ratio,
-                     "participation": fit.participation}, dict(fit.std))
+                     "participation": fit.participation, "frequency_located": fit.located},
+                    {k: v for k, v in fit.std.items() if np.isfinite(v)})
         # no column: the mode is placed by the transfer above the band (inside it, the tensor
         # absorbs most of it), and evaluated exactly with those values (the selection's FIXED)
         out.append(Candidate("structural_mode", [], rep_mode, label=sensor, exact=True))
