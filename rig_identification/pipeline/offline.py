@@ -178,7 +178,10 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
             continue
         if fit.validation is None or fit.validation.verdict != "ok":
             failed = () if fit.validation is None else fit.validation.failed
-            hyp["not_named"] = f"the fit with it still fails its validation ({', '.join(failed)})"
+            hyp["not_named"] = (f"the fit with it does not determine the tensor (not_identifiable: "
+                                f"{', '.join(failed + tuple(fit.undetermined))})"
+                                if fit.validation is not None and fit.validation.verdict == "not_identifiable" else
+                                f"the fit with it still fails its validation ({', '.join(failed)})")
             hyp["failed_checks"] = list(failed)
             whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
             continue
