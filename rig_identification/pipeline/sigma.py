@@ -52,8 +52,10 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     :func:`~rig_identification.estimation.spectral_wls.residual_excess`) by more than :data:`MODEL_ERROR_RATIO` on a gyro axis
     (``residual_excess``): that is model error, and the identifier's sandwich σ (from the
     residuals; always in ``sandwich_std``) is kept.  If the propagation fails (too little
-    motion) the result keeps the sandwich σ with a warning.  Returns ``result``, updated in
-    place.
+    motion) the result keeps the sandwich σ with a warning.  seed: the replays' noise
+    generator — fixed by default, so that the same recording gives the same numbers to the
+    last digit on every run (the replays' own sampling error is in σ: the compensation's
+    jackknife, and the replays' Birge ratio check).  Returns ``result``, updated in place.
     """
 
     rigs = [p.rec.rig for p in preps]
