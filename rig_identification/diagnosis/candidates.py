@@ -214,10 +214,10 @@ def _retracked_candidates(retracked: dict, applied: dict) -> list[Candidate]:
 
         def rep_drift(vals, stds, done=done, knot_t=knot_t):
             c = done + np.asarray(vals, float)
-            q, sq = random_walk(c, stds, knot_t)
-            return ({"random_walk": q, "knot_spacing": float(np.mean(np.diff(knot_t))),
+            rw = random_walk(c, stds, knot_t)
+            return ({"random_walk": rw.intensity, "knot_spacing": float(np.mean(np.diff(knot_t))),
                      "bias_range": [float(np.ptp(x)) for x in c.reshape(3, -1)]},
-                    {"random_walk": sq})
+                    {"random_walk": rw.std})
         out.append(Candidate("gyro_bias_drift", cols, rep_drift, exact=True))
     if "scale" in retracked:
         done_s = np.asarray(applied.get(("gyro_scale", ""), np.zeros(3)), float)
