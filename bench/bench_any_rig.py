@@ -198,8 +198,8 @@ def main(argv=None) -> int:
         if r["undetermined"]:
             what += " | " + ",".join(r["undetermined"]) + " | " + (r["advice"][-1][:70] if r["advice"] else "")
         sh = "-" if r.get("noise_share_truth") is None else f"{r['noise_share_truth']:.2f}"
-        print(f"{r['seed']:6d} {short(r):27s} {ps:>7s} {sh:>5s} {str(r.get('kind_truth')):12s} {r['verdict']:16s} {ep:>7s} "
-              f"{es:>8s}  {what}")
+        print(f"{r['seed']:6d} {short(r):27s} {ps:>7s} {sh:>5s} {str(r.get('kind_truth')):12s} {r['verdict']:16s} "
+              f"{ep:>7s} {es:>8s}  {what}")
     done = [r for r in rows if "skipped" not in r and r["verdict"] != "refused"]
     det = [r for r in done if r.get("kind_truth") == "determined"]
     und = [r for r in done if r.get("kind_truth") == "undetermined"]
