@@ -16,7 +16,9 @@ the exciter force simulate_random settled on) recorded N times with independent 
 (noise seeds K..K+N−1, default 1..N): per noise seed the verdict, each consistency check's χ²/dof and each
 entry's error/σ; then per check the mean χ²/dof (1 under its null) and how many exceed the χ²
 quantile 1 − ALPHA (the rate ALPHA says: σ widened) and the failure threshold, and per entry
-the RMS of error/σ (1 when σ is calibrated).  Whether a false alarm on one recording is the
+the RMS of error/σ (1 when σ is calibrated).  Where the quadrature regression's χ² is beyond its failure threshold,
+``input_correlation``'s statistic is the Hausman test's of the tensor (validation.quadrature_check) —
+printed as it stands.  Whether a false alarm on one recording is the
 check's null mis-stated or the rig's own physics: a mis-stated null shows on every rig's noise.
 
 ``--any-rig SEED --first-order N``: whether σ misses a path of the noise.  The rig simulated without

@@ -7,11 +7,13 @@ roll and pitch entries null and no non-finite number anywhere; physics the model
 gives ``model_error`` before diagnosis, and a named, validated fit after it — or nothing
 named and the mismatch located.  The sweep over many rigs is bench/bench_trust.py.
 """
+import dataclasses
 import json
 import math
 
 import numpy as np
 import pytest
+from scipy.signal import hilbert
 from scipy.stats import chi2
 
 from rig_identification.io.verdict import KEYS, Validation
@@ -20,7 +22,8 @@ from rig_identification.pipeline.offline import identify_recording, with_diagnos
 from rig_identification.io.recording import Recording
 from rig_identification.design.scenarios import simulate_random
 from rig_identification.estimation.spectral_wls import missed_noise, spectra, wls_step_joint
-from rig_identification.estimation.validation import ALPHA, EFFECT_FACTOR, chi2_check, widened_std
+from rig_identification.estimation.validation import (ALPHA, EFFECT_FACTOR, chi2_check, hausman, quadrature_check,
+                                                      widened_std)
 
 from conftest import background, gather
 
@@ -187,3 +190,67 @@ def test_missed_noise_is_the_propagated_covariance_beyond_the_frequency_domain_o
     assert (w @ D @ V @ D @ w) < 0.8 * (w @ C @ w)                        # which fell short along u
     assert np.allclose(missed_noise(series, 0.5 * V), 0.0, atol=1e-12 * np.max(np.abs(V)))
     assert np.allclose(missed_noise(series, None), 0.0)
+
+
+def test_hausman_statistic_is_chi2_under_its_null_and_blind_where_nothing_is_added():
+    """Hausman's test (validation.hausman): with diff drawn from N(0, V1 − V0) the statistic
+    is χ² with the rank of V1 − V0 (its mean the rank, its 1 − α quantile exceeded about α of
+    the time); a difference along a direction where V1 adds less than HAUSMAN_RANK of V0's
+    variance is left out (there it can only be a small fraction of σ)."""
+    rng = np.random.default_rng(3)
+    M = rng.standard_normal((6, 6))
+    V0 = M @ M.T + 0.5 * np.eye(6)
+    L = np.linalg.cholesky(V0)
+    add = np.diag([0.0, 0.0, 0.3, 1.0, 2.0, 5.0])             # relative variance the regressors add
+    D = L @ add @ L.T
+    draws = (L @ np.sqrt(add)) @ rng.standard_normal((6, 4000))
+    H = np.array([hausman(d, V0 + D, V0)[0] for d in draws.T])
+    assert hausman(draws[:, 0], V0 + D, V0)[1] == 4
+    assert np.mean(H) == pytest.approx(4.0, rel=0.05)
+    assert np.mean(H > chi2.ppf(1 - 0.01, 4)) == pytest.approx(0.01, abs=0.006)
+    # a move along a direction the regressors do not touch (relative variance 1e-4 there)
+    D2 = D + 1e-4 * np.outer(L[:, 0], L[:, 0])
+    assert hausman(draws[:, 0] + 0.05 * L[:, 0], V0 + D2, V0)[0] == pytest.approx(H[0], rel=1e-6)
+    # a move the regressors explain: far beyond the statistic's null
+    assert hausman(draws[:, 0] + 10.0 * (L @ np.sqrt(add))[:, 5], V0 + D, V0)[0] > 50.0
+
+
+def test_input_correlation_fails_only_when_the_misfit_moves_the_tensor(clean, damped):
+    """The input-correlation rule (validation.quadrature_check): a residual in quadrature with
+    the input beyond the χ² failure threshold fails the check only when fitting the tensor
+    with the quadrature regressors moves it significantly (Hausman).  On the clean rig a
+    quadrature misfit is added to the fit's residual, over the whole band (as dissipation
+    makes it) or in the one DFT bin where the predicted ω is strongest (a small misfit at a
+    mode, as bench_any_rig's seed 21029's at its yaw mode), at growing sizes.  Whenever the
+    check passes the tensor (one step of the fit on the altered residual) is within 3 σ of
+    the truth; a misfit in one bin that fails the regression's χ² passes when it moves
+    nothing; the band-wide one fails before it moves the tensor 3 σ; the unmodelled damping
+    of the damped rig fails."""
+    truth, _, res = clean
+    tru = np.array([truth["inertia_about_cg"][k] for k in KEYS])
+    theta, sig = from_tensor(res.inertia), np.asarray(res.crb_std)
+    s = next(x for x in res.series if x.jacobian is not None)
+    q = np.imag(hilbert(s.predicted, axis=0))                     # the quadrature of the predicted ω
+    n = len(s.t)
+    f = np.fft.rfftfreq(n, 1.0 / s.fs)
+    sp = spectra(s)
+    peak = sp.f[np.argmax(np.sum(np.abs(sp.y) ** 2, axis=1))]
+    one_bin = np.fft.irfft(np.fft.rfft(q, axis=0) * (np.abs(f - peak) < 0.5 * (f[1] - f[0]))[:, None], n, axis=0)
+    judged_by_tensor, broad_fail = [], []
+    for shape, comp in (("band", q), ("bin", one_bin)):
+        for a in (0.002, 0.005, 0.01, 0.02, 0.05, 0.1):
+            s2 = dataclasses.replace(s, measured=s.measured + a * comp)
+            c = quadrature_check([s2])
+            d0, _ = wls_step_joint([spectra(s2)])
+            z = np.max(np.abs(theta + d0 - tru) / sig)
+            if c.passed:
+                assert z < 3.0, (shape, a, z, c.detail)
+            if c.passed and "Hausman" in c.detail:
+                judged_by_tensor.append((shape, a))
+            if shape == "band" and z > 3.0:
+                broad_fail.append(c.passed is False)
+    assert any(shape == "bin" for shape, _ in judged_by_tensor), judged_by_tensor
+    assert broad_fail and all(broad_fail)
+    _, rigid, _ = damped
+    c = next(c for c in rigid.validation.checks if c.name == "input_correlation")
+    assert c.passed is False and "Hausman" in c.detail, c.detail
