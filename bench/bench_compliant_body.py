@@ -68,7 +68,37 @@ def truth_modes(truth: dict):
                        np.array(z[:2], float))
 
 
-def _draws(seed: int, duration: float, n: int) -> dict:
+SWEEP_HZ = 3.5        # the sweep's top speed, Hz (spin_up from rest: 0 → SWEEP_HZ over the recording)
+
+
+def simulate(seed: int, duration: float, kind: str, noise: dict | None = None):
+    """Rig ``seed`` with its compliant body (:func:`draw`): ``kind`` "fixed" as
+    ``simulate_random`` draws it (one speed), or "sweep": the same rig and exciter, the motor
+    spun up from rest to :data:`SWEEP_HZ` over the recording less 5 s (``ramp_shape:
+    spin_up``, a linear chirp), the unbalance the fixed run's (force ∝ speed², so the force at
+    the fixed run's speed is the fixed run's), lowered by a third while a cable drops below
+    ``MIN_TENSION`` of its static tension (as ``simulate_random``)."""
+    from rig_identification.design.scenarios import MIN_TENSION, random_experiment, simulate_random
+    from rig_identification.model.experiment import experiment_from_dict
+    from rig_identification.model.simulator import SimulationError
+    from rig_identification.model.simulator import simulate as run
+    if kind == "fixed":
+        return simulate_random(seed, 4, "wide", [draw(seed)], duration, noise=noise)
+    d = random_experiment(seed, 4, "wide", [draw(seed)], duration, noise=noise)
+    r = d["excitation"]["rotating"]
+    r.update(amplitude=r["amplitude"] * (SWEEP_HZ / r["frequency"]) ** 2, frequency=SWEEP_HZ,
+             ramp_time=duration - 5.0)
+    for _ in range(6):
+        sim = run(experiment_from_dict(d, d["name"]))
+        T = np.column_stack([sim.sensors.load_cells[n].data[:, 0] for n in sim.rig.cable_names])
+        static = np.median(T[:100], axis=0)
+        if np.all(T.min(axis=0) >= MIN_TENSION * static):
+            return d, sim
+        r["amplitude"] *= 2 / 3
+    raise SimulationError(f"{d['name']}: the sweep slackens a cable even at {r['amplitude']:.0f} N")
+
+
+def _draws(seed: int, duration: float, n: int, kind: str, grid: tuple, keep: int) -> dict:
     """The rig's noise-free trajectory (1/1000 of the reference noise) fitted n times with
     fresh reference noise: per entry the errors (n,6) and σ (n,6), % of the reference."""
     from rig_identification.design.scenarios import REFERENCE_NOISE, simulate_random
@@ -77,8 +107,7 @@ def _draws(seed: int, duration: float, n: int) -> dict:
     from rig_identification.io.recording import Recording
     from rig_identification.io.verdict import KEYS
     from rig_identification.model.parametrisation import from_tensor
-    _, sim = simulate_random(seed, 4, "wide", [draw(seed)], duration,
-                             noise={k: 1e-3 * v for k, v in REFERENCE_NOISE.items()})
+    _, sim = simulate(seed, duration, kind, noise={k: 1e-3 * v for k, v in REFERENCE_NOISE.items()})
     tru = sim.truth["inertia_about_cg"]
     jt = np.array([tru[k] for k in KEYS])
     big = max(tru["ixx"], tru["iyy"], tru["izz"])
@@ -86,14 +115,14 @@ def _draws(seed: int, duration: float, n: int) -> dict:
     errs, stds = [], []
     for k in range(n):
         s = add_noise(sim.sensors, REFERENCE_NOISE, np.random.default_rng([seed, 1000 + k]))
-        cb = fit_compliant_body(Recording(sim.rig, s, sim.truth, None), seed=k)
+        cb = fit_compliant_body(Recording(sim.rig, s, sim.truth, None), seed=k, grid=grid, keep=keep)
         errs.append(100 * (from_tensor(cb.inertia) - jt) / ref)
         stds.append(100 * cb.inertia_std / ref)
     return {"err_pct": np.array(errs).tolist(), "std_pct": np.array(stds).tolist()}
 
 
 def _job(args):
-    seed, duration, truth_start, n_draws = args
+    seed, duration, truth_start, n_draws, kind, grid, keep = args
     import warnings
     warnings.simplefilter("ignore")
     from rig_identification.design.scenarios import simulate_random
@@ -104,20 +133,20 @@ def _job(args):
     from rig_identification.pipeline.offline import identify_recording
     eff = draw(seed)
     t0 = time.process_time()
-    d, sim = simulate_random(seed, 4, "wide", [eff], duration)
+    d, sim = simulate(seed, duration, kind)
     rec = Recording(sim.rig, sim.sensors, sim.truth, None)
     tru = sim.truth["inertia_about_cg"]
     jt = np.array([tru[k] for k in KEYS])
     big = max(tru["ixx"], tru["iyy"], tru["izz"])
     ref = np.array([abs(tru["ixx"]), big, big, abs(tru["iyy"]), big, abs(tru["izz"])])
     rigid = identify_recording(rec)
-    row = {"seed": seed, "effect": eff, "vehicle": d["description"],
+    row = {"seed": seed, "kind": kind, "effect": eff, "vehicle": d["description"],
            "exciter_hz": d["excitation"]["rotating"]["frequency"],
            "rigid_verdict": rigid.validation.verdict,
            "rigid_err_pct": (100 * (from_tensor(rigid.inertia) - jt) / ref).tolist()}
     runs = [("search", ())] + ([("truth_start", (truth_modes(sim.truth),))] if truth_start else [])
     for name, starts in runs:
-        cb = fit_compliant_body(rec, starts=starts)
+        cb = fit_compliant_body(rec, starts=starts, grid=grid if name == "search" else (), keep=keep)
         j = from_tensor(cb.inertia)
         e, s = j - jt, cb.inertia_std
         given = [k not in cb.undetermined for k in KEYS]
@@ -131,7 +160,7 @@ def _job(args):
                      "failed": list(cb.validation.failed) if cb.validation else [],
                      "unexplained": list(cb.unexplained)}
     if n_draws:
-        row["draws"] = _draws(seed, duration, n_draws)
+        row["draws"] = _draws(seed, duration, n_draws, kind, grid, keep)
     row["cpu_s"] = time.process_time() - t0
     return json.loads(json.dumps(row, default=float))
 
@@ -144,9 +173,14 @@ def main(argv=None) -> int:
     ap.add_argument("--procs", type=int, default=1)
     ap.add_argument("--truth-start", action="store_true", help="also search from the truth's modes (diagnostic)")
     ap.add_argument("--draws", type=int, default=0, help="fits of each rig's noise-free run with fresh noise (bias?)")
+    ap.add_argument("--kinds", default="fixed,sweep", help="experiments per rig: fixed (one speed), sweep (0 → 3.5 Hz)")
+    ap.add_argument("--grid", default="1.0,1.5,2.2,3.2", help="the search's starting frequencies per mode, Hz")
+    ap.add_argument("--keep", type=int, default=4, help="grid points refined with every parameter free")
     ap.add_argument("--json", metavar="FILE")
     a = ap.parse_args(argv)
-    jobs = [(a.first_seed + k, a.duration, a.truth_start, a.draws) for k in range(a.rigs)]
+    grid = tuple(float(g) for g in a.grid.split(","))
+    jobs = [(a.first_seed + k, a.duration, a.truth_start, a.draws, kind, grid, a.keep) for k in range(a.rigs)
+            for kind in a.kinds.split(",")]
     t0 = time.perf_counter()
     rows = []
     with ProcessPoolExecutor(a.procs) as ex:
@@ -155,12 +189,12 @@ def main(argv=None) -> int:
             print(f"done {len(rows)}/{len(jobs)}: seed {r['seed']} ({r['cpu_s']:.0f} s CPU)", file=sys.stderr, flush=True)
             if a.json:
                 Path(a.json).write_text(json.dumps(rows, indent=1))
-    print(f"{'seed':>5s} {'share':>5s} {'f roll/pitch/heave Hz':>21s} {'ζ':>5s} | {'rigid':>11s} {'max e%':>6s} | "
+    print(f"{'seed':>5s} {'kind':5s} {'share':>5s} {'f roll/pitch/heave Hz':>21s} {'ζ':>5s} | {'rigid':>11s} {'max e%':>6s} | "
           f"{'run':11s} {'named':5s} {'roll f,ζ':>11s} {'pitch f,ζ':>11s} {'share':>5s} {'max|e|/σ':>8s} {'max e%':>7s} "
           f"{'V/dof':>11s} {'V_rigid':>8s} {'alt':>3s} {'pass':4s}  why")
     for r in rows:
         eff = r["effect"]
-        head = (f"{r['seed']:5d} {eff['mass_share']:5.2f} {'/'.join(f'{f:.2f}' for f in eff['frequencies']):>21s} "
+        head = (f"{r['seed']:5d} {r['kind']:5s} {eff['mass_share']:5.2f} {'/'.join(f'{f:.2f}' for f in eff['frequencies']):>21s} "
                 f"{eff['damping_ratio']:5.2f} | {r['rigid_verdict']:>11s} {np.max(np.abs(r['rigid_err_pct'])):6.1f} |")
         for name in ("search", "truth_start"):
             if name not in r:
@@ -191,18 +225,22 @@ def main(argv=None) -> int:
         return not c["finite"] or any(g and (z is None or not np.isfinite(z) or abs(z) > 3)
                                       for z, g in zip(c["z"], c["given"]))
 
-    named = [r for r in rows if r["search"]["named"]]
-    passed = [r for r in rows if r["search"].get("passed")]
-    print(f"\nnamed: {len(named)}/{len(rows)}; silent failures among them (an entry given beyond 3 σ, or non-finite): "
-          f"{sum(wrong(r) for r in named)}   [goal 0]")
-    print(f"passed (validation ok, plausible): {len(passed)}/{len(rows)}; naming them would have been a silent "
-          f"failure on {sum(wrong(r) for r in passed)} (seeds {[r['seed'] for r in passed if wrong(r)]}); "
-          f"significant against the rigid body: {sum(r['search'].get('significant', False) for r in rows)}/{len(rows)}")
-    zall = np.array([z for r in rows for z, g in zip(r["search"]["z"], r["search"]["given"]) if g and z is not None])
-    if len(zall):
-        print(f"every entry given, named or not ({len(zall)}): |error|/σ ≤ 3 on {np.mean(np.abs(zall) <= 3) * 100:.0f} %, "
-              f"≤ 1.96 on {np.mean(np.abs(zall) <= 1.96) * 100:.0f} %; median {np.median(np.abs(zall)):.2f}, "
-              f"max {np.max(np.abs(zall)):.1f}")
+    for kind in dict.fromkeys(r["kind"] for r in rows):
+        rk = [r for r in rows if r["kind"] == kind]
+        named = [r for r in rk if r["search"]["named"]]
+        passed = [r for r in rk if r["search"].get("passed")]
+        big = [r for r in passed if max(abs(e) for e, g in zip(r["search"]["err_pct"], r["search"]["given"]) if g) > 1]
+        print(f"\n[{kind}] named: {len(named)}/{len(rk)}; silent failures among them (an entry given beyond 3 σ, or "
+              f"non-finite): {sum(wrong(r) for r in named)}   [goal 0]")
+        print(f"[{kind}] passed (validation ok, plausible): {len(passed)}/{len(rk)}; beyond 3 σ among them: "
+              f"{sum(wrong(r) for r in passed)} (seeds {[r['seed'] for r in passed if wrong(r)]}), beyond 1 %: "
+              f"{len(big)} (seeds {[r['seed'] for r in big]}); significant against the rigid body: "
+              f"{sum(r['search'].get('significant', False) for r in rk)}/{len(rk)}")
+        zall = np.array([z for r in rk for z, g in zip(r["search"]["z"], r["search"]["given"]) if g and z is not None])
+        if len(zall):
+            print(f"[{kind}] every entry given, named or not ({len(zall)}): |error|/σ ≤ 3 on "
+                  f"{np.mean(np.abs(zall) <= 3) * 100:.0f} %, ≤ 1.96 on {np.mean(np.abs(zall) <= 1.96) * 100:.0f} %; "
+                  f"median {np.median(np.abs(zall)):.2f}, max {np.max(np.abs(zall)):.1f}")
     print(f"rigid-body fit: verdict model_error on {sum(r['rigid_verdict'] == 'model_error' for r in rows)}/{len(rows)}; "
           f"total {time.perf_counter() - t0:.0f} s with {a.procs} process(es)")
     return 0

@@ -23,8 +23,10 @@ on its springs).  Then it tests the fit the way every fit is tested:
   carries a share of the whole's inertia about each mode's axis, the frame's part of the
   tensor positive definite.
 
-:attr:`CompliantBody.named` only when all three hold and the bench has shown such tensors
-honest (:data:`TENSOR_TRUSTED`: not yet); otherwise the result is a hypothesis that says why
+:attr:`CompliantBody.named` only when all three hold, no other optimum fits as well, and the
+exciter ran through every fitted mode (:func:`swept`, :data:`SWEEP_MARGIN`: a sweep; with one
+exciter speed the tensor at rest is an extrapolation the data do not fix); otherwise the result
+is a hypothesis that says why, what experiment would decide it (:data:`SWEEP_ADVICE`),
 and where the mismatch is — the rigid body's (``rigid_mismatch``) and what the sprung body
 leaves (``unexplained``): channel, band, size.
 """
@@ -50,6 +52,7 @@ from ..estimation.yaw_anchor import anchor_yaw
 from ..io.recording import Recording, RecordingError
 from ..io.verdict import KEYS, Validation
 from ..model.parametrisation import from_tensor, to_tensor
+from .result import EffectWrench
 
 FIT_OVERSAMPLING = 10.0     # the fit rate: at least this multiple of the band's upper edge
 TRANSIENT_S = 4.0           # s: the modes start from rest at the window's start; their transient
@@ -73,15 +76,14 @@ light trucks: 1–2 Hz body modes, stiffer on a test rig's locked parts), dampin
 0.03–0.6, and each mode carrying 5–95 % of the whole body's moment of inertia about its axis
 (ℓ_a² / J_aa).  The fit's bounds are these ranges; a mode on a bound is not plausible."""
 BAND_MARGIN = 1.02          # a mode within 2 % of a bound sits on it
-TENSOR_TRUSTED = False
-"""Whether a two-body fit that passes its validation with plausible parameters may be *named*,
-its tensor at rest reported as the result.  Not yet: on the random rigs of
-``bench/bench_compliant_body.py`` (68–74 % sprung, modes 1.2–3 Hz, one exciter frequency) the
-fits that passed had entries 3.3–9.4 σ off (Ixx −2.9 %, Iyy +33 %, Iyy +1.3 %); over noise
-realisations of one rig the error is a bias of 0.5–1 % with a spread of 0.05 %, which no σ
-of the noise covers; and where the search misses the global optimum another one explains
-the recording to the noise level with Iyy 33 % off.  Until the bench shows every entry within
-3 σ, the candidate reports a hypothesis (:attr:`CompliantBody.named` False)."""
+SWEEP_MARGIN = 1.15
+"""The exciter must have run at least this factor below and above each fitted mode for the
+two-body fit to be *named* (:func:`swept`).  With one exciter speed the recording shows the
+apparent tensor J + Σ ℓ ℓᵀ G(j2πf) near that speed only, and the tensor at rest (f → 0) is an
+extrapolation that several (J, ℓ, f, ζ) explain to the noise level: on
+``bench/bench_compliant_body.py``'s fixed-speed runs the fits that passed their validation
+were several σ off (helper/compliant's WIP: 3.3–9.4 σ).  A sweep through the modes shows
+each resonance's peak and phase turn, which fix ℓ, f and ζ, and with them the limit."""
 SIGNIFICANT_P = 1e-3        # the sprung body's likelihood ratio against the rigid body: significant below this
 
 
@@ -144,8 +146,11 @@ class CompliantBody:
     (:class:`~rig_identification.io.verdict.Validation`); rigid_mismatch: where the rigid body
     misses the recording on the same criterion (as ``unexplained``); extra_dof: the modes'
     parameters (the likelihood ratio's degrees of freedom, :attr:`significant`); passed: the
-    fit passed its validation with plausible parameters (what would name it, were the tensor
-    trusted: :data:`TENSOR_TRUSTED`)."""
+    fit passed its validation with plausible parameters; exciter_hz: (slowest, fastest) speed
+    of the exciter over the window (:func:`exciter_speeds`) or None; wrench: when named, the
+    sprung body's reaction as an :class:`~rig_identification.diagnosis.result.EffectWrench`
+    over the recording (:func:`effect_wrench_of`), with which the ordinary rigid-body fit gives
+    the whole body's tensor at rest."""
 
     named: bool
     why: str
@@ -167,6 +172,8 @@ class CompliantBody:
     rigid_mismatch: tuple = ()
     extra_dof: int = 0
     passed: bool = False
+    exciter_hz: tuple | None = None
+    wrench: EffectWrench | None = None
 
     @property
     def significant(self) -> bool:
@@ -191,16 +198,16 @@ class CompliantBody:
                 "damping_ratio": [m.damping_ratio for m in self.modes] + [num(self.heave.damping_ratio)],
                 "modes": [m.to_dict() for m in self.modes], "heave": self.heave.to_dict(),
                 # a hypothesis's tensor is no result: it is kept apart, said so
-                **(tensor if self.named else {"inertia_about_cg": None, "inertia_std": None,
-                                              "hypothesis": {**tensor, "trustworthy": False}}),
+                # a hypothesis's tensor is no result: not reported at all
+                **(tensor if self.named else {"inertia_about_cg": None, "inertia_std": None}),
                 "undetermined": list(self.undetermined),
-                "rigid_body_inertia_about_cg": {k: num(v) for k, v in zip(KEYS, from_tensor(self.rigid_inertia))},
                 "criterion": {"V": num(self.cost), "dof": int(self.dof), "V_rigid": num(self.cost_rigid),
                               "alternatives": [{"dV": num(d), "inertia_about_cg": {k: num(v) for k, v in zip(KEYS, j)}}
                                                for d, j in self.alternatives]},
                 "validation": None if self.validation is None else self.validation.to_dict(),
                 "unexplained": list(self.unexplained), "rigid_mismatch": list(self.rigid_mismatch),
                 "band_hz": [float(b) for b in self.band_hz],
+                "exciter_hz": None if self.exciter_hz is None else [float(v) for v in self.exciter_hz],
                 "warnings": list(self.warnings)}
 
 
@@ -474,6 +481,73 @@ def _window(rec: Recording, start: float | None, end: float | None, settle: floa
     return s, lo, hi, warnings
 
 
+def exciter_speeds(sensors, lo: float, hi: float) -> tuple[float, float] | None:
+    """(slowest, fastest) Hz the rotating exciter ran at over [lo, hi] (absolute stamps, s):
+    the 2nd and 98th percentiles of its speed, the unwrapped phase of the measured force in
+    the spin plane (exciter x, y) differentiated over 1 s, where the force exceeds 1 % of its
+    95th percentile (a spin-up's slow start, whose force ∝ speed² is lost in the noise, left
+    out).  None without an exciter stream or when it hardly turned (< 2 revolutions)."""
+    ex = getattr(sensors, "exciter", None)
+    if ex is None or len(ex.t) < 10:
+        return None
+    m = (ex.t >= lo) & (ex.t <= hi)
+    t, f = ex.t[m], ex.data[m, :2]
+    mag = np.linalg.norm(f, axis=1)
+    if len(t) < 10 or not np.any(mag > 0):
+        return None
+    ph = np.unwrap(np.arctan2(f[:, 1], f[:, 0]))
+    n = max(1, int(round(1.0 / float(np.median(np.diff(t))))))
+    if len(t) <= n or abs(ph[-1] - ph[0]) < 4 * np.pi:
+        return None
+    speed = np.abs(ph[n:] - ph[:-n]) / (2 * np.pi * (t[n:] - t[:-n]))
+    on = (mag[n:] > 0.01 * np.percentile(mag, 95)) & (mag[:-n] > 0.01 * np.percentile(mag, 95))
+    if on.sum() < 10:
+        return None
+    return float(np.percentile(speed[on], 2)), float(np.percentile(speed[on], 98))
+
+
+def swept(modes, speeds: tuple[float, float] | None) -> str:
+    """Why the exciter's speeds (:func:`exciter_speeds`) do not determine the tensor at rest
+    given the fitted ``modes`` (:class:`SprungMode`): each mode needs a run from
+    :data:`SWEEP_MARGIN` below to as far above it.  "" when they do."""
+    if speeds is None:
+        return "no rotating exciter's speed could be read from the recording"
+    lo, hi = speeds
+    out = [m for m in modes if not (lo * SWEEP_MARGIN <= m.frequency <= hi / SWEEP_MARGIN)]
+    if not out:
+        return ""
+    what = (f"at {0.5 * (lo + hi):.2f} Hz only" if hi < 1.1 * lo else f"from {lo:.2f} to {hi:.2f} Hz")
+    return (f"the exciter ran {what}, not through the {' and '.join(f'{m.axis} mode ({m.frequency:.2f} Hz)' for m in out)}: "
+            "the recording shows the apparent tensor near those speeds, and the tensor at rest is an extrapolation "
+            "that the data do not fix")
+
+
+SWEEP_ADVICE = ("to identify the vehicle with its suspension free, sweep the exciter through its body modes (spin it "
+                "up slowly from rest to ~3.5 Hz over the recording: `ramp_shape: spin_up`, `ramp_time` the "
+                "recording's length; see `rig-identify plan`); or lock the suspension (strap the body to the frame) "
+                "and record again")
+
+
+def effect_wrench_of(rig, sensors, modes) -> EffectWrench:
+    """The sprung body's reaction on the whole body as a generalized wrench added to the
+    measured one (:class:`~rig_identification.diagnosis.result.EffectWrench`): M_effect =
+    −Σ_k ℓ_k q̈_k (:mod:`~rig_identification.estimation.two_body`'s Euler equation), q̇_k =
+    G_k(s) ℓ_kᵀ ω (the base-excited oscillator, :func:`~rig_identification.estimation.two_body.oscillator`)
+    driven by the frame's measured angular velocity over the whole recording (the modes start
+    from rest at its first sample, well before any fit window), differentiated (numpy
+    ``gradient``).  t (N,) the IMU's stamps, torque (N,3) N·m body axes, force zero.  With it
+    the rigid-body fit's tensor is the whole body's at rest."""
+    t = sensors.imu.t
+    omega = rig.imu.rotation.apply(sensors.imu.data[:, :3])
+    fs = 1.0 / float(np.median(np.diff(t)))
+    torque = np.zeros((len(t), 3))
+    for m in modes:
+        L = np.asarray(m.participation, float)
+        qd = tb.oscillator(omega @ L, m.frequency, m.damping_ratio, fs)
+        torque -= np.outer(np.gradient(qd, t), L)
+    return EffectWrench(t.copy(), torque, np.zeros_like(torque), ("compliant_body",))
+
+
 def weight_surplus(w: Window, rig) -> float:
     """The load cells' (and the exciter's) mean vertical force over the window, world axes,
     over rig.yaml's weight, − 1 (the formula of
@@ -592,6 +666,8 @@ def fit_compliant_body(rec: Recording, start: float | None = None, end: float | 
                                 float(m.damping_ratio[k]), float(sd_p[k0 + 2 * k + 1]), L.copy(),
                                 float(L[a] ** 2 / m.tensor[a, a])))
     wh = tb.whitened(m, x, noise)
+    speeds = exciter_speeds(s, lo, hi)
+    unswept = swept(modes, speeds)
     explains = (f"the two-body model leaves V {best.cost:.0f} for {best.dof} degrees of freedom, the rigid body "
                 f"{cost_rigid:.0f}")
     if why_not:
@@ -599,15 +675,60 @@ def fit_compliant_body(rec: Recording, start: float | None = None, end: float | 
     elif validation.verdict != "ok":
         why = (f"the fit with a sprung body fails its validation ({validation.verdict}: "
                + ", ".join(validation.failed or validation.undetermined) + f"; {explains})")
-    elif not TENSOR_TRUSTED:
-        why = (f"a hypothesis: {explains}, its validation passes and its parameters are plausible, but the "
-               "tensor at rest of such fits was several σ off on random rigs (bench/bench_compliant_body.py): "
-               "lock the suspension, or fix the vehicle to the frame, and record again")
+    elif unswept:
+        why = f"a hypothesis: {explains}, its validation passes and its parameters are plausible, but {unswept}"
+    elif alternatives:
+        why = (f"a hypothesis: {explains}, but {len(alternatives)} other optima fit the recording to the noise level "
+               "too: the data do not choose between their tensors")
     else:
         why = ""
+    if why:
+        why += f" — {SWEEP_ADVICE}"
     warnings = list(warnings) + [f"σ: {uncertainty}"]
     return CompliantBody(not why, why or "the two-body fit passes its validation and its parameters are plausible",
                          m.tensor, std, cov, tuple(validation.undetermined), tuple(modes), heave, best.cost,
                          best.dof, cost_rigid, alternatives, rigid.inertia, validation,
                          unexplained_bands(wh), band, tuple(warnings), unexplained_bands(rigid_wh),
-                         par.size - 6, not why_not and validation.verdict == "ok")
+                         par.size - 6, not why_not and validation.verdict == "ok", speeds,
+                         effect_wrench_of(rig, s, modes) if not why else None)
+
+
+DIAGNOSE_GRID = (1.0, 1.6, 2.6)   # Hz: the search's starting frequencies per mode when diagnose runs it
+DIAGNOSE_KEEP = 3
+
+
+def diagnosis_alternative(rec: Recording) -> dict | None:
+    """The candidate as one of :attr:`~rig_identification.diagnosis.result.Diagnosis.alternatives`
+    (what :func:`~rig_identification.pipeline.offline.with_diagnosis` validates): the effect
+    entry (name ``compliant_body``, parameters: the roll and pitch modes' frequencies Hz and
+    damping ratios, the heave's mass share when determined; evidence: the two-body fit's JSON
+    without any tensor unless named), and when :attr:`CompliantBody.named` its reaction
+    wrench (:func:`effect_wrench_of`) and the two-body fit's covariance (6,6) of the tensor, so
+    that the caller identifies the recording again with it and names it only when that fit
+    passes its validation too.  Not named: the entry is marked not plausible with the reason
+    and :data:`SWEEP_ADVICE` (the caller never re-fits it).  None when the sprung body is not
+    significant against the rigid body (:attr:`CompliantBody.significant`) or the fit cannot
+    be made (no exciter, too short)."""
+    if rec.rig.exciter is None:
+        return None
+    try:
+        cb = fit_compliant_body(rec, grid=DIAGNOSE_GRID, keep=DIAGNOSE_KEEP)
+    except (ValueError, np.linalg.LinAlgError):     # RecordingError, RigError, TrackerError, IdentificationError
+        return None
+    if not cb.significant:
+        return None
+    ev = cb.to_dict()
+    params = {"frequencies": [m.frequency for m in cb.modes], "damping_ratio": [m.damping_ratio for m in cb.modes]}
+    std = {"frequencies": [m.frequency_std for m in cb.modes], "damping_ratio": [m.damping_std for m in cb.modes]}
+    if cb.heave.determined:
+        params["mass_share"], std["mass_share"] = cb.heave.mass_share, cb.heave.mass_share_std
+    entry = {"name": "compliant_body", "label": "", "parameters": params, "parameters_std": std,
+             "plausible": cb.named, "evidence": {"likelihood_ratio": float(cb.cost_rigid - cb.cost),
+                                                 "dof": int(cb.extra_dof), **ev}}
+    if not cb.named:
+        entry["implausible"] = cb.why
+    lam = float(cb.cost_rigid - cb.cost)
+    return {"effects": [entry], "applied": {}, "effect_wrench": cb.wrench, "stiffness": None,
+            "inertia": cb.inertia if cb.named else None, "covariance": cb.covariance if cb.named else None,
+            "relative_std": 0.0, "likelihood_ratio": lam, "dof": int(cb.extra_dof),
+            "keys": [("compliant_body", "")], "bic": float(-lam + cb.extra_dof * np.log(max(cb.dof, 2)))}
