@@ -85,6 +85,7 @@ def simulate(seed: int, duration: float, kind: str, noise: dict | None = None):
     the fixed run's speed is the fixed run's), lowered by a third while a cable drops below
     ``MIN_TENSION`` of its static tension (as ``simulate_random``)."""
     from rig_identification.design.scenarios import MIN_TENSION, random_experiment, simulate_random
+    from rig_identification.design.sweep import sweep_excitation
     from rig_identification.model.experiment import experiment_from_dict
     from rig_identification.model.simulator import SimulationError
     from rig_identification.model.simulator import simulate as run
@@ -92,8 +93,7 @@ def simulate(seed: int, duration: float, kind: str, noise: dict | None = None):
         return simulate_random(seed, 4, "wide", [draw(seed)], duration, noise=noise)
     d = random_experiment(seed, 4, "wide", [draw(seed)], duration, noise=noise)
     r = d["excitation"]["rotating"]
-    r.update(amplitude=r["amplitude"] * (SWEEP_HZ / r["frequency"]) ** 2, frequency=SWEEP_HZ,
-             ramp_time=duration - 5.0)
+    r.update(sweep_excitation(r["amplitude"] / (2 * np.pi * r["frequency"]) ** 2, duration, SWEEP_HZ))
     for _ in range(6):
         sim = run(experiment_from_dict(d, d["name"]))
         T = np.column_stack([sim.sensors.load_cells[n].data[:, 0] for n in sim.rig.cable_names])

@@ -544,7 +544,7 @@ def effect_wrench_of(rig, sensors, modes) -> EffectWrench:
     for m in modes:
         L = np.asarray(m.participation, float)
         qd = tb.oscillator(omega @ L, m.frequency, m.damping_ratio, fs)
-        torque -= np.outer(np.gradient(qd, t), L)
+        torque -= np.outer(np.gradient(qd, t, edge_order=2), L)
     return EffectWrench(t.copy(), torque, np.zeros_like(torque), ("compliant_body",))
 
 
