@@ -194,8 +194,9 @@ class CompliantBody:
         return {"name": "compliant_body", "named": self.named, "why": self.why,
                 "significant": self.significant, "passed": self.passed,
                 "mass_share": num(self.heave.mass_share),
-                "frequencies": [m.frequency for m in self.modes] + [num(self.heave.frequency)],
-                "damping_ratio": [m.damping_ratio for m in self.modes] + [num(self.heave.damping_ratio)],
+                "frequencies": [m.frequency for m in self.modes if m.axis != "locked"] + [num(self.heave.frequency)],
+                "damping_ratio": [m.damping_ratio for m in self.modes if m.axis != "locked"]
+                + [num(self.heave.damping_ratio)],
                 "modes": [m.to_dict() for m in self.modes], "heave": self.heave.to_dict(),
                 # a hypothesis's tensor is no result: it is kept apart, said so
                 # a hypothesis's tensor is no result: not reported at all
@@ -344,7 +345,7 @@ def implausible(m: tb.SprungModes) -> list[str]:
     zlo, zhi = PLAUSIBLE["damping_ratio"]
     slo, shi = PLAUSIBLE["sprung_share"]
     J = m.tensor
-    for k, (f, z, L) in enumerate(zip(m.frequency, m.damping_ratio, m.participation)):
+    for k, (f, z, L) in enumerate(zip(m.frequency[:2], m.damping_ratio[:2], m.participation[:2])):
         name = ("roll", "pitch")[k] if k < 2 else f"mode {k + 1}"
         a = int(np.argmax(np.abs(L)))
         share = float(L[a] ** 2 / J[a, a]) if J[a, a] > 0 else np.inf
@@ -595,7 +596,12 @@ def fit_compliant_body(rec: Recording, start: float | None = None, end: float | 
         raise IdentificationError(f"{rec.path}: the replays with fresh noise did not reproduce the window")
     noise = realisations(reps)
     scale = float(np.trace(rigid.inertia) / 3)
-    par = tb.Parametrisation(tb.FREE if full else tb.ALIGNED, scale)
+    par = (tb.Parametrisation(tb.WITH_LOCK, scale, ((tb.LOCK_HZ, tb.LOCK_DAMPING),)) if full
+           else tb.Parametrisation(tb.ALIGNED, scale))
+    if full:      # starts of the roll and pitch modes only: the locked directions' mode added, small
+        starts = tuple(tb.SprungModes(st.j, np.vstack([st.participation, [0.0, 0.0, np.sqrt(
+            tb.LOCK_START_SHARE * rigid.inertia[2, 2])]]), np.append(st.frequency, tb.LOCK_HZ),
+            np.append(st.damping_ratio, tb.LOCK_DAMPING)) if st.n == 2 else st for st in starts)
     bounds = dict(frequency=PLAUSIBLE["frequency"], damping=PLAUSIBLE["damping_ratio"])
     f_dom = dominant_frequency(x)
     optima = tb.search(par, rigid.inertia, f_dom, x, noise, frequencies=grid, keep=keep, starts=tuple(starts),
@@ -629,12 +635,13 @@ def fit_compliant_body(rec: Recording, start: float | None = None, end: float | 
         cov = cov + np.diag(spread**2)
         uncertainty += (f"; {len(alternatives)} other optima fit to the noise level too (V ≤ {accept:.0f}): "
                         "their spread added")
-    # the locked directions' in-band inertia, which the model leaves out (LOCK_MIN_HZ)
-    # (the sprung body's yaw moment, which its roll and pitch modes do not carry, taken as the
-    # larger of the two: a vehicle's yaw moment is about its pitch moment)
-    Js = np.diag(m.sprung_tensor)
-    lock = (f_dom / LOCK_MIN_HZ) ** 2 * np.array([Js[0], Js[1], max(Js[0], Js[1])]) / np.sqrt(3.0)
-    cov = cov + np.diag(np.array([lock[0], 0.0, 0.0, lock[1], 0.0, lock[2]]) ** 2)
+    if not par.fixed:
+        # the locked directions' in-band inertia, which this model leaves out (LOCK_MIN_HZ)
+        # (the sprung body's yaw moment, which its roll and pitch modes do not carry, taken as the
+        # larger of the two: a vehicle's yaw moment is about its pitch moment)
+        Js = np.diag(m.sprung_tensor)
+        lock = (f_dom / LOCK_MIN_HZ) ** 2 * np.array([Js[0], Js[1], max(Js[0], Js[1])]) / np.sqrt(3.0)
+        cov = cov + np.diag(np.array([lock[0], 0.0, 0.0, lock[1], 0.0, lock[2]]) ** 2)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     # the rigid body on the same criterion (the modes carry nothing): the likelihood ratio
     rigid_modes = tb.SprungModes(from_tensor(rigid.inertia), np.zeros_like(m.participation), m.frequency,
@@ -662,12 +669,14 @@ def fit_compliant_body(rec: Recording, start: float | None = None, end: float | 
     for k in range(m.n):
         L = m.participation[k]
         a = int(np.argmax(np.abs(L)))
-        modes.append(SprungMode(names[k] if k < 2 else f"mode {k + 1}", float(m.frequency[k]), float(sd_p[k0 + 2 * k]),
-                                float(m.damping_ratio[k]), float(sd_p[k0 + 2 * k + 1]), L.copy(),
+        held = k >= par.n_free        # the locked directions' mode: its frequency and damping held
+        modes.append(SprungMode(names[k] if k < 2 else "locked", float(m.frequency[k]),
+                                0.0 if held else float(sd_p[k0 + 2 * k]), float(m.damping_ratio[k]),
+                                0.0 if held else float(sd_p[k0 + 2 * k + 1]), L.copy(),
                                 float(L[a] ** 2 / m.tensor[a, a])))
     wh = tb.whitened(m, x, noise)
     speeds = exciter_speeds(s, lo, hi)
-    unswept = swept(modes, speeds)
+    unswept = swept([md for md in modes if md.axis != "locked"], speeds)
     explains = (f"the two-body model leaves V {best.cost:.0f} for {best.dof} degrees of freedom, the rigid body "
                 f"{cost_rigid:.0f}")
     if why_not:
@@ -718,8 +727,9 @@ def diagnosis_alternative(rec: Recording) -> dict | None:
     if not cb.significant:
         return None
     ev = cb.to_dict()
-    params = {"frequencies": [m.frequency for m in cb.modes], "damping_ratio": [m.damping_ratio for m in cb.modes]}
-    std = {"frequencies": [m.frequency_std for m in cb.modes], "damping_ratio": [m.damping_std for m in cb.modes]}
+    body = [m for m in cb.modes if m.axis != "locked"]
+    params = {"frequencies": [m.frequency for m in body], "damping_ratio": [m.damping_ratio for m in body]}
+    std = {"frequencies": [m.frequency_std for m in body], "damping_ratio": [m.damping_std for m in body]}
     if cb.heave.determined:
         params["mass_share"], std["mass_share"] = cb.heave.mass_share, cb.heave.mass_share_std
     entry = {"name": "compliant_body", "label": "", "parameters": params, "parameters_std": std,

@@ -209,6 +209,7 @@ roll mode turns it about an axis in that plane (ℓ = J_s e_x / √J_s,xx = (J_s
 J_s,xz) / √J_s,xx) and its pitch mode about y (ℓ ≈ (0, √J_s,yy, 0)); yaw, fore-aft and lateral
 are held by the suspension's links (tens of Hz, outside the band)."""
 FREE = np.ones((2, 3), bool)
+WITH_LOCK = np.ones((3, 3), bool)     # roll, pitch and the locked directions (:data:`LOCK_HZ`), every component free
 """Every participation component free (roll and pitch modes): a sprung body with products of
 inertia J_s,xy ≠ 0 (the random NHTSA vehicles: J_s,xy −43 kg·m² for J_s,xx 734 on
 bench_compliant_body's seed 9100) has ℓ_roll = J_s v_roll with a y component; the ALIGNED
@@ -217,26 +218,45 @@ FREQUENCY_BOUNDS = (0.5, 6.0)      # Hz: where the fit may put a mode (plausibil
 DAMPING_BOUNDS = (0.01, 0.9)       # the modes' damping ratio, ditto
 
 
+LOCK_HZ = 20.0
+"""Hz: the frequency at which the suspension's locked directions (yaw, fore-aft, lateral:
+links and bushings, tens of Hz) are modelled — one more mode, its participation ℓ free
+(3 components), its frequency and damping (:data:`LOCK_DAMPING`) held.  In the band it adds
+the apparent inertia ℓ ℓᵀ (f / f_lock)² (the residual term of a truncated modal expansion:
+Craig & Bampton 1968; Géradin & Rixen §4.4), which the fit's ℓ takes whatever the true lock
+frequency above the band.  Left out, it biased the tensor at rest: on a 0.5–3.5 Hz sweep of
+bench_compliant_body's seed 9100 with the simulator's 25 Hz locks Ixx −0.47 % (3.5 σ); with
+the locks at 100 Hz −0.08 % (0.5 σ)."""
+LOCK_DAMPING = 0.1
+
+
 @dataclass(frozen=True)
 class Parametrisation:
     """The scaled parameter vector of a :class:`SprungModes`: j / scale (6), the free
-    participation components (``shape`` (n,3) bool) / √scale, then (f Hz, ζ) per mode;
-    scale kg·m² a typical moment (tr J / 3), so that every parameter is of order one."""
+    participation components (``shape`` (n,3) bool) / √scale, then (f Hz, ζ) per mode but
+    the last len(``fixed``), whose (f, ζ) are held at ``fixed``; scale kg·m² a typical moment
+    (tr J / 3), so that every parameter is of order one."""
 
     shape: np.ndarray
     scale: float
+    fixed: tuple = ()
 
     @property
     def n(self) -> int:
         return int(len(self.shape))
 
     @property
+    def n_free(self) -> int:
+        """The modes whose frequency and damping are fitted."""
+        return self.n - len(self.fixed)
+
+    @property
     def size(self) -> int:
-        return 6 + int(np.sum(self.shape)) + 2 * self.n
+        return 6 + int(np.sum(self.shape)) + 2 * self.n_free
 
     def pack(self, m: SprungModes) -> np.ndarray:
         L = np.asarray(m.participation, float).reshape(self.n, 3)
-        fz = np.column_stack([m.frequency, m.damping_ratio]).ravel()
+        fz = np.column_stack([m.frequency, m.damping_ratio])[:self.n_free].ravel()
         return np.concatenate([np.asarray(m.j, float) / self.scale, L[self.shape] / np.sqrt(self.scale), fz])
 
     def unpack(self, p: np.ndarray) -> SprungModes:
@@ -244,14 +264,14 @@ class Parametrisation:
         k = int(np.sum(self.shape))
         L = np.zeros((self.n, 3))
         L[self.shape] = p[6:6 + k] * np.sqrt(self.scale)
-        fz = p[6 + k:].reshape(self.n, 2)
+        fz = np.vstack([p[6 + k:].reshape(self.n_free, 2), np.reshape(np.asarray(self.fixed, float), (-1, 2))])
         return SprungModes(p[:6] * self.scale, L, fz[:, 0].copy(), fz[:, 1].copy())
 
     def bounds(self, frequency=FREQUENCY_BOUNDS, damping=DAMPING_BOUNDS) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds (only f and ζ bounded)."""
         k = 6 + int(np.sum(self.shape))
-        lo = np.concatenate([np.full(k, -np.inf), np.tile([frequency[0], damping[0]], self.n)])
-        hi = np.concatenate([np.full(k, np.inf), np.tile([frequency[1], damping[1]], self.n)])
+        lo = np.concatenate([np.full(k, -np.inf), np.tile([frequency[0], damping[0]], self.n_free)])
+        hi = np.concatenate([np.full(k, np.inf), np.tile([frequency[1], damping[1]], self.n_free)])
         return lo, hi
 
 
@@ -388,6 +408,7 @@ def fit_modes(par: Parametrisation, start: SprungModes, x: FitInput, noise: Inpu
 SEARCH_FREQUENCIES = tuple(float(f) for f in np.round(np.geomspace(0.9, 3.6, 7), 3))
 """Hz: the grid of starting frequencies per mode (every pair: roll × pitch) of :func:`search`."""
 SEARCH_DAMPING = (0.1, 0.3)   # starting damping ratios (both modes alike)
+LOCK_START_SHARE = 0.05  # starting participation of the locked directions' mode (about z: yaw)
 SEARCH_SHARE = 0.3       # starting participation: ℓ² = this share of the rigid fit's moment about the mode's axis
 SEARCH_KEEP = 10         # grid points refined with every parameter free
 SEARCH_COARSE_NFEV = 15  # evaluations per grid point (frequencies held)
@@ -400,12 +421,14 @@ def start_modes(J_rigid: np.ndarray, frequencies, f_dominant: float, shape: np.n
     moment about the mode's main axis, ζ ``damping``, and the tensor at rest that gives the
     rigid-body fit's tensor as the apparent one at the dominant frequency f_dominant Hz
     (J = J_rigid − Σ ℓℓᵀ Re G(j2πf)), or J_rigid if that leaves no frame."""
-    n = len(frequencies)
+    n = len(shape)
     L = np.zeros((n, 3))
     for k in range(n):
         a = k if k < 3 and shape[k][k] else int(np.argmax(shape[k]))
-        L[k, a] = np.sqrt(SEARCH_SHARE * J_rigid[a, a])
-    m = SprungModes(np.zeros(6), L, np.asarray(frequencies, float), np.full(n, damping))
+        share = SEARCH_SHARE if k < len(frequencies) else LOCK_START_SHARE
+        L[k, a] = np.sqrt(share * J_rigid[a, a])
+    fz = np.asarray(list(frequencies) + [LOCK_HZ] * (n - len(frequencies)), float)
+    m = SprungModes(np.zeros(6), L, fz, np.array([damping] * len(frequencies) + [LOCK_DAMPING] * (n - len(frequencies))))
     A = (m.apparent(f_dominant) - m.tensor).real
     for J in (J_rigid - A, J_rigid):
         cand = SprungModes(np.array([J[i, j] for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))]), L,
@@ -424,7 +447,7 @@ def search(par: Parametrisation, J_rigid: np.ndarray, f_dominant: float, x: FitI
     ``keep`` best, and any further ``starts`` (:class:`SprungModes`), refined with every
     parameter free (f and ζ within ``frequency``, ``damping``).  Returns the distinct refined
     optima, lowest V first."""
-    n = par.n
+    n = par.n_free
     coarse = []
     held = np.ones(par.size, bool)
     held[6 + int(np.sum(par.shape))::2] = False                     # the frequencies
