@@ -644,8 +644,13 @@ def fit_compliant_body(rec: Recording, start: float | None = None, end: float | 
         cov = cov + np.diag(np.array([lock[0], 0.0, 0.0, lock[1], 0.0, lock[2]]) ** 2)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     # the rigid body on the same criterion (the modes carry nothing): the likelihood ratio
+    # (its tensor fitted on the same criterion, the modes held at zero participation: the
+    # rigid-body least-squares fit is not that criterion's optimum, its input noise unweighted)
     rigid_modes = tb.SprungModes(from_tensor(rigid.inertia), np.zeros_like(m.participation), m.frequency,
                                  m.damping_ratio)
+    tensor_only = np.zeros(par.size, bool)
+    tensor_only[:6] = True
+    rigid_modes = tb.fit_modes(par, rigid_modes, x, noise, free=tensor_only, **bounds).modes
     rigid_wh = tb.whitened(rigid_modes, x, noise)
     cost_rigid = rigid_wh.cost
     # model validation on the extended model's residual
