@@ -132,7 +132,7 @@ def test_candidate_explains_a_sprung_body_as_a_hypothesis():
     # one exciter speed: not named, no tensor at all, and the experiment that would decide it
     lo, hi = d["exciter_hz"]
     assert hi - lo < 0.1 and d["named"] is False and d["inertia_about_cg"] is None and "hypothesis" not in d
-    assert "sweep the exciter" in d["why"] and "lock the suspension" in d["why"]
+    assert "lock the suspension" in d["why"] and "sweep of the exciter" in d["why"]
 
 
 def test_candidate_finds_no_sprung_body_in_a_rigid_one():

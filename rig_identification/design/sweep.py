@@ -7,8 +7,8 @@ Its apparent inertia depends on the frequency (J_app(f) = J + Σ ℓ ℓᵀ G(j2
 only and the tensor at rest — what a lab wants — is an extrapolation the data do not fix
 (:data:`~rig_identification.diagnosis.compliant_body.SWEEP_MARGIN`).  An unbalanced-mass
 exciter spun up slowly from rest sweeps through the modes: each resonance's peak and phase
-turn fix the mode's frequency, damping and participation, and with them the tensor at rest
-(``bench/bench_compliant_body.py`` measures both experiments on the same rigs).
+turn fix the mode's frequency, damping and participation, and with them — to about 1 % on
+``bench/bench_compliant_body.py``'s rigs, not yet within the fit's σ — the tensor at rest.
 
 :func:`sweep_excitation` writes that run as an experiment file's ``excitation.rotating``
 (``ramp_shape: spin_up``: the motor speed ramps linearly, the force grows with the speed
@@ -27,7 +27,8 @@ NON_RIGID_ADVICE = (
     "either lock the suspension (strap the body to the frame) and record as usual, or record a slow sweep - spin "
     f"the exciter up from rest to {SWEEP_TOP_HZ:g} Hz over the whole recording (90-120 s; the force grows with the "
     "speed squared: size the unbalance for the cables at the top speed) - so that the compliant_body candidate of "
-    "`rig-identify diagnose` can fit the sprung body's modes and report the tensor at rest.")
+    "`rig-identify diagnose` can fit the sprung body's modes (its tensor at rest is not yet reported: "
+    "bench/bench_compliant_body.py).")
 
 
 def sweep_excitation(unbalance: float, duration: float, top_hz: float = SWEEP_TOP_HZ, settle: float = 5.0) -> dict:

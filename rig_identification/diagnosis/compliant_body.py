@@ -23,11 +23,11 @@ on its springs).  Then it tests the fit the way every fit is tested:
   carries a share of the whole's inertia about each mode's axis, the frame's part of the
   tensor positive definite.
 
-:attr:`CompliantBody.named` only when all three hold, no other optimum fits as well, and the
+:attr:`CompliantBody.named` only when all three hold, no other optimum fits as well, the
 exciter ran through every fitted mode (:func:`swept`, :data:`SWEEP_MARGIN`: a sweep; with one
-exciter speed the tensor at rest is an extrapolation the data do not fix); otherwise the result
-is a hypothesis that says why, what experiment would decide it (:data:`SWEEP_ADVICE`),
-and where the mismatch is — the rigid body's (``rigid_mismatch``) and what the sprung body
+exciter speed the tensor at rest is an extrapolation the data do not fix) and the bench has
+shown such tensors honest (:data:`TENSOR_TRUSTED`: not yet); otherwise the result is a
+hypothesis that says why, what to do (:data:`SWEEP_ADVICE`), and where the mismatch is — the rigid body's (``rigid_mismatch``) and what the sprung body
 leaves (``unexplained``): channel, band, size.
 """
 from __future__ import annotations
@@ -523,10 +523,19 @@ def swept(modes, speeds: tuple[float, float] | None) -> str:
             "that the data do not fix")
 
 
-SWEEP_ADVICE = ("to identify the vehicle with its suspension free, sweep the exciter through its body modes (spin it "
-                "up slowly from rest to ~3.5 Hz over the recording: `ramp_shape: spin_up`, `ramp_time` the "
-                "recording's length; see `rig-identify plan`); or lock the suspension (strap the body to the frame) "
-                "and record again")
+TENSOR_TRUSTED = False
+"""Whether a two-body fit that passes everything (validation, plausibility, no rival optimum,
+a sweep through the modes) may be *named*, its tensor at rest reported.  Not yet: on
+``bench/bench_compliant_body.py``'s random rigs recorded with a 0.5–3.5 Hz sweep the tensor at
+rest came within about 1 % (Ixx +0.78 %, +1.03 %), but 4–7 σ of the fit's own σ: a bias of
+the model (the locked directions, heave, or what the linearisation leaves out) that the
+sensors' noise does not explain and the validation did not always see (seed 9100: passed,
+Ixx 4.35 σ; only a rival optimum kept it unnamed).  Until the bench shows every entry within
+3 σ, the candidate is a hypothesis (its modes, never a tensor)."""
+SWEEP_ADVICE = ("lock the suspension (strap the body to the frame) and record again; a slow sweep of the exciter "
+                "through the body modes (spun up from rest to ~3.5 Hz over the recording: `ramp_shape: spin_up`, "
+                "`ramp_time` the recording's length) fixes the sprung body's modes, but its tensor at rest is not yet "
+                "reported")
 
 
 def effect_wrench_of(rig, sensors, modes) -> EffectWrench:
@@ -694,6 +703,10 @@ def fit_compliant_body(rec: Recording, start: float | None = None, end: float | 
     elif alternatives:
         why = (f"a hypothesis: {explains}, but {len(alternatives)} other optima fit the recording to the noise level "
                "too: the data do not choose between their tensors")
+    elif not TENSOR_TRUSTED:
+        why = (f"a hypothesis: {explains}, its validation passes, its parameters are plausible and the exciter swept "
+               "through the modes, but such fits' tensors at rest were several σ off on random rigs "
+               "(bench/bench_compliant_body.py)")
     else:
         why = ""
     if why:
