@@ -191,18 +191,21 @@ def main(argv=None) -> int:
     ap.add_argument("--grid", default="1.0,1.5,2.2,3.2", help="the search's starting frequencies per mode, Hz")
     ap.add_argument("--keep", type=int, default=4, help="grid points refined with every parameter free")
     ap.add_argument("--json", metavar="FILE")
+    ap.add_argument("--show", metavar="FILE", help="print the table of a former run's --json FILE (no run)")
     a = ap.parse_args(argv)
     grid = tuple(float(g) for g in a.grid.split(","))
     jobs = [(a.first_seed + k, a.duration, a.truth_start, a.draws, kind, grid, a.keep) for k in range(a.rigs)
             for kind in a.kinds.split(",")]
     t0 = time.perf_counter()
-    rows = []
-    with ProcessPoolExecutor(a.procs) as ex:
-        for r in ex.map(_job, jobs):
-            rows.append(r)
-            print(f"done {len(rows)}/{len(jobs)}: seed {r['seed']} ({r['cpu_s']:.0f} s CPU)", file=sys.stderr, flush=True)
-            if a.json:
-                Path(a.json).write_text(json.dumps(rows, indent=1))
+    rows = json.loads(Path(a.show).read_text()) if a.show else []
+    if not a.show:
+        with ProcessPoolExecutor(a.procs) as ex:
+            for r in ex.map(_job, jobs):
+                rows.append(r)
+                print(f"done {len(rows)}/{len(jobs)}: seed {r['seed']} ({r['cpu_s']:.0f} s CPU)", file=sys.stderr,
+                      flush=True)
+                if a.json:
+                    Path(a.json).write_text(json.dumps(rows, indent=1))
     print(f"{'seed':>5s} {'kind':5s} {'share':>5s} {'f roll/pitch/heave Hz':>21s} {'ζ':>5s} | {'rigid':>11s} {'max e%':>6s} | "
           f"{'run':11s} {'named':5s} {'roll f,ζ':>11s} {'pitch f,ζ':>11s} {'share':>5s} {'max|e|/σ':>8s} {'max e%':>7s} "
           f"{'V/dof':>11s} {'V_rigid':>8s} {'alt':>3s} {'pass':4s}  why")
