@@ -104,6 +104,32 @@ def test_exciter_speeds_and_sweep():
     assert "at 1.25 Hz only" in why and "roll mode (1.50 Hz)" in why and "pitch mode (2.60 Hz)" in why
 
 
+def _spin(t, speed_hz_of_t):
+    """An exciter stream whose force turns at the given speed (Hz, a function of t)."""
+    ph = 2 * np.pi * np.cumsum(speed_hz_of_t(t)) * (t[1] - t[0])
+    return TimeSeries(t, 200.0 * np.column_stack([np.cos(ph), np.sin(ph)]))
+
+
+def test_gate_runs_the_two_body_fit_only_when_it_can_matter():
+    """The two-body fit runs when nothing of the ordinary library explained the misfit and the
+    rigid-body fit failed ``sub_bands`` or the exciter swept; never when something explained it,
+    nor without an exciter, nor on a fixed speed whose fit passed sub_bands."""
+    t = np.arange(0.0, 80.0, 0.005)
+    fixed = SimpleNamespace(rig=SimpleNamespace(exciter=object()),
+                            sensors=SimpleNamespace(exciter=_spin(t, lambda t: np.full_like(t, 1.25))))
+    sweep = SimpleNamespace(rig=fixed.rig, sensors=SimpleNamespace(exciter=_spin(t, lambda t: 0.3 + 3.2 * t / 80.0)))
+    bare = SimpleNamespace(rig=SimpleNamespace(exciter=None), sensors=fixed.sensors)
+
+    def result(*failed):
+        return SimpleNamespace(validation=SimpleNamespace(failed=tuple(failed)), t_start=5.0, t_end=80.0)
+    assert "sub_bands" in cbm.two_body_reason(fixed, result("segments", "sub_bands"), explained=False)
+    assert cbm.two_body_reason(fixed, result("segments", "sub_bands"), explained=True) == ""
+    assert cbm.two_body_reason(bare, result("sub_bands"), explained=False) == ""
+    assert cbm.two_body_reason(fixed, result("whiteness", "input_correlation"), explained=False) == ""
+    assert "swept" in cbm.two_body_reason(sweep, result("whiteness"), explained=False)
+    assert cbm.two_body_reason(sweep, result("whiteness"), explained=True) == ""
+
+
 # --- the candidate on simulated recordings ----------------------------------------------------------
 
 COMPLIANT = {"name": "compliant_body", "mass_share": 0.68, "frequencies": [1.6, 1.3, 2.2], "damping_ratio": 0.2}

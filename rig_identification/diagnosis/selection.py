@@ -103,7 +103,6 @@ from ..model.parametrisation import from_tensor
 from .model_extension import Model, fit_model
 from .window import Window, prepare_window
 from .finding import finding
-from .compliant_body import diagnosis_alternative as compliant_alternative
 from .result import Diagnosis, EffectWrench
 from ..io.recording import Recording, RecordingError
 from .residuals import (channel_residuals, effective_samples, exciter_phase, locate, rms, synchronous,
@@ -316,10 +315,6 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     else:
         a = {"effects": [], "applied": {}, "effect_wrench": None, "stiffness": None, "inertia": base.J}
         fit1, M1, w1, ch1 = base, M0, w, ch0
-    # a body that is not rigid (a sprung body on its suspension): its own two-body fit, offered last
-    sprung = compliant_alternative(rec) if rec.rig.exciter is not None else None
-    if sprung is not None:
-        alternatives.append(sprung)
     (sync0, revs), (sync1, _) = synchronous(M0, ch0), synchronous(M1, ch1)
     return Diagnosis(bool(a["effects"]), a["effects"], located, rms0, rms(ch1), base.J, a["inertia"],
                      std_of(base), std_of(fit1), tried, band, model, warnings + list(rec.warnings),
