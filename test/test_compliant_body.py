@@ -10,11 +10,11 @@
 * The gate (:func:`~rig_identification.diagnosis.compliant_body.two_body_reason`): the fit
   runs only when nothing else explained the misfit and the rigid-body fit failed
   ``sub_bands`` or the exciter swept — never on a recording that passes (a clean one).
-* The candidate (:func:`~rig_identification.diagnosis.compliant_body.diagnosis_alternative`)
-  on a 30 s random rig with a 68 %-sprung body and one exciter speed: the two-body model
-  explains the recording (V at the noise level, the rigid body's far beyond), finds the
-  roll mode, and — the exciter not having swept through the modes — reports a hypothesis
-  with the advice in words, never a tensor.  (No clean-rig case: the gate keeps the fit off
+* The candidate through ``with_diagnosis`` on test_validation's 45 s random rig with a
+  68 %-sprung body and one exciter speed (its job shared): the two-body model explains the
+  recording (V at the noise level, the rigid body's far beyond), finds the roll mode, and —
+  the exciter not having swept through the modes — is a hypothesis with the advice in words
+  (JSON and text), never a tensor.  (No clean-rig case: the gate keeps the fit off
   a recording that passes ``sub_bands``; and its likelihood ratio alone is no guard there —
   seed 101, clean, 30 s: 43 for 13 degrees of freedom, beyond the χ² quantile, a sprung
   body's frequencies being undetermined without one.)
@@ -26,12 +26,13 @@ from types import SimpleNamespace
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
-from rig_identification.design.scenarios import simulate_random
+from rig_identification.cli.inertia import diagnosis_lines
 from rig_identification.diagnosis import compliant_body as cbm
 from rig_identification.estimation import two_body as tb
-from rig_identification.io.recording import Recording, TimeSeries
+from rig_identification.io.recording import TimeSeries
 
-from conftest import background, gather
+from conftest import gather
+import test_validation  # noqa: F401  (registers the "validation" jobs this module shares)
 
 
 # --- the two-body model ---------------------------------------------------------------------------
@@ -140,22 +141,21 @@ def test_gate_runs_the_two_body_fit_only_when_it_can_matter():
 COMPLIANT = {"name": "compliant_body", "mass_share": 0.68, "frequencies": [1.6, 1.3, 2.2], "damping_ratio": 0.2}
 
 
-def _candidate(seed, effects, duration):
-    """Job: a random rig's recording (one exciter speed) through the candidate as the diagnosis
-    offers it (:func:`~rig_identification.diagnosis.compliant_body.diagnosis_alternative`)."""
-    _, sim = simulate_random(seed, 4, "wide", list(effects), duration)
-    return cbm.diagnosis_alternative(Recording(sim.rig, sim.sensors, sim.truth, None))
+# the recording and pipeline of test_validation's "compliant" job (seed 7700, 45 s, identified and
+# diagnosed): one simulation and one two-body fit for both modules (~25 s of CPU for the fit)
+VALIDATION_JOB = ("validation", "compliant")
 
 
-# 30 s: the simulation and the fit take ~20 s of CPU (45 s: ~31 s)
-background("compliant_body", __file__, _candidate, {"sprung": (7700, [COMPLIANT], 30.0)})
-
-
-def test_candidate_explains_a_sprung_body_as_a_hypothesis():
-    alt = gather("compliant_body", "sprung")["sprung"]
-    assert alt is not None                      # significant against the rigid body
-    entry = alt["effects"][0]
-    d = entry["evidence"]
+def test_diagnosis_offers_a_sprung_body_as_a_hypothesis_with_advice():
+    """Through ``with_diagnosis`` (the gate open: the rigid-body fit failed sub_bands, nothing of the
+    library explained it): the two-body fit explains the recording, finds the roll mode, and —
+    one exciter speed — stays a hypothesis, never a tensor, with one line of advice in words."""
+    truth, rigid, res = gather(*VALIDATION_JOB)[VALIDATION_JOB[1]]
+    assert "sub_bands" in rigid.validation.failed and res.validation.verdict != "ok"
+    assert res.diagnosis["effects"] == []
+    hyp = [e for e in res.diagnosis["hypotheses"] if e["name"] == "compliant_body"]
+    assert len(hyp) == 1
+    entry, d = hyp[0], hyp[0]["evidence"]
     crit = d["criterion"]
     # the sprung body explains the recording: its V at the noise level, the rigid body's far beyond
     assert d["significant"] and crit["V"] <= chi2.ppf(0.999, crit["dof"]) and crit["V_rigid"] > 10 * crit["V"]
@@ -166,10 +166,12 @@ def test_candidate_explains_a_sprung_body_as_a_hypothesis():
     lo, hi = d["exciter_hz"]
     assert hi - lo < 0.1 and d["named"] is False and d["inertia_about_cg"] is None and "hypothesis" not in d
     assert "lock the suspension" in d["why"] and "sweep of the exciter" in d["why"]
-    # as the caller sees it: a hypothesis never fitted again, no tensor, its advice in words
-    assert alt["not_named"] == d["why"] and alt["inertia"] is None and alt["effect_wrench"] is None
     assert entry["plausible"] is False and entry["parameters"]["frequencies"][0] == roll["frequency_hz"]
     advice = entry["advice"]
     assert advice.startswith("the body may not be rigid: modes at roll ") and f"{roll['frequency_hz']:.2f}" in advice
     assert "the tensor is not trustworthy" in advice and advice.endswith(
         "lock the suspension (or sweep the exciter through the modes) and record again")
+    # the command line's text: the advice as one line
+    assert f"advice: {advice}" in diagnosis_lines(res)
+    tried = [h for h in res.diagnosis["combinations_tried"] if [e["name"] for e in h["effects"]] == ["compliant_body"]]
+    assert tried and tried[0]["not_named"] == d["why"]
