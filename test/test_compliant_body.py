@@ -26,6 +26,7 @@ from types import SimpleNamespace
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
+from rig_identification.cli.diagnose import compliant_dict, compliant_lines
 from rig_identification.cli.inertia import diagnosis_lines
 from rig_identification.diagnosis import compliant_body as cbm
 from rig_identification.estimation import two_body as tb
@@ -175,3 +176,18 @@ def test_diagnosis_offers_a_sprung_body_as_a_hypothesis_with_advice():
     assert f"advice: {advice}" in diagnosis_lines(res)
     tried = [h for h in res.diagnosis["combinations_tried"] if [e["name"] for e in h["effects"]] == ["compliant_body"]]
     assert tried and tried[0]["not_named"] == d["why"]
+
+
+def test_diagnose_command_says_the_hypothesis_in_one_advice_line():
+    """``rig-identify diagnose``'s part for the two-body fit: nothing when the gate kept it off;
+    the hypothesis and its advice line when it ran; said plainly when it found no sprung body."""
+    assert compliant_lines(compliant_dict("", None)) == [] and compliant_dict("", None)["run"] is False
+    entry = {"name": "compliant_body", "parameters": {"frequencies": [1.55, 1.1], "damping_ratio": [0.2, 0.25]},
+             "parameters_std": {"frequencies": [0.05, 0.1], "damping_ratio": [0.02, 0.03]}, "plausible": False,
+             "advice": "the body may not be rigid: …; lock the suspension (or sweep the exciter through the modes) "
+                       "and record again"}
+    lines = compliant_lines(compliant_dict("sub_bands failed", {"effects": [entry]}))
+    assert lines[0].startswith("hypothesis (not a finding): compliant_body: frequencies = ")
+    assert lines[1] == f"advice: {entry['advice']}" and len(lines) == 2
+    none = compliant_lines(compliant_dict("sub_bands failed", None))
+    assert len(none) == 1 and "no significant sprung body" in none[0]
