@@ -189,5 +189,7 @@ def test_diagnose_command_says_the_hypothesis_in_one_advice_line():
     lines = compliant_lines(compliant_dict("sub_bands failed", {"effects": [entry]}))
     assert lines[0].startswith("hypothesis (not a finding): compliant_body: frequencies = ")
     assert lines[1] == f"advice: {entry['advice']}" and len(lines) == 2
+    implausible = {k: v for k, v in entry.items() if k != "advice"}
+    assert len(compliant_lines(compliant_dict("sub_bands failed", {"effects": [implausible]}))) == 1
     none = compliant_lines(compliant_dict("sub_bands failed", None))
     assert len(none) == 1 and "no significant sprung body" in none[0]

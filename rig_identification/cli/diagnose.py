@@ -60,7 +60,8 @@ def compliant_dict(gate: str, sprung: dict | None) -> dict:
 
 
 def compliant_lines(cb: dict) -> list[str]:
-    """The two-body fit in the text output: the hypothesis's advice line, or why not."""
+    """The two-body fit in the text output: the hypothesis and its advice line (none for modes no
+    sprung body can have), or why there is none."""
     if not cb["run"]:
         return []
     h = cb["hypothesis"]
@@ -68,7 +69,8 @@ def compliant_lines(cb: dict) -> list[str]:
         return [f"sprung body: fitted ({cb['why_run']}): no significant sprung body (or the fit could not be made)"]
     if h.get("plausible"):
         return [f"sprung body: compliant_body named: {effect_text(h)}"]
-    return [f"hypothesis (not a finding): compliant_body: {effect_text(h)}", f"advice: {h['advice']}"]
+    return [f"hypothesis (not a finding): compliant_body: {effect_text(h)}"] + (
+        [f"advice: {h['advice']}"] if h.get("advice") else [])
 
 
 def print_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> None:

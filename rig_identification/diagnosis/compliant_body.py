@@ -125,7 +125,8 @@ class CompliantBody:
     (:class:`~rig_identification.io.verdict.Validation`); rigid_mismatch: where the rigid body
     misses the recording on the same criterion (as ``unexplained``); extra_dof: the modes'
     parameters (the likelihood ratio's degrees of freedom, :attr:`significant`); passed: the
-    fit passed its validation with plausible parameters; exciter_hz: (slowest, fastest) speed
+    fit passed its validation with plausible parameters; plausible: the modes are those a
+    sprung body can have (:data:`PLAUSIBLE`, whatever the validation); exciter_hz: (slowest, fastest) speed
     of the exciter over the window (:func:`exciter_speeds`) or None; wrench: when named, the
     sprung body's reaction as an :class:`~rig_identification.diagnosis.result.EffectWrench`
     over the recording (:func:`effect_wrench_of`), with which the ordinary rigid-body fit gives
@@ -153,6 +154,7 @@ class CompliantBody:
     passed: bool = False
     exciter_hz: tuple | None = None
     wrench: EffectWrench | None = None
+    plausible: bool = False
 
     @property
     def significant(self) -> bool:
@@ -595,7 +597,7 @@ def fit_compliant_body(rec: Recording, start: float | None = None, end: float | 
                          best.dof, cost_rigid, alternatives, rigid.inertia, validation,
                          unexplained_bands(wh), band, tuple(warnings), unexplained_bands(rigid_wh),
                          par.size - 6, not why_not and validation.verdict == "ok", speeds,
-                         effect_wrench_of(rig, s, modes) if not why else None)
+                         effect_wrench_of(rig, s, modes) if not why else None, not why_not)
 
 
 DIAGNOSE_GRID = (1.0, 1.6, 2.6)   # Hz: the search's starting frequencies per mode when diagnose runs it
@@ -604,7 +606,10 @@ DIAGNOSE_KEEP = 3
 
 def advice_text(cb: CompliantBody) -> str:
     """The hypothesis in words, the one line the CLI, the JSON (``advice`` of the effect entry)
-    and the report give: the modes (Hz), the sprung share (the heave channel's mass share when
+    and the report give (only for plausible modes: :attr:`CompliantBody.plausible`): the modes
+    (Hz, σ; "rough" when the exciter did not sweep: σ from one speed misses how far off the
+    modes it does not reach can be — bench_trust's compliant_body 7701: pitch 1.01 ± 0.05 Hz
+    for 1.3), the sprung share (the heave channel's mass share when
     determined, else each mode's share of the whole body's moment about its axis), that the
     tensor is not trustworthy, and what to record instead."""
     body = [m for m in cb.modes if m.axis != "locked"]
@@ -616,7 +621,8 @@ def advice_text(cb: CompliantBody) -> str:
                 f"{cb.heave.frequency:.2f} Hz); the modes carry {shares}"
     else:
         share = f"sprung share: the modes carry {shares} (the mass share not determined)"
-    return (f"the body may not be rigid: modes at {modes}; {share}; the tensor is not trustworthy; lock the "
+    rough = "" if sweeps(cb.exciter_hz) else " (from one exciter speed: rough)"
+    return (f"the body may not be rigid: modes at {modes}{rough}; {share}; the tensor is not trustworthy; lock the "
             "suspension (or sweep the exciter through the modes) and record again")
 
 
@@ -678,7 +684,8 @@ def diagnosis_alternative(rec: Recording) -> dict | None:
                                                  "dof": int(cb.extra_dof), **ev}}
     if not cb.named:
         entry["implausible"] = cb.why
-        entry["advice"] = advice_text(cb)
+        if cb.plausible:     # modes no sprung body can have (a 1 % share, say) are no reason to doubt the body
+            entry["advice"] = advice_text(cb)
     lam = float(cb.cost_rigid - cb.cost)
     return {"effects": [entry], "applied": {}, "effect_wrench": cb.wrench, "stiffness": None,
             **({} if cb.named else {"not_named": cb.why}),
