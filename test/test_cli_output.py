@@ -281,14 +281,14 @@ def test_diagnosed_model_error_warning_gives_effect_parameters_with_units(monkey
     monkeypatch.setattr(pipeline, "diagnose", lambda rec: d)
     monkeypatch.setattr(pipeline, "corrected", lambda rec, applied: rec)
     monkeypatch.setattr(pipeline, "identify_recording", lambda rec, **kw: again)
-    out = pipeline.with_diagnosis(SimpleNamespace(rig=None, sensors=None), rigid)
+    out = pipeline.with_diagnosis(SimpleNamespace(rig=SimpleNamespace(exciter=None), sensors=None), rigid)
     line = next(w for w in out.warnings if w.startswith("model error diagnosed: "))
     assert "viscous_damping (angular = 300.9 ± 1 N·m·s/rad, linear = 148.7 ± 3.2 N·s/m)" in line, line
     assert effect_text(effect) in line
     # a combination whose fit no longer determines the tensor is not named, and the reason says
     # that (not "not physically plausible", not a failed consistency check)
     monkeypatch.setattr(pipeline, "identify_recording", lambda rec, **kw: _partial_result())
-    out = pipeline.with_diagnosis(SimpleNamespace(rig=None, sensors=None), rigid)
+    out = pipeline.with_diagnosis(SimpleNamespace(rig=SimpleNamespace(exciter=None), sensors=None), rigid)
     assert out is rigid and not any(w.startswith("model error diagnosed: ") for w in out.warnings)
     why = out.diagnosis["combinations_tried"][0]["not_named"]
     assert why == "the fit with it does not determine the tensor (not_identifiable: identifiable, iyy, ixy, iyz)", why

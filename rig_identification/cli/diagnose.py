@@ -23,6 +23,7 @@ import sys
 from .inertia import truth_columns, window_line
 from .progress import heading, step
 from .text import effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
+from ..diagnosis.compliant_body import diagnosis_alternative, two_body_reason
 from ..diagnosis.selection import diagnose
 from ..report.diagnosis import diagnosis_json
 from ..report.diagnosis_page import write_report
@@ -47,6 +48,29 @@ def rigid_body_dict(result: InertiaResult, t0: float, model: str) -> dict:
     return {"as": same_as(model), **{k: d[k] for k in keep},
             "verdict": None if result.validation is None else result.validation.verdict,
             "summary": None if result.validation is None else result.validation.summary}
+
+
+def compliant_dict(gate: str, sprung: dict | None) -> dict:
+    """The two-body fit's part of diagnose's JSON: ``run`` (whether the gate
+    :func:`~rig_identification.diagnosis.compliant_body.two_body_reason` let it run) and ``why_run``;
+    ``hypothesis``: the candidate's effect entry (its modes, ``advice``, the evidence; no tensor
+    unless named) or None (not run, or no significant sprung body)."""
+    return {"run": bool(gate), "why_run": gate or None,
+            "hypothesis": None if sprung is None else sprung["effects"][0]}
+
+
+def compliant_lines(cb: dict) -> list[str]:
+    """The two-body fit in the text output: the hypothesis and its advice line (none for modes no
+    sprung body can have), or why there is none."""
+    if not cb["run"]:
+        return []
+    h = cb["hypothesis"]
+    if h is None:
+        return [f"sprung body: fitted ({cb['why_run']}): no significant sprung body (or the fit could not be made)"]
+    if h.get("plausible"):
+        return [f"sprung body: compliant_body named: {effect_text(h)}"]
+    return [f"hypothesis (not a finding): compliant_body: {effect_text(h)}"] + (
+        [f"advice: {h['advice']}"] if h.get("advice") else [])
 
 
 def print_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> None:
@@ -89,6 +113,8 @@ def print_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> Non
             print("truth (truth.yaml), kg·m²: " + entries_line(rec.truth["inertia_about_cg"]))
         print("(rig-identify inertia adds what diagnose names to the model, fits again and validates: its tensor "
               "is the one to use)")
+    for line in compliant_lines(out["compliant_body"]):
+        print(line)
     for name, loc in out["located"].items():
         if (loc["peaks"] or loc["grows_at"]) and mismatch_channel(out, name):
             where = [f"peak {fmt(p['hz'], '.3g')} Hz ({p['is']})" for p in loc["peaks"][:2]]
@@ -110,12 +136,21 @@ def cmd_diagnose(args) -> int:
     result = identify_recording(rec, refine=False, model=args.model)
     step("diagnosing (effect library, likelihood-ratio selection)")
     d = diagnose(rec, model=args.model)
+    # a body that is not rigid: the two-body fit only when it can matter (the gate of rig-identify
+    # inertia's diagnosis; here "explained" is diagnose's own answer: plausible effects found)
+    explained = bool(d.mismatch and all(e.get("plausible", True) for e in d.effects))
+    gate = two_body_reason(rec, result, explained)
+    sprung = None
+    if gate:
+        step(f"fitting a sprung body (two-body model): {gate}")
+        sprung = diagnosis_alternative(rec)
     if args.report:
         step(f"writing the report to {args.report}")
         write_report(d, args.report, title=f"diagnosis of {rec.path}")
     args.progress.finish()
     out = d.to_dict()
     out["rigid_body_fit"] = rigid_body_dict(result, float(rec.sensors.t_start), args.model)
+    out["compliant_body"] = compliant_dict(gate, sprung)
     if args.json:
         print(json.dumps(diagnosis_json(out)))
     else:

@@ -72,6 +72,7 @@ def diagnosis_lines(result: InertiaResult) -> list[str]:
                      f"size {fmt(u['size'], '.3g')} ({u['is']})")
     for e in dg.get("hypotheses", []):
         lines.append(f"  hypothesis (not a finding): {e['name']}: {effect_text(e)}")
+    lines += [f"advice: {e['advice']}" for e in dg.get("hypotheses", []) if e.get("advice")]
     return lines
 
 

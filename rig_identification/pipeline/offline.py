@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..diagnosis.compliant_body import diagnosis_alternative, two_body_reason
 from ..diagnosis.residuals import unexplained
 from ..diagnosis.selection import body_inertia, corrected, diagnose, with_stiffness
 from ..estimation.identification import identify_inertia, identify_inertia_joint
@@ -153,18 +154,23 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
                f"by {u['size']:.3g} ({u['sigma']:.0f} σ; size in σ) — a sensor mount's structural mode?"}
         for u in d.out_of_band]
     alternatives = d.alternatives
-    hypotheses, again, chosen, whys = [], None, None, []
-    for alt in alternatives:
-        if chosen is not None and not set(alt.get("keys", ())) < set(chosen.get("keys", ())):
-            continue   # after a validated combination, only its proper subsets are tried (parsimony)
+    hypotheses, whys = [], []
+
+    def attempt(alt: dict) -> InertiaResult | None:
+        """One combination tested the way every fit is: the recording corrected, identified again
+        with its wrench, validated; its fit when it passes, else None (why in hypotheses, whys)."""
         names = [e["name"] for e in alt["effects"]]
         bad = [e for e in alt["effects"] if not e.get("plausible", True)]
         hyp = {"effects": alt["effects"]}
         hypotheses.append(hyp)
+        if alt.get("not_named"):      # a hypothesis by its own test (compliant_body): never fitted again
+            hyp["not_named"] = alt["not_named"]
+            whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
+            return None
         if bad:
             hyp["not_named"] = "not physically plausible: " + "; ".join(f"{e['name']}: {e['implausible']}" for e in bad)
             whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
-            continue
+            return None
         fixed = corrected(full, alt["applied"])
         if alt.get("stiffness") is not None:
             fixed = with_stiffness(fixed, alt["stiffness"])
@@ -175,7 +181,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
         except (ValueError, np.linalg.LinAlgError) as e:
             hyp["not_named"] = f"could not be identified again ({e})"
             whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
-            continue
+            return None
         if fit.validation is None or fit.validation.verdict != "ok":
             failed = () if fit.validation is None else fit.validation.failed
             hyp["not_named"] = (f"the fit with it does not determine the tensor (not_identifiable: "
@@ -184,8 +190,26 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
                                 f"the fit with it still fails its validation ({', '.join(failed)})")
             hyp["failed_checks"] = list(failed)
             whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
-            continue
-        again, chosen = fit, alt   # kept looking: a smaller combination that also validates is named instead
+            return None
+        return fit
+
+    again, chosen = None, None
+    for alt in alternatives:
+        if chosen is not None and not set(alt.get("keys", ())) < set(chosen.get("keys", ())):
+            continue   # after a validated combination, only its proper subsets are tried (parsimony)
+        fit = attempt(alt)
+        if fit is not None:
+            again, chosen = fit, alt   # kept looking: a smaller combination that also validates is named instead
+    # a body that is not rigid: the two-body fit (50–90 s of CPU) only when it can matter
+    gate = two_body_reason(rec, result, again is not None)
+    if gate:
+        log.info("fitting a sprung body (two-body model): %s", gate)
+        sprung = diagnosis_alternative(rec)
+        if sprung is not None:
+            alternatives = list(alternatives) + [sprung]
+            fit = attempt(sprung)
+            if fit is not None:
+                again, chosen = fit, sprung
     diagnosis = {"effects": [], "hypotheses": [e for h in hypotheses for e in h["effects"]],
                  "combinations_tried": hypotheses, "unexplained": where,
                  "residual_rms_before": d.rms_before, "residual_rms_after": d.rms_after,

@@ -216,9 +216,12 @@ def diagnosis_html(result: InertiaResult) -> tuple[str, dict | None]:
             + ("<p>diagnose's best candidates. None is adopted: with them the fit still fails its validation, or "
                "their parameters are not physically plausible. They are leads for the next test, not "
                "corrections of this one.</p>" + effects_table(hyp, "hypotheses-table") if hyp else
-               "<p>diagnose had no candidate that reduces the misfit significantly.</p>") + "</div>")
+               "<p>diagnose had no candidate that reduces the misfit significantly.</p>")
+            + "".join(f"<p><strong>Advice ({esc(e['name'])}):</strong> {esc(e['advice'])}</p>"
+                      for e in hyp if e.get("advice")) + "</div>")
     data = {"found": False, "why": why, "unexplained": where,
-            "hypotheses": [{"name": e["name"], "text": parameters_text(e)} for e in hyp]}
+            "hypotheses": [{"name": e["name"], "text": parameters_text(e)} for e in hyp],
+            "advice": [e["advice"] for e in hyp if e.get("advice")]}
     return html, data
 
 

@@ -1,0 +1,195 @@
+"""The compliant body: a sprung body on its suspension inside the carrying frame.
+
+(The static CG fit's ``tilt_change`` check for a compliant body: test_cg_validation.py.)
+
+* The two-body model (:mod:`rig_identification.estimation.two_body`): its time response is
+  the apparent tensor of its frequency response, and it tends to the rigid body.
+* The sprung body's reaction wrench (:func:`~rig_identification.diagnosis.compliant_body.effect_wrench_of`)
+  is −Σ ℓ ℓᵀ jΩ G(jΩ) ω̂ in steady state; the exciter's speeds read from its force, and
+  whether they sweep through the modes (:func:`~rig_identification.diagnosis.compliant_body.swept`).
+* The gate (:func:`~rig_identification.diagnosis.compliant_body.two_body_reason`): the fit
+  runs only when nothing else explained the misfit and the rigid-body fit failed
+  ``sub_bands`` or the exciter swept — never on a recording that passes (a clean one).
+* The candidate through ``with_diagnosis`` on test_validation's 45 s random rig with a
+  68 %-sprung body and one exciter speed (its job shared): the two-body model explains the
+  recording (V at the noise level, the rigid body's far beyond), finds the roll mode, and —
+  the exciter not having swept through the modes — is a hypothesis with the advice in words
+  (JSON and text), never a tensor.  (No clean-rig case: the gate keeps the fit off
+  a recording that passes ``sub_bands``; and its likelihood ratio alone is no guard there —
+  seed 101, clean, 30 s: 43 for 13 degrees of freedom, beyond the χ² quantile, a sprung
+  body's frequencies being undetermined without one.)
+"""
+import numpy as np
+from dataclasses import replace
+from types import SimpleNamespace
+
+from scipy.spatial.transform import Rotation
+from scipy.stats import chi2
+
+from rig_identification.cli.diagnose import compliant_dict, compliant_lines
+from rig_identification.cli.inertia import diagnosis_lines
+from rig_identification.diagnosis import compliant_body as cbm
+from rig_identification.estimation import two_body as tb
+from rig_identification.io.recording import TimeSeries
+
+from conftest import gather
+import test_validation  # noqa: F401  (registers the "validation" jobs this module shares)
+
+
+# --- the two-body model ---------------------------------------------------------------------------
+
+MODES = tb.SprungModes(np.array([900.0, -20.0, 60.0, 2600.0, 5.0, 2900.0]),
+                       np.array([[18.0, 0.0, 2.0], [0.0, 38.0, 0.0]]), np.array([1.6, 1.3]), np.array([0.2, 0.25]))
+
+
+def test_two_body_response_is_the_apparent_tensor():
+    """Driven by a sinusoidal integrated moment U at f, the model's ω in steady state is
+    J_app(j2πf)⁻¹ U (J_app = J + Σ ℓℓᵀ G(j2πf)); J_app tends to the tensor at rest below the
+    modes and to the frame's part J − Σ ℓℓᵀ far above them."""
+    fs, f = 200.0, 1.1
+    t = np.arange(0, 40.0, 1 / fs)
+    U0 = np.array([30.0, -12.0 + 5j, 8j])
+    U = (U0[None, :] * np.exp(2j * np.pi * f * t)[:, None]).real
+    w = tb.respond(MODES, U, fs)
+    expected = (np.linalg.solve(MODES.apparent(f), U0)[None, :] * np.exp(2j * np.pi * f * t)[:, None]).real
+    late = t > 30.0                                          # the modes' start-up transient has died away
+    np.testing.assert_allclose(w[late], expected[late], atol=2e-4 * np.abs(expected).max())
+    np.testing.assert_allclose(MODES.apparent(1e-3), MODES.tensor, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(MODES.apparent(1e3).real, MODES.tensor - MODES.sprung_tensor, rtol=1e-4)
+
+
+def test_two_body_without_participation_is_the_rigid_body():
+    """ℓ = 0: ω = J⁻¹ U at every sample."""
+    rigid = replace(MODES, participation=np.zeros((2, 3)))
+    U = np.random.default_rng(3).standard_normal((500, 3)).cumsum(0)
+    w = U @ np.linalg.inv(MODES.tensor).T
+    np.testing.assert_allclose(tb.respond(rigid, U, 100.0), w, rtol=0, atol=1e-6 * np.abs(w).max())
+    assert tb.frame_inertia_definite(MODES)
+    assert not tb.frame_inertia_definite(replace(MODES, participation=np.array([[40.0, 0, 0], [0, 38.0, 0]])))
+
+
+# --- the reaction wrench and the exciter's sweep ------------------------------------------------------
+
+def test_reaction_wrench_is_the_apparent_tensor_minus_the_rest():
+    """ω = Re(ω̂ e^{jΩt}) on the frame: in steady state the sprung body's reaction is
+    −Σ ℓ ℓᵀ (jΩ G(jΩ)) ω̂ (q̇ = G ℓᵀω, M = −Σ ℓ q̈), so that J ω̇ − M_effect = J_app(jΩ) ω̇."""
+    fs, f = 200.0, 1.4
+    t = np.arange(0.0, 40.0, 1 / fs)
+    w_hat = np.array([0.02, -0.01 + 0.005j, 0.004j])
+    omega = (w_hat[None, :] * np.exp(2j * np.pi * f * t)[:, None]).real
+    rig = SimpleNamespace(imu=SimpleNamespace(rotation=Rotation.identity()))
+    sensors = SimpleNamespace(imu=TimeSeries(t, np.hstack([omega, np.zeros_like(omega)])))
+    modes = [cbm.SprungMode("roll", 1.6, 0, 0.2, 0, MODES.participation[0], 0.3),
+             cbm.SprungMode("pitch", 1.3, 0, 0.25, 0, MODES.participation[1], 0.3)]
+    wr = cbm.effect_wrench_of(rig, sensors, modes)
+    s = 2j * np.pi * f
+    J_extra = MODES.apparent(f) - MODES.tensor                         # Σ ℓℓᵀ G(jΩ)
+    expected = (-(J_extra @ (s * w_hat))[None, :] * np.exp(s * t)[:, None]).real
+    late = t > 30.0
+    np.testing.assert_allclose(wr.torque[late], expected[late], atol=2e-3 * np.abs(expected).max())
+    assert wr.names == ("compliant_body",) and not np.any(wr.force)
+
+
+def test_exciter_speeds_and_sweep():
+    """A spin-up from rest to 3.5 Hz over 80 s reads as 0.1–3.4 Hz (the slow start's force
+    ∝ speed² under 1 % left out) and sweeps through modes at 1.5 and 2.6 Hz; one speed
+    (1.25 Hz) sweeps through none, and the reason says at which speed it ran."""
+    fs = 200.0
+    t = np.arange(0.0, 80.0, 1 / fs)
+    ph = np.pi * 3.5 * t**2 / 80.0                                      # speed 3.5 t / 80 Hz
+    A = 500.0 * (t / 80.0) ** 2
+    sweep = SimpleNamespace(exciter=TimeSeries(t, np.column_stack([A * np.cos(ph), A * np.sin(ph)])))
+    lo, hi = cbm.exciter_speeds(sweep, 0.0, 80.0)
+    assert 0.05 < lo < 0.6 and 3.3 < hi <= 3.5
+    modes = [SimpleNamespace(axis="roll", frequency=1.5), SimpleNamespace(axis="pitch", frequency=2.6)]
+    assert cbm.swept(modes, (lo, hi)) == ""
+    ph1 = 2 * np.pi * 1.25 * t
+    fixed = SimpleNamespace(exciter=TimeSeries(t, 200.0 * np.column_stack([np.cos(ph1), np.sin(ph1)])))
+    speeds = cbm.exciter_speeds(fixed, 0.0, 80.0)
+    assert abs(speeds[0] - 1.25) < 0.01 and abs(speeds[1] - 1.25) < 0.01
+    why = cbm.swept(modes, speeds)
+    assert "at 1.25 Hz only" in why and "roll mode (1.50 Hz)" in why and "pitch mode (2.60 Hz)" in why
+
+
+def _spin(t, speed_hz_of_t):
+    """An exciter stream whose force turns at the given speed (Hz, a function of t)."""
+    ph = 2 * np.pi * np.cumsum(speed_hz_of_t(t)) * (t[1] - t[0])
+    return TimeSeries(t, 200.0 * np.column_stack([np.cos(ph), np.sin(ph)]))
+
+
+def test_gate_runs_the_two_body_fit_only_when_it_can_matter():
+    """The two-body fit runs when nothing of the ordinary library explained the misfit and the
+    rigid-body fit failed ``sub_bands`` or the exciter swept; never when something explained it,
+    nor without an exciter, nor on a fixed speed whose fit passed sub_bands."""
+    t = np.arange(0.0, 80.0, 0.005)
+    fixed = SimpleNamespace(rig=SimpleNamespace(exciter=object()),
+                            sensors=SimpleNamespace(exciter=_spin(t, lambda t: np.full_like(t, 1.25))))
+    sweep = SimpleNamespace(rig=fixed.rig, sensors=SimpleNamespace(exciter=_spin(t, lambda t: 0.3 + 3.2 * t / 80.0)))
+    bare = SimpleNamespace(rig=SimpleNamespace(exciter=None), sensors=fixed.sensors)
+
+    def result(*failed):
+        return SimpleNamespace(validation=SimpleNamespace(failed=tuple(failed)), t_start=5.0, t_end=80.0)
+    assert "sub_bands" in cbm.two_body_reason(fixed, result("segments", "sub_bands"), explained=False)
+    assert cbm.two_body_reason(fixed, result("segments", "sub_bands"), explained=True) == ""
+    assert cbm.two_body_reason(bare, result("sub_bands"), explained=False) == ""
+    assert cbm.two_body_reason(fixed, result("whiteness", "input_correlation"), explained=False) == ""
+    assert "swept" in cbm.two_body_reason(sweep, result("whiteness"), explained=False)
+    assert cbm.two_body_reason(sweep, result("whiteness"), explained=True) == ""
+
+
+# --- the candidate on simulated recordings ----------------------------------------------------------
+
+COMPLIANT = {"name": "compliant_body", "mass_share": 0.68, "frequencies": [1.6, 1.3, 2.2], "damping_ratio": 0.2}
+
+
+# the recording and pipeline of test_validation's "compliant" job (seed 7700, 45 s, identified and
+# diagnosed): one simulation and one two-body fit for both modules (~25 s of CPU for the fit)
+VALIDATION_JOB = ("validation", "compliant")
+
+
+def test_diagnosis_offers_a_sprung_body_as_a_hypothesis_with_advice():
+    """Through ``with_diagnosis`` (the gate open: the rigid-body fit failed sub_bands, nothing of the
+    library explained it): the two-body fit explains the recording, finds the roll mode, and —
+    one exciter speed — stays a hypothesis, never a tensor, with one line of advice in words."""
+    truth, rigid, res = gather(*VALIDATION_JOB)[VALIDATION_JOB[1]]
+    assert "sub_bands" in rigid.validation.failed and res.validation.verdict != "ok"
+    assert res.diagnosis["effects"] == []
+    hyp = [e for e in res.diagnosis["hypotheses"] if e["name"] == "compliant_body"]
+    assert len(hyp) == 1
+    entry, d = hyp[0], hyp[0]["evidence"]
+    crit = d["criterion"]
+    # the sprung body explains the recording: its V at the noise level, the rigid body's far beyond
+    assert d["significant"] and crit["V"] <= chi2.ppf(0.999, crit["dof"]) and crit["V_rigid"] > 10 * crit["V"]
+    roll = d["modes"][0]
+    assert roll["axis"] == "roll" and abs(roll["frequency_hz"] - COMPLIANT["frequencies"][0]) < 0.15
+    assert d["rigid_mismatch"] and d["rigid_mismatch"][0]["size"] > 3       # where the rigid body misses, in words
+    # one exciter speed: not named, no tensor at all, and the experiment that would decide it
+    lo, hi = d["exciter_hz"]
+    assert hi - lo < 0.1 and d["named"] is False and d["inertia_about_cg"] is None and "hypothesis" not in d
+    assert "lock the suspension" in d["why"] and "sweep of the exciter" in d["why"]
+    assert entry["plausible"] is False and entry["parameters"]["frequencies"][0] == roll["frequency_hz"]
+    advice = entry["advice"]
+    assert advice.startswith("the body may not be rigid: modes at roll ") and f"{roll['frequency_hz']:.2f}" in advice
+    assert "the tensor is not trustworthy" in advice and advice.endswith(
+        "lock the suspension (or sweep the exciter through the modes) and record again")
+    # the command line's text: the advice as one line
+    assert f"advice: {advice}" in diagnosis_lines(res)
+    tried = [h for h in res.diagnosis["combinations_tried"] if [e["name"] for e in h["effects"]] == ["compliant_body"]]
+    assert tried and tried[0]["not_named"] == d["why"]
+
+
+def test_diagnose_command_says_the_hypothesis_in_one_advice_line():
+    """``rig-identify diagnose``'s part for the two-body fit: nothing when the gate kept it off;
+    the hypothesis and its advice line when it ran; said plainly when it found no sprung body."""
+    assert compliant_lines(compliant_dict("", None)) == [] and compliant_dict("", None)["run"] is False
+    entry = {"name": "compliant_body", "parameters": {"frequencies": [1.55, 1.1], "damping_ratio": [0.2, 0.25]},
+             "parameters_std": {"frequencies": [0.05, 0.1], "damping_ratio": [0.02, 0.03]}, "plausible": False,
+             "advice": "the body may not be rigid: …; lock the suspension (or sweep the exciter through the modes) "
+                       "and record again"}
+    lines = compliant_lines(compliant_dict("sub_bands failed", {"effects": [entry]}))
+    assert lines[0].startswith("hypothesis (not a finding): compliant_body: frequencies = ")
+    assert lines[1] == f"advice: {entry['advice']}" and len(lines) == 2
+    implausible = {k: v for k, v in entry.items() if k != "advice"}
+    assert len(compliant_lines(compliant_dict("sub_bands failed", {"effects": [implausible]}))) == 1
+    none = compliant_lines(compliant_dict("sub_bands failed", None))
+    assert len(none) == 1 and "no significant sprung body" in none[0]
