@@ -170,6 +170,9 @@ def test_diagnosis_offers_a_sprung_body_as_a_hypothesis_with_advice():
     assert entry["plausible"] is False and entry["parameters"]["frequencies"][0] == roll["frequency_hz"]
     advice = entry["advice"]
     assert advice.startswith("the body may not be rigid: modes at roll ") and f"{roll['frequency_hz']:.2f}" in advice
+    # the modes from one speed are rough: no σ claimed for them, in the advice or the entry
+    assert "(from one exciter speed: rough, no σ)" in advice and " ± " not in advice.split(";")[0]
+    assert "frequencies" not in entry["parameters_std"]
     assert "the tensor is not trustworthy" in advice and advice.endswith(
         "lock the suspension (or sweep the exciter through the modes) and record again")
     # the command line's text: the advice as one line

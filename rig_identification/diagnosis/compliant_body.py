@@ -607,13 +607,16 @@ DIAGNOSE_KEEP = 3
 def advice_text(cb: CompliantBody) -> str:
     """The hypothesis in words, the one line the CLI, the JSON (``advice`` of the effect entry)
     and the report give (only for plausible modes: :attr:`CompliantBody.plausible`): the modes
-    (Hz, σ; "rough" when the exciter did not sweep: σ from one speed misses how far off the
+    (Hz, with σ only after a sweep; "rough" when the exciter did not sweep: σ from one speed misses how far off the
     modes it does not reach can be — bench_trust's compliant_body 7701: pitch 1.01 ± 0.05 Hz
     for 1.3), the sprung share (the heave channel's mass share when
     determined, else each mode's share of the whole body's moment about its axis), that the
     tensor is not trustworthy, and what to record instead."""
     body = [m for m in cb.modes if m.axis != "locked"]
-    modes = ", ".join(f"{m.axis} {m.frequency:.2f} ± {m.frequency_std:.2f} Hz (ζ {m.damping_ratio:.2f})" for m in body)
+    swept_through = sweeps(cb.exciter_hz)
+    # from one speed the σ misses how far off the modes can be: no σ printed then
+    modes = ", ".join(f"{m.axis} {m.frequency:.2f}" + (f" ± {m.frequency_std:.2f}" if swept_through else "")
+                      + f" Hz (ζ {m.damping_ratio:.2f})" for m in body)
     shares = ", ".join(f"{100 * m.share:.0f} % of I{'xyz'[int(np.argmax(np.abs(m.participation)))] * 2}"
                        for m in body)
     if cb.heave.determined:
@@ -621,7 +624,7 @@ def advice_text(cb: CompliantBody) -> str:
                 f"{cb.heave.frequency:.2f} Hz); the modes carry {shares}"
     else:
         share = f"sprung share: the modes carry {shares} (the mass share not determined)"
-    rough = "" if sweeps(cb.exciter_hz) else " (from one exciter speed: rough)"
+    rough = "" if swept_through else " (from one exciter speed: rough, no σ)"
     return (f"the body may not be rigid: modes at {modes}{rough}; {share}; the tensor is not trustworthy; lock the "
             "suspension (or sweep the exciter through the modes) and record again")
 
@@ -676,7 +679,9 @@ def diagnosis_alternative(rec: Recording) -> dict | None:
     ev = cb.to_dict()
     body = [m for m in cb.modes if m.axis != "locked"]
     params = {"frequencies": [m.frequency for m in body], "damping_ratio": [m.damping_ratio for m in body]}
-    std = {"frequencies": [m.frequency_std for m in body], "damping_ratio": [m.damping_std for m in body]}
+    # from one exciter speed the modes' σ misses how far off they can be (advice_text): none given
+    std = ({"frequencies": [m.frequency_std for m in body], "damping_ratio": [m.damping_std for m in body]}
+           if sweeps(cb.exciter_hz) else {})
     if cb.heave.determined:
         params["mass_share"], std["mass_share"] = cb.heave.mass_share, cb.heave.mass_share_std
     entry = {"name": "compliant_body", "label": "", "parameters": params, "parameters_std": std,
