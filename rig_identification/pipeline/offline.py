@@ -151,7 +151,8 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     where = unexplained(d.located, duration) + [
         {"channel": u["channel"], "band_hz": u["band_hz"], "time_s": [0.0, round(duration, 1)], "size": u["sigma"],
          "is": f"above the fit band: the accelerometer over Newton's prediction from the load cells departs from 1 "
-               f"by {u['size']:.3g} ({u['sigma']:.0f} σ; size in σ) — a sensor mount's structural mode?"}
+               f"by {u['size']:.3g} ({u['sigma']:.0f} σ; size in σ) — a sensor mount's structural mode, or a body "
+               "that is not rigid?"}
         for u in d.out_of_band]
     alternatives = d.alternatives
     hypotheses, whys = [], []
