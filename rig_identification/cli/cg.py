@@ -44,6 +44,7 @@ from ..io.rig import DummyMass
 from ..statics import (DEFAULT_ANCHOR_STD, DEFAULT_DUMMY_POSITION_STD, DEFAULT_LENGTH_STD, CgOptions, CgResult,
                       StaticsError, StaticState, estimate_cg)
 from ..statics.handover import check_rig_target, rig_with_cg_text
+from .arg_types import number
 
 GEOMETRY_NOTE = ("a careful steel-tape or laser survey: class II tape ±(0.3 + 0.2 L/m) mm, ±1.1 mm over 4 m")
 
@@ -62,20 +63,6 @@ def cg_options(args) -> CgOptions:
                      anchor_std=mm("anchor_std", DEFAULT_ANCHOR_STD),
                      length_std=mm("length_std", DEFAULT_LENGTH_STD),
                      dummy_position_std=mm("dummy_position_std", DEFAULT_DUMMY_POSITION_STD))
-
-
-def number(name: str, zero: bool = False):
-    """argparse type of option ``name``: a finite number > 0 (``zero``: >= 0); anything else
-    is an argparse error naming the option."""
-    def f(text):
-        try:
-            x = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
-        if not (math.isfinite(x) and (x >= 0 if zero else x > 0)):
-            raise argparse.ArgumentTypeError(f"{name} must be {'>=' if zero else '>'} 0, got {text!r}")
-        return x
-    return f
 
 
 def add_geometry_options(p: argparse.ArgumentParser) -> None:

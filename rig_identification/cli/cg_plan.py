@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .cg import add_geometry_options, cg_options, number
+from .arg_types import number
+from .cg import add_geometry_options, cg_options
 from .progress import step
 from ..io.recording import RecordingError, read_recording
 from ..io.rig import DummyMass, load_rig

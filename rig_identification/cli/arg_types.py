@@ -1,0 +1,23 @@
+"""argparse types of ``rig-identify``'s numeric options: light (no numpy), so that the top-level
+parser (:mod:`rig_identification.cli.main`) builds without the heavy modules."""
+from __future__ import annotations
+
+import argparse
+import math
+
+
+def number(name: str, zero: bool = False):
+    """argparse type of option ``name``: a finite number > 0 (``zero``: >= 0); anything else
+    is an argparse error naming the option."""
+    def f(text):
+        try:
+            x = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{name} must be a number, got {text!r}") from None
+        if not (math.isfinite(x) and (x >= 0 if zero else x > 0)):
+            raise argparse.ArgumentTypeError(f"{name} must be {'>=' if zero else '>'} 0, got {text!r}")
+        return x
+    return f
+
+
+__all__ = ["number"]
