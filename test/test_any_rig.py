@@ -8,7 +8,8 @@ import numpy as np
 import pytest
 
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import from_tensor
+from rig_identification.estimation.precision import Z95
+from rig_identification.model.parametrisation import entry_scales, from_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.design.planning import Run, make_body, plan_experiment
 from rig_identification.io.recording import Recording
@@ -20,9 +21,11 @@ from test_cg_cables import static_pair
 
 
 def _identified(cables: int, seed: int):
-    """Job: a random rig with ``cables`` cables (seed), 45 s, identified.  Returns (truth, result)."""
+    """Job: a random rig with ``cables`` cables (seed), 45 s, identified, and its first half
+    (to 24.75 s) identified alone.  Returns (truth, result, first half's result)."""
     _, sim = simulate_random(seed, cables, "wide", [], 45.0)
-    return sim.truth, identify_recording(Recording(sim.rig, sim.sensors, sim.truth, None))
+    rec = Recording(sim.rig, sim.sensors, sim.truth, None)
+    return sim.truth, identify_recording(rec), identify_recording(rec, end=24.75)
 
 
 def _plan(cables: int, seed: int, frequencies: tuple):
@@ -49,13 +52,36 @@ def test_three_and_five_cable_rigs_are_identified_within_three_sigma(cables, see
     moment), verdict ok.  Seed 7101's 3-cable rig is the one whose yaw, left free by its
     radially splayed cables, put three entries 4–5 σ off before the moment balance anchored
     it (yaw_anchor.py)."""
-    truth, res = gather("any_rig", (cables, seed))[(cables, seed)]
+    truth, res, _ = gather("any_rig", (cables, seed))[(cables, seed)]
     assert res.validation.verdict == "ok", res.validation.summary
     tru = truth["inertia_about_cg"]
     big = max(tru["ixx"], tru["iyy"], tru["izz"])
     for k, v, s in zip(KEYS, from_tensor(res.inertia), res.inertia_std):
         ref = abs(tru[k]) if k in ("ixx", "iyy", "izz") else big
         assert abs(v - tru[k]) < 3 * s and abs(v - tru[k]) < 0.01 * ref, (k, v, tru[k], s)
+
+
+@pytest.mark.parametrize("cables,seed", [(3, 7101), (5, 7206)])
+def test_the_precision_asks_for_the_length_that_reaches_the_target(cables, seed):
+    """The precision against a target (estimation.precision): on the first half of the
+    recording, with the target set to what the whole recording's propagated σ gives (its
+    widest entry's 1.96 σ), the length it asks for is the whole recording's, within a factor
+    1.5 (σ ∝ 1/√T of a stationary excitation; measured 41.8 s for 40.5 on 7101, 54.5 s on 7206).
+    The whole recording, judged on its own σ against the same target, says which entries its
+    widening (if any) leaves beyond it, and no length."""
+    _, full, half = gather("any_rig", (cables, seed))[(cables, seed)]
+    assert full.validation.verdict == "ok" and half.validation.verdict == "ok", half.validation.summary
+    target = float(np.max(Z95 * full.crb_std / entry_scales(from_tensor(full.inertia))))
+    half.precision_target = full.precision_target = target
+    p = half.precision
+    assert p.short and p.length_factor is not None and p.noise_limited, p.text()
+    whole = full.t_end - full.t_start
+    assert whole / 1.5 < p.length_factor * p.duration < 1.5 * whole, (p.length_factor * p.duration, whole)
+    assert f"about {p.length_factor:.2g}× this recording's {p.duration:.0f} s" in p.text()
+    q = full.precision
+    assert q.length_factor is None and (q.met or q.widened_only), q.text()
+    hw = np.array([q.half_width[k] for k in KEYS])
+    np.testing.assert_allclose(hw, Z95 * full.inertia_std / entry_scales(from_tensor(full.inertia)), rtol=1e-12)
 
 
 def test_plan_on_a_three_cable_rig_keeps_the_cables_taut():

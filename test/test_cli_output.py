@@ -70,6 +70,24 @@ def test_text_says_the_verdict_first_and_the_conventions(text_run):
     assert "nan" not in out.lower().replace("nanoseconds", "")
 
 
+def test_the_precision_line_and_block_say_the_same(text_run, json_run):
+    """The precision against the default target (±1 % at 95 %): the JSON's half-widths are
+    1.96 σ over each entry's scale, and the text prints the JSON's sentence; --target must be > 0."""
+    d, _, _ = json_run
+    p = d["precision"]
+    assert p["target"] == 0.01 and p["noise_limited"] is (d["validation"]["verdict"] == "ok")
+    theta = np.array([d["inertia_about_cg"][k] for k in KEYS])
+    scale = np.abs(theta)
+    scale[[1, 2, 4]] = scale[[0, 3, 5]].max()
+    hw = np.array([p["half_width"][k] for k in KEYS])
+    np.testing.assert_allclose(hw, 1.959963984540054 * np.array([d["inertia_std"][k] for k in KEYS]) / scale,
+                               rtol=1e-9)
+    assert p["short"] == [k for k in KEYS if hw[KEYS.index(k)] > 0.01] and p["met"] is (not p["short"])
+    assert p["text"] in text_run[0].splitlines()
+    with pytest.raises(SystemExit):
+        build_parser(["inertia"]).parse_args(["inertia", CLEAN, "--target", "0"])
+
+
 def test_progress_on_stderr_and_quiet_silences_it(text_run, json_run):
     _, err = text_run
     steps = [ln for ln in err.splitlines() if ln.startswith("rig-identify: ")]

@@ -121,6 +121,8 @@ def assert_readable(out: Path, seen: dict, result: InertiaResult | None = None) 
         assert row[1] == ("not determined" if value is None else f"{value:.2f}"), (row, value)
     if result is not None and result.validation is not None:
         assert headline(result.validation) in seen["verdict"]
+        # the precision against the lab's target, in the verdict box
+        assert result.precision.text() in seen["verdict"]
 
 
 def _made():

@@ -4,8 +4,9 @@ Prints, in this order: the verdict (:attr:`~rig_identification.io.verdict.Valida
 the conventions (frame, units, sign: :func:`~rig_identification.io.export.convention_lines`), mass and CG, the
 window, the tensor about the CG with σ (and the truth when truth.yaml is there), the products
 of inertia with the vehicle-dynamics sign, the principal moments and axes, the tensor about the
-body frame's origin, what σ is, the diagnosis, the bias correction, the validation's checks and
-the most weakly determined combination.  ``--json`` prints :meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`
+body frame's origin, what σ is, the precision against ``--target``
+(:mod:`~rig_identification.estimation.precision`), the diagnosis, the bias correction, the
+validation's checks and the most weakly determined combination.  ``--json`` prints :meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`
 instead; ``--urdf`` adds a URDF ``<inertial>`` element and ``--yaml FILE`` writes
 :func:`~rig_identification.io.export.export_dict` (atomically).
 """
@@ -124,6 +125,7 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
         print(line)
     print(origin_line(ex))
     print(std_line(result))
+    print(result.precision.text())
     print(GIVEN_EXACT)
     if result.diagnosis is not None:
         for line in diagnosis_lines(result):
@@ -239,6 +241,7 @@ def cmd_inertia(args) -> int:
     if axes_note is not None:
         warn(axes_note)
     result = identify(args, recs)
+    result.precision_target = args.target / 100
     if cg_note is not None:
         result.warnings.insert(0, cg_note)
     t0s = [float(r.sensors.t_start) for r in recs]

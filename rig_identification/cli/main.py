@@ -18,6 +18,7 @@ from importlib.metadata import PackageNotFoundError
 from importlib.metadata import version as dist_version
 from typing import Callable
 
+from .arg_types import number
 from .progress import attached
 from .sim_args import parse_sim_args
 
@@ -121,6 +122,10 @@ def add_inertia_parser(sub) -> None:
     p.add_argument("--cg", metavar="CG.json",
                    help="take the centre of gravity from a saved 'rig-identify cg --json' result instead of "
                         "rig.yaml's body.center_of_gravity")
+    p.add_argument("--target", type=number("--target"), default=1.0, metavar="PCT",
+                   help="the precision the lab asks of every entry, %% at 95 %% (of a moment, of the largest moment "
+                        "for a product; default 1): the output says which entries fall short of it and how long a "
+                        "recording would reach it")
     p.add_argument("--no-diagnose", action="store_true",
                    help="report the rigid-body fit even when its residual shows model error (by default one "
                         "recording with model error is diagnosed, as rig-identify diagnose, and the tensor of the "

@@ -14,6 +14,7 @@ from ..io.verdict import KEYS, Validation
 from ..model.parametrisation import from_tensor, physically_consistent
 from .directions import describe_direction
 from .errors_in_variables import Compensation
+from .precision import TARGET, Precision, precision_of
 
 
 @dataclass
@@ -102,6 +103,8 @@ class InertiaResult:
     # filled by a fit compensated for the noise in its input (pipeline.refine_uncertainty):
     # errors_in_variables.Compensation (share of noise in the regressor, the correction, its σ)
     errors_in_variables: Compensation | None = None
+    # the lab's precision target (a fraction: 0.01 is ±1 % at 95 %), which :attr:`precision` judges
+    precision_target: float = TARGET
 
     @property
     def correlation(self) -> np.ndarray:
@@ -115,6 +118,16 @@ class InertiaResult:
         REP-103 — or ``sae``, SAE J670), the undetermined entries left out: an
         :class:`~rig_identification.io.export.Expressed` (:func:`~rig_identification.io.export.express`).  Raises KeyError for an unknown name."""
         return express(self.mass, self.center_of_gravity, self.inertia, self.inertia_std, self.undetermined, axes)
+
+    @property
+    def precision(self) -> Precision:
+        """The σ against :attr:`precision_target` (:func:`~rig_identification.estimation.precision.precision_of`):
+        the entries short of it and the recording length that would reach it."""
+        duration = (sum(float(s.t[-1] - s.t[0]) for s in self.series) if self.series
+                    else float(self.t_end - self.t_start))
+        return precision_of(self.inertia, self.inertia_std, self.undetermined, duration,
+                            None if self.validation is None else self.validation.verdict, self.precision_target,
+                            self.crb_std)
 
     @property
     def undetermined(self) -> tuple[str, ...]:
@@ -188,6 +201,7 @@ class InertiaResult:
             "inertia_about_cg": {k: entry(k, v) for k, v in zip(KEYS, theta)},
             "inertia_std": {k: entry(k, v) for k, v in zip(KEYS, self.inertia_std)},
             "inertia_crb_std": per_key(self.crb_std),
+            "precision": self.precision.to_dict(),
             "frame": "body",
             "convention": "; ".join(convention_lines(AXES["body"])),
             "products_of_inertia": ex.products(),

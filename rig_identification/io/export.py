@@ -228,6 +228,9 @@ UNITS = {
     "weight_surplus": "1: load cells' mean vertical force over rig.yaml's weight, − 1", "replay_sigma_factor": "1",
     "sensor_noise.gyro": "rad/s", "sensor_noise.accelerometer": "m/s²", "sensor_noise.load_cell": "N",
     "sensor_noise.exciter": "N", "sensor_noise.inclinometer": "rad",
+    "precision.target": "1: the 95 % half-width asked, a fraction of the entry's scale (a moment's own, the "
+                        "largest moment's for a product)", "precision.half_width": "1: 1.96 σ over the entry's scale",
+    "precision.duration_s": "s", "precision.length_factor": "1: multiple of duration_s",
     "validation.segments.start": "s from the first IMU sample of the segment's recording",
     "validation.segments.end": "s from the first IMU sample of the segment's recording",
     "validation.segments.start_stamp": "s, header stamps", "validation.segments.end_stamp": "s, header stamps",

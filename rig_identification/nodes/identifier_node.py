@@ -18,6 +18,8 @@ Parameters (the window ones are read at each request; set them with ros2 param s
                            its position filter needs ~15 s to forget that
   min_duration (double, 10.0)  refuse to fit a window shorter than this, s
   band_hz (double[2], [] = auto)  pass band of the fit, Hz
+  precision_target_pct (double, 1.0)  % at 95 % asked of every entry: the answer's precision block says
+                           which entries fall short (as rig-identify inertia --target)
   block_s, iterations      identify_inertia parameters (defaults: the core's)
   max_seconds (double, 900.0)  seconds of data kept in the buffer (pipeline.stream_fit.StreamBuffer)
   debug_fit_delay (double, 0.0)  testing aid: each fit takes this much longer, s
@@ -131,6 +133,7 @@ from ..pipeline.stream_fit import StreamBuffer, identify_window, validate_stream
 from .identifier_services import IdentifierServices
 from ..estimation.fit_window import fit_window
 from ..estimation.identification import identify_inertia
+from ..estimation.precision import TARGET as PRECISION_TARGET
 from ..statics.capture import CgSession
 from ..io.rig import DummyMass
 from ..diagnosis.selection import diagnose
@@ -154,6 +157,8 @@ class IdentifierNode(Node):
         self.declare_parameter("band_hz", None, ParameterDescriptor(
             dynamic_typing=True, description="[low, high] Hz pass band of the fit; unset or [] = automatic"))
         self.declare_parameter("debug_fit_delay", 0.0)
+        self.declare_parameter("precision_target_pct", 100 * PRECISION_TARGET, ParameterDescriptor(
+            description="% at 95 % asked of every entry (rig-identify inertia --target): the answer's 'precision'"))
         self.fit_params = core_params(self, identify_inertia, skip=("rig", "t", "omega_body", "torque"))
         buf_params = core_params(self, StreamBuffer.__init__, skip=("self",))
         qos_in = input_qos(self)
@@ -374,6 +379,9 @@ class IdentifierNode(Node):
         settle_gap = float(self.get_parameter("settle_after_gap").value)
         min_duration = float(self.get_parameter("min_duration").value)
         band = self.get_parameter("band_hz").value
+        target = self.get_parameter("precision_target_pct").value
+        if isinstance(target, bool) or not isinstance(target, (int, float)) or not (math.isfinite(target) and target > 0):
+            raise ValueError(f"parameter precision_target_pct = {target!r}: expected a number of % > 0")
         params = dict(self.fit_params)
         for name in params:
             params[name] = self.get_parameter(name).value
@@ -405,6 +413,7 @@ class IdentifierNode(Node):
         result = identify_window(self.rig, streams, lo, hi, **params)
         # the model validation of rig-identify inertia (--quick: the node propagates no noise), same core
         validate_stream_fit(self.rig, result, streams, lo, hi)
+        result.precision_target = float(target) / 100
         delay = float(self.get_parameter("debug_fit_delay").value)
         if delay > 0:
             time.sleep(delay)

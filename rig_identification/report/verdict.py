@@ -77,7 +77,9 @@ def diagnosed_named(result: InertiaResult) -> bool:
 
 def verdict_html(result: InertiaResult, effects_text: str = "") -> str:
     """The verdict box (HTML, element id ``verdict``): the sentence, what it means for the
-    tensor below, and the advice.  effects_text: the named effects in words, for a fit
+    tensor below, the advice, and the precision against the lab's target (element id
+    ``precision``: :attr:`~rig_identification.estimation.inertia_result.InertiaResult.precision`).
+    effects_text: the named effects in words, for a fit
     that diagnosis made valid."""
     v = result.validation
     if v is None:
@@ -107,6 +109,7 @@ def verdict_html(result: InertiaResult, effects_text: str = "") -> str:
                      "from them (principal moments, the ellipsoid) is given.</p>")
         if v.advice:
             parts.append("<p>What to change:</p>" + bullets(v.advice))
+    parts.append(f'<p class="precision" id="precision">{esc(result.precision.text())}</p>')
     return f'<div class="verdict {v.verdict}" id="verdict">' + "".join(parts) + "</div>"
 
 
