@@ -6,6 +6,7 @@ import pytest
 from scipy.integrate import cumulative_trapezoid
 from scipy.signal import butter, sosfiltfilt
 
+from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import from_tensor
 from rig_identification.model.modes import natural_modes
 from rig_identification.pipeline.offline import identify_recording
@@ -116,6 +117,17 @@ def test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation():
     assert weak["text"].startswith("The most weakly determined combination is ")
     assert f"the body hardly turned about z (yaw rate {rot[2]:.2g} rad/s RMS" in weak["text"], weak["text"]
     assert set(d["prediction"]["std"]) == {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"}
+    # both against the default target, ±1 % at 95 % of each entry's scale; the plan's half-widths
+    # are 1.96 times its predicted σ over that scale, and a run of length_factor × 30 s reaches it
+    pb, pp = d["precision"]["baseline"], d["precision"]["plan"]
+    theta = np.array([2894.0, 0.0, 0.0, 695.0, -102.0, 3101.0])   # KEYS order
+    scale = np.where([True, False, False, True, False, True], theta, 3101.0)
+    for p, pred in ((pb, base), (pp, d["prediction"])):
+        hw = np.array([p["half_width"][k] for k in KEYS])
+        np.testing.assert_allclose(hw, 1.959963984540054 * np.array([pred["std"][k] for k in KEYS]) / scale, rtol=1e-9)
+        assert p["short"] == [k for k, h in zip(KEYS, hw) if h > 0.01]
+        if p["short"]:
+            assert p["length_factor"] == pytest.approx((hw.max() / 0.01) ** 2) and "each run's 30 s" in p["text"]
 
 
 @pytest.mark.parametrize("args, words", [

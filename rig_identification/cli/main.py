@@ -189,6 +189,9 @@ def add_plan_parser(sub) -> None:
     pp.add_argument("--vary-geometry", type=float, metavar="M",
                     help="also try, for the second run, the ceiling anchors moved M m farther apart (and closer "
                          "together) along world x and along world y, cable lengths re-set to the same hanging pose")
+    pp.add_argument("--target", type=number("--target"), default=1.0, metavar="PCT",
+                    help="the precision asked of every entry, %% at 95 %% (as rig-identify inertia --target; "
+                         "default 1): whether the baseline and the plan reach it, and how long a run would")
     pp.add_argument("--json", action="store_true", help="print one JSON object")
 
 

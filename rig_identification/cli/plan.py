@@ -20,6 +20,7 @@ from ..model.modes import estimate_modes, match_modes, natural_modes
 from ..pipeline.offline import identify_recording
 from ..design.planning import PlanError, geometry_variants, plan_experiment
 from ..design.run import Run, load_plan_input, make_body
+from ..estimation.precision import precision_of
 from ..io.recording import read_recording
 from ..model.experiment import ExperimentError
 from ..model.dynamics import SimulationError
@@ -146,9 +147,19 @@ def describe_run(c, title: str) -> None:
                           f"length {cb.length:.3f} m" for cb in c.body.rig.cables))
 
 
+def plan_precision(body, plan, args) -> dict:
+    """The baseline's and the plan's predicted σ against ``--target``
+    (:func:`~rig_identification.estimation.precision.precision_of`; each run of ``--duration``):
+    {"baseline": Precision, "plan": Precision}."""
+    return {title: precision_of(body.inertia, pr.std, (), args.duration, "ok", args.target / 100,
+                                subject="each run's")
+            for title, pr in (("baseline", plan.baseline.prediction), ("plan", plan.prediction))}
+
+
 def cmd_plan(args) -> int:
     """``rig-identify plan``: the rig's modes, the predicted σ of the baseline excitation and the
-    recommended exciter run(s) (:mod:`rig_identification.design.planning`); returns 0 (2 on a user error)."""
+    recommended exciter run(s), both against ``--target`` (:mod:`rig_identification.design.planning`);
+    returns 0 (2 on a user error)."""
     try:
         rig, body, plan = plan_from_args(args)
     except (PlanError, ExperimentError, SimulationError) as e:
@@ -156,8 +167,10 @@ def cmd_plan(args) -> int:
         print(f"rig-identify: error: {e}", file=sys.stderr)
         return 2
     args.progress.finish()
+    reach = plan_precision(body, plan, args)
     if args.json:
         out = plan.to_dict()
+        out["precision"] = {title: p.to_dict() for title, p in reach.items()}
         out.update({"rig": str(rig.source), "mass": body.mass,
                     "center_of_gravity": [float(x) for x in rig.center_of_gravity],
                     "inertia": {kk: float(v) for kk, v in zip(KEYS, from_tensor(body.inertia))},
@@ -191,6 +204,8 @@ def cmd_plan(args) -> int:
         b, p, rel = bp.std[i], pp.std[i], pp.relative_std[i]
         print(f"{kk:6s} {theta[i]:9.1f} {b:11.3f} {p:9.3f} {b / p:6.1f} {100 * rel:10.4f}%")
     print("(tensor entries, kg·m²; relative: of the entry for moments, of the largest moment for products)")
+    for title, p in reach.items():
+        print(f"{title}: {p.text()}")
     for title, pr in (("baseline", bp), ("plan", pp)):
         for w in pr.weak(1):
             print(f"{title}: {w['text']}")

@@ -50,7 +50,8 @@ class Precision:
     excitation (σ ∝ 1/√T, Ljung 1999 Theorem 9.1) — None when every entry meets it or when σ is not
     the noise's (``verdict``, the validation's, other than ``ok``; None: a fit without validation),
     or when the propagated noise alone is within the target (``widened_only``: only the widening
-    beyond the noise is short of it)."""
+    beyond the noise is short of it); subject: what the duration is of, in the text ("this
+    recording's", "each planned run's")."""
 
     target: float
     half_width: dict
@@ -59,6 +60,7 @@ class Precision:
     verdict: str | None
     length_factor: float | None
     widened_only: bool = False
+    subject: str = "this recording's"
 
     @property
     def noise_limited(self) -> bool:
@@ -86,7 +88,7 @@ class Precision:
             line += (" — the sensors' noise alone is within it; σ is widened beyond the noise (replays, "
                      "consistency checks), which a longer recording narrows too")
         elif self.length_factor is not None:
-            line += (f" — about {self.length_factor:.2g}× this recording's {self.duration:.0f} s "
+            line += (f" — about {self.length_factor:.2g}× {self.subject} {self.duration:.0f} s "
                      f"({self.length_factor * self.duration:.0f} s) at the same excitation would reach it, "
                      "or a stronger or better-placed one (rig-identify plan)")
         elif self.verdict == "model_error":
@@ -106,7 +108,8 @@ class Precision:
 
 
 def precision_of(inertia: np.ndarray, std: np.ndarray, undetermined, duration: float, verdict: str | None,
-                 target: float = TARGET, noise_std: np.ndarray | None = None) -> Precision:
+                 target: float = TARGET, noise_std: np.ndarray | None = None,
+                 subject: str = "this recording's") -> Precision:
     """The fit's :class:`Precision` against ``target``.
 
     inertia: (3,3) kg·m² about the CG; std: (6,) kg·m², σ of the entries in
@@ -114,7 +117,8 @@ def precision_of(inertia: np.ndarray, std: np.ndarray, undetermined, duration: f
     duration: s, the fitted window's length (the sum over the recordings of a joint fit);
     verdict: the validation's (``ok`` makes σ the noise's and offers a length), None for a fit
     without validation; target: a fraction > 0; noise_std: (6,) kg·m², the sensors' noise
-    propagated (the fit's ``crb_std``), from which the length is computed (None: from ``std``).  Raises ValueError for a target that is not a
+    propagated (the fit's ``crb_std``), from which the length is computed (None: from ``std``);
+    subject: what ``duration`` is of, for the text.  Raises ValueError for a target that is not a
     positive finite number."""
     if not (np.isfinite(target) and target > 0):
         raise ValueError(f"precision target must be a positive fraction, got {target!r}")
@@ -132,7 +136,7 @@ def precision_of(inertia: np.ndarray, std: np.ndarray, undetermined, duration: f
         factor = float(max(base[k] for k in short) / target) ** 2
         if factor <= 1.0:
             factor, widened_only = None, True
-    return Precision(float(target), hw, short, float(duration), verdict, factor, widened_only)
+    return Precision(float(target), hw, short, float(duration), verdict, factor, widened_only, subject)
 
 
 __all__ = ["Precision", "TARGET", "Z95", "label", "precision_of"]
