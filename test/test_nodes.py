@@ -169,7 +169,8 @@ def graph(sim, tmp_path_factory):
                                                "/rig/inclinometer:2", "/rig/pose:2", "/rig/generalized_wrench:2"]})
         g.start("tracker", {"rig": rig})
         g.start("preprocessor", {"rig": rig})
-        g.start("identifier", {"rig": rig, "debug_fit_delay": FIT_DELAY, "min_duration": 10.0})
+        g.start("identifier", {"rig": rig, "debug_fit_delay": FIT_DELAY, "min_duration": 10.0,
+                               "precision_target_pct": 0.5})
         state = lambda: (f"driver status {listener.status}\nlistener counts {listener.counts}\n"  # noqa: E731
                          f"diagnostics {listener.diag}")
         wait_until(lambda: listener.status.get("state") == "done", 120.0, "the driver to finish", g, info=state)
@@ -295,6 +296,10 @@ def test_identify_service_validates_as_rig_identify(graph):
     assert segs[0]["start"] == pytest.approx(d["window"]["start"], abs=0.05)
     assert segs[-1]["end"] == pytest.approx(d["window"]["end"], abs=0.05)
     assert d["units"]["validation.segments.start"] == "s from the first IMU sample of the segment's recording"
+    # the precision against the node's precision_target_pct (0.5 %), on the node's own σ
+    p = d["precision"]
+    assert p["target"] == pytest.approx(0.005) and p["short"] == [
+        k for k, h in p["half_width"].items() if h is not None and h > 0.005]
 
 
 def core_in_stamp_order(rig, sensors, settle: float) -> dict:
