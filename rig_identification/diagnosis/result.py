@@ -50,9 +50,9 @@ class Combination:
     ``plausible``, ``implausible`` (why not, when not) and, for the compliant body, ``label``
     and ``advice``); the same dicts as :attr:`Diagnosis.effects` for the first combination and
     in the JSON.
-    applied: every correction made to the data or the rig, (effect, label) -> value (the
-    corrections' and the cables' mass included; what
-    :func:`~rig_identification.diagnosis.candidates.corrected` takes).
+    applied: every correction made to the data or the rig, the cables' mass included:
+    (effect, label) -> value, what :func:`~rig_identification.diagnosis.candidates.corrected`
+    takes.
     effect_wrench: the physics added to the model as the generalized wrench it adds to the
     measured one (body axes, about the CG), or None when the combination only corrects the data.
     stiffness: (n,) N/m, the cables' stiffness when their elasticity was found, else None.
@@ -75,7 +75,7 @@ class Combination:
     by its own test: the compliant body's), else None.
     """
 
-    effects: list
+    effects: list[dict]
     applied: dict
     effect_wrench: EffectWrench | None
     stiffness: np.ndarray | None
@@ -85,7 +85,7 @@ class Combination:
     likelihood_ratio: float
     dof: int
     bic: float
-    keys: tuple
+    keys: tuple[tuple[str, str], ...]
     not_named: str | None = None
 
 
