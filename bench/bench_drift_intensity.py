@@ -38,12 +38,12 @@ def job(args: tuple) -> dict:
     t = sim.sensors.imu.t
     walk = sim.sensors.imu.data[:, :3] - sim0.sensors.imu.data[:, :3]
     d = diagnose(Recording(sim.rig, sim.sensors, sim.truth, None))
-    row = {"seed": seed, "named": [[e["name"] for e in a["effects"]] for a in d.alternatives], "verdict": "done"}
+    row = {"seed": seed, "named": [[e["name"] for e in a.effects] for a in d.alternatives], "verdict": "done"}
     for alt in d.alternatives:
-        e = next((x for x in alt["effects"] if x["name"] == "gyro_bias_drift"), None)
+        e = next((x for x in alt.effects if x["name"] == "gyro_bias_drift"), None)
         if e is None:
             continue
-        kt = np.asarray(alt["applied"].get(("gyro_bias_drift", "knots"), knots(t[0], t[-1])))
+        kt = np.asarray(alt.applied.get(("gyro_bias_drift", "knots"), knots(t[0], t[-1])))
         w = np.array([np.interp(kt, t, walk[:, a]) for a in range(3)])
         row.update(realised=float(np.sqrt(np.mean(np.diff(w, axis=1) ** 2) / np.mean(np.diff(kt)))),
                    reported=e["parameters"]["random_walk"], std=e["parameters_std"]["random_walk"])

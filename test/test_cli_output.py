@@ -284,7 +284,7 @@ def test_diagnosed_model_error_warning_gives_effect_parameters_with_units(monkey
     diagnose and the second fit are stand-ins: only the warning's text is under test."""
     from types import SimpleNamespace
 
-    from rig_identification.diagnosis.result import Diagnosis
+    from rig_identification.diagnosis.result import Combination, Diagnosis
     from rig_identification.pipeline import offline as pipeline
     effect = {"name": "viscous_damping", "parameters": {"angular": 300.9, "linear": 148.7},
               "parameters_std": {"angular": 1.0, "linear": 3.2}, "plausible": True}
@@ -294,8 +294,8 @@ def test_diagnosed_model_error_warning_gives_effect_parameters_with_units(monkey
     again.validation = Validation("ok", ())
     J = np.eye(3)
     d = Diagnosis(True, [effect], {}, {}, {}, J, J, np.ones(6), np.ones(6), [], (0.4, 3.0), "pem",
-                  alternatives=[{"effects": [effect], "applied": {}, "effect_wrench": None, "stiffness": None,
-                                 "covariance": None, "keys": [("viscous_damping", "")]}])
+                  alternatives=[Combination([effect], {}, None, None, J, None, 0.0, 5000.0, 2, -4980.0,
+                                            (("viscous_damping", ""),))])
     monkeypatch.setattr(pipeline, "diagnose", lambda rec: d)
     monkeypatch.setattr(pipeline, "corrected", lambda rec, applied: rec)
     monkeypatch.setattr(pipeline, "identify_recording", lambda rec, **kw: again)

@@ -24,6 +24,7 @@ from .inertia import truth_columns, window_line
 from .progress import heading, step
 from .text import effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
 from ..diagnosis.compliant_body import diagnosis_alternative, two_body_reason
+from ..diagnosis.result import Combination
 from ..diagnosis.selection import diagnose
 from ..report.diagnosis import diagnosis_json
 from ..report.diagnosis_page import write_report
@@ -50,13 +51,15 @@ def rigid_body_dict(result: InertiaResult, t0: float, model: str) -> dict:
             "summary": None if result.validation is None else result.validation.summary}
 
 
-def compliant_dict(gate: str, sprung: dict | None) -> dict:
+def compliant_dict(gate: str, sprung: Combination | None) -> dict:
     """The two-body fit's part of diagnose's JSON: ``run`` (whether the gate
     :func:`~rig_identification.diagnosis.compliant_body.two_body_reason` let it run) and ``why_run``;
-    ``hypothesis``: the candidate's effect entry (its modes, ``advice``, the evidence; no tensor
-    unless named) or None (not run, or no significant sprung body)."""
+    ``hypothesis``: the candidate's effect entry (``sprung``'s one effect,
+    :func:`~rig_identification.diagnosis.compliant_body.diagnosis_alternative`: its modes,
+    ``advice``, the evidence; no tensor unless named) or None (not run, or no significant sprung
+    body)."""
     return {"run": bool(gate), "why_run": gate or None,
-            "hypothesis": None if sprung is None else sprung["effects"][0]}
+            "hypothesis": None if sprung is None else sprung.effects[0]}
 
 
 def compliant_lines(cb: dict) -> list[str]:

@@ -52,7 +52,7 @@ from ..io.recording import Recording, RecordingError
 from ..io.verdict import KEYS, Validation
 from ..model.parametrisation import from_tensor
 from .heave import Heave, fit_heave
-from .result import EffectWrench
+from .result import Combination, EffectWrench
 
 FIT_OVERSAMPLING = 10.0     # the fit rate: at least this multiple of the band's upper edge
 TRANSIENT_S = 4.0           # s: the modes start from rest at the window's start; their transient
@@ -656,8 +656,9 @@ def two_body_reason(rec: Recording, result: InertiaResult, explained: bool) -> s
     return ""
 
 
-def diagnosis_alternative(rec: Recording) -> dict | None:
-    """The candidate as one of :attr:`~rig_identification.diagnosis.result.Diagnosis.alternatives`
+def diagnosis_alternative(rec: Recording) -> Combination | None:
+    """The candidate as a :class:`~rig_identification.diagnosis.result.Combination`, one more of
+    :attr:`~rig_identification.diagnosis.result.Diagnosis.alternatives`
     (what :func:`~rig_identification.pipeline.offline.with_diagnosis` validates): the effect
     entry (name ``compliant_body``, parameters: the roll and pitch modes' frequencies Hz and
     damping ratios, the heave's mass share when determined; evidence: the two-body fit's JSON
@@ -665,7 +666,8 @@ def diagnosis_alternative(rec: Recording) -> dict | None:
     wrench (:func:`effect_wrench_of`) and the two-body fit's covariance (6,6) of the tensor, so
     that the caller identifies the recording again with it and names it only when that fit
     passes its validation too.  Not named: the entry is marked not plausible with the reason
-    and :data:`SWEEP_ADVICE` (the caller never re-fits it).  None when the sprung body is not
+    and :data:`SWEEP_ADVICE`, the reason is its ``not_named`` (the caller never re-fits it), and
+    it has no tensor nor covariance.  None when the sprung body is not
     significant against the rigid body (:attr:`CompliantBody.significant`) or the fit cannot
     be made (no exciter, too short)."""
     if rec.rig.exciter is None:
@@ -692,8 +694,8 @@ def diagnosis_alternative(rec: Recording) -> dict | None:
         if cb.plausible:     # modes no sprung body can have (a 1 % share, say) are no reason to doubt the body
             entry["advice"] = advice_text(cb)
     lam = float(cb.cost_rigid - cb.cost)
-    return {"effects": [entry], "applied": {}, "effect_wrench": cb.wrench, "stiffness": None,
-            **({} if cb.named else {"not_named": cb.why}),
-            "inertia": cb.inertia if cb.named else None, "covariance": cb.covariance if cb.named else None,
-            "relative_std": 0.0, "likelihood_ratio": lam, "dof": int(cb.extra_dof),
-            "keys": [("compliant_body", "")], "bic": float(-lam + cb.extra_dof * np.log(max(cb.dof, 2)))}
+    return Combination(effects=[entry], applied={}, effect_wrench=cb.wrench, stiffness=None,
+                       inertia=cb.inertia if cb.named else None, covariance=cb.covariance if cb.named else None,
+                       relative_std=0.0, likelihood_ratio=lam, dof=int(cb.extra_dof),
+                       bic=float(-lam + cb.extra_dof * np.log(max(cb.dof, 2))), keys=(("compliant_body", ""),),
+                       not_named=None if cb.named else cb.why)

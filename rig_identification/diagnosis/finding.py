@@ -6,6 +6,7 @@ physics the model lacks as the generalized wrench it adds, and each effect's pla
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from dataclasses import replace as _replace
 
 import numpy as np
@@ -14,26 +15,44 @@ from ..io.recording import Recording
 from ..model.parametrisation import from_tensor
 from .candidates import body_inertia
 from .exact import MASSES, PROFILED, columns_of, exact_profile, mass_builder, residual_scales
-from .model_extension import fit_model
+from .model_extension import Fit, Model, fit_model
 from .plausible import implausible
 from .residuals import channel_residuals, exciter_phase
-from .result import EffectWrench
+from .result import Combination, EffectWrench
 from .structural import gain_std
+from .window import Window
 
 REWEIGHT_ITER = 2     # reweighting iterations of the final fit (per-axis residual scales)
 
 
-def finding(ev: dict, rec: Recording, state: dict, build, kappa0: float, scales, cost0: dict) -> dict:
+@dataclass(frozen=True)
+class FinalFit:
+    """The final (reweighted) fit of a finding and what it was made on, which
+    :func:`~rig_identification.diagnosis.selection.diagnose` keeps of its first combination
+    only (its residuals and series) and the public :class:`Combination` leaves out.
+
+    fit: the fit (tensor, effect columns, covariance, residuals); model: the extended model it
+    was fitted on (band, filters); window: the diagnosis window's streams, with the
+    combination's corrections (t (N,) s); channels: the residual time series (N,) per channel
+    (:func:`~rig_identification.diagnosis.residuals.channel_residuals`)."""
+
+    fit: Fit
+    model: Model
+    window: Window
+    channels: dict
+
+
+def finding(ev: dict, rec: Recording, state: dict, build, kappa0: float, scales,
+            cost0: dict) -> tuple[Combination, FinalFit]:
     """One admissible combination ``ev`` of :func:`~rig_identification.diagnosis.selection.diagnose`'s
     joint search (its members, corrections, fit and evidence; ``state``, ``build``, ``kappa0``,
     ``scales``, ``cost0``: the search's) made a finding: each one-parameter rig or data error placed by
     its exact profile likelihood, the final fit reweighted by its own residual scales, every
     member's parameters (and σ) from it, the physics the model lacks as the wrench it adds,
-    plausibility (:func:`implausible`).  Returns {"effects", "applied", "effect_wrench",
-    "stiffness", "inertia", "covariance", "relative_std" (the relative σ of the tensor that
-    the corrections fixed from outside the band leave: a structural mode's
-    :func:`~rig_identification.diagnosis.structural.gain_std` at the band's centre),
-    "likelihood_ratio", "dof", "bic", and the fit, model, window and channel residuals}."""
+    plausibility (:func:`implausible`).  Returns the :class:`Combination` (its ``relative_std``:
+    the relative σ of the tensor that the corrections fixed from outside the band leave, a
+    structural mode's :func:`~rig_identification.diagnosis.structural.gain_std` at the band's
+    centre) and its :class:`FinalFit` (the fit, model, window and channel residuals)."""
     keys, members = ev["keys"], ev["members"]
     free_kappa, elastic = ev["free_kappa"], ev["elastic"]
     st = {**state, "applied": dict(ev["applied"]), "elastic": elastic, "profiled": dict(ev["profiled"])}
@@ -121,11 +140,12 @@ def finding(ev: dict, rec: Recording, state: dict, build, kappa0: float, scales,
     rel = float(np.sqrt(sum(gain_std(modes[k[1]], f_c) ** 2 for k in keys if k[0] == "structural_mode")))
     mu = float(applied.get(("cable_mass", ""), 0.0))
     body_rig = _replace(rec.rig, mass=rec.rig.mass + float(applied.get(("body_mass", ""), 0.0)))
-    return {"effects": entries, "applied": applied, "effect_wrench": effect_wrench,
-            "stiffness": w.stiffness.copy() if elastic else None, "inertia": body_inertia(cur_fit.J, body_rig, mu),
-            "covariance": np.array(cur_fit.cov[:6, :6]), "relative_std": rel, "likelihood_ratio": ev["lam"],
-            "dof": ev["dof"], "keys": [tuple(k) for k in ev["keys"]],
-            "bic": ev["bic"], "fit": cur_fit, "model": M, "window": w, "channels": channel_residuals(M, cur_fit)}
+    combination = Combination(effects=entries, applied=applied, effect_wrench=effect_wrench,
+                              stiffness=w.stiffness.copy() if elastic else None,
+                              inertia=body_inertia(cur_fit.J, body_rig, mu), covariance=np.array(cur_fit.cov[:6, :6]),
+                              relative_std=rel, likelihood_ratio=ev["lam"], dof=ev["dof"], bic=ev["bic"],
+                              keys=tuple(tuple(k) for k in ev["keys"]))
+    return combination, FinalFit(cur_fit, M, w, channel_residuals(M, cur_fit))
 
 
 def without_inert(applied: dict) -> dict:

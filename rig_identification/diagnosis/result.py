@@ -1,7 +1,8 @@
 """The diagnosis's result types: :class:`Diagnosis` (what
 :func:`~rig_identification.diagnosis.selection.diagnose` found, the JSON of ``rig-identify
-diagnose``) and :class:`EffectWrench` (the generalized wrench the diagnosed physics adds to the
-measured one).
+diagnose``), :class:`Combination` (one admissible combination of effects, which the caller
+validates and names) and :class:`EffectWrench` (the generalized wrench the diagnosed physics adds
+to the measured one).
 """
 from __future__ import annotations
 
@@ -33,6 +34,59 @@ class EffectWrench:
         tq = np.column_stack([np.interp(t, self.t, self.torque[:, k]) for k in range(3)])
         fc = np.column_stack([np.interp(t, self.t, self.force[:, k]) for k in range(3)])
         return tq, fc
+
+
+@dataclass(frozen=True)
+class Combination:
+    """One admissible combination of effects, made a finding: what
+    :func:`~rig_identification.diagnosis.finding.finding` reports of diagnose's joint fit with it
+    (or :func:`~rig_identification.diagnosis.compliant_body.diagnosis_alternative` of the
+    two-body fit), and what :func:`~rig_identification.pipeline.offline.with_diagnosis` needs to
+    identify the recording again with it and validate that fit.
+
+    effects: the members' entries, most significant first (dicts: ``name``, ``parameters`` and
+    ``parameters_std`` in the units :func:`~rig_identification.io.export.effect_text` says,
+    ``evidence`` (likelihood ratios, the combination's, the channels' residual RMS reductions),
+    ``plausible``, ``implausible`` (why not, when not) and, for the compliant body, ``label``
+    and ``advice``); the same dicts as :attr:`Diagnosis.effects` for the first combination and
+    in the JSON.
+    applied: every correction made to the data or the rig, the cables' mass included:
+    (effect, label) -> value, what :func:`~rig_identification.diagnosis.candidates.corrected`
+    takes.
+    effect_wrench: the physics added to the model as the generalized wrench it adds to the
+    measured one (body axes, about the CG), or None when the combination only corrects the data.
+    stiffness: (n,) N/m, the cables' stiffness when their elasticity was found, else None.
+    inertia: (3,3) kg·m², the body's inertia tensor about its CG, body axes, from the joint fit
+    with the effects (the cables' share taken off when their mass was found); None for a
+    hypothesis that gives no tensor (a compliant body not named).
+    covariance: (6,6) kg²·m⁴ of the tensor's entries (:data:`~rig_identification.io.verdict.KEYS`
+    order) in that joint fit, or None (a compliant body not named).
+    relative_std: the relative σ of the tensor that corrections fixed from outside the fit band
+    leave (a structural mode's shape: :func:`~rig_identification.diagnosis.structural.gain_std`
+    at the band's centre); 0 when there are none.
+    likelihood_ratio: the likelihood-ratio statistic of the combination against the rigid-body
+    model (2 Δ log-likelihood, χ² with ``dof`` degrees of freedom under the rigid body: Wilks;
+    :func:`~rig_identification.diagnosis.exact.likelihood_ratio`); dof: the parameters it adds;
+    bic: its Bayesian information criterion relative to the rigid body's, −likelihood_ratio +
+    dof · ln n (smaller is better; the alternatives' order).
+    keys: the members' (effect, label) keys (with_diagnosis tries, after a validated
+    combination, only its proper subsets).
+    not_named: why the combination is never fitted again and never named (a hypothesis judged
+    by its own test: the compliant body's), else None.
+    """
+
+    effects: list[dict]
+    applied: dict
+    effect_wrench: EffectWrench | None
+    stiffness: np.ndarray | None
+    inertia: np.ndarray | None
+    covariance: np.ndarray | None
+    relative_std: float
+    likelihood_ratio: float
+    dof: int
+    bic: float
+    keys: tuple[tuple[str, str], ...]
+    not_named: str | None = None
 
 
 @dataclass
@@ -67,10 +121,9 @@ class Diagnosis:
     # cables' mass included), and the cables' stiffness (n,) N/m when their elasticity was found
     applied: dict = field(default_factory=dict)
     stiffness: np.ndarray | None = None
-    # the admissible combinations, best (smallest BIC) first, the first being the fields above:
-    # {"effects", "applied", "effect_wrench", "stiffness", "inertia", "covariance",
-    #  "likelihood_ratio", "dof", "bic"}; the caller validates them in that order
-    alternatives: list = field(default_factory=list)
+    # the admissible combinations (:class:`Combination`), best (smallest BIC) first, the first
+    # being the fields above; the caller validates them in that order
+    alternatives: list[Combination] = field(default_factory=list)
     # every combination fitted: {"effects": [(name, label)], "likelihood_ratio", "dof", "bic",
     # "admissible", "why"}, by BIC
     joint: list = field(default_factory=list)
@@ -91,7 +144,7 @@ class Diagnosis:
                 "residual_rms_synchronous_before": self.rms_sync_before,
                 "residual_rms_synchronous_after": self.rms_sync_after,
                 "synchronous_revolutions": self.revolutions,
-                "alternatives": [{"effects": [e["name"] for e in a["effects"]], "likelihood_ratio": a["likelihood_ratio"],
-                                  "dof": a["dof"], "bic": a["bic"]} for a in self.alternatives],
+                "alternatives": [{"effects": [e["name"] for e in a.effects], "likelihood_ratio": a.likelihood_ratio,
+                                  "dof": a.dof, "bic": a.bic} for a in self.alternatives],
                 "combinations": [{**j, "effects": [f"{n} {lab}".strip() for n, lab in j["effects"]]} for j in self.joint],
                 "out_of_band": self.out_of_band}

@@ -299,30 +299,33 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     shown = ranked[:ALTERNATIVES]
     if ranked and len(ranked[0]["members"]) > 1:
         shown += [ev for ev in ranked[ALTERNATIVES:] if set(ev["keys"]) < set(ranked[0]["keys"])]
+    first = None     # the first combination's final fit: the result's residuals and series
     for ev in shown:
         try:
-            alternatives.append(finding(ev, rec, state, build, kappa0, scales, cost0))
+            combination, final = finding(ev, rec, state, build, kappa0, scales, cost0)
         except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
             warnings.append(f"combination {', '.join(m['c'].name for m in ev['members'])}: its report failed ({err})")
+            continue
+        alternatives.append(combination)
+        if first is None:
+            first = final
     located = locate(M0, base, rec.rig, base.J)
     std_of = lambda f: np.sqrt(np.clip(np.diag(f.cov)[:6], 0, None))  # noqa: E731
     if alternatives:
         a = alternatives[0]
-        fit1, M1, w1, ch1 = a.pop("fit"), a.pop("model"), a.pop("window"), a.pop("channels")
-        for b in alternatives[1:]:
-            for k in ("fit", "model", "window", "channels"):
-                b.pop(k)
+        effects, applied, wrench, stiffness, inertia = a.effects, a.applied, a.effect_wrench, a.stiffness, a.inertia
+        fit1, M1, w1, ch1 = first.fit, first.model, first.window, first.channels
     else:
-        a = {"effects": [], "applied": {}, "effect_wrench": None, "stiffness": None, "inertia": base.J}
+        effects, applied, wrench, stiffness, inertia = [], {}, None, None, base.J
         fit1, M1, w1, ch1 = base, M0, w, ch0
     (sync0, revs), (sync1, _) = synchronous(M0, ch0), synchronous(M1, ch1)
-    return Diagnosis(bool(a["effects"]), a["effects"], located, rms0, rms(ch1), base.J, a["inertia"],
+    return Diagnosis(bool(effects), effects, located, rms0, rms(ch1), base.J, inertia,
                      std_of(base), std_of(fit1), tried, band, model, warnings + list(rec.warnings),
                      series={"t": w1.t - w1.t[0], "fs": M1.fs, "before": ch0, "after": ch1},
                      covariance_after=np.array(fit1.cov[:6, :6]),
-                     corrections={k: v for k, v in a["applied"].items() if k[0] in CORRECTIONS},
+                     corrections={k: v for k, v in applied.items() if k[0] in CORRECTIONS},
                      rms_sync_before=sync0, rms_sync_after=sync1, revolutions=revs,
-                     effect_wrench=a["effect_wrench"], applied=dict(a["applied"]), stiffness=a["stiffness"],
+                     effect_wrench=wrench, applied=dict(applied), stiffness=stiffness,
                      alternatives=alternatives, joint=joints, out_of_band=state.get("out_of_band", []))
 
 

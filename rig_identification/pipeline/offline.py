@@ -9,6 +9,7 @@ import numpy as np
 
 from ..diagnosis.compliant_body import diagnosis_alternative, two_body_reason
 from ..diagnosis.residuals import unexplained
+from ..diagnosis.result import Combination
 from ..diagnosis.selection import body_inertia, corrected, diagnose, with_stiffness
 from ..estimation.identification import identify_inertia, identify_inertia_joint
 from ..estimation.inertia_result import InertiaResult
@@ -157,28 +158,28 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     alternatives = d.alternatives
     hypotheses, whys = [], []
 
-    def attempt(alt: dict) -> InertiaResult | None:
+    def attempt(alt: Combination) -> InertiaResult | None:
         """One combination tested the way every fit is: the recording corrected, identified again
         with its wrench, validated; its fit when it passes, else None (why in hypotheses, whys)."""
-        names = [e["name"] for e in alt["effects"]]
-        bad = [e for e in alt["effects"] if not e.get("plausible", True)]
-        hyp = {"effects": alt["effects"]}
+        names = [e["name"] for e in alt.effects]
+        bad = [e for e in alt.effects if not e.get("plausible", True)]
+        hyp = {"effects": alt.effects}
         hypotheses.append(hyp)
-        if alt.get("not_named"):      # a hypothesis by its own test (compliant_body): never fitted again
-            hyp["not_named"] = alt["not_named"]
+        if alt.not_named:      # a hypothesis by its own test (compliant_body): never fitted again
+            hyp["not_named"] = alt.not_named
             whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
             return None
         if bad:
             hyp["not_named"] = "not physically plausible: " + "; ".join(f"{e['name']}: {e['implausible']}" for e in bad)
             whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
             return None
-        fixed = corrected(full, alt["applied"])
-        if alt.get("stiffness") is not None:
-            fixed = with_stiffness(fixed, alt["stiffness"])
+        fixed = corrected(full, alt.applied)
+        if alt.stiffness is not None:
+            fixed = with_stiffness(fixed, alt.stiffness)
         log.info("identifying again with %s", ", ".join(names))
         try:
             fit = identify_recording(fixed, start=start, end=end, band_hz=band_hz,
-                                     effect_wrench=alt.get("effect_wrench"))
+                                     effect_wrench=alt.effect_wrench)
         except (ValueError, np.linalg.LinAlgError) as e:
             hyp["not_named"] = f"could not be identified again ({e})"
             whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
@@ -196,7 +197,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
 
     again, chosen = None, None
     for alt in alternatives:
-        if chosen is not None and not set(alt.get("keys", ())) < set(chosen.get("keys", ())):
+        if chosen is not None and not set(alt.keys) < set(chosen.keys):
             continue   # after a validated combination, only its proper subsets are tried (parsimony)
         fit = attempt(alt)
         if fit is not None:
@@ -227,23 +228,23 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
             + ("; the mismatch is in " + ", ".join(f"{u['channel']} at {u['band_hz'][0] + 0.05:.2f} Hz"
                                                    for u in where if u["band_hz"]) if where else ""))
         return result
-    effects = chosen["effects"]
+    effects = chosen.effects
     names = [e["name"] for e in effects]
     found = "; ".join(f"{e['name']} ({effect_text(e)})" for e in effects)   # with units, as the CLI's
-    applied = chosen["applied"]
+    applied = chosen.applied
     mu = float(applied.get(("cable_mass", ""), 0.0))
     if mu:   # the fit's tensor is the body's with the cables' lower halves, about their combined CG
         body_rig = replace(rec.rig, mass=rec.rig.mass + float(applied.get(("body_mass", ""), 0.0)))
         again.inertia = body_inertia(again.inertia, body_rig, mu)
         again.mass, again.center_of_gravity = body_rig.mass, body_rig.require_cg().copy()
-    if chosen.get("effect_wrench") is not None and chosen.get("covariance") is not None:
+    if chosen.effect_wrench is not None and chosen.covariance is not None:
         # the effects' own uncertainty: diagnose's joint fit of the tensor with them
-        joint = np.sqrt(np.clip(np.diag(chosen["covariance"]), 0, None))
+        joint = np.sqrt(np.clip(np.diag(chosen.covariance), 0, None))
         wider = np.maximum(joint, again.inertia_std)
         again.covariance = again.covariance + np.diag(wider**2 - again.inertia_std**2)
         again.inertia_std = wider
         again.uncertainty += "; at least diagnose's joint fit with the effects (their own uncertainty)"
-    rel = float(chosen.get("relative_std") or 0.0)
+    rel = float(chosen.relative_std or 0.0)
     if rel > 0:
         # a correction fixed from outside the fit band (a structural mode's shape) leaves a
         # relative error of the readings in the band, and so about of the tensor
@@ -251,8 +252,8 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
         again.covariance = again.covariance + np.diag(wider ** 2 - again.inertia_std ** 2)
         again.inertia_std = wider
         again.uncertainty += f"; with the {100 * rel:.3g} % the corrections fixed from outside the band leave"
-    handled = ("removed from the data" if chosen.get("effect_wrench") is None else
-               "added to the model" if not applied and chosen.get("stiffness") is None else
+    handled = ("removed from the data" if chosen.effect_wrench is None else
+               "added to the model" if not applied and chosen.stiffness is None else
                "removed from the data and added to the model")
     diagnosis["effects"], diagnosis["hypotheses"], diagnosis["unexplained"] = effects, [], []
     diagnosis["combinations_tried"] = hypotheses[:-1]
