@@ -22,8 +22,8 @@ from rig_identification.pipeline.offline import identify_recording, with_diagnos
 from rig_identification.io.recording import Recording
 from rig_identification.design.scenarios import simulate_random
 from rig_identification.estimation.spectral_wls import missed_noise, spectra, wls_step_joint
-from rig_identification.estimation.validation import (ALPHA, EFFECT_FACTOR, chi2_check, hausman, quadrature_check,
-                                                      widened_std)
+from rig_identification.estimation.validation import (ALPHA, EFFECT_FACTOR, beyond_limit_widened, chi2_check,
+                                                      hausman, quadrature_check, widened_std)
 
 from conftest import background, gather
 
@@ -254,3 +254,23 @@ def test_input_correlation_fails_only_when_the_misfit_moves_the_tensor(clean, da
     _, rigid, _ = damped
     c = next(c for c in rigid.validation.checks if c.name == "input_correlation")
     assert c.passed is False and "Hausman" in c.detail, c.detail
+
+
+def test_an_entry_the_widening_leaves_beyond_the_limit_is_not_given_under_not_identifiable():
+    """validation.beyond_limit_widened: under not_identifiable, an entry whose widened σ is
+    beyond REL_STD_LIMIT of its scale (bench_any_rig's 25002: Iyy 72 % off with σ 347 %) is
+    null too, with the products of its moment and the advice made again; under ok or
+    model_error nothing changes (a model error alone never takes an entry away)."""
+    theta = np.array([1200.0, 40.0, 90.0, 5000.0, 3.0, 5300.0])       # KEYS order, kg·m²
+    widened = np.array([9e3, 9e3, 9e3, 3.0 * 5000.0, 0.02 * 5300.0, 0.05 * 5300.0])
+    v = Validation("not_identifiable", (), undetermined=("ixx", "ixy", "ixz"), advice=("move the exciter",))
+    out = beyond_limit_widened(theta, widened, v)
+    assert out.undetermined == ("ixx", "ixy", "ixz", "iyy", "iyz") and out.verdict == "not_identifiable"
+    assert out.advice and "pitch inertia Iyy" in out.summary, out.summary
+    # Izz's 5 % is within the limit: given
+    assert "izz" not in out.undetermined
+    for verdict in ("ok", "model_error"):
+        w = Validation(verdict, ())
+        assert beyond_limit_widened(theta, widened, w) is w
+    # nothing beyond the limit: the same validation
+    assert beyond_limit_widened(theta, np.minimum(widened, 0.05 * theta.clip(100)), v) is v

@@ -10,8 +10,9 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..estimation.inertia_result import InertiaResult
-from ..estimation.validation import AccelInput, validate, widened_std
+from ..estimation.validation import AccelInput, beyond_limit_widened, validate, widened_std
 from ..io.noise import white_sigma
+from ..model.parametrisation import from_tensor
 from .prepare import PreparedRecording
 
 log = logging.getLogger(__name__)   # steps (INFO) and warnings as they happen: cli_progress shows them
@@ -101,7 +102,10 @@ def apply_validation(result: InertiaResult, accel: list[AccelInput] | None, surp
     with the accelerometer check's inputs ``accel`` (None: skipped), the load cells' weight
     surplus ``surplus`` (:func:`force_weight_surplus`; None: skipped) and the ``rig`` (for
     the advice); ``result.validation`` set, σ and covariance widened
-    (:func:`~rig_identification.estimation.validation.widened_std`), the verdict's summary a warning unless ``ok``.
+    (:func:`~rig_identification.estimation.validation.widened_std`; under ``not_identifiable`` the entries
+    that widening leaves beyond the identifiability limit are null too:
+    :func:`~rig_identification.estimation.validation.beyond_limit_widened`), the verdict's summary a
+    warning unless ``ok``.
     Returns ``result``, updated in place."""
     v = validate(result, accel, surplus, rig)
     result.validation = v
@@ -114,6 +118,9 @@ def apply_validation(result: InertiaResult, accel: list[AccelInput] | None, surp
                                if not v.failed else
                                f"; widened to the validation's spread ({', '.join(v.failed)} failed: a lower bound "
                                "of the error)")
+        # under not_identifiable, an entry the widening leaves beyond the limit is not given either
+        v = beyond_limit_widened(from_tensor(result.inertia), w, v, rig)
+        result.validation = v
     if v.verdict == "model_error":
         result.warnings.append(v.summary)
     elif v.verdict == "not_identifiable":
