@@ -165,7 +165,10 @@ class Compensation:
     realisations (the finite number of replays); sensitivity (6,6): d(compensated entries) /
     d(least-squares entries) for the same noise (maps the least-squares covariance onto the
     compensated estimate); count: the realisations used; applied: False when the fit could
-    not be compensated (the least-squares estimate kept, :func:`compensate`)."""
+    not be compensated (the least-squares estimate kept, :func:`compensate`); leak (6,) kg·m²,
+    only when not applied: the correction the compensation would have made
+    (:func:`attenuation_leak`), how far the least-squares bias may reach every entry — inf
+    where a direction is all noise (share ≥ 1)."""
 
     share: float
     direction: np.ndarray
@@ -174,10 +177,38 @@ class Compensation:
     sensitivity: np.ndarray
     count: int
     applied: bool = True
+    leak: np.ndarray | None = None
 
 
 def _inverse_entries(j: np.ndarray) -> np.ndarray:
     return from_tensor(np.linalg.inv(to_tensor(j)))
+
+
+def attenuation_leak(j: np.ndarray, A: np.ndarray, N: np.ndarray) -> np.ndarray:
+    """(6,) kg·m²: how far the least-squares bias reaches each entry of J when the fit cannot be
+    compensated — J(p_c) − J(p̂), with p̂ = J⁻¹'s entries of the least-squares ``j`` (6,)
+    kg·m² and p_c the same with the regression dilution undone along every generalized
+    eigendirection of (N, A) (A (6,6) the normal matrix, N (6,6) the noise's moment in it):
+    its coordinate divided by 1 − s, s that direction's noise share (Fuller 1987, *Measurement
+    Error Models*, §1.1: the least-squares slope is attenuated by the reliability ratio 1 − s).
+    The inverse J = P⁻¹ spreads a bias along one direction of P over every entry of J (a
+    random 5-cable rig, share 0.997: Ixx 26× its value, and Izz, with 10⁻⁴ of the direction,
+    13 kg·m² off at 4.75 σ).  inf for every entry when some share is ≥ 1 (a direction all noise:
+    no bound) or the corrected tensor is not finite and positive definite.  Raises
+    numpy.linalg.LinAlgError when A is not positive definite."""
+    A = 0.5 * (A + A.T)
+    L = np.linalg.cholesky(A)
+    S = np.linalg.solve(L, np.linalg.solve(L, 0.5 * (N + N.T)).T)
+    ev, V = np.linalg.eigh(0.5 * (S + S.T))
+    if not ev.max() < 1.0:
+        return np.full(6, np.inf)
+    p = _inverse_entries(j)
+    c = V.T @ (L.T @ p)                      # p = L⁻ᵀ V c
+    pc = np.linalg.solve(L.T, V @ (c / (1.0 - ev)))
+    P = to_tensor(pc)
+    if not (np.all(np.isfinite(P)) and np.all(np.linalg.eigvalsh(0.5 * (P + P.T)) > 0)):
+        return np.full(6, np.inf)
+    return from_tensor(np.linalg.inv(P)) - np.asarray(j, float)
 
 
 def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRealisations],
@@ -234,8 +265,13 @@ def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRe
     except np.linalg.LinAlgError:
         share, v = float("inf"), np.zeros(6)
     direction = _direction_entries(j_ls, v)
+
     def kept(why):
-        comp = Compensation(share, direction, np.zeros(6), np.full(6, np.nan), np.eye(6), mom.count, False)
+        try:
+            leak = attenuation_leak(j_ls, A, N)
+        except np.linalg.LinAlgError:
+            leak = np.full(6, np.inf)
+        comp = Compensation(share, direction, np.zeros(6), np.full(6, np.nan), np.eye(6), mom.count, False, leak)
         return j_ls, comp, [f"the noise makes {100 * min(share, 9.99):.3g} % of the fit's input along one direction "
                             f"({why}): the fit is not compensated for it (errors in variables); the least-squares "
                             "estimate is kept, biased along that direction, whose entries are not determined"]
