@@ -47,6 +47,10 @@ cannot be trusted: the entries along it are not determined (validation's check
 Ixx +0.45 % (σ 2.5 %) after compensation; one of 0.47 left +13 % (σ 5.6 %)."""
 
 SHARE_CAP = 0.8
+LEAK_SHARE = 0.99   # attenuation_leak undoes at most this share: a direction whose input is all noise
+#                     (share ≥ 1 on near-parallel cables' roll and pitch) is undone 100×, which
+#                     reaches every entry the inverse couples to it and not Izz of a rig whose yaw
+#                     the cables determine
 """In the validation's sub-band and segment fits, a direction whose noise share exceeds this
 has its compensation capped at it (a short piece of the record can be mostly noise along a
 direction the whole record determines)."""
@@ -167,8 +171,7 @@ class Compensation:
     compensated estimate); count: the realisations used; applied: False when the fit could
     not be compensated (the least-squares estimate kept, :func:`compensate`); leak (6,) kg·m²,
     only when not applied: the correction the compensation would have made
-    (:func:`attenuation_leak`), how far the least-squares bias may reach every entry — inf
-    where a direction is all noise (share ≥ 1)."""
+    (:func:`attenuation_leak`), how far the least-squares bias may reach every entry."""
 
     share: float
     direction: np.ndarray
@@ -193,18 +196,18 @@ def attenuation_leak(j: np.ndarray, A: np.ndarray, N: np.ndarray) -> np.ndarray:
     Error Models*, §1.1: the least-squares slope is attenuated by the reliability ratio 1 − s).
     The inverse J = P⁻¹ spreads a bias along one direction of P over every entry of J (a
     random 5-cable rig, share 0.997: Ixx 26× its value, and Izz, with 10⁻⁴ of the direction,
-    13 kg·m² off at 4.75 σ).  inf for every entry when some share is ≥ 1 (a direction all noise:
-    no bound) or the corrected tensor is not finite and positive definite.  Raises
+    13 kg·m² off at 4.75 σ).  A share is undone at most to :data:`LEAK_SHARE` (a direction all
+    noise, share ≥ 1: its coordinate ×100 — bench_trust's 4-parallel rigs keep Izz, 0.09 and
+    0.18 σ off, their roll and pitch entries reached far beyond the limit).  inf for every entry
+    when the corrected tensor is not finite and positive definite.  Raises
     numpy.linalg.LinAlgError when A is not positive definite."""
     A = 0.5 * (A + A.T)
     L = np.linalg.cholesky(A)
     S = np.linalg.solve(L, np.linalg.solve(L, 0.5 * (N + N.T)).T)
     ev, V = np.linalg.eigh(0.5 * (S + S.T))
-    if not ev.max() < 1.0:
-        return np.full(6, np.inf)
     p = _inverse_entries(j)
     c = V.T @ (L.T @ p)                      # p = L⁻ᵀ V c
-    pc = np.linalg.solve(L.T, V @ (c / (1.0 - ev)))
+    pc = np.linalg.solve(L.T, V @ (c / (1.0 - np.minimum(ev, LEAK_SHARE))))
     P = to_tensor(pc)
     if not (np.all(np.isfinite(P)) and np.all(np.linalg.eigvalsh(0.5 * (P + P.T)) > 0)):
         return np.full(6, np.inf)

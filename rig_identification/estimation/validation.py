@@ -516,8 +516,8 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
             biased = tuple(k for k, x in zip(KEYS, eiv.direction) if abs(x) >= WEAK_SHARE) or tuple(KEYS)
             if eiv.leak is not None:
                 # and every entry the bias reaches beyond the limit through J = P⁻¹ (the
-                # correction not made, errors_in_variables.attenuation_leak; inf: a direction all
-                # noise), not only those with a share of the noisiest direction (bench_any_rig's
+                # correction not made, errors_in_variables.attenuation_leak), not only those
+                # with a share of the noisiest direction (bench_any_rig's
                 # seed 25004 gave Izz at 4.75 σ with 10⁻⁴ of it, 7400 of bench_trust Iyy 71 % off
                 # at 5 σ with a share beyond 1)
                 with np.errstate(all="ignore"):

@@ -114,8 +114,8 @@ def apply_validation(result: InertiaResult, accel: list[AccelInput] | None, surp
     leak = None if eiv is None or eiv.leak is None else np.where(np.isfinite(eiv.leak), eiv.leak, 0.0)
     if leak is not None:
         # the fit could not be compensated for the noise in its input: the entries it gives carry
-        # the correction it did not make (errors_in_variables.attenuation_leak; an infinite one
-        # makes its entry undetermined, null, in validate)
+        # the correction it did not make (errors_in_variables.attenuation_leak; one beyond the
+        # limit makes its entry undetermined, null, in validate)
         w = np.sqrt(w**2 + leak**2)
     if np.any(w > result.inertia_std):
         result.covariance = result.covariance * v.sigma_factor**2 + np.diag(
