@@ -59,7 +59,7 @@ from rig_identification.estimation.propagation import REFERENCE_NOISE
 from rig_identification.estimation.uncertainty import add_noise
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import basis, from_tensor, to_tensor
-from rig_identification.estimation.validation import REL_STD_LIMIT, WEAK_SHARE
+from rig_identification.estimation.validation import REL_STD_LIMIT, WEAK_SHARE, with_products
 from rig_identification.io.recording import Recording
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.pipeline.prepare import prepare_recording, replay_window
@@ -141,9 +141,7 @@ def job(seed: int) -> dict:
         # the errors-in-variables rule of the pipeline's check, on the truth: the entries along
         # the noisiest direction are undetermined beyond EIV_LIMIT (marginal beyond half of it),
         # with the products of their moments
-        eiv = [k for k, x in zip(KEYS, direction) if abs(x) >= WEAK_SHARE]
-        products = {"ixy": ("ixx", "iyy"), "ixz": ("ixx", "izz"), "iyz": ("iyy", "izz")}
-        eiv = set(eiv) | {p for p, (a, b) in products.items() if a in eiv or b in eiv}
+        eiv = with_products(k for k, x in zip(KEYS, direction) if abs(x) >= WEAK_SHARE)
         undet = {k for k, r in zip(KEYS, rel) if r > REL_STD_LIMIT} | (eiv if share > EIV_LIMIT else set())
         marg = np.any(rel > 0.5 * REL_STD_LIMIT) or share > 0.5 * EIV_LIMIT
         row["kind_truth"] = "undetermined" if undet else "marginal" if marg else "determined"

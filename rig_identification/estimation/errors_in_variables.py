@@ -125,14 +125,23 @@ def noise_moments(E: np.ndarray, noise: NoiseRealisations, weights: np.ndarray) 
     return NoiseMoments(np.einsum("knip,i,kniq->kpq", dX, w, dX), np.einsum("knip,i,kni->kp", dX, w, noise.dy))
 
 
+def _shares(A: np.ndarray, N: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The generalized eigenproblem N v = λ A v through A's Cholesky factor L (A = L Lᵀ):
+    (L, λ ascending (p,), W (p,p)) with the directions v = L⁻ᵀ W — each λ the share of its
+    direction of the regressor that is noise.  Raises numpy.linalg.LinAlgError when A is not
+    positive definite."""
+    L = np.linalg.cholesky(0.5 * (A + A.T))
+    S = np.linalg.solve(L, np.linalg.solve(L, 0.5 * (N + N.T)).T)
+    ev, V = np.linalg.eigh(0.5 * (S + S.T))
+    return L, ev, V
+
+
 def noise_share(A: np.ndarray, N: np.ndarray) -> tuple[float, np.ndarray]:
     """The largest share of a direction of the regressor that is noise: the largest
     eigenvalue of the generalized problem N v = λ A v (A, N (p,p) symmetric, A positive
     definite), and its direction v (p,) in the parameters (unit norm).  Raises
     numpy.linalg.LinAlgError when A is not positive definite."""
-    L = np.linalg.cholesky(0.5 * (A + A.T))
-    S = np.linalg.solve(L, np.linalg.solve(L, 0.5 * (N + N.T)).T)
-    ev, V = np.linalg.eigh(0.5 * (S + S.T))
+    L, ev, V = _shares(A, N)
     v = np.linalg.solve(L.T, V[:, -1])
     return float(ev[-1]), v / np.linalg.norm(v)
 
@@ -140,10 +149,7 @@ def noise_share(A: np.ndarray, N: np.ndarray) -> tuple[float, np.ndarray]:
 def capped(A: np.ndarray, N: np.ndarray, cap: float = SHARE_CAP) -> np.ndarray:
     """N with every generalized eigenvalue of (N, A) clipped to [0, ``cap``]: ``A − N`` then
     keeps at least 1 − cap of A along every direction (positive definite)."""
-    A = 0.5 * (A + A.T)
-    L = np.linalg.cholesky(A)
-    S = np.linalg.solve(L, np.linalg.solve(L, 0.5 * (N + N.T)).T)
-    ev, V = np.linalg.eigh(0.5 * (S + S.T))
+    L, ev, V = _shares(A, N)
     S = (V * np.clip(ev, 0.0, cap)) @ V.T
     return L @ S @ L.T
 
@@ -201,10 +207,7 @@ def attenuation_leak(j: np.ndarray, A: np.ndarray, N: np.ndarray) -> np.ndarray:
     0.18 σ off, their roll and pitch entries reached far beyond the limit).  inf for every entry
     when the corrected tensor is not finite and positive definite.  Raises
     numpy.linalg.LinAlgError when A is not positive definite."""
-    A = 0.5 * (A + A.T)
-    L = np.linalg.cholesky(A)
-    S = np.linalg.solve(L, np.linalg.solve(L, 0.5 * (N + N.T)).T)
-    ev, V = np.linalg.eigh(0.5 * (S + S.T))
+    L, ev, V = _shares(A, N)
     p = _inverse_entries(j)
     c = V.T @ (L.T @ p)                      # p = L⁻ᵀ V c
     pc = np.linalg.solve(L.T, V @ (c / (1.0 - np.minimum(ev, LEAK_SHARE))))

@@ -26,16 +26,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..io.export import SYMBOL
 from ..io.verdict import KEYS
 from ..model.parametrisation import entry_scales, from_tensor
 
 TARGET = 0.01               # the default target: ±1 % at 95 % (issue 21's "within 1 %")
 Z95 = 1.959963984540054     # the normal distribution's 97.5 % quantile: ±Z95·σ holds 95 %
-
-
-def label(key: str) -> str:
-    """``ixx`` → ``Ixx``: an entry's short name in text."""
-    return "I" + key[1:]
 
 
 @dataclass(frozen=True)
@@ -80,9 +76,9 @@ class Precision:
             if not given:
                 return head + "no entry is determined"
             worst = max(given, key=lambda k: self.half_width[k])
-            return head + (f"every determined entry within it (the widest: {label(worst)} "
+            return head + (f"every determined entry within it (the widest: {SYMBOL[worst]} "
                            f"±{100 * self.half_width[worst]:.2g} %)")
-        widths = ", ".join(f"{label(k)} ±{100 * self.half_width[k]:.2g} %" for k in self.short)
+        widths = ", ".join(f"{SYMBOL[k]} ±{100 * self.half_width[k]:.2g} %" for k in self.short)
         line = head + f"{widths}: short of the target"
         if self.widened_only:
             line += (" — the sensors' noise alone is within it; σ is widened beyond the noise (replays, "
@@ -139,4 +135,4 @@ def precision_of(inertia: np.ndarray, std: np.ndarray, undetermined, duration: f
     return Precision(float(target), hw, short, float(duration), verdict, factor, widened_only, subject)
 
 
-__all__ = ["Precision", "TARGET", "Z95", "label", "precision_of"]
+__all__ = ["Precision", "TARGET", "Z95", "precision_of"]

@@ -93,8 +93,9 @@ from scipy.stats import chi2
 from .errors_in_variables import EIV_LIMIT
 from .spectral_wls import (determined, interior, missed_noise, piece_noise, projector, residual_excess, spectra, wald,
                            wls_step, wls_step_joint)
-from .directions import weak_directions
+from .directions import ENTRY_AXES, weak_directions
 from .inertia_result import FitSeries, InertiaResult
+from ..io.export import MOMENTS
 from ..io.verdict import KEYS, Check, Validation, fmt_p
 from ..model.parametrisation import entry_scales, from_tensor, physically_consistent
 
@@ -112,6 +113,26 @@ HAUSMAN_RANK = 1e-2       # Hausman's test leaves out directions where the furth
 #                             than this fraction of the variance
 EDGE_MARGIN = 1.15          # the whiteness test skips the band's edges (the filter's skirts, where the
 #                             residual's level falls faster than its running median follows)
+
+
+def with_products(keys) -> set:
+    """The entry keys ``keys`` with every product of inertia about an axis whose moment is
+    among them: a product is no better determined than the moments about its axes
+    (:data:`~rig_identification.estimation.directions.ENTRY_AXES`)."""
+    out = set(keys)
+    return out | {k for k, axes in ENTRY_AXES.items() if len(axes) == 2 and any(MOMENTS[a] in out for a in axes)}
+
+
+def entry_scale(theta: np.ndarray, determined: np.ndarray) -> np.ndarray:
+    """(6,) kg·m², :data:`~rig_identification.io.verdict.KEYS` order: the scale an entry's σ is
+    judged on for identifiability — a moment's own magnitude; for a product the largest
+    *determined* moment's (``determined`` (3,) bool, ixx iyy izz: an undetermined moment's value
+    means nothing), the largest moment's or 1 kg·m² when none is.  theta: (6,) kg·m²."""
+    theta = np.abs(np.asarray(theta, float))
+    diag = theta[[0, 3, 5]]
+    det = np.asarray(determined, bool)
+    big = float(diag[det].max()) if det.any() and diag[det].max() > 0 else float(max(diag.max(), 1.0))
+    return np.array([theta[0], big, big, theta[3], big, theta[5]])
 
 
 def chi2_check(name: str, stat: float, dof: int, detail: str) -> Check:
@@ -384,8 +405,8 @@ def identifiability(result: InertiaResult, std: np.ndarray, cov: np.ndarray | No
     nil = (std <= DEGENERATE * float(np.max(std))) if np.max(std) > 0 else np.zeros(6, bool)
     ok_diag = (rel_diag <= REL_STD_LIMIT) & ~nil[[0, 3, 5]]
     # a product's scale: the largest determined moment (an undetermined one's value means nothing)
-    big = float(diag[ok_diag].max()) if ok_diag.any() and diag[ok_diag].max() > 0 else float(max(diag.max(), 1.0))
-    scale = np.array([abs(theta[0]), big, big, abs(theta[3]), big, abs(theta[5])])
+    scale = entry_scale(theta, ok_diag)
+    big = float(scale[1])
     rel = std / np.maximum(scale, 1e-9 * big)
     # and a product of two axes is no better determined than the moments about them
     axes = {"ixy": (0, 1), "ixz": (0, 2), "iyz": (1, 2)}
@@ -547,9 +568,7 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     # a product is not determined when a moment about one of its axes is not, whichever check
     # found the moment undetermined (the noise in the input along it too: bench_any_rig's seed
     # 21000 gave Ixy 22 % off under a biased Ixx)
-    out = set(bad) | set(biased)
-    products = {"ixy": ("ixx", "iyy"), "ixz": ("ixx", "izz"), "iyz": ("iyy", "izz")}
-    out |= {p for p, (a, b) in products.items() if a in out or b in out}
+    out = with_products(set(bad) | set(biased))
     bad = tuple(k for k in KEYS if k in out)
     checks.append(ident)
     parts = [np.zeros(6)]
@@ -582,16 +601,11 @@ def beyond_limit_widened(theta: np.ndarray, widened: np.ndarray, validation: Val
     kg·m², the fit's entries."""
     if validation.verdict != "not_identifiable":
         return validation
-    theta = np.abs(np.asarray(theta, float))
     gone = set(validation.undetermined)
-    moments = [m for m, k in zip(theta[[0, 3, 5]], ("ixx", "iyy", "izz")) if k not in gone]
-    big = max(moments, default=0.0)
-    scale = np.array([theta[0], big, big, theta[3], big, theta[5]])
+    scale = entry_scale(theta, np.array([k not in gone for k in MOMENTS]))
     with np.errstate(all="ignore"):
         rel = np.asarray(widened, float) / scale
-    out = gone | {k for k, r in zip(KEYS, rel) if not r <= REL_STD_LIMIT}
-    products = {"ixy": ("ixx", "iyy"), "ixz": ("ixx", "izz"), "iyz": ("iyy", "izz")}
-    out |= {p for p, (a, b) in products.items() if a in out or b in out}
+    out = with_products(gone | {k for k, r in zip(KEYS, rel) if not r <= REL_STD_LIMIT})
     if out == gone:
         return validation
     bad = tuple(k for k in KEYS if k in out)

@@ -45,6 +45,7 @@ habit: the moments, then the products).  The JSON's dictionaries are keyed by na
 MOMENTS = ("ixx", "iyy", "izz")
 PRODUCTS = {"ixy": "Ixy", "ixz": "Ixz", "iyz": "Iyz"}   # tensor entry -> vehicle-dynamics product (its negation)
 VEHICLE_SIGN = np.array([1.0, -1.0, -1.0, 1.0, -1.0, 1.0])   # KEYS order: tensor entry -> moment / product
+SYMBOL = {"ixx": "Ixx", "iyy": "Iyy", "izz": "Izz", "ixy": "Ixy", "ixz": "Ixz", "iyz": "Iyz"}   # an entry in text
 ENTRY_NAMES = {"ixx": "roll moment Ixx", "iyy": "pitch moment Iyy", "izz": "yaw moment Izz",
                "ixy": "product Ixy", "ixz": "product Ixz", "iyz": "product Iyz"}
 INDEX = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
@@ -345,7 +346,7 @@ def yaml_text(content: dict) -> str:
             "inertia\n" + yaml.safe_dump(content, sort_keys=False, allow_unicode=True, default_flow_style=None))
 
 
-__all__ = ["AXES", "Axes", "EFFECT_UNITS", "with_effect_units", "ENTRY_NAMES", "EXPORT_SCHEMA", "EXPORT_SCHEMA_VERSION", "Expressed",
+__all__ = ["AXES", "Axes", "SYMBOL", "EFFECT_UNITS", "with_effect_units", "ENTRY_NAMES", "EXPORT_SCHEMA", "EXPORT_SCHEMA_VERSION", "Expressed",
            "INERTIA_SCHEMA", "INERTIA_SCHEMA_VERSION", "NOT_DETERMINED", "ORDER", "PRODUCTS", "UNITS", "VEHICLE_SIGN",
            "axes_block", "convention_lines", "effect_text", "entries_from_option", "export_dict", "express",
            "finite_or_none", "parallel_axis", "principal", "sign_in", "tensor_from_option", "urdf_inertial",

@@ -244,7 +244,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
         again.covariance = again.covariance + np.diag(wider**2 - again.inertia_std**2)
         again.inertia_std = wider
         again.uncertainty += "; at least diagnose's joint fit with the effects (their own uncertainty)"
-    rel = float(chosen.relative_std or 0.0)
+    rel = chosen.relative_std
     if rel > 0:
         # a correction fixed from outside the fit band (a structural mode's shape) leaves a
         # relative error of the readings in the band, and so about of the tensor

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..io.export import Expressed
+from ..io.export import SYMBOL, Expressed
 from ..estimation.inertia_result import InertiaResult
 from ..io.verdict import KEYS
 from ..model.parametrisation import from_tensor
@@ -33,7 +33,6 @@ from .html import MISSING, NOT_DETERMINED, Cell, esc, finite, num, table
 
 SIGN = np.array([1.0, -1.0, -1.0, 1.0, -1.0, 1.0])   # KEYS order: tensor entry -> moment / product of inertia
 ORDER = (0, 3, 5, 1, 2, 4)                           # display order: Ixx, Iyy, Izz, Ixy, Ixz, Iyz
-SYMBOL = {"ixx": "Ixx", "iyy": "Iyy", "izz": "Izz", "ixy": "Ixy", "ixz": "Ixz", "iyz": "Iyz"}
 MEANING = {"ixx": "roll moment", "iyy": "pitch moment", "izz": "yaw moment",
            "ixy": "product, x–y", "ixz": "product, x–z", "iyz": "product, y–z"}
 MOMENTS = ("ixx", "iyy", "izz")
