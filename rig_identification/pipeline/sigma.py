@@ -13,7 +13,7 @@ from ..estimation.errors_in_variables import NoiseRealisations, antithetic_reali
 from ..estimation.identification import fit_segments, prepare_segment
 from ..estimation.inertia_result import InertiaResult
 from ..estimation.prediction import PlanError, combine
-from ..estimation.uncertainty import noise_replays, propagated, sensor_noise
+from ..estimation.uncertainty import confirmed_sigma_factor, noise_replays, propagated, sensor_noise
 from ..estimation.spectral_wls import residual_excess
 from ..model.parametrisation import from_tensor
 from .prepare import PreparedRecording, replay_window
@@ -21,6 +21,13 @@ from .prepare import PreparedRecording, replay_window
 log = logging.getLogger(__name__)   # steps (INFO) and warnings as they happen: cli_progress shows them
 
 REPLAY_PAIRS = 3   # antithetic pairs of replays with fresh noise: the input-noise compensation, a check of σ
+CONFIRM_PAIRS = 3
+"""Antithetic pairs more, replayed only where the first :data:`REPLAY_PAIRS` spread
+significantly more than the propagated covariance predicts: σ is widened only when all of them
+together (36 dof) still do, by their pooled Birge ratio.  Three pairs alone widened by chance
+and by too much: bench_any_rig's 21005 and 23005 by 1.37 and 1.27, where 16 first-order draws of
+the chain give 0.92 and 0.96; its 26022 (3 cables) by 1.92, where they give 1.49
+(``bench_validation_null.py --any-rig SEED --first-order 16``; docs/validation.md)."""
 
 MODEL_ERROR_RATIO = 2.0
 """Fit residual RMS over the one the sensors' noise predicts beyond which the residual is
@@ -46,7 +53,11 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     linearised propagation of that noise through the same chain
     (:func:`~rig_identification.estimation.uncertainty.propagated`, recordings combined by :func:`~rig_identification.estimation.prediction.combine`),
     mapped onto the compensated estimate, with the compensation's own jackknife σ in
-    quadrature: ``crb_std`` holds it, and ``inertia_std`` and ``covariance`` too unless the
+    quadrature: ``crb_std`` holds it.  Where the replays' draws spread significantly more than
+    that covariance predicts, :data:`CONFIRM_PAIRS` pairs more are replayed and σ is widened by
+    all the draws' Birge ratio if it is still significant (``replay_factor``;
+    :meth:`~rig_identification.estimation.uncertainty.NoiseReplays.sigma_factor`).
+    ``inertia_std`` and ``covariance`` are that σ unless the
     fit's residual RMS exceeds the one the noise predicts (the replays' residual
     realisations, over the series' interior:
     :func:`~rig_identification.estimation.spectral_wls.residual_excess`) by more than :data:`MODEL_ERROR_RATIO` on a gyro axis
@@ -119,10 +130,17 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     result.crb_std = std.copy()
     # the linearised propagation checked against the replays' own spread (their Birge ratio
-    # over 6 × REPLAY_PAIRS degrees of freedom): where the replays spread more, σ follows them —
+    # over 6 × REPLAY_PAIRS degrees of freedom, confirmed over CONFIRM_PAIRS more where it is
+    # significant): where the replays spread more, σ follows them —
     # a tracker or rig the linearisation misses (a 3-cable rig: 1.47 over 6 pairs, 1.3–1.5 in
     # Monte Carlo over 8 recordings); never narrower than the propagation
-    factor, dof = replays.sigma_factor(pred.covariance)
+    def more(pairs: int, first: int):
+        log.info("σ: the replays spread significantly more than the propagation; %d replays more to confirm it",
+                 2 * pairs)
+        return noise_replays(fit, theta, [p.sensors for p in preps], noises, seed, pairs=pairs, first=first)
+
+    verdict = confirmed_sigma_factor(replays, pred.covariance, more, CONFIRM_PAIRS)
+    factor, replays = verdict.factor, verdict.replays
     if factor > 1.0:
         std = std * factor
         cov = cov * factor**2
@@ -144,7 +162,7 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
         result.inertia_std = std
         result.covariance = cov
         result.uncertainty = "propagated sensor noise" + (
-            f" (widened {result.replay_factor:.2f}× to the spread of replays with fresh noise)"
+            f" (widened {result.replay_factor:.2f}× to the spread of {2 * len(replays.draws)} replays with fresh noise)"
             if result.replay_factor else "")
     result.weak_directions = weak_directions(result.inertia, result.covariance)
     return result
