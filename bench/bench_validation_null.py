@@ -116,6 +116,7 @@ def _noise_job(args):
     return {"noise_seed": noise_seed, "verdict": v.verdict, "z": [None if k in v.undetermined else float(x)
                                                                     for k, x in zip(KEYS, z)],
             "checks": {c.name: [c.statistic, c.threshold, c.passed] for c in v.checks},
+            "details": {c.name: c.detail for c in v.checks},
             # the pieces of σ: the error (6,) kg·m², the reported σ, the propagated σ on the
             # compensated estimate with the compensation's σ (crb_std, before any widening)
             "error": vec(err), "std": vec(res.inertia_std), "crb_std": vec(res.crb_std)}
@@ -207,7 +208,7 @@ def first_order_main(a) -> int:
 def noise_main(a) -> int:
     """The --any-rig mode (see module docstring)."""
     from rig_identification.io.verdict import KEYS
-    from rig_identification.estimation.validation import EFFECT_FACTOR
+    from rig_identification.estimation.validation import EFFECT_FACTOR, WHITENESS_FACTOR
     with ProcessPoolExecutor(a.procs) as ex:
         rows = list(ex.map(_noise_job, [(a.any_rig, k) for k in range(a.first_noise_seed,
                                                                      a.first_noise_seed + a.noise_seeds)]))
@@ -228,6 +229,17 @@ def noise_main(a) -> int:
             x = np.array([s for s, _, _ in v])
             q = np.array([t / EFFECT_FACTOR for _, t, _ in v])
             print(f"{n:18s} {np.mean(x):11.2f} {int(np.sum(x > q)):>9d}/{len(v):<5d} {sum(p is False for *_, p in v):>4d}")
+    # the whiteness check (Fisher's g over the noise realisations' spectrum): its statistic over
+    # its significance threshold (failed beyond WHITENESS_FACTOR), and where its largest line is
+    w = [(r["noise_seed"], r["checks"]["whiteness"], r.get("details", {}).get("whiteness", ""))
+         for r in rows if "whiteness" in r["checks"] and r["checks"]["whiteness"][0] is not None]
+    if w:
+        over = [st / (th / WHITENESS_FACTOR) for _, (st, th, _), _ in w]
+        print(f"whiteness: statistic over its significance threshold, median {np.median(over):.2f}; "
+              f"significant on {sum(x > 1 for x in over)}/{len(w)}, failed on {sum(p is False for _, (*_, p), _ in w)}")
+        for (k, _, det), x in zip(w, over):
+            if x > 1:
+                print(f"  noise seed {k}: {x:.2f}× — {det}")
     Z = np.array([[np.nan if x is None else x for x in r["z"]] for r in rows], float)
     rms = np.sqrt(np.nanmean(Z**2, axis=0))
     E = np.array([r["error"] for r in rows], float)

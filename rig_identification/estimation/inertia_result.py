@@ -39,6 +39,10 @@ class FitSeries:
     # validation's sub-band and segment fits compensate with them too
     noise_jacobian: np.ndarray | None = None
     noise_residual: np.ndarray | None = None
+    # (6,6) kg⁴·m⁴, KEYS order: the fitted tensor's covariance from the sensors' noise alone
+    # (pipeline.refine_uncertainty's propagation, before any widening): the residual at the
+    # fitted tensor carries the estimate's own error, jacobian · δθ (the validation's whiteness null)
+    noise_covariance: np.ndarray | None = None
 
     @property
     def residual(self) -> np.ndarray:

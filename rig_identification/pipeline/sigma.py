@@ -129,6 +129,8 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
         cov = eiv.sensitivity @ cov @ eiv.sensitivity.T + np.diag(np.nan_to_num(eiv.correction_std) ** 2)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     result.crb_std = std.copy()
+    for s in result.series:   # the residual at the fitted tensor carries the estimate's error (validation)
+        s.noise_covariance = cov.copy()
     # the linearised propagation checked against the replays' own spread (their Birge ratio
     # over 6 × REPLAY_PAIRS degrees of freedom, confirmed over CONFIRM_PAIRS more where it is
     # significant): where the replays spread more, σ follows them —
