@@ -40,7 +40,8 @@ class FitSeries:
     noise_jacobian: np.ndarray | None = None
     noise_residual: np.ndarray | None = None
     # (6,6) kg⁴·m⁴, KEYS order: the fitted tensor's covariance from the sensors' noise alone
-    # (pipeline.refine_uncertainty's propagation, before any widening): the residual at the
+    # (pipeline.refine_uncertainty's propagation, widened to the replays' spread where they
+    # confirmed a wider one; not by a consistency check's Birge ratio): the residual at the
     # fitted tensor carries the estimate's own error, jacobian · δθ (the validation's whiteness null)
     noise_covariance: np.ndarray | None = None
 

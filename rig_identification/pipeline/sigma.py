@@ -129,8 +129,6 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
         cov = eiv.sensitivity @ cov @ eiv.sensitivity.T + np.diag(np.nan_to_num(eiv.correction_std) ** 2)
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     result.crb_std = std.copy()
-    for s in result.series:   # the residual at the fitted tensor carries the estimate's error (validation)
-        s.noise_covariance = cov.copy()
     # the linearised propagation checked against the replays' own spread (their Birge ratio
     # over 6 × REPLAY_PAIRS degrees of freedom, confirmed over CONFIRM_PAIRS more where it is
     # significant): where the replays spread more, σ follows them —
@@ -147,6 +145,8 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
         std = std * factor
         cov = cov * factor**2
         result.replay_factor = factor
+    for s in result.series:   # the residual at the fitted tensor carries the estimate's error (validation)
+        s.noise_covariance = cov.copy()
     # the residual over the one the noise leaves at the fitted tensor: the replays' residual
     # realisations (every path of the noise, the input's included) over the series' interior,
     # as the validation's residual_level measures it (one rule: a clean 180 s recording at 1 kHz
