@@ -47,13 +47,13 @@ cannot be trusted: the entries along it are not determined (validation's check
 Ixx +0.45 % (σ 2.5 %) after compensation; one of 0.47 left +13 % (σ 5.6 %)."""
 
 SHARE_CAP = 0.8
-LEAK_SHARE = 0.99   # attenuation_leak undoes at most this share: a direction whose input is all noise
-#                     (share ≥ 1 on near-parallel cables' roll and pitch) is undone 100×, which
-#                     reaches every entry the inverse couples to it and not Izz of a rig whose yaw
-#                     the cables determine
 """In the validation's sub-band and segment fits, a direction whose noise share exceeds this
 has its compensation capped at it (a short piece of the record can be mostly noise along a
 direction the whole record determines)."""
+LEAK_SHARE = 0.99
+""":func:`attenuation_leak` undoes at most this share: a direction whose input is all noise
+(share ≥ 1 on near-parallel cables' roll and pitch) is undone 100×, which reaches every entry
+the inverse couples to it and not Izz of a rig whose yaw the cables determine."""
 
 
 @dataclass(frozen=True)

@@ -96,7 +96,7 @@ from scipy.stats import chi2
 from .errors_in_variables import EIV_LIMIT
 from .spectral_wls import (determined, fitted_noise_level, interior, missed_noise, piece_noise, projector,
                            residual_excess, spectra, wald, wls_step, wls_step_joint)
-from .directions import ENTRY_AXES, weak_directions
+from .directions import AXIS_WORDS, ENTRY_AXES, weak_directions
 from .inertia_result import FitSeries, InertiaResult
 from ..io.export import MOMENTS
 from ..io.verdict import KEYS, Check, Validation, fmt_p
@@ -417,7 +417,7 @@ def identifiability(result: InertiaResult, std: np.ndarray, cov: np.ndarray | No
     big = float(scale[1])
     rel = std / np.maximum(scale, 1e-9 * big)
     # and a product of two axes is no better determined than the moments about them
-    axes = {"ixy": (0, 1), "ixz": (0, 2), "iyz": (1, 2)}
+    axes = {k: a for k, a in ENTRY_AXES.items() if len(a) == 2}
     if cov is None:
         with np.errstate(all="ignore"):
             c = np.sqrt(np.clip(np.diag(result.covariance), 1e-300, None))
@@ -466,8 +466,7 @@ def advice(bad: tuple[str, ...], rig=None) -> tuple[str, ...]:
         if len(rig.cables) == 3:
             out.append("with three cables one swing of the body is not held by the cable lengths; a fourth cable "
                        "helps")
-    axes = {"ixx": "x", "iyy": "y", "izz": "z"}
-    turn = [axes[k] for k in bad if k in axes]
+    turn = [AXIS_WORDS[ENTRY_AXES[k][0]][0] for k in bad if k in MOMENTS]
     if turn:
         out.append(f"the body hardly turned about {', '.join(turn)}: move the exciter farther from that axis or "
                    "turn its spin axis, raise the force or move its frequency nearer a mode that turns the body "
