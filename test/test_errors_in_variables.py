@@ -10,10 +10,10 @@ from scipy.signal import butter, lfilter, sosfiltfilt
 
 from rig_identification.estimation.errors_in_variables import (LEAK_SHARE, NoiseRealisations,
                                                     antithetic_realisations, attenuation_leak, capped,
-                                                    noise_share)
+                                                    noise_share, quadratic_forms, second_order_covariance)
 from rig_identification.estimation.identification import Segment, fit_segments
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import from_tensor, to_tensor
+from rig_identification.model.parametrisation import basis, from_tensor, to_tensor
 from rig_identification.model.experiment import load_experiment
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"
@@ -146,3 +146,51 @@ def test_attenuation_leak_recovers_the_bias_the_compensation_did_not_remove():
     assert np.all(leak != 0.0)
     # every direction all noise (share 1.2): undone at most to LEAK_SHARE, P / (1 − 0.99), so J / 100
     np.testing.assert_allclose(attenuation_leak(j_ls, A, 1.2 * A), -LEAK_SHARE * j_ls, rtol=1e-9)
+
+
+def test_second_order_covariance_is_the_spread_of_the_second_order_term():
+    """errors_in_variables.second_order_covariance, from three realisations of a correlated
+    closed-loop noise (the input an integrated, band-passed mix of the output's noise), against
+    the covariance of the normal equations' second-order term Σ_n ΔX_nᵀ W (Δy_n − P Δu_n) over
+    600 draws: the estimate's mean over 100 independent sets within 15 % on every entry's
+    variance (the empirical one itself ±6 %), their correlations within 0.15; one set's
+    estimate scatters (a few frequencies carry the input noise) but not by a factor."""
+    rng = np.random.default_rng(5)
+    n = 4000
+    mix = rng.standard_normal((6, 6))
+    sos = butter(2, [0.3, 3.0], btype="bandpass", fs=FS, output="sos")
+
+    def draw(m):
+        x = rng.standard_normal((m, n, 6)) @ mix.T
+        du = sosfiltfilt(sos, np.cumsum(x[..., :3], axis=1) * 0.05, axis=1)
+        dy = sosfiltfilt(sos, x[..., 3:] + 0.3 * x[..., :3], axis=1)
+        return du, dy
+
+    P = np.linalg.inv(J_TRUE / 1000.0)
+    w = np.array([1.0, 2.0, 0.5])
+    H = quadratic_forms(basis(), w, P)
+    # the quadratic forms are the normal equations' term: zᵀ H_k z = (ΔXᵀ W (Δy − P Δu))_k
+    du, dy = draw(1)
+    z = np.concatenate([du, dy], axis=2)[0]
+    dX = np.einsum("kij,nj->nik", basis(), du[0])
+    np.testing.assert_allclose(np.einsum("na,kab,nb->k", z, H, z),
+                               np.einsum("nik,i,ni->k", dX, w, dy[0] - du[0] @ P.T), rtol=1e-10)
+    q, est = [], []
+    for _ in range(100):
+        du, dy = draw(6)
+        z = np.concatenate([du, dy], axis=2)
+        q.extend(np.einsum("mna,kab,mnb->mk", z, H, z))
+        est.append(second_order_covariance([NoiseRealisations(du[:3], dy[:3])], w, P))
+    emp = np.cov(np.array(q).T)
+    est = np.array(est)
+    mean = est.mean(0)
+    ratio = np.diag(mean) / np.diag(emp)
+    assert np.all((ratio > 0.85) & (ratio < 1.15)), ratio
+
+    def corr(C):
+        d = np.sqrt(np.diag(C))
+        return C / np.outer(d, d)
+
+    np.testing.assert_allclose(corr(mean), corr(emp), atol=0.15)
+    one = est[:, range(6), range(6)] / np.diag(emp)
+    assert np.all(np.median(one, axis=0) > 0.6) and np.all(np.median(one, axis=0) < 1.4), np.median(one, axis=0)

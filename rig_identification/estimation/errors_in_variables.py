@@ -46,6 +46,14 @@ cannot be trusted: the entries along it are not determined (validation's check
 ``errors_in_variables``).  On the random rigs of bench_noise_paths: a share of 0.29 left
 Ixx +0.45 % (σ 2.5 %) after compensation; one of 0.47 left +13 % (σ 5.6 %)."""
 
+SPECTRUM_BINS = 4
+"""Frequency bins over which :func:`second_order_covariance` averages the realisations'
+cross-spectra: with K realisations the estimate has K × this many complex degrees of
+freedom, and its own positive bias, 1/(degrees of freedom), is removed.  Wider groups average
+away the peak of the input noise's spectrum at the band's low edge: on test_errors_in_variables'
+closed loop (20 s), 8 bins gave the variances 0.80–0.89 of the Monte Carlo's, 4 bins
+0.96–1.03, 1 bin 0.91–0.98 (the bias correction's Wishart moments then too coarse)."""
+
 SHARE_CAP = 0.8
 """In the validation's sub-band and segment fits, a direction whose noise share exceeds this
 has its compensation capped at it (a short piece of the record can be mostly noise along a
@@ -125,6 +133,60 @@ def noise_moments(E: np.ndarray, noise: NoiseRealisations, weights: np.ndarray) 
     return NoiseMoments(np.einsum("knip,i,kniq->kpq", dX, w, dX), np.einsum("knip,i,kni->kp", dX, w, noise.dy))
 
 
+def quadratic_forms(E: np.ndarray, weights: np.ndarray, P: np.ndarray) -> np.ndarray:
+    """(6,6,6) symmetric matrices H_k with ``g_k = zᵀ H_k z`` for z = (Δu, Δy) (6,), where
+    g = ΔXᵀ W (Δy − P Δu) (6,) is one sample's second-order term of the fit's normal equations
+    (ΔX the regressor's noise, :func:`regressor`; W = diag(weights) (3,); P (3,3) J⁻¹ in
+    1/(kg·m²); E the basis (6,3,3))."""
+    w = np.asarray(weights, float)
+    alpha = np.zeros((6, 3, 6))                        # (k, i, z): (E_k Δu)_i as a row on z
+    alpha[:, :, :3] = E
+    beta = np.concatenate([-np.asarray(P, float), np.eye(3)], axis=1)      # (i, z): (Δy − P Δu)_i
+    B = np.einsum("i,kia,ib->kab", w, alpha, beta)
+    return 0.5 * (B + np.transpose(B, (0, 2, 1)))
+
+
+def second_order_covariance(noise: list[NoiseRealisations], weights: np.ndarray, P: np.ndarray,
+                            bins: int = SPECTRUM_BINS) -> np.ndarray:
+    """(6,6) covariance of the second-order noise term of the fit's normal equations,
+    ``Σ_n ΔX_nᵀ W (Δy_n − P Δu_n)`` summed over the segments (units of b: (N·m·s)·(rad/s)/σ²).
+
+    Its mean is what the compensation removes (:func:`compensate`); its realisation-to-
+    realisation spread is not: the recording's own noise makes one realisation of it, which
+    moves the compensated estimate by (A − N)⁻¹ times its deviation from the mean.  Where the
+    noise is a sizeable share of the input this is of the order of the first-order σ (bench_any_rig's
+    rig 28026, share 0.36: sd 39 kg·m² on Ixx of the least-squares fit's even part over 16
+    noise draws, against a propagated σ of 34.5; ``bench_validation_null.py --first-order``).
+
+    With z_n = (Δu_n, Δy_n) jointly Gaussian and stationary, each entry is a quadratic form
+    Σ_n z_nᵀ H_k z_n (:func:`quadratic_forms`) and (Isserlis; in the frequency domain, the
+    Fourier coefficients Z_f of distinct bins independent, circular Gaussian)
+
+        Cov(Q_k, Q_l) = (4 / N²) Σ_{f > 0} tr(H_k S_f H_l S_f),   S_f = E[Z_f Z_fᴴ].
+
+    S_f is estimated from the K realisations (:class:`NoiseRealisations`, each segment's),
+    averaged over groups of ``bins`` neighbouring bins; the estimate's bias (1/ν) tr(H_k S) tr(H_l S)
+    (ν = K·bins complex degrees of freedom, complex Wishart moments) is subtracted.
+    noise: one realisation set per segment; weights (3,) the fit's per-axis weights 1/σ²;
+    P (3,3) J⁻¹ at the estimate.  Raises ValueError for fewer than one realisation."""
+    H = quadratic_forms(basis(), weights, P)
+    V = np.zeros((6, 6))
+    for nz in noise:
+        z = np.concatenate([nz.du, nz.dy], axis=2)                  # (K, N, 6)
+        K, N = z.shape[:2]
+        if K < 1 or N < 2 * bins:
+            raise ValueError(f"second-order covariance: {K} realisations of {N} samples are too few")
+        Z = np.fft.rfft(z, axis=1)[:, 1:(N + 1) // 2]                # f > 0, Nyquist left out
+        G = Z.shape[1] // bins
+        Z = Z[:, :G * bins].reshape(K, G, bins, 6)
+        S = np.einsum("kgfa,kgfb->gab", Z, Z.conj()) / (K * bins)    # (G,6,6) Hermitian, per group of bins
+        HS = np.einsum("kab,gbc->kgac", H, S)                         # H_k S_g
+        trace = np.einsum("kgaa->kg", HS).real                        # tr(H_k S_g)
+        quad = bins * (np.einsum("kgac,lgca->kl", HS, HS).real - trace @ trace.T / (K * bins))
+        V += 4.0 / N**2 * quad
+    return 0.5 * (V + V.T)
+
+
 def _shares(A: np.ndarray, N: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The generalized eigenproblem N v = λ A v through A's Cholesky factor L (A = L Lᵀ):
     (L, λ ascending (p,), W (p,p)) with the directions v = L⁻ᵀ W — each λ the share of its
@@ -177,7 +239,11 @@ class Compensation:
     compensated estimate); count: the realisations used; applied: False when the fit could
     not be compensated (the least-squares estimate kept, :func:`compensate`); leak (6,) kg·m²,
     only when not applied: the correction the compensation would have made
-    (:func:`attenuation_leak`), how far the least-squares bias may reach every entry."""
+    (:func:`attenuation_leak`), how far the least-squares bias may reach every entry;
+    second_order (6,6) kg²·m⁴, only when applied: the covariance of the compensated entries
+    that the recording's own realisation of the second-order noise term causes
+    (:func:`second_order_covariance` through (A − N)⁻¹ and δJ = −J δP J) — the compensation
+    removes that term's mean, not its spread."""
 
     share: float
     direction: np.ndarray
@@ -187,6 +253,7 @@ class Compensation:
     count: int
     applied: bool = True
     leak: np.ndarray | None = None
+    second_order: np.ndarray | None = None
 
 
 def _inverse_entries(j: np.ndarray) -> np.ndarray:
@@ -303,13 +370,17 @@ def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRe
         Jl, Jc = to_tensor(j_ls), to_tensor(jc)
         Pl = np.linalg.inv(Jl)
         G = np.array([from_tensor(-Jc @ to_tensor(M @ from_tensor(-Pl @ Ek @ Pl)) @ Jc) for Ek in E]).T
+        # the recording's own second-order noise term about its mean: δp = (A − N)⁻¹ δg
+        Ai = np.linalg.inv(A - N)
+        D = np.array([from_tensor(-Jc @ Ek @ Jc) for Ek in E]).T
+        C2 = D @ Ai @ second_order_covariance(noise, w, np.linalg.inv(Jc)) @ Ai @ D.T
     except np.linalg.LinAlgError:
         # a realisation left out (the jackknife) or the gyroscopic term re-evaluated can leave the
         # corrected information indefinite: the noise is too large a share to compensate
         return kept("the corrected normal equations are not positive definite")
-    if not (np.all(np.isfinite(jc)) and np.all(np.isfinite(G))):
+    if not (np.all(np.isfinite(jc)) and np.all(np.isfinite(G)) and np.all(np.isfinite(C2))):
         return kept("the compensated fit is not finite")
-    return jc, Compensation(share, direction, jc - j_ls, cstd, G, K), []
+    return jc, Compensation(share, direction, jc - j_ls, cstd, G, K, second_order=0.5 * (C2 + C2.T)), []
 
 
 def _direction_entries(j: np.ndarray, v: np.ndarray) -> np.ndarray:

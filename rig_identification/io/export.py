@@ -217,6 +217,7 @@ UNITS = {
     "inertia_crb_std": "kg·m²", "inertia_sandwich_std": "kg·m²", "bias_correction": "kg·m²: the least-squares estimate's bias removed",
     "errors_in_variables.noise_share": "1: share of the fit's input that is noise, along its noisiest direction",
     "errors_in_variables.direction": "1: unit vector of tensor entries", "errors_in_variables.correction_std": "kg·m²",
+    "errors_in_variables.second_order_std": "kg·m²",
     "products_of_inertia": "kg·m², body axes, vehicle-dynamics sign (Ixy = −ixy)",
     "principal_moments": "kg·m², ascending", "principal_axes": "1: unit vectors, body axes, one per principal moment",
     "correlation": "1", "weakly_determined.relative_std": "1: σ over tr J / 3", "weakly_determined.std": "kg·m²",

@@ -125,8 +125,11 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     eiv = result.errors_in_variables
     if eiv is not None and result.bias_applied:
         # the same noise moves the compensated estimate by G times the least-squares one; the
-        # finite number of realisations adds the jackknife σ of the correction
+        # finite number of realisations adds the jackknife σ of the correction, and the
+        # recording's own second-order noise term its spread about the mean removed
         cov = eiv.sensitivity @ cov @ eiv.sensitivity.T + np.diag(np.nan_to_num(eiv.correction_std) ** 2)
+        if eiv.second_order is not None:
+            cov = cov + eiv.second_order
     std = np.sqrt(np.clip(np.diag(cov), 0.0, None))
     result.crb_std = std.copy()
     # the linearised propagation checked against the replays' own spread (their Birge ratio
