@@ -264,6 +264,7 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
             dyh = nz.du @ P.T                                         # (K,N,3) P Δu
             ser.noise_jacobian = -np.einsum("ij,knjq->kniq", P, np.einsum("qjl,knl->knjq", E, dyh))
             ser.noise_residual = nz.dy - dyh
+            ser.noise_predicted = dyh
     return res
 
 

@@ -34,11 +34,13 @@ class FitSeries:
     jacobian: np.ndarray | None = None
     axis_scale: np.ndarray | None = None
     fs: float | None = None
-    # first-order noise realisations of the Jacobian (K,N,3,6) and of the residual (K,N,3) at
-    # the fitted tensor (:mod:`rig_identification.estimation.errors_in_variables`), when the fit was compensated: the
-    # validation's sub-band and segment fits compensate with them too
+    # first-order noise realisations of the Jacobian (K,N,3,6), of the residual (K,N,3) and of
+    # the prediction (K,N,3) at the fitted tensor (:mod:`rig_identification.estimation.errors_in_variables`), when the
+    # fit was compensated: the validation's sub-band, segment and input-correlation fits
+    # compensate with them too
     noise_jacobian: np.ndarray | None = None
     noise_residual: np.ndarray | None = None
+    noise_predicted: np.ndarray | None = None
     # (6,6) kg⁴·m⁴, KEYS order: the fitted tensor's covariance from the sensors' noise alone
     # (pipeline.refine_uncertainty's propagation, widened to the replays' spread where they
     # confirmed a wider one; not by a consistency check's Birge ratio): the residual at the

@@ -47,6 +47,7 @@ class Spectra:
     S: np.ndarray
     dA: np.ndarray | None = None     # (K,B,3,6) the noise realisations of A (FitSeries.noise_jacobian)
     dr: np.ndarray | None = None     # (K,B,3) and of r (FitSeries.noise_residual)
+    dy: np.ndarray | None = None     # (K,B,3) and of y (FitSeries.noise_predicted)
     dof: int | None = None           # degrees of freedom of S when it is the realisations' (else None: the median's)
 
 
@@ -83,11 +84,13 @@ def spectra(series: FitSeries, rows: slice | None = None) -> Spectra:
     m = (f >= lo) & (f <= hi)
     R = np.fft.rfft(r, axis=0)[m]
     P = np.abs(R) ** 2
-    dA = dr = None
+    dA = dr = dy = None
     dof = None
     if series.noise_jacobian is not None and series.noise_residual is not None:
         dA = np.fft.rfft(series.noise_jacobian[:, rows], axis=1)[:, m]
         dr = np.fft.rfft(series.noise_residual[:, rows], axis=1)[:, m]
+        if series.noise_predicted is not None:
+            dy = np.fft.rfft(series.noise_predicted[:, rows], axis=1)[:, m]
         # the noise's own spectrum: the realisations' periodograms, averaged over them and
         # NOISE_BINS neighbouring bins (2·K·NOISE_BINS degrees of freedom per bin)
         S = uniform_filter1d(np.mean(np.abs(dr) ** 2, axis=0), NOISE_BINS, axis=0, mode="nearest")
@@ -96,7 +99,7 @@ def spectra(series: FitSeries, rows: slice | None = None) -> Spectra:
         width = max(5, int(round(SMOOTH_HZ * n / fs)) | 1)
         S = median_filter(P, size=(width, 1), mode="nearest") / np.log(2)
     S = np.maximum(S, 1e-12 * max(float(S.max()), 1e-300))
-    return Spectra(f[m], R, np.fft.rfft(A, axis=0)[m], np.fft.rfft(y, axis=0)[m], S, dA, dr, dof)
+    return Spectra(f[m], R, np.fft.rfft(A, axis=0)[m], np.fft.rfft(y, axis=0)[m], S, dA, dr, dy, dof)
 
 
 def fitted_noise_level(sp: Spectra, covariance: np.ndarray) -> np.ndarray:
@@ -183,8 +186,11 @@ def missed_noise(series: list[FitSeries], cov: np.ndarray | None) -> np.ndarray:
     return (U * np.clip(ev, 0.0, None)) @ U.T
 
 
-def normal_equations(sps: list[Spectra], bins: list | None, extras: list | None, moments: list | None):
-    """The Whittle-weighted normal equations pooled over ``sps`` (see :func:`wls_step_joint`):
+def normal_equations(sps: list[Spectra], bins: list | None, extras: list | None, moments: list | None,
+                     extras_noise: list | None = None):
+    """The Whittle-weighted normal equations pooled over ``sps`` (see :func:`wls_step_joint`;
+    extras_noise: per spectra the noise realisations (K,B,3,q) of its extra regressors, or None
+    for noise-free ones):
     info (p,p), g (p,), the noise moments per realisation Nk (K,p,p), nk (K,p), and Cq (p,p)
     the covariance of the gradient's noise × noise term (the sample covariance over the
     realisations, bin by bin, summed: the bins are independent) — 0.0 when the spectra carry
@@ -195,7 +201,9 @@ def normal_equations(sps: list[Spectra], bins: list | None, extras: list | None,
         r, S = sp.r, sp.S
         dA, dr = sp.dA, sp.dr
         if dA is not None and extras is not None:
-            dA = np.concatenate([dA, np.zeros(dA.shape[:3] + (extras[i].shape[2],), complex)], axis=3)
+            dX = np.zeros(dA.shape[:3] + (extras[i].shape[2],), complex) \
+                if extras_noise is None or extras_noise[i] is None else extras_noise[i]
+            dA = np.concatenate([dA, dX], axis=3)
         if bins is not None:
             A, r, S = A[bins[i]], r[bins[i]], S[bins[i]]
             if dA is not None:
@@ -217,20 +225,21 @@ def normal_equations(sps: list[Spectra], bins: list | None, extras: list | None,
 
 
 def wls_step_joint(sps: list[Spectra], bins: list | None = None, extras: list | None = None,
-                   moments: list | None = None):
+                   moments: list | None = None, extras_noise: list | None = None):
     """:func:`wls_step` pooled over several segments' spectra (one tensor).
 
     When the spectra carry the noise realisations of the fit (``dA``, ``dr``: a fit
     compensated for the noise in its input, :mod:`rig_identification.estimation.errors_in_variables`), the step is
     compensated the same way: the realisations' mean second moments are removed from the
-    information and the gradient (the extra regressors are taken as noise-free), each
+    information and the gradient (the extra regressors noise-free unless ``extras_noise``
+    gives their realisations, per spectra (K,B,3,q)), each
     direction's share capped at :data:`~rig_identification.estimation.errors_in_variables.SHARE_CAP`; the covariance is
     then the sandwich I_c⁻¹ (½ I + C_q) I_c⁻¹ (C_q: the fluctuation of the noise × noise term
     of the gradient about its removed mean, :func:`normal_equations`) plus the jackknife covariance of the step over the
     realisations (their finite number makes the compensation uncertain).  moments: per
     spectra, the noise moments (N (K,p,p), n (K,p)) to use instead of its own realisations'
     (:func:`piece_noise`), or None for them."""
-    info, g, Nk, nk, Cq = normal_equations(sps, bins, extras, moments)
+    info, g, Nk, nk, Cq = normal_equations(sps, bins, extras, moments, extras_noise)
     if np.ndim(Nk):
         try:
             def solve(keep):

@@ -246,14 +246,17 @@ def quadrature_check(series: list[FitSeries]) -> Check:
     (:func:`hausman`): the check then fails only when adding the quadrature regressors moves
     the tensor beyond its failure threshold, and its statistic is that test's."""
     sps = [spectra(s) for s in series]
-    extras = []
-    for sp in sps:
-        Q = -1j * sp.y                                   # Hilbert transform, positive frequencies
-        X = np.zeros(sp.r.shape + (9,), complex)
+
+    def quadrature(y):                                   # (…,B,3) → (…,B,3,9)
+        X = np.zeros(y.shape + (9,), complex)
         for a in range(3):
-            X[:, a, 3 * a:3 * a + 3] = Q
-        extras.append(X)
-    step, cov = wls_step_joint(sps, extras=extras)
+            X[..., a, 3 * a:3 * a + 3] = -1j * y         # Hilbert transform, positive frequencies
+        return X
+
+    extras = [quadrature(sp.y) for sp in sps]
+    # the predicted ω carries the input's noise: the regressors' realisations (a compensated fit)
+    noisy = [None if sp.dy is None else quadrature(sp.dy) for sp in sps]
+    step, cov = wls_step_joint(sps, extras=extras, extras_noise=noisy)
     beta, V = step[6:], cov[6:, 6:]
     stat, dof = wald(beta, V)
     B = beta.reshape(3, 3)
