@@ -14,8 +14,9 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
+from ..io.export import NOT_DETERMINED   # an entry the recording does not determine (verdict not_identifiable)
+
 MISSING = "—"                       # a number that does not exist (no truth, no CRB, …)
-NOT_DETERMINED = "not determined"   # an entry the recording does not determine (verdict not_identifiable)
 
 GENERATOR = '<meta name="generator" content="rig-identify report">'
 

@@ -24,18 +24,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..io.export import SYMBOL, Expressed
+from ..io.export import MOMENTS, SYMBOL, VEHICLE_SIGN as SIGN, Expressed
 from ..estimation.inertia_result import InertiaResult
 from ..io.verdict import KEYS
 from ..model.parametrisation import from_tensor
 from ..pipeline.offline import compare_to_truth
 from .html import MISSING, NOT_DETERMINED, Cell, esc, finite, num, table
 
-SIGN = np.array([1.0, -1.0, -1.0, 1.0, -1.0, 1.0])   # KEYS order: tensor entry -> moment / product of inertia
 ORDER = (0, 3, 5, 1, 2, 4)                           # display order: Ixx, Iyy, Izz, Ixy, Ixz, Iyz
 MEANING = {"ixx": "roll moment", "iyy": "pitch moment", "izz": "yaw moment",
            "ixy": "product, x–y", "ixz": "product, x–z", "iyz": "product, y–z"}
-MOMENTS = ("ixx", "iyy", "izz")
 
 CONVENTION = ("Body axes of rig.yaml (REP-103: x forward, y left, z up); SI units. Products of inertia as vehicle "
               "dynamics uses them (SAE J670 / ISO 8855): Ixy = ∫xy dm, Ixz = ∫xz dm, Iyz = ∫yz dm. The inertia "
