@@ -168,21 +168,23 @@ def second_order_covariance(noise: list[NoiseRealisations], weights: np.ndarray,
     averaged over groups of ``bins`` neighbouring bins; the estimate's bias (1/ν) tr(H_k S) tr(H_l S)
     (ν = K·bins complex degrees of freedom, complex Wishart moments) is subtracted.
     noise: one realisation set per segment; weights (3,) the fit's per-axis weights 1/σ²;
-    P (3,3) J⁻¹ at the estimate.  Raises ValueError for fewer than one realisation."""
+    P (3,3) J⁻¹ at the estimate.  Raises ValueError for no realisation or a segment of fewer
+    than 3 samples."""
     H = quadratic_forms(basis(), weights, P)
     V = np.zeros((6, 6))
     for nz in noise:
         z = np.concatenate([nz.du, nz.dy], axis=2)                  # (K, N, 6)
         K, N = z.shape[:2]
-        if K < 1 or N < 2 * bins:
-            raise ValueError(f"second-order covariance: {K} realisations of {N} samples are too few")
         Z = np.fft.rfft(z, axis=1)[:, 1:(N + 1) // 2]                # f > 0, Nyquist left out
-        G = Z.shape[1] // bins
-        Z = Z[:, :G * bins].reshape(K, G, bins, 6)
-        S = np.einsum("kgfa,kgfb->gab", Z, Z.conj()) / (K * bins)    # (G,6,6) Hermitian, per group of bins
+        if K < 1 or Z.shape[1] < 1:
+            raise ValueError(f"second-order covariance: {K} realisations of {N} samples are too few")
+        b = min(bins, Z.shape[1])
+        G = Z.shape[1] // b
+        Z = Z[:, :G * b].reshape(K, G, b, 6)
+        S = np.einsum("kgfa,kgfb->gab", Z, Z.conj()) / (K * b)       # (G,6,6) Hermitian, per group of bins
         HS = np.einsum("kab,gbc->kgac", H, S)                         # H_k S_g
         trace = np.einsum("kgaa->kg", HS).real                        # tr(H_k S_g)
-        quad = bins * (np.einsum("kgac,lgca->kl", HS, HS).real - trace @ trace.T / (K * bins))
+        quad = b * (np.einsum("kgac,lgca->kl", HS, HS).real - trace @ trace.T / (K * b))
         V += 4.0 / N**2 * quad
     return 0.5 * (V + V.T)
 
