@@ -17,7 +17,7 @@ from rig_identification.design.scenarios import CABLE_STIFFNESS, simulate_random
 from rig_identification.statics import estimate_cg
 
 from conftest import background, gather
-from test_cg_cables import static_pair
+from synthetic import static_pair
 
 
 def _identified(cables: int, seed: int):

@@ -9,25 +9,9 @@ validation passes.
 import numpy as np
 import pytest
 
-from rig_identification.design.scenarios import random_experiment
-from rig_identification.model.experiment import experiment_from_dict
-from rig_identification.model.simulator import simulate
-from rig_identification.statics import CgOptions, StaticState, estimate_cg
+from rig_identification.statics import CgOptions, estimate_cg
 
-
-def static_pair(seed: int, cables: int, layout: str = "wide"):
-    """(rig, baseline StaticState, dummy StaticState, true CG): a 50 kg dummy 0.3 m below the
-    first body anchor (a corner of the carrying frame's top); ``layout`` as
-    scenarios.random_experiment's."""
-    d = random_experiment(seed, cables, layout, duration=10.0)
-    b = np.array([c["body_anchor"] for c in d["rig"]["cables"]])
-    d["rig"]["dummy_mass"] = {"mass": 50.0, "position": (b[0] + [0.0, 0.0, -0.3]).tolist()}
-    states = []
-    for kind in ("baseline", "dummy"):
-        d["static"] = {"kind": kind, "duration": 10.0}
-        sim = simulate(experiment_from_dict(d, d["name"]))
-        states.append(StaticState.from_window(sim.sensors, label=kind))
-    return sim.rig, states[0], states[1], np.array(d["rig"]["body"]["center_of_gravity"], float)
+from synthetic import static_pair
 
 
 @pytest.mark.parametrize("cables, seed", [(3, 1), (5, 2), (6, 2)], ids=["3_cables", "5_cables", "6_cables"])

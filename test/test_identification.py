@@ -2,19 +2,13 @@
 calibrated standard deviations."""
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 
 from rig_identification.estimation.identification import identify_inertia
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import (consistent_from_params, from_tensor, params_from_consistent,
                                                       physically_consistent, to_tensor)
-from rig_identification.io.rig import rig_from_dict
 
-RIG = rig_from_dict({"gravity": 9.80665, "cables": [
-    {"name": f"c{i}", "ceiling_anchor": [x, y, 0.0], "body_anchor": [x / 2, y / 2, 1.0], "length": 2.0}
-    for i, (x, y) in enumerate([(-2, -2), (2, -2), (-2, 2), (2, 2)])],
-    "body": {"mass": 1000.0, "center_of_gravity": [0.0, 0.0, 0.0]}, "imu": {"position": [0, 0, 0]}})
-J_TRUE = np.array([[900.0, -15.0, 40.0], [-15.0, 2500.0, 25.0], [40.0, 25.0, 2800.0]])
+from synthetic import J_TRUE, RIG, euler_data
 
 
 def test_parametrisation_round_trip_and_consistency():
@@ -32,23 +26,6 @@ def test_parametrisation_round_trip_and_consistency():
     bad = np.diag([100.0, 100.0, 300.0])
     assert not physically_consistent(bad)
     assert physically_consistent(to_tensor(consistent_from_params(params_from_consistent(bad))[0]))
-
-
-def euler_data(noise=0.0, seed=0, T=120.0, fs=200.0):
-    """Free rigid body driven by a known moment: J w' + w x Jw = M (exact ODE solution)."""
-    t = np.arange(0, T, 1 / fs)
-    f = np.array([0.9, 1.3, 1.7])
-
-    def moment(tt):
-        return 300 * np.array([np.sin(2 * np.pi * f[0] * tt), np.cos(2 * np.pi * f[1] * tt + 0.3),
-                               np.sin(2 * np.pi * f[2] * tt + 1.0)])
-
-    Jinv = np.linalg.inv(J_TRUE)
-    sol = solve_ivp(lambda tt, w: Jinv @ (moment(tt) - np.cross(w, J_TRUE @ w)), (0, T), [0.05, -0.02, 0.03],
-                    t_eval=t, rtol=1e-11, atol=1e-13, method="DOP853")
-    w = sol.y.T
-    rng = np.random.default_rng(seed)
-    return t, w + noise * rng.standard_normal(w.shape), moment(t).T
 
 
 def test_exact_on_noise_free_euler_dynamics():

@@ -25,7 +25,7 @@ import yaml
 rclpy = pytest.importorskip("rclpy")
 
 from conftest import recording  # noqa: E402
-from test_nodes import Listener, wait_until  # noqa: E402
+from ros_helpers import Listener, wait_until  # noqa: E402
 
 from rig_identification.statics.handover import cg_result_from_dict, load_cg_result, rig_with_cg_text  # noqa: E402
 from rig_identification.nodes.qos import LATCHED_QOS  # noqa: E402

@@ -25,7 +25,7 @@ import yaml
 
 rclpy = pytest.importorskip("rclpy")
 
-from test_nodes import Listener, wait_until  # noqa: E402
+from ros_helpers import Listener, wait_until  # noqa: E402
 
 from rig_identification.nodes import codec  # noqa: E402
 from rig_identification.nodes.diagnostics import diagnostic_values  # noqa: E402

@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 
 rclpy = pytest.importorskip("rclpy")
 
-from test_nodes import Listener, wait_until  # noqa: E402
+from ros_helpers import Listener, wait_until  # noqa: E402
 
 from rig_identification.nodes.messages import set_stamp, set_xyz, stamp_to_sec  # noqa: E402
 from rig_identification.nodes.qos import LATCHED_QOS, SENSOR_QOS  # noqa: E402

@@ -22,7 +22,7 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
-from test_nodes import Listener, wait_until  # noqa: E402
+from ros_helpers import Listener, wait_until  # noqa: E402
 
 from rig_identification.nodes.topics import EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX  # noqa: E402
 from rig_identification.nodes.demo import Graph  # noqa: E402

@@ -31,7 +31,7 @@ from rig_identification.io.verdict import KEYS, Check, Validation
 from rig_identification.report.verdict import headline
 
 from conftest import background, gather, recording, run_cli
-from test_identification import RIG, euler_data
+from synthetic import RIG, euler_data
 
 CHROMIUM = os.environ.get("RIG_CHROMIUM", "/usr/bin/chromium")
 SYMBOL = {"ixx": "Ixx", "iyy": "Iyy", "izz": "Izz", "ixy": "Ixy", "ixz": "Ixz", "iyz": "Iyz"}
