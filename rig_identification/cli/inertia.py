@@ -137,11 +137,10 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
               + ("the least-squares bias it causes, removed (kg·m², tensor entries): " if result.bias_applied else
                  "too large to compensate; the least-squares bias NOT removed: ")
               + entries_line(dict(zip(KEYS, result.bias_correction)), spec="+.3g"))
-        if eiv.second_order is not None:
-            s2 = np.sqrt(np.clip(np.diag(eiv.second_order), 0.0, None))
-            if np.any(s2 > 0.3 * np.asarray(result.inertia_std, float)):
-                print("σ holds the spread of that noise's second-order term, which the removal leaves (kg·m²): "
-                      + entries_line(dict(zip(KEYS, s2)), spec=".3g"))
+        s2 = eiv.second_order_std
+        if s2 is not None and np.any(s2 > 0.3 * np.asarray(result.inertia_std, float)):
+            print("σ holds the spread of that noise's second-order term, which the removal leaves (kg·m²): "
+                  + entries_line(dict(zip(KEYS, s2)), spec=".3g"))
     if result.validation is not None:
         for c in result.validation.checks:
             mark = "pass" if c.passed else ("FAIL" if c.passed is False else "n/a ")

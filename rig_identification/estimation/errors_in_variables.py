@@ -257,9 +257,22 @@ class Compensation:
     leak: np.ndarray | None = None
     second_order: np.ndarray | None = None
 
+    @property
+    def second_order_std(self) -> np.ndarray | None:
+        """(6,) kg·m²: the σ per entry of :attr:`second_order`, or None without it."""
+        if self.second_order is None:
+            return None
+        return np.sqrt(np.clip(np.diag(self.second_order), 0.0, None))
+
 
 def _inverse_entries(j: np.ndarray) -> np.ndarray:
     return from_tensor(np.linalg.inv(to_tensor(j)))
+
+
+def _inversion_jacobian(inverse: np.ndarray) -> np.ndarray:
+    """(6,6) d(entries of X⁻¹) / d(entries of X) at the point whose inverse is ``inverse`` (3,3):
+    columns from_tensor(−X⁻¹ E_k X⁻¹) (δ(X⁻¹) = −X⁻¹ δX X⁻¹)."""
+    return np.array([from_tensor(-inverse @ Ek @ inverse) for Ek in basis()]).T
 
 
 def attenuation_leak(j: np.ndarray, A: np.ndarray, N: np.ndarray) -> np.ndarray:
@@ -325,9 +338,7 @@ def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRe
 
         def jac(th):
             jj, dj = consistent_from_params(th)
-            P = np.linalg.inv(to_tensor(jj))
-            dp = np.array([from_tensor(-P @ to_tensor(dj[:, k]) @ P) for k in range(6)]).T
-            return CT @ dp
+            return CT @ _inversion_jacobian(np.linalg.inv(to_tensor(jj))) @ dj
 
         sol = least_squares(fun, params_from_consistent(to_tensor(start)), jac=jac, method="lm",
                             xtol=1e-12, ftol=1e-12)
@@ -369,12 +380,11 @@ def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRe
             cstd = np.full(6, np.nan)
         # first order: the same noise moves p_ls by A⁻¹δb and p_c by (A − N)⁻¹δb
         M = np.linalg.solve(A - N, A)
-        Jl, Jc = to_tensor(j_ls), to_tensor(jc)
-        Pl = np.linalg.inv(Jl)
-        G = np.array([from_tensor(-Jc @ to_tensor(M @ from_tensor(-Pl @ Ek @ Pl)) @ Jc) for Ek in E]).T
+        Jc = to_tensor(jc)
+        D = _inversion_jacobian(Jc)                    # δj = D δp at the compensated tensor
+        G = D @ M @ _inversion_jacobian(np.linalg.inv(to_tensor(j_ls)))
         # the recording's own second-order noise term about its mean: δp = (A − N)⁻¹ δg
         Ai = np.linalg.inv(A - N)
-        D = np.array([from_tensor(-Jc @ Ek @ Jc) for Ek in E]).T
         C2 = D @ Ai @ second_order_covariance(noise, w, np.linalg.inv(Jc)) @ Ai @ D.T
     except np.linalg.LinAlgError:
         # a realisation left out (the jackknife) or the gyroscopic term re-evaluated can leave the

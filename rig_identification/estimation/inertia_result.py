@@ -223,8 +223,7 @@ class InertiaResult:
                 "noise_share": num(self.errors_in_variables.share),
                 "direction": {k: num(x) for k, x in zip(KEYS, self.errors_in_variables.direction)},
                 "correction_std": per_key(self.errors_in_variables.correction_std),
-                "second_order_std": None if self.errors_in_variables.second_order is None else
-                per_key(np.sqrt(np.clip(np.diag(self.errors_in_variables.second_order), 0.0, None))),
+                "second_order_std": per_key(self.errors_in_variables.second_order_std),
                 "realisations": int(self.errors_in_variables.count)},
             "replay_sigma_factor": num(self.replay_factor),
             "sensor_noise": None if self.sensor_noise is None else {k: num(v) for k, v in self.sensor_noise.items()},
