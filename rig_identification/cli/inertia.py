@@ -25,6 +25,7 @@ from ..io.atomic import atomic_write_text
 from ..statics.handover import load_cg_result
 from .main import version
 from .progress import heading, step, warn
+from .rig_model import cmd_rig_model
 from .text import (effect_text, entries_line, fmt, origin_line, principal_lines, products_line, tensor_table)
 from ..io.export import AXES, axes_block, convention_lines, entries_from_option, export_dict, sign_in, \
     urdf_inertial, yaml_text
@@ -200,6 +201,9 @@ def output_axes(option: str | None, recs: list) -> tuple[str, str | None]:
 def check_options(args) -> None:
     """Refuse option combinations that cannot run, before reading any bag."""
     paths = args.recording
+    if args.model == "rig" and (len(paths) > 1 or args.report):
+        raise IdentificationError("--model rig fits one recording and writes no report yet: give one RECORDING, "
+                                  "without --report")
     if len(paths) > 1:
         if args.model != "pem":
             raise IdentificationError("--model thesis fits one recording at a time: give one RECORDING "
@@ -236,6 +240,8 @@ def cmd_inertia(args) -> int:
     """``rig-identify inertia``; returns the exit status (user errors raise, see cli.user_errors)."""
     check_options(args)
     recs = read_all(args.recording)
+    if args.model == "rig":
+        return cmd_rig_model(args, recs[0])
     cg_source = "rig.yaml body.center_of_gravity"
     cg_note = None
     if args.cg:

@@ -112,8 +112,10 @@ def add_inertia_parser(sub) -> None:
     p.add_argument("--end", type=float, metavar="S", help="window end, s from the first IMU sample")
     p.add_argument("--band", type=float, nargs=2, metavar=("LOW_HZ", "HIGH_HZ"),
                    help="pass band of the fit (default: around the spectral peaks of the gyro)")
-    p.add_argument("--model", choices=["pem", "thesis"], default="pem",
-                   help="pem: ours (default); thesis: the thesis's model and estimator, as a baseline")
+    p.add_argument("--model", choices=["pem", "rig", "thesis"], default="pem",
+                   help="pem: ours (default); rig: the rig's grey-box model fitted to every sensor (tensions, gyro, "
+                        "accelerometer, inclinometer), σ against the Cramér–Rao bound (one recording; no report "
+                        "yet); thesis: the thesis's model and estimator, as a baseline")
     p.add_argument("--initial-guess", type=float, nargs=6, metavar=TENSOR,
                    help="starting tensor for --model thesis: " + TENSOR_HELP)
     p.add_argument("--quick", action="store_true",
@@ -295,7 +297,9 @@ def user_errors() -> tuple:
     from ..io.rig import RigError
     from ..statics import StaticsError
     from ..estimation.tracker import TrackerError
-    return (UsageError, RecordingError, RigError, IdentificationError, TrackerError, StaticsError, FileNotFoundError)
+    from ..estimation.rig_fit import RigFitError
+    return (UsageError, RecordingError, RigError, IdentificationError, TrackerError, StaticsError, RigFitError,
+            FileNotFoundError)
 
 
 def identify_main(argv: list[str] | None = None) -> int:

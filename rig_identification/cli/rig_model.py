@@ -1,0 +1,94 @@
+"""``rig-identify inertia --model rig``: the whole recording read by the rig's grey-box model.
+
+Prints the fit's span and band, the tensor about the CG with σ, the Cramér–Rao bound and σ/CRB
+(and the truth when truth.yaml is there), the mass, the centre of gravity the dynamic test
+gives beside the static one, the cables' stiffness and damping, the load cells' gains, each
+channel's residual against its noise, and what the numbers assume.  ``--json`` prints
+:meth:`~rig_identification.pipeline.rig_model.RigModelResult.to_dict` instead.
+"""
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from ..io.verdict import KEYS
+from ..pipeline.rig_model import LEVEL_LIMIT, RigModelResult, fit_whole_recording
+from ..statics.handover import load_cg_result
+from .progress import heading
+
+
+def print_rig_model(res: RigModelResult) -> None:
+    """The text output of ``rig-identify inertia --model rig``."""
+    f = res.fit
+    p = f.parameters
+    d = res.to_dict()
+    words = {"ok": "ok — the model explains every channel at its noise level",
+             "model_error": "model_error — " + ", ".join(res.poorly_fitted) + f" beyond {LEVEL_LIMIT}× their noise: "
+                            "the model misses something there; σ below is not calibrated",
+             "failed": "failed — the fit did not find the motion (a channel beyond 10× its noise, or a number not "
+                       "finite): the numbers below are not an estimate"}
+    print(f"verdict: {words[res.verdict]}")
+    if res.undetermined and res.verdict != "failed":
+        print("not determined by this recording (σ beyond 10 % of their scale): " + ", ".join(res.undetermined))
+    print(f"recording: {res.path}")
+    print("model: the rig's grey-box model, every sensor an output (tensions, gyro, accelerometer, inclinometer); "
+          "mass, CG, cable stiffness and damping, load-cell gains, the initial state and the surveyed geometry "
+          "fitted with their priors")
+    print(f"span: {res.start_s:.1f}–{res.start_s + res.duration_s:.1f} s from the first IMU sample "
+          f"({res.duration_s:.1f} s, after the exciter's spin-up); band 0–{res.band_hz:.2f} Hz; "
+          f"started from {res.start_source}")
+    print("inertia tensor about the CG (body axes; ixy, ixz, iyz are the tensor's entries, the negated "
+          "products of inertia):")
+    truth = d.get("truth_comparison")
+    head = f"{'entry':<7}{'kg·m²':>12}{'σ':>10}{'CRB':>10}{'σ/CRB':>7}"
+    if truth:
+        head += f"{'truth':>11}{'error':>10}{'err/σ':>7}"
+    print(head)
+    for i, k in enumerate(KEYS):
+        line = f"{k:<7}{p.inertia[i]:>12.2f}{f.inertia_std[i]:>10.3g}{f.crb[i]:>10.3g}{f.inertia_std[i] / f.crb[i]:>7.2f}"
+        if truth:
+            t = truth[k]
+            line += f"{t['truth']:>11.2f}{t['error_percent']:>+9.3f}%{t['error_sigma']:>+7.2f}"
+        print(line)
+    print(f"mass {p.mass:.2f} ± {d['mass_std']:.2f} kg (the scale's value as a prior)")
+    cg_mm = 1e3 * p.cg
+    print("centre of gravity, dynamic test: (" + ", ".join(f"{x:.1f}" for x in cg_mm) + ") ± ("
+          + ", ".join(f"{1e3 * x:.2g}" for x in f.cg_std) + ") mm, body frame")
+    if np.all(np.isfinite(res.cg_prior_std)):
+        diff = res.cg_difference_sigma()
+        print(f"centre of gravity, static ({res.cg_source}): (" + ", ".join(f"{1e3 * x:.1f}" for x in res.cg_prior)
+              + ") ± (" + ", ".join(f"{1e3 * x:.2g}" for x in res.cg_prior_std) + ") mm; the fit's CG combines both")
+        verdict = "agree" if np.all(np.abs(diff) < 3) else "DISAGREE (beyond 3 σ): check the static test and rig.yaml"
+        print("  static and dynamic " + verdict + " (" + ", ".join(f"{x:+.1f}" for x in diff) + " σ)")
+    else:
+        print(f"  (no static CG given: rig.yaml's {np.round(1e3 * res.cg_prior, 1).tolist()} mm was the start "
+              "only; give the static test's with --cg CG.json)")
+    print("cables: stiffness " + ", ".join(f"{k / 1e6:.3f}" for k in p.stiffness) + " MN/m, damping time "
+          f"{1e3 * p.damping_time:.3f} ms; load-cell gains " + ", ".join(f"{g:.4f}" for g in p.gain))
+    print("natural frequencies (linearised at rest): " + ", ".join(f"{x:.3g}" for x in f.natural_frequencies) + " Hz")
+    print("residual in the band over the noise (1: noise alone): "
+          + ", ".join(f"{c} {v:.2f}" for c, v in zip(f.channels, f.residual_level)))
+    if res.poorly_fitted:
+        print(f"the fit leans less on {', '.join(res.poorly_fitted)} (their noise raised to their residual's)")
+    print("σ: the inverse Fisher information (each channel's noise as estimated from the recording, raised where "
+          "it does not fit) or the sandwich over 12 blocks, whichever is larger; the CG, mass, cables, gains and "
+          "the geometry's survey (1 mm) are in it.  CRB: the bound of this run at the sensors' own noise.")
+    print(f"time: {res.seconds:.1f} s")
+
+
+def cmd_rig_model(args, rec) -> int:
+    """``rig-identify inertia --model rig`` on one recording ``rec``; returns the exit status."""
+    cg = cg_std = None
+    source = None
+    if args.cg:
+        saved = load_cg_result(args.cg)
+        cg, cg_std, source = saved.center_of_gravity, saved.center_of_gravity_std, args.cg
+    heading("fitting the rig's model to every sensor (tensions, gyro, accelerometer, inclinometer)")
+    res = fit_whole_recording(rec, cg, cg_std, source, args.start, args.end)
+    args.progress.finish()
+    if args.json:
+        print(json.dumps(res.to_dict()))
+    else:
+        print_rig_model(res)
+    return 0

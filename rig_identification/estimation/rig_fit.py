@@ -1,0 +1,613 @@
+"""The whole recording fitted by one grey-box model: every sensor an output, σ from one likelihood.
+
+The model is the rig's exact equations (:mod:`~rig_identification.model.rig_ode`: the rigid body
+on N spring-damper cables, Newton–Euler with the gyroscopic term, driven by the measured exciter
+force); its outputs are the N tensions, the gyro, the accelerometer and the inclinometer.  The
+fit is the output-error (prediction-error with no process noise) maximum-likelihood estimator of
+the thesis's chapter 3 with every sensor an output (Ljung, *System Identification*, 2nd ed.,
+ch. 4 grey-box models and ch. 7): every stream on one uniform grid over the record, each channel
+weighted by its white noise as estimated from the recording
+(:func:`~rig_identification.io.noise.white_sigma`, counted once per sample of its own rate),
+each channel's offset (a load cell's bias, the tension at rest, a gyro's bias) eliminated by
+variable projection (Golub & Pereyra 1973).
+
+Fitted (:class:`Layout`): the inertia tensor (6 entries), the centre of gravity (3), the mass
+(prior: the scale's σ), per-cable stiffness (log, prior: rig.yaml's value or the default steel
+cable's, wide), the cables' damping time τ, per-load-cell gain (prior ±1 %), the initial
+state (12), and the rig's geometry — every anchor coordinate and cable length — under the lab's
+survey σ as prior (the load cells resolve 10⁻⁷ m of stretch: a millimetre of geometry taken as
+exact would bias the tensor by percents).  The covariance is the inverse Fisher information of
+the weighted residual (Gauss–Newton at the estimate, each channel's noise level raised to its
+residual's where the model does not fit it), the nuisance parameters profiled out by taking
+the tensor's block.  The Cramér–Rao bound of a rig and run (:func:`cramer_rao`) is the same
+information at the true parameters with the sensors' own noise levels.
+
+The fit starts on the record's first seconds and lengthens it stage by stage
+(:data:`STAGES`): the swinging modes are barely damped, and a phase error that a short record
+tolerates grows with its length.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import make_interp_spline, make_lsq_spline
+from scipy.optimize import least_squares
+from scipy.signal import butter, sosfiltfilt
+
+import logging
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+from ..io.noise import white_sigma
+from ..io.recording import SensorData
+from ..io.rig import Rig
+from ..model.cables import DEFAULT_DAMPING_RATIO, DEFAULT_STIFFNESS
+from ..model.dynamics import SimulationError
+from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
+from ..model.parametrisation import physically_consistent, to_tensor
+from ..model.rig_ode import moved_state, rest_state, simulate, substeps_for
+
+#: The record's lengths, s, stage by stage (module docstring); the last stage is the whole record.
+STAGES = (15.0, 40.0)
+log = logging.getLogger(__name__)
+
+#: The fit's band edge over the exciter force's dominant frequency (:func:`band_edge`), and the
+#: decimated residual's rate over the band edge.
+FORCE_BAND = 4.0
+DECIMATED_RATE = 3.0
+#: Knot spacing, s, of the exciter force's amplitude and phase while the motor spins up and
+#: after (:func:`smooth_force`).
+RAMP_KNOT = 0.25
+STEADY_KNOT = 5.0
+#: s after the spin-up's end (its amplitude at 90 % of the steady one, plus 1 s) where the fit starts.
+SETTLE = 2.0
+#: The rig's geometry as surveyed, 1 σ per anchor coordinate and cable length (m): a careful
+#: steel-tape or laser survey (rig.yaml ``survey_std`` overrides it).
+SURVEY_STD = 1.0e-3
+#: σ of the body's mass from the scale, as a share of the mass.
+MASS_STD_SHARE = 0.002
+#: σ of a load cell's gain (share) and of log(stiffness) for a cable whose stiffness rig.yaml
+#: gives (a datasheet's EA) or does not (the default steel cable's, a factor e either way).
+GAIN_STD = 0.01
+STIFFNESS_LOG_STD_GIVEN = 0.2
+STIFFNESS_LOG_STD_DEFAULT = 1.0
+#: Re-weighting rounds: each channel's noise level replaced by its residual's where the
+#: residual is larger (a channel the model does not fit at its noise level is leaned on less).
+REWEIGHT_ROUNDS = 2
+#: Blocks of the record whose scores make the sandwich covariance's meat (:func:`_covariance`).
+SANDWICH_BLOCKS = 12
+#: Threads that compute the Jacobian's columns (the machine's cores, at most 4).
+THREADS = max(1, min(4, os.cpu_count() or 1))
+#: Stopping rules of each least-squares solve (scipy.optimize.least_squares): its iterations
+#: at most, and the tolerances on the step, the cost's change and the gradient.
+MAX_ITERATIONS = 100
+XTOL, FTOL, GTOL = 1e-10, 1e-10, 1e-10
+#: Forward-difference step of the Jacobian in the unknowns' units of :func:`_scale`.
+JACOBIAN_STEP = 1e-2
+
+
+class RigFitError(ValueError):
+    """A recording the rig model cannot be fitted to (no exciter, no common span, too short)."""
+
+
+@dataclass(frozen=True)
+class Record:
+    """A recording's streams on one uniform grid over the record.
+
+    t0: the first sample's stamp, s; dt: the grid's step, s.  y: (n, n_out) the outputs
+    (channel order of :func:`channel_names`: tensions N, gyro rad/s, accelerometer m/s²,
+    inclinometer rad).  u: (n, 2) the exciter force, N, exciter frame.  sigma: (n_out,) each
+    channel's white-noise σ per sample of its own stream.  oversampling: (n_out,) the grid's
+    rate over the stream's (≥ 1: a slower stream's samples count once, not once per grid step).
+    band: Hz, the fit's band (:func:`band_edge`): the residual is low-passed and decimated
+    to it.  start: the first sample the fit compares (after the exciter's spin-up, whose force
+    is known less well: :func:`smooth_force`); the model runs from the record's start to it.
+    """
+
+    t0: float
+    dt: float
+    y: np.ndarray = field(repr=False)
+    u: np.ndarray = field(repr=False)
+    sigma: np.ndarray
+    oversampling: np.ndarray
+    channels: tuple[str, ...]
+    band: float
+    start: int
+
+    @property
+    def duration(self) -> float:
+        return self.dt * (len(self.y) - 1)
+
+    def fourier(self, x: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """Fourier integrals ∫ x e^{-jωt} dt over the record (trapezoid rule) of a series ``x``
+        (n, k) on the grid at ``omega`` (nb,) rad/s -> (nb, k)."""
+        t = self.dt * np.arange(len(x))
+        w = np.full(len(x), self.dt)
+        w[[0, -1]] *= 0.5
+        return (np.exp(-1j * np.outer(omega, t)) * w) @ x
+
+
+def channel_names(rig: Rig) -> tuple[str, ...]:
+    """The outputs of the rig model, in the order of :func:`~rig_identification.model.linear_rig.linearise`."""
+    names = [f"tension:{n}" for n in rig.cable_names] + ["gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y",
+                                                          "accel_z"]
+    return tuple(names + (["incl_x", "incl_y"] if rig.inclinometer is not None else []))
+
+
+def _streams(sensors: SensorData, rig: Rig):
+    out = [(sensors.load_cells[n].t, sensors.load_cells[n].data[:, 0]) for n in rig.cable_names]
+    out += [(sensors.imu.t, sensors.imu.data[:, j]) for j in range(6)]
+    if rig.inclinometer is not None:
+        if sensors.inclinometer is None:
+            raise RigFitError(f"{rig.source}: rig.yaml has an inclinometer but the recording has no "
+                              "/rig/inclinometer stream")
+        out += [(sensors.inclinometer.t, sensors.inclinometer.data[:, j]) for j in range(2)]
+    return out
+
+
+def _on_grid(t: np.ndarray, x: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """A stream on the grid: as it is where its stamps are the grid's, else a cubic spline."""
+    dt = grid[1] - grid[0]
+    i = np.searchsorted(t, grid[0] - 1e-3 * dt)
+    if len(t) >= i + len(grid) and np.max(np.abs(t[i:i + len(grid)] - grid)) < 1e-3 * dt:
+        return x[i:i + len(grid)]
+    return make_interp_spline(t, x, k=3)(grid)
+
+
+def record(sensors: SensorData, rig: Rig, t0: float | None = None, t1: float | None = None) -> Record:
+    """The recording's :class:`Record` over [t0, t1] (stamps, s; default the span every stream covers).
+
+    Every stream is put on one uniform grid at the fastest stream's rate (a cubic spline where
+    its stamps differ from the grid's).  Raises :class:`RigFitError` without an exciter stream,
+    or when the streams share less than 10 s.
+    """
+    if sensors.exciter is None or rig.exciter is None:
+        raise RigFitError(f"{rig.source}: the rig model needs the exciter (rig.yaml exciter and the "
+                          "/rig/exciter/wrench stream)")
+    streams = _streams(sensors, rig)
+    ex_t = sensors.exciter.t
+    lo = max([s[0][0] for s in streams] + [ex_t[0]] + ([t0] if t0 is not None else []))
+    hi = min([s[0][-1] for s in streams] + [ex_t[-1]] + ([t1] if t1 is not None else []))
+    rates = [(len(s[0]) - 1) / (s[0][-1] - s[0][0]) for s in streams]
+    ex_rate = (len(ex_t) - 1) / (ex_t[-1] - ex_t[0])
+    dt = 1.0 / round(max(rates + [ex_rate]), 6)
+    if hi - lo < 10.0:
+        raise RigFitError(f"{rig.source}: the streams share {max(hi - lo, 0):.1f} s; the rig model needs ≥ 10 s")
+    # the grid starts on a sample of the first stream, so streams stamped on it are used as they are
+    first = streams[0][0]
+    lo = first[np.searchsorted(first, lo - 1e-9)]
+    n = int(np.floor((hi - lo) / dt + 1e-6)) + 1
+    grid = lo + dt * np.arange(n)
+    y, sig = [], []
+    for t, x in streams:
+        m = (t >= lo - 4 * dt) & (t <= grid[-1] + 4 * dt)
+        y.append(_on_grid(t[m], x[m], grid))
+        sig.append(white_sigma(x[m]))
+    me = (ex_t >= lo - 4 * dt) & (ex_t <= grid[-1] + 4 * dt)
+    u = np.column_stack([_on_grid(ex_t[me], sensors.exciter.data[me, j], grid) for j in range(2)])
+    band = band_edge(u, dt)
+    u, start = smooth_force(u, dt, band)
+    over = np.maximum(1.0, (1.0 / dt) / np.array(rates))
+    if (n - start) * dt < 10.0:
+        raise RigFitError(f"{rig.source}: {(n - start) * dt:.1f} s after the exciter's spin-up; the rig model "
+                          "needs ≥ 10 s")
+    return Record(float(lo), dt, np.column_stack(y), u, np.array(sig), over, channel_names(rig), band, start)
+
+
+def band_edge(u: np.ndarray, dt: float) -> float:
+    """The fit's band edge, Hz: :data:`FORCE_BAND` times the exciter force's dominant frequency
+    (at most 0.4 of the rate).  The measured force drives the model through a zero-phase
+    4th-order Butterworth low-pass at it (its white noise would ring the cables' axial modes,
+    lightly damped at 5–30 Hz, that the real smooth force does not), and the residual is
+    low-passed and decimated to it: what the cables' axial modes do above it (their ringing
+    from an unmeasured start or a force's sharp edge) stays out of the fit."""
+    f = np.fft.rfftfreq(len(u), dt)
+    power = np.abs(np.fft.rfft(u - u.mean(axis=0), axis=0)) ** 2
+    dominant = f[1:][np.argmax(power[1:].sum(axis=1))]
+    return float(min(FORCE_BAND * dominant, 0.4 / dt))
+
+
+def smooth_force(u: np.ndarray, dt: float, band: float) -> tuple[np.ndarray, int]:
+    """The exciter's force (n, 2) N with its measurement noise removed, and the first sample
+    after the motor's spin-up (0 when the force is not a rotating vector).
+
+    The load cells resolve the force's own noise (0.5 N is a load cell's too), and the model,
+    driven by the measured force, would ring its barely damped swinging modes with the noise
+    at their frequencies.  A rotating unbalance's force is a vector A(t) e^{iφ(t)} whose
+    amplitude and phase vary slowly once the motor runs at speed: both are fitted with
+    least-squares cubic splines (the phase weighted by A², its noise's inverse variance), knots
+    every :data:`RAMP_KNOT` s while the motor spins up and every :data:`STEADY_KNOT` s after, so
+    the noise left is within ~1/(2·STEADY_KNOT) Hz of the rotation's frequency.  A force that is
+    not such a vector (its fit leaves more than twice the noise) is low-passed at ``band`` Hz
+    instead (zero-phase 4th-order Butterworth).  The spin-up's force is the least well known
+    (its noise is near the swinging modes' frequencies while the motor passes them): the fit
+    starts :data:`SETTLE` s after it, from a free state."""
+    fallback = sosfiltfilt(butter(4, band, fs=1.0 / dt, output="sos"), u, axis=0)
+    n = len(u)
+    t = dt * np.arange(n)
+    z = u[:, 0] + 1j * u[:, 1]
+    amp = np.abs(z)
+    steady = np.median(amp[n // 2:])
+    noise = white_sigma(u)
+    if steady < 20 * noise:
+        return fallback, 0
+    slow = sosfiltfilt(butter(2, 0.5, fs=1.0 / dt, output="sos"), amp)
+    ramp_end = t[np.argmax(slow >= 0.9 * steady)] + 1.0
+    knots = np.unique(np.concatenate([np.arange(0.0, ramp_end, RAMP_KNOT),
+                                      np.linspace(ramp_end, t[-1], max(2, int(round((t[-1] - ramp_end) / STEADY_KNOT)) + 1))]))
+    knots = knots[(knots > t[0]) & (knots < t[-1])]
+    inner = np.concatenate([[t[0]] * 4, knots, [t[-1]] * 4])
+    phase = np.unwrap(np.angle(z))
+    w = np.maximum(amp, noise) ** 2
+    try:
+        phase_s = make_lsq_spline(t, phase, inner, k=3, w=w / w.max())(t)
+        amp_s = make_lsq_spline(t, amp, inner, k=3)(t)
+    except (ValueError, np.linalg.LinAlgError):
+        return fallback, 0
+    zs = amp_s * np.exp(1j * phase_s)
+    if np.sqrt(np.mean(np.abs(z - zs) ** 2) / 2) > 2 * max(noise, 1e-4 * steady):
+        return fallback, 0
+    return np.column_stack([zs.real, zs.imag]), int(min(n - 1, np.ceil((ramp_end + SETTLE) / dt)))
+
+
+# --- the unknowns ------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class Prior:
+    """What is known before the fit: centre and σ of each unknown with a prior (σ = inf: none).
+
+    mass, mass_std: kg.  cg: (3,) body m, cg_std: (3,) m (inf: the data alone).  stiffness: (N,)
+    N/m, stiffness_log_std: (N,).  gain_std: share.  survey_std: m, on every anchor coordinate
+    and cable length.
+    """
+
+    mass: float
+    mass_std: float
+    cg: np.ndarray
+    cg_std: np.ndarray
+    stiffness: np.ndarray
+    stiffness_log_std: np.ndarray
+    gain_std: float = GAIN_STD
+    survey_std: float = SURVEY_STD
+
+    @staticmethod
+    def from_rig(rig: Rig, cg=None, cg_std=None, survey_std: float = SURVEY_STD) -> "Prior":
+        """rig.yaml's mass (σ :data:`MASS_STD_SHARE`), CG (``cg``/``cg_std`` override; without a
+        σ the CG is free), cable stiffness (the default steel cable's where rig.yaml has none)."""
+        given = np.array([c.stiffness is not None for c in rig.cables])
+        k = np.array([DEFAULT_STIFFNESS if c.stiffness is None else c.stiffness for c in rig.cables])
+        c0 = rig.center_of_gravity if cg is None else np.asarray(cg, float)
+        if c0 is None:
+            raise RigFitError(f"{rig.source}: no centre of gravity to start from (rig.yaml body.center_of_gravity, "
+                              "or the static test's: rig-identify cg)")
+        return Prior(rig.mass, MASS_STD_SHARE * rig.mass, np.asarray(c0, float),
+                     np.full(3, np.inf) if cg_std is None else np.broadcast_to(np.asarray(cg_std, float), (3,)),
+                     k, np.where(given, STIFFNESS_LOG_STD_GIVEN, STIFFNESS_LOG_STD_DEFAULT), GAIN_STD, survey_std)
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where each unknown sits in the parameter vector."""
+
+    n_cables: int
+
+    @property
+    def inertia(self) -> slice:
+        return slice(0, 6)
+
+    @property
+    def cg(self) -> slice:
+        return slice(6, 9)
+
+    @property
+    def mass(self) -> int:
+        return 9
+
+    @property
+    def log_stiffness(self) -> slice:
+        return slice(10, 10 + self.n_cables)
+
+    @property
+    def damping(self) -> int:
+        return 10 + self.n_cables
+
+    @property
+    def gain(self) -> slice:
+        return slice(11 + self.n_cables, 11 + 2 * self.n_cables)
+
+    @property
+    def initial(self) -> slice:
+        return slice(11 + 2 * self.n_cables, 23 + 2 * self.n_cables)
+
+    @property
+    def geometry(self) -> slice:
+        return slice(23 + 2 * self.n_cables, 23 + 9 * self.n_cables)
+
+    @property
+    def size(self) -> int:
+        return 23 + 9 * self.n_cables
+
+
+def _vector(p: RigParameters, initial: np.ndarray) -> np.ndarray:
+    return np.concatenate([p.inertia, p.cg, [p.mass], np.log(p.stiffness), [p.damping_time], p.gain, initial,
+                           p.ceiling.ravel(), p.body.ravel(), p.length])
+
+
+def _parameters(x: np.ndarray, like: RigParameters, lay: Layout) -> RigParameters:
+    n = lay.n_cables
+    g = x[lay.geometry]
+    return like.replace(inertia=x[lay.inertia], cg=x[lay.cg], mass=float(x[lay.mass]),
+                        stiffness=np.exp(x[lay.log_stiffness]), damping_time=float(x[lay.damping]),
+                        gain=x[lay.gain], ceiling=g[:3 * n].reshape(n, 3), body=g[3 * n:6 * n].reshape(n, 3),
+                        length=g[6 * n:])
+
+
+def _priors(prior: Prior, lay: Layout, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centres and σ of the priors over the parameter vector (σ inf: none)."""
+    centre = x0.copy()
+    std = np.full(lay.size, np.inf)
+    centre[lay.cg], std[lay.cg] = prior.cg, prior.cg_std
+    centre[lay.mass], std[lay.mass] = prior.mass, prior.mass_std
+    centre[lay.log_stiffness], std[lay.log_stiffness] = np.log(prior.stiffness), prior.stiffness_log_std
+    centre[lay.gain], std[lay.gain] = 1.0, prior.gain_std
+    if prior.survey_std > 0:
+        std[lay.geometry] = prior.survey_std
+    return centre, std
+
+
+def _scale(x0: np.ndarray, lay: Layout, prior: Prior) -> np.ndarray:
+    """Each unknown's unit: a change that moves the outputs by a small, comparable amount."""
+    s = np.ones(lay.size)
+    big = max(abs(x0[0]), abs(x0[3]), abs(x0[5]))
+    s[lay.inertia] = 1e-3 * big
+    s[lay.cg] = 1e-3
+    s[lay.mass] = 1e-3 * prior.mass
+    s[lay.log_stiffness] = 1e-2
+    s[lay.damping] = 0.1 * max(abs(x0[lay.damping]), 1e-5)
+    s[lay.gain] = 1e-3
+    s[lay.initial] = 1e-4
+    s[lay.geometry] = 1e-4
+    return s
+
+
+# --- the model's residual ------------------------------------------------------------------------------
+
+
+class _Problem:
+    """The weighted residual of ``n`` samples from the record's ``start`` as a function of the
+    scaled unknowns z (x = x0 + scale z), the model run from the state ``base`` moved by the
+    initial-state unknowns."""
+
+    def __init__(self, rec: Record, like: RigParameters, lay: Layout, x0: np.ndarray, prior: Prior,
+                 noise_scale: np.ndarray, n: int, rest: RestPose, base: np.ndarray):
+        self.rec, self.like, self.lay, self.x0, self.n, self.base = rec, like, lay, x0, n, base
+        self.scale = _scale(x0, lay, prior)
+        self.centre, self.prior_std = _priors(prior, lay, x0)
+        self.sos = butter(4, rec.band, fs=1.0 / rec.dt, output="sos")
+        self.step = max(1, int(1.0 / (DECIMATED_RATE * rec.band * rec.dt)))
+        impulse = np.zeros(4001)
+        impulse[2000] = 1.0
+        self.noise_gain = float(np.sum(sosfiltfilt(self.sos, impulse) ** 2))      # filtered white noise's variance share
+        self.weight = 1.0 / (rec.sigma * noise_scale * np.sqrt(rec.oversampling * self.noise_gain))
+        self.rest = rest
+        lin = linearise(_parameters(x0, like, lay), rest)
+        self.substeps = substeps_for(2 * np.pi * natural_frequencies(lin).max(), rec.dt)
+
+    def x(self, z: np.ndarray) -> np.ndarray:
+        x = self.x0.copy()
+        x[:len(z)] += self.scale[:len(z)] * z
+        return x
+
+    def outputs(self, x: np.ndarray) -> np.ndarray:
+        p = _parameters(x, self.like, self.lay)
+        y0 = moved_state(self.base, x[self.lay.initial])
+        a = self.rec.start
+        return simulate(p, y0, self.rec.u[a:a + self.n], self.rec.dt, self.substeps)[0]
+
+    def data_residual(self, x: np.ndarray) -> np.ndarray:
+        """(m, n_out) weighted, low-passed and decimated to the band, each channel's offset
+        projected out."""
+        a = self.rec.start
+        e = self.rec.y[a:a + self.n] - self.outputs(x)
+        e = sosfiltfilt(self.sos, e - e.mean(axis=0), axis=0)[::self.step]
+        return e * self.weight
+
+    def residual(self, z: np.ndarray) -> np.ndarray:
+        """The weighted residual (data rows, then the priors' rows); outside the physical
+        region (a tensor no body has, a negative damping time) or where the model's motion
+        diverges, a constant large residual, which the trust region steps back from."""
+        x = self.x(z)
+        outside = np.full(self.size(len(z)), 1e6)
+        if not physically_consistent(to_tensor(x[self.lay.inertia])) or x[self.lay.damping] < 0:
+            return outside
+        try:
+            r = self.data_residual(x).ravel()
+        except (SimulationError, ValueError, np.linalg.LinAlgError):
+            return outside
+        if not np.all(np.isfinite(r)):
+            return outside
+        std = self.prior_std[:len(z)]
+        finite = np.isfinite(std)
+        return np.concatenate([r, (x[:len(z)][finite] - self.centre[:len(z)][finite]) / std[finite]])
+
+    @property
+    def data_rows(self) -> int:
+        return len(range(0, self.n, self.step)) * len(self.rec.channels)
+
+    def size(self, nz: int) -> int:
+        return len(range(0, self.n, self.step)) * len(self.rec.channels) + int(np.isfinite(self.prior_std[:nz]).sum())
+
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        """Forward differences (size, len(z)) of :meth:`residual` (step :data:`JACOBIAN_STEP`),
+        the columns on :data:`THREADS` threads (the compiled model releases the GIL)."""
+        base = self.residual(z)
+
+        def column(i: int) -> np.ndarray:
+            e = z.copy()
+            e[i] += JACOBIAN_STEP
+            return (self.residual(e) - base) / JACOBIAN_STEP
+
+        with ThreadPoolExecutor(THREADS) as pool:
+            return np.column_stack(list(pool.map(column, range(len(z)))))
+
+
+def _levels(prob: _Problem, x: np.ndarray) -> np.ndarray:
+    """Each channel's residual RMS in the band over its noise's (1: noise alone)."""
+    return np.sqrt(np.mean(prob.data_residual(x) ** 2, axis=0))
+
+
+# --- the fit -------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True)
+class RigFit:
+    """The rig model fitted to a whole recording.
+
+    parameters: the estimate (:class:`~rig_identification.model.linear_rig.RigParameters`);
+    initial: (12,) the initial state's offset at the fit's start.  covariance: (n, n) of the
+    unknowns (:class:`Layout` order; inertia kg·m², CG m, mass kg, log stiffness, τ s, gains,
+    initial state (δp_cg m, δφ rad, v_cg m/s, ω rad/s), geometry m): each σ the larger of the
+    Fisher information's (each channel's noise raised to its residual's level) and the
+    sandwich's (:func:`_covariance`), the correlations the Fisher information's.
+    crb: (6,) the Cramér–Rao bound of the tensor entries at the estimate with the sensors' own
+    noise levels, the nuisance unknowns under their priors, kg·m².
+    residual_level: (n_out,) each channel's residual RMS over its noise's.  noise_scale: (n_out,)
+    the factor the fit put on each channel's noise (≥ 1).  channels: names.
+    natural_frequencies: (6,) Hz, linearised about the rest pose.  nfev: model runs.
+    """
+
+    parameters: RigParameters
+    initial: np.ndarray
+    covariance: np.ndarray
+    crb: np.ndarray
+    residual_level: np.ndarray
+    noise_scale: np.ndarray
+    channels: tuple[str, ...]
+    natural_frequencies: np.ndarray
+    layout: Layout
+    nfev: int
+
+    @property
+    def inertia(self) -> np.ndarray:
+        """(6,) tensor entries about the CG, body axes, kg·m² (KEYS order)."""
+        return self.parameters.inertia
+
+    @property
+    def inertia_std(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.covariance)[self.layout.inertia])
+
+    @property
+    def cg_std(self) -> np.ndarray:
+        return np.sqrt(np.diag(self.covariance)[self.layout.cg])
+
+
+def _covariance(prob: _Problem, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The unknowns' covariance (size, size) in x units: the inverse Fisher information of the
+    weighted residual (the priors' rows included), and the sandwich (Huber 1967; White 1982)
+    H⁻¹ (Σ_b s_b s_bᵀ + P) H⁻¹, its meat the data's scores summed over :data:`SANDWICH_BLOCKS`
+    blocks of the record (batch means: a residual that is not white — a model error — is
+    correlated within a block) plus the priors' information P."""
+    J = prob.jacobian(z)
+    r = prob.residual(z)
+    rows = prob.data_rows
+    H = J.T @ J
+    Hinv = np.linalg.pinv(H, rcond=1e-13, hermitian=True)
+    Jd, rd = J[:rows], r[:rows]
+    per_sample = len(prob.rec.channels)
+    samples = rows // per_sample
+    edges = np.linspace(0, samples, SANDWICH_BLOCKS + 1).astype(int) * per_sample
+    scores = np.array([Jd[a:b].T @ rd[a:b] for a, b in zip(edges[:-1], edges[1:])])
+    scores -= scores.mean(axis=0)
+    meat = scores.T @ scores * SANDWICH_BLOCKS / (SANDWICH_BLOCKS - 1) + J[rows:].T @ J[rows:]
+    S = np.outer(prob.scale, prob.scale)
+    return Hinv * S, Hinv @ meat @ Hinv * S
+
+
+def _start(rig: Rig, prior: Prior, inertia0, damping_time) -> tuple[RigParameters, RestPose]:
+    n = len(rig.cables)
+    tau = 2 * DEFAULT_DAMPING_RATIO * np.sqrt(prior.mass / (n * prior.stiffness.mean())) \
+        if damping_time is None else damping_time
+    start = RigParameters.from_rig(rig, np.zeros(6), prior.stiffness, tau, prior.mass, prior.cg)
+    try:
+        rest = rest_pose(start)
+    except SimulationError as e:
+        raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e})") from None
+    return start.replace(inertia=np.asarray(inertia0, float)), rest
+
+
+def _base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) -> np.ndarray:
+    """The state at the fit's first sample: the model run from rest at the record's start
+    through the spin-up (the rest state itself when the fit starts there)."""
+    y = rest_state(p, rest)
+    if rec.start == 0:
+        return y
+    return simulate(p, y, rec.u[:rec.start + 1], rec.dt, substeps)[1]
+
+
+def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0, damping_time: float | None = None,
+            verbose: int = 0) -> RigFit:
+    """Fit the rig model to a :class:`Record` (module docstring).
+
+    rig: rig.yaml (geometry, mounts).  prior: :class:`Prior` (its CG is the start).
+    inertia0: start of the tensor entries (6,) kg·m² about the CG.
+    damping_time: start of τ, s (default the default cable's: 2 ζ sqrt(m / (N k))).
+    Raises :class:`RigFitError` when the rig has no rest pose.
+    """
+    lay = Layout(len(rig.cables))
+    p, rest = _start(rig, prior, inertia0, damping_time)
+    x = _vector(p, np.zeros(12))
+    n_all = len(rec.y) - rec.start
+    channels = len(rec.channels)
+    noise_scale = np.ones(channels)
+    nfev = 0
+    lengths = [int(round(s / rec.dt)) + 1 for s in STAGES if s < 0.8 * n_all * rec.dt]
+    rounds = [(n, False) for n in lengths] + [(n_all, True)] * (REWEIGHT_ROUNDS + 1)
+    base = None
+    for n, final in rounds:
+        prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, np.zeros(13))
+        if base is None:
+            base = _base_state(rec, p, rest, prob.substeps)
+        prob.base = base
+        sol = least_squares(prob.residual, np.zeros(lay.size), jac=lambda z: prob.jacobian(z), method="trf",
+                            x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=GTOL, max_nfev=MAX_ITERATIONS, verbose=verbose)
+        log.info("rig fit: %.0f s of record, %d iterations, cost %.4g", n * rec.dt, sol.nfev, sol.cost)
+        nfev += sol.nfev * (lay.size + 1)
+        x = prob.x(sol.x)
+        p = _parameters(x, p, lay)
+        try:        # the rest pose sets only the integrator's step: the last one found serves
+            rest = rest_pose(p, rest)
+        except SimulationError as e:
+            log.info("rig fit: no rest pose at the estimate (%s)", e)
+        if final:
+            level = _levels(_Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base), x)
+            new_scale = np.maximum(level, 1.0)
+            if np.allclose(new_scale, noise_scale, rtol=0.05):
+                break
+            noise_scale = new_scale
+    fisher, sandwich = _covariance(_Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, base), np.zeros(lay.size))
+    # σ: the larger of the two per unknown, the correlations the Fisher information's
+    sd = np.sqrt(np.maximum(np.diag(fisher), np.diag(sandwich)))
+    fd = np.sqrt(np.diag(fisher))
+    cov = fisher / np.outer(fd, fd) * np.outer(sd, sd)
+    unit = _Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base)
+    bound = fisher if np.all(noise_scale == 1) else _covariance(unit, np.zeros(lay.size))[0]
+    level = _levels(unit, x)
+    freqs = natural_frequencies(linearise(p, rest))
+    return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
+                  freqs, lay, nfev)
+
+
+def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.ndarray:
+    """The bound (size, size) on the unknowns (:class:`Layout` order) for the recording's input
+    and noise levels at the true parameters ``truth``: the inverse Fisher information of the
+    weighted residual (Gaussian white noise per channel, in the fit's band), the priors of
+    ``prior``, the initial state at the fit's start free."""
+    lay = Layout(len(rig.cables))
+    x = _vector(truth, np.zeros(12))
+    rest = rest_pose(truth)
+    prob = _Problem(rec, truth, lay, x, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start, rest,
+                    np.zeros(13))
+    prob.base = _base_state(rec, truth, rest, prob.substeps)
+    return _covariance(prob, np.zeros(lay.size))[0]

@@ -1,0 +1,201 @@
+"""The rig's exact equations integrated fast: every sensor's reading along a simulated run.
+
+The same physics as :class:`~rig_identification.model.dynamics.RigDynamics` with spring-damper
+cables (Newton–Euler with the gyroscopic term; tension max(0, k_i (l_i - L_i) + τ k_i dl_i/dt)
+along the cable), driven by the measured exciter force (its frame turning with the body), the
+force linear between the samples of a uniform grid.  Classical fourth-order Runge–Kutta with a
+fixed step (``substeps`` per grid step, chosen by :func:`substeps_for` so that the stiffest
+cable mode stays far inside the method's stability region), compiled with numba: the
+output-error fit (:mod:`~rig_identification.estimation.rig_fit`) runs it once per parameter
+perturbation.
+
+Outputs on the grid (channel order of :func:`~rig_identification.model.linear_rig.linearise`):
+the N tensions times the load cells' gains, the gyro (IMU axes), the accelerometer's specific
+force (IMU axes, the lever arm's tangential and centripetal terms included), the
+inclinometer's two elevations asin(z_world · axis).
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .linear_rig import RestPose, RigParameters
+from .parametrisation import to_tensor
+
+#: ω_max h of the fixed step: RK4 is stable to 2.8; the cables' axial modes it integrates
+#: coarsely lie above the fit's band, and the band's motion (≤ 5 Hz) is resolved to ~1e-6.
+STEP_OMEGA = 0.5
+
+
+@numba.njit(cache=True, nogil=True)
+def _rhs(y, u0, u1, A, r, L, k, c, m, J, Jinv, g, Re, re, out_T, dy, R):
+    """State derivative into ``dy``; y = [p_cg 3, quaternion wxyz 4, v_cg 3, ω body 3]; the
+    rotation into ``R``, the tensions into ``out_T``."""
+    qw, qx, qy, qz = y[3], y[4], y[5], y[6]
+    R[0, 0] = 1 - 2 * (qy * qy + qz * qz)
+    R[0, 1] = 2 * (qx * qy - qw * qz)
+    R[0, 2] = 2 * (qx * qz + qw * qy)
+    R[1, 0] = 2 * (qx * qy + qw * qz)
+    R[1, 1] = 1 - 2 * (qx * qx + qz * qz)
+    R[1, 2] = 2 * (qy * qz - qw * qx)
+    R[2, 0] = 2 * (qx * qz - qw * qy)
+    R[2, 1] = 2 * (qy * qz + qw * qx)
+    R[2, 2] = 1 - 2 * (qx * qx + qy * qy)
+    wx, wy, wz = y[10], y[11], y[12]
+    Fx, Fy, Fz = 0.0, 0.0, -m * g
+    Mx, My, Mz = 0.0, 0.0, 0.0
+    for i in range(L.shape[0]):
+        rx, ry, rz = r[i, 0], r[i, 1], r[i, 2]
+        # body-frame velocity of the anchor relative to the CG: ω × r
+        cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx
+        sx = R[0, 0] * rx + R[0, 1] * ry + R[0, 2] * rz
+        sy = R[1, 0] * rx + R[1, 1] * ry + R[1, 2] * rz
+        sz = R[2, 0] * rx + R[2, 1] * ry + R[2, 2] * rz
+        pdx = y[7] + R[0, 0] * cx + R[0, 1] * cy + R[0, 2] * cz
+        pdy = y[8] + R[1, 0] * cx + R[1, 1] * cy + R[1, 2] * cz
+        pdz = y[9] + R[2, 0] * cx + R[2, 1] * cy + R[2, 2] * cz
+        dx = A[i, 0] - (y[0] + sx)
+        dyy = A[i, 1] - (y[1] + sy)
+        dz = A[i, 2] - (y[2] + sz)
+        length = math.sqrt(dx * dx + dyy * dyy + dz * dz)
+        ux, uy, uz = dx / length, dyy / length, dz / length
+        ldot = -(ux * pdx + uy * pdy + uz * pdz)
+        T = k[i] * (length - L[i]) + c[i] * ldot
+        if T < 0.0:
+            T = 0.0
+        out_T[i] = T
+        fx, fy, fz = T * ux, T * uy, T * uz
+        Fx += fx
+        Fy += fy
+        Fz += fz
+        bx = R[0, 0] * fx + R[1, 0] * fy + R[2, 0] * fz
+        by = R[0, 1] * fx + R[1, 1] * fy + R[2, 1] * fz
+        bz = R[0, 2] * fx + R[1, 2] * fy + R[2, 2] * fz
+        Mx += ry * bz - rz * by
+        My += rz * bx - rx * bz
+        Mz += rx * by - ry * bx
+    ex = Re[0, 0] * u0 + Re[0, 1] * u1
+    ey = Re[1, 0] * u0 + Re[1, 1] * u1
+    ez = Re[2, 0] * u0 + Re[2, 1] * u1
+    Fx += R[0, 0] * ex + R[0, 1] * ey + R[0, 2] * ez
+    Fy += R[1, 0] * ex + R[1, 1] * ey + R[1, 2] * ez
+    Fz += R[2, 0] * ex + R[2, 1] * ey + R[2, 2] * ez
+    Mx += re[1] * ez - re[2] * ey
+    My += re[2] * ex - re[0] * ez
+    Mz += re[0] * ey - re[1] * ex
+    dy[0], dy[1], dy[2] = y[7], y[8], y[9]
+    dy[3] = 0.5 * (-qx * wx - qy * wy - qz * wz)
+    dy[4] = 0.5 * (qw * wx + qy * wz - qz * wy)
+    dy[5] = 0.5 * (qw * wy + qz * wx - qx * wz)
+    dy[6] = 0.5 * (qw * wz + qx * wy - qy * wx)
+    dy[7], dy[8], dy[9] = Fx / m, Fy / m, Fz / m
+    hx = J[0, 0] * wx + J[0, 1] * wy + J[0, 2] * wz
+    hy = J[1, 0] * wx + J[1, 1] * wy + J[1, 2] * wz
+    hz = J[2, 0] * wx + J[2, 1] * wy + J[2, 2] * wz
+    tx = Mx - (wy * hz - wz * hy)
+    ty = My - (wz * hx - wx * hz)
+    tz = Mz - (wx * hy - wy * hx)
+    dy[10] = Jinv[0, 0] * tx + Jinv[0, 1] * ty + Jinv[0, 2] * tz
+    dy[11] = Jinv[1, 0] * tx + Jinv[1, 1] * ty + Jinv[1, 2] * tz
+    dy[12] = Jinv[2, 0] * tx + Jinv[2, 1] * ty + Jinv[2, 2] * tz
+
+
+@numba.njit(cache=True, nogil=True)
+def _simulate(y0, force, dt, substeps, A, r, L, k, c, gain, m, J, Jinv, g, Re, re, Rimu, rimu, Rinc, has_inc):
+    n = force.shape[0]
+    N = L.shape[0]
+    n_out = N + 6 + (2 if has_inc else 0)
+    out = np.empty((n, n_out))
+    T = np.empty(N)
+    R = np.empty((3, 3))
+    y = y0.copy()
+    yt = np.empty(13)
+    k1, k2, k3, k4 = np.empty(13), np.empty(13), np.empty(13), np.empty(13)
+    h = dt / substeps
+    for j in range(n):
+        _rhs(y, force[j, 0], force[j, 1], A, r, L, k, c, m, J, Jinv, g, Re, re, T, k1, R)
+        for i in range(N):
+            out[j, i] = gain[i] * T[i]
+        w = y[10:13]
+        wd = k1[10:13]
+        out[j, N:N + 3] = Rimu.T @ w
+        acc = R.T @ (k1[7:10] + np.array([0.0, 0.0, g])) + np.cross(wd, rimu) + np.cross(w, np.cross(w, rimu))
+        out[j, N + 3:N + 6] = Rimu.T @ acc
+        if has_inc:
+            Ri = R @ Rinc
+            out[j, N + 6] = math.asin(min(1.0, max(-1.0, Ri[2, 0])))
+            out[j, N + 7] = math.asin(min(1.0, max(-1.0, Ri[2, 1])))
+        if j == n - 1:
+            break
+        for s_ in range(substeps):
+            a0 = s_ / substeps
+            a1 = (s_ + 0.5) / substeps
+            a2 = (s_ + 1.0) / substeps
+            ua0 = (1 - a0) * force[j, 0] + a0 * force[j + 1, 0]
+            ua1 = (1 - a0) * force[j, 1] + a0 * force[j + 1, 1]
+            ub0 = (1 - a1) * force[j, 0] + a1 * force[j + 1, 0]
+            ub1 = (1 - a1) * force[j, 1] + a1 * force[j + 1, 1]
+            uc0 = (1 - a2) * force[j, 0] + a2 * force[j + 1, 0]
+            uc1 = (1 - a2) * force[j, 1] + a2 * force[j + 1, 1]
+            _rhs(y, ua0, ua1, A, r, L, k, c, m, J, Jinv, g, Re, re, T, k1, R)
+            for i in range(13):
+                yt[i] = y[i] + 0.5 * h * k1[i]
+            _rhs(yt, ub0, ub1, A, r, L, k, c, m, J, Jinv, g, Re, re, T, k2, R)
+            for i in range(13):
+                yt[i] = y[i] + 0.5 * h * k2[i]
+            _rhs(yt, ub0, ub1, A, r, L, k, c, m, J, Jinv, g, Re, re, T, k3, R)
+            for i in range(13):
+                yt[i] = y[i] + h * k3[i]
+            _rhs(yt, uc0, uc1, A, r, L, k, c, m, J, Jinv, g, Re, re, T, k4, R)
+            for i in range(13):
+                y[i] = y[i] + h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i])
+            qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
+            for i in range(3, 7):
+                y[i] = y[i] / qn
+    return out, y
+
+
+def substeps_for(omega_max: float, dt: float) -> int:
+    """RK4 steps per grid step so that ω_max h ≤ :data:`STEP_OMEGA` (ω_max rad/s: the
+    stiffest mode)."""
+    return max(1, int(math.ceil(omega_max * dt / STEP_OMEGA)))
+
+
+def rest_state(p: RigParameters, rest: RestPose) -> np.ndarray:
+    """The state (13,) = [p_cg world m, quaternion wxyz, v_cg world m/s, ω body rad/s] at rest."""
+    q = Rotation.from_matrix(rest.rotation).as_quat()                      # xyzw
+    return np.concatenate([rest.position + rest.rotation @ p.cg, [q[3], q[0], q[1], q[2]], np.zeros(6)])
+
+
+def moved_state(y: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """The state ``y`` (13,) moved by ``offset`` (12,) = (δp_cg world m, δφ world rad, δv_cg world
+    m/s, δω body rad/s)."""
+    off = np.asarray(offset, float)
+    q = y[3:7]
+    R = Rotation.from_rotvec(off[3:6]) * Rotation.from_quat([q[1], q[2], q[3], q[0]])
+    qn = R.as_quat()
+    return np.concatenate([y[:3] + off[:3], [qn[3], qn[0], qn[1], qn[2]], y[7:10] + off[6:9], y[10:13] + off[9:12]])
+
+
+def _arguments(p: RigParameters, y0, force, dt, substeps):
+    J = to_tensor(p.inertia)
+    has_inc = p.inclinometer_rotation is not None
+    Rinc = p.inclinometer_rotation if has_inc else np.eye(3)
+    return (np.asarray(y0, float), np.ascontiguousarray(force, dtype=float), float(dt), int(substeps),
+            np.ascontiguousarray(p.ceiling), np.ascontiguousarray(p.body - p.cg), p.length.astype(float),
+            p.stiffness.astype(float), (p.damping_time * p.stiffness).astype(float), p.gain.astype(float),
+            float(p.mass), J, np.linalg.inv(J), float(p.gravity), np.ascontiguousarray(p.exciter_rotation[:, :2]),
+            p.exciter_position - p.cg, np.ascontiguousarray(p.imu_rotation), p.imu_position - p.cg,
+            np.ascontiguousarray(Rinc), has_inc)
+
+
+def simulate(p: RigParameters, y0: np.ndarray, force: np.ndarray, dt: float, substeps: int
+             ) -> tuple[np.ndarray, np.ndarray]:
+    """Every sensor's reading (n, n_out) on the grid (module docstring) from the state ``y0``
+    (13,) (:func:`rest_state`, :func:`moved_state`) under the exciter force ``force`` (n, 2) N,
+    exciter frame, sampled every ``dt`` s; ``substeps`` RK4 steps per grid step.  Returns the
+    readings and the state (13,) at the last sample."""
+    return _simulate(*_arguments(p, y0, force, dt, substeps))

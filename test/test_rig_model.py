@@ -1,0 +1,137 @@
+"""The rig's grey-box model read from the whole recording: every sensor an output (issue 33).
+
+The model's physics against the package's simulator (noise-free), the exciter force's
+denoising, the refusals, and the fit of random 3- and 5-cable rigs (reference noise, 45 s)
+within 1 % and 3 σ with σ near the Cramér–Rao bound.  The sweep over many rigs is
+bench/bench_crb.py.
+"""
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from rig_identification.design.scenarios import REFERENCE_NOISE, simulate_random
+from rig_identification.estimation.rig_fit import RigFitError, record, smooth_force
+from rig_identification.io.recording import Recording, SensorData
+from rig_identification.io.rig import inertia_tensor
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.linear_rig import RigParameters, net_wrench, rest_pose, stiffness_matrix
+from rig_identification.model.parametrisation import entry_scales, from_tensor
+from rig_identification.model.rig_ode import rest_state, simulate
+from rig_identification.pipeline.rig_model import fit_whole_recording
+
+from conftest import background, gather, recording, run_cli
+
+QUIET = {k: 0.0 for k in REFERENCE_NOISE}
+
+
+def _fit(cables: int, seed: int):
+    """Job: a random 'wide' rig (seed), 45 s, reference noise, fitted by the rig model."""
+    _, sim = simulate_random(seed, cables, "wide", [], 45.0)
+    res = fit_whole_recording(Recording(sim.rig, sim.sensors, sim.truth, None))
+    return sim.truth, res.to_dict()
+
+
+background("rig_model", __file__, _fit, {3: (3, 7101), 5: (5, 7206)})
+
+
+def _truth_parameters(sim) -> RigParameters:
+    tr = sim.truth
+    k = np.asarray(tr["simulator"]["cable_stiffness"])
+    c = np.asarray(tr["simulator"]["cable_damping"])
+    return RigParameters.from_rig(sim.rig, from_tensor(inertia_tensor(tr["inertia_about_cg"])), k,
+                                  float(np.mean(c / k)), tr["mass"], tr["center_of_gravity"])
+
+
+@pytest.fixture(scope="module")
+def quiet_rig():
+    _, sim = simulate_random(7206, 5, "wide", [], 20.0, noise=QUIET)
+    return sim
+
+
+def test_stiffness_matrix_is_the_negated_jacobian_of_the_net_wrench(quiet_rig):
+    p = _truth_parameters(quiet_rig)
+    rest = rest_pose(p)
+    W0, _ = net_wrench(p, rest.position, rest.rotation)
+    assert np.max(np.abs(W0)) < 1e-6 * p.mass * p.gravity
+    K = stiffness_matrix(p, rest.position, rest.rotation)
+    h = 1e-7
+    fd = np.empty((6, 6))
+    for j in range(6):
+        dq = np.zeros(6)
+        dq[j] = h
+        plus = net_wrench(p, rest.position + dq[:3], Rotation.from_rotvec(dq[3:]).as_matrix() @ rest.rotation)[0]
+        minus = net_wrench(p, rest.position - dq[:3], Rotation.from_rotvec(-dq[3:]).as_matrix() @ rest.rotation)[0]
+        fd[:, j] = -(plus - minus) / (2 * h)
+    assert np.allclose(K, fd, rtol=1e-5, atol=1e-5 * np.abs(K).max())
+    # at rest the tensions are the simulator's
+    assert np.allclose(rest_pose(p).tensions, quiet_rig.states.tensions[0], rtol=1e-8)
+
+
+def test_the_compiled_model_reproduces_the_simulator(quiet_rig):
+    """The exact equations integrated by rig_ode give every sensor the package's simulator gives,
+    noise-free, from rest under the same force: IMU and inclinometer to < 5 % of their reference
+    noise, tensions to < 0.5 N (the force linear between samples; the simulator's exact)."""
+    sim = quiet_rig
+    p = _truth_parameters(sim)
+    rest = rest_pose(p)
+    s = sim.sensors
+    force = s.exciter.data
+    out, _ = simulate(p, rest_state(p, rest), force, 1 / 200.0, 4)
+    T = np.column_stack([s.load_cells[n].data[:, 0] for n in sim.rig.cable_names])
+    n = len(sim.rig.cables)
+    assert np.max(np.abs(out[:, :n] - T)) < 0.5
+    assert np.sqrt(np.mean((out[:, n:n + 3] - s.imu.data[:, :3]) ** 2)) < 0.05 * REFERENCE_NOISE["gyro"]
+    assert np.sqrt(np.mean((out[:, n + 3:n + 6] - s.imu.data[:, 3:]) ** 2)) < 0.05 * REFERENCE_NOISE["accelerometer"]
+    incl = out[::4, n + 6:n + 8]
+    assert np.sqrt(np.mean((incl - s.inclinometer.data) ** 2)) < 0.05 * REFERENCE_NOISE["inclinometer"]
+
+
+def test_the_exciter_force_is_denoised_without_bias():
+    """A rotating force spun up over 2 s with 0.5 N of noise: after the spin-up the denoised force
+    is within 0.05 N of the true one (the noise's tenth), and the fit starts after the spin-up."""
+    rng = np.random.default_rng(5)
+    dt = 0.005
+    t = dt * np.arange(12000)
+    f = 1.2
+    ramp = np.clip(t / 2.0, 0, 1)
+    phase = 2 * np.pi * f * np.where(t < 2.0, t ** 2 / 4.0, t - 1.0)
+    true = 200 * ramp[:, None] ** 2 * np.column_stack([np.cos(phase), np.sin(phase)])
+    smooth, start = smooth_force(true + 0.5 * rng.standard_normal(true.shape), dt, 4 * f)
+    assert 2.0 / dt < start < 6.0 / dt
+    assert np.sqrt(np.mean((smooth[start:] - true[start:]) ** 2)) < 0.05
+
+
+def test_a_recording_without_exciter_or_too_short_is_refused(quiet_rig):
+    s = quiet_rig.sensors
+    with pytest.raises(RigFitError, match="exciter"):
+        record(SensorData(s.imu, s.load_cells, None, s.inclinometer), quiet_rig.rig)
+    with pytest.raises(RigFitError, match="needs ≥ 10 s"):
+        record(s, quiet_rig.rig, t1=s.t_start + 8.0)
+
+
+def test_rig_model_takes_one_recording_and_no_report(tmp_path):
+    rec = recording("visible_case16_clean")
+    code, _, err = run_cli("inertia", rec, rec, "--model", "rig")
+    assert code == 2 and "--model rig fits one recording" in err
+    code, _, err = run_cli("inertia", rec, "--model", "rig", "--report", tmp_path / "r")
+    assert code == 2 and "--model rig" in err
+
+
+@pytest.mark.parametrize("cables,seed", [(3, 7101), (5, 7206)])
+def test_three_and_five_cable_rigs_within_one_percent_three_sigma_near_the_bound(cables, seed):
+    """Every entry within 1 % (products: of the largest moment) and 3 σ, σ within 2.5× of the
+    Cramér–Rao bound, no channel beyond its noise, the dynamic CG within 3 mm and 3 σ, the mass
+    within 3 σ."""
+    truth, d = gather("rig_model", cables)[cables]
+    tru = np.array([truth["inertia_about_cg"][k] for k in KEYS])
+    est = np.array([d["inertia_about_cg"][k] for k in KEYS])
+    sd = np.array([d["inertia_std"][k] for k in KEYS])
+    crb = np.array([d["inertia_crb"][k] for k in KEYS])
+    assert not d["poorly_fitted_channels"], d["residual_level"]
+    assert np.all(np.abs(est - tru) < 0.01 * entry_scales(tru)), (est, tru)
+    assert np.all(np.abs(est - tru) < 3 * sd), ((est - tru) / sd)
+    assert np.all(sd < 2.5 * crb) and np.all(sd >= 0.999 * crb), sd / crb
+    cg = d["center_of_gravity"]
+    err = np.array(cg["dynamic"]) - np.array(truth["center_of_gravity"])
+    assert np.all(np.abs(err) < 3e-3) and np.all(np.abs(err) < 3 * np.array(cg["dynamic_std"])), err
+    assert abs(d["mass"] - truth["mass"]) < 3 * d["mass_std"]
