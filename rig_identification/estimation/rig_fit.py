@@ -59,7 +59,7 @@ DECIMATED_RATE = 3.0
 #: Knot spacing, s, of the exciter force's amplitude and phase while the motor spins up and
 #: after (:func:`smooth_force`).
 RAMP_KNOT = 0.25
-STEADY_KNOT = 5.0
+STEADY_KNOT = 15.0
 #: s after the spin-up's end (its amplitude at 90 % of the steady one, plus 1 s) where the fit starts.
 SETTLE = 2.0
 #: The rig's geometry as surveyed, 1 σ per anchor coordinate and cable length (m): a careful
