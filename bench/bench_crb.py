@@ -81,16 +81,18 @@ def judge(J: np.ndarray, crb: np.ndarray, rec: Recording | None) -> dict:
     err = f.inertia - J
     row.update(error_percent=(100 * err / entry_scales(J)).tolist(), error_sigma=(err / f.inertia_std).tolist(),
                sigma_over_crb=(f.inertia_std / crb).tolist(), poorly_fitted=res.poorly_fitted,
-               seconds=time.perf_counter() - t)
+               verdict=res.verdict, undetermined=res.undetermined, seconds=time.perf_counter() - t)
     return row
 
 
 def line(name: str, row: dict) -> str:
     s = f"{name:<34} CRB worst {max(row['crb_percent']):7.3f} %"
-    if "error_percent" in row:
+    if row.get("verdict") == "failed":
+        s += f" | fit failed ({len(row['poorly_fitted'])} channels beyond their noise)  {row['seconds']:.0f} s"
+    elif "error_percent" in row:
         soc = row["sigma_over_crb"]
         s += (f" | err max {max(np.abs(row['error_percent'])):6.3f} %  |err/σ| max {max(np.abs(row['error_sigma'])):5.2f}"
-              f"  σ/CRB {min(soc):.2f}–{max(soc):.2f}  misfit {','.join(row['poorly_fitted']) or '-'}"
+              f"  σ/CRB {min(soc):.2f}–{max(soc):.2f}  {row['verdict']}  misfit {','.join(row['poorly_fitted']) or '-'}"
               f"  {row['seconds']:.0f} s")
     return s
 
@@ -98,18 +100,22 @@ def line(name: str, row: dict) -> str:
 def summary(rows: list[dict]) -> None:
     det = [r for r in rows if 1.96 * max(r["crb_percent"]) <= 1.0]
     print(f"\nrigs the bound determines to ±1 % at 95 %: {len(det)}/{len(rows)}")
-    fitted = [r for r in rows if "error_percent" in r]
+    fitted = [r for r in rows if "error_percent" in r and r["verdict"] != "failed"]
+    failed = [r["name"] for r in rows if r.get("verdict") == "failed"]
+    print(f"fits failed (said so): {len(failed)} {' '.join(failed)}")
     if not fitted:
         return
-    good = [r for r in det if "error_percent" in r and max(np.abs(r["error_percent"])) <= 1
+    good = [r for r in det if "error_percent" in r and r["verdict"] == "ok" and max(np.abs(r["error_percent"])) <= 1
             and max(np.abs(r["error_sigma"])) <= 3]
-    print(f"  of those, the fit within 1 % and 3 σ on every entry: {len(good)}/{len([r for r in det if 'error_percent' in r])}")
+    print(f"  of those, the fit ok and within 1 % and 3 σ on every entry: {len(good)}/"
+          f"{len([r for r in det if 'error_percent' in r])}")
     z = np.concatenate([r["error_sigma"] for r in fitted])
     soc = np.concatenate([r["sigma_over_crb"] for r in fitted])
     print(f"σ within 2× of the bound: {np.mean(soc <= 2):.1%} of {len(soc)} entries")
     print(f"coverage of ±1.96 σ: {np.mean(np.abs(z) <= 1.96):.1%} of {len(z)} entries; RMS error/σ {np.sqrt(np.mean(z ** 2)):.2f}")
-    silent = [r for r in fitted if max(np.abs(r["error_sigma"])) > 3 and not r["poorly_fitted"]]
-    print(f"silent failures (beyond 3 σ, no channel said to misfit): {len(silent)}")
+    silent = [r["name"] for r in fitted if r["verdict"] == "ok" and any(
+        abs(z) > 3 for k, z in zip(KEYS, r["error_sigma"]) if k not in r["undetermined"])]
+    print(f"silent failures (verdict ok, a determined entry beyond 3 σ): {len(silent)} {' '.join(silent)}")
 
 
 def main(argv=None) -> int:

@@ -7,9 +7,9 @@ physical tensor; else the body anchors' box) → :func:`~rig_identification.esti
 (the exact model, every sensor an output, mass, CG, cables, load cells and geometry fitted with
 their priors) → :class:`RigModelResult`.
 
-The CG's prior: a saved static result (``--cg CG.json``, its σ) or none (rig.yaml's CG is the
-start, the dynamic test alone determines it); the result gives the static and the dynamic CG
-side by side and their difference in σ.
+The CG's prior: a saved static result (``--cg CG.json``, its σ), else rig.yaml's CG with σ
+:data:`RIG_YAML_CG_STD`; the result gives the static and the fitted CG side by side and their
+difference in σ.
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ import numpy as np
 
 from ..estimation.identification import IdentificationError
 from ..estimation.rig_fit import Prior, RigFit, fit_rig, record
-from ..estimation.validation import REL_STD_LIMIT
+from ..estimation.precision import Z95
 from ..io.recording import Recording
 from ..io.verdict import KEYS
 from ..model.parametrisation import entry_scales, from_tensor, physically_consistent
@@ -33,6 +33,14 @@ log = logging.getLogger(__name__)
 #: beyond :data:`FAILED_LEVEL` the fit has not found the motion at all (verdict ``failed``).
 LEVEL_LIMIT = 1.5
 FAILED_LEVEL = 10.0
+#: σ (m) assumed of rig.yaml's CG when no static result with its own σ is given (``--cg``): a
+#: static test's typical z (docs/cg.md).  Without any prior the CG's height, the mass and the
+#: moments trade along a curved valley on some rigs (bench_crb 31003: ixx 37 % off at 10 σ).
+RIG_YAML_CG_STD = 5e-3
+#: An entry is determined when its 95 % half-width is within this share of its scale.
+DETERMINED_SHARE = 0.01
+#: The rig model's tensor and the gyro-only fit's must agree within this many combined σ.
+CONSISTENCY_SIGMA = 3.0
 
 
 @dataclass(frozen=True)
@@ -42,7 +50,7 @@ class RigModelResult:
     fit: :class:`~rig_identification.estimation.rig_fit.RigFit`.  path: the recording.  t0: the
     record's first stamp, s; start_s, duration_s: the compared span from t0, s; band_hz: the
     fit's band edge.  inertia_start: (6,) the tensor the fit started from, and where it came from
-    (``start_source``).  cg_prior: (3,) m and cg_prior_std (3,) m (inf: none) of the CG's prior,
+    (``start_source``), with its σ (6,) (inf: none).  cg_prior: (3,) m and cg_prior_std (3,) m (inf: none) of the CG's prior,
     cg_source: where it came from.  seconds: wall time.  truth: truth.yaml or None.
     """
 
@@ -53,6 +61,7 @@ class RigModelResult:
     duration_s: float
     band_hz: float
     inertia_start: np.ndarray
+    start_std: np.ndarray
     start_source: str
     cg_prior: np.ndarray
     cg_prior_std: np.ndarray
@@ -62,22 +71,37 @@ class RigModelResult:
 
     @property
     def verdict(self) -> str:
-        """``ok`` (every channel within :data:`LEVEL_LIMIT` of its noise), ``model_error`` (some
-        beyond: the model misses physics or a sensor's trait, σ not calibrated) or ``failed``
-        (a channel beyond :data:`FAILED_LEVEL`, or a number not finite: the fit did not find the
-        motion; the numbers are not an estimate)."""
+        """``ok`` (every channel within :data:`LEVEL_LIMIT` of its noise, the tensor consistent with
+        the gyro-only fit), ``model_error`` (some channel beyond: the model misses physics or a
+        sensor's trait, σ not calibrated), ``inconsistent`` (:attr:`inconsistent` entries: not
+        an estimate to use) or ``failed`` (a channel beyond :data:`FAILED_LEVEL`, or a number not
+        finite: the fit did not find the motion; the numbers are not an estimate)."""
         f = self.fit
         finite = np.all(np.isfinite(f.inertia)) and np.all(np.isfinite(f.inertia_std))
         if not finite or np.max(f.residual_level) > FAILED_LEVEL:
             return "failed"
-        return "model_error" if self.poorly_fitted else "ok"
+        if self.poorly_fitted:
+            return "model_error"
+        return "inconsistent" if self.inconsistent else "ok"
+
+    @property
+    def inconsistent(self) -> list[str]:
+        """The entries where the rig model and the gyro-only fit it started from differ by more
+        than :data:`CONSISTENCY_SIGMA` of their combined σ (one of them is wrong: the rig model
+        can settle in another minimum that explains the data as well where a direction of the
+        tensor is weakly determined)."""
+        d = (self.fit.inertia - self.inertia_start) / np.sqrt(self.fit.inertia_std ** 2 + self.start_std ** 2)
+        return [k for k, z in zip(KEYS, d) if abs(z) > CONSISTENCY_SIGMA]
 
     @property
     def undetermined(self) -> list[str]:
-        """The entries whose σ exceeds :data:`~rig_identification.estimation.validation.REL_STD_LIMIT`
-        of their scale (a moment's own, the largest moment's for a product)."""
+        """The entries whose 95 % half-width exceeds :data:`DETERMINED_SHARE` of their scale (a
+        moment's own, the largest moment's for a product).  Their values are not an estimate:
+        where the recording determines a direction of the tensor that weakly, the likelihood is
+        far from quadratic and another minimum may explain the data as well (bench_crb 31003,
+        6 cables: every channel at its noise, Ixx 37 % off at 10 σ with σ 2.5 %)."""
         scale = entry_scales(self.fit.inertia)
-        return [k for k, s, c in zip(KEYS, self.fit.inertia_std, scale) if not s <= REL_STD_LIMIT * c]
+        return [k for k, s, c in zip(KEYS, self.fit.inertia_std, scale) if not Z95 * s <= DETERMINED_SHARE * c]
 
     @property
     def poorly_fitted(self) -> list[str]:
@@ -100,7 +124,7 @@ class RigModelResult:
         d = {
             "schema": "rig_identification.rig_model_result", "schema_version": 1,
             "recording": self.path, "model": "rig (grey-box, every sensor an output)",
-            "verdict": self.verdict, "undetermined": self.undetermined,
+            "verdict": self.verdict, "undetermined": self.undetermined, "inconsistent": self.inconsistent,
             "window": {"start_s": self.start_s, "duration_s": self.duration_s, "band_hz": [0.0, self.band_hz]},
             "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, p.inertia)},
             "inertia_std": {k: float(v) for k, v in zip(KEYS, sd)},
@@ -108,6 +132,7 @@ class RigModelResult:
             "sigma_over_crb": {k: float(a / b) for k, a, b in zip(KEYS, sd, f.crb)},
             "inertia_units": "kg m^2 (tensor entries about the CG, body axes; ixy = -product of inertia)",
             "inertia_start": {"entries": {k: float(v) for k, v in zip(KEYS, self.inertia_start)},
+                              "std": {k: float(v) if np.isfinite(v) else None for k, v in zip(KEYS, self.start_std)},
                               "source": self.start_source},
             "mass": float(p.mass), "mass_std": float(np.sqrt(f.covariance[f.layout.mass, f.layout.mass])),
             "center_of_gravity": {"dynamic": p.cg.tolist(), "dynamic_std": f.cg_std.tolist(),
@@ -130,16 +155,19 @@ class RigModelResult:
         return d
 
 
-def start_tensor(rec: Recording) -> tuple[np.ndarray, str]:
-    """The tensor entries (6,) the fit starts from, and their source: the prediction-error fit on
-    the gyro (unrefined) where it gives a physical tensor, else the body anchors' box."""
+def start_tensor(rec: Recording) -> tuple[np.ndarray, np.ndarray, str]:
+    """The tensor entries (6,) the fit starts from, their σ (6,) (inf: a guess) and their source:
+    the prediction-error fit on the gyro (unrefined) where it gives a physical tensor, else the
+    body anchors' box."""
     try:
-        tensor = np.asarray(identify_recording(rec, refine=False).inertia, float)      # (3, 3)
+        res = identify_recording(rec, refine=False)
+        tensor = np.asarray(res.inertia, float)      # (3, 3)
         if np.all(np.isfinite(tensor)) and physically_consistent(tensor):
-            return from_tensor(tensor), "the prediction-error fit on the gyro"
+            std = np.asarray(res.inertia_std, float)
+            return from_tensor(tensor), np.where(np.isfinite(std), std, np.inf), "the prediction-error fit on the gyro"
     except (IdentificationError, np.linalg.LinAlgError, ValueError) as e:
         log.info("no prediction-error start (%s): the body anchors' box", e)
-    return default_initial_guess(rec.rig), "the body anchors' box (a guess)"
+    return default_initial_guess(rec.rig), np.full(6, np.inf), "the body anchors' box (a guess)"
 
 
 def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | None = None,
@@ -147,18 +175,21 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     """Fit the rig model to the whole recording (module docstring).
 
     cg, cg_std: the static CG (3,) m and its σ (3,) m as the CG's prior (default: rig.yaml's CG
-    as the start, no prior).  start/end: s from the first IMU sample.  Raises
+    with σ :data:`RIG_YAML_CG_STD`).  start/end: s from the first IMU sample.  Raises
     :class:`~rig_identification.estimation.rig_fit.RigFitError`,
     :class:`~rig_identification.io.rig.RigError`."""
     t_wall = time.perf_counter()
     t_first = float(rec.sensors.t_start)
     rc = record(rec.sensors, rec.rig, None if start is None else t_first + start,
                 None if end is None else t_first + end)
+    if cg is None:                                  # rig.yaml's CG: the static test's, its σ unknown
+        cg, cg_std = rec.rig.require_cg(), np.full(3, RIG_YAML_CG_STD)
+        cg_source = cg_source or f"rig.yaml (σ {1e3 * RIG_YAML_CG_STD:g} mm assumed)"
     prior = Prior.from_rig(rec.rig, cg, cg_std)
-    guess, source = start_tensor(rec)
+    guess, guess_std, source = start_tensor(rec)
     log.info("fitting the rig model to every sensor (%.0f s, %d channels)", rc.duration, len(rc.channels))
     fit = fit_rig(rc, rec.rig, prior, guess)
     return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
-                          (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, source, prior.cg, prior.cg_std,
+                          (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, guess_std, source, prior.cg, prior.cg_std,
                           cg_source or ("rig.yaml (start only)" if cg_std is None else "given"),
                           time.perf_counter() - t_wall, rec.truth)
