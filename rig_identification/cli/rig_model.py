@@ -67,6 +67,9 @@ def print_rig_model(res: RigModelResult) -> None:
         print("  prior and fit " + verdict + " (" + ", ".join(f"{x:+.1f}" for x in diff) + " σ)")
     print("cables: stiffness " + ", ".join(f"{k / 1e6:.3f}" for k in p.stiffness) + " MN/m, damping time "
           f"{1e3 * p.damping_time:.3f} ms; load-cell gains " + ", ".join(f"{g:.4f}" for g in p.gain))
+    bd = d["body_damping"]
+    print(f"body's viscous damping: linear {bd['linear']:.3g} ± {bd['linear_std']:.2g} N·s/m, angular "
+          f"{bd['angular']:.3g} ± {bd['angular_std']:.2g} N·m·s")
     print("natural frequencies (linearised at rest): " + ", ".join(f"{x:.3g}" for x in f.natural_frequencies) + " Hz")
     print("residual in the band over the noise (1: noise alone): "
           + ", ".join(f"{c} {v:.2f}" for c, v in zip(f.channels, f.residual_level)))

@@ -13,7 +13,8 @@ variable projection (Golub & Pereyra 1973).
 
 Fitted (:class:`Layout`): the inertia tensor (6 entries), the centre of gravity (3), the mass
 (prior: the scale's σ), per-cable stiffness (log, prior: rig.yaml's value or the default steel
-cable's, wide), the cables' damping time τ, per-load-cell gain (prior ±1 %), the initial
+cable's, wide), the cables' damping time τ, per-load-cell gain (prior ±1 %), the body's
+viscous damping (linear and angular: air, joints; no prior), the initial
 state (12), and the rig's geometry — every anchor coordinate and cable length — under the lab's
 survey σ as prior (the load cells resolve 10⁻⁷ m of stretch: a millimetre of geometry taken as
 exact would bias the tensor by percents).  The covariance is the inverse Fisher information of
@@ -318,21 +319,25 @@ class Layout:
         return slice(11 + self.n_cables, 11 + 2 * self.n_cables)
 
     @property
+    def body_damping(self) -> slice:
+        return slice(11 + 2 * self.n_cables, 13 + 2 * self.n_cables)
+
+    @property
     def initial(self) -> slice:
-        return slice(11 + 2 * self.n_cables, 23 + 2 * self.n_cables)
+        return slice(13 + 2 * self.n_cables, 25 + 2 * self.n_cables)
 
     @property
     def geometry(self) -> slice:
-        return slice(23 + 2 * self.n_cables, 23 + 9 * self.n_cables)
+        return slice(25 + 2 * self.n_cables, 25 + 9 * self.n_cables)
 
     @property
     def size(self) -> int:
-        return 23 + 9 * self.n_cables
+        return 25 + 9 * self.n_cables
 
 
 def _vector(p: RigParameters, initial: np.ndarray) -> np.ndarray:
-    return np.concatenate([p.inertia, p.cg, [p.mass], np.log(p.stiffness), [p.damping_time], p.gain, initial,
-                           p.ceiling.ravel(), p.body.ravel(), p.length])
+    return np.concatenate([p.inertia, p.cg, [p.mass], np.log(p.stiffness), [p.damping_time], p.gain, p.body_damping,
+                           initial, p.ceiling.ravel(), p.body.ravel(), p.length])
 
 
 def _parameters(x: np.ndarray, like: RigParameters, lay: Layout) -> RigParameters:
@@ -340,7 +345,7 @@ def _parameters(x: np.ndarray, like: RigParameters, lay: Layout) -> RigParameter
     g = x[lay.geometry]
     return like.replace(inertia=x[lay.inertia], cg=x[lay.cg], mass=float(x[lay.mass]),
                         stiffness=np.exp(x[lay.log_stiffness]), damping_time=float(x[lay.damping]),
-                        gain=x[lay.gain], ceiling=g[:3 * n].reshape(n, 3), body=g[3 * n:6 * n].reshape(n, 3),
+                        gain=x[lay.gain], body_damping=x[lay.body_damping], ceiling=g[:3 * n].reshape(n, 3), body=g[3 * n:6 * n].reshape(n, 3),
                         length=g[6 * n:])
 
 
@@ -367,6 +372,7 @@ def _scale(x0: np.ndarray, lay: Layout, prior: Prior) -> np.ndarray:
     s[lay.log_stiffness] = 1e-2
     s[lay.damping] = 0.1 * max(abs(x0[lay.damping]), 1e-5)
     s[lay.gain] = 1e-3
+    s[lay.body_damping] = (1e-3 * prior.mass, 1e-3 * big)      # ζ ≈ 1e-3 of a 1 rad/s mode
     s[lay.initial] = 1e-4
     s[lay.geometry] = 1e-4
     return s
@@ -468,7 +474,7 @@ class RigFit:
     parameters: the estimate (:class:`~rig_identification.model.linear_rig.RigParameters`);
     initial: (12,) the initial state's offset at the fit's start.  covariance: (n, n) of the
     unknowns (:class:`Layout` order; inertia kg·m², CG m, mass kg, log stiffness, τ s, gains,
-    initial state (δp_cg m, δφ rad, v_cg m/s, ω rad/s), geometry m): each σ the larger of the
+    body damping N·s/m and N·m·s, initial state (δp_cg m, δφ rad, v_cg m/s, ω rad/s), geometry m): each σ the larger of the
     Fisher information's (each channel's noise raised to its residual's level) and the
     sandwich's (:func:`_covariance`), the correlations the Fisher information's.
     crb: (6,) the Cramér–Rao bound of the tensor entries at the estimate with the sensors' own

@@ -16,14 +16,16 @@ rotation (world, rad, R = exp([δφ]×) R0); u (2,) the exciter force in its fra
 * K = Σ_i G_i (k_i u_i u_iᵀ + T_i/l_i (I - u_i u_iᵀ)) G_iᵀ
   - blockdiag(0, Σ_i [T_i u_i]× [s_i]× + [m g]× [c]×), G_i = [I; [s_i]×], s_i = R0 b_i:
   the cables' axial and geometric stiffness and the moment arms turning under the forces.
-* D = Σ_i τ k_i G_i u_i u_iᵀ G_iᵀ;  B = [I; [s_e]×] R0 R_e[:, :2].
+* D = Σ_i τ k_i G_i u_i u_iᵀ G_iᵀ + c_lin G_c G_cᵀ + blockdiag(0, c_ang I), G_c = [I; [c]×]
+  (the body's viscous damping on the CG's velocity and the angular velocity);
+  B = [I; [s_e]×] R0 R_e[:, :2].
 
 Its natural frequencies set the step of the exact model's integrator
 (:mod:`~rig_identification.model.rig_ode`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -48,6 +50,8 @@ class RigParameters:
     kg·m², :data:`~rig_identification.io.verdict.KEYS` order (off-diagonals = -products).
     ceiling: (N, 3) world m.  body: (N, 3) body frame m.  length: (N,) unstretched m.
     stiffness: (N,) N/m.  damping_time: τ, s (cable damping τ k_i).  gain: (N,) load-cell gains.
+    body_damping: (2,) the body's viscous damping: linear N·s/m on the CG's velocity, angular
+    N·m·s on the angular velocity (air, joints; the ``viscous_damping`` effect).
     gravity: m/s².  imu_position: (3,) body m; imu_rotation, exciter_rotation,
     inclinometer_rotation: (3, 3) sensor axes -> body axes (None: no inclinometer).
     exciter_position: (3,) body m.
@@ -68,6 +72,7 @@ class RigParameters:
     exciter_position: np.ndarray
     exciter_rotation: np.ndarray
     inclinometer_rotation: np.ndarray | None
+    body_damping: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
     @property
     def cables(self) -> int:
@@ -200,7 +205,9 @@ def linearise(p: RigParameters, rest: RestPose) -> LinearRig:
     Io = Jcg + p.mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
     M = np.block([[p.mass * np.eye(3), -p.mass * skew(c)], [p.mass * skew(c), Io]])
     K = stiffness_matrix(p, rest.position, R0)
-    D = p.damping_time * np.einsum("n,ni,nj->ij", p.stiffness, Gu, Gu)
+    Gc = np.vstack([np.eye(3), skew(c)])                                      # CG velocity -> generalized force
+    D = p.damping_time * np.einsum("n,ni,nj->ij", p.stiffness, Gu, Gu) + p.body_damping[0] * Gc @ Gc.T
+    D[3:, 3:] += p.body_damping[1] * np.eye(3)
     fe = R0 @ p.exciter_rotation[:, :2]
     B = np.vstack([fe, skew(R0 @ p.exciter_position) @ fe])
     return LinearRig(M, D, K, B, rest)

@@ -2,11 +2,12 @@
 
 The same physics as :class:`~rig_identification.model.dynamics.RigDynamics` with spring-damper
 cables (Newton–Euler with the gyroscopic term; tension max(0, k_i (l_i - L_i) + τ k_i dl_i/dt)
-along the cable), driven by the measured exciter force (its frame turning with the body), the
-force a cubic spline through the samples of a uniform grid (linear interpolation of a 200 Hz
-force leaves 0.2 N in the tensions: they see the motion that finely).  Classical fourth-order Runge–Kutta with a
-fixed step (``substeps`` per grid step, chosen by :func:`substeps_for` so that the stiffest
-cable mode stays far inside the method's stability region), compiled with numba: the
+along the cable; the body's viscous damping, -c_lin v_cg and -c_ang ω), driven by the measured
+exciter force (its frame turning with the body), the force a cubic spline through the samples of
+a uniform grid (linear interpolation of a 200 Hz force leaves 0.2 N in the tensions: they see
+the motion that finely).  Classical fourth-order Runge–Kutta with a fixed step (``substeps``
+per grid step, chosen by :func:`substeps_for` so that the stiffest cable mode stays inside the
+method's stability region), compiled with numba: the
 output-error fit (:mod:`~rig_identification.estimation.rig_fit`) runs it once per parameter
 perturbation.
 
@@ -33,7 +34,7 @@ STEP_OMEGA = 0.5
 
 
 @numba.njit(cache=True, nogil=True)
-def _rhs(y, u0, u1, A, r, L, k, c, m, J, Jinv, g, Re, re, out_T, dy, R):
+def _rhs(y, u0, u1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, out_T, dy, R):
     """State derivative into ``dy``; y = [p_cg 3, quaternion wxyz 4, v_cg 3, ω body 3]; the
     rotation into ``R``, the tensions into ``out_T``."""
     qw, qx, qy, qz = y[3], y[4], y[5], y[6]
@@ -88,6 +89,12 @@ def _rhs(y, u0, u1, A, r, L, k, c, m, J, Jinv, g, Re, re, out_T, dy, R):
     Mx += re[1] * ez - re[2] * ey
     My += re[2] * ex - re[0] * ez
     Mz += re[0] * ey - re[1] * ex
+    Fx -= bd[0] * y[7]                     # the body's viscous damping
+    Fy -= bd[0] * y[8]
+    Fz -= bd[0] * y[9]
+    Mx -= bd[1] * wx
+    My -= bd[1] * wy
+    Mz -= bd[1] * wz
     dy[0], dy[1], dy[2] = y[7], y[8], y[9]
     dy[3] = 0.5 * (-qx * wx - qy * wy - qz * wz)
     dy[4] = 0.5 * (qw * wx + qy * wz - qz * wy)
@@ -106,7 +113,7 @@ def _rhs(y, u0, u1, A, r, L, k, c, m, J, Jinv, g, Re, re, out_T, dy, R):
 
 
 @numba.njit(cache=True, nogil=True)
-def _simulate(y0, force, dt, substeps, A, r, L, k, c, gain, m, J, Jinv, g, Re, re, Rimu, rimu, Rinc, has_inc):
+def _simulate(y0, force, dt, substeps, A, r, L, k, c, gain, m, J, Jinv, g, Re, re, bd, Rimu, rimu, Rinc, has_inc):
     # force: sampled every half RK4 step, (n - 1) * 2 * substeps + 1 rows
     n = (force.shape[0] - 1) // (2 * substeps) + 1
     N = L.shape[0]
@@ -119,7 +126,8 @@ def _simulate(y0, force, dt, substeps, A, r, L, k, c, gain, m, J, Jinv, g, Re, r
     k1, k2, k3, k4 = np.empty(13), np.empty(13), np.empty(13), np.empty(13)
     h = dt / substeps
     for j in range(n):
-        _rhs(y, force[2 * substeps * j, 0], force[2 * substeps * j, 1], A, r, L, k, c, m, J, Jinv, g, Re, re, T, k1, R)
+        f0 = 2 * substeps * j
+        _rhs(y, force[f0, 0], force[f0, 1], A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k1, R)
         for i in range(N):
             out[j, i] = gain[i] * T[i]
         w = y[10:13]
@@ -138,16 +146,16 @@ def _simulate(y0, force, dt, substeps, A, r, L, k, c, gain, m, J, Jinv, g, Re, r
             ua0, ua1 = force[b, 0], force[b, 1]
             ub0, ub1 = force[b + 1, 0], force[b + 1, 1]
             uc0, uc1 = force[b + 2, 0], force[b + 2, 1]
-            _rhs(y, ua0, ua1, A, r, L, k, c, m, J, Jinv, g, Re, re, T, k1, R)
+            _rhs(y, ua0, ua1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k1, R)
             for i in range(13):
                 yt[i] = y[i] + 0.5 * h * k1[i]
-            _rhs(yt, ub0, ub1, A, r, L, k, c, m, J, Jinv, g, Re, re, T, k2, R)
+            _rhs(yt, ub0, ub1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k2, R)
             for i in range(13):
                 yt[i] = y[i] + 0.5 * h * k2[i]
-            _rhs(yt, ub0, ub1, A, r, L, k, c, m, J, Jinv, g, Re, re, T, k3, R)
+            _rhs(yt, ub0, ub1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k3, R)
             for i in range(13):
                 yt[i] = y[i] + h * k3[i]
-            _rhs(yt, uc0, uc1, A, r, L, k, c, m, J, Jinv, g, Re, re, T, k4, R)
+            _rhs(yt, uc0, uc1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k4, R)
             for i in range(13):
                 y[i] = y[i] + h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i])
             qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
@@ -190,7 +198,8 @@ def _arguments(p: RigParameters, y0, force, dt, substeps):
             np.ascontiguousarray(p.ceiling), np.ascontiguousarray(p.body - p.cg), p.length.astype(float),
             p.stiffness.astype(float), (p.damping_time * p.stiffness).astype(float), p.gain.astype(float),
             float(p.mass), J, np.linalg.inv(J), float(p.gravity), np.ascontiguousarray(p.exciter_rotation[:, :2]),
-            p.exciter_position - p.cg, np.ascontiguousarray(p.imu_rotation), p.imu_position - p.cg,
+            p.exciter_position - p.cg, np.asarray(p.body_damping, float), np.ascontiguousarray(p.imu_rotation),
+            p.imu_position - p.cg,
             np.ascontiguousarray(Rinc), has_inc)
 
 
