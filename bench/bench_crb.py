@@ -109,9 +109,12 @@ def summary(rows: list[dict]) -> None:
             and max(np.abs(r["error_sigma"])) <= 3]
     print(f"  of those, the fit ok and within 1 % and 3 σ on every entry: {len(good)}/"
           f"{len([r for r in det if 'error_percent' in r])}")
-    z = np.concatenate([r["error_sigma"] for r in fitted])
-    soc = np.concatenate([r["sigma_over_crb"] for r in fitted])
-    print(f"σ within 2× of the bound: {np.mean(soc <= 2):.1%} of {len(soc)} entries")
+    ok = [r for r in fitted if r["verdict"] == "ok"] or fitted
+    z = np.concatenate([r["error_sigma"] for r in ok])
+    soc = np.concatenate([r["sigma_over_crb"] for r in ok])
+    print("verdicts: " + ", ".join(f"{v} {sum(r.get('verdict') == v for r in rows)}" for v in
+                                    ("ok", "model_error", "not_identifiable", "inconsistent", "failed")))
+    print(f"over the ok fits: σ within 2× of the bound: {np.mean(soc <= 2):.1%} of {len(soc)} entries")
     print(f"coverage of ±1.96 σ: {np.mean(np.abs(z) <= 1.96):.1%} of {len(z)} entries; RMS error/σ {np.sqrt(np.mean(z ** 2)):.2f}")
     silent = [r["name"] for r in fitted if r["verdict"] == "ok" and any(
         abs(z) > 3 for k, z in zip(KEYS, r["error_sigma"]) if k not in r["undetermined"])]

@@ -26,15 +26,15 @@ def print_rig_model(res: RigModelResult) -> None:
     words = {"ok": "ok — the model explains every channel at its noise level",
              "model_error": "model_error — " + ", ".join(res.poorly_fitted) + f" beyond {LEVEL_LIMIT}× their noise: "
                             "the model misses something there; σ below is not calibrated",
+             "not_identifiable": "not_identifiable — " + ", ".join(res.undetermined) + " not determined to ±1 % at "
+                                 "95 %: the fit may sit in another minimum that explains the data as well, and the "
+                                 "tensor's directions are coupled: no entry below is an estimate to use",
              "inconsistent": "inconsistent — the rig model and the gyro-only fit disagree beyond 3 σ on "
                              + ", ".join(res.inconsistent) + ": the fit may have settled in another minimum; "
                              "the numbers below are not an estimate to use",
              "failed": "failed — the fit did not find the motion (a channel beyond 10× its noise, or a number not "
                        "finite): the numbers below are not an estimate"}
     print(f"verdict: {words[res.verdict]}")
-    if res.undetermined and res.verdict != "failed":
-        print("not determined by this recording (95 % half-width beyond 1 % of their scale; the likelihood is far "
-              "from quadratic there and their values may be far off): " + ", ".join(res.undetermined))
     print(f"recording: {res.path}")
     print("model: the rig's grey-box model, every sensor an output (tensions, gyro, accelerometer, inclinometer); "
           "mass, CG, cable stiffness and damping, load-cell gains, the initial state and the surveyed geometry "
