@@ -49,9 +49,10 @@ from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequ
 from ..model.parametrisation import physically_consistent, to_tensor
 from ..model.rig_ode import moved_state, rest_state, simulate, substeps_for
 
+log = logging.getLogger(__name__)
+
 #: The record's lengths, s, stage by stage (module docstring); the last stage is the whole record.
 STAGES = (15.0, 40.0)
-log = logging.getLogger(__name__)
 
 #: The fit's band edge over the exciter force's dominant frequency (:func:`band_edge`), and the
 #: decimated residual's rate over the band edge.
@@ -64,7 +65,7 @@ STEADY_KNOT = 15.0
 #: s after the spin-up's end (its amplitude at 90 % of the steady one, plus 1 s) where the fit starts.
 SETTLE = 2.0
 #: The rig's geometry as surveyed, 1 σ per anchor coordinate and cable length (m): a careful
-#: steel-tape or laser survey (rig.yaml ``survey_std`` overrides it).
+#: steel-tape or laser survey (:attr:`Prior.survey_std` sets another).
 SURVEY_STD = 1.0e-3
 #: σ of the body's mass from the scale, as a share of the mass.
 MASS_STD_SHARE = 0.002
@@ -130,7 +131,7 @@ class Record:
 
 
 def channel_names(rig: Rig) -> tuple[str, ...]:
-    """The outputs of the rig model, in the order of :func:`~rig_identification.model.linear_rig.linearise`."""
+    """The outputs of the rig model, in the order of :func:`~rig_identification.model.rig_ode.simulate`."""
     names = [f"tension:{n}" for n in rig.cable_names] + ["gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y",
                                                           "accel_z"]
     return tuple(names + (["incl_x", "incl_y"] if rig.inclinometer is not None else []))

@@ -11,7 +11,7 @@ method's stability region), compiled with numba: the
 output-error fit (:mod:`~rig_identification.estimation.rig_fit`) runs it once per parameter
 perturbation.
 
-Outputs on the grid (channel order of :func:`~rig_identification.model.linear_rig.linearise`):
+Outputs on the grid, in this order:
 the N tensions times the load cells' gains, the gyro (IMU axes), the accelerometer's specific
 force (IMU axes, the lever arm's tangential and centripetal terms included), the
 inclinometer's two elevations asin(z_world · axis).
