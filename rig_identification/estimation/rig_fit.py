@@ -121,14 +121,6 @@ class Record:
     def duration(self) -> float:
         return self.dt * (len(self.y) - 1)
 
-    def fourier(self, x: np.ndarray, omega: np.ndarray) -> np.ndarray:
-        """Fourier integrals ∫ x e^{-jωt} dt over the record (trapezoid rule) of a series ``x``
-        (n, k) on the grid at ``omega`` (nb,) rad/s -> (nb, k)."""
-        t = self.dt * np.arange(len(x))
-        w = np.full(len(x), self.dt)
-        w[[0, -1]] *= 0.5
-        return (np.exp(-1j * np.outer(omega, t)) * w) @ x
-
 
 def channel_names(rig: Rig) -> tuple[str, ...]:
     """The outputs of the rig model, in the order of :func:`~rig_identification.model.rig_ode.simulate`."""

@@ -18,7 +18,7 @@ rotation (world, rad, R = exp([δφ]×) R0); u (2,) the exciter force in its fra
   the cables' axial and geometric stiffness and the moment arms turning under the forces.
 * D = Σ_i τ k_i G_i u_i u_iᵀ G_iᵀ + c_lin G_c G_cᵀ + blockdiag(0, c_ang I), G_c = [I; [c]×]
   (the body's viscous damping on the CG's velocity and the angular velocity);
-  B = [I; [s_e]×] R0 R_e[:, :2].
+  B = [I; [s_e]×] R0 R_e[:, :2] (the exciter's force; the integrated model applies it exactly).
 
 Its natural frequencies set the step of the exact model's integrator
 (:mod:`~rig_identification.model.rig_ode`).
@@ -115,13 +115,11 @@ class RestPose:
 
 @dataclass(frozen=True)
 class LinearRig:
-    """The rig linearised about its :class:`RestPose`: M, D, K (6, 6) and B (6, 2) of the
-    module docstring."""
+    """The rig linearised about its :class:`RestPose`: M, D, K (6, 6) of the module docstring."""
 
     M: np.ndarray
     D: np.ndarray
     K: np.ndarray
-    B: np.ndarray
     rest: RestPose
 
 
@@ -208,9 +206,7 @@ def linearise(p: RigParameters, rest: RestPose) -> LinearRig:
     Gc = np.vstack([np.eye(3), skew(c)])                                      # CG velocity -> generalized force
     D = p.damping_time * np.einsum("n,ni,nj->ij", p.stiffness, Gu, Gu) + p.body_damping[0] * Gc @ Gc.T
     D[3:, 3:] += p.body_damping[1] * np.eye(3)
-    fe = R0 @ p.exciter_rotation[:, :2]
-    B = np.vstack([fe, skew(R0 @ p.exciter_position) @ fe])
-    return LinearRig(M, D, K, B, rest)
+    return LinearRig(M, D, K, rest)
 
 
 def natural_frequencies(lin: LinearRig) -> np.ndarray:
