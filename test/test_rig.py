@@ -143,6 +143,46 @@ def test_cable_length_in_millimetres_is_refused(rig_dict):
     assert "cable c3's length is 2515 m" in str(e.value) and "cables[0], cables[3]" in str(e.value)
 
 
+def _scaled(d: dict, factor: float) -> dict:
+    """rig.yaml with every length in it multiplied by ``factor`` (metres to millimetres: 1000)."""
+    d = copy.deepcopy(d)
+    for c in d["cables"]:
+        c["ceiling_anchor"] = [factor * x for x in c["ceiling_anchor"]]
+        c["body_anchor"] = [factor * x for x in c["body_anchor"]]
+        c["length"] *= factor
+    for key in ("imu", "exciter"):
+        d[key]["position"] = [factor * x for x in d[key]["position"]]
+    d["body"]["center_of_gravity"] = [factor * x for x in d["body"]["center_of_gravity"]]
+    return d
+
+
+@pytest.mark.parametrize("mutate, message", [
+    (lambda d: d.update(_scaled(d, 1000.0)), "the ceiling anchors span 6560 m"),
+    (lambda d: d["body"].update(mass=1810e3), "body.mass = 1.81e+06 kg"),
+    (lambda d: d["imu"].update(rpy=[0.0, 0.0, 90.0]), "imu.rpy"),
+    (lambda d: d["cables"][2].update(stiffness=5e3), "cables[2].stiffness = 5000 N/m would stretch cable c2"),
+    (lambda d: d["exciter"].update(position=[-800.0, -1250.0, -460.0]), "exciter.position"),
+])
+def test_rig_in_other_units_is_refused(rig_dict, mutate, message):
+    """The whole rig in millimetres passes the reach check (every side scaled alike) and ran
+    806 s to an Ixx of 3·10⁶ kg·m²: it is refused at load, with the unit it probably is."""
+    d = copy.deepcopy(rig_dict)
+    mutate(d)
+    with pytest.raises(RigError) as e:
+        rig_from_dict(d, "my_rig.yaml")
+    msg = str(e.value)
+    assert msg.startswith("my_rig.yaml: field ") and message in msg, msg
+    assert any(u in msg for u in ("millimetres?", "grams?", "degrees?", "N/mm?")), msg
+
+
+def test_largest_plausible_rig_loads(rig_dict):
+    """A rig ten times the reference (cables 20–25 m, ceiling anchors 66 m apart) is past the limit only
+    where a span exceeds 30 m; at three times it loads."""
+    rig_from_dict(_scaled(rig_dict, 3.0))
+    with pytest.raises(RigError, match="span"):
+        rig_from_dict(_scaled(rig_dict, 10.0))
+
+
 def test_reach_is_the_polygon_inequality(rig_dict):
     """A cable cannot be taut while longer than the way round through another taut cable:
     L0 <= |A0 - Aj| + Lj + |B0 - Bj| for every j (+2 % for the stretch)."""

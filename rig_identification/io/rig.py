@@ -218,6 +218,13 @@ UNKNOWN_HINTS = {"inclinometer.position": "an inclinometer's reading does not de
 # its sides |A_i - A_j|, |B_i - B_j| (the body is rigid), L_i, L_j can exceed the sum of the other
 # three when both cables are taut; allowed: REACH_SLACK of the sum (stretch under load: ~1e-3)
 REACH_SLACK = 0.02
+#: The largest rig the loader takes, m: a span of anchors, a cable's length or a body-frame
+#: position beyond it is a rig.yaml in millimetres (a vehicle rig is metres across).
+LARGEST_RIG = 30.0
+#: The largest body mass, kg (a heavy truck): beyond it, grams?
+LARGEST_MASS = 1.0e5
+#: The largest static stretch of a cable over its length: beyond it the stiffness is in N/mm?
+LARGEST_STRETCH = 0.1
 
 
 def _check_fields(d: dict, kind: str, where: str, src: str) -> None:
@@ -262,6 +269,50 @@ def check_reach(cables, src: str) -> None:
                     f"{cj.length:.4g} m; rig.yaml is in metres -- units?)")
 
 
+def check_scale(rig: Rig) -> None:
+    """Refuse a rig.yaml whose numbers are in the wrong units though each is possible alone:
+    anchors or lengths in millimetres (a span over :data:`LARGEST_RIG`; the reach check cannot
+    see every number scaled alike), a mass in grams (over :data:`LARGEST_MASS`), an angle in
+    degrees (|rpy| over 2π), a stiffness in N/mm (a cable stretched by more than
+    :data:`LARGEST_STRETCH` of its length under its share of the weight).  Raises
+    :class:`RigError` naming the field and the likely unit."""
+    src = rig.source
+    mm = "rig.yaml is in metres -- millimetres?"
+    spans = {"the ceiling anchors": rig.ceiling_anchors, "the body anchors": rig.body_anchors}
+    for what, pts in spans.items():
+        span = float(np.max(np.linalg.norm(pts[:, None] - pts[None], axis=-1)))
+        if span > LARGEST_RIG:
+            field = "cables[*].ceiling_anchor" if "ceiling" in what else "cables[*].body_anchor"
+            raise RigError(f"{src}: field {field}: {what} span {span:.4g} m, more than a vehicle rig's "
+                           f"{LARGEST_RIG:g} m ({mm})")
+    for i, c in enumerate(rig.cables):
+        if c.length > LARGEST_RIG:
+            raise RigError(f"{src}: field cables[{i}].length = {c.length:.4g} m, longer than a vehicle rig's "
+                           f"{LARGEST_RIG:g} m ({mm})")
+    centre = rig.body_anchors.mean(axis=0)
+    points = {"body.center_of_gravity": rig.center_of_gravity, "imu.position": rig.imu.position,
+              "exciter.position": None if rig.exciter is None else rig.exciter.position,
+              "dummy_mass.position": None if rig.dummy_mass is None else rig.dummy_mass.position}
+    for field, x in points.items():
+        if x is not None and np.linalg.norm(x - centre) > LARGEST_RIG:
+            raise RigError(f"{src}: field {field} = {np.round(x, 4).tolist()} m lies "
+                           f"{np.linalg.norm(x - centre):.4g} m from the body anchors' centre ({mm})")
+    if rig.mass > LARGEST_MASS:
+        raise RigError(f"{src}: field body.mass = {rig.mass:g} kg is more than a heavy truck's "
+                       f"{LARGEST_MASS:g} kg (rig.yaml is in kg -- grams?)")
+    mounts = {"imu.rpy": rig.imu, "exciter.rpy": rig.exciter, "inclinometer.rpy": rig.inclinometer}
+    for field, m in mounts.items():
+        if m is not None and np.max(np.abs(m.rpy)) > 2 * np.pi + 1e-9:
+            raise RigError(f"{src}: field {field} = {m.rpy.tolist()} has an angle beyond 2π (rig.yaml angles are "
+                           "in radians -- degrees?)")
+    share = rig.mass * rig.gravity / len(rig.cables)
+    for i, c in enumerate(rig.cables):
+        if c.stiffness is not None and share / c.stiffness > LARGEST_STRETCH * c.length:
+            raise RigError(f"{src}: field cables[{i}].stiffness = {c.stiffness:g} N/m would stretch cable {c.name} "
+                           f"by {share / c.stiffness:.3g} m under {share:.0f} N, more than "
+                           f"{100 * LARGEST_STRETCH:g} % of its length (EA/L is in N/m -- N/mm?)")
+
+
 def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     """Validate a rig.yaml mapping and build a :class:`Rig`.
 
@@ -270,7 +321,9 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     did you mean ``body.center_of_gravity``?); a value that is not a finite number (or list of
     3); gravity outside 9–10.5 m/s²; fewer than 3 cables, a duplicate or malformed cable name;
     a length, stiffness, body mass or dummy mass <= 0; collinear body anchors; cable geometry
-    no pose can hold with every cable taut (:func:`check_reach`: e.g. anchors in mm); a ``name``
+    no pose can hold with every cable taut (:func:`check_reach`: e.g. one anchor in mm); numbers
+    each possible alone but in the wrong units together (:func:`check_scale`: the whole rig in
+    mm, a mass in g, angles in degrees, a stiffness in N/mm); a ``name``
     that is not a non-empty one-line text; an ``output_axes`` that is not a key of
     :data:`~rig_identification.io.export.AXES` (with the closest one).
     """
@@ -338,7 +391,9 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
             _check_fields(dm_raw, "dummy_mass", "dummy_mass", src)
         dummy = DummyMass(_number(_get(dm_raw, "mass", "dummy_mass", src), "dummy_mass.mass", src, positive=True),
                           _vector(_get(dm_raw, "position", "dummy_mass", src), "dummy_mass.position", src))
-    return Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, name=rig_name, output_axes=output_axes)
+    rig = Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, name=rig_name, output_axes=output_axes)
+    check_scale(rig)
+    return rig
 
 
 def read_text(path: str | Path, error: type[ValueError], what: str) -> str:
