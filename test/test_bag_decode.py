@@ -17,7 +17,7 @@ from rig_identification.io.bag_raw import IndexMismatch, chunk_messages, read_ch
 from rig_identification.io.bag_decode import DOUBLE_FIELDS, TYPE_HASHES, decode_stamped, payload_offset
 from rig_identification.io.recording import (IMU_TOPIC, LOAD_CELL_PREFIX, read_sensor_data, RecordingError,
                                              SensorData, TimeSeries)
-from rig_identification.io.rig import load_rig
+from rig_identification.io.rig import load_rig, rig_from_dict
 from rig_identification.io.recording_writer import sensor_messages
 
 from conftest import recording
@@ -321,3 +321,40 @@ def test_write_order_is_rosbags_order(rig, tmp_path, storage):
         r.close()
     sensors, warnings = assert_same(bag, rig.cable_names)
     assert any(IMU_TOPIC in w and f"{twins} duplicated" in w for w in warnings), warnings
+
+
+# --- the lab's own topic names ---------------------------------------------------------------
+
+@pytest.mark.parametrize("bulk", [True, False])
+def test_lab_topic_names_map_through_rig_yaml(rig, tmp_path, bulk):
+    """A bag recorded under the lab's own topic names: without rig.yaml ``topics`` the error
+    names the missing stream and lists what the bag holds; with them the streams read exactly
+    as under the standard names."""
+    own = {IMU_TOPIC: "/hall3/imu/data", R.EXCITER_TOPIC: "/hall3/shaker/force",
+           R.INCLINOMETER_TOPIC: "/hall3/tilt"}
+    rename = lambda topic: own.get(topic, topic.replace(LOAD_CELL_PREFIX, "/hall3/cells/"))  # noqa: E731
+    items = serialized(rig, synthetic(rig))
+    bag = write(tmp_path / "lab", rig, [(rename(t), m, ns, raw) for t, m, ns, raw in items], "mcap")
+    with pytest.raises(RecordingError) as e:
+        read_sensor_data(bag, rig.cable_names, [], bulk=bulk)
+    msg = str(e.value)
+    assert f"topic {IMU_TOPIC} is missing or empty" in msg
+    assert "/hall3/imu/data (sensor_msgs/msg/Imu)" in msg and "/hall3/cells/c0 (geometry_msgs/msg/WrenchStamped)" in msg
+    d = rig.to_dict() | {"topics": {"imu": "/hall3/imu/data", "load_cells": "/hall3/cells/",
+                                    "exciter": "/hall3/shaker/force", "inclinometer": "/hall3/tilt"}}
+    mapped = rig_from_dict(d, "rig.yaml")
+    assert rig_from_dict(mapped.to_dict()).topics == mapped.topics          # written back as read
+    got = read_sensor_data(bag, rig.cable_names, [], bulk=bulk, topics=mapped.topics)
+    ref = read_sensor_data(write(tmp_path / "std", rig, items, "mcap"), rig.cable_names, [], bulk=bulk)
+    np.testing.assert_array_equal(got.imu.data, ref.imu.data)
+    np.testing.assert_array_equal(got.exciter.t, ref.exciter.t)
+    for n in rig.cable_names:
+        np.testing.assert_array_equal(got.load_cells[n].data, ref.load_cells[n].data)
+    np.testing.assert_array_equal(got.inclinometer.data, ref.inclinometer.data)
+
+
+def test_topic_name_field_is_checked(rig):
+    with pytest.raises(Exception, match="topics.imu must be a ROS topic name"):
+        rig_from_dict(rig.to_dict() | {"topics": {"imu": "rig imu"}}, "rig.yaml")
+    with pytest.raises(Exception, match="unknown field topics.gyro"):
+        rig_from_dict(rig.to_dict() | {"topics": {"gyro": "/a"}}, "rig.yaml")

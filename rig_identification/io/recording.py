@@ -29,13 +29,15 @@ import numpy as np
 import yaml
 
 from .bag_decode import IMU_TYPE, TYPE_HASHES, VECTOR_TYPE, WRENCH_TYPE, decode_stamped
-from .rig import Rig, load_rig
+from .rig import Rig, Topics, load_rig
 from .bag_raw import read_topics
 
-IMU_TOPIC = "/rig/imu"
-LOAD_CELL_PREFIX = "/rig/load_cells/"
-EXCITER_TOPIC = "/rig/exciter/wrench"
-INCLINOMETER_TOPIC = "/rig/inclinometer"
+# the streams' own names (docs/recording_format.md); a bag recorded under other names maps them
+# with rig.yaml ``topics`` (:class:`~rig_identification.io.rig.Topics`)
+IMU_TOPIC = Topics.imu
+LOAD_CELL_PREFIX = Topics.load_cells
+EXCITER_TOPIC = Topics.exciter
+INCLINOMETER_TOPIC = Topics.inclinometer
 
 
 class RecordingError(ValueError):
@@ -172,16 +174,17 @@ def _open_reader(bag: Path, bulk: bool):
     return reader
 
 
-def _per_message_rows(reader, bag: Path, conns) -> dict[str, list]:
-    """Rows of every wanted message, deserialised one at a time (the reference path)."""
+def _per_message_rows(reader, bag: Path, conns, canon: dict[str, str]) -> dict[str, list]:
+    """Rows of every wanted message, deserialised one at a time (the reference path); keys the
+    bag's topic names, ``canon`` maps them to the streams' own."""
     columns: dict[str, list] = {}
     for conn, _, raw in reader.messages(connections=conns):
         msg = _deserialize(reader, bag, conn.topic, conn.msgtype, raw)
-        columns.setdefault(conn.topic, []).append(_message_row(conn.topic, msg))
+        columns.setdefault(conn.topic, []).append(_message_row(canon[conn.topic], msg))
     return columns
 
 
-def _bulk_rows(reader, bag: Path, conns) -> dict[str, np.ndarray]:
+def _bulk_rows(reader, bag: Path, conns, canon: dict[str, str]) -> dict[str, np.ndarray]:
     """Rows of every wanted message, decoded in bulk (:mod:`rig_identification.io.bag_decode`) over the raw bytes
     (:mod:`rig_identification.io.bag_raw`); messages the bulk decoder does not vouch for, and topics whose type
     definition in the bag is not the standard one, are deserialised one at a time."""
@@ -196,20 +199,21 @@ def _bulk_rows(reader, bag: Path, conns) -> dict[str, np.ndarray]:
     def decode(topic: str, buf: np.ndarray, offsets: np.ndarray, sizes: np.ndarray) -> np.ndarray:
         mtype = msgtypes[topic]
         if standard[mtype]:
-            rows, done = decode_stamped(buf, offsets, sizes, mtype, _bulk_fields(topic))
+            rows, done = decode_stamped(buf, offsets, sizes, mtype, _bulk_fields(canon[topic]))
         else:
-            rows, done = np.full((len(offsets), 1 + len(_bulk_fields(topic))), np.nan), np.zeros(len(offsets), bool)
+            rows = np.full((len(offsets), 1 + len(_bulk_fields(canon[topic]))), np.nan)
+            done = np.zeros(len(offsets), bool)
         view = memoryview(buf)
         for i in np.nonzero(~done)[0].tolist():
             raw = bytes(view[int(offsets[i]):int(offsets[i] + sizes[i])])
-            rows[i] = _message_row(topic, _deserialize(reader, bag, topic, mtype, raw))
+            rows[i] = _message_row(canon[topic], _deserialize(reader, bag, topic, mtype, raw))
         return rows
 
     return read_topics(reader, conns, decode)
 
 
 def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | None = None,
-                     bulk: bool = True) -> SensorData:
+                     bulk: bool = True, topics: Topics = Topics()) -> SensorData:
     """Read the rig topics of a rosbag2 folder (or a single .mcap/.db3 file).
 
     Samples are sorted by header stamp.  Non-finite samples and duplicated stamps are
@@ -220,7 +224,8 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
 
     bulk: decode the messages in bulk over their raw bytes (:mod:`rig_identification.io.bag_decode`,
     :mod:`rig_identification.io.bag_raw`), ~10-20x faster; False deserialises every message with rosbags (the
-    reference the bulk path is tested to equal exactly, and its fallback).
+    reference the bulk path is tested to equal exactly, and its fallback).  topics: the bag's
+    topic names (rig.yaml ``topics``).
 
     Raises :class:`RecordingError` for a missing or unreadable bag, a message that cannot be
     decoded (naming its topic), a topic of the wrong type, a load-cell topic of a cable
@@ -234,26 +239,31 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
     try:
         reader = _open_reader(bag, bulk)
         try:
-            wanted = {IMU_TOPIC: IMU_TYPE, EXCITER_TOPIC: WRENCH_TYPE, INCLINOMETER_TOPIC: VECTOR_TYPE}
+            canon = {topics.imu: IMU_TOPIC, topics.exciter: EXCITER_TOPIC, topics.inclinometer: INCLINOMETER_TOPIC}
             for name in cable_names:
-                wanted[LOAD_CELL_PREFIX + name] = WRENCH_TYPE
+                canon[topics.load_cells + name] = LOAD_CELL_PREFIX + name
+            wanted = {IMU_TOPIC: IMU_TYPE, EXCITER_TOPIC: WRENCH_TYPE, INCLINOMETER_TOPIC: VECTOR_TYPE}
+            wanted |= {LOAD_CELL_PREFIX + name: WRENCH_TYPE for name in cable_names}
             conns = []
+            found = sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections)
             for c in reader.connections:
-                if c.topic in wanted:
-                    if c.msgtype != wanted[c.topic]:
-                        raise RecordingError(f"{bag}: topic {c.topic} has type {c.msgtype}, expected {wanted[c.topic]}")
+                if c.topic in canon:
+                    expected = wanted[canon[c.topic]]
+                    if c.msgtype != expected:
+                        raise RecordingError(f"{bag}: topic {c.topic} has type {c.msgtype}, expected {expected}")
                     conns.append(c)
-                elif c.topic.startswith(LOAD_CELL_PREFIX):
+                elif c.topic.startswith(topics.load_cells):
                     raise RecordingError(f"{bag}: topic {c.topic} is a load cell of cable "
-                                         f"{c.topic[len(LOAD_CELL_PREFIX):]!r}, which rig.yaml does not list "
+                                         f"{c.topic[len(topics.load_cells):]!r}, which rig.yaml does not list "
                                          f"(rig.yaml cables: {', '.join(cable_names)}); rig.yaml and the bag "
                                          "do not describe the same rig")
             if not conns:
-                columns = {}
+                rows = {}
             elif bulk and reader.is2:
-                columns = _bulk_rows(reader, bag, conns)
+                rows = _bulk_rows(reader, bag, conns, canon)
             else:
-                columns = _per_message_rows(reader, bag, conns)
+                rows = _per_message_rows(reader, bag, conns, canon)
+            columns = {canon[k]: v for k, v in rows.items()}
         finally:
             reader.close()
     except RecordingError:
@@ -265,7 +275,10 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
         rows = columns.get(topic)
         if rows is None or not len(rows):
             if required:
-                raise RecordingError(f"{bag}: topic {topic} is missing or empty")
+                own = {v: k for k, v in canon.items()}[topic]
+                raise RecordingError(f"{bag}: topic {own} is missing or empty; the bag holds "
+                                     f"{', '.join(found) or 'no topics'} (a bag recorded under other topic names: "
+                                     "map them in rig.yaml topics, docs/recording_format.md)")
             return None
         a = np.asarray(rows, float)
         finite = np.isfinite(a).all(axis=1)
@@ -317,7 +330,7 @@ def read_recording(path: str | Path) -> Recording:
         raise RecordingError(f"{p}: no rig.yaml in the recording folder")
     rig = load_rig(rig_path)
     warnings: list[str] = []
-    sensors = read_sensor_data(p / "bag", rig.cable_names, warnings)
+    sensors = read_sensor_data(p / "bag", rig.cable_names, warnings, topics=rig.topics)
     truth = None
     if (p / "truth.yaml").exists():
         try:

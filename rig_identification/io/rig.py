@@ -29,6 +29,7 @@ from scipy.spatial.transform import Rotation
 from .export import AXES
 
 CABLE_NAME = re.compile(r"^[a-z0-9_]+$")
+TOPIC_NAME = re.compile(r"^/[A-Za-z0-9_/]+$")
 
 
 class RigError(ValueError):
@@ -73,6 +74,17 @@ class DummyMass:
 
 
 @dataclass(frozen=True)
+class Topics:
+    """The bag's topic names for the rig's streams (rig.yaml ``topics``, each optional; the
+    defaults are docs/recording_format.md's).  load_cells: the prefix; the cable's name follows."""
+
+    imu: str = "/rig/imu"
+    load_cells: str = "/rig/load_cells/"
+    exciter: str = "/rig/exciter/wrench"
+    inclinometer: str = "/rig/inclinometer"
+
+
+@dataclass(frozen=True)
 class Rig:
     """The validated content of ``rig.yaml``.
 
@@ -82,7 +94,8 @@ class Rig:
     ``name``: the rig's name (rig.yaml ``name``, optional; reports show it).  ``output_axes``:
     the axes outputs are given in by default (rig.yaml ``output_axes``: a key of
     :data:`~rig_identification.io.export.AXES`, ``body`` or ``sae``; None: not stated, ``body``) — rig.yaml's own
-    geometry is always in the body frame (REP-103).
+    geometry is always in the body frame (REP-103).  ``topics``: the bag's topic names
+    (:class:`Topics`; rig.yaml ``topics``).
     """
 
     gravity: float
@@ -97,6 +110,7 @@ class Rig:
     extra: dict = field(default_factory=dict)
     name: str | None = None
     output_axes: str | None = None
+    topics: Topics = Topics()
 
     # --- convenient stacked views -------------------------------------------------
     @property
@@ -158,6 +172,8 @@ class Rig:
         if self.dummy_mass is not None:
             out["dummy_mass"] = {"mass": float(self.dummy_mass.mass),
                                  "position": vec(self.dummy_mass.position)}
+        if self.topics != Topics():
+            out["topics"] = {k: v for k, v in vars(self.topics).items() if v != getattr(Topics(), k)}
         return out
 
 
@@ -207,11 +223,13 @@ def _mount(d, name: str, src: str, with_position: bool = True) -> Mount:
     return Mount(position=pos, rpy=rpy)
 
 
-KNOWN_TOP = {"name", "output_axes", "gravity", "cables", "body", "imu", "exciter", "inclinometer", "dummy_mass"}
+KNOWN_TOP = {"name", "output_axes", "gravity", "cables", "body", "imu", "exciter", "inclinometer", "dummy_mass",
+             "topics"}
 # the fields of each mapping of rig.yaml (docs/recording_format.md); any other is an error
 KNOWN_FIELDS = {"": KNOWN_TOP, "cable": {"name", "ceiling_anchor", "body_anchor", "length", "stiffness"},
                 "body": {"mass", "center_of_gravity"}, "imu": {"position", "rpy"}, "exciter": {"position", "rpy"},
-                "inclinometer": {"rpy"}, "dummy_mass": {"mass", "position"}}
+                "inclinometer": {"rpy"}, "dummy_mass": {"mass", "position"},
+                "topics": {"imu", "load_cells", "exciter", "inclinometer"}}
 UNKNOWN_HINTS = {"inclinometer.position": "an inclinometer's reading does not depend on where it sits: leave it out"}
 # geometry that no pose can realise: for two cables i, j the ceiling anchors A_i, A_j, the body
 # anchors' points P_i, P_j and the cables form a closed quadrilateral A_i-P_i-P_j-A_j, so none of
@@ -241,6 +259,24 @@ def _check_fields(d: dict, kind: str, where: str, src: str) -> None:
             hint = (f"did you mean {where + '.' if where else ''}{close[0]}?" if close
                     else "known: " + ", ".join(sorted(known)))
         raise RigError(f"{src}: unknown field {name} ({hint})")
+
+
+def _topics(d, src: str) -> Topics:
+    """rig.yaml ``topics``: each a ROS topic name (``/`` then [A-Za-z0-9_/]); load_cells a prefix."""
+    if d is None:
+        return Topics()
+    if isinstance(d, dict):
+        _check_fields(d, "topics", "topics", src)
+    names = {}
+    for key in ("imu", "load_cells", "exciter", "inclinometer"):
+        v = _get(d, key, "topics", src, required=False)
+        if v is None:
+            continue
+        if not isinstance(v, str) or not TOPIC_NAME.match(v):
+            raise RigError(f"{src}: field topics.{key} must be a ROS topic name such as "
+                           f"{getattr(Topics(), key)!r}, got {v!r}")
+        names[key] = v
+    return Topics(**names)
 
 
 def check_reach(cables, src: str) -> None:
@@ -391,7 +427,9 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
             _check_fields(dm_raw, "dummy_mass", "dummy_mass", src)
         dummy = DummyMass(_number(_get(dm_raw, "mass", "dummy_mass", src), "dummy_mass.mass", src, positive=True),
                           _vector(_get(dm_raw, "position", "dummy_mass", src), "dummy_mass.position", src))
-    rig = Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, name=rig_name, output_axes=output_axes)
+    topics = _topics(_get(d, "topics", "", src, required=False), src)
+    rig = Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, name=rig_name, output_axes=output_axes,
+              topics=topics)
     check_scale(rig)
     return rig
 
