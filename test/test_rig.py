@@ -1,5 +1,7 @@
 """rig.yaml loader: the reference recordings load; wrong or missing fields name the field."""
 import copy
+import json
+import shutil
 from pathlib import Path
 
 import numpy as np
@@ -9,7 +11,7 @@ import yaml
 from rig_identification.io.rig import RigError, dump_rig, load_rig, rig_from_dict
 from rig_identification.model.experiment import load_experiment
 
-from conftest import REPO, recording
+from conftest import REPO, recording, run_cli
 
 
 @pytest.fixture
@@ -209,3 +211,45 @@ def test_every_rig_of_the_repository_loads():
         assert len(load_rig(p).cables) >= 3
     for p in experiments:
         assert load_experiment(p).rig.mass > 0
+
+
+def test_survey_is_read_checked_and_written_back(rig_dict):
+    """rig.yaml ``survey``: the lab's σ of its geometry and scale; absent, the 1 mm defaults and
+    0.1 % of the mass; a σ in millimetres is refused."""
+    plain = rig_from_dict(rig_dict, "rig.yaml")
+    assert plain.survey.anchors == plain.survey.lengths == plain.survey.dummy_position == 1e-3
+    assert plain.survey.mass_std(1810.0) == pytest.approx(1.81) and "survey" not in plain.to_dict()
+    d = copy.deepcopy(rig_dict) | {"survey": {"anchors": 0.0005, "lengths": 0.002, "mass": 0.5}}
+    rig = rig_from_dict(d, "rig.yaml")
+    assert (rig.survey.anchors, rig.survey.lengths, rig.survey.dummy_position) == (0.0005, 0.002, 1e-3)
+    assert rig.survey.mass_std(1810.0) == 0.5
+    assert rig_from_dict(rig.to_dict()).survey == rig.survey
+    for bad, msg in (({"anchors": 1.0}, "survey.anchors = 1 m is more than 10 cm"),
+                     ({"lengths": -0.001}, "survey.lengths must be >= 0"),
+                     ({"mass": 0.0}, "survey.mass must be > 0"), ({"anchor": 0.001}, "unknown field survey.anchor")):
+        with pytest.raises(RigError, match=msg.replace(".", r"\.")):
+            rig_from_dict(copy.deepcopy(rig_dict) | {"survey": bad}, "rig.yaml")
+
+
+def test_cg_takes_its_geometry_sigma_from_the_rig_survey(tmp_path):
+    """``cg`` on a static pair whose rig.yaml says the geometry is exact gives the σ of
+    --anchor-std 0 --length-std 0 --dummy-position-std 0 on the same pair, and prints it."""
+    pair = []
+    for name in ("static_baseline", "static_dummy"):
+        src = recording("visible_case16_static") / name
+        dst = tmp_path / name
+        shutil.copytree(src, dst)
+        d = yaml.safe_load((dst / "rig.yaml").read_text())
+        d["survey"] = {"anchors": 0.0, "lengths": 0.0, "dummy_position": 0.0}
+        (dst / "rig.yaml").write_text(yaml.safe_dump(d))
+        pair.append(dst)
+    code, out, err = run_cli("cg", *pair, "--json", "-q")
+    assert code == 0, err
+    exact = [recording("visible_case16_static") / n for n in ("static_baseline", "static_dummy")]
+    code2, out2, err2 = run_cli("cg", *exact, "--json", "-q", "--anchor-std", "0", "--length-std", "0",
+                                "--dummy-position-std", "0")
+    code3, out3, _ = run_cli("cg", *exact, "--json", "-q")
+    assert code2 == 0 and code3 == 0, err2
+    a, b, c = (json.loads(o)["center_of_gravity_std"] for o in (out, out2, out3))
+    np.testing.assert_allclose(a, b, rtol=1e-9)
+    assert c[2] > 5 * a[2]                       # the 1 mm default survey dominates the height's σ

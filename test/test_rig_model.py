@@ -17,7 +17,7 @@ from rig_identification.io.verdict import KEYS
 from rig_identification.model.linear_rig import RigParameters, net_wrench, rest_pose, stiffness_matrix
 from rig_identification.model.parametrisation import entry_scales, from_tensor
 from rig_identification.model.rig_ode import rest_state, simulate
-from rig_identification.pipeline.rig_model import fit_whole_recording
+from rig_identification.pipeline.rig_model import fit_whole_recording, split_cg
 
 from conftest import background, gather, recording, run_cli
 
@@ -135,3 +135,29 @@ def test_three_and_five_cable_rigs_within_one_percent_three_sigma_near_the_bound
     err = np.array(cg["dynamic"]) - np.array(truth["center_of_gravity"])
     assert np.all(np.abs(err) < 3e-3) and np.all(np.abs(err) < 3 * np.array(cg["dynamic_std"])), err
     assert abs(d["mass"] - truth["mass"]) < 3 * d["mass_std"]
+
+
+def test_the_dynamic_cg_is_the_fusion_inverted():
+    """split_cg recovers the run's own CG and covariance from the fit that fused it with the
+    static prior (information adds), and says an axis the run does not determine is not."""
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(3, 3))
+    cov_d = 1e-6 * (a @ a.T + 0.5 * np.eye(3))               # the run's own, m²
+    dyn = np.array([0.010, -0.004, 0.120])
+    static, static_std = np.array([0.012, -0.001, 0.100]), np.array([5e-4, 5e-4, 9e-3])
+    info = np.linalg.inv(cov_d) + np.diag(static_std ** -2.0)
+    cov_c = np.linalg.inv(info)
+    comb = cov_c @ (np.linalg.solve(cov_d, dyn) + static / static_std ** 2)
+    cg = split_cg(comb, cov_c, static, static_std, "cg.json")
+    assert np.allclose(cg.dynamic, dyn, atol=1e-9) and np.allclose(cg.dynamic_std, np.sqrt(np.diag(cov_d)), rtol=1e-6)
+    assert np.allclose(cg.combined_std, np.sqrt(np.diag(cov_c)))
+    z = (dyn - static) / np.sqrt(np.diag(cov_d) + static_std ** 2)
+    assert np.allclose(cg.difference_sigma, z) and cg.agree == bool(np.all(np.abs(z) <= 3))
+    # no static prior: the run's CG is the fit's
+    free = split_cg(dyn, cov_d, static, np.full(3, np.inf), "start only")
+    assert np.allclose(free.dynamic, dyn) and np.all(np.isnan(free.difference_sigma)) and free.agree
+    # z not determined by the run: the fit's z is the prior's, σ the prior's; the run's z is not given
+    cov_nz = np.diag([1e-8, 1e-8, 1.0 / (static_std[2] ** -2.0 * (1 + 1e-12))])
+    blind = split_cg(static.copy(), cov_nz, static, static_std, "cg.json")
+    assert not np.isfinite(blind.dynamic_std[2]) and np.all(np.isfinite(blind.dynamic_std[:2]))
+    assert np.isnan(blind.difference_sigma[2]) and blind.agree

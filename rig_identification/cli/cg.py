@@ -9,8 +9,8 @@
 ``cg`` estimates the CG of the suspended body of BASELINE (body at rest without the dummy
 mass) from it and DUMMY (with the dummy mass of rig.yaml ``dummy_mass``), see
 :mod:`rig_identification.statics`.  Its σ (``center_of_gravity_std``) includes the rig's
-geometry as surveyed -- by default 1 mm (1 σ per coordinate) on every anchor, cable length
-and the dummy's position (:data:`~.statics.DEFAULT_ANCHOR_STD` ...), set with --anchor-std,
+geometry as surveyed -- by default rig.yaml's ``survey``, else 1 mm (1 σ per coordinate) on every
+anchor, cable length and the dummy's position (:data:`~.statics.DEFAULT_ANCHOR_STD` ...), set with --anchor-std,
 --length-std, --dummy-position-std -- and ``center_of_gravity_std_noise`` is the measurement
 noise's alone; both are printed.  ``--json`` prints one object, :meth:`~.statics.CgResult.to_dict`
 (``schema`` :data:`~.statics.CG_RESULT_SCHEMA`, ``schema_version``, ``units``, body frame, m,
@@ -40,7 +40,7 @@ import numpy as np
 
 from ..io.atomic import atomic_write_text
 from ..io.recording import read_recording
-from ..io.rig import DummyMass
+from ..io.rig import DummyMass, Survey
 from ..statics import (DEFAULT_ANCHOR_STD, DEFAULT_DUMMY_POSITION_STD, DEFAULT_LENGTH_STD, CgOptions, CgResult,
                       StaticsError, StaticState, estimate_cg)
 from ..statics.handover import check_rig_target, rig_with_cg_text
@@ -49,34 +49,37 @@ from .arg_types import number
 GEOMETRY_NOTE = ("a careful steel-tape or laser survey: class II tape ±(0.3 + 0.2 L/m) mm, ±1.1 mm over 4 m")
 
 
-def cg_options(args) -> CgOptions:
+def cg_options(args, survey: Survey) -> CgOptions:
     """The CG fit's options of the command line ``args`` (``cg``, ``cg-plan``; the σ of the geometry
-    given in mm)."""
+    given in mm), the σ not given there rig.yaml's ``survey``."""
     def mm(name, default):
         v = getattr(args, name, None)
         return default if v is None else v * 1e-3
+    scale = getattr(args, "scale_std", None)
     return CgOptions(use_load_cells=not getattr(args, "no_load_cells", False),
                      use_inclinometer=not getattr(args, "no_inclinometer", False),
                      use_accelerometer=getattr(args, "accelerometer", False),
                      fit_inclinometer_offset=getattr(args, "fit_inclinometer_offset", False),
-                     scale_std=getattr(args, "scale_std", None),
-                     anchor_std=mm("anchor_std", DEFAULT_ANCHOR_STD),
-                     length_std=mm("length_std", DEFAULT_LENGTH_STD),
-                     dummy_position_std=mm("dummy_position_std", DEFAULT_DUMMY_POSITION_STD))
+                     scale_std=survey.mass if scale is None else scale,
+                     anchor_std=mm("anchor_std", survey.anchors),
+                     length_std=mm("length_std", survey.lengths),
+                     dummy_position_std=mm("dummy_position_std", survey.dummy_position))
 
 
 def add_geometry_options(p: argparse.ArgumentParser) -> None:
-    """The σ of the scale and of the rig's geometry as surveyed (``cg`` and ``cg-plan``)."""
+    """The σ of the scale and of the rig's geometry as surveyed (``cg`` and ``cg-plan``); each
+    defaults to rig.yaml's ``survey`` (docs/recording_format.md), else the values shown."""
     p.add_argument("--scale-std", type=number("--scale-std"), metavar="KG",
-                   help="σ of the scale's mass reading (default 0.1 %% of it)")
+                   help="σ of the scale's mass reading (default rig.yaml survey.mass, else 0.1 %% of it)")
     p.add_argument("--anchor-std", type=number("--anchor-std", zero=True), metavar="MM",
-                   help=f"σ of each coordinate of every ceiling and body anchor, mm (default "
-                        f"{DEFAULT_ANCHOR_STD * 1e3:g}: {GEOMETRY_NOTE}; 0: exact)")
+                   help="σ of each coordinate of every ceiling and body anchor, mm (default rig.yaml survey.anchors, "
+                        f"else {DEFAULT_ANCHOR_STD * 1e3:g}: {GEOMETRY_NOTE}; 0: exact)")
     p.add_argument("--length-std", type=number("--length-std", zero=True), metavar="MM",
-                   help=f"σ of the cable lengths of rig.yaml, mm (default {DEFAULT_LENGTH_STD * 1e3:g}; 0: exact)")
+                   help="σ of the cable lengths of rig.yaml, mm (default rig.yaml survey.lengths, else "
+                        f"{DEFAULT_LENGTH_STD * 1e3:g}; 0: exact)")
     p.add_argument("--dummy-position-std", type=number("--dummy-position-std", zero=True), metavar="MM",
-                   help=f"σ of each coordinate of the dummy mass's position, mm (default "
-                        f"{DEFAULT_DUMMY_POSITION_STD * 1e3:g}; 0: exact)")
+                   help="σ of each coordinate of the dummy mass's position, mm (default rig.yaml "
+                        f"survey.dummy_position, else {DEFAULT_DUMMY_POSITION_STD * 1e3:g}; 0: exact)")
 
 
 def add_cg_parser(subparsers) -> argparse.ArgumentParser:
@@ -155,7 +158,7 @@ def run_cg(args):
     sb = _state(rb, "baseline", args)
     sd = _state(rd, "dummy", args)
     sd.added = (dummy,)
-    return estimate_cg(rig, sb, sd, cg_options(args)), rb, rd
+    return estimate_cg(rig, sb, sd, cg_options(args, rig.survey)), rb, rd
 
 
 def cmd_cg(args) -> int:

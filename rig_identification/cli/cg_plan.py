@@ -104,7 +104,7 @@ def cmd_cg_plan(args) -> int:
         m = args.dummy_mass if args.dummy_mass is not None else rig.dummy_mass.mass
         pos = args.dummy_position if args.dummy_position is not None else rig.dummy_mass.position
         planned = DummyMass(float(m), np.array(pos, float))
-    opts = cg_options(args)
+    opts = cg_options(args, rig.survey)
     target = args.target_mm * 1e-3
     out: dict = {"cg_guess": [float(x) for x in guess], "target_half_width_95": target,
                  "noise": {k: float(v) for k, v in vars(noise).items()}, "noise_source": noise_src,

@@ -13,7 +13,7 @@ import json
 import numpy as np
 
 from ..io.verdict import KEYS
-from ..pipeline.rig_model import LEVEL_LIMIT, RigModelResult, fit_whole_recording
+from ..pipeline.rig_model import CONSISTENCY_SIGMA, LEVEL_LIMIT, CentreOfGravity, RigModelResult, fit_whole_recording
 from ..statics.handover import load_cg_result
 from .progress import heading
 
@@ -29,9 +29,11 @@ def print_rig_model(res: RigModelResult) -> None:
              "not_identifiable": "not_identifiable — " + ", ".join(res.undetermined) + " not determined to ±1 % at "
                                  "95 %: the fit may sit in another minimum that explains the data as well, and the "
                                  "tensor's directions are coupled: no entry below is an estimate to use",
-             "inconsistent": "inconsistent — the rig model and the gyro-only fit disagree beyond 3 σ on "
-                             + ", ".join(res.inconsistent) + ": the fit may have settled in another minimum; "
-                             "the numbers below are not an estimate to use",
+             "inconsistent": "inconsistent — " + ("the rig model and the gyro-only fit disagree beyond 3 σ on "
+                                                  + ", ".join(res.inconsistent) + ": the fit may have settled in "
+                                                  "another minimum" if res.inconsistent else
+                                                  "the static and the dynamic test's CG disagree (below)")
+                             + "; the numbers below are not an estimate to use",
              "failed": "failed — the fit did not find the motion (a channel beyond 10× its noise, or a number not "
                        "finite): the numbers below are not an estimate"}
     print(f"verdict: {words[res.verdict]}")
@@ -55,16 +57,9 @@ def print_rig_model(res: RigModelResult) -> None:
             t = truth[k]
             line += f"{t['truth']:>11.2f}{t['error_percent']:>+9.3f}%{t['error_sigma']:>+7.2f}"
         print(line)
-    print(f"mass {p.mass:.2f} ± {d['mass_std']:.2f} kg (the scale's value as a prior)")
-    cg_mm = 1e3 * p.cg
-    print("centre of gravity, fitted: (" + ", ".join(f"{x:.1f}" for x in cg_mm) + ") ± ("
-          + ", ".join(f"{1e3 * x:.2g}" for x in f.cg_std) + ") mm, body frame")
-    if np.all(np.isfinite(res.cg_prior_std)):
-        diff = res.cg_difference_sigma()
-        print(f"centre of gravity, prior ({res.cg_source}): (" + ", ".join(f"{1e3 * x:.1f}" for x in res.cg_prior)
-              + ") ± (" + ", ".join(f"{1e3 * x:.2g}" for x in res.cg_prior_std) + ") mm; the fit's CG combines both")
-        verdict = "agree" if np.all(np.abs(diff) < 3) else "DISAGREE (beyond 3 σ): check the static test and rig.yaml"
-        print("  prior and fit " + verdict + " (" + ", ".join(f"{x:+.1f}" for x in diff) + " σ)")
+    sv = d["survey"]
+    print(f"mass {p.mass:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
+    print_cg(res.cg)
     print("cables: stiffness " + ", ".join(f"{k / 1e6:.3f}" for k in p.stiffness) + " MN/m, damping time "
           f"{1e3 * p.damping_time:.3f} ms; load-cell gains " + ", ".join(f"{g:.4f}" for g in p.gain))
     bd = d["body_damping"]
@@ -77,10 +72,34 @@ def print_rig_model(res: RigModelResult) -> None:
         print(f"the fit leans less on {', '.join(res.poorly_fitted)} (their noise raised to their residual's)")
     print("σ: the inverse Fisher information (each channel's noise as estimated from the recording, raised where "
           "it does not fit) or the sandwich over 12 blocks, whichever is larger; the CG, mass, cables, gains and "
-          "the geometry's survey (1 mm) are in it.  CRB: the bound of this run at the sensors' own noise.  σ holds "
+          f"the geometry as surveyed (anchors {1e3 * sv['anchors_m']:g} mm, lengths {1e3 * sv['lengths_m']:g} mm: "
+          "rig.yaml survey) are in it.  CRB: the bound of this run at the sensors' own noise.  σ holds "
           "the noise, not the model's own fidelity: on another simulator's recordings the errors were 0.02–0.06 %, "
           "up to 12 σ (docs/rig_model.md)")
     print(f"time: {res.seconds:.1f} s")
+
+
+def _mm(x: np.ndarray) -> str:
+    return "(" + ", ".join("—" if not np.isfinite(a) else f"{1e3 * a:.1f}" for a in x) + ")"
+
+
+def _mm_std(x: np.ndarray) -> str:
+    return "(" + ", ".join("—" if not np.isfinite(a) else f"{1e3 * a:.2g}" for a in x) + ")"
+
+
+def print_cg(cg: CentreOfGravity) -> None:
+    """The CG from the static test, the run alone and both, and whether the two tests agree."""
+    print("centre of gravity (body frame, mm; — : not determined):")
+    print(f"  static   {_mm(cg.static)} ± {_mm_std(cg.static_std)}  from {cg.static_source}")
+    print(f"  dynamic  {_mm(cg.dynamic)} ± {_mm_std(cg.dynamic_std)}  the swinging body alone")
+    print(f"  combined {_mm(cg.combined)} ± {_mm_std(cg.combined_std)}  the fit's: the tensor above is about it, "
+          "its σ in the tensor's")
+    d = cg.difference_sigma
+    if np.any(np.isfinite(d)):
+        words = ("agree" if cg.agree else
+                 f"DISAGREE beyond {CONSISTENCY_SIGMA:g} σ: check the static test (dummy mass, its position) and rig.yaml")
+        print("  static and dynamic " + words + " (" + ", ".join("—" if not np.isfinite(x) else f"{x:+.1f}"
+                                                               for x in d) + " σ)")
 
 
 def cmd_rig_model(args, rec) -> int:

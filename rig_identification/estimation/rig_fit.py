@@ -42,7 +42,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 from ..io.noise import white_sigma
 from ..io.recording import SensorData
-from ..io.rig import Rig
+from ..io.rig import Rig, Survey
 from ..model.cables import DEFAULT_DAMPING_RATIO, DEFAULT_STIFFNESS
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
@@ -64,11 +64,9 @@ RAMP_KNOT = 0.25
 STEADY_KNOT = 15.0
 #: s after the spin-up's end (its amplitude at 90 % of the steady one, plus 1 s) where the fit starts.
 SETTLE = 2.0
-#: The rig's geometry as surveyed, 1 σ per anchor coordinate and cable length (m): a careful
-#: steel-tape or laser survey (:attr:`Prior.survey_std` sets another).
-SURVEY_STD = 1.0e-3
-#: σ of the body's mass from the scale, as a share of the mass.
-MASS_STD_SHARE = 0.002
+#: The smallest σ a prior takes, m: a survey σ of 0 (exact) becomes this (the unknown then
+#: stays put without dividing by zero).
+EXACT_STD = 1e-7
 #: σ of a load cell's gain (share) and of log(stiffness) for a cable whose stiffness rig.yaml
 #: gives (a datasheet's EA) or does not (the default steel cable's, a factor e either way).
 GAIN_STD = 0.01
@@ -253,8 +251,8 @@ class Prior:
     """What is known before the fit: centre and σ of each unknown with a prior (σ = inf: none).
 
     mass, mass_std: kg.  cg: (3,) body m, cg_std: (3,) m (inf: the data alone).  stiffness: (N,)
-    N/m, stiffness_log_std: (N,).  gain_std: share.  survey_std: m, on every anchor coordinate
-    and cable length.
+    N/m, stiffness_log_std: (N,).  gain_std: share.  survey: the σ of every anchor coordinate and
+    cable length (:class:`~rig_identification.io.rig.Survey`).
     """
 
     mass: float
@@ -264,11 +262,11 @@ class Prior:
     stiffness: np.ndarray
     stiffness_log_std: np.ndarray
     gain_std: float = GAIN_STD
-    survey_std: float = SURVEY_STD
+    survey: Survey = Survey()
 
     @staticmethod
-    def from_rig(rig: Rig, cg=None, cg_std=None, survey_std: float = SURVEY_STD) -> "Prior":
-        """rig.yaml's mass (σ :data:`MASS_STD_SHARE`), CG (``cg``/``cg_std`` override; without a
+    def from_rig(rig: Rig, cg=None, cg_std=None) -> "Prior":
+        """rig.yaml's mass and geometry (σ rig.yaml's ``survey``), CG (``cg``/``cg_std`` override; without a
         σ the CG is free), cable stiffness (the default steel cable's where rig.yaml has none)."""
         given = np.array([c.stiffness is not None for c in rig.cables])
         k = np.array([DEFAULT_STIFFNESS if c.stiffness is None else c.stiffness for c in rig.cables])
@@ -276,9 +274,9 @@ class Prior:
         if c0 is None:
             raise RigFitError(f"{rig.source}: no centre of gravity to start from (rig.yaml body.center_of_gravity, "
                               "or the static test's: rig-identify cg)")
-        return Prior(rig.mass, MASS_STD_SHARE * rig.mass, np.asarray(c0, float),
+        return Prior(rig.mass, rig.survey.mass_std(rig.mass), np.asarray(c0, float),
                      np.full(3, np.inf) if cg_std is None else np.broadcast_to(np.asarray(cg_std, float), (3,)),
-                     k, np.where(given, STIFFNESS_LOG_STD_GIVEN, STIFFNESS_LOG_STD_DEFAULT), GAIN_STD, survey_std)
+                     k, np.where(given, STIFFNESS_LOG_STD_GIVEN, STIFFNESS_LOG_STD_DEFAULT), GAIN_STD, rig.survey)
 
 
 @dataclass(frozen=True)
@@ -350,8 +348,9 @@ def _priors(prior: Prior, lay: Layout, x0: np.ndarray) -> tuple[np.ndarray, np.n
     centre[lay.mass], std[lay.mass] = prior.mass, prior.mass_std
     centre[lay.log_stiffness], std[lay.log_stiffness] = np.log(prior.stiffness), prior.stiffness_log_std
     centre[lay.gain], std[lay.gain] = 1.0, prior.gain_std
-    if prior.survey_std > 0:
-        std[lay.geometry] = prior.survey_std
+    n = lay.n_cables
+    std[lay.geometry] = np.concatenate([np.full(6 * n, max(prior.survey.anchors, EXACT_STD)),
+                                        np.full(n, max(prior.survey.lengths, EXACT_STD))])
     return centre, std
 
 

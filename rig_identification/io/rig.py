@@ -73,6 +73,33 @@ class DummyMass:
     position: np.ndarray
 
 
+#: σ of the scale's mass reading as a share of it when rig.yaml's survey does not say (a floor scale).
+SCALE_STD_SHARE = 1e-3
+
+
+@dataclass(frozen=True)
+class Survey:
+    """How well the lab knows its rig, 1 σ (rig.yaml ``survey``, each optional).
+
+    anchors: each coordinate of every ceiling anchor (world) and body anchor (body), m.
+    lengths: every unstretched cable length, m.  dummy_position: each coordinate of the dummy
+    mass's centre of gravity, m.  The defaults, 1 mm, are a careful survey: a class II steel tape
+    (EN ISO 8764 / EC class II: ±(0.3 + 0.2 L/m) mm, ±1.1 mm over 4 m) or a laser distance meter
+    (±1–1.5 mm).  mass: body.mass's σ, kg (None: :data:`SCALE_STD_SHARE` of it).  Every
+    fit that takes the geometry or the mass as a prior uses these (``cg``, ``cg-plan``, the rig
+    model); ``cg``'s --anchor-std and kin override them for one run.
+    """
+
+    anchors: float = 1e-3
+    lengths: float = 1e-3
+    dummy_position: float = 1e-3
+    mass: float | None = None
+
+    def mass_std(self, mass: float) -> float:
+        """σ of the body's mass, kg."""
+        return SCALE_STD_SHARE * mass if self.mass is None else self.mass
+
+
 @dataclass(frozen=True)
 class Topics:
     """The bag's topic names for the rig's streams (rig.yaml ``topics``, each optional; the
@@ -95,7 +122,8 @@ class Rig:
     the axes outputs are given in by default (rig.yaml ``output_axes``: a key of
     :data:`~rig_identification.io.export.AXES`, ``body`` or ``sae``; None: not stated, ``body``) — rig.yaml's own
     geometry is always in the body frame (REP-103).  ``topics``: the bag's topic names
-    (:class:`Topics`; rig.yaml ``topics``).
+    (:class:`Topics`; rig.yaml ``topics``).  ``survey``: the σ of the geometry and mass
+    (:class:`Survey`; rig.yaml ``survey``).
     """
 
     gravity: float
@@ -111,6 +139,7 @@ class Rig:
     name: str | None = None
     output_axes: str | None = None
     topics: Topics = Topics()
+    survey: Survey = Survey()
 
     # --- convenient stacked views -------------------------------------------------
     @property
@@ -172,6 +201,9 @@ class Rig:
         if self.dummy_mass is not None:
             out["dummy_mass"] = {"mass": float(self.dummy_mass.mass),
                                  "position": vec(self.dummy_mass.position)}
+        if self.survey != Survey():
+            out["survey"] = {k: float(v) for k, v in vars(self.survey).items()
+                             if v is not None and v != getattr(Survey(), k)}
         if self.topics != Topics():
             out["topics"] = {k: v for k, v in vars(self.topics).items() if v != getattr(Topics(), k)}
         return out
@@ -224,12 +256,13 @@ def _mount(d, name: str, src: str, with_position: bool = True) -> Mount:
 
 
 KNOWN_TOP = {"name", "output_axes", "gravity", "cables", "body", "imu", "exciter", "inclinometer", "dummy_mass",
-             "topics"}
+             "topics", "survey"}
 # the fields of each mapping of rig.yaml (docs/recording_format.md); any other is an error
 KNOWN_FIELDS = {"": KNOWN_TOP, "cable": {"name", "ceiling_anchor", "body_anchor", "length", "stiffness"},
                 "body": {"mass", "center_of_gravity"}, "imu": {"position", "rpy"}, "exciter": {"position", "rpy"},
                 "inclinometer": {"rpy"}, "dummy_mass": {"mass", "position"},
-                "topics": {"imu", "load_cells", "exciter", "inclinometer"}}
+                "topics": {"imu", "load_cells", "exciter", "inclinometer"},
+                "survey": {"anchors", "lengths", "dummy_position", "mass"}}
 UNKNOWN_HINTS = {"inclinometer.position": "an inclinometer's reading does not depend on where it sits: leave it out"}
 # geometry that no pose can realise: for two cables i, j the ceiling anchors A_i, A_j, the body
 # anchors' points P_i, P_j and the cables form a closed quadrilateral A_i-P_i-P_j-A_j, so none of
@@ -259,6 +292,25 @@ def _check_fields(d: dict, kind: str, where: str, src: str) -> None:
             hint = (f"did you mean {where + '.' if where else ''}{close[0]}?" if close
                     else "known: " + ", ".join(sorted(known)))
         raise RigError(f"{src}: unknown field {name} ({hint})")
+
+
+def _survey(d, src: str) -> Survey:
+    """rig.yaml ``survey``: each σ a number ≥ 0 (m; mass kg > 0), millimetres refused."""
+    if d is None:
+        return Survey()
+    if isinstance(d, dict):
+        _check_fields(d, "survey", "survey", src)
+    vals = {}
+    for key in ("anchors", "lengths", "dummy_position", "mass"):
+        v = _get(d, key, "survey", src, required=False)
+        if v is None:
+            continue
+        x = _number(v, f"survey.{key}", src, positive=key == "mass", nonneg=key != "mass")
+        if key != "mass" and x > 0.1:
+            raise RigError(f"{src}: field survey.{key} = {x:g} m is more than 10 cm (rig.yaml is in metres -- "
+                           "millimetres?)")
+        vals[key] = x
+    return Survey(**vals)
 
 
 def _topics(d, src: str) -> Topics:
@@ -428,8 +480,9 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
         dummy = DummyMass(_number(_get(dm_raw, "mass", "dummy_mass", src), "dummy_mass.mass", src, positive=True),
                           _vector(_get(dm_raw, "position", "dummy_mass", src), "dummy_mass.position", src))
     topics = _topics(_get(d, "topics", "", src, required=False), src)
+    survey = _survey(_get(d, "survey", "", src, required=False), src)
     rig = Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, name=rig_name, output_axes=output_axes,
-              topics=topics)
+              topics=topics, survey=survey)
     check_scale(rig)
     return rig
 

@@ -23,6 +23,7 @@ from ..estimation.identification import IdentificationError
 from ..estimation.rig_fit import Prior, RigFit, fit_rig, record
 from ..estimation.precision import Z95
 from ..io.recording import Recording
+from ..io.rig import Survey
 from ..io.verdict import KEYS
 from ..model.parametrisation import entry_scales, from_tensor, physically_consistent
 from .offline import default_initial_guess, identify_recording
@@ -44,6 +45,71 @@ CONSISTENCY_SIGMA = 3.0
 
 
 @dataclass(frozen=True)
+class CentreOfGravity:
+    """The centre of gravity from each test and from both, body frame, m.
+
+    static, static_std: (3,) the static test's (the fit's prior; σ inf: none), from
+    ``static_source``.  dynamic, dynamic_std: (3,) what the swinging body alone gives — the
+    compound pendulum's moments of the cable forces about the CG (Atkeson, An & Hollerbach 1986:
+    the first moments are identifiable with the tensor) — σ inf where the run does not determine
+    it.  combined, combined_std: (3,) the fit's, which used the static one as its prior.
+    """
+
+    static: np.ndarray
+    static_std: np.ndarray
+    static_source: str
+    dynamic: np.ndarray
+    dynamic_std: np.ndarray
+    combined: np.ndarray
+    combined_std: np.ndarray
+
+    @property
+    def difference_sigma(self) -> np.ndarray:
+        """(3,) (dynamic − static) over their combined σ; nan where either is not determined."""
+        s = np.sqrt(self.dynamic_std ** 2 + self.static_std ** 2)
+        return np.where(np.isfinite(s), (self.dynamic - self.static) / np.where(np.isfinite(s), s, 1.0), np.nan)
+
+    @property
+    def agree(self) -> bool:
+        """Static and dynamic within :data:`CONSISTENCY_SIGMA` on every axis both determine."""
+        d = self.difference_sigma
+        return bool(np.all(np.abs(d[np.isfinite(d)]) <= CONSISTENCY_SIGMA))
+
+    def to_dict(self) -> dict:
+        def v(x):
+            return [float(a) if np.isfinite(a) else None for a in x]
+        return {"static": v(self.static), "static_std": v(self.static_std), "static_source": self.static_source,
+                "dynamic": v(self.dynamic), "dynamic_std": v(self.dynamic_std),
+                "combined": v(self.combined), "combined_std": v(self.combined_std),
+                "difference_sigma": v(self.difference_sigma), "agree": self.agree, "units": "m, body frame"}
+
+
+def split_cg(combined: np.ndarray, covariance: np.ndarray, static: np.ndarray, static_std: np.ndarray,
+             source: str) -> CentreOfGravity:
+    """The dynamic test's own CG out of the fit that combined it with the static one.
+
+    combined: (3,) m, covariance: (3, 3) m² its block of the fit's covariance; static,
+    static_std: (3,) m the prior (σ inf: none).  The prior adds its information only to the CG's
+    block, so the run's own information on the CG (every other unknown profiled out) is the
+    combined one less the prior's, and its estimate the information-weighted difference
+    (Gaussian fusion inverted).  A direction whose own information is below 10⁻⁹ of the
+    combined's is not determined by the run: σ inf on the axes it touches.
+    """
+    info_c = np.linalg.inv(covariance)
+    prior_info = np.where(np.isfinite(static_std), 1.0 / np.where(np.isfinite(static_std), static_std, 1.0) ** 2, 0.0)
+    info_d = info_c - np.diag(prior_info)
+    w, v = np.linalg.eigh(0.5 * (info_d + info_d.T))
+    ok = w > 1e-9 * np.max(np.linalg.eigvalsh(info_c))
+    cov_d = (v[:, ok] / w[ok]) @ v[:, ok].T
+    dynamic = cov_d @ (info_c @ combined - prior_info * np.where(np.isfinite(static), static, 0.0))
+    touched = np.any(np.abs(v[:, ~ok]) > 1e-3, axis=1) if np.any(~ok) else np.zeros(3, bool)
+    dyn_std = np.where(touched, np.inf, np.sqrt(np.maximum(np.diag(cov_d), 0.0)))
+    dynamic = np.where(touched, np.nan, dynamic)
+    return CentreOfGravity(np.asarray(static, float), np.asarray(static_std, float), source, dynamic, dyn_std,
+                           np.asarray(combined, float), np.sqrt(np.diag(covariance)))
+
+
+@dataclass(frozen=True)
 class RigModelResult:
     """The rig model fitted to one recording.
 
@@ -51,7 +117,8 @@ class RigModelResult:
     record's first stamp, s; start_s, duration_s: the compared span from t0, s; band_hz: the
     fit's band edge.  inertia_start: (6,) the tensor the fit started from, and where it came from
     (``start_source``), with its σ (6,) (inf: none).  cg_prior: (3,) m and cg_prior_std (3,) m (inf: none) of the CG's prior,
-    cg_source: where it came from.  seconds: wall time.  truth: truth.yaml or None.
+    cg_source: where it came from.  survey: the geometry's and the mass's σ the fit assumed
+    (rig.yaml ``survey``).  seconds: wall time.  truth: truth.yaml or None.
     """
 
     fit: RigFit
@@ -66,6 +133,7 @@ class RigModelResult:
     cg_prior: np.ndarray
     cg_prior_std: np.ndarray
     cg_source: str
+    survey: Survey
     seconds: float
     truth: dict | None
 
@@ -76,7 +144,8 @@ class RigModelResult:
         sensor's trait, σ not calibrated), ``not_identifiable`` (some entry :attr:`undetermined`:
         then no entry is an estimate — the directions of the tensor are coupled, and on bench_crb's
         31003 a moment whose σ said ±0.85 % at 95 % was 9 % off beside the undetermined one),
-        ``inconsistent`` (:attr:`inconsistent` entries: not an estimate to use) or ``failed`` (a channel beyond :data:`FAILED_LEVEL`, or a number not
+        ``inconsistent`` (:attr:`inconsistent` entries, or the static and dynamic CG disagree
+        beyond :data:`CONSISTENCY_SIGMA`: not an estimate to use) or ``failed`` (a channel beyond :data:`FAILED_LEVEL`, or a number not
         finite: the fit did not find the motion; the numbers are not an estimate)."""
         f = self.fit
         finite = np.all(np.isfinite(f.inertia)) and np.all(np.isfinite(f.inertia_std))
@@ -86,7 +155,7 @@ class RigModelResult:
             return "model_error"
         if self.undetermined:
             return "not_identifiable"
-        return "inconsistent" if self.inconsistent else "ok"
+        return "inconsistent" if self.inconsistent or not self.cg.agree else "ok"
 
     @property
     def inconsistent(self) -> list[str]:
@@ -112,13 +181,12 @@ class RigModelResult:
         """The channels whose residual in the band exceeds :data:`LEVEL_LIMIT` times their noise."""
         return [c for c, v in zip(self.fit.channels, self.fit.residual_level) if v > LEVEL_LIMIT]
 
-    def cg_difference_sigma(self) -> np.ndarray:
-        """(3,) the dynamic CG's difference from the static one over their combined σ (the
-        dynamic's σ comes from the fit that used the static prior: a lower bound of the
-        disagreement's significance); nan without a static CG."""
-        d = self.fit.parameters.cg - self.cg_prior
-        s = np.sqrt(self.fit.cg_std ** 2 + np.where(np.isfinite(self.cg_prior_std), self.cg_prior_std, np.nan) ** 2)
-        return d / s
+    @property
+    def cg(self) -> CentreOfGravity:
+        """The CG from the static test (the prior), the run alone and both (:func:`split_cg`)."""
+        f = self.fit
+        return split_cg(f.parameters.cg, f.covariance[f.layout.cg, f.layout.cg], self.cg_prior, self.cg_prior_std,
+                        self.cg_source)
 
     def to_dict(self) -> dict:
         """The JSON object of ``rig-identify inertia --model rig --json`` (SI units)."""
@@ -126,7 +194,7 @@ class RigModelResult:
         p = f.parameters
         sd = f.inertia_std
         d = {
-            "schema": "rig_identification.rig_model_result", "schema_version": 1,
+            "schema": "rig_identification.rig_model_result", "schema_version": 2,
             "recording": self.path, "model": "rig (grey-box, every sensor an output)",
             "verdict": self.verdict, "undetermined": self.undetermined, "inconsistent": self.inconsistent,
             "window": {"start_s": self.start_s, "duration_s": self.duration_s, "band_hz": [0.0, self.band_hz]},
@@ -139,10 +207,10 @@ class RigModelResult:
                               "std": {k: float(v) if np.isfinite(v) else None for k, v in zip(KEYS, self.start_std)},
                               "source": self.start_source},
             "mass": float(p.mass), "mass_std": float(np.sqrt(f.covariance[f.layout.mass, f.layout.mass])),
-            "center_of_gravity": {"dynamic": p.cg.tolist(), "dynamic_std": f.cg_std.tolist(),
-                                  "prior": self.cg_prior.tolist(),
-                                  "prior_std": [float(x) if np.isfinite(x) else None for x in self.cg_prior_std],
-                                  "prior_source": self.cg_source, "units": "m, body frame"},
+            "center_of_gravity": self.cg.to_dict(),
+            "survey": {"anchors_m": self.survey.anchors, "lengths_m": self.survey.lengths,
+                       "mass_kg": self.survey.mass_std(float(self.fit.parameters.mass)),
+                       "source": "rig.yaml survey (defaults where it says nothing)"},
             "cables": {"stiffness": p.stiffness.tolist(), "damping_time": float(p.damping_time),
                        "load_cell_gain": p.gain.tolist()},
             "body_damping": {"linear": float(p.body_damping[0]), "angular": float(p.body_damping[1]),
@@ -199,5 +267,5 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     fit = fit_rig(rc, rec.rig, prior, guess)
     return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
                           (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, guess_std, source, prior.cg, prior.cg_std,
-                          cg_source or ("rig.yaml (start only)" if cg_std is None else "given"),
+                          cg_source or ("rig.yaml (start only)" if cg_std is None else "given"), rec.rig.survey,
                           time.perf_counter() - t_wall, rec.truth)

@@ -26,7 +26,6 @@ from .result import CgResult, StatePose
 from .state import StaticsError, StaticState
 from .validation import CHI2_P_WARN, validate_fit
 
-DEFAULT_SCALE_REL_STD = 1e-3     # the scale's reading: 0.1 % (a typical floor scale), 1 σ
 MASS_COVERAGE = 3.0              # mass disagreement warning: |Δ| > 3 σ combined
 # contradictory geometry: the fit's χ² exceeds its dof by more than 20² (a 20 σ misfit, as the
 # per-stream contradiction checks) and it needed an input moved by > 10 of its σ and > 5 mm
@@ -58,7 +57,7 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
     cables, stretched cables, load cells (see the docstring of :mod:`rig_identification.statics`).
 
     options: :class:`CgOptions` (default: load cells and inclinometer, the rig's geometry
-    with the survey σ of :data:`DEFAULT_ANCHOR_STD` etc.).
+    and mass with rig.yaml's survey σ, :meth:`CgOptions.from_survey`).
 
     Returns :class:`CgResult`: CG (3,) body frame m with σ (noise and geometry) and the σ of
     the noise alone, the σ budget, the sensitivities and the :class:`CgValidation` (a failed
@@ -68,7 +67,7 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
     data (a stream misfit of > 20 σ, or a fit that needs a systematic input moved by > 10 of
     its σ and > 5 mm with χ² > dof + :data:`CONTRADICTION_CHI2`: the message names the input).
     """
-    opts = options or CgOptions()
+    opts = options or CgOptions.from_survey(rig.survey)
     dummies = [dummy] if isinstance(dummy, StaticState) else list(dummy)
     if not dummies:
         raise StaticsError("at least one dummy-mass state is needed")
@@ -118,7 +117,7 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
             sv.append(np.maximum(s.specific_force_std, 1e-8))
         meas.append(np.concatenate(mv))
         sig.append(np.concatenate(sv))
-    scale_std = opts.scale_std if opts.scale_std is not None else DEFAULT_SCALE_REL_STD * rig.mass
+    scale_std = opts.scale_std if opts.scale_std is not None else rig.survey.mass_std(rig.mass)
 
     # --- start values: mass and gain from the load cells, CG from the linearised moment balance
     if have_T:

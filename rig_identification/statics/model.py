@@ -23,7 +23,7 @@ from typing import NamedTuple, Sequence
 import numpy as np
 from scipy.linalg import expm
 
-from ..io.rig import DummyMass, Rig
+from ..io.rig import DummyMass, Rig, Survey
 from ..model.cables import CableModel
 from ..model.dynamics import SimulationError, skew, skews
 from ..model.equilibrium import equilibrium
@@ -31,16 +31,14 @@ from .state import StaticsError
 
 Z = np.array([0.0, 0.0, 1.0])    # world z, up (gravity is -g Z)
 DEFAULT_COMPLIANCE = 2e-7        # m/N: a steel cable of a few metres (k = 5e6 N/m), start value
-# The rig's geometry as surveyed, 1 σ per coordinate (the default of every fit; CgOptions, and
-# rig-identify cg --anchor-std/--length-std/--dummy-position-std, set others).  A careful survey
-# with a class II steel tape (EN ISO 8764 / EC class II: maximum permissible error
-# ±(0.3 + 0.2 L/m) mm, ±1.1 mm over 4 m) or a laser distance meter (±1–1.5 mm) locates each
-# anchor, the pin-to-pin cable length and the dummy mass's centre to about a millimetre.  On the
-# reference static pair (visible_case16_static) these 1 mm make the CG height's σ 22× the noise's
-# (9.4 mm against 0.43 mm; docs/cg.md).
-DEFAULT_ANCHOR_STD = 1e-3        # m: every ceiling anchor (world) and body anchor (body) coordinate
-DEFAULT_LENGTH_STD = 1e-3        # m: every unstretched cable length
-DEFAULT_DUMMY_POSITION_STD = 1e-3  # m: every coordinate of the dummy mass's centre of gravity
+# The rig's geometry as surveyed, 1 σ per coordinate, when rig.yaml's ``survey`` does not say
+# (:class:`~rig_identification.io.rig.Survey`; rig-identify cg --anchor-std/--length-std/
+# --dummy-position-std override it for one run).  On the reference static pair
+# (visible_case16_static) these 1 mm make the CG height's σ 22× the noise's (9.4 mm against
+# 0.43 mm; docs/cg.md).
+DEFAULT_ANCHOR_STD = Survey.anchors        # m: every ceiling anchor (world) and body anchor (body) coordinate
+DEFAULT_LENGTH_STD = Survey.lengths        # m: every unstretched cable length
+DEFAULT_DUMMY_POSITION_STD = Survey.dummy_position  # m: every coordinate of the dummy mass's centre of gravity
 
 
 @dataclass(frozen=True)
@@ -78,6 +76,12 @@ class CgOptions:
     dummy_mass_std: float = 0.0
     anchor_std: float = DEFAULT_ANCHOR_STD
     inflate: bool = True
+
+    @classmethod
+    def from_survey(cls, survey: Survey, **kw) -> "CgOptions":
+        """Options whose geometry σ and scale σ are rig.yaml's ``survey`` (``kw`` overrides)."""
+        return cls(**{"length_std": survey.lengths, "dummy_position_std": survey.dummy_position,
+                      "anchor_std": survey.anchors, "scale_std": survey.mass, **kw})
 
     @classmethod
     def exact_geometry(cls, **kw) -> "CgOptions":

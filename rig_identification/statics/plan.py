@@ -89,7 +89,7 @@ def predict_cg_std(rig: Rig, cg, dummy: DummyMass, duration: float, noise: Senso
     cable, ineffective dummy).
     """
     noise = noise or SensorNoise()
-    opts = options or CgOptions()
+    opts = options or CgOptions.from_survey(rig.survey)
     R0, p0, T0 = static_equilibrium(rig, rig.mass, cg, (), compliance)
     R1, p1, T1 = static_equilibrium(rig, rig.mass, cg, (dummy,), compliance)
     b = _ideal_state(rig, R0, T0, duration, noise, (), "baseline")
