@@ -51,21 +51,26 @@ import time
 import warnings
 
 import numpy as np
+from scoring import entry_scales, predicted_rel_std, print_unscored, run_jobs, score_entries, worst
 
 from rig_identification.design.scenarios import simulate_random
-from rig_identification.estimation.errors_in_variables import (EIV_LIMIT, antithetic_realisations, noise_moments,
-                                                                noise_share, regressor)
+from rig_identification.estimation.errors_in_variables import (
+    EIV_LIMIT,
+    antithetic_realisations,
+    noise_moments,
+    noise_share,
+    regressor,
+)
 from rig_identification.estimation.identification import prepare_segment
 from rig_identification.estimation.propagation import REFERENCE_NOISE
 from rig_identification.estimation.uncertainty import add_noise
-from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import basis, from_tensor, to_tensor
 from rig_identification.estimation.validation import REL_STD_LIMIT, WEAK_SHARE, with_products
 from rig_identification.io.recording import Recording
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.parametrisation import basis, from_tensor, to_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.pipeline.prepare import prepare_recording, replay_window
 from rig_identification.pipeline.sigma import REPLAY_PAIRS, fit_input
-from scoring import entry_scales, predicted_rel_std, print_unscored, run_jobs, score_entries, worst
 
 CABLES = (3, 4, 5, 6)
 LAYOUTS = ("wide", "wide", "random", "random", "mixed", "splayed", "parallel")   # determined rigs weigh double

@@ -60,6 +60,7 @@ def truth_modes(truth: dict):
     body's rotational stiffness K (diagonal, body axes: roll, pitch, and the yaw lock) against
     its tensor J_s, K v = ω² J_s v (scipy ``eigh``), the two lowest; ℓ = J_s v with vᵀ J_s v = 1."""
     from scipy.linalg import eigh
+
     from rig_identification.estimation.two_body import SprungModes
     from rig_identification.io.verdict import KEYS
     from rig_identification.model.parametrisation import to_tensor
@@ -107,7 +108,7 @@ def simulate(seed: int, duration: float, kind: str, noise: dict | None = None):
 def _draws(seed: int, duration: float, n: int, kind: str, grid: tuple, keep: int) -> dict:
     """The rig's noise-free trajectory (1/1000 of the reference noise) fitted n times with
     fresh reference noise: per entry the errors (n,6) and σ (n,6), % of the reference."""
-    from rig_identification.design.scenarios import REFERENCE_NOISE, simulate_random
+    from rig_identification.design.scenarios import REFERENCE_NOISE
     from rig_identification.diagnosis.compliant_body import fit_compliant_body
     from rig_identification.estimation.uncertainty import add_noise
     from rig_identification.io.recording import Recording
@@ -131,7 +132,6 @@ def _job(args):
     seed, duration, truth_start, n_draws, kind, grid, keep = args
     import warnings
     warnings.simplefilter("ignore")
-    from rig_identification.design.scenarios import simulate_random
     from rig_identification.diagnosis.compliant_body import fit_compliant_body
     from rig_identification.io.recording import Recording
     from rig_identification.io.verdict import KEYS

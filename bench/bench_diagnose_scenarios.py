@@ -9,12 +9,14 @@ before and after, the named effects with their parameters.  Quoted in docs/resul
 ("Diagnosis").
 """
 import sys
+
 import yaml
-from rig_identification.io.verdict import KEYS
-from rig_identification.pipeline.offline import compare_to_truth, identify_recording, with_diagnosis
+
 from rig_identification.io.recording import Recording
+from rig_identification.io.verdict import KEYS
 from rig_identification.model.experiment import experiment_from_dict
 from rig_identification.model.simulator import simulate
+from rig_identification.pipeline.offline import compare_to_truth, identify_recording, with_diagnosis
 
 for effect in ({"name": "sensor_delay", "stream": "load_cells", "delay": 0.02}, {"name": "cable_mass", "mass": 3.0}):
     d = yaml.safe_load(open("config/rigs/default.yaml"))

@@ -36,13 +36,19 @@ import numpy as np
 import yaml
 
 from rig_identification.nodes.codec import wrench_layout
+from rig_identification.nodes.demo import Graph
 from rig_identification.nodes.diagnostics import diagnostic_values
 from rig_identification.nodes.frames import BODY_FRAME
 from rig_identification.nodes.qos import DIAGNOSTICS_QOS, LATCHED_QOS, SENSOR_QOS
 from rig_identification.nodes.runtime import BackgroundSpin
-from rig_identification.nodes.topics import (DIAGNOSTICS_TOPIC, DRIVER_STATUS_TOPIC, IMU_TOPIC, POSE_TOPIC,
-                                             TRUTH_TOPIC, WRENCH_TOPIC)
-from rig_identification.nodes.demo import Graph
+from rig_identification.nodes.topics import (
+    DIAGNOSTICS_TOPIC,
+    DRIVER_STATUS_TOPIC,
+    IMU_TOPIC,
+    POSE_TOPIC,
+    TRUTH_TOPIC,
+    WRENCH_TOPIC,
+)
 
 REPO = Path(__file__).resolve().parents[1]
 NODES = ("sensor_driver", "tracker", "preprocessor", "identifier")

@@ -38,15 +38,15 @@ from scipy.spatial.transform import Rotation, Slerp
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
+from rig_identification.design.scenarios import REFERENCE_NOISE, simulate_random  # noqa: E402
 from rig_identification.diagnosis.result import EffectWrench  # noqa: E402
-from rig_identification.io.verdict import KEYS
-from rig_identification.pipeline.offline import compare_to_truth, identify_recording
-from rig_identification.pipeline.prepare import prepare_recording, replay_window, with_effect_wrench
 from rig_identification.estimation.identification import identify_inertia  # noqa: E402
 from rig_identification.estimation.preprocessor import generalized_wrench  # noqa: E402
 from rig_identification.estimation.uncertainty import add_noise, sensor_noise  # noqa: E402
 from rig_identification.io.recording import Recording  # noqa: E402
-from rig_identification.design.scenarios import REFERENCE_NOISE, simulate_random  # noqa: E402
+from rig_identification.io.verdict import KEYS
+from rig_identification.pipeline.offline import compare_to_truth, identify_recording
+from rig_identification.pipeline.prepare import prepare_recording, replay_window, with_effect_wrench
 
 
 def run(seed: int, duration: float, angular: float, noise: dict) -> str:

@@ -20,11 +20,11 @@ from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 
 from rig_identification.estimation.identification import identify_inertia
+from rig_identification.estimation.preprocessor import preprocess
+from rig_identification.estimation.tracker_replay import track
+from rig_identification.io.recording import read_recording
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import from_tensor, to_tensor
-from rig_identification.estimation.preprocessor import preprocess
-from rig_identification.io.recording import read_recording
-from rig_identification.estimation.tracker_replay import track
 
 REC = Path(__file__).resolve().parents[2] / "shared" / "recordings" / "visible_case16_clean"
 

@@ -36,14 +36,19 @@ from pathlib import Path
 
 import numpy as np
 
-from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import from_tensor
-from rig_identification.pipeline.offline import identify_recording
-from rig_identification.estimation.propagation import REFERENCE_NOISE, REFERENCE_RATES, Trajectory, predict_from_trajectory
-from rig_identification.io.recording import Recording
-from rig_identification.model.experiment import load_experiment
-from rig_identification.model.simulator import simulate
+from rig_identification.estimation.propagation import (
+    REFERENCE_NOISE,
+    REFERENCE_RATES,
+    Trajectory,
+    predict_from_trajectory,
+)
 from rig_identification.estimation.uncertainty import add_noise
+from rig_identification.io.recording import Recording
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.experiment import load_experiment
+from rig_identification.model.parametrisation import from_tensor
+from rig_identification.model.simulator import simulate
+from rig_identification.pipeline.offline import identify_recording
 
 ROOT = Path(__file__).resolve().parents[1]
 CASES = [f"case{i}" for i in range(10, 18)]

@@ -34,9 +34,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rig_identification.io.recording import read_sensor_data, SensorData
-from rig_identification.io.rig import load_rig
+from rig_identification.io.recording import SensorData, read_sensor_data
 from rig_identification.io.recording_writer import write_recording
+from rig_identification.io.rig import load_rig
 
 REPO = Path(__file__).resolve().parents[1]
 REFERENCES = REPO.parent / "shared" / "recordings"

@@ -27,9 +27,10 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "bench"))
 
 from bench_trust import ROWS  # noqa: E402
-from rig_identification.pipeline.offline import identify_recording  # noqa: E402
-from rig_identification.io.recording import Recording  # noqa: E402
+
 from rig_identification.design.scenarios import simulate_random  # noqa: E402
+from rig_identification.io.recording import Recording  # noqa: E402
+from rig_identification.pipeline.offline import identify_recording  # noqa: E402
 
 
 def main(argv=None) -> int:

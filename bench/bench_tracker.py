@@ -27,11 +27,11 @@ from pathlib import Path
 
 import numpy as np
 
-from rig_identification.io.recording import read_recording
 from rig_identification.design.scenarios import random_experiment
+from rig_identification.estimation.tracker_replay import merge_events, replay, track
+from rig_identification.io.recording import read_recording
 from rig_identification.model.experiment import experiment_from_dict
 from rig_identification.model.simulator import simulate
-from rig_identification.estimation.tracker_replay import merge_events, replay, track
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 REFERENCE = "visible_case16_clean"

@@ -66,15 +66,16 @@ def _job(args):
     name, seed, duration, diagnose = args
     import warnings
     warnings.simplefilter("ignore")
+    from scoring import predicted_rel_std, score_entries, worst
+
+    from rig_identification.design.scenarios import simulate_random
     from rig_identification.estimation.identification import identify_inertia
+    from rig_identification.estimation.validation import REL_STD_LIMIT
+    from rig_identification.io.recording import Recording
     from rig_identification.io.verdict import KEYS
     from rig_identification.model.parametrisation import from_tensor, to_tensor
     from rig_identification.pipeline.offline import identify_recording, with_diagnosis
     from rig_identification.pipeline.prepare import prepare_recording
-    from rig_identification.estimation.validation import REL_STD_LIMIT
-    from rig_identification.io.recording import Recording
-    from rig_identification.design.scenarios import simulate_random
-    from scoring import predicted_rel_std, score_entries, worst
     cables, layout, effects, clean, *rest = ROWS[name]
     exciter = rest[0] if rest else "corner"
     t0 = time.perf_counter()

@@ -53,11 +53,11 @@ def _job(args):
     seed, cables, layout, duration = args
     import warnings
     warnings.simplefilter("ignore")
+    from rig_identification.design.scenarios import simulate_random
+    from rig_identification.io.recording import Recording
     from rig_identification.io.verdict import KEYS
     from rig_identification.model.parametrisation import from_tensor
     from rig_identification.pipeline.offline import identify_recording
-    from rig_identification.io.recording import Recording
-    from rig_identification.design.scenarios import simulate_random
     t0 = time.perf_counter()
     row = {"seed": seed, "cables": cables, "layout": layout, "duration": duration}
     try:
@@ -93,6 +93,7 @@ def _noise_job(args):
     warnings.simplefilter("ignore")
     sys.path.insert(0, str(ROOT / "bench"))
     from bench_any_rig import draw
+
     from rig_identification.design.scenarios import simulate_random
     from rig_identification.io.recording import Recording
     from rig_identification.io.verdict import KEYS
@@ -128,6 +129,7 @@ def _first_order_job(args):
     warnings.simplefilter("ignore")
     sys.path.insert(0, str(ROOT / "bench"))
     from bench_any_rig import draw
+
     from rig_identification.design.scenarios import simulate_random
     from rig_identification.estimation.identification import identify_inertia
     from rig_identification.estimation.propagation import REFERENCE_NOISE
@@ -207,8 +209,8 @@ def first_order_main(a) -> int:
 
 def noise_main(a) -> int:
     """The --any-rig mode (see module docstring)."""
-    from rig_identification.io.verdict import KEYS
     from rig_identification.estimation.validation import EFFECT_FACTOR, WHITENESS_FACTOR
+    from rig_identification.io.verdict import KEYS
     with ProcessPoolExecutor(a.procs) as ex:
         rows = list(ex.map(_noise_job, [(a.any_rig, k) for k in range(a.first_noise_seed,
                                                                      a.first_noise_seed + a.noise_seeds)]))

@@ -15,9 +15,17 @@ from rig_identification.nodes.diagnostics import diagnostic_values  # noqa: E402
 from rig_identification.nodes.messages import stamp_to_sec  # noqa: E402
 from rig_identification.nodes.qos import DIAGNOSTICS_QOS, LATCHED_QOS, SENSOR_QOS, SERVICE_SETTLE_SECONDS  # noqa: E402
 from rig_identification.nodes.runtime import BackgroundSpin  # noqa: E402
-from rig_identification.nodes.topics import (DIAGNOSTICS_TOPIC, DRIVER_STATUS_TOPIC, EXCITER_TOPIC,  # noqa: E402
-                                             IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX, POSE_TOPIC,
-                                             TRUTH_TOPIC, WRENCH_TOPIC)
+from rig_identification.nodes.topics import (  # noqa: E402
+    DIAGNOSTICS_TOPIC,
+    DRIVER_STATUS_TOPIC,
+    EXCITER_TOPIC,
+    IMU_TOPIC,
+    INCLINOMETER_TOPIC,
+    LOAD_CELL_PREFIX,
+    POSE_TOPIC,
+    TRUTH_TOPIC,
+    WRENCH_TOPIC,
+)
 
 SETTLE = SERVICE_SETTLE_SECONDS
 

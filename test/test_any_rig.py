@@ -6,18 +6,17 @@ their lines cross near the CG (rig_identification.design.scenarios, layout "wide
 """
 import numpy as np
 import pytest
-
-from rig_identification.io.verdict import KEYS
-from rig_identification.estimation.precision import Z95
-from rig_identification.model.parametrisation import entry_scales, from_tensor
-from rig_identification.pipeline.offline import identify_recording
-from rig_identification.design.planning import Run, make_body, plan_experiment
-from rig_identification.io.recording import Recording
-from rig_identification.design.scenarios import CABLE_STIFFNESS, simulate_random
-from rig_identification.statics import estimate_cg
-
 from conftest import background, gather
 from synthetic import static_pair
+
+from rig_identification.design.planning import Run, make_body, plan_experiment
+from rig_identification.design.scenarios import CABLE_STIFFNESS, simulate_random
+from rig_identification.estimation.precision import Z95
+from rig_identification.io.recording import Recording
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.parametrisation import entry_scales, from_tensor
+from rig_identification.pipeline.offline import identify_recording
+from rig_identification.statics import estimate_cg
 
 
 def _identified(cables: int, seed: int):

@@ -296,8 +296,8 @@ def test_noise_free_steps_are_not_saturation(sim):
     """A noise-free stream that holds a value exactly (a simulated stepped force, the thesis's
     case studies 1–9) is not a saturated sensor; the same run of identical samples in a
     noisy channel is."""
-    from rig_identification.io.recording import TimeSeries
     from rig_identification.io.bad_spans import find_bad_spans
+    from rig_identification.io.recording import TimeSeries
     s = copy.deepcopy(sim.sensors)
     t = s.exciter.t
     step = np.where((t > t[0] + 5) & (t < t[0] + 8), 200.0, 0.0)

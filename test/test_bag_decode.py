@@ -8,19 +8,24 @@ import shutil
 
 import numpy as np
 import pytest
+from conftest import recording
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.storage_mcap import McapReader
 from rosbags.typesys import Stores, get_typestore
 
 from rig_identification.io import recording as R
-from rig_identification.io.bag_raw import IndexMismatch, chunk_messages, read_chunk
 from rig_identification.io.bag_decode import DOUBLE_FIELDS, TYPE_HASHES, decode_stamped, payload_offset
-from rig_identification.io.recording import (IMU_TOPIC, LOAD_CELL_PREFIX, read_sensor_data, RecordingError,
-                                             SensorData, TimeSeries)
-from rig_identification.io.rig import load_rig, rig_from_dict
+from rig_identification.io.bag_raw import IndexMismatch, chunk_messages, read_chunk
+from rig_identification.io.recording import (
+    IMU_TOPIC,
+    LOAD_CELL_PREFIX,
+    RecordingError,
+    SensorData,
+    TimeSeries,
+    read_sensor_data,
+)
 from rig_identification.io.recording_writer import sensor_messages
-
-from conftest import recording
+from rig_identification.io.rig import load_rig, rig_from_dict
 
 REFERENCES = ["visible_case16_clean", "visible_case14_clean", "visible_case16_damped",
               "visible_case16_static/static_baseline", "visible_case16_static/static_dummy"]

@@ -8,10 +8,9 @@ validation passes.
 """
 import numpy as np
 import pytest
+from synthetic import static_pair
 
 from rig_identification.statics import CgOptions, estimate_cg
-
-from synthetic import static_pair
 
 
 @pytest.mark.parametrize("cables, seed", [(3, 1), (5, 2), (6, 2)], ids=["3_cables", "5_cables", "6_cables"])

@@ -2,12 +2,11 @@
 fed sample by sample as the node would; it agrees with `rig-identify cg` on the recordings."""
 import numpy as np
 import pytest
+from conftest import recording
 
-from rig_identification.statics.capture import CgSession
 from rig_identification.io.recording import read_recording
 from rig_identification.statics import StaticsError, StaticState, estimate_cg
-
-from conftest import recording
+from rig_identification.statics.capture import CgSession
 
 
 def feed(session, sensors, shift):

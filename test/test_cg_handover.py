@@ -13,13 +13,12 @@ import json
 import numpy as np
 import pytest
 import yaml
+from conftest import recording
 
-from rig_identification.statics.handover import CgResultError, load_cg_result
 from rig_identification.cli.main import identify_main
 from rig_identification.io.rig import load_rig
 from rig_identification.statics import CG_RESULT_SCHEMA, CG_RESULT_SCHEMA_VERSION, StaticsError
-
-from conftest import recording
+from rig_identification.statics.handover import CgResultError, load_cg_result
 
 BASE = recording("visible_case16_static/static_baseline")
 DUMMY = recording("visible_case16_static/static_dummy")

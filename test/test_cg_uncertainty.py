@@ -11,13 +11,18 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import recording
 
 from rig_identification.io.recording import read_recording
 from rig_identification.io.rig import DummyMass
-from rig_identification.statics import (DEFAULT_ANCHOR_STD, DEFAULT_DUMMY_POSITION_STD, DEFAULT_LENGTH_STD,
-                                        CgOptions, StaticState, estimate_cg)
-
-from conftest import recording
+from rig_identification.statics import (
+    DEFAULT_ANCHOR_STD,
+    DEFAULT_DUMMY_POSITION_STD,
+    DEFAULT_LENGTH_STD,
+    CgOptions,
+    StaticState,
+    estimate_cg,
+)
 
 DRAWS = 30
 

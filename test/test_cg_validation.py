@@ -19,16 +19,15 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import REPO, recording
 
 from rig_identification.cli.main import identify_main
-from rig_identification.io.recording import read_recording, SensorData, TimeSeries
+from rig_identification.io.recording import SensorData, TimeSeries, read_recording
 from rig_identification.io.recording_writer import write_recording
 from rig_identification.io.rig import DummyMass
 from rig_identification.model.experiment import load_experiment
 from rig_identification.model.simulator import simulate
 from rig_identification.statics import VALIDATION_SIGMA, CgOptions, StaticState, estimate_cg, static_equilibrium
-
-from conftest import REPO, recording
 
 REFERENCE_NOISE = {"gyro": 0.002, "accelerometer": 0.01, "load_cell": 0.5, "exciter": 0.5, "inclinometer": 2e-4}
 RATES = {"imu": 200.0, "load_cells": 200.0, "exciter": 200.0, "inclinometer": 50.0}

@@ -15,17 +15,16 @@ from importlib.metadata import version
 import numpy as np
 import pytest
 import yaml
-
 from conftest import recording, run_cli
+
 from rig_identification.cli import diagnose as cli_diagnose
-from rig_identification.io import export
-from rig_identification.estimation import directions
-from rig_identification.estimation import validation
-from rig_identification.cli.main import TENSOR, build_parser, identify_main
 from rig_identification.cli.inertia import print_inertia
+from rig_identification.cli.main import TENSOR, build_parser, identify_main
 from rig_identification.cli.text import effect_text, evidence_text
+from rig_identification.estimation import directions, validation
 from rig_identification.estimation.directions import describe_direction, weak_directions
 from rig_identification.estimation.inertia_result import FitSeries, InertiaResult
+from rig_identification.io import export
 from rig_identification.io.verdict import KEYS, Check, Validation
 from rig_identification.model.parametrisation import from_tensor, to_tensor
 
@@ -420,8 +419,9 @@ def test_rig_sim_help_is_quick_and_the_simulation_says_what_it_does(tmp_path, ca
     assert "usage: rig-sim" in p.stdout and "EXIT 0" in p.stdout and "EXIT 2" in p.stdout, p.stdout
     assert "HEAVY []" in p.stdout, p.stdout.splitlines()[-1]
     assert "--dummy-mass and --dummy-position go together" in p.stderr
-    from rig_identification.cli.sim import sim_main
     from pathlib import Path
+
+    from rig_identification.cli.sim import sim_main
     config = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"
     assert sim_main([str(config), str(tmp_path / "a"), "--duration", "1"]) == 0
     out, err = capsys.readouterr()

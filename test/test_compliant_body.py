@@ -19,10 +19,12 @@
   seed 101, clean, 30 s: 43 for 13 degrees of freedom, beyond the χ² quantile, a sprung
   body's frequencies being undetermined without one.)
 """
-import numpy as np
 from dataclasses import replace
 from types import SimpleNamespace
 
+import numpy as np
+import test_validation  # noqa: F401  (registers the "validation" jobs this module shares)
+from conftest import gather
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
@@ -32,10 +34,6 @@ from rig_identification.diagnosis import compliant_body as cbm
 from rig_identification.diagnosis.result import Combination
 from rig_identification.estimation import two_body as tb
 from rig_identification.io.recording import TimeSeries
-
-from conftest import gather
-import test_validation  # noqa: F401  (registers the "validation" jobs this module shares)
-
 
 # --- the two-body model ---------------------------------------------------------------------------
 

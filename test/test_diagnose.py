@@ -16,7 +16,6 @@ import math
 import numpy as np
 import pytest
 import yaml
-
 from conftest import background, gather, recording
 
 DEFAULT = "config/rigs/default.yaml"
@@ -71,8 +70,8 @@ def random_experiment(seed: int, effects: list, duration: float = DURATION) -> d
                              "izz": J[2, 2]}
     # the exciter between the two lowest natural frequencies, as in the thesis's case 16 (at a
     # mode, the 200 N would swing the body until a cable goes slack)
-    from rig_identification.model.modes import natural_modes
     from rig_identification.io.rig import rig_from_dict
+    from rig_identification.model.modes import natural_modes
     r = rig_from_dict(rig, "random rig")
     f = sorted(m.frequency for m in natural_modes(r, r.mass, r.require_cg(), J, 5e6))
     d["excitation"]["rotating"]["frequency"] = float(0.5 * (f[0] + f[1]))
@@ -327,9 +326,9 @@ def _default_rig_pipeline(name: str, effect: dict, refine: bool) -> tuple:
     Returns (truth, the body's mass in rig.yaml, rigid-body result, result)."""
     from pathlib import Path
 
-    from rig_identification.pipeline.offline import identify_recording, with_diagnosis
     from rig_identification.io.recording import Recording
     from rig_identification.model.simulator import experiment_from_dict, simulate
+    from rig_identification.pipeline.offline import identify_recording, with_diagnosis
     d = yaml.safe_load((Path(__file__).resolve().parents[1] / DEFAULT).read_text())
     d["rig"].pop("dummy_mass", None)
     d["duration"] = DURATION
@@ -397,8 +396,8 @@ def test_inertia_diagnoses_a_weight_surplus_the_residual_does_not_show():
     rig.yaml's weight, which `pipeline.with_diagnosis` (what `rig-identify inertia` does)
     takes as model error: diagnose names the cables' mass within 15 %, and the body's own
     tensor comes back within 0.5 % (products: of the largest diagonal) and 3 σ."""
-    from rig_identification.pipeline.offline import compare_to_truth
     from rig_identification.pipeline.fit_validation import WEIGHT_TOLERANCE
+    from rig_identification.pipeline.offline import compare_to_truth
     truth, mass, rigid, res = gather("weight_pipeline")["run"]
     assert max(abs(c["error_percent"]) for c in compare_to_truth(rigid, truth).values()) > 0.5
     assert rigid.weight_surplus == pytest.approx(4 * 1.5 / mass, rel=0.1)

@@ -13,7 +13,6 @@ import json
 
 import numpy as np
 import pytest
-
 from conftest import background, gather
 
 from rig_identification.diagnosis.retracked import bias_path, knots, random_walk

@@ -8,14 +8,21 @@ import numpy as np
 import pytest
 from scipy.signal import butter, lfilter, sosfiltfilt
 
-from rig_identification.estimation.errors_in_variables import (LEAK_SHARE, NoiseRealisations,
-                                                    antithetic_realisations, attenuation_leak, capped,
-                                                    noise_share, quadratic_forms, second_order_covariance)
+from rig_identification.estimation.errors_in_variables import (
+    LEAK_SHARE,
+    NoiseRealisations,
+    antithetic_realisations,
+    attenuation_leak,
+    capped,
+    noise_share,
+    quadratic_forms,
+    second_order_covariance,
+)
 from rig_identification.estimation.identification import Segment, fit_segments
 from rig_identification.estimation.validation import EFFECT_FACTOR, quadrature_check
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import basis, from_tensor, to_tensor
 from rig_identification.model.experiment import load_experiment
+from rig_identification.model.parametrisation import basis, from_tensor, to_tensor
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"
 FS = 200.0

@@ -8,7 +8,7 @@ import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from rig_identification.io.recording import read_sensor_data, RecordingError
+from rig_identification.io.recording import RecordingError, read_sensor_data
 from rig_identification.io.recording_writer import write_recording
 from rig_identification.io.rig import RigError, load_rig, rig_from_dict
 
@@ -94,6 +94,7 @@ def test_load_rig_random_bytes(tmp_path_factory, b):
 @pytest.fixture(scope="module", params=["mcap", "sqlite3"])
 def small_bag(request, tmp_path_factory):
     import dataclasses
+
     from rig_identification.model.experiment import load_experiment
     from rig_identification.model.simulator import simulate
     exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=2.0)

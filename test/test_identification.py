@@ -2,13 +2,17 @@
 calibrated standard deviations."""
 import numpy as np
 import pytest
+from synthetic import J_TRUE, RIG, euler_data
 
 from rig_identification.estimation.identification import identify_inertia
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import (consistent_from_params, from_tensor, params_from_consistent,
-                                                      physically_consistent, to_tensor)
-
-from synthetic import J_TRUE, RIG, euler_data
+from rig_identification.model.parametrisation import (
+    consistent_from_params,
+    from_tensor,
+    params_from_consistent,
+    physically_consistent,
+    to_tensor,
+)
 
 
 def test_parametrisation_round_trip_and_consistency():

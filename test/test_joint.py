@@ -11,17 +11,16 @@ import inspect
 
 import numpy as np
 import pytest
+from conftest import REPO, run_cli
 
-from rig_identification.pipeline import offline as pipeline
 from rig_identification.estimation.identification import identify_inertia, identify_inertia_joint
-from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import physically_consistent
 from rig_identification.io.recording import Recording, RecordingError
 from rig_identification.io.rig import RigError, dump_rig, read_yaml
+from rig_identification.io.verdict import KEYS
 from rig_identification.model.experiment import experiment_from_dict
+from rig_identification.model.parametrisation import physically_consistent
 from rig_identification.model.simulator import simulate
-
-from conftest import REPO, run_cli
+from rig_identification.pipeline import offline as pipeline
 
 DEFAULT = REPO / "config" / "rigs" / "default.yaml"
 # exciter A: the thesis's (corner, below the CG), 1.05 Hz; B: the opposite corner, 0.95 Hz

@@ -3,15 +3,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-
-from rig_identification.model.modes import estimate_modes, match_modes, natural_modes
-from rig_identification.io.recording import Recording, read_recording
-from rig_identification.io.rig import rig_from_dict
-from rig_identification.io.rig import inertia_tensor
-from rig_identification.model.experiment import load_experiment
-from rig_identification.model.simulator import simulate
-
 from conftest import REPO, recording
+
+from rig_identification.io.recording import Recording, read_recording
+from rig_identification.io.rig import inertia_tensor, rig_from_dict
+from rig_identification.model.experiment import load_experiment
+from rig_identification.model.modes import estimate_modes, match_modes, natural_modes
+from rig_identification.model.simulator import simulate
 
 G = 9.80665
 

@@ -24,23 +24,30 @@ from scipy.spatial.transform import Rotation
 
 rclpy = pytest.importorskip("rclpy")
 
-from rig_identification.nodes.environment import ros_env  # noqa: E402
-from rig_identification.nodes.merge import StampMerger  # noqa: E402
-from rig_identification.nodes.messages import set_stamp, stamp_to_sec  # noqa: E402
-from rig_identification.nodes.qos import LATCHED_QOS, SENSOR_QOS  # noqa: E402
-from rig_identification.nodes.topics import (EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC,  # noqa: E402
-                                             LOAD_CELL_PREFIX, MASS_PROPERTIES_TOPIC, POSE_TOPIC, WRENCH_TOPIC)
-from rig_identification.nodes.demo import Graph  # noqa: E402
-from rig_identification.pipeline.offline import identify_recording  # noqa: E402
-from rig_identification.pipeline.stream_fit import StreamBuffer, identify_window  # noqa: E402
+from ros_helpers import Listener, wait_until  # noqa: E402
+
 from rig_identification.estimation.preprocessor import WrenchPreprocessor  # noqa: E402
 from rig_identification.estimation.tracker import PoseTracker  # noqa: E402
 from rig_identification.io.recording import read_recording  # noqa: E402
 from rig_identification.io.recording_writer import write_recording  # noqa: E402
 from rig_identification.model.experiment import load_experiment  # noqa: E402
 from rig_identification.model.simulator import simulate  # noqa: E402
-
-from ros_helpers import Listener, wait_until  # noqa: E402
+from rig_identification.nodes.demo import Graph  # noqa: E402
+from rig_identification.nodes.environment import ros_env  # noqa: E402
+from rig_identification.nodes.merge import StampMerger  # noqa: E402
+from rig_identification.nodes.messages import set_stamp, stamp_to_sec  # noqa: E402
+from rig_identification.nodes.qos import LATCHED_QOS, SENSOR_QOS  # noqa: E402
+from rig_identification.nodes.topics import (  # noqa: E402
+    EXCITER_TOPIC,
+    IMU_TOPIC,
+    INCLINOMETER_TOPIC,
+    LOAD_CELL_PREFIX,
+    MASS_PROPERTIES_TOPIC,
+    POSE_TOPIC,
+    WRENCH_TOPIC,
+)
+from rig_identification.pipeline.offline import identify_recording  # noqa: E402
+from rig_identification.pipeline.stream_fit import StreamBuffer, identify_window  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 DURATION = 30.0

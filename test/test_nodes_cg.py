@@ -27,12 +27,12 @@ rclpy = pytest.importorskip("rclpy")
 from conftest import recording  # noqa: E402
 from ros_helpers import Listener, wait_until  # noqa: E402
 
-from rig_identification.statics.handover import cg_result_from_dict, load_cg_result, rig_with_cg_text  # noqa: E402
-from rig_identification.nodes.qos import LATCHED_QOS  # noqa: E402
-from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.io.recording import read_recording  # noqa: E402
 from rig_identification.io.rig import dump_rig, load_rig  # noqa: E402
+from rig_identification.nodes.demo import Graph  # noqa: E402
+from rig_identification.nodes.qos import LATCHED_QOS  # noqa: E402
 from rig_identification.statics import StaticState, estimate_cg  # noqa: E402
+from rig_identification.statics.handover import cg_result_from_dict, load_cg_result, rig_with_cg_text  # noqa: E402
 
 WAIT_FOR = ["/rig/imu:1", "/rig/load_cells/*:1", "/rig/inclinometer:1"]
 

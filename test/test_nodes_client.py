@@ -14,9 +14,10 @@ import pytest
 pytest.importorskip("rclpy")
 
 from conftest import recording  # noqa: E402
+
+from rig_identification.io.recording import read_recording  # noqa: E402
 from rig_identification.nodes.client import KEYS, UNVALIDATED, format_table  # noqa: E402
 from rig_identification.pipeline.offline import identify_recording  # noqa: E402
-from rig_identification.io.recording import read_recording  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -27,16 +27,16 @@ rclpy = pytest.importorskip("rclpy")
 
 from ros_helpers import Listener, wait_until  # noqa: E402
 
-from rig_identification.nodes import codec  # noqa: E402
-from rig_identification.nodes.diagnostics import diagnostic_values  # noqa: E402
-from rig_identification.nodes.merge import StampMerger  # noqa: E402
-from rig_identification.nodes.messages import stamp_to_sec  # noqa: E402
-from rig_identification.nodes.topics import IMU_TOPIC, LOAD_CELL_PREFIX, WRENCH_TOPIC  # noqa: E402
-from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.io.recording import read_recording  # noqa: E402
 from rig_identification.io.recording_writer import write_recording  # noqa: E402
 from rig_identification.model.experiment import load_experiment  # noqa: E402
 from rig_identification.model.simulator import simulate  # noqa: E402
+from rig_identification.nodes import codec  # noqa: E402
+from rig_identification.nodes.demo import Graph  # noqa: E402
+from rig_identification.nodes.diagnostics import diagnostic_values  # noqa: E402
+from rig_identification.nodes.merge import StampMerger  # noqa: E402
+from rig_identification.nodes.messages import stamp_to_sec  # noqa: E402
+from rig_identification.nodes.topics import IMU_TOPIC, LOAD_CELL_PREFIX, WRENCH_TOPIC  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 RATE = 4.0

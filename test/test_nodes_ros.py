@@ -17,11 +17,11 @@ rclpy = pytest.importorskip("rclpy")
 
 from ros_helpers import Listener, wait_until  # noqa: E402
 
+from rig_identification.io.rig import rig_from_dict  # noqa: E402
+from rig_identification.nodes.demo import Graph  # noqa: E402
 from rig_identification.nodes.messages import set_stamp, set_xyz, stamp_to_sec  # noqa: E402
 from rig_identification.nodes.qos import LATCHED_QOS, SENSOR_QOS  # noqa: E402
 from rig_identification.nodes.topics import LOAD_CELL_PREFIX, MASS_PROPERTIES_TOPIC, POSE_TOPIC  # noqa: E402
-from rig_identification.nodes.demo import Graph  # noqa: E402
-from rig_identification.io.rig import rig_from_dict  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 EXPERIMENT = REPO / "config" / "rigs" / "default.yaml"
@@ -88,10 +88,10 @@ def test_frame_ids_are_parameters_and_topics_remap(tmp_path):
 
 
 def test_visualizer_publishes_transform_and_markers(tmp_path):
+    import yaml
     from geometry_msgs.msg import InertiaStamped, TransformStamped, WrenchStamped
     from nav_msgs.msg import Odometry
     from visualization_msgs.msg import MarkerArray
-    import yaml
     rig = rig_from_dict(yaml.safe_load(EXPERIMENT.read_text())["rig"])
     g = Graph(workdir=tmp_path / "nodes", domain_id=random.Random().randint(100, 232))
     lis = Listener(g.domain_id, [])

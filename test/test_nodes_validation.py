@@ -20,13 +20,13 @@ import sys
 
 import numpy as np
 import pytest
-
 from conftest import recording
+
 from rig_identification.estimation.identification import identify_inertia
-from rig_identification.pipeline.offline import identify_recording
-from rig_identification.pipeline.prepare import prepare_recording
 from rig_identification.io.recording import read_recording
 from rig_identification.io.recording_writer import write_recording
+from rig_identification.pipeline.offline import identify_recording
+from rig_identification.pipeline.prepare import prepare_recording
 
 ENTRIES = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
@@ -96,8 +96,8 @@ def parallel_graph(tmp_path_factory):
     pytest.importorskip("rclpy")
     from test_nodes import Listener, wait_until
 
-    from rig_identification.nodes.demo import Graph
     from rig_identification.design.scenarios import simulate_random
+    from rig_identification.nodes.demo import Graph
     _, sim = simulate_random(3100, 4, "parallel", [], DURATION)
     tmp = tmp_path_factory.mktemp("parallel")
     rec = write_recording(tmp / "recording", sim.rig, sim.sensors, sim.truth)

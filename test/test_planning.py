@@ -3,22 +3,21 @@ import json
 
 import numpy as np
 import pytest
+from conftest import REPO, background, gather, run_cli
 from scipy.integrate import cumulative_trapezoid
 from scipy.signal import butter, sosfiltfilt
 
-from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import from_tensor
-from rig_identification.model.modes import natural_modes
-from rig_identification.pipeline.offline import identify_recording
 from rig_identification.design.planning import SPIN_AXES, resonances
-from rig_identification.estimation.propagation import REFERENCE_NOISE, Trajectory, predict_from_trajectory
 from rig_identification.estimation.adjoints import cumtrapz_adjoint, sosfiltfilt_adjoint
-from rig_identification.io.recording import Recording
-from rig_identification.model.experiment import load_experiment
-from rig_identification.model.simulator import simulate
+from rig_identification.estimation.propagation import REFERENCE_NOISE, Trajectory, predict_from_trajectory
 from rig_identification.estimation.uncertainty import add_noise
-
-from conftest import REPO, background, gather, run_cli
+from rig_identification.io.recording import Recording
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.experiment import load_experiment
+from rig_identification.model.modes import natural_modes
+from rig_identification.model.parametrisation import from_tensor
+from rig_identification.model.simulator import simulate
+from rig_identification.pipeline.offline import identify_recording
 
 DEFAULT = REPO / "config" / "rigs" / "default.yaml"   # thesis case 16, reference sensors
 

@@ -24,12 +24,12 @@ rclpy = pytest.importorskip("rclpy")
 
 from ros_helpers import Listener, wait_until  # noqa: E402
 
-from rig_identification.nodes.topics import EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX  # noqa: E402
-from rig_identification.nodes.demo import Graph  # noqa: E402
-from rig_identification.nodes.recorder import partial_folder  # noqa: E402
 from rig_identification.io.recording import RecordingError, read_recording  # noqa: E402
 from rig_identification.model.experiment import load_experiment  # noqa: E402
 from rig_identification.model.simulator import simulate  # noqa: E402
+from rig_identification.nodes.demo import Graph  # noqa: E402
+from rig_identification.nodes.recorder import partial_folder  # noqa: E402
+from rig_identification.nodes.topics import EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX  # noqa: E402
 
 REPO = Path(__file__).resolve().parents[1]
 EXPERIMENT = REPO / "config" / "rigs" / "default.yaml"

@@ -11,13 +11,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import background, gather, recording, run_cli
 
+from rig_identification.io.recording import read_recording
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import physically_consistent
 from rig_identification.pipeline.offline import compare_to_truth, identify_recording
-from rig_identification.io.recording import read_recording
-
-from conftest import background, gather, recording, run_cli
 
 
 def _cli(name: str, report: bool, *args: str):

@@ -22,16 +22,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import background, gather, recording, run_cli
+from synthetic import RIG, euler_data
 
-from rig_identification.report import page as report
 from rig_identification.cli.main import identify_main
 from rig_identification.estimation.identification import identify_inertia
 from rig_identification.estimation.inertia_result import InertiaResult
 from rig_identification.io.verdict import KEYS, Check, Validation
+from rig_identification.report import page as report
 from rig_identification.report.verdict import headline
-
-from conftest import background, gather, recording, run_cli
-from synthetic import RIG, euler_data
 
 CHROMIUM = os.environ.get("RIG_CHROMIUM", "/usr/bin/chromium")
 SYMBOL = {"ixx": "Ixx", "iyy": "Iyy", "izz": "Izz", "ixy": "Ixy", "ixz": "Ixz", "iyz": "Iyz"}

@@ -7,11 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import REPO, recording, run_cli
 
 from rig_identification.io.rig import RigError, dump_rig, load_rig, rig_from_dict
 from rig_identification.model.experiment import load_experiment
-
-from conftest import REPO, recording, run_cli
 
 
 @pytest.fixture

@@ -7,6 +7,7 @@ bench/bench_crb.py.
 """
 import numpy as np
 import pytest
+from conftest import background, gather, recording, run_cli
 from scipy.spatial.transform import Rotation
 
 from rig_identification.design.scenarios import REFERENCE_NOISE, simulate_random
@@ -18,8 +19,6 @@ from rig_identification.model.linear_rig import RigParameters, net_wrench, rest_
 from rig_identification.model.parametrisation import entry_scales, from_tensor
 from rig_identification.model.rig_ode import rest_state, simulate
 from rig_identification.pipeline.rig_model import fit_whole_recording, split_cg
-
-from conftest import background, gather, recording, run_cli
 
 QUIET = {k: 0.0 for k in REFERENCE_NOISE}
 

@@ -11,7 +11,6 @@ import json
 import numpy as np
 import pytest
 import yaml
-
 from conftest import recording, run_cli
 
 CLEAN = recording("visible_case16_clean")

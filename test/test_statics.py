@@ -9,16 +9,23 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from conftest import REPO, recording, run_cli
 
 from rig_identification.io.recording import SensorData, TimeSeries, read_recording
 from rig_identification.io.rig import DummyMass
 from rig_identification.model.experiment import experiment_from_dict, load_experiment
 from rig_identification.model.simulator import simulate
-from rig_identification.statics import (CgOptions, SensorNoise, StaticState, StaticsError, estimate_cg,
-                                        plan_static_test, predict_cg_std, static_equilibrium)
+from rig_identification.statics import (
+    CgOptions,
+    SensorNoise,
+    StaticsError,
+    StaticState,
+    estimate_cg,
+    plan_static_test,
+    predict_cg_std,
+    static_equilibrium,
+)
 from rig_identification.statics.model import GlobalUnknowns, StaticModel, skew
-
-from conftest import REPO, recording, run_cli
 
 TABLE = REPO / "config" / "cases" / "table2_1_static.yaml"
 FRAME_MASS, FRAME_CG = 262.0, np.array([2.0, 1.0, 1.0])

@@ -16,14 +16,21 @@ import yaml
 from conftest import background, gather, recording
 from scipy.spatial.transform import Rotation
 
-from rig_identification.pipeline.offline import compare_to_truth, identify_recording
-from rig_identification.io.recording import Recording, crop, read_recording
 from rig_identification.design.scenarios import simulate_random
+from rig_identification.estimation.tracker import TrackerError
+from rig_identification.estimation.tracker_replay import (
+    EVENT_EXCITER,
+    EVENT_IMU,
+    EVENT_INCLINOMETER,
+    EVENT_TENSIONS,
+    merge_events,
+    replay,
+    track,
+)
+from rig_identification.io.recording import Recording, crop, read_recording
 from rig_identification.model.experiment import experiment_from_dict, load_experiment
 from rig_identification.model.simulator import simulate
-from rig_identification.estimation.tracker import TrackerError
-from rig_identification.estimation.tracker_replay import (EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS,
-                                               merge_events, replay, track)
+from rig_identification.pipeline.offline import compare_to_truth, identify_recording
 
 CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
 

@@ -5,18 +5,21 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
-from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import from_tensor
-from rig_identification.pipeline.offline import identify_recording
-from rig_identification.io.recording import Recording
-from rig_identification.model.experiment import experiment_from_dict
-from rig_identification.model.simulator import simulate
-from rig_identification.io.noise import white_sigma
-from rig_identification.estimation.uncertainty import NoiseReplays, confirmed_sigma_factor, noise_replays, pooled_replays
-from rig_identification.io.recording import SensorData, TimeSeries
-
 from conftest import background, gather
+
+from rig_identification.estimation.uncertainty import (
+    NoiseReplays,
+    confirmed_sigma_factor,
+    noise_replays,
+    pooled_replays,
+)
+from rig_identification.io.noise import white_sigma
+from rig_identification.io.recording import Recording, SensorData, TimeSeries
+from rig_identification.io.verdict import KEYS
+from rig_identification.model.experiment import experiment_from_dict
+from rig_identification.model.parametrisation import from_tensor
+from rig_identification.model.simulator import simulate
+from rig_identification.pipeline.offline import identify_recording
 
 DEFAULT = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"
 

@@ -13,19 +13,31 @@ import math
 
 import numpy as np
 import pytest
+from conftest import background, gather
 from scipy.signal import hilbert
 from scipy.stats import chi2
 
+from rig_identification.design.scenarios import simulate_random
+from rig_identification.estimation.spectral_wls import (
+    Spectra,
+    fitted_noise_level,
+    missed_noise,
+    spectra,
+    wls_step_joint,
+)
+from rig_identification.estimation.validation import (
+    ALPHA,
+    EFFECT_FACTOR,
+    beyond_limit_widened,
+    chi2_check,
+    hausman,
+    quadrature_check,
+    widened_std,
+)
+from rig_identification.io.recording import Recording
 from rig_identification.io.verdict import KEYS, Validation
 from rig_identification.model.parametrisation import from_tensor
 from rig_identification.pipeline.offline import identify_recording, with_diagnosis
-from rig_identification.io.recording import Recording
-from rig_identification.design.scenarios import simulate_random
-from rig_identification.estimation.spectral_wls import Spectra, fitted_noise_level, missed_noise, spectra, wls_step_joint
-from rig_identification.estimation.validation import (ALPHA, EFFECT_FACTOR, beyond_limit_widened, chi2_check,
-                                                      hausman, quadrature_check, widened_std)
-
-from conftest import background, gather
 
 DURATION = 45.0
 

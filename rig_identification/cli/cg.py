@@ -41,8 +41,16 @@ import numpy as np
 from ..io.atomic import atomic_write_text
 from ..io.recording import read_recording
 from ..io.rig import DummyMass, Survey
-from ..statics import (DEFAULT_ANCHOR_STD, DEFAULT_DUMMY_POSITION_STD, DEFAULT_LENGTH_STD, CgOptions, CgResult,
-                      StaticsError, StaticState, estimate_cg)
+from ..statics import (
+    DEFAULT_ANCHOR_STD,
+    DEFAULT_DUMMY_POSITION_STD,
+    DEFAULT_LENGTH_STD,
+    CgOptions,
+    CgResult,
+    StaticsError,
+    StaticState,
+    estimate_cg,
+)
 from ..statics.handover import check_rig_target, rig_with_cg_text
 from .arg_types import number
 

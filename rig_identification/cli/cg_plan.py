@@ -19,13 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .arg_types import number
-from .cg import add_geometry_options, cg_options
-from .progress import step
 from ..io.recording import RecordingError, read_recording
 from ..io.rig import DummyMass, load_rig
 from ..model.experiment import load_rig_or_experiment
 from ..statics import SensorNoise, StaticsError, StaticState, plan_static_test, predict_cg_std
+from .arg_types import number
+from .cg import add_geometry_options, cg_options
+from .progress import step
 
 
 def add_cg_plan_parser(subparsers) -> argparse.ArgumentParser:

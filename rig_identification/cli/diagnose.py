@@ -20,19 +20,19 @@ from __future__ import annotations
 import json
 import sys
 
-from .inertia import truth_columns, window_line
-from .progress import heading, step
-from .text import effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
 from ..diagnosis.compliant_body import diagnosis_alternative, two_body_reason
 from ..diagnosis.result import Combination
 from ..diagnosis.selection import diagnose
-from ..report.diagnosis import diagnosis_json
-from ..report.diagnosis_page import write_report
-from ..io.export import AXES, ORDER, convention_lines
 from ..estimation.inertia_result import InertiaResult
+from ..io.export import AXES, ORDER, convention_lines
+from ..io.recording import read_recording
 from ..io.verdict import KEYS
 from ..pipeline.offline import identify_recording
-from ..io.recording import read_recording
+from ..report.diagnosis import diagnosis_json
+from ..report.diagnosis_page import write_report
+from .inertia import truth_columns, window_line
+from .progress import heading, step
+from .text import effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
 
 
 def same_as(model: str) -> str:

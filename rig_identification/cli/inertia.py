@@ -21,22 +21,36 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ..estimation.identification import IdentificationError
+from ..estimation.inertia_result import InertiaResult
 from ..io.atomic import atomic_write_text
+from ..io.export import (
+    AXES,
+    axes_block,
+    convention_lines,
+    entries_from_option,
+    export_dict,
+    sign_in,
+    urdf_inertial,
+    yaml_text,
+)
+from ..io.recording import read_recording
+from ..io.rig import load_rig
+from ..io.verdict import KEYS
+from ..pipeline.offline import (
+    check_same_body,
+    compare_to_truth,
+    identify_recording,
+    identify_recordings,
+    recording_labels,
+    with_diagnosis,
+)
+from ..report.page import ReportError, check_report_dir, common_truth, write_report
 from ..statics.handover import load_cg_result
 from .main import version
 from .progress import heading, step, warn
 from .rig_model import cmd_rig_model
-from .text import (effect_text, entries_line, fmt, origin_line, principal_lines, products_line, tensor_table)
-from ..io.export import AXES, axes_block, convention_lines, entries_from_option, export_dict, sign_in, \
-    urdf_inertial, yaml_text
-from ..estimation.identification import IdentificationError
-from ..estimation.inertia_result import InertiaResult
-from ..io.verdict import KEYS
-from ..pipeline.offline import (check_same_body, compare_to_truth, identify_recording, identify_recordings, recording_labels,
-                       with_diagnosis)
-from ..io.recording import read_recording
-from ..report.page import ReportError, check_report_dir, common_truth, write_report
-from ..io.rig import load_rig
+from .text import effect_text, entries_line, fmt, origin_line, principal_lines, products_line, tensor_table
 
 
 def truth_columns(result: InertiaResult, truth: dict | None, axes: str) -> dict | None:

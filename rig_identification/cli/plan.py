@@ -12,19 +12,19 @@ import sys
 
 import numpy as np
 
-from .progress import heading, step
-from ..io.export import ORDER, entries_from_option, tensor_from_option
-from ..io.verdict import KEYS
-from ..model.parametrisation import from_tensor
-from ..model.modes import estimate_modes, match_modes, natural_modes
-from ..pipeline.offline import identify_recording
 from ..design.planning import PlanError, geometry_variants, plan_experiment
 from ..design.run import Run, load_plan_input, make_body
 from ..estimation.precision import precision_of
+from ..io.export import ORDER, entries_from_option, tensor_from_option
 from ..io.recording import read_recording
-from ..model.experiment import ExperimentError
+from ..io.verdict import KEYS
 from ..model.dynamics import SimulationError
+from ..model.experiment import ExperimentError
+from ..model.modes import estimate_modes, match_modes, natural_modes
+from ..model.parametrisation import from_tensor
+from ..pipeline.offline import identify_recording
 from ..pipeline.thesis_table import print_summary, print_table, run_case
+from .progress import heading, step
 
 
 def cmd_thesis_table(args) -> int:

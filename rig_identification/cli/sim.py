@@ -17,14 +17,14 @@ import sys
 
 import numpy as np
 
-from .progress import attached, step
-from .sim_args import parse_sim_args
 from ..io.recording import RecordingError
 from ..io.recording_writer import write_recording
 from ..io.rig import DummyMass, RigError
-from ..model.experiment import ExperimentError, load_experiment
 from ..model.dynamics import SimulationError
+from ..model.experiment import ExperimentError, load_experiment
 from ..model.simulator import simulate
+from .progress import attached, step
+from .sim_args import parse_sim_args
 
 
 def sim_main(argv: list[str] | None = None) -> int:

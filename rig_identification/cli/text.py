@@ -13,6 +13,7 @@ import numpy as np
 from ..io.export import EFFECT_UNITS, NOT_DETERMINED, ORDER, PRODUCTS, Expressed, effect_text, value_text
 from ..io.verdict import fmt_p
 
+
 def fmt(x, spec: str = ".2f", width: int = 0) -> str:
     """A number, or "not determined" for None / not finite; right-aligned to ``width``."""
     text = NOT_DETERMINED if x is None or not np.isfinite(x) else format(float(x), spec)

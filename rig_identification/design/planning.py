@@ -32,17 +32,17 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..io.verdict import KEYS
-from .run import SPIN_AXES, Body, Run, load_plan_input, make_body, recommended_band
-from .screen import DesignScreen, linear_rig
-from ..estimation.propagation import Trajectory, predict_from_trajectory
 from ..estimation.prediction import PlanError, Prediction, combine
+from ..estimation.propagation import Trajectory, predict_from_trajectory
 from ..io.rig import Rig
-from ..model.simulator import simulate
-from ..model.dynamics import SimulationError
+from ..io.verdict import KEYS
 from ..model.cables import CableModel
+from ..model.dynamics import SimulationError
 from ..model.equilibrium import equilibrium
 from ..model.modes import natural_modes
+from ..model.simulator import simulate
+from .run import SPIN_AXES, Body, Run, load_plan_input, make_body, recommended_band
+from .screen import DesignScreen, linear_rig
 
 # the public names, with those of planning_run that users import from here
 __all__ = ["SPIN_AXES", "Body", "Candidate", "Plan", "PlanError", "Run", "amplitude_at_limits", "candidate_positions",

@@ -43,10 +43,10 @@ import numpy as np
 from scipy.optimize import lsq_linear
 from scipy.spatial.transform import Rotation
 
-from ..model.modes import natural_modes
-from .planning import resonances
 from ..io.rig import rig_from_dict
+from ..model.modes import natural_modes
 from ..model.simulator import SimResult, SimulationError, experiment_from_dict, simulate
+from .planning import resonances
 
 LAYOUTS = ("wide", "splayed", "parallel", "mixed", "random")
 EXCITER_PLACEMENTS = ("corner", "anywhere", "top_corner", "random")

@@ -16,14 +16,14 @@ from scipy.linalg import expm
 from scipy.signal import butter, sosfreqz
 from scipy.spatial.transform import Rotation
 
-from ..model.parametrisation import basis
-from .run import Body, recommended_band
-from ..estimation.propagation import channel_sigmas, stationary_e_response
 from ..estimation.linearisation import tracker_model, wrench_jacobians
 from ..estimation.prediction import Prediction
-from ..model.modes import gradients, length_fn, length_hessians
+from ..estimation.propagation import channel_sigmas, stationary_e_response
 from ..model.cables import CableModel
 from ..model.equilibrium import equilibrium
+from ..model.modes import gradients, length_fn, length_hessians
+from ..model.parametrisation import basis
+from .run import Body, recommended_band
 
 
 @dataclass(frozen=True)

@@ -18,11 +18,11 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
+from ..io.recording import Recording, SensorData, TimeSeries
 from .model_extension import Candidate, Column, Model
-from .window import Window
 from .retracked import bias_path, random_walk
 from .structural import mode_filter
-from ..io.recording import Recording, SensorData, TimeSeries
+from .window import Window
 
 CORRECTIONS = ("sensor_delay", "load_cell_scale", "imu_offset", "imu_misalignment", "gyro_bias", "gyro_scale",
                "accelerometer_bias", "body_mass", "gyro_bias_drift", "structural_mode")

@@ -40,8 +40,14 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
 from ..estimation import two_body as tb
-from ..estimation.identification import (FitSeries, IdentificationError, InertiaResult, cumulative_integral,
-                                         identify_inertia, weak_directions)
+from ..estimation.identification import (
+    FitSeries,
+    IdentificationError,
+    InertiaResult,
+    cumulative_integral,
+    identify_inertia,
+    weak_directions,
+)
 from ..estimation.preprocessor import preprocess
 from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.tracker_replay import track

@@ -20,8 +20,8 @@ from scipy.stats import chi2
 
 from ..model.parametrisation import from_tensor
 from .model_extension import Fit, Model, fit_model
-from .window import Window
 from .residuals import channel_residuals, rms
+from .window import Window
 
 GAIN_STEP = 0.02      # load-cell gain steps of the exact screening (relative)
 CABLE_MASS_STEP = 2e-3  # cables' mass steps of the exact screening: body anchors' share of the body's mass

@@ -26,8 +26,8 @@ from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
 from ..estimation.signals import auto_band, cumulative_integral, step_indices
-from ..model.parametrisation import basis, consistent_from_params, params_from_consistent, to_tensor
 from ..io.noise import white_sigma
+from ..model.parametrisation import basis, consistent_from_params, params_from_consistent, to_tensor
 from .window import Window
 
 ALPHA_LP = 3.0        # angular acceleration: gyro low-passed at this multiple of the band's upper edge

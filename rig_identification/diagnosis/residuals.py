@@ -15,9 +15,9 @@ from __future__ import annotations
 import numpy as np
 from scipy.signal import welch
 
+from ..model.modes import natural_modes
 from .model_extension import ROT, TR, Fit, Model
 from .window import WRENCH_SCALE, Window
-from ..model.modes import natural_modes
 
 SYNC_BINS = 36        # exciter-phase bins of the time-synchronous average (10° each)
 SYNC_MIN_REVOLUTIONS = 10   # fewer exciter revolutions in the window: no synchronous residual

@@ -94,23 +94,32 @@ from itertools import combinations
 import numpy as np
 from scipy.stats import chi2
 
-from .candidates import CORRECTIONS, body_inertia, candidates, corrected, with_stiffness
-from .exact import (MASSES, PROFILED, columns_of, exact_iterate, exact_screen, likelihood_ratio, log_sf, mass_builder,
-                    residual_scales, weight_surplus)
-from ..model.effects import EFFECT_NAMES
 from ..estimation.identification import IdentificationError, identify_inertia
-from ..model.parametrisation import from_tensor
-from .model_extension import Model, fit_model
-from .window import Window, prepare_window
-from .finding import finding
-from .result import Diagnosis, EffectWrench
 from ..io.recording import Recording, RecordingError
-from .residuals import (channel_residuals, effective_samples, exciter_phase, locate, rms, synchronous,
-                        synchronous_rms)
+from ..model.effects import EFFECT_NAMES
+from ..model.parametrisation import from_tensor
+from .candidates import CORRECTIONS, body_inertia, candidates, corrected, with_stiffness
+from .exact import (
+    MASSES,
+    PROFILED,
+    columns_of,
+    exact_iterate,
+    exact_screen,
+    likelihood_ratio,
+    log_sf,
+    mass_builder,
+    residual_scales,
+    weight_surplus,
+)
+from .finding import finding
+from .model_extension import Model, fit_model
+from .residuals import channel_residuals, effective_samples, exciter_phase, locate, rms, synchronous, synchronous_rms
+from .result import Diagnosis, EffectWrench
 from .retracked import DRIFT_STEP, SCALE_STEP, knots
 from .retracked import columns as retracked_columns
 from .structural import SENSORS as MODE_SENSORS
 from .structural import fit_mode, out_of_band, transfer
+from .window import Window, prepare_window
 
 ALPHA = 0.01          # family-wise false-alarm probability of the selection
 MIN_REDUCTION = 0.05  # an effect must reduce some channel's residual RMS by at least this fraction

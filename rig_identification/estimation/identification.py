@@ -39,8 +39,14 @@ from scipy.signal import butter, decimate, sosfiltfilt
 
 from ..io.noise import white_sigma
 from ..io.rig import Rig
-from ..model.parametrisation import (basis, consistent_from_params, from_tensor, params_from_consistent,
-                                     physically_consistent, to_tensor)
+from ..model.parametrisation import (
+    basis,
+    consistent_from_params,
+    from_tensor,
+    params_from_consistent,
+    physically_consistent,
+    to_tensor,
+)
 from .directions import weak_directions
 from .errors_in_variables import NoiseRealisations, compensate
 from .inertia_result import FitSeries, InertiaResult

@@ -8,8 +8,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..io.export import (AXES, INERTIA_SCHEMA, INERTIA_SCHEMA_VERSION, UNITS, convention_lines, express, finite_or_none,
-                         with_effect_units)
+from ..io.export import (
+    AXES,
+    INERTIA_SCHEMA,
+    INERTIA_SCHEMA_VERSION,
+    UNITS,
+    convention_lines,
+    express,
+    finite_or_none,
+    with_effect_units,
+)
 from ..io.verdict import KEYS, Validation
 from ..model.parametrisation import from_tensor, physically_consistent
 from .directions import describe_direction

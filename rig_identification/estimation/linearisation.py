@@ -13,7 +13,7 @@ import numpy as np
 
 from ..io.rig import Rig
 from ..model.dynamics import skew
-from .tracker import PoseTracker, YAW_PRIOR
+from .tracker import YAW_PRIOR, PoseTracker
 
 DRIFT_LEAK = 1e-3   # 1/s: leak of the linearised tracker's uncorrected rotation directions (tracker_model)
 

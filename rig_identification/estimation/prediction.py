@@ -16,7 +16,6 @@ from ..model.parametrisation import entry_scales, from_tensor
 from .directions import describe_direction, weak_directions
 
 
-
 class PlanError(ValueError):
     """The planned experiment cannot be predicted or designed (no motion, bad limits)."""
 

@@ -12,9 +12,9 @@ from dataclasses import replace
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
-from ..io.noise import white_sigma
-from ..io.recording import crop, Recording, RecordingError
 from ..io.bad_spans import fill_short_gaps, find_bad_spans
+from ..io.noise import white_sigma
+from ..io.recording import Recording, RecordingError, crop
 
 MIN_CLEAN = 15.0  # s: shortest clean span worth fitting (tracker settling + two high-pass periods);
 #                   a shorter recording (the thesis's 10 s case studies) needs 75 % of its length clean

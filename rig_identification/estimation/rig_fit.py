@@ -29,16 +29,15 @@ tolerates grows with its length.
 """
 from __future__ import annotations
 
+import logging
+import os
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import make_interp_spline, make_lsq_spline
 from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
-
-import logging
-import os
-from concurrent.futures import ThreadPoolExecutor
 
 from ..io.noise import white_sigma
 from ..io.recording import SensorData

@@ -10,7 +10,6 @@ import numpy as np
 from scipy.integrate import cumulative_simpson, cumulative_trapezoid
 from scipy.signal import welch
 
-
 STEP_SCALE = 10.0
 """A jump between two samples counts as a stepped input when its second difference is this
 many times the median ‖second difference‖ of the signal (see :func:`step_indices`): white

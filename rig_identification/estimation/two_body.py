@@ -47,7 +47,6 @@ import numpy as np
 from scipy.optimize import least_squares
 from scipy.signal import cont2discrete, lfilter, sosfiltfilt, ss2tf
 
-from .errors_in_variables import capped
 from ..model.parametrisation import basis, to_tensor
 
 

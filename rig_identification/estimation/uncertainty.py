@@ -31,10 +31,10 @@ from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
 from ..io.noise import white_sigma
-from .preprocessor import generalized_wrench
-from .propagation import Trajectory, predict_from_trajectory
 from ..io.recording import SensorData, TimeSeries
 from ..io.rig import Rig
+from .preprocessor import generalized_wrench
+from .propagation import Trajectory, predict_from_trajectory
 
 REPLAY_ALPHA = 0.05
 """Significance at which the replays' spread widens the propagated σ (:meth:`NoiseReplays.sigma_factor`)."""

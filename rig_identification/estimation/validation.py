@@ -93,14 +93,25 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 from scipy.stats import chi2
 
-from .errors_in_variables import EIV_LIMIT
-from .spectral_wls import (determined, fitted_noise_level, interior, missed_noise, piece_noise, projector,
-                           residual_excess, spectra, wald, wls_step, wls_step_joint)
-from .directions import AXIS_WORDS, ENTRY_AXES, weak_directions
-from .inertia_result import FitSeries, InertiaResult
 from ..io.export import MOMENTS
 from ..io.verdict import KEYS, Check, Validation, fmt_p
 from ..model.parametrisation import entry_scales, from_tensor, physically_consistent
+from .directions import AXIS_WORDS, ENTRY_AXES, weak_directions
+from .errors_in_variables import EIV_LIMIT
+from .inertia_result import FitSeries, InertiaResult
+from .spectral_wls import (
+    determined,
+    fitted_noise_level,
+    interior,
+    missed_noise,
+    piece_noise,
+    projector,
+    residual_excess,
+    spectra,
+    wald,
+    wls_step,
+    wls_step_joint,
+)
 
 ALPHA = 1e-3                # significance of each statistical check
 EFFECT_FACTOR = 2.0         # a consistency check fails beyond this multiple of its significance threshold

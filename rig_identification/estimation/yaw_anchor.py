@@ -26,8 +26,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .preprocessor import generalized_wrench
 from ..io.rig import Rig
+from .preprocessor import generalized_wrench
 from .tracker import PoseTrack
 
 YAW_WEAK = 1e-2      # yaw information / position information below which the yaw is anchored

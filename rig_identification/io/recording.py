@@ -29,8 +29,8 @@ import numpy as np
 import yaml
 
 from .bag_decode import IMU_TYPE, TYPE_HASHES, VECTOR_TYPE, WRENCH_TYPE, decode_stamped
-from .rig import Rig, Topics, load_rig
 from .bag_raw import read_topics
+from .rig import Rig, Topics, load_rig
 
 # the streams' own names (docs/recording_format.md); a bag recorded under other names maps them
 # with rig.yaml ``topics`` (:class:`~rig_identification.io.rig.Topics`)

@@ -14,8 +14,15 @@ import yaml
 
 from .atomic import atomic_directory
 from .bag_decode import IMU_TYPE, VECTOR_TYPE, WRENCH_TYPE
-from .recording import (EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX, RecordingError, SensorData,
-                        typestore)
+from .recording import (
+    EXCITER_TOPIC,
+    IMU_TOPIC,
+    INCLINOMETER_TOPIC,
+    LOAD_CELL_PREFIX,
+    RecordingError,
+    SensorData,
+    typestore,
+)
 from .rig import Rig, dump_rig
 
 

@@ -45,10 +45,10 @@ import numpy as np
 from scipy.linalg.lapack import dposv
 from scipy.spatial.transform import Rotation
 
+from ..io.rig import Rig
 from .cables import CableModel
 from .excitation import Excitation
 from .suspension import Suspension
-from ..io.rig import Rig
 
 
 class SimulationError(RuntimeError):

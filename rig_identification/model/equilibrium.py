@@ -13,11 +13,11 @@ import numpy as np
 from scipy.optimize import least_squares, minimize, root
 from scipy.spatial.transform import Rotation
 
-from .dynamics import RigDynamics, SimulationError
+from ..io.rig import Rig
 from .cables import CableModel
+from .dynamics import RigDynamics, SimulationError
 from .excitation import Excitation
 from .experiment import Initial
-from ..io.rig import Rig
 
 
 class RestState(NamedTuple):

@@ -72,10 +72,10 @@ from typing import Any
 
 import numpy as np
 
+from ..io.rig import INERTIA_KEYS, DummyMass, Rig, RigError, inertia_tensor, load_rig, read_yaml, rig_from_dict
 from .cables import DEFAULT_BAUMGARTE, DEFAULT_DAMPING_RATIO, CableModel
 from .effects import Effect, parse_effects
 from .excitation import Excitation, Pulse, RotatingForce
-from ..io.rig import INERTIA_KEYS, DummyMass, Rig, RigError, inertia_tensor, load_rig, read_yaml, rig_from_dict
 from .suspension import split_body
 
 DEFAULT_STAMP_ORIGIN = 1.75e9      # s

@@ -30,11 +30,11 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..io.rig import Cable, Mount, Rig
 from .cables import CableModel
 from .dynamics import SimulationError, skew, skews
 from .equilibrium import equilibrium
 from .parametrisation import to_tensor
-from ..io.rig import Cable, Mount, Rig
 
 #: Newton iterations of :func:`rest_pose` from a nearby pose, and its tolerance on the net
 #: wrench relative to the weight (N / N).

@@ -32,8 +32,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.linalg import eigh, null_space
-from scipy.optimize import least_squares
 from scipy.ndimage import maximum_filter1d, median_filter
+from scipy.optimize import least_squares
 from scipy.signal import periodogram
 from scipy.spatial.transform import Rotation
 

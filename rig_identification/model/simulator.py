@@ -43,6 +43,8 @@ import numpy as np
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
+from ..io.recording import SensorData
+from ..io.rig import DummyMass, Rig, inertia_entries, inertia_tensor
 from .cables import CableModel
 from .dynamics import Evaluation, RigDynamics, SimulationError
 from .equilibrium import hanging_equilibrium, initial_state
@@ -50,8 +52,6 @@ from .excitation import Excitation
 from .experiment import Experiment, Initial, experiment_from_dict
 from .sensors import sample_sensors
 from .suspension import Suspension, split_body, without
-from ..io.recording import SensorData
-from ..io.rig import DummyMass, Rig, inertia_entries, inertia_tensor
 
 # re-exported (defined in dynamics, experiment, io.rig) only for the files of other helpers that
 # import them from here while this split is merged: design/scenarios.py (SimulationError,

@@ -11,8 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .effects import DEFAULT_LOCK_DAMPING_RATIO, DEFAULT_LOCK_FREQUENCY, Effect
 from ..io.rig import inertia_entries
+from .effects import DEFAULT_LOCK_DAMPING_RATIO, DEFAULT_LOCK_FREQUENCY, Effect
 
 SPRUNG_RAISE = 0.2                 # m: compliant_body's default sprung-CG height above the CG (at most half
                                    # the largest raise the body's mass distribution allows, see split_body)

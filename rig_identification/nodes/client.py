@@ -56,9 +56,9 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from ..io.atomic import atomic_write_text
-from ..statics.handover import CgResultError, cg_result_from_dict, check_rig_target, rig_with_cg_text
 from ..io.export import AXES, convention_lines
 from ..io.rig import RigError
+from ..statics.handover import CgResultError, cg_result_from_dict, check_rig_target, rig_with_cg_text
 from .parameters import load_rig_source
 from .qos import LATCHED_QOS, SERVICE_SETTLE_SECONDS
 from .topics import TRUTH_TOPIC

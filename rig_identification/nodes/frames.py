@@ -23,10 +23,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.publisher import Publisher
 from rclpy.subscription import Subscription
-from rcl_interfaces.msg import ParameterDescriptor
 
 WORLD_FRAME = "world"
 BODY_FRAME = "body"

@@ -119,25 +119,32 @@ from geometry_msgs.msg import InertiaStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
-from .codec import imu_layout, odometry_layout, vector_layout, wrench_layout
-from .diagnostics import Diagnostics
-from .frames import declare_frame_ids, Endpoint, log_interface
-from .inputs import InputGuard, RawInput
-from .messages import set_stamp, set_xyz
-from .parameters import core_params, load_rig_param
-from .qos import input_qos, LATCHED_QOS
-from .runtime import run
-from .topics import (EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX, MASS_PROPERTIES_TOPIC,
-                     POSE_TOPIC, WRENCH_TOPIC)
-from ..pipeline.stream_fit import StreamBuffer, identify_window, validate_stream_fit
-from .identifier_services import IdentifierServices
+from ..diagnosis.selection import diagnose
 from ..estimation.fit_window import fit_window
 from ..estimation.identification import identify_inertia
 from ..estimation.precision import TARGET as PRECISION_TARGET
-from ..statics.capture import CgSession
-from ..io.rig import DummyMass
-from ..diagnosis.selection import diagnose
 from ..io.recording import Recording
+from ..io.rig import DummyMass
+from ..pipeline.stream_fit import StreamBuffer, identify_window, validate_stream_fit
+from ..statics.capture import CgSession
+from .codec import imu_layout, odometry_layout, vector_layout, wrench_layout
+from .diagnostics import Diagnostics
+from .frames import Endpoint, declare_frame_ids, log_interface
+from .identifier_services import IdentifierServices
+from .inputs import InputGuard, RawInput
+from .messages import set_stamp, set_xyz
+from .parameters import core_params, load_rig_param
+from .qos import LATCHED_QOS, input_qos
+from .runtime import run
+from .topics import (
+    EXCITER_TOPIC,
+    IMU_TOPIC,
+    INCLINOMETER_TOPIC,
+    LOAD_CELL_PREFIX,
+    MASS_PROPERTIES_TOPIC,
+    POSE_TOPIC,
+    WRENCH_TOPIC,
+)
 
 
 class IdentifierNode(Node):

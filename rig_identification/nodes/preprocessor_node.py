@@ -48,15 +48,15 @@ from geometry_msgs.msg import WrenchStamped
 from rclpy.node import Node
 from scipy.spatial.transform import Rotation
 
+from ..estimation.preprocessor import WrenchPreprocessor
 from .codec import odometry_layout, wrench_layout
 from .diagnostics import Diagnostics
-from .frames import declare_frame_ids, Endpoint, log_interface
+from .frames import Endpoint, declare_frame_ids, log_interface
 from .inputs import InputGuard, RawInput
 from .parameters import core_params, load_rig_param
-from .qos import input_qos, publish_batch, SENSOR_QOS
+from .qos import SENSOR_QOS, input_qos, publish_batch
 from .runtime import run
 from .topics import EXCITER_TOPIC, LOAD_CELL_PREFIX, POSE_TOPIC, WRENCH_TOPIC
-from ..estimation.preprocessor import WrenchPreprocessor
 
 
 class PreprocessorNode(Node):

@@ -59,11 +59,11 @@ from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.task import Future
 from rclpy.utilities import remove_ros_args
-from rcl_interfaces.msg import ParameterDescriptor
 from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
@@ -73,10 +73,19 @@ from .diagnostics import Diagnostics
 from .frames import Endpoint, log_interface
 from .inputs import InputGuard
 from .parameters import load_rig_source
-from .qos import DIAGNOSTICS_QOS, input_qos, LATCHED_QOS
+from .qos import DIAGNOSTICS_QOS, LATCHED_QOS, input_qos
 from .runtime import run
-from .topics import (DIAGNOSTICS_TOPIC, EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX,
-                     MASS_PROPERTIES_TOPIC, POSE_TOPIC, TRUTH_TOPIC, WRENCH_TOPIC)
+from .topics import (
+    DIAGNOSTICS_TOPIC,
+    EXCITER_TOPIC,
+    IMU_TOPIC,
+    INCLINOMETER_TOPIC,
+    LOAD_CELL_PREFIX,
+    MASS_PROPERTIES_TOPIC,
+    POSE_TOPIC,
+    TRUTH_TOPIC,
+    WRENCH_TOPIC,
+)
 
 #: suffix of the folder a recording is written into before it is renamed to OUTPUT
 PARTIAL_SUFFIX = ".partial"

@@ -26,7 +26,6 @@ from rclpy.task import Future
 from ..io.rig import RigError
 from .environment import dds_profile
 
-
 # reStructuredText inline markup of the modules' docstrings: :role:`title <target>`,
 # :role:`~a.b.name`, :role:`name`, ``literal``
 _ROLE_TITLED = re.compile(r":[a-z]+:`([^`<]+?)\s*<[^`>]+>`")

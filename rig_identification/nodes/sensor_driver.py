@@ -55,28 +55,35 @@ from pathlib import Path
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import Vector3Stamped, WrenchStamped
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.task import Future
 from sensor_msgs.msg import Imu
 from std_msgs.msg import String
 
+from ..io.atomic import atomic_write_text
+from ..io.recording import SensorData, TimeSeries, read_recording
+from ..io.rig import dump_rig
+from ..model.experiment import load_experiment
+from ..model.simulator import simulate
 from .codec import imu_layout, vector_layout, wrench_layout
 from .diagnostics import Diagnostics
 from .environment import default_experiment
-from .frames import declare_frame_ids, Endpoint, log_interface
+from .frames import Endpoint, declare_frame_ids, log_interface
 from .inputs import InputGuard
 from .messages import to_json
 from .qos import DIAGNOSTICS_QOS, LATCHED_QOS, SENSOR_QOS
 from .runtime import run
-from .topics import (DIAGNOSTICS_TOPIC, DRIVER_STATUS_TOPIC, EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC,
-                     LOAD_CELL_PREFIX, TRUTH_TOPIC)
-from ..io.recording import SensorData, TimeSeries, read_recording
-from ..io.atomic import atomic_write_text
-from ..io.rig import dump_rig
-from ..model.experiment import load_experiment
-from ..model.simulator import simulate
+from .topics import (
+    DIAGNOSTICS_TOPIC,
+    DRIVER_STATUS_TOPIC,
+    EXCITER_TOPIC,
+    IMU_TOPIC,
+    INCLINOMETER_TOPIC,
+    LOAD_CELL_PREFIX,
+    TRUTH_TOPIC,
+)
 
 # with exit_when_done, the longest wait for the readers' acknowledgements after the last message, s
 LINGER_SECONDS = 5.0

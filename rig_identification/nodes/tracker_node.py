@@ -66,17 +66,17 @@ import numpy as np
 from nav_msgs.msg import Odometry
 from rclpy.node import Node
 
+from ..estimation.tracker import PoseTracker
+from ..estimation.tracker_replay import EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS
 from .codec import imu_layout, odometry_layout, vector_layout, wrench_layout
 from .diagnostics import Diagnostics
-from .frames import declare_frame_ids, Endpoint, log_interface
+from .frames import Endpoint, declare_frame_ids, log_interface
 from .inputs import InputGuard, RawInput
 from .merge import StampMerger
 from .parameters import core_params, load_rig_param
-from .qos import input_qos, publish_batch, SENSOR_QOS
+from .qos import SENSOR_QOS, input_qos, publish_batch
 from .runtime import run
 from .topics import EXCITER_TOPIC, IMU_TOPIC, INCLINOMETER_TOPIC, LOAD_CELL_PREFIX, POSE_TOPIC
-from ..estimation.tracker import PoseTracker
-from ..estimation.tracker_replay import EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS
 
 
 class TrackerNode(Node):

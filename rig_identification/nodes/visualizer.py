@@ -61,9 +61,9 @@ from std_msgs.msg import ColorRGBA
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..io.rig import Rig
-from .codec import odometry_layout, PersistentReason, wrench_layout
+from .codec import PersistentReason, odometry_layout, wrench_layout
 from .diagnostics import Diagnostics
-from .frames import declare_frame_ids, Endpoint, log_interface
+from .frames import Endpoint, declare_frame_ids, log_interface
 from .inputs import InputGuard, RawInput
 from .messages import set_stamp, set_xyz, xyz
 from .parameters import load_rig_param

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..estimation.identification import IdentificationError
-from ..estimation.rig_fit import Prior, RigFit, fit_rig, record
 from ..estimation.precision import Z95
+from ..estimation.rig_fit import Prior, RigFit, fit_rig, record
 from ..io.recording import Recording
 from ..io.rig import Survey
 from ..io.verdict import KEYS

@@ -13,8 +13,8 @@ from ..estimation.errors_in_variables import NoiseRealisations, antithetic_reali
 from ..estimation.identification import fit_segments, prepare_segment
 from ..estimation.inertia_result import InertiaResult
 from ..estimation.prediction import PlanError, combine
-from ..estimation.uncertainty import confirmed_sigma_factor, noise_replays, propagated, sensor_noise
 from ..estimation.spectral_wls import residual_excess
+from ..estimation.uncertainty import confirmed_sigma_factor, noise_replays, propagated, sensor_noise
 from ..model.parametrisation import from_tensor
 from .prepare import PreparedRecording, replay_window
 

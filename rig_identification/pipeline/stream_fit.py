@@ -28,8 +28,8 @@ import numpy as np
 from ..estimation.identification import IdentificationError, identify_inertia
 from ..estimation.inertia_result import InertiaResult
 from ..io.noise import white_sigma
-from .fit_validation import accel_input, apply_validation, force_weight_surplus, weight_warning
 from ..io.rig import Rig
+from .fit_validation import accel_input, apply_validation, force_weight_surplus, weight_warning
 
 STAMP_MATCH = 1e-6   # s: a pose and a wrench sample are the same instant (the wrench carries the pose's stamp)
 

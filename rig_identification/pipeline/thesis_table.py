@@ -11,14 +11,14 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.export import ORDER
 from ..estimation.identification import IdentificationError
-from ..io.verdict import KEYS
-from ..model.parametrisation import PAIRS
-from .offline import compare_to_truth, identify_recording
+from ..io.export import ORDER
 from ..io.recording import Recording
+from ..io.verdict import KEYS
 from ..model.experiment import load_experiment
+from ..model.parametrisation import PAIRS
 from ..model.simulator import simulate
+from .offline import compare_to_truth, identify_recording
 
 CASES = Path(__file__).resolve().parents[2] / "config" / "cases"
 

@@ -22,10 +22,10 @@ import numpy as np
 from scipy.signal import welch
 
 from ..estimation.inertia_result import FitSeries, InertiaResult
+from ..io.rig import Rig
 from ..io.verdict import KEYS
 from ..model.parametrisation import from_tensor
 from .mass import SIGN, SYMBOL, MassProperties
-from ..io.rig import Rig
 
 AXES = "xyz"
 ELLIPSE_PAIRS = (("ixx", "iyy"), ("iyy", "izz"), ("ixx", "izz"), ("ixy", "ixz"), ("ixy", "iyz"), ("ixz", "iyz"))
@@ -145,8 +145,8 @@ def ellipse_figure(path: Path, result: InertiaResult, truth: dict | None) -> boo
     with the vehicle-dynamics sign; the truth when known.  Pairs with an undetermined entry
     are left empty with a note.  Returns False (nothing written) when the covariance is not
     finite."""
-    from matplotlib.patches import Ellipse
     from matplotlib.lines import Line2D
+    from matplotlib.patches import Ellipse
     gone = set(result.undetermined)
     C = np.asarray(result.covariance, float) * np.outer(SIGN, SIGN)
     theta = SIGN * from_tensor(result.inertia)

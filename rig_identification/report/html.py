@@ -14,7 +14,7 @@ from collections.abc import Iterable, Sequence
 
 import numpy as np
 
-from ..io.export import NOT_DETERMINED   # an entry the recording does not determine (verdict not_identifiable)
+from ..io.export import NOT_DETERMINED  # an entry the recording does not determine (verdict not_identifiable)
 
 MISSING = "—"                       # a number that does not exist (no truth, no CRB, …)
 

@@ -13,8 +13,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..estimation.directions import ENTRY_AXES, describe_direction, weak_directions
-from ..io.export import ENTRY_NAMES
 from ..estimation.inertia_result import InertiaResult
+from ..io.export import ENTRY_NAMES
 from .html import Cell, esc, num, table
 
 AXES = "xyz"

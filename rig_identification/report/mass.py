@@ -24,8 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..io.export import MOMENTS, SYMBOL, VEHICLE_SIGN as SIGN, Expressed
 from ..estimation.inertia_result import InertiaResult
+from ..io.export import MOMENTS, SYMBOL, Expressed
+from ..io.export import VEHICLE_SIGN as SIGN
 from ..io.verdict import KEYS
 from ..model.parametrisation import from_tensor
 from ..pipeline.offline import compare_to_truth

@@ -7,11 +7,11 @@ from __future__ import annotations
 import numpy as np
 
 from ..estimation.inertia_result import InertiaResult
-from ..model.modes import estimate_modes, natural_modes
 from ..io.recording import Recording
-from .html import MISSING, esc, num, table
-from ..model.dynamics import SimulationError
 from ..io.rig import inertia_tensor
+from ..model.dynamics import SimulationError
+from ..model.modes import estimate_modes, natural_modes
+from .html import MISSING, esc, num, table
 
 
 def modes_section(rec: Recording, result: InertiaResult, truth: dict | None) -> tuple[str, list[str], dict]:

@@ -42,21 +42,29 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.atomic import atomic_directory
 from ..estimation.identification import IdentificationError
 from ..estimation.inertia_result import InertiaResult
+from ..io.atomic import atomic_directory
+from ..io.recording import Recording
+from ..io.rig import Rig
 from ..io.verdict import KEYS
 from ..pipeline.offline import recording_labels
-from ..io.recording import Recording
 from .diagnosis import diagnosis_html, effects_text
 from .figures import edge_seconds, ellipse_figure, ellipsoid_figure, fit_figure, residual_figure
 from .html import GENERATOR, bullets, esc, json_safe, num, page, table
 from .identifiability import axis_signal, identifiability, identifiability_html
-from .mass import (CONVENTION, axes_html, mass_properties, matrices_html, moments_table,
-                          principal_html, to_json, truth_rows)
+from .mass import (
+    CONVENTION,
+    axes_html,
+    mass_properties,
+    matrices_html,
+    moments_table,
+    principal_html,
+    to_json,
+    truth_rows,
+)
 from .modes import modes_section
 from .verdict import checks_table, verdict_html
-from ..io.rig import Rig
 
 PACKAGE = "rig_identification"
 

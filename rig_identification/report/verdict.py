@@ -10,9 +10,9 @@ error); ``not_identifiable`` — the entries the recording does not determine ar
 from __future__ import annotations
 
 from ..estimation.inertia_result import InertiaResult
+from ..io.verdict import Check, Validation
 from .html import NOT_DETERMINED, Cell, bullets, esc, finite, num, table
 from .mass import SYMBOL
-from ..io.verdict import Check, Validation
 
 # what each check tests, and how its statistic reads: "ratio" (×), "chi2" (χ²/dof), "fraction"
 # (shown in %), "sigma" (σ)

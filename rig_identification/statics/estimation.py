@@ -19,9 +19,16 @@ from scipy.stats import chi2 as _chi2
 
 from ..io.rig import DummyMass, Rig
 from ..io.verdict import Check
-from .model import DEFAULT_COMPLIANCE, Z, CgOptions, GlobalUnknowns, StaticModel, skew
-from .checks import (SLACK_FRACTION, check_dummy_load, check_taut, check_tilt_change, initial_pose,
-                     stream_misfits, vertical_loads)
+from .checks import (
+    SLACK_FRACTION,
+    check_dummy_load,
+    check_taut,
+    check_tilt_change,
+    initial_pose,
+    stream_misfits,
+    vertical_loads,
+)
+from .model import DEFAULT_COMPLIANCE, CgOptions, GlobalUnknowns, StaticModel, Z, skew
 from .result import CgResult, StatePose
 from .state import StaticsError, StaticState
 from .validation import CHI2_P_WARN, validate_fit

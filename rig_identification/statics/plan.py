@@ -18,7 +18,7 @@ import numpy as np
 
 from ..io.rig import DummyMass, Rig
 from .estimation import estimate_cg
-from .model import Z, CgOptions, static_equilibrium
+from .model import CgOptions, Z, static_equilibrium
 from .result import CgResult
 from .state import StaticsError, StaticState
 
