@@ -284,7 +284,8 @@ def summary(rows: list[dict], t0: float, procs: int) -> None:
     if zp:
         zp = np.array(zp)
         fac = [r["replay_factor"] or 1.0 for r in ok]
-        print(f"  with the propagated σ alone (no replay widening): coverage {100 * np.mean(np.abs(zp) <= 1.96):.1f} %, "
+        print("  with the propagated σ alone (no replay widening): coverage "
+              f"{100 * np.mean(np.abs(zp) <= 1.96):.1f} %, "
               f"RMS error/σ {np.sqrt(np.mean(zp**2)):.2f}; replay factor median {np.median(fac):.2f}, "
               f"mean {np.mean(fac):.2f}, > 1 on {sum(f > 1 for f in fac)}/{len(fac)}")
     # the precision the package claims (estimation.precision, target ±1 % at 95 %) against the
@@ -296,12 +297,14 @@ def summary(rows: list[dict], t0: float, procs: int) -> None:
     if claimed:
         inside = sum(abs(e["error_pct"]) <= 100 * r["precision"]["target"] for r, k, e in claimed)
         print(f"entries the package gives within ±1 % (95 %): {len(claimed)} of "
-              f"{sum(len(r['entries']) for r in judged)} in the ok fits that have it; within 1 % of the truth: {inside}/{len(claimed)} "
+              f"{sum(len(r['entries']) for r in judged)} in the ok fits that have it; within 1 % of the truth: "
+              f"{inside}/{len(claimed)} "
               f"({100 * inside / len(claimed):.1f} %) [goal ≥ 95 %]"
               + "".join(f"\n  seed {r['seed']} {k}: {e['error_pct']:+.2f} % ({e['z']:+.2f} σ)"
                         for r, k, e in claimed if abs(e["error_pct"]) > 100 * r["precision"]["target"]))
     if det:
-        said = [r for r in det if r["verdict"] == "ok" and not good(r) and r["max_err_sigma"] <= 3.0 and "precision" in r
+        said = [r for r in det
+                if r["verdict"] == "ok" and not good(r) and r["max_err_sigma"] <= 3.0 and "precision" in r
                 and all(k in r["precision"]["short"] for k, e in r["entries"].items() if abs(e["error_pct"]) > 1.0)]
         print(f"determined rigs within 1 % and 3 σ, or within 3 σ with every entry beyond 1 % said short of the "
               f"±1 % target (and the length that reaches it): {sum(good(r) for r in det) + len(said)}/{len(det)}"

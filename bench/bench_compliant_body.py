@@ -157,7 +157,8 @@ def _job(args):
         e, s = j - jt, cb.inertia_std
         given = [k not in cb.undetermined for k in KEYS]
         z = e / np.where(s > 0, s, np.nan)
-        row[name] = {"named": cb.named, "passed": cb.passed, "significant": cb.significant, "why": cb.why, "err_pct": (100 * e / ref).tolist(), "z": z.tolist(),
+        row[name] = {"named": cb.named, "passed": cb.passed, "significant": cb.significant, "why": cb.why,
+                     "err_pct": (100 * e / ref).tolist(), "z": z.tolist(),
                      "std_pct": (100 * s / ref).tolist(), "given": given, "undetermined": list(cb.undetermined),
                      "finite": bool(np.all(np.isfinite(j)) and np.all(np.isfinite(s))),
                      "modes": [[m.frequency, m.damping_ratio, m.share] for m in cb.modes],
@@ -206,12 +207,15 @@ def main(argv=None) -> int:
                       flush=True)
                 if a.json:
                     Path(a.json).write_text(json.dumps(rows, indent=1))
-    print(f"{'seed':>5s} {'kind':5s} {'share':>5s} {'f roll/pitch/heave Hz':>21s} {'ζ':>5s} | {'rigid':>11s} {'max e%':>6s} | "
-          f"{'run':11s} {'named':5s} {'roll f,ζ':>11s} {'pitch f,ζ':>11s} {'share':>5s} {'max|e|/σ':>8s} {'max e%':>7s} "
+    print(f"{'seed':>5s} {'kind':5s} {'share':>5s} {'f roll/pitch/heave Hz':>21s} {'ζ':>5s} | "
+          f"{'rigid':>11s} {'max e%':>6s} | "
+          f"{'run':11s} {'named':5s} {'roll f,ζ':>11s} {'pitch f,ζ':>11s} {'share':>5s} {'max|e|/σ':>8s} "
+          f"{'max e%':>7s} "
           f"{'V/dof':>11s} {'V_rigid':>8s} {'alt':>3s} {'pass':4s}  why")
     for r in rows:
         eff = r["effect"]
-        head = (f"{r['seed']:5d} {r['kind']:5s} {eff['mass_share']:5.2f} {'/'.join(f'{f:.2f}' for f in eff['frequencies']):>21s} "
+        head = (f"{r['seed']:5d} {r['kind']:5s} {eff['mass_share']:5.2f} "
+                f"{'/'.join(f'{f:.2f}' for f in eff['frequencies']):>21s} "
                 f"{eff['damping_ratio']:5.2f} | {r['rigid_verdict']:>11s} {np.max(np.abs(r['rigid_err_pct'])):6.1f} |")
         for name in ("search", "truth_start"):
             if name not in r:
@@ -221,7 +225,8 @@ def main(argv=None) -> int:
             es = [abs(e) for e, g in zip(c["err_pct"], c["given"]) if g]
             md = c["modes"]
             share = c["heave"]["mass_share"]
-            print(f"{head} {name:11s} {str(c['named']):5s} {md[0][0]:5.2f},{md[0][1]:.2f} {md[1][0]:5.2f},{md[1][1]:.2f} "
+            print(f"{head} {name:11s} {str(c['named']):5s} {md[0][0]:5.2f},{md[0][1]:.2f} "
+                  f"{md[1][0]:5.2f},{md[1][1]:.2f} "
                   f"{'-' if share is None or not c['heave']['determined'] else f'{share:.2f}':>5s} "
                   f"{(max(zs) if zs else float('nan')):8.2f} {(max(es) if es else float('nan')):7.2f} "
                   f"{c['V']:5.0f}/{c['dof']:<5d} {c['V_rigid']:8.0f} {c['alternatives']:3d} "
@@ -235,7 +240,8 @@ def main(argv=None) -> int:
     for r in rows:
         if "draws" in r:
             e, sd = np.array(r["draws"]["err_pct"]), np.array(r["draws"]["std_pct"])
-            print(f"seed {r['seed']}, {len(e)} noise draws on its noise-free run — per entry (ixx ixy ixz iyy iyz izz), "
+            print(f"seed {r['seed']}, {len(e)} noise draws on its noise-free run — per entry "
+                  "(ixx ixy ixz iyy iyz izz), "
                   "% of the reference:")
             print("  mean error  " + " ".join(f"{x:+7.2f}" for x in e.mean(0)))
             print("  its spread  " + " ".join(f"{x:7.2f}" for x in e.std(0, ddof=1 if len(e) > 1 else 0)))
@@ -266,7 +272,8 @@ def main(argv=None) -> int:
             print(f"[{kind}] every entry given, named or not ({len(zall)}): |error|/σ ≤ 3 on "
                   f"{np.mean(np.abs(zall) <= 3) * 100:.0f} %, ≤ 1.96 on {np.mean(np.abs(zall) <= 1.96) * 100:.0f} %; "
                   f"median {np.median(np.abs(zall)):.2f}, max {np.max(np.abs(zall)):.1f}")
-    print(f"rigid-body fit: verdict model_error on {sum(r['rigid_verdict'] == 'model_error' for r in rows)}/{len(rows)}; "
+    print("rigid-body fit: verdict model_error on "
+          f"{sum(r['rigid_verdict'] == 'model_error' for r in rows)}/{len(rows)}; "
           f"total {time.perf_counter() - t0:.0f} s with {a.procs} process(es)")
     return 0
 

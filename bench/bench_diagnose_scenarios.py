@@ -31,8 +31,10 @@ for effect in ({"name": "sensor_delay", "stream": "load_cells", "delay": 0.02}, 
     res = with_diagnosis(rec, rigid)   # what rig-identify inertia does under model error
     print(f"== {effect}: weight_surplus {rigid.weight_surplus:+.4%}; rigid-body verdict {rigid.validation.verdict}; "
           f"after: {res.validation.verdict}")
-    print("   named:", [(e["name"], e["parameters"], e.get("parameters_std")) for e in (res.diagnosis or {}).get("effects", [])])
+    print("   named:", [(e["name"], e["parameters"], e.get("parameters_std"))
+                         for e in (res.diagnosis or {}).get("effects", [])])
     for lab, r in (("rigid", rigid), ("after", res)):
         c = compare_to_truth(r, sim.truth)
-        print(f"   {lab}: " + ", ".join(f"{k} {c[k]['error_percent']:+.3f}% ({c[k]['error_sigma']:+.2f}σ)" for k in KEYS))
+        print(f"   {lab}: " + ", ".join(f"{k} {c[k]['error_percent']:+.3f}% ({c[k]['error_sigma']:+.2f}σ)"
+                                         for k in KEYS))
     sys.stdout.flush()

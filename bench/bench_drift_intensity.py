@@ -61,7 +61,8 @@ def main(argv=None) -> int:
     a = ap.parse_args(argv)
     seeds = [int(s) for s in a.seeds.split(",")]
     rows = run_jobs(job, [(s, a.duration, a.q) for s in seeds], a.procs, a.json, lambda r: f"seed {r['seed']}")
-    print(f"{'seed':>6s} {'realised':>9s} {'reported':>9s} {'σ':>8s} {'(rep−real)/σ':>13s}  named (admissible combinations)")
+    print(f"{'seed':>6s} {'realised':>9s} {'reported':>9s} {'σ':>8s} {'(rep−real)/σ':>13s}  "
+          "named (admissible combinations)")
     z = []
     for r in rows:
         names = "; ".join("+".join(n) for n in r["named"]) or "-"

@@ -8,10 +8,10 @@ mode, so roll hardly moves), identified the ordinary way (``identify_recording``
 TRUE damping moment −C ω (ω from the simulator's states, noise-free) added to the measured
 wrench — the model is then complete.  The sensor noise is the reference (`REFERENCE_NOISE`)
 scaled by 0.1, with one sensor at a time left at the reference, then all at the reference.
-Prints per case: verdict, failed checks (and, below, what each failed check saw), the share of the fit's input that is noise along its
-noisiest direction (``errors_in_variables.share``), Ixx's error of the least-squares fit
-before the compensation for that noise, and the reported (compensated) entries' error %
-and error/σ.
+Prints per case: verdict, failed checks (and, below, what each failed check saw), the share of
+the fit's input that is noise along its noisiest direction (``errors_in_variables.share``),
+Ixx's error of the least-squares fit before the compensation for that noise, and the reported
+(compensated) entries' error % and error/σ.
 
 With --paths, instead: at the reference noise, the plain least-squares fit (no compensation,
 stage 1 of the identifier with the consistent Levenberg–Marquardt stage) with the tracked
@@ -65,7 +65,8 @@ def run(seed: int, duration: float, angular: float, noise: dict) -> str:
     share = "-" if r.errors_in_variables is None else f"{r.errors_in_variables.share:.3f}"
     entries = " ".join(f"{k} {c[k]['error_percent']:+6.2f}% ({c[k]['error_sigma']:+5.1f}σ)" for k in KEYS)
     failed = "".join(f"\n    {c.name}: {c.detail}" for c in v.checks if c.passed is False)
-    return f"{v.verdict:17s} {','.join(v.failed) or '-':24s} noise share {share:>5s}  LS ixx {ls:>8s}  {entries}{failed}"
+    return (f"{v.verdict:17s} {','.join(v.failed) or '-':24s} noise share {share:>5s}  "
+            f"LS ixx {ls:>8s}  {entries}{failed}")
 
 
 def paths(seed: int, duration: float, angular: float) -> None:

@@ -107,7 +107,8 @@ def crb_table(runs=30, procs=2, cases=None):
     t0 = time.perf_counter()
     print(f"Predicted σ (before the run) against the Monte Carlo spread (after it): {runs} noisy runs per case, "
           "reference noise levels and rates")
-    print(f"(spread/pred: 1 is perfect; the spread's own 1σ sampling uncertainty is ±{100 / np.sqrt(2 * (runs - 1)):.0f} %)")
+    print("(spread/pred: 1 is perfect; the spread's own 1σ sampling uncertainty is "
+          f"±{100 / np.sqrt(2 * (runs - 1)):.0f} %)")
     print(f"{'case':7s} {'s':>4s} " + " ".join(f"{k:>17s}" for k in KEYS))
     print(f"{'':7s} {'':>4s} " + " ".join(f"{'pred  spread/pred':>17s}" for _ in KEYS))
     ratios, crb_ratios, cv_ratios = [], [], []
@@ -146,10 +147,12 @@ def crb_table(runs=30, procs=2, cases=None):
     C = np.array(crb_ratios)
     V = np.array(cv_ratios)
     print(f"spread/pred over {R.size} entries: median {np.median(R):.2f}, range {R.min():.2f}–{R.max():.2f}, "
-          f"{np.mean(np.abs(R - 1) <= 0.2) * 100:.0f} % within ±20 %; RMS of log ratio {np.sqrt(np.mean(np.log(R)**2)):.3f} "
+          f"{np.mean(np.abs(R - 1) <= 0.2) * 100:.0f} % within ±20 %; "
+          f"RMS of log ratio {np.sqrt(np.mean(np.log(R)**2)):.3f} "
           f"(pure sampling noise: {1 / np.sqrt(2 * (runs - 1)):.3f})")
     print(f"control-variate spread/pred: median {np.median(V):.2f}, range {V.min():.2f}–{V.max():.2f}, "
-          f"{np.mean(np.abs(V - 1) <= 0.2) * 100:.0f} % within ±20 %; RMS of log ratio {np.sqrt(np.mean(np.log(V)**2)):.3f}")
+          f"{np.mean(np.abs(V - 1) <= 0.2) * 100:.0f} % within ±20 %; "
+          f"RMS of log ratio {np.sqrt(np.mean(np.log(V)**2)):.3f}")
     print(f"identifier's white-gyro crb_std / spread: median {np.median(C):.2f}, range {C.min():.2f}–{C.max():.2f}")
     print(f"total {time.perf_counter() - t0:.0f} s")
     return R
@@ -190,7 +193,8 @@ def plan_table(confirm=8, procs=2, vary=False):
         eb = np.array(pool.map(one_run_plan, [(("base",), [body.experiment(plan.baseline.run)], 900 + k, None)
                                               for k in range(confirm)]))
     truth = from_tensor(exp.inertia)
-    print(f"{'entry':6s} {'plan rms err':>12s} {'pred σ':>8s} {'base rms err':>12s} {'pred σ':>8s} {'ratio of rms':>12s}")
+    print(f"{'entry':6s} {'plan rms err':>12s} {'pred σ':>8s} {'base rms err':>12s} {'pred σ':>8s} "
+          f"{'ratio of rms':>12s}")
     for k, i in zip(KEYS, range(6)):
         ep, ebb = np.sqrt(np.mean((est[:, i] - truth[i])**2)), np.sqrt(np.mean((eb[:, i] - truth[i])**2))
         print(f"{k:6s} {ep:12.3f} {plan.prediction.std[i]:8.3f} {ebb:12.3f} {plan.baseline.prediction.std[i]:8.3f} "

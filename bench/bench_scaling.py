@@ -22,11 +22,12 @@ reference ``visible_case16_clean`` (120 s at 200 Hz, an independent simulator) u
 Every figure is a whole process (the ``rig-identify`` entry point beside this interpreter:
 start-up, imports, bag reading, everything), timed from outside by ``/usr/bin/time -f "%e %U %S
 %M"``: one warm-up run (numba's on-disk cache, the page cache), then ``--runs`` counted runs
-(default 3); wall, CPU (user + sys) and peak resident memory (``ru_maxrss``) of that one process.  The table gives the median (min–max) of the
-wall time and the medians of CPU and memory; "CPU s / min" is the CPU time per minute of
-recording, constant when the cost grows linearly.  The machine's load average is printed
-before and after: on a shared machine quote the CPU time (the process is single-threaded
-with ``OMP_NUM_THREADS=1``, which the children get unless it is set).
+(default 3); wall, CPU (user + sys) and peak resident memory (``ru_maxrss``) of that one process.
+The table gives the median (min–max) of the wall time and the medians of CPU and memory;
+"CPU s / min" is the CPU time per minute of recording, constant when the cost grows linearly.
+The machine's load average is printed before and after: on a shared machine quote the CPU time
+(the process is single-threaded with ``OMP_NUM_THREADS=1``, which the children get unless it is
+set).
 """
 from __future__ import annotations
 
@@ -60,7 +61,8 @@ def recording(folder: Path, duration: float, rate: float) -> Path:
         return out
     exp = load_experiment(str(REPO / "config/rigs/default.yaml")).with_overrides(duration=duration)
     if rate != 200.0:
-        exp = dataclasses.replace(exp, sensors=dataclasses.replace(exp.sensors, rates={k: rate for k in exp.sensors.rates}))
+        exp = dataclasses.replace(exp, sensors=dataclasses.replace(exp.sensors,
+                                                                   rates={k: rate for k in exp.sensors.rates}))
     t0 = time.perf_counter()
     res = simulate(exp)
     write_recording(out, res.rig, res.sensors, res.truth)

@@ -160,8 +160,10 @@ def _first_order_job(args):
 
         def ts(x, y, sign):
             return None if x is None else TimeSeries(y.t, y.data + sign * (x.data - y.data))
-        pm = [SensorData(ts(noisy.imu, s.imu, g), {n: ts(noisy.load_cells[n], s.load_cells[n], g) for n in s.load_cells},
-                         ts(noisy.exciter, s.exciter, g), ts(noisy.inclinometer, s.inclinometer, g)) for g in (1.0, -1.0)]
+        pm = [SensorData(ts(noisy.imu, s.imu, g),
+                         {n: ts(noisy.load_cells[n], s.load_cells[n], g) for n in s.load_cells},
+                         ts(noisy.exciter, s.exciter, g), ts(noisy.inclinometer, s.inclinometer, g))
+              for g in (1.0, -1.0)]
     else:
         pm = [add_noise(s, REFERENCE_NOISE, np.random.default_rng([seed, k]), g) for g in (1.0, -1.0)]
     (ep, _, prep), (em, _, _) = fit(pm[0], band), fit(pm[1], band)
@@ -192,10 +194,12 @@ def first_order_main(a) -> int:
     what = (f"the simulator's noise seeds {ks.start}..{ks.stop - 1}" if simulator else
             f"{len(rows)} white realisations (uncertainty.add_noise)")
     print(f"rig {a.any_rig} of bench_any_rig, least-squares fit, {what}")
-    print(f"{'entry':6s} {'propagated σ':>13s} {'first-order RMS':>16s} {'ratio':>6s} {'even mean':>10s} {'even sd':>8s}")
+    print(f"{'entry':6s} {'propagated σ':>13s} {'first-order RMS':>16s} {'ratio':>6s} {'even mean':>10s} "
+          f"{'even sd':>8s}")
     for i, k in enumerate(KEYS):
         rms = float(np.sqrt(np.mean(F[:, i] ** 2)))
-        print(f"{k:6s} {prop[i]:13.4g} {rms:16.4g} {rms / prop[i]:6.2f} {E[:, i].mean():+10.4g} {E[:, i].std(ddof=1):8.4g}")
+        print(f"{k:6s} {prop[i]:13.4g} {rms:16.4g} {rms / prop[i]:6.2f} {E[:, i].mean():+10.4g} "
+              f"{E[:, i].std(ddof=1):8.4g}")
     print(f"(the ratio's sampling spread alone: ±{100 / np.sqrt(2 * len(rows)):.0f} %)")
     # the replays' test of the pipeline (uncertainty.NoiseReplays.birge_ratio) on these draws: the
     # whitened spread against the propagated covariance, and the entries' σ alone (its diagonal)
@@ -230,7 +234,8 @@ def noise_main(a) -> int:
         if v:
             x = np.array([s for s, _, _ in v])
             q = np.array([t / EFFECT_FACTOR for _, t, _ in v])
-            print(f"{n:18s} {np.mean(x):11.2f} {int(np.sum(x > q)):>9d}/{len(v):<5d} {sum(p is False for *_, p in v):>4d}")
+            print(f"{n:18s} {np.mean(x):11.2f} {int(np.sum(x > q)):>9d}/{len(v):<5d} "
+                  f"{sum(p is False for *_, p in v):>4d}")
     # the whiteness check (Fisher's g over the noise realisations' spectrum): its statistic over
     # its significance threshold (failed beyond WHITENESS_FACTOR), and where its largest line is
     w = [(r["noise_seed"], r["checks"]["whiteness"], r.get("details", {}).get("whiteness", ""))
@@ -248,7 +253,8 @@ def noise_main(a) -> int:
     if len(rows) > 1:
         # the spread over the noise seeds against what each fit reported: calibrated σ has
         # the ratio 1 (the bias, the mean error, in σ of the mean)
-        print(f"\n{'entry':6s} {'mean error':>11s} {'empirical sd':>13s} {'mean σ':>9s} {'mean crb σ':>11s} {'sd/σ':>6s}")
+        print(f"\n{'entry':6s} {'mean error':>11s} {'empirical sd':>13s} {'mean σ':>9s} {'mean crb σ':>11s} "
+              f"{'sd/σ':>6s}")
         S = np.array([r["std"] for r in rows], float)
         C = np.array([r["crb_std"] or [np.nan] * 6 for r in rows], float)
         for i, k in enumerate(KEYS):
@@ -258,7 +264,8 @@ def noise_main(a) -> int:
           + f"; all {np.sqrt(np.nanmean(Z**2)):.2f}; within ±1.96 σ {100 * np.nanmean(np.abs(Z) <= 1.96):.1f} %; "
           f"beyond 3 σ {int(np.nansum(np.abs(Z) > 3))} of {int(np.sum(np.isfinite(Z)))}")
     silent = [r["noise_seed"] for r, zr in zip(rows, Z) if r["verdict"] == "ok" and np.nanmax(np.abs(zr)) > 3]
-    print(f"silent failures (verdict ok, an entry beyond 3 σ): {len(silent)}" + (f" (noise seeds {silent})" if silent else ""))
+    print(f"silent failures (verdict ok, an entry beyond 3 σ): {len(silent)}"
+          + (f" (noise seeds {silent})" if silent else ""))
     return 0
 
 
@@ -274,7 +281,8 @@ def main(argv=None) -> int:
     ap.add_argument("--noise-seeds", type=int, default=12, help="with --any-rig: N noise seeds (default 12)")
     ap.add_argument("--first-noise-seed", type=int, default=None,
                     help="with --any-rig: the first noise seed (default 1)")
-    ap.add_argument("--first-order", type=int, metavar="N", help="with --any-rig: N antithetic first-order realisations")
+    ap.add_argument("--first-order", type=int, metavar="N",
+                    help="with --any-rig: N antithetic first-order realisations")
     a = ap.parse_args(argv)
     a.first_noise_seed_given = a.first_noise_seed is not None
     a.first_noise_seed = 1 if a.first_noise_seed is None else a.first_noise_seed

@@ -3,7 +3,8 @@ and rig geometry, realistic noise), is named first, its parameters estimated wit
 the residuals of the channels it affects reduced by ≥ 30 % and the inertia brought back
 within the identification bounds (diagonal 0.5 %, products 0.5 % of the largest diagonal,
 3 σ).  Clean recordings give no mismatch; the thesis's model misses the gyroscopic
-coupling (on a planned run: its effect is the residual's part locked to the forcing); the reference damped recording's damping is named with its coefficients.
+coupling (on a planned run: its effect is the residual's part locked to the forcing); the reference
+damped recording's damping is named with its coefficients.
 
 The simulations and diagnoses are background jobs (conftest.background): they start in a
 worker process when the session starts and this module runs last.
@@ -154,7 +155,8 @@ def results():
 
 
 def _ratio(a, b) -> float:
-    return float(np.linalg.norm(np.atleast_1d(np.asarray(a, float))) / np.linalg.norm(np.atleast_1d(np.asarray(b, float))))
+    return float(np.linalg.norm(np.atleast_1d(np.asarray(a, float)))
+                 / np.linalg.norm(np.atleast_1d(np.asarray(b, float))))
 
 
 def _rel(est, true) -> float:
@@ -208,7 +210,8 @@ def check_inertia(res: dict, key: str = "inertia_about_cg_after", std_key: str =
         assert abs(err) <= max(0.005 * ref, 3 * s[k]), \
             f"{k}: {J[k]:.2f} vs truth {tru[k]:.2f} ({100 * err / ref:+.3f} %, σ {s[k]:.2f})"
         if before and abs(err0) > 0.01 * ref:
-            assert abs(err) < 0.5 * abs(err0), f"{k}: error {100 * err0 / ref:+.2f} % before, {100 * err / ref:+.2f} % after"
+            assert abs(err) < 0.5 * abs(err0), \
+                f"{k}: error {100 * err0 / ref:+.2f} % before, {100 * err / ref:+.2f} % after"
 
 
 @pytest.mark.parametrize("name", list(CASES))

@@ -67,7 +67,8 @@ def test_predicted_std_matches_noisy_replays():
         # refine=False: the first-order estimator the prediction models
         res = identify_recording(Recording(sim.rig, noisy, sim.truth), refine=False)
         z.append((from_tensor(res.inertia) - truth) / pred.std)
-        gyro = REFERENCE_NOISE["gyro"] * np.random.default_rng(100 + seed).standard_normal(sim.sensors.imu.data.shape)[:, :3]
+        gyro = REFERENCE_NOISE["gyro"] * np.random.default_rng(100 + seed).standard_normal(
+            sim.sensors.imu.data.shape)[:, :3]
         zl.append(np.einsum("ndk,nd->k", S, gyro) / pred.std)   # add_noise draws the IMU first: same noise
     chi = float(np.mean(np.square(z)))
     assert 0.45 <= chi <= 1.8, f"mean (err/σ_pred)² = {chi:.2f}"

@@ -381,7 +381,8 @@ def test_cg_plan_cli(reference_pair):
 def test_scale_and_load_cells_disagree(reference_pair):
     b, d = reference_pair
     rig = replace(b.rig, mass=1830.0)          # the scale read 20 kg (1.1 %) too much
-    res = estimate_cg(rig, StaticState.from_recording(b, label="baseline"), StaticState.from_recording(d, label="dummy"))
+    res = estimate_cg(rig, StaticState.from_recording(b, label="baseline"),
+                      StaticState.from_recording(d, label="dummy"))
     assert [w for w in res.warnings if w.startswith("mass:")] and abs(res.mass_from_load_cells - 1810.0) < 0.5
     assert len(res.warnings) == 1                               # the CG fit itself is unaffected
     truth = np.array(b.truth["center_of_gravity"], float)

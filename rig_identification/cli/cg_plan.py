@@ -54,7 +54,8 @@ def add_cg_plan_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--max-duration", type=number("--max-duration"), default=600.0, metavar="S",
                    help="longest acceptable averaging time per state, s (default 600)")
     p.add_argument("--noise-from", metavar="RECORDING", help="measure the sensor noise in this static recording")
-    p.add_argument("--load-cell-noise", type=number("--load-cell-noise", zero=True), metavar="N", help="σ per sample, N")
+    p.add_argument("--load-cell-noise", type=number("--load-cell-noise", zero=True), metavar="N",
+                   help="σ per sample, N")
     p.add_argument("--inclinometer-noise", type=number("--inclinometer-noise", zero=True), metavar="RAD",
                    help="σ per sample, rad")
     p.add_argument("--load-cell-rate", type=number("--load-cell-rate"), metavar="HZ")
@@ -113,7 +114,8 @@ def cmd_cg_plan(args) -> int:
         step("predicting the CG σ of the planned test")
         r = predict_cg_std(rig, guess, planned, args.duration, noise, opts)
         out["planned"] = {"dummy_mass": planned.mass, "dummy_position": [float(x) for x in planned.position],
-                          "duration": args.duration, "center_of_gravity_std": [float(x) for x in r.center_of_gravity_std],
+                          "duration": args.duration,
+                          "center_of_gravity_std": [float(x) for x in r.center_of_gravity_std],
                           "half_width_95": [float(1.96 * x) for x in r.center_of_gravity_std],
                           "reaches_target": bool(np.all(1.96 * r.center_of_gravity_std <= target)),
                           "tilt_change_rad": r.weakly_determined["tilt_change_rad"]}

@@ -6,7 +6,8 @@ Two fits, said apart:
   (:func:`~rig_identification.pipeline.offline.identify_recording` without the σ replays: tracker, preprocessor,
   identifier, validation), so that both commands print the same rigid-body tensor for a
   recording;
-* diagnose's own model fit (:func:`~rig_identification.diagnosis.selection.diagnose`): the tensor fitted jointly with the
+* diagnose's own model fit (:func:`~rig_identification.diagnosis.selection.diagnose`): the tensor
+  fitted jointly with the
   effects found, on its own residual groups (gyro, accelerometer, mean levels), which is what
   its likelihood ratios compare.  Its rigid-body baseline (``inertia_about_cg_before`` in the
   JSON) weighs the accelerometer and the mean moment too, and so differs from the rigid-body

@@ -6,7 +6,8 @@ window, the tensor about the CG with σ (and the truth when truth.yaml is there)
 of inertia with the vehicle-dynamics sign, the principal moments and axes, the tensor about the
 body frame's origin, what σ is, the precision against ``--target``
 (:mod:`~rig_identification.estimation.precision`), the diagnosis, the bias correction, the
-validation's checks and the most weakly determined combination.  ``--json`` prints :meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`
+validation's checks and the most weakly determined combination.  ``--json`` prints
+:meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`
 instead; ``--urdf`` adds a URDF ``<inertial>`` element and ``--yaml FILE`` writes
 :func:`~rig_identification.io.export.export_dict` (atomically).
 """
@@ -54,7 +55,8 @@ from .text import effect_text, entries_line, fmt, origin_line, principal_lines, 
 
 
 def truth_columns(result: InertiaResult, truth: dict | None, axes: str) -> dict | None:
-    """truth.yaml's comparison (:func:`~rig_identification.pipeline.offline.compare_to_truth`) in ``axes`` (signs turned)."""
+    """truth.yaml's comparison (:func:`~rig_identification.pipeline.offline.compare_to_truth`) in
+    ``axes`` (signs turned)."""
     if not truth or "inertia_about_cg" not in truth:
         return None
     cmp = compare_to_truth(result, truth)

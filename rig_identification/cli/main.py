@@ -119,8 +119,9 @@ def add_inertia_parser(sub) -> None:
     p.add_argument("--initial-guess", type=float, nargs=6, metavar=TENSOR,
                    help="starting tensor for --model thesis: " + TENSOR_HELP)
     p.add_argument("--quick", action="store_true",
-                   help="the plain fit: not compensated for the noise in its input, σ from the fit's residuals (sandwich) "
-                        "instead of the propagated sensor noise, no diagnosis; about half the time (docs/results.md)")
+                   help="the plain fit: not compensated for the noise in its input, σ from the fit's residuals "
+                        "(sandwich) instead of the propagated sensor noise, no diagnosis; about half the time "
+                        "(docs/results.md)")
     p.add_argument("--cg", metavar="CG.json",
                    help="take the centre of gravity from a saved 'rig-identify cg --json' result instead of "
                         "rig.yaml's body.center_of_gravity")

@@ -2,7 +2,8 @@
 thesis's case studies.
 
 Tensors on the command line (``plan --inertia``, ``modes --inertia``) are six tensor entries
-in the order ixx iyy izz ixy ixz iyz (:data:`~rig_identification.io.export.ORDER`, :func:`~rig_identification.io.export.tensor_from_option`),
+in the order ixx iyy izz ixy ixz iyz (:data:`~rig_identification.io.export.ORDER`,
+:func:`~rig_identification.io.export.tensor_from_option`),
 as every option of ``rig-identify`` takes them.
 """
 from __future__ import annotations

@@ -1,9 +1,11 @@
 """Text blocks of the ``rig-identify`` printouts: the tensor table, the products, the principal
-axes, the tensor about the origin, effect parameters with their units (:func:`~rig_identification.io.export.effect_text`,
+axes, the tensor about the origin, effect parameters with their units
+(:func:`~rig_identification.io.export.effect_text`,
 the one text of them, also in the core's warnings: re-exported here).
 
 Undetermined entries print as "not determined", never as a number or ``nan``
-(:data:`~rig_identification.io.export.NOT_DETERMINED`).  Entry order everywhere: :data:`~rig_identification.io.export.ORDER` (ixx iyy izz
+(:data:`~rig_identification.io.export.NOT_DETERMINED`).  Entry order everywhere:
+:data:`~rig_identification.io.export.ORDER` (ixx iyy izz
 ixy ixz iyz).
 """
 from __future__ import annotations

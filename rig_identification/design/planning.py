@@ -1,6 +1,7 @@
 """Know before you shake: the experiment design search — which exciter run(s) to do on a rig.
 
-The prediction of a run's σ is :mod:`rig_identification.estimation.propagation`'s (:func:`~rig_identification.estimation.propagation.predict_from_trajectory`);
+The prediction of a run's σ is :mod:`rig_identification.estimation.propagation`'s
+(:func:`~rig_identification.estimation.propagation.predict_from_trajectory`);
 the planned run and the nominal body are :mod:`rig_identification.design.run`'s, the linearised screen
 :mod:`rig_identification.design.screen`'s (the names users import from here are re-exported).
 
@@ -283,7 +284,8 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
         freqs = [f for f in np.geomspace(frequencies[0], frequencies[1], 30)
                  if np.all(np.abs(f / avoid - 1) >= mode_margin)]
         if not freqs:
-            raise PlanError(f"no exciter frequency in {frequencies[0]:g}–{frequencies[1]:g} Hz is {100 * mode_margin:.0f} % "
+            raise PlanError(f"no exciter frequency in {frequencies[0]:g}–{frequencies[1]:g} Hz is "
+                            f"{100 * mode_margin:.0f} % "
                             f"away from the rig's modes{where} ({', '.join(f'{f:.2f}' for f in mf)} Hz), their doubles "
                             "and their pairwise sums")
         pts = [np.asarray(p, float) for p in (positions if positions else candidate_positions(b.rig))]

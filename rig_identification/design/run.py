@@ -117,7 +117,8 @@ def load_plan_input(path) -> tuple[Rig, dict | None, np.ndarray | None]:
     recording folder — with its cable stiffness if known (rig.yaml ``stiffness`` or the
     experiment's spring ``cable_model``) and, for an experiment file, its rotating
     excitation ({amplitude, frequency, ramp_time}) as the baseline.  Raises
-    :class:`~rig_identification.io.rig.RigError`, :class:`~rig_identification.io.recording.RecordingError`, FileNotFoundError."""
+    :class:`~rig_identification.io.rig.RigError`,
+    :class:`~rig_identification.io.recording.RecordingError`, FileNotFoundError."""
     p = Path(path)
     if p.is_dir():
         if not (p / "rig.yaml").exists():

@@ -27,7 +27,8 @@ on its springs).  Then it tests the fit the way every fit is tested:
 exciter ran through every fitted mode (:func:`swept`, :data:`SWEEP_MARGIN`: a sweep; with one
 exciter speed the tensor at rest is an extrapolation the data do not fix) and the bench has
 shown such tensors honest (:data:`TENSOR_TRUSTED`: not yet); otherwise the result is a
-hypothesis that says why, what to do (:data:`SWEEP_ADVICE`), and where the mismatch is — the rigid body's (``rigid_mismatch``) and what the sprung body
+hypothesis that says why, what to do (:data:`SWEEP_ADVICE`), and where the mismatch is — the rigid
+body's (``rigid_mismatch``) and what the sprung body
 leaves (``unexplained``): channel, band, size.
 """
 from __future__ import annotations
@@ -404,7 +405,8 @@ def swept(modes, speeds: tuple[float, float] | None) -> str:
     if not out:
         return ""
     what = (f"at {0.5 * (lo + hi):.2f} Hz only" if hi < 1.1 * lo else f"from {lo:.2f} to {hi:.2f} Hz")
-    return (f"the exciter ran {what}, not through the {' and '.join(f'{m.axis} mode ({m.frequency:.2f} Hz)' for m in out)}: "
+    return (f"the exciter ran {what}, not through the "
+            f"{' and '.join(f'{m.axis} mode ({m.frequency:.2f} Hz)' for m in out)}: "
             "the recording shows the apparent tensor near those speeds, and the tensor at rest is an extrapolation "
             "that the data do not fix")
 
@@ -482,7 +484,8 @@ def fit_compliant_body(rec: Recording, start: float | None = None, end: float | 
     levels, _ = sensor_noise(rig, s)
     reps, windows = [], []
     for p in range(pairs):
-        pair = [replay(rig, add_noise(s, levels, np.random.default_rng([seed, p]), sign), lo, hi) for sign in (1.0, -1.0)]
+        pair = [replay(rig, add_noise(s, levels, np.random.default_rng([seed, p]), sign), lo, hi)
+                for sign in (1.0, -1.0)]
         if any(len(w.t) != len(base.t) for w in pair):
             continue
         windows.append(tuple(pair))

@@ -28,7 +28,8 @@ PLAUSIBLE = {
     "gyroscopic_coupling": {"scale": (0.5, 1.5)},
 }
 """The range (SI, in the units of :data:`~rig_identification.io.export.EFFECT_UNITS`) each
-effect's parameters must fall in to be named: a fit that needs a dissipation of the wrong sign, a sensor delay of a tenth of a second or an IMU a metre from
+effect's parameters must fall in to be named: a fit that needs a dissipation of the wrong sign, a
+sensor delay of a tenth of a second or an IMU a metre from
 where rig.yaml puts it has found a stand-in for other physics, not the effect.  Units:
 rad/s (gyro bias, the drift's ``bias_range`` over the window), rad/s/√s (the drift's
 ``random_walk``: a MEMS gyro's rate random walk is 1e-5–1e-3), m/s², m, rad, s, N/m, Hz (a
@@ -63,7 +64,8 @@ def implausible(entry: dict, rig, effect_share: float | None = None, unbalance: 
             return f"unbalance {u:.3g} kg·m outside 0.3–3× the {unbalance:.3g} kg·m that makes the measured force"
     if name in ("viscous_damping", "air_drag", "coulomb_friction") and effect_share is not None \
             and effect_share > MAX_EFFECT_SHARE:
-        return f"its moment is {100 * effect_share:.0f} % of the measured moment (at most {100 * MAX_EFFECT_SHARE:.0f} %)"
+        return (f"its moment is {100 * effect_share:.0f} % of the measured moment "
+                f"(at most {100 * MAX_EFFECT_SHARE:.0f} %)")
     return None
 
 

@@ -91,7 +91,8 @@ class Combination:
 
 @dataclass
 class Diagnosis:
-    """Result of :func:`~rig_identification.diagnosis.selection.diagnose`; :meth:`to_dict` is the JSON of ``rig-identify diagnose``."""
+    """Result of :func:`~rig_identification.diagnosis.selection.diagnose`; :meth:`to_dict` is the
+    JSON of ``rig-identify diagnose``."""
 
     mismatch: bool
     effects: list
@@ -108,7 +109,8 @@ class Diagnosis:
     warnings: list = field(default_factory=list)
     series: dict = field(default_factory=dict)
     covariance_after: np.ndarray | None = None   # (6,6) of the entries of inertia_after, KEYS order
-    # the sensor and rig errors removed from the data (key -> value, as :func:`~rig_identification.diagnosis.candidates.corrected` takes)
+    # the sensor and rig errors removed from the data (key -> value, as
+    # :func:`~rig_identification.diagnosis.candidates.corrected` takes)
     corrections: dict = field(default_factory=dict)
     # time-synchronous residual RMS per channel (None: no rotating exciter), and the revolutions averaged
     rms_sync_before: dict | None = None
@@ -117,8 +119,9 @@ class Diagnosis:
     # the physics added to the model (not errors of the data), as the generalized wrench it
     # adds to the measured one along the window: :class:`EffectWrench` or None
     effect_wrench: "EffectWrench | None" = None
-    # every correction made to the data or the rig (key -> value, :func:`~rig_identification.diagnosis.candidates.corrected`; the
-    # cables' mass included), and the cables' stiffness (n,) N/m when their elasticity was found
+    # every correction made to the data or the rig (key -> value,
+    # :func:`~rig_identification.diagnosis.candidates.corrected`; the cables' mass included), and the
+    # cables' stiffness (n,) N/m when their elasticity was found
     applied: dict = field(default_factory=dict)
     stiffness: np.ndarray | None = None
     # the admissible combinations (:class:`Combination`), best (smallest BIC) first, the first
@@ -146,5 +149,6 @@ class Diagnosis:
                 "synchronous_revolutions": self.revolutions,
                 "alternatives": [{"effects": [e["name"] for e in a.effects], "likelihood_ratio": a.likelihood_ratio,
                                   "dof": a.dof, "bic": a.bic} for a in self.alternatives],
-                "combinations": [{**j, "effects": [f"{n} {lab}".strip() for n, lab in j["effects"]]} for j in self.joint],
+                "combinations": [{**j, "effects": [f"{n} {lab}".strip() for n, lab in j["effects"]]}
+                                 for j in self.joint],
                 "out_of_band": self.out_of_band}

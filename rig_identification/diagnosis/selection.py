@@ -49,7 +49,8 @@ selected one is iterated to convergence.  A load cell's gain (one candidate per 
 moves the tracker's static pose (it balances forces and moments with the tensions) so
 much that its first-order column points the wrong way: every significant one is
 evaluated exactly at ±:data:`GAIN_STEP` (:func:`exact_screen`), and the selected one is
-found by its exact profile likelihood (:func:`~rig_identification.diagnosis.exact.exact_profile`).  So is ``cable_mass``,
+found by its exact profile likelihood (:func:`~rig_identification.diagnosis.exact.exact_profile`).
+So is ``cable_mass``,
 always: the lower half of each cable (μ kg) hangs on its body anchor, outside the load
 cell at the ceiling, so the body the tensions move is heavier, its centre of gravity
 higher and its tensor larger than rig.yaml's (:func:`corrected` gives the rig that body;
@@ -132,7 +133,8 @@ ALTERNATIVES = 3      # admissible combinations reported (and validated by the c
 EXCLUSIVE = ({"gyro_bias", "gyro_bias_drift"},)
 """Effects of which one contains the other (a constant bias is a drift with equal knots):
 never fitted together."""
-WEIGHT_SURPLUS_SIGMA = 3.0   # the masses are evaluated exactly when the cells carry this many σ more (or less) than the weight
+# the masses are evaluated exactly when the cells carry this many σ more (or less) than the weight
+WEIGHT_SURPLUS_SIGMA = 3.0
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
 PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
 WINDOW_CACHE = 8      # re-tracked windows kept (by their corrections): the joint search re-uses them
@@ -301,7 +303,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         ranked = _admissible(evals, threshold_p, rms0)
     joints = [{"effects": [(m["c"].name, m["c"].label) for m in ev["members"]], "likelihood_ratio": ev["lam"],
                "dof": ev["dof"], "bic": ev["bic"], "admissible": ev.get("admissible", False),
-               **({"why": ev["why"]} if ev.get("why") else {})} for ev in sorted(evals.values(), key=lambda e: e["bic"])]
+               **({"why": ev["why"]} if ev.get("why") else {})}
+              for ev in sorted(evals.values(), key=lambda e: e["bic"])]
     alternatives = []
     # the best combination's admissible proper subsets too (the caller names the smallest one
     # that passes validation: an effect is named only when the model fails without it)

@@ -108,7 +108,8 @@ def _track(rig, s, cables: str):
         rig = _replace(rig, cables=tuple(_replace(c, stiffness=None) for c in rig.cables))
     known = np.isfinite(rig.cable_stiffness)
     if known.all() or cables == "rigid":
-        rig_t = _replace(rig, cables=tuple(c if c.stiffness is not None else _replace(c, stiffness=1e15) for c in rig.cables))
+        rig_t = _replace(rig, cables=tuple(c if c.stiffness is not None else _replace(c, stiffness=1e15)
+                                           for c in rig.cables))
         out, _ = replay(rig_t, s)
         return out, np.where(known, rig.cable_stiffness, np.inf), None
     out, tracker = replay(rig, s)

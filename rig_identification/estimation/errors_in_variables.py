@@ -229,7 +229,8 @@ def compensated_residual(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.n
 
 @dataclass(frozen=True)
 class Compensation:
-    """What the errors-in-variables compensation did to a fit (:func:`~rig_identification.estimation.identification.fit_segments`
+    """What the errors-in-variables compensation did to a fit
+    (:func:`~rig_identification.estimation.identification.fit_segments`
     with noise realisations).
 
     share: the largest share of a regressor direction that is noise (:func:`noise_share`;
@@ -307,7 +308,8 @@ def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRe
     Marquardt on the corrected quadratic cost) when ``consistent``, directly otherwise.
 
     segs: the prepared segments (:class:`~rig_identification.estimation.identification.Segment`: y (N,3) the band-passed
-    gyro, IM (N,3) the band-passed integrated moment, G (6,N,3) the gyroscopic regressors); j (6,) kg·m² the least-squares estimate (start, and where
+    gyro, IM (N,3) the band-passed integrated moment, G (6,N,3) the gyroscopic regressors); j (6,)
+    kg·m² the least-squares estimate (start, and where
     the gyroscopic term is evaluated); sigma (3,) rad/s the fit's per-axis residual scale
     (weights 1/σ²); noise: one realisation set per segment.  Returns (entries (6,) kg·m²,
     :class:`~rig_identification.estimation.errors_in_variables.Compensation`, warnings); when the noise's share of some

@@ -155,10 +155,12 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
     (:func:`prepare_segment`) with a common tensor: residuals and Jacobians stacked,
     sandwich meat and Cramér–Rao information summed over the segments (they are independent).
 
-    noise: one :class:`~rig_identification.estimation.errors_in_variables.NoiseRealisations` per segment (the regressor's
+    noise: one :class:`~rig_identification.estimation.errors_in_variables.NoiseRealisations` per
+    segment (the regressor's
     and output's first-order noise, from replays with fresh noise): the least-squares
     estimate is then compensated for the noise in its input (bias-compensated least squares,
-    :func:`~rig_identification.estimation.errors_in_variables.compensate`; ``result.errors_in_variables``), and the result's series carry the
+    :func:`~rig_identification.estimation.errors_in_variables.compensate`;
+    ``result.errors_in_variables``), and the result's series carry the
     noise realisations of the Jacobian and residual.  When the noise dominates a direction
     (share ≥ 1) the compensation is impossible: the least-squares estimate is kept with a
     warning and ``errors_in_variables.share`` says it.  Raises :class:`IdentificationError`
@@ -282,13 +284,15 @@ def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np
     Two stages, no initial guess: (1) linear least squares in P = J⁻¹ (the gyroscopic
     term evaluated with the previous iterate, three passes from J = 0); (2) from there,
     Levenberg–Marquardt (scipy ``least_squares``, analytic Jacobian) on the physically
-    consistent parametrisation :func:`~rig_identification.model.parametrisation.consistent_from_params`, with the gyroscopic
+    consistent parametrisation
+    :func:`~rig_identification.model.parametrisation.consistent_from_params`, with the gyroscopic
     term of the current J — the prediction-error estimate proper.
 
     t: (N,) s, uniformly sampled (a gap raises).  omega_body: (N,3) rad/s, body axes
     (gyro rotated from IMU axes).  torque: (N,3) N·m about the CG, body axes.
     band_hz: pass band of the zero-phase Butterworth prefilter applied to both sides
-    (default: :func:`~rig_identification.estimation.signals.auto_band` of the gyro).  consistent: run stage 2.  Streams sampled at
+    (default: :func:`~rig_identification.estimation.signals.auto_band` of the gyro).  consistent:
+    run stage 2.  Streams sampled at
     ≥ 2 × :data:`FIT_RATE` are first decimated to about that rate (zero-phase FIR).
     The result's ``series`` holds the band-passed measured and predicted ω.
     Raises :class:`IdentificationError` for too little data, gaps or no motion.

@@ -71,7 +71,8 @@ class InertiaResult:
     weak_directions: list of (relative std, (3,3) unit-norm tensor direction) for the
     poorly determined combinations; residual_rms (3,) rad/s of the band-passed gyro fit;
     series: one :class:`FitSeries` per fitted segment (empty for the thesis baseline).
-    A joint fit (:func:`~rig_identification.estimation.identification.identify_inertia_joint`): t_start/t_end are the earliest start
+    A joint fit (:func:`~rig_identification.estimation.identification.identify_inertia_joint`):
+    t_start/t_end are the earliest start
     and latest end over the segments, n_samples their total, band_hz the union of bands.
     """
 
@@ -131,7 +132,8 @@ class InertiaResult:
     def expressed(self, axes: str = "body"):
         """The mass properties in ``axes`` (a name of :data:`~rig_identification.io.export.AXES`: ``body`` — rig.yaml's,
         REP-103 — or ``sae``, SAE J670), the undetermined entries left out: an
-        :class:`~rig_identification.io.export.Expressed` (:func:`~rig_identification.io.export.express`).  Raises KeyError for an unknown name."""
+        :class:`~rig_identification.io.export.Expressed`
+        (:func:`~rig_identification.io.export.express`).  Raises KeyError for an unknown name."""
         return express(self.mass, self.center_of_gravity, self.inertia, self.inertia_std, self.undetermined, axes)
 
     @property
@@ -152,7 +154,8 @@ class InertiaResult:
 
     def to_dict(self, t0: float | list[float] | None = None) -> dict:
         """The result as JSON (schema :data:`~rig_identification.io.export.INERTIA_SCHEMA`, version
-        :data:`~rig_identification.io.export.INERTIA_SCHEMA_VERSION`; ``units`` per field, :data:`~rig_identification.io.export.UNITS`).
+        :data:`~rig_identification.io.export.INERTIA_SCHEMA_VERSION`; ``units`` per field,
+        :data:`~rig_identification.io.export.UNITS`).
 
         Tensor entries as geometry_msgs/Inertia (off-diagonals the negated products of inertia),
         body axes of rig.yaml; ``products_of_inertia`` with the vehicle-dynamics sign; the tensor

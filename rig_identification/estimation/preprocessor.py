@@ -304,11 +304,14 @@ def preprocess(rig: Rig, track: PoseTrack, sensors) -> WrenchSeries:
     vectorised over the recording.  sensors: :class:`~rig_identification.io.recording.SensorData`.
     """
     t = track.t
-    lo = max([s.t[0] for s in sensors.load_cells.values()] + ([sensors.exciter.t[0]] if sensors.exciter is not None and rig.exciter is not None else []))
-    hi = min([s.t[-1] for s in sensors.load_cells.values()] + ([sensors.exciter.t[-1]] if sensors.exciter is not None and rig.exciter is not None else []))
+    lo = max([s.t[0] for s in sensors.load_cells.values()]
+             + ([sensors.exciter.t[0]] if sensors.exciter is not None and rig.exciter is not None else []))
+    hi = min([s.t[-1] for s in sensors.load_cells.values()]
+             + ([sensors.exciter.t[-1]] if sensors.exciter is not None and rig.exciter is not None else []))
     m = (t >= lo) & (t <= hi)
     t = t[m]
-    tens = np.column_stack([np.interp(t, sensors.load_cells[n].t, sensors.load_cells[n].data[:, 0]) for n in rig.cable_names])
+    tens = np.column_stack([np.interp(t, sensors.load_cells[n].t, sensors.load_cells[n].data[:, 0])
+                            for n in rig.cable_names])
     exc = None
     if rig.exciter is not None and sensors.exciter is not None:
         exc = sensors.exciter.interp(t)

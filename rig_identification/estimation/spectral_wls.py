@@ -274,7 +274,8 @@ def determined(sps: list[Spectra], bins: list | None = None, moments: list | Non
     determines despite the noise in the input — the coordinates along the generalized
     eigenvectors (of the noise moments and the information,
     :func:`~rig_identification.estimation.errors_in_variables.noise_share`) whose noise share is within
-    :data:`~rig_identification.estimation.errors_in_variables.EIV_LIMIT`, blind to the others.  Along the others the compensated step is the
+    :data:`~rig_identification.estimation.errors_in_variables.EIV_LIMIT`, blind to the others.
+    Along the others the compensated step is the
     noise's (a quarter of a damped record whose roll has died away: share 1.0, Ixx moved
     600 kg·m² at "σ" 360), and the consistency checks leave them out.  The identity when the
     spectra carry no realisations."""

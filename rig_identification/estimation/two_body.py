@@ -427,7 +427,8 @@ def start_modes(J_rigid: np.ndarray, frequencies, f_dominant: float, shape: np.n
         share = SEARCH_SHARE if k < len(frequencies) else LOCK_START_SHARE
         L[k, a] = np.sqrt(share * J_rigid[a, a])
     fz = np.asarray(list(frequencies) + [LOCK_HZ] * (n - len(frequencies)), float)
-    m = SprungModes(np.zeros(6), L, fz, np.array([damping] * len(frequencies) + [LOCK_DAMPING] * (n - len(frequencies))))
+    m = SprungModes(np.zeros(6), L, fz,
+                    np.array([damping] * len(frequencies) + [LOCK_DAMPING] * (n - len(frequencies))))
     A = (m.apparent(f_dominant) - m.tensor).real
     for J in (J_rigid - A, J_rigid):
         cand = SprungModes(np.array([J[i, j] for i, j in ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))]), L,

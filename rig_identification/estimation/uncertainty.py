@@ -124,7 +124,8 @@ class NoiseReplays:
 
     bias (6,) kg·m²: the mean over the antithetic pairs of ``½[θ(s + m) + θ(s − m)] − θ(s)``,
     SIMEX's second-order estimate of the bias (Cook & Stefanski 1994; it sees only part of
-    the errors-in-variables bias, which :mod:`rig_identification.estimation.errors_in_variables` removes); draws (K,6) kg·m²: ``½[θ(s + m) − θ(s − m)]`` per pair,
+    the errors-in-variables bias, which :mod:`rig_identification.estimation.errors_in_variables`
+    removes); draws (K,6) kg·m²: ``½[θ(s + m) − θ(s − m)]`` per pair,
     each a draw of the estimate's first-order error at the recording's noise levels (the
     linear term ``L m``; the noise already in the data moves only the point it is taken at)."""
 

@@ -1,7 +1,8 @@
 """Model validation of an inertia fit: a verdict on every result, and honest σ.
 
 A real rig never matches the model exactly.  The prediction-error fit
-(:mod:`rig_identification.estimation.identification`) is unbiased and its σ calibrated *when the rigid-body model holds*;
+(:mod:`rig_identification.estimation.identification`) is unbiased and its σ calibrated *when the
+rigid-body model holds*;
 when it does not (a body that is not rigid, damping, a sensor delay, a drifting gyro, …)
 the tensor can be far off while σ still claims a few percent.  This module tests the fit
 with the standard tools of system identification (L. Ljung, *System Identification:
@@ -170,7 +171,8 @@ def n_segments(duration: float) -> int:
     return 4 if duration >= 80 else 3 if duration >= 40 else 2
 
 
-def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) -> tuple[Check, np.ndarray, np.ndarray]:
+def segment_check(series: list[FitSeries], theta: np.ndarray,
+                  scale: np.ndarray) -> tuple[Check, np.ndarray, np.ndarray]:
     """Cross-validation between time segments (see module docstring).  Each series (one per
     recording) is cut into :func:`n_segments` pieces; each piece's tensor is the full fit
     moved by its own weighted least-squares step.  With K independent pieces of covariance
@@ -211,7 +213,8 @@ def segment_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray)
     return chi2_check("segments", stat, max(dof, 1), detail), ests, np.array(times)
 
 
-def band_check(series: list[FitSeries], theta: np.ndarray, scale: np.ndarray) -> tuple[Check | None, np.ndarray | None, tuple | None]:
+def band_check(series: list[FitSeries], theta: np.ndarray,
+               scale: np.ndarray) -> tuple[Check | None, np.ndarray | None, tuple | None]:
     """Consistency across frequency (see module docstring): the band split where the
     information (trace of the covariance-weighted information of the bins) reaches half,
     both halves fitted, their difference tested.  Returns the check (None when the band
@@ -312,7 +315,8 @@ def hausman(diff: np.ndarray, V1: np.ndarray, V0: np.ndarray) -> tuple[float, in
 
 def whiteness_check(series: list[FitSeries]) -> Check:
     """Fisher's g-test for a spectral line in the residual (see module docstring): the
-    largest ratio of a periodogram ordinate to the noise's level there (:class:`~rig_identification.estimation.spectral_wls.Spectra`'s S:
+    largest ratio of a periodogram ordinate to the noise's level there
+    (:class:`~rig_identification.estimation.spectral_wls.Spectra`'s S:
     the noise realisations' spectrum, the ratio then F(2, 2ν) distributed; without them the
     residual's running median, the ratio exponential), Bonferroni over the bins and axes.
     Statistic and threshold in units of that ratio."""
@@ -513,7 +517,8 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     the Jacobian; ``residual_excess`` and ``bias_correction`` from
     :func:`~rig_identification.pipeline.sigma.refine_uncertainty` are used when set).  accel: the accelerometer
     check's inputs, one per fitted recording.  weight_surplus: see
-    :func:`~rig_identification.pipeline.fit_validation.weight_surplus`.  rig: for the advice on geometry.  Never raises on
+    :func:`~rig_identification.pipeline.fit_validation.weight_surplus`.  rig: for the advice on
+    geometry.  Never raises on
     bad numbers: a fit that produced them is ``not_identifiable``.
     """
     checks: list[Check] = []
@@ -548,7 +553,8 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
         if c is not None:
             checks.append(c)
     if weight_surplus is not None:
-        checks.append(Check("weight", abs(weight_surplus), WEIGHT_TOLERANCE, bool(abs(weight_surplus) <= WEIGHT_TOLERANCE),
+        checks.append(Check("weight", abs(weight_surplus), WEIGHT_TOLERANCE,
+                            bool(abs(weight_surplus) <= WEIGHT_TOLERANCE),
                             f"the load cells carry {100 * weight_surplus:+.3f} % of rig.yaml's weight beyond it"))
     factor = max([1.0] + [c.sigma_factor for c in checks])
     biased: tuple[str, ...] = ()
@@ -598,7 +604,8 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     if bands is not None:
         parts.append(np.abs(bands[0] - bands[1]))
     spread = np.max(parts, axis=0)
-    failed = tuple(c.name for c in checks if c.passed is False and c.name not in ("identifiable", "errors_in_variables"))
+    failed = tuple(c.name for c in checks
+                   if c.passed is False and c.name not in ("identifiable", "errors_in_variables"))
     if bad:
         verdict = "not_identifiable"
     elif failed:

@@ -387,7 +387,8 @@ class IdentifierNode(Node):
         min_duration = float(self.get_parameter("min_duration").value)
         band = self.get_parameter("band_hz").value
         target = self.get_parameter("precision_target_pct").value
-        if isinstance(target, bool) or not isinstance(target, (int, float)) or not (math.isfinite(target) and target > 0):
+        if isinstance(target, bool) or not isinstance(target, (int, float)) \
+                or not (math.isfinite(target) and target > 0):
             raise ValueError(f"parameter precision_target_pct = {target!r}: expected a number of % > 0")
         params = dict(self.fit_params)
         for name in params:

@@ -27,7 +27,8 @@ accuracy.  Clean simulated recordings and the clean references: below 1e-4."""
 
 def force_weight_surplus(rig, quaternion: np.ndarray, force: np.ndarray) -> float:
     """The mean vertical force of the generalized force ``force`` (N,3) N, body axes (the
-    load cells' and the exciter's, weight excluded: :func:`~rig_identification.estimation.preprocessor.generalized_wrench`),
+    load cells' and the exciter's, weight excluded:
+    :func:`~rig_identification.estimation.preprocessor.generalized_wrench`),
     turned to world axes by the tracked orientation ``quaternion`` (N,4) x, y, z, w (body to
     world, at the same stamps), relative to rig.yaml's weight: mean(F_z) / (m g) − 1 (over a
     window of bounded motion the mean vertical acceleration vanishes, so the mean force is the
@@ -72,7 +73,8 @@ def accel_inputs(preps: list[PreparedRecording], result: InertiaResult) -> list[
 
 def accel_input(rig, t: np.ndarray, gyro_body: np.ndarray, torque: np.ndarray, force: np.ndarray,
                 accel_imu: np.ndarray, accel_noise: float, band_hz, replays: tuple = ()) -> AccelInput:
-    """The accelerometer check's input (:class:`~rig_identification.estimation.validation.AccelInput`) of one fit window:
+    """The accelerometer check's input
+    (:class:`~rig_identification.estimation.validation.AccelInput`) of one fit window:
     t (N,) s the fit's stamps; gyro_body (N,3) rad/s, torque (N,3) N·m about the CG and force
     (N,3) N (generalized, weight excluded), body axes, at t; accel_imu (N,3) m/s² the measured
     specific force at t, IMU axes (turned to body axes here); accel_noise m/s² its white σ

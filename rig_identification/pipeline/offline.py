@@ -94,7 +94,8 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     ``model_error`` (:func:`validate_fit`; also when its residual exceeds what the sensors'
     noise explains by :data:`MODEL_ERROR_RATIO`, or the load cells' mean vertical force
     differs from rig.yaml's weight by :data:`WEIGHT_TOLERANCE`), run
-    :func:`~rig_identification.diagnosis.selection.diagnose` on the recording (cut to ``start``/``end``, s from the first
+    :func:`~rig_identification.diagnosis.selection.diagnose` on the recording (cut to
+    ``start``/``end``, s from the first
     IMU sample) and test what it proposes the way every fit is tested.  diagnose fits the
     library's most significant effects jointly, in every combination, and ranks the admissible
     ones by an information criterion (:attr:`~rig_identification.diagnosis.result.Diagnosis.alternatives`);

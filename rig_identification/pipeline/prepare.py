@@ -75,7 +75,8 @@ def with_effect_wrench(prep: PreparedRecording, effect) -> PreparedRecording:
 
 
 def replay_window(rig, s, lo: float, hi: float) -> Replay:
-    """Tracker -> yaw anchoring (:func:`~rig_identification.estimation.yaw_anchor.anchor_yaw`: where the cables leave the
+    """Tracker -> yaw anchoring (:func:`~rig_identification.estimation.yaw_anchor.anchor_yaw`: where
+    the cables leave the
     yaw free) -> preprocessor over the cleaned sensors ``s``; the window [lo, hi] (absolute
     stamps, s).  The one replay every fit of a recording makes (the identification, the
     replays of :func:`~rig_identification.pipeline.sigma.refine_uncertainty`).  Returns a :class:`Replay`."""

@@ -38,20 +38,23 @@ does not explain, weighs more in a short run); the damped reference recording: 9
 
 def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, seed: int = 0) -> InertiaResult:
     """Compensate a prediction-error estimate for the noise in its input and give it the σ
-    that the sensors' noise causes along the recordings' trajectories (:mod:`rig_identification.estimation.uncertainty`).
+    that the sensors' noise causes along the recordings' trajectories
+    (:mod:`rig_identification.estimation.uncertainty`).
 
     preps: the prepared recording(s) the result was fitted to (one, or several for a joint
     fit, in the order of ``result.series``).  The white-noise σ of every stream is
     estimated from each recording (:func:`~rig_identification.estimation.uncertainty.sensor_noise`); tracker,
     preprocessor and identifier (same windows and bands) are re-run with
     :data:`REPLAY_PAIRS` antithetic pairs of fresh noise at those levels
-    (:func:`~rig_identification.estimation.uncertainty.noise_replays`).  Their regressors and outputs are realisations of
+    (:func:`~rig_identification.estimation.uncertainty.noise_replays`).  Their regressors and
+    outputs are realisations of
     the noise the chain puts into the fit — the gyro's through the tracked pose into the
     moment included — and the fit is re-solved with the noise's second moments removed from
     its normal equations (bias-compensated least squares, :mod:`rig_identification.estimation.errors_in_variables`;
     ``errors_in_variables``; ``bias_correction`` the least-squares estimate's bias it removed).  The covariance is the
     linearised propagation of that noise through the same chain
-    (:func:`~rig_identification.estimation.uncertainty.propagated`, recordings combined by :func:`~rig_identification.estimation.prediction.combine`),
+    (:func:`~rig_identification.estimation.uncertainty.propagated`, recordings combined by
+    :func:`~rig_identification.estimation.prediction.combine`),
     mapped onto the compensated estimate, with the compensation's own jackknife σ in
     quadrature: ``crb_std`` holds it.  Where the replays' draws spread significantly more than
     that covariance predicts, :data:`CONFIRM_PAIRS` pairs more are replayed and σ is widened by
@@ -60,7 +63,8 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     ``inertia_std`` and ``covariance`` are that σ unless the
     fit's residual RMS exceeds the one the noise predicts (the replays' residual
     realisations, over the series' interior:
-    :func:`~rig_identification.estimation.spectral_wls.residual_excess`) by more than :data:`MODEL_ERROR_RATIO` on a gyro axis
+    :func:`~rig_identification.estimation.spectral_wls.residual_excess`) by more than
+    :data:`MODEL_ERROR_RATIO` on a gyro axis
     (``residual_excess``): that is model error, and the identifier's sandwich σ (from the
     residuals; always in ``sandwich_std``) is kept.  If the propagation fails (too little
     motion) the result keeps the sandwich σ with a warning.  seed: the replays' noise

@@ -225,5 +225,5 @@ def diagnosis_html(result: InertiaResult) -> tuple[str, dict | None]:
     return html, data
 
 
-__all__ = ["diagnosis_html", "diagnosis_json", "effects_text", "parameters_text", "plus_minus", "channel_unit", "EFFECT_TEXT",
-           "UNITS", "DIAGNOSIS_SCHEMA", "DIAGNOSIS_UNITS"]
+__all__ = ["diagnosis_html", "diagnosis_json", "effects_text", "parameters_text", "plus_minus", "channel_unit",
+           "EFFECT_TEXT", "UNITS", "DIAGNOSIS_SCHEMA", "DIAGNOSIS_UNITS"]

@@ -128,7 +128,8 @@ def mass_properties(result: InertiaResult) -> MassProperties:
 def truth_rows(result: InertiaResult, truth: dict | None) -> dict | None:
     """Errors against truth.yaml, products with the vehicle-dynamics sign: {key: {"truth",
     "error" kg·m², "error_percent" (of the entry for moments, of the largest moment for
-    products), "error_sigma"}} (:func:`~rig_identification.pipeline.offline.compare_to_truth`, signs turned), or None."""
+    products), "error_sigma"}} (:func:`~rig_identification.pipeline.offline.compare_to_truth`, signs
+    turned), or None."""
     if not truth or "inertia_about_cg" not in truth:
         return None
     cmp = compare_to_truth(result, truth)

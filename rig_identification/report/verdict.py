@@ -2,7 +2,8 @@
 (:attr:`~rig_identification.io.verdict.Validation.summary`), what it means for the numbers below, and the checks
 as a table (name, what it tests, statistic, threshold, pass/fail, detail).
 
-Verdicts (:mod:`rig_identification.estimation.validation`): ``ok`` — the σ are calibrated; ``model_error`` — the tensor is
+Verdicts (:mod:`rig_identification.estimation.validation`): ``ok`` — the σ are calibrated;
+``model_error`` — the tensor is
 not trustworthy and its σ is widened to the spread the checks saw (a lower bound of the
 error); ``not_identifiable`` — the entries the recording does not determine are shown as
 "not determined", with what to change on the rig or the excitation.

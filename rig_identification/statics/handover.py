@@ -137,7 +137,8 @@ def cg_result_from_dict(d, src: str) -> SavedCgResult:
     geo = unc.get("geometry_std") if isinstance(unc, dict) else None
     geo = {str(k): float(v) for k, v in geo.items() if isinstance(v, (int, float)) and not isinstance(v, bool)} \
         if isinstance(geo, dict) else {}
-    return SavedCgResult(c, sd, sdn, cov, None if mass is None else float(mass), verdict, int(version), src, geo, failed)
+    return SavedCgResult(c, sd, sdn, cov, None if mass is None else float(mass), verdict, int(version), src, geo,
+                         failed)
 
 
 def check_rig_target(out: Path, force: bool, recordings: list[Path]) -> None:

@@ -74,7 +74,8 @@ class CgResult:
     the gain the dummy mass calibrates; without: the scale's); load_cell_gain (κ: true tension = κ · reading)
     and std, or None; cable_compliance m/N (std): the fitted common compliance of the cables
     without a stiffness in rig.yaml, or None, and cable_stiffness = its inverse N/m (None when
-    the compliance is not significantly > 0, e.g. inextensible cables); states: the fitted :class:`StatePose` of each state;
+    the compliance is not significantly > 0, e.g. inextensible cables); states: the fitted
+    :class:`StatePose` of each state;
     chi2, dof of the fit; weakly_determined: the CG direction the data determine worst
     (axis, direction, std, tilt change); sensitivity: ∂CG/∂(rig.yaml value) of each systematic
     input, the same definition whether the input is fitted with its σ or taken as exact --
