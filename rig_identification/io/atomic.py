@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -38,7 +39,7 @@ def atomic_write_text(path: str | Path, text: str) -> Path:
 
 
 @contextmanager
-def atomic_directory(path: str | Path, overwrite: bool = True):
+def atomic_directory(path: str | Path, overwrite: bool = True) -> Iterator[Path]:
     """Build a folder atomically: ``with atomic_directory(out) as tmp:`` write into ``tmp``
     (a temporary sibling of ``out``); on a clean exit its files are fsynced and it is
     renamed to ``out`` (an existing ``out`` is replaced if ``overwrite``, else

@@ -51,9 +51,9 @@ def find_bad_spans(rig: Rig, sensors: SensorData) -> list[BadSpan]:
             continue
         dt = np.diff(s.t)
         med = float(np.median(dt))
-        for i in np.nonzero(dt > max(SHORT_GAP, 1.5 * med))[0]:
-            spans.append(BadSpan(topic, float(s.t[i]), float(s.t[i + 1]),
-                                 f"gap of {dt[i]:.2f} s (dropped messages)"))
+        for g in np.nonzero(dt > max(SHORT_GAP, 1.5 * med))[0]:
+            spans.append(BadSpan(topic, float(s.t[g]), float(s.t[g + 1]),
+                                 f"gap of {dt[g]:.2f} s (dropped messages)"))
         for k, col in enumerate(s.data.T):
             if np.ptp(col) == 0:
                 continue

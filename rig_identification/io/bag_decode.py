@@ -29,13 +29,16 @@ exactly, errors included.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import NamedTuple
+from typing import NamedTuple, TypeAlias
 
 import numpy as np
 
 IMU_TYPE = "sensor_msgs/msg/Imu"
 WRENCH_TYPE = "geometry_msgs/msg/WrenchStamped"
 VECTOR_TYPE = "geometry_msgs/msg/Vector3Stamped"
+
+#: What the readers take as a buffer of serialized messages: bytes-like, or a (B,) uint8 array.
+BytesLike: TypeAlias = bytes | bytearray | memoryview | np.ndarray
 
 
 def _xyz(name: str) -> tuple[str, ...]:
@@ -94,7 +97,7 @@ def payload_offset(frame_len: np.ndarray | int) -> np.ndarray | int:
     return 4 + (12 + frame_len + 7) // 8 * 8
 
 
-def read_structs(buf, offsets: np.ndarray, dtype: np.dtype, checked: bool = True) -> np.ndarray:
+def read_structs(buf: BytesLike, offsets: np.ndarray, dtype: np.dtype, checked: bool = True) -> np.ndarray:
     """The packed struct ``dtype`` found at each byte offset of ``buf``: (n,) array of dtype.
 
     buf: bytes-like or (B,) uint8 array.  offsets: (n,) int, any byte alignment (a view
@@ -103,7 +106,7 @@ def read_structs(buf, offsets: np.ndarray, dtype: np.dtype, checked: bool = True
     Raises ValueError (checked) or IndexError if a struct would reach outside buf.
     """
     offsets = np.asarray(offsets, np.int64)
-    size = memoryview(buf).nbytes
+    size = memoryview(buf).nbytes  # type: ignore[arg-type]  # numpy stubs: ndarray.__buffer__ only on Python >= 3.12
     if checked and len(offsets) and (offsets.min() < 0 or offsets.max() + dtype.itemsize > size):
         raise ValueError(f"struct of {dtype.itemsize} bytes outside the buffer of {size} bytes")
     if size < dtype.itemsize:
@@ -111,7 +114,8 @@ def read_structs(buf, offsets: np.ndarray, dtype: np.dtype, checked: bool = True
     # gathered as plain bytes (numpy copies void items with memcpy; a structured gather
     # goes field by field, 3x slower), then viewed as the struct
     raw = np.dtype((np.void, dtype.itemsize))
-    return np.ndarray((size - dtype.itemsize + 1,), raw, buf, 0, (1,))[offsets].view(dtype)
+    structs: np.ndarray = np.ndarray((size - dtype.itemsize + 1,), raw, buf, 0, (1,))[offsets].view(dtype)
+    return structs
 
 
 def _frame_ok(frame_ids: np.ndarray) -> np.ndarray:
@@ -136,7 +140,7 @@ def _frame_ok(frame_ids: np.ndarray) -> np.ndarray:
     return ok
 
 
-def decode_stamped(buf, offsets: np.ndarray, sizes: np.ndarray, msgtype: str,
+def decode_stamped(buf: BytesLike, offsets: np.ndarray, sizes: np.ndarray, msgtype: str,
                    fields: Sequence[str]) -> Decoded:
     """Header stamps and float64 ``fields`` of n serialized messages of ``msgtype``.
 
@@ -164,7 +168,7 @@ def decode_stamped(buf, offsets: np.ndarray, sizes: np.ndarray, msgtype: str,
     decoded = np.zeros(n, bool)
     if not n:
         return Decoded(rows, decoded)
-    nbytes = memoryview(buf).nbytes
+    nbytes = memoryview(buf).nbytes  # type: ignore[arg-type]  # numpy stubs: ndarray.__buffer__ only on Python >= 3.12
     if offsets.min() < 0 or (offsets + sizes).max() > nbytes:
         raise ValueError(f"message bytes outside the buffer of {nbytes} bytes")
     # every read below stays inside its message: header (sizes >= 16), frame id and values

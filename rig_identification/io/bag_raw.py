@@ -30,7 +30,7 @@ import struct
 from collections.abc import Callable, Iterator, Sequence
 from itertools import islice
 from operator import attrgetter
-from typing import NamedTuple
+from typing import Any, BinaryIO, NamedTuple
 
 import numpy as np
 from rosbags.highlevel import AnyReader
@@ -40,12 +40,12 @@ from rosbags.rosbag2.reader import DirectoryReader
 from rosbags.rosbag2.storage_mcap import ChunkInfo, McapReader, decompress
 from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
 
-from .bag_decode import read_structs
+from .bag_decode import BytesLike, read_structs
 
-#: decode(topic, buf, offsets, sizes) -> rows: buf (B,) uint8 holds n serialized messages
-#: (CDR with encapsulation header), message i at ``buf[offsets[i]:offsets[i] + sizes[i]]``;
+#: decode(topic, buf, offsets, sizes) -> rows: buf (B,) uint8 array or bytes holds n serialized
+#: messages (CDR with encapsulation header), message i at ``buf[offsets[i]:offsets[i] + sizes[i]]``;
 #: returns an (n, c) float array, one row per message in the given order.
-Decode = Callable[[str, np.ndarray, np.ndarray, np.ndarray], np.ndarray]
+Decode = Callable[[str, BytesLike, np.ndarray, np.ndarray], np.ndarray]
 
 BATCH = 16384            # messages per block on the row paths (bounds the raw buffer and the row tuples)
 BATCH_BYTES = 1 << 22    # decompressed MCAP chunk bytes decoded together (bounds the raw buffer: 4 MiB)
@@ -100,7 +100,7 @@ def storage_files(reader: AnyReader, connections: Sequence[Connection]) -> list[
     return files
 
 
-def read_chunk(f, chunk: ChunkInfo) -> tuple[bytes, bytes]:
+def read_chunk(f: BinaryIO, chunk: ChunkInfo) -> tuple[bytes, bytes]:
     """The decompressed records of ``chunk`` and its message index area, as rosbags reads
     them (compression, sizes and offsets from the chunk index; CRC from the chunk record).
 
@@ -240,13 +240,15 @@ def _read_mcap(files: list[StorageFile], decode: Decode, batch_bytes: int) -> di
     for mf in files:   # rosbags reads the files of a bag one after the other
         if not mf.topics:
             continue
+        storage = mf.storage
+        assert isinstance(storage, McapReader)   # read_topics calls this for MCAP storage files only
         lut = np.full(max(mf.topics) + 1, -1, np.int64)   # channel id -> topic index
         for cid, t in mf.topics.items():
             lut[cid] = topics.index(t)
-        rank = {c.chunk_start_offset: i for i, c in enumerate(sorted(mf.storage.chunks,
+        rank = {c.chunk_start_offset: i for i, c in enumerate(sorted(storage.chunks,
                                                                      key=lambda c: c.chunk_start_offset))}
-        with open(mf.storage.path, "rb") as f:
-            for chunk in mf.storage.chunks:
+        with storage.path.open("rb") as f:
+            for chunk in storage.chunks:
                 # the chunks rosbags' McapReader.messages reads: those indexing a wanted channel
                 if not any(chunk.channel_count.get(cid, 0) for cid in mf.topics):
                     continue
@@ -271,7 +273,7 @@ def _read_mcap(files: list[StorageFile], decode: Decode, batch_bytes: int) -> di
     return {t: np.concatenate(r) for t, r in out.items() if r}
 
 
-def _read_rows(rows: Iterator[tuple], topic_of: Callable[[object], str], decode: Decode,
+def _read_rows(rows: Iterator[tuple[Any, ...]], topic_of: Callable[[Any], str], decode: Decode,
                batch: int) -> dict[str, list[np.ndarray]]:
     """Decode ``(key, timestamp, data)`` rows in blocks of ``batch``: per block one joined
     buffer, the topic of each row ``topic_of(key)``; C-level loops only (zip, map, join)."""
@@ -299,11 +301,14 @@ def _read_sqlite(files: list[StorageFile], decode: Decode, batch: int) -> dict[s
         if not sf.topics:
             continue
         ids = tuple(sf.topics)
+        storage = sf.storage
+        # read_topics calls this for sqlite3 storage files with a connection only (an open reader's)
+        assert isinstance(storage, Sqlite3Reader) and storage.dbconn is not None
         # the query of rosbags' Sqlite3Reader.messages, whose row order we must keep
         query = ("SELECT topics.id,messages.timestamp,messages.data FROM messages JOIN topics ON "
                  f"messages.topic_id=topics.id WHERE topics.id IN ({','.join('?' for _ in ids)}) "
                  "ORDER BY timestamp")
-        for topic, rows in _read_rows(iter(sf.storage.dbconn.execute(query, ids)), sf.topics.__getitem__,
+        for topic, rows in _read_rows(iter(storage.dbconn.execute(query, ids)), sf.topics.__getitem__,
                                       decode, batch).items():
             out.setdefault(topic, []).extend(rows)
     return out

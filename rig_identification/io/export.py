@@ -26,11 +26,14 @@ text of them, in the printouts and the core's warnings).  Pure numpy; no ROS.
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
 import yaml
+from numpy.typing import ArrayLike
 
 from .verdict import KEYS
 
@@ -52,7 +55,7 @@ INDEX = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 
 NOT_DETERMINED = "not determined"
 
 
-def tensor_from_option(values) -> np.ndarray:
+def tensor_from_option(values: Iterable[float]) -> np.ndarray:
     """(3,3) tensor from an option's six numbers in :data:`ORDER` (ixx iyy izz ixy ixz iyz)."""
     d = dict(zip(ORDER, (float(v) for v in values)))
     J = np.empty((3, 3))
@@ -61,7 +64,7 @@ def tensor_from_option(values) -> np.ndarray:
     return J
 
 
-def entries_from_option(values) -> np.ndarray:
+def entries_from_option(values: Iterable[float]) -> np.ndarray:
     """(6,) entries in :data:`~rig_identification.io.verdict.KEYS` order (ixx ixy ixz iyy iyz izz) from an option's
     six numbers in :data:`ORDER`."""
     d = dict(zip(ORDER, (float(v) for v in values)))
@@ -109,7 +112,7 @@ def principal(J: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return moments, axes
 
 
-def finite_or_none(x) -> float | None:
+def finite_or_none(x: float | np.floating | None) -> float | None:
     """A float for JSON/YAML: None when ``x`` is None or not finite (never NaN)."""
     return None if x is None or not np.isfinite(x) else float(x)
 
@@ -130,7 +133,7 @@ class Expressed:
     tensor_cg: np.ndarray
     tensor_origin: np.ndarray
     std: np.ndarray
-    undetermined: frozenset
+    undetermined: frozenset[str]
     principal: np.ndarray | None
     principal_axes: np.ndarray | None
 
@@ -142,7 +145,7 @@ class Expressed:
         v = finite_or_none((self.tensor_cg if about == "cg" else self.tensor_origin)[i, j])
         return None if v is None else v + 0.0     # + 0.0: a sign flip of 0 prints no "-0.00"
 
-    def entries(self, about: str = "cg") -> dict:
+    def entries(self, about: str = "cg") -> dict[str, float | None]:
         """{ixx … iyz: value or None} in :data:`ORDER`."""
         return {k: self.entry(k, about) for k in ORDER}
 
@@ -150,24 +153,26 @@ class Expressed:
         """σ of entry ``k`` (the same for the product, whose sign alone differs); None when undetermined."""
         return None if k in self.undetermined else finite_or_none(self.std[KEYS.index(k)])
 
-    def products(self, about: str = "cg") -> dict:
+    def products(self, about: str = "cg") -> dict[str, float | None]:
         """Products of inertia with the vehicle-dynamics sign: {"Ixy": −ixy, "Ixz", "Iyz"} (None
         when undetermined)."""
-        out = {}
+        out: dict[str, float | None] = {}
         for k, name in PRODUCTS.items():
             v = self.entry(k, about)
             out[name] = None if v is None else -v + 0.0    # + 0.0: no negative zero
         return out
 
-    def principal_dict(self) -> dict | None:
+    def principal_dict(self) -> dict[str, Any] | None:
         """{"moments": [3] ascending, "axes": [[x, y, z] per moment]} or None (not determined)."""
         if self.principal is None:
             return None
+        assert self.principal_axes is not None   # set together with principal
         return {"moments": [float(x) for x in self.principal],
                 "axes": [[float(x) for x in self.principal_axes[:, i]] for i in range(3)]}
 
 
-def express(mass: float, cg, J, std, undetermined=(), axes: str | Axes = "body") -> Expressed:
+def express(mass: float, cg: ArrayLike, J: ArrayLike, std: ArrayLike, undetermined: Iterable[str] = (),
+            axes: str | Axes = "body") -> Expressed:
     """The mass properties (``mass`` kg, ``cg`` (3,) m and ``J`` (3,3) kg·m² about it in rig.yaml's
     body axes, ``std`` (6,) KEYS order, ``undetermined`` entries) in ``axes`` (name or
     :class:`Axes`): see :class:`Expressed`."""
@@ -214,7 +219,8 @@ def urdf_inertial(ex: Expressed, fmt: str = ".7g") -> str:
 UNITS = {
     "mass": "kg", "center_of_gravity": "m, body frame", "inertia_about_cg": "kg·m², body axes, tensor entries",
     "inertia_about_origin": "kg·m², body axes, tensor entries", "inertia_std": "kg·m²",
-    "inertia_crb_std": "kg·m²", "inertia_sandwich_std": "kg·m²", "bias_correction": "kg·m²: the least-squares estimate's bias removed",
+    "inertia_crb_std": "kg·m²", "inertia_sandwich_std": "kg·m²",
+    "bias_correction": "kg·m²: the least-squares estimate's bias removed",
     "errors_in_variables.noise_share": "1: share of the fit's input that is noise, along its noisiest direction",
     "errors_in_variables.direction": "1: unit vector of tensor entries", "errors_in_variables.correction_std": "kg·m²",
     "errors_in_variables.second_order_std": "kg·m²",
@@ -241,7 +247,8 @@ UNITS = {
     "validation.spread_std": "kg·m²", "validation.sigma_factor": "1",
     "validation.checks.statistic": "as its threshold (the check's detail says what it measures)",
 }
-"""Units of the fields of the inertia JSON (``"units"`` of :meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`)."""
+"""Units of the fields of the inertia JSON (``"units"`` of
+:meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`)."""
 
 
 # --- effect parameters with their units ------------------------------------------------------------
@@ -272,7 +279,7 @@ definition: the CLI, the JSON and the diagnosis report take theirs from it); a p
 ``stream``, ``cable``, ``sensor``) has none, "" is dimensionless."""
 
 
-def value_text(v, spec: str = ".4g") -> str:
+def value_text(v: Any, spec: str = ".4g") -> str:
     """A parameter value (number, list, dict, name) as text."""
     if isinstance(v, dict):
         return "{" + ", ".join(f"{k}: {value_text(x, spec)}" for k, x in v.items()) + "}"
@@ -283,8 +290,9 @@ def value_text(v, spec: str = ".4g") -> str:
     return str(v)
 
 
-def effect_text(e: dict) -> str:
-    """``name = v ± σ unit, …`` of one effect (an entry of :attr:`~rig_identification.diagnosis.result.Diagnosis.effects`,
+def effect_text(e: dict[str, Any]) -> str:
+    """``name = v ± σ unit, …`` of one effect (an entry of
+    :attr:`~rig_identification.diagnosis.result.Diagnosis.effects`,
     a dict with ``name``, ``parameters`` and optionally ``parameters_std``), units from
     :data:`EFFECT_UNITS`: the one text of effect parameters, in the CLI's printouts and in the
     warning of a diagnosed model error (:func:`~rig_identification.pipeline.offline.with_diagnosis`)."""
@@ -297,17 +305,17 @@ def effect_text(e: dict) -> str:
     return ", ".join(out)
 
 
-def with_effect_units(diagnosis: dict) -> dict:
+def with_effect_units(diagnosis: dict[str, Any]) -> dict[str, Any]:
     """``diagnosis`` (the JSON's ``"diagnosis"``) with ``"units"`` beside the ``"parameters"``
     of every effect and hypothesis: :data:`EFFECT_UNITS` of its name (a parameter without
     one is a name or dimensionless)."""
-    def unit(e):
-        return {**e, "units": dict(EFFECT_UNITS.get(e.get("name"), {}))} if isinstance(e, dict) and "name" in e else e
+    def unit(e: Any) -> Any:
+        return {**e, "units": dict(EFFECT_UNITS.get(e["name"], {}))} if isinstance(e, dict) and "name" in e else e
     return {**diagnosis, **{k: [unit(e) for e in diagnosis[k]] for k in ("effects", "hypotheses")
                             if isinstance(diagnosis.get(k), list)}}
 
 
-def axes_block(ex: Expressed) -> dict:
+def axes_block(ex: Expressed) -> dict[str, Any]:
     """The mass properties of ``ex`` for a JSON block in other axes (``"sae_j670"`` of
     ``rig-identify inertia --json --axes sae``): the same fields as the body-axes ones."""
     pm = ex.principal_dict()
@@ -319,7 +327,7 @@ def axes_block(ex: Expressed) -> dict:
 
 
 def export_dict(ex: Expressed, *, verdict: str | None, summary: str | None, std_kind: str, sources: list[str],
-                window: dict | None, created: str, version: str) -> dict:
+                window: dict[str, Any] | None, created: str, version: str) -> dict[str, Any]:
     """The content of the YAML export (:func:`yaml_text`): schema, conventions, the mass
     properties in ``ex``'s axes (tensor about the CG and the origin, σ, products with the
     vehicle-dynamics sign, principal moments and axes; undetermined entries null), the verdict,
@@ -341,13 +349,15 @@ def export_dict(ex: Expressed, *, verdict: str | None, summary: str | None, std_
     }
 
 
-def yaml_text(content: dict) -> str:
+def yaml_text(content: dict[str, Any]) -> str:
     """YAML of :func:`export_dict`'s content, with a comment line naming the schema."""
-    return (f"# {content['schema']} v{content['schema_version']}: mass properties identified by rig-identify "
-            "inertia\n" + yaml.safe_dump(content, sort_keys=False, allow_unicode=True, default_flow_style=None))
+    text: str = (f"# {content['schema']} v{content['schema_version']}: mass properties identified by rig-identify "
+                 "inertia\n" + yaml.safe_dump(content, sort_keys=False, allow_unicode=True, default_flow_style=None))
+    return text
 
 
-__all__ = ["AXES", "Axes", "SYMBOL", "EFFECT_UNITS", "with_effect_units", "ENTRY_NAMES", "EXPORT_SCHEMA", "EXPORT_SCHEMA_VERSION", "Expressed",
+__all__ = ["AXES", "Axes", "SYMBOL", "EFFECT_UNITS", "with_effect_units", "ENTRY_NAMES", "EXPORT_SCHEMA",
+           "EXPORT_SCHEMA_VERSION", "Expressed",
            "INERTIA_SCHEMA", "INERTIA_SCHEMA_VERSION", "NOT_DETERMINED", "ORDER", "PRODUCTS", "UNITS", "VEHICLE_SIGN",
            "axes_block", "convention_lines", "effect_text", "entries_from_option", "export_dict", "express",
            "finite_or_none", "parallel_axis", "principal", "sign_in", "tensor_from_option", "urdf_inertial",

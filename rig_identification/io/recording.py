@@ -22,15 +22,22 @@ Errors: :class:`RecordingError` (a ``ValueError``) naming the file and topic.
 """
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, Literal, overload
 
 import numpy as np
 import yaml
 
-from .bag_decode import IMU_TYPE, TYPE_HASHES, VECTOR_TYPE, WRENCH_TYPE, decode_stamped
+from .bag_decode import IMU_TYPE, TYPE_HASHES, VECTOR_TYPE, WRENCH_TYPE, BytesLike, decode_stamped
 from .bag_raw import read_topics
 from .rig import Rig, Topics, load_rig
+
+if TYPE_CHECKING:
+    from rosbags.highlevel import AnyReader
+    from rosbags.interfaces import Connection
+    from rosbags.typesys.store import Typestore
 
 # the streams' own names (docs/recording_format.md); a bag recorded under other names maps them
 # with rig.yaml ``topics`` (:class:`~rig_identification.io.rig.Topics`)
@@ -51,7 +58,7 @@ class TimeSeries:
     t: np.ndarray
     data: np.ndarray
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         self.t = np.asarray(self.t, float)
         self.data = np.asarray(self.data, float)
         if self.data.ndim == 1:
@@ -99,7 +106,7 @@ class Recording:
 
     rig: Rig
     sensors: SensorData
-    truth: dict | None = None
+    truth: dict[str, Any] | None = None
     path: Path | None = None
     warnings: list[str] = field(default_factory=list)
 
@@ -114,17 +121,18 @@ class Recording:
 QUIET_DISORDER = 0.99
 
 
-def typestore():
+def typestore() -> Typestore:
     """rosbags' ROS 2 Jazzy type store (message classes and CDR serialisation)."""
     from rosbags.typesys import Stores, get_typestore
     return get_typestore(Stores.ROS2_JAZZY)
 
 
-def _stamp(msg) -> float:
-    return msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+def _stamp(msg: Any) -> float:
+    stamp: float = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
+    return stamp
 
 
-def _message_row(topic: str, msg) -> tuple[float, ...]:
+def _message_row(topic: str, msg: Any) -> tuple[float, ...]:
     """One row of a topic's samples from a deserialised message: stamp, s, then the values
     :func:`_bulk_fields` names, in the same order."""
     if topic == IMU_TOPIC:
@@ -149,7 +157,7 @@ def _bulk_fields(topic: str) -> tuple[str, ...]:
     return ("wrench.force.z",)
 
 
-def _deserialize(reader, bag: Path, conn_topic: str, msgtype: str, raw) -> object:
+def _deserialize(reader: AnyReader, bag: Path, conn_topic: str, msgtype: str, raw: bytes) -> object:
     from rosbags.highlevel import AnyReaderError
     try:
         return reader.deserialize(raw, msgtype)
@@ -157,7 +165,7 @@ def _deserialize(reader, bag: Path, conn_topic: str, msgtype: str, raw) -> objec
         raise RecordingError(f"{bag}: topic {conn_topic}: cannot decode a {msgtype} message ({e})") from None
 
 
-def _open_reader(bag: Path, bulk: bool):
+def _open_reader(bag: Path, bulk: bool) -> AnyReader:
     """An open AnyReader.  Bulk reading builds the default typestore (0.1 s) only for a
     bag without embedded message definitions; the per-message path builds it always, as
     it always has."""
@@ -174,17 +182,19 @@ def _open_reader(bag: Path, bulk: bool):
     return reader
 
 
-def _per_message_rows(reader, bag: Path, conns, canon: dict[str, str]) -> dict[str, list]:
+def _per_message_rows(reader: AnyReader, bag: Path, conns: Sequence[Connection],
+                      canon: dict[str, str]) -> dict[str, list[tuple[float, ...]]]:
     """Rows of every wanted message, deserialised one at a time (the reference path); keys the
     bag's topic names, ``canon`` maps them to the streams' own."""
-    columns: dict[str, list] = {}
+    columns: dict[str, list[tuple[float, ...]]] = {}
     for conn, _, raw in reader.messages(connections=conns):
         msg = _deserialize(reader, bag, conn.topic, conn.msgtype, raw)
         columns.setdefault(conn.topic, []).append(_message_row(canon[conn.topic], msg))
     return columns
 
 
-def _bulk_rows(reader, bag: Path, conns, canon: dict[str, str]) -> dict[str, np.ndarray]:
+def _bulk_rows(reader: AnyReader, bag: Path, conns: Sequence[Connection],
+               canon: dict[str, str]) -> dict[str, np.ndarray]:
     """Rows of every wanted message, decoded in bulk (:mod:`rig_identification.io.bag_decode`) over the raw bytes
     (:mod:`rig_identification.io.bag_raw`); messages the bulk decoder does not vouch for, and topics whose type
     definition in the bag is not the standard one, are deserialised one at a time."""
@@ -196,14 +206,14 @@ def _bulk_rows(reader, bag: Path, conns, canon: dict[str, str]) -> dict[str, np.
         except Exception:  # noqa: BLE001 - an incomplete definition: rosbags will say what is wrong
             standard[mtype] = False
 
-    def decode(topic: str, buf: np.ndarray, offsets: np.ndarray, sizes: np.ndarray) -> np.ndarray:
+    def decode(topic: str, buf: BytesLike, offsets: np.ndarray, sizes: np.ndarray) -> np.ndarray:
         mtype = msgtypes[topic]
         if standard[mtype]:
             rows, done = decode_stamped(buf, offsets, sizes, mtype, _bulk_fields(canon[topic]))
         else:
             rows = np.full((len(offsets), 1 + len(_bulk_fields(canon[topic]))), np.nan)
             done = np.zeros(len(offsets), bool)
-        view = memoryview(buf)
+        view = memoryview(buf)  # type: ignore[arg-type]  # numpy stubs: ndarray.__buffer__ only on Python >= 3.12
         for i in np.nonzero(~done)[0].tolist():
             raw = bytes(view[int(offsets[i]):int(offsets[i] + sizes[i])])
             rows[i] = _message_row(canon[topic], _deserialize(reader, bag, topic, mtype, raw))
@@ -257,6 +267,7 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
                                          f"{c.topic[len(topics.load_cells):]!r}, which rig.yaml does not list "
                                          f"(rig.yaml cables: {', '.join(cable_names)}); rig.yaml and the bag "
                                          "do not describe the same rig")
+            rows: Mapping[str, np.ndarray | list[tuple[float, ...]]]
             if not conns:
                 rows = {}
             elif bulk and reader.is2:
@@ -270,6 +281,12 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
         raise
     except Exception as e:  # rosbags raises several exception types for broken bags
         raise RecordingError(f"{bag}: cannot read the bag ({type(e).__name__}: {e})") from None
+
+    @overload
+    def series(topic: str, required: Literal[True]) -> TimeSeries: ...
+
+    @overload
+    def series(topic: str, required: bool) -> TimeSeries | None: ...
 
     def series(topic: str, required: bool) -> TimeSeries | None:
         rows = columns.get(topic)
@@ -312,7 +329,14 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
 
 def crop(sensors: SensorData, t0: float, t1: float) -> SensorData:
     """The sensor streams within [t0, t1] (stamps in s)."""
-    w = lambda s: None if s is None else s.window(t0, t1)  # noqa: E731
+    @overload
+    def w(s: TimeSeries) -> TimeSeries: ...
+
+    @overload
+    def w(s: TimeSeries | None) -> TimeSeries | None: ...
+
+    def w(s: TimeSeries | None) -> TimeSeries | None:
+        return None if s is None else s.window(t0, t1)
     return SensorData(w(sensors.imu), {n: w(s) for n, s in sensors.load_cells.items()},
                       w(sensors.exciter), w(sensors.inclinometer))
 

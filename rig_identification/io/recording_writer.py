@@ -7,7 +7,9 @@ written with ``rosbags``; the bag timestamp of each message is its header stamp.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import yaml
@@ -21,9 +23,13 @@ from .recording import (
     LOAD_CELL_PREFIX,
     RecordingError,
     SensorData,
+    TimeSeries,
     typestore,
 )
 from .rig import Rig, dump_rig
+
+if TYPE_CHECKING:
+    from rosbags.interfaces import Connection
 
 
 def split_stamp(t: float) -> tuple[int, int]:
@@ -35,34 +41,34 @@ def split_stamp(t: float) -> tuple[int, int]:
     return int(sec), nsec
 
 
-def _header(types, t: float, frame: str):
+def _header(types: Mapping[str, Any], t: float, frame: str) -> Any:
     sec, nsec = split_stamp(t)
     return types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
                                         frame_id=frame)
 
 
-def sensor_messages(rig: Rig, sensors: SensorData):
+def sensor_messages(rig: Rig, sensors: SensorData) -> Iterator[tuple[str, str, float, Any]]:
     """Yield ``(topic, msgtype, stamp_s, message)`` for every sample, in stamp order.
 
     Messages are rosbags typestore objects, ready for ``typestore.serialize_cdr``.
     """
     ts = typestore()
-    T = ts.types
+    T: Mapping[str, Any] = ts.types     # message classes by type name (rosbags builds them at run time)
     Vec, Quat = T["geometry_msgs/msg/Vector3"], T["geometry_msgs/msg/Quaternion"]
-    streams = []
+    streams: list[tuple[str, str, TimeSeries, Callable[[float, np.ndarray], Any]]] = []
     zero_cov = np.zeros(9)
     orient_cov = np.zeros(9)
     orient_cov[0] = -1.0
 
-    def imu_msg(t, row):
+    def imu_msg(t: float, row: np.ndarray) -> Any:
         return T[IMU_TYPE](header=_header(T, t, "imu"), orientation=Quat(x=0.0, y=0.0, z=0.0, w=1.0),
                            orientation_covariance=orient_cov,
                            angular_velocity=Vec(x=row[0], y=row[1], z=row[2]), angular_velocity_covariance=zero_cov,
                            linear_acceleration=Vec(x=row[3], y=row[4], z=row[5]),
                            linear_acceleration_covariance=zero_cov)
 
-    def wrench_msg(frame, fx, fy, fz):
-        def f(t, row):
+    def wrench_msg(frame: str, fx: int | None, fy: int | None, fz: int | None) -> Callable[[float, np.ndarray], Any]:
+        def f(t: float, row: np.ndarray) -> Any:
             r = [0.0, 0.0, 0.0]
             vals = (fx, fy, fz)
             for i, v in enumerate(vals):
@@ -73,7 +79,7 @@ def sensor_messages(rig: Rig, sensors: SensorData):
                                                                         torque=Vec(x=0.0, y=0.0, z=0.0)))
         return f
 
-    def incl_msg(t, row):
+    def incl_msg(t: float, row: np.ndarray) -> Any:
         return T[VECTOR_TYPE](header=_header(T, t, "inclinometer"), vector=Vec(x=row[0], y=row[1], z=0.0))
 
     streams.append((IMU_TOPIC, IMU_TYPE, sensors.imu, imu_msg))
@@ -83,7 +89,7 @@ def sensor_messages(rig: Rig, sensors: SensorData):
         streams.append((EXCITER_TOPIC, WRENCH_TYPE, sensors.exciter, wrench_msg("exciter", 0, 1, None)))
     if sensors.inclinometer is not None:
         streams.append((INCLINOMETER_TOPIC, VECTOR_TYPE, sensors.inclinometer, incl_msg))
-    events = []
+    events: list[tuple[float, int, int]] = []
     for k, (_, _, s, _) in enumerate(streams):
         events.extend((float(t), k, i) for i, t in enumerate(s.t))
     events.sort()
@@ -104,7 +110,7 @@ def write_bag(bag_dir: Path, rig: Rig, sensors: SensorData, storage: str = "mcap
     plugin = {"mcap": StoragePlugin.MCAP, "sqlite3": StoragePlugin.SQLITE3}[storage]
     n = 0
     with Writer(bag_dir, version=9, storage_plugin=plugin) as w:
-        conns = {}
+        conns: dict[str, Connection] = {}
         for topic, mtype, t, msg in sensor_messages(rig, sensors):
             if topic not in conns:
                 conns[topic] = w.add_connection(topic, mtype, typestore=ts)
@@ -113,7 +119,7 @@ def write_bag(bag_dir: Path, rig: Rig, sensors: SensorData, storage: str = "mcap
     return n
 
 
-def write_recording(out: str | Path, rig: Rig, sensors: SensorData, truth: dict | None = None,
+def write_recording(out: str | Path, rig: Rig, sensors: SensorData, truth: dict[str, Any] | None = None,
                     storage: str = "mcap", rig_comment: str | None = None, overwrite: bool = False) -> Path:
     """Write a recording folder atomically: it appears whole at ``out`` or not at all.
 

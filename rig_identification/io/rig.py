@@ -18,12 +18,14 @@ import difflib
 import itertools
 import math
 import re
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import yaml
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from .export import AXES
@@ -135,7 +137,7 @@ class Rig:
     inclinometer: Mount | None = None
     dummy_mass: DummyMass | None = None
     source: str = "<memory>"
-    extra: dict = field(default_factory=dict)
+    extra: dict[str, Any] = field(default_factory=dict)
     name: str | None = None
     output_axes: str | None = None
     topics: Topics = Topics()
@@ -172,18 +174,18 @@ class Rig:
                            "(estimate it first with the static experiment: rig-identify cg)")
         return self.center_of_gravity
 
-    def with_cg(self, cg) -> "Rig":
+    def with_cg(self, cg: ArrayLike) -> "Rig":
         """A copy with ``body.center_of_gravity`` replaced, (3,) body frame, m."""
         return replace(self, center_of_gravity=np.asarray(cg, float))
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """The rig.yaml mapping (inverse of :func:`rig_from_dict`)."""
-        def vec(v):
+        def vec(v: Iterable[float]) -> list[float]:
             return [float(x) for x in v]
-        cables = []
+        cables: list[dict[str, Any]] = []
         for c in self.cables:
-            d = {"name": c.name, "ceiling_anchor": vec(c.ceiling_anchor),
-                 "body_anchor": vec(c.body_anchor), "length": float(c.length)}
+            d: dict[str, Any] = {"name": c.name, "ceiling_anchor": vec(c.ceiling_anchor),
+                                 "body_anchor": vec(c.body_anchor), "length": float(c.length)}
             if c.stiffness is not None:
                 d["stiffness"] = float(c.stiffness)
             cables.append(d)
@@ -211,7 +213,7 @@ class Rig:
 
 # --- validation helpers -------------------------------------------------------------
 
-def _get(d: Any, key: str, where: str, src: str, required: bool = True):
+def _get(d: Any, key: str, where: str, src: str, required: bool = True) -> Any:
     if not isinstance(d, dict):
         raise RigError(f"{src}: {where} must be a mapping, got {type(d).__name__}")
     if key not in d or d[key] is None:
@@ -224,7 +226,7 @@ def _get(d: Any, key: str, where: str, src: str, required: bool = True):
 FLOAT_12 = re.compile(r"^[-+]?(\.[0-9]+|[0-9]+(\.[0-9]*)?)([eE][-+]?[0-9]+)?$")
 
 
-def _number(v, name: str, src: str, positive: bool = False, nonneg: bool = False) -> float:
+def _number(v: Any, name: str, src: str, positive: bool = False, nonneg: bool = False) -> float:
     # PyYAML implements YAML 1.1, which reads "5.0e6" (valid YAML 1.2 float) as a string
     if isinstance(v, str) and FLOAT_12.match(v.strip()):
         v = float(v)
@@ -240,13 +242,13 @@ def _number(v, name: str, src: str, positive: bool = False, nonneg: bool = False
     return x
 
 
-def _vector(v, name: str, src: str, n: int = 3) -> np.ndarray:
+def _vector(v: Any, name: str, src: str, n: int = 3) -> np.ndarray:
     if not isinstance(v, (list, tuple)) or len(v) != n:
         raise RigError(f"{src}: field {name} must be a list of {n} numbers, got {v!r}")
     return np.array([_number(x, f"{name}[{i}]", src) for i, x in enumerate(v)], float)
 
 
-def _mount(d, name: str, src: str, with_position: bool = True) -> Mount:
+def _mount(d: Any, name: str, src: str, with_position: bool = True) -> Mount:
     if isinstance(d, dict):
         _check_fields(d, name, name, src)
     pos = _vector(_get(d, "position", name, src), f"{name}.position", src) if with_position else np.zeros(3)
@@ -278,7 +280,7 @@ LARGEST_MASS = 1.0e5
 LARGEST_STRETCH = 0.1
 
 
-def _check_fields(d: dict, kind: str, where: str, src: str) -> None:
+def _check_fields(d: dict[Any, Any], kind: str, where: str, src: str) -> None:
     """Raise :class:`RigError` for a key of mapping ``d`` (a ``kind`` of :data:`KNOWN_FIELDS`,
     at ``where``) that rig.yaml does not have, with the closest known field (difflib)."""
     known = KNOWN_FIELDS[kind]
@@ -294,13 +296,13 @@ def _check_fields(d: dict, kind: str, where: str, src: str) -> None:
         raise RigError(f"{src}: unknown field {name} ({hint})")
 
 
-def _survey(d, src: str) -> Survey:
+def _survey(d: Any, src: str) -> Survey:
     """rig.yaml ``survey``: each σ a number ≥ 0 (m; mass kg > 0), millimetres refused."""
     if d is None:
         return Survey()
     if isinstance(d, dict):
         _check_fields(d, "survey", "survey", src)
-    vals = {}
+    vals: dict[str, float] = {}
     for key in ("anchors", "lengths", "dummy_position", "mass"):
         v = _get(d, key, "survey", src, required=False)
         if v is None:
@@ -313,13 +315,13 @@ def _survey(d, src: str) -> Survey:
     return Survey(**vals)
 
 
-def _topics(d, src: str) -> Topics:
+def _topics(d: Any, src: str) -> Topics:
     """rig.yaml ``topics``: each a ROS topic name (``/`` then [A-Za-z0-9_/]); load_cells a prefix."""
     if d is None:
         return Topics()
     if isinstance(d, dict):
         _check_fields(d, "topics", "topics", src)
-    names = {}
+    names: dict[str, str] = {}
     for key in ("imu", "load_cells", "exciter", "inclinometer"):
         v = _get(d, key, "topics", src, required=False)
         if v is None:
@@ -331,7 +333,7 @@ def _topics(d, src: str) -> Topics:
     return Topics(**names)
 
 
-def check_reach(cables, src: str) -> None:
+def check_reach(cables: Sequence[Cable], src: str) -> None:
     """Refuse cable geometry no pose of a rigid body can hold with every cable taut.
 
     For every pair of cables (i, j), the closed chain ceiling anchor A_i -> body anchor P_i ->
@@ -499,7 +501,7 @@ def read_text(path: str | Path, error: type[ValueError], what: str) -> str:
         raise error(f"{p}: not a text file (byte {e.start} is not UTF-8)") from None
 
 
-def read_yaml(path: str | Path, error: type[ValueError], what: str):
+def read_yaml(path: str | Path, error: type[ValueError], what: str) -> Any:
     """Parse a YAML file; an unreadable, non-UTF-8 or invalid file raises ``error`` naming it."""
     p = Path(path)
     text = read_text(p, error, what)
@@ -518,7 +520,8 @@ def dump_rig(rig: Rig, comment: str | None = None) -> str:
     """rig.yaml text for ``rig`` (flow-style vectors, as in the format spec), headed by
     ``comment`` (each of its lines a ``# `` comment line)."""
     head = "".join(f"# {line}\n" for line in comment.splitlines()) if comment else ""
-    return head + yaml.safe_dump(rig.to_dict(), sort_keys=False, default_flow_style=None)
+    body: str = yaml.safe_dump(rig.to_dict(), sort_keys=False, default_flow_style=None)
+    return head + body
 
 
 # --- inertia entries (truth.yaml, experiment files) ---------------------------------------------
@@ -526,13 +529,13 @@ def dump_rig(rig: Rig, comment: str | None = None) -> str:
 INERTIA_KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 
 
-def inertia_tensor(d: dict) -> np.ndarray:
+def inertia_tensor(d: Mapping[str, Any]) -> np.ndarray:
     """(3, 3) tensor from the truth.yaml entries ixx..izz (off-diagonals = negated products)."""
     xx, xy, xz, yy, yz, zz = (float(d[k]) for k in INERTIA_KEYS)
     return np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
 
 
-def inertia_entries(J: np.ndarray) -> dict:
+def inertia_entries(J: np.ndarray) -> dict[str, float]:
     """truth.yaml entries ixx..izz of a (3, 3) tensor."""
     return {"ixx": float(J[0, 0]), "ixy": float(J[0, 1]), "ixz": float(J[0, 2]),
             "iyy": float(J[1, 1]), "iyz": float(J[1, 2]), "izz": float(J[2, 2])}

@@ -6,6 +6,7 @@ that the identifier's result (:class:`~rig_identification.estimation.inertia_res
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -35,8 +36,8 @@ class Check:
     detail: str
     sigma_factor: float = 1.0
 
-    def to_dict(self) -> dict:
-        def num(x):
+    def to_dict(self) -> dict[str, Any]:
+        def num(x: float | None) -> float | None:
             return None if x is None or not np.isfinite(x) else float(x)
         return {"name": self.name, "statistic": num(self.statistic), "threshold": num(self.threshold),
                 "passed": self.passed, "detail": self.detail, "sigma_factor": float(self.sigma_factor)}
@@ -63,7 +64,7 @@ class Validation:
     segment_inertia: np.ndarray | None = None
     segment_times: np.ndarray | None = None
     band_inertia: np.ndarray | None = None
-    band_edges: tuple | None = None
+    band_edges: tuple[float, ...] | None = None
     spread_std: np.ndarray | None = None
     failed: tuple[str, ...] = field(default=())
     sigma_factor: float = 1.0
@@ -85,27 +86,35 @@ class Validation:
                 + ", ".join(NAMES[k] for k in self.undetermined) + " (reported as null)"
                 + ("; " + "; ".join(self.advice) if self.advice else ""))
 
-    def to_dict(self, origins: list[float] | None = None) -> dict:
+    def to_dict(self, origins: list[float] | None = None) -> dict[str, Any]:
         """The validation as JSON (``"validation"`` of
         :meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`).  origins: one stamp (s) per time
         segment, the first IMU sample of its recording: each segment's ``start``/``end`` are
         then seconds from it (as the window's), the header stamps in ``start_stamp``/
         ``end_stamp``; None: ``start``/``end`` are the stamps too."""
-        def rows(a):
-            return None if a is None else [{k: float(v) for k, v in zip(KEYS, r)} for r in a]
+        def rows(a: np.ndarray) -> list[dict[str, float]]:
+            return [{k: float(v) for k, v in zip(KEYS, r)} for r in a]
 
-        def segment(i, t0, t1, r):
+        def segment(i: int, t0: float, t1: float, r: dict[str, float]) -> dict[str, Any]:
             o = 0.0 if origins is None else float(origins[i])
             return {"start": float(t0) - o, "end": float(t1) - o, "start_stamp": float(t0), "end_stamp": float(t1),
                     "inertia_about_cg": r}
-        return {"verdict": self.verdict, "model": self.model, "summary": self.summary, "checks": [c.to_dict() for c in self.checks],
+
+        segments: list[dict[str, Any]] | None = None
+        if self.segment_inertia is not None:
+            assert self.segment_times is not None    # set together with segment_inertia
+            segments = [segment(i, t0, t1, r) for i, ((t0, t1), r) in enumerate(zip(self.segment_times,
+                                                                                   rows(self.segment_inertia)))]
+        sub_bands: list[dict[str, Any]] | None = None
+        if self.band_inertia is not None:
+            assert self.band_edges is not None       # set together with band_inertia
+            sub_bands = [{"band_hz": [float(self.band_edges[i]), float(self.band_edges[i + 1])], "inertia_about_cg": r}
+                         for i, r in enumerate(rows(self.band_inertia))]
+        return {"verdict": self.verdict, "model": self.model, "summary": self.summary,
+                "checks": [c.to_dict() for c in self.checks],
                 "undetermined": list(self.undetermined), "advice": list(self.advice),
-                "segments": None if self.segment_inertia is None else
-                [segment(i, t0, t1, r) for i, ((t0, t1), r) in enumerate(zip(self.segment_times,
-                                                                            rows(self.segment_inertia)))],
-                "sub_bands": None if self.band_inertia is None else
-                [{"band_hz": [float(self.band_edges[i]), float(self.band_edges[i + 1])], "inertia_about_cg": r}
-                 for i, r in enumerate(rows(self.band_inertia))],
+                "segments": segments,
+                "sub_bands": sub_bands,
                 "spread_std": None if self.spread_std is None else
                 {k: float(v) for k, v in zip(KEYS, self.spread_std)}, "sigma_factor": float(self.sigma_factor)}
 

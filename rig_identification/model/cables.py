@@ -7,8 +7,10 @@ c = 2 ζ sqrt(k m / N) with ζ = 0.01.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from ..io.rig import Rig
 
@@ -33,7 +35,7 @@ class CableModel:
     compression: bool = False
 
     @staticmethod
-    def spring(rig: Rig, mass: float, stiffness=None, damping=None,
+    def spring(rig: Rig, mass: float, stiffness: ArrayLike | None = None, damping: ArrayLike | None = None,
                damping_ratio: float = DEFAULT_DAMPING_RATIO) -> "CableModel":
         """Spring-damper cables.  ``stiffness``/``damping``: scalar, (N,) or None (defaults:
         rig.yaml stiffness else 5e6 N/m; c = 2 ζ sqrt(k m / N))."""
@@ -52,8 +54,9 @@ class CableModel:
     def inextensible(baumgarte: float = DEFAULT_BAUMGARTE, compression: bool = False) -> "CableModel":
         return CableModel("inextensible", baumgarte=baumgarte, compression=compression)
 
-    def describe(self) -> dict:
+    def describe(self) -> dict[str, Any]:
         if self.type == "spring":
+            assert self.stiffness is not None and self.damping is not None   # a spring model has both
             return {"type": "spring", "cable_stiffness": self.stiffness.tolist(),
                     "cable_damping": self.damping.tolist(),
                     "cable_tension_model": "max(0, stiffness*(length-length0) + damping*d(length)/dt), "

@@ -39,6 +39,7 @@ Cable models (``cable_model``)
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -47,6 +48,7 @@ from scipy.spatial.transform import Rotation
 
 from ..io.rig import Rig
 from .cables import CableModel
+from .effects import Effect
 from .excitation import Excitation
 from .suspension import Suspension
 
@@ -68,7 +70,7 @@ class Evaluation:
     exciter: np.ndarray
 
 
-def skew(a) -> np.ndarray:
+def skew(a: np.ndarray | Sequence[float]) -> np.ndarray:
     """Cross-product matrix [a]× (3, 3) of a vector a (3,): ``skew(a) @ x == np.cross(a, x)``.
 
     The rotation by a rotation vector φ (3,) rad is its matrix exponential,
@@ -103,7 +105,7 @@ class RigDynamics:
     """
 
     def __init__(self, rig: Rig, mass: float, cg: np.ndarray, inertia: np.ndarray, cables: CableModel,
-                 excitation: Excitation, effects: tuple = (), suspension: Suspension | None = None):
+                 excitation: Excitation, effects: tuple[Effect, ...] = (), suspension: Suspension | None = None):
         n = len(rig.cables)
         if cables.type == "inextensible" and n > 6:
             raise SimulationError(f"inextensible cables: {n} cables have statically indeterminate tensions "
@@ -129,10 +131,11 @@ class RigDynamics:
         self._rotor = next((e for e in effects if e.name == "exciter_rotor"), None)
         if self._rotor is not None:
             rot = excitation.rotating
+            assert rot is not None   # the experiment refuses exciter_rotor without excitation.rotating
             self._unbalance = self._rotor.get("unbalance", rot.amplitude / (2 * math.pi * rot.frequency) ** 2)
             self._rotor_inertia = self._rotor.get("rotor_inertia", 0.0)
 
-    def effect_wrench(self, t: float, R: np.ndarray, v: np.ndarray, w: np.ndarray):
+    def effect_wrench(self, t: float, R: np.ndarray, v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Force (3,) world N and moment (3,) body N·m about the CG of the concealed effects
         (:mod:`~rig_identification.model.effects`): dissipation and the exciter's rotor."""
         F, M = np.zeros(3), np.zeros(3)
@@ -148,6 +151,7 @@ class RigDynamics:
                 F -= e.get("force") * v / math.sqrt(v @ v + eps * eps)
                 M -= e.get("torque") * w / math.sqrt(w @ w + eps * eps)
         if self._rotor is not None:
+            assert self.excitation.rotating is not None   # as in __init__
             theta, speed, acc = self.excitation.rotating.angle_and_speed(t)
             z = self.R_exc[:, 2]
             u = self.R_exc @ np.array([math.cos(theta), math.sin(theta), 0.0])   # toward the unbalanced mass
@@ -163,7 +167,7 @@ class RigDynamics:
             out += [p.start, p.end]
         return out
 
-    def external(self, t: float, R: np.ndarray):
+    def external(self, t: float, R: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Forces of the exciter and the pulses at time t (s), attitude R (3, 3).
 
         Returns (F (3,) world N, M (3,) about the CG in body axes N m, measured (2,) N: x, y
@@ -190,7 +194,7 @@ class RigDynamics:
                     measured += self.R_exc.T @ f
         return F_world, M, measured[:2]
 
-    def evaluate_one(self, t: float, y: np.ndarray):
+    def evaluate_one(self, t: float, y: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """State derivative (size,), cable tensions (N,) N and exciter reading (2,) N of state
         y (size,) at time t s: the Newton–Euler equations of the module docstring."""
         p, R, v, w = y[0:3], y[3:12].reshape(3, 3), y[12:15], y[15:18]
@@ -227,7 +231,9 @@ class RigDynamics:
         """The integrator's right-hand side: dy/dt (size,) of y (size,) at t."""
         return self.evaluate_one(t, y)[0]
 
-    def _constrained(self, R, Rdot, W, d, l, u, Pdot, ldot, F_ext, M_rest):
+    def _constrained(self, R: np.ndarray, Rdot: np.ndarray, W: np.ndarray, d: np.ndarray, l: np.ndarray,
+                     u: np.ndarray, Pdot: np.ndarray, ldot: np.ndarray, F_ext: np.ndarray,
+                     M_rest: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """KKT solve for inextensible cables -> (a (3,), α (3,), T (N,)).
 
         Generalised accelerations q̈ = [a (world); α (body)] satisfy M q̈ = Q + B T with
@@ -270,6 +276,7 @@ class RigDynamics:
         u = d / np.linalg.norm(d, axis=1)[:, None]
         return np.concatenate([T @ u + self.m * self.g, moment_sum(s, T[:, None] * u)])
 
-    def spring_tension_at_rest(self, p_cg, R) -> np.ndarray:
+    def spring_tension_at_rest(self, p_cg: np.ndarray, R: np.ndarray) -> np.ndarray:
         l = np.linalg.norm(self.A - (p_cg + self.r @ R.T), axis=1)
-        return np.maximum(self.cables.stiffness * (l - self.L), 0.0)
+        T: np.ndarray = np.maximum(self.cables.stiffness * (l - self.L), 0.0)
+        return T

@@ -71,6 +71,7 @@ compliant_body         ``mass_share`` (0 < share < 1), ``frequencies`` (3,) Hz [
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -82,7 +83,7 @@ EFFECT_NAMES = ("viscous_damping", "air_drag", "coulomb_friction", "cable_elasti
 # parameter name -> (size, required)   size 0 = scalar, -1 = text, n = a list of n numbers,
 # EITHER_3 = a number or a list of 3 (kept as given: float or (3,) array)
 EITHER_3 = (0, 3)
-PARAMETERS = {
+PARAMETERS: dict[str, dict[str, tuple[int | tuple[int, int], bool]]] = {
     "viscous_damping": {"linear": (0, False), "angular": (0, False)},
     "air_drag": {"linear": (0, False), "angular": (0, False)},
     "coulomb_friction": {"torque": (0, False), "force": (0, False), "velocity_scale": (0, False)},
@@ -116,20 +117,20 @@ class Effect:
     """One effect: ``name`` from :data:`EFFECT_NAMES`, ``parameters`` (validated mapping)."""
 
     name: str
-    parameters: dict = field(default_factory=dict)
+    parameters: dict[str, Any] = field(default_factory=dict)
 
-    def get(self, key: str, default=0.0):
+    def get(self, key: str, default: Any = 0.0) -> Any:
         return self.parameters.get(key, default)
 
-    def truth_entry(self) -> dict:
+    def truth_entry(self) -> dict[str, Any]:
         """truth.yaml form: ``{name: ..., <parameter>: <value>, ...}`` (as the reference simulator)."""
-        out = {"name": self.name}
+        out: dict[str, Any] = {"name": self.name}
         for k, v in self.parameters.items():
             out[k] = v.tolist() if isinstance(v, np.ndarray) else v
         return out
 
 
-def parse_effects(raw, where: str, cable_names: list[str]) -> tuple[Effect, ...]:
+def parse_effects(raw: Any, where: str, cable_names: list[str]) -> tuple[Effect, ...]:
     """Validate an ``effects`` list: each item ``{name: ..., <parameter>: <value>}``.
 
     Raises ValueError naming ``where`` (the file and field) and the offending entry.
@@ -138,7 +139,7 @@ def parse_effects(raw, where: str, cable_names: list[str]) -> tuple[Effect, ...]
         return ()
     if not isinstance(raw, list):
         raise ValueError(f"{where}: must be a list of {{name: ..., parameters...}}")
-    out = []
+    out: list[Effect] = []
     for i, item in enumerate(raw):
         w = f"{where}[{i}]"
         if not isinstance(item, dict) or "name" not in item:
@@ -147,7 +148,7 @@ def parse_effects(raw, where: str, cable_names: list[str]) -> tuple[Effect, ...]
         if name not in PARAMETERS:
             raise ValueError(f"{w}.name: unknown effect {name!r} (known: {', '.join(EFFECT_NAMES)})")
         spec = PARAMETERS[name]
-        params = {}
+        params: dict[str, Any] = {}
         for k, v in item.items():
             if k == "name":
                 continue
@@ -200,9 +201,9 @@ def parse_effects(raw, where: str, cable_names: list[str]) -> tuple[Effect, ...]
     return tuple(out)
 
 
-def _check_ranges(name: str, params: dict, w: str) -> None:
+def _check_ranges(name: str, params: dict[str, Any], w: str) -> None:
     """Range checks of the newer effects' parameters; ValueError naming ``w``.field."""
-    def at_least(key, low, strict=False):
+    def at_least(key: str, low: float, strict: bool = False) -> None:
         if key in params:
             x = np.atleast_1d(params[key])
             if np.any(x <= low) if strict else np.any(x < low):
@@ -231,5 +232,5 @@ def _check_ranges(name: str, params: dict, w: str) -> None:
         at_least("lock_damping_ratio", 0.0)
 
 
-def _text(v) -> str:
+def _text(v: Any) -> str:
     return str(v.tolist()) if isinstance(v, np.ndarray) else str(v)

@@ -7,9 +7,11 @@ displaced and projected back onto the cable lengths).  Frames as
 """
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import least_squares, minimize, root
 from scipy.spatial.transform import Rotation
 
@@ -45,7 +47,8 @@ def _pose(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 def _lengths(model: RigDynamics, x: np.ndarray) -> np.ndarray:
     p, R = _pose(x)
-    return np.linalg.norm(model.A - (p + model.r @ R.T), axis=1)
+    lengths: np.ndarray = np.linalg.norm(model.A - (p + model.r @ R.T), axis=1)
+    return lengths
 
 
 def _hanging_guess(model: RigDynamics) -> np.ndarray:
@@ -57,7 +60,8 @@ def _hanging_guess(model: RigDynamics) -> np.ndarray:
     return np.array([xy[0], xy[1], z, 0.0, 0.0, 0.0])
 
 
-def _solve_or_fail(fun, x0, what: str, tol: float, scale: float):
+def _solve_or_fail(fun: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, what: str, tol: float,
+                   scale: float | np.floating[Any]) -> np.ndarray:
     sol = root(fun, x0, method="hybr", options={"xtol": 1e-14})
     if np.max(np.abs(fun(sol.x))) * scale > tol:
         sol = root(fun, sol.x, method="lm", options={"xtol": 1e-15, "ftol": 1e-15})
@@ -69,7 +73,8 @@ def _solve_or_fail(fun, x0, what: str, tol: float, scale: float):
         sol = root(fun, ls.x, method="hybr", options={"xtol": 1e-14})
     if np.max(np.abs(fun(sol.x))) * scale > tol:
         raise SimulationError(f"{what}: no static equilibrium found ({sol.message})")
-    return sol.x
+    x: np.ndarray = sol.x
+    return x
 
 
 def hanging_equilibrium(model: RigDynamics) -> RestState:
@@ -84,11 +89,13 @@ def hanging_equilibrium(model: RigDynamics) -> RestState:
     x = opt.x
     if model.cables.type == "spring":
         # 2) springs: sag by the mean stretch, then solve the 6 force/moment equations exactly
+        assert model.cables.stiffness is not None   # a spring model has its stiffness
         x = x - np.array([0.0, 0.0, weight / model.cables.stiffness.sum(), 0, 0, 0])
 
-        def residual(x):
+        def residual(x: np.ndarray) -> np.ndarray:
             p, R = _pose(x)
-            return model.static_wrench(p, R, model.spring_tension_at_rest(p, R)) / weight
+            r: np.ndarray = model.static_wrench(p, R, model.spring_tension_at_rest(p, R)) / weight
+            return r
 
         x = _solve_or_fail(residual, x, "spring cables", 1e-7, weight)
         p, R = _pose(x)
@@ -104,13 +111,13 @@ def hanging_equilibrium(model: RigDynamics) -> RestState:
     while True:
         idx = np.flatnonzero(active)
 
-        def residual(z):
+        def taut_residual(z: np.ndarray) -> np.ndarray:
             T = np.zeros(n)
             T[idx] = z[6:] * weight
             p, R = _pose(z[:6])
             return np.concatenate([model.static_wrench(p, R, T) / weight, (_lengths(model, z[:6]) - model.L)[idx]])
 
-        z = _solve_or_fail(residual, np.concatenate([x, T0[idx]]), "inextensible cables", 1e-7, weight)
+        z = _solve_or_fail(taut_residual, np.concatenate([x, T0[idx]]), "inextensible cables", 1e-7, weight)
         T = np.zeros(n)
         T[idx] = z[6:] * weight
         if T.min() >= 0 or model.cables.compression:
@@ -122,7 +129,8 @@ def hanging_equilibrium(model: RigDynamics) -> RestState:
             raise SimulationError("inextensible cables: no equilibrium with at least 3 taut cables")
 
 
-def _project(model: RigDynamics, p_cg: np.ndarray, R: np.ndarray, target: np.ndarray):
+def _project(model: RigDynamics, p_cg: np.ndarray, R: np.ndarray,
+             target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Move a pose the least distance (Gauss–Newton, minimum-norm steps in CG position and
     world rotation vector) so that the cable lengths equal ``target`` (N,) m."""
     for _ in range(50):
@@ -142,7 +150,7 @@ def _project(model: RigDynamics, p_cg: np.ndarray, R: np.ndarray, target: np.nda
     return p_cg, R
 
 
-def equilibrium(rig: Rig, mass: float, cg, cable_model: CableModel) -> Equilibrium:
+def equilibrium(rig: Rig, mass: float, cg: ArrayLike, cable_model: CableModel) -> Equilibrium:
     """Static equilibrium of the body hanging at rest (thesis section 2.2, eqs. 2.13–2.25).
 
     rig: geometry (its own body mass/CG are ignored); mass: kg; cg: (3,) body frame, m.
@@ -160,7 +168,8 @@ def equilibrium(rig: Rig, mass: float, cg, cable_model: CableModel) -> Equilibri
     return Equilibrium(p_cg - R @ cg, Rotation.from_matrix(R), T)
 
 
-def initial_state(model: RigDynamics, initial: Initial, eq: tuple | None = None) -> np.ndarray:
+def initial_state(model: RigDynamics, initial: Initial,
+                  eq: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
     """(18,) start state of the rigid ``model`` (state layout of :class:`RigDynamics`) for
     ``initial`` (at rest, or displaced; a displaced pose is projected onto the cable lengths
     when ``initial.project``); ``eq``: its :func:`hanging_equilibrium` if known.  Raises

@@ -92,7 +92,7 @@ class Excitation:
     rotating: RotatingForce | None = None
     pulses: tuple[Pulse, ...] = ()
 
-    def describe(self) -> dict | None:
+    def describe(self) -> dict[str, Any] | None:
         if self.rotating is None and not self.pulses:
             return None
         out: dict[str, Any] = {}

@@ -106,6 +106,7 @@ class Initial:
 
     def describe(self) -> str:
         if self.pose_cg_position is not None:
+            assert self.pose_rpy is not None   # given together with pose_cg_position (initial.pose)
             return (f"at rest, CG at {self.pose_cg_position.tolist()} m, rpy {self.pose_rpy.tolist()} rad"
                     + (" (projected onto the cable lengths)" if self.project else ""))
         if np.any(self.displacement_position) or np.any(self.displacement_rpy):
@@ -121,9 +122,9 @@ class SensorSpec:
     NOISE_KEYS; bias: constant offsets, gyro/accelerometer (3,), exciter/inclinometer (2,),
     load_cell (N,)."""
 
-    rates: dict
-    noise: dict
-    bias: dict
+    rates: dict[str, float]
+    noise: dict[str, float]
+    bias: dict[str, np.ndarray]
 
 
 @dataclass(frozen=True)
@@ -151,10 +152,10 @@ class Experiment:
     stamp_origin: float = DEFAULT_STAMP_ORIGIN
     static: StaticSpec | None = None
     description: str = ""
-    reference: dict = field(default_factory=dict)
-    thesis: dict = field(default_factory=dict)
+    reference: dict[str, Any] = field(default_factory=dict)
+    thesis: dict[str, Any] = field(default_factory=dict)
     path: str = "<memory>"
-    effects: tuple = ()
+    effects: tuple[Effect, ...] = ()
 
     def effect(self, name: str) -> Effect | None:
         """The first effect called ``name``, or None."""
@@ -166,7 +167,9 @@ class Experiment:
 
     @property
     def cg(self) -> np.ndarray:
-        return self.rig.center_of_gravity
+        cg = self.rig.center_of_gravity
+        assert cg is not None   # experiment_from_dict requires rig.body.center_of_gravity
+        return cg
 
     def with_overrides(self, duration: float | None = None, seed: int | None = None, noise_free: bool = False,
                        static: str | None = None, dummy: DummyMass | None = None) -> "Experiment":
@@ -209,7 +212,7 @@ class _Fields:
     def error(self, name: str, msg: str) -> ExperimentError:
         return ExperimentError(f"{self.src}: field {name} {msg}")
 
-    def mapping(self, v, name: str, allowed: set[str] | None = None) -> dict:
+    def mapping(self, v: Any, name: str, allowed: set[str] | None = None) -> dict[str, Any]:
         if v is None:
             return {}
         if not isinstance(v, dict):
@@ -221,7 +224,7 @@ class _Fields:
                                        f"(known: {', '.join(sorted(allowed))})")
         return v
 
-    def number(self, v, name: str, positive=False, nonneg=False) -> float:
+    def number(self, v: Any, name: str, positive: bool = False, nonneg: bool = False) -> float:
         if isinstance(v, str) and FLOAT_TEXT.match(v.strip()):
             v = float(v)                   # YAML 1.1 reads 5.0e6 (no exponent sign) as text
         if isinstance(v, bool) or not isinstance(v, (int, float)):
@@ -235,12 +238,12 @@ class _Fields:
             raise self.error(name, f"must be >= 0, got {v!r}")
         return x
 
-    def vector(self, v, name: str, n: int, nonneg=False) -> np.ndarray:
+    def vector(self, v: Any, name: str, n: int, nonneg: bool = False) -> np.ndarray:
         if not isinstance(v, (list, tuple)) or len(v) != n:
             raise self.error(name, f"must be a list of {n} numbers, got {v!r}")
         return np.array([self.number(x, f"{name}[{i}]", nonneg=nonneg) for i, x in enumerate(v)])
 
-    def scalar_or_vector(self, v, name: str, n: int, positive=False, nonneg=False) -> np.ndarray:
+    def scalar_or_vector(self, v: Any, name: str, n: int, positive: bool = False, nonneg: bool = False) -> np.ndarray:
         if isinstance(v, (list, tuple)):
             out = self.vector(v, name, n, nonneg=nonneg or positive)
             if positive and np.any(out <= 0):
@@ -248,15 +251,15 @@ class _Fields:
             return out
         return np.full(n, self.number(v, name, positive=positive, nonneg=nonneg))
 
-    def boolean(self, v, name: str) -> bool:
+    def boolean(self, v: Any, name: str) -> bool:
         if not isinstance(v, bool):
             raise self.error(name, f"must be true or false, got {v!r}")
         return v
 
 
-TOP_KEYS = {"effects", "name", "description", "source", "rig", "inertia_about_cg", "cable_model", "initial", "excitation",
-            "duration", "sensors", "seed", "stamp_origin", "static", "thesis"}
-def _parse_inertia(f: _Fields, v) -> np.ndarray:
+TOP_KEYS = {"effects", "name", "description", "source", "rig", "inertia_about_cg", "cable_model", "initial",
+            "excitation", "duration", "sensors", "seed", "stamp_origin", "static", "thesis"}
+def _parse_inertia(f: _Fields, v: Any) -> np.ndarray:
     d = f.mapping(v, "inertia_about_cg", set(INERTIA_KEYS))
     for k in INERTIA_KEYS:
         if k not in d:
@@ -271,7 +274,7 @@ def _parse_inertia(f: _Fields, v) -> np.ndarray:
     return J
 
 
-def _parse_cable_model(f: _Fields, v, rig: Rig) -> CableModel:
+def _parse_cable_model(f: _Fields, v: Any, rig: Rig) -> CableModel:
     d = f.mapping(v, "cable_model", {"type", "stiffness", "damping", "damping_ratio", "baumgarte", "compression"})
     kind = d.get("type", "spring")
     n = len(rig.cables)
@@ -298,7 +301,7 @@ def _parse_cable_model(f: _Fields, v, rig: Rig) -> CableModel:
     raise f.error("cable_model.type", f"must be spring or inextensible, got {kind!r}")
 
 
-def _parse_initial(f: _Fields, v) -> Initial:
+def _parse_initial(f: _Fields, v: Any) -> Initial:
     d = f.mapping(v, "initial", {"equilibrium", "displacement", "pose", "project"})
     project = f.boolean(d.get("project", True), "initial.project")
     if "pose" in d:
@@ -318,7 +321,7 @@ def _parse_initial(f: _Fields, v) -> Initial:
                    project=project)
 
 
-def _parse_excitation(f: _Fields, v, rig: Rig) -> Excitation:
+def _parse_excitation(f: _Fields, v: Any, rig: Rig) -> Excitation:
     d = f.mapping(v, "excitation", {"rotating", "pulses"})
     rot = None
     if d.get("rotating") is not None:
@@ -369,7 +372,7 @@ def _parse_excitation(f: _Fields, v, rig: Rig) -> Excitation:
     return Excitation(rot, tuple(pulses))
 
 
-def _parse_sensors(f: _Fields, v, n_cables: int) -> SensorSpec:
+def _parse_sensors(f: _Fields, v: Any, n_cables: int) -> SensorSpec:
     d = f.mapping(v, "sensors", {"rates_hz", "noise", "bias"})
     rates_raw = f.mapping(d.get("rates_hz"), "sensors.rates_hz", set(SENSOR_RATES))
     rates = {k: f.number(rates_raw.get(k, r), f"sensors.rates_hz.{k}", positive=True)
@@ -435,10 +438,10 @@ def experiment_from_dict(d: Any, source: str = "<memory>") -> Experiment:
         raise ExperimentError(str(e)) from None
     if any(e.name == "exciter_rotor" for e in effects) and excitation.rotating is None:
         raise ExperimentError(f"{source}: effects: exciter_rotor needs excitation.rotating")
-    for i, e in enumerate(effects):
-        if e.name == "compliant_body":      # the split must be a physical pair of rigid bodies
+    for i, eff in enumerate(effects):
+        if eff.name == "compliant_body":    # the split must be a physical pair of rigid bodies
             try:
-                split_body(rig.mass, rig.center_of_gravity, inertia, e, f"{source}: effects[{i}]")
+                split_body(rig.mass, rig.center_of_gravity, inertia, eff, f"{source}: effects[{i}]")
             except ValueError as err:
                 raise ExperimentError(str(err)) from None
     return Experiment(name=name, rig=rig, inertia=inertia, cable_model=cable_model, initial=initial,

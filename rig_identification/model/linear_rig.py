@@ -26,8 +26,10 @@ Its natural frequencies set the step of the exact model's integrator
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from ..io.rig import Cable, Mount, Rig
@@ -79,8 +81,8 @@ class RigParameters:
         return len(self.length)
 
     @staticmethod
-    def from_rig(rig: Rig, inertia, stiffness, damping_time: float, mass: float | None = None,
-                 cg=None) -> "RigParameters":
+    def from_rig(rig: Rig, inertia: ArrayLike, stiffness: ArrayLike, damping_time: float, mass: float | None = None,
+                 cg: ArrayLike | None = None) -> "RigParameters":
         """The parameters of ``rig`` (geometry, sensor mounts) with the given inertia entries (6,),
         cable stiffness (scalar or (N,), N/m) and damping time τ (s); mass and CG default to
         rig.yaml's.  Raises :class:`~rig_identification.io.rig.RigError` when the CG is needed and
@@ -99,7 +101,7 @@ class RigParameters:
             exciter_rotation=rig.exciter.rotation.as_matrix(),
             inclinometer_rotation=None if rig.inclinometer is None else rig.inclinometer.rotation.as_matrix())
 
-    def replace(self, **changes) -> "RigParameters":
+    def replace(self, **changes: Any) -> "RigParameters":
         return replace(self, **changes)
 
 
@@ -123,7 +125,7 @@ class LinearRig:
     rest: RestPose
 
 
-def _cable_geometry(p: RigParameters, position: np.ndarray, R: np.ndarray):
+def _cable_geometry(p: RigParameters, position: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     s = p.body @ R.T                           # anchor offsets from the origin, world
     d = p.ceiling - (position + s)
     length = np.linalg.norm(d, axis=1)
@@ -154,7 +156,7 @@ def stiffness_matrix(p: RigParameters, position: np.ndarray, R: np.ndarray, axia
         Ka = Ka + p.stiffness[:, None, None] * uu
     S = skews(s)
     G = np.concatenate([np.broadcast_to(np.eye(3), S.shape), S], axis=1)        # (N, 6, 3)
-    K = np.einsum("nij,njk,nlk->il", G, Ka, G)
+    K: np.ndarray = np.einsum("nij,njk,nlk->il", G, Ka, G)
     F = skews(T[:, None] * u)
     geo = np.einsum("nij,njk->ik", F, S) + skew([0.0, 0.0, -p.mass * p.gravity]) @ skew(R @ p.cg)
     K[3:, 3:] -= geo

@@ -28,9 +28,12 @@ Rotation), the gradients analytically.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.linalg import eigh, null_space
 from scipy.ndimage import maximum_filter1d, median_filter
 from scipy.optimize import least_squares
@@ -41,6 +44,9 @@ from ..io.rig import Rig
 from .cables import CableModel
 from .dynamics import SimulationError
 from .equilibrium import equilibrium
+
+if TYPE_CHECKING:
+    from ..io.recording import Recording, TimeSeries
 
 DOF_NAMES = ("x", "y", "z", "roll", "pitch", "yaw")
 
@@ -61,7 +67,7 @@ class Mode:
     description: str
     model: str = "spring"
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {"frequency_hz": float(self.frequency), "shape": [float(x) for x in self.shape],
                 "energy": {k: float(e) for k, e in zip(DOF_NAMES, self.energy)},
                 "description": self.description, "model": self.model,
@@ -80,7 +86,7 @@ class EstimatedMode:
     axes: str
     amplitude: float = 0.0
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {"frequency_hz": float(self.frequency), "damping_ratio": float(self.damping_ratio),
                 "gyro_share": [float(x) for x in self.gyro_share], "axes": self.axes,
                 "amplitude_rad_s": float(self.amplitude)}
@@ -97,18 +103,19 @@ class ModalEstimate:
 
 # --- geometry -> modes ------------------------------------------------------------------
 
-def length_fn(rig: Rig, p_cg: np.ndarray, R0: Rotation, cg: np.ndarray):
+def length_fn(rig: Rig, p_cg: np.ndarray, R0: Rotation, cg: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     A = rig.ceiling_anchors
     S = rig.body_anchors - cg          # anchors relative to the CG, body frame
 
-    def lengths(q):
+    def lengths(q: np.ndarray) -> np.ndarray:
         R = Rotation.from_rotvec(q[3:]) * R0
         P = p_cg + q[:3] + R.apply(S)
-        return np.linalg.norm(A - P, axis=1)
+        out: np.ndarray = np.linalg.norm(A - P, axis=1)
+        return out
     return lengths
 
 
-def gradients(rig: Rig, p_cg, R0: Rotation, cg) -> tuple[np.ndarray, np.ndarray]:
+def gradients(rig: Rig, p_cg: np.ndarray, R0: Rotation, cg: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(N, 6) length Jacobian G at q = 0 and lengths (N,)."""
     A = rig.ceiling_anchors
     s = R0.apply(rig.body_anchors - cg)
@@ -118,7 +125,7 @@ def gradients(rig: Rig, p_cg, R0: Rotation, cg) -> tuple[np.ndarray, np.ndarray]
     return np.hstack([u, np.cross(s, u)]), l
 
 
-def length_hessians(lengths, n: int, h: float = 1e-4) -> np.ndarray:
+def length_hessians(lengths: Callable[[np.ndarray], np.ndarray], n: int, h: float = 1e-4) -> np.ndarray:
     """(N, 6, 6) Hessians of the lengths at q = 0 by central differences."""
     H = np.zeros((n, 6, 6))
     E = np.eye(6) * h
@@ -156,7 +163,8 @@ def _make_modes(w2: np.ndarray, V: np.ndarray, M: np.ndarray, model: str) -> lis
     return modes
 
 
-def natural_modes(rig: Rig, mass: float, cg, inertia, stiffness=None) -> list[Mode]:
+def natural_modes(rig: Rig, mass: float, cg: ArrayLike, inertia: ArrayLike,
+                  stiffness: ArrayLike | None = None) -> list[Mode]:
     """Natural modes of the body hanging at rest, lowest frequency first.
 
     rig: geometry; mass kg; cg (3,) body frame m; inertia (3, 3) kg m² about the CG, body
@@ -187,6 +195,7 @@ def natural_modes(rig: Rig, mass: float, cg, inertia, stiffness=None) -> list[Mo
         Kr, Mr = Z.T @ K @ Z, Z.T @ M @ Z
         w2, Vr = eigh(0.5 * (Kr + Kr.T), Mr)
         return _make_modes(w2, Z @ Vr, M, "inextensible")
+    assert k is not None   # not rigid: a finite stiffness
     K = K + np.einsum("i,ia,ib->ab", k * (T > 0), G, G)
     w2, V = eigh(0.5 * (K + K.T), M)
     return _make_modes(w2, V, M, "spring")
@@ -194,7 +203,7 @@ def natural_modes(rig: Rig, mass: float, cg, inertia, stiffness=None) -> list[Mo
 
 # --- recording -> modes -----------------------------------------------------------------
 
-def _uniform(ts, t0: float, t1: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
+def _uniform(ts: TimeSeries, t0: float, t1: float, fs: float) -> tuple[np.ndarray, np.ndarray]:
     t = np.arange(t0, t1, 1.0 / fs)
     return t, ts.interp(t)
 
@@ -209,7 +218,7 @@ def _peak_refine(P: np.ndarray, f: np.ndarray, i: int) -> float:
     return float(f[i] + d * (f[1] - f[0]))
 
 
-def exciter_frequency(rec, fs: float | None = None) -> float | None:
+def exciter_frequency(rec: Recording, fs: float | None = None) -> float | None:
     """The exciter's rotation frequency, Hz, from the /rig/exciter/wrench spectrum (None if absent)."""
     ex = rec.sensors.exciter
     if ex is None or len(ex) < 64:
@@ -242,7 +251,7 @@ def _combination(fr: float, base: list[float], tol: float, order: int = 4) -> bo
     return False
 
 
-def estimate_modes(rec, f_min: float = 0.2, f_max: float = 40.0, max_modes: int = 8,
+def estimate_modes(rec: Recording, f_min: float = 0.2, f_max: float = 40.0, max_modes: int = 8,
                    prominence: float = 30.0, settle: float = 3.0, use_accel: bool = True,
                    max_damping: float = 0.2) -> ModalEstimate:
     """Free-vibration modes of a recording from its gyro (and accelerometer) signals.
@@ -289,6 +298,8 @@ def estimate_modes(rec, f_min: float = 0.2, f_max: float = 40.0, max_modes: int 
     cand = [(Ps[i], _peak_refine(Ps, f, i)) for i in range(1, len(f) - 1)
             if f_min <= f[i] <= f_max and not bad[i] and Ps[i] >= loc[i] and Ps[i] > prominence * floor[i]]
     cand.sort(reverse=True)
+    freqs: list[float]
+    combos: list[float]
     freqs, combos = [], []
     tol = max(0.3 / T, 2 * df)
     for _, fr in cand:
@@ -309,8 +320,8 @@ def estimate_modes(rec, f_min: float = 0.2, f_max: float = 40.0, max_modes: int 
     tt = t - t[0]
     nm = len(freqs)
 
-    def basis(p):
-        cols = []
+    def basis(p: np.ndarray) -> np.ndarray:
+        cols: list[np.ndarray] = []
         for j in range(nm):
             e = np.exp(-p[nm + j] * tt)
             cols += [e * np.cos(2 * np.pi * p[j] * tt), e * np.sin(2 * np.pi * p[j] * tt)]
@@ -319,14 +330,15 @@ def estimate_modes(rec, f_min: float = 0.2, f_max: float = 40.0, max_modes: int 
         cols.append(np.ones_like(tt))
         return np.column_stack(cols)
 
-    def coeffs(B):
+    def coeffs(B: np.ndarray) -> np.ndarray:
         # normal equations (the columns are near-orthogonal sinusoids; much faster than SVD lstsq)
         N = B.T @ B
         return np.linalg.solve(N + 1e-12 * np.trace(N) / len(N) * np.eye(len(N)), B.T @ y)
 
-    def resid(p):
+    def resid(p: np.ndarray) -> np.ndarray:
         B = basis(p)
-        return (y - B @ coeffs(B)).ravel()
+        r: np.ndarray = (y - B @ coeffs(B)).ravel()
+        return r
 
     p0 = np.r_[freqs, np.full(nm, 0.01)]
     lb = np.r_[np.array(freqs) - 1.0 / T, np.full(nm, -0.05)]
@@ -358,10 +370,11 @@ def estimate_modes(rec, f_min: float = 0.2, f_max: float = 40.0, max_modes: int 
     return ModalEstimate(modes, fex, warnings)
 
 
-def match_modes(geometric: list[Mode], estimated: list[EstimatedMode], tol: float = 0.1) -> list[tuple]:
+def match_modes(geometric: list[Mode], estimated: list[EstimatedMode],
+                tol: float = 0.1) -> list[tuple[Mode, EstimatedMode | None, float | None]]:
     """Pairs (Mode, EstimatedMode or None, difference % of the estimate vs geometry): each
     geometric mode with the nearest estimated frequency within ``tol`` (relative)."""
-    out = []
+    out: list[tuple[Mode, EstimatedMode | None, float | None]] = []
     for m in geometric:
         best = min(estimated, key=lambda e: abs(e.frequency - m.frequency), default=None)
         if best is not None and abs(best.frequency - m.frequency) <= tol * m.frequency:

@@ -10,22 +10,25 @@ errors-in-variables compensation (:mod:`rig_identification.estimation.errors_in_
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 # index pairs of the six independent tensor entries
 PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
 
 
 def basis() -> np.ndarray:
-    """(6, 3, 3) symmetric basis: tensor = sum_k theta_k E_k, theta in :data:`~rig_identification.io.verdict.KEYS` order."""
+    """(6, 3, 3) symmetric basis: tensor = sum_k theta_k E_k, theta in
+    :data:`~rig_identification.io.verdict.KEYS` order."""
     E = np.zeros((6, 3, 3))
     for k, (i, j) in enumerate(PAIRS):
         E[k, i, j] = E[k, j, i] = 1.0
     return E
 
 
-def to_tensor(theta) -> np.ndarray:
+def to_tensor(theta: ArrayLike) -> np.ndarray:
     """(6,) entries (ixx, ixy, ixz, iyy, iyz, izz) -> (3,3) symmetric tensor."""
-    return np.einsum("k,kij->ij", np.asarray(theta, float), basis())
+    J: np.ndarray = np.einsum("k,kij->ij", np.asarray(theta, float), basis())
+    return J
 
 
 def from_tensor(J: np.ndarray) -> np.ndarray:
@@ -33,7 +36,7 @@ def from_tensor(J: np.ndarray) -> np.ndarray:
     return np.array([J[i, j] for i, j in PAIRS])
 
 
-def entry_scales(theta) -> np.ndarray:
+def entry_scales(theta: ArrayLike) -> np.ndarray:
     """(6,) kg·m², the order of :func:`from_tensor` (ixx, ixy, ixz, iyy, iyz, izz): the scale
     an entry's error or σ is judged on — a moment's own magnitude, the largest moment's for a
     product (issue 17: "products: of the largest diagonal").  theta: (6,) kg·m²."""

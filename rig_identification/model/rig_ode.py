@@ -19,9 +19,11 @@ inclinometer's two elevations asin(z_world · axis).
 from __future__ import annotations
 
 import math
+from typing import Any
 
 import numba
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
@@ -34,7 +36,9 @@ STEP_OMEGA = 0.5
 
 
 @numba.njit(cache=True, nogil=True)
-def _rhs(y, u0, u1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, out_T, dy, R):
+def _rhs(y: np.ndarray, u0: float, u1: float, A: np.ndarray, r: np.ndarray, L: np.ndarray, k: np.ndarray,
+         c: np.ndarray, m: float, J: np.ndarray, Jinv: np.ndarray, g: float, Re: np.ndarray, re: np.ndarray,
+         bd: np.ndarray, out_T: np.ndarray, dy: np.ndarray, R: np.ndarray) -> None:
     """State derivative into ``dy``; y = [p_cg 3, quaternion wxyz 4, v_cg 3, ω body 3]; the
     rotation into ``R``, the tensions into ``out_T``."""
     qw, qx, qy, qz = y[3], y[4], y[5], y[6]
@@ -113,7 +117,10 @@ def _rhs(y, u0, u1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, out_T, dy, R):
 
 
 @numba.njit(cache=True, nogil=True)
-def _simulate(y0, force, dt, substeps, A, r, L, k, c, gain, m, J, Jinv, g, Re, re, bd, Rimu, rimu, Rinc, has_inc):
+def _simulate(y0: np.ndarray, force: np.ndarray, dt: float, substeps: int, A: np.ndarray, r: np.ndarray,
+              L: np.ndarray, k: np.ndarray, c: np.ndarray, gain: np.ndarray, m: float, J: np.ndarray,
+              Jinv: np.ndarray, g: float, Re: np.ndarray, re: np.ndarray, bd: np.ndarray, Rimu: np.ndarray,
+              rimu: np.ndarray, Rinc: np.ndarray, has_inc: bool) -> tuple[np.ndarray, np.ndarray]:
     # force: sampled every half RK4 step, (n - 1) * 2 * substeps + 1 rows
     n = (force.shape[0] - 1) // (2 * substeps) + 1
     N = L.shape[0]
@@ -186,7 +193,7 @@ def moved_state(y: np.ndarray, offset: np.ndarray) -> np.ndarray:
     return np.concatenate([y[:3] + off[:3], [qn[3], qn[0], qn[1], qn[2]], y[7:10] + off[6:9], y[10:13] + off[9:12]])
 
 
-def _arguments(p: RigParameters, y0, force, dt, substeps):
+def _arguments(p: RigParameters, y0: ArrayLike, force: ArrayLike, dt: float, substeps: int) -> tuple[Any, ...]:
     # the force at every RK4 stage (every half step): a cubic spline through the grid's samples
     force = np.asarray(force, float)
     force = CubicSpline(np.arange(len(force)), force, axis=0)(

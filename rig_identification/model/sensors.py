@@ -15,7 +15,7 @@ the sampled readings (:func:`mode_response`, :func:`random_walk`).
 from __future__ import annotations
 
 import math
-from typing import Callable, NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -48,7 +48,7 @@ def sample_times(duration: float, rate: float) -> np.ndarray:
 
 
 def sample_sensors(exp: Experiment, model: RigDynamics, traj: Callable[[np.ndarray], np.ndarray], rig: Rig,
-                   duration: float, cache: dict) -> SensorData:
+                   duration: float, cache: dict[float, Sampled]) -> SensorData:
     """Sample every sensor of ``exp`` on its own time grid (module docstring) from the true
     motion ``traj`` (simulation times (K,) s -> states (K, size)) of ``model``; ``rig``: the
     rig.yaml written (sensor placement).  ``cache`` keeps the :class:`Sampled` motion per rate.
@@ -59,15 +59,16 @@ def sample_sensors(exp: Experiment, model: RigDynamics, traj: Callable[[np.ndarr
                                 else [exp.seed, STATIC_STREAMS[exp.static.kind]])
     noise, bias = spec.noise, spec.bias
 
-    def at(rate: float):
+    def at(rate: float) -> Sampled:
         if rate not in cache:
             t = sample_times(duration, rate)
             Y = traj(t)
             cache[rate] = Sampled(t, Y, model.evaluate(t, Y))
         return cache[rate]
 
-    def noisy(x, key):
-        return x + bias[key] + noise[key] * rng.standard_normal(x.shape)
+    def noisy(x: np.ndarray, key: str) -> np.ndarray:
+        reading: np.ndarray = x + bias[key] + noise[key] * rng.standard_normal(x.shape)
+        return reading
 
     eff = {e.name: e for e in exp.effects}
     delay = {e.get("stream", ""): e.get("delay") for e in exp.effects if e.name == "sensor_delay"}
@@ -166,10 +167,11 @@ def mode_response(t: np.ndarray, u: np.ndarray, effect: Effect) -> np.ndarray:
     x = u - u[0]
     x_fine = CubicSpline(t, x, axis=0)(fine)        # two samples: a straight line
     num, den, _ = cont2discrete(([-p, 0.0, 0.0], [1.0, 2 * zeta * w, w * w]), dt / m, method="foh")
-    return lfilter(np.ravel(num), den, x_fine, axis=0)[::m]
+    e: np.ndarray = lfilter(np.ravel(num), den, x_fine, axis=0)[::m]
+    return e
 
 
-def check_taut(rig: Rig, t: np.ndarray, T: np.ndarray, weight: float) -> None:
+def check_taut(rig: Rig, t: np.ndarray, T: np.ndarray, weight: float | np.floating[Any]) -> None:
     """Raise :class:`SimulationError` naming the cable and the time where a tension of T (K, N)
     N at times t (K,) s is negative beyond rounding (1e-9 of the weight N)."""
     bad = T < -1e-9 * weight

@@ -37,9 +37,12 @@ that the chosen model cannot represent (slack inextensible cable, no equilibrium
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
@@ -50,7 +53,7 @@ from .dynamics import Evaluation, RigDynamics, SimulationError
 from .equilibrium import hanging_equilibrium, initial_state
 from .excitation import Excitation
 from .experiment import Experiment, Initial, experiment_from_dict
-from .sensors import sample_sensors
+from .sensors import Sampled, sample_sensors
 from .suspension import Suspension, split_body, without
 
 # re-exported (defined in dynamics, experiment, io.rig) only for the files of other helpers that
@@ -75,12 +78,12 @@ class Trajectory:
     by the sprung body's (size 36, compliant_body, see :class:`Suspension`).
     """
 
-    def __init__(self, segments: list, size: int = 18):
+    def __init__(self, segments: list[tuple[float, float, Callable[[np.ndarray], np.ndarray]]], size: int = 18):
         self.segments = segments
         self.size = size
         self.starts = np.array([s[0] for s in segments])
 
-    def __call__(self, t) -> np.ndarray:
+    def __call__(self, t: ArrayLike) -> np.ndarray:
         t = np.atleast_1d(np.asarray(t, float))
         idx = np.clip(np.searchsorted(self.starts, t, side="right") - 1, 0, len(self.segments) - 1)
         out = np.empty((len(t), self.size))
@@ -146,14 +149,14 @@ class SimResult:
     experiment: Experiment
     rig: Rig
     sensors: SensorData
-    truth: dict
+    truth: dict[str, Any]
     states: States
     trajectory: Trajectory
     model: RigDynamics
     wall_time: float
     nfev: int
 
-    def states_at(self, t) -> States:
+    def states_at(self, t: ArrayLike) -> States:
         """True motion at simulation times ``t`` (K,) s (0 = start; States.t holds the stamps)."""
         t = np.atleast_1d(np.asarray(t, float))
         Y = self.trajectory(t)
@@ -170,13 +173,14 @@ def true_states(model: RigDynamics, stamp_origin: float, t: np.ndarray, Y: np.nd
                   suspension=None if model.suspension is None else model.suspension.relative(Y))
 
 
-def _with_dummy(mass: float, cg: np.ndarray, J: np.ndarray, dummy: DummyMass):
+def _with_dummy(mass: float, cg: np.ndarray, J: np.ndarray, dummy: DummyMass) -> tuple[float, np.ndarray, np.ndarray]:
     """Mass (kg), CG (3,) and inertia about the new CG (3, 3) of the body plus a point-mass dummy."""
     m = mass + dummy.mass
     c = (mass * cg + dummy.mass * dummy.position) / m
 
-    def steiner(mm, d):
-        return mm * (d @ d * np.eye(3) - np.outer(d, d))
+    def steiner(mm: float, d: np.ndarray) -> np.ndarray:
+        term: np.ndarray = mm * (d @ d * np.eye(3) - np.outer(d, d))
+        return term
 
     return m, c, J + steiner(mass, cg - c) + steiner(dummy.mass, dummy.position - c)
 
@@ -196,6 +200,7 @@ def simulate(exp: Experiment) -> SimResult:
     if static is not None:
         excitation, duration, initial = Excitation(), static.duration, Initial()
         if static.kind == "dummy":
+            assert exp.rig.dummy_mass is not None   # a dummy static experiment has one (experiment_from_dict)
             mass, cg, J = _with_dummy(mass, cg, J, exp.rig.dummy_mass)
         rig_out = replace(exp.rig, center_of_gravity=None)
     else:
@@ -228,12 +233,12 @@ def simulate(exp: Experiment) -> SimResult:
         y0 = suspension.state_from_whole(y_whole, cg, frame.cg)
         rtol, atol = COMPLIANT_RTOL, COMPLIANT_ATOL
     traj, nfev = integrate(model, y0, duration, rtol, atol)
-    cache: dict[float, tuple] = {}
+    cache: dict[float, Sampled] = {}
     sensors = sample_sensors(exp, model, traj, rig_out, duration, cache)
-    truth = {"mass": float(exp.mass), "center_of_gravity": [float(x) for x in exp.cg],
-             "inertia_about_cg": inertia_entries(exp.inertia),
-             "effects": [e.truth_entry() for e in exp.effects], "scenario": exp.name,
-             "seed": exp.seed}
+    truth: dict[str, Any] = {"mass": float(exp.mass), "center_of_gravity": [float(x) for x in exp.cg],
+                             "inertia_about_cg": inertia_entries(exp.inertia),
+                             "effects": [e.truth_entry() for e in exp.effects], "scenario": exp.name,
+                             "seed": exp.seed}
     if static is not None:
         truth["notes"] = (f"static experiment {'WITH' if static.kind == 'dummy' else 'without'} the dummy mass"
                           + (" attached at rig.yaml dummy_mass.position; the truth values are those of the body "

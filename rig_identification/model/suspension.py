@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from ..io.rig import inertia_entries
@@ -32,15 +34,18 @@ class RigidPart:
 
 def _second_moment(J: np.ndarray) -> np.ndarray:
     """S = ∫ r rᵀ dm (3, 3) of an inertia tensor J = tr(S) I − S (about the same point)."""
-    return 0.5 * np.trace(J) * np.eye(3) - J
+    S: np.ndarray = 0.5 * np.trace(J) * np.eye(3) - J
+    return S
 
 
 def _steiner(m: float, d: np.ndarray) -> np.ndarray:
     """Parallel-axis term (3, 3) of a mass m kg offset by d (3,) m."""
-    return m * (d @ d * np.eye(3) - np.outer(d, d))
+    term: np.ndarray = m * (d @ d * np.eye(3) - np.outer(d, d))
+    return term
 
 
-def split_body(mass: float, cg, inertia, effect: Effect, where: str = "compliant_body") -> tuple[RigidPart, RigidPart]:
+def split_body(mass: float, cg: ArrayLike, inertia: ArrayLike, effect: Effect,
+               where: str = "compliant_body") -> tuple[RigidPart, RigidPart]:
     """compliant_body: split a body (mass kg, cg (3,) body frame m, inertia (3, 3) about the
     CG) into the sprung body and the rest, which together are the body at rest.
 
@@ -79,8 +84,9 @@ def split_body(mass: float, cg, inertia, effect: Effect, where: str = "compliant
                          "would not be physical)")
     sigma = float(effect.get("sprung_inertia_share", share))
 
-    def tensor(S_part):
-        return np.trace(S_part) * np.eye(3) - S_part
+    def tensor(S_part: np.ndarray) -> np.ndarray:
+        J_part: np.ndarray = np.trace(S_part) * np.eye(3) - S_part
+        return J_part
 
     sprung = RigidPart(m_s, c_s, tensor(sigma * S_rest))
     rest = RigidPart(mass - m_s, cg - ratio * d, tensor((1.0 - sigma) * S_rest))
@@ -145,7 +151,8 @@ class Suspension:
         self._g, self._cr = tuple(np.diag(self.G).tolist()), tuple(self.c_r.tolist())
         self._J, self._Jinv, self._gravity = self.J.tolist(), self.Jinv.tolist(), float(gravity)
 
-    def coupling(self, y: np.ndarray, p: np.ndarray, R: np.ndarray, v: np.ndarray, w: np.ndarray):
+    def coupling(self, y: np.ndarray, p: np.ndarray, R: np.ndarray, v: np.ndarray,
+                 w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Joint forces of state y (36,) (the frame's p_cg, R, v_cg, ω are y[:18]).
 
         Returns (force on the frame (3,) world N, moment on the frame about its CG (3,) body
@@ -215,7 +222,8 @@ class Suspension:
         kinetic = 0.5 * self.m * (Y[:, 30:33] ** 2).sum(1) + 0.5 * np.einsum("ki,ij,kj->k", ws, self.J, ws)
         spring = (0.5 * (self.k_t * delta ** 2).sum(1) - delta @ self.preload
                   + np.trace(self.G) - np.einsum("ij,kji->k", self.G, R_rel))
-        return kinetic - self.m * (Y[:, 18:21] @ self.g) + spring
+        total: np.ndarray = kinetic - self.m * (Y[:, 18:21] @ self.g) + spring
+        return total
 
     def state_from_whole(self, y: np.ndarray, cg: np.ndarray, frame_cg: np.ndarray) -> np.ndarray:
         """(36,) state of frame and sprung body from a whole-body rigid state y (18,) (CG
@@ -228,7 +236,7 @@ class Suspension:
             out[k + 12:k + 15], out[k + 15:k + 18] = v + _cross(R @ w, r), w
         return out
 
-    def describe(self, frame: RigidPart, sprung: RigidPart) -> dict:
+    def describe(self, frame: RigidPart, sprung: RigidPart) -> dict[str, Any]:
         """truth.yaml's simulator.compliant_body: the two bodies and the joint (SI)."""
         return {"sprung_mass": float(sprung.mass), "sprung_cg": sprung.cg.tolist(),
                 "sprung_inertia_about_cg": inertia_entries(sprung.inertia),
