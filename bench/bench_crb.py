@@ -91,7 +91,8 @@ def line(name: str, row: dict) -> str:
         s += f" | fit failed ({len(row['poorly_fitted'])} channels beyond their noise)  {row['seconds']:.0f} s"
     elif "error_percent" in row:
         soc = row["sigma_over_crb"]
-        s += (f" | err max {max(np.abs(row['error_percent'])):6.3f} %  |err/σ| max {max(np.abs(row['error_sigma'])):5.2f}"
+        s += (f" | err max {max(np.abs(row['error_percent'])):6.3f} %  "
+              f"|err/σ| max {max(np.abs(row['error_sigma'])):5.2f}"
               f"  σ/CRB {min(soc):.2f}–{max(soc):.2f}  {row['verdict']}  misfit {','.join(row['poorly_fitted']) or '-'}"
               f"  {row['seconds']:.0f} s")
     return s
@@ -115,7 +116,8 @@ def summary(rows: list[dict]) -> None:
     print("verdicts: " + ", ".join(f"{v} {sum(r.get('verdict') == v for r in rows)}" for v in
                                     ("ok", "model_error", "not_identifiable", "inconsistent", "failed")))
     print(f"over the ok fits: σ within 2× of the bound: {np.mean(soc <= 2):.1%} of {len(soc)} entries")
-    print(f"coverage of ±1.96 σ: {np.mean(np.abs(z) <= 1.96):.1%} of {len(z)} entries; RMS error/σ {np.sqrt(np.mean(z ** 2)):.2f}")
+    print(f"coverage of ±1.96 σ: {np.mean(np.abs(z) <= 1.96):.1%} of {len(z)} entries; "
+          f"RMS error/σ {np.sqrt(np.mean(z ** 2)):.2f}")
     silent = [r["name"] for r in fitted if r["verdict"] == "ok" and any(
         abs(z) > 3 for k, z in zip(KEYS, r["error_sigma"]) if k not in r["undetermined"])]
     print(f"silent failures (verdict ok, a determined entry beyond 3 σ): {len(silent)} {' '.join(silent)}")

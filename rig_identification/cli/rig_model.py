@@ -52,7 +52,8 @@ def print_rig_model(res: RigModelResult) -> None:
         head += f"{'truth':>11}{'error':>10}{'err/σ':>7}"
     print(head)
     for i, k in enumerate(KEYS):
-        line = f"{k:<7}{p.inertia[i]:>12.2f}{f.inertia_std[i]:>10.3g}{f.crb[i]:>10.3g}{f.inertia_std[i] / f.crb[i]:>7.2f}"
+        line = (f"{k:<7}{p.inertia[i]:>12.2f}{f.inertia_std[i]:>10.3g}{f.crb[i]:>10.3g}"
+                f"{f.inertia_std[i] / f.crb[i]:>7.2f}")
         if truth:
             t = truth[k]
             line += f"{t['truth']:>11.2f}{t['error_percent']:>+9.3f}%{t['error_sigma']:>+7.2f}"
@@ -97,7 +98,8 @@ def print_cg(cg: CentreOfGravity) -> None:
     d = cg.difference_sigma
     if np.any(np.isfinite(d)):
         words = ("agree" if cg.agree else
-                 f"DISAGREE beyond {CONSISTENCY_SIGMA:g} σ: check the static test (dummy mass, its position) and rig.yaml")
+                 f"DISAGREE beyond {CONSISTENCY_SIGMA:g} σ: check the static test (dummy mass, its position) "
+                 "and rig.yaml")
         print("  static and dynamic " + words + " (" + ", ".join("—" if not np.isfinite(x) else f"{x:+.1f}"
                                                                for x in d) + " σ)")
 
