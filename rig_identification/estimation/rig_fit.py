@@ -74,6 +74,9 @@ STIFFNESS_LOG_STD_DEFAULT = 1.0
 #: Re-weighting rounds: each channel's noise level replaced by its residual's where the
 #: residual is larger (a channel the model does not fit at its noise level is leaned on less).
 REWEIGHT_ROUNDS = 2
+#: No re-weighting where a channel's residual exceeds this many times its noise: the fit has not
+#: found the motion there, and raising the channel's noise would hide it, not lean on the rest.
+REWEIGHT_LIMIT = 10.0
 #: Blocks of the record whose scores make the sandwich covariance's meat (:func:`_covariance`).
 SANDWICH_BLOCKS = 12
 #: Threads that compute the Jacobian's columns (the machine's cores, at most 4).
@@ -82,6 +85,13 @@ THREADS = max(1, min(4, os.cpu_count() or 1))
 #: at most, and the tolerances on the step, the cost's change and the gradient.
 MAX_ITERATIONS = 100
 XTOL, FTOL, GTOL = 1e-10, 1e-10, 1e-10
+#: The residual's every row outside the physical region or where the model diverges.
+OUTSIDE = 1e6
+#: s over which the initial state is fitted alone before each start's first stage (:func:`_settled`).
+INITIAL_SPAN = 3.0
+#: A start that fits the first stage within this RMS over the noise (the priors' rows counted)
+#: is taken without trying the next (:func:`fit_rig`).
+START_LEVEL = 1.5
 #: Forward-difference step of the Jacobian in the unknowns' units of :func:`_scale`.
 JACOBIAN_STEP = 1e-2
 
@@ -226,7 +236,8 @@ def smooth_force(u: np.ndarray, dt: float, band: float) -> tuple[np.ndarray, int
     slow = sosfiltfilt(butter(2, 0.5, fs=1.0 / dt, output="sos"), amp)
     ramp_end = t[np.argmax(slow >= 0.9 * steady)] + 1.0
     knots = np.unique(np.concatenate([np.arange(0.0, ramp_end, RAMP_KNOT),
-                                      np.linspace(ramp_end, t[-1], max(2, int(round((t[-1] - ramp_end) / STEADY_KNOT)) + 1))]))
+                                      np.linspace(ramp_end, t[-1],
+                                                  max(2, int(round((t[-1] - ramp_end) / STEADY_KNOT)) + 1))]))
     knots = knots[(knots > t[0]) & (knots < t[-1])]
     inner = np.concatenate([[t[0]] * 4, knots, [t[-1]] * 4])
     phase = np.unwrap(np.angle(z))
@@ -335,7 +346,8 @@ def _parameters(x: np.ndarray, like: RigParameters, lay: Layout) -> RigParameter
     g = x[lay.geometry]
     return like.replace(inertia=x[lay.inertia], cg=x[lay.cg], mass=float(x[lay.mass]),
                         stiffness=np.exp(x[lay.log_stiffness]), damping_time=float(x[lay.damping]),
-                        gain=x[lay.gain], body_damping=x[lay.body_damping], ceiling=g[:3 * n].reshape(n, 3), body=g[3 * n:6 * n].reshape(n, 3),
+                        gain=x[lay.gain], body_damping=x[lay.body_damping], ceiling=g[:3 * n].reshape(n, 3),
+                        body=g[3 * n:6 * n].reshape(n, 3),
                         length=g[6 * n:])
 
 
@@ -386,7 +398,8 @@ class _Problem:
         self.step = max(1, int(1.0 / (DECIMATED_RATE * rec.band * rec.dt)))
         impulse = np.zeros(4001)
         impulse[2000] = 1.0
-        self.noise_gain = float(np.sum(sosfiltfilt(self.sos, impulse) ** 2))      # filtered white noise's variance share
+        # the filtered white noise's share of its variance
+        self.noise_gain = float(np.sum(sosfiltfilt(self.sos, impulse) ** 2))
         self.weight = 1.0 / (rec.sigma * noise_scale * np.sqrt(rec.oversampling * self.noise_gain))
         self.rest = rest
         lin = linearise(_parameters(x0, like, lay), rest)
@@ -416,7 +429,7 @@ class _Problem:
         region (a tensor no body has, a negative damping time) or where the model's motion
         diverges, a constant large residual, which the trust region steps back from."""
         x = self.x(z)
-        outside = np.full(self.size(len(z)), 1e6)
+        outside = np.full(self.size(len(z)), OUTSIDE)
         if not physically_consistent(to_tensor(x[self.lay.inertia])) or x[self.lay.damping] < 0:
             return outside
         try:
@@ -465,7 +478,8 @@ class RigFit:
     parameters: the estimate (:class:`~rig_identification.model.linear_rig.RigParameters`);
     initial: (12,) the initial state's offset at the fit's start.  covariance: (n, n) of the
     unknowns (:class:`Layout` order; inertia kg·m², CG m, mass kg, log stiffness, τ s, gains,
-    body damping N·s/m and N·m·s, initial state (δp_cg m, δφ rad, v_cg m/s, ω rad/s), geometry m): each σ the larger of the
+    body damping N·s/m and N·m·s, initial state (δp_cg m, δφ rad, v_cg m/s, ω rad/s), geometry m):
+    each σ the larger of the
     Fisher information's (each channel's noise raised to its residual's level) and the
     sandwich's (:func:`_covariance`), the correlations the Fisher information's.
     crb: (6,) the Cramér–Rao bound of the tensor entries at the estimate with the sensors' own
@@ -522,7 +536,11 @@ def _covariance(prob: _Problem, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return Hinv * S, Hinv @ meat @ Hinv * S
 
 
-def _start(rig: Rig, prior: Prior, inertia0, damping_time) -> tuple[RigParameters, RestPose]:
+def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, damping_time: float | None = None
+                     ) -> tuple[RigParameters, RestPose]:
+    """The parameters a fit starts from (rig.yaml's geometry, the prior's mass, CG and stiffness,
+    the tensor entries ``inertia0`` (6,), τ ``damping_time`` s or the default cable's) and their
+    rest pose.  Raises :class:`RigFitError` when the rig as described has none."""
     n = len(rig.cables)
     tau = 2 * DEFAULT_DAMPING_RATIO * np.sqrt(prior.mass / (n * prior.stiffness.mean())) \
         if damping_time is None else damping_time
@@ -543,44 +561,103 @@ def _base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) ->
     return simulate(p, y, rec.u[:rec.start + 1], rec.dt, substeps)[1]
 
 
+def _solve(prob: _Problem, verbose: int):
+    """One least-squares solve of ``prob`` from its x0 (scipy's trust region)."""
+    sol = least_squares(prob.residual, np.zeros(prob.lay.size), jac=lambda z: prob.jacobian(z), method="trf",
+                        x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=GTOL, max_nfev=MAX_ITERATIONS, verbose=verbose)
+    log.info("rig fit: %.0f s of record, %d iterations, cost %.4g", prob.n * prob.rec.dt, sol.nfev, sol.cost)
+    return sol
+
+
+def _moved_on(prob: _Problem, sol, p: RigParameters, rest: RestPose) -> tuple[np.ndarray, RigParameters, RestPose]:
+    """The unknowns, parameters and rest pose after ``sol`` (the rest pose sets only the
+    integrator's step: where none is found at the estimate the last one serves)."""
+    x = prob.x(sol.x)
+    p = _parameters(x, p, prob.lay)
+    try:
+        rest = rest_pose(p, rest)
+    except SimulationError as e:
+        log.info("rig fit: no rest pose at the estimate (%s)", e)
+    return x, p, rest
+
+
+def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: Prior, rest: RestPose
+             ) -> np.ndarray:
+    """``prob``'s unknowns with the initial state fitted alone over the first
+    :data:`INITIAL_SPAN` s, every parameter at its start (over so short a span the swinging
+    modes' phase hardly depends on the parameters: the state is found before the parameters
+    make the likelihood multimodal; Ljung 1999, §7.3 on the initial state)."""
+    n = min(prob.n, int(round(INITIAL_SPAN / rec.dt)) + 1)
+    short = _Problem(rec, p, lay, prob.x0, prior, np.ones(len(rec.channels)), n, rest, prob.base)
+    part = lay.initial
+
+    def residual(zi: np.ndarray) -> np.ndarray:
+        z = np.zeros(lay.size)
+        z[part] = zi
+        return short.residual(z)
+
+    sol = least_squares(residual, np.zeros(part.stop - part.start), method="trf", diff_step=JACOBIAN_STEP,
+                        xtol=XTOL, ftol=FTOL, gtol=GTOL, max_nfev=MAX_ITERATIONS)
+    x = prob.x0.copy()
+    x[part] += short.scale[part] * sol.x
+    log.info("rig fit: initial state over %.0f s, %d iterations, cost %.4g → %.4g", n * rec.dt, sol.nfev,
+             0.5 * np.sum(residual(np.zeros(part.stop - part.start)) ** 2), sol.cost)
+    return x
+
+
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0, damping_time: float | None = None,
             verbose: int = 0) -> RigFit:
     """Fit the rig model to a :class:`Record` (module docstring).
 
     rig: rig.yaml (geometry, mounts).  prior: :class:`Prior` (its CG is the start).
-    inertia0: start of the tensor entries (6,) kg·m² about the CG.
+    inertia0: starts of the tensor entries, (6,) or (k, 6) kg·m² about the CG, tried in order
+    over the first stage until one fits it within :data:`START_LEVEL` of the noise (else the one
+    of least cost goes on): the swinging modes make the likelihood multimodal where a start's
+    frequencies are far off.
     damping_time: start of τ, s (default the default cable's: 2 ζ sqrt(m / (N k))).
     Raises :class:`RigFitError` when the rig has no rest pose.
     """
     lay = Layout(len(rig.cables))
-    p, rest = _start(rig, prior, inertia0, damping_time)
-    x = _vector(p, np.zeros(12))
     n_all = len(rec.y) - rec.start
     channels = len(rec.channels)
     noise_scale = np.ones(channels)
-    nfev = 0
     lengths = [int(round(s / rec.dt)) + 1 for s in STAGES if s < 0.8 * n_all * rec.dt]
     rounds = [(n, False) for n in lengths] + [(n_all, True)] * (REWEIGHT_ROUNDS + 1)
-    base = None
-    for n, final in rounds:
-        prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, np.zeros(13))
-        if base is None:
-            base = _base_state(rec, p, rest, prob.substeps)
-        prob.base = base
-        sol = least_squares(prob.residual, np.zeros(lay.size), jac=lambda z: prob.jacobian(z), method="trf",
-                            x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=GTOL, max_nfev=MAX_ITERATIONS, verbose=verbose)
-        log.info("rig fit: %.0f s of record, %d iterations, cost %.4g", n * rec.dt, sol.nfev, sol.cost)
+    best = None
+    nfev = 0
+    problems = []
+    for start in np.atleast_2d(np.asarray(inertia0, float)):
+        p0, rest0 = start_parameters(rig, prior, start, damping_time)
+        prob = _Problem(rec, p0, lay, _vector(p0, np.zeros(12)), prior, noise_scale, rounds[0][0], rest0,
+                        np.zeros(13))
+        prob.base = _base_state(rec, p0, rest0, prob.substeps)
+        problems.append((prob, p0, rest0))
+        prob.x0 = _settled(prob, rec, p0, lay, prior, rest0)
+        if np.all(prob.residual(np.zeros(lay.size)) == OUTSIDE):
+            log.info("rig fit: the start %s leaves the physical region or diverges: the next", np.round(start, 1))
+            continue
+        sol = _solve(prob, verbose)
         nfev += sol.nfev * (lay.size + 1)
-        x = prob.x(sol.x)
-        p = _parameters(x, p, lay)
-        try:        # the rest pose sets only the integrator's step: the last one found serves
-            rest = rest_pose(p, rest)
-        except SimulationError as e:
-            log.info("rig fit: no rest pose at the estimate (%s)", e)
+        if best is None or sol.cost < best[1].cost:
+            best = (prob, sol, p0, rest0)
+        if 2 * sol.cost <= START_LEVEL ** 2 * prob.size(lay.size):
+            break
+    if best is None:                # every start outside: the first, which the verdict will call failed
+        prob, p0, rest0 = problems[0]
+        best = (prob, _solve(prob, verbose), p0, rest0)
+    prob, sol, p, rest = best
+    base = prob.base
+    x, p, rest = _moved_on(prob, sol, p, rest)
+    for i, (n, final) in enumerate(rounds):
+        if i > 0:
+            prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, base)
+            sol = _solve(prob, verbose)
+            nfev += sol.nfev * (lay.size + 1)
+            x, p, rest = _moved_on(prob, sol, p, rest)
         if final:
             level = _levels(_Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base), x)
             new_scale = np.maximum(level, 1.0)
-            if np.allclose(new_scale, noise_scale, rtol=0.05):
+            if np.allclose(new_scale, noise_scale, rtol=0.05) or np.max(level) > REWEIGHT_LIMIT:
                 break
             noise_scale = new_scale
     fisher, sandwich = _covariance(_Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, base), np.zeros(lay.size))

@@ -18,7 +18,8 @@ rotation (world, rad, R = exp([δφ]×) R0); u (2,) the exciter force in its fra
   the cables' axial and geometric stiffness and the moment arms turning under the forces.
 * D = Σ_i τ k_i G_i u_i u_iᵀ G_iᵀ + c_lin G_c G_cᵀ + blockdiag(0, c_ang I), G_c = [I; [c]×]
   (the body's viscous damping on the CG's velocity and the angular velocity);
-  B = [I; [s_e]×] R0 R_e[:, :2] (the exciter's force; the integrated model applies it exactly).
+  B = [I; [s_e]×] R0 R_e[:, :2] (the exciter's force): :func:`frequency_response` gives the
+  steady response to it at one frequency (the start of the exact model's fit).
 
 Its natural frequencies set the step of the exact model's integrator
 (:mod:`~rig_identification.model.rig_ode`).
@@ -117,12 +118,14 @@ class RestPose:
 
 @dataclass(frozen=True)
 class LinearRig:
-    """The rig linearised about its :class:`RestPose`: M, D, K (6, 6) of the module docstring."""
+    """The rig linearised about its :class:`RestPose`: M, D, K (6, 6) of the module docstring;
+    G (N, 6) the cables' length sensitivities, δl = -G q (rows [u_i, s_i × u_i])."""
 
     M: np.ndarray
     D: np.ndarray
     K: np.ndarray
     rest: RestPose
+    G: np.ndarray
 
 
 def _cable_geometry(p: RigParameters, position: np.ndarray, R: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -208,7 +211,26 @@ def linearise(p: RigParameters, rest: RestPose) -> LinearRig:
     Gc = np.vstack([np.eye(3), skew(c)])                                      # CG velocity -> generalized force
     D = p.damping_time * np.einsum("n,ni,nj->ij", p.stiffness, Gu, Gu) + p.body_damping[0] * Gc @ Gc.T
     D[3:, 3:] += p.body_damping[1] * np.eye(3)
-    return LinearRig(M, D, K, rest)
+    return LinearRig(M, D, K, rest, Gu)
+
+
+def frequency_response(p: RigParameters, lin: LinearRig, omega: float, force: np.ndarray) -> np.ndarray:
+    """The steady response of the linearised rig to the exciter force ``force`` (2,) complex N
+    (exciter frame; u(t) = Re(force e^{iωt})) at ``omega`` rad/s: the complex amplitudes of the
+    load cells' readings (N,) N and the gyro's (3,) rad/s (IMU axes), concatenated (N + 3,).
+
+    Q = (K − ω² M + iω D)⁻¹ B u (module docstring); a tension moves by -g_i k_i (1 + iωτ) G_i Q,
+    the gyro reads R_imuᵀ R0ᵀ iω Q_φ.  The fundamental of the exact model's readings to first
+    order in the motion (its quadratic terms fall at 0 and 2ω)."""
+    R0 = lin.rest.rotation
+    s_e = R0 @ p.exciter_position
+    f_world = R0 @ p.exciter_rotation[:, :2] @ np.asarray(force, complex)
+    B = np.concatenate([f_world, np.cross(s_e, f_world)])
+    Q = np.linalg.solve(lin.K - omega ** 2 * lin.M + 1j * omega * lin.D, B)
+    tensions = -p.gain * p.stiffness * (1 + 1j * omega * p.damping_time) * (lin.G @ Q)
+    gyro = p.imu_rotation.T @ R0.T @ (1j * omega * Q[3:])
+    out: np.ndarray = np.concatenate([tensions, gyro])
+    return out
 
 
 def natural_frequencies(lin: LinearRig) -> np.ndarray:

@@ -19,9 +19,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..estimation.harmonic_start import harmonic_start
 from ..estimation.identification import IdentificationError
 from ..estimation.precision import Z95
-from ..estimation.rig_fit import Prior, RigFit, fit_rig, record
+from ..estimation.rig_fit import Prior, Record, RigFit, fit_rig, record
 from ..io.recording import Recording
 from ..io.rig import Survey
 from ..io.verdict import KEYS
@@ -42,6 +43,10 @@ RIG_YAML_CG_STD = 5e-3
 DETERMINED_SHARE = 0.01
 #: The rig model's tensor and the gyro-only fit's must agree within this many combined σ.
 CONSISTENCY_SIGMA = 3.0
+#: The gyro-only fit is a start only where its trace is within this factor of the box's.
+START_TRACE_FACTOR = 5.0
+#: The body anchors' box scaled by these are the starts tried after the first (:func:`start_tensors`).
+BOX_SCALES = (1.0, 0.6, 0.35)
 
 
 @dataclass(frozen=True)
@@ -116,7 +121,8 @@ class RigModelResult:
     fit: :class:`~rig_identification.estimation.rig_fit.RigFit`.  path: the recording.  t0: the
     record's first stamp, s; start_s, duration_s: the compared span from t0, s; band_hz: the
     fit's band edge.  inertia_start: (6,) the tensor the fit started from, and where it came from
-    (``start_source``), with its σ (6,) (inf: none).  cg_prior: (3,) m and cg_prior_std (3,) m (inf: none) of the CG's prior,
+    (``start_source``), with its σ (6,) (inf: none).  cg_prior: (3,) m and cg_prior_std (3,) m
+    (inf: none) of the CG's prior,
     cg_source: where it came from.  survey: the geometry's and the mass's σ the fit assumed
     (rig.yaml ``survey``).  seconds: wall time.  truth: truth.yaml or None.
     """
@@ -145,7 +151,8 @@ class RigModelResult:
         then no entry is an estimate — the directions of the tensor are coupled, and on bench_crb's
         31003 a moment whose σ said ±0.85 % at 95 % was 9 % off beside the undetermined one),
         ``inconsistent`` (:attr:`inconsistent` entries, or the static and dynamic CG disagree
-        beyond :data:`CONSISTENCY_SIGMA`: not an estimate to use) or ``failed`` (a channel beyond :data:`FAILED_LEVEL`, or a number not
+        beyond :data:`CONSISTENCY_SIGMA`: not an estimate to use) or ``failed`` (a channel beyond
+        :data:`FAILED_LEVEL`, or a number not
         finite: the fit did not find the motion; the numbers are not an estimate)."""
         f = self.fit
         finite = np.all(np.isfinite(f.inertia)) and np.all(np.isfinite(f.inertia_std))
@@ -193,6 +200,7 @@ class RigModelResult:
         f = self.fit
         p = f.parameters
         sd = f.inertia_std
+        bd_cov = f.covariance[f.layout.body_damping][:, f.layout.body_damping]
         d = {
             "schema": "rig_identification.rig_model_result", "schema_version": 2,
             "recording": self.path, "model": "rig (grey-box, every sensor an output)",
@@ -214,8 +222,7 @@ class RigModelResult:
             "cables": {"stiffness": p.stiffness.tolist(), "damping_time": float(p.damping_time),
                        "load_cell_gain": p.gain.tolist()},
             "body_damping": {"linear": float(p.body_damping[0]), "angular": float(p.body_damping[1]),
-                             "linear_std": float(np.sqrt(f.covariance[f.layout.body_damping][:, f.layout.body_damping][0, 0])),
-                             "angular_std": float(np.sqrt(f.covariance[f.layout.body_damping][:, f.layout.body_damping][1, 1])),
+                             "linear_std": float(np.sqrt(bd_cov[0, 0])), "angular_std": float(np.sqrt(bd_cov[1, 1])),
                              "units": "N s/m on the CG's velocity, N m s on the angular velocity"},
             "residual_level": {c: float(v) for c, v in zip(f.channels, f.residual_level)},
             "poorly_fitted_channels": self.poorly_fitted,
@@ -233,17 +240,33 @@ class RigModelResult:
 
 def start_tensor(rec: Recording) -> tuple[np.ndarray, np.ndarray, str]:
     """The tensor entries (6,) the fit starts from, their σ (6,) (inf: a guess) and their source:
-    the prediction-error fit on the gyro (unrefined) where it gives a physical tensor, else the
-    body anchors' box."""
+    the prediction-error fit on the gyro (unrefined) where it gives a physical tensor whose
+    trace is within a factor :data:`START_TRACE_FACTOR` of the body anchors' box's, else that box."""
+    box = default_initial_guess(rec.rig)
     try:
         res = identify_recording(rec, refine=False)
         tensor = np.asarray(res.inertia, float)      # (3, 3)
         if np.all(np.isfinite(tensor)) and physically_consistent(tensor):
-            std = np.asarray(res.inertia_std, float)
-            return from_tensor(tensor), np.where(np.isfinite(std), std, np.inf), "the prediction-error fit on the gyro"
+            ratio = np.trace(tensor) / (box[0] + box[3] + box[5])
+            if 1 / START_TRACE_FACTOR <= ratio <= START_TRACE_FACTOR:
+                std = np.asarray(res.inertia_std, float)
+                return from_tensor(tensor), np.where(np.isfinite(std), std, np.inf), \
+                    "the prediction-error fit on the gyro"
+            log.info("the prediction-error start's trace is %.3g times the box's: not a start", ratio)
     except (IdentificationError, np.linalg.LinAlgError, ValueError) as e:
         log.info("no prediction-error start (%s): the body anchors' box", e)
-    return default_initial_guess(rec.rig), np.full(6, np.inf), "the body anchors' box (a guess)"
+    return box, np.full(6, np.inf), "the body anchors' box (a guess)"
+
+
+def start_tensors(rec: Recording, rc: Record, prior: Prior, first: np.ndarray) -> np.ndarray:
+    """(k, 6) the starts the fit tries in turn: the tensor whose linearised forced response
+    matches the record's fundamental (:func:`~rig_identification.estimation.harmonic_start.harmonic_start`,
+    itself fitted from the others), ``first``, then the body anchors' box scaled by
+    :data:`BOX_SCALES` (a body's radius of gyration is some fraction of the frame that carries it)."""
+    box = default_initial_guess(rec.rig)
+    others = np.vstack([first] + [f * box for f in BOX_SCALES if not np.allclose(f * box, first)])
+    harmonic, _ = harmonic_start(rc, rec.rig, prior, others)
+    return np.vstack([harmonic, others])
 
 
 def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | None = None,
@@ -264,7 +287,7 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     prior = Prior.from_rig(rec.rig, cg, cg_std)
     guess, guess_std, source = start_tensor(rec)
     log.info("fitting the rig model to every sensor (%.0f s, %d channels)", rc.duration, len(rc.channels))
-    fit = fit_rig(rc, rec.rig, prior, guess)
+    fit = fit_rig(rc, rec.rig, prior, start_tensors(rec, rc, prior, guess))
     return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
                           (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, guess_std, source, prior.cg, prior.cg_std,
                           cg_source or ("rig.yaml (start only)" if cg_std is None else "given"), rec.rig.survey,
