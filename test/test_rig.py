@@ -9,6 +9,7 @@ import pytest
 import yaml
 from conftest import REPO, recording, run_cli
 
+from rig_identification.cli.plan import force_limit
 from rig_identification.io.rig import RigError, dump_rig, load_rig, rig_from_dict
 from rig_identification.model.experiment import load_experiment
 
@@ -252,3 +253,18 @@ def test_cg_takes_its_geometry_sigma_from_the_rig_survey(tmp_path):
     a, b, c = (json.loads(o)["center_of_gravity_std"] for o in (out, out2, out3))
     np.testing.assert_allclose(a, b, rtol=1e-9)
     assert c[2] > 5 * a[2]                       # the 1 mm default survey dominates the height's σ
+
+
+def test_exciter_max_force_is_read_and_bounds_the_plan(rig_dict):
+    """rig.yaml ``exciter.max_force`` (N) is read and written back; ``plan`` takes it as its force
+    limit unless --max-force says otherwise, and says where the limit came from."""
+    d = copy.deepcopy(rig_dict)
+    d["exciter"]["max_force"] = 150.0
+    rig = rig_from_dict(d, "rig.yaml")
+    assert rig.exciter.max_force == 150.0 and rig_from_dict(rig.to_dict()).exciter.max_force == 150.0
+    assert rig_from_dict(rig_dict).exciter.max_force is None
+    with pytest.raises(RigError, match="exciter.max_force must be > 0"):
+        rig_from_dict(copy.deepcopy(rig_dict) | {"exciter": rig_dict["exciter"] | {"max_force": 0}}, "rig.yaml")
+    assert force_limit(150.0, rig) == "force ≤ 150 N (rig.yaml exciter.max_force)"
+    assert force_limit(120.0, rig) == "force ≤ 120 N (--max-force)"
+    assert force_limit(float("inf"), rig).startswith("force not limited (rig.yaml exciter.max_force not set")

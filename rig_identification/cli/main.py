@@ -163,8 +163,9 @@ def add_plan_parser(sub) -> None:
                     help="nominal " + TENSOR_HELP)
     pp.add_argument("--mass", type=float, metavar="KG", help="nominal mass (default: rig.yaml body.mass)")
     pp.add_argument("--duration", type=float, default=120.0, metavar="S", help="length of each run (default 120)")
-    pp.add_argument("--max-force", type=float, default=float("inf"), metavar="N",
-                    help="largest force amplitude the exciter can make (default: no limit but the rig's)")
+    pp.add_argument("--max-force", type=float, metavar="N",
+                    help="largest force amplitude the exciter can make (default: rig.yaml exciter.max_force; "
+                         "without it no limit but the rig's)")
     pp.add_argument("--max-rotation", type=float, default=3.0, metavar="DEG",
                     help="largest rotation of the body, start-up included (default 3)")
     pp.add_argument("--min-tension", type=float, default=0.2, metavar="RATIO",

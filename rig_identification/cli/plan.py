@@ -9,6 +9,7 @@ as every option of ``rig-identify`` takes them.
 from __future__ import annotations
 
 import json
+import math
 import sys
 
 import numpy as np
@@ -102,6 +103,14 @@ def cmd_modes(args) -> int:
     return 0
 
 
+def force_limit(max_force: float, rig) -> str:
+    """The force limit as the plan's text says it, with where it came from."""
+    if not math.isfinite(max_force):
+        return "force not limited (rig.yaml exciter.max_force not set: the plan may ask more than the exciter makes)"
+    given = rig.exciter is not None and rig.exciter.max_force == max_force
+    return f"force ≤ {max_force:g} N" + (" (rig.yaml exciter.max_force)" if given else " (--max-force)")
+
+
 def plan_from_args(args):
     """The rig, the nominal body and the plan (:func:`~rig_identification.design.planning.plan_experiment`) the options
     ask for.  Raises PlanError, ExperimentError, SimulationError."""
@@ -126,7 +135,9 @@ def plan_from_args(args):
         geometries += geometry_variants(body, args.vary_geometry)
     if geometries and args.runs < 2:
         raise PlanError("--geometry / --vary-geometry are for a second run: they need --runs 2")
-    plan = plan_experiment(body, baseline, duration=args.duration, max_force=args.max_force,
+    max_force = args.max_force if args.max_force is not None else (
+        rig.exciter.max_force if rig.exciter is not None and rig.exciter.max_force is not None else math.inf)
+    plan = plan_experiment(body, baseline, duration=args.duration, max_force=max_force,
                            max_rotation_deg=args.max_rotation, min_tension_ratio=args.min_tension,
                            frequencies=tuple(args.frequencies), positions=args.position, max_runs=args.runs,
                            objective=args.objective, refine=max(1, args.refine), geometries=geometries,
@@ -185,7 +196,8 @@ def cmd_plan(args) -> int:
         print(f"  {m.frequency:7.3f} Hz  {m.description}")
     lim = plan.limits
     print(f"limits: rotation ≤ {lim['max_rotation_deg']:g}° (peak, start-up included), every cable ≥ "
-          f"{100 * lim['min_tension_ratio']:.0f} % of its static tension, force ≤ {lim['max_force_n']:g} N; exciter "
+          f"{100 * lim['min_tension_ratio']:.0f} % of its static tension, " + force_limit(lim['max_force_n'], rig)
+          + "; exciter "
           f"{lim['frequency_range_hz'][0]:g}–{lim['frequency_range_hz'][1]:g} Hz, "
           f"≥ {100 * lim['mode_margin']:.0f} % "
           "from every mode, its double and every sum of two (parametric resonance)")

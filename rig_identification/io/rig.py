@@ -56,10 +56,13 @@ class Cable:
 
 @dataclass(frozen=True)
 class Mount:
-    """A sensor or actuator frame on the body: position (3,) m and rotation to body axes."""
+    """A sensor or actuator frame on the body: position (3,) m and rotation to body axes.
+    max_force: the exciter's largest force amplitude, N (rig.yaml ``exciter.max_force``; None:
+    not stated; other mounts have none)."""
 
     position: np.ndarray
     rpy: np.ndarray
+    max_force: float | None = None
 
     @property
     def rotation(self) -> Rotation:
@@ -198,6 +201,8 @@ class Rig:
         out["imu"] = {"position": vec(self.imu.position), "rpy": vec(self.imu.rpy)}
         if self.exciter is not None:
             out["exciter"] = {"position": vec(self.exciter.position), "rpy": vec(self.exciter.rpy)}
+            if self.exciter.max_force is not None:
+                out["exciter"]["max_force"] = float(self.exciter.max_force)
         if self.inclinometer is not None:
             out["inclinometer"] = {"rpy": vec(self.inclinometer.rpy)}
         if self.dummy_mass is not None:
@@ -254,14 +259,17 @@ def _mount(d: Any, name: str, src: str, with_position: bool = True) -> Mount:
     pos = _vector(_get(d, "position", name, src), f"{name}.position", src) if with_position else np.zeros(3)
     rpy_raw = _get(d, "rpy", name, src, required=False)
     rpy = np.zeros(3) if rpy_raw is None else _vector(rpy_raw, f"{name}.rpy", src)
-    return Mount(position=pos, rpy=rpy)
+    force_raw = _get(d, "max_force", name, src, required=False) if name == "exciter" else None
+    force = None if force_raw is None else _number(force_raw, f"{name}.max_force", src, positive=True)
+    return Mount(position=pos, rpy=rpy, max_force=force)
 
 
 KNOWN_TOP = {"name", "output_axes", "gravity", "cables", "body", "imu", "exciter", "inclinometer", "dummy_mass",
              "topics", "survey"}
 # the fields of each mapping of rig.yaml (docs/recording_format.md); any other is an error
 KNOWN_FIELDS = {"": KNOWN_TOP, "cable": {"name", "ceiling_anchor", "body_anchor", "length", "stiffness"},
-                "body": {"mass", "center_of_gravity"}, "imu": {"position", "rpy"}, "exciter": {"position", "rpy"},
+                "body": {"mass", "center_of_gravity"}, "imu": {"position", "rpy"},
+                "exciter": {"position", "rpy", "max_force"},
                 "inclinometer": {"rpy"}, "dummy_mass": {"mass", "position"},
                 "topics": {"imu", "load_cells", "exciter", "inclinometer"},
                 "survey": {"anchors", "lengths", "dummy_position", "mass"}}
