@@ -7,11 +7,13 @@ The shake is the clean reference recording (--quick: a few seconds), the static 
 reference pair (its CG 2.2 mm below truth.yaml's, the body origin)."""
 import html
 import json
+import tempfile
+from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
-from conftest import recording, run_cli
+from conftest import background, gather, recording, run_cli
 
 CLEAN = recording("visible_case16_clean")
 BASE = recording("visible_case16_static/static_baseline")
@@ -100,18 +102,34 @@ def test_the_exports_say_where_the_cg_came_from(day, tmp_path):
     assert json.loads(out)["center_of_gravity_source"] == "rig.yaml body.center_of_gravity"
 
 
-def test_the_rig_model_carries_the_static_cg_and_finds_its_own(day):
+def _chain():
+    """Job: ``cg`` on the static pair, then ``inertia --model rig --cg cg.json`` on 45 s of the
+    clean run (in the worker's process).  Returns (cg JSON, the rig model's JSON, its exit status
+    and stderr)."""
+    code, out, err = run_cli("cg", BASE, DUMMY, "--json", "-q")
+    assert code == 0, err
+    with tempfile.TemporaryDirectory() as tmp:
+        cg_file = Path(tmp) / "cg.json"
+        cg_file.write_text(out)
+        code2, out2, err2 = run_cli("inertia", CLEAN, "--model", "rig", "--cg", cg_file, "--end", "45", "--json", "-q")
+    return out, out2, code2, err2
+
+
+background("rig_day_chain", __file__, _chain, {"run": ()}, first=True)
+
+
+def test_the_rig_model_carries_the_static_cg_and_finds_its_own():
     """The chain static pair → ``cg`` → ``inertia --model rig --cg cg.json`` (45 s of the clean
     run): the static CG is the prior and is shown as such; the run alone places the CG within
     1 mm and 3 σ of the truth (the body origin) with σ at least ten times smaller in height than
     the static test's; the combined CG is the tensor's point, and the tensor is within 1 % and
     its σ, which carries the CG's, within 3 σ of the truth."""
-    cg, cg_file, *_ = day
-    code, out, err = run("inertia", CLEAN, "--model", "rig", "--cg", cg_file, "--end", "45", "--json", "-q")
+    cg_text, out, code, err = gather("rig_day_chain")["run"]
     assert code == 0, err
+    cg = json.loads(cg_text)
     res = json.loads(out)
     c = res["center_of_gravity"]
-    assert c["static_source"] == str(cg_file)
+    assert c["static_source"].endswith("cg.json")
     np.testing.assert_allclose(c["static"], cg["center_of_gravity"])
     np.testing.assert_allclose(c["static_std"], cg["center_of_gravity_std"])
     dyn, dyn_std = np.array(c["dynamic"]), np.array(c["dynamic_std"])
