@@ -29,7 +29,12 @@ from rig_identification.model.linear_rig import (
 from rig_identification.model.parametrisation import entry_scales, from_tensor
 from rig_identification.model.rig_ode import rest_state, simulate
 from rig_identification.pipeline.offline import default_initial_guess
-from rig_identification.pipeline.rig_model import fit_whole_recording, split_cg
+from rig_identification.pipeline.rig_model import (
+    TRUSTED_START_SHARE,
+    fit_whole_recording,
+    split_cg,
+    start_tensors,
+)
 
 QUIET = {k: 0.0 for k in REFERENCE_NOISE}
 
@@ -168,6 +173,27 @@ def test_three_and_five_cable_rigs_within_one_percent_three_sigma_near_the_bound
     err = np.array(cg["dynamic"]) - np.array(truth["center_of_gravity"])
     assert np.all(np.abs(err) < 3e-3) and np.all(np.abs(err) < 3 * np.array(cg["dynamic_std"])), err
     assert abs(d["mass"] - truth["mass"]) < 3 * d["mass_std"]
+
+
+def test_a_trusted_gyro_fit_is_the_first_start_else_the_forced_response():
+    """The starts in turn: the gyro-only fit first where each σ is within 5 % of its entry's scale,
+    else the tensor whose linearised forced response matches the record's fundamental; the body
+    anchors' boxes after both."""
+    _, sim = simulate_random(7206, 5, "wide", [], 20.0)
+    rec = Recording(sim.rig, sim.sensors, sim.truth, None)
+    rc = record(sim.sensors, sim.rig)
+    prior = Prior.from_rig(sim.rig, np.asarray(sim.truth["center_of_gravity"]), np.full(3, 1e-3))
+    tru = from_tensor(inertia_tensor(sim.truth["inertia_about_cg"]))
+    guess = tru * np.array([1.2, 1.0, 1.0, 0.8, 1.0, 1.2])
+    scale = entry_scales(guess)
+    trusted = start_tensors(rec, rc, prior, guess, 0.5 * TRUSTED_START_SHARE * scale)
+    doubted = start_tensors(rec, rc, prior, guess, 2.0 * TRUSTED_START_SHARE * scale)
+    assert np.allclose(trusted[0], guess) and np.allclose(doubted[1], guess)
+    assert np.allclose(trusted[1], doubted[0]) and np.allclose(trusted[2:], doubted[2:])
+    harmonic = inertia_tensor(dict(zip(KEYS, doubted[0])))        # a tensor of its own, a physical one
+    assert not any(np.allclose(doubted[0], row) for row in doubted[1:]) and np.all(np.linalg.eigvalsh(harmonic) > 0)
+    box = default_initial_guess(sim.rig)
+    assert any(np.allclose(row, box) for row in trusted[2:])
 
 
 def test_the_dynamic_cg_is_the_fusion_inverted():

@@ -45,6 +45,8 @@ DETERMINED_SHARE = 0.01
 CONSISTENCY_SIGMA = 3.0
 #: The gyro-only fit is a start only where its trace is within this factor of the box's.
 START_TRACE_FACTOR = 5.0
+#: The gyro-only fit is the first start where each σ is within this share of its entry's scale.
+TRUSTED_START_SHARE = 0.05
 #: The body anchors' box scaled by these are the starts tried after the first (:func:`start_tensors`).
 BOX_SCALES = (1.0, 0.6, 0.35)
 
@@ -258,15 +260,18 @@ def start_tensor(rec: Recording) -> tuple[np.ndarray, np.ndarray, str]:
     return box, np.full(6, np.inf), "the body anchors' box (a guess)"
 
 
-def start_tensors(rec: Recording, rc: Record, prior: Prior, first: np.ndarray) -> np.ndarray:
-    """(k, 6) the starts the fit tries in turn: the tensor whose linearised forced response
-    matches the record's fundamental (:func:`~rig_identification.estimation.harmonic_start.harmonic_start`,
-    itself fitted from the others), ``first``, then the body anchors' box scaled by
+def start_tensors(rec: Recording, rc: Record, prior: Prior, first: np.ndarray, first_std: np.ndarray) -> np.ndarray:
+    """(k, 6) the starts the fit tries in turn: ``first`` (the gyro-only fit's, σ ``first_std``)
+    where every σ is within :data:`TRUSTED_START_SHARE` of its entry's scale, then the tensor
+    whose linearised forced response matches the record's fundamental
+    (:func:`~rig_identification.estimation.harmonic_start.harmonic_start`, itself fitted from the
+    others; first where ``first`` is not trusted), then the body anchors' box scaled by
     :data:`BOX_SCALES` (a body's radius of gyration is some fraction of the frame that carries it)."""
     box = default_initial_guess(rec.rig)
-    others = np.vstack([first] + [f * box for f in BOX_SCALES if not np.allclose(f * box, first)])
-    harmonic, _ = harmonic_start(rc, rec.rig, prior, others)
-    return np.vstack([harmonic, others])
+    boxes = [f * box for f in BOX_SCALES if not np.allclose(f * box, first)]
+    harmonic, _ = harmonic_start(rc, rec.rig, prior, np.vstack([first] + boxes))
+    trusted = bool(np.all(first_std <= TRUSTED_START_SHARE * entry_scales(first)))
+    return np.vstack(([first, harmonic] if trusted else [harmonic, first]) + boxes)
 
 
 def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | None = None,
@@ -287,7 +292,7 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     prior = Prior.from_rig(rec.rig, cg, cg_std)
     guess, guess_std, source = start_tensor(rec)
     log.info("fitting the rig model to every sensor (%.0f s, %d channels)", rc.duration, len(rc.channels))
-    fit = fit_rig(rc, rec.rig, prior, start_tensors(rec, rc, prior, guess))
+    fit = fit_rig(rc, rec.rig, prior, start_tensors(rec, rc, prior, guess, guess_std))
     return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
                           (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, guess_std, source, prior.cg, prior.cg_std,
                           cg_source or ("rig.yaml (start only)" if cg_std is None else "given"), rec.rig.survey,
