@@ -20,6 +20,7 @@ import contextlib
 import io
 import multiprocessing
 import os
+import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -56,6 +57,13 @@ def recording(name: str) -> Path:
 _groups: dict = {}      # group -> (module file, {key: (fn, args)}), in the order the workers take them
 _futures: dict = {}     # group -> {key: Future}, when a worker pool took them
 _done: dict = {}        # group -> {key: result} taken by gather
+_seconds: dict = {}     # (group, key) -> wall seconds the job took, where and when it ran (the terminal summary)
+
+
+def _timed(fn, *args):
+    """``(fn(*args), wall seconds)``: a job as a worker or :func:`gather` runs it."""
+    t = time.perf_counter()
+    return fn(*args), time.perf_counter() - t
 _first: set = set()   # the groups declared with first=True
 _pool = None
 
@@ -91,10 +99,10 @@ def gather(group: str, *keys) -> dict:
         f = futures.get(key)
         if f is None or f.cancel():
             fn, args = jobs[key]
-            out[key] = fn(*args)
+            out[key], _seconds[group, key] = _timed(fn, *args)
     for key in keys:
         if key not in out:
-            out[key] = futures[key].result()
+            out[key], _seconds[group, key] = futures[key].result()
     return {key: out[key] for key in keys}
 
 
@@ -140,7 +148,16 @@ def pytest_collection_finish(session):
     # forked now, before any test has started a thread (rclpy, DDS)
     _pool = ProcessPoolExecutor(WORKERS, mp_context=multiprocessing.get_context("fork"), initializer=_niced)
     for group, jobs in todo:
-        _futures[group] = {key: _pool.submit(fn, *args) for key, (fn, args) in jobs.items()}
+        _futures[group] = {key: _pool.submit(_timed, fn, *args) for key, (fn, args) in jobs.items()}
+
+
+def pytest_terminal_summary(terminalreporter):
+    """The background jobs' wall times, longest first (where the suite's time goes besides the
+    tests' own, which ``--durations`` lists)."""
+    if _seconds:
+        terminalreporter.write_sep("-", "background jobs (wall s)")
+        for (group, key), s in sorted(_seconds.items(), key=lambda kv: -kv[1]):
+            terminalreporter.write_line(f"{s:7.1f}  {group}/{key}")
 
 
 def pytest_sessionfinish(session, exitstatus):
