@@ -7,15 +7,17 @@
 * The sprung body's reaction wrench (:func:`~rig_identification.diagnosis.compliant_body.effect_wrench_of`)
   is −Σ ℓ ℓᵀ jΩ G(jΩ) ω̂ in steady state; the exciter's speeds read from its force, and
   whether they sweep through the modes (:func:`~rig_identification.diagnosis.compliant_body.swept`).
-* The gate (:func:`~rig_identification.diagnosis.compliant_body.two_body_reason`): the fit
-  runs only when nothing else explained the misfit and the rigid-body fit failed
+* The gate (:func:`~rig_identification.diagnosis.not_rigid.two_body_reason`): the body may not
+  be rigid only when nothing else explained the misfit and the rigid-body fit failed
   ``sub_bands`` or the exciter swept — never on a recording that passes (a clean one).
-* The candidate through ``with_diagnosis`` on test_validation's 45 s random rig with a
-  68 %-sprung body and one exciter speed (its job shared): the two-body model explains the
-  recording (V at the noise level, the rigid body's far beyond), finds the roll mode, and —
-  the exciter not having swept through the modes — is a hypothesis with the advice in words
-  (JSON and text), never a tensor.  (No clean-rig case: the gate keeps the fit off
-  a recording that passes ``sub_bands``; and its likelihood ratio alone is no guard there —
+* ``rig-identify inertia`` (``with_diagnosis``) on test_validation's 45 s random rig with a
+  68 %-sprung body and one exciter speed (its job shared): the unfitted hypothesis with the
+  advice (lock the suspension, or ``diagnose --two-body``), never a tensor.
+* The experimental two-body fit (``rig-identify diagnose --two-body``) on the same recording:
+  it explains the recording (V at the noise level, the rigid body's far beyond), finds a true
+  mode, and — the exciter not having swept through the modes — is a hypothesis with the
+  advice in words (JSON and text), never a tensor.  (No clean-rig case: the gate keeps the fit
+  off a recording that passes ``sub_bands``; and its likelihood ratio alone is no guard there —
   seed 101, clean, 30 s: 43 for 13 degrees of freedom, beyond the χ² quantile, a sprung
   body's frequencies being undetermined without one.)
 """
@@ -24,16 +26,17 @@ from types import SimpleNamespace
 
 import numpy as np
 import test_validation  # noqa: F401  (registers the "validation" jobs this module shares)
-from conftest import gather
+from conftest import background, gather
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
 from rig_identification.cli.diagnose import compliant_dict, compliant_lines
 from rig_identification.cli.inertia import diagnosis_lines
 from rig_identification.diagnosis import compliant_body as cbm
+from rig_identification.diagnosis import not_rigid as nr
 from rig_identification.diagnosis.result import Combination
 from rig_identification.estimation import two_body as tb
-from rig_identification.io.recording import TimeSeries
+from rig_identification.io.recording import Recording, TimeSeries
 
 # --- the two-body model ---------------------------------------------------------------------------
 
@@ -98,13 +101,13 @@ def test_exciter_speeds_and_sweep():
     ph = np.pi * 3.5 * t**2 / 80.0                                      # speed 3.5 t / 80 Hz
     A = 500.0 * (t / 80.0) ** 2
     sweep = SimpleNamespace(exciter=TimeSeries(t, np.column_stack([A * np.cos(ph), A * np.sin(ph)])))
-    lo, hi = cbm.exciter_speeds(sweep, 0.0, 80.0)
+    lo, hi = nr.exciter_speeds(sweep, 0.0, 80.0)
     assert 0.05 < lo < 0.6 and 3.3 < hi <= 3.5
     modes = [SimpleNamespace(axis="roll", frequency=1.5), SimpleNamespace(axis="pitch", frequency=2.6)]
     assert cbm.swept(modes, (lo, hi)) == ""
     ph1 = 2 * np.pi * 1.25 * t
     fixed = SimpleNamespace(exciter=TimeSeries(t, 200.0 * np.column_stack([np.cos(ph1), np.sin(ph1)])))
-    speeds = cbm.exciter_speeds(fixed, 0.0, 80.0)
+    speeds = nr.exciter_speeds(fixed, 0.0, 80.0)
     assert abs(speeds[0] - 1.25) < 0.01 and abs(speeds[1] - 1.25) < 0.01
     why = cbm.swept(modes, speeds)
     assert "at 1.25 Hz only" in why and "roll mode (1.50 Hz)" in why and "pitch mode (2.60 Hz)" in why
@@ -128,12 +131,12 @@ def test_gate_runs_the_two_body_fit_only_when_it_can_matter():
 
     def result(*failed):
         return SimpleNamespace(validation=SimpleNamespace(failed=tuple(failed)), t_start=5.0, t_end=80.0)
-    assert "sub_bands" in cbm.two_body_reason(fixed, result("segments", "sub_bands"), explained=False)
-    assert cbm.two_body_reason(fixed, result("segments", "sub_bands"), explained=True) == ""
-    assert cbm.two_body_reason(bare, result("sub_bands"), explained=False) == ""
-    assert cbm.two_body_reason(fixed, result("whiteness", "input_correlation"), explained=False) == ""
-    assert "swept" in cbm.two_body_reason(sweep, result("whiteness"), explained=False)
-    assert cbm.two_body_reason(sweep, result("whiteness"), explained=True) == ""
+    assert "sub_bands" in nr.two_body_reason(fixed, result("segments", "sub_bands"), explained=False)
+    assert nr.two_body_reason(fixed, result("segments", "sub_bands"), explained=True) == ""
+    assert nr.two_body_reason(bare, result("sub_bands"), explained=False) == ""
+    assert nr.two_body_reason(fixed, result("whiteness", "input_correlation"), explained=False) == ""
+    assert "swept" in nr.two_body_reason(sweep, result("whiteness"), explained=False)
+    assert nr.two_body_reason(sweep, result("whiteness"), explained=True) == ""
 
 
 # --- the candidate on simulated recordings ----------------------------------------------------------
@@ -141,21 +144,55 @@ def test_gate_runs_the_two_body_fit_only_when_it_can_matter():
 COMPLIANT = {"name": "compliant_body", "mass_share": 0.68, "frequencies": [1.6, 1.3, 2.2], "damping_ratio": 0.2}
 
 
-# the recording and pipeline of test_validation's "compliant" job (seed 7700, 45 s, identified and
-# diagnosed): one simulation and one two-body fit for both modules (~25 s of CPU for the fit)
+# test_validation's "compliant" job (seed 7700, 45 s, identified and diagnosed as rig-identify
+# inertia does) and the experimental two-body fit of the same recording (rig-identify diagnose
+# --two-body), the costly one, as a job of its own
 VALIDATION_JOB = ("validation", "compliant")
 
 
-def test_diagnosis_offers_a_sprung_body_as_a_hypothesis_with_advice():
-    """Through ``with_diagnosis`` (the gate open: the rigid-body fit failed sub_bands, nothing of the
-    library explained it): the two-body fit explains the recording, finds the roll mode, and —
-    one exciter speed — stays a hypothesis, never a tensor, with one line of advice in words."""
+def _two_body(seed: int, duration: float):
+    """Job: the "compliant" recording of test_validation fitted by the two-body model as
+    ``rig-identify diagnose --two-body`` does (diagnosis_alternative); returns its effect entry
+    and not_named."""
+    from rig_identification.design.scenarios import simulate_random
+    _, sim = simulate_random(seed, 4, "wide", [COMPLIANT], duration)
+    alt = cbm.diagnosis_alternative(Recording(sim.rig, sim.sensors, sim.truth, None))
+    return None if alt is None else (alt.effects[0], alt.not_named, alt.inertia)
+
+
+background("two_body", __file__, _two_body, {"run": (7700, 45.0)})
+
+
+def test_inertia_says_the_body_may_not_be_rigid_without_fitting_it():
+    """Through ``with_diagnosis`` (what ``rig-identify inertia`` does; the gate open: the
+    rigid-body fit failed sub_bands, nothing of the library explained it): the hypothesis that
+    the body is not rigid, unfitted — no parameters, no tensor, never named — and one line of
+    advice: lock the suspension, or ``diagnose --two-body``."""
     truth, rigid, res = gather(*VALIDATION_JOB)[VALIDATION_JOB[1]]
     assert "sub_bands" in rigid.validation.failed and res.validation.verdict != "ok"
     assert res.diagnosis["effects"] == []
     hyp = [e for e in res.diagnosis["hypotheses"] if e["name"] == "compliant_body"]
     assert len(hyp) == 1
-    entry, d = hyp[0], hyp[0]["evidence"]
+    entry = hyp[0]
+    why = "the rigid-body fit's apparent inertia depends on the frequency (sub_bands failed)"
+    assert entry["evidence"] == {"fitted": False, "why": why}
+    assert entry["plausible"] is False and entry["parameters"] == {} and entry["implausible"].startswith("not fitted")
+    advice = entry["advice"]
+    assert advice.startswith("the body may not be rigid: ") and "lock the suspension" in advice
+    assert "rig-identify diagnose RECORDING --two-body" in advice
+    tried = [h for h in res.diagnosis["combinations_tried"] if [e["name"] for e in h["effects"]] == ["compliant_body"]]
+    assert tried and tried[0]["not_named"] == entry["implausible"]
+    assert f"advice: {advice}" in diagnosis_lines(res)
+    assert any("compliant_body" in w for w in res.warnings)
+
+
+def test_two_body_fit_finds_a_mode_and_stays_a_hypothesis_with_advice():
+    """The experimental two-body fit (``rig-identify diagnose --two-body``) on the same
+    recording: it explains the recording (V at the noise level, the rigid body's far beyond),
+    finds a true mode, and — one exciter speed — stays a hypothesis, never a tensor, with one
+    line of advice in words."""
+    entry, not_named, inertia = gather("two_body", "run")["run"]
+    d = entry["evidence"]
     crit = d["criterion"]
     # the sprung body explains the recording: its V at the noise level, the rigid body's far beyond
     assert d["significant"] and crit["V"] <= chi2.ppf(0.999, crit["dof"]) and crit["V_rigid"] > 10 * crit["V"]
@@ -169,17 +206,16 @@ def test_diagnosis_offers_a_sprung_body_as_a_hypothesis_with_advice():
     # one exciter speed: not named, no tensor at all, and the experiment that would decide it
     lo, hi = d["exciter_hz"]
     assert hi - lo < 0.1 and d["named"] is False and d["inertia_about_cg"] is None and "hypothesis" not in d
+    assert inertia is None and not_named == d["why"]
     assert "lock the suspension" in d["why"] and "sweep of the exciter" in d["why"]
     assert entry["plausible"] is False and entry["parameters"]["frequencies"][0] == roll["frequency_hz"]
     assert "frequencies" not in entry["parameters_std"]     # one speed: no σ claimed for the modes
-    tried = [h for h in res.diagnosis["combinations_tried"] if [e["name"] for e in h["effects"]] == ["compliant_body"]]
-    assert tried and tried[0]["not_named"] == d["why"]
     if d["why"].startswith("not plausible"):
         # the optimum is flat (above): the roll mode's participation along x (plausible, the advice
         # below) or along y (3 % of the moment about y: not plausible) — modes no sprung body can
         # have give no advice, and the entry says why
         assert "advice" not in entry and entry["implausible"].startswith("not plausible: "), entry["implausible"]
-        assert not any(ln.startswith("advice:") for ln in diagnosis_lines(res))
+        assert compliant_lines(compliant_dict("sub_bands failed", _named_not(entry), True))[1:] == []
         return
     advice = entry["advice"]
     assert advice.startswith("the body may not be rigid: modes at roll ") and f"{roll['frequency_hz']:.2f}" in advice
@@ -187,25 +223,35 @@ def test_diagnosis_offers_a_sprung_body_as_a_hypothesis_with_advice():
     assert "(from one exciter speed: rough, no σ)" in advice and " ± " not in advice.split(";")[0]
     assert "the tensor is not trustworthy" in advice and advice.endswith(
         "lock the suspension (or sweep the exciter through the modes) and record again")
-    # the command line's text: the advice as one line
-    assert f"advice: {advice}" in diagnosis_lines(res)
+    # rig-identify diagnose --two-body's text: the hypothesis and the advice as one line
+    assert f"advice: {advice}" in compliant_lines(compliant_dict("sub_bands failed", _named_not(entry), True))
+
+
+def _named_not(e):
+    """As diagnosis_alternative gives a sprung body it does not name: no tensor."""
+    return Combination([e], {}, None, None, None, None, 0.0, 60.0, 4, -40.0, (("compliant_body", ""),),
+                       not_named="a hypothesis")
 
 
 def test_diagnose_command_says_the_hypothesis_in_one_advice_line():
     """``rig-identify diagnose``'s part for the two-body fit: nothing when the gate kept it off;
     the hypothesis and its advice line when it ran; said plainly when it found no sprung body."""
-    assert compliant_lines(compliant_dict("", None)) == [] and compliant_dict("", None)["run"] is False
+    assert compliant_lines(compliant_dict("", None, True)) == [] and compliant_dict("", None, True)["run"] is False
+    # the gate open, the fit not asked for (rig-identify diagnose without --two-body): the unfitted hypothesis
+    unfitted = compliant_dict("sub_bands failed", None, False)
+    assert unfitted["run"] is False and unfitted["hypothesis"]["evidence"]["fitted"] is False
+    lines = compliant_lines(unfitted)
+    assert lines[0].startswith("hypothesis (not a finding): compliant_body: not fitted (sub_bands failed)")
+    assert lines[1].startswith("advice: the body may not be rigid: sub_bands failed; lock the suspension")
+    assert "--two-body" in lines[1] and len(lines) == 2
     entry = {"name": "compliant_body", "parameters": {"frequencies": [1.55, 1.1], "damping_ratio": [0.2, 0.25]},
              "parameters_std": {"frequencies": [0.05, 0.1], "damping_ratio": [0.02, 0.03]}, "plausible": False,
              "advice": "the body may not be rigid: …; lock the suspension (or sweep the exciter through the modes) "
                        "and record again"}
-    def not_named(e):   # as diagnosis_alternative gives a sprung body it does not name: no tensor
-        return Combination([e], {}, None, None, None, None, 0.0, 60.0, 4, -40.0, (("compliant_body", ""),),
-                           not_named="a hypothesis")
-    lines = compliant_lines(compliant_dict("sub_bands failed", not_named(entry)))
+    lines = compliant_lines(compliant_dict("sub_bands failed", _named_not(entry), True))
     assert lines[0].startswith("hypothesis (not a finding): compliant_body: frequencies = ")
     assert lines[1] == f"advice: {entry['advice']}" and len(lines) == 2
     implausible = {k: v for k, v in entry.items() if k != "advice"}
-    assert len(compliant_lines(compliant_dict("sub_bands failed", not_named(implausible)))) == 1
-    none = compliant_lines(compliant_dict("sub_bands failed", None))
+    assert len(compliant_lines(compliant_dict("sub_bands failed", _named_not(implausible), True))) == 1
+    none = compliant_lines(compliant_dict("sub_bands failed", None, True))
     assert len(none) == 1 and "no significant sprung body" in none[0]

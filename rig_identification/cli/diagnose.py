@@ -21,7 +21,8 @@ from __future__ import annotations
 import json
 import sys
 
-from ..diagnosis.compliant_body import diagnosis_alternative, two_body_reason
+from ..diagnosis.compliant_body import diagnosis_alternative
+from ..diagnosis.not_rigid import not_rigid_hypothesis, two_body_reason
 from ..diagnosis.result import Combination
 from ..diagnosis.selection import diagnose
 from ..estimation.inertia_result import InertiaResult
@@ -52,23 +53,29 @@ def rigid_body_dict(result: InertiaResult, t0: float, model: str) -> dict:
             "summary": None if result.validation is None else result.validation.summary}
 
 
-def compliant_dict(gate: str, sprung: Combination | None) -> dict:
-    """The two-body fit's part of diagnose's JSON: ``run`` (whether the gate
-    :func:`~rig_identification.diagnosis.compliant_body.two_body_reason` let it run) and ``why_run``;
-    ``hypothesis``: the candidate's effect entry (``sprung``'s one effect,
+def compliant_dict(gate: str, sprung: Combination | None, fitted: bool) -> dict:
+    """The sprung body's part of diagnose's JSON: ``run`` (whether the two-body fit ran: the
+    gate :func:`~rig_identification.diagnosis.not_rigid.two_body_reason` open and ``--two-body``
+    asked, ``fitted``), ``why_run`` (the gate's reason, or None); ``hypothesis``: the effect
+    entry — the two-body fit's (``sprung``'s one effect,
     :func:`~rig_identification.diagnosis.compliant_body.diagnosis_alternative`: its modes,
-    ``advice``, the evidence; no tensor unless named) or None (not run, or no significant sprung
-    body)."""
-    return {"run": bool(gate), "why_run": gate or None,
+    ``advice``, the evidence; no tensor unless named), the unfitted hypothesis
+    (:func:`~rig_identification.diagnosis.not_rigid.not_rigid_hypothesis`) where the gate is open
+    and the fit was not asked for, or None (gate shut, or no significant sprung body)."""
+    if gate and not fitted:
+        sprung = not_rigid_hypothesis(gate)
+    return {"run": bool(gate) and fitted, "why_run": gate or None,
             "hypothesis": None if sprung is None else sprung.effects[0]}
 
 
 def compliant_lines(cb: dict) -> list[str]:
-    """The two-body fit in the text output: the hypothesis and its advice line (none for modes no
+    """The sprung body in the text output: the hypothesis and its advice line (none for modes no
     sprung body can have), or why there is none."""
-    if not cb["run"]:
+    if not cb["why_run"]:
         return []
     h = cb["hypothesis"]
+    if not cb["run"]:
+        return [f"hypothesis (not a finding): compliant_body: {h['implausible']}", f"advice: {h['advice']}"]
     if h is None:
         return [f"sprung body: fitted ({cb['why_run']}): no significant sprung body (or the fit could not be made)"]
     if h.get("plausible"):
@@ -145,8 +152,8 @@ def cmd_diagnose(args) -> int:
     explained = bool(d.mismatch and all(e.get("plausible", True) for e in d.effects))
     gate = two_body_reason(rec, result, explained)
     sprung = None
-    if gate:
-        step(f"fitting a sprung body (two-body model): {gate}")
+    if gate and args.two_body:
+        step(f"fitting a sprung body (two-body model, experimental): {gate}")
         sprung = diagnosis_alternative(rec)
     if args.report:
         step(f"writing the report to {args.report}")
@@ -154,7 +161,7 @@ def cmd_diagnose(args) -> int:
     args.progress.finish()
     out = d.to_dict()
     out["rigid_body_fit"] = rigid_body_dict(result, float(rec.sensors.t_start), args.model)
-    out["compliant_body"] = compliant_dict(gate, sprung)
+    out["compliant_body"] = compliant_dict(gate, sprung, args.two_body)
     if args.json:
         print(json.dumps(diagnosis_json(out)))
     else:

@@ -149,6 +149,10 @@ def add_diagnose_parser(sub) -> None:
     dp.add_argument("--report", metavar="DIR", help="write plots (residuals and spectra before/after) and the JSON")
     dp.add_argument("--model", choices=["pem", "thesis"], default="pem",
                     help="pem: ours (default); thesis: the thesis's model without gyroscopic terms")
+    dp.add_argument("--two-body", action="store_true",
+                    help="experimental: where the body may not be rigid (the rigid-body fit failed sub_bands and "
+                         "no effect explained it, or the exciter swept), fit a sprung body on its suspension "
+                         "(about a minute): its modes as a hypothesis, never a tensor")
 
 
 def add_plan_parser(sub) -> None:

@@ -5,7 +5,7 @@ and pitches on springs (modes at about 1–3 Hz, :mod:`~rig_identification.model
 Its apparent inertia depends on the frequency (J_app(f) = J + Σ ℓ ℓᵀ G(j2πf),
 :mod:`~rig_identification.estimation.two_body`), so one exciter speed shows it near that speed
 only and the tensor at rest — what a lab wants — is an extrapolation the data do not fix
-(:data:`~rig_identification.diagnosis.compliant_body.SWEEP_MARGIN`).  An unbalanced-mass
+(:data:`~rig_identification.diagnosis.not_rigid.SWEEP_MARGIN`).  An unbalanced-mass
 exciter spun up slowly from rest sweeps through the modes: each resonance's peak and phase
 turn fix the mode's frequency, damping and participation, and with them — to about 1 % on
 ``bench/bench_compliant_body.py``'s rigs, not yet within the fit's σ — the tensor at rest.
@@ -20,7 +20,7 @@ import math
 
 SWEEP_TOP_HZ = 3.5
 """Hz: the sweep's top speed — above a vehicle body's roll, pitch and heave modes (1–3 Hz)
-by the margin the candidate needs to name them (:data:`~rig_identification.diagnosis.compliant_body.SWEEP_MARGIN`)."""
+by the margin the candidate needs to name them (:data:`~rig_identification.diagnosis.not_rigid.SWEEP_MARGIN`)."""
 
 NON_RIGID_ADVICE = (
     "A vehicle whose suspension is not locked is not a rigid body (its sprung body rolls and pitches at 1-3 Hz): "

@@ -30,6 +30,10 @@ shown such tensors honest (:data:`TENSOR_TRUSTED`: not yet); otherwise the resul
 hypothesis that says why, what to do (:data:`SWEEP_ADVICE`), and where the mismatch is — the rigid
 body's (``rigid_mismatch``) and what the sprung body
 leaves (``unexplained``): channel, band, size.
+
+Experimental: only ``rig-identify diagnose --two-body`` runs it, where the gate
+(:func:`~rig_identification.diagnosis.not_rigid.two_body_reason`) is open; ``rig-identify
+inertia`` carries the unfitted hypothesis instead (:mod:`~rig_identification.diagnosis.not_rigid`).
 """
 from __future__ import annotations
 
@@ -59,6 +63,7 @@ from ..io.recording import Recording, RecordingError
 from ..io.verdict import KEYS, Validation
 from ..model.parametrisation import from_tensor
 from .heave import Heave, fit_heave
+from .not_rigid import SWEEP_MARGIN, exciter_speeds, sweeps
 from .result import Combination, EffectWrench
 
 FIT_OVERSAMPLING = 10.0     # the fit rate: at least this multiple of the band's upper edge
@@ -83,14 +88,6 @@ light trucks: 1–2 Hz body modes, stiffer on a test rig's locked parts), dampin
 0.03–0.6, and each mode carrying 5–95 % of the whole body's moment of inertia about its axis
 (ℓ_a² / J_aa).  The fit's bounds are these ranges; a mode on a bound is not plausible."""
 BAND_MARGIN = 1.02          # a mode within 2 % of a bound sits on it
-SWEEP_MARGIN = 1.15
-"""The exciter must have run at least this factor below and above each fitted mode for the
-two-body fit to be *named* (:func:`swept`).  With one exciter speed the recording shows the
-apparent tensor J + Σ ℓ ℓᵀ G(j2πf) near that speed only, and the tensor at rest (f → 0) is an
-extrapolation that several (J, ℓ, f, ζ) explain to the noise level: on
-``bench/bench_compliant_body.py``'s fixed-speed runs the fits that passed their validation
-were several σ off (helper/compliant's WIP: 3.3–9.4 σ).  A sweep through the modes shows
-each resonance's peak and phase turn, which fix ℓ, f and ζ, and with them the limit."""
 SIGNIFICANT_P = 1e-3        # the sprung body's likelihood ratio against the rigid body: significant below this
 
 
@@ -369,31 +366,6 @@ def _window(rec: Recording, start: float | None, end: float | None, settle: floa
     return s, lo, hi, warnings
 
 
-def exciter_speeds(sensors, lo: float, hi: float) -> tuple[float, float] | None:
-    """(slowest, fastest) Hz the rotating exciter ran at over [lo, hi] (absolute stamps, s):
-    the 2nd and 98th percentiles of its speed, the unwrapped phase of the measured force in
-    the spin plane (exciter x, y) differentiated over 1 s, where the force exceeds 1 % of its
-    95th percentile (a spin-up's slow start, whose force ∝ speed² is lost in the noise, left
-    out).  None without an exciter stream or when it hardly turned (< 2 revolutions)."""
-    ex = getattr(sensors, "exciter", None)
-    if ex is None or len(ex.t) < 10:
-        return None
-    m = (ex.t >= lo) & (ex.t <= hi)
-    t, f = ex.t[m], ex.data[m, :2]
-    mag = np.linalg.norm(f, axis=1)
-    if len(t) < 10 or not np.any(mag > 0):
-        return None
-    ph = np.unwrap(np.arctan2(f[:, 1], f[:, 0]))
-    n = max(1, int(round(1.0 / float(np.median(np.diff(t))))))
-    if len(t) <= n or abs(ph[-1] - ph[0]) < 4 * np.pi:
-        return None
-    speed = np.abs(ph[n:] - ph[:-n]) / (2 * np.pi * (t[n:] - t[:-n]))
-    on = (mag[n:] > 0.01 * np.percentile(mag, 95)) & (mag[:-n] > 0.01 * np.percentile(mag, 95))
-    if on.sum() < 10:
-        return None
-    return float(np.percentile(speed[on], 2)), float(np.percentile(speed[on], 98))
-
-
 def swept(modes, speeds: tuple[float, float] | None) -> str:
     """Why the exciter's speeds (:func:`exciter_speeds`) do not determine the tensor at rest
     given the fitted ``modes`` (:class:`SprungMode`): each mode needs a run from
@@ -636,33 +608,6 @@ def advice_text(cb: CompliantBody) -> str:
     rough = "" if swept_through else " (from one exciter speed: rough, no σ)"
     return (f"the body may not be rigid: modes at {modes}{rough}; {share}; the tensor is not trustworthy; lock the "
             "suspension (or sweep the exciter through the modes) and record again")
-
-
-def sweeps(speeds: tuple[float, float] | None) -> bool:
-    """The exciter ran over a range of speeds (:func:`exciter_speeds`) wide enough to hold a mode
-    with :data:`SWEEP_MARGIN` on both sides: fastest ≥ slowest × SWEEP_MARGIN²."""
-    return speeds is not None and speeds[1] >= speeds[0] * SWEEP_MARGIN ** 2
-
-
-def two_body_reason(rec: Recording, result: InertiaResult, explained: bool) -> str:
-    """Why the two-body fit (:func:`fit_compliant_body`, 50–90 s of CPU on a 90 s recording)
-    is worth running on ``rec`` after its rigid-body fit ``result``; "" when it is not.  It is
-    when the rig has an exciter, nothing of the ordinary library explained the misfit
-    (``explained`` False: no combination of diagnose's effects passed; the caller says) and
-    either the rigid-body fit's validation failed ``sub_bands`` (an apparent inertia that
-    depends on frequency: the signature of a body that is not rigid, Ljung 1999 ch. 16) or
-    the exciter swept (:func:`sweeps` over the fit window: the recording made to separate the
-    modes).  The one gate of :func:`~rig_identification.pipeline.offline.with_diagnosis` and
-    ``rig-identify diagnose``."""
-    if explained or rec.rig.exciter is None:
-        return ""
-    v = result.validation
-    if v is not None and "sub_bands" in v.failed:
-        return "the rigid-body fit's apparent inertia depends on the frequency (sub_bands failed)"
-    speeds = exciter_speeds(rec.sensors, float(result.t_start), float(result.t_end))
-    if sweeps(speeds):
-        return f"the exciter swept from {speeds[0]:.2f} to {speeds[1]:.2f} Hz"
-    return ""
 
 
 def diagnosis_alternative(rec: Recording) -> Combination | None:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..diagnosis.compliant_body import diagnosis_alternative, two_body_reason
+from ..diagnosis.not_rigid import not_rigid_hypothesis, two_body_reason
 from ..diagnosis.residuals import unexplained
 from ..diagnosis.result import Combination
 from ..diagnosis.selection import body_inertia, corrected, diagnose, with_stiffness
@@ -203,16 +203,12 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
         fit = attempt(alt)
         if fit is not None:
             again, chosen = fit, alt   # kept looking: a smaller combination that also validates is named instead
-    # a body that is not rigid: the two-body fit (50–90 s of CPU) only when it can matter
+    # a body that may not be rigid: said, with what to do, not fitted (the two-body fit is
+    # rig-identify diagnose --two-body's, experimental)
     gate = two_body_reason(rec, result, again is not None)
     if gate:
-        log.info("fitting a sprung body (two-body model): %s", gate)
-        sprung = diagnosis_alternative(rec)
-        if sprung is not None:
-            alternatives = list(alternatives) + [sprung]
-            fit = attempt(sprung)
-            if fit is not None:
-                again, chosen = fit, sprung
+        alternatives = list(alternatives) + [not_rigid_hypothesis(gate)]
+        attempt(alternatives[-1])
     diagnosis = {"effects": [], "hypotheses": [e for h in hypotheses for e in h["effects"]],
                  "combinations_tried": hypotheses, "unexplained": where,
                  "residual_rms_before": d.rms_before, "residual_rms_after": d.rms_after,
