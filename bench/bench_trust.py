@@ -11,7 +11,8 @@ named effects, what stayed unexplained; then the acceptance counts of the "never
 wrong" issue:
 
 * silent failures — verdict ``ok`` and some entry beyond 3 σ, or a non-finite number: 0;
-* wrong names — an effect named that the recording does not contain: 0;
+* wrong names — an effect named that the recording does not contain, or a class of effects the
+  recording does not tell apart (``told_apart`` false) none of whose candidates it contains: 0;
 * clean recordings with verdict ``ok``: ≥ 95 %, and on them every entry within 1 % (products:
   of the largest diagonal) and 3 σ;
 * on those, the share of the entries within ±1.96 σ of the truth: 93–97 % (σ calibrated; the
@@ -116,7 +117,8 @@ def _job(args):
                verdict=v.verdict if v else "none", failed=list(v.failed) if v else [],
                undetermined=list(res.undetermined), finite=all(e["finite"] for e in entries.values()),
                max_err_pct=max_pct, max_err_sigma=max_z, z=zs,
-               named=[e["name"] for e in diag.get("effects", [])],
+               named=[e["name"] for e in diag.get("effects", []) if e.get("told_apart", True)],
+               classes=[e["candidates"] for e in diag.get("effects", []) if not e.get("told_apart", True)],
                unexplained=diag.get("unexplained", []),
                truth_effects=[e["name"] for e in sim.truth.get("effects", [])],
                vehicle=d["description"], seconds=time.perf_counter() - t0)
@@ -149,13 +151,15 @@ def main(argv=None) -> int:
         es = "-" if r["max_err_sigma"] is None else f"{r['max_err_sigma']:.2f}"
         ep = "-" if r["max_err_pct"] is None else f"{r['max_err_pct']:.2f}"
         what = ",".join(r["failed"]) + (" | undetermined " + ",".join(r["undetermined"]) if r["undetermined"] else "")
-        named = ",".join(r["named"]) or "-"
+        named = ",".join(r["named"] + ["(" + " or ".join(c) + ")" for c in r.get("classes", [])]) or "-"
         idt = {True: "", False: " [weak rig]", None: ""}[r.get("identifiable_truth")]
         print(f"{r['row']:22s} {r['seed']:5d} {r['verdict']:17s} {es:>8s} {ep:>8s}  {what}{idt}; {named}; "
               f"{len(r['unexplained'])} unexplained  ({r['seconds']:.0f} s)")
     done = [r for r in rows if "skipped" not in r and r["verdict"] != "refused"]
     silent = [r for r in done if r["verdict"] == "ok" and ((r["max_err_sigma"] or 0) > 3 or not r["finite"])]
-    wrong = [r for r in done if set(r["named"]) - set(r["truth_effects"])]
+    # a class not told apart is wrong when none of its candidates is in the recording
+    wrong = [r for r in done if set(r["named"]) - set(r["truth_effects"])
+             or any(not {x.split()[0] for x in c} & set(r["truth_effects"]) for c in r.get("classes", []))]
     clean = [r for r in rows if r["clean"] and "skipped" not in r and r.get("identifiable_truth")]
     ok = [r for r in clean if r.get("verdict") == "ok"]
     good = [r for r in ok if r["max_err_pct"] is not None and r["max_err_pct"] <= 1.0 and r["max_err_sigma"] <= 3.0]

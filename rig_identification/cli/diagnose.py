@@ -22,6 +22,7 @@ import json
 import sys
 
 from ..diagnosis.compliant_body import diagnosis_alternative
+from ..diagnosis.distinguish import effect_name
 from ..diagnosis.not_rigid import not_rigid_hypothesis, two_body_reason
 from ..diagnosis.result import Combination
 from ..diagnosis.selection import diagnose
@@ -109,7 +110,11 @@ def print_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> Non
     for e in out["effects"]:
         red = ", ".join(f"{k} −{100 * r:.0f} %" for k, r in list(e["evidence"]["rms_reduction"].items())[:4])
         plausible = "" if e.get("plausible", True) else f" — NOT plausible: {e.get('implausible')}"
-        print(f"effect: {e['name']}: {effect_text(e)}{plausible}")
+        if e.get("told_apart", True):
+            print(f"effect: {e['name']}: {effect_text(e)}{plausible}")
+        else:
+            print(f"effect class: {effect_name(e)}; modelled as {e['name']}: {effect_text(e)}{plausible}")
+            print(f"   what tells them apart: {e['tells_apart']}")
         print(f"   evidence: {evidence_text(e)}; residual RMS {red}")
     s0, s1 = out["residual_rms_synchronous_before"], out["residual_rms_synchronous_after"]
     if d.mismatch and s0 is not None and s1 is not None:

@@ -22,6 +22,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ..diagnosis.distinguish import effect_name
 from ..estimation.identification import IdentificationError
 from ..estimation.inertia_result import InertiaResult
 from ..io.atomic import atomic_write_text
@@ -80,7 +81,12 @@ def diagnosis_lines(result: InertiaResult) -> list[str]:
         lines = [f"model error diagnosed ({dg['handled']}); the tensor above is the fit with it, validated; "
                  f"rigid-body fit (as rig-identify inertia --no-diagnose; verdict {rb.get('validation')}): "
                  f"{rigid} kg·m²"]
-        lines += [f"  effect {e['name']}: {effect_text(e)}" for e in dg["effects"]]
+        for e in dg["effects"]:
+            if e.get("told_apart", True):
+                lines.append(f"  effect {e['name']}: {effect_text(e)}")
+            else:
+                lines += [f"  effect class {effect_name(e)}; modelled as {e['name']}: {effect_text(e)}",
+                          f"  what tells them apart: {e['tells_apart']}"]
         return lines
     lines = ["model error NOT explained (" + dg["handled"].removeprefix("not: ") + "); the tensor above is the "
              "rigid-body fit's, σ widened"]

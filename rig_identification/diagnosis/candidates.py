@@ -28,6 +28,10 @@ CORRECTIONS = ("sensor_delay", "load_cell_scale", "imu_offset", "imu_misalignmen
                "accelerometer_bias", "body_mass", "gyro_bias_drift", "structural_mode")
 """Effects that are errors of the data, not missing physics: :func:`corrected` removes them."""
 
+FORCE_STREAMS = "load_cells+exciter"
+"""The ``sensor_delay`` label of the load cells and the exciter late together (one DAQ's clock
+behind the IMU's)."""
+
 
 # --- the effect library ---------------------------------------------------------------
 
@@ -102,6 +106,9 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
     if np.any(w.f_exc):
         dfe = np.gradient(w.f_exc, t, axis=0)
         streams.append(("exciter", dfe, np.cross(w.r_exc, dfe)))
+        # both force streams late together (one DAQ's clock behind the IMU's): the same as the
+        # IMU early; only the streams' relative time is in the recording
+        streams.append((FORCE_STREAMS, streams[0][1] + dfe, streams[0][2] + np.cross(w.r_exc, dfe)))
     for stream, F, Mo in streams:
         done = float(applied.get(("sensor_delay", stream), 0.0))
 
@@ -241,7 +248,8 @@ def _retracked_candidates(retracked: dict, applied: dict) -> list[Candidate]:
 
 def corrected(rec: Recording, applied: dict) -> Recording:
     """The recording with the sensor and rig errors of ``applied`` removed (key -> value):
-    ("sensor_delay", stream) s: the stream's stamps − d; ("load_cell_scale", cable) e:
+    ("sensor_delay", stream) s: the stream's stamps − d (:data:`FORCE_STREAMS`: the load cells'
+    and the exciter's); ("load_cell_scale", cable) e:
     the cable's tension T (1 − e); ("imu_offset", "") (3,) m body: imu.position + δ; ("imu_misalignment", "")
     (3,) rotation vector, body axes: IMU axes turned by it; ("gyro_bias" | "accelerometer_bias",
     "") (3,) IMU axes: subtracted; ("gyro_bias_drift", "") (3K,) rad/s: the drifting bias
@@ -269,7 +277,8 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     if p_imu:
         imu = mode_filter(s.imu.t, imu, *applied[("structural_mode", "imu shape")], p_imu)
     cells = {}
-    d_cells = applied.get(("sensor_delay", "load_cells"), 0.0)
+    d_both = float(applied.get(("sensor_delay", FORCE_STREAMS), 0.0))
+    d_cells = applied.get(("sensor_delay", "load_cells"), 0.0) + d_both
     gains = np.array([float(applied.get(("load_cell_scale", n), 0.0)) for n in rig.cable_names])
     p_cells = float(applied.get(("structural_mode", "load_cells"), 0.0))
     for n, ts in s.load_cells.items():
@@ -278,8 +287,8 @@ def corrected(rec: Recording, applied: dict) -> Recording:
             T = mode_filter(ts.t, T, *applied[("structural_mode", "load_cells shape")], p_cells)
         cells[n] = TimeSeries(ts.t - d_cells, T)
     exc = s.exciter
-    if exc is not None and ("sensor_delay", "exciter") in applied:
-        exc = TimeSeries(exc.t - applied[("sensor_delay", "exciter")], exc.data)
+    if exc is not None and (("sensor_delay", "exciter") in applied or d_both):
+        exc = TimeSeries(exc.t - applied.get(("sensor_delay", "exciter"), 0.0) - d_both, exc.data)
     s2 = SensorData(TimeSeries(s.imu.t, imu), cells, exc, s.inclinometer)
     imu_m = rig.imu
     if ("imu_offset", "") in applied:

@@ -16,7 +16,7 @@ from ..model.parametrisation import from_tensor
 from .candidates import body_inertia
 from .exact import MASSES, PROFILED, columns_of, exact_profile, mass_builder, residual_scales
 from .model_extension import Fit, Model, fit_model
-from .plausible import implausible
+from .plausible import implausible, undetermined
 from .residuals import channel_residuals, exciter_phase
 from .result import Combination, EffectWrench
 from .structural import gain_std
@@ -43,16 +43,20 @@ class FinalFit:
 
 
 def finding(ev: dict, rec: Recording, state: dict, build, kappa0: float, scales,
-            cost0: dict) -> tuple[Combination, FinalFit]:
+            cost0: dict, doubt: dict | None = None) -> tuple[Combination, FinalFit]:
     """One admissible combination ``ev`` of :func:`~rig_identification.diagnosis.selection.diagnose`'s
     joint search (its members, corrections, fit and evidence; ``state``, ``build``, ``kappa0``,
     ``scales``, ``cost0``: the search's) made a finding: each one-parameter rig or data error placed by
     its exact profile likelihood, the final fit reweighted by its own residual scales, every
     member's parameters (and σ) from it, the physics the model lacks as the wrench it adds,
-    plausibility (:func:`implausible`).  Returns the :class:`Combination` (its ``relative_std``:
+    plausibility and determination (:func:`implausible`, :func:`undetermined`).  Returns the
+    :class:`Combination` (its ``relative_std``:
     the relative σ of the tensor that the corrections fixed from outside the band leave, a
     structural mode's :func:`~rig_identification.diagnosis.structural.gain_std` at the band's
-    centre) and its :class:`FinalFit` (the fit, model, window and channel residuals)."""
+    centre) and its :class:`FinalFit` (the fit, model, window and channel residuals).
+    doubt: (name, label) -> :func:`~rig_identification.diagnosis.distinguish.ambiguity`'s entry
+    for the members the recording does not tell apart from a rival's; their effect entries get
+    ``told_apart`` False, ``class``, ``candidates`` and ``tells_apart``."""
     keys, members = ev["keys"], ev["members"]
     free_kappa, elastic = ev["free_kappa"], ev["elastic"]
     st = {**state, "applied": dict(ev["applied"]), "elastic": elastic, "profiled": dict(ev["profiled"])}
@@ -90,6 +94,9 @@ def finding(ev: dict, rec: Recording, state: dict, build, kappa0: float, scales,
         affected = sorted((k for k, r in red.items() if r >= 0.1), key=lambda k: -red[k])
         evd["rms_reduction"] = {k: round(red[k], 4) for k in affected[:8]}
         e = {"name": c.name, "parameters": {}, "parameters_std": {}, "evidence": evd}
+        if doubt and key in doubt:
+            e.update(told_apart=False, **{k: doubt[key][k] for k in ("class", "candidates", "tells_apart")})
+            e["evidence"]["rivals"] = {"likelihood_ratios": doubt[key]["likelihood_ratios"], "bar": doubt[key]["bar"]}
         entries.append(e)
         if key[0] == "cable_elasticity":
             k = w.stiffness[np.isfinite(w.stiffness)]
@@ -124,7 +131,7 @@ def finding(ev: dict, rec: Recording, state: dict, build, kappa0: float, scales,
         f_hz = abs(float(np.polyfit(w.t[ok], phase[ok], 1)[0])) / (2 * np.pi)
         unbalance = float(np.median(np.linalg.norm(w.f_exc, axis=1))) / (2 * np.pi * f_hz) ** 2
     for e in entries:
-        why = implausible(e, rec.rig, share.get(e["name"]), unbalance)
+        why = implausible(e, rec.rig, share.get(e["name"]), unbalance) or undetermined(e)
         e["plausible"] = why is None
         if why is not None:
             e["implausible"] = why

@@ -69,6 +69,45 @@ def implausible(entry: dict, rig, effect_share: float | None = None, unbalance: 
     return None
 
 
+DETERMINED = {"imu_offset": {"offset": 0.0}, "imu_misalignment": {"rpy": 0.0}, "sensor_delay": {"delay": 0.0},
+              "gyro_bias": {"bias": 0.0}, "accelerometer_bias": {"bias": 0.0}, "gyro_scale": {"scale": 1.0},
+              "load_cell_scale": {"scale": 1.0}, "body_mass": {"mass_error": 0.0}, "cable_mass": {"mass": 0.0},
+              "exciter_rotor": {"unbalance": 0.0}, "viscous_damping": {"linear": 0.0, "angular": 0.0},
+              "air_drag": {"linear": 0.0, "angular": 0.0}, "coulomb_friction": {"torque": 0.0, "force": 0.0}}
+"""Each effect's parameters and the value at which the effect is absent: a named effect must
+stand :data:`DETERMINED_Z` σ away from it in some component (:func:`undetermined`)."""
+DETERMINED_Z = 3.0
+PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
+"""The engineering resolution of a sensor-pose or timing error (the norm of its parameter: 5 mm,
+1 mrad, 1 ms): a statistically but not physically significant term is not a finding."""
+
+
+def undetermined(entry: dict) -> str | None:
+    """Why the effect ``entry`` (its ``parameters`` and ``parameters_std``, the joint fit's) is
+    not determined by the recording, or None: no component of its parameters (:data:`DETERMINED`)
+    lies :data:`DETERMINED_Z` σ from the value at which the effect is absent (a Wald test,
+    Ljung 1999 ch. 9), or its size is below :data:`PRACTICAL_FLOOR`."""
+    name, par, std = entry["name"], entry["parameters"], entry.get("parameters_std") or {}
+    null = DETERMINED.get(name)
+    if null:
+        z = 0.0
+        for k, v0 in null.items():
+            if k not in par or k not in std:
+                continue
+            v, s = np.atleast_1d(np.asarray(par[k], float)) - v0, np.atleast_1d(np.asarray(std[k], float))
+            ok = s > 0
+            z = max(z, float(np.max(np.abs(v[ok]) / s[ok], initial=0.0)))
+        if z < DETERMINED_Z:
+            return (f"not determined by the recording: within {DETERMINED_Z:g} σ of no effect "
+                    f"(largest |value|/σ {z:.2g})")
+    if name in PRACTICAL_FLOOR:
+        k = next(iter(DETERMINED[name]))
+        size = float(np.linalg.norm(np.atleast_1d(np.asarray(par.get(k, 0.0), float))))
+        if size < PRACTICAL_FLOOR[name]:
+            return f"{k} {fmt_value(par.get(k))} below the engineering resolution {PRACTICAL_FLOOR[name]:g} (SI)"
+    return None
+
+
 def fmt_value(v) -> str:
     """A parameter value of an effect's JSON as text (numbers to 4 digits; lists, dicts)."""
     if isinstance(v, dict):

@@ -100,6 +100,7 @@ from ..io.recording import Recording, RecordingError
 from ..model.effects import EFFECT_NAMES
 from ..model.parametrisation import from_tensor
 from .candidates import CORRECTIONS, body_inertia, candidates, corrected, with_stiffness
+from .distinguish import ambiguity, preferred
 from .exact import (
     MASSES,
     PROFILED,
@@ -114,6 +115,7 @@ from .exact import (
 )
 from .finding import finding
 from .model_extension import Model, fit_model
+from .plausible import PRACTICAL_FLOOR
 from .residuals import channel_residuals, effective_samples, exciter_phase, locate, rms, synchronous, synchronous_rms
 from .result import Diagnosis, EffectWrench
 from .retracked import DRIFT_STEP, SCALE_STEP, knots
@@ -136,7 +138,6 @@ never fitted together."""
 # the masses are evaluated exactly when the cells carry this many σ more (or less) than the weight
 WEIGHT_SURPLUS_SIGMA = 3.0
 # engineering resolution: a smaller sensor-pose error is no finding, however significant
-PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
 WINDOW_CACHE = 8      # re-tracked windows kept (by their corrections): the joint search re-uses them
 MODEL_CACHE = 3       # models of the last re-tracked windows kept (each a dozen band-passed (N,3) arrays)
 STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml stiffness are not "steel-like"
@@ -301,26 +302,31 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
                     joint(tuple(x for x in s if x is not m))
         nested()
         ranked = _admissible(evals, threshold_p, rms0)
+    # the recording may not tell the best combination from a rival: the misfit modelled with
+    # the preferred one (data errors first, then the fewest parameters), the members in doubt
+    # named by their class, with the candidates
+    ranked = preferred(ranked, threshold_p)
+    doubt = {k: d for d in ambiguity(ranked, threshold_p) for k in reversed(d["candidate_keys"])}
     joints = [{"effects": [(m["c"].name, m["c"].label) for m in ev["members"]], "likelihood_ratio": ev["lam"],
                "dof": ev["dof"], "bic": ev["bic"], "admissible": ev.get("admissible", False),
                **({"why": ev["why"]} if ev.get("why") else {})}
               for ev in sorted(evals.values(), key=lambda e: e["bic"])]
-    alternatives = []
     # the best combination's admissible proper subsets too (the caller names the smallest one
     # that passes validation: an effect is named only when the model fails without it)
     shown = ranked[:ALTERNATIVES]
     if ranked and len(ranked[0]["members"]) > 1:
         shown += [ev for ev in ranked[ALTERNATIVES:] if set(ev["keys"]) < set(ranked[0]["keys"])]
-    first = None     # the first combination's final fit: the result's residuals and series
+    found = []
     for ev in shown:
         try:
-            combination, final = finding(ev, rec, state, build, kappa0, scales, cost0)
+            found.append(finding(ev, rec, state, build, kappa0, scales, cost0, doubt))
         except (np.linalg.LinAlgError, ValueError, RecordingError) as err:
             warnings.append(f"combination {', '.join(m['c'].name for m in ev['members'])}: its report failed ({err})")
-            continue
-        alternatives.append(combination)
-        if first is None:
-            first = final
+    # the combinations whose every member is plausible and determined first (in their order):
+    # the first of them is the diagnosis's finding, with its residuals and series
+    found.sort(key=lambda cf: not all(e.get("plausible", True) for e in cf[0].effects))
+    alternatives = [c for c, _ in found]
+    first = found[0][1] if found else None
     located = locate(M0, base, rec.rig, base.J)
     std_of = lambda f: np.sqrt(np.clip(np.diag(f.cov)[:6], 0, None))  # noqa: E731
     if alternatives:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..diagnosis.distinguish import effect_name
 from ..diagnosis.not_rigid import not_rigid_hypothesis, two_body_reason
 from ..diagnosis.residuals import unexplained
 from ..diagnosis.result import Combination
@@ -226,8 +227,10 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
                                                    for u in where if u["band_hz"]) if where else ""))
         return result
     effects = chosen.effects
-    names = [e["name"] for e in effects]
-    found = "; ".join(f"{e['name']} ({effect_text(e)})" for e in effects)   # with units, as the CLI's
+    names = [effect_name(e) for e in effects]
+    found = "; ".join(f"{effect_name(e)} ({'modelled as ' + e['name'] + ': ' if not e.get('told_apart', True) else ''}"
+                      f"{effect_text(e)})" + (f" — {e['tells_apart']}" if not e.get("told_apart", True) else "")
+                      for e in effects)   # with units, as the CLI's
     applied = chosen.applied
     mu = float(applied.get(("cable_mass", ""), 0.0))
     if mu:   # the fit's tensor is the body's with the cables' lower halves, about their combined CG
@@ -256,7 +259,8 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     diagnosis["combinations_tried"] = hypotheses[:-1]
     again.rigid_body, again.diagnosis = rigid_body, {**diagnosis, "handled": handled}
     # the verdict is on the model with the effects, not the rigid body's alone
-    again.validation = replace(again.validation, model=f"the rigid-body model with {', '.join(names)}")
+    modelled = ", ".join(e["name"] for e in effects)
+    again.validation = replace(again.validation, model=f"the rigid-body model with {modelled}")
     again.method += f"; {', '.join(names)} diagnosed (rig-identify diagnose), {handled}, validated"
     rigid_verdict = result.validation.summary if result.validation is not None else None
     again.warnings = [w for w in result.warnings if w != rigid_verdict] + [

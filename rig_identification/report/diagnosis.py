@@ -16,6 +16,7 @@ import math
 
 import numpy as np
 
+from ..diagnosis.distinguish import effect_name
 from ..estimation.inertia_result import InertiaResult
 from ..io.export import EFFECT_UNITS
 from ..io.verdict import KEYS
@@ -122,7 +123,7 @@ def parameters_text(e: dict) -> str:
 
 def effects_text(d: dict) -> str:
     """The named effects in one phrase, e.g. "viscous damping (angular = …, linear = …)"."""
-    return "; ".join(f"{e['name'].replace('_', ' ')} ({parameters_text(e)})" for e in d.get("effects", []))
+    return "; ".join(f"{effect_name(e).replace('_', ' ')} ({parameters_text(e)})" for e in d.get("effects", []))
 
 
 def evidence_text(e: dict) -> str:
@@ -138,7 +139,7 @@ def evidence_text(e: dict) -> str:
 def effects_table(effects: list[dict], ident: str) -> str:
     """Effects (named or hypotheses) as a table: name, what it is, parameters, evidence,
     plausibility."""
-    rows = [[e["name"], Cell(EFFECT_TEXT.get(e["name"], ""), "text"), Cell(parameters_text(e), "text"),
+    rows = [[effect_name(e), Cell(EFFECT_TEXT.get(e["name"], ""), "text"), Cell(parameters_text(e), "text"),
              Cell(evidence_text(e), "text"),
              Cell("plausible" if e.get("plausible", True) else f"not plausible: {e.get('implausible', '')}",
                   "text")] for e in effects]
