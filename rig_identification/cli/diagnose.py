@@ -151,7 +151,7 @@ def cmd_diagnose(args) -> int:
     heading(f"the rigid-body fit, as {same_as(args.model)} (tracker, preprocessor, fit, validation)")
     result = identify_recording(rec, refine=False, model=args.model)
     step("diagnosing (effect library, likelihood-ratio selection)")
-    d = diagnose(rec, model=args.model)
+    d = diagnose(rec, model=args.model, cg_free=args.cg_free)
     # a body that is not rigid: the two-body fit only when it can matter (the gate of rig-identify
     # inertia's diagnosis; here "explained" is diagnose's own answer: plausible effects found)
     explained = bool(d.mismatch and all(e.get("plausible", True) for e in d.effects))

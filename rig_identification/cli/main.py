@@ -149,6 +149,9 @@ def add_diagnose_parser(sub) -> None:
     dp.add_argument("--report", metavar="DIR", help="write plots (residuals and spectra before/after) and the JSON")
     dp.add_argument("--model", choices=["pem", "thesis"], default="pem",
                     help="pem: ours (default); thesis: the thesis's model without gyroscopic terms")
+    dp.add_argument("--cg-free", action="store_true",
+                    help="screen rig.yaml's centre of gravity as a candidate error too (cg_offset: where the CG is "
+                         "known only roughly, e.g. its height from a dummy-mass static test)")
     dp.add_argument("--two-body", action="store_true",
                     help="experimental: where the body may not be rigid (the rigid-body fit failed sub_bands and "
                          "no effect explained it, or the exciter swept), fit a sprung body on its suspension "

@@ -24,8 +24,8 @@ from .retracked import bias_path, random_walk
 from .structural import mode_filter
 from .window import Window
 
-CORRECTIONS = ("sensor_delay", "load_cell_scale", "imu_offset", "imu_misalignment", "gyro_bias", "gyro_scale",
-               "accelerometer_bias", "body_mass", "gyro_bias_drift", "structural_mode")
+CORRECTIONS = ("sensor_delay", "load_cell_scale", "cg_offset", "imu_offset", "imu_misalignment", "gyro_bias",
+               "gyro_scale", "accelerometer_bias", "body_mass", "gyro_bias_drift", "structural_mode")
 """Effects that are errors of the data, not missing physics: :func:`corrected` removes them."""
 
 FORCE_STREAMS = "load_cells+exciter"
@@ -55,7 +55,7 @@ def _vec(vals, stds, key, applied=None):
 
 def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None = None,
                allow_elasticity: bool = False, profiled: dict | None = None,
-               retracked: dict | None = None) -> list[Candidate]:
+               retracked: dict | None = None, cg_free: bool = False) -> list[Candidate]:
     """The effect library as model extensions for this window (names: effects.EFFECT_NAMES).
 
     applied: corrections already made to the data (key -> accumulated value, see
@@ -66,7 +66,8 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
     measured once at the baseline — ``"drift"``: (3K columns, knot stamps (K,) s) of
     ``gyro_bias_drift``; ``"scale"``: 3 columns of ``gyro_scale``; ``"modes"``: {sensor:
     :class:`~rig_identification.diagnosis.structural.ModeFit`} of ``structural_mode`` (no
-    column: its parameters come from the transfer above the band)."""
+    column: its parameters come from the transfer above the band).  cg_free: rig.yaml's
+    centre of gravity is a candidate error too (``cg_offset``)."""
     applied = applied or {}
     profiled = profiled or {}
     m = w.mass
@@ -144,6 +145,17 @@ def candidates(w: Window, model: Model, base_kappa: float, applied: dict | None 
     out.append(Candidate("imu_offset", cols,
                          lambda vals, stds: _vec(vals, stds, "offset", applied.get(("imu_offset", ""))),
                          exact=True))
+    # centre of gravity off by δ (body axes; true CG = rig.yaml's + δ; only when asked:
+    # cg_free): the moment about the true CG is the computed one + F × δ (F the measured
+    # non-gravity force), and the IMU's lever arm from the CG is δ shorter
+    if cg_free:
+        cols = []
+        for k in range(3):
+            d = np.cross(model.alpha, E[k]) + np.cross(om, np.cross(om, E[k]))
+            cols.append(Column(f"cg_{'xyz'[k]}", rot_D=np.cross(w.force, E[k]), tr_D=-d, dca=d.mean(0)))
+        out.append(Candidate("cg_offset", cols,
+                             lambda vals, stds: _vec(vals, stds, "offset", applied.get(("cg_offset", ""))),
+                             exact=True))
     # IMU misalignment δ (body axes, small): true ω = ω_meas + δ × ω_meas, same for f
     cols = [Column(f"rot_{'xyz'[k]}", rot_O=np.cross(E[k], model.y), tr_O=np.cross(E[k], model.ya),
                    dcg=np.cross(E[k], w.omega.mean(0)), dca=np.cross(E[k], w.f.mean(0))) for k in range(3)]
@@ -260,7 +272,8 @@ def corrected(rec: Recording, applied: dict) -> Recording:
     sensor + " shape") = (frequency Hz, damping ratio): removed from that sensor's readings
     (``imu``: gyro and accelerometer, after their biases and scale; ``load_cells``: every
     tension, after its gain; :func:`~rig_identification.diagnosis.structural.mode_filter`);
-    ("body_mass", "") δ kg: body.mass + δ; ("cable_mass", "") μ kg: the rig's body carries μ at each
+    ("body_mass", "") δ kg: body.mass + δ; ("cg_offset", "") (3,) m body: body.center_of_gravity + δ
+    (before the cables' mass moves it); ("cable_mass", "") μ kg: the rig's body carries μ at each
     body anchor (the lower half of each cable, outside its load cell at the ceiling): mass
     + n μ, the centre of gravity moved to the combined one (the tensor fitted is then the
     combined body's, :func:`body_inertia` gives the body's).  ("cable_elasticity", "") is
@@ -297,6 +310,8 @@ def corrected(rec: Recording, applied: dict) -> Recording:
         Rb = Rotation.from_rotvec(np.asarray(applied[("imu_misalignment", "")], float))
         imu_m = _replace(imu_m, rpy=(Rb * imu_m.rotation).as_euler("xyz"))
     rig = _replace(rig, imu=imu_m, mass=rig.mass + float(applied.get(("body_mass", ""), 0.0)))
+    if ("cg_offset", "") in applied:
+        rig = _replace(rig, center_of_gravity=rig.require_cg() + np.asarray(applied[("cg_offset", "")], float))
     mu = float(applied.get(("cable_mass", ""), 0.0))
     if mu:
         rig = _replace(rig, mass=rig.mass + mu * len(rig.cables), center_of_gravity=_combined_cg(rig, mu))

@@ -34,10 +34,11 @@ CLASSES = (
      frozenset({"imu_offset", "imu_misalignment", "gyro_scale", "gyro_bias", "accelerometer_bias"}),
      "the IMU's pose measured on the body (a survey), or a recording that turns the body about another axis "
      "tells them apart"),
-    ("mass the rig.yaml does not describe",
-     frozenset({"cable_mass", "body_mass", "exciter_rotor", "load_cell_scale"}),
-     "the body weighed, the cables' and the exciter's rotor's masses measured, and a run at a second exciter "
-     "speed (the rotor's force grows with its square) tell them apart"),
+    ("mass or a centre of gravity the rig.yaml does not describe",
+     frozenset({"cable_mass", "body_mass", "cg_offset", "exciter_rotor", "load_cell_scale"}),
+     "the body weighed, its CG from the static pair (rig-identify cg), the cables' and the exciter's rotor's "
+     "masses measured, and a run at a second exciter speed (the rotor's force grows with its square) tell them "
+     "apart"),
 )
 """(class, its effects, what would tell its members apart): the kinds of physics whose
 effects a recording at one operating point often cannot separate.  Effects of different
@@ -46,6 +47,14 @@ classes share the generic class :data:`MIXED`."""
 MIXED = ("effects of different kinds that explain the same misfit",
          "a recording at another operating point (a second forcing amplitude or exciter speed, another "
          "excitation axis) or the suspected quantities measured tells them apart")
+
+
+DATA_ERRORS = frozenset(CORRECTIONS) | {"cable_mass", "cable_elasticity"}
+"""Errors of the data or of the rig's description
+(:data:`~rig_identification.diagnosis.candidates.CORRECTIONS`, and the cables' mass and stiffness
+that rig.yaml leaves out or gets wrong), as opposed to physics the model lacks (damping, drag,
+friction, the exciter's rotor, the gyroscopic term): :func:`preferred` models a misfit with them
+first."""
 
 
 def distinguish_bar(threshold_p: float) -> float:
@@ -111,13 +120,13 @@ def ambiguity(ranked: list[dict], threshold_p: float) -> list[dict]:
 def preferred(ranked: list[dict], threshold_p: float) -> list[dict]:
     """``ranked`` with the combination that models the misfit first: among the best and its
     :func:`rivals` (which the recording does not tell apart), data errors before physics (a
-    combination of :data:`~rig_identification.diagnosis.candidates.CORRECTIONS` only: a sensor
-    or rig error is removed from the data before physics is added to the model), then the fewest
-    parameters (``dof``), then the smallest BIC; the rest of ``ranked`` after, in its order."""
+    combination of :data:`DATA_ERRORS` only: a sensor or rig error is removed from the data
+    before physics is added to the model), then the fewest parameters (``dof``), then the
+    smallest BIC; the rest of ``ranked`` after, in its order."""
     if not ranked:
         return []
     group = [ranked[0]] + rivals(ranked, threshold_p)
-    physics = lambda ev: any(k[0] not in CORRECTIONS for k in ev["keys"])  # noqa: E731
+    physics = lambda ev: any(k[0] not in DATA_ERRORS for k in ev["keys"])  # noqa: E731
     first = min(group, key=lambda ev: (physics(ev), ev["dof"], ev["bic"]))
     return [first] + [ev for ev in ranked if ev is not first]
 

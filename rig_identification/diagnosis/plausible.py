@@ -24,6 +24,7 @@ PLAUSIBLE = {
     "accelerometer_bias": {"bias": (-0.5, 0.5)},
     "imu_misalignment": {"rpy": (-0.1, 0.1)},
     "imu_offset": {"offset": (-1.0, 1.0)},
+    "cg_offset": {"offset": (-0.25, 0.25)},
     "cable_elasticity": {"stiffness": (1e4, 1e9)},
     "gyroscopic_coupling": {"scale": (0.5, 1.5)},
 }
@@ -69,7 +70,8 @@ def implausible(entry: dict, rig, effect_share: float | None = None, unbalance: 
     return None
 
 
-DETERMINED = {"imu_offset": {"offset": 0.0}, "imu_misalignment": {"rpy": 0.0}, "sensor_delay": {"delay": 0.0},
+DETERMINED = {"imu_offset": {"offset": 0.0}, "cg_offset": {"offset": 0.0},
+              "imu_misalignment": {"rpy": 0.0}, "sensor_delay": {"delay": 0.0},
               "gyro_bias": {"bias": 0.0}, "accelerometer_bias": {"bias": 0.0}, "gyro_scale": {"scale": 1.0},
               "load_cell_scale": {"scale": 1.0}, "body_mass": {"mass_error": 0.0}, "cable_mass": {"mass": 0.0},
               "exciter_rotor": {"unbalance": 0.0}, "viscous_damping": {"linear": 0.0, "angular": 0.0},
@@ -77,9 +79,10 @@ DETERMINED = {"imu_offset": {"offset": 0.0}, "imu_misalignment": {"rpy": 0.0}, "
 """Each effect's parameters and the value at which the effect is absent: a named effect must
 stand :data:`DETERMINED_Z` σ away from it in some component (:func:`undetermined`)."""
 DETERMINED_Z = 3.0
-PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001}   # m, rad, s
-"""The engineering resolution of a sensor-pose or timing error (the norm of its parameter: 5 mm,
-1 mrad, 1 ms): a statistically but not physically significant term is not a finding."""
+PRACTICAL_FLOOR = {"imu_offset": 0.005, "imu_misalignment": 0.001, "sensor_delay": 0.001,
+                   "cg_offset": 0.002}   # m, rad, s, m
+"""The engineering resolution of a sensor-pose, timing or CG error (the norm of its parameter: 5 mm,
+1 mrad, 1 ms, 2 mm): a statistically but not physically significant term is not a finding."""
 
 
 def undetermined(entry: dict) -> str | None:

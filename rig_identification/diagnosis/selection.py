@@ -146,7 +146,7 @@ STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml
 # --- diagnosis ------------------------------------------------------------------------------
 
 def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS, alpha: float = ALPHA,
-             band_hz: tuple[float, float] | None = None) -> Diagnosis:
+             band_hz: tuple[float, float] | None = None, cg_free: bool = False) -> Diagnosis:
     """Diagnose a dynamic recording (see module docstring).
 
     model: ``"pem"`` (ours, with the gyroscopic term) or ``"thesis"`` (the thesis's model:
@@ -158,7 +158,10 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     combinations (every member significant given the others, and practical) are ranked by
     the Bayesian information criterion.  The best is :attr:`Diagnosis.effects`; it and
     the next ones are :attr:`Diagnosis.alternatives`, which the caller validates
-    (:func:`~rig_identification.pipeline.offline.with_diagnosis`).
+    (:func:`~rig_identification.pipeline.offline.with_diagnosis`).  cg_free: rig.yaml's centre
+    of gravity is a candidate error too (``cg_offset``; off by default: on the independent
+    simulator's recordings, whose rig.yaml CG is the truth, it took up 29–111 mm of height on
+    four of eight, docs/results.md).
     Returns a :class:`Diagnosis`.  Raises RecordingError, RigError, TrackerError,
     IdentificationError for recordings no fit can be made of.
     """
@@ -167,7 +170,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     warnings: list[str] = []
     kappa0 = 1.0 if model == "pem" else 0.0
     R_yaml = rec.rig.imu.rotation.as_matrix()
-    state = {"applied": {}, "elastic": False, "band": band_hz, "candidate": True, "retracked": {}}
+    state = {"applied": {}, "elastic": False, "band": band_hz, "candidate": True, "retracked": {},
+             "cg_free": cg_free}
     declared = np.isfinite(rec.rig.cable_stiffness).all()
 
     windows: OrderedDict = OrderedDict()   # the last WINDOW_CACHE windows, by their corrections
@@ -205,7 +209,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
         state["band"] = M.band
         return w, M, candidates(w, M, kappa0, applied, allow_elasticity=state["candidate"] and not elastic,
                                 profiled=state.get("profiled") if profiled is None else profiled,
-                                retracked=state["retracked"])
+                                retracked=state["retracked"], cg_free=state["cg_free"])
 
     if not declared:
         # rig.yaml gives no stiffness: steel cables stretch 1-2 mm, which the baseline fits
@@ -235,7 +239,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     rms0 = rms(ch0)
     extra_lam = _retracked(state, window_of, w, M, warnings)
     cands = candidates(w, M, kappa0, state["applied"], allow_elasticity=state["candidate"],
-                       profiled=state.get("profiled"), retracked=state["retracked"])
+                       profiled=state.get("profiled"), retracked=state["retracked"], cg_free=state["cg_free"])
     # the bias drift counts in the family of candidates whether or not its gate opens
     threshold_p = alpha / max(1, len(cands) + 1)
     cost0 = base.cost(scales)
@@ -252,7 +256,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     if (bias is not None and chi2.sf(max(bias["lam_first"], 0.0), bias["dof"]) < threshold_p
             and _drift_columns(state, window_of, w, M, warnings)):
         cands = candidates(w, M, kappa0, state["applied"], allow_elasticity=state["candidate"],
-                           profiled=state.get("profiled"), retracked=state["retracked"])
+                           profiled=state.get("profiled"), retracked=state["retracked"], cg_free=state["cg_free"])
         state["cands"] = cands
         ctx_d = {**ctx, "cands": [c for c in cands if c.name == "gyro_bias_drift"], "applied": dict(state["applied"])}
         screened += _screen(ctx_d, state, build, kappa0, scales, threshold_p, extra_lam, tried, warnings, step=1)

@@ -261,6 +261,7 @@ EFFECT_UNITS = {
     "cable_mass": {"mass": "kg per cable"},
     "body_mass": {"mass_error": "kg"},
     "exciter_rotor": {"unbalance": "kg·m", "rotor_inertia": "kg·m²"},
+    "cg_offset": {"offset": "m, body axes"},
     "imu_offset": {"offset": "m, body axes"},
     "imu_misalignment": {"rpy": "rad"},
     "sensor_delay": {"delay": "s"},

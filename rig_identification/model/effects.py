@@ -27,6 +27,9 @@ exciter_rotor          ``unbalance`` kg·m (unbalanced mass × eccentricity; def
                        rotating force's amplitude / (2π f)², i.e. the mass that makes it),
                        ``rotor_inertia`` kg·m² (polar, about the spin axis; default 0): the
                        rotor's weight, turning with it, and its spin angular momentum
+cg_offset              ``offset`` (3,) m, body axes: the body's centre of gravity is at
+                       rig.yaml's body.center_of_gravity + offset (rig.yaml's CG is off: a
+                       static test's error)
 imu_offset             ``offset`` (3,) m, body axes: the IMU is at rig.yaml's position + offset
 imu_misalignment       ``rpy`` (3,) rad: the IMU axes are turned by this (fixed-axis XYZ)
                        beyond rig.yaml's imu.rpy
@@ -76,7 +79,7 @@ from typing import Any
 import numpy as np
 
 EFFECT_NAMES = ("viscous_damping", "air_drag", "coulomb_friction", "cable_elasticity", "cable_mass", "body_mass",
-                "exciter_rotor", "imu_offset", "imu_misalignment", "sensor_delay", "gyro_bias",
+                "exciter_rotor", "cg_offset", "imu_offset", "imu_misalignment", "sensor_delay", "gyro_bias",
                 "accelerometer_bias", "load_cell_scale", "gyroscopic_coupling", "gyro_bias_drift", "gyro_scale",
                 "structural_mode", "compliant_body")
 
@@ -91,6 +94,7 @@ PARAMETERS: dict[str, dict[str, tuple[int | tuple[int, int], bool]]] = {
     "cable_mass": {"mass": (0, True)},
     "body_mass": {"mass_error": (0, True)},
     "exciter_rotor": {"unbalance": (0, False), "rotor_inertia": (0, False)},
+    "cg_offset": {"offset": (3, True)},
     "imu_offset": {"offset": (3, True)},
     "imu_misalignment": {"rpy": (3, True)},
     "sensor_delay": {"stream": (-1, True), "delay": (0, True)},

@@ -214,6 +214,9 @@ def simulate(exp: Experiment) -> SimResult:
     body_mass = exp.effect("body_mass")
     if body_mass is not None:   # rig.yaml states a mass the body does not have
         rig_out = replace(rig_out, mass=float(exp.rig.mass - body_mass.get("mass_error")))
+    cg_offset = exp.effect("cg_offset")
+    if cg_offset is not None and static is None:   # rig.yaml states a CG the body does not have
+        rig_out = replace(rig_out, center_of_gravity=np.asarray(cg, float) - cg_offset.get("offset"))
     cable_mass = exp.effect("cable_mass")
     if cable_mass is not None:  # half of each cable hangs on its body anchor, outside the load cell
         for b in exp.rig.body_anchors:

@@ -33,6 +33,7 @@ EFFECT_TEXT = {
     "cable_mass": "the cables' mass: each lower half hangs on the body, outside the load cells",
     "body_mass": "the body is heavier than rig.yaml's body.mass",
     "exciter_rotor": "the exciter's rotor: its weight and spin angular momentum",
+    "cg_offset": "the centre of gravity is not where rig.yaml puts it",
     "imu_offset": "the IMU is not where rig.yaml puts it",
     "imu_misalignment": "the IMU axes are turned against rig.yaml's imu.rpy",
     "sensor_delay": "a stream's stamps lag the IMU's",
