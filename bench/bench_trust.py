@@ -159,7 +159,8 @@ def main(argv=None) -> int:
     silent = [r for r in done if r["verdict"] == "ok" and ((r["max_err_sigma"] or 0) > 3 or not r["finite"])]
     # a class not told apart is wrong when none of its candidates is in the recording
     wrong = [r for r in done if set(r["named"]) - set(r["truth_effects"])
-             or any(not {x.split()[0] for x in c} & set(r["truth_effects"]) for c in r.get("classes", []))]
+             or any(not {p.split()[0] for x in c for p in x.split(" + ")} & set(r["truth_effects"])
+                    for c in r.get("classes", []))]
     clean = [r for r in rows if r["clean"] and "skipped" not in r and r.get("identifiable_truth")]
     ok = [r for r in clean if r.get("verdict") == "ok"]
     good = [r for r in ok if r["max_err_pct"] is not None and r["max_err_pct"] <= 1.0 and r["max_err_sigma"] <= 3.0]

@@ -317,7 +317,7 @@ def test_diagnose_prints_the_rigid_body_fit_of_inertia(monkeypatch, json_run):
     from rig_identification.diagnosis.result import Diagnosis
     J = np.eye(3)
 
-    def stub(rec, model="pem"):
+    def stub(rec, model="pem", cg_free=False):
         return Diagnosis(False, [], {}, {}, {}, J, J, np.ones(6), np.ones(6), [], (0.5, 3.0), model)
     monkeypatch.setattr(cli_diagnose, "diagnose", stub)
     code, out, err = run("diagnose", CLEAN, "--json", "-q")

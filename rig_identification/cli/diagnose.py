@@ -114,7 +114,10 @@ def print_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> Non
             print(f"effect: {e['name']}: {effect_text(e)}{plausible}")
         else:
             print(f"effect class: {effect_name(e)}; modelled as {e['name']}: {effect_text(e)}{plausible}")
-            print(f"   what tells them apart: {e['tells_apart']}")
+            riv = e["evidence"]["rivals"]
+            lams = ", ".join(f"{x:.1f}" for x in riv["likelihood_ratios"])
+            print(f"   not told apart: the combinations' likelihood ratios {lams} differ by less than {riv['bar']:.3g};"
+                  f" what would tell them apart: {e['tells_apart']}")
         print(f"   evidence: {evidence_text(e)}; residual RMS {red}")
     s0, s1 = out["residual_rms_synchronous_before"], out["residual_rms_synchronous_after"]
     if d.mismatch and s0 is not None and s1 is not None:

@@ -86,7 +86,7 @@ def diagnosis_lines(result: InertiaResult) -> list[str]:
                 lines.append(f"  effect {e['name']}: {effect_text(e)}")
             else:
                 lines += [f"  effect class {effect_name(e)}; modelled as {e['name']}: {effect_text(e)}",
-                          f"  what tells them apart: {e['tells_apart']}"]
+                          f"  what would tell them apart: {e['tells_apart']}"]
         return lines
     lines = ["model error NOT explained (" + dg["handled"].removeprefix("not: ") + "); the tensor above is the "
              "rigid-body fit's, σ widened"]
@@ -95,7 +95,7 @@ def diagnosis_lines(result: InertiaResult) -> list[str]:
         lines.append(f"  unexplained: {u['channel']}{band}, t = {u['time_s'][0]:.0f}–{u['time_s'][1]:.0f} s, "
                      f"size {fmt(u['size'], '.3g')} ({u['is']})")
     for e in dg.get("hypotheses", []):
-        lines.append(f"  hypothesis (not a finding): {e['name']}: {effect_text(e)}")
+        lines.append(f"  hypothesis (not a finding): {e['name']}: {effect_text(e) if e['parameters'] else e['implausible']}")
     lines += [f"advice: {e['advice']}" for e in dg.get("hypotheses", []) if e.get("advice")]
     return lines
 

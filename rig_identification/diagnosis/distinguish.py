@@ -21,24 +21,23 @@ from __future__ import annotations
 
 from scipy.stats import chi2
 
+from ..io.export import effect_text
 from .candidates import CORRECTIONS
 
 CLASSES = (
     ("velocity-dependent damping", frozenset({"viscous_damping", "air_drag", "coulomb_friction"}),
-     "a run at a second forcing amplitude (exciter speed or unbalance) tells them apart: their forces grow "
-     "differently with the speed (Coulomb ∝ v⁰, viscous ∝ v, quadratic ∝ v²)"),
+     "a run at a second forcing amplitude (exciter speed or unbalance): their forces grow differently with "
+     "the speed (Coulomb ∝ v⁰, viscous ∝ v, quadratic ∝ v²)"),
     ("a timing error between the streams", frozenset({"sensor_delay"}),
-     "only the streams' relative time is in the recording: a stamped synchronisation pulse on every "
-     "stream, or the DAQ's and the IMU's clocks compared, tells them apart"),
+     "a stamped synchronisation pulse on every stream, or the DAQ's and the IMU's clocks compared (only the "
+     "streams' relative time is in the recording)"),
     ("an error of the IMU's mounting or calibration",
      frozenset({"imu_offset", "imu_misalignment", "gyro_scale", "gyro_bias", "accelerometer_bias"}),
-     "the IMU's pose measured on the body (a survey), or a recording that turns the body about another axis "
-     "tells them apart"),
+     "the IMU's pose measured on the body (a survey), or a recording that turns the body about another axis"),
     ("mass or a centre of gravity the rig.yaml does not describe",
      frozenset({"cable_mass", "body_mass", "cg_offset", "exciter_rotor", "load_cell_scale"}),
      "the body weighed, its CG from the static pair (rig-identify cg), the cables' and the exciter's rotor's "
-     "masses measured, and a run at a second exciter speed (the rotor's force grows with its square) tell them "
-     "apart"),
+     "masses measured, or a run at a second exciter speed (the rotor's force grows with its square)"),
 )
 """(class, its effects, what would tell its members apart): the kinds of physics whose
 effects a recording at one operating point often cannot separate.  Effects of different
@@ -46,7 +45,7 @@ classes share the generic class :data:`MIXED`."""
 
 MIXED = ("effects of different kinds that explain the same misfit",
          "a recording at another operating point (a second forcing amplitude or exciter speed, another "
-         "excitation axis) or the suspected quantities measured tells them apart")
+         "excitation axis), or the suspected quantities measured")
 
 
 DATA_ERRORS = frozenset(CORRECTIONS) | {"cable_mass", "cable_elasticity"}
@@ -90,31 +89,28 @@ def class_of(names: set[str]) -> tuple[str, str]:
 
 
 def ambiguity(ranked: list[dict], threshold_p: float) -> list[dict]:
-    """The best combination's members that the recording does not tell apart from its rivals'
-    (:func:`rivals`), as one entry per best member in doubt: ``key`` (its (name, label)),
-    ``candidate_keys`` (it and the rivals' members that stand in its place, the best's first)
-    and ``candidates`` (the same as "name" or "name label"), ``class`` and ``tells_apart`` (:func:`class_of`),
-    ``likelihood_ratios`` (the best's and each rival's Λ, the rivals' order) and ``bar``
-    (:func:`distinguish_bar`).  Empty when the best has no rival.  The members common to the
-    best and every rival are told apart and not listed."""
+    """The best combination's members that the recording does not tell apart from its rivals
+    (:func:`rivals`): the members common to the best and every rival are told apart; the rest
+    of the best (its members in doubt) and what stands in their place in each rival are one
+    class.  Returns [] when the best has no rival, else one entry: ``keys`` (the best's members
+    in doubt, (name, label)), ``candidate_keys`` (those, then the rivals' members in their
+    place), ``candidates`` (one text per combination, the best's first: its members in doubt as
+    "name" or "name label", joined by " + "), ``class`` and ``tells_apart``
+    (:func:`class_of` of every name among them), ``likelihood_ratios`` (the best's Λ and each
+    rival's, the rivals' order) and ``bar`` (:func:`distinguish_bar`)."""
     rs = rivals(ranked, threshold_p)
     if not rs:
         return []
     best = ranked[0]
     common = set(best["keys"]).intersection(*(set(r["keys"]) for r in rs))
-    doubt = [k for k in best["keys"] if k not in common]
-    others: list = []
-    for r in rs:
-        others += [k for k in r["keys"] if k not in best["keys"] and k not in others]
-    out = []
-    for k in doubt:
-        cands = [k] + others
-        label, tells = class_of({c[0] for c in cands})
-        out.append({"key": k, "candidate_keys": cands, "candidates": [" ".join(x for x in c if x) for c in cands],
-                    "class": label,
-                    "tells_apart": tells, "likelihood_ratios": [float(best["lam"])] + [float(r["lam"]) for r in rs],
-                    "bar": distinguish_bar(threshold_p)})
-    return out
+    groups = [[k for k in ev["keys"] if k not in common] for ev in [best] + rs]
+    keys = [k for g in groups for k in g]
+    label, tells = class_of({k[0] for k in keys})
+    return [{"keys": groups[0], "candidate_keys": list(dict.fromkeys(keys)),
+             "candidates": [" + ".join(" ".join(x for x in k if x) for k in g) for g in groups],
+             "class": label, "tells_apart": tells,
+             "likelihood_ratios": [float(best["lam"])] + [float(r["lam"]) for r in rs],
+             "bar": distinguish_bar(threshold_p)}]
 
 
 def preferred(ranked: list[dict], threshold_p: float) -> list[dict]:
@@ -138,3 +134,14 @@ def effect_name(entry: dict) -> str:
     if entry.get("told_apart", True):
         return str(entry["name"])
     return f"{entry['class']}: {' or '.join(entry['candidates'])}, not told apart"
+
+
+def finding_text(entry: dict) -> str:
+    """An effect entry in one phrase with its parameters and units
+    (:func:`~rig_identification.io.export.effect_text`): "name (parameters)", or for an effect
+    not told apart "class: candidates, not told apart (modelled as name: parameters) — what would
+    tell them apart: …"."""
+    if entry.get("told_apart", True):
+        return f"{entry['name']} ({effect_text(entry)})"
+    return (f"{effect_name(entry)} (modelled as {entry['name']}: {effect_text(entry)}) — what would tell them "
+            f"apart: {entry['tells_apart']}")

@@ -310,7 +310,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     # the preferred one (data errors first, then the fewest parameters), the members in doubt
     # named by their class, with the candidates
     ranked = preferred(ranked, threshold_p)
-    doubt = {k: d for d in ambiguity(ranked, threshold_p) for k in reversed(d["candidate_keys"])}
+    doubt = {k: d for d in ambiguity(ranked, threshold_p) for k in d["candidate_keys"]}
     joints = [{"effects": [(m["c"].name, m["c"].label) for m in ev["members"]], "likelihood_ratio": ev["lam"],
                "dof": ev["dof"], "bic": ev["bic"], "admissible": ev.get("admissible", False),
                **({"why": ev["why"]} if ev.get("why") else {})}

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..diagnosis.distinguish import effect_name
+from ..diagnosis.distinguish import effect_name, finding_text
 from ..diagnosis.not_rigid import not_rigid_hypothesis, two_body_reason
 from ..diagnosis.residuals import unexplained
 from ..diagnosis.result import Combination
@@ -15,7 +15,6 @@ from ..diagnosis.selection import body_inertia, corrected, diagnose, with_stiffn
 from ..estimation.identification import identify_inertia, identify_inertia_joint
 from ..estimation.inertia_result import InertiaResult
 from ..estimation.thesis_estimator import identify_inertia_thesis
-from ..io.export import effect_text
 from ..io.recording import Recording, RecordingError, crop
 from ..io.verdict import KEYS
 from ..model.parametrisation import entry_scales, from_tensor
@@ -228,9 +227,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
         return result
     effects = chosen.effects
     names = [effect_name(e) for e in effects]
-    found = "; ".join(f"{effect_name(e)} ({'modelled as ' + e['name'] + ': ' if not e.get('told_apart', True) else ''}"
-                      f"{effect_text(e)})" + (f" — {e['tells_apart']}" if not e.get("told_apart", True) else "")
-                      for e in effects)   # with units, as the CLI's
+    found = "; ".join(finding_text(e) for e in effects)   # with units, as the CLI's
     applied = chosen.applied
     mu = float(applied.get(("cable_mass", ""), 0.0))
     if mu:   # the fit's tensor is the body's with the cables' lower halves, about their combined CG
