@@ -95,7 +95,8 @@ def diagnosis_lines(result: InertiaResult) -> list[str]:
         lines.append(f"  unexplained: {u['channel']}{band}, t = {u['time_s'][0]:.0f}–{u['time_s'][1]:.0f} s, "
                      f"size {fmt(u['size'], '.3g')} ({u['is']})")
     for e in dg.get("hypotheses", []):
-        lines.append(f"  hypothesis (not a finding): {e['name']}: {effect_text(e) if e['parameters'] else e['implausible']}")
+        what = effect_text(e) if e["parameters"] else e["implausible"]   # an unfitted one: why
+        lines.append(f"  hypothesis (not a finding): {e['name']}: {what}")
     lines += [f"advice: {e['advice']}" for e in dg.get("hypotheses", []) if e.get("advice")]
     return lines
 
