@@ -11,6 +11,7 @@ import subprocess
 import sys
 import xml.etree.ElementTree as ET
 from importlib.metadata import version
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -361,6 +362,16 @@ def test_version_and_help(capsys):
     assert "HEAVY []" in p.stdout, p.stdout.splitlines()[-1]
     assert "``" not in p.stdout and ":func:" not in p.stdout and ":mod:" not in p.stdout
     assert "usage: rig-identify inertia" in p.stdout and "ixx iyy izz ixy ixz iyz" in p.stdout
+
+
+def test_every_command_line_entry_point_says_its_version():
+    """rig-identify, rig-sim and rig-record answer --version with the installed version, exit 0
+    (the console scripts of setup.py; rig-record without starting ROS)."""
+    bin_dir = Path(sys.executable).parent
+    for prog in ("rig-identify", "rig-sim", "rig-record"):
+        p = subprocess.run([str(bin_dir / prog), "--version"], capture_output=True, text=True, timeout=60)
+        assert p.returncode == 0, (prog, p.stderr)
+        assert p.stdout.strip() == f"{prog} (rig_identification) {version('rig_identification')}", p.stdout
 
 
 def test_core_log_records_become_steps_and_warnings():

@@ -36,6 +36,7 @@ from ..io.export import (
     urdf_inertial,
     yaml_text,
 )
+from ..io.package import package_version
 from ..io.recording import read_recording
 from ..io.rig import load_rig
 from ..io.verdict import KEYS
@@ -49,7 +50,6 @@ from ..pipeline.offline import (
 )
 from ..report.page import ReportError, check_report_dir, common_truth, write_report
 from ..statics.handover import load_cg_result
-from .main import version
 from .progress import heading, step, warn
 from .rig_model import cmd_rig_model
 from .text import effect_text, entries_line, fmt, origin_line, principal_lines, products_line, tensor_table
@@ -298,7 +298,8 @@ def cmd_inertia(args) -> int:
                               summary=None if result.validation is None else result.validation.summary,
                               std_kind=result.uncertainty, sources=[str(r.path) for r in recs],
                               window=d["window"] if len(recs) == 1 else None,
-                              created=datetime.now(timezone.utc).isoformat(timespec="seconds"), version=version())
+                              created=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                              version=package_version())
         content["center_of_gravity_source"] = cg_origin   # an archived result says where its CG came from
         atomic_write_text(args.yaml, yaml_text(content))
     args.progress.finish()

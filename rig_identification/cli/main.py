@@ -14,10 +14,9 @@ import argparse
 import importlib
 import os
 import sys
-from importlib.metadata import PackageNotFoundError
-from importlib.metadata import version as dist_version
 from typing import Callable
 
+from ..io.package import package_version
 from .arg_types import number
 from .progress import attached
 from .sim_args import parse_sim_args
@@ -55,14 +54,6 @@ def lazy(module: str, name: str) -> Callable:
         return getattr(importlib.import_module(module), name)(args)
     run.__qualname__ = f"{module}.{name}"
     return run
-
-
-def version() -> str:
-    """The installed package's version (importlib.metadata), or "unknown" when not installed."""
-    try:
-        return dist_version("rig_identification")
-    except PackageNotFoundError:
-        return "unknown (not installed)"
 
 
 TENSOR = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")   # metavars of every option that takes a tensor (export.ORDER)
@@ -260,7 +251,7 @@ def build_parser(argv: list[str] | None = None) -> argparse.ArgumentParser:
     wanted = next((a for a in argv if not a.startswith("-")), None)
     ap = argparse.ArgumentParser(prog="rig-identify", description=DESCRIPTION, epilog=EPILOG,
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--version", action="version", version=f"rig-identify (rig_identification) {version()}")
+    ap.add_argument("--version", action="version", version=f"rig-identify (rig_identification) {package_version()}")
     ap.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr (warnings still)")
     sub = ap.add_subparsers(dest="command", required=True, metavar="COMMAND")
     add_inertia_parser(sub)

@@ -5,11 +5,14 @@ from __future__ import annotations
 import argparse
 import math
 
+from ..io.package import PACKAGE, package_version
+
 
 def sim_parser() -> argparse.ArgumentParser:
     """The ``rig-sim`` parser."""
     p = argparse.ArgumentParser(prog="rig-sim", description="Simulate a rig experiment and write a recording "
                                 "folder (rig.yaml, bag/, truth.yaml).")
+    p.add_argument("--version", action="version", version=f"rig-sim ({PACKAGE}) {package_version()}")
     p.add_argument("config", help="experiment file (YAML), e.g. config/cases/case16.yaml")
     p.add_argument("outdir", help="recording folder to create")
     p.add_argument("--duration", type=float, metavar="S", help="override the experiment duration, s")

@@ -68,6 +68,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from ..io.atomic import atomic_directory
+from ..io.package import PACKAGE, package_version
 from ..io.rig import RigError, dump_rig, read_yaml
 from .diagnostics import Diagnostics
 from .frames import Endpoint, log_interface
@@ -427,6 +428,7 @@ def record_main(argv=None) -> int:
         "Record the rig topics into a recording folder (rig.yaml + bag/, MCAP) without ros2 bag; "
         "or recover the partial folder a crashed recording left."),
         epilog="ROS arguments (remapping, -p NAME:=VALUE) may follow --ros-args. Stop with Ctrl-C.")
+    ap.add_argument("--version", action="version", version=f"rig-record ({PACKAGE}) {package_version()}")
     ap.add_argument("output", nargs="?", help="recording folder to create (must not exist)")
     ap.add_argument("--rig", help="rig description: rig.yaml, recording folder or experiment file")
     ap.add_argument("--duration", type=float, default=0.0, metavar="S",

@@ -37,7 +37,6 @@ from __future__ import annotations
 import json
 import os
 from datetime import datetime, timezone
-from importlib.metadata import PackageNotFoundError, version
 from pathlib import Path
 
 import numpy as np
@@ -45,6 +44,7 @@ import numpy as np
 from ..estimation.identification import IdentificationError
 from ..estimation.inertia_result import InertiaResult
 from ..io.atomic import atomic_directory
+from ..io.package import PACKAGE, package_version
 from ..io.recording import Recording
 from ..io.rig import Rig
 from ..io.verdict import KEYS
@@ -65,8 +65,6 @@ from .mass import (
 )
 from .modes import modes_section
 from .verdict import checks_table, verdict_html
-
-PACKAGE = "rig_identification"
 
 
 class ReportError(IdentificationError):
@@ -98,14 +96,6 @@ def common_truth(recs) -> dict | None:
         if np.any(np.abs(v - ref) > 1e-9 * np.abs(ref).max()):
             return None
     return truths[0]
-
-
-def package_version() -> str:
-    """The installed version of this package, or "unknown" when it is not installed."""
-    try:
-        return version(PACKAGE)
-    except PackageNotFoundError:
-        return "unknown (not installed)"
 
 
 def rig_label(rig: Rig) -> str:
