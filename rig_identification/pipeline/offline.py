@@ -10,7 +10,7 @@ import numpy as np
 from ..diagnosis.distinguish import effect_name, finding_text
 from ..diagnosis.not_rigid import not_rigid_hypothesis, two_body_reason
 from ..diagnosis.residuals import unexplained
-from ..diagnosis.result import Combination
+from ..diagnosis.result import Combination, Diagnosis
 from ..diagnosis.selection import body_inertia, corrected, diagnose, with_stiffness
 from ..estimation.identification import identify_inertia, identify_inertia_joint
 from ..estimation.inertia_result import InertiaResult
@@ -111,6 +111,10 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     * the recording is identified again the ordinary way (same window and band: fit,
       propagated σ, validation).
 
+    An effect the recording does not tell from a rival's (``told_apart`` false:
+    :mod:`~rig_identification.diagnosis.distinguish`) is named by its class, with the
+    candidates and what would tell them apart; the fit is made with the preferred member.
+
     The first combination whose fit's validation says ``ok`` and whose every effect is
     physically plausible (:func:`~rig_identification.diagnosis.plausible.implausible`) is *named*
     — unless one of its proper subsets passes too: then the smallest such is (an effect is named
@@ -149,82 +153,111 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
                   "inertia_std": {k: float(v) for k, v in zip(KEYS, result.inertia_std)},
                   "uncertainty": result.uncertainty,
                   "validation": None if result.validation is None else result.validation.verdict}
-    duration = float(d.series["t"][-1]) if d.series else float(result.t_end - result.t_start)
-    where = unexplained(d.located, duration) + [
+    where = mismatch_places(d, float(result.t_end - result.t_start))
+    hypotheses: list[dict] = []
+    again, chosen, chosen_hyp = None, None, None
+    for alt in d.alternatives:
+        if chosen is not None and not set(alt.keys) < set(chosen.keys):
+            continue   # after a validated combination, only its proper subsets are tried (parsimony)
+        fit, hyp = _refit(full, alt, start, end, band_hz)
+        hypotheses.append(hyp)
+        if fit is not None:
+            again, chosen, chosen_hyp = fit, alt, hyp   # kept looking: a smaller one that also validates is named
+    # a body that may not be rigid: said, with what to do, not fitted (the two-body fit is
+    # rig-identify diagnose --two-body's, experimental)
+    gate = two_body_reason(rec, result, again is not None)
+    if gate:
+        hypotheses.append(_refit(full, not_rigid_hypothesis(gate), start, end, band_hz)[1])
+    diagnosis = {"effects": [], "hypotheses": [e for h in hypotheses for e in h["effects"]],
+                 "combinations_tried": hypotheses, "unexplained": where,
+                 "residual_rms_before": d.rms_before, "residual_rms_after": d.rms_after,
+                 "band_hz": [float(x) for x in d.band]}
+    if again is None or chosen is None:
+        return _not_explained(result, rigid_body, diagnosis, hypotheses, where)
+    diagnosis["combinations_tried"] = [h for h in hypotheses if h is not chosen_hyp]
+    return _named(result, again, chosen, rec, rigid_body, diagnosis)
+
+
+def mismatch_places(d: Diagnosis, window_s: float) -> list[dict]:
+    """Where a recording and the rigid-body model disagree, for a diagnosis that names nothing:
+    :func:`~rig_identification.diagnosis.residuals.unexplained` of ``d.located`` (channel,
+    band Hz, time s from the window's start, size, what the frequency is) over the diagnosis
+    window (``window_s`` s when it kept no series), then the accelerometer's departures from
+    Newton's prediction from the load cells above the fit band (``d.out_of_band``), over the
+    whole window, their size in σ."""
+    duration = float(d.series["t"][-1]) if d.series else window_s
+    return unexplained(d.located, duration) + [
         {"channel": u["channel"], "band_hz": u["band_hz"], "time_s": [0.0, round(duration, 1)], "size": u["sigma"],
          "is": f"above the fit band: the accelerometer over Newton's prediction from the load cells departs from 1 "
                f"by {u['size']:.3g} ({u['sigma']:.0f} σ; size in σ) — a sensor mount's structural mode, or a body "
                "that is not rigid?"}
         for u in d.out_of_band]
-    alternatives = d.alternatives
-    hypotheses, whys = [], []
 
-    def attempt(alt: Combination) -> InertiaResult | None:
-        """One combination tested the way every fit is: the recording corrected, identified again
-        with its wrench, validated; its fit when it passes, else None (why in hypotheses, whys)."""
-        names = [e["name"] for e in alt.effects]
-        bad = [e for e in alt.effects if not e.get("plausible", True)]
-        hyp = {"effects": alt.effects}
-        hypotheses.append(hyp)
-        if alt.not_named:      # a hypothesis by its own test (compliant_body): never fitted again
-            hyp["not_named"] = alt.not_named
-            whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
-            return None
-        if bad:
-            hyp["not_named"] = "not physically plausible: " + "; ".join(f"{e['name']}: {e['implausible']}" for e in bad)
-            whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
-            return None
-        fixed = corrected(full, alt.applied)
-        if alt.stiffness is not None:
-            fixed = with_stiffness(fixed, alt.stiffness)
-        log.info("identifying again with %s", ", ".join(names))
-        try:
-            fit = identify_recording(fixed, start=start, end=end, band_hz=band_hz,
-                                     effect_wrench=alt.effect_wrench)
-        except (ValueError, np.linalg.LinAlgError) as e:
-            hyp["not_named"] = f"could not be identified again ({e})"
-            whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
-            return None
-        if fit.validation is None or fit.validation.verdict != "ok":
-            failed = () if fit.validation is None else fit.validation.failed
-            hyp["not_named"] = (f"the fit with it does not determine the tensor (not_identifiable: "
-                                f"{', '.join(failed + tuple(fit.undetermined))})"
-                                if fit.validation is not None and fit.validation.verdict == "not_identifiable" else
-                                f"the fit with it still fails its validation ({', '.join(failed)})")
-            hyp["failed_checks"] = list(failed)
-            whys.append(f"{' + '.join(names)}: {hyp['not_named']}")
-            return None
-        return fit
 
-    again, chosen = None, None
-    for alt in alternatives:
-        if chosen is not None and not set(alt.keys) < set(chosen.keys):
-            continue   # after a validated combination, only its proper subsets are tried (parsimony)
-        fit = attempt(alt)
-        if fit is not None:
-            again, chosen = fit, alt   # kept looking: a smaller combination that also validates is named instead
-    # a body that may not be rigid: said, with what to do, not fitted (the two-body fit is
-    # rig-identify diagnose --two-body's, experimental)
-    gate = two_body_reason(rec, result, again is not None)
-    if gate:
-        alternatives = list(alternatives) + [not_rigid_hypothesis(gate)]
-        attempt(alternatives[-1])
-    diagnosis = {"effects": [], "hypotheses": [e for h in hypotheses for e in h["effects"]],
-                 "combinations_tried": hypotheses, "unexplained": where,
-                 "residual_rms_before": d.rms_before, "residual_rms_after": d.rms_after,
-                 "band_hz": [float(x) for x in d.band]}
-    if again is None:
-        why = ("diagnose found no effect of its library that explains the misfit" if not alternatives else
-               "no combination of the library's effects explains it: " + "; ".join(whys))
-        names = [e["name"] for h in hypotheses for e in h["effects"]]
-        diagnosis["handled"] = "not: " + why
-        result.rigid_body, result.diagnosis = rigid_body, diagnosis
-        result.warnings.append(
-            f"model error not explained: {why}; the tensor is the rigid-body fit's (σ widened, not trustworthy)"
-            + (f"; hypotheses, not findings: {', '.join(dict.fromkeys(names))}" if names else "")
-            + ("; the mismatch is in " + ", ".join(f"{u['channel']} at {u['band_hz'][0] + 0.05:.2f} Hz"
-                                                   for u in where if u["band_hz"]) if where else ""))
-        return result
+def _why(hyp: dict) -> str:
+    """A combination tried and not named, in one phrase: its effects and why not."""
+    return f"{' + '.join(e['name'] for e in hyp['effects'])}: {hyp['not_named']}"
+
+
+def _refit(full: Recording, alt: Combination, start: float | None, end: float | None,
+           band_hz: tuple[float, float] | None) -> tuple[InertiaResult | None, dict]:
+    """One combination tested the way every fit is: the recording ``full`` corrected, identified
+    again with its wrench (same window and band), validated.  Returns (its fit when the
+    validation says ``ok``, else None; the combination as tried: ``effects``, and when not named
+    ``not_named`` (why) and ``failed_checks``).  A hypothesis by its own test (``not_named``
+    set: the unfitted sprung body) or a combination with an implausible effect is not fitted."""
+    names = [e["name"] for e in alt.effects]
+    bad = [e for e in alt.effects if not e.get("plausible", True)]
+    hyp: dict = {"effects": alt.effects}
+    if alt.not_named:
+        hyp["not_named"] = alt.not_named
+        return None, hyp
+    if bad:
+        hyp["not_named"] = "not physically plausible: " + "; ".join(f"{e['name']}: {e['implausible']}" for e in bad)
+        return None, hyp
+    fixed = corrected(full, alt.applied)
+    if alt.stiffness is not None:
+        fixed = with_stiffness(fixed, alt.stiffness)
+    log.info("identifying again with %s", ", ".join(names))
+    try:
+        fit = identify_recording(fixed, start=start, end=end, band_hz=band_hz, effect_wrench=alt.effect_wrench)
+    except (ValueError, np.linalg.LinAlgError) as e:
+        hyp["not_named"] = f"could not be identified again ({e})"
+        return None, hyp
+    if fit.validation is None or fit.validation.verdict != "ok":
+        failed = () if fit.validation is None else fit.validation.failed
+        hyp["not_named"] = (f"the fit with it does not determine the tensor (not_identifiable: "
+                            f"{', '.join(failed + tuple(fit.undetermined))})"
+                            if fit.validation is not None and fit.validation.verdict == "not_identifiable" else
+                            f"the fit with it still fails its validation ({', '.join(failed)})")
+        hyp["failed_checks"] = list(failed)
+        return None, hyp
+    return fit, hyp
+
+
+def _not_explained(result: InertiaResult, rigid_body: dict, diagnosis: dict, hypotheses: list[dict],
+                   where: list[dict]) -> InertiaResult:
+    """``result`` (the rigid-body fit) with the diagnosis that names nothing: why, the
+    hypotheses, where the mismatch is."""
+    why = ("diagnose found no effect of its library that explains the misfit" if not hypotheses else
+           "no combination of the library's effects explains it: " + "; ".join(_why(h) for h in hypotheses))
+    names = [e["name"] for h in hypotheses for e in h["effects"]]
+    diagnosis["handled"] = "not: " + why
+    result.rigid_body, result.diagnosis = rigid_body, diagnosis
+    result.warnings.append(
+        f"model error not explained: {why}; the tensor is the rigid-body fit's (σ widened, not trustworthy)"
+        + (f"; hypotheses, not findings: {', '.join(dict.fromkeys(names))}" if names else "")
+        + ("; the mismatch is in " + ", ".join(f"{u['channel']} at {u['band_hz'][0] + 0.05:.2f} Hz"
+                                               for u in where if u["band_hz"]) if where else ""))
+    return result
+
+
+def _named(result: InertiaResult, again: InertiaResult, chosen: Combination, rec: Recording, rigid_body: dict,
+           diagnosis: dict) -> InertiaResult:
+    """The fit ``again`` with the named combination ``chosen``: the cables' share taken off the
+    tensor when their mass was found, σ at least diagnose's joint fit's (and widened by what the
+    corrections fixed from outside the band leave), the diagnosis, verdict, method and warnings
+    saying what was named (a class where the recording does not tell its candidates apart)."""
     effects = chosen.effects
     names = [effect_name(e) for e in effects]
     found = "; ".join(finding_text(e) for e in effects)   # with units, as the CLI's
@@ -253,10 +286,10 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
                "added to the model" if not applied and chosen.stiffness is None else
                "removed from the data and added to the model")
     diagnosis["effects"], diagnosis["hypotheses"], diagnosis["unexplained"] = effects, [], []
-    diagnosis["combinations_tried"] = hypotheses[:-1]
     again.rigid_body, again.diagnosis = rigid_body, {**diagnosis, "handled": handled}
     # the verdict is on the model with the effects, not the rigid body's alone
     modelled = ", ".join(e["name"] for e in effects)
+    assert again.validation is not None   # _refit names only a fit whose validation is ok
     again.validation = replace(again.validation, model=f"the rigid-body model with {modelled}")
     again.method += f"; {', '.join(names)} diagnosed (rig-identify diagnose), {handled}, validated"
     rigid_verdict = result.validation.summary if result.validation is not None else None
