@@ -46,6 +46,7 @@ from ..pipeline.offline import (
     identify_recording,
     identify_recordings,
     recording_labels,
+    with_cg_uncertainty,
     with_diagnosis,
 )
 from ..report.page import ReportError, check_report_dir, common_truth, write_report
@@ -106,6 +107,15 @@ GIVEN_EXACT = ("σ leaves out the mass and centre of gravity given above: they a
                "error from an error of the CG is not in σ (docs/tutorial.md, step 6)")
 
 
+def cg_in_sigma_line(result: InertiaResult) -> str:
+    """What the CG's σ adds to the tensor's σ (``cg_contribution_std``), per entry."""
+    c = result.cg_contribution_std
+    assert c is not None
+    return ("σ includes the centre of gravity's σ (the tensor refitted with the CG ±1 σ along each principal axis "
+            "of its covariance); its share, kg·m²: " + ", ".join(f"{k} {fmt(x, '.3g')}" for k, x in zip(KEYS, c))
+            + "; the mass is taken as exact")
+
+
 def std_line(result: InertiaResult) -> str:
     """What σ is: the propagated sensor noise or the fit's residuals."""
     n = result.sensor_noise
@@ -150,7 +160,7 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
     print(origin_line(ex))
     print(std_line(result))
     print(result.precision.text())
-    print(GIVEN_EXACT)
+    print(GIVEN_EXACT if result.cg_contribution_std is None else cg_in_sigma_line(result))
     if result.diagnosis is not None:
         for line in diagnosis_lines(result):
             print(line)
@@ -189,8 +199,9 @@ def read_all(paths: list[str]) -> list:
     return recs
 
 
-def with_saved_cg(recs: list, cg_file: str) -> tuple[list, str]:
-    """The recordings with the CG of a saved ``rig-identify cg --json`` result, and the note."""
+def with_saved_cg(recs: list, cg_file: str) -> tuple[list, str, np.ndarray]:
+    """The recordings with the CG of a saved ``rig-identify cg --json`` result, the note, and the
+    CG's covariance (3, 3) m²."""
     saved = load_cg_result(cg_file)
     out = []
     for r in recs:
@@ -203,7 +214,7 @@ def with_saved_cg(recs: list, cg_file: str) -> tuple[list, str]:
                                                                saved.center_of_gravity_std) + " mm)"
     if saved.verdict == "model_error":
         note += ": its static fit's verdict was model_error, the CG may be off"
-    return out, note
+    return out, note, np.asarray(saved.covariance, float)
 
 
 def output_axes(option: str | None, recs: list) -> tuple[str, str | None]:
@@ -259,6 +270,18 @@ def identify(args, recs: list) -> InertiaResult:
     return result
 
 
+def cg_uncertainty(args, recs: list, result: InertiaResult, cg_cov: np.ndarray) -> InertiaResult:
+    """The CG's σ (from ``--cg``) carried into the tensor's
+    (:func:`~rig_identification.pipeline.offline.with_cg_uncertainty`) for a single recording
+    whose fit no diagnosed effect changed; otherwise a warning that it is not."""
+    if len(recs) > 1 or (result.diagnosis or {}).get("effects"):
+        result.warnings.append("the CG's σ is not carried into the tensor's σ for a joint or diagnosed fit: "
+                               "σ leaves the CG's error out")
+        return result
+    heading("carrying the CG's σ into the tensor's (the tensor refitted with the CG ±1 σ)")
+    return with_cg_uncertainty(recs[0], result, cg_cov, args.start, args.end)
+
+
 def cmd_inertia(args) -> int:
     """``rig-identify inertia``; returns the exit status (user errors raise, see cli.user_errors)."""
     check_options(args)
@@ -267,13 +290,16 @@ def cmd_inertia(args) -> int:
         return cmd_rig_model(args, recs[0])
     cg_source = "rig.yaml body.center_of_gravity"
     cg_note = None
+    cg_cov = None
     if args.cg:
-        recs, cg_note = with_saved_cg(recs, args.cg)
+        recs, cg_note, cg_cov = with_saved_cg(recs, args.cg)
         cg_source = f"from {args.cg}"
     axes, axes_note = output_axes(args.axes, recs)
     if axes_note is not None:
         warn(axes_note)
     result = identify(args, recs)
+    if cg_cov is not None:
+        result = cg_uncertainty(args, recs, result, cg_cov)
     result.precision_target = args.target / 100
     if cg_note is not None:
         result.warnings.insert(0, cg_note)

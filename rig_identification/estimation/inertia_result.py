@@ -121,6 +121,9 @@ class InertiaResult:
     errors_in_variables: Compensation | None = None
     # the lab's precision target (a fraction: 0.01 is ±1 % at 95 %), which :attr:`precision` judges
     precision_target: float = TARGET
+    # filled by pipeline.with_cg_uncertainty: the σ (6,) kg·m² that the CG's own σ adds to the
+    # tensor's (already in inertia_std and covariance); None when the CG was taken as exact
+    cg_contribution_std: np.ndarray | None = None
 
     @property
     def correlation(self) -> np.ndarray:
@@ -219,6 +222,7 @@ class InertiaResult:
             "inertia_about_cg": {k: entry(k, v) for k, v in zip(KEYS, theta)},
             "inertia_std": {k: entry(k, v) for k, v in zip(KEYS, self.inertia_std)},
             "inertia_crb_std": per_key(self.crb_std),
+            "inertia_cg_std": per_key(self.cg_contribution_std),
             "precision": self.precision.to_dict(),
             "frame": "body",
             "convention": "; ".join(convention_lines(AXES["body"])),

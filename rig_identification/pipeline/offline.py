@@ -300,6 +300,44 @@ def _named(result: InertiaResult, again: InertiaResult, chosen: Combination, rec
     return again
 
 
+def with_cg_uncertainty(rec: Recording, result: InertiaResult, cg_covariance: np.ndarray,
+                        start: float | None = None, end: float | None = None, settle: float = 5.0) -> InertiaResult:
+    """``result`` with the uncertainty of the CG it was fitted about carried into the tensor's σ.
+
+    The CG sets the moment arms of every measured force, so an error of the CG moves the fitted
+    tensor.  Linear error propagation by central differences along the principal axes of the
+    CG's covariance ``cg_covariance`` (3, 3) m², body frame (a ``rig-identify cg`` result's):
+    for each eigenpair (λ_k, v_k), s_k = √λ_k v_k, the recording is prepared again with the CG at
+    c ± s_k (tracker, generalized wrench) and the tensor refitted in the result's band
+    (:func:`~rig_identification.estimation.identification.identify_inertia`); d_k = (J(c + s_k) −
+    J(c − s_k)) / 2 (6,) tensor entries, and the covariance of the entries grows by Σ_k d_k d_kᵀ
+    (JCGM 100:2008, GUM §5.1, with the sensitivities by finite differences).  ``uncertainty``
+    says so, ``cg_contribution_std`` (6,) kg·m² holds √diag Σ d_k d_kᵀ.  A result without a finite
+    tensor, or a rig without a CG, is returned as it is.  Raises like :func:`identify_recording`."""
+    if not np.all(np.isfinite(result.inertia)) or rec.rig.center_of_gravity is None:
+        return result
+    lam, vec = np.linalg.eigh(0.5 * (np.asarray(cg_covariance, float) + np.asarray(cg_covariance, float).T))
+    c0 = rec.rig.require_cg()
+    added = np.zeros((6, 6))
+    for lk, vk in zip(lam, vec.T):
+        if lk <= 0:
+            continue
+        fits = []
+        for sign in (1.0, -1.0):
+            moved = replace(rec, rig=rec.rig.with_cg(c0 + sign * np.sqrt(lk) * vk))
+            prep = prepare_recording(moved, start, end, settle)
+            fits.append(from_tensor(identify_inertia(moved.rig, prep.t, prep.gyro_body, prep.torque,
+                                                     band_hz=tuple(result.band_hz)).inertia))
+        d = 0.5 * (fits[0] - fits[1])
+        added += np.outer(d, d)
+    result.covariance = result.covariance + added
+    result.inertia_std = np.sqrt(np.clip(np.diag(result.covariance), 0, None))
+    result.cg_contribution_std = np.sqrt(np.clip(np.diag(added), 0, None))
+    result.uncertainty += ("; with the CG's σ propagated (the tensor refitted with the CG ±1 σ along each "
+                           "principal axis of its covariance)")
+    return result
+
+
 MASS_RTOL = 1e-3   # relative: rig.yaml body.mass of recordings fitted jointly must agree this well
 CG_TOL = 0.002     # m: and their body.center_of_gravity this well
 
