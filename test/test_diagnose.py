@@ -377,10 +377,11 @@ def tru_izz(rec) -> float:
     return rec.truth["inertia_about_cg"]["izz"]
 
 
-def _default_rig_pipeline(name: str, effect: dict, refine: bool) -> tuple:
+def _default_rig_pipeline(name: str, effect: dict, refine: bool, cg_std: list | None = None) -> tuple:
     """Job: thesis case 16 (config/rigs/default.yaml), 60 s at the reference noise, with
     ``effect`` concealed (experiment ``name``): the rigid-body fit (``identify_recording``, ``refine``) and
-    ``pipeline.with_diagnosis`` on it (what `rig-identify inertia` does under model error).
+    ``pipeline.with_diagnosis`` on it (what `rig-identify inertia` does under model error; with
+    ``cg_std`` (3,) m, as `inertia --cg` does with a static test's CG of that σ).
     Returns (truth, the body's mass in rig.yaml, rigid-body result, result)."""
     from pathlib import Path
 
@@ -396,7 +397,8 @@ def _default_rig_pipeline(name: str, effect: dict, refine: bool) -> tuple:
     sim = simulate(experiment_from_dict(d, name))
     rec = Recording(sim.rig, sim.sensors, sim.truth)
     rigid = identify_recording(rec, refine=refine)
-    return sim.truth, sim.rig.mass, rigid, with_diagnosis(rec, rigid)
+    cov = None if cg_std is None else np.diag(np.square(cg_std))
+    return sim.truth, sim.rig.mass, rigid, with_diagnosis(rec, rigid, cg_covariance=cov)
 
 
 background("delay_pipeline", __file__, _default_rig_pipeline,
@@ -464,6 +466,41 @@ def test_inertia_diagnoses_a_weight_surplus_the_residual_does_not_show():
     assert first["name"] == "cable_mass" and _rel(first["parameters"]["mass"], 3.0) < 0.15, first
     for k, c in compare_to_truth(res, truth).items():
         assert abs(c["error_percent"]) < 0.5 and abs(c["error_sigma"]) < 3.0, (k, c)
+
+
+background("cg_pipeline", __file__, _default_rig_pipeline,
+           {"run": ("CG off", {"name": "cg_offset", "offset": [0.0, 0.0, 0.03]}, False, [0.002, 0.002, 0.02])})
+
+
+def test_inertia_with_a_static_tests_cg_corrects_its_height():
+    """`inertia --cg` with a static test whose CG is 30 mm low (σ 20 mm in height, as a light
+    dummy gives): thesis case 16, 60 s. The rigid-body fit about that CG is `model_error` with
+    Iyy off by more than 1 %; the diagnosis, which then screens the CG as a data error within
+    its σ, names the offset (within 2 mm), fits about the corrected CG and validates: every
+    entry within 0.5 % and 3 σ, the CG the truth's within 2 mm."""
+    from rig_identification.pipeline.offline import compare_to_truth
+    truth, _, rigid, res = gather("cg_pipeline")["run"]
+    assert rigid.validation.verdict == "model_error"
+    assert max(abs(c["error_percent"]) for c in compare_to_truth(rigid, truth).values()) > 1.0
+    (e,) = res.diagnosis["effects"]
+    assert e["name"] == "cg_offset" and np.abs(np.array(e["parameters"]["offset"]) - [0, 0, 0.03]).max() < 0.002, e
+    assert res.validation.verdict == "ok", res.validation.summary
+    for k, c in compare_to_truth(res, truth).items():
+        assert abs(c["error_percent"]) < 0.5 and abs(c["error_sigma"]) < 3.0, (k, c)
+    assert np.abs(res.center_of_gravity - np.asarray(truth["center_of_gravity"])).max() < 0.002
+
+
+def test_a_cg_offset_beyond_the_static_tests_sigma_is_not_plausible():
+    """The CG the diagnosis may move is the static test's within 3 σ (χ²₃ 99.73 %): 30 mm in
+    height is plausible at σ 20 mm, not at σ 5 mm; without a static σ only the general range."""
+    from rig_identification.diagnosis.plausible import implausible
+    from rig_identification.io.rig import rig_from_dict
+    rig = rig_from_dict(yaml.safe_load(open(DEFAULT))["rig"], "default")
+    e = {"name": "cg_offset", "parameters": {"offset": [0.0, 0.0, 0.03]}}
+    assert implausible(e, rig, cg_covariance=np.diag(np.square([0.002, 0.002, 0.02]))) is None
+    why = implausible(e, rig, cg_covariance=np.diag(np.square([0.002, 0.002, 0.005])))
+    assert why is not None and "beyond 3 σ of the static test's CG" in why
+    assert implausible(e, rig) is None
 
 
 def test_synchronous_rms_keeps_what_is_locked_to_the_forcing():

@@ -251,8 +251,9 @@ def check_options(args) -> None:
         check_report_dir(Path(args.report))  # before the fit, not after it
 
 
-def identify(args, recs: list) -> InertiaResult:
-    """The fit the options ask for (one recording or a joint fit; diagnosis of a model error)."""
+def identify(args, recs: list, cg_cov: np.ndarray | None = None) -> InertiaResult:
+    """The fit the options ask for (one recording or a joint fit; diagnosis of a model error,
+    with the CG a candidate error within its σ ``cg_cov`` (3, 3) m² when ``--cg`` gave one)."""
     band = tuple(args.band) if args.band else None
     refine = not args.quick
     what = "tracker, preprocessor, fit" + (", σ from replays with fresh noise" if refine and args.model == "pem"
@@ -266,7 +267,7 @@ def identify(args, recs: list) -> InertiaResult:
     if args.model == "pem" and refine and not args.no_diagnose:
         if result.validation is not None and result.validation.verdict != "ok":
             heading("model error: diagnosing it (rig-identify diagnose), then identifying again with what it names")
-        result = with_diagnosis(recs[0], result, args.start, args.end, band)
+        result = with_diagnosis(recs[0], result, args.start, args.end, band, cg_covariance=cg_cov)
     return result
 
 
@@ -297,7 +298,7 @@ def cmd_inertia(args) -> int:
     axes, axes_note = output_axes(args.axes, recs)
     if axes_note is not None:
         warn(axes_note)
-    result = identify(args, recs)
+    result = identify(args, recs, cg_cov)
     if cg_cov is not None:
         result = cg_uncertainty(args, recs, result, cg_cov)
     result.precision_target = args.target / 100

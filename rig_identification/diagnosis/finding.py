@@ -131,7 +131,7 @@ def finding(ev: dict, rec: Recording, state: dict, build, kappa0: float, scales,
         f_hz = abs(float(np.polyfit(w.t[ok], phase[ok], 1)[0])) / (2 * np.pi)
         unbalance = float(np.median(np.linalg.norm(w.f_exc, axis=1))) / (2 * np.pi * f_hz) ** 2
     for e in entries:
-        why = implausible(e, rec.rig, share.get(e["name"]), unbalance) or undetermined(e)
+        why = implausible(e, rec.rig, share.get(e["name"]), unbalance, state.get("cg_covariance")) or undetermined(e)
         e["plausible"] = why is None
         if why is not None:
             e["implausible"] = why

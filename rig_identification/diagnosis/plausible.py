@@ -42,11 +42,15 @@ of rig.yaml's, the exciter's rotor ``unbalance`` within 0.3–3× the mass that 
 measured force (F / (2π f)²), and a dissipative effect's moment at most
 :data:`MAX_EFFECT_SHARE` of the measured moment (RMS in the band: a rig's damping is small)."""
 MAX_EFFECT_SHARE = 0.3
+CG_PRIOR_CHI2 = 14.16   # χ²₃ at 99.73 % (3 σ): a CG offset must be this likely under the static test's σ
 
 
-def implausible(entry: dict, rig, effect_share: float | None = None, unbalance: float | None = None) -> str | None:
+def implausible(entry: dict, rig, effect_share: float | None = None, unbalance: float | None = None,
+                cg_covariance: np.ndarray | None = None) -> str | None:
     """Why the effect ``entry`` (of :attr:`Diagnosis.effects`) cannot be the physics in the
-    recording (see :data:`PLAUSIBLE`), or None when it is plausible.  effect_share: the RMS
+    recording (see :data:`PLAUSIBLE`), or None when it is plausible.  cg_covariance: (3, 3) m²
+    of the CG the recording was given (a static test's): a ``cg_offset`` must lie within the
+    χ²₃ 99.73 % ellipsoid of it (3 σ).  effect_share: the RMS
     of its moment over the measured moment's; unbalance: kg·m that makes the measured
     exciter force."""
     name, par = entry["name"], entry["parameters"]
@@ -57,6 +61,12 @@ def implausible(entry: dict, rig, effect_share: float | None = None, unbalance: 
             return f"{k} = {fmt_value(par.get(k))} outside {lo:g}…{hi:g}" + (f" {unit}" if unit else "")
     if name == "cable_mass" and not 0.0 <= par.get("mass", 0.0) <= 0.05 * rig.mass:
         return f"mass {par['mass']:.3g} kg per cable outside 0…{0.05 * rig.mass:.3g} kg"
+    if name == "cg_offset" and cg_covariance is not None:
+        dl = np.asarray(par.get("offset", np.zeros(3)), float)
+        m2 = float(dl @ np.linalg.pinv(np.asarray(cg_covariance, float)) @ dl)
+        if m2 > CG_PRIOR_CHI2:
+            return (f"offset {fmt_value(dl)} m beyond 3 σ of the static test's CG (Mahalanobis² {m2:.3g} > "
+                    f"{CG_PRIOR_CHI2:.3g})")
     if name == "body_mass" and abs(par.get("mass_error", 0.0)) > 0.1 * rig.mass:
         return f"mass error {par['mass_error']:.3g} kg beyond 10 % of rig.yaml's {rig.mass:.6g} kg"
     if name == "exciter_rotor" and unbalance:

@@ -146,7 +146,8 @@ STEEL_STRETCH = 4e-3  # m: static stretch beyond which cables without a rig.yaml
 # --- diagnosis ------------------------------------------------------------------------------
 
 def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS, alpha: float = ALPHA,
-             band_hz: tuple[float, float] | None = None, cg_free: bool = False) -> Diagnosis:
+             band_hz: tuple[float, float] | None = None, cg_free: bool = False,
+             cg_covariance: np.ndarray | None = None) -> Diagnosis:
     """Diagnose a dynamic recording (see module docstring).
 
     model: ``"pem"`` (ours, with the gyroscopic term) or ``"thesis"`` (the thesis's model:
@@ -161,7 +162,8 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     (:func:`~rig_identification.pipeline.offline.with_diagnosis`).  cg_free: rig.yaml's centre
     of gravity is a candidate error too (``cg_offset``; off by default: on the independent
     simulator's recordings, whose rig.yaml CG is the truth, it took up 29–111 mm of height on
-    four of eight, docs/results.md).
+    four of eight, docs/results.md).  cg_covariance: (3, 3) m², the σ of the CG the recording
+    was given (a static test's): the CG is then a candidate, plausible within 3 σ of it.
     Returns a :class:`Diagnosis`.  Raises RecordingError, RigError, TrackerError,
     IdentificationError for recordings no fit can be made of.
     """
@@ -171,7 +173,7 @@ def diagnose(rec: Recording, model: str = "pem", max_effects: int = MAX_EFFECTS,
     kappa0 = 1.0 if model == "pem" else 0.0
     R_yaml = rec.rig.imu.rotation.as_matrix()
     state = {"applied": {}, "elastic": False, "band": band_hz, "candidate": True, "retracked": {},
-             "cg_free": cg_free}
+             "cg_free": cg_free or cg_covariance is not None, "cg_covariance": cg_covariance}
     declared = np.isfinite(rec.rig.cable_stiffness).all()
 
     windows: OrderedDict = OrderedDict()   # the last WINDOW_CACHE windows, by their corrections

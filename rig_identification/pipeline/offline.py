@@ -89,7 +89,8 @@ def unidentified(rig, prep: PreparedRecording, reason: str) -> InertiaResult:
 
 
 def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = None,
-                   end: float | None = None, band_hz: tuple[float, float] | None = None) -> InertiaResult:
+                   end: float | None = None, band_hz: tuple[float, float] | None = None,
+                   cg_covariance: np.ndarray | None = None) -> InertiaResult:
     """Model error handled — or said plainly.  When the rigid-body fit's validation says
     ``model_error`` (:func:`validate_fit`; also when its residual exceeds what the sensors'
     noise explains by :data:`MODEL_ERROR_RATIO`, or the load cells' mean vertical force
@@ -129,6 +130,9 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
     accelerometer from the load cells above the fit band) and lists the combinations as
     ``hypotheses`` (each with the checks its fit still failed), never their tensors.
 
+    cg_covariance: (3, 3) m², the σ of the CG the recording was given (``inertia --cg``): the
+    diagnosis then screens the CG as a data error (``cg_offset``), plausible within 3 σ of it.
+
     ``diagnosis`` also keeps the residual RMS before/after; ``rigid_body`` the rigid-body
     tensor and σ.  A fit without model error is returned as it was.
     """
@@ -145,7 +149,7 @@ def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = 
         rec = replace(rec, sensors=crop(rec.sensors, lo, hi))
     log.info("diagnosing the model error")
     try:
-        d = diagnose(rec)
+        d = diagnose(rec, cg_covariance=cg_covariance)
     except (ValueError, np.linalg.LinAlgError) as e:   # RecordingError, RigError, TrackerError, IdentificationError
         result.warnings.append(f"diagnose could not run on the recording ({e}); the tensor is the rigid-body fit's")
         return result
