@@ -296,7 +296,7 @@ def test_diagnosed_model_error_warning_gives_effect_parameters_with_units(monkey
     d = Diagnosis(True, [effect], {}, {}, {}, J, J, np.ones(6), np.ones(6), [], (0.4, 3.0), "pem",
                   alternatives=[Combination([effect], {}, None, None, J, None, 0.0, 5000.0, 2, -4980.0,
                                             (("viscous_damping", ""),))])
-    monkeypatch.setattr(pipeline, "diagnose", lambda rec: d)
+    monkeypatch.setattr(pipeline, "diagnose", lambda rec, **kw: d)
     monkeypatch.setattr(pipeline, "corrected", lambda rec, applied: rec)
     monkeypatch.setattr(pipeline, "identify_recording", lambda rec, **kw: again)
     out = pipeline.with_diagnosis(SimpleNamespace(rig=SimpleNamespace(exciter=None), sensors=None), rigid)
