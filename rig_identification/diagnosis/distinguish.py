@@ -92,10 +92,10 @@ def ambiguity(ranked: list[dict], threshold_p: float) -> list[dict]:
     """The best combination's members that the recording does not tell apart from its rivals
     (:func:`rivals`): the members common to the best and every rival are told apart; the rest
     of the best (its members in doubt) and what stands in their place in each rival are one
-    class.  Returns [] when the best has no rival, else one entry: ``keys`` (the best's members
-    in doubt, (name, label)), ``candidate_keys`` (those, then the rivals' members in their
-    place), ``candidates`` (one text per combination, the best's first: its members in doubt as
-    "name" or "name label", joined by " + "), ``class`` and ``tells_apart``
+    class.  Returns [] when the best has no rival, else one entry: ``candidate_keys`` (the best's
+    members in doubt, (name, label), then the rivals' members in their place), ``candidates``
+    (one text per combination, the best's first: its members in doubt as "name" or "name
+    label", joined by " + "), ``class`` and ``tells_apart``
     (:func:`class_of` of every name among them), ``likelihood_ratios`` (the best's Λ and each
     rival's, the rivals' order) and ``bar`` (:func:`distinguish_bar`)."""
     rs = rivals(ranked, threshold_p)
@@ -106,7 +106,7 @@ def ambiguity(ranked: list[dict], threshold_p: float) -> list[dict]:
     groups = [[k for k in ev["keys"] if k not in common] for ev in [best] + rs]
     keys = [k for g in groups for k in g]
     label, tells = class_of({k[0] for k in keys})
-    return [{"keys": groups[0], "candidate_keys": list(dict.fromkeys(keys)),
+    return [{"candidate_keys": list(dict.fromkeys(keys)),
              "candidates": [" + ".join(" ".join(x for x in k if x) for k in g) for g in groups],
              "class": label, "tells_apart": tells,
              "likelihood_ratios": [float(best["lam"])] + [float(r["lam"]) for r in rs],
