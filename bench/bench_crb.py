@@ -52,7 +52,8 @@ def channel_noise(channels) -> np.ndarray:
     for c in channels:
         out.append(REFERENCE_NOISE["load_cell"] if c.startswith("tension") else
                    REFERENCE_NOISE["gyro"] if c.startswith("gyro") else
-                   REFERENCE_NOISE["accelerometer"] if c.startswith("accel") else REFERENCE_NOISE["inclinometer"])
+                   REFERENCE_NOISE["accelerometer"] if c.startswith("accel") else
+                   REFERENCE_NOISE["exciter"] if c.startswith("exciter") else REFERENCE_NOISE["inclinometer"])
     return np.array(out)
 
 

@@ -214,19 +214,23 @@ def test_every_rig_of_the_repository_loads():
 
 
 def test_survey_is_read_checked_and_written_back(rig_dict):
-    """rig.yaml ``survey``: the lab's σ of its geometry and scale; absent, the 1 mm defaults and
-    0.1 % of the mass; a σ in millimetres is refused."""
+    """rig.yaml ``survey``: the lab's σ of its geometry, scale and load cells; absent, the 1 mm
+    defaults, 0.1 % of the mass and 0.1 % of a gain; a σ in millimetres or per cents is refused."""
     plain = rig_from_dict(rig_dict, "rig.yaml")
     assert plain.survey.anchors == plain.survey.lengths == plain.survey.dummy_position == 1e-3
+    assert plain.survey.load_cell_gain == 1e-3
     assert plain.survey.mass_std(1810.0) == pytest.approx(1.81) and "survey" not in plain.to_dict()
-    d = copy.deepcopy(rig_dict) | {"survey": {"anchors": 0.0005, "lengths": 0.002, "mass": 0.5}}
+    d = copy.deepcopy(rig_dict) | {"survey": {"anchors": 0.0005, "lengths": 0.002, "mass": 0.5,
+                                              "load_cell_gain": 0.0}}
     rig = rig_from_dict(d, "rig.yaml")
     assert (rig.survey.anchors, rig.survey.lengths, rig.survey.dummy_position) == (0.0005, 0.002, 1e-3)
+    assert rig.survey.load_cell_gain == 0.0
     assert rig.survey.mass_std(1810.0) == 0.5
     assert rig_from_dict(rig.to_dict()).survey == rig.survey
     for bad, msg in (({"anchors": 1.0}, "survey.anchors = 1 m is more than 10 cm"),
                      ({"lengths": -0.001}, "survey.lengths must be >= 0"),
-                     ({"mass": 0.0}, "survey.mass must be > 0"), ({"anchor": 0.001}, "unknown field survey.anchor")):
+                     ({"mass": 0.0}, "survey.mass must be > 0"), ({"anchor": 0.001}, "unknown field survey.anchor"),
+                     ({"load_cell_gain": 1.0}, "survey.load_cell_gain = 1 is more than 10 %")):
         with pytest.raises(RigError, match=msg.replace(".", r"\.")):
             rig_from_dict(copy.deepcopy(rig_dict) | {"survey": bad}, "rig.yaml")
 

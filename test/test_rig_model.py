@@ -14,7 +14,7 @@ from scipy.spatial.transform import Rotation
 
 from rig_identification.design.scenarios import REFERENCE_NOISE, simulate_random
 from rig_identification.estimation.harmonic_start import harmonic_start, harmonics
-from rig_identification.estimation.rig_fit import Prior, RigFitError, record, smooth_force
+from rig_identification.estimation.rig_fit import FORCE_CHANNELS, Prior, RigFitError, record, smooth_force
 from rig_identification.io.recording import Recording, SensorData
 from rig_identification.io.rig import inertia_tensor
 from rig_identification.io.verdict import KEYS
@@ -111,9 +111,27 @@ def test_the_exciter_force_is_denoised_without_bias():
     ramp = np.clip(t / 2.0, 0, 1)
     phase = 2 * np.pi * f * np.where(t < 2.0, t ** 2 / 4.0, t - 1.0)
     true = 200 * ramp[:, None] ** 2 * np.column_stack([np.cos(phase), np.sin(phase)])
-    smooth, start = smooth_force(true + 0.5 * rng.standard_normal(true.shape), dt, 4 * f)
+    smooth, start, _ = smooth_force(true + 0.5 * rng.standard_normal(true.shape), dt, 4 * f)
     assert 2.0 / dt < start < 6.0 / dt
     assert np.sqrt(np.mean((smooth[start:] - true[start:]) ** 2)) < 0.05
+
+
+def test_the_exciter_force_is_an_output_corrected_within_its_splines():
+    """A rotating force is an output of the rig model as well as its input: the record carries the
+    exciter's two measured components as its last channels (on the grid as recorded, their own
+    white noise), and the correction's B-splines over the fit's span sum to one at every sample,
+    so an exciter whose amplitude or phase is off by a constant is inside what the fit corrects;
+    their knots are the denoising's, every ~15 s after the spin-up."""
+    _, sim = simulate_random(7101, 3, "wide", [], 40.0)
+    rc = record(sim.sensors, sim.rig)
+    assert rc.channels[-2:] == FORCE_CHANNELS
+    i = np.searchsorted(sim.sensors.exciter.t, rc.t0 - 1e-9)
+    assert np.array_equal(rc.y[:, -2:], sim.sensors.exciter.data[i:i + len(rc.y), :2])
+    assert rc.sigma[-1] == pytest.approx(REFERENCE_NOISE["exciter"], rel=0.1)
+    B = rc.force_basis()
+    assert B.shape == (len(rc.y) - rc.start, len(rc.force_knots) + 4)
+    assert np.allclose(B.sum(axis=1), 1.0)
+    assert np.all(rc.force_knots > rc.start * rc.dt) and np.all(np.diff(rc.force_knots) > 10.0)
 
 
 def test_the_forced_response_is_the_fundamental_of_the_exact_model():

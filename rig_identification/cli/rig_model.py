@@ -73,10 +73,10 @@ def print_rig_model(res: RigModelResult) -> None:
         print(f"the fit leans less on {', '.join(res.poorly_fitted)} (their noise raised to their residual's)")
     print("σ: the inverse Fisher information (each channel's noise as estimated from the recording, raised where "
           "it does not fit) or the sandwich over 12 blocks, whichever is larger; the CG, mass, cables, gains and "
-          f"the geometry as surveyed (anchors {1e3 * sv['anchors_m']:g} mm, lengths {1e3 * sv['lengths_m']:g} mm: "
-          "rig.yaml survey) are in it.  CRB: the bound of this run at the sensors' own noise.  σ holds "
-          "the noise, not the model's own fidelity: on another simulator's recordings the errors were 0.02–0.06 %, "
-          "up to 12 σ (docs/rig_model.md)")
+          f"the geometry as surveyed (anchors {1e3 * sv['anchors_m']:g} mm, lengths {1e3 * sv['lengths_m']:g} mm, "
+          f"load-cell gains {100 * sv['load_cell_gain']:g} %: rig.yaml survey) are in it.  CRB: the bound of this "
+          "run at the sensors' own noise.  σ holds the noise, not the model's own fidelity: on another simulator's "
+          "case 16 the errors were up to 0.06 %, 13 σ (docs/rig_model.md)")
     print(f"time: {res.seconds:.1f} s")
 
 

@@ -13,8 +13,9 @@ variable projection (Golub & Pereyra 1973).
 
 Fitted (:class:`Layout`): the inertia tensor (6 entries), the centre of gravity (3), the mass
 (prior: the scale's σ), per-cable stiffness (log, prior: rig.yaml's value or the default steel
-cable's, wide), the cables' damping time τ, per-load-cell gain (prior ±1 %), the body's
-viscous damping (linear and angular: air, joints; no prior), the initial
+cable's, wide), the cables' damping time τ, per-load-cell gain (prior: rig.yaml's
+``survey.load_cell_gain``, default ±0.1 %), the body's viscous damping (linear and angular:
+air, joints; no prior), the exciter force's correction (its readings an output), the initial
 state (12), and the rig's geometry — every anchor coordinate and cable length — under the lab's
 survey σ as prior (the load cells resolve 10⁻⁷ m of stretch: a millimetre of geometry taken as
 exact would bias the tensor by percents).  The covariance is the inverse Fisher information of
@@ -35,7 +36,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.interpolate import make_interp_spline, make_lsq_spline
+from scipy.interpolate import BSpline, make_interp_spline, make_lsq_spline
 from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 
@@ -66,9 +67,11 @@ SETTLE = 2.0
 #: The smallest σ a prior takes, m: a survey σ of 0 (exact) becomes this (the unknown then
 #: stays put without dividing by zero).
 EXACT_STD = 1e-7
-#: σ of a load cell's gain (share) and of log(stiffness) for a cable whose stiffness rig.yaml
-#: gives (a datasheet's EA) or does not (the default steel cable's, a factor e either way).
-GAIN_STD = 0.01
+#: The smallest σ a load cell's gain takes (a survey σ of 0, exact, becomes this).
+EXACT_GAIN_STD = 1e-9
+#: σ of log(stiffness) for a cable whose stiffness rig.yaml gives (a datasheet's EA) or does not
+#: (the default steel cable's, a factor e either way).  A load cell's gain takes rig.yaml's
+#: ``survey.load_cell_gain``.
 STIFFNESS_LOG_STD_GIVEN = 0.2
 STIFFNESS_LOG_STD_DEFAULT = 1.0
 #: Re-weighting rounds: each channel's noise level replaced by its residual's where the
@@ -106,12 +109,18 @@ class Record:
 
     t0: the first sample's stamp, s; dt: the grid's step, s.  y: (n, n_out) the outputs
     (channel order of :func:`channel_names`: tensions N, gyro rad/s, accelerometer m/s²,
-    inclinometer rad).  u: (n, 2) the exciter force, N, exciter frame.  sigma: (n_out,) each
+    inclinometer rad; then, where the force is a rotating vector, the exciter's two measured
+    components, N, exciter frame: the force is an output too).  u: (n, 2) the exciter force
+    denoised (:func:`smooth_force`), N, exciter frame: the model's input before the fit's
+    correction.  sigma: (n_out,) each
     channel's white-noise σ per sample of its own stream.  oversampling: (n_out,) the grid's
     rate over the stream's (≥ 1: a slower stream's samples count once, not once per grid step).
     band: Hz, the fit's band (:func:`band_edge`): the residual is low-passed and decimated
     to it.  start: the first sample the fit compares (after the exciter's spin-up, whose force
     is known less well: :func:`smooth_force`); the model runs from the record's start to it.
+    force_knots: s from ``t0``, the interior knots of the denoised force's amplitude and phase
+    splines after ``start`` (empty when the force is not a rotating vector): the fit corrects
+    the force in that spline space (:class:`Layout` ``force``).
     """
 
     t0: float
@@ -123,17 +132,34 @@ class Record:
     channels: tuple[str, ...]
     band: float
     start: int
+    force_knots: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
     @property
     def duration(self) -> float:
         return self.dt * (len(self.y) - 1)
 
+    def force_basis(self) -> np.ndarray:
+        """(n - start, K) the cubic B-splines on :attr:`force_knots` over the fit's span, one
+        column each ((n - start, 0) when the force is not a rotating vector)."""
+        n = len(self.y) - self.start
+        if self.start == 0:
+            return np.zeros((n, 0))
+        t = self.dt * np.arange(self.start, len(self.y))
+        inner = np.concatenate([[t[0]] * 4, self.force_knots[self.force_knots < t[-1]], [t[-1]] * 4])
+        return BSpline.design_matrix(t, inner, 3).toarray()
 
-def channel_names(rig: Rig) -> tuple[str, ...]:
-    """The outputs of the rig model, in the order of :func:`~rig_identification.model.rig_ode.simulate`."""
+
+#: The exciter's two measured force components as outputs of the rig model (exciter frame).
+FORCE_CHANNELS = ("exciter_x", "exciter_y")
+
+
+def channel_names(rig: Rig, force: bool = False) -> tuple[str, ...]:
+    """The outputs of the rig model, in the order of :func:`~rig_identification.model.rig_ode.simulate`,
+    then (``force``) the exciter's :data:`FORCE_CHANNELS`."""
     names = [f"tension:{n}" for n in rig.cable_names] + ["gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y",
                                                           "accel_z"]
-    return tuple(names + (["incl_x", "incl_y"] if rig.inclinometer is not None else []))
+    names += ["incl_x", "incl_y"] if rig.inclinometer is not None else []
+    return tuple(names + (list(FORCE_CHANNELS) if force else []))
 
 
 def _streams(sensors: SensorData, rig: Rig):
@@ -186,14 +212,20 @@ def record(sensors: SensorData, rig: Rig, t0: float | None = None, t1: float | N
         y.append(_on_grid(t[m], x[m], grid))
         sig.append(white_sigma(x[m]))
     me = (ex_t >= lo - 4 * dt) & (ex_t <= grid[-1] + 4 * dt)
-    u = np.column_stack([_on_grid(ex_t[me], sensors.exciter.data[me, j], grid) for j in range(2)])
-    band = band_edge(u, dt)
-    u, start = smooth_force(u, dt, band)
+    measured = np.column_stack([_on_grid(ex_t[me], sensors.exciter.data[me, j], grid) for j in range(2)])
+    band = band_edge(measured, dt)
+    u, start, knots = smooth_force(measured, dt, band)
     over = np.maximum(1.0, (1.0 / dt) / np.array(rates))
     if (n - start) * dt < 10.0:
         raise RigFitError(f"{rig.source}: {(n - start) * dt:.1f} s after the exciter's spin-up; the rig model "
                           "needs ≥ 10 s")
-    return Record(float(lo), dt, np.column_stack(y), u, np.array(sig), over, channel_names(rig), band, start)
+    force = start > 0
+    if force:
+        y += [measured[:, 0], measured[:, 1]]
+        sig += [white_sigma(measured)] * 2
+        over = np.append(over, [max(1.0, (1.0 / dt) / ex_rate)] * 2)
+    return Record(float(lo), dt, np.column_stack(y), u, np.array(sig), over, channel_names(rig, force), band, start,
+                  knots[knots > start * dt] if force else np.zeros(0))
 
 
 def band_edge(u: np.ndarray, dt: float) -> float:
@@ -209,9 +241,10 @@ def band_edge(u: np.ndarray, dt: float) -> float:
     return float(min(FORCE_BAND * dominant, 0.4 / dt))
 
 
-def smooth_force(u: np.ndarray, dt: float, band: float) -> tuple[np.ndarray, int]:
-    """The exciter's force (n, 2) N with its measurement noise removed, and the first sample
-    after the motor's spin-up (0 when the force is not a rotating vector).
+def smooth_force(u: np.ndarray, dt: float, band: float) -> tuple[np.ndarray, int, np.ndarray]:
+    """The exciter's force (n, 2) N with its measurement noise removed, the first sample
+    after the motor's spin-up (0 when the force is not a rotating vector) and the splines'
+    interior knots, s from the first sample (empty when it is not).
 
     The load cells resolve the force's own noise (0.5 N is a load cell's too), and the model,
     driven by the measured force, would ring its barely damped swinging modes with the noise
@@ -223,8 +256,11 @@ def smooth_force(u: np.ndarray, dt: float, band: float) -> tuple[np.ndarray, int
     not such a vector (its fit leaves more than twice the noise) is low-passed at ``band`` Hz
     instead (zero-phase 4th-order Butterworth).  The spin-up's force is the least well known
     (its noise is near the swinging modes' frequencies while the motor passes them): the fit
-    starts :data:`SETTLE` s after it, from a free state."""
-    fallback = sosfiltfilt(butter(4, band, fs=1.0 / dt, output="sos"), u, axis=0)
+    starts :data:`SETTLE` s after it, from a free state.  What noise the splines keep is not
+    left in the input: the rig fit corrects the force within the same splines with the exciter's
+    readings as an output (:class:`Layout` ``force``), so the load cells inform the force too and
+    the fit is an output-error fit with no noisy input (no errors-in-variables bias)."""
+    fallback = sosfiltfilt(butter(4, band, fs=1.0 / dt, output="sos"), u, axis=0), 0, np.zeros(0)
     n = len(u)
     t = dt * np.arange(n)
     z = u[:, 0] + 1j * u[:, 1]
@@ -232,7 +268,7 @@ def smooth_force(u: np.ndarray, dt: float, band: float) -> tuple[np.ndarray, int
     steady = np.median(amp[n // 2:])
     noise = white_sigma(u)
     if steady < 20 * noise:
-        return fallback, 0
+        return fallback
     slow = sosfiltfilt(butter(2, 0.5, fs=1.0 / dt, output="sos"), amp)
     ramp_end = t[np.argmax(slow >= 0.9 * steady)] + 1.0
     knots = np.unique(np.concatenate([np.arange(0.0, ramp_end, RAMP_KNOT),
@@ -246,11 +282,11 @@ def smooth_force(u: np.ndarray, dt: float, band: float) -> tuple[np.ndarray, int
         phase_s = make_lsq_spline(t, phase, inner, k=3, w=w / w.max())(t)
         amp_s = make_lsq_spline(t, amp, inner, k=3)(t)
     except (ValueError, np.linalg.LinAlgError):
-        return fallback, 0
+        return fallback
     zs = amp_s * np.exp(1j * phase_s)
     if np.sqrt(np.mean(np.abs(z - zs) ** 2) / 2) > 2 * max(noise, 1e-4 * steady):
-        return fallback, 0
-    return np.column_stack([zs.real, zs.imag]), int(min(n - 1, np.ceil((ramp_end + SETTLE) / dt)))
+        return fallback
+    return np.column_stack([zs.real, zs.imag]), int(min(n - 1, np.ceil((ramp_end + SETTLE) / dt))), knots
 
 
 # --- the unknowns ------------------------------------------------------------------------------------
@@ -261,8 +297,8 @@ class Prior:
     """What is known before the fit: centre and σ of each unknown with a prior (σ = inf: none).
 
     mass, mass_std: kg.  cg: (3,) body m, cg_std: (3,) m (inf: the data alone).  stiffness: (N,)
-    N/m, stiffness_log_std: (N,).  gain_std: share.  survey: the σ of every anchor coordinate and
-    cable length (:class:`~rig_identification.io.rig.Survey`).
+    N/m, stiffness_log_std: (N,).  survey: the σ of every anchor coordinate, cable length and
+    load-cell gain (:class:`~rig_identification.io.rig.Survey`).
     """
 
     mass: float
@@ -271,8 +307,12 @@ class Prior:
     cg_std: np.ndarray
     stiffness: np.ndarray
     stiffness_log_std: np.ndarray
-    gain_std: float = GAIN_STD
     survey: Survey = Survey()
+
+    @property
+    def gain_std(self) -> float:
+        """σ of each load cell's gain, share (the survey's)."""
+        return self.survey.load_cell_gain
 
     @staticmethod
     def from_rig(rig: Rig, cg=None, cg_std=None) -> "Prior":
@@ -286,14 +326,20 @@ class Prior:
                               "or the static test's: rig-identify cg)")
         return Prior(rig.mass, rig.survey.mass_std(rig.mass), np.asarray(c0, float),
                      np.full(3, np.inf) if cg_std is None else np.broadcast_to(np.asarray(cg_std, float), (3,)),
-                     k, np.where(given, STIFFNESS_LOG_STD_GIVEN, STIFFNESS_LOG_STD_DEFAULT), GAIN_STD, rig.survey)
+                     k, np.where(given, STIFFNESS_LOG_STD_GIVEN, STIFFNESS_LOG_STD_DEFAULT), rig.survey)
 
 
 @dataclass(frozen=True)
 class Layout:
-    """Where each unknown sits in the parameter vector."""
+    """Where each unknown sits in the parameter vector.
+
+    n_cables: the rig's cables.  n_force: the exciter force's correction unknowns (0 or 2 K):
+    K B-spline coefficients of its amplitude's relative change, then K of its phase's change,
+    rad, over the fit's span (:meth:`Record.force_basis`).
+    """
 
     n_cables: int
+    n_force: int = 0
 
     @property
     def inertia(self) -> slice:
@@ -332,13 +378,17 @@ class Layout:
         return slice(25 + 2 * self.n_cables, 25 + 9 * self.n_cables)
 
     @property
+    def force(self) -> slice:
+        return slice(25 + 9 * self.n_cables, 25 + 9 * self.n_cables + self.n_force)
+
+    @property
     def size(self) -> int:
-        return 25 + 9 * self.n_cables
+        return 25 + 9 * self.n_cables + self.n_force
 
 
-def _vector(p: RigParameters, initial: np.ndarray) -> np.ndarray:
+def _vector(p: RigParameters, initial: np.ndarray, lay: Layout) -> np.ndarray:
     return np.concatenate([p.inertia, p.cg, [p.mass], np.log(p.stiffness), [p.damping_time], p.gain, p.body_damping,
-                           initial, p.ceiling.ravel(), p.body.ravel(), p.length])
+                           initial, p.ceiling.ravel(), p.body.ravel(), p.length, np.zeros(lay.n_force)])
 
 
 def _parameters(x: np.ndarray, like: RigParameters, lay: Layout) -> RigParameters:
@@ -358,7 +408,7 @@ def _priors(prior: Prior, lay: Layout, x0: np.ndarray) -> tuple[np.ndarray, np.n
     centre[lay.cg], std[lay.cg] = prior.cg, prior.cg_std
     centre[lay.mass], std[lay.mass] = prior.mass, prior.mass_std
     centre[lay.log_stiffness], std[lay.log_stiffness] = np.log(prior.stiffness), prior.stiffness_log_std
-    centre[lay.gain], std[lay.gain] = 1.0, prior.gain_std
+    centre[lay.gain], std[lay.gain] = 1.0, max(prior.gain_std, EXACT_GAIN_STD)
     n = lay.n_cables
     std[lay.geometry] = np.concatenate([np.full(6 * n, max(prior.survey.anchors, EXACT_STD)),
                                         np.full(n, max(prior.survey.lengths, EXACT_STD))])
@@ -378,6 +428,7 @@ def _scale(x0: np.ndarray, lay: Layout, prior: Prior) -> np.ndarray:
     s[lay.body_damping] = (1e-3 * prior.mass, 1e-3 * big)      # ζ ≈ 1e-3 of a 1 rad/s mode
     s[lay.initial] = 1e-4
     s[lay.geometry] = 1e-4
+    s[lay.force] = 1e-4
     return s
 
 
@@ -404,17 +455,32 @@ class _Problem:
         self.rest = rest
         lin = linearise(_parameters(x0, like, lay), rest)
         self.substeps = substeps_for(2 * np.pi * natural_frequencies(lin).max(), rec.dt)
+        self.basis = rec.force_basis()[:n] if lay.n_force else np.zeros((n, 0))
 
     def x(self, z: np.ndarray) -> np.ndarray:
         x = self.x0.copy()
         x[:len(z)] += self.scale[:len(z)] * z
         return x
 
+    def force(self, x: np.ndarray) -> np.ndarray:
+        """(n, 2) N the exciter force over the span: the denoised one times (1 + a(t)) e^{iφ(t)},
+        a and φ the B-splines of the unknowns ``force`` (:class:`Layout`)."""
+        a = self.rec.start
+        u = self.rec.u[a:a + self.n]
+        if not self.lay.n_force:
+            return u
+        c = x[self.lay.force]
+        k = self.lay.n_force // 2
+        z = (u[:, 0] + 1j * u[:, 1]) * (1.0 + self.basis @ c[:k]) * np.exp(1j * (self.basis @ c[k:]))
+        return np.column_stack([z.real, z.imag])
+
     def outputs(self, x: np.ndarray) -> np.ndarray:
+        """(n, n_out) the model's readings over the span (the force's last where it is an output)."""
         p = _parameters(x, self.like, self.lay)
         y0 = moved_state(self.base, x[self.lay.initial])
-        a = self.rec.start
-        return simulate(p, y0, self.rec.u[a:a + self.n], self.rec.dt, self.substeps)[0]
+        u = self.force(x)
+        out = simulate(p, y0, u, self.rec.dt, self.substeps)[0]
+        return np.column_stack([out, u]) if self.lay.n_force else out
 
     def data_residual(self, x: np.ndarray) -> np.ndarray:
         """(m, n_out) weighted, low-passed and decimated to the band, each channel's offset
@@ -565,7 +631,7 @@ def _solve(prob: _Problem, verbose: int):
     """One least-squares solve of ``prob`` from its x0 (scipy's trust region)."""
     sol = least_squares(prob.residual, np.zeros(prob.lay.size), jac=lambda z: prob.jacobian(z), method="trf",
                         x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=GTOL, max_nfev=MAX_ITERATIONS, verbose=verbose)
-    log.info("rig fit: %.0f s of record, %d iterations, cost %.4g", prob.n * prob.rec.dt, sol.nfev, sol.cost)
+    log.info("rig fit: %.0f s of record, %d iterations, cost %.6g", prob.n * prob.rec.dt, sol.nfev, sol.cost)
     return sol
 
 
@@ -617,7 +683,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0, damping_time: float |
     damping_time: start of τ, s (default the default cable's: 2 ζ sqrt(m / (N k))).
     Raises :class:`RigFitError` when the rig has no rest pose.
     """
-    lay = Layout(len(rig.cables))
+    lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1])
     n_all = len(rec.y) - rec.start
     channels = len(rec.channels)
     noise_scale = np.ones(channels)
@@ -628,7 +694,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0, damping_time: float |
     problems = []
     for start in np.atleast_2d(np.asarray(inertia0, float)):
         p0, rest0 = start_parameters(rig, prior, start, damping_time)
-        prob = _Problem(rec, p0, lay, _vector(p0, np.zeros(12)), prior, noise_scale, rounds[0][0], rest0,
+        prob = _Problem(rec, p0, lay, _vector(p0, np.zeros(12), lay), prior, noise_scale, rounds[0][0], rest0,
                         np.zeros(13))
         prob.base = _base_state(rec, p0, rest0, prob.substeps)
         problems.append((prob, p0, rest0))
@@ -678,8 +744,8 @@ def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.
     and noise levels at the true parameters ``truth``: the inverse Fisher information of the
     weighted residual (Gaussian white noise per channel, in the fit's band), the priors of
     ``prior``, the initial state at the fit's start free."""
-    lay = Layout(len(rig.cables))
-    x = _vector(truth, np.zeros(12))
+    lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1])
+    x = _vector(truth, np.zeros(12), lay)
     rest = rest_pose(truth)
     prob = _Problem(rec, truth, lay, x, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start, rest,
                     np.zeros(13))

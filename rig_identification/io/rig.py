@@ -90,15 +90,18 @@ class Survey:
     lengths: every unstretched cable length, m.  dummy_position: each coordinate of the dummy
     mass's centre of gravity, m.  The defaults, 1 mm, are a careful survey: a class II steel tape
     (EN ISO 8764 / EC class II: ±(0.3 + 0.2 L/m) mm, ±1.1 mm over 4 m) or a laser distance meter
-    (±1–1.5 mm).  mass: body.mass's σ, kg (None: :data:`SCALE_STD_SHARE` of it).  Every
-    fit that takes the geometry or the mass as a prior uses these (``cg``, ``cg-plan``, the rig
-    model); ``cg``'s --anchor-std and kin override them for one run.
+    (±1–1.5 mm).  mass: body.mass's σ, kg (None: :data:`SCALE_STD_SHARE` of it).
+    load_cell_gain: each load cell's gain as a share (default 0.1 %: a calibrated load cell's
+    accuracy class; 0: exact).  Every fit that takes the geometry, the mass or the gains as a
+    prior uses these (``cg``, ``cg-plan``, the rig model); ``cg``'s --anchor-std and kin
+    override them for one run.
     """
 
     anchors: float = 1e-3
     lengths: float = 1e-3
     dummy_position: float = 1e-3
     mass: float | None = None
+    load_cell_gain: float = 1e-3
 
     def mass_std(self, mass: float) -> float:
         """σ of the body's mass, kg."""
@@ -272,7 +275,7 @@ KNOWN_FIELDS = {"": KNOWN_TOP, "cable": {"name", "ceiling_anchor", "body_anchor"
                 "exciter": {"position", "rpy", "max_force"},
                 "inclinometer": {"rpy"}, "dummy_mass": {"mass", "position"},
                 "topics": {"imu", "load_cells", "exciter", "inclinometer"},
-                "survey": {"anchors", "lengths", "dummy_position", "mass"}}
+                "survey": {"anchors", "lengths", "dummy_position", "mass", "load_cell_gain"}}
 UNKNOWN_HINTS = {"inclinometer.position": "an inclinometer's reading does not depend on where it sits: leave it out"}
 # geometry that no pose can realise: for two cables i, j the ceiling anchors A_i, A_j, the body
 # anchors' points P_i, P_j and the cables form a closed quadrilateral A_i-P_i-P_j-A_j, so none of
@@ -305,18 +308,22 @@ def _check_fields(d: dict[Any, Any], kind: str, where: str, src: str) -> None:
 
 
 def _survey(d: Any, src: str) -> Survey:
-    """rig.yaml ``survey``: each σ a number ≥ 0 (m; mass kg > 0), millimetres refused."""
+    """rig.yaml ``survey``: each σ a number ≥ 0 (m; mass kg > 0; load_cell_gain a share ≤ 0.1),
+    millimetres and per cents refused."""
     if d is None:
         return Survey()
     if isinstance(d, dict):
         _check_fields(d, "survey", "survey", src)
     vals: dict[str, float] = {}
-    for key in ("anchors", "lengths", "dummy_position", "mass"):
+    for key in ("anchors", "lengths", "dummy_position", "mass", "load_cell_gain"):
         v = _get(d, key, "survey", src, required=False)
         if v is None:
             continue
         x = _number(v, f"survey.{key}", src, positive=key == "mass", nonneg=key != "mass")
-        if key != "mass" and x > 0.1:
+        if key == "load_cell_gain" and x > 0.1:
+            raise RigError(f"{src}: field survey.load_cell_gain = {x:g} is more than 10 % (a share: 0.001 is "
+                           "0.1 % -- per cent?)")
+        if key not in ("mass", "load_cell_gain") and x > 0.1:
             raise RigError(f"{src}: field survey.{key} = {x:g} m is more than 10 cm (rig.yaml is in metres -- "
                            "millimetres?)")
         vals[key] = x

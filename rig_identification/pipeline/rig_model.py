@@ -125,7 +125,7 @@ class RigModelResult:
     fit's band edge.  inertia_start: (6,) the tensor the fit started from, and where it came from
     (``start_source``), with its σ (6,) (inf: none).  cg_prior: (3,) m and cg_prior_std (3,) m
     (inf: none) of the CG's prior,
-    cg_source: where it came from.  survey: the geometry's and the mass's σ the fit assumed
+    cg_source: where it came from.  survey: the geometry's, the mass's and the gains' σ the fit assumed
     (rig.yaml ``survey``).  seconds: wall time.  truth: truth.yaml or None.
     """
 
@@ -220,6 +220,7 @@ class RigModelResult:
             "center_of_gravity": self.cg.to_dict(),
             "survey": {"anchors_m": self.survey.anchors, "lengths_m": self.survey.lengths,
                        "mass_kg": self.survey.mass_std(float(self.fit.parameters.mass)),
+                       "load_cell_gain": self.survey.load_cell_gain,
                        "source": "rig.yaml survey (defaults where it says nothing)"},
             "cables": {"stiffness": p.stiffness.tolist(), "damping_time": float(p.damping_time),
                        "load_cell_gain": p.gain.tolist()},
