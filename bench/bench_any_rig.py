@@ -62,11 +62,11 @@ from rig_identification.estimation.errors_in_variables import (
     regressor,
 )
 from rig_identification.estimation.identification import prepare_segment
-from rig_identification.estimation.propagation import REFERENCE_NOISE
 from rig_identification.estimation.uncertainty import add_noise
 from rig_identification.estimation.validation import REL_STD_LIMIT, WEAK_SHARE, with_products
 from rig_identification.io.recording import Recording
 from rig_identification.io.verdict import KEYS
+from rig_identification.model.experiment import REFERENCE_NOISE
 from rig_identification.model.parametrisation import basis, from_tensor, to_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.pipeline.prepare import prepare_recording, replay_window

@@ -18,11 +18,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from rig_identification.estimation.propagation import REFERENCE_NOISE
 from rig_identification.estimation.uncertainty import add_noise
 from rig_identification.io.recording import Recording
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.experiment import experiment_from_dict
+from rig_identification.model.experiment import REFERENCE_NOISE, experiment_from_dict
 from rig_identification.model.parametrisation import from_tensor
 from rig_identification.model.simulator import simulate
 from rig_identification.pipeline.offline import identify_recording

@@ -132,11 +132,10 @@ def _first_order_job(args):
 
     from rig_identification.design.scenarios import simulate_random
     from rig_identification.estimation.identification import identify_inertia
-    from rig_identification.estimation.propagation import REFERENCE_NOISE
     from rig_identification.estimation.uncertainty import add_noise
     from rig_identification.io.recording import Recording, SensorData, TimeSeries
     from rig_identification.io.verdict import KEYS
-    from rig_identification.model.experiment import experiment_from_dict
+    from rig_identification.model.experiment import REFERENCE_NOISE, experiment_from_dict
     from rig_identification.model.parametrisation import from_tensor
     from rig_identification.model.simulator import simulate
     from rig_identification.pipeline.prepare import prepare_recording

@@ -1,8 +1,13 @@
 """Every output the docs show under ``<!-- output checked -->`` is what the code prints today
 (test/doc_outputs.py: each shown line, found by its leading words, equals the real one).  A
 change of the numbers that is meant: ``python test/doc_outputs.py --write``."""
+import re
+from pathlib import Path
+
 import pytest
 from doc_outputs import blocks, documents, match, run, same
+
+from rig_identification.model import experiment
 
 BLOCKS = [b for path in documents() for b in blocks(path) if b.checked]
 
@@ -19,3 +24,14 @@ def test_shown_output_is_todays(block):
     assert not stale, (f"{block.path.name}:{block.first + 1}: the docs show lines the code no longer prints "
                        "(python test/doc_outputs.py --write refreshes them):\n"
                        + "\n".join(f"  shown {s}\n  real  {r}" for s, r in stale))
+
+
+def test_the_experiment_file_format_in_the_docs_is_the_parsers():
+    """docs/cli.md's experiment-file block is the schema that rig_identification.model.experiment
+    documents beside the parser (its module docstring), line for line."""
+    schema = re.search(r"Experiment file schema \(YAML\)\n-+\n::\n\n(.*?)\n\n", experiment.__doc__ + "\n\n", re.S)
+    assert schema
+    lines = [ln[4:] for ln in schema.group(1).splitlines()]
+    doc = (Path(__file__).resolve().parent.parent / "docs" / "cli.md").read_text()
+    shown = re.search(r"### Experiment files\n.*?```yaml\n(.*?)\n```", doc, re.S)
+    assert shown and shown.group(1).splitlines() == lines

@@ -9,11 +9,11 @@ from scipy.signal import butter, sosfiltfilt
 
 from rig_identification.design.planning import SPIN_AXES, resonances
 from rig_identification.estimation.adjoints import cumtrapz_adjoint, sosfiltfilt_adjoint
-from rig_identification.estimation.propagation import REFERENCE_NOISE, Trajectory, predict_from_trajectory
+from rig_identification.estimation.propagation import Trajectory, predict_from_trajectory
 from rig_identification.estimation.uncertainty import add_noise
 from rig_identification.io.recording import Recording
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.experiment import load_experiment
+from rig_identification.model.experiment import REFERENCE_NOISE, load_experiment
 from rig_identification.model.modes import natural_modes
 from rig_identification.model.parametrisation import from_tensor
 from rig_identification.model.simulator import simulate
@@ -144,7 +144,7 @@ def test_plan_cli_user_errors(args, words):
 
 def _default_body():
     from rig_identification.design.planning import Body
-    from rig_identification.estimation.propagation import REFERENCE_RATES
+    from rig_identification.model.experiment import REFERENCE_RATES
     exp = load_experiment(DEFAULT)
     return Body(exp.rig, exp.mass, exp.inertia, np.full(len(exp.rig.cables), 5e6), dict(REFERENCE_RATES),
                 dict(REFERENCE_NOISE))

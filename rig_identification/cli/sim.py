@@ -2,9 +2,12 @@
 
     rig-sim CONFIG OUTDIR [--duration S] [--seed N] [--noise-free] [--storage mcap|sqlite3]
             [--static baseline|dummy [--dummy-mass KG --dummy-position X Y Z]] [--overwrite] [-q]
+            [--inertia IXX IXY IXZ IYY IYZ IZZ [--force N] [--frequency HZ] [--ramp S]]
 
-CONFIG is an experiment file (schema: :mod:`rig_identification.model.simulator`), e.g.
-``config/cases/case16.yaml`` or ``config/rigs/default.yaml``.  OUTDIR receives ``rig.yaml``,
+CONFIG is an experiment file (schema: :mod:`rig_identification.model.experiment`, docs/cli.md), e.g.
+``config/cases/case16.yaml`` or ``config/rigs/default.yaml``, or a lab's rig.yaml with
+``--inertia`` (:func:`~rig_identification.model.experiment.load_simulation`: a rotating force
+at its exciter, the reference sensors).  OUTDIR receives ``rig.yaml``,
 ``bag/`` and ``truth.yaml``.  ``--static`` writes a static centre-of-gravity recording (body at
 rest, no excitation; ``dummy`` adds the dummy mass to the suspended body; rig.yaml then has no
 centre of gravity and carries ``dummy_mass`` when one is known).  Errors in the config or the
@@ -21,7 +24,7 @@ from ..io.recording import RecordingError
 from ..io.recording_writer import write_recording
 from ..io.rig import DummyMass, RigError
 from ..model.dynamics import SimulationError
-from ..model.experiment import ExperimentError, load_experiment
+from ..model.experiment import ExperimentError, RigRun, load_simulation
 from ..model.simulator import simulate
 from .progress import attached, step
 from .sim_args import parse_sim_args
@@ -36,7 +39,9 @@ def sim_main(argv: list[str] | None = None) -> int:
         dummy = DummyMass(float(args.dummy_mass), np.array(args.dummy_position, float))
     with attached(quiet=args.quiet, prog="rig-sim") as printer:
         try:
-            exp = load_experiment(args.config).with_overrides(duration=args.duration, seed=args.seed,
+            given = {k: getattr(args, k) for k in ("force", "frequency", "ramp") if getattr(args, k) is not None}
+            run = None if args.inertia is None else RigRun(tuple(args.inertia), **given)
+            exp = load_simulation(args.config, run).with_overrides(duration=args.duration, seed=args.seed,
                                                              noise_free=args.noise_free, static=args.static,
                                                              dummy=dummy)
             kind = f"static {exp.static.kind}" if exp.static is not None else "dynamic"

@@ -13,7 +13,8 @@ def sim_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rig-sim", description="Simulate a rig experiment and write a recording "
                                 "folder (rig.yaml, bag/, truth.yaml).")
     p.add_argument("--version", action="version", version=f"rig-sim ({PACKAGE}) {package_version()}")
-    p.add_argument("config", help="experiment file (YAML), e.g. config/cases/case16.yaml")
+    p.add_argument("config", help="experiment file (YAML), e.g. config/cases/case16.yaml, or a rig.yaml "
+                   "with --inertia")
     p.add_argument("outdir", help="recording folder to create")
     p.add_argument("--duration", type=float, metavar="S", help="override the experiment duration, s")
     p.add_argument("--seed", type=int, metavar="N", help="override the sensor-noise seed")
@@ -24,6 +25,13 @@ def sim_parser() -> argparse.ArgumentParser:
     p.add_argument("--dummy-mass", type=float, metavar="KG", help="dummy mass, kg (default: rig.dummy_mass)")
     p.add_argument("--dummy-position", type=float, nargs=3, metavar=("X", "Y", "Z"),
                    help="dummy mass position, body frame, m (default: rig.dummy_mass)")
+    p.add_argument("--inertia", type=float, nargs=6, metavar=("IXX", "IXY", "IXZ", "IYY", "IYZ", "IZZ"),
+                   help="with a rig.yaml: the body's inertia tensor entries about its CG, body axes, kg m^2 "
+                   "(as truth.yaml: off-diagonal entries are the negated products of inertia)")
+    p.add_argument("--force", type=float, metavar="N", help="with a rig.yaml: the rotating force's amplitude, N "
+                   "(default 200)")
+    p.add_argument("--frequency", type=float, metavar="HZ", help="with a rig.yaml: its frequency, Hz (default 1.05)")
+    p.add_argument("--ramp", type=float, metavar="S", help="with a rig.yaml: its spin-up, s (default 2)")
     p.add_argument("--overwrite", action="store_true", help="replace OUTDIR if it exists")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress lines on stderr (warnings still)")
     return p
@@ -43,4 +51,15 @@ def parse_sim_args(argv: list[str] | None) -> argparse.Namespace:
         parser.error(f"--duration must be > 0, got {args.duration}")
     if args.seed is not None and args.seed < 0:
         parser.error(f"--seed must be >= 0, got {args.seed}")
+    given = [f"--{k}" for k in ("force", "frequency", "ramp") if getattr(args, k) is not None]
+    if given and args.inertia is None:
+        parser.error(f"{', '.join(given)} need --inertia (a rig.yaml to simulate)")
+    for k in ("force", "frequency"):
+        v = getattr(args, k)
+        if v is not None and not (math.isfinite(v) and v > 0):
+            parser.error(f"--{k} must be > 0, got {v}")
+    if args.ramp is not None and not (math.isfinite(args.ramp) and args.ramp >= 0):
+        parser.error(f"--ramp must be >= 0, got {args.ramp}")
+    if args.inertia is not None and not all(math.isfinite(v) for v in args.inertia):
+        parser.error(f"--inertia must be finite numbers, got {args.inertia}")
     return args

@@ -16,11 +16,10 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..estimation.prediction import PlanError
-from ..estimation.propagation import REFERENCE_NOISE, REFERENCE_RATES
 from ..io.recording import RecordingError
 from ..io.rig import Rig, RigError, inertia_entries, load_rig, read_yaml
 from ..model.cables import DEFAULT_STIFFNESS
-from ..model.experiment import ExperimentError, experiment_from_dict, load_experiment
+from ..model.experiment import REFERENCE_NOISE, REFERENCE_RATES, ExperimentError, experiment_from_dict, load_experiment
 from ..model.parametrisation import physically_consistent, to_tensor
 
 _DIAGONALS = {"x+y": (1, 1, 0), "x-y": (1, -1, 0), "x+z": (1, 0, 1), "x-z": (1, 0, -1), "y+z": (0, 1, 1),

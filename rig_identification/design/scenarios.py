@@ -44,6 +44,7 @@ from scipy.optimize import lsq_linear
 from scipy.spatial.transform import Rotation
 
 from ..io.rig import rig_from_dict
+from ..model.experiment import REFERENCE_NOISE, REFERENCE_RATES
 from ..model.modes import natural_modes
 from ..model.simulator import SimResult, SimulationError, experiment_from_dict, simulate
 from .planning import resonances
@@ -51,8 +52,6 @@ from .planning import resonances
 LAYOUTS = ("wide", "splayed", "parallel", "mixed", "random")
 EXCITER_PLACEMENTS = ("corner", "anywhere", "top_corner", "random")
 CABLE_STIFFNESS = 5.0e6          # N/m: steel cables of the simulated rigs (rig.yaml states none)
-REFERENCE_NOISE = {"gyro": 0.002, "accelerometer": 0.01, "load_cell": 0.5, "exciter": 0.5, "inclinometer": 0.0002}
-RATES = {"imu": 200.0, "load_cells": 200.0, "exciter": 200.0, "inclinometer": 50.0}
 FRAME_MASS = (150.0, 300.0)      # kg: the carrying frame
 FORCE = (180.0, 220.0)           # N: the rotating force's amplitude
 PREFERRED_HZ = (1.15, 1.4)       # the exciter's frequency, when the modes leave room there
@@ -330,7 +329,7 @@ def random_experiment(seed: int, cables: int = 4, layout: str = "wide", effects:
                                     "frequency": exciter_frequency(f_modes, rng), "ramp_time": 2.0,
                                     "ramp_shape": "spin_up", "phase": 0.0, "direction": 1, "start_time": 0.0}},
         "duration": float(duration),
-        "sensors": {"rates_hz": dict(RATES), "noise": dict(REFERENCE_NOISE if noise is None else noise)},
+        "sensors": {"rates_hz": dict(REFERENCE_RATES), "noise": dict(REFERENCE_NOISE if noise is None else noise)},
         "seed": int(seed),
         "stamp_origin": 1.75e9,
         "effects": [dict(e) for e in effects],
@@ -349,7 +348,7 @@ def simulate_random(seed: int, cables: int = 4, layout: str = "wide", effects: l
     for _ in range(5):
         sim = simulate(experiment_from_dict(d, d["name"]))
         T = np.column_stack([sim.sensors.load_cells[n].data[:, 0] for n in sim.rig.cable_names])
-        static = np.median(T[: max(2, int(0.5 * RATES["load_cells"]))], axis=0)
+        static = np.median(T[: max(2, int(0.5 * REFERENCE_RATES["load_cells"]))], axis=0)
         if static.min() < SLACK_SHARE * static.mean():
             raise SimulationError(f"{d['name']}: cable {sim.rig.cable_names[int(np.argmin(static))]} carries "
                                   f"{100 * static.min() / static.mean():.1f} % of the mean tension at rest: "

@@ -51,6 +51,7 @@ from scipy.spatial.transform import Rotation
 from ..io.recording import Recording, RecordingError
 from ..io.rig import Rig
 from ..model.dynamics import skew, skews
+from ..model.experiment import REFERENCE_NOISE
 from ..model.parametrisation import basis, from_tensor
 from .adjoints import cumtrapz_adjoint, sosfiltfilt_adjoint
 from .identification import prepare_segment
@@ -62,11 +63,6 @@ from .signals import auto_band
 
 FREQ_BLOCK = 4096   # frequencies per evaluation of the tracker's response (memory, not results)
 
-REFERENCE_NOISE = {"gyro": 0.002, "accelerometer": 0.01, "load_cell": 0.5, "exciter": 0.5, "inclinometer": 0.0002}
-"""σ of the reference recordings' white sensor noise (``/work/shared/recordings/*/truth.yaml``):
-rad/s, m/s², N, N, rad."""
-REFERENCE_RATES = {"imu": 200.0, "load_cells": 200.0, "exciter": 200.0, "inclinometer": 50.0}
-"""Sample rates of the reference recordings, Hz."""
 SOURCES = ("gyro", "accelerometer", "inclinometer", "load_cell", "exciter")
 """Noise sources of the prediction (the tracker's compliance estimate enters through them)."""
 

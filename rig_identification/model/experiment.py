@@ -78,6 +78,12 @@ from .effects import Effect, parse_effects
 from .excitation import Excitation, Pulse, RotatingForce
 from .suspension import split_body
 
+#: σ of the reference recordings' white sensor noise (``../shared/recordings/*/truth.yaml``):
+#: rad/s, m/s², N, N, rad; the default of an experiment made from a rig.yaml (:func:`experiment_for_rig`).
+REFERENCE_NOISE = {"gyro": 0.002, "accelerometer": 0.01, "load_cell": 0.5, "exciter": 0.5, "inclinometer": 0.0002}
+#: Sample rates of the reference recordings, Hz.
+REFERENCE_RATES = {"imu": 200.0, "load_cells": 200.0, "exciter": 200.0, "inclinometer": 50.0}
+
 DEFAULT_STAMP_ORIGIN = 1.75e9      # s
 DEFAULT_STATIC_DURATION = 10.0     # s
 SENSOR_RATES = {"imu": 100.0, "load_cells": 100.0, "exciter": 100.0, "inclinometer": 50.0}
@@ -451,13 +457,59 @@ def experiment_from_dict(d: Any, source: str = "<memory>") -> Experiment:
                       path=source, effects=effects)
 
 
+def is_experiment(d: Any) -> bool:
+    """Whether a parsed YAML mapping is an experiment file (a ``rig:`` section) rather than a rig.yaml."""
+    return isinstance(d, dict) and "rig" in d and "gravity" not in d
+
+
+@dataclass(frozen=True)
+class RigRun:
+    """What a run of a bare rig.yaml needs beside it (``rig-sim RIG.yaml --inertia …``).
+
+    inertia: (6,) tensor entries about the CG, body axes, kg·m² (``ixx ixy ixz iyy iyz izz``, as
+    truth.yaml).  force: the rotating force's amplitude, N; frequency: Hz; ramp: its spin-up, s.
+    duration: s.  The sensors run at :data:`REFERENCE_RATES` with :data:`REFERENCE_NOISE`.
+    """
+
+    inertia: tuple[float, ...]
+    force: float = 200.0
+    frequency: float = 1.05
+    ramp: float = 2.0
+    duration: float = 120.0
+
+
+def load_simulation(path: str | Path, run: RigRun | None = None) -> Experiment:
+    """The experiment to simulate: an experiment file as it is (``run`` must be None), or a
+    rig.yaml with ``run`` (required then): its body (mass, CG) with ``run.inertia``, the
+    rotating force of ``run`` at rig.yaml's exciter, spring cables (rig.yaml's stiffness, else
+    the default steel cable's), the reference sensors.  Raises :class:`ExperimentError` naming
+    the file (a rig.yaml without ``run``, an experiment file with one, a bad field)."""
+    p = Path(path)
+    d = read_yaml(p, ExperimentError, "experiment file or rig.yaml")
+    if is_experiment(d):
+        if run is not None:
+            raise ExperimentError(f"{p}: an experiment file states its body and excitation; --inertia, --force, "
+                                  "--frequency and --ramp are for a rig.yaml")
+        return experiment_from_dict(d, str(p))
+    if run is None:
+        raise ExperimentError(f"{p}: a rig.yaml, not an experiment file: give the body's inertia tensor "
+                              "(--inertia IXX IXY IXZ IYY IYZ IZZ, kg m^2) to simulate it")
+    name = re.sub(r"[^A-Za-z0-9_.-]", "_", p.parent.name if p.stem == "rig" and p.parent.name else p.stem) or "rig"
+    exp = {"name": name, "description": f"{p} with a rotating force of {run.force:g} N at {run.frequency:g} Hz",
+           "rig": d, "inertia_about_cg": dict(zip(INERTIA_KEYS, (float(v) for v in run.inertia))),
+           "excitation": {"rotating": {"amplitude": run.force, "frequency": run.frequency, "ramp_time": run.ramp}},
+           "duration": run.duration,
+           "sensors": {"rates_hz": dict(REFERENCE_RATES), "noise": dict(REFERENCE_NOISE)}}
+    return experiment_from_dict(exp, str(p))
+
+
 def load_rig_or_experiment(path: str | Path) -> Rig:
     """The rig of a rig.yaml, or the ``rig:`` section of an experiment file (as
     ``config/rigs/default.yaml`` and ``config/cases/*.yaml``: its CG is then the simulated one).
     Raises :class:`~rig_identification.io.rig.RigError` naming the file (unreadable, not YAML, a bad field)."""
     p = Path(path)
     d = read_yaml(p, RigError, "rig description")
-    if isinstance(d, dict) and "rig" in d and "gravity" not in d:
+    if is_experiment(d):
         try:
             return load_experiment(p).rig
         except ExperimentError as e:
