@@ -33,6 +33,7 @@ import yaml
 from .bag_decode import IMU_TYPE, TYPE_HASHES, VECTOR_TYPE, WRENCH_TYPE, BytesLike, decode_stamped
 from .bag_raw import read_topics
 from .rig import Rig, Topics, load_rig
+from .stamps import regular_stamps
 
 if TYPE_CHECKING:
     from rosbags.highlevel import AnyReader
@@ -227,7 +228,9 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
     """Read the rig topics of a rosbag2 folder (or a single .mcap/.db3 file).
 
     Samples are sorted by header stamp.  Non-finite samples and duplicated stamps are
-    dropped with a warning appended to ``warnings``; a topic written out of stamp order by
+    dropped with a warning appended to ``warnings``; stamps that jitter (a sensor stamped on
+    arrival) are put on the stream's own rate with a warning
+    (:func:`~rig_identification.io.stamps.regular_stamps`); a topic written out of stamp order by
     a sampling period or more (:data:`QUIET_DISORDER`) is sorted with a warning, a smaller
     disorder silently.  Unknown topics are ignored.  Frame ids are not checked (they are
     node parameters, docs/ros.md).
@@ -320,7 +323,10 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
             a = a[~dup]
         if len(a) < 2:
             raise RecordingError(f"{bag}: topic {topic} has fewer than 2 valid samples")
-        return TimeSeries(a[:, 0], a[:, 1:])
+        t, note = regular_stamps(a[:, 0], topic)
+        if note:
+            warnings.append(f"{bag}: {note}")
+        return TimeSeries(t, a[:, 1:])
 
     imu = series(IMU_TOPIC, True)
     cells = {n: series(LOAD_CELL_PREFIX + n, True) for n in cable_names}
