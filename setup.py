@@ -19,7 +19,8 @@ NODES = {
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=find_packages(exclude=["test", "test.*", "bench"]),
+    # data/ holds files, not modules: named here so that setuptools ships it without a warning
+    packages=find_packages(exclude=["test", "test.*", "bench"]) + [f"{PACKAGE}.data"],
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
@@ -37,7 +38,7 @@ setup(
     maintainer_email="dev@rig-identification.local",
     description="Mass, centre of gravity and inertia tensor of a vehicle on a cable-suspended rig",
     license="Apache-2.0",
-    tests_require=["pytest"],
+    extras_require={"test": ["pytest"]},
     entry_points={
         "console_scripts": [f"{k} = {v}" for k, v in NODES.items()]
         + ["rig-identify = rig_identification.cli.main:identify_main", "rig-sim = rig_identification.cli.main:sim_main",
