@@ -387,3 +387,15 @@ def test_scale_and_load_cells_disagree(reference_pair):
     assert len(res.warnings) == 1                               # the CG fit itself is unaffected
     truth = np.array(b.truth["center_of_gravity"], float)
     assert np.all(np.abs(res.center_of_gravity - truth) < 3 * res.center_of_gravity_std)
+
+
+def test_cg_with_fewer_measurements_than_unknowns_says_so():
+    """The inclinometer alone (no load cells), the geometry exact and the inclinometer's offsets
+    fitted: 5 measurements for 6 unknowns.  ``cg`` exits 2 with one line that counts them and
+    says what would determine the fit, no traceback."""
+    s = recording("visible_case16_static")
+    code, out, err = run_cli("cg", s / "static_baseline", s / "static_dummy", "--no-load-cells",
+                             "--fit-inclinometer-offset", "--anchor-std", "0", "--length-std", "0",
+                             "--dummy-position-std", "0", "-q")
+    assert code == 2 and out == "" and "Traceback" not in err
+    assert "5 measurements for 6 unknowns" in err and "load cells" in err and len(err.strip().splitlines()) == 1

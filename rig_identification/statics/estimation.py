@@ -691,6 +691,11 @@ def estimate_cg(rig: Rig, baseline: StaticState, dummy: StaticState | Sequence[S
     misfit = _Misfit(model, opts, st, data, _start_values(rig, model, st, poses, Wz), scale_std)
 
     th0 = model.pack(misfit.fixed)
+    rows = len(misfit.evaluate(th0).r)
+    if rows < len(th0):
+        raise StaticsError(f"{rows} measurements for {len(th0)} unknowns: the streams used and the priors do not "
+                           "determine the fit (use the load cells, or give the geometry a survey σ, or fit fewer "
+                           "offsets)")
     sol = least_squares(lambda th: misfit.evaluate(th).r, th0, jac=lambda th: misfit.evaluate(th).J, method="lm",
                         x_scale="jac", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=200)
     ev = misfit.evaluate(sol.x)
