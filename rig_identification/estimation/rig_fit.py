@@ -428,7 +428,7 @@ def _scale(x0: np.ndarray, lay: Layout, prior: Prior) -> np.ndarray:
     s[lay.body_damping] = (1e-3 * prior.mass, 1e-3 * big)      # ζ ≈ 1e-3 of a 1 rad/s mode
     s[lay.initial] = 1e-4
     s[lay.geometry] = 1e-4
-    s[lay.force] = 1e-4
+    s[lay.force] = 1e-2
     return s
 
 
