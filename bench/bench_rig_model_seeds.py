@@ -21,18 +21,22 @@ import numpy as np
 from rig_identification.io.recording import Recording
 from rig_identification.io.rig import inertia_tensor, read_yaml
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.experiment import ExperimentError, experiment_from_dict
+from rig_identification.model.experiment import (
+    REFERENCE_NOISE,
+    REFERENCE_RATES,
+    ExperimentError,
+    experiment_from_dict,
+)
 from rig_identification.model.parametrisation import from_tensor
 from rig_identification.model.simulator import simulate
 from rig_identification.pipeline.rig_model import fit_whole_recording
 
-#: What the reference recordings' case 16 changes of ``config/cases/case16.yaml``.
+#: What the reference recordings' case 16 changes of ``config/cases/case16.yaml`` beside their
+#: sensors (REFERENCE_RATES, REFERENCE_NOISE).
 REFERENCE_RUN = {
     "duration": 120.0,
     "ramp_time": 2.0,
     "cable_damping": 951.3148795220224,
-    "rates_hz": {"imu": 200.0, "load_cells": 200.0, "exciter": 200.0, "inclinometer": 50.0},
-    "noise": {"gyro": 0.002, "accelerometer": 0.01, "load_cell": 0.5, "exciter": 0.5, "inclinometer": 0.0002},
 }
 
 
@@ -44,10 +48,10 @@ def reference_like(d: dict, exciter_noise: float | None) -> dict:
     ex = {k: dict(v) for k, v in d["excitation"].items()}
     ex["rotating"]["ramp_time"] = REFERENCE_RUN["ramp_time"]
     d["excitation"] = ex
-    noise = dict(REFERENCE_RUN["noise"])
+    noise = dict(REFERENCE_NOISE)
     if exciter_noise is not None:
         noise["exciter"] = exciter_noise
-    d["sensors"] = {"rates_hz": dict(REFERENCE_RUN["rates_hz"]), "noise": noise}
+    d["sensors"] = {"rates_hz": dict(REFERENCE_RATES), "noise": noise}
     return d
 
 

@@ -140,9 +140,9 @@ class Record:
 
     def force_basis(self) -> np.ndarray:
         """(n - start, K) the cubic B-splines on :attr:`force_knots` over the fit's span, one
-        column each ((n - start, 0) when the force is not a rotating vector)."""
+        column each ((n - start, 0) when the force is not an output: not a rotating vector)."""
         n = len(self.y) - self.start
-        if self.start == 0:
+        if self.channels[-len(FORCE_CHANNELS):] != FORCE_CHANNELS:
             return np.zeros((n, 0))
         t = self.dt * np.arange(self.start, len(self.y))
         inner = np.concatenate([[t[0]] * 4, self.force_knots[self.force_knots < t[-1]], [t[-1]] * 4])
