@@ -3,9 +3,9 @@
 The same physics as :class:`~rig_identification.model.dynamics.RigDynamics` with spring-damper
 cables (Newton–Euler with the gyroscopic term; tension max(0, k_i (l_i - L_i) + τ k_i dl_i/dt)
 along the cable; the body's viscous damping, -c_lin v_cg and -c_ang ω), driven by the measured
-exciter force (its frame turning with the body), the force a cubic spline through the samples of
-a uniform grid (linear interpolation of a 200 Hz force leaves 0.2 N in the tensions: they see
-the motion that finely).  Classical fourth-order Runge–Kutta with a fixed step (``substeps``
+exciter force (its frame turning with the body), the force interpolated cubically between the
+samples of a uniform grid (linear interpolation of a 200 Hz force leaves 0.2 N in the tensions:
+they see the motion that finely).  Classical fourth-order Runge–Kutta with a fixed step (``substeps``
 per grid step, chosen by :func:`substeps_for` so that the stiffest cable mode stays inside the
 method's stability region), compiled with numba: the
 output-error fit (:mod:`~rig_identification.estimation.rig_fit`) runs it once per parameter
@@ -24,7 +24,6 @@ from typing import Any
 import numba
 import numpy as np
 from numpy.typing import ArrayLike
-from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
 from .linear_rig import RestPose, RigParameters
@@ -117,6 +116,32 @@ def _rhs(y: np.ndarray, u0: float, u1: float, A: np.ndarray, r: np.ndarray, L: n
 
 
 @numba.njit(cache=True, nogil=True)
+def _readings(y: np.ndarray, dy: np.ndarray, T: np.ndarray, R: np.ndarray, gain: np.ndarray, g: float,
+              Rimu: np.ndarray, rimu: np.ndarray, Rinc: np.ndarray, has_inc: bool, out: np.ndarray) -> None:
+    """Every sensor's reading (module docstring) into ``out`` from the state ``y``, its derivative
+    ``dy``, the tensions ``T`` and the rotation ``R`` that :func:`_rhs` left."""
+    N = T.shape[0]
+    for i in range(N):
+        out[i] = gain[i] * T[i]
+    wx, wy, wz = y[10], y[11], y[12]
+    ax, ay, az = dy[10], dy[11], dy[12]
+    rx, ry, rz = rimu[0], rimu[1], rimu[2]
+    # specific force at the IMU, body axes: Rᵀ (a_cg + g e_z) + ω̇ × r + ω × (ω × r)
+    fx, fy, fz = dy[7], dy[8], dy[9] + g
+    cx, cy, cz = wy * rz - wz * ry, wz * rx - wx * rz, wx * ry - wy * rx
+    bx = R[0, 0] * fx + R[1, 0] * fy + R[2, 0] * fz + ay * rz - az * ry + wy * cz - wz * cy
+    by = R[0, 1] * fx + R[1, 1] * fy + R[2, 1] * fz + az * rx - ax * rz + wz * cx - wx * cz
+    bz = R[0, 2] * fx + R[1, 2] * fy + R[2, 2] * fz + ax * ry - ay * rx + wx * cy - wy * cx
+    for j in range(3):
+        out[N + j] = Rimu[0, j] * wx + Rimu[1, j] * wy + Rimu[2, j] * wz
+        out[N + 3 + j] = Rimu[0, j] * bx + Rimu[1, j] * by + Rimu[2, j] * bz
+    if has_inc:
+        for j in range(2):
+            e = R[2, 0] * Rinc[0, j] + R[2, 1] * Rinc[1, j] + R[2, 2] * Rinc[2, j]
+            out[N + 6 + j] = math.asin(min(1.0, max(-1.0, e)))
+
+
+@numba.njit(cache=True, nogil=True)
 def _simulate(y0: np.ndarray, force: np.ndarray, dt: float, substeps: int, A: np.ndarray, r: np.ndarray,
               L: np.ndarray, k: np.ndarray, c: np.ndarray, gain: np.ndarray, m: float, J: np.ndarray,
               Jinv: np.ndarray, g: float, Re: np.ndarray, re: np.ndarray, bd: np.ndarray, Rimu: np.ndarray,
@@ -133,27 +158,15 @@ def _simulate(y0: np.ndarray, force: np.ndarray, dt: float, substeps: int, A: np
     k1, k2, k3, k4 = np.empty(13), np.empty(13), np.empty(13), np.empty(13)
     h = dt / substeps
     for j in range(n):
-        f0 = 2 * substeps * j
-        _rhs(y, force[f0, 0], force[f0, 1], A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k1, R)
-        for i in range(N):
-            out[j, i] = gain[i] * T[i]
-        w = y[10:13]
-        wd = k1[10:13]
-        out[j, N:N + 3] = Rimu.T @ w
-        acc = R.T @ (k1[7:10] + np.array([0.0, 0.0, g])) + np.cross(wd, rimu) + np.cross(w, np.cross(w, rimu))
-        out[j, N + 3:N + 6] = Rimu.T @ acc
-        if has_inc:
-            Ri = R @ Rinc
-            out[j, N + 6] = math.asin(min(1.0, max(-1.0, Ri[2, 0])))
-            out[j, N + 7] = math.asin(min(1.0, max(-1.0, Ri[2, 1])))
-        if j == n - 1:
-            break
         for s_ in range(substeps):
             b = 2 * (substeps * j + s_)
-            ua0, ua1 = force[b, 0], force[b, 1]
+            _rhs(y, force[b, 0], force[b, 1], A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k1, R)
+            if s_ == 0:                    # the readings at the grid's sample: the first stage's derivative
+                _readings(y, k1, T, R, gain, g, Rimu, rimu, Rinc, has_inc, out[j])
+                if j == n - 1:
+                    return out, y
             ub0, ub1 = force[b + 1, 0], force[b + 1, 1]
             uc0, uc1 = force[b + 2, 0], force[b + 2, 1]
-            _rhs(y, ua0, ua1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k1, R)
             for i in range(13):
                 yt[i] = y[i] + 0.5 * h * k1[i]
             _rhs(yt, ub0, ub1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k2, R)
@@ -193,11 +206,20 @@ def moved_state(y: np.ndarray, offset: np.ndarray) -> np.ndarray:
     return np.concatenate([y[:3] + off[:3], [qn[3], qn[0], qn[1], qn[2]], y[7:10] + off[6:9], y[10:13] + off[9:12]])
 
 
+def _stages(force: np.ndarray, substeps: int) -> np.ndarray:
+    """The force (n, 2) at every RK4 stage, every half step ((n - 1) 2 substeps + 1, 2): cubic
+    (four-point Lagrange) interpolation between the grid's samples, the ends extended linearly."""
+    f = np.concatenate([2 * force[:1] - force[1:2], force, 2 * force[-1:] - force[-2:-1]])
+    s = np.arange(2 * substeps) / (2 * substeps)                  # fractions of a grid step
+    w = np.stack([-s * (s - 1) * (s - 2) / 6, (s + 1) * (s - 1) * (s - 2) / 2,
+                  -(s + 1) * s * (s - 2) / 2, (s + 1) * s * (s - 1) / 6])          # (4, 2 substeps)
+    n = len(force)
+    out = np.einsum("ks,kjc->jsc", w, np.stack([f[:n - 1], f[1:n], f[2:n + 1], f[3:n + 2]]))
+    return np.concatenate([out.reshape(-1, force.shape[1]), force[-1:]])
+
+
 def _arguments(p: RigParameters, y0: ArrayLike, force: ArrayLike, dt: float, substeps: int) -> tuple[Any, ...]:
-    # the force at every RK4 stage (every half step): a cubic spline through the grid's samples
-    force = np.asarray(force, float)
-    force = CubicSpline(np.arange(len(force)), force, axis=0)(
-        np.linspace(0, len(force) - 1, (len(force) - 1) * 2 * substeps + 1))
+    force = _stages(np.asarray(force, float), substeps)
     J = to_tensor(p.inertia)
     has_inc = p.inclinometer_rotation is not None
     Rinc = p.inclinometer_rotation if has_inc else np.eye(3)
