@@ -158,8 +158,6 @@ def test_the_rig_model_carries_the_static_cg_and_finds_its_own():
         assert abs(t["error_percent"]) < 1.0, (k, t)
 
 
-@pytest.mark.xfail(strict=True, reason="the rig model's fit stops in local minima a few σ from the truth along the "
-                   "mass–Ixx–Iyy valley of this rig (docs/rig_model.md, 'What it does not do yet'): Ixx −3.3 σ")
 def test_the_rig_models_sigma_after_the_chain_covers_its_error():
     """The chain's tensor (the test above) within 3 σ of the truth, its σ carrying the CG's."""
     _, out, code, err = gather("rig_day_chain")["run"]

@@ -7,7 +7,9 @@ fit is the output-error (prediction-error with no process noise) maximum-likelih
 the thesis's chapter 3 with every sensor an output (Ljung, *System Identification*, 2nd ed.,
 ch. 4 grey-box models and ch. 7): every stream on one uniform grid over the record, each channel
 weighted by its white noise as estimated from the recording
-(:func:`~rig_identification.io.noise.white_sigma`, counted once per sample of its own rate),
+(:func:`~rig_identification.io.noise.white_sigma`, counted once per sample of its own rate:
+the residual, low-passed to the fit's band and decimated, weighted so that its sum of squares is
+the full-rate in-band log-likelihood),
 each channel's offset (a load cell's bias, the tension at rest, a gyro's bias) eliminated by
 variable projection (Golub & Pereyra 1973).
 
@@ -449,9 +451,13 @@ class _Problem:
         self.step = max(1, int(1.0 / (DECIMATED_RATE * rec.band * rec.dt)))
         impulse = np.zeros(4001)
         impulse[2000] = 1.0
-        # the filtered white noise's share of its variance
-        self.noise_gain = float(np.sum(sosfiltfilt(self.sos, impulse) ** 2))
-        self.weight = 1.0 / (rec.sigma * noise_scale * np.sqrt(rec.oversampling * self.noise_gain))
+        # a decimated sample stands for the `step` grid samples around it: the weighted residual's
+        # sum of squares is the full-rate in-band log-likelihood (a decimated sample of low-passed
+        # noise is correlated with its neighbours: weighting each as an independent sample of the
+        # filtered noise's variance overstates the information of an in-band signal ~1.8×).
+        # `unit`: the RMS of a weighted residual of noise alone.
+        self.unit = float(np.sqrt(self.step * np.sum(sosfiltfilt(self.sos, impulse) ** 2)))
+        self.weight = np.sqrt(self.step) / (rec.sigma * noise_scale * np.sqrt(rec.oversampling))
         self.rest = rest
         lin = linearise(_parameters(x0, like, lay), rest)
         self.substeps = substeps_for(2 * np.pi * natural_frequencies(lin).max(), rec.dt)
@@ -512,6 +518,10 @@ class _Problem:
     def data_rows(self) -> int:
         return len(range(0, self.n, self.step)) * len(self.rec.channels)
 
+    def noise_cost(self, nz: int) -> float:
+        """The sum of squares of :meth:`residual` (``nz`` unknowns) expected of noise alone."""
+        return self.data_rows * self.unit ** 2 + int(np.isfinite(self.prior_std[:nz]).sum())
+
     def size(self, nz: int) -> int:
         return len(range(0, self.n, self.step)) * len(self.rec.channels) + int(np.isfinite(self.prior_std[:nz]).sum())
 
@@ -531,7 +541,7 @@ class _Problem:
 
 def _levels(prob: _Problem, x: np.ndarray) -> np.ndarray:
     """Each channel's residual RMS in the band over its noise's (1: noise alone)."""
-    return np.sqrt(np.mean(prob.data_residual(x) ** 2, axis=0))
+    return np.sqrt(np.mean(prob.data_residual(x) ** 2, axis=0)) / prob.unit
 
 
 # --- the fit -------------------------------------------------------------------------------------------
@@ -706,7 +716,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0, damping_time: float |
         nfev += sol.nfev * (lay.size + 1)
         if best is None or sol.cost < best[1].cost:
             best = (prob, sol, p0, rest0)
-        if 2 * sol.cost <= START_LEVEL ** 2 * prob.size(lay.size):
+        if 2 * sol.cost <= START_LEVEL ** 2 * prob.noise_cost(lay.size):
             break
     if best is None:                # every start outside: the first, which the verdict will call failed
         prob, p0, rest0 = problems[0]
