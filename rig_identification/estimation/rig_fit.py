@@ -71,6 +71,13 @@ SETTLE = 2.0
 EXACT_STD = 1e-7
 #: The smallest σ a load cell's gain takes (a survey σ of 0, exact, becomes this).
 EXACT_GAIN_STD = 1e-9
+#: σ of the exciter force's correction unknowns (:class:`Layout` ``force``: its amplitude's
+#: relative change and its phase's, rad): the denoised force is known far better (a spline over
+#: 15 s of 0.5 N noise on 300 N: ~3e-5), so the prior does not move a correction the record
+#: determines; it holds those whose spline reaches past a stage's span, which the stage does not
+#: determine and which would otherwise drive the next, longer stage's model off (the shipped
+#: case 16: tensions 60 kN off after 40 s).
+FORCE_CORRECTION_STD = 0.01
 #: σ of log(stiffness) for a cable whose stiffness rig.yaml gives (a datasheet's EA) or does not
 #: (the default steel cable's, a factor e either way).  A load cell's gain takes rig.yaml's
 #: ``survey.load_cell_gain``.
@@ -416,6 +423,7 @@ def _priors(prior: Prior, lay: Layout, x0: np.ndarray) -> tuple[np.ndarray, np.n
     centre[lay.mass], std[lay.mass] = prior.mass, prior.mass_std
     centre[lay.log_stiffness], std[lay.log_stiffness] = np.log(prior.stiffness), prior.stiffness_log_std
     centre[lay.gain], std[lay.gain] = 1.0, max(prior.gain_std, EXACT_GAIN_STD)
+    centre[lay.force], std[lay.force] = 0.0, FORCE_CORRECTION_STD
     n = lay.n_cables
     std[lay.geometry] = np.concatenate([np.full(6 * n, max(prior.survey.anchors, EXACT_STD)),
                                         np.full(n, max(prior.survey.lengths, EXACT_STD))])
