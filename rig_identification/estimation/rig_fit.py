@@ -71,12 +71,9 @@ SETTLE = 2.0
 EXACT_STD = 1e-7
 #: The smallest σ a load cell's gain takes (a survey σ of 0, exact, becomes this).
 EXACT_GAIN_STD = 1e-9
-#: σ of the exciter force's correction unknowns (:class:`Layout` ``force``: its amplitude's
-#: relative change and its phase's, rad): the denoised force is known far better (a spline over
-#: 15 s of 0.5 N noise on 300 N: ~3e-5), so the prior does not move a correction the record
-#: determines; it holds those whose spline reaches past a stage's span, which the stage does not
-#: determine and which would otherwise drive the next, longer stage's model off (the shipped
-#: case 16: tensions 60 kN off after 40 s).
+#: σ of the force's correction unknowns (:class:`Layout` ``force``, share and rad): far wider than
+#: the record determines them (~3e-5); it holds those whose spline reaches past a stage's span,
+#: which would otherwise drive the next stage's model off (shipped case 16: 60 kN after 40 s).
 FORCE_CORRECTION_STD = 0.01
 #: σ of log(stiffness) for a cable whose stiffness rig.yaml gives (a datasheet's EA) or does not
 #: (the default steel cable's, a factor e either way).  A load cell's gain takes rig.yaml's
@@ -111,12 +108,10 @@ INITIAL_SPAN = 3.0
 #: A start that fits the first stage within this RMS over the noise (the priors' rows counted)
 #: is taken without trying the next (:func:`fit_rig`).
 START_LEVEL = 1.5
-#: Forward-difference step of the Jacobian in the unknowns' units of :func:`_scale`.  A forward
-#: difference errs by half the step times the residual's curvature; along the mass–moments valley
-#: of a barely damped rig the gradient is small enough that 1e-2 turned it: the trust region
-#: crawled and stopped 9 σ short (case-16 rig, 100 evaluations, gradient 1136); at 1e-4 it
-#: converges (gradient 0.08) in fewer evaluations.  The model is deterministic and smooth:
-#: rounding stays ~1e-8 of a column at this step.
+#: Forward-difference step of the Jacobian in the unknowns' units of :func:`_scale`: at 1e-2 its
+#: error (half the step times the curvature) turned the small gradient along the mass–moments
+#: valley and the trust region stopped 9 σ short (case-16 rig); the model is smooth and
+#: deterministic, so rounding stays ~1e-8 of a column at 1e-4.
 JACOBIAN_STEP = 1e-4
 
 
@@ -471,11 +466,9 @@ class _Problem:
         self.step = max(1, int(1.0 / (DECIMATED_RATE * rec.band * rec.dt)))
         impulse = np.zeros(4001)
         impulse[2000] = 1.0
-        # a decimated sample stands for the `step` grid samples around it: the weighted residual's
-        # sum of squares is the full-rate in-band log-likelihood (a decimated sample of low-passed
-        # noise is correlated with its neighbours: weighting each as an independent sample of the
-        # filtered noise's variance overstates the information of an in-band signal ~1.8×).
-        # `unit`: the RMS of a weighted residual of noise alone.
+        # a decimated sample stands for the `step` grid samples around it (weighting it as an
+        # independent sample of the filtered noise overstates an in-band signal's information
+        # ~1.8×); `unit`: the RMS of a weighted residual of noise alone.
         self.unit = float(np.sqrt(self.step * np.sum(sosfiltfilt(self.sos, impulse) ** 2)))
         self.weight = np.sqrt(self.step) / (rec.sigma * noise_scale * np.sqrt(rec.oversampling))
         self.rest = rest
