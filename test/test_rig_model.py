@@ -14,7 +14,8 @@ from scipy.spatial.transform import Rotation
 
 from rig_identification.design.scenarios import REFERENCE_NOISE, simulate_random
 from rig_identification.estimation.harmonic_start import harmonic_start, harmonics
-from rig_identification.estimation.rig_fit import FORCE_CHANNELS, Prior, RigFitError, record, smooth_force
+from rig_identification.estimation.rig_fit import Prior
+from rig_identification.estimation.rig_record import FORCE_CHANNELS, RigFitError, record, smooth_force
 from rig_identification.io.recording import Recording, SensorData
 from rig_identification.io.rig import inertia_tensor
 from rig_identification.io.verdict import KEYS

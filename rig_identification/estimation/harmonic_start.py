@@ -25,7 +25,8 @@ from ..io.rig import Rig
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import frequency_response, linearise
 from ..model.parametrisation import physically_consistent, to_tensor
-from .rig_fit import Prior, Record, RigFitError, start_parameters
+from .rig_fit import Prior, start_parameters
+from .rig_record import Record, RigFitError
 
 log = logging.getLogger(__name__)
 

@@ -5,7 +5,8 @@ on N spring-damper cables, Newton–Euler with the gyroscopic term, driven by th
 force); its outputs are the N tensions, the gyro, the accelerometer and the inclinometer.  The
 fit is the output-error (prediction-error with no process noise) maximum-likelihood estimator of
 the thesis's chapter 3 with every sensor an output (Ljung, *System Identification*, 2nd ed.,
-ch. 4 grey-box models and ch. 7): every stream on one uniform grid over the record, each channel
+ch. 4 grey-box models and ch. 7): every stream on one uniform grid over the record
+(:mod:`~rig_identification.estimation.rig_record`), each channel
 weighted by its white noise as estimated from the recording
 (:func:`~rig_identification.io.noise.white_sigma`, counted once per sample of its own rate:
 the residual, low-passed to the fit's band and decimated, weighted so that its sum of squares is
@@ -35,37 +36,27 @@ from __future__ import annotations
 import logging
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import BSpline, make_interp_spline, make_lsq_spline
 from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 
-from ..io.noise import white_sigma
-from ..io.recording import SensorData
 from ..io.rig import Rig, Survey
 from ..model.cables import DEFAULT_DAMPING_RATIO, DEFAULT_STIFFNESS
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import physically_consistent, to_tensor
 from ..model.rig_ode import moved_state, rest_state, simulate, substeps_for
+from .rig_record import Record, RigFitError
 
 log = logging.getLogger(__name__)
 
 #: The record's lengths, s, stage by stage (module docstring); the last stage is the whole record.
 STAGES = (15.0, 40.0)
 
-#: The fit's band edge over the exciter force's dominant frequency (:func:`band_edge`), and the
-#: decimated residual's rate over the band edge.
-FORCE_BAND = 4.0
+#: The decimated residual's rate over the fit's band edge (:func:`~.rig_record.band_edge`).
 DECIMATED_RATE = 3.0
-#: Knot spacing, s, of the exciter force's amplitude and phase while the motor spins up and
-#: after (:func:`smooth_force`).
-RAMP_KNOT = 0.25
-STEADY_KNOT = 15.0
-#: s after the spin-up's end (its amplitude at 90 % of the steady one, plus 1 s) where the fit starts.
-SETTLE = 2.0
 #: The smallest σ a prior takes, m: a survey σ of 0 (exact) becomes this (the unknown then
 #: stays put without dividing by zero).
 EXACT_STD = 1e-7
@@ -113,196 +104,6 @@ START_LEVEL = 1.5
 #: valley and the trust region stopped 9 σ short (case-16 rig); the model is smooth and
 #: deterministic, so rounding stays ~1e-8 of a column at 1e-4.
 JACOBIAN_STEP = 1e-4
-
-
-class RigFitError(ValueError):
-    """A recording the rig model cannot be fitted to (no exciter, no common span, too short)."""
-
-
-@dataclass(frozen=True)
-class Record:
-    """A recording's streams on one uniform grid over the record.
-
-    t0: the first sample's stamp, s; dt: the grid's step, s.  y: (n, n_out) the outputs
-    (channel order of :func:`channel_names`: tensions N, gyro rad/s, accelerometer m/s²,
-    inclinometer rad; then, where the force is a rotating vector, the exciter's two measured
-    components, N, exciter frame: the force is an output too).  u: (n, 2) the exciter force
-    denoised (:func:`smooth_force`), N, exciter frame: the model's input before the fit's
-    correction.  sigma: (n_out,) each
-    channel's white-noise σ per sample of its own stream.  oversampling: (n_out,) the grid's
-    rate over the stream's (≥ 1: a slower stream's samples count once, not once per grid step).
-    band: Hz, the fit's band (:func:`band_edge`): the residual is low-passed and decimated
-    to it.  start: the first sample the fit compares (after the exciter's spin-up, whose force
-    is known less well: :func:`smooth_force`); the model runs from the record's start to it.
-    force_knots: s from ``t0``, the interior knots of the denoised force's amplitude and phase
-    splines after ``start`` (empty when the force is not a rotating vector): the fit corrects
-    the force in that spline space (:class:`Layout` ``force``).
-    """
-
-    t0: float
-    dt: float
-    y: np.ndarray = field(repr=False)
-    u: np.ndarray = field(repr=False)
-    sigma: np.ndarray
-    oversampling: np.ndarray
-    channels: tuple[str, ...]
-    band: float
-    start: int
-    force_knots: np.ndarray = field(default_factory=lambda: np.zeros(0))
-
-    @property
-    def duration(self) -> float:
-        return self.dt * (len(self.y) - 1)
-
-    def force_basis(self) -> np.ndarray:
-        """(n - start, K) the cubic B-splines on :attr:`force_knots` over the fit's span, one
-        column each ((n - start, 0) when the force is not an output: not a rotating vector)."""
-        n = len(self.y) - self.start
-        if self.channels[-len(FORCE_CHANNELS):] != FORCE_CHANNELS:
-            return np.zeros((n, 0))
-        t = self.dt * np.arange(self.start, len(self.y))
-        inner = np.concatenate([[t[0]] * 4, self.force_knots[self.force_knots < t[-1]], [t[-1]] * 4])
-        return BSpline.design_matrix(t, inner, 3).toarray()
-
-
-#: The exciter's two measured force components as outputs of the rig model (exciter frame).
-FORCE_CHANNELS = ("exciter_x", "exciter_y")
-
-
-def channel_names(rig: Rig, force: bool = False) -> tuple[str, ...]:
-    """The outputs of the rig model, in the order of :func:`~rig_identification.model.rig_ode.simulate`,
-    then (``force``) the exciter's :data:`FORCE_CHANNELS`."""
-    names = [f"tension:{n}" for n in rig.cable_names] + ["gyro_x", "gyro_y", "gyro_z", "accel_x", "accel_y",
-                                                          "accel_z"]
-    names += ["incl_x", "incl_y"] if rig.inclinometer is not None else []
-    return tuple(names + (list(FORCE_CHANNELS) if force else []))
-
-
-def _streams(sensors: SensorData, rig: Rig):
-    out = [(sensors.load_cells[n].t, sensors.load_cells[n].data[:, 0]) for n in rig.cable_names]
-    out += [(sensors.imu.t, sensors.imu.data[:, j]) for j in range(6)]
-    if rig.inclinometer is not None:
-        if sensors.inclinometer is None:
-            raise RigFitError(f"{rig.source}: rig.yaml has an inclinometer but the recording has no "
-                              "/rig/inclinometer stream")
-        out += [(sensors.inclinometer.t, sensors.inclinometer.data[:, j]) for j in range(2)]
-    return out
-
-
-def _on_grid(t: np.ndarray, x: np.ndarray, grid: np.ndarray) -> np.ndarray:
-    """A stream on the grid: as it is where its stamps are the grid's, else a cubic spline."""
-    dt = grid[1] - grid[0]
-    i = np.searchsorted(t, grid[0] - 1e-3 * dt)
-    if len(t) >= i + len(grid) and np.max(np.abs(t[i:i + len(grid)] - grid)) < 1e-3 * dt:
-        return x[i:i + len(grid)]
-    return make_interp_spline(t, x, k=3)(grid)
-
-
-def record(sensors: SensorData, rig: Rig, t0: float | None = None, t1: float | None = None) -> Record:
-    """The recording's :class:`Record` over [t0, t1] (stamps, s; default the span every stream covers).
-
-    Every stream is put on one uniform grid at the fastest stream's rate (a cubic spline where
-    its stamps differ from the grid's).  Raises :class:`RigFitError` without an exciter stream,
-    or when the streams share less than 10 s.
-    """
-    if sensors.exciter is None or rig.exciter is None:
-        raise RigFitError(f"{rig.source}: the rig model needs the exciter (rig.yaml exciter and the "
-                          "/rig/exciter/wrench stream)")
-    streams = _streams(sensors, rig)
-    ex_t = sensors.exciter.t
-    lo = max([s[0][0] for s in streams] + [ex_t[0]] + ([t0] if t0 is not None else []))
-    hi = min([s[0][-1] for s in streams] + [ex_t[-1]] + ([t1] if t1 is not None else []))
-    rates = [(len(s[0]) - 1) / (s[0][-1] - s[0][0]) for s in streams]
-    ex_rate = (len(ex_t) - 1) / (ex_t[-1] - ex_t[0])
-    dt = 1.0 / round(max(rates + [ex_rate]), 6)
-    if hi - lo < 10.0:
-        raise RigFitError(f"{rig.source}: the streams share {max(hi - lo, 0):.1f} s; the rig model needs ≥ 10 s")
-    # the grid starts on a sample of the first stream, so streams stamped on it are used as they are
-    first = streams[0][0]
-    lo = first[np.searchsorted(first, lo - 1e-9)]
-    n = int(np.floor((hi - lo) / dt + 1e-6)) + 1
-    grid = lo + dt * np.arange(n)
-    y, sig = [], []
-    for t, x in streams:
-        m = (t >= lo - 4 * dt) & (t <= grid[-1] + 4 * dt)
-        y.append(_on_grid(t[m], x[m], grid))
-        sig.append(white_sigma(x[m]))
-    me = (ex_t >= lo - 4 * dt) & (ex_t <= grid[-1] + 4 * dt)
-    measured = np.column_stack([_on_grid(ex_t[me], sensors.exciter.data[me, j], grid) for j in range(2)])
-    band = band_edge(measured, dt)
-    u, start, knots = smooth_force(measured, dt, band)
-    over = np.maximum(1.0, (1.0 / dt) / np.array(rates))
-    if (n - start) * dt < 10.0:
-        raise RigFitError(f"{rig.source}: {(n - start) * dt:.1f} s after the exciter's spin-up; the rig model "
-                          "needs ≥ 10 s")
-    force = start > 0
-    if force:
-        y += [measured[:, 0], measured[:, 1]]
-        sig += [white_sigma(measured)] * 2
-        over = np.append(over, [max(1.0, (1.0 / dt) / ex_rate)] * 2)
-    return Record(float(lo), dt, np.column_stack(y), u, np.array(sig), over, channel_names(rig, force), band, start,
-                  knots[knots > start * dt] if force else np.zeros(0))
-
-
-def band_edge(u: np.ndarray, dt: float) -> float:
-    """The fit's band edge, Hz: :data:`FORCE_BAND` times the exciter force's dominant frequency
-    (at most 0.4 of the rate).  The measured force drives the model through a zero-phase
-    4th-order Butterworth low-pass at it (its white noise would ring the cables' axial modes,
-    lightly damped at 5–30 Hz, that the real smooth force does not), and the residual is
-    low-passed and decimated to it: what the cables' axial modes do above it (their ringing
-    from an unmeasured start or a force's sharp edge) stays out of the fit."""
-    f = np.fft.rfftfreq(len(u), dt)
-    power = np.abs(np.fft.rfft(u - u.mean(axis=0), axis=0)) ** 2
-    dominant = f[1:][np.argmax(power[1:].sum(axis=1))]
-    return float(min(FORCE_BAND * dominant, 0.4 / dt))
-
-
-def smooth_force(u: np.ndarray, dt: float, band: float) -> tuple[np.ndarray, int, np.ndarray]:
-    """The exciter's force (n, 2) N with its measurement noise removed, the first sample
-    after the motor's spin-up (0 when the force is not a rotating vector) and the splines'
-    interior knots, s from the first sample (empty when it is not).
-
-    The load cells resolve the force's own noise (0.5 N is a load cell's too), and the model,
-    driven by the measured force, would ring its barely damped swinging modes with the noise
-    at their frequencies.  A rotating unbalance's force is a vector A(t) e^{iφ(t)} whose
-    amplitude and phase vary slowly once the motor runs at speed: both are fitted with
-    least-squares cubic splines (the phase weighted by A², its noise's inverse variance), knots
-    every :data:`RAMP_KNOT` s while the motor spins up and every :data:`STEADY_KNOT` s after, so
-    the noise left is within ~1/(2·STEADY_KNOT) Hz of the rotation's frequency.  A force that is
-    not such a vector (its fit leaves more than twice the noise) is low-passed at ``band`` Hz
-    instead (zero-phase 4th-order Butterworth).  The spin-up's force is the least well known
-    (its noise is near the swinging modes' frequencies while the motor passes them): the fit
-    starts :data:`SETTLE` s after it, from a free state.  What noise the splines keep is not
-    left in the input: the rig fit corrects the force within the same splines with the exciter's
-    readings as an output (:class:`Layout` ``force``), so the load cells inform the force too and
-    the fit is an output-error fit with no noisy input (no errors-in-variables bias)."""
-    fallback = sosfiltfilt(butter(4, band, fs=1.0 / dt, output="sos"), u, axis=0), 0, np.zeros(0)
-    n = len(u)
-    t = dt * np.arange(n)
-    z = u[:, 0] + 1j * u[:, 1]
-    amp = np.abs(z)
-    steady = np.median(amp[n // 2:])
-    noise = white_sigma(u)
-    if steady < 20 * noise:
-        return fallback
-    slow = sosfiltfilt(butter(2, 0.5, fs=1.0 / dt, output="sos"), amp)
-    ramp_end = t[np.argmax(slow >= 0.9 * steady)] + 1.0
-    knots = np.unique(np.concatenate([np.arange(0.0, ramp_end, RAMP_KNOT),
-                                      np.linspace(ramp_end, t[-1],
-                                                  max(2, int(round((t[-1] - ramp_end) / STEADY_KNOT)) + 1))]))
-    knots = knots[(knots > t[0]) & (knots < t[-1])]
-    inner = np.concatenate([[t[0]] * 4, knots, [t[-1]] * 4])
-    phase = np.unwrap(np.angle(z))
-    w = np.maximum(amp, noise) ** 2
-    try:
-        phase_s = make_lsq_spline(t, phase, inner, k=3, w=w / w.max())(t)
-        amp_s = make_lsq_spline(t, amp, inner, k=3)(t)
-    except (ValueError, np.linalg.LinAlgError):
-        return fallback
-    zs = amp_s * np.exp(1j * phase_s)
-    if np.sqrt(np.mean(np.abs(z - zs) ** 2) / 2) > 2 * max(noise, 1e-4 * steady):
-        return fallback
-    return np.column_stack([zs.real, zs.imag]), int(min(n - 1, np.ceil((ramp_end + SETTLE) / dt))), knots
 
 
 # --- the unknowns ------------------------------------------------------------------------------------

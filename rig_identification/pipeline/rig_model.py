@@ -1,6 +1,6 @@
 """A recording read whole: the rig's grey-box model fitted to every sensor (``rig-identify inertia --model rig``).
 
-recording → :func:`~rig_identification.estimation.rig_fit.record` (every stream on one grid, the
+recording → :func:`~rig_identification.estimation.rig_record.record` (every stream on one grid, the
 exciter's force denoised) → a start for the tensor (the prediction-error fit of
 :func:`~rig_identification.pipeline.offline.identify_recording`, unrefined, where it gives a
 physical tensor; else the body anchors' box) → :func:`~rig_identification.estimation.rig_fit.fit_rig`
@@ -22,7 +22,8 @@ import numpy as np
 from ..estimation.harmonic_start import harmonic_start
 from ..estimation.identification import IdentificationError
 from ..estimation.precision import Z95
-from ..estimation.rig_fit import Prior, Record, RigFit, fit_rig, record
+from ..estimation.rig_fit import Prior, RigFit, fit_rig
+from ..estimation.rig_record import Record, record
 from ..io.recording import Recording
 from ..io.rig import Survey
 from ..io.verdict import KEYS
@@ -281,7 +282,7 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
 
     cg, cg_std: the static CG (3,) m and its σ (3,) m as the CG's prior (default: rig.yaml's CG
     with σ :data:`RIG_YAML_CG_STD`).  start/end: s from the first IMU sample.  Raises
-    :class:`~rig_identification.estimation.rig_fit.RigFitError`,
+    :class:`~rig_identification.estimation.rig_record.RigFitError`,
     :class:`~rig_identification.io.rig.RigError`."""
     t_wall = time.perf_counter()
     t_first = float(rec.sensors.t_start)
