@@ -3,9 +3,9 @@
 The same physics as :class:`~rig_identification.model.dynamics.RigDynamics` with spring-damper
 cables (Newton–Euler with the gyroscopic term; tension max(0, k_i (l_i - L_i) + τ k_i dl_i/dt)
 along the cable; the body's viscous damping, -c_lin v_cg and -c_ang ω), driven by the measured
-exciter force (its frame turning with the body), the force interpolated cubically between the
-samples of a uniform grid (linear interpolation of a 200 Hz force leaves 0.2 N in the tensions:
-they see the motion that finely).  Classical fourth-order Runge–Kutta with a fixed step (``substeps``
+exciter force (its frame turning with the body), the force a cubic spline through the samples of
+a uniform grid (linear interpolation of a 200 Hz force leaves 0.2 N in the tensions: they see
+the motion that finely).  Classical fourth-order Runge–Kutta with a fixed step (``substeps``
 per grid step, chosen by :func:`substeps_for` so that the stiffest cable mode stays inside the
 method's stability region), compiled with numba: the
 output-error fit (:mod:`~rig_identification.estimation.rig_fit`) runs it once per parameter
@@ -24,6 +24,7 @@ from typing import Any
 import numba
 import numpy as np
 from numpy.typing import ArrayLike
+from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
 from .linear_rig import RestPose, RigParameters
@@ -206,20 +207,11 @@ def moved_state(y: np.ndarray, offset: np.ndarray) -> np.ndarray:
     return np.concatenate([y[:3] + off[:3], [qn[3], qn[0], qn[1], qn[2]], y[7:10] + off[6:9], y[10:13] + off[9:12]])
 
 
-def _stages(force: np.ndarray, substeps: int) -> np.ndarray:
-    """The force (n, 2) at every RK4 stage, every half step ((n - 1) 2 substeps + 1, 2): cubic
-    (four-point Lagrange) interpolation between the grid's samples, the ends extended linearly."""
-    f = np.concatenate([2 * force[:1] - force[1:2], force, 2 * force[-1:] - force[-2:-1]])
-    s = np.arange(2 * substeps) / (2 * substeps)                  # fractions of a grid step
-    w = np.stack([-s * (s - 1) * (s - 2) / 6, (s + 1) * (s - 1) * (s - 2) / 2,
-                  -(s + 1) * s * (s - 2) / 2, (s + 1) * s * (s - 1) / 6])          # (4, 2 substeps)
-    n = len(force)
-    out = np.einsum("ks,kjc->jsc", w, np.stack([f[:n - 1], f[1:n], f[2:n + 1], f[3:n + 2]]))
-    return np.concatenate([out.reshape(-1, force.shape[1]), force[-1:]])
-
-
 def _arguments(p: RigParameters, y0: ArrayLike, force: ArrayLike, dt: float, substeps: int) -> tuple[Any, ...]:
-    force = _stages(np.asarray(force, float), substeps)
+    # the force at every RK4 stage (every half step): a cubic spline through the grid's samples
+    force = np.asarray(force, float)
+    force = CubicSpline(np.arange(len(force)), force, axis=0)(
+        np.linspace(0, len(force) - 1, (len(force) - 1) * 2 * substeps + 1))
     J = to_tensor(p.inertia)
     has_inc = p.inclinometer_rotation is not None
     Rinc = p.inclinometer_rotation if has_inc else np.eye(3)
