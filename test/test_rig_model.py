@@ -47,7 +47,7 @@ def _fit(cables: int, seed: int):
     return sim.truth, res.to_dict()
 
 
-background("rig_model", __file__, _fit, {3: (3, 7101), 5: (5, 7206)})
+background("rig_model", __file__, _fit, {3: (3, 7101), 5: (5, 7206)}, first=True)
 
 
 def _truth_parameters(sim) -> RigParameters:
