@@ -408,12 +408,15 @@ class RigFit:
         return np.sqrt(np.diag(self.covariance)[self.layout.cg])
 
 
-def _covariance(prob: _Problem, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _covariance(prob: _Problem, z: np.ndarray, noise_scale: np.ndarray | None = None
+                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The unknowns' covariance (size, size) in x units: the inverse Fisher information of the
-    weighted residual (the priors' rows included), and the sandwich (Huber 1967; White 1982)
+    weighted residual (the priors' rows included), the sandwich (Huber 1967; White 1982)
     H⁻¹ (Σ_b s_b s_bᵀ + P) H⁻¹, its meat the data's scores summed over :data:`SANDWICH_BLOCKS`
     blocks of the record (batch means: a residual that is not white — a model error — is
-    correlated within a block) plus the priors' information P."""
+    correlated within a block) plus the priors' information P, and the inverse Fisher information
+    with each channel's noise at its own level: ``prob``'s weights times ``noise_scale`` (n_out,),
+    the factors ``prob`` put on them (None: the first again)."""
     J = prob.jacobian(z)
     r = prob.residual(z)
     rows = prob.data_rows
@@ -427,7 +430,12 @@ def _covariance(prob: _Problem, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     scores -= scores.mean(axis=0)
     meat = scores.T @ scores * SANDWICH_BLOCKS / (SANDWICH_BLOCKS - 1) + J[rows:].T @ J[rows:]
     S = np.outer(prob.scale, prob.scale)
-    return Hinv * S, Hinv @ meat @ Hinv * S
+    unit = Hinv
+    if noise_scale is not None and not np.all(noise_scale == 1):
+        Ju = J.copy()
+        Ju[:rows] *= np.tile(noise_scale, samples)[:, None]
+        unit = np.linalg.pinv(Ju.T @ Ju, rcond=1e-13, hermitian=True)
+    return Hinv * S, Hinv @ meat @ Hinv * S, unit * S
 
 
 def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, damping_time: float | None = None
@@ -583,13 +591,13 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0, damping_time: float |
             if np.allclose(new_scale, noise_scale, rtol=0.05) or np.max(level) > REWEIGHT_LIMIT:
                 break
             noise_scale = new_scale
-    fisher, sandwich = _covariance(_Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, base), np.zeros(lay.size))
+    fisher, sandwich, bound = _covariance(_Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, base),
+                                          np.zeros(lay.size), noise_scale)
     # σ: the larger of the two per unknown, the correlations the Fisher information's
     sd = np.sqrt(np.maximum(np.diag(fisher), np.diag(sandwich)))
     fd = np.sqrt(np.diag(fisher))
     cov = fisher / np.outer(fd, fd) * np.outer(sd, sd)
     unit = _Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base)
-    bound = fisher if np.all(noise_scale == 1) else _covariance(unit, np.zeros(lay.size))[0]
     level = _levels(unit, x)
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
