@@ -239,10 +239,10 @@ def summary_rig(rows: list[dict], t0: float, procs: int) -> None:
     for r in rows:
         if print_unscored(r, f"{r['seed']:6d} {short(r):27s}", 0):
             continue
-        given = [i for i, k in enumerate(KEYS) if k not in r["undetermined"]]
+        given = [] if r["verdict"] == "failed" else [i for i, k in enumerate(KEYS) if k not in r["undetermined"]]
         ep = max((abs(r["error_percent"][i]) for i in given), default=None)
         es = max((abs(r["error_sigma"][i]) for i in given), default=None)
-        soc = r["sigma_over_crb"]
+        soc = r["sigma_over_crb"] if given else [np.nan]
         print(f"{r['seed']:6d} {short(r):27s} {max(r['crb_percent']):6.3f} {r['kind_truth']:12s} "
               f"{r['before']['verdict']:16s} {r['verdict']:16s} {'-' if ep is None else f'{ep:.3f}':>7s} "
               f"{'-' if es is None else f'{es:.2f}':>8s} {min(soc):4.2f}–{max(soc):4.2f} {r['rig_cpu_s']:5.0f}  "

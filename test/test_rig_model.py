@@ -10,15 +10,23 @@ import dataclasses
 import numpy as np
 import pytest
 from conftest import background, gather, recording, run_cli
+from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
-from rig_identification.design.scenarios import REFERENCE_NOISE, simulate_random
+from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random
 from rig_identification.estimation.harmonic_start import harmonic_start, harmonics
 from rig_identification.estimation.rig_fit import Prior
-from rig_identification.estimation.rig_record import FORCE_CHANNELS, RigFitError, record, smooth_force
+from rig_identification.estimation.rig_record import (
+    FORCE_CHANNELS,
+    MODEL_RATE_BANDS,
+    RigFitError,
+    record,
+    smooth_force,
+)
 from rig_identification.io.recording import Recording, SensorData
 from rig_identification.io.rig import inertia_tensor
 from rig_identification.io.verdict import KEYS
+from rig_identification.model.experiment import experiment_from_dict
 from rig_identification.model.linear_rig import (
     RigParameters,
     frequency_response,
@@ -29,6 +37,7 @@ from rig_identification.model.linear_rig import (
 )
 from rig_identification.model.parametrisation import entry_scales, from_tensor
 from rig_identification.model.rig_ode import rest_state, simulate
+from rig_identification.model.simulator import simulate as simulate_experiment
 from rig_identification.pipeline.offline import default_initial_guess
 from rig_identification.pipeline.rig_model import (
     TRUSTED_START_SHARE,
@@ -133,6 +142,38 @@ def test_the_exciter_force_is_an_output_corrected_within_its_splines():
     assert B.shape == (len(rc.y) - rc.start, len(rc.force_knots) + 4)
     assert np.allclose(B.sum(axis=1), 1.0)
     assert np.all(rc.force_knots > rc.start * rc.dt) and np.all(np.diff(rc.force_knots) > 10.0)
+
+
+def _at_rate(seed: int, cables: int, duration: float, rate: float, noise: dict | None):
+    """A random 'wide' rig's run with the IMU, load cells and exciter at ``rate`` Hz."""
+    d = random_experiment(seed, cables, "wide", [], duration, noise=noise)
+    d["sensors"] = dict(d["sensors"], rates_hz={"imu": rate, "load_cells": rate, "exciter": rate, "inclinometer": 50.0})
+    return simulate_experiment(experiment_from_dict(d, "at_rate"))
+
+
+def test_a_fast_recording_is_decimated_to_the_band_keeping_its_signal_and_noise_density():
+    """At 1 kHz the record is low-passed and decimated to ≥ MODEL_RATE_BANDS band edges (and less
+    than twice that): in the band, the noise-free record is the 1 kHz stream at the grid's stamps
+    to 1e-2 N (the load cells' noise is 0.5 N), and the noisy record's in-band noise has the
+    density its weights assume (σ² × the grid's rate over the stream's per grid sample) to 10 %
+    over the channels."""
+    noisy = _at_rate(7206, 5, 30.0, 1000.0, None)
+    quiet = _at_rate(7206, 5, 30.0, 1000.0, QUIET)
+    a, b = record(noisy.sensors, noisy.rig), record(quiet.sensors, quiet.rig)
+    assert MODEL_RATE_BANDS * a.band <= 1 / a.dt < 2 * MODEL_RATE_BANDS * a.band
+    assert a.oversampling[0] == pytest.approx(a.dt ** -1 / 1000.0)
+    sos = butter(4, a.band, fs=1 / a.dt, output="sos")
+    impulse = np.zeros(4001)
+    impulse[2000] = 1.0
+    gain = np.sum(sosfiltfilt(sos, impulse) ** 2)
+    k = b.y.shape[1]
+    noise = sosfiltfilt(sos, a.y[:, :k] - b.y, axis=0)[a.start:]
+    ratio = np.var(noise, axis=0) / (a.sigma[:k] ** 2 * a.oversampling[:k] * gain)
+    assert np.mean(ratio) == pytest.approx(1.0, abs=0.1), ratio
+    cells = quiet.sensors.load_cells[quiet.rig.cable_names[0]]
+    grid = b.t0 + b.dt * np.arange(len(b.y))
+    stream = np.interp(grid, cells.t, cells.data[:, 0])
+    assert np.max(np.abs(sosfiltfilt(sos, stream - b.y[:, 0]))) < 1e-2
 
 
 def test_the_forced_response_is_the_fundamental_of_the_exact_model():

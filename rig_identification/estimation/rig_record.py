@@ -25,6 +25,12 @@ FORCE_BAND = 4.0
 #: after (:func:`smooth_force`).
 RAMP_KNOT = 0.25
 STEADY_KNOT = 15.0
+#: The record's grid is at least this many times the fit's band edge: a faster recording (1 kHz)
+#: is low-passed and decimated to it (:func:`record`), since the model's cost grows with the grid's
+#: samples and the fit compares only the band.
+MODEL_RATE_BANDS = 25.0
+#: s dropped at each end of a decimated record (:func:`record`).
+DECIMATION_EDGE = 0.1
 #: s after the spin-up's end (its amplitude at 90 % of the steady one, plus 1 s) where the fit starts.
 SETTLE = 2.0
 
@@ -44,7 +50,8 @@ class Record:
     denoised (:func:`smooth_force`), N, exciter frame: the model's input before the fit's
     correction.  sigma: (n_out,) each
     channel's white-noise σ per sample of its own stream.  oversampling: (n_out,) the grid's
-    rate over the stream's (≥ 1: a slower stream's samples count once, not once per grid step).
+    rate over the stream's (> 1: a slower stream's samples count once, not once per grid step;
+    < 1: a faster stream low-passed and decimated to the grid).
     band: Hz, the fit's band (:func:`band_edge`): the residual is low-passed and decimated
     to it.  start: the first sample the fit compares (after the exciter's spin-up, whose force
     is known less well: :func:`smooth_force`); the model runs from the record's start to it.
@@ -116,7 +123,8 @@ def record(sensors: SensorData, rig: Rig, t0: float | None = None, t1: float | N
     """The recording's :class:`Record` over [t0, t1] (stamps, s; default the span every stream covers).
 
     Every stream is put on one uniform grid at the fastest stream's rate (a cubic spline where
-    its stamps differ from the grid's).  Raises :class:`RigFitError` without an exciter stream,
+    its stamps differ from the grid's), then low-passed and decimated where that rate exceeds
+    :data:`MODEL_RATE_BANDS` band edges twice or more.  Raises :class:`RigFitError` without an exciter stream,
     or when the streams share less than 10 s.
     """
     if sensors.exciter is None or rig.exciter is None:
@@ -144,16 +152,30 @@ def record(sensors: SensorData, rig: Rig, t0: float | None = None, t1: float | N
     me = (ex_t >= lo - 4 * dt) & (ex_t <= grid[-1] + 4 * dt)
     measured = np.column_stack([_on_grid(ex_t[me], sensors.exciter.data[me, j], grid) for j in range(2)])
     band = band_edge(measured, dt)
-    u, start, knots = smooth_force(measured, dt, band)
-    over = np.maximum(1.0, (1.0 / dt) / np.array(rates))
+    force_sigma = white_sigma(measured)
+    q = int(1.0 / (dt * MODEL_RATE_BANDS * band))
+    if q >= 2:              # a zero-phase anti-aliasing low-pass (padded by odd extension: the
+        # tensions' kilonewtons of offset stay put at the ends), then every q-th sample, less
+        # DECIMATION_EDGE s at each end where the filter's transient lies (2 N at the last
+        # tension sample, 1e-6 N inside: a 5-cable rig at 1 kHz)
+        sos = butter(8, 0.8 * 0.5 / (q * dt), fs=1.0 / dt, output="sos")
+        k = int(np.ceil(DECIMATION_EDGE / (q * dt)))
+        y = [sosfiltfilt(sos, x)[::q][k:-k] for x in y]
+        measured = sosfiltfilt(sos, measured, axis=0)[::q][k:-k]
+        lo, dt, n = lo + k * q * dt, q * dt, len(measured)
+    # the force's noise per grid sample: a decimated stream's low-passed (σ² × grid rate / its rate)
+    u, start, knots = smooth_force(measured, dt, band, force_sigma * np.sqrt(min(1.0, 1.0 / (ex_rate * dt))))
+    # each stream's samples per grid step (a slower stream's sample counts once; a faster one's
+    # low-passed noise keeps its in-band density: σ² × grid rate / stream rate per grid sample)
+    over = (1.0 / dt) / np.array(rates)
     if (n - start) * dt < 10.0:
         raise RigFitError(f"{rig.source}: {(n - start) * dt:.1f} s after the exciter's spin-up; the rig model "
                           "needs ≥ 10 s")
     force = start > 0
     if force:
         y += [measured[:, 0], measured[:, 1]]
-        sig += [white_sigma(measured)] * 2
-        over = np.append(over, [max(1.0, (1.0 / dt) / ex_rate)] * 2)
+        sig += [force_sigma] * 2
+        over = np.append(over, [(1.0 / dt) / ex_rate] * 2)
     return Record(float(lo), dt, np.column_stack(y), u, np.array(sig), over, channel_names(rig, force), band, start,
                   knots[knots > start * dt] if force else np.zeros(0))
 
@@ -171,10 +193,12 @@ def band_edge(u: np.ndarray, dt: float) -> float:
     return float(min(FORCE_BAND * dominant, 0.4 / dt))
 
 
-def smooth_force(u: np.ndarray, dt: float, band: float) -> tuple[np.ndarray, int, np.ndarray]:
+def smooth_force(u: np.ndarray, dt: float, band: float, noise: float | None = None
+                 ) -> tuple[np.ndarray, int, np.ndarray]:
     """The exciter's force (n, 2) N with its measurement noise removed, the first sample
     after the motor's spin-up (0 when the force is not a rotating vector) and the splines'
-    interior knots, s from the first sample (empty when it is not).
+    interior knots, s from the first sample (empty when it is not).  ``noise``: the force's
+    white-noise σ per sample of ``u``, N, where ``u`` was low-passed (default: estimated from ``u``).
 
     The load cells resolve the force's own noise (0.5 N is a load cell's too), and the model,
     driven by the measured force, would ring its barely damped swinging modes with the noise
@@ -197,7 +221,7 @@ def smooth_force(u: np.ndarray, dt: float, band: float) -> tuple[np.ndarray, int
     z = u[:, 0] + 1j * u[:, 1]
     amp = np.abs(z)
     steady = np.median(amp[n // 2:])
-    noise = white_sigma(u)
+    noise = white_sigma(u) if noise is None else noise
     if steady < 20 * noise:
         return fallback
     slow = sosfiltfilt(butter(2, 0.5, fs=1.0 / dt, output="sos"), amp)
