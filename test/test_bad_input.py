@@ -304,6 +304,21 @@ def test_saturated_load_cell(sim, tmp_path):
     assert_excluded(sim, tmp_path, sat, "/rig/load_cells/c3", "saturat")
 
 
+def test_load_cell_spikes_are_replaced_not_fitted(sim, tmp_path, base_result):
+    """Single-sample spikes on a load cell (electrical interference: +3 kN, −2 kN, +800 N) are
+    replaced by the cubic through their neighbours, with a warning naming the topic and their
+    count; the tensor is the spike-free recording's to 1e-3 of the largest moment (the spikes
+    left in would move it: each is thousands of the cell's 0.5 N noise)."""
+    def spikes(s):
+        c = s.load_cells["c1"]
+        for i, dv in zip((700, 1500, 2300), (3000.0, -2000.0, 800.0)):
+            c.data[i, 0] += dv
+    rc, out, err = run(make(sim, tmp_path, spikes))
+    assert rc == 0, err
+    assert any("/rig/load_cells/c1" in w and "3 single-sample spike(s)" in w for w in out["warnings"]), out["warnings"]
+    assert_close(out, base_result, tol=1e-3)
+
+
 def test_refined_run_on_bad_input(sim, tmp_path):
     """The full run (bias correction and propagated σ re-run the replay) on a recording
     with a gap: it fits the clean span before the gap, keeps the warning, and the σ are the

@@ -38,6 +38,8 @@ def print_rig_model(res: RigModelResult) -> None:
                        "finite): the numbers below are not an estimate"}
     print(f"verdict: {words[res.verdict]}")
     print(f"recording: {res.path}")
+    for w in res.warnings:
+        print(f"warning: {w}")
     print("model: the rig's grey-box model, every sensor an output (tensions, gyro, accelerometer, inclinometer); "
           "mass, CG, cable stiffness and damping, load-cell gains, the initial state and the surveyed geometry "
           "fitted with their priors")

@@ -3,7 +3,8 @@
 The same rules for every path that fits a recording (``rig-identify inertia``, ``diagnose``,
 the planner's confirmation runs): :func:`check_units` (the tensions against rig.yaml's
 weight), :func:`clean_sensors` (gaps, saturated channels, slack cables excluded; the
-longest clean span kept) and :func:`check_motion` (a static recording refused).
+longest clean span kept; single-sample spikes on the force sensors replaced) and
+:func:`check_motion` (a static recording refused).
 """
 from __future__ import annotations
 
@@ -12,9 +13,9 @@ from dataclasses import replace
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
-from ..io.bad_spans import fill_short_gaps, find_bad_spans
+from ..io.bad_spans import SPIKE_SIGMA, fill_short_gaps, find_bad_spans, replace_spikes
 from ..io.noise import white_sigma
-from ..io.recording import Recording, RecordingError, crop
+from ..io.recording import EXCITER_TOPIC, LOAD_CELL_PREFIX, Recording, RecordingError, crop
 
 MIN_CLEAN = 15.0  # s: shortest clean span worth fitting (tracker settling + two high-pass periods);
 #                   a shorter recording (the thesis's 10 s case studies) needs 75 % of its length clean
@@ -38,9 +39,11 @@ def check_units(rec: Recording) -> None:
 
 def clean_sensors(rec: Recording, warnings: list[str]):
     """Exclude bad spans (gaps, saturation, slack cables; :func:`~rig_identification.io.recording.find_bad_spans`):
-    keep the longest span free of them, bridge short IMU gaps.  Appends one warning per
-    excluded span.  Raises :class:`RecordingError` if less than :data:`MIN_CLEAN` s (in a
-    shorter recording, 75 % of its length) remain.  Returns the cleaned
+    keep the longest span free of them, bridge short IMU gaps, replace single-sample spikes on the
+    load cells and the exciter (:func:`~rig_identification.io.bad_spans.replace_spikes`).  Appends
+    one warning per excluded span and per force sensor with spikes.  Raises
+    :class:`RecordingError` if less than :data:`MIN_CLEAN` s (in a shorter recording, 75 % of its
+    length) remain.  Returns the cleaned
     :class:`~rig_identification.io.recording.SensorData` (a new object; ``rec`` is not changed)."""
     s = rec.sensors
     t0, t_end = s.t_start, s.t_end
@@ -72,7 +75,24 @@ def clean_sensors(rec: Recording, warnings: list[str]):
         s = replace(s, imu=imu)     # a copy: the recording given is not changed
         warnings.append(f"{'/rig/imu'}: {len(filled)} short gap(s) (≤ 0.1 s) bridged by linear interpolation, "
                         f"first at t={filled[0][0] - t0:.2f}–{filled[0][1] - t0:.2f} s from the start")
+    cells = dict(s.load_cells)
+    for name, ts in s.load_cells.items():
+        cells[name] = _despiked(ts, LOAD_CELL_PREFIX + name, t0, warnings)
+    s = replace(s, load_cells=cells)
+    if s.exciter is not None:
+        s = replace(s, exciter=_despiked(s.exciter, EXCITER_TOPIC, t0, warnings))
     return s
+
+
+def _despiked(ts, topic: str, t0: float, warnings: list[str]):
+    """``ts`` with its single-sample spikes replaced (:func:`~rig_identification.io.bad_spans.replace_spikes`),
+    a warning appended where there were any."""
+    out, stamps = replace_spikes(ts)
+    if len(stamps):
+        warnings.append(f"{topic}: {len(stamps)} single-sample spike(s) beyond {SPIKE_SIGMA:g} times the noise "
+                        f"(electrical interference?) replaced by the cubic through their neighbours, first at "
+                        f"t={stamps[0] - t0:.3f} s from the start")
+    return out
 
 
 def check_motion(rec: Recording, s) -> None:

@@ -1,15 +1,17 @@
 """The spans of a recording a fit must leave out: gaps (dropped messages), saturated channels,
-slack cables; and short gaps bridged by interpolation.
+slack cables; short gaps bridged by interpolation; single-sample spikes replaced.
 
 :func:`find_bad_spans` finds them (the offline rule; the identifier node's gap rule is the
 same, :class:`~rig_identification.nodes.inputs.InputGuard`), :func:`fill_short_gaps` bridges
-the gaps up to :data:`SHORT_GAP`.  Stamps in s.
+the gaps up to :data:`SHORT_GAP`, :func:`replace_spikes` replaces isolated samples far off their
+neighbours (electrical interference on a force sensor's cable).  Stamps in s.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import median_filter
 
 from .noise import white_sigma
 from .recording import EXCITER_TOPIC, IMU_TOPIC, LOAD_CELL_PREFIX, SensorData, TimeSeries
@@ -18,6 +20,10 @@ from .rig import Rig
 SHORT_GAP = 0.1          # s: gaps up to this are bridged by interpolation, longer ones are excluded
 SATURATION_RUN = 5       # identical samples at a channel's extreme that make a saturated run
 SLACK_FRACTION = 0.05    # tension below this fraction of the cable's share of the weight = slack
+SPIKE_WINDOW = 41        # samples over which a spike's local scale is the running median (replace_spikes)
+SPIKE_SIGMA = 20.0       # a sample this many local scales off the cubic through its neighbours is a spike
+SPIKE_RESOLUTION = 1e-3  # the local scale's floor as a share of the channel's level: a noise-free
+#                          simulated force's kink (0.3 N of 300 N where a spin-up ramp ends) is no spike
 
 
 @dataclass(frozen=True)
@@ -95,3 +101,31 @@ def fill_short_gaps(ts: TimeSeries) -> tuple[TimeSeries, list[tuple[float, float
     new = [np.arange(ts.t[i] + med, ts.t[i + 1] - 0.5 * med, med) for i in idx]
     t = np.sort(np.concatenate([ts.t, *new]))
     return TimeSeries(t, ts.interp(t)), [(float(ts.t[i]), float(ts.t[i + 1])) for i in idx]
+
+
+def replace_spikes(ts: TimeSeries) -> tuple[TimeSeries, np.ndarray]:
+    """Replace single-sample spikes by the cubic through the two samples on each side.
+
+    A sample's departure from that cubic, d_k = x_k − (−x_{k−2} + 4 x_{k−1} + 4 x_{k+1} − x_{k+2})/6,
+    is what no smooth motion gives (its error is (h⁴/36)·x⁗: 0.01 N for a 300 N tension swing at
+    1 Hz sampled at 200 Hz); a spike is a sample whose |d_k| exceeds :data:`SPIKE_SIGMA` times the
+    local scale of d (1.4826 × the running median of |d| over :data:`SPIKE_WINDOW` samples, robust
+    to the spikes; at least the channel's white-noise σ, :func:`~rig_identification.io.noise.white_sigma`,
+    and :data:`SPIKE_RESOLUTION` of its median absolute value)
+    and its neighbours' |d| (a spike at k moves d_{k±1} by 2/3 of itself).  Two or more bad samples
+    in a row are not single-sample spikes and stay.  Returns the series (a copy where any was
+    replaced) and the stamps (k,) s of the replaced samples."""
+    x = ts.data
+    if len(x) < SPIKE_WINDOW:
+        return ts, np.zeros(0)
+    pred = np.copy(x)
+    pred[2:-2] = (-x[:-4] + 4 * x[1:-3] + 4 * x[3:-1] - x[4:]) / 6.0
+    d = np.abs(x - pred)
+    floor = np.array([max(white_sigma(c), SPIKE_RESOLUTION * np.median(np.abs(c))) for c in x.T])[None, :]
+    scale = np.maximum(1.4826 * median_filter(d, size=(SPIKE_WINDOW, 1), mode="nearest"), floor)
+    peak = np.zeros_like(d, dtype=bool)
+    peak[1:-1] = (d[1:-1] > d[:-2]) & (d[1:-1] > d[2:])
+    bad = peak & (d > SPIKE_SIGMA * scale)
+    if not bad.any():
+        return ts, np.zeros(0)
+    return TimeSeries(ts.t, np.where(bad, pred, x)), ts.t[bad.any(axis=1)]

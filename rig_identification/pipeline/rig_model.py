@@ -22,6 +22,7 @@ import numpy as np
 from ..estimation.harmonic_start import harmonic_start
 from ..estimation.identification import IdentificationError
 from ..estimation.precision import Z95
+from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.rig_fit import Prior, RigFit, fit_rig
 from ..estimation.rig_record import Record, record
 from ..io.recording import Recording
@@ -127,7 +128,9 @@ class RigModelResult:
     (``start_source``), with its σ (6,) (inf: none).  cg_prior: (3,) m and cg_prior_std (3,) m
     (inf: none) of the CG's prior,
     cg_source: where it came from.  survey: the geometry's, the mass's and the gains' σ the fit assumed
-    (rig.yaml ``survey``).  seconds: wall time.  truth: truth.yaml or None.
+    (rig.yaml ``survey``).  seconds: wall time.  truth: truth.yaml or None.  warnings: what the
+    data's cleaning did (:func:`~rig_identification.estimation.quality.clean_sensors`: spans
+    excluded, gaps bridged, spikes replaced).
     """
 
     fit: RigFit
@@ -145,6 +148,7 @@ class RigModelResult:
     survey: Survey
     seconds: float
     truth: dict | None
+    warnings: tuple[str, ...] = ()
 
     @property
     def verdict(self) -> str:
@@ -232,6 +236,7 @@ class RigModelResult:
             "poorly_fitted_channels": self.poorly_fitted,
             "natural_frequencies_hz": f.natural_frequencies.tolist(),
             "seconds": self.seconds,
+            "warnings": list(self.warnings),
         }
         if self.truth and "inertia_about_cg" in self.truth:
             t = np.array([float(self.truth["inertia_about_cg"][k]) for k in KEYS])
@@ -281,12 +286,19 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     """Fit the rig model to the whole recording (module docstring).
 
     cg, cg_std: the static CG (3,) m and its σ (3,) m as the CG's prior (default: rig.yaml's CG
-    with σ :data:`RIG_YAML_CG_STD`).  start/end: s from the first IMU sample.  Raises
+    with σ :data:`RIG_YAML_CG_STD`).  start/end: s from the first IMU sample.  The data are checked
+    and cleaned as for every fit (:mod:`~rig_identification.estimation.quality`: the tensions'
+    units, bad spans, spikes, a body that did not move).  Raises
     :class:`~rig_identification.estimation.rig_record.RigFitError`,
-    :class:`~rig_identification.io.rig.RigError`."""
+    :class:`~rig_identification.io.rig.RigError`,
+    :class:`~rig_identification.io.recording.RecordingError`."""
     t_wall = time.perf_counter()
     t_first = float(rec.sensors.t_start)
-    rc = record(rec.sensors, rec.rig, None if start is None else t_first + start,
+    check_units(rec)
+    warnings: list[str] = []
+    sensors = clean_sensors(rec, warnings)
+    check_motion(rec, sensors)
+    rc = record(sensors, rec.rig, None if start is None else t_first + start,
                 None if end is None else t_first + end)
     if cg is None:                                  # rig.yaml's CG: the static test's, its σ unknown
         cg, cg_std = rec.rig.require_cg(), np.full(3, RIG_YAML_CG_STD)
@@ -298,4 +310,4 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
                           (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, guess_std, source, prior.cg, prior.cg_std,
                           cg_source or ("rig.yaml (start only)" if cg_std is None else "given"), rec.rig.survey,
-                          time.perf_counter() - t_wall, rec.truth)
+                          time.perf_counter() - t_wall, rec.truth, tuple(warnings))
