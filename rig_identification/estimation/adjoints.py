@@ -20,8 +20,9 @@ def sosfiltfilt_adjoint(sos: np.ndarray, v: np.ndarray) -> np.ndarray:
     zi = sosfilt_zi(sos)
     r = sosfilt(sos, np.zeros(L), zi=zi)[0]              # zero-input response per unit initial value
 
-    def causal_T(g):   # transpose of zero-state causal filtering: reverse, filter, reverse
-        return sosfilt(sos, g[::-1], axis=0)[::-1]
+    def causal_T(g: np.ndarray) -> np.ndarray:   # transpose of zero-state causal filtering: reverse, filter, reverse
+        out: np.ndarray = sosfilt(sos, g[::-1], axis=0)[::-1]
+        return out
 
     g3 = np.zeros((L,) + v.shape[1:])
     g3[pad:pad + N] = v

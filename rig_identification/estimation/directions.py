@@ -4,6 +4,9 @@ the one wording of the CLI, the JSON and the report.
 """
 from __future__ import annotations
 
+from collections.abc import Container
+from typing import Any
+
 import numpy as np
 
 from ..io.export import ENTRY_NAMES, VEHICLE_SIGN, finite_or_none
@@ -11,7 +14,7 @@ from ..io.verdict import KEYS
 from ..model.parametrisation import from_tensor, to_tensor
 
 
-def weak_directions(J: np.ndarray, cov_J: np.ndarray, n: int = 2) -> list:
+def weak_directions(J: np.ndarray, cov_J: np.ndarray, n: int = 2) -> list[tuple[float, np.ndarray]]:
     """The ``n`` most weakly determined tensor combinations: eigen-directions of the
     covariance (equivalently of the information matrix, its inverse) in the Frobenius
     metric of the tensor, largest std first.  Returns [(std / (tr J / 3), (3,3) unit-norm
@@ -68,7 +71,7 @@ def hardly_turned(main: str, rotation_rms: np.ndarray) -> str:
 
 
 def describe_direction(rel_std: float, D: np.ndarray, scale: float | None = None, weakest: bool = False,
-                       undetermined=(), rotation_rms: np.ndarray | None = None) -> dict:
+                       undetermined: Container[str] = (), rotation_rms: np.ndarray | None = None) -> dict[str, Any]:
     """A tensor direction (of :func:`weak_directions`) in words a lab engineer reads — the one
     wording of the CLI, the JSON and the report.
 

@@ -32,6 +32,7 @@ Everything here is plain numpy on arrays; :mod:`rig_identification.estimation.id
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -80,12 +81,13 @@ class NoiseRealisations:
         """K, the number of realisations."""
         return int(self.du.shape[0])
 
-    def __post_init__(self):
+    def __post_init__(self) -> None:
         if self.du.shape != self.dy.shape or self.du.ndim != 3 or self.du.shape[2] != 3:
             raise ValueError(f"noise realisations: du {self.du.shape} and dy {self.dy.shape} must both be (K, N, 3)")
 
 
-def antithetic_realisations(plus_u: list, minus_u: list, plus_y: list, minus_y: list) -> NoiseRealisations:
+def antithetic_realisations(plus_u: list[np.ndarray], minus_u: list[np.ndarray], plus_y: list[np.ndarray],
+                            minus_y: list[np.ndarray]) -> NoiseRealisations:
     """:class:`NoiseRealisations` from K antithetic pairs: ``plus_u[k]``, ``minus_u[k]`` (N,3)
     the band-passed integrated moment of the replay with noise +m_k and −m_k; ``plus_y``,
     ``minus_y`` the band-passed gyro of the same replays.  Raises ValueError for no pair or
@@ -100,7 +102,8 @@ def antithetic_realisations(plus_u: list, minus_u: list, plus_y: list, minus_y: 
 def regressor(E: np.ndarray, u: np.ndarray) -> np.ndarray:
     """(…, N, 3, 6) regressor of the symmetric tensor's entries: ``X[n, i, k] = (E_k u_n)_i``
     for the basis E (6,3,3) and u (…, N, 3), so that ``P u = X p``."""
-    return np.einsum("kij,...nj->...nik", E, u)
+    X: np.ndarray = np.einsum("kij,...nj->...nik", E, u)
+    return X
 
 
 @dataclass(frozen=True)
@@ -143,7 +146,8 @@ def quadratic_forms(E: np.ndarray, weights: np.ndarray, P: np.ndarray) -> np.nda
     alpha[:, :, :3] = E
     beta = np.concatenate([-np.asarray(P, float), np.eye(3)], axis=1)      # (i, z): (Δy − P Δu)_i
     B = np.einsum("i,kia,ib->kab", w, alpha, beta)
-    return 0.5 * (B + np.transpose(B, (0, 2, 1)))
+    H: np.ndarray = 0.5 * (B + np.transpose(B, (0, 2, 1)))
+    return H
 
 
 def second_order_covariance(noise: list[NoiseRealisations], weights: np.ndarray, P: np.ndarray,
@@ -215,7 +219,8 @@ def capped(A: np.ndarray, N: np.ndarray, cap: float = SHARE_CAP) -> np.ndarray:
     keeps at least 1 − cap of A along every direction (positive definite)."""
     L, ev, V = _shares(A, N)
     S = (V * np.clip(ev, 0.0, cap)) @ V.T
-    return L @ S @ L.T
+    Nc: np.ndarray = L @ S @ L.T
+    return Nc
 
 
 def compensated_residual(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -263,7 +268,8 @@ class Compensation:
         """(6,) kg·m²: the σ per entry of :attr:`second_order`, or None without it."""
         if self.second_order is None:
             return None
-        return np.sqrt(np.clip(np.diag(self.second_order), 0.0, None))
+        std: np.ndarray = np.sqrt(np.clip(np.diag(self.second_order), 0.0, None))
+        return std
 
 
 def _inverse_entries(j: np.ndarray) -> np.ndarray:
@@ -297,10 +303,11 @@ def attenuation_leak(j: np.ndarray, A: np.ndarray, N: np.ndarray) -> np.ndarray:
     P = to_tensor(pc)
     if not (np.all(np.isfinite(P)) and np.all(np.linalg.eigvalsh(0.5 * (P + P.T)) > 0)):
         return np.full(6, np.inf)
-    return from_tensor(np.linalg.inv(P)) - np.asarray(j, float)
+    leak: np.ndarray = from_tensor(np.linalg.inv(P)) - np.asarray(j, float)
+    return leak
 
 
-def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRealisations],
+def compensate(segs: list[Any], j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRealisations],
                consistent: bool = True) -> tuple[np.ndarray, Compensation, list[str]]:
     """Bias-compensated least squares (:mod:`rig_identification.estimation.errors_in_variables`): the weighted normal
     equations of the fit in P = J⁻¹'s entries, less the noise's second moments measured by
@@ -322,7 +329,7 @@ def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRe
     mom = sum((noise_moments(E, nz, w) for nz in noise[1:]), noise_moments(E, noise[0], w))
     j_ls = np.asarray(j, float).copy()
 
-    def normal(jj):
+    def normal(jj: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         A, b = np.zeros((6, 6)), np.zeros(6)
         for s in segs:
             X = regressor(E, s.IM - np.einsum("m,mni->ni", jj, s.G))   # (N,3,6), gyroscopic term at jj
@@ -330,17 +337,19 @@ def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRe
             b += np.einsum("nip,i,ni->p", X, w, s.y)
         return A, b
 
-    def solve(A, b, N, n, start):
+    def solve(A: np.ndarray, b: np.ndarray, N: np.ndarray, n: np.ndarray, start: np.ndarray) -> np.ndarray:
         if not consistent:
             return from_tensor(np.linalg.inv(to_tensor(np.linalg.solve(A - N, b - n))))
         CT, c = compensated_residual(A - N, b - n)
 
-        def fun(th):
-            return CT @ _inverse_entries(consistent_from_params(th)[0]) - c
+        def fun(th: np.ndarray) -> np.ndarray:
+            r: np.ndarray = CT @ _inverse_entries(consistent_from_params(th)[0]) - c
+            return r
 
-        def jac(th):
+        def jac(th: np.ndarray) -> np.ndarray:
             jj, dj = consistent_from_params(th)
-            return CT @ _inversion_jacobian(np.linalg.inv(to_tensor(jj))) @ dj
+            d: np.ndarray = CT @ _inversion_jacobian(np.linalg.inv(to_tensor(jj))) @ dj
+            return d
 
         sol = least_squares(fun, params_from_consistent(to_tensor(start)), jac=jac, method="lm",
                             xtol=1e-12, ftol=1e-12)
@@ -354,7 +363,7 @@ def compensate(segs: list, j: np.ndarray, sigma: np.ndarray, noise: list[NoiseRe
         share, v = float("inf"), np.zeros(6)
     direction = _direction_entries(j_ls, v)
 
-    def kept(why):
+    def kept(why: str) -> tuple[np.ndarray, Compensation, list[str]]:
         try:
             leak = attenuation_leak(j_ls, A, N)
         except np.linalg.LinAlgError:

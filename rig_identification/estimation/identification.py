@@ -31,6 +31,7 @@ of J tell which combinations the recording determines poorly (see
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,7 +88,8 @@ def _batch_means_meat(A3: np.ndarray, resid: np.ndarray, nb: int) -> np.ndarray:
         nb = max(1, len(H) // 8)
         nblocks = len(H) // nb
     S = H[: nblocks * nb].reshape(nblocks, nb, p).sum(1)
-    return S.T @ S * (len(H) / (nblocks * nb))
+    meat: np.ndarray = S.T @ S * (len(H) / (nblocks * nb))
+    return meat
 
 
 @dataclass
@@ -98,7 +100,7 @@ class Segment:
     w: np.ndarray          # (N,3) rad/s raw body-axis gyro
     fs: float              # Hz
     band: tuple[float, float]
-    filt: object           # the zero-phase band-pass of this segment
+    filt: Callable[[np.ndarray], np.ndarray]   # the zero-phase band-pass of this segment
     y: np.ndarray          # (N,3) band-passed gyro (the measured output)
     IM: np.ndarray         # (N,3) band-passed integrated moment
     G: np.ndarray          # (6,N,3) band-passed integrated gyroscopic regressors
@@ -135,14 +137,14 @@ def prepare_segment(t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
         raise IdentificationError(f"{what}: window of {duration:.1f} s is too short for the "
                                   f"{lo:.2f} Hz high-pass (needs ≥ {2.0 / lo:.0f} s)")
     sos = butter(4, [lo, hi], btype="bandpass", fs=fs, output="sos")
-    filt = lambda x: sosfiltfilt(sos, x, axis=0)  # noqa: E731
+    filt: Callable[[np.ndarray], np.ndarray] = lambda x: sosfiltfilt(sos, x, axis=0)  # noqa: E731
     y = filt(w)
     if np.sqrt(np.mean(y**2)) < 1e-5:
         raise IdentificationError(f"{what}: the body hardly rotated in the window "
                                   f"(band-passed gyro RMS {np.sqrt(np.mean(y**2)):.2e} rad/s)")
     E = basis()
     steps = step_indices(torque)   # stepped inputs (the thesis's pulses): no interpolation across them
-    integ = lambda x: filt(cumulative_integral(x, t, steps))  # noqa: E731
+    integ: Callable[[np.ndarray], np.ndarray] = lambda x: filt(cumulative_integral(x, t, steps))  # noqa: E731
     IM = integ(np.asarray(torque, float))
     # the gyroscopic term is linear in the entries: ω×(Jω) = Σ_m j_m ω×(E_m ω)
     G = np.stack([integ(np.cross(w, w @ Em.T)) for Em in E])  # (6,N,3)
@@ -167,7 +169,7 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
     for mismatched noise."""
     E = basis()
 
-    def predict(j, s):
+    def predict(j: np.ndarray, s: Segment) -> tuple[np.ndarray, np.ndarray]:
         P = np.linalg.inv(to_tensor(j))
         u = s.IM - np.einsum("m,mni->ni", j, s.G)
         return P, P @ u.T
@@ -190,16 +192,17 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
     # per-axis residual scale, pooled over the segments (the same gyro)
     sigma = np.sqrt(np.mean(np.concatenate([(s.y - predict(j, s)[1].T) ** 2 for s in segs]), axis=0))
 
-    def jac_entries(j, P, yhat, s):
+    def jac_entries(j: np.ndarray, P: np.ndarray, yhat: np.ndarray, s: Segment) -> np.ndarray:
         # d yhat / d j_k = -P (E_k yhat + G_k)   -> (N,3,6)
-        return -np.einsum("ij,knj->nik", P, np.einsum("kij,jn->kni", E, yhat) + s.G)
+        d: np.ndarray = -np.einsum("ij,knj->nik", P, np.einsum("kij,jn->kni", E, yhat) + s.G)
+        return d
 
     if consistent:
-        def fun(th):
+        def fun(th: np.ndarray) -> np.ndarray:
             jj, _ = consistent_from_params(th)
             return np.concatenate([((s.y - predict(jj, s)[1].T) / sigma).ravel() for s in segs])
 
-        def jac(th):
+        def jac(th: np.ndarray) -> np.ndarray:
             jj, dj = consistent_from_params(th)
             out = []
             for s in segs:
@@ -212,7 +215,7 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
         j, _ = consistent_from_params(sol.x)
         method += "; Levenberg–Marquardt on a physically consistent parametrisation"
     comp = None
-    eiv_warnings = []
+    eiv_warnings: list[str] = []
     if noise is not None:
         if len(noise) != len(segs) or any(nz.du.shape[1:] != s.y.shape for nz, s in zip(noise, segs)):
             raise IdentificationError("identifier: one noise realisation set (K,N,3) per segment is needed")
@@ -268,7 +271,7 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
     if comp is not None:
         res.errors_in_variables = comp
         P = np.linalg.inv(J)
-        for ser, nz in zip(res.series, noise):
+        for ser, nz in zip(res.series, noise):  # type: ignore[arg-type]  # noise is not None where comp is not
             dyh = nz.du @ P.T                                         # (K,N,3) P Δu
             ser.noise_jacobian = -np.einsum("ij,knjq->kniq", P, np.einsum("qjl,knl->knjq", E, dyh))
             ser.noise_residual = nz.dy - dyh
@@ -301,7 +304,9 @@ def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np
     return fit_segments(rig, [seg], block_s, consistent)
 
 
-def identify_inertia_joint(rig_list: list[Rig], segments: list, band_hz=None, block_s: float = 4.0,
+def identify_inertia_joint(rig_list: list[Rig], segments: list[tuple[np.ndarray, np.ndarray, np.ndarray]],
+                           band_hz: tuple[float, float] | list[tuple[float, float] | None] | None = None,
+                           block_s: float = 4.0,
                            consistent: bool = True, labels: list[str] | None = None) -> InertiaResult:
     """Joint fit of one inertia tensor to several recordings of the same body.
 
@@ -328,10 +333,11 @@ def identify_inertia_joint(rig_list: list[Rig], segments: list, band_hz=None, bl
     if len(rig_list) != len(segments):
         raise IdentificationError(f"identifier: {len(rig_list)} rigs for {len(segments)} segments")
     labels = list(labels) if labels is not None else [f"segment {i + 1}" for i in range(len(segments))]
+    bands: list[tuple[float, float] | None]   # (the ignores: mypy does not narrow band_hz by the test below)
     if band_hz is None or (len(band_hz) == 2 and np.isscalar(band_hz[0])):
-        bands = [band_hz] * len(segments)
+        bands = [band_hz] * len(segments)  # type: ignore[list-item]
     else:
-        bands = list(band_hz)
+        bands = list(band_hz)  # type: ignore[arg-type]
     segs = [prepare_segment(t, w, m, b, what=f"identifier ({lab})", label=lab)
             for (t, w, m), b, lab in zip(segments, bands, labels)]
     return fit_segments(rig_list[0], segs, block_s, consistent)

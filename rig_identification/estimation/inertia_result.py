@@ -5,6 +5,7 @@ and :class:`FitSeries`, the fit's output over one segment.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -13,6 +14,7 @@ from ..io.export import (
     INERTIA_SCHEMA,
     INERTIA_SCHEMA_VERSION,
     UNITS,
+    Expressed,
     convention_lines,
     express,
     finite_or_none,
@@ -58,7 +60,8 @@ class FitSeries:
     @property
     def residual(self) -> np.ndarray:
         """(N,3) rad/s measured − predicted."""
-        return self.measured - self.predicted
+        r: np.ndarray = self.measured - self.predicted
+        return r
 
 
 @dataclass
@@ -87,19 +90,19 @@ class InertiaResult:
     band_hz: tuple[float, float]
     residual_rms: np.ndarray
     fit_r2: np.ndarray
-    weak_directions: list = field(default_factory=list)
+    weak_directions: list[tuple[float, np.ndarray]] = field(default_factory=list)
     method: str = "prediction error (band-limited output error, integrated Newton–Euler)"
     warnings: list[str] = field(default_factory=list)
     crb_std: np.ndarray | None = None
     gyro_noise: float | None = None
-    series: list = field(default_factory=list)
+    series: list[FitSeries] = field(default_factory=list)
     # filled by pipeline.refine_uncertainty (None otherwise): the identifier's own sandwich
     # σ (6,), the least-squares bias removed by the compensation for the noise in the input
     # (6,) kg·m², the estimated white-noise σ per sensor source, and the per-gyro-axis ratio
     # (3,) of the fit's residual RMS to the one the noise's replays predict
     sandwich_std: np.ndarray | None = None
     bias_correction: np.ndarray | None = None
-    sensor_noise: dict | None = None
+    sensor_noise: dict[str, float] | None = None
     residual_excess: np.ndarray | None = None
     # the propagated σ widened to the spread of replays with fresh noise (pipeline.refine_uncertainty)
     replay_factor: float | None = None
@@ -109,8 +112,8 @@ class InertiaResult:
     uncertainty: str = "sandwich"   # what inertia_std is: "sandwich", "propagated sensor noise", …
     # filled by pipeline.with_diagnosis when the fit showed model error and diagnose named its
     # cause: the rigid-body fit's tensor and σ, and the effects added (JSON of each)
-    rigid_body: dict | None = None
-    diagnosis: dict | None = None
+    rigid_body: dict[str, Any] | None = None
+    diagnosis: dict[str, Any] | None = None
     # filled by pipeline.identify_recording(s): the model validation's verdict and checks
     # (validation.validate); whether bias_correction was removed (it is not when the noise
     # dominates a direction of the input: then the compensation is impossible)
@@ -132,7 +135,7 @@ class InertiaResult:
             s = np.sqrt(np.clip(np.diag(self.covariance), 0, None))
             return self.covariance / np.outer(s, s)
 
-    def expressed(self, axes: str = "body"):
+    def expressed(self, axes: str = "body") -> Expressed:
         """The mass properties in ``axes`` (a name of :data:`~rig_identification.io.export.AXES`: ``body`` — rig.yaml's,
         REP-103 — or ``sae``, SAE J670), the undetermined entries left out: an
         :class:`~rig_identification.io.export.Expressed`
@@ -155,7 +158,7 @@ class InertiaResult:
         reported as None."""
         return () if self.validation is None else tuple(self.validation.undetermined)
 
-    def to_dict(self, t0: float | list[float] | None = None) -> dict:
+    def to_dict(self, t0: float | list[float] | None = None) -> dict[str, Any]:
         """The result as JSON (schema :data:`~rig_identification.io.export.INERTIA_SCHEMA`, version
         :data:`~rig_identification.io.export.INERTIA_SCHEMA_VERSION`; ``units`` per field,
         :data:`~rig_identification.io.export.UNITS`).
@@ -176,13 +179,13 @@ class InertiaResult:
         ex = express(self.mass, self.center_of_gravity, self.inertia, self.inertia_std, gone)
         num = finite_or_none
 
-        def entry(k, v):
+        def entry(k: str, v: float) -> float | None:
             return None if k in gone else num(v)
 
-        def per_key(a):
+        def per_key(a: np.ndarray | None) -> dict[str, float | None] | None:
             return None if a is None else {k: num(v) for k, v in zip(KEYS, a)}
 
-        def window(t_start, t_end, n, origin):
+        def window(t_start: float, t_end: float, n: int, origin: float | None) -> dict[str, Any]:
             if origin is None:
                 start, end = (None, None) if isinstance(t0, (list, tuple)) else (t_start, t_end)
             else:
@@ -192,7 +195,7 @@ class InertiaResult:
 
         origins = list(t0) if isinstance(t0, (list, tuple)) else [t0] * len(self.series)
 
-        def segment_origins():
+        def segment_origins() -> list[float] | None:
             # the first IMU stamp of each validation segment's recording: a recording's segments
             # follow each other in series order, the first starting at its series' first sample
             v = self.validation
@@ -206,7 +209,7 @@ class InertiaResult:
                 if i + 1 < len(firsts) and float(a) == firsts[i + 1]:
                     i += 1
                 out.append(origins[max(i, 0)])
-            return out
+            return out  # type: ignore[return-value]  # t0 is a list here: origins = list(t0), no None
 
         scale = float(np.trace(self.inertia)) / 3 if np.all(np.isfinite(self.inertia)) else None
         weak = [describe_direction(s, D, scale=scale, weakest=i == 0, undetermined=gone)

@@ -8,6 +8,7 @@ of the design's fast screen (:mod:`rig_identification.design.screen`) is built f
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -66,7 +67,7 @@ class TrackerModel:
         return out
 
 
-def tracker_model(rig: Rig, position: np.ndarray, R0: np.ndarray, tracker_params: dict | None = None,
+def tracker_model(rig: Rig, position: np.ndarray, R0: np.ndarray, tracker_params: dict[str, Any] | None = None,
                   ) -> TrackerModel:
     """Linearise :class:`~rig_identification.estimation.tracker.PoseTracker` (default parameters, or ``tracker_params``)
     about the pose (origin ``position`` (3,) world m, ``R0`` (3,3) body -> world)."""
@@ -111,7 +112,7 @@ def tracker_model(rig: Rig, position: np.ndarray, R0: np.ndarray, tracker_params
 
 
 def wrench_jacobians(rig: Rig, position: np.ndarray, R: np.ndarray, tensions: np.ndarray,
-                     exciter_xy: np.ndarray | None):
+                     exciter_xy: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Torque sensitivities of :func:`~rig_identification.estimation.preprocessor.generalized_wrench` at every sample.
 
     position (M,3) world m; R (M,3,3) body -> world; tensions (M,N) N; exciter_xy (M,2) N or
@@ -129,9 +130,10 @@ def wrench_jacobians(rig: Rig, position: np.ndarray, R: np.ndarray, tensions: np
     length = np.sqrt(np.einsum("mni,mni->mn", rel, rel))[:, :, None]
     u = rel / length
 
-    def d_torque(d_rel):   # (M,N,3) or (M,1,3) -> (M,3)
+    def d_torque(d_rel: np.ndarray) -> np.ndarray:   # (M,N,3) or (M,1,3) -> (M,3)
         du = (d_rel - u * np.einsum("mni,mni->mn", u, d_rel)[:, :, None]) / length
-        return np.einsum("mn,mni->mi", tensions, np.cross(arm[None], du))
+        torque: np.ndarray = np.einsum("mn,mni->mi", tensions, np.cross(arm[None], du))
+        return torque
 
     M = len(position)
     D_phi = np.zeros((M, 3, 3))

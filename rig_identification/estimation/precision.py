@@ -23,7 +23,9 @@ are left out; their answer is the verdict's advice.
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import Any, cast
 
 import numpy as np
 
@@ -51,8 +53,8 @@ class Precision:
     recording's", "each planned run's")."""
 
     target: float
-    half_width: dict
-    short: tuple
+    half_width: dict[str, float | None]
+    short: tuple[str, ...]
     duration: float
     verdict: str | None
     length_factor: float | None
@@ -76,10 +78,10 @@ class Precision:
             given = [k for k in KEYS if self.half_width[k] is not None]
             if not given:
                 return head + "no entry is determined"
-            worst = max(given, key=lambda k: self.half_width[k])
+            worst = max(given, key=lambda k: cast(float, self.half_width[k]))
             return head + (f"every determined entry within it (the widest: {SYMBOL[worst]} "
-                           f"±{100 * self.half_width[worst]:.2g} %)")
-        widths = ", ".join(f"{SYMBOL[k]} ±{100 * self.half_width[k]:.2g} %" for k in self.short)
+                           f"±{100 * cast(float, self.half_width[worst]):.2g} %)")
+        widths = ", ".join(f"{SYMBOL[k]} ±{100 * cast(float, self.half_width[k]):.2g} %" for k in self.short)
         line = head + f"{widths}: short of the target"
         if self.widened_only:
             line += (" — the sensors' noise alone is within it; σ is widened beyond the noise (replays, "
@@ -96,7 +98,7 @@ class Precision:
             line += " — this fit has no model validation: no recording length is offered"
         return line
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         """JSON: ``target``, ``half_width`` (fractions, None for undetermined entries), ``short``,
         ``met``, ``duration_s``, ``noise_limited``, ``length_factor``, ``text``."""
         return {"target": self.target, "half_width": dict(self.half_width), "short": list(self.short),
@@ -104,8 +106,8 @@ class Precision:
                 "length_factor": self.length_factor, "text": self.text()}
 
 
-def precision_of(inertia: np.ndarray, std: np.ndarray, undetermined, duration: float, verdict: str | None,
-                 target: float = TARGET, noise_std: np.ndarray | None = None,
+def precision_of(inertia: np.ndarray, std: np.ndarray, undetermined: Iterable[str], duration: float,
+                 verdict: str | None, target: float = TARGET, noise_std: np.ndarray | None = None,
                  subject: str = "this recording's") -> Precision:
     """The fit's :class:`Precision` against ``target``.
 
@@ -122,11 +124,11 @@ def precision_of(inertia: np.ndarray, std: np.ndarray, undetermined, duration: f
     gone = set(undetermined)
     theta = from_tensor(np.asarray(inertia, float))
     scale = entry_scales(theta)
-    hw = {}
+    hw: dict[str, float | None] = {}
     for k, s, sc in zip(KEYS, np.asarray(std, float), scale):
         ok = k not in gone and np.isfinite(s) and np.isfinite(sc) and sc > 0
         hw[k] = float(Z95 * s / sc) if ok else None
-    short = tuple(k for k in KEYS if hw[k] is not None and hw[k] > target)
+    short = tuple(k for k in KEYS if hw[k] is not None and cast(float, hw[k]) > target)
     factor, widened_only = None, False
     if short and verdict == "ok":
         base = dict(zip(KEYS, Z95 * np.asarray(std if noise_std is None else noise_std, float) / scale))

@@ -7,7 +7,9 @@ design (:mod:`rig_identification.design.planning`) and the pipeline's σ read it
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -44,23 +46,24 @@ class Prediction:
     std: np.ndarray
     covariance: np.ndarray
     gyro_white_std: np.ndarray
-    contributions: dict
+    contributions: dict[str, np.ndarray]
     weights: np.ndarray
     residual_rms: np.ndarray
-    band_hz: tuple
+    band_hz: tuple[float, ...]
     duration: float
     n_samples: int
     rotation_rms: np.ndarray
     axis_bread: np.ndarray
-    axis_meats: dict
+    axis_meats: dict[str, np.ndarray]
     white_bread: np.ndarray
     white_meat: np.ndarray
     runs: int = 1
     gyro_sensitivity: np.ndarray | None = None
 
     @staticmethod
-    def assemble(inertia, axis_bread, axis_meats, white_bread, white_meat, residual_var, band_hz, duration,
-                 n_samples, rotation_rms, runs=1) -> "Prediction":
+    def assemble(inertia: np.ndarray, axis_bread: np.ndarray, axis_meats: dict[str, np.ndarray],
+                 white_bread: np.ndarray, white_meat: np.ndarray, residual_var: np.ndarray, band_hz: Sequence[float],
+                 duration: float, n_samples: int, rotation_rms: np.ndarray, runs: int = 1) -> "Prediction":
         """Sandwich covariance from the per-axis pieces with weights 1/residual_var."""
         w = 1.0 / np.asarray(residual_var, float)
         bread = np.einsum("a,aij->ij", w, axis_bread)
@@ -82,7 +85,8 @@ class Prediction:
     @property
     def relative_std(self) -> np.ndarray:
         """(6,) σ / scale (dimensionless)."""
-        return self.std / self.scale
+        rel: np.ndarray = self.std / self.scale
+        return rel
 
     @property
     def objective(self) -> float:
@@ -100,7 +104,7 @@ class Prediction:
                                    self.white_meat * factor, self.residual_rms**2, self.band_hz,
                                    self.duration * factor, int(self.n_samples * factor), self.rotation_rms, self.runs)
 
-    def weak(self, n: int = 2) -> list[dict]:
+    def weak(self, n: int = 2) -> list[dict[str, Any]]:
         """The ``n`` most weakly determined combinations, in the words of the CLI, the JSON and the
         report (:func:`~rig_identification.estimation.directions.describe_direction`, with how
         much the body turned about the axis each needs)."""
@@ -108,7 +112,7 @@ class Prediction:
         return [describe_direction(rel, D, scale=scale, weakest=i == 0, rotation_rms=self.rotation_rms)
                 for i, (rel, D) in enumerate(weak_directions(self.inertia, self.covariance, n))]
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
         return {"std": {k: float(v) for k, v in zip(KEYS, self.std)},
                 "relative_std": {k: float(v) for k, v in zip(KEYS, self.relative_std)},
                 "gyro_white_std": {k: float(v) for k, v in zip(KEYS, self.gyro_white_std)},
@@ -135,8 +139,10 @@ def combine(preds: list[Prediction]) -> Prediction:
     meats = {s: sum(p.axis_meats[s] for p in preds if s in p.axis_meats)
              for s in dict.fromkeys(k for p in preds for k in p.axis_meats)}
     rot = np.sqrt(sum(ni * p.rotation_rms**2 for ni, p in zip(n, preds)) / n.sum())
-    return Prediction.assemble(preds[0].inertia, sum(p.axis_bread for p in preds), meats,
-                               sum(p.white_bread for p in preds), sum(p.white_meat for p in preds), var,
+    # the ignores: typeshed's sum() adds "| Literal[0]" (an empty iterable); preds is not empty here
+    return Prediction.assemble(preds[0].inertia, sum(p.axis_bread for p in preds), meats,  # type: ignore[arg-type]
+                               sum(p.white_bread for p in preds),  # type: ignore[arg-type]
+                               sum(p.white_meat for p in preds), var,  # type: ignore[arg-type]
                                (min(p.band_hz[0] for p in preds), max(p.band_hz[1] for p in preds)),
                                sum(p.duration for p in preds), int(n.sum()), rot, sum(p.runs for p in preds))
 

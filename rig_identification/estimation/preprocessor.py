@@ -22,12 +22,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..io.rig import Rig
 from .tracker import PoseEstimate, PoseTrack
+
+if TYPE_CHECKING:
+    from ..io.recording import SensorData
 
 
 @dataclass
@@ -79,7 +83,8 @@ class _WrenchGeometry:
         if rig.exciter is not None:
             self.exc = (rig.exciter.rotation.as_matrix()[:, :2].T, np.asarray(rig.exciter.position - c, float))
 
-    def __call__(self, position, rotation, tensions, exciter_xy):
+    def __call__(self, position: np.ndarray, rotation: np.ndarray, tensions: np.ndarray,
+                 exciter_xy: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
         R = np.asarray(rotation, float)
         if R.ndim == 2:
             R = Rotation.from_quat(R).as_matrix()
@@ -108,8 +113,8 @@ class _Samples:
         self.k = k
         self.t = np.empty(0)
         self.v = np.empty((0, k))
-        self._pt: list = []
-        self._pv: list = []
+        self._pt: list[Any] = []
+        self._pv: list[Any] = []
         self._chunks = False  # _pt/_pv hold arrays (chunks) rather than single samples
         self.last = -math.inf  # latest stamp
 
@@ -297,7 +302,7 @@ class WrenchPreprocessor:
         return WrenchSeries(tp, f, m)
 
 
-def preprocess(rig: Rig, track: PoseTrack, sensors) -> WrenchSeries:
+def preprocess(rig: Rig, track: PoseTrack, sensors: SensorData) -> WrenchSeries:
     """Offline: wrench at every tracked pose stamp that all streams cover.
 
     Same formulas as :class:`WrenchPreprocessor` (both call :func:`generalized_wrench`),

@@ -42,6 +42,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.fft import irfft, next_fast_len, rfft
@@ -60,6 +61,9 @@ from .prediction import PlanError, Prediction
 from .preprocessor import generalized_wrench
 from .quality import clean_sensors
 from .signals import auto_band
+
+if TYPE_CHECKING:
+    from ..model.simulator import SimResult
 
 FREQ_BLOCK = 4096   # frequencies per evaluation of the tracker's response (memory, not results)
 
@@ -84,12 +88,12 @@ class Trajectory:
     exciter_xy: np.ndarray | None
     rig: Rig
     inertia: np.ndarray
-    rates: dict
+    rates: dict[str, float]
 
-    warnings: list = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
 
     @staticmethod
-    def from_simulation(sim, clean: bool = True) -> "Trajectory":
+    def from_simulation(sim: SimResult, clean: bool = True) -> "Trajectory":
         """From a noise-free :class:`~rig_identification.model.simulator.SimResult` (its States at the IMU samples).
         clean: keep only the span the identifier would fit — the longest one free of slack
         cables, saturation and gaps (:func:`~rig_identification.estimation.quality.clean_sensors`) — with its warnings.
@@ -99,7 +103,8 @@ class Trajectory:
         warnings: list[str] = []
         if clean:
             try:
-                s = clean_sensors(Recording(sim.rig, sim.sensors, sim.truth, "planned run"), warnings)
+                s = clean_sensors(Recording(sim.rig, sim.sensors, sim.truth,
+                                            "planned run"), warnings)  # type: ignore[arg-type]  # path: a label, not a Path
             except RecordingError as e:
                 raise PlanError(str(e)) from None
             keep = (st.t >= s.t_start - 1e-9) & (st.t <= s.t_end + 1e-9)
@@ -114,7 +119,8 @@ class Trajectory:
                           rig, sim.experiment.inertia, dict(sim.experiment.sensors.rates), warnings)
 
 
-def _weights_stationary(tm: TrackerModel, rig: Rig, D: tuple, P: np.ndarray, sos, fs: float,
+def _weights_stationary(tm: TrackerModel, rig: Rig, D: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray],
+                        P: np.ndarray, sos: np.ndarray, fs: float,
                         sig: np.ndarray, n: int) -> np.ndarray:
     """Per-axis variance (3,) of the residual e predicted by the stationary form of the
     noise model (time-averaged sensitivities): the identifier's LM weights are 1/σ²."""
@@ -131,7 +137,8 @@ def _weights_stationary(tm: TrackerModel, rig: Rig, D: tuple, P: np.ndarray, sos
     return var / n
 
 
-def stationary_e_response(tm, D, P, sos, fs, f, R_imu):
+def stationary_e_response(tm: TrackerModel, D: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray], P: np.ndarray,
+                          sos: np.ndarray, fs: float, f: np.ndarray, R_imu: np.ndarray) -> np.ndarray:
     """(K,3,d) response of the residual e to the noise channels, time-averaged sensitivities."""
     D_phi, D_p, W_T, W_e = (np.mean(x, axis=0) for x in D)
     Ht = tm.response(f)[:, :, :8]
@@ -148,13 +155,15 @@ def stationary_e_response(tm, D, P, sos, fs, f, R_imu):
     dM[:, :, 8 + n_T:] = W_e
     H[nz] = -np.einsum("ij,kjd->kid", P, dM) / s[:, None, None]
     H[nz, :, :3] += R_imu
-    return H * F[:, None, None]
+    He: np.ndarray = H * F[:, None, None]
+    return He
 
 
-def channel_sigmas(noise: dict, rates: dict, fs: float, n_cables: int, has_incl: bool) -> tuple[np.ndarray, list]:
+def channel_sigmas(noise: dict[str, float], rates: dict[str, float], fs: float, n_cables: int,
+                   has_incl: bool) -> tuple[np.ndarray, list[str]]:
     """Per-IMU-sample equivalent σ of every noise channel and its source name.  A stream
     at rate r < fs has the in-band density of white noise σ·sqrt(fs/r) at fs."""
-    def eq(key, rate_key):
+    def eq(key: str, rate_key: str) -> float:
         return noise[key] * math.sqrt(fs / rates[rate_key])
     sig = [noise["gyro"]] * 3 + [noise["accelerometer"]] * 3
     src = ["gyro"] * 3 + ["accelerometer"] * 3
@@ -167,14 +176,14 @@ def channel_sigmas(noise: dict, rates: dict, fs: float, n_cables: int, has_incl:
     return np.array(sig), src
 
 
-def _adapts_compliance(rig: Rig, tracker_params: dict | None) -> bool:
+def _adapts_compliance(rig: Rig, tracker_params: dict[str, Any] | None) -> bool:
     """Whether :class:`~rig_identification.estimation.tracker.PoseTracker` refines the cable compliance online (no
     stiffness in rig.yaml, an inclinometer and load cells)."""
     return rig.inclinometer is not None and not np.isfinite(rig.cable_stiffness).all()
 
 
-def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle: float = 5.0,
-                            band_hz: tuple[float, float] | None = None, tracker_params: dict | None = None,
+def predict_from_trajectory(traj: Trajectory, noise: dict[str, float] | None = None, settle: float = 5.0,
+                            band_hz: tuple[float, float] | None = None, tracker_params: dict[str, Any] | None = None,
                             seed: int = 0, gyro_sensitivity: bool = False) -> Prediction:
     """Predicted σ of the identified tensor for the run ``traj`` (see module docstring).
 
@@ -231,10 +240,11 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
     R_imu = rig.imu.rotation.as_matrix()
     D_phi, D_p, W_T, W_e = (x[i0:] for x in D)
 
-    def through_moment(Dm):
+    def through_moment(Dm: np.ndarray) -> np.ndarray:
         """Γ (c, a, k, Nw) of the c noise channels whose moment error (body axes) is Dm (Nw,3,c)
         times the channel: −(P Dm)[a, c] h[a, k]."""
-        return -np.einsum("ab,nbc->can", P, Dm)[:, :, None, :] * h[None]
+        G: np.ndarray = -np.einsum("ab,nbc->can", P, Dm)[:, :, None, :] * h[None]
+        return G
 
     # gyroscopic term: δM -= ω × J n + n × J ω (n: body-axis gyro noise)
     Om = traj.omega[i0:]
@@ -283,7 +293,8 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
             Hb[lo:lo + FREQ_BLOCK] = tm.response(f[lo:lo + FREQ_BLOCK])[:, :, r0:r1].conj().transpose(0, 2, 1)
         Gb = np.zeros((r1 - r0, 3, 6, K)) if r0 < 8 else None     # Γ (channel, a, k, n)
         if r0 == 0:   # body gyro noise = R_imu · IMU-axis noise: the direct path, the gyroscopic moment's
-            Gb[:3, :, :, i0:] = R_imu.T[:, :, None, None] * H1[None] - through_moment((Sk @ J - SJ) @ R_imu)
+            Gb[:3, :, :, i0:] = (R_imu.T[:, :, None, None] * H1[None]  # type: ignore[index]  # r0 < 8: an array
+                                 - through_moment((Sk @ J - SJ) @ R_imu))
         for a in range(3):   # a weight axis and three entries at a time
             for k in (slice(0, 3), slice(3, 6)):
                 x[..., i0:K] = Q_pe[:, a, None, :] * h[a, k][None]
@@ -318,5 +329,6 @@ def predict_from_trajectory(traj: Trajectory, noise: dict | None = None, settle:
                                seg.band, float(duration), Nw, np.sqrt(np.mean(seg.y**2, axis=0)))
     if gyro_sensitivity:   # δj = B⁻¹ Σ_a w_a Γ_aᵀ ν, the same pieces as the sandwich
         Bi = np.linalg.inv(np.einsum("a,aij->ij", pred.weights, axis_bread))
-        pred.gyro_sensitivity = np.einsum("kl,ndl->ndk", Bi, np.einsum("a,dakn->ndk", pred.weights, gyro_gam))
+        pred.gyro_sensitivity = np.einsum("kl,ndl->ndk", Bi,  # gyro_gam: set by the block r0 = 0
+                                          np.einsum("a,dakn->ndk", pred.weights, gyro_gam))  # type: ignore[arg-type]
     return pred

@@ -15,7 +15,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from ..io.bad_spans import SPIKE_SIGMA, fill_short_gaps, find_bad_spans, replace_spikes
 from ..io.noise import white_sigma
-from ..io.recording import EXCITER_TOPIC, LOAD_CELL_PREFIX, Recording, RecordingError, crop
+from ..io.recording import EXCITER_TOPIC, LOAD_CELL_PREFIX, Recording, RecordingError, SensorData, TimeSeries, crop
 
 MIN_CLEAN = 15.0  # s: shortest clean span worth fitting (tracker settling + two high-pass periods);
 #                   a shorter recording (the thesis's 10 s case studies) needs 75 % of its length clean
@@ -37,7 +37,7 @@ def check_units(rec: Recording) -> None:
                              "tensions (N, not kN) and body.mass (kg)")
 
 
-def clean_sensors(rec: Recording, warnings: list[str]):
+def clean_sensors(rec: Recording, warnings: list[str]) -> SensorData:
     """Exclude bad spans (gaps, saturation, slack cables; :func:`~rig_identification.io.recording.find_bad_spans`):
     keep the longest span free of them, bridge short IMU gaps, replace single-sample spikes on the
     load cells and the exciter (:func:`~rig_identification.io.bad_spans.replace_spikes`).  Appends
@@ -84,7 +84,7 @@ def clean_sensors(rec: Recording, warnings: list[str]):
     return s
 
 
-def _despiked(ts, topic: str, t0: float, warnings: list[str]):
+def _despiked(ts: TimeSeries, topic: str, t0: float, warnings: list[str]) -> TimeSeries:
     """``ts`` with its single-sample spikes replaced (:func:`~rig_identification.io.bad_spans.replace_spikes`),
     a warning appended where there were any."""
     out, stamps = replace_spikes(ts)
@@ -95,7 +95,7 @@ def _despiked(ts, topic: str, t0: float, warnings: list[str]):
     return out
 
 
-def check_motion(rec: Recording, s) -> None:
+def check_motion(rec: Recording, s: SensorData) -> None:
     """Refuse a static recording: the gyro low-passed at 10 Hz (zero-phase Butterworth,
     scipy) about its mean must stand out of the noise it would have in that band (σ from
     its third differences, io.noise.white_sigma) by :data:`MOTION_SNR`, and be at least :data:`MIN_MOTION`.

@@ -39,7 +39,8 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
+from numpy.typing import ArrayLike
+from scipy.optimize import OptimizeResult, least_squares
 from scipy.signal import butter, sosfiltfilt
 
 from ..io.rig import Rig, Survey
@@ -136,7 +137,7 @@ class Prior:
         return self.survey.load_cell_gain
 
     @staticmethod
-    def from_rig(rig: Rig, cg=None, cg_std=None) -> "Prior":
+    def from_rig(rig: Rig, cg: ArrayLike | None = None, cg_std: ArrayLike | None = None) -> "Prior":
         """rig.yaml's mass and geometry (σ rig.yaml's ``survey``), CG (``cg``/``cg_std`` override; without a
         σ the CG is free), cable stiffness (the default steel cable's where rig.yaml has none)."""
         given = np.array([c.stiffness is not None for c in rig.cables])
@@ -312,7 +313,8 @@ class _Problem:
         a = self.rec.start
         e = self.rec.y[a:a + self.n] - self.outputs(x)
         e = sosfiltfilt(self.sos, e - e.mean(axis=0), axis=0)[::self.step]
-        return e * self.weight
+        weighted: np.ndarray = e * self.weight
+        return weighted
 
     def residual(self, z: np.ndarray) -> np.ndarray:
         """The weighted residual (data rows, then the priors' rows); outside the physical
@@ -351,7 +353,8 @@ class _Problem:
         def column(i: int) -> np.ndarray:
             e = z.copy()
             e[i] += JACOBIAN_STEP
-            return (self.residual(e) - base) / JACOBIAN_STEP
+            col: np.ndarray = (self.residual(e) - base) / JACOBIAN_STEP
+            return col
 
         with ThreadPoolExecutor(THREADS) as pool:
             return np.column_stack(list(pool.map(column, range(len(z)))))
@@ -359,7 +362,8 @@ class _Problem:
 
 def _levels(prob: _Problem, x: np.ndarray) -> np.ndarray:
     """Each channel's residual RMS in the band over its noise's (1: noise alone)."""
-    return np.sqrt(np.mean(prob.data_residual(x) ** 2, axis=0)) / prob.unit
+    levels: np.ndarray = np.sqrt(np.mean(prob.data_residual(x) ** 2, axis=0)) / prob.unit
+    return levels
 
 
 # --- the fit -------------------------------------------------------------------------------------------
@@ -463,14 +467,14 @@ def _base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) ->
     return simulate(p, y, rec.u[:rec.start + 1], rec.dt, substeps)[1]
 
 
-def _solve(prob: _Problem, verbose: int):
+def _solve(prob: _Problem, verbose: int) -> OptimizeResult:
     """One least-squares solve of ``prob`` from its x0 (scipy's trust region), stopped where the
     Gauss–Newton decrement ½ gᵀ (JᵀJ)⁺ g falls below :data:`NEWTON_DECREMENT` (Boyd &
     Vandenberghe, *Convex Optimization*, §9.5.1: the cost the Gauss–Newton step would still
     gain), where that step would move the tensor, the CG and the mass by less than
     :data:`INTEREST_STEP` of their σ, where the last :data:`STALL_ITERATIONS` iterations gained
     less than :data:`NEWTON_DECREMENT` together, or by the tolerances."""
-    last: dict = {}
+    last: dict[str, np.ndarray] = {}
     lay = prob.lay
     interest = np.r_[lay.inertia, lay.cg, lay.mass]
 
@@ -480,7 +484,7 @@ def _solve(prob: _Problem, verbose: int):
 
     costs: list[float] = []
 
-    def converged(intermediate_result) -> None:
+    def converged(intermediate_result: OptimizeResult) -> None:
         costs.append(float(intermediate_result.cost))
         if len(costs) > STALL_ITERATIONS and costs[-1 - STALL_ITERATIONS] - costs[-1] < NEWTON_DECREMENT:
             raise StopIteration
@@ -500,7 +504,8 @@ def _solve(prob: _Problem, verbose: int):
     return sol
 
 
-def _moved_on(prob: _Problem, sol, p: RigParameters, rest: RestPose) -> tuple[np.ndarray, RigParameters, RestPose]:
+def _moved_on(prob: _Problem, sol: OptimizeResult, p: RigParameters, rest: RestPose
+              ) -> tuple[np.ndarray, RigParameters, RestPose]:
     """The unknowns, parameters and rest pose after ``sol`` (the rest pose sets only the
     integrator's step: where none is found at the estimate the last one serves)."""
     x = prob.x(sol.x)
@@ -536,7 +541,7 @@ def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: 
     return x
 
 
-def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0, damping_time: float | None = None,
+def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_time: float | None = None,
             verbose: int = 0) -> RigFit:
     """Fit the rig model to a :class:`Record` (module docstring).
 

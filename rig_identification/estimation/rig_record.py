@@ -83,7 +83,8 @@ class Record:
             return np.zeros((n, 0))
         t = self.dt * np.arange(self.start, len(self.y))
         inner = np.concatenate([[t[0]] * 4, self.force_knots[self.force_knots < t[-1]], [t[-1]] * 4])
-        return BSpline.design_matrix(t, inner, 3).toarray()
+        basis: np.ndarray = BSpline.design_matrix(t, inner, 3).toarray()
+        return basis
 
 
 #: The exciter's two measured force components as outputs of the rig model (exciter frame).
@@ -99,7 +100,7 @@ def channel_names(rig: Rig, force: bool = False) -> tuple[str, ...]:
     return tuple(names + (list(FORCE_CHANNELS) if force else []))
 
 
-def _streams(sensors: SensorData, rig: Rig):
+def _streams(sensors: SensorData, rig: Rig) -> list[tuple[np.ndarray, np.ndarray]]:
     out = [(sensors.load_cells[n].t, sensors.load_cells[n].data[:, 0]) for n in rig.cable_names]
     out += [(sensors.imu.t, sensors.imu.data[:, j]) for j in range(6)]
     if rig.inclinometer is not None:
@@ -116,7 +117,8 @@ def _on_grid(t: np.ndarray, x: np.ndarray, grid: np.ndarray) -> np.ndarray:
     i = np.searchsorted(t, grid[0] - 1e-3 * dt)
     if len(t) >= i + len(grid) and np.max(np.abs(t[i:i + len(grid)] - grid)) < 1e-3 * dt:
         return x[i:i + len(grid)]
-    return make_interp_spline(t, x, k=3)(grid)
+    spline: np.ndarray = make_interp_spline(t, x, k=3)(grid)
+    return spline
 
 
 def record(sensors: SensorData, rig: Rig, t0: float | None = None, t1: float | None = None) -> Record:

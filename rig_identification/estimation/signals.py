@@ -39,7 +39,7 @@ def step_indices(x: np.ndarray) -> np.ndarray:
     return np.nonzero(big)[0] + 2
 
 
-def cumulative_integral(x: np.ndarray, t: np.ndarray, steps=None) -> np.ndarray:
+def cumulative_integral(x: np.ndarray, t: np.ndarray, steps: np.ndarray | None = None) -> np.ndarray:
     """∫ x dt from t[0] at every sample: Simpson's rule (scipy ``cumulative_simpson``)
     between stepped inputs, no interpolation across a step.
 
@@ -56,7 +56,8 @@ def cumulative_integral(x: np.ndarray, t: np.ndarray, steps=None) -> np.ndarray:
     t = np.asarray(t, float)
     ks = step_indices(x) if steps is None else np.asarray(steps, int)
     if len(ks) == 0:
-        return cumulative_simpson(x, x=t, axis=0, initial=0.0)
+        whole: np.ndarray = cumulative_simpson(x, x=t, axis=0, initial=0.0)
+        return whole
     out = np.empty_like(x)
     start, base = 0, 0.0
     for k in list(ks) + [len(x)]:

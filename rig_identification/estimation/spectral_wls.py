@@ -15,6 +15,7 @@ Series*, 1981, §4.4), so the step's covariance is ½ (Σ Re Aᴴ S⁻¹ A)⁻¹
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.ndimage import median_filter, uniform_filter1d
@@ -115,10 +116,12 @@ def fitted_noise_level(sp: Spectra, covariance: np.ndarray) -> np.ndarray:
     noise they are anti-correlated (the fit removes noise along A), so the level is then an
     upper bound, and a line within the estimate's own error is not taken for a model error."""
     C = 0.5 * (np.asarray(covariance, float) + np.asarray(covariance, float).T)
-    return sp.S + np.einsum("bip,pq,biq->bi", sp.A, C, np.conj(sp.A)).real
+    level: np.ndarray = sp.S + np.einsum("bip,pq,biq->bi", sp.A, C, np.conj(sp.A)).real
+    return level
 
 
-def wls_step(sp: Spectra, bins=None, extra=None) -> tuple[np.ndarray, np.ndarray]:
+def wls_step(sp: Spectra, bins: np.ndarray | None = None, extra: np.ndarray | None = None
+             ) -> tuple[np.ndarray, np.ndarray]:
     """Weighted least-squares step over the DFT bins (Whittle weights 1/S), compensated for
     the noise in the input when the spectra carry its realisations (:func:`wls_step_joint`).
 
@@ -183,11 +186,13 @@ def missed_noise(series: list[FitSeries], cov: np.ndarray | None) -> np.ndarray:
         return np.zeros((6, 6))
     _, V = wls_step_joint([spectra(s) for s in series])
     ev, U = np.linalg.eigh(0.5 * (cov + cov.T) - 0.5 * (V + V.T))
-    return (U * np.clip(ev, 0.0, None)) @ U.T
+    E: np.ndarray = (U * np.clip(ev, 0.0, None)) @ U.T
+    return E
 
 
-def normal_equations(sps: list[Spectra], bins: list | None, extras: list | None, moments: list | None,
-                     extras_noise: list | None = None):
+def normal_equations(sps: list[Spectra], bins: list[np.ndarray] | None, extras: list[np.ndarray] | None,
+                     moments: list[tuple[np.ndarray, np.ndarray] | None] | None,
+                     extras_noise: list[np.ndarray | None] | None = None) -> tuple[Any, Any, Any, Any, Any]:
     """The Whittle-weighted normal equations pooled over ``sps`` (see :func:`wls_step_joint`;
     extras_noise: per spectra the noise realisations (K,B,3,q) of its extra regressors, or None
     for noise-free ones):
@@ -195,6 +200,8 @@ def normal_equations(sps: list[Spectra], bins: list | None, extras: list | None,
     the covariance of the gradient's noise × noise term (the sample covariance over the
     realisations, bin by bin, summed: the bins are independent) — 0.0 when the spectra carry
     no realisations."""
+    Nk: np.ndarray | float
+    nk: np.ndarray | float
     info, g, Nk, nk, Cq = 0.0, 0.0, 0.0, 0.0, 0.0
     for i, sp in enumerate(sps):
         A = sp.A if extras is None else np.concatenate([sp.A, extras[i]], axis=2)
@@ -207,25 +214,26 @@ def normal_equations(sps: list[Spectra], bins: list | None, extras: list | None,
         if bins is not None:
             A, r, S = A[bins[i]], r[bins[i]], S[bins[i]]
             if dA is not None:
-                dA, dr = dA[:, bins[i]], dr[:, bins[i]]
+                dA, dr = dA[:, bins[i]], dr[:, bins[i]]  # type: ignore[index]  # dr is set with dA (spectra)
         W = 1.0 / S
         info = info + np.einsum("bip,bi,biq->pq", A.conj(), W, A).real
         g = g + np.einsum("bip,bi,bi->p", A.conj(), W, r).real
         if dA is not None:
-            t = np.einsum("kbip,bi,kbi->kbp", dA.conj(), W, dr).real       # per realisation and bin
+            t = np.einsum("kbip,bi,kbi->kbp", dA.conj(), W, dr).real  # type: ignore[arg-type]  # per realisation and bin
             if len(t) >= 2:
                 dev = t - t.mean(0)
                 Cq = Cq + np.einsum("kbp,kbq->pq", dev, dev) / (len(t) - 1)
         if moments is not None and moments[i] is not None:
-            Nk, nk = Nk + moments[i][0], nk + moments[i][1]
+            Nk, nk = Nk + moments[i][0], nk + moments[i][1]  # type: ignore[index]  # mypy: moments[i] not narrowed
         elif dA is not None:     # per realisation (K,p,p), (K,p)
             Nk = Nk + np.einsum("kbip,bi,kbiq->kpq", dA.conj(), W, dA).real
             nk = nk + t.sum(1)
     return info, g, Nk, nk, Cq
 
 
-def wls_step_joint(sps: list[Spectra], bins: list | None = None, extras: list | None = None,
-                   moments: list | None = None, extras_noise: list | None = None):
+def wls_step_joint(sps: list[Spectra], bins: list[np.ndarray] | None = None, extras: list[np.ndarray] | None = None,
+                   moments: list[tuple[np.ndarray, np.ndarray] | None] | None = None,
+                   extras_noise: list[np.ndarray | None] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """:func:`wls_step` pooled over several segments' spectra (one tensor).
 
     When the spectra carry the noise realisations of the fit (``dA``, ``dr``: a fit
@@ -242,7 +250,7 @@ def wls_step_joint(sps: list[Spectra], bins: list | None = None, extras: list | 
     info, g, Nk, nk, Cq = normal_equations(sps, bins, extras, moments, extras_noise)
     if np.ndim(Nk):
         try:
-            def solve(keep):
+            def solve(keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
                 Ic = np.linalg.pinv(info - capped(info, Nk[keep].mean(0)), rcond=1e-12, hermitian=True)
                 return Ic @ (g - nk[keep].mean(0)), Ic
 
@@ -266,10 +274,12 @@ def wls_step_joint(sps: list[Spectra], bins: list | None = None, extras: list | 
 def projector(B: np.ndarray) -> np.ndarray:
     """Orthogonal projector onto the columns of B (6, q)."""
     Q, _ = np.linalg.qr(B)
-    return Q @ Q.T
+    P: np.ndarray = Q @ Q.T
+    return P
 
 
-def determined(sps: list[Spectra], bins: list | None = None, moments: list | None = None) -> np.ndarray:
+def determined(sps: list[Spectra], bins: list[np.ndarray] | None = None,
+               moments: list[tuple[np.ndarray, np.ndarray] | None] | None = None) -> np.ndarray:
     """(6, q) B: the combinations ``Bᵀ θ`` of the tensor entries that a piece of the record
     determines despite the noise in the input — the coordinates along the generalized
     eigenvectors (of the noise moments and the information,
@@ -289,4 +299,5 @@ def determined(sps: list[Spectra], bins: list | None = None, moments: list | Non
     N = Nk.mean(0)
     S = np.linalg.solve(L, np.linalg.solve(L, 0.5 * (N + N.T)).T)
     ev, V = np.linalg.eigh(0.5 * (S + S.T))
-    return L @ V[:, ev <= EIV_LIMIT]
+    B: np.ndarray = L @ V[:, ev <= EIV_LIMIT]
+    return B

@@ -29,8 +29,9 @@ def identify_inertia_thesis(rig: Rig, t: np.ndarray, omega_body: np.ndarray, tor
     M = np.asarray(torque, float)
     dw = w[1:] - w[:-1]
 
-    def fun(j):
-        return (dw - T * M[:-1] @ np.linalg.inv(to_tensor(j)).T).ravel()
+    def fun(j: np.ndarray) -> np.ndarray:
+        r: np.ndarray = (dw - T * M[:-1] @ np.linalg.inv(to_tensor(j)).T).ravel()
+        return r
 
     sol = least_squares(fun, np.asarray(initial_guess, float), method="lm", xtol=1e-12, ftol=1e-12)
     J = to_tensor(sol.x)

@@ -41,9 +41,12 @@ velocity in body axes (rad/s); ``velocity`` is the origin's velocity in world (m
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
@@ -111,12 +114,14 @@ def inclinometer_elevations(rotation: Rotation, incl_to_body: Rotation) -> np.nd
     ``asin(z_world . x_incl)``, ``asin(z_world . y_incl)`` (docs/recording_format.md).
     """
     m = (rotation * incl_to_body).as_matrix()
-    return np.arcsin(np.clip(m[2, :2], -1.0, 1.0))
+    elevations: np.ndarray = np.arcsin(np.clip(m[2, :2], -1.0, 1.0))
+    return elevations
 
 
 def cable_vectors(rig: Rig, position: np.ndarray, rotation: Rotation) -> np.ndarray:
     """Vectors (N, 3) world, m, from each body anchor to its ceiling anchor."""
-    return rig.ceiling_anchors - (position + rotation.apply(rig.body_anchors))
+    vectors: np.ndarray = rig.ceiling_anchors - (position + rotation.apply(rig.body_anchors))
+    return vectors
 
 
 @dataclass(frozen=True)
@@ -172,13 +177,13 @@ def static_pose(rig: Rig, tensions: np.ndarray | None = None, elevations: np.nda
     if specific_force is not None:
         f_up = rig.imu.rotation.apply(np.asarray(specific_force, float))  # body axes
 
-    def compliance(x):
+    def compliance(x: np.ndarray) -> np.ndarray:
         c = np.where(known, 1.0 / np.where(known, k, 1.0), 0.0 if tensions is None else c_prior)
         if fit_c:
             c = np.where(known, c, x[6] * 1e-7)
         return c
 
-    def residuals(x):
+    def residuals(x: np.ndarray) -> np.ndarray:
         rot = Rotation.from_rotvec(x[:3])
         v = cable_vectors(rig, x[3:6], rot)
         lv = np.linalg.norm(v, axis=1)
@@ -296,7 +301,7 @@ class PoseTracker:
         return self._state
 
     # --- inputs -------------------------------------------------------------------
-    def add_inclinometer(self, t: float, angles) -> None:
+    def add_inclinometer(self, t: float, angles: ArrayLike) -> None:
         """Inclinometer elevations (2,) rad (docs/recording_format.md) at stamp ``t`` s."""
         a = np.asarray(angles, float)[:2]
         if self._state is None:
@@ -306,12 +311,12 @@ class PoseTracker:
             self._one_incl[0] = a
             self._feed_one(t, kernel.EVENT_INCLINOMETER)
 
-    def add_exciter(self, t: float, force_xy) -> None:
+    def add_exciter(self, t: float, force_xy: ArrayLike) -> None:
         """Exciter force (2,) N in the exciter frame; used only for the initial pose."""
         if self._state is None and self.rig.exciter is not None:
             self._init_exc.append((t, np.asarray(force_xy, float)[:2]))
 
-    def add_tensions(self, t: float, tensions) -> None:
+    def add_tensions(self, t: float, tensions: dict[str, float] | ArrayLike) -> None:
         """tensions: dict cable name -> N, or (N,) array in rig order."""
         if isinstance(tensions, dict):
             tensions = [tensions[n] for n in self.rig.cable_names]
@@ -323,7 +328,7 @@ class PoseTracker:
             self._one_tens[0] = T
             self._feed_one(t, kernel.EVENT_TENSIONS)
 
-    def add_imu(self, t: float, gyro, accel) -> PoseEstimate | None:
+    def add_imu(self, t: float, gyro: ArrayLike, accel: ArrayLike) -> PoseEstimate | None:
         """One IMU sample: gyro (3,) rad/s and specific force (3,) m/s^2 in IMU axes.
         Returns the pose at ``t`` (None while initialising).  Raises :class:`TrackerError`
         when ``t`` is not after the previous stamp."""
@@ -335,14 +340,17 @@ class PoseTracker:
                 return None
             self._initialise()
             out = self._one_out
-            s = self._state
+            # _state and _const are set by _initialise (mypy keeps self._state narrowed to None here)
+            s = cast(kernel.State, self._state)
             kernel.write_pose(out, 0, float(s.clock[kernel.T]), tuple(s.R.tolist()), tuple(s.p.tolist()),
-                              tuple(s.v.tolist()), tuple(s.omega.tolist()), tuple(self._const.r_imu.tolist()))
+                              tuple(s.v.tolist()), tuple(s.omega.tolist()),
+                              tuple(self._const.r_imu.tolist()))  # type: ignore[union-attr]
         else:
             self._one_imu[0, :3] = gyro
             self._one_imu[0, 3:] = accel
             out = self._feed_one(t, kernel.EVENT_IMU)
-        return PoseEstimate(float(out.t[0]), out.position[0].copy(), self._state.R.reshape(3, 3).copy(),
+        return PoseEstimate(float(out.t[0]), out.position[0].copy(),
+                            self._state.R.reshape(3, 3).copy(),  # type: ignore[union-attr]  # initialised above
                             out.omega[0].copy(), out.velocity[0].copy(), out.quaternion[0].copy())
 
     def track_events(self, t: np.ndarray, kind: np.ndarray, index: np.ndarray, start: int, imu: np.ndarray,
@@ -362,7 +370,8 @@ class PoseTracker:
             raise TrackerError("the tracker is not initialised yet")
         m = int(np.count_nonzero(kind[start:] == kernel.EVENT_IMU))
         out = kernel.outputs(m, len(self.rig.cables))
-        status = kernel.run(t, kind, index, start, imu, tensions, inclinometer, self._const, self._state, out)
+        status = kernel.run(t, kind, index, start, imu, tensions, inclinometer,
+                            self._const, self._state, out)  # type: ignore[arg-type]  # _const: set with _state
         self._record(out)
         if status >= 0:
             raise TrackerError(f"IMU stamp {t[status]:.6f} s is not after the previous one ({self.t:.6f} s)")
@@ -418,9 +427,10 @@ class PoseTracker:
         self._one_kind[0] = kind
         out = self._one_out
         out.counts[:] = 0
-        t_before = float(self._state.clock[kernel.T])
+        # (called once initialised: _state and _const are set)
+        t_before = float(self._state.clock[kernel.T])  # type: ignore[union-attr]
         status = kernel.run(self._one_t, self._one_kind, self._one_index, 0, self._one_imu, self._one_tens,
-                            self._one_incl, self._const, self._state, out)
+                            self._one_incl, self._const, self._state, out)  # type: ignore[arg-type]
         if status >= 0:
             raise TrackerError(f"IMU stamp {t:.6f} s is not after the previous one ({t_before:.6f} s)")
         if out.counts[kernel.STEPS] or out.counts[kernel.HISTORY] or out.counts[kernel.SUMS]:
@@ -436,7 +446,7 @@ class PoseTracker:
         self.compliance_history.extend((t, c.copy()) for t, c in zip(out.history_t[:k].tolist(), out.history_c[:k]))
         self.compliance_sums.extend((t, a, b, int(n)) for t, a, b, n in out.sums[:counts[kernel.SUMS]].tolist())
 
-    def _initialise(self):
+    def _initialise(self) -> None:
         t = np.array([s[0] for s in self._init])
         gyro = np.array([s[1] for s in self._init])
         # at rest: the gyro's RMS about zero is its noise (σ from the first differences: the
@@ -453,21 +463,23 @@ class PoseTracker:
         # 0.07 mrad, the tensor 0.43 % -> 0.006 %)
         moving = float(np.linalg.norm(gyro.mean(0))) > 5e-3
 
-        def at_end(samples):
+        def at_end(samples: list[tuple[float, np.ndarray]]) -> np.ndarray:
             ts = np.array([s[0] for s in samples])
             x = np.array([s[1] for s in samples], float)
             if not moving or len(x) < 3 or np.ptp(ts) <= 0:
-                return x.mean(0)
+                mean: np.ndarray = x.mean(0)
+                return mean
             c = np.polynomial.polynomial.polyfit(ts - t[-1], x, 2 if len(x) >= 4 else 1)
-            return c[0]
+            c0: np.ndarray = c[0]
+            return c0
 
         f_b = at_end([(s[0], s[2]) for s in self._init])
         tens = at_end(self._init_tens) if self._init_tens else None
         elev = at_end(self._init_incl) if (self._init_incl and self._incl is not None) else None
         f_imu = self._imu_to_body.inv().apply(f_b)
         exc = None
-        if self._init_exc:
-            exc = self.rig.exciter.rotation.apply(np.r_[at_end(self._init_exc), 0.0])
+        if self._init_exc:   # (only filled when the rig has an exciter: add_exciter)
+            exc = self.rig.exciter.rotation.apply(np.r_[at_end(self._init_exc), 0.0])  # type: ignore[union-attr]
         at_rest = quiet and (exc is None or np.linalg.norm(exc) < 10.0)  # N: ramping exciters start small
         # first as an equilibrium; if that does not fit (released from a displaced pose, or
         # an unmeasured force already acting), from the geometry and Newton's law alone
@@ -499,7 +511,8 @@ class PoseTracker:
             rhs = -np.einsum("ij,ij->i", u, np.cross(w, self._anchors_from_imu) @ Rm.T)
             v = np.linalg.lstsq(u, rhs, rcond=None)[0]
         a0 = Rm @ self._init[-1][2] + self._g
-        vec = lambda x: np.array(x, float)  # noqa: E731 (fresh float64 arrays: the filter updates them in place)
+        # (fresh float64 arrays: the filter updates them in place)
+        vec: Callable[[ArrayLike], np.ndarray] = lambda x: np.array(x, float)  # noqa: E731
         self._const = kernel.Constants(
             imu_m=vec(self._imu_m.ravel()), incl_m=vec(self._incl.as_matrix().ravel() if self._incl is not None
                                                        else np.zeros(9)),

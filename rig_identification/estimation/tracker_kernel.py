@@ -134,7 +134,7 @@ def outputs(m: int, n: int) -> Outputs:
 
 
 @numba.njit(cache=True)
-def quaternion_matrix(x: float, y: float, z: float, w: float) -> tuple:
+def quaternion_matrix(x: float, y: float, z: float, w: float) -> tuple[float, ...]:
     """Rotation matrix (row-major 9-tuple) of the unit quaternion (x, y, z, w), as scipy's
     ``Rotation.from_quat(...).as_matrix()``."""
     xx, yy, zz, ww = x * x, y * y, z * z, w * w
@@ -145,7 +145,7 @@ def quaternion_matrix(x: float, y: float, z: float, w: float) -> tuple:
 
 
 @numba.njit(cache=True)
-def rotvec_matrix(x: float, y: float, z: float) -> tuple:
+def rotvec_matrix(x: float, y: float, z: float) -> tuple[float, ...]:
     """Rotation matrix (row-major 9-tuple) of the rotation vector (x, y, z) rad, through the
     unit quaternion as scipy ``Rotation.from_rotvec(...).as_matrix()`` (same series below
     1e-3 rad)."""
@@ -159,7 +159,8 @@ def rotvec_matrix(x: float, y: float, z: float) -> tuple:
 
 
 @numba.njit(cache=True)
-def solve_spd4(a00, a01, a02, a03, a11, a12, a13, a22, a23, a33, b0, b1, b2, b3) -> tuple:
+def solve_spd4(a00: float, a01: float, a02: float, a03: float, a11: float, a12: float, a13: float, a22: float,
+               a23: float, a33: float, b0: float, b1: float, b2: float, b3: float) -> tuple[float, float, float, float]:
     """Solve A x = b, A symmetric positive-definite 4x4 (upper triangle given; Cholesky)."""
     l00 = math.sqrt(a00)
     l10, l20, l30 = a01 / l00, a02 / l00, a03 / l00
@@ -181,7 +182,7 @@ def solve_spd4(a00, a01, a02, a03, a11, a12, a13, a22, a23, a33, b0, b1, b2, b3)
 
 
 @numba.njit(cache=True)
-def quaternion(R: tuple) -> tuple:
+def quaternion(R: tuple[float, ...]) -> tuple[float, float, float, float]:
     """Unit quaternion (x, y, z, w) of the rotation matrix R (row-major 9-tuple, orthogonal
     to rounding): Markley's method as scipy's ``Rotation.from_matrix`` (the largest of the
     diagonal and the trace chooses the formula, the first one on ties, that component > 0;
@@ -210,7 +211,7 @@ def quaternion(R: tuple) -> tuple:
 
 
 @numba.njit(cache=True)
-def orthonormalise(R: tuple) -> tuple:
+def orthonormalise(R: tuple[float, ...]) -> tuple[float, ...]:
     """The rotation matrix (row-major 9-tuple) of R's unit quaternion: scipy's
     ``Rotation.from_matrix(R).as_matrix()`` for an R orthogonal to within 1e-12."""
     x, y, z, w = quaternion(R)
@@ -218,7 +219,8 @@ def orthonormalise(R: tuple) -> tuple:
 
 
 @numba.njit(cache=True)
-def write_pose(out: Outputs, row: int, t: float, R: tuple, p: tuple, v: tuple, omega: tuple, r_imu: tuple) -> None:
+def write_pose(out: Outputs, row: int, t: float, R: tuple[float, ...], p: tuple[float, ...], v: tuple[float, ...],
+               omega: tuple[float, ...], r_imu: tuple[float, ...]) -> None:
     """Write the body pose of the filter state into row ``row`` of ``out``'s poses.
 
     R: row-major 9-tuple body -> world.  p, v: the IMU point's world position m and

@@ -12,12 +12,16 @@ Frames and units as :mod:`~rig_identification.estimation.tracker`.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..io.rig import Rig
 from .tracker import PoseEstimate, PoseTrack, PoseTracker, TrackerError
 from .tracker_kernel import EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS
+
+if TYPE_CHECKING:
+    from ..io.recording import SensorData
 
 
 @dataclass(frozen=True)
@@ -41,7 +45,7 @@ class Events:
     exciter: np.ndarray
 
 
-def merge_events(rig: Rig, sensors, init_time: float) -> Events:
+def merge_events(rig: Rig, sensors: SensorData, init_time: float) -> Events:
     """Merge the streams of ``sensors`` (:class:`~rig_identification.io.recording.SensorData`)
     for the tracker: every IMU, inclinometer and tension sample, and the exciter samples of
     the first ``2 init_time`` s (they only enter the initial pose).  Load cells that share
@@ -74,7 +78,7 @@ def merge_events(rig: Rig, sensors, init_time: float) -> Events:
                   np.ascontiguousarray(tens, dtype=float), incl, exc)
 
 
-def track(rig: Rig, sensors, *, per_sample: bool = False, **params) -> PoseTrack:
+def track(rig: Rig, sensors: SensorData, *, per_sample: bool = False, **params: Any) -> PoseTrack:
     """Run :class:`PoseTracker` over recorded sensor data (offline replay, same filter as the node).
 
     sensors: :class:`~rig_identification.io.recording.SensorData`, merged in header-stamp
@@ -109,8 +113,8 @@ def with_compliance(rig: Rig, c: float) -> Rig:
                                              else 1.0 / max(c, 1e-12)) for cb in rig.cables))
 
 
-def replay(rig: Rig, sensors, *, per_sample: bool = False, events: Events | None = None,
-           **params) -> tuple[PoseTrack, PoseTracker]:
+def replay(rig: Rig, sensors: SensorData, *, per_sample: bool = False, events: Events | None = None,
+           **params: Any) -> tuple[PoseTrack, PoseTracker]:
     """One pass of a :class:`PoseTracker` over recorded sensor data.
 
     sensors: :class:`~rig_identification.io.recording.SensorData`, merged by

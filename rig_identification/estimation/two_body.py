@@ -41,7 +41,9 @@ Everything here is plain numpy/scipy on arrays; the candidate that fits it to a 
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -75,7 +77,8 @@ class SprungModes:
     def sprung_tensor(self) -> np.ndarray:
         """(3,3) kg·m²: Σ ℓ_k ℓ_kᵀ, the part of the sprung body's tensor its fitted modes carry."""
         L = np.asarray(self.participation, float).reshape(-1, 3)
-        return L.T @ L
+        sprung: np.ndarray = L.T @ L
+        return sprung
 
     def apparent(self, f_hz: float) -> np.ndarray:
         """(3,3) complex: the apparent tensor J + Σ ℓ_k ℓ_kᵀ G_k(j 2π f) at f Hz (module docstring)."""
@@ -93,7 +96,8 @@ def oscillator(x: np.ndarray, f: float, zeta: float, fs: float) -> np.ndarray:
     Hz from rest (exact for a piecewise-linear input, ``cont2discrete(method="foh")``)."""
     w = 2 * np.pi * f
     num, den, _ = cont2discrete(([-1.0, 0.0, 0.0], [1.0, 2 * zeta * w, w * w]), 1.0 / fs, method="foh")
-    return lfilter(np.ravel(num), den, x, axis=-1)
+    y: np.ndarray = lfilter(np.ravel(num), den, x, axis=-1)
+    return y
 
 
 def state_space(m: SprungModes) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -153,16 +157,18 @@ class FitInput:
     GM: np.ndarray
     fs: float
     sos: np.ndarray
-    band_hz: tuple
+    band_hz: tuple[float, ...]
     keep: np.ndarray
 
     def filt(self, x: np.ndarray) -> np.ndarray:
         """The band-pass along the time axis (−2) of x (…, N, 3)."""
-        return sosfiltfilt(self.sos, x, axis=-2)
+        y: np.ndarray = sosfiltfilt(self.sos, x, axis=-2)
+        return y
 
     def U(self, j: np.ndarray) -> np.ndarray:
         """(N,3) N·m·s: ∫(M − ω × Jω) dt with the tensor entries j (6,)."""
-        return self.IM - np.einsum("m,mni->ni", j, self.GM)
+        U: np.ndarray = self.IM - np.einsum("m,mni->ni", j, self.GM)
+        return U
 
 
 @dataclass(frozen=True)
@@ -181,7 +187,8 @@ class InputNoise:
 
     def dU(self, j: np.ndarray) -> np.ndarray:
         """(K,N,3) the noise of U at the tensor entries j (6,)."""
-        return self.dIM - np.einsum("m,kmni->kni", j, self.dGM)
+        dU: np.ndarray = self.dIM - np.einsum("m,kmni->kni", j, self.dGM)
+        return dU
 
 
 def predict(m: SprungModes, x: FitInput, noise: InputNoise | None = None) -> tuple[np.ndarray, np.ndarray | None]:
@@ -238,7 +245,7 @@ class Parametrisation:
 
     shape: np.ndarray
     scale: float
-    fixed: tuple = ()
+    fixed: tuple[tuple[float, float], ...] = ()
 
     @property
     def n(self) -> int:
@@ -266,7 +273,8 @@ class Parametrisation:
         fz = np.vstack([p[6 + k:].reshape(self.n_free, 2), np.reshape(np.asarray(self.fixed, float), (-1, 2))])
         return SprungModes(p[:6] * self.scale, L, fz[:, 0].copy(), fz[:, 1].copy())
 
-    def bounds(self, frequency=FREQUENCY_BOUNDS, damping=DAMPING_BOUNDS) -> tuple[np.ndarray, np.ndarray]:
+    def bounds(self, frequency: tuple[float, float] = FREQUENCY_BOUNDS, damping: tuple[float, float] = DAMPING_BOUNDS
+               ) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds (only f and ζ bounded)."""
         k = 6 + int(np.sum(self.shape))
         lo = np.concatenate([np.full(k, -np.inf), np.tile([frequency[0], damping[0]], self.n_free)])
@@ -294,7 +302,7 @@ class Whitened:
     @property
     def cost(self) -> float:
         """V = Σ e² (inf when not ok): χ² with about len(e) degrees of freedom at the truth."""
-        return float(self.e @ self.e) if self.ok else np.inf
+        return float(self.e @ self.e) if self.ok else np.inf  # type: ignore[operator]  # e is set when ok
 
 
 def band_bins(x: FitInput) -> tuple[np.ndarray, int]:
@@ -315,7 +323,8 @@ def cross_spectrum(dR: np.ndarray, width: int) -> np.ndarray:
     h = width // 2
     a = np.clip(np.arange(B) - h, 0, B)
     b = np.clip(np.arange(B) + h + 1, 0, B)
-    return (c[b] - c[a]) / (b - a)[:, None, None]
+    S: np.ndarray = (c[b] - c[a]) / (b - a)[:, None, None]
+    return S
 
 
 def whitened(m: SprungModes, x: FitInput, noise: InputNoise) -> Whitened:
@@ -335,7 +344,7 @@ def whitened(m: SprungModes, x: FitInput, noise: InputNoise) -> Whitened:
         return Whitened(None, None, False)
     bins, nk = band_bins(x)
     R = np.fft.rfft((x.y - yh)[x.keep], axis=0)[bins]
-    dR = np.fft.rfft(dr[:, x.keep], axis=1)[:, bins]
+    dR = np.fft.rfft(dr[:, x.keep], axis=1)[:, bins]  # type: ignore[index]  # predict gives dr with noise
     if not (np.all(np.isfinite(R)) and np.all(np.isfinite(dR))):
         return Whitened(None, None, False)
     width = max(3, int(round(SMOOTH_HZ * nk / x.fs)) | 1)
@@ -365,11 +374,12 @@ class ModeFit:
     cost: float
     dof: int
     jac: np.ndarray | None
-    start: tuple
+    start: tuple[float, ...]
 
 
 def fit_modes(par: Parametrisation, start: SprungModes, x: FitInput, noise: InputNoise, free: np.ndarray | None = None,
-              max_nfev: int = 200, frequency=FREQUENCY_BOUNDS, damping=DAMPING_BOUNDS) -> ModeFit:
+              max_nfev: int = 200, frequency: tuple[float, float] = FREQUENCY_BOUNDS,
+              damping: tuple[float, float] = DAMPING_BOUNDS) -> ModeFit:
     """Minimise V (:func:`whitened`) from ``start`` over the parameters ``free`` (bool (P,),
     default all) by trust-region least squares on the whitened residual (scipy
     ``least_squares``, forward differences, Jacobian scaling), f and ζ within the bounds."""
@@ -379,24 +389,24 @@ def fit_modes(par: Parametrisation, start: SprungModes, x: FitInput, noise: Inpu
     lo, hi = lo[free], hi[free]
     span = np.where(np.isfinite(hi - lo), hi - lo, 1.0)
     q0 = np.clip(p0[free], lo + 1e-9 * span, hi - 1e-9 * span)
-    size = [None]
+    size: list[Any] = [None]
 
-    def full(q):
+    def full(q: np.ndarray) -> np.ndarray:
         p = p0.copy()
         p[free] = q
         return p
 
-    def fun(q):
+    def fun(q: np.ndarray) -> np.ndarray:
         w = whitened(par.unpack(full(q)), x, noise)
         if not w.ok:
             return np.full(size[0], BAD_RESIDUAL)
-        size[0] = len(w.e)
-        return w.e
+        size[0] = len(w.e)  # type: ignore[arg-type]  # w.e is set when w.ok
+        return w.e  # type: ignore[return-value]
 
     first = whitened(par.unpack(full(q0)), x, noise)
     if not first.ok:
         return ModeFit(start, p0, np.inf, 0, None, tuple(start.frequency))
-    size[0] = len(first.e)
+    size[0] = len(first.e)  # type: ignore[arg-type]  # first.e is set when first.ok
     sol = least_squares(fun, q0, bounds=(lo, hi), method="trf", x_scale="jac", max_nfev=max_nfev,
                         diff_step=FD_STEP)
     p = full(sol.x)
@@ -414,7 +424,7 @@ SEARCH_COARSE_NFEV = 15  # evaluations per grid point (frequencies held)
 SAME_OPTIMUM = 1e-3      # two refined optima whose scaled parameters differ by less than this are one
 
 
-def start_modes(J_rigid: np.ndarray, frequencies, f_dominant: float, shape: np.ndarray = ALIGNED,
+def start_modes(J_rigid: np.ndarray, frequencies: Sequence[float], f_dominant: float, shape: np.ndarray = ALIGNED,
                 damping: float = 0.2) -> SprungModes:
     """A starting point: participation ℓ_k of :data:`SEARCH_SHARE` of the rigid-body fit's
     moment about the mode's main axis, ζ ``damping``, and the tensor at rest that gives the
@@ -439,8 +449,9 @@ def start_modes(J_rigid: np.ndarray, frequencies, f_dominant: float, shape: np.n
 
 
 def search(par: Parametrisation, J_rigid: np.ndarray, f_dominant: float, x: FitInput, noise: InputNoise,
-           frequencies=SEARCH_FREQUENCIES, keep: int = SEARCH_KEEP, frequency=FREQUENCY_BOUNDS,
-           damping=DAMPING_BOUNDS, starts: tuple = ()) -> list[ModeFit]:
+           frequencies: Sequence[float] = SEARCH_FREQUENCIES, keep: int = SEARCH_KEEP,
+           frequency: tuple[float, float] = FREQUENCY_BOUNDS, damping: tuple[float, float] = DAMPING_BOUNDS,
+           starts: tuple[SprungModes, ...] = ()) -> list[ModeFit]:
     """The global search for the minimum of V: every pair of starting frequencies
     (:data:`SEARCH_FREQUENCIES`, one per mode) and damping ratio (:data:`SEARCH_DAMPING`)
     fitted with the frequencies held (:data:`SEARCH_COARSE_NFEV` evaluations), then the
@@ -457,7 +468,7 @@ def search(par: Parametrisation, J_rigid: np.ndarray, f_dominant: float, x: FitI
             coarse.append(fit_modes(par, st, x, noise, free=held, max_nfev=SEARCH_COARSE_NFEV, frequency=frequency,
                                     damping=damping))
     coarse.sort(key=lambda c: c.cost)
-    out = []
+    out: list[ModeFit] = []
     for st, origin in [(c.modes, c.start) for c in coarse[:keep]] + [(m, tuple(m.frequency)) for m in starts]:
         r = fit_modes(par, st, x, noise, frequency=frequency, damping=damping)
         if np.isfinite(r.cost) and not any(np.max(np.abs(r.p - o.p)) < SAME_OPTIMUM for o in out):

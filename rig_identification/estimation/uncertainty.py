@@ -24,9 +24,12 @@ the load cells, the exciter; see :mod:`rig_identification.design.planning`).  Fo
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 from scipy.stats import chi2
 
@@ -36,18 +39,22 @@ from ..io.rig import Rig
 from .preprocessor import generalized_wrench
 from .propagation import Trajectory, predict_from_trajectory
 
+if TYPE_CHECKING:
+    from .prediction import Prediction
+    from .tracker import PoseTrack
+
 REPLAY_ALPHA = 0.05
 """Significance at which the replays' spread widens the propagated σ (:meth:`NoiseReplays.sigma_factor`)."""
 
 
-def sensor_noise(rig: Rig, sensors) -> tuple[dict, dict]:
+def sensor_noise(rig: Rig, sensors: SensorData) -> tuple[dict[str, float], dict[str, float]]:
     """White-noise σ per source and sample rate per stream, estimated from a recording.
 
     sensors: :class:`~rig_identification.io.recording.SensorData`.  Returns (noise, rates): noise {"gyro" rad/s,
     "accelerometer" m/s², "load_cell" N (pooled over the cables), "exciter" N, "inclinometer"
     rad} (0.0 for a missing stream), rates {"imu", "load_cells", "exciter", "inclinometer"} Hz
     (the keys of :data:`~rig_identification.estimation.propagation.REFERENCE_NOISE` / ``REFERENCE_RATES``)."""
-    def rate(ts):
+    def rate(ts: TimeSeries | None) -> float:
         return float(1.0 / np.median(np.diff(ts.t))) if ts is not None and len(ts.t) > 1 else 0.0
 
     cells = [sensors.load_cells[n] for n in rig.cable_names]
@@ -62,8 +69,9 @@ def sensor_noise(rig: Rig, sensors) -> tuple[dict, dict]:
     return noise, rates
 
 
-def propagated(rig: Rig, poses, sensors, t_fit: np.ndarray, inertia: np.ndarray, band_hz: tuple[float, float],
-               noise: dict, rates: dict, max_rate: float = 200.0):
+def propagated(rig: Rig, poses: PoseTrack, sensors: SensorData, t_fit: np.ndarray, inertia: np.ndarray,
+               band_hz: tuple[float, float], noise: dict[str, float], rates: dict[str, float],
+               max_rate: float = 200.0) -> Prediction:
     """The σ of the identified tensor that the sensors' noise causes, along the recording's
     own trajectory (:func:`~rig_identification.estimation.propagation.predict_from_trajectory`).
 
@@ -97,16 +105,16 @@ def propagated(rig: Rig, poses, sensors, t_fit: np.ndarray, inertia: np.ndarray,
     rates_p = {k: (v if v > 0 else fs_p) for k, v in rates.items()}
     traj = Trajectory(t - t[0], omega, torque, pos, R, tens, exc, rig, np.asarray(inertia, float), rates_p)
     settle = float(t_fit[0] - t[0])
-    return predict_from_trajectory(traj, noise_p, settle=settle, band_hz=tuple(band_hz))
+    return predict_from_trajectory(traj, noise_p, settle=settle, band_hz=tuple(band_hz))  # type: ignore[arg-type]  # (lo, hi)
 
 
-def add_noise(sensors, noise: dict, rng: np.random.Generator, sign: float = 1.0):
+def add_noise(sensors: SensorData, noise: dict[str, float], rng: np.random.Generator, sign: float = 1.0) -> SensorData:
     """A copy of ``sensors`` (:class:`~rig_identification.io.recording.SensorData`) with white noise of the σ in
     ``noise`` (keys as :func:`sensor_noise`) added (``sign`` = +1) or the same realisation
     subtracted (``sign`` = −1): pass generators in the same state for an antithetic pair.
     Draws in the order IMU (N,6), load cells, exciter, inclinometer."""
 
-    def add(ts, sig):
+    def add(ts: TimeSeries | None, sig: float | list[float]) -> TimeSeries | None:
         if ts is None:
             return None
         z = rng.standard_normal(ts.data.shape)
@@ -114,7 +122,7 @@ def add_noise(sensors, noise: dict, rng: np.random.Generator, sign: float = 1.0)
 
     imu = add(sensors.imu, [noise["gyro"]] * 3 + [noise["accelerometer"]] * 3)
     cells = {n: add(sensors.load_cells[n], noise["load_cell"]) for n in sensors.load_cells}
-    return SensorData(imu, cells, add(sensors.exciter, noise["exciter"]),
+    return SensorData(imu, cells, add(sensors.exciter, noise["exciter"]),  # type: ignore[arg-type]  # add(): None for None only
                       add(sensors.inclinometer, noise["inclinometer"]))
 
 
@@ -159,7 +167,8 @@ class NoiseReplays:
         return (ratio if significant else 1.0), dof
 
 
-def noise_replays(fit, base: np.ndarray, sensors: list, noises: list, seed: int = 0, pairs: int = 1,
+def noise_replays(fit: Callable[[list[SensorData]], ArrayLike], base: np.ndarray, sensors: list[SensorData],
+                  noises: list[dict[str, float]], seed: int = 0, pairs: int = 1,
                   first: int = 0) -> NoiseReplays:
     """The estimate re-run on the recording(s) with ``pairs`` antithetic pairs of fresh white
     noise at the estimated levels (:func:`add_noise`): draws of the first-order error and
@@ -203,7 +212,8 @@ class ReplayFactor:
     replays: NoiseReplays
 
 
-def confirmed_sigma_factor(replays: NoiseReplays, covariance: np.ndarray, more, pairs: int) -> ReplayFactor:
+def confirmed_sigma_factor(replays: NoiseReplays, covariance: np.ndarray, more: Callable[[int, int], NoiseReplays],
+                           pairs: int) -> ReplayFactor:
     """:meth:`NoiseReplays.sigma_factor` of ``replays`` against ``covariance`` (6,6), confirmed:
     where it is significant, ``more(pairs, first)`` (:func:`noise_replays` continued at pair
     ``first``) replays ``pairs`` pairs more and the factor is that of all of them together —

@@ -88,7 +88,9 @@ its spectrum; Brillinger, *Time Series*, 1981, §4.4).  Their covariance is then
 """
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
@@ -114,6 +116,9 @@ from .spectral_wls import (
     wls_step_joint,
 )
 
+if TYPE_CHECKING:
+    from ..io.rig import Rig
+
 ALPHA = 1e-3                # significance of each statistical check
 EFFECT_FACTOR = 2.0         # a consistency check fails beyond this multiple of its significance threshold
 WHITENESS_FACTOR = 3.0      # the whiteness check fails beyond this multiple of its significance threshold
@@ -130,7 +135,7 @@ EDGE_MARGIN = 1.15          # the whiteness test skips the band's edges (the fil
 #                             residual's level falls faster than its running median follows)
 
 
-def with_products(keys) -> set:
+def with_products(keys: Iterable[str]) -> set[str]:
     """The entry keys ``keys`` with every product of inertia about an axis whose moment is
     among them: a product is no better determined than the moments about its axes
     (:data:`~rig_identification.estimation.directions.ENTRY_AXES`)."""
@@ -183,6 +188,7 @@ def segment_check(series: list[FitSeries], theta: np.ndarray,
     :func:`missed_noise`): a piece with a fraction f of the samples has V_k + E / f.
     Returns the check, the segments' entries (K,6) kg·m² and their (start, end) stamps (K,2) s."""
     E = np.asarray(scale, float)
+    ests: Any   # a list of (6,), then their (K,6) array
     ests, times, stat, dof = [], [], 0.0, 0
     for s in series:
         full = spectra(s)
@@ -214,7 +220,7 @@ def segment_check(series: list[FitSeries], theta: np.ndarray,
 
 
 def band_check(series: list[FitSeries], theta: np.ndarray,
-               scale: np.ndarray) -> tuple[Check | None, np.ndarray | None, tuple | None]:
+               scale: np.ndarray) -> tuple[Check | None, np.ndarray | None, tuple[float, float, float] | None]:
     """Consistency across frequency (see module docstring): the band split where the
     information (trace of the covariance-weighted information of the bins) reaches half,
     both halves fitted, their difference tested.  Returns the check (None when the band
@@ -261,7 +267,7 @@ def quadrature_check(series: list[FitSeries]) -> Check:
     the tensor beyond its failure threshold, and its statistic is that test's."""
     sps = [spectra(s) for s in series]
 
-    def quadrature(y):                                   # (…,B,3) → (…,B,3,9)
+    def quadrature(y: np.ndarray) -> np.ndarray:         # (…,B,3) → (…,B,3,9)
         X = np.zeros(y.shape + (9,), complex)
         for a in range(3):
             X[..., a, 3 * a:3 * a + 3] = -1j * y         # Hilbert transform, positive frequencies
@@ -370,9 +376,9 @@ class AccelInput:
     accel: np.ndarray
     mass: float
     rho: np.ndarray
-    band_hz: tuple
+    band_hz: tuple[float, ...]
     noise: float
-    replays: tuple = ()
+    replays: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
 
 
 def accelerometer_check(inputs: list[AccelInput], J: np.ndarray) -> Check | None:
@@ -385,16 +391,18 @@ def accelerometer_check(inputs: list[AccelInput], J: np.ndarray) -> Check | None
         fs = 1.0 / float(np.median(np.diff(a.t)))
         w = a.gyro
 
-        def predicted(torque, force):
+        def predicted(torque: np.ndarray, force: np.ndarray) -> np.ndarray:
             alpha = np.linalg.solve(J, (torque - np.cross(w, w @ J.T)).T).T
-            return force / a.mass + np.cross(alpha, a.rho) + np.cross(w, np.cross(w, a.rho))
+            f: np.ndarray = force / a.mass + np.cross(alpha, a.rho) + np.cross(w, np.cross(w, a.rho))
+            return f
         lo, hi = a.band_hz
         sos = butter(4, [lo, min(hi, 0.45 * fs)], btype="bandpass", fs=fs, output="sos")
         cut = int(min(len(a.t) // 10, 2 * fs / lo))          # the filter's edge transients
 
-        def band_rms(x):
+        def band_rms(x: np.ndarray) -> np.ndarray:
             y = sosfiltfilt(sos, x, axis=0)[cut:len(x) - cut]
-            return np.sqrt(np.mean(y**2, axis=0))
+            rms: np.ndarray = np.sqrt(np.mean(y**2, axis=0))
+            return rms
         res_rms = band_rms(a.accel - predicted(a.torque, a.force))
         imp = np.zeros(4096)
         imp[2048] = 1.0
@@ -466,7 +474,7 @@ def identifiability(result: InertiaResult, std: np.ndarray, cov: np.ndarray | No
     return Check("identifiable", float(rel[worst]), REL_STD_LIMIT, not bad, detail), bad
 
 
-def advice(bad: tuple[str, ...], rig=None) -> tuple[str, ...]:
+def advice(bad: tuple[str, ...], rig: Rig | None = None) -> tuple[str, ...]:
     """What to change so that the ``bad`` entries are determined, in words."""
     out = []
     if rig is not None:
@@ -510,7 +518,7 @@ def propagated_covariance(result: InertiaResult) -> np.ndarray | None:
 
 
 def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weight_surplus: float | None = None,
-             rig=None) -> Validation:
+             rig: Rig | None = None) -> Validation:
     """The verdict on an inertia fit (see module docstring).
 
     result: the fit (:func:`~rig_identification.estimation.identification.identify_inertia`, with ``series`` carrying
@@ -522,6 +530,7 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     bad numbers: a fit that produced them is ``not_identifiable``.
     """
     checks: list[Check] = []
+    c: Check | None
     theta = from_tensor(result.inertia)
     std = np.asarray(result.inertia_std, float)
     finite = bool(np.all(np.isfinite(theta)) and np.all(np.isfinite(std)))
@@ -616,7 +625,8 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
                       spread, failed, factor)
 
 
-def beyond_limit_widened(theta: np.ndarray, widened: np.ndarray, validation: Validation, rig=None) -> Validation:
+def beyond_limit_widened(theta: np.ndarray, widened: np.ndarray, validation: Validation,
+                         rig: Rig | None = None) -> Validation:
     """Under ``not_identifiable``, the entries the widened σ (``widened`` (6,) kg·m²,
     :func:`widened_std`) leaves beyond :data:`REL_STD_LIMIT` of their scale (a moment's own, the
     largest determined moment's for a product), and the products of their moments, are not
@@ -650,4 +660,5 @@ def widened_std(std: np.ndarray, validation: Validation) -> np.ndarray:
     s = np.asarray(std, float) * validation.sigma_factor
     if not validation.failed or validation.spread_std is None:
         return s
-    return np.sqrt(s**2 + validation.spread_std**2)
+    widened: np.ndarray = np.sqrt(s**2 + validation.spread_std**2)
+    return widened

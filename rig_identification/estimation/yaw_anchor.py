@@ -22,6 +22,7 @@ came back within 2 σ.
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -29,6 +30,9 @@ from scipy.spatial.transform import Rotation
 from ..io.rig import Rig
 from .preprocessor import generalized_wrench
 from .tracker import PoseTrack
+
+if TYPE_CHECKING:
+    from ..io.recording import SensorData
 
 YAW_WEAK = 1e-2      # yaw information / position information below which the yaw is anchored
 MAX_OFFSET = 0.05    # rad: a larger estimate is not a tracker's starting error; the poses are left as they are
@@ -67,7 +71,7 @@ def yaw_information(rig: Rig, position: np.ndarray, rotation: Rotation) -> float
     return float(max(schur, 0.0) / max(np.trace(pp) / 3.0, 1e-300))
 
 
-def anchor_yaw(rig: Rig, track: PoseTrack, sensors, lo: float, hi: float) -> tuple[PoseTrack, YawAnchor]:
+def anchor_yaw(rig: Rig, track: PoseTrack, sensors: SensorData, lo: float, hi: float) -> tuple[PoseTrack, YawAnchor]:
     """The poses ``track`` with the yaw anchored by the moment balance over the window
     [lo, hi] (absolute stamps, s) where the cable lengths leave it free (module docstring).
 
