@@ -22,6 +22,8 @@ SATURATION_RUN = 5       # identical samples at a channel's extreme that make a 
 SLACK_FRACTION = 0.05    # tension below this fraction of the cable's share of the weight = slack
 SPIKE_WINDOW = 41        # samples over which a spike's local scale is the running median (replace_spikes)
 SPIKE_SIGMA = 20.0       # a sample this many local scales off the cubic through its neighbours is a spike
+SPIKE_PEAK = 1.3         # an isolated sample's departure is 1.5× its neighbours'; an edge's or a pulse's
+#                          of two samples or more is about theirs (replace_spikes)
 SPIKE_RESOLUTION = 1e-3  # the local scale's floor as a share of the channel's level: a noise-free
 #                          simulated force's kink (0.3 N of 300 N where a spin-up ramp ends) is no spike
 
@@ -112,8 +114,9 @@ def replace_spikes(ts: TimeSeries) -> tuple[TimeSeries, np.ndarray]:
     local scale of d (1.4826 × the running median of |d| over :data:`SPIKE_WINDOW` samples, robust
     to the spikes; at least the channel's white-noise σ, :func:`~rig_identification.io.noise.white_sigma`,
     and :data:`SPIKE_RESOLUTION` of its median absolute value)
-    and its neighbours' |d| (a spike at k moves d_{k±1} by 2/3 of itself).  Two or more bad samples
-    in a row are not single-sample spikes and stay.  Returns the series (a copy where any was
+    and :data:`SPIKE_PEAK` times its neighbours' |d| (a spike at k moves d_{k±1} by 2/3 of itself;
+    a step's edge or a pulse of two samples or more moves two neighbouring d alike).  Two or more
+    bad samples in a row are not single-sample spikes and stay.  Returns the series (a copy where any was
     replaced) and the stamps (k,) s of the replaced samples."""
     x = ts.data
     if len(x) < SPIKE_WINDOW:
@@ -124,7 +127,7 @@ def replace_spikes(ts: TimeSeries) -> tuple[TimeSeries, np.ndarray]:
     floor = np.array([max(white_sigma(c), SPIKE_RESOLUTION * np.median(np.abs(c))) for c in x.T])[None, :]
     scale = np.maximum(1.4826 * median_filter(d, size=(SPIKE_WINDOW, 1), mode="nearest"), floor)
     peak = np.zeros_like(d, dtype=bool)
-    peak[1:-1] = (d[1:-1] > d[:-2]) & (d[1:-1] > d[2:])
+    peak[1:-1] = d[1:-1] > SPIKE_PEAK * np.maximum(d[:-2], d[2:])
     bad = peak & (d > SPIKE_SIGMA * scale)
     if not bad.any():
         return ts, np.zeros(0)
