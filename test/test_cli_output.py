@@ -21,7 +21,7 @@ from conftest import recording, run_cli
 from rig_identification.cli import diagnose as cli_diagnose
 from rig_identification.cli.inertia import print_inertia
 from rig_identification.cli.main import TENSOR, build_parser, identify_main
-from rig_identification.cli.text import effect_text, evidence_text
+from rig_identification.cli.text import TABLE_CAPTION, effect_text, evidence_text
 from rig_identification.estimation import directions, validation
 from rig_identification.estimation.directions import describe_direction, weak_directions
 from rig_identification.estimation.inertia_result import FitSeries, InertiaResult
@@ -57,14 +57,18 @@ def test_text_says_the_verdict_first_and_the_conventions(text_run):
     assert lines[0].startswith("verdict: ok"), lines[0]
     assert "body frame of rig.yaml (REP-103: x forward, y left, z up)" in out
     assert "SI units (kg, m, kg·m²)" in out
-    assert "about the CG" in out and "NEGATED products of inertia" in out
+    assert "about the CG" in out and "the NEGATED products: ixy = −Ixy" in out
     assert "window: 5.0–120.0 s from the first IMU sample" in out
-    # the table in the order of every option: moments, then products
-    rows = [ln.split()[0] for ln in lines if ln.split() and ln.split()[0] in KEYS]
-    assert rows[:6] == ORDER
-    assert "products of inertia about the CG, vehicle-dynamics sign" in out
+    # one convention in the main table, named in its caption: moments, then products with the
+    # vehicle-dynamics sign (truth iyz −102: Iyz ≈ +102); the tensor's entries beside it
+    caption = lines.index(TABLE_CAPTION)
+    rows = [ln.split() for ln in lines[caption + 2:caption + 8]]
+    assert [r[0] for r in rows] == ["I" + k[1:] for k in ORDER]
+    assert 101 < float(rows[5][1]) < 103 and float(rows[5][3]) == pytest.approx(102.0)
+    entries = next(ln for ln in lines if ln.startswith("the inertia tensor's off-diagonal entries about the CG"))
+    assert float(entries.split("iyz ")[1].split()[0]) == pytest.approx(-float(rows[5][1]))
     assert "principal moments (kg·m², ascending)" in out and out.count("  I") >= 3
-    assert "tensor about the body-frame origin (parallel-axis theorem" in out
+    assert "about the body-frame origin (parallel-axis theorem" in out
     assert "σ leaves out the mass and centre of gravity given above: they are taken as exact" in out
     assert "The most weakly determined combination is" in out and out.count("most weakly determined") == 1
     assert "nan" not in out.lower().replace("nanoseconds", "")
@@ -195,12 +199,12 @@ def test_undetermined_entries_print_as_not_determined(capsys):
     print_inertia(res, None, ["REC"], [100.0], "body", "rig.yaml body.center_of_gravity")
     out = capsys.readouterr().out
     assert out.splitlines()[0].startswith("verdict: NOT IDENTIFIABLE")
-    rows = {ln.split()[0]: ln for ln in out.splitlines() if ln.split() and ln.split()[0] in KEYS}
-    for k in ("iyy", "ixy", "iyz"):
+    rows = {ln.split()[0]: ln for ln in out.splitlines() if ln.split() and ln.split()[0] in ("Iyy", "Ixy", "Iyz")}
+    for k in ("Iyy", "Ixy", "Iyz"):
         assert "not determined" in rows[k] and not any(ch.isdigit() for ch in rows[k].replace(k, "")), rows[k]
-    assert "Ixy not determined" in out and "Iyz not determined" in out
+    assert "ixy not determined" in out and "iyz not determined" in out     # the tensor's entries
     assert "principal moments and axes: not determined" in out
-    assert "iyy not determined" in out    # about the origin too
+    assert "Iyy not determined" in out    # about the origin too
     assert "nan" not in out.lower()
     d = res.to_dict(t0=100.0)
     assert d["inertia_about_cg"]["iyy"] is None and d["inertia_std"]["ixy"] is None
@@ -243,12 +247,13 @@ def test_rig_output_axes_is_the_default_of_axes(tmp_path):
     code, out, err = run("inertia", rec, "--quick", "--quiet")
     assert code == 0, err
     assert "frame: SAE J670 vehicle axes" in out.splitlines()[2], out.splitlines()[:4]
-    sae = {ln.split()[0]: float(ln.split()[1]) for ln in out.splitlines() if ln.split() and ln.split()[0] in KEYS}
+    names = ["I" + k[1:] for k in KEYS]
+    sae = {ln.split()[0]: float(ln.split()[1]) for ln in out.splitlines() if ln.split() and ln.split()[0] in names}
     code, body, err = run("inertia", rec, "--quick", "--quiet", "--axes", "body")
     assert code == 0, err
     assert "frame: the body frame of rig.yaml" in body.splitlines()[2]
-    bod = {ln.split()[0]: float(ln.split()[1]) for ln in body.splitlines() if ln.split() and ln.split()[0] in KEYS}
-    assert sae["ixy"] == pytest.approx(-bod["ixy"]) and sae["iyz"] == pytest.approx(bod["iyz"])
+    bod = {ln.split()[0]: float(ln.split()[1]) for ln in body.splitlines() if ln.split() and ln.split()[0] in names}
+    assert sae["Ixy"] == pytest.approx(-bod["Ixy"]) and sae["Iyz"] == pytest.approx(bod["Iyz"])
     # several recordings: their rig.yaml's axes when they agree, else body with a warning
     rig = lambda axes: SimpleNamespace(rig=SimpleNamespace(output_axes=axes))  # noqa: E731
     assert output_axes(None, [rig("sae"), rig("sae")]) == ("sae", None)

@@ -312,11 +312,11 @@ def test_client_prints_the_table_with_truth(graph):
                        env=g.env, capture_output=True, text=True, timeout=90)
     assert p.returncode == 0, p.stdout + p.stderr
     out = p.stdout
-    for word in ("verdict: ", "NEGATED products of inertia", "ixx", "iyz", "izz", "mass", "truth", "error",
+    for word in ("verdict: ", "the NEGATED products", "Ixx", "Iyz", "Izz", "mass", "truth", "error",
                  "% of the largest true diagonal", "vehicle-dynamics sign"):
         assert word in out, (word, out)
     assert "capture the baseline" in out  # the CG service's answer is reported
-    row = next(line for line in out.splitlines() if line.startswith("ixx"))
+    row = next(line for line in out.splitlines() if line.startswith("Ixx"))
     assert f"{sim.truth['inertia_about_cg']['ixx']:.2f}" in row
     pj = subprocess.run([sys.executable, "-m", "rig_identification.nodes.client", "--json", "--timeout", "20"],
                         env=g.env, capture_output=True, text=True, timeout=90)

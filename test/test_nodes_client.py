@@ -28,7 +28,9 @@ def answer():
 
 
 def rows(text: str) -> dict[str, str]:
-    return {line.split()[0]: line for line in text.splitlines() if line.split() and line.split()[0] in KEYS}
+    """The table's rows of moments and products (Ixx … Iyz) by tensor key (ixx … iyz)."""
+    return {line.split()[0].lower(): line for line in text.splitlines()
+            if line.split() and line.split()[0].startswith("I") and line.split()[0].lower() in KEYS}
 
 
 def test_verdict_first_then_the_conventions(answer):
@@ -36,7 +38,7 @@ def test_verdict_first_then_the_conventions(answer):
     lines = format_table(d, truth).splitlines()
     assert lines[2] == d["validation"]["summary"] and lines[2].startswith("verdict: ok")
     assert lines[3].startswith("frame: the body frame of rig.yaml") and "SI units" in lines[3]
-    assert "NEGATED products of inertia" in lines[4]
+    assert "the NEGATED products" in lines[4] and "vehicle-dynamics sign" in lines[4]
     # an answer without validation (an identifier older than the client): the table says so
     unvalidated = dict(d, validation=None)
     assert format_table(unvalidated, truth).splitlines()[2] == UNVALIDATED
@@ -49,14 +51,16 @@ def test_entries_in_rig_identify_order_with_truth_and_products_sign(answer):
     assert list(r) == ["ixx", "iyy", "izz", "ixy", "ixz", "iyz"]
     J, Jt = d["inertia_about_cg"], truth["inertia_about_cg"]
     for k in KEYS:
+        sign = 1.0 if k in ("ixx", "iyy", "izz") else -1.0     # products: vehicle-dynamics sign
         cells = r[k].split()
-        assert float(cells[2]) == pytest.approx(J[k], abs=0.006)                 # identified
+        assert float(cells[2]) == pytest.approx(sign * J[k], abs=0.006)          # identified
         assert float(cells[3]) == pytest.approx(d["inertia_std"][k], abs=0.006)  # ±1σ
-        assert float(cells[4]) == pytest.approx(Jt[k], abs=0.006)                # truth.yaml
-    # the products with the vehicle-dynamics sign: Iyz = −iyz (truth: iyz −102, so Iyz ≈ +102.7)
-    line = next(x for x in text.splitlines() if x.startswith("products of inertia"))
-    iyz = float(line.split("Iyz ")[1].split()[0])
-    assert iyz == pytest.approx(-J["iyz"], abs=0.006) and iyz > 0 and abs(iyz + Jt["iyz"]) < 1.0
+        assert float(cells[4]) == pytest.approx(sign * Jt[k], abs=0.006)         # truth.yaml
+    # the table's Iyz = −iyz (truth: iyz −102, so Iyz ≈ +102.7); the tensor's entries beside it
+    iyz = float(r["iyz"].split()[2])
+    assert iyz > 0 and abs(iyz + Jt["iyz"]) < 1.0
+    line = next(x for x in text.splitlines() if x.startswith("the inertia tensor's off-diagonal entries"))
+    assert float(line.split("iyz ")[1].split()[0]) == pytest.approx(J["iyz"], abs=0.006)
 
 
 def test_undetermined_entry_prints_not_determined(answer):
@@ -65,7 +69,7 @@ def test_undetermined_entry_prints_not_determined(answer):
     d["inertia_about_cg"]["ixy"] = d["inertia_std"]["ixy"] = None   # as in a not_identifiable answer
     text = format_table(d, truth)
     assert "not determined" in rows(text)["ixy"]
-    assert "Ixy not determined" in text
+    assert "ixy not determined" in text
     assert float(rows(text)["ixx"].split()[2]) == pytest.approx(d["inertia_about_cg"]["ixx"], abs=0.006)
 
 

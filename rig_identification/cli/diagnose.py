@@ -35,7 +35,7 @@ from ..report.diagnosis import diagnosis_json
 from ..report.diagnosis_page import write_report
 from .inertia import truth_columns, window_line
 from .progress import heading, step
-from .text import effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
+from .text import TABLE_CAPTION, effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
 
 
 def same_as(model: str) -> str:
@@ -95,6 +95,7 @@ def print_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> Non
     print("  " + (result.validation.summary if result.validation is not None else "verdict: none"))
     print("  " + window_line(result, t0))
     ex = result.expressed("body")
+    print("  " + TABLE_CAPTION)
     for line in tensor_table(ex, truth_columns(result, rec.truth, "body")):
         print("  " + line)
     name = "ours (Newton–Euler with ω × Jω)" if model == "pem" else "the thesis (no ω × Jω)"

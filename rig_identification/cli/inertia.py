@@ -53,7 +53,16 @@ from ..report.page import ReportError, check_report_dir, common_truth, write_rep
 from ..statics.handover import load_cg_result
 from .progress import heading, step, warn
 from .rig_model import cmd_rig_model
-from .text import effect_text, entries_line, fmt, origin_line, principal_lines, products_line, tensor_table
+from .text import (
+    TABLE_CAPTION,
+    effect_text,
+    entries_line,
+    fmt,
+    origin_line,
+    principal_lines,
+    tensor_entries_line,
+    tensor_table,
+)
 
 
 def truth_columns(result: InertiaResult, truth: dict | None, axes: str) -> dict | None:
@@ -151,10 +160,10 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
         for p, s, t0 in zip(paths, result.series, t0s):
             print(f"  {p}: window {s.t[0] - t0:.1f}–{s.t[-1] - t0:.1f} s from its first IMU sample, "
                   f"{len(s.t)} samples; band {s.band_hz[0]:.2f}–{s.band_hz[1]:.2f} Hz")
-    print("inertia tensor about the CG:")
+    print(TABLE_CAPTION)
     for line in tensor_table(ex, truth_columns(result, truth, axes)):
         print(line)
-    print(products_line(ex))
+    print(tensor_entries_line(ex))
     for line in principal_lines(ex):
         print(line)
     print(origin_line(ex))

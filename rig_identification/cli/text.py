@@ -12,8 +12,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io.export import EFFECT_UNITS, NOT_DETERMINED, ORDER, PRODUCTS, Expressed, effect_text, value_text
-from ..io.verdict import fmt_p
+from ..io.export import EFFECT_UNITS, NOT_DETERMINED, ORDER, PRODUCTS, VEHICLE_SIGN, Expressed, effect_text, value_text
+from ..io.verdict import KEYS, fmt_p
 
 
 def fmt(x, spec: str = ".2f", width: int = 0) -> str:
@@ -34,38 +34,50 @@ def p_text(p: float) -> str:
     return s if s.startswith("<") else f"= {s}"
 
 
+#: The main table's caption: which convention its numbers are in (the one every main table uses).
+TABLE_CAPTION = ("moments and products of inertia about the CG, kg·m² (products with the vehicle-dynamics sign, "
+                 "SAE J670 / ISO 8855: Ixy = ∫xy dm = −ixy):")
+
+
 def tensor_table(ex: Expressed, truth: dict | None = None) -> list[str]:
-    """The tensor about the CG, one entry a line in :data:`ORDER`: value and σ; with ``truth``
-    ({key: {"truth", "error_percent", "error_sigma"}}, in ``ex``'s axes) its columns too."""
-    head = f"{'entry':6s} {'kg·m²':>14s} {'σ':>9s}"
+    """The main table: the moments and products of inertia about the CG (products with the
+    vehicle-dynamics sign, :data:`~rig_identification.io.export.VEHICLE_SIGN`), one a line in
+    :data:`ORDER` (Ixx Iyy Izz Ixy Ixz Iyz): value and σ; with ``truth`` ({KEYS: {"truth",
+    "error_percent", "error_sigma"}}, tensor entries in ``ex``'s axes) its columns too, signed
+    as the row.  Its caption is :data:`TABLE_CAPTION`."""
+    head = f"{'':6s} {'kg·m²':>14s} {'σ':>9s}"
     if truth:
         head += f" {'truth':>10s} {'error':>9s} {'err/σ':>7s}"
     lines = [head]
     for k in ORDER:
+        sign = VEHICLE_SIGN[KEYS.index(k)]
+        name = "I" + k[1:]
         v = ex.entry(k)
         if v is None:
-            line = f"{k:6s} {NOT_DETERMINED:>14s} {'':>9s}"
+            line = f"{name:6s} {NOT_DETERMINED:>14s} {'':>9s}"
             if truth:
-                line += f" {truth[k]['truth']:10.2f}"
+                line += f" {sign * truth[k]['truth'] + 0.0:10.2f}"
         else:
-            line = f"{k:6s} {v:14.2f} {fmt(ex.sigma(k), '.3g', 9)}"
+            line = f"{name:6s} {sign * v + 0.0:14.2f} {fmt(ex.sigma(k), '.3g', 9)}"
             if truth:
                 c = truth[k]
-                line += f" {c['truth']:10.2f} {c['error_percent']:+8.3f}% {c['error_sigma']:+7.2f}"
+                line += (f" {sign * c['truth'] + 0.0:10.2f} {sign * c['error_percent'] + 0.0:+8.3f}% "
+                         f"{sign * c['error_sigma'] + 0.0:+7.2f}")
         lines.append(line)
     if truth:
         lines.append("(error: % of the entry for moments, % of the largest moment for products)")
     return lines
 
 
-def products_line(ex: Expressed) -> str:
-    """The products of inertia with the vehicle-dynamics sign, about the CG."""
+def tensor_entries_line(ex: Expressed) -> str:
+    """The tensor's off-diagonal entries about the CG (the negated products: what
+    geometry_msgs/Inertia, URDF, truth.yaml and the JSON hold)."""
     parts = []
-    for k, name in PRODUCTS.items():
-        v = ex.products()[name]
-        parts.append(f"{name} {NOT_DETERMINED}" if v is None else f"{name} {v:+.2f} ± {fmt(ex.sigma(k), '.3g')}")
-    return ("products of inertia about the CG, vehicle-dynamics sign (Ixy = ∫xy dm = −ixy; SAE J670 / ISO 8855): "
-            + ", ".join(parts) + " kg·m²")
+    for k in PRODUCTS:
+        v = ex.entry(k)
+        parts.append(f"{k} {NOT_DETERMINED}" if v is None else f"{k} {v:+.2f} ± {fmt(ex.sigma(k), '.3g')}")
+    return ("the inertia tensor's off-diagonal entries about the CG (= −products; geometry_msgs/Inertia, URDF, "
+            "the JSON): " + ", ".join(parts) + " kg·m²")
 
 
 def principal_lines(ex: Expressed) -> list[str]:
@@ -84,10 +96,15 @@ def principal_lines(ex: Expressed) -> list[str]:
 
 
 def origin_line(ex: Expressed) -> str:
-    """The tensor about the body frame's origin (parallel-axis theorem)."""
+    """The moments and products of inertia about the body frame's origin (parallel-axis
+    theorem; products with the vehicle-dynamics sign, as the main table)."""
     same = bool(np.allclose(ex.cg, 0.0))
-    vals = ", ".join(f"{k} {fmt(ex.entry(k, 'origin'))}" for k in ORDER)
-    return ("tensor about the body-frame origin (parallel-axis theorem, J + m (|c|² I − c cᵀ), "
+
+    def signed(k: str) -> float | None:
+        v = ex.entry(k, "origin")
+        return None if v is None else VEHICLE_SIGN[KEYS.index(k)] * v + 0.0
+    vals = ", ".join(f"I{k[1:]} {fmt(signed(k))}" for k in ORDER)
+    return ("about the body-frame origin (parallel-axis theorem, J + m (|c|² I − c cᵀ), "
             f"mass {ex.mass:g} kg, "
             f"CG c above{'; the CG is at the origin: the same' if same else ''}): {vals} kg·m²")
 
@@ -102,4 +119,4 @@ def entries_line(d: dict, std: dict | None = None, spec: str = ".2f") -> str:
 
 
 __all__ = ["EFFECT_UNITS", "effect_text", "entries_line", "evidence_text", "fmt", "origin_line", "p_text",
-           "principal_lines", "products_line", "tensor_table", "value_text"]
+           "principal_lines", "TABLE_CAPTION", "tensor_entries_line", "tensor_table", "value_text"]

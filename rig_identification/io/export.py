@@ -92,9 +92,9 @@ AXES = {
 def convention_lines(axes: Axes) -> list[str]:
     """The lines every text output starts its numbers with: frame, units, sign convention."""
     return [f"frame: {axes.label}; origin at rig.yaml's body-frame origin; SI units (kg, m, kg·m²)",
-            "tensor: about the CG, in these axes; its off-diagonal entries ixy, ixz, iyz (geometry_msgs/Inertia, "
-            "URDF, truth.yaml, the JSON) are the NEGATED products of inertia: Ixy = ∫xy dm = −ixy (vehicle "
-            "dynamics, SAE J670 / ISO 8855)"]
+            "tables: moments and products of inertia about the CG, in these axes, products with the vehicle-dynamics "
+            "sign (SAE J670 / ISO 8855: Ixy = ∫xy dm); the tensor's off-diagonal entries ixy, ixz, iyz "
+            "(geometry_msgs/Inertia, URDF, truth.yaml, the JSON) are the NEGATED products: ixy = −Ixy"]
 
 
 def parallel_axis(J: np.ndarray, mass: float, c: np.ndarray) -> np.ndarray:

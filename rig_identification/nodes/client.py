@@ -11,9 +11,10 @@ Verbs (ROS arguments may follow ``--ros-args``; ``--identifier NAME`` picks the 
       diagonal entry for the products of inertia, mm for the centre of gravity.  First the
       verdict of the node's model validation (ok | model_error | not_identifiable, as
       ``rig-identify inertia --quick`` gives it) and the conventions of ``rig-identify
-      inertia`` (body frame, SI units, tensor entries ixx..iyz in its order, whose off-diagonal
-      ones are the negated products of inertia; an entry the recording does not determine is
-      "not determined"); then the products with the vehicle-dynamics sign.  When the
+      inertia`` (body frame, SI units, the moments and products of inertia Ixx..Iyz in its
+      order, products with the vehicle-dynamics sign; an entry the recording does not
+      determine is "not determined"); then the tensor's off-diagonal entries (the negated
+      products, as the service's JSON holds them).  When the
       identifier is busy with another request's fit, the client asks again.
   mass_properties_client cg-capture baseline|dummy [--json]
       the static centre-of-gravity experiment, steps 1 and 2: ~/capture_cg_baseline
@@ -75,9 +76,10 @@ UNVALIDATED = ("verdict: none — this answer carries no model validation (an id
 def format_table(result: dict, truth: dict | None, cg_answer: str | None = None, name: str = "/identifier") -> str:
     """The mass-properties table (see module docstring) as text: the verdict first, then the
     conventions (as ``rig-identify inertia``: frame, units, the tensor's off-diagonal entries
-    are the negated products of inertia), the window, the table of mass, CG and tensor entries
-    (``null`` entries, which the recording does not determine, as "not determined"), the
-    products of inertia with the vehicle-dynamics sign, notes and warnings."""
+    are the negated products of inertia), the window, the table of mass, CG, moments and products
+    of inertia (products with the vehicle-dynamics sign, as every rig-identify table; ``null``
+    entries, which the recording does not determine, as "not determined"), the tensor's
+    off-diagonal entries, notes and warnings."""
     lines = []
     w = result.get("window", {})
     head = f"Mass properties identified by {name}"
@@ -122,23 +124,25 @@ def format_table(result: dict, truth: dict | None, cg_answer: str | None = None,
     big = max(abs(Jt["ixx"]), abs(Jt["iyy"]), abs(Jt["izz"])) if Jt else None
     for k in KEYS:
         diag = k not in PRODUCTS
+        sign = 1.0 if diag else -1.0            # the table's products: vehicle-dynamics sign, Ixy = −ixy
+        name = "I" + k[1:]
         err = "—"
         if Jt is not None and J.get(k) is not None:
             ref = abs(Jt[k]) if diag else big
-            err = f"{100 * (J[k] - Jt[k]) / ref:+.3f} %" + ("" if diag else "*")
+            err = f"{sign * 100 * (J[k] - Jt[k]) / ref + 0.0:+.3f} %" + ("" if diag else "*")
         if J.get(k) is None:
-            lines.append(f"{k:<10}{'kg·m²':>7}  {NOT_DETERMINED}")
+            lines.append(f"{name:<10}{'kg·m²':>7}  {NOT_DETERMINED}")
             continue
-        row(k, "kg·m²", f"{J[k]:.2f}", f"{std[k]:.2f}" if std.get(k) is not None else "—",
-            f"{Jt[k]:.2f}" if Jt else "—", err)
+        row(name, "kg·m²", f"{sign * J[k] + 0.0:.2f}", f"{std[k]:.2f}" if std.get(k) is not None else "—",
+            f"{sign * Jt[k] + 0.0:.2f}" if Jt else "—", err)
     lines.append("mass and CG: the known values of rig.yaml (the dynamic experiment identifies the tensor), taken "
                  "as exact: the tensor's error from an error of the CG is not in its σ")
     if has_truth:
         lines.append("error: % of the true value; * products of inertia: % of the largest true diagonal entry")
-    products = [f"I{k[1:]} " + (NOT_DETERMINED if J.get(k) is None else f"{-J[k] + 0.0:+.2f}"
-                                + (f" ± {std[k]:.2f}" if std.get(k) is not None else "")) for k in PRODUCTS]
-    lines.append("products of inertia about the CG, vehicle-dynamics sign (Ixy = ∫xy dm = −ixy): "
-                 + ", ".join(products) + " kg·m²")
+    entries = [f"{k} " + (NOT_DETERMINED if J.get(k) is None else f"{J[k] + 0.0:+.2f}"
+                          + (f" ± {std[k]:.2f}" if std.get(k) is not None else "")) for k in PRODUCTS]
+    lines.append("the inertia tensor's off-diagonal entries about the CG (= −products; geometry_msgs/Inertia, the "
+                 "service's JSON): " + ", ".join(entries) + " kg·m²")
     for wd in result.get("weakly_determined", [])[:1]:
         if isinstance(wd, dict) and wd.get("text"):
             lines.append("note: " + wd["text"])

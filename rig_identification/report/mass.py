@@ -196,8 +196,10 @@ def matrices_html(mp: MassProperties) -> str:
     """The tensor as a matrix about the CG and about the body frame's origin, side by side."""
     same = bool(np.allclose(mp.cg, 0.0))
     return ('<div style="display:flex;gap:2em;flex-wrap:wrap">'
-            + matrix_html(mp.tensor_cg, mp.undetermined, "J about the CG, kg·m²")
-            + matrix_html(mp.tensor_origin, mp.undetermined, "J about the body-frame origin, kg·m²") + "</div>"
+            + matrix_html(mp.tensor_cg, mp.undetermined,
+                          "inertia tensor J about the CG, kg·m² (off-diagonal: −products)")
+            + matrix_html(mp.tensor_origin, mp.undetermined,
+                          "inertia tensor J about the body-frame origin, kg·m² (off-diagonal: −products)") + "</div>"
             + '<p class="note">About the origin: parallel-axis theorem, J_O = J + m (|c|² I − c cᵀ), with the mass '
             + f"{mp.mass:g} kg and the CG c = [{', '.join(num(x, '.4f') for x in mp.cg)}] m; σ as about the CG "
             "(mass and CG taken as exact)." + (" The CG is at the origin: the two are the same." if same else "")
