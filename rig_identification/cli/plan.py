@@ -17,7 +17,7 @@ import numpy as np
 from ..design.planning import PlanError, geometry_variants, plan_experiment
 from ..design.run import Run, load_plan_input, make_body
 from ..estimation.precision import precision_of
-from ..io.export import ORDER, entries_from_option, tensor_from_option
+from ..io.export import ORDER, VEHICLE_SIGN, entries_from_option, tensor_from_option
 from ..io.recording import read_recording
 from ..io.verdict import KEYS
 from ..model.dynamics import SimulationError
@@ -27,6 +27,7 @@ from ..model.parametrisation import from_tensor
 from ..pipeline.offline import identify_recording
 from ..pipeline.thesis_table import print_summary, print_table, run_case
 from .progress import heading, step
+from .text import TABLE_CAPTION
 
 
 def cmd_thesis_table(args) -> int:
@@ -210,13 +211,15 @@ def cmd_plan(args) -> int:
     bp, pp = plan.baseline.prediction, plan.prediction
     print(f"predicted σ at the noise levels {', '.join(f'{kk} {v:g}' for kk, v in body.noise.items())} "
           "(rad/s, m/s², N, N, rad):")
-    print(f"{'entry':6s} {'value':>9s} {'baseline σ':>11s} {'plan σ':>9s} {'ratio':>6s} {'plan σ rel.':>11s}")
+    print(TABLE_CAPTION)
+    print(f"{'':6s} {'value':>9s} {'baseline σ':>11s} {'plan σ':>9s} {'ratio':>6s} {'plan σ rel.':>11s}")
     theta = from_tensor(body.inertia)
     for kk in ORDER:
         i = KEYS.index(kk)
         b, p, rel = bp.std[i], pp.std[i], pp.relative_std[i]
-        print(f"{kk:6s} {theta[i]:9.1f} {b:11.3f} {p:9.3f} {b / p:6.1f} {100 * rel:10.4f}%")
-    print("(tensor entries, kg·m²; relative: of the entry for moments, of the largest moment for products)")
+        print(f"{'I' + kk[1:]:6s} {VEHICLE_SIGN[i] * theta[i] + 0.0:9.1f} {b:11.3f} {p:9.3f} {b / p:6.1f} "
+              f"{100 * rel:10.4f}%")
+    print("(relative: of the entry for moments, of the largest moment for products)")
     for title, p in reach.items():
         print(f"{title}: {p.text()}")
     for title, pr in (("baseline", bp), ("plan", pp)):
