@@ -15,7 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random
 from rig_identification.estimation.harmonic_start import harmonic_start, harmonics
-from rig_identification.estimation.rig_fit import Prior
+from rig_identification.estimation.rig_fit import Layout, Prior, RigFit
 from rig_identification.estimation.rig_record import (
     FORCE_CHANNELS,
     MODEL_RATE_BANDS,
@@ -24,7 +24,7 @@ from rig_identification.estimation.rig_record import (
     smooth_force,
 )
 from rig_identification.io.recording import Recording, SensorData
-from rig_identification.io.rig import inertia_tensor
+from rig_identification.io.rig import Survey, inertia_tensor
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.experiment import experiment_from_dict
 from rig_identification.model.linear_rig import (
@@ -41,6 +41,7 @@ from rig_identification.model.simulator import simulate as simulate_experiment
 from rig_identification.pipeline.offline import default_initial_guess
 from rig_identification.pipeline.rig_model import (
     TRUSTED_START_SHARE,
+    RigModelResult,
     fit_whole_recording,
     split_cg,
     start_tensors,
@@ -233,6 +234,33 @@ def test_three_and_five_cable_rigs_within_one_percent_three_sigma_near_the_bound
     err = np.array(cg["dynamic"]) - np.array(truth["center_of_gravity"])
     assert np.all(np.abs(err) < 3e-3) and np.all(np.abs(err) < 3 * np.array(cg["dynamic_std"])), err
     assert abs(d["mass"] - truth["mass"]) < 3 * d["mass_std"]
+    # restarted 1 % away either way, the fit comes back within 3 σ: the likelihood is as sharp as σ says
+    for m in d["other_minima"]:
+        other = np.array([m["inertia_about_cg"][k] for k in KEYS])
+        assert np.all(np.abs(other - est) < 3 * sd) and m["chi2_over_estimate"] >= 0, ((other - est) / sd, m)
+    assert not d["ambiguous"]
+
+
+def test_a_restart_that_settles_elsewhere_as_well_is_not_identifiable(quiet_rig):
+    """Another minimum more than 3 σ off whose χ² is within the tensor's 95 % likelihood-ratio
+    region (12.6) makes those entries ambiguous and the verdict not_identifiable; one 2 σ off,
+    or one whose χ² is 20 higher, does not (the other restart came back within 0.5 σ)."""
+    p = _truth_parameters(quiet_rig)
+    lay = Layout(len(quiet_rig.rig.cables))
+    cov = np.diag(np.full(lay.size, 1e-8))
+    cov[lay.inertia, lay.inertia] = 1.0                              # σ 1 kg·m² on each entry
+
+    def verdict(shift_sigma: float, chi2: float) -> tuple[list[str], str]:
+        other = p.inertia + shift_sigma * (np.arange(6) == KEYS.index("iyy"))
+        fit = RigFit(p, np.zeros(12), cov, np.ones(6), np.ones(4), np.ones(4), ("a", "b", "c", "d"), np.ones(6), lay,
+                     1, np.array([p.inertia + 0.5, other]), np.array([0.3, chi2]))
+        res = RigModelResult(fit, "rec", 0.0, 0.0, 60.0, 4.0, p.inertia, np.full(6, np.inf), "start", p.cg,
+                             np.full(3, np.inf), "rig.yaml", Survey(), 1.0, None)
+        return res.ambiguous, res.verdict
+
+    assert verdict(5.0, 2.0) == (["iyy"], "not_identifiable")
+    assert verdict(2.0, 2.0) == ([], "ok")
+    assert verdict(5.0, 20.0) == ([], "ok")
 
 
 def test_a_trusted_gyro_fit_is_the_first_start_else_the_forced_response():

@@ -12,10 +12,12 @@ import json
 
 import numpy as np
 
+from ..io.export import ORDER, VEHICLE_SIGN
 from ..io.verdict import KEYS
 from ..pipeline.rig_model import CONSISTENCY_SIGMA, LEVEL_LIMIT, CentreOfGravity, RigModelResult, fit_whole_recording
 from ..statics.handover import load_cg_result
 from .progress import heading
+from .text import TABLE_CAPTION
 
 
 def print_rig_model(res: RigModelResult) -> None:
@@ -26,9 +28,12 @@ def print_rig_model(res: RigModelResult) -> None:
     words = {"ok": "ok — the model explains every channel at its noise level",
              "model_error": "model_error — " + ", ".join(res.poorly_fitted) + f" beyond {LEVEL_LIMIT}× their noise: "
                             "the model misses something there; σ below is not calibrated",
-             "not_identifiable": "not_identifiable — " + ", ".join(res.undetermined) + " not determined to ±1 % at "
-                                 "95 %: the fit may sit in another minimum that explains the data as well, and the "
-                                 "tensor's directions are coupled: no entry below is an estimate to use",
+             "not_identifiable": "not_identifiable — " + (
+                 ", ".join(res.undetermined) + " not determined to ±1 % at 95 %: the fit may sit in another minimum "
+                 "that explains the data as well, and the tensor's directions are coupled" if res.undetermined else
+                 "restarted 1 % away, the fit settled more than 3 σ off on " + ", ".join(res.ambiguous)
+                 + f" at a χ² only {min(f.other_chi2):.1f} above the estimate's: the likelihood is flat where σ "
+                 "says it is sharp") + "; no entry below is an estimate to use",
              "inconsistent": "inconsistent — " + ("the rig model and the gyro-only fit disagree beyond 3 σ on "
                                                   + ", ".join(res.inconsistent) + ": the fit may have settled in "
                                                   "another minimum" if res.inconsistent else
@@ -46,20 +51,23 @@ def print_rig_model(res: RigModelResult) -> None:
     print(f"span: {res.start_s:.1f}–{res.start_s + res.duration_s:.1f} s from the first IMU sample "
           f"({res.duration_s:.1f} s, after the exciter's spin-up); band 0–{res.band_hz:.2f} Hz; "
           f"started from {res.start_source}")
-    print("inertia tensor about the CG (body axes; ixy, ixz, iyz are the tensor's entries, the negated "
-          "products of inertia):")
+    print(TABLE_CAPTION[:-1] + "; body axes:")
     truth = d.get("truth_comparison")
-    head = f"{'entry':<7}{'kg·m²':>12}{'σ':>10}{'CRB':>10}{'σ/CRB':>7}"
+    head = f"{'':<7}{'kg·m²':>12}{'σ':>10}{'CRB':>10}{'σ/CRB':>7}"
     if truth:
         head += f"{'truth':>11}{'error':>10}{'err/σ':>7}"
     print(head)
-    for i, k in enumerate(KEYS):
-        line = (f"{k:<7}{p.inertia[i]:>12.2f}{f.inertia_std[i]:>10.3g}{f.crb[i]:>10.3g}"
+    for k in ORDER:
+        i = KEYS.index(k)
+        sign = VEHICLE_SIGN[i]
+        line = (f"{'I' + k[1:]:<7}{sign * p.inertia[i] + 0.0:>12.2f}{f.inertia_std[i]:>10.3g}{f.crb[i]:>10.3g}"
                 f"{f.inertia_std[i] / f.crb[i]:>7.2f}")
         if truth:
             t = truth[k]
-            line += f"{t['truth']:>11.2f}{t['error_percent']:>+9.3f}%{t['error_sigma']:>+7.2f}"
+            line += (f"{sign * t['truth'] + 0.0:>11.2f}{sign * t['error_percent'] + 0.0:>+9.3f}%"
+                     f"{sign * t['error_sigma'] + 0.0:>+7.2f}")
         print(line)
+    print("(the tensor's off-diagonal entries, the JSON's ixy, ixz, iyz, are the negated products)")
     sv = d["survey"]
     print(f"mass {p.mass:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
     print_cg(res.cg)

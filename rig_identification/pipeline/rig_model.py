@@ -154,7 +154,8 @@ class RigModelResult:
     def verdict(self) -> str:
         """``ok`` (every channel within :data:`LEVEL_LIMIT` of its noise, the tensor consistent with
         the gyro-only fit), ``model_error`` (some channel beyond: the model misses physics or a
-        sensor's trait, σ not calibrated), ``not_identifiable`` (some entry :attr:`undetermined`:
+        sensor's trait, σ not calibrated), ``not_identifiable`` (some entry :attr:`undetermined` or
+        :attr:`ambiguous`:
         then no entry is an estimate — the directions of the tensor are coupled, and on bench_crb's
         31003 a moment whose σ said ±0.85 % at 95 % was 9 % off beside the undetermined one),
         ``inconsistent`` (:attr:`inconsistent` entries, or the static and dynamic CG disagree
@@ -167,7 +168,7 @@ class RigModelResult:
             return "failed"
         if self.poorly_fitted:
             return "model_error"
-        if self.undetermined:
+        if self.undetermined or self.ambiguous:
             return "not_identifiable"
         return "inconsistent" if self.inconsistent or not self.cg.agree else "ok"
 
@@ -191,6 +192,14 @@ class RigModelResult:
         return [k for k, s, c in zip(KEYS, self.fit.inertia_std, scale) if not Z95 * s <= DETERMINED_SHARE * c]
 
     @property
+    def ambiguous(self) -> list[str]:
+        """The entries on which a restart of the fit 1 % away settled more than 3 σ from the
+        estimate at a χ² within the tensor's 95 % likelihood-ratio region
+        (:attr:`~rig_identification.estimation.rig_fit.RigFit.ambiguous`): the likelihood is
+        flat where σ says it is sharp, so σ is not the error's size and no entry is an estimate."""
+        return [KEYS[i] for i in self.fit.ambiguous]
+
+    @property
     def poorly_fitted(self) -> list[str]:
         """The channels whose residual in the band exceeds :data:`LEVEL_LIMIT` times their noise."""
         return [c for c, v in zip(self.fit.channels, self.fit.residual_level) if v > LEVEL_LIMIT]
@@ -209,9 +218,15 @@ class RigModelResult:
         sd = f.inertia_std
         bd_cov = f.covariance[f.layout.body_damping][:, f.layout.body_damping]
         d = {
-            "schema": "rig_identification.rig_model_result", "schema_version": 2,
+            "schema": "rig_identification.rig_model_result", "schema_version": 3,
             "recording": self.path, "model": "rig (grey-box, every sensor an output)",
             "verdict": self.verdict, "undetermined": self.undetermined, "inconsistent": self.inconsistent,
+            "ambiguous": self.ambiguous,
+            "other_minima": [{"inertia_about_cg": {k: float(v) for k, v in zip(KEYS, m)},
+                              "chi2_over_estimate": float(c)} for m, c in zip(f.other_minima, f.other_chi2)],
+            "other_minima_note": "the whole-record fit restarted with every entry 1 % away, once each way; the "
+                                 "lowest of the three minima is the estimate; another more than 3 σ off at a χ² "
+                                 "within 12.6 of the estimate's makes those entries ambiguous",
             "window": {"start_s": self.start_s, "duration_s": self.duration_s, "band_hz": [0.0, self.band_hz]},
             "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, p.inertia)},
             "inertia_std": {k: float(v) for k, v in zip(KEYS, sd)},
