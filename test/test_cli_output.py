@@ -43,10 +43,22 @@ def text_run():
     return out, err
 
 
+def with_vehicle(folder: Path, **extra) -> Path:
+    """The clean recording in ``folder`` (its bag linked) with rig.yaml's body.vehicle: front +y, top +z
+    (the Jeep's smallest moment is about body y), and ``extra`` top-level fields."""
+    folder.mkdir()
+    (folder / "bag").symlink_to(recording("visible_case16_clean") / "bag")
+    d = yaml.safe_load((recording("visible_case16_clean") / "rig.yaml").read_text())
+    d["body"]["vehicle"] = {"front": "+y", "top": "+z"}
+    (folder / "rig.yaml").write_text(yaml.safe_dump(d | extra))
+    return folder
+
+
 @pytest.fixture(scope="module")
 def json_run(tmp_path_factory):
     path = tmp_path_factory.mktemp("export") / "mass_properties.yaml"
-    code, out, err = run("inertia", CLEAN, "--quick", "--json", "--urdf", "--yaml", path, "--axes", "sae", "--quiet")
+    rec = with_vehicle(tmp_path_factory.mktemp("vehicle") / "rec")
+    code, out, err = run("inertia", rec, "--quick", "--json", "--urdf", "--yaml", path, "--axes", "sae", "--quiet")
     assert code == 0, err
     return json.loads(out), path, err
 
@@ -55,7 +67,8 @@ def test_text_says_the_verdict_first_and_the_conventions(text_run):
     out, _ = text_run
     lines = out.splitlines()
     assert lines[0].startswith("verdict: ok"), lines[0]
-    assert "body frame of rig.yaml (REP-103: x forward, y left, z up)" in out
+    assert "frame: the body frame of rig.yaml (right-handed, as REP-103); origin" in out   # no vehicle: no front
+    assert "x forward" not in out and "roll" not in out
     assert "SI units (kg, m, kg·m²)" in out
     assert "about the CG" in out and "the NEGATED products: ixy = −Ixy" in out
     assert "window: 5.0–120.0 s from the first IMU sample" in out
@@ -133,11 +146,17 @@ def test_json_schema_units_window_and_derived_quantities(json_run):
     weak = d["weakly_determined"]
     assert [w["weakest"] for w in weak] == [True] + [False] * (len(weak) - 1)
     assert sum("most weakly determined" in w["text"] for w in weak) == 1
-    # --axes sae: the JSON stays in body axes and gains the SAE J670 block (y, z turned)
+    # --axes sae: the JSON stays in body axes and gains the SAE J670 block; the vehicle's front along
+    # body +y, top +z: SAE x = body y, y = body x, z = -body z
+    assert d["vehicle"] == {"front": "+y", "top": "+z"}
     sae = d["sae_j670"]
-    assert sae["inertia_about_cg"]["ixy"] == -d["inertia_about_cg"]["ixy"]
-    assert sae["inertia_about_cg"]["iyz"] == d["inertia_about_cg"]["iyz"]
-    assert sae["products_of_inertia"]["Ixz"] == d["inertia_about_cg"]["ixz"]
+    assert sae["inertia_about_cg"]["ixx"] == d["inertia_about_cg"]["iyy"]       # the roll moment
+    assert sae["inertia_about_cg"]["iyy"] == d["inertia_about_cg"]["ixx"]
+    assert sae["inertia_about_cg"]["izz"] == d["inertia_about_cg"]["izz"]
+    assert sae["inertia_about_cg"]["ixy"] == d["inertia_about_cg"]["ixy"]
+    assert sae["inertia_about_cg"]["iyz"] == -d["inertia_about_cg"]["ixz"]
+    assert sae["products_of_inertia"]["Ixz"] == d["inertia_about_cg"]["iyz"]    # the roll–yaw product
+    assert sae["inertia_std"]["ixx"] == d["inertia_std"]["iyy"]
 
 
 def test_urdf_snippet_parses_and_carries_the_json_numbers(json_run, text_run):
@@ -158,7 +177,9 @@ def test_yaml_export_round_trips(json_run):
     d, path, _ = json_run
     y = yaml.safe_load(path.read_text())
     assert y["schema"] == export.EXPORT_SCHEMA and y["schema_version"] == 1
-    assert y["axes"] == "sae" and y["verdict"] == "ok" and y["sources"] == [CLEAN]
+    assert y["axes"] == "sae" and y["verdict"] == "ok" and len(y["sources"]) == 1
+    assert y["sources"][0].endswith("/rec")          # the clean recording, with body.vehicle (with_vehicle)
+    assert y["frame"].startswith("SAE J670 vehicle axes") and "front along +y" in y["frame"]
     sae = d["sae_j670"]
     for k in ORDER:
         assert y["inertia_about_cg"][k] == sae["inertia_about_cg"][k]
@@ -234,33 +255,32 @@ def test_segment_times_of_a_joint_fit_count_from_their_own_recording():
 
 
 def test_rig_output_axes_is_the_default_of_axes(tmp_path):
-    """rig.yaml ``output_axes: sae``: inertia prints in SAE J670 axes without --axes, and
-    --axes body still chooses the body axes."""
-    from types import SimpleNamespace
-
-    from rig_identification.cli.inertia import output_axes
-    rec = tmp_path / "rec"
-    rec.mkdir()
-    (rec / "bag").symlink_to(recording("visible_case16_clean") / "bag")
-    d = yaml.safe_load((recording("visible_case16_clean") / "rig.yaml").read_text())
-    (rec / "rig.yaml").write_text(yaml.safe_dump(d | {"name": "test rig", "output_axes": "sae"}))
+    """rig.yaml ``output_axes: sae`` (with ``body.vehicle``: front +y, top +z): inertia prints in SAE
+    J670 axes without --axes, the rows named by the vehicle (Ixx the roll moment: body Iyy), and
+    --axes body still chooses the body axes, where Iyy is the roll moment; ``--axes iso8855`` too."""
+    rec = with_vehicle(tmp_path / "rec", name="test rig", output_axes="sae")
     code, out, err = run("inertia", rec, "--quick", "--quiet")
     assert code == 0, err
     assert "frame: SAE J670 vehicle axes" in out.splitlines()[2], out.splitlines()[:4]
     names = ["I" + k[1:] for k in KEYS]
-    sae = {ln.split()[0]: float(ln.split()[1]) for ln in out.splitlines() if ln.split() and ln.split()[0] in names}
+
+    def rows(text):
+        return {ln.split()[0]: ln for ln in text.splitlines() if ln.split() and ln.split()[0] in names}
+    sae = rows(out)
     code, body, err = run("inertia", rec, "--quick", "--quiet", "--axes", "body")
     assert code == 0, err
-    assert "frame: the body frame of rig.yaml" in body.splitlines()[2]
-    bod = {ln.split()[0]: float(ln.split()[1]) for ln in body.splitlines() if ln.split() and ln.split()[0] in names}
-    assert sae["Ixy"] == pytest.approx(-bod["Ixy"]) and sae["Iyz"] == pytest.approx(bod["Iyz"])
-    # several recordings: their rig.yaml's axes when they agree, else body with a warning
-    rig = lambda axes: SimpleNamespace(rig=SimpleNamespace(output_axes=axes))  # noqa: E731
-    assert output_axes(None, [rig("sae"), rig("sae")]) == ("sae", None)
-    assert output_axes(None, [rig(None)]) == ("body", None)
-    assert output_axes("body", [rig("sae")]) == ("body", None)
-    axes, note = output_axes(None, [rig("sae"), rig("body")])
-    assert axes == "body" and "different output_axes" in note
+    assert "frame: the body frame of rig.yaml (right-handed, as REP-103; the vehicle's front along +y" in \
+        body.splitlines()[2]
+    bod = rows(body)
+    value = lambda r: float(r.split()[1])  # noqa: E731
+    assert value(sae["Ixx"]) == value(bod["Iyy"]) and value(sae["Iyy"]) == value(bod["Ixx"])
+    assert value(sae["Ixz"]) == pytest.approx(-value(bod["Iyz"])) and value(sae["Ixy"]) == value(bod["Ixy"])
+    assert sae["Ixx"].endswith("roll moment") and bod["Iyy"].endswith("roll moment")
+    assert bod["Ixx"].endswith("pitch moment") and bod["Iyz"].endswith("roll–yaw product")
+    code, iso, err = run("inertia", rec, "--quick", "--quiet", "--axes", "iso8855")
+    assert code == 0, err
+    assert "frame: ISO 8855 vehicle axes (x forward, y left, z up)" in iso.splitlines()[2]
+    assert value(rows(iso)["Ixz"]) == pytest.approx(value(bod["Iyz"]))      # z up: the product keeps its sign
 
 
 def test_direction_words_are_one_scale():
@@ -270,8 +290,8 @@ def test_direction_words_are_one_scale():
     words = [describe_direction(r, D, scale=2000.0)["level"] for r in (5e-4, 5e-3, 5e-2, 0.2)]
     assert words == ["well determined", "fairly well determined", "weakly determined", "not determined"]
     first, second = describe_direction(5e-3, D, 2000.0, weakest=True), describe_direction(5e-3, D, 2000.0)
-    assert first["text"].startswith("The most weakly determined combination is yaw moment Izz: fairly well")
-    assert "most weakly" not in second["text"] and second["text"].startswith("Yaw moment Izz is fairly well")
+    assert first["text"].startswith("The most weakly determined combination is moment Izz: fairly well")
+    assert "most weakly" not in second["text"] and second["text"].startswith("Moment Izz is fairly well")
     assert describe_direction(5e-3, D, undetermined=("izz",))["level"] == "not determined"
 
 

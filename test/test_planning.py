@@ -109,13 +109,13 @@ def test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation():
     assert d["baseline"]["run"]["frequency_hz"] == 1.05 and d["baseline"]["run"]["amplitude_n"] == 200.0
     assert min(d["improvement"].values()) > 1.2
     # the planner's weakest direction in the CLI's and the report's words (directions.describe_direction),
-    # with why: the thesis's excitation (a vertical spin axis at a base corner) hardly turns the body in yaw
+    # with why: the thesis's excitation (a vertical spin axis at a base corner) hardly turns the body about z
     base = d["baseline"]["prediction"]
     weak = base["weakly_determined"][0]
     rot = base["rotation_rms_rad_s"]
     assert weak["weakest"] and weak["mostly"] == "izz" and rot[2] < 0.5 * max(rot)
     assert weak["text"].startswith("The most weakly determined combination is ")
-    assert f"the body hardly turned about z (yaw rate {rot[2]:.2g} rad/s RMS" in weak["text"], weak["text"]
+    assert f"the body hardly turned about z (rate about z {rot[2]:.2g} rad/s RMS" in weak["text"], weak["text"]
     assert set(d["prediction"]["std"]) == {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"}
     # both against the default target, ±1 % at 95 % of each entry's scale; the plan's half-widths
     # are 1.96 times its predicted σ over that scale, and a run of length_factor × 30 s reaches it

@@ -28,6 +28,7 @@ from synthetic import RIG, euler_data
 from rig_identification.cli.main import identify_main
 from rig_identification.estimation.identification import identify_inertia
 from rig_identification.estimation.inertia_result import InertiaResult
+from rig_identification.io.export import AxesError
 from rig_identification.io.verdict import KEYS, Check, Validation
 from rig_identification.report import page as report
 from rig_identification.report.verdict import headline
@@ -373,23 +374,35 @@ def test_report_refuses_foreign_folder_and_thesis_model(tmp_path, capsys):
 
 def test_report_in_sae_axes(fitted, tmp_path):
     """rig.yaml output_axes / --axes sae: the page gives the mass properties in SAE J670 axes
-    too (x forward, y right, z down: a half turn about x), and report.json holds them — the
-    y and z coordinates and the products with x flip sign, Iyz does not; σ unchanged."""
+    too (x forward, y right, z down), turned from the body frame by rig.yaml's body.vehicle —
+    here front +y, top +z: SAE x = body y, y = body x, z = −body z — and report.json holds
+    them; the moments are named by the vehicle (Iyy the roll moment in the body axes)."""
+    from dataclasses import replace
+
+    from rig_identification.io.vehicle import Vehicle
     res = copy.deepcopy(fitted)
     res.center_of_gravity = np.array([0.1, 0.2, 0.3])
     out = tmp_path / "sae"
-    report.write_report(out, res, [], modes=False, rig=RIG, axes="sae")
+    rig = replace(RIG, vehicle=Vehicle("+y", "+z"))
+    report.write_report(out, res, [], modes=False, rig=rig, axes="sae")
     data = json.loads((out / "report.json").read_text())
     sae = data["output_axes"]
-    assert sae["axes"] == "sae" and sae["center_of_gravity"] == pytest.approx([0.1, -0.2, -0.3])
+    assert sae["axes"] == "sae" and sae["center_of_gravity"] == pytest.approx([0.2, 0.1, -0.3])
     body = data["result"]["inertia_about_cg"]
-    for k, sign in (("ixx", 1), ("iyy", 1), ("izz", 1), ("ixy", -1), ("ixz", -1), ("iyz", 1)):
-        assert sae["inertia_about_cg"][k] == pytest.approx(sign * body[k], rel=1e-9, abs=1e-9), k
+    for k, (b, sign) in {"ixx": ("iyy", 1), "iyy": ("ixx", 1), "izz": ("izz", 1), "ixy": ("ixy", 1),
+                         "ixz": ("iyz", -1), "iyz": ("ixz", -1)}.items():
+        assert sae["inertia_about_cg"][k] == pytest.approx(sign * body[b], rel=1e-9, abs=1e-9), k
     # products with the vehicle-dynamics sign: the negated tensor entries in those axes
     assert sae["products_of_inertia"]["Ixy"] == pytest.approx(-sae["inertia_about_cg"]["ixy"], abs=1e-9)
     page = (out / "index.html").read_text()
-    assert "In SAE axes" in page and "y right, z down" in page
+    assert "In SAE J670 axes" in page and "y right, z down" in page
+    assert "Iyy (roll moment)" in page and "Ixx (pitch moment)" in page
+    assert data["report"]["vehicle"] == {"front": "+y", "top": "+z"}
+    with pytest.raises(AxesError, match="body.vehicle"):     # without it: refused
+        report.write_report(tmp_path / "refused", res, [], modes=False, rig=RIG, axes="sae")
     # the body-axes page has no such section
     plain = tmp_path / "body"
     report.write_report(plain, res, [], modes=False, rig=RIG)
     assert "output_axes" not in json.loads((plain / "report.json").read_text())
+    text = (plain / "index.html").read_text()
+    assert "Ixx (moment about x)" in text and "roll moment" not in text and "x forward" not in text

@@ -37,13 +37,14 @@ def test_name_and_output_axes_are_optional_and_kept(rig_dict, tmp_path):
     assert "name" not in plain.to_dict() and "output_axes" not in plain.to_dict()
     assert rig_label(plain) == "rig.yaml"
     d = copy.deepcopy(rig_dict) | {"name": "Hall 3 rig, 4 cables", "output_axes": "sae"}
+    d["body"]["vehicle"] = {"front": "+y", "top": "+z"}      # vehicle axes need the vehicle's orientation
     rig = rig_from_dict(d, "rig.yaml")
     assert rig.name == "Hall 3 rig, 4 cables" and rig.output_axes == "sae"
     assert rig_label(rig) == "Hall 3 rig, 4 cables (rig.yaml)"
     p = tmp_path / "rig.yaml"
     p.write_text(dump_rig(rig.with_cg([0.01, 0.0, 0.0])))
     back = load_rig(p)
-    assert back.name == rig.name and back.output_axes == "sae"
+    assert back.name == rig.name and back.output_axes == "sae" and back.vehicle == rig.vehicle
     assert list(yaml.safe_load(p.read_text()))[:2] == ["name", "output_axes"]
 
 
@@ -114,8 +115,13 @@ def test_unreadable_file(tmp_path):
     (lambda d: d.__setitem__("nmae", "rig A"), "unknown field nmae (did you mean name?)"),
     (lambda d: d.__setitem__("output_axis", "sae"), "unknown field output_axis (did you mean output_axes?)"),
     (lambda d: d.__setitem__("output_axes", "SAE"),
-     "field output_axes must be one of body, sae (the axes rig-identify prints and exports in by default), got "
-     "'SAE' (did you mean sae?)"),
+     "field output_axes must be one of body, sae, iso8855 (the axes rig-identify prints and exports in by default), "
+     "got 'SAE' (did you mean sae?)"),
+    (lambda d: d.__setitem__("output_axes", "sae"), "field output_axes: sae (vehicle axes) needs field body.vehicle"),
+    (lambda d: d["body"].__setitem__("vehicle", {"front": "forward", "top": "+z"}),
+     "field body.vehicle.front must be one of +x, -x, +y, -y, +z, -z"),
+    (lambda d: d["body"].__setitem__("vehicle", {"front": "+z", "top": "+z"}),
+     "field body.vehicle: front +z and top +z lie on the same body axis"),
     (lambda d: d.__setitem__("name", ["rig", "A"]), "field name must be a one-line text"),
     (lambda d: d.__setitem__("name", "  "), "field name must be a one-line text"),
 ])

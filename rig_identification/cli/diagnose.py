@@ -27,7 +27,7 @@ from ..diagnosis.not_rigid import not_rigid_hypothesis, two_body_reason
 from ..diagnosis.result import Combination
 from ..diagnosis.selection import diagnose
 from ..estimation.inertia_result import InertiaResult
-from ..io.export import AXES, ORDER, convention_lines
+from ..io.export import ORDER, axes_for, convention_lines
 from ..io.recording import read_recording
 from ..io.verdict import KEYS
 from ..pipeline.offline import identify_recording
@@ -89,14 +89,15 @@ def print_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> Non
     """The text output of ``rig-identify diagnose``."""
     t0 = float(rec.sensors.t_start)
     print(f"recording: {rec.path}")
-    for line in convention_lines(AXES["body"]):
+    body = axes_for("body", rec.rig.vehicle)
+    for line in convention_lines(body):
         print(line)
     print(f"rigid-body fit (the same as {same_as(model)}):")
     print("  " + (result.validation.summary if result.validation is not None else "verdict: none"))
     print("  " + window_line(result, t0))
-    ex = result.expressed("body")
+    ex = result.expressed(body)
     print("  " + TABLE_CAPTION)
-    for line in tensor_table(ex, truth_columns(result, rec.truth, "body")):
+    for line in tensor_table(ex, truth_columns(result, rec.truth, body)):
         print("  " + line)
     name = "ours (Newton–Euler with ω × Jω)" if model == "pem" else "the thesis (no ω × Jω)"
     print(f"diagnose: model {name}; "

@@ -27,18 +27,20 @@ from ..estimation.identification import IdentificationError
 from ..estimation.inertia_result import InertiaResult
 from ..io.atomic import atomic_write_text
 from ..io.export import (
-    AXES,
+    Axes,
+    AxesError,
     axes_block,
+    axes_for,
     convention_lines,
     entries_from_option,
     export_dict,
-    sign_in,
     urdf_inertial,
     yaml_text,
 )
 from ..io.package import package_version
 from ..io.recording import read_recording
 from ..io.rig import load_rig
+from ..io.vehicle import common_vehicle
 from ..io.verdict import KEYS
 from ..pipeline.offline import (
     check_same_body,
@@ -65,14 +67,16 @@ from .text import (
 )
 
 
-def truth_columns(result: InertiaResult, truth: dict | None, axes: str) -> dict | None:
+def truth_columns(result: InertiaResult, truth: dict | None, axes: Axes) -> dict | None:
     """truth.yaml's comparison (:func:`~rig_identification.pipeline.offline.compare_to_truth`) in
-    ``axes`` (signs turned)."""
+    ``axes``: each column turned as the entries (:attr:`~rig_identification.io.export.Axes.entry_map`, a signed
+    permutation: an entry's truth, error % and error / σ are those of the body entry it is)."""
     if not truth or "inertia_about_cg" not in truth:
         return None
     cmp = compare_to_truth(result, truth)
-    return {k: {f: s * cmp[k][f] + 0.0 for f in ("truth", "error_percent", "error_sigma")}
-            for k, s in zip(KEYS, sign_in(axes))}
+    T = axes.entry_map
+    cols = {f: T @ np.array([cmp[k][f] for k in KEYS], float) for f in ("truth", "error_percent", "error_sigma")}
+    return {k: {f: float(cols[f][r]) + 0.0 for f in cols} for r, k in enumerate(KEYS)}
 
 
 def window_line(result: InertiaResult, t0: float) -> str:
@@ -139,9 +143,11 @@ def std_line(result: InertiaResult) -> str:
     return f"σ: from the fit's residuals (sandwich): they exceed what the sensors' noise ({noise}) explains"
 
 
-def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: list[float], axes: str,
+def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: list[float], axes: str | Axes,
                   cg_source: str) -> None:
-    """The text output of ``rig-identify inertia`` (see the module docstring)."""
+    """The text output of ``rig-identify inertia`` (see the module docstring); ``axes``: of
+    :func:`output_axes` (a name: made without the vehicle's orientation)."""
+    axes = axes_for(axes) if isinstance(axes, str) else axes
     d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
     ex = result.expressed(axes)
     print(result.validation.summary if result.validation is not None else
@@ -150,7 +156,7 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
         print(f"recording: {paths[0]}")
     else:
         print(f"recordings (joint fit, one tensor): {len(paths)}")
-    for line in convention_lines(AXES[axes]):
+    for line in convention_lines(axes):
         print(line)
     print(f"mass {ex.mass:.2f} kg (rig.yaml body.mass) and centre of gravity ({', '.join(f'{x:.4f}' for x in ex.cg)}) "
           f"m ({cg_source}): given, not identified by the dynamic test")
@@ -226,19 +232,26 @@ def with_saved_cg(recs: list, cg_file: str) -> tuple[list, str, np.ndarray]:
     return out, note, np.asarray(saved.covariance, float)
 
 
-def output_axes(option: str | None, recs: list) -> tuple[str, str | None]:
+def output_axes(option: str | None, recs: list) -> tuple[Axes, list[str]]:
     """The axes of the printout and the YAML: ``--axes`` when given, else the recordings'
-    rig.yaml ``output_axes`` (when they state one and agree), else ``body``.  Returns (axes, a
-    warning or None: recordings whose rig.yaml state different axes)."""
-    if option is not None:
-        return option, None
+    rig.yaml ``output_axes`` (when they state one and agree), else ``body``; made with the
+    vehicle's orientation of their rig.yaml ``body.vehicle`` (when those that state one agree:
+    :func:`~rig_identification.io.vehicle.common_vehicle`).  ``recs``: objects with a ``rig``.
+    Returns (axes, warnings: recordings whose rig.yaml state different axes or vehicles).
+    Raises :class:`~rig_identification.io.vehicle.AxesError` for vehicle axes (``sae``,
+    ``iso8855``) when rig.yaml does not say where the vehicle lies (naming ``body.vehicle``)."""
+    vehicle, vnote = common_vehicle(r.rig.vehicle for r in recs)
+    notes = [] if vnote is None else [vnote]
     stated = {r.rig.output_axes for r in recs if r.rig.output_axes is not None}
-    if len(stated) == 1:
-        return stated.pop(), None
-    if stated:
-        return "body", (f"the recordings' rig.yaml state different output_axes ({', '.join(sorted(stated))}): "
-                        "body axes; --axes chooses")
-    return "body", None
+    name = option if option is not None else stated.pop() if len(stated) == 1 else "body"
+    if option is None and len(stated) > 1:
+        notes.append(f"the recordings' rig.yaml state different output_axes ({', '.join(sorted(stated))}): "
+                     "body axes; --axes chooses")
+    try:
+        return axes_for(name, vehicle), notes
+    except AxesError as e:
+        why = f"{e} ({vnote})" if vnote is not None else str(e)
+        raise AxesError(f"--axes {name}: {why}" if option is not None else why) from None
 
 
 def check_options(args) -> None:
@@ -253,6 +266,8 @@ def check_options(args) -> None:
                                       "(the joint fit of several recordings is the prediction-error model's)")
         if all((Path(p) / "rig.yaml").is_file() for p in paths):  # different bodies: say so before reading bags
             check_same_body([SimpleNamespace(path=Path(p), rig=load_rig(Path(p) / "rig.yaml")) for p in paths])
+    if args.axes is not None and args.axes != "body" and all((Path(p) / "rig.yaml").is_file() for p in paths):
+        output_axes(args.axes, [SimpleNamespace(rig=load_rig(Path(p) / "rig.yaml")) for p in paths])  # refused now
     if args.report:
         if args.model != "pem":
             raise IdentificationError("--report needs --model pem (the thesis baseline has no predicted output "
@@ -304,9 +319,9 @@ def cmd_inertia(args) -> int:
     if args.cg:
         recs, cg_note, cg_cov = with_saved_cg(recs, args.cg)
         cg_source = f"from {args.cg}"
-    axes, axes_note = output_axes(args.axes, recs)
-    if axes_note is not None:
-        warn(axes_note)
+    axes, axes_notes = output_axes(args.axes, recs)
+    for note in axes_notes:
+        warn(note)
     result = identify(args, recs, cg_cov)
     if cg_cov is not None:
         result = cg_uncertainty(args, recs, result, cg_cov)
@@ -342,8 +357,10 @@ def cmd_inertia(args) -> int:
     if args.json:
         d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
         d["center_of_gravity_source"] = cg_origin
-        if axes == "sae":
-            d["sae_j670"] = axes_block(result.expressed("sae"))
+        vehicle = common_vehicle(r.rig.vehicle for r in recs)[0]
+        d["vehicle"] = None if vehicle is None else vehicle.to_dict()   # rig.yaml's body.vehicle
+        if axes.name != "body":
+            d[axes.json_key] = axes_block(result.expressed(axes))
         if urdf is not None:
             d["urdf_inertial"] = urdf
         print(json.dumps(d))

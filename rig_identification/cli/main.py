@@ -26,8 +26,10 @@ Identify the mass properties of a vehicle hung on cables, offline, from recordin
 (rig.yaml + bag/): the same tracker, preprocessor and identifier code as the ROS nodes.
 
 Every inertia output says its conventions: tensor about the centre of gravity, body frame
-of rig.yaml (REP-103: x forward, y left, z up), SI units; the tensor's off-diagonal entries
-ixy, ixz, iyz are the negated products of inertia (Ixy = -ixy, the vehicle-dynamics sign).
+of rig.yaml (right-handed, as REP-103; where the vehicle's front and top lie in it is rig.yaml's
+body.vehicle, and only then are moments called roll, pitch, yaw), SI units; the tensor's
+off-diagonal entries ixy, ixz, iyz are the negated products of inertia (Ixy = -ixy, the
+vehicle-dynamics sign).
 Options that take a tensor all take ixx iyy izz ixy ixz iyz, in that order.
 """
 
@@ -95,10 +97,12 @@ def add_inertia_parser(sub) -> None:
                    help="also print a URDF <inertial> element (origin at the CG, mass, tensor entries; always in "
                         "rig.yaml's body axes, REP-103, whatever --axes says)")
     p.add_argument("--yaml", metavar="FILE", help="also write the mass properties to FILE (YAML, atomically)")
-    p.add_argument("--axes", choices=("body", "sae"), default=None,
-                   help="axes of the printout and the YAML: body (rig.yaml's body frame, REP-103: x forward, y left, "
-                        "z up) or sae (SAE J670: x forward, y right, z down); default: rig.yaml's output_axes, else "
-                        "body. The JSON stays in body axes and gains a 'sae_j670' block")
+    p.add_argument("--axes", choices=("body", "sae", "iso8855"), default=None,
+                   help="axes of the printout and the YAML: body (rig.yaml's body frame, right-handed), sae (SAE "
+                        "J670: x forward, y right, z down) or iso8855 (ISO 8855: x forward, y left, z up), the "
+                        "vehicle axes turned from the body frame by rig.yaml's body.vehicle (front and top; without "
+                        "it they are refused); default: rig.yaml's output_axes, else body. The JSON stays in body "
+                        "axes and gains a 'sae_j670' or 'iso_8855' block")
     p.add_argument("--start", type=float, metavar="S", help="window start, s from the first IMU sample")
     p.add_argument("--end", type=float, metavar="S", help="window end, s from the first IMU sample")
     p.add_argument("--band", type=float, nargs=2, metavar=("LOW_HZ", "HIGH_HZ"),
@@ -297,9 +301,10 @@ def user_errors() -> tuple:
     from ..estimation.tracker import TrackerError
     from ..io.recording import RecordingError
     from ..io.rig import RigError
+    from ..io.vehicle import AxesError
     from ..statics import StaticsError
     return (UsageError, RecordingError, RigError, IdentificationError, TrackerError, StaticsError, RigFitError,
-            FileNotFoundError)
+            AxesError, FileNotFoundError)
 
 
 def identify_main(argv: list[str] | None = None) -> int:

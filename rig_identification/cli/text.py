@@ -12,7 +12,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io.export import EFFECT_UNITS, NOT_DETERMINED, ORDER, PRODUCTS, VEHICLE_SIGN, Expressed, effect_text, value_text
+from ..io.export import (
+    EFFECT_UNITS,
+    MOMENTS,
+    NOT_DETERMINED,
+    ORDER,
+    PRODUCTS,
+    VEHICLE_SIGN,
+    Expressed,
+    effect_text,
+    value_text,
+)
 from ..io.verdict import KEYS, fmt_p
 
 
@@ -44,7 +54,9 @@ def tensor_table(ex: Expressed, truth: dict | None = None) -> list[str]:
     vehicle-dynamics sign, :data:`~rig_identification.io.export.VEHICLE_SIGN`), one a line in
     :data:`ORDER` (Ixx Iyy Izz Ixy Ixz Iyz): value and σ; with ``truth`` ({KEYS: {"truth",
     "error_percent", "error_sigma"}}, tensor entries in ``ex``'s axes) its columns too, signed
-    as the row.  Its caption is :data:`TABLE_CAPTION`."""
+    as the row.  Where the axes know the vehicle's orientation (rig.yaml ``body.vehicle``), each row
+    ends with its vehicle word ("roll moment", "roll–yaw product": :meth:`~rig_identification.io.export.Axes.motion`);
+    otherwise no row says roll, pitch or yaw.  Its caption is :data:`TABLE_CAPTION`."""
     head = f"{'':6s} {'kg·m²':>14s} {'σ':>9s}"
     if truth:
         head += f" {'truth':>10s} {'error':>9s} {'err/σ':>7s}"
@@ -63,6 +75,9 @@ def tensor_table(ex: Expressed, truth: dict | None = None) -> list[str]:
                 c = truth[k]
                 line += (f" {sign * c['truth'] + 0.0:10.2f} {sign * c['error_percent'] + 0.0:+8.3f}% "
                          f"{sign * c['error_sigma'] + 0.0:+7.2f}")
+        motion = ex.axes.motion(k)
+        if motion is not None:
+            line += f"  {motion} {'moment' if k in MOMENTS else 'product'}"
         lines.append(line)
     if truth:
         lines.append("(error: % of the entry for moments, % of the largest moment for products)")
@@ -90,8 +105,9 @@ def principal_lines(ex: Expressed) -> list[str]:
         v = ex.principal_axes[:, i]
         near = int(np.argmax(np.abs(v)))
         ang = float(np.degrees(np.arccos(min(1.0, abs(float(v[near]))))))
+        about = "" if ex.axes.vehicle is None else f" ({ex.axes.vehicle.motion(near)} axis)"
         lines.append(f"  I{i + 1} {ex.principal[i]:10.2f}  axis ({', '.join(f'{x:+.4f}' for x in v)})  "
-                     f"{ang:.2f}° from {'xyz'[near]}")
+                     f"{ang:.2f}° from {'xyz'[near]}{about}")
     return lines
 
 

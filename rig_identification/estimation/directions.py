@@ -52,7 +52,9 @@ def direction_level(rel_std: float) -> str:
 
 ENTRY_AXES = {"ixx": (0,), "iyy": (1,), "izz": (2,), "ixy": (0, 1), "ixz": (0, 2), "iyz": (1, 2)}
 """The body axes (0 x, 1 y, 2 z) whose rotation determines each tensor entry."""
-AXIS_WORDS = {0: ("x", "roll"), 1: ("y", "pitch"), 2: ("z", "yaw")}
+AXIS_WORDS = {0: "x", 1: "y", 2: "z"}
+"""The body axes by name: no roll, pitch or yaw here (the vehicle's orientation is rig.yaml's
+``body.vehicle``, :mod:`~rig_identification.io.vehicle`, which these words do not know)."""
 HARDLY_TURNED = 0.5
 """An axis whose rotation rate (RMS) is below this share of the most excited axis's "hardly turned"."""
 
@@ -65,9 +67,9 @@ def hardly_turned(main: str, rotation_rms: np.ndarray) -> str:
     a = min(ENTRY_AXES[main], key=lambda i: r[i])
     if not r[a] < HARDLY_TURNED * np.max(r):
         return ""
-    ax, word = AXIS_WORDS[a]
-    return (f": the body hardly turned about {ax} ({word} rate {r[a]:.2g} rad/s RMS against {np.max(r):.2g} rad/s "
-            "on the most excited axis)")
+    ax = AXIS_WORDS[a]
+    return (f": the body hardly turned about {ax} (rate about {ax} {r[a]:.2g} rad/s RMS against {np.max(r):.2g} "
+            "rad/s on the most excited axis)")
 
 
 def describe_direction(rel_std: float, D: np.ndarray, scale: float | None = None, weakest: bool = False,

@@ -10,10 +10,11 @@ from typing import Any
 import numpy as np
 
 from ..io.export import (
-    AXES,
+    BODY,
     INERTIA_SCHEMA,
     INERTIA_SCHEMA_VERSION,
     UNITS,
+    Axes,
     Expressed,
     convention_lines,
     express,
@@ -135,11 +136,12 @@ class InertiaResult:
             s = np.sqrt(np.clip(np.diag(self.covariance), 0, None))
             return self.covariance / np.outer(s, s)
 
-    def expressed(self, axes: str = "body") -> Expressed:
-        """The mass properties in ``axes`` (a name of :data:`~rig_identification.io.export.AXES`: ``body`` — rig.yaml's,
-        REP-103 — or ``sae``, SAE J670), the undetermined entries left out: an
-        :class:`~rig_identification.io.export.Expressed`
-        (:func:`~rig_identification.io.export.express`).  Raises KeyError for an unknown name."""
+    def expressed(self, axes: str | Axes = "body") -> Expressed:
+        """The mass properties in ``axes`` (:func:`~rig_identification.io.export.axes_for`, which knows the
+        vehicle's orientation, or a name: ``body``, rig.yaml's), the undetermined entries left out: an
+        :class:`~rig_identification.io.export.Expressed` (:func:`~rig_identification.io.export.express`, the one
+        way to other axes).  Raises :class:`~rig_identification.io.vehicle.AxesError` for vehicle axes asked by
+        name (the result does not know the vehicle) and for an unknown name."""
         return express(self.mass, self.center_of_gravity, self.inertia, self.inertia_std, self.undetermined, axes)
 
     @property
@@ -228,7 +230,7 @@ class InertiaResult:
             "inertia_cg_std": per_key(self.cg_contribution_std),
             "precision": self.precision.to_dict(),
             "frame": "body",
-            "convention": "; ".join(convention_lines(AXES["body"])),
+            "convention": "; ".join(convention_lines(BODY)),
             "products_of_inertia": ex.products(),
             "inertia_about_origin": {k: ex.entry(k, "origin") for k in KEYS},
             "uncertainty": self.uncertainty,

@@ -488,11 +488,11 @@ def advice(bad: tuple[str, ...], rig: Rig | None = None) -> tuple[str, ...]:
         splay = np.max(np.linalg.norm(d, axis=1) / rig.cable_lengths)
         if splay < 0.05 and any(k in bad for k in ("ixx", "iyy", "ixy")):
             out.append(f"the cables are nearly parallel (splay {splay:.3f} m per m of cable): the geometry hardly "
-                       "restores roll and pitch — splay the ceiling anchors outward (0.3–0.8 m)")
+                       "restores the body's tilt about x and y — splay the ceiling anchors outward (0.3–0.8 m)")
         if len(rig.cables) == 3:
             out.append("with three cables one swing of the body is not held by the cable lengths; a fourth cable "
                        "helps")
-    turn = [AXIS_WORDS[ENTRY_AXES[k][0]][0] for k in bad if k in MOMENTS]
+    turn = [AXIS_WORDS[ENTRY_AXES[k][0]] for k in bad if k in MOMENTS]
     if turn:
         out.append(f"the body hardly turned about {', '.join(turn)}: move the exciter farther from that axis or "
                    "turn its spin axis, raise the force or move its frequency nearer a mode that turns the body "

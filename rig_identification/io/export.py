@@ -2,10 +2,12 @@
 
 Conventions (every output states them):
 
-* Frame: the body frame of rig.yaml (REP-103: x forward, y left, z up; origin at the
-  reference point rig.yaml's geometry is given from).  ``--axes sae`` turns every printed and
-  exported quantity to the SAE J670 vehicle axes (x forward, y right, z down): a half turn
-  about x, ``R = diag(1, −1, −1)``; it assumes rig.yaml's body x points to the vehicle's front.
+* Frame: the body frame of rig.yaml (right-handed, as REP-103; origin at the reference point
+  rig.yaml's geometry is given from).  Where the vehicle lies in it is rig.yaml's
+  ``body.vehicle`` (:mod:`~rig_identification.io.vehicle`): with it, ``--axes sae`` and ``--axes
+  iso8855`` turn every printed and exported quantity to the SAE J670 (x forward, y right, z down)
+  or ISO 8855 (x forward, y left, z up) vehicle axes, J' = R J Rᵀ, and the moments are called
+  roll, pitch and yaw; without it neither (:func:`axes_for`, :class:`Axes`).
 * Units: SI — kg, m, kg·m².
 * The tensor ``J`` about the centre of gravity (CG) has the entries ``ixx … izz`` of
   ``geometry_msgs/Inertia``, URDF's ``<inertia>``, truth.yaml and the JSON: its
@@ -35,6 +37,7 @@ import numpy as np
 import yaml
 from numpy.typing import ArrayLike
 
+from .vehicle import MOTIONS, VEHICLE_AXES, AxesError, Vehicle, vehicle_rotation
 from .verdict import KEYS
 
 INERTIA_SCHEMA = "rig_identification.inertia_result"    # the JSON of rig-identify inertia --json
@@ -49,8 +52,9 @@ MOMENTS = ("ixx", "iyy", "izz")
 PRODUCTS = {"ixy": "Ixy", "ixz": "Ixz", "iyz": "Iyz"}   # tensor entry -> vehicle-dynamics product (its negation)
 VEHICLE_SIGN = np.array([1.0, -1.0, -1.0, 1.0, -1.0, 1.0])   # KEYS order: tensor entry -> moment / product
 SYMBOL = {"ixx": "Ixx", "iyy": "Iyy", "izz": "Izz", "ixy": "Ixy", "ixz": "Ixz", "iyz": "Iyz"}   # an entry in text
-ENTRY_NAMES = {"ixx": "roll moment Ixx", "iyy": "pitch moment Iyy", "izz": "yaw moment Izz",
+ENTRY_NAMES = {"ixx": "moment Ixx", "iyy": "moment Iyy", "izz": "moment Izz",
                "ixy": "product Ixy", "ixz": "product Ixz", "iyz": "product Iyz"}
+"""An entry in words where the axes' vehicle is not at hand (the weakly determined directions)."""
 INDEX = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
 NOT_DETERMINED = "not determined"
 
@@ -71,22 +75,91 @@ def entries_from_option(values: Iterable[float]) -> np.ndarray:
     return np.array([d[k] for k in KEYS])
 
 
+AXES = {"body": "rig.yaml's body frame",
+        **{name: f"{std} vehicle axes ({words})" for name, (std, words) in VEHICLE_AXES.items()}}
+"""The axes outputs can be given in (``--axes``, rig.yaml ``output_axes``): name -> words.
+:func:`axes_for` makes them; the vehicle axes need rig.yaml's ``body.vehicle``."""
+JSON_KEYS = {"sae": "sae_j670", "iso8855": "iso_8855"}
+"""The block of ``rig-identify inertia --json`` that holds the mass properties in vehicle axes."""
+BODY_LABEL = "the body frame of rig.yaml (right-handed, as REP-103)"
+
+
 @dataclass(frozen=True)
 class Axes:
-    """A set of body axes the outputs can be given in: ``name`` (``body`` or ``sae``),
-    ``label`` (text for the output), ``rotation`` (3,3): vectors in these axes = rotation @
-    vectors in rig.yaml's body axes."""
+    """A set of axes the outputs can be given in (:func:`axes_for`): ``name`` (a key of
+    :data:`AXES`), ``label`` (text for the output), ``rotation`` (3,3) proper rotation: vectors
+    in these axes = rotation @ vectors in rig.yaml's body axes, the tensor rotation @ J @
+    rotationᵀ; ``vehicle``: where the vehicle's front and top lie in these axes (None: unknown;
+    then no entry is called roll, pitch or yaw)."""
 
     name: str
     label: str
     rotation: np.ndarray
+    vehicle: Vehicle | None = None
+
+    @property
+    def entry_map(self) -> np.ndarray:
+        """(6,6) T: the tensor entries in these axes = T @ those in the body axes (both in
+        :data:`~rig_identification.io.verdict.KEYS` order), from J' = R J Rᵀ.  A covariance C of
+        the entries becomes T C Tᵀ."""
+        R = self.rotation
+        T = np.zeros((6, 6))
+        for r, k in enumerate(KEYS):
+            i, j = INDEX[k]
+            for c, m in enumerate(KEYS):
+                a, b = INDEX[m]
+                T[r, c] = R[i, a] * R[j, b] + (R[i, b] * R[j, a] if a != b else 0.0)
+        return T
+
+    def motion(self, k: str) -> str | None:
+        """The vehicle's rotation entry ``k`` (KEYS name) belongs to: ``roll``, ``pitch``,
+        ``yaw`` for a moment, ``roll–yaw`` etc. for a product; None when the vehicle is unknown."""
+        if self.vehicle is None:
+            return None
+        names = sorted({self.vehicle.motion(a) for a in INDEX[k]}, key=MOTIONS.index)
+        return "–".join(names)
+
+    def meaning(self, k: str) -> str:
+        """Entry ``k`` (KEYS name) in words: ``roll moment`` or ``moment about x``; ``product,
+        y–z (roll–yaw)`` or ``product, y–z``."""
+        i, j = INDEX[k]
+        motion = self.motion(k)
+        if i == j:
+            return f"moment about {'xyz'[i]}" if motion is None else f"{motion} moment"
+        return f"product, {'xyz'[i]}–{'xyz'[j]}" + ("" if motion is None else f" ({motion})")
+
+    @property
+    def json_key(self) -> str:
+        """The JSON block these axes' mass properties go in (:data:`JSON_KEYS`; ``body``: the JSON itself)."""
+        return JSON_KEYS.get(self.name, self.name)
 
 
-AXES = {
-    "body": Axes("body", "the body frame of rig.yaml (REP-103: x forward, y left, z up)", np.eye(3)),
-    "sae": Axes("sae", "SAE J670 vehicle axes (x forward, y right, z down: rig.yaml's body frame, REP-103, "
-                       "turned half a turn about x)", np.diag([1.0, -1.0, -1.0])),
-}
+def axes_for(name: str, vehicle: Vehicle | None = None) -> Axes:
+    """The :class:`Axes` ``name`` (a key of :data:`AXES`) for a body whose vehicle lies as
+    ``vehicle`` in rig.yaml's body frame (rig.yaml ``body.vehicle``; None: not stated).
+
+    ``body``: rig.yaml's axes, labelled with the vehicle's orientation when known.  ``sae``,
+    ``iso8855``: the vehicle axes (:func:`~rig_identification.io.vehicle.vehicle_rotation`).
+    Raises :class:`~rig_identification.io.vehicle.AxesError` for vehicle axes without
+    ``vehicle`` (naming rig.yaml's ``body.vehicle``) and for an unknown name."""
+    if name == "body":
+        label = BODY_LABEL if vehicle is None else f"{BODY_LABEL[:-1]}; {vehicle.text()})"
+        return Axes("body", label, np.eye(3), vehicle)
+    if name not in VEHICLE_AXES:
+        raise AxesError(f"no axes {name!r} (known: {', '.join(AXES)})")
+    std, words = VEHICLE_AXES[name]
+    if vehicle is None:
+        raise AxesError(f"{std} axes ({words}) need where the vehicle's front and top lie in the body frame, and "
+                        "rig.yaml does not say: give its body.vehicle (e.g. body: {vehicle: {front: +x, top: +z}}) "
+                        "or use the body axes")
+    R = vehicle_rotation(vehicle, name)
+    own = Vehicle("+x", "-z" if name == "sae" else "+z")
+    return Axes(name, f"{std} vehicle axes ({words}), turned from rig.yaml's body frame ({vehicle.text()})", R,
+                own)
+
+
+BODY = axes_for("body")
+"""rig.yaml's body axes, the vehicle's orientation not at hand."""
 
 
 def convention_lines(axes: Axes) -> list[str]:
@@ -174,29 +247,38 @@ class Expressed:
 def express(mass: float, cg: ArrayLike, J: ArrayLike, std: ArrayLike, undetermined: Iterable[str] = (),
             axes: str | Axes = "body") -> Expressed:
     """The mass properties (``mass`` kg, ``cg`` (3,) m and ``J`` (3,3) kg·m² about it in rig.yaml's
-    body axes, ``std`` (6,) KEYS order, ``undetermined`` entries) in ``axes`` (name or
-    :class:`Axes`): see :class:`Expressed`."""
-    ax = AXES[axes] if isinstance(axes, str) else axes
+    body axes, ``std`` (6,) KEYS order, ``undetermined`` entries) in ``axes`` (an :class:`Axes`
+    of :func:`axes_for`, or a name, made without the vehicle): see :class:`Expressed`.
+
+    The one way to other axes: c' = R c, J' = R J Rᵀ, the entries by :attr:`Axes.entry_map` T,
+    σ'² = diag(T C Tᵀ) — exact from σ alone, as every T here is a signed permutation (each
+    entry of J' is ± one entry of J, so its σ is that entry's).  An entry of J' is undetermined
+    where an entry it is made of is (undetermined or not finite)."""
+    ax = axes_for(axes) if isinstance(axes, str) else axes
     R = ax.rotation
+    T = ax.entry_map
     J = np.asarray(J, float)
     std = np.asarray(std, float)
-    gone = set(undetermined) | {k for k, (i, j) in INDEX.items() if not np.isfinite(J[i, j])}
+    theta = np.array([J[INDEX[k]] for k in KEYS])
+    bad = np.array([k in set(undetermined) or not np.isfinite(v) for k, v in zip(KEYS, theta)])
+    uses = np.abs(T) > 1e-12
+    gone_here = uses[:, bad].any(axis=1)
+    turned = T @ np.where(bad, 0.0, theta)
+    turned[gone_here] = np.nan
+    Jr = np.empty((3, 3))
+    for k, v in zip(KEYS, turned):
+        i, j = INDEX[k]
+        Jr[i, j] = Jr[j, i] = v
+    s2 = np.where(uses, T ** 2, 0.0) * np.where(uses, std[None, :] ** 2, 0.0)
+    std_here = np.sqrt(s2.sum(axis=1))
+    std_here[uses[:, ~np.isfinite(std)].any(axis=1)] = np.nan
+    gone = {k for k, g in zip(KEYS, gone_here) if g}
     c = R @ np.asarray(cg, float)
-    Jr = R @ np.where(np.isfinite(J), J, 0.0) @ R.T
-    Jr[~np.isfinite(J)] = np.nan      # a half turn only changes signs: entries keep their place
     Jo = parallel_axis(Jr, mass, c)
     pm = pa = None
     if not gone:
         pm, pa = principal(Jr)
-    return Expressed(ax, float(mass), c, Jr, Jo, std, frozenset(gone), pm, pa)
-
-
-def sign_in(axes: str | Axes) -> np.ndarray:
-    """(6,) ±1 per entry (KEYS order): how an entry in rig.yaml's body axes changes sign in
-    ``axes`` (a half turn about a body axis only flips signs)."""
-    ax = AXES[axes] if isinstance(axes, str) else axes
-    R = ax.rotation
-    return np.array([R[i, i] * R[j, j] for i, j in (INDEX[k] for k in KEYS)])
+    return Expressed(ax, float(mass), c, Jr, Jo, std_here, frozenset(gone), pm, pa)
 
 
 def urdf_inertial(ex: Expressed, fmt: str = ".7g") -> str:
@@ -318,7 +400,8 @@ def with_effect_units(diagnosis: dict[str, Any]) -> dict[str, Any]:
 
 def axes_block(ex: Expressed) -> dict[str, Any]:
     """The mass properties of ``ex`` for a JSON block in other axes (``"sae_j670"`` of
-    ``rig-identify inertia --json --axes sae``): the same fields as the body-axes ones."""
+    ``rig-identify inertia --json --axes sae``, ``"iso_8855"`` of ``--axes iso8855``:
+    :attr:`Axes.json_key`): the same fields as the body-axes ones."""
     pm = ex.principal_dict()
     return {"axes": ex.axes.label, "center_of_gravity": [float(x) for x in ex.cg],
             "inertia_about_cg": {k: ex.entry(k) for k in KEYS}, "inertia_std": {k: ex.sigma(k) for k in KEYS},
@@ -357,9 +440,9 @@ def yaml_text(content: dict[str, Any]) -> str:
     return text
 
 
-__all__ = ["AXES", "Axes", "SYMBOL", "EFFECT_UNITS", "with_effect_units", "ENTRY_NAMES", "EXPORT_SCHEMA",
-           "EXPORT_SCHEMA_VERSION", "Expressed",
-           "INERTIA_SCHEMA", "INERTIA_SCHEMA_VERSION", "NOT_DETERMINED", "ORDER", "PRODUCTS", "UNITS", "VEHICLE_SIGN",
-           "axes_block", "convention_lines", "effect_text", "entries_from_option", "export_dict", "express",
-           "finite_or_none", "parallel_axis", "principal", "sign_in", "tensor_from_option", "urdf_inertial",
-           "value_text", "yaml_text"]
+__all__ = ["AXES", "Axes", "AxesError", "BODY", "BODY_LABEL", "EFFECT_UNITS", "ENTRY_NAMES", "EXPORT_SCHEMA",
+           "EXPORT_SCHEMA_VERSION", "Expressed", "INERTIA_SCHEMA", "INERTIA_SCHEMA_VERSION", "JSON_KEYS",
+           "NOT_DETERMINED", "ORDER", "PRODUCTS", "SYMBOL", "UNITS", "VEHICLE_SIGN", "axes_block", "axes_for",
+           "convention_lines", "effect_text", "entries_from_option", "export_dict", "express", "finite_or_none",
+           "parallel_axis", "principal", "tensor_from_option", "urdf_inertial", "value_text", "with_effect_units",
+           "yaml_text"]

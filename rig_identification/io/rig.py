@@ -6,7 +6,8 @@ masses in kg, angles in rad.  Frames (REP-103, right-handed):
 
 * ``world``: z up, gravity along -z, origin at a reference point on the ceiling.
 * ``body``: fixed to the carrying frame, origin at any reference point on it
-  (not necessarily the centre of gravity).
+  (not necessarily the centre of gravity); where the vehicle's front and top lie in it is
+  ``body.vehicle`` (optional: :class:`~rig_identification.io.vehicle.Vehicle`), never assumed.
 * ``imu``, ``exciter``, ``inclinometer``: sensor frames given by a position (body
   frame) and roll-pitch-yaw (fixed-axis XYZ) relative to the body axes.
 
@@ -29,6 +30,7 @@ from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
 
 from .export import AXES
+from .vehicle import SIGNED_AXES, VEHICLE_AXES, Vehicle
 
 CABLE_NAME = re.compile(r"^[a-z0-9_]+$")
 TOPIC_NAME = re.compile(r"^/[A-Za-z0-9_/]+$")
@@ -128,10 +130,12 @@ class Rig:
     kept for callers that build a Rig by hand; rig.yaml files cannot have other fields.
     ``name``: the rig's name (rig.yaml ``name``, optional; reports show it).  ``output_axes``:
     the axes outputs are given in by default (rig.yaml ``output_axes``: a key of
-    :data:`~rig_identification.io.export.AXES`, ``body`` or ``sae``; None: not stated, ``body``) — rig.yaml's own
-    geometry is always in the body frame (REP-103).  ``topics``: the bag's topic names
-    (:class:`Topics`; rig.yaml ``topics``).  ``survey``: the σ of the geometry and mass
-    (:class:`Survey`; rig.yaml ``survey``).
+    :data:`~rig_identification.io.export.AXES`, ``body``, ``sae`` or ``iso8855``; None: not stated, ``body``) —
+    rig.yaml's own geometry is always in the body frame (REP-103).  ``vehicle``: where the
+    vehicle's front and top lie in the body frame (rig.yaml ``body.vehicle``,
+    :class:`~rig_identification.io.vehicle.Vehicle`; None: not stated, and no output names roll, pitch or
+    yaw).  ``topics``: the bag's topic names (:class:`Topics`; rig.yaml ``topics``).  ``survey``:
+    the σ of the geometry and mass (:class:`Survey`; rig.yaml ``survey``).
     """
 
     gravity: float
@@ -148,6 +152,7 @@ class Rig:
     output_axes: str | None = None
     topics: Topics = Topics()
     survey: Survey = Survey()
+    vehicle: Vehicle | None = None
 
     # --- convenient stacked views -------------------------------------------------
     @property
@@ -201,6 +206,8 @@ class Rig:
         out |= {"gravity": float(self.gravity), "cables": cables, "body": {"mass": float(self.mass)}}
         if self.center_of_gravity is not None:
             out["body"]["center_of_gravity"] = vec(self.center_of_gravity)
+        if self.vehicle is not None:
+            out["body"]["vehicle"] = self.vehicle.to_dict()
         out["imu"] = {"position": vec(self.imu.position), "rpy": vec(self.imu.rpy)}
         if self.exciter is not None:
             out["exciter"] = {"position": vec(self.exciter.position), "rpy": vec(self.exciter.rpy)}
@@ -271,7 +278,8 @@ KNOWN_TOP = {"name", "output_axes", "gravity", "cables", "body", "imu", "exciter
              "topics", "survey"}
 # the fields of each mapping of rig.yaml (docs/recording_format.md); any other is an error
 KNOWN_FIELDS = {"": KNOWN_TOP, "cable": {"name", "ceiling_anchor", "body_anchor", "length", "stiffness"},
-                "body": {"mass", "center_of_gravity"}, "imu": {"position", "rpy"},
+                "body": {"mass", "center_of_gravity", "vehicle"}, "vehicle": {"front", "top"},
+                "imu": {"position", "rpy"},
                 "exciter": {"position", "rpy", "max_force"},
                 "inclinometer": {"rpy"}, "dummy_mass": {"mass", "position"},
                 "topics": {"imu", "load_cells", "exciter", "inclinometer"},
@@ -328,6 +336,31 @@ def _survey(d: Any, src: str) -> Survey:
                            "millimetres?)")
         vals[key] = x
     return Survey(**vals)
+
+
+def _vehicle(d: Any, src: str) -> Vehicle | None:
+    """rig.yaml ``body.vehicle``: ``front`` and ``top``, each one of +x -x +y -y +z -z (a Unicode
+    minus taken), on different body axes; None when absent."""
+    if d is None:
+        return None
+    if not isinstance(d, dict):
+        raise RigError(f"{src}: field body.vehicle must be a mapping such as {{front: +x, top: +z}} (where the "
+                       f"vehicle's front and top point in the body frame), got {d!r}")
+    _check_fields(d, "vehicle", "body.vehicle", src)
+    sides = {}
+    for key, what in (("front", "the body axis that points to the vehicle's front"),
+                      ("top", "the body axis that points to the vehicle's top")):
+        v = _get(d, key, "body.vehicle", src)
+        name = v.strip().replace("\u2212", "-") if isinstance(v, str) else v
+        if name not in SIGNED_AXES:
+            close = {"x": "+x", "y": "+y", "z": "+z"}.get(str(name).strip().lower())
+            raise RigError(f"{src}: field body.vehicle.{key} must be one of {', '.join(SIGNED_AXES)} ({what}), "
+                           f"got {v!r}" + (f" (did you mean {close}?)" if close else ""))
+        sides[key] = name
+    if sides["front"][1] == sides["top"][1]:
+        raise RigError(f"{src}: field body.vehicle: front {sides['front']} and top {sides['top']} lie on the same "
+                       "body axis; the top must be perpendicular to the front")
+    return Vehicle(sides["front"], sides["top"])
 
 
 def _topics(d: Any, src: str) -> Topics:
@@ -430,7 +463,9 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     each possible alone but in the wrong units together (:func:`check_scale`: the whole rig in
     mm, a mass in g, angles in degrees, a stiffness in N/mm); a ``name``
     that is not a non-empty one-line text; an ``output_axes`` that is not a key of
-    :data:`~rig_identification.io.export.AXES` (with the closest one).
+    :data:`~rig_identification.io.export.AXES` (with the closest one); a ``body.vehicle`` whose
+    ``front`` or ``top`` is not a signed body axis, or whose two lie on one axis; vehicle axes
+    as ``output_axes`` without ``body.vehicle``.
     """
     src = source
     if not isinstance(d, dict):
@@ -446,7 +481,7 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     output_axes = _get(d, "output_axes", "", src, required=False)
     if output_axes is not None and (not isinstance(output_axes, str) or output_axes not in AXES):
         close = difflib.get_close_matches(str(output_axes).lower(), sorted(AXES), n=1, cutoff=0.5)
-        raise RigError(f"{src}: field output_axes must be one of {', '.join(sorted(AXES))} (the axes rig-identify "
+        raise RigError(f"{src}: field output_axes must be one of {', '.join(AXES)} (the axes rig-identify "
                        f"prints and exports in by default), got {output_axes!r}"
                        + (f" (did you mean {close[0]}?)" if close else ""))
     gravity = _number(_get(d, "gravity", "", src), "gravity", src, positive=True)
@@ -484,6 +519,11 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     mass = _number(_get(body, "mass", "body", src), "body.mass", src, positive=True)
     cg_raw = _get(body, "center_of_gravity", "body", src, required=False)
     cg = None if cg_raw is None else _vector(cg_raw, "body.center_of_gravity", src)
+    vehicle = _vehicle(_get(body, "vehicle", "body", src, required=False), src)
+    if output_axes in VEHICLE_AXES and vehicle is None:
+        raise RigError(f"{src}: field output_axes: {output_axes} (vehicle axes) needs field body.vehicle, where the "
+                       "vehicle's front and top point in the body frame (e.g. body: {vehicle: {front: +x, top: +z}}); "
+                       "without it only output_axes: body")
     imu = _mount(_get(d, "imu", "", src), "imu", src)
     ex_raw = _get(d, "exciter", "", src, required=False)
     exciter = None if ex_raw is None else _mount(ex_raw, "exciter", src)
@@ -499,7 +539,7 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     topics = _topics(_get(d, "topics", "", src, required=False), src)
     survey = _survey(_get(d, "survey", "", src, required=False), src)
     rig = Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, name=rig_name, output_axes=output_axes,
-              topics=topics, survey=survey)
+              topics=topics, survey=survey, vehicle=vehicle)
     check_scale(rig)
     return rig
 

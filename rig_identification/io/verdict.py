@@ -12,8 +12,10 @@ import numpy as np
 
 KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 VERDICTS = ("ok", "model_error", "not_identifiable")
-NAMES = {"ixx": "roll inertia Ixx", "iyy": "pitch inertia Iyy", "izz": "yaw inertia Izz",
+NAMES = {"ixx": "moment Ixx", "iyy": "moment Iyy", "izz": "moment Izz",
          "ixy": "product Ixy", "ixz": "product Ixz", "iyz": "product Iyz"}
+"""An entry in the verdict's words: by its body axes, never roll, pitch or yaw (the verdict does
+not know where the vehicle lies: rig.yaml ``body.vehicle``)."""
 
 
 def fmt_p(p: float) -> str:

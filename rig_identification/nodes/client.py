@@ -57,7 +57,7 @@ from std_msgs.msg import String
 from std_srvs.srv import Trigger
 
 from ..io.atomic import atomic_write_text
-from ..io.export import AXES, convention_lines
+from ..io.export import BODY, convention_lines
 from ..io.rig import RigError
 from ..statics.handover import CgResultError, cg_result_from_dict, check_rig_target, rig_with_cg_text
 from .parameters import load_rig_source
@@ -87,7 +87,7 @@ def format_table(result: dict, truth: dict | None, cg_answer: str | None = None,
     lines.append("=" * len(head))
     summary = (result.get("validation") or {}).get("summary")
     lines.append(summary or UNVALIDATED)
-    lines += convention_lines(AXES["body"])
+    lines += convention_lines(BODY)
     if w:
         span = w.get("end", 0.0) - w.get("start", 0.0)
         rel = ""

@@ -216,7 +216,8 @@ def ellipse_2d(A: np.ndarray, n: int = 100) -> np.ndarray:
 def ellipsoid_figure(path: Path, mp: MassProperties, rig: Rig | None) -> bool:
     """The equimomental ellipsoid (semi-axes ``mp.semi_axes`` along the principal axes, about
     the CG) and the principal axes, on the rig's body points (anchors, IMU, exciter, the box
-    they span): top (x–y), side (x–z) and front (y–z) projections and a 3-D view, body axes, m.
+    they span): the x–y, x–z and y–z projections and a 3-D view, rig.yaml's body axes, m (no view is called
+    top, side or front: rig.yaml's body frame need not have x forward and z up).
     Returns False (nothing written) when the tensor is not determined."""
     if not mp.determined:
         return False
@@ -232,7 +233,7 @@ def ellipsoid_figure(path: Path, mp: MassProperties, rig: Rig | None) -> bool:
     allp = np.vstack([c[None]] + list(pts.values()))
     lo, hi = allp.min(0), allp.max(0)
     markers = {"body anchors": ("s", "0.3"), "IMU": ("D", "tab:purple"), "exciter": ("^", "tab:orange")}
-    views = ((0, 1, "top view (x–y, from above)"), (0, 2, "side view (x–z)"), (1, 2, "front view (y–z)"))
+    views = ((0, 1, "x–y plane (seen along z)"), (0, 2, "x–z plane (seen along y)"), (1, 2, "y–z plane (seen along x)"))
     for ax, (i, j, name) in zip(axs, views):
         box = np.array([[lo[i], lo[j]], [hi[i], lo[j]], [hi[i], hi[j]], [lo[i], hi[j]], [lo[i], lo[j]]])
         if pts:
@@ -283,8 +284,7 @@ def ellipsoid_figure(path: Path, mp: MassProperties, rig: Rig | None) -> bool:
     if pts:
         handles.append(Line2D([], [], color="0.6", ls=":", label="box spanned by the rig points and the CG"))
     fig.legend(handles=handles, loc="outside lower center", ncols=3, fontsize=9)
-    fig.suptitle("principal axes and the equimomental ellipsoid on the body (body axes, REP-103: x forward, "
-                 "y left, z up)")
+    fig.suptitle("principal axes and the equimomental ellipsoid on the body (rig.yaml's body axes)")
     fig.savefig(path)
     return True
 

@@ -3,8 +3,9 @@ report's identifiability table).
 
 The six eigen-directions of the covariance (the inverse of the information matrix) of the
 tensor entries in the tensor's Frobenius metric (:func:`~rig_identification.estimation.directions.weak_directions`),
-weakest first, each with its σ and a sentence a lab engineer reads ("yaw moment Izz is weakly
-determined: the body hardly turned about z …"), explained by the signal-to-residual ratio of
+weakest first, each with its σ and a sentence a lab engineer reads ("moment Izz is weakly
+determined: the body hardly turned about z …"; entries named by their body axes, never roll, pitch
+or yaw: :data:`~rig_identification.io.export.ENTRY_NAMES`), explained by the signal-to-residual ratio of
 the band-passed gyro about each body axis.  Products are named and signed as on the rest of
 the page (vehicle dynamics: Ixy = ∫xy dm, the negated off-diagonal entry; :mod:`rig_identification.report.mass`).
 """

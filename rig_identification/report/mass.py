@@ -1,6 +1,9 @@
 """Mass properties as a vehicle-dynamics test engineer reads them (the report's tensor section).
 
-Frame: the body frame of rig.yaml (REP-103: x forward, y left, z up), SI units (kg, m, kg·m²).
+Frame: the body frame of rig.yaml (right-handed, as REP-103), SI units (kg, m, kg·m²).  The moments
+are called roll, pitch and yaw only where rig.yaml's ``body.vehicle`` says where the vehicle's front
+and top lie (:meth:`~rig_identification.io.export.Axes.meaning`: front +y makes Iyy the roll moment);
+otherwise "moment about x".
 
 Sign convention, stated once on the page: the *products of inertia* are
 ``Ixy = ∫ x y dm``, ``Ixz = ∫ x z dm``, ``Iyz = ∫ y z dm`` (SAE J670 / ISO 8855, as vehicle
@@ -25,22 +28,26 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..estimation.inertia_result import InertiaResult
-from ..io.export import MOMENTS, SYMBOL, Expressed
+from ..io.export import BODY, MOMENTS, SYMBOL, Axes, Expressed, axes_for
 from ..io.export import VEHICLE_SIGN as SIGN
+from ..io.vehicle import Vehicle
 from ..io.verdict import KEYS
 from ..model.parametrisation import from_tensor
 from ..pipeline.offline import compare_to_truth
 from .html import MISSING, NOT_DETERMINED, Cell, esc, finite, num, table
 
 ORDER = (0, 3, 5, 1, 2, 4)                           # display order: Ixx, Iyy, Izz, Ixy, Ixz, Iyz
-MEANING = {"ixx": "roll moment", "iyy": "pitch moment", "izz": "yaw moment",
-           "ixy": "product, x–y", "ixz": "product, x–z", "iyz": "product, y–z"}
 
-CONVENTION = ("Body axes of rig.yaml (REP-103: x forward, y left, z up); SI units. Products of inertia as vehicle "
-              "dynamics uses them (SAE J670 / ISO 8855): Ixy = ∫xy dm, Ixz = ∫xz dm, Iyz = ∫yz dm. The inertia "
-              "tensor is J = [[Ixx, −Ixy, −Ixz], [−Ixy, Iyy, −Iyz], [−Ixz, −Iyz, Izz]]: its off-diagonal entries "
-              "— what geometry_msgs/Inertia and report.json's \"result\" hold as ixy, ixz, iyz — are the negated "
-              "products.")
+
+def convention(axes: Axes = BODY) -> str:
+    """The page's convention note: the frame (``axes``' label: rig.yaml's body axes, with where the
+    vehicle lies when rig.yaml says), units, the products' sign."""
+    where = ("" if axes.vehicle is not None else " The vehicle's orientation in them is not stated (rig.yaml "
+             "body.vehicle): the moments are named by the body axes they are about.")
+    return (f"Axes: {axes.label}; SI units.{where} Products of inertia as vehicle dynamics uses them (SAE J670 / "
+            "ISO 8855): Ixy = ∫xy dm, Ixz = ∫xz dm, Iyz = ∫yz dm. The inertia tensor is J = [[Ixx, −Ixy, −Ixz], "
+            "[−Ixy, Iyy, −Iyz], [−Ixz, −Iyz, Izz]]: its off-diagonal entries — what geometry_msgs/Inertia and "
+            "report.json's \"result\" hold as ixy, ixz, iyz — are the negated products.")
 
 
 @dataclass(frozen=True)
@@ -56,7 +63,9 @@ class MassProperties:
     principal_axes (3,3) unit columns in body axes (each with its largest component
     positive); semi_axes (3,) m of the equimomental ellipsoid along those axes;
     undetermined: entries (KEYS) the recording does not determine; nothing derived from
-    them (principal moments, ellipsoid) is given then (``determined`` False)."""
+    them (principal moments, ellipsoid) is given then (``determined`` False).  axes: rig.yaml's body
+    axes with the vehicle's orientation when known (the entries' words,
+    :meth:`~rig_identification.io.export.Axes.meaning`)."""
 
     mass: float
     cg: np.ndarray
@@ -71,6 +80,7 @@ class MassProperties:
     principal_axes: np.ndarray | None
     semi_axes: np.ndarray | None
     undetermined: frozenset
+    axes: Axes = BODY
 
     @property
     def determined(self) -> bool:
@@ -106,8 +116,9 @@ def equimomental_semi_axes(principal: np.ndarray, mass: float) -> np.ndarray:
     return np.sqrt(np.clip(5.0 * (total - 2.0 * np.asarray(principal)) / (2.0 * mass), 0.0, None))
 
 
-def mass_properties(result: InertiaResult) -> MassProperties:
-    """The page's mass properties of ``result`` (see :class:`MassProperties`)."""
+def mass_properties(result: InertiaResult, vehicle: Vehicle | None = None) -> MassProperties:
+    """The page's mass properties of ``result`` (see :class:`MassProperties`); ``vehicle``: where the
+    vehicle lies in the body frame (rig.yaml ``body.vehicle``; None: not stated)."""
     J = np.asarray(result.inertia, float)
     gone = set(result.undetermined)
     theta = from_tensor(J)
@@ -122,7 +133,8 @@ def mass_properties(result: InertiaResult) -> MassProperties:
         pstd = principal_std(axes, np.asarray(result.covariance, float))
         semi = equimomental_semi_axes(principal, result.mass)
     return MassProperties(float(result.mass), c, SIGN * theta, np.asarray(result.inertia_std, float), crb,
-                          SIGN * from_tensor(Jo), J, Jo, principal, pstd, axes, semi, frozenset(gone))
+                          SIGN * from_tensor(Jo), J, Jo, principal, pstd, axes, semi, frozenset(gone),
+                          axes_for("body", vehicle))
 
 
 def truth_rows(result: InertiaResult, truth: dict | None) -> dict | None:
@@ -166,7 +178,7 @@ def moments_table(mp: MassProperties, errors: dict | None, crb_label: str = "σ 
     for i in ORDER:
         k = KEYS[i]
         ref = abs(mp.values[i]) if k in MOMENTS else big
-        row = [f"{SYMBOL[k]} ({MEANING[k]})", entry_cell(mp, k, mp.values[i], ".2f", main=True),
+        row = [f"{SYMBOL[k]} ({mp.axes.meaning(k)})", entry_cell(mp, k, mp.values[i], ".2f", main=True),
                entry_cell(mp, k, mp.std[i], ".3g")]
         if crb_shown(mp):
             row.append(entry_cell(mp, k, mp.crb_std[i], ".3g"))
@@ -220,7 +232,9 @@ def principal_html(mp: MassProperties) -> str:
         ang = np.degrees(np.arccos(min(1.0, abs(float(v[near])))))
         rows.append([f"I{i + 1}", num(mp.principal[i], ".2f"),
                      num(None if mp.principal_std is None else mp.principal_std[i], ".3g"),
-                     ", ".join(num(x, "+.4f") for x in v), f"body {'xyz'[near]}", num(ang, ".2f"),
+                     ", ".join(num(x, "+.4f") for x in v), f"body {'xyz'[near]}" + (
+                         "" if mp.axes.vehicle is None else f" ({mp.axes.vehicle.motion(near)} axis)"),
+                     num(ang, ".2f"),
                      num(mp.semi_axes[i], ".3f")])
     return table(["principal moment", "kg·m²", "σ kg·m²", "axis (x, y, z components, body axes)",
                   "nearest body axis", "angle to it, deg", "equimomental ellipsoid semi-axis m"], rows,
@@ -236,7 +250,8 @@ def to_json(mp: MassProperties, errors: dict | None) -> dict:
 
     def matrix(M):
         return [[None if not finite(x) else float(x) for x in r] for r in M] if mp.determined else None
-    out = {"convention": CONVENTION, "mass_kg": mp.mass, "center_of_gravity_m": [float(x) for x in mp.cg],
+    out = {"convention": convention(mp.axes), "vehicle": None if mp.axes.vehicle is None else
+           mp.axes.vehicle.to_dict(), "mass_kg": mp.mass, "center_of_gravity_m": [float(x) for x in mp.cg],
            "about_cg": entries(mp.values), "std": entries(mp.std), "crb_std": entries(mp.crb_std),
            "about_origin": entries(mp.about_origin), "tensor_about_cg": matrix(mp.tensor_cg),
            "tensor_about_origin": matrix(mp.tensor_origin),
@@ -252,7 +267,7 @@ def to_json(mp: MassProperties, errors: dict | None) -> dict:
     return out
 
 
-__all__ = ["SIGN", "ORDER", "SYMBOL", "MEANING", "CONVENTION", "MassProperties", "mass_properties", "parallel_axis",
+__all__ = ["SIGN", "ORDER", "SYMBOL", "convention", "MassProperties", "mass_properties", "parallel_axis",
            "principal_std", "equimomental_semi_axes", "truth_rows", "moments_table", "matrices_html",
            "principal_html", "to_json"]
 
@@ -261,17 +276,17 @@ def axes_html(ex: Expressed) -> str:
     """The mass properties in other axes than rig.yaml's body frame (rig.yaml ``output_axes``,
     ``rig-identify inertia --axes``): the frame in words, the CG, then per entry the tensor entry
     about the CG, its σ, the moment or product of inertia with the vehicle-dynamics sign and
-    the entry about the body frame's origin; the principal moments.  A half turn only flips
-    signs, so σ are those of the body axes."""
+    the entry about the body frame's origin; the principal moments.  Each entry in these axes is
+    ± one entry of the body axes' (:func:`~rig_identification.io.export.express`), its σ that entry's."""
     c = ", ".join(num(x, ".4f") for x in ex.cg)
     rows = []
     for i in ORDER:
         k = KEYS[i]
         v, sg, vo = ex.entry(k), ex.sigma(k), ex.entry(k, "origin")
         if v is None:
-            rows.append([SYMBOL[k], MEANING[k], NOT_DETERMINED, MISSING, NOT_DETERMINED, MISSING])
+            rows.append([SYMBOL[k], ex.axes.meaning(k), NOT_DETERMINED, MISSING, NOT_DETERMINED, MISSING])
             continue
-        rows.append([SYMBOL[k], MEANING[k], num(v, ".2f"), num(sg, ".3g"), num(SIGN[i] * v + 0.0, ".2f"),
+        rows.append([SYMBOL[k], ex.axes.meaning(k), num(v, ".2f"), num(sg, ".3g"), num(SIGN[i] * v + 0.0, ".2f"),
                      num(vo, ".2f")])
     pm = ("principal moments " + ", ".join(num(x, ".2f") for x in ex.principal) + " kg·m² (the same in any axes)"
           if ex.principal is not None else "principal moments: not determined")

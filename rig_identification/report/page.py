@@ -9,7 +9,8 @@ engineer signs it:
   for the numbers (:mod:`rig_identification.report.verdict`): ``model_error`` — the tensor is not trustworthy,
   σ widened; ``not_identifiable`` — the undetermined entries shown as "not determined", with
   what to change;
-* date, package version, recordings, rig, method, frame (body axes, REP-103) and units (SI);
+* date, package version, recordings, rig, method, frame (rig.yaml's body axes, right-handed; where the vehicle's
+  front and top lie in them when rig.yaml's ``body.vehicle`` says) and units (SI);
   mass and the centre of gravity the tensor is about;
 * the moments and products of inertia about the CG (products with the vehicle-dynamics sign,
   the convention stated once), their σ, the errors against ``truth.yaml`` when there is one,
@@ -44,9 +45,11 @@ import numpy as np
 from ..estimation.identification import IdentificationError
 from ..estimation.inertia_result import InertiaResult
 from ..io.atomic import atomic_directory
+from ..io.export import Axes, axes_for
 from ..io.package import PACKAGE, package_version
 from ..io.recording import Recording
 from ..io.rig import Rig
+from ..io.vehicle import VEHICLE_AXES, Vehicle, common_vehicle
 from ..io.verdict import KEYS
 from ..pipeline.offline import recording_labels
 from .diagnosis import diagnosis_html, effects_text
@@ -54,8 +57,8 @@ from .figures import edge_seconds, ellipse_figure, ellipsoid_figure, fit_figure,
 from .html import GENERATOR, bullets, esc, json_safe, num, page, table
 from .identifiability import axis_signal, identifiability, identifiability_html
 from .mass import (
-    CONVENTION,
     axes_html,
+    convention,
     mass_properties,
     matrices_html,
     moments_table,
@@ -105,9 +108,10 @@ def rig_label(rig: Rig) -> str:
 
 
 def header_html(result: InertiaResult, recs: list[Recording], labels: list[str], truth: dict | None,
-                when: str, rig: Rig | None, cg_source: str | None) -> tuple[str, dict]:
+                when: str, rig: Rig | None, cg_source: str | None, body: Axes) -> tuple[str, dict]:
     """Metadata, mass and CG (HTML) and the same for report.json.  cg_source: where the CG
-    came from when not from rig.yaml (e.g. a static test's result file, with its σ)."""
+    came from when not from rig.yaml (e.g. a static test's result file, with its σ); body: rig.yaml's
+    body axes (:func:`~rig_identification.io.export.axes_for`, with the vehicle's orientation when known)."""
     paths = [str(Path(r.path).resolve()) if r.path is not None else lab for r, lab in zip(recs, labels)] if recs \
         else labels
     rigs = sorted({rig_label(r.rig) for r in recs}) if recs else [rig_label(rig) if rig is not None else
@@ -116,8 +120,10 @@ def header_html(result: InertiaResult, recs: list[Recording], labels: list[str],
     rows = [["generated", when], ["software", f"{PACKAGE} {ver}"],
             ["recording" + ("s" if len(paths) > 1 else ""), "; ".join(paths) or "not given (in-memory fit)"],
             ["rig", "; ".join(rigs)],
-            ["method", result.method], ["frame and units", "body axes of rig.yaml (REP-103: x forward, y left, z up), "
-                                        "origin the body frame's; SI units (kg, m, kg·m², s, rad)"]]
+            ["method", result.method],
+            ["frame and units", body.label + ("" if body.vehicle is not None else ", the vehicle's orientation in "
+                                              "it not stated (rig.yaml body.vehicle)")
+             + "; origin the body frame's; SI units (kg, m, kg·m², s, rad)"]]
     meta = "<table class=\"meta\"><tbody>" + "".join(f"<tr><th>{esc(a)}</th><td>{esc(b)}</td></tr>"
                                                     for a, b in rows) + "</tbody></table>"
     cg = ", ".join(num(x, ".4f") for x in result.center_of_gravity)
@@ -133,8 +139,18 @@ def header_html(result: InertiaResult, recs: list[Recording], labels: list[str],
                if tcg is not None and len(tcg) == 3 else "") + "</p>")
     data = {"generated": when, "software": PACKAGE, "version": ver, "recordings": paths, "rigs": rigs,
             "center_of_gravity_source": cg_source or "rig.yaml body.center_of_gravity",
-            "method": result.method, "frame": "body (REP-103: x forward, y left, z up)", "units": "SI"}
+            "method": result.method, "frame": body.label,
+            "vehicle": None if body.vehicle is None else body.vehicle.to_dict(), "units": "SI"}
     return meta + mass, data
+
+
+def report_vehicle(recs: list[Recording], rig: Rig | None) -> Vehicle | None:
+    """Where the vehicle lies in the body frame: the recordings' rig.yaml ``body.vehicle`` (when
+    those that state one agree: :func:`~rig_identification.io.vehicle.common_vehicle`), else ``rig``'s;
+    None: not stated."""
+    if recs:
+        return common_vehicle(r.rig.vehicle for r in recs)[0]
+    return None if rig is None else rig.vehicle
 
 
 def sigma_note(result: InertiaResult) -> str:
@@ -173,7 +189,7 @@ def recordings_html(result: InertiaResult, recs: list[Recording], labels: list[s
 
 def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None, title: str | None = None,
                  modes: bool = True, rig: Rig | None = None, cg_source: str | None = None,
-                 axes: str = "body") -> Path:
+                 axes: str | Axes = "body") -> Path:
     """Write the HTML report of ``result`` to the folder ``out_dir`` (replaced if it exists).
 
     result: from :func:`~rig_identification.pipeline.offline.identify_recording` or
@@ -185,13 +201,18 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
     principal axes and named in the header (default: the first recording's).  cg_source: where
     the CG came from when not from rig.yaml (``rig-identify inertia --cg FILE``: the static
     test's file and σ), said beside the CG.  axes: the axes the lab reads its numbers in
-    (rig.yaml ``output_axes``, ``--axes``; a name of :data:`~rig_identification.io.export.AXES`): other than
-    ``body``, a section gives the mass properties in them too (the page's tables stay in
-    rig.yaml's body axes, as the JSON).  Returns the path of
-    ``index.html``.  Raises :class:`ReportError` (no fit series: the thesis baseline; ``out_dir``
-    is a file or a non-empty folder that is not an earlier report), OSError (cannot write).
+    (rig.yaml ``output_axes``, ``--axes``: an :class:`~rig_identification.io.export.Axes` or a name of
+    :data:`~rig_identification.io.export.AXES`, made with the vehicle's orientation of the recordings' rig.yaml,
+    else of ``rig``): other than ``body``, a section gives the mass properties in them too (the page's tables
+    stay in rig.yaml's body axes, as the JSON).  The moments are called roll, pitch and yaw only when rig.yaml
+    says where the vehicle lies (``body.vehicle``).  Returns the path of ``index.html``.  Raises
+    :class:`ReportError` (no fit series: the thesis baseline; ``out_dir`` is a file or a non-empty folder that
+    is not an earlier report), :class:`~rig_identification.io.vehicle.AxesError` (vehicle axes without
+    ``body.vehicle``), OSError (cannot write).
     """
     recs = list(recs)
+    vehicle = report_vehicle(recs, rig)
+    shown = axes if isinstance(axes, Axes) else axes_for(axes, vehicle)
     if not result.series and np.all(np.isfinite(result.inertia)):
         raise ReportError("--report needs the prediction-error fit (--model pem): the thesis baseline has no "
                           "predicted output to plot")
@@ -204,13 +225,13 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
     out_dir = Path(out_dir)
     check_report_dir(out_dir)
     when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
-    mp = mass_properties(result)
+    mp = mass_properties(result, vehicle)
     errors = truth_rows(result, truth)
     diag_html, diag_data = diagnosis_html(result)
     found = effects_text(result.diagnosis) if result.diagnosis else ""
     parts: list[str] = [f"<h1>{esc(title)}</h1>", verdict_html(result, found)]
     rig = rig if rig is not None else recs[0].rig if recs else None
-    head, head_data = header_html(result, recs, labels, truth, when, rig, cg_source)
+    head, head_data = header_html(result, recs, labels, truth, when, rig, cg_source, mp.axes)
     parts.append(head)
     with atomic_directory(out_dir) as tmp:
         os.chmod(tmp, 0o755)  # a temporary folder is private (0700); a report is for reading
@@ -222,13 +243,13 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
                          "the error.</p>")
         parts.append(moments_table(mp, errors, "σ propagated sensor noise" if result.sandwich_std is not None
                                    else "σ white gyro noise alone"))
-        parts.append(f'<p class="note" id="convention">{esc(CONVENTION)} {esc(sigma_note(result))}</p>')
+        parts.append(f'<p class="note" id="convention">{esc(convention(mp.axes))} {esc(sigma_note(result))}</p>')
         parts.append("<h3>The tensor as a matrix</h3>" + matrices_html(mp))
         parts.append("<h3>Principal moments and axes</h3>" + principal_html(mp))
         in_axes = None
-        if axes != "body":
-            ex = result.expressed(axes)
-            parts.append(f"<h3>In {esc(ex.axes.name.upper())} axes</h3>" + axes_html(ex))
+        if shown.name != "body":
+            ex = result.expressed(shown)
+            parts.append(f"<h3>In {esc(VEHICLE_AXES[shown.name][0])} axes</h3>" + axes_html(ex))
             in_axes = {"axes": ex.axes.name, "label": ex.axes.label, "center_of_gravity": [float(x) for x in ex.cg],
                        "inertia_about_cg": ex.entries(), "products_of_inertia": ex.products(),
                        "inertia_about_origin": ex.entries("origin")}
