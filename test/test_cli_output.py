@@ -115,6 +115,22 @@ def test_progress_on_stderr_and_quiet_silences_it(text_run, json_run):
     assert "rig-identify: " not in json_run[2], json_run[2]
 
 
+def test_quiet_prints_the_short_result_with_the_same_table(text_run):
+    """-q: the verdict first, the conventions, the mass and CG, the same table as without -q (every
+    row, the same numbers), whether σ carries the CG's, no passed check, no principal axes; a last
+    line says where the rest is."""
+    code, out, err = run("inertia", CLEAN, "--quick", "-q")
+    assert code == 0, err
+    lines = out.splitlines()
+    full = text_run[0].splitlines()
+    assert lines[0] == full[0] and lines[0].startswith("verdict: ")
+    rows = [ln for ln in full if ln.split(" ", 1)[0] in ("Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz")][:6]
+    assert len(rows) == 6 and all(r in lines for r in rows), (rows, lines)
+    assert not any(ln.startswith(("check pass", "principal moments", "  I1")) for ln in lines), lines
+    assert any(ln.startswith("σ leaves out the mass and centre of gravity") for ln in lines), lines
+    assert len(lines) <= 18 and lines[-1].startswith("(-q: the short result") and len(full) >= 2 * len(lines)
+
+
 def test_json_schema_units_window_and_derived_quantities(json_run):
     d, _, _ = json_run
     assert d["schema"] == "rig_identification.inertia_result" and d["schema_version"] == 2

@@ -143,10 +143,16 @@ def std_line(result: InertiaResult) -> str:
     return f"σ: from the fit's residuals (sandwich): they exceed what the sensors' noise ({noise}) explains"
 
 
+BRIEF_TAIL = ("(-q: the short result; without -q also the tensor entries, principal axes, σ's source, the "
+              "diagnosis and every check; --json gives everything)")
+
+
 def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: list[float], axes: str | Axes,
-                  cg_source: str) -> None:
+                  cg_source: str, brief: bool = False) -> None:
     """The text output of ``rig-identify inertia`` (see the module docstring); ``axes``: of
-    :func:`output_axes` (a name: made without the vehicle's orientation)."""
+    :func:`output_axes` (a name: made without the vehicle's orientation).  ``brief`` (``-q``): the
+    verdict, the conventions, the mass and CG, the table, whether σ carries the CG's, and the
+    checks that failed, then a line that says where the rest is."""
     axes = axes_for(axes) if isinstance(axes, str) else axes
     d = result.to_dict(t0=t0s[0] if len(t0s) == 1 else t0s)
     ex = result.expressed(axes)
@@ -169,6 +175,13 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
     print(TABLE_CAPTION)
     for line in tensor_table(ex, truth_columns(result, truth, axes)):
         print(line)
+    if brief:
+        print(GIVEN_EXACT if result.cg_contribution_std is None else cg_in_sigma_line(result))
+        for c in result.validation.checks if result.validation is not None else []:
+            if c.passed is False:
+                print(f"check FAIL {c.name}: {c.detail}")
+        print(BRIEF_TAIL)
+        return
     print(tensor_entries_line(ex))
     for line in principal_lines(ex):
         print(line)
@@ -366,7 +379,7 @@ def cmd_inertia(args) -> int:
         print(json.dumps(d))
     else:
         print_inertia(result, common_truth(recs) if len(recs) > 1 else recs[0].truth,
-                      [r.path for r in recs], t0s, axes, cg_source)
+                      [r.path for r in recs], t0s, axes, cg_source, brief=bool(getattr(args, "quiet", False)))
         if urdf is not None:
             print("URDF inertial element (link frame: rig.yaml's body frame; ixy, ixz, iyz: the tensor's entries):")
             print(urdf)

@@ -182,7 +182,8 @@ def main(argv=None) -> int:
     t_start = time.monotonic()
     graph = Graph(domain_id=args.domain_id)
     say = lambda s: print(f"[demo {time.monotonic() - t_start:6.1f} s] {s}", flush=True)  # noqa: E731
-    say(f"ROS_DOMAIN_ID={graph.domain_id}, logs in {graph.dir}")
+    say(f"ROS_DOMAIN_ID={graph.domain_id}, node logs in {graph.dir} (kept where something fails or with "
+        "--keep-logs, else removed at the end)")
     monitor = None
     rc = 1
     try:
