@@ -406,3 +406,25 @@ def test_report_in_sae_axes(fitted, tmp_path):
     assert "output_axes" not in json.loads((plain / "report.json").read_text())
     text = (plain / "index.html").read_text()
     assert "Ixx (moment about x)" in text and "roll moment" not in text and "x forward" not in text
+
+
+def test_report_names_the_job_and_the_mass_with_its_sigma(tmp_path, capsys):
+    """--vehicle-name, --customer and --operator head the report (HTML escaped) and report.json; the
+    mass carries its σ (rig.yaml survey.mass, default the scale's 0.1 %: 1.81 kg of 1810); each
+    option without --report, or of two lines, is refused before the fit."""
+    rec = str(recording("visible_case16_clean"))
+    out = tmp_path / "report"
+    code = identify_main(["-q", "inertia", rec, "--quick", "--report", str(out), "--vehicle-name", "Jeep <Wrangler>",
+                          "--customer", "ACME & Co", "--operator", "J. Doe"])
+    assert code == 0, capsys.readouterr().err
+    page = (out / "index.html").read_text()
+    assert ("<tr><th>vehicle</th><td>Jeep &lt;Wrangler&gt;</td></tr><tr><th>customer</th><td>ACME &amp; Co</td></tr>"
+            "<tr><th>operator</th><td>J. Doe</td></tr>") in page
+    head = json.loads((out / "report.json").read_text())["report"]
+    assert (head["vehicle_name"], head["customer"], head["operator"]) == ("Jeep <Wrangler>", "ACME & Co", "J. Doe")
+    assert head["mass_std"] == pytest.approx(0.001 * 1810.0) and "Mass <b>1810 kg</b> ± 1.81 kg" in page
+    capsys.readouterr()
+    assert identify_main(["inertia", rec, "--customer", "ACME"]) == 2
+    assert "give --report DIR too" in capsys.readouterr().err
+    assert identify_main(["inertia", rec, "--report", str(tmp_path / "r2"), "--operator", "J.\nDoe"]) == 2
+    assert "--operator: one line" in capsys.readouterr().err and not (tmp_path / "r2").exists()

@@ -51,7 +51,7 @@ from ..pipeline.offline import (
     with_cg_uncertainty,
     with_diagnosis,
 )
-from ..report.page import ReportError, check_report_dir, common_truth, write_report
+from ..report.page import Job, ReportError, check_report_dir, common_truth, write_report
 from ..statics.handover import load_cg_result
 from .progress import heading, step, warn
 from .rig_model import cmd_rig_model
@@ -267,6 +267,13 @@ def output_axes(option: str | None, recs: list) -> tuple[Axes, list[str]]:
         raise AxesError(f"--axes {name}: {why}" if option is not None else why) from None
 
 
+def job_of(args) -> Job:
+    """The report's :class:`~rig_identification.report.page.Job` from ``--vehicle-name``,
+    ``--customer`` and ``--operator`` (each one line; stripped)."""
+    return Job(*(getattr(args, k, None) and getattr(args, k).strip() or None
+                 for k in ("vehicle_name", "customer", "operator")))
+
+
 def check_options(args) -> None:
     """Refuse option combinations that cannot run, before reading any bag."""
     paths = args.recording
@@ -286,6 +293,12 @@ def check_options(args) -> None:
             raise IdentificationError("--report needs --model pem (the thesis baseline has no predicted output "
                                       "to plot)")
         check_report_dir(Path(args.report))  # before the fit, not after it
+    for flag, key in (("--vehicle-name", "vehicle_name"), ("--customer", "customer"), ("--operator", "operator")):
+        text = getattr(args, key, None)
+        if text is not None and not args.report:
+            raise IdentificationError(f"{flag} names the report's {key.replace('_name', '')}: give --report DIR too")
+        if text is not None and ("\n" in text or not text.strip()):
+            raise IdentificationError(f"{flag}: one line of text, not {text!r}")
 
 
 def identify(args, recs: list, cg_cov: np.ndarray | None = None) -> InertiaResult:
@@ -350,7 +363,7 @@ def cmd_inertia(args) -> int:
         try:
             # the report says where the CG came from: "from CG.json (σ x, y, z mm)"
             index = write_report(args.report, result, recs, cg_source=None if cg_note is None else cg_origin,
-                                 axes=axes)
+                                 axes=axes, job=job_of(args))
         except OSError as e:
             raise ReportError(f"{args.report}: cannot write the report ({e.strerror or e})") from None
     body = result.expressed("body")

@@ -91,6 +91,9 @@ def add_inertia_parser(sub) -> None:
                    help="recording folder (rig.yaml + bag/); several recordings of the same body (other exciter "
                         "frequencies or positions, cable geometries) are fitted jointly with one tensor")
     p.add_argument("--report", metavar="DIR", help="also write an HTML report (index.html + figures) to the folder DIR")
+    for flag, what in (("--vehicle-name", "the vehicle measured (make, model, VIN)"), ("--customer", "the customer"),
+                       ("--operator", "who ran the test")):
+        p.add_argument(flag, metavar="TEXT", help=f"with --report: {what}, named in the report's header (one line)")
     p.add_argument("--json", action="store_true",
                    help="print one JSON object (schema rig_identification.inertia_result, with units per field)")
     p.add_argument("--urdf", action="store_true",

@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -68,6 +69,25 @@ from .mass import (
 )
 from .modes import modes_section
 from .verdict import checks_table, verdict_html
+
+
+@dataclass(frozen=True)
+class Job:
+    """Who and what the report is for, as the lab gives it (``rig-identify inertia --vehicle-name
+    --customer --operator``): each a line of text or None (not given, not shown)."""
+
+    vehicle: str | None = None
+    customer: str | None = None
+    operator: str | None = None
+
+    def rows(self) -> list[list[str]]:
+        """The header's rows for the fields given: [label, text]."""
+        return [[label, text] for label, text in (("vehicle", self.vehicle), ("customer", self.customer),
+                                                  ("operator", self.operator)) if text]
+
+    def to_dict(self) -> dict[str, str | None]:
+        """report.json's fields (``vehicle_name``: ``vehicle`` there is where the vehicle lies)."""
+        return {"vehicle_name": self.vehicle, "customer": self.customer, "operator": self.operator}
 
 
 class ReportError(IdentificationError):
@@ -108,16 +128,18 @@ def rig_label(rig: Rig) -> str:
 
 
 def header_html(result: InertiaResult, recs: list[Recording], labels: list[str], truth: dict | None,
-                when: str, rig: Rig | None, cg_source: str | None, body: Axes) -> tuple[str, dict]:
-    """Metadata, mass and CG (HTML) and the same for report.json.  cg_source: where the CG
-    came from when not from rig.yaml (e.g. a static test's result file, with its σ); body: rig.yaml's
-    body axes (:func:`~rig_identification.io.export.axes_for`, with the vehicle's orientation when known)."""
+                when: str, rig: Rig | None, cg_source: str | None, body: Axes, job: Job = Job()) -> tuple[str, dict]:
+    """Metadata (the job's fields first where given), mass with its σ and CG (HTML) and the same for
+    report.json.  cg_source: where the CG came from when not from rig.yaml (e.g. a static test's
+    result file, with its σ); body: rig.yaml's body axes (:func:`~rig_identification.io.export.axes_for`,
+    with the vehicle's orientation when known).  The mass's σ is rig.yaml's ``survey.mass`` (default:
+    a floor scale's share, :meth:`~rig_identification.io.rig.Survey.mass_std`)."""
     paths = [str(Path(r.path).resolve()) if r.path is not None else lab for r, lab in zip(recs, labels)] if recs \
         else labels
     rigs = sorted({rig_label(r.rig) for r in recs}) if recs else [rig_label(rig) if rig is not None else
                                                                   "not given (in-memory fit)"]
     ver = package_version()
-    rows = [["generated", when], ["software", f"{PACKAGE} {ver}"],
+    rows = job.rows() + [["generated", when], ["software", f"{PACKAGE} {ver}"],
             ["recording" + ("s" if len(paths) > 1 else ""), "; ".join(paths) or "not given (in-memory fit)"],
             ["rig", "; ".join(rigs)],
             ["method", result.method],
@@ -133,11 +155,14 @@ def header_html(result: InertiaResult, recs: list[Recording], labels: list[str],
     declared = rig.mass if rig is not None else result.mass
     msrc = "rig.yaml body.mass" if abs(result.mass - declared) <= 1e-9 * abs(declared) else \
         f"rig.yaml's {num(declared, 'g')} kg corrected by the diagnosis"
-    mass = (f"<p>Mass <b>{num(result.mass, 'g')} kg</b> ({esc(msrc)}), centre of gravity "
+    mass_std = rig.survey.mass_std(declared) if rig is not None else None
+    sd = "" if mass_std is None else f" ± {num(mass_std, '.3g')} kg (1 σ, rig.yaml survey.mass)"
+    mass = (f"<p>Mass <b>{num(result.mass, 'g')} kg</b>{sd} ({esc(msrc)}), centre of gravity "
             f"<b>[{cg}] m</b> in body axes ({where}): the tensor below is about this point."
             + (f" truth.yaml: {num(truth.get('mass'), 'g')} kg at [{', '.join(num(x, '.4f') for x in tcg)}] m."
                if tcg is not None and len(tcg) == 3 else "") + "</p>")
-    data = {"generated": when, "software": PACKAGE, "version": ver, "recordings": paths, "rigs": rigs,
+    data = {**job.to_dict(), "mass_std": mass_std,
+            "generated": when, "software": PACKAGE, "version": ver, "recordings": paths, "rigs": rigs,
             "center_of_gravity_source": cg_source or "rig.yaml body.center_of_gravity",
             "method": result.method, "frame": body.label,
             "vehicle": None if body.vehicle is None else body.vehicle.to_dict(), "units": "SI"}
@@ -189,7 +214,7 @@ def recordings_html(result: InertiaResult, recs: list[Recording], labels: list[s
 
 def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None, title: str | None = None,
                  modes: bool = True, rig: Rig | None = None, cg_source: str | None = None,
-                 axes: str | Axes = "body") -> Path:
+                 axes: str | Axes = "body", job: Job = Job()) -> Path:
     """Write the HTML report of ``result`` to the folder ``out_dir`` (replaced if it exists).
 
     result: from :func:`~rig_identification.pipeline.offline.identify_recording` or
@@ -205,7 +230,8 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
     :data:`~rig_identification.io.export.AXES`, made with the vehicle's orientation of the recordings' rig.yaml,
     else of ``rig``): other than ``body``, a section gives the mass properties in them too (the page's tables
     stay in rig.yaml's body axes, as the JSON).  The moments are called roll, pitch and yaw only when rig.yaml
-    says where the vehicle lies (``body.vehicle``).  Returns the path of ``index.html``.  Raises
+    says where the vehicle lies (``body.vehicle``).  job: the vehicle, customer and operator the header
+    names (:class:`Job`).  Returns the path of ``index.html``.  Raises
     :class:`ReportError` (no fit series: the thesis baseline; ``out_dir`` is a file or a non-empty folder that
     is not an earlier report), :class:`~rig_identification.io.vehicle.AxesError` (vehicle axes without
     ``body.vehicle``), OSError (cannot write).
@@ -231,7 +257,7 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
     found = effects_text(result.diagnosis) if result.diagnosis else ""
     parts: list[str] = [f"<h1>{esc(title)}</h1>", verdict_html(result, found)]
     rig = rig if rig is not None else recs[0].rig if recs else None
-    head, head_data = header_html(result, recs, labels, truth, when, rig, cg_source, mp.axes)
+    head, head_data = header_html(result, recs, labels, truth, when, rig, cg_source, mp.axes, job)
     parts.append(head)
     with atomic_directory(out_dir) as tmp:
         os.chmod(tmp, 0o755)  # a temporary folder is private (0700); a report is for reading
@@ -307,5 +333,5 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
     return out_dir / "index.html"
 
 
-__all__ = ["write_report", "check_report_dir", "identifiability", "common_truth", "axis_signal", "ReportError",
+__all__ = ["write_report", "Job", "check_report_dir", "identifiability", "common_truth", "axis_signal", "ReportError",
            "json_safe", "package_version", "rig_label"]
