@@ -75,6 +75,10 @@ def test_the_report_says_where_the_cg_came_from(day):
     page = html.unescape((report / "index.html").read_text())
     assert f"in body axes ({source})" in page
     assert "rig.yaml body.center_of_gravity, as measured" not in page
+    # the modes table's geometric modes are about the same CG, and say so
+    assert data["modes"][0]["center_of_gravity_source"] == source
+    c = ", ".join(f"{x:.4f}" for x in cg["center_of_gravity"])
+    assert f"CG [{c}] m ({source})" in page and "CG from rig.yaml" not in page
 
 
 def test_cg_json_gives_each_state_window_as_start_and_end_take_it(day):

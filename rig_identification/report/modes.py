@@ -14,10 +14,12 @@ from ..model.modes import estimate_modes, natural_modes
 from .html import MISSING, esc, num, table
 
 
-def modes_section(rec: Recording, result: InertiaResult, truth: dict | None) -> tuple[str, list[str], dict]:
+def modes_section(rec: Recording, result: InertiaResult, truth: dict | None, cg_source: str | None = None
+                  ) -> tuple[str, list[str], dict]:
     """HTML, notes and data (for report.json) of the modes table of ``rec``.  Frequencies Hz;
-    mode shapes in world axes.  The geometric modes need the whole tensor: when it is not
-    determined, only the recording's are listed."""
+    mode shapes in world axes.  The geometric modes are the rig's with the result's mass, CG and
+    tensor (the point the tensor is about; ``cg_source``: where that CG came from, None: rig.yaml);
+    they need the whole tensor: when it is not determined, only the recording's are listed."""
     rig = rec.rig
     if all(c.stiffness is not None for c in rig.cables):
         k, kname = rig.cable_stiffness, "spring cables (rig.yaml stiffness)"
@@ -30,13 +32,14 @@ def modes_section(rec: Recording, result: InertiaResult, truth: dict | None) -> 
         why = "the tensor is not determined"
     else:
         try:
-            geo = natural_modes(rig, rig.mass, rig.require_cg(), result.inertia, k)
+            geo = natural_modes(rig, result.mass, result.center_of_gravity, result.inertia, k)
         except SimulationError as e:
             why = str(e)
     geo_t = None
     if truth is not None and geo:
         try:
-            geo_t = natural_modes(rig, rig.mass, rig.require_cg(), inertia_tensor(truth["inertia_about_cg"]), k)
+            geo_t = natural_modes(rig, result.mass, result.center_of_gravity, inertia_tensor(truth["inertia_about_cg"]),
+                                  k)
         except SimulationError:
             geo_t = None
     est = estimate_modes(rec)
@@ -70,7 +73,10 @@ def modes_section(rec: Recording, result: InertiaResult, truth: dict | None) -> 
     data["exciter_frequency_hz"] = est.exciter_frequency
     fex = "" if est.exciter_frequency is None else \
         f" Exciter at {est.exciter_frequency:.4f} Hz (excluded with its harmonics)."
-    intro = f"<p>Model: mass {rig.mass:g} kg, CG from rig.yaml, {esc(kname)}.{esc(fex)}</p>"
+    where = cg_source or "rig.yaml body.center_of_gravity"
+    cg = ", ".join(f"{x:.4f}" for x in result.center_of_gravity)
+    intro = f"<p>Model: mass {result.mass:g} kg, CG [{cg}] m ({esc(where)}), {esc(kname)}.{esc(fex)}</p>"
+    data["center_of_gravity_source"] = where
     if why:
         intro += f"<p>Geometric modes: not available ({esc(why)}).</p>"
     text = [i for i, h in enumerate(head) if h in ("mode shape (world axes)", "seen on")]

@@ -319,7 +319,7 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
         if modes and matched:
             for lab, rec in zip(labels, recs):
                 parts.append(f"<h2>Natural modes: {esc(lab)} — geometry vs recording</h2>")
-                sec, notes, mdata = modes_section(rec, result, truth)
+                sec, notes, mdata = modes_section(rec, result, truth, cg_source)
                 mode_data.append({"recording": lab, **mdata})
                 parts.append(sec)
                 parts.extend(f'<p class="note">note: {esc(w)}</p>' for w in notes)
