@@ -25,8 +25,9 @@ from ..io.rig import Rig
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import frequency_response, linearise
 from ..model.parametrisation import physically_consistent, to_tensor
-from .rig_fit import Prior, start_parameters
+from .rig_fit import start_parameters
 from .rig_record import Record, RigFitError
+from .rig_unknowns import Prior
 
 log = logging.getLogger(__name__)
 
