@@ -52,6 +52,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import OptimizeResult, least_squares
 from scipy.signal import butter, sosfiltfilt
+from scipy.spatial.transform import Rotation
 
 from ..io.rig import Rig
 from ..model.cables import DEFAULT_DAMPING_RATIO
@@ -144,6 +145,8 @@ class _Problem:
         self.unit = float(np.sqrt(self.step * np.sum(sosfiltfilt(self.sos, impulse) ** 2)))
         self.weight = np.sqrt(self.step) / (rec.sigma * noise_scale * np.sqrt(rec.oversampling))
         self.rest = rest
+        self.ref = rest_state(parameters_of(self.x0, like, self.lay), rest)
+        self._rest_cache: dict[bytes, np.ndarray] = {}
         lin = linearise(parameters_of(self.x0, like, self.lay), rest)
         self.substeps = substeps_for(2 * np.pi * natural_frequencies(lin).max(), rec.dt)
         self.basis = rec.force_basis()[:n] if self.lay.n_force else np.zeros((n, 0))
@@ -225,8 +228,33 @@ class _Problem:
         p = parameters_of(x, self.like, self.lay)
         u = self.force(x) if u is None else u
         a, b = self.edges[k], self.edges[k + 1]
-        out = simulate(p, moved_state(self.bases[k], x[self.lay.state(k)]), u[a:b], self.rec.dt, self.substeps)[0]
+        y0 = moved_state(self._rebased(p, self.bases[k]), x[self.lay.state(k)])
+        out = simulate(p, y0, u[a:b], self.rec.dt, self.substeps)[0]
         return np.column_stack([out, u[a:b]]) if self.lay.n_force else out
+
+    def _rebased(self, p: RigParameters, base: np.ndarray) -> np.ndarray:
+        """``base`` moved with the rest pose: its offset from the rest state at x0 put on the rest
+        state of ``p`` (a shifted geometry moves the start with it; no cancellation left to the fit)."""
+        key = p.ceiling.tobytes() + p.body.tobytes() + p.length.tobytes() + p.cg.tobytes() + p.stiffness.tobytes() \
+            + np.array([p.mass]).tobytes() + p.inertia.tobytes()
+        ref = self._rest_cache.get(key)
+        if ref is None:
+            try:
+                ref = rest_state(p, rest_pose(p, self.rest))
+            except SimulationError:
+                ref = self.ref
+            self._rest_cache = {key: ref}
+        R0 = Rotation.from_quat(self.ref[[4, 5, 6, 3]])
+        R1 = Rotation.from_quat(ref[[4, 5, 6, 3]])
+        Rb = Rotation.from_quat(base[[4, 5, 6, 3]])
+        q = (R1 * R0.inv() * Rb).as_quat()
+        return np.concatenate([base[:3] - self.ref[:3] + ref[:3], [q[3], q[0], q[1], q[2]], base[7:]])
+
+    def bases_at(self, x: np.ndarray) -> np.ndarray:
+        """(n_segments, 13) the segments' states before their unknowns, moved with the rest pose
+        to the parameters of ``x``: what a problem made at ``x`` takes as ``bases``."""
+        p = parameters_of(x, self.like, self.lay)
+        return np.array([self._rebased(p, b) for b in self.bases])
 
     def outputs(self, x: np.ndarray) -> list[np.ndarray]:
         """The model's readings over the span, segment by segment ((samples, n_out) each)."""
@@ -528,7 +556,7 @@ def _restarted(rec: Record, p: RigParameters, lay: Layout, x: np.ndarray, prior:
         sol = _solve(prob, verbose, n == len(rec.y) - rec.start)
         runs += sol.nfev * (prob.lay.size + 1)
         x1, p1, rest = _moved_on(prob, sol, p1, rest)
-        cost, bases = float(sol.cost), prob.bases
+        cost, bases = float(sol.cost), prob.bases_at(x1)
     return x1, p1, rest, cost, runs, bases
 
 
@@ -574,14 +602,14 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     prob, sol, p, rest = best
     base = prob.base
     x, p, rest = _moved_on(prob, sol, p, rest)
-    bases = prob.bases
+    bases = prob.bases_at(x)
     for i, (n, final) in enumerate(rounds):
         if i > 0:
             prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, base, bases)
             sol = _solve(prob, verbose, final)
             nfev += sol.nfev * (prob.lay.size + 1)
             x, p, rest = _moved_on(prob, sol, p, rest)
-            bases = prob.bases
+            bases = prob.bases_at(x)
         if final:
             level = _levels(_Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base, bases), x)
             new_scale = np.maximum(level, 1.0)
