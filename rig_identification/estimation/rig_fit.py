@@ -228,7 +228,7 @@ class _Problem:
         p = parameters_of(x, self.like, self.lay)
         u = self.force(x) if u is None else u
         a, b = self.edges[k], self.edges[k + 1]
-        y0 = moved_state(self._rebased(p, self.bases[k]), x[self.lay.state(k)])
+        y0 = moved_state(self._rebased(p, self.bases[k]) if k else self.bases[0], x[self.lay.state(k)])
         out = simulate(p, y0, u[a:b], self.rec.dt, self.substeps)[0]
         return np.column_stack([out, u[a:b]]) if self.lay.n_force else out
 
@@ -254,7 +254,7 @@ class _Problem:
         """(n_segments, 13) the segments' states before their unknowns, moved with the rest pose
         to the parameters of ``x``: what a problem made at ``x`` takes as ``bases``."""
         p = parameters_of(x, self.like, self.lay)
-        return np.array([self._rebased(p, b) for b in self.bases])
+        return np.array([self.bases[0]] + [self._rebased(p, b) for b in self.bases[1:]])
 
     def outputs(self, x: np.ndarray) -> list[np.ndarray]:
         """The model's readings over the span, segment by segment ((samples, n_out) each)."""
