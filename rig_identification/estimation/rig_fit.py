@@ -66,7 +66,7 @@ from .rig_unknowns import Layout, Prior, parameters_of, priors, relayout, unit_s
 log = logging.getLogger(__name__)
 
 #: The record's lengths, s, stage by stage before the whole record (module docstring).
-STAGES = (15.0,)
+STAGES = (5.0, 15.0)
 
 #: The decimated residual's rate over the fit's band edge (:func:`~.rig_record.band_edge`).
 DECIMATED_RATE = 3.0
@@ -228,21 +228,21 @@ class _Problem:
         p = parameters_of(x, self.like, self.lay)
         u = self.force(x) if u is None else u
         a, b = self.edges[k], self.edges[k + 1]
-        y0 = moved_state(self._rebased(p, self.bases[k]) if k else self.bases[0], x[self.lay.state(k)])
+        y0 = moved_state(self._rebased(p, self.bases[k]), x[self.lay.state(k)])
         out = simulate(p, y0, u[a:b], self.rec.dt, self.substeps)[0]
         return np.column_stack([out, u[a:b]]) if self.lay.n_force else out
 
     def _rebased(self, p: RigParameters, base: np.ndarray) -> np.ndarray:
-        """``base`` moved with the rest pose: its offset from the rest state at x0 put on the rest
-        state of ``p`` (a shifted geometry moves the start with it; no cancellation left to the fit)."""
+        """``base`` (13,) moved with the rest pose: its offset from the rest state at x0 put on the
+        rest state of ``p`` (a shifted geometry or CG moves the start with it, so the fit need not
+        cancel the two against each other: each channel's offset is projected out, and the rest
+        pose itself is not what the data see).  Raises
+        :class:`~rig_identification.model.dynamics.SimulationError` where ``p`` has no rest pose."""
         key = p.ceiling.tobytes() + p.body.tobytes() + p.length.tobytes() + p.cg.tobytes() + p.stiffness.tobytes() \
             + np.array([p.mass]).tobytes() + p.inertia.tobytes()
         ref = self._rest_cache.get(key)
         if ref is None:
-            try:
-                ref = rest_state(p, rest_pose(p, self.rest))
-            except SimulationError:
-                ref = self.ref
+            ref = rest_state(p, rest_pose(p, self.rest))
             self._rest_cache = {key: ref}
         R0 = Rotation.from_quat(self.ref[[4, 5, 6, 3]])
         R1 = Rotation.from_quat(ref[[4, 5, 6, 3]])
@@ -254,7 +254,7 @@ class _Problem:
         """(n_segments, 13) the segments' states before their unknowns, moved with the rest pose
         to the parameters of ``x``: what a problem made at ``x`` takes as ``bases``."""
         p = parameters_of(x, self.like, self.lay)
-        return np.array([self.bases[0]] + [self._rebased(p, b) for b in self.bases[1:]])
+        return np.array([self._rebased(p, b) for b in self.bases])
 
     def outputs(self, x: np.ndarray) -> list[np.ndarray]:
         """The model's readings over the span, segment by segment ((samples, n_out) each)."""
@@ -557,6 +557,7 @@ def _restarted(rec: Record, p: RigParameters, lay: Layout, x: np.ndarray, prior:
         runs += sol.nfev * (prob.lay.size + 1)
         x1, p1, rest = _moved_on(prob, sol, p1, rest)
         cost, bases = float(sol.cost), prob.bases_at(x1)
+        base = bases[0]
     return x1, p1, rest, cost, runs, bases
 
 
@@ -603,6 +604,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     base = prob.base
     x, p, rest = _moved_on(prob, sol, p, rest)
     bases = prob.bases_at(x)
+    base = bases[0]
     for i, (n, final) in enumerate(rounds):
         if i > 0:
             prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, base, bases)
@@ -610,6 +612,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
             nfev += sol.nfev * (prob.lay.size + 1)
             x, p, rest = _moved_on(prob, sol, p, rest)
             bases = prob.bases_at(x)
+            base = bases[0]
         if final:
             level = _levels(_Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base, bases), x)
             new_scale = np.maximum(level, 1.0)
@@ -625,6 +628,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
         minima.append((cost2, x2, p2, rest2, bases2))
     minima.sort(key=lambda m: m[0])
     cost, x, p, rest, bases = minima[0]
+    base = bases[0]
     others = np.array([m[1][lay.inertia] for m in minima[1:]])
     other_chi2 = np.array([2 * (m[0] - cost) for m in minima[1:]])
     log.info("rig fit: the other minima settled %s from the estimate, χ² %s", np.round(others - x[lay.inertia], 3),
