@@ -1,5 +1,5 @@
-"""argparse types of ``rig-identify``'s numeric options: light (no numpy), so that the top-level
-parser (:mod:`rig_identification.cli.main`) builds without the heavy modules."""
+"""argparse types and shared option tables of ``rig-identify``: light (no numpy), so that the
+top-level parser (:mod:`rig_identification.cli.main`) builds without the heavy modules."""
 from __future__ import annotations
 
 import argparse
@@ -20,4 +20,9 @@ def number(name: str, zero: bool = False):
     return f
 
 
-__all__ = ["number"]
+#: ``inertia``'s report header options: (flag, argparse dest, what the text names).
+JOB_OPTIONS = (("--vehicle-name", "vehicle_name", "the vehicle measured (make, model, VIN)"),
+               ("--customer", "customer", "the customer"),
+               ("--operator", "operator", "who ran the test"))
+
+__all__ = ["JOB_OPTIONS", "number"]

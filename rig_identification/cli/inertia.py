@@ -53,6 +53,7 @@ from ..pipeline.offline import (
 )
 from ..report.page import Job, ReportError, check_report_dir, common_truth, write_report
 from ..statics.handover import load_cg_result
+from .arg_types import JOB_OPTIONS
 from .progress import heading, step, warn
 from .rig_model import cmd_rig_model
 from .text import (
@@ -270,8 +271,7 @@ def output_axes(option: str | None, recs: list) -> tuple[Axes, list[str]]:
 def job_of(args) -> Job:
     """The report's :class:`~rig_identification.report.page.Job` from ``--vehicle-name``,
     ``--customer`` and ``--operator`` (each one line; stripped)."""
-    return Job(*(getattr(args, k, None) and getattr(args, k).strip() or None
-                 for k in ("vehicle_name", "customer", "operator")))
+    return Job(*(getattr(args, k, None) and getattr(args, k).strip() or None for _, k, _ in JOB_OPTIONS))
 
 
 def check_options(args) -> None:
@@ -293,7 +293,7 @@ def check_options(args) -> None:
             raise IdentificationError("--report needs --model pem (the thesis baseline has no predicted output "
                                       "to plot)")
         check_report_dir(Path(args.report))  # before the fit, not after it
-    for flag, key in (("--vehicle-name", "vehicle_name"), ("--customer", "customer"), ("--operator", "operator")):
+    for flag, key, _ in JOB_OPTIONS:
         text = getattr(args, key, None)
         if text is not None and not args.report:
             raise IdentificationError(f"{flag} names the report's {key.replace('_name', '')}: give --report DIR too")

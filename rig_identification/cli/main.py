@@ -17,7 +17,7 @@ import sys
 from typing import Callable
 
 from ..io.package import package_version
-from .arg_types import number
+from .arg_types import JOB_OPTIONS, number
 from .progress import attached
 from .sim_args import parse_sim_args
 
@@ -91,8 +91,7 @@ def add_inertia_parser(sub) -> None:
                    help="recording folder (rig.yaml + bag/); several recordings of the same body (other exciter "
                         "frequencies or positions, cable geometries) are fitted jointly with one tensor")
     p.add_argument("--report", metavar="DIR", help="also write an HTML report (index.html + figures) to the folder DIR")
-    for flag, what in (("--vehicle-name", "the vehicle measured (make, model, VIN)"), ("--customer", "the customer"),
-                       ("--operator", "who ran the test")):
+    for flag, _, what in JOB_OPTIONS:
         p.add_argument(flag, metavar="TEXT", help=f"with --report: {what}, named in the report's header (one line)")
     p.add_argument("--json", action="store_true",
                    help="print one JSON object (schema rig_identification.inertia_result, with units per field)")
