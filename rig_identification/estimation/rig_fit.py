@@ -34,8 +34,12 @@ record, their free response's phase makes the likelihood multimodal in the tenso
 fraction of a percent apart, each as sharp as its Fisher information says, at about the same
 χ²).  Within a segment a phase error stays small, and what the segments lose is that ambiguous
 information alone (the bound grows ≤ 1.5× on regular rigs, up to 25× on an entry of rigs whose
-long-record minima are ambiguous).  The fit starts on the record's first :data:`STAGES`
-seconds, one segment, then takes the whole record.  Its minimum is then checked by two restarts
+long-record minima are ambiguous).  Each segment's start is held as its offset from the rest
+pose of the parameters tried: a change of geometry, CG or mass moves the rest pose by up to
+millimetres, which a start held fixed would turn into a swing the data do not show, and the fit
+would have to cancel the two through a linearisation (the 3-cable test rig's whole-record solve
+then crawled for 100 iterations).  The fit starts on the record's first :data:`STAGES`
+seconds, one segment each, then takes the whole record.  Its minimum is then checked by two restarts
 from tensors :data:`RESTART_SHIFT` away on either side (:func:`_restarted`): where one settles
 more than 3 σ off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is
 flat or multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`);
@@ -55,12 +59,12 @@ from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
 from ..io.rig import Rig
-from ..model.cables import DEFAULT_DAMPING_RATIO
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
 from ..model.rig_ode import moved_state, rest_state, simulate, substeps_for
-from .rig_record import Record, RigFitError
+from .rig_record import Record
+from .rig_start import start_parameters
 from .rig_unknowns import Layout, Prior, parameters_of, priors, relayout, unit_scale, vector
 
 log = logging.getLogger(__name__)
@@ -426,22 +430,6 @@ def _covariance(prob: _Problem, z: np.ndarray, noise_scale: np.ndarray | None = 
     return Hinv * S, Hinv @ meat @ Hinv * S, unit * S
 
 
-def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, damping_time: float | None = None
-                     ) -> tuple[RigParameters, RestPose]:
-    """The parameters a fit starts from (rig.yaml's geometry, the prior's mass, CG and stiffness,
-    the tensor entries ``inertia0`` (6,), τ ``damping_time`` s or the default cable's) and their
-    rest pose.  Raises :class:`RigFitError` when the rig as described has none."""
-    n = len(rig.cables)
-    tau = 2 * DEFAULT_DAMPING_RATIO * np.sqrt(prior.mass / (n * prior.stiffness.mean())) \
-        if damping_time is None else damping_time
-    start = RigParameters.from_rig(rig, np.zeros(6), prior.stiffness, tau, prior.mass, prior.cg)
-    try:
-        rest = rest_pose(start)
-    except SimulationError as e:
-        raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e})") from None
-    return start.replace(inertia=np.asarray(inertia0, float)), rest
-
-
 def _base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) -> np.ndarray:
     """The state at the fit's first sample: the model run from rest at the record's start
     through the spin-up (the rest state itself when the fit starts there)."""
@@ -571,7 +559,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     of least cost goes on): the swinging modes make the likelihood multimodal where a start's
     frequencies are far off.
     damping_time: start of τ, s (default the default cable's: 2 ζ sqrt(m / (N k))).
-    Raises :class:`RigFitError` when the rig has no rest pose.
+    Raises :class:`~.rig_record.RigFitError` when the rig has no rest pose.
     """
     lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1])
     n_all = len(rec.y) - rec.start
@@ -583,7 +571,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     nfev = 0
     problems = []
     for start in np.atleast_2d(np.asarray(inertia0, float)):
-        p0, rest0 = start_parameters(rig, prior, start, damping_time)
+        p0, rest0 = start_parameters(rig, prior, start, rec, damping_time)
         prob = _Problem(rec, p0, lay, vector(p0, np.zeros(12), lay), prior, noise_scale, rounds[0][0], rest0, None)
         prob = _Problem(rec, p0, lay, _settled(prob, rec, p0, lay, prior, rest0), prior, noise_scale, rounds[0][0],
                         rest0, prob.base)
