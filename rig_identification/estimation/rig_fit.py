@@ -516,18 +516,15 @@ def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: 
 
 
 def _restarted(rec: Record, p: RigParameters, lay: Layout, x: np.ndarray, prior: Prior, noise_scale: np.ndarray,
-               rest: RestPose, base: np.ndarray, lengths: list[int], sign: float, verbose: int
+               rest: RestPose, bases: np.ndarray, sign: float, verbose: int
                ) -> tuple[np.ndarray, RigParameters, RestPose, float, int, np.ndarray]:
-    """The fit restarted from the estimate ``x`` with each tensor entry moved by ``sign``
-    :data:`RESTART_SHIFT` of its scale (signs alternating; halved until the tensor is physical),
-    every other unknown at the estimate, through the same stages as the fit (``lengths``, samples,
-    then the whole record: straight on the whole record the trust region crawls ~80 iterations
-    along the likelihood's curved valley): its unknowns, parameters, rest pose, cost on the whole
-    record (½ χ², the same weights), model runs and the segments' states (:class:`_Problem`).
-    A well-determined minimum draws the restart
-    back within its σ; where the likelihood is flat or multimodal along some direction of the
-    tensor it settles elsewhere at a χ² about as low (bench_any_rig's 22006: fits from the truth
-    and two starts settle 0.25–0.5 % apart in Iyy, 15–57 σ, within χ² 5 of each other)."""
+    """The fit restarted on the whole record from the estimate ``x`` with each tensor entry moved
+    by ``sign`` :data:`RESTART_SHIFT` of its scale (signs alternating; halved until the tensor is
+    physical), every other unknown at the estimate, each segment from the estimate's state
+    (``bases``, :class:`_Problem`): its unknowns, parameters, rest pose, cost (½ χ², the same
+    weights), model runs and the segments' states.  A well-determined minimum draws the restart back
+    within its σ; where the likelihood is flat or multimodal along some direction of the tensor
+    it settles elsewhere at a χ² about as low."""
     shift = sign * RESTART_SHIFT * entry_scales(x[lay.inertia]) * np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
     x1 = x.copy()
     for _ in range(6):
@@ -536,17 +533,10 @@ def _restarted(rec: Record, p: RigParameters, lay: Layout, x: np.ndarray, prior:
             break
         shift = shift / 2
     p1 = parameters_of(x1, p, lay)
-    runs = 0
-    cost = np.inf
-    bases = np.zeros((0, 13))
-    for n in lengths + [len(rec.y) - rec.start]:
-        prob = _Problem(rec, p1, lay, x1, prior, noise_scale, n, rest, base)
-        sol = _solve(prob, verbose, n == len(rec.y) - rec.start)
-        runs += sol.nfev * (prob.lay.size + 1)
-        x1, p1, rest = _moved_on(prob, sol, p1, rest)
-        cost, bases = float(sol.cost), prob.bases_at(x1)
-        base = bases[0]
-    return x1, p1, rest, cost, runs, bases
+    prob = _Problem(rec, p1, lay, x1, prior, noise_scale, len(rec.y) - rec.start, rest, bases[0], bases)
+    sol = _solve(prob, verbose, True)
+    x1, p1, rest = _moved_on(prob, sol, p1, rest)
+    return x1, p1, rest, float(sol.cost), sol.nfev * (prob.lay.size + 1), prob.bases_at(x1)
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_time: float | None = None,
@@ -610,8 +600,8 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, base, bases)
     minima = [(0.5 * float(np.sum(last.residual(np.zeros(last.lay.size)) ** 2)), x, p, rest, bases)]
     for sign in (1.0, -1.0):
-        x2, p2, rest2, cost2, runs, bases2 = _restarted(rec, p, lay, x, prior, noise_scale, rest, base, lengths,
-                                                        sign, verbose)
+        x2, p2, rest2, cost2, runs, bases2 = _restarted(rec, p, lay, x, prior, noise_scale, rest, bases, sign,
+                                                        verbose)
         nfev += runs
         minima.append((cost2, x2, p2, rest2, bases2))
     minima.sort(key=lambda m: m[0])
