@@ -34,8 +34,9 @@ from dataclasses import replace
 import numpy as np
 
 from rig_identification.design.scenarios import EXCITER_PLACEMENTS, LAYOUTS, REFERENCE_NOISE, simulate_random
-from rig_identification.estimation.rig_fit import Layout, Prior, cramer_rao
+from rig_identification.estimation.rig_fit import cramer_rao
 from rig_identification.estimation.rig_record import record
+from rig_identification.estimation.rig_unknowns import Layout, Prior
 from rig_identification.io.recording import Recording, read_recording
 from rig_identification.io.rig import inertia_tensor
 from rig_identification.io.verdict import KEYS

@@ -25,8 +25,9 @@ from ..io.rig import Rig
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import frequency_response, linearise
 from ..model.parametrisation import physically_consistent, to_tensor
-from .rig_fit import Prior, start_parameters
 from .rig_record import Record, RigFitError
+from .rig_start import start_parameters
+from .rig_unknowns import Prior
 
 log = logging.getLogger(__name__)
 
@@ -88,10 +89,11 @@ def harmonic_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarray) -> t
     """The tensor entries (6,) kg·m² whose linearised forced response best matches the record's
     fundamental (module docstring), fitted from each row of ``starts`` (k, 6); and that fit's
     RMS misfit over the amplitudes' noise (1: noise alone; the linearisation's own error adds
-    to it).  Mass, CG, stiffness and geometry are the prior's.  Raises :class:`RigFitError`
-    when the rig has no rest pose."""
+    to it).  Mass, CG, stiffness and geometry are the fit's start
+    (:func:`~.rig_start.start_parameters`, the lengths and CG from the record's mean tensions).
+    Raises :class:`RigFitError` when the rig has no rest pose."""
     h = harmonics(rec, len(rig.cables))
-    p0, rest = start_parameters(rig, prior, np.asarray(starts[0], float))
+    p0, rest = start_parameters(rig, prior, np.asarray(starts[0], float), rec)
     weight = 1.0 / h.std
     big = np.full(2 * len(h.readings), 1e6)
 

@@ -27,55 +27,53 @@ residual's where the model does not fit it), the nuisance parameters profiled ou
 the tensor's block.  The Cramér–Rao bound of a rig and run (:func:`cramer_rao`) is the same
 information at the true parameters with the sensors' own noise levels.
 
-The fit starts on the record's first seconds and lengthens it stage by stage
-(:data:`STAGES`): the swinging modes are barely damped, and a phase error that a short record
-tolerates grows with its length.  Its minimum is then checked by two restarts from tensors
-:data:`RESTART_SHIFT` away on either side (:func:`_restarted`): where one settles more than 3 σ
-off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is flat or
-multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`); the
-lowest of the three minima is the estimate.
+A fitted span is cut into segments of at most :data:`~.rig_unknowns.SEGMENT` s, each run from its own
+initial state (multiple shooting without continuity, Bock & Plitt 1984: the states free, as
+under an unmeasured disturbance).  The swinging modes are barely damped; carried over a whole
+record, their free response's phase makes the likelihood multimodal in the tensor (minima a
+fraction of a percent apart, each as sharp as its Fisher information says, at about the same
+χ²).  Within a segment a phase error stays small, and what the segments lose is that ambiguous
+information alone (the bound grows ≤ 1.5× on regular rigs, up to 25× on an entry of rigs whose
+long-record minima are ambiguous).  Each segment's start is held as its offset from the rest
+pose of the parameters tried: a change of geometry, CG or mass moves the rest pose by up to
+millimetres, which a start held fixed would turn into a swing the data do not show, and the fit
+would have to cancel the two through a linearisation (the 3-cable test rig's whole-record solve
+then crawled for 100 iterations).  The fit starts on the record's first :data:`STAGES`
+seconds, one segment each, then takes the whole record.  Its minimum is then checked by two restarts
+from tensors :data:`RESTART_SHIFT` away on either side (:func:`_restarted`): where one settles
+more than 3 σ off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is
+flat or multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`);
+the lowest of the three minima is the estimate.
 """
 from __future__ import annotations
 
 import logging
 import os
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import OptimizeResult, least_squares
 from scipy.signal import butter, sosfiltfilt
+from scipy.spatial.transform import Rotation
 
-from ..io.rig import Rig, Survey
-from ..model.cables import DEFAULT_DAMPING_RATIO, DEFAULT_STIFFNESS
+from ..io.rig import Rig
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
 from ..model.rig_ode import moved_state, rest_state, simulate, substeps_for
-from .rig_record import Record, RigFitError
+from .rig_record import Record
+from .rig_start import start_parameters
+from .rig_unknowns import Layout, Prior, parameters_of, priors, relayout, unit_scale, vector
 
 log = logging.getLogger(__name__)
 
-#: The record's lengths, s, stage by stage (module docstring); the last stage is the whole record.
-STAGES = (15.0, 40.0)
+#: The record's lengths, s, stage by stage before the whole record (module docstring).
+STAGES = (5.0, 15.0)
 
 #: The decimated residual's rate over the fit's band edge (:func:`~.rig_record.band_edge`).
 DECIMATED_RATE = 3.0
-#: The smallest σ a prior takes, m: a survey σ of 0 (exact) becomes this (the unknown then
-#: stays put without dividing by zero).
-EXACT_STD = 1e-7
-#: The smallest σ a load cell's gain takes (a survey σ of 0, exact, becomes this).
-EXACT_GAIN_STD = 1e-9
-#: σ of the force's correction unknowns (:class:`Layout` ``force``, share and rad): far wider than
-#: the record determines them (~3e-5); it holds those whose spline reaches past a stage's span,
-#: which would otherwise drive the next stage's model off (shipped case 16: 60 kN after 40 s).
-FORCE_CORRECTION_STD = 0.01
-#: σ of log(stiffness) for a cable whose stiffness rig.yaml gives (a datasheet's EA) or does not
-#: (the default steel cable's, a factor e either way).  A load cell's gain takes rig.yaml's
-#: ``survey.load_cell_gain``.
-STIFFNESS_LOG_STD_GIVEN = 0.2
-STIFFNESS_LOG_STD_DEFAULT = 1.0
 #: Re-weighting rounds: each channel's noise level replaced by its residual's where the
 #: residual is larger (a channel the model does not fit at its noise level is leaned on less).
 REWEIGHT_ROUNDS = 2
@@ -97,6 +95,9 @@ NEWTON_DECREMENT = 0.01
 #: each step gains ~2e-3: the same rig's 40 s stage) a solve stops when this many iterations
 #: together gained less than :data:`NEWTON_DECREMENT`.
 STALL_ITERATIONS = 5
+#: A whole-record solve stops where the Gauss–Newton step would move every tensor entry, CG
+#: coordinate and the mass by less than this share of its σ (:func:`_solve`).
+RESULT_STEP = 0.25
 #: The residual's every row outside the physical region or where the model diverges.
 OUTSIDE = 1e6
 #: s over which the initial state is fitted alone before each start's first stage (:func:`_settled`).
@@ -111,164 +112,11 @@ RESTART_SHIFT = 0.01
 #: 95 % quantile of χ² with 6 degrees of freedom: a second minimum whose χ² exceeds the fit's by
 #: less lies inside the tensor's 95 % likelihood-ratio region.
 CHI2_95_6 = 12.592
-#: Forward-difference step of the Jacobian in the unknowns' units of :func:`_scale`: at 1e-2 its
+#: Forward-difference step of the Jacobian in the unknowns' units of :func:`unit_scale`: at 1e-2 its
 #: error (half the step times the curvature) turned the small gradient along the mass–moments
 #: valley and the trust region stopped 9 σ short (case-16 rig); the model is smooth and
 #: deterministic, so rounding stays ~1e-8 of a column at 1e-4.
 JACOBIAN_STEP = 1e-4
-
-
-# --- the unknowns ------------------------------------------------------------------------------------
-
-
-@dataclass(frozen=True)
-class Prior:
-    """What is known before the fit: centre and σ of each unknown with a prior (σ = inf: none).
-
-    mass, mass_std: kg.  cg: (3,) body m, cg_std: (3,) m (inf: the data alone).  stiffness: (N,)
-    N/m, stiffness_log_std: (N,).  survey: the σ of every anchor coordinate, cable length and
-    load-cell gain (:class:`~rig_identification.io.rig.Survey`).  geometry: (7 N,) m the surveyed
-    ceiling anchors, body anchors (row-major) and cable lengths the geometry's prior is centred on
-    (rig.yaml's; empty: centred on the fit's start).
-    """
-
-    mass: float
-    mass_std: float
-    cg: np.ndarray
-    cg_std: np.ndarray
-    stiffness: np.ndarray
-    stiffness_log_std: np.ndarray
-    survey: Survey = Survey()
-    geometry: np.ndarray = field(default_factory=lambda: np.zeros(0))
-
-    @property
-    def gain_std(self) -> float:
-        """σ of each load cell's gain, share (the survey's)."""
-        return self.survey.load_cell_gain
-
-    @staticmethod
-    def from_rig(rig: Rig, cg: ArrayLike | None = None, cg_std: ArrayLike | None = None) -> "Prior":
-        """rig.yaml's mass and geometry (σ rig.yaml's ``survey``), CG (``cg``/``cg_std`` override; without a
-        σ the CG is free), cable stiffness (the default steel cable's where rig.yaml has none)."""
-        given = np.array([c.stiffness is not None for c in rig.cables])
-        k = np.array([DEFAULT_STIFFNESS if c.stiffness is None else c.stiffness for c in rig.cables])
-        c0 = rig.center_of_gravity if cg is None else np.asarray(cg, float)
-        if c0 is None:
-            raise RigFitError(f"{rig.source}: no centre of gravity to start from (rig.yaml body.center_of_gravity, "
-                              "or the static test's: rig-identify cg)")
-        return Prior(rig.mass, rig.survey.mass_std(rig.mass), np.asarray(c0, float),
-                     np.full(3, np.inf) if cg_std is None else np.broadcast_to(np.asarray(cg_std, float), (3,)),
-                     k, np.where(given, STIFFNESS_LOG_STD_GIVEN, STIFFNESS_LOG_STD_DEFAULT), rig.survey,
-                     np.concatenate([rig.ceiling_anchors.ravel(), rig.body_anchors.ravel(), rig.cable_lengths]))
-
-
-@dataclass(frozen=True)
-class Layout:
-    """Where each unknown sits in the parameter vector.
-
-    n_cables: the rig's cables.  n_force: the exciter force's correction unknowns (0 or 2 K):
-    K B-spline coefficients of its amplitude's relative change, then K of its phase's change,
-    rad, over the fit's span (:meth:`Record.force_basis`).
-    """
-
-    n_cables: int
-    n_force: int = 0
-
-    @property
-    def inertia(self) -> slice:
-        return slice(0, 6)
-
-    @property
-    def cg(self) -> slice:
-        return slice(6, 9)
-
-    @property
-    def mass(self) -> int:
-        return 9
-
-    @property
-    def log_stiffness(self) -> slice:
-        return slice(10, 10 + self.n_cables)
-
-    @property
-    def damping(self) -> int:
-        return 10 + self.n_cables
-
-    @property
-    def gain(self) -> slice:
-        return slice(11 + self.n_cables, 11 + 2 * self.n_cables)
-
-    @property
-    def body_damping(self) -> slice:
-        return slice(11 + 2 * self.n_cables, 13 + 2 * self.n_cables)
-
-    @property
-    def initial(self) -> slice:
-        return slice(13 + 2 * self.n_cables, 25 + 2 * self.n_cables)
-
-    @property
-    def geometry(self) -> slice:
-        return slice(25 + 2 * self.n_cables, 25 + 9 * self.n_cables)
-
-    @property
-    def force(self) -> slice:
-        return slice(25 + 9 * self.n_cables, 25 + 9 * self.n_cables + self.n_force)
-
-    @property
-    def size(self) -> int:
-        return 25 + 9 * self.n_cables + self.n_force
-
-
-def _vector(p: RigParameters, initial: np.ndarray, lay: Layout) -> np.ndarray:
-    return np.concatenate([p.inertia, p.cg, [p.mass], np.log(p.stiffness), [p.damping_time], p.gain, p.body_damping,
-                           initial, p.ceiling.ravel(), p.body.ravel(), p.length, np.zeros(lay.n_force)])
-
-
-def _parameters(x: np.ndarray, like: RigParameters, lay: Layout) -> RigParameters:
-    n = lay.n_cables
-    g = x[lay.geometry]
-    return like.replace(inertia=x[lay.inertia], cg=x[lay.cg], mass=float(x[lay.mass]),
-                        stiffness=np.exp(x[lay.log_stiffness]), damping_time=float(x[lay.damping]),
-                        gain=x[lay.gain], body_damping=x[lay.body_damping], ceiling=g[:3 * n].reshape(n, 3),
-                        body=g[3 * n:6 * n].reshape(n, 3),
-                        length=g[6 * n:])
-
-
-def _priors(prior: Prior, lay: Layout, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Centres and σ of the priors over the parameter vector (σ inf: none; the centre of an
-    unknown without a prior is its start in ``x0``).  The geometry's centre is the survey's
-    (:attr:`Prior.geometry`) in every stage, not the stage's start: centred on each stage's
-    estimate, the survey's pull would weaken stage by stage."""
-    centre = x0.copy()
-    std = np.full(lay.size, np.inf)
-    centre[lay.cg], std[lay.cg] = prior.cg, prior.cg_std
-    centre[lay.mass], std[lay.mass] = prior.mass, prior.mass_std
-    centre[lay.log_stiffness], std[lay.log_stiffness] = np.log(prior.stiffness), prior.stiffness_log_std
-    centre[lay.gain], std[lay.gain] = 1.0, max(prior.gain_std, EXACT_GAIN_STD)
-    centre[lay.force], std[lay.force] = 0.0, FORCE_CORRECTION_STD
-    n = lay.n_cables
-    if len(prior.geometry):
-        centre[lay.geometry] = prior.geometry
-    std[lay.geometry] = np.concatenate([np.full(6 * n, max(prior.survey.anchors, EXACT_STD)),
-                                        np.full(n, max(prior.survey.lengths, EXACT_STD))])
-    return centre, std
-
-
-def _scale(x0: np.ndarray, lay: Layout, prior: Prior) -> np.ndarray:
-    """Each unknown's unit: a change that moves the outputs by a small, comparable amount."""
-    s = np.ones(lay.size)
-    big = max(abs(x0[0]), abs(x0[3]), abs(x0[5]))
-    s[lay.inertia] = 1e-3 * big
-    s[lay.cg] = 1e-3
-    s[lay.mass] = 1e-3 * prior.mass
-    s[lay.log_stiffness] = 1e-2
-    s[lay.damping] = 0.1 * max(abs(x0[lay.damping]), 1e-5)
-    s[lay.gain] = 1e-3
-    s[lay.body_damping] = (1e-3 * prior.mass, 1e-3 * big)      # ζ ≈ 1e-3 of a 1 rad/s mode
-    s[lay.initial] = 1e-4
-    s[lay.geometry] = 1e-4
-    s[lay.force] = 1e-2
-    return s
 
 
 # --- the model's residual ------------------------------------------------------------------------------
@@ -276,14 +124,21 @@ def _scale(x0: np.ndarray, lay: Layout, prior: Prior) -> np.ndarray:
 
 class _Problem:
     """The weighted residual of ``n`` samples from the record's ``start`` as a function of the
-    scaled unknowns z (x = x0 + scale z), the model run from the state ``base`` moved by the
-    initial-state unknowns."""
+    scaled unknowns z (x = x0 + scale z): the span cut into segments (:data:`~.rig_unknowns.SEGMENT`), each run
+    from its own state, ``bases[k]`` moved by segment k's initial-state unknowns.  ``base``: the
+    first segment's state (13,) (None: the model's run from rest through the spin-up,
+    :func:`_base_state`); ``bases``: (n_segments, 13) every segment's, as a previous problem
+    of the same span had them (None: the model's own continuation at ``x0`` from ``base``).
+    ``x0`` of any segment count (:func:`relayout`)."""
 
     def __init__(self, rec: Record, like: RigParameters, lay: Layout, x0: np.ndarray, prior: Prior,
-                 noise_scale: np.ndarray, n: int, rest: RestPose, base: np.ndarray):
-        self.rec, self.like, self.lay, self.x0, self.n, self.base = rec, like, lay, x0, n, base
-        self.scale = _scale(x0, lay, prior)
-        self.centre, self.prior_std = _priors(prior, lay, x0)
+                 noise_scale: np.ndarray, n: int, rest: RestPose, base: np.ndarray | None,
+                 bases: np.ndarray | None = None):
+        self.rec, self.like, self.n = rec, like, n
+        self.lay = lay.for_span(n, rec.dt)
+        self.x0 = relayout(x0, self.lay)
+        self.scale = unit_scale(self.x0, self.lay, prior)
+        self.centre, self.prior_std = priors(prior, self.lay, self.x0)
         self.sos = butter(4, rec.band, fs=1.0 / rec.dt, output="sos")
         self.step = max(1, int(1.0 / (DECIMATED_RATE * rec.band * rec.dt)))
         impulse = np.zeros(4001)
@@ -294,9 +149,65 @@ class _Problem:
         self.unit = float(np.sqrt(self.step * np.sum(sosfiltfilt(self.sos, impulse) ** 2)))
         self.weight = np.sqrt(self.step) / (rec.sigma * noise_scale * np.sqrt(rec.oversampling))
         self.rest = rest
-        lin = linearise(_parameters(x0, like, lay), rest)
+        self.ref = rest_state(parameters_of(self.x0, like, self.lay), rest)
+        self._rest_cache: dict[bytes, np.ndarray] = {}
+        lin = linearise(parameters_of(self.x0, like, self.lay), rest)
         self.substeps = substeps_for(2 * np.pi * natural_frequencies(lin).max(), rec.dt)
-        self.basis = rec.force_basis()[:n] if lay.n_force else np.zeros((n, 0))
+        self.basis = rec.force_basis()[:n] if self.lay.n_force else np.zeros((n, 0))
+        self.edges = np.linspace(0, n, self.lay.n_segments + 1).round().astype(int)
+        if bases is not None and len(bases) == self.lay.n_segments and len(x0) == self.lay.size:
+            self.bases = bases
+        else:
+            self.x0 = self.x0.copy()
+            self.x0[self.lay.segments] = 0.0
+            start = parameters_of(self.x0, like, self.lay)
+            self.bases = self._continued(_base_state(rec, start, rest, self.substeps) if base is None else base)
+            self._settle_segments()
+
+    @property
+    def base(self) -> np.ndarray:
+        """(13,) the first segment's state before its unknowns move it."""
+        first: np.ndarray = self.bases[0]
+        return first
+
+    def _continued(self, base: np.ndarray) -> np.ndarray:
+        """(n_segments, 13) each segment's state on the model's run at x0 from ``base`` (moved by
+        the first segment's unknowns), the later segments' unknowns zero."""
+        bases = [np.asarray(base, float)]
+        if self.lay.n_segments == 1:
+            return np.array(bases)
+        x = self.x0
+        p = parameters_of(x, self.like, self.lay)
+        u = self.force(x)
+        y = moved_state(bases[0], x[self.lay.initial])
+        for a, b in zip(self.edges[1:-1], self.edges[2:]):
+            y = simulate(p, y, u[self.edges[len(bases) - 1]:a + 1], self.rec.dt, self.substeps)[1]
+            bases.append(y)
+        return np.array(bases)
+
+    def _settle_segments(self) -> None:
+        """Each later segment's initial state fitted alone to its own samples (the parameters
+        at x0): the model's continuation carries the phase error of x0's mode frequencies into
+        every later segment, and the response is nearly linear in the state (Ljung 1999, §7.3)."""
+        u = self.force(self.x0)
+        a = self.rec.start
+        for k in range(1, self.lay.n_segments):
+            b, c = self.edges[k], self.edges[k + 1]
+            part = self.lay.state(k)
+
+            def residual(zk: np.ndarray, k: int = k, b: int = b, c: int = c, part: slice = part) -> np.ndarray:
+                x = self.x0.copy()
+                x[part] += self.scale[part] * zk
+                try:
+                    e = self.rec.y[a + b:a + c] - self.segment_outputs(x, k, u)
+                except (SimulationError, ValueError, np.linalg.LinAlgError):
+                    return np.full((len(range(0, c - b, self.step)) * len(self.rec.channels)), OUTSIDE)
+                f: np.ndarray = (sosfiltfilt(self.sos, e - e.mean(axis=0), axis=0)[::self.step] * self.weight).ravel()
+                return f
+
+            sol = least_squares(residual, np.zeros(12), method="trf", diff_step=JACOBIAN_STEP, xtol=XTOL, ftol=FTOL,
+                                gtol=GTOL, max_nfev=MAX_ITERATIONS)
+            self.x0[part] += self.scale[part] * sol.x
 
     def x(self, z: np.ndarray) -> np.ndarray:
         x = self.x0.copy()
@@ -315,24 +226,55 @@ class _Problem:
         z = (u[:, 0] + 1j * u[:, 1]) * (1.0 + self.basis @ c[:k]) * np.exp(1j * (self.basis @ c[k:]))
         return np.column_stack([z.real, z.imag])
 
-    def outputs(self, x: np.ndarray) -> np.ndarray:
-        """(n, n_out) the model's readings over the span (the force's last where it is an output)."""
-        p = _parameters(x, self.like, self.lay)
-        y0 = moved_state(self.base, x[self.lay.initial])
-        u = self.force(x)
-        out = simulate(p, y0, u, self.rec.dt, self.substeps)[0]
-        return np.column_stack([out, u]) if self.lay.n_force else out
+    def segment_outputs(self, x: np.ndarray, k: int, u: np.ndarray | None = None) -> np.ndarray:
+        """(samples, n_out) the model's readings over segment ``k`` (the force's last where it is
+        an output); ``u``: the span's force at x (:meth:`force`) where already known."""
+        p = parameters_of(x, self.like, self.lay)
+        u = self.force(x) if u is None else u
+        a, b = self.edges[k], self.edges[k + 1]
+        y0 = moved_state(self._rebased(p, self.bases[k]), x[self.lay.state(k)])
+        out = simulate(p, y0, u[a:b], self.rec.dt, self.substeps)[0]
+        return np.column_stack([out, u[a:b]]) if self.lay.n_force else out
 
-    def data_residual(self, x: np.ndarray) -> np.ndarray:
+    def _rebased(self, p: RigParameters, base: np.ndarray) -> np.ndarray:
+        """``base`` (13,) moved with the rest pose: its offset from the rest state at x0 put on the
+        rest state of ``p`` (a shifted geometry or CG moves the start with it, so the fit need not
+        cancel the two against each other: each channel's offset is projected out, and the rest
+        pose itself is not what the data see).  Raises
+        :class:`~rig_identification.model.dynamics.SimulationError` where ``p`` has no rest pose."""
+        key = p.ceiling.tobytes() + p.body.tobytes() + p.length.tobytes() + p.cg.tobytes() + p.stiffness.tobytes() \
+            + np.array([p.mass]).tobytes() + p.inertia.tobytes()
+        ref = self._rest_cache.get(key)
+        if ref is None:
+            ref = rest_state(p, rest_pose(p, self.rest))
+            self._rest_cache = {key: ref}
+        R0 = Rotation.from_quat(self.ref[[4, 5, 6, 3]])
+        R1 = Rotation.from_quat(ref[[4, 5, 6, 3]])
+        Rb = Rotation.from_quat(base[[4, 5, 6, 3]])
+        q = (R1 * R0.inv() * Rb).as_quat()
+        return np.concatenate([base[:3] - self.ref[:3] + ref[:3], [q[3], q[0], q[1], q[2]], base[7:]])
+
+    def bases_at(self, x: np.ndarray) -> np.ndarray:
+        """(n_segments, 13) the segments' states before their unknowns, moved with the rest pose
+        to the parameters of ``x``: what a problem made at ``x`` takes as ``bases``."""
+        p = parameters_of(x, self.like, self.lay)
+        return np.array([self._rebased(p, b) for b in self.bases])
+
+    def outputs(self, x: np.ndarray) -> list[np.ndarray]:
+        """The model's readings over the span, segment by segment ((samples, n_out) each)."""
+        u = self.force(x)
+        return [self.segment_outputs(x, k, u) for k in range(self.lay.n_segments)]
+
+    def data_residual(self, x: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:
         """(m, n_out) weighted, low-passed and decimated to the band, each channel's offset
-        projected out."""
+        projected out; ``outputs``: :meth:`outputs` at x where already known."""
         a = self.rec.start
-        e = self.rec.y[a:a + self.n] - self.outputs(x)
+        e = self.rec.y[a:a + self.n] - np.concatenate(self.outputs(x) if outputs is None else outputs)
         e = sosfiltfilt(self.sos, e - e.mean(axis=0), axis=0)[::self.step]
         weighted: np.ndarray = e * self.weight
         return weighted
 
-    def residual(self, z: np.ndarray) -> np.ndarray:
+    def residual(self, z: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:
         """The weighted residual (data rows, then the priors' rows); outside the physical
         region (a tensor no body has, a negative damping time) or where the model's motion
         diverges, a constant large residual, which the trust region steps back from."""
@@ -341,7 +283,7 @@ class _Problem:
         if not physically_consistent(to_tensor(x[self.lay.inertia])) or x[self.lay.damping] < 0:
             return outside
         try:
-            r = self.data_residual(x).ravel()
+            r = self.data_residual(x, outputs).ravel()
         except (SimulationError, ValueError, np.linalg.LinAlgError):
             return outside
         if not np.all(np.isfinite(r)):
@@ -359,17 +301,32 @@ class _Problem:
         return self.data_rows * self.unit ** 2 + int(np.isfinite(self.prior_std[:nz]).sum())
 
     def size(self, nz: int) -> int:
-        return len(range(0, self.n, self.step)) * len(self.rec.channels) + int(np.isfinite(self.prior_std[:nz]).sum())
+        return self.data_rows + int(np.isfinite(self.prior_std[:nz]).sum())
 
     def jacobian(self, z: np.ndarray) -> np.ndarray:
         """Forward differences (size, len(z)) of :meth:`residual` (step :data:`JACOBIAN_STEP`),
-        the columns on :data:`THREADS` threads (the compiled model releases the GIL)."""
-        base = self.residual(z)
+        the columns on :data:`THREADS` threads (the compiled model releases the GIL); a segment's
+        initial state moves only that segment's run, which alone is run again for its columns."""
+        x = self.x(z)
+        try:
+            outs = self.outputs(x)
+        except (SimulationError, ValueError, np.linalg.LinAlgError):
+            outs = None
+        base = self.residual(z, outs)
+        owner = {i: k for k in range(self.lay.n_segments) for i in range(*self.lay.state(k).indices(self.lay.size))}
+        u = self.force(x)
 
         def column(i: int) -> np.ndarray:
             e = z.copy()
             e[i] += JACOBIAN_STEP
-            col: np.ndarray = (self.residual(e) - base) / JACOBIAN_STEP
+            moved = None
+            if outs is not None and i in owner and i < len(z):
+                k = owner[i]
+                try:
+                    moved = outs[:k] + [self.segment_outputs(self.x(e), k, u)] + outs[k + 1:]
+                except (SimulationError, ValueError, np.linalg.LinAlgError):
+                    moved = None
+            col: np.ndarray = (self.residual(e, moved) - base) / JACOBIAN_STEP
             return col
 
         with ThreadPoolExecutor(THREADS) as pool:
@@ -473,22 +430,6 @@ def _covariance(prob: _Problem, z: np.ndarray, noise_scale: np.ndarray | None = 
     return Hinv * S, Hinv @ meat @ Hinv * S, unit * S
 
 
-def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, damping_time: float | None = None
-                     ) -> tuple[RigParameters, RestPose]:
-    """The parameters a fit starts from (rig.yaml's geometry, the prior's mass, CG and stiffness,
-    the tensor entries ``inertia0`` (6,), τ ``damping_time`` s or the default cable's) and their
-    rest pose.  Raises :class:`RigFitError` when the rig as described has none."""
-    n = len(rig.cables)
-    tau = 2 * DEFAULT_DAMPING_RATIO * np.sqrt(prior.mass / (n * prior.stiffness.mean())) \
-        if damping_time is None else damping_time
-    start = RigParameters.from_rig(rig, np.zeros(6), prior.stiffness, tau, prior.mass, prior.cg)
-    try:
-        rest = rest_pose(start)
-    except SimulationError as e:
-        raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e})") from None
-    return start.replace(inertia=np.asarray(inertia0, float)), rest
-
-
 def _base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) -> np.ndarray:
     """The state at the fit's first sample: the model run from rest at the record's start
     through the spin-up (the rest state itself when the fit starts there)."""
@@ -498,12 +439,15 @@ def _base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) ->
     return simulate(p, y, rec.u[:rec.start + 1], rec.dt, substeps)[1]
 
 
-def _solve(prob: _Problem, verbose: int) -> OptimizeResult:
+def _solve(prob: _Problem, verbose: int, whole: bool = False) -> OptimizeResult:
     """One least-squares solve of ``prob`` from its x0 (scipy's trust region), stopped where the
     Gauss–Newton decrement ½ gᵀ (JᵀJ)⁺ g falls below :data:`NEWTON_DECREMENT` (Boyd &
     Vandenberghe, *Convex Optimization*, §9.5.1: the cost the Gauss–Newton step would still
     gain), where the last :data:`STALL_ITERATIONS` iterations gained less than that together,
-    or by the tolerances."""
+    or by the tolerances; on the ``whole`` record (no stage after it) also where the Gauss–Newton
+    step would move no tensor entry, CG coordinate or the mass by :data:`RESULT_STEP` of its σ
+    (the trust region then crawls along a valley of the nuisance unknowns: the segments' states
+    and the force's correction)."""
     last: dict[str, np.ndarray] = {}
 
     def jacobian(z: np.ndarray) -> np.ndarray:
@@ -520,7 +464,12 @@ def _solve(prob: _Problem, verbose: int) -> OptimizeResult:
             return
         J = last["J"]
         g = J.T @ intermediate_result.fun
-        if 0.5 * g @ np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True) @ g < NEWTON_DECREMENT:
+        Hinv = np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True)
+        step = Hinv @ g
+        if 0.5 * g @ step < NEWTON_DECREMENT:
+            raise StopIteration
+        result = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
+        if whole and np.all(np.abs(step[result]) < RESULT_STEP * np.sqrt(np.diag(Hinv)[result])):
             raise StopIteration
 
     sol = least_squares(prob.residual, np.zeros(prob.lay.size), jac=jacobian, method="trf", x_scale=1.0, xtol=XTOL,
@@ -534,7 +483,7 @@ def _moved_on(prob: _Problem, sol: OptimizeResult, p: RigParameters, rest: RestP
     """The unknowns, parameters and rest pose after ``sol`` (the rest pose sets only the
     integrator's step: where none is found at the estimate the last one serves)."""
     x = prob.x(sol.x)
-    p = _parameters(x, p, prob.lay)
+    p = parameters_of(x, p, prob.lay)
     try:
         rest = rest_pose(p, rest)
     except SimulationError as e:
@@ -567,17 +516,15 @@ def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: 
 
 
 def _restarted(rec: Record, p: RigParameters, lay: Layout, x: np.ndarray, prior: Prior, noise_scale: np.ndarray,
-               rest: RestPose, base: np.ndarray, lengths: list[int], sign: float, verbose: int
-               ) -> tuple[np.ndarray, RigParameters, RestPose, float, int]:
-    """The fit restarted from the estimate ``x`` with each tensor entry moved by ``sign``
-    :data:`RESTART_SHIFT` of its scale (signs alternating; halved until the tensor is physical),
-    every other unknown at the estimate, through the same stages as the fit (``lengths``, samples,
-    then the whole record: straight on the whole record the trust region crawls ~80 iterations
-    along the likelihood's curved valley): its unknowns, parameters, rest pose, cost on the whole
-    record (½ χ², the same weights) and model runs.  A well-determined minimum draws the restart
-    back within its σ; where the likelihood is flat or multimodal along some direction of the
-    tensor it settles elsewhere at a χ² about as low (bench_any_rig's 22006: fits from the truth
-    and two starts settle 0.25–0.5 % apart in Iyy, 15–57 σ, within χ² 5 of each other)."""
+               rest: RestPose, bases: np.ndarray, sign: float, verbose: int
+               ) -> tuple[np.ndarray, RigParameters, RestPose, float, int, np.ndarray]:
+    """The fit restarted on the whole record from the estimate ``x`` with each tensor entry moved
+    by ``sign`` :data:`RESTART_SHIFT` of its scale (signs alternating; halved until the tensor is
+    physical), every other unknown at the estimate, each segment from the estimate's state
+    (``bases``, :class:`_Problem`): its unknowns, parameters, rest pose, cost (½ χ², the same
+    weights), model runs and the segments' states.  A well-determined minimum draws the restart back
+    within its σ; where the likelihood is flat or multimodal along some direction of the tensor
+    it settles elsewhere at a χ² about as low."""
     shift = sign * RESTART_SHIFT * entry_scales(x[lay.inertia]) * np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
     x1 = x.copy()
     for _ in range(6):
@@ -585,16 +532,11 @@ def _restarted(rec: Record, p: RigParameters, lay: Layout, x: np.ndarray, prior:
         if physically_consistent(to_tensor(x1[lay.inertia])):
             break
         shift = shift / 2
-    p1 = _parameters(x1, p, lay)
-    runs = 0
-    cost = np.inf
-    for n in lengths + [len(rec.y) - rec.start]:
-        prob = _Problem(rec, p1, lay, x1, prior, noise_scale, n, rest, base)
-        sol = _solve(prob, verbose)
-        runs += sol.nfev * (lay.size + 1)
-        x1, p1, rest = _moved_on(prob, sol, p1, rest)
-        cost = float(sol.cost)
-    return x1, p1, rest, cost, runs
+    p1 = parameters_of(x1, p, lay)
+    prob = _Problem(rec, p1, lay, x1, prior, noise_scale, len(rec.y) - rec.start, rest, bases[0], bases)
+    sol = _solve(prob, verbose, True)
+    x1, p1, rest = _moved_on(prob, sol, p1, rest)
+    return x1, p1, rest, float(sol.cost), sol.nfev * (prob.lay.size + 1), prob.bases_at(x1)
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_time: float | None = None,
@@ -607,7 +549,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     of least cost goes on): the swinging modes make the likelihood multimodal where a start's
     frequencies are far off.
     damping_time: start of τ, s (default the default cable's: 2 ζ sqrt(m / (N k))).
-    Raises :class:`RigFitError` when the rig has no rest pose.
+    Raises :class:`~.rig_record.RigFitError` when the rig has no rest pose.
     """
     lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1])
     n_all = len(rec.y) - rec.start
@@ -619,20 +561,19 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     nfev = 0
     problems = []
     for start in np.atleast_2d(np.asarray(inertia0, float)):
-        p0, rest0 = start_parameters(rig, prior, start, damping_time)
-        prob = _Problem(rec, p0, lay, _vector(p0, np.zeros(12), lay), prior, noise_scale, rounds[0][0], rest0,
-                        np.zeros(13))
-        prob.base = _base_state(rec, p0, rest0, prob.substeps)
+        p0, rest0 = start_parameters(rig, prior, start, rec, damping_time)
+        prob = _Problem(rec, p0, lay, vector(p0, np.zeros(12), lay), prior, noise_scale, rounds[0][0], rest0, None)
+        prob = _Problem(rec, p0, lay, _settled(prob, rec, p0, lay, prior, rest0), prior, noise_scale, rounds[0][0],
+                        rest0, prob.base)
         problems.append((prob, p0, rest0))
-        prob.x0 = _settled(prob, rec, p0, lay, prior, rest0)
-        if np.all(prob.residual(np.zeros(lay.size)) == OUTSIDE):
+        if np.all(prob.residual(np.zeros(prob.lay.size)) == OUTSIDE):
             log.info("rig fit: the start %s leaves the physical region or diverges: the next", np.round(start, 1))
             continue
         sol = _solve(prob, verbose)
-        nfev += sol.nfev * (lay.size + 1)
+        nfev += sol.nfev * (prob.lay.size + 1)
         if best is None or sol.cost < best[1].cost:
             best = (prob, sol, p0, rest0)
-        if 2 * sol.cost <= START_LEVEL ** 2 * prob.noise_cost(lay.size):
+        if 2 * sol.cost <= START_LEVEL ** 2 * prob.noise_cost(prob.lay.size):
             break
     if best is None:                # every start outside: the first, which the verdict will call failed
         prob, p0, rest0 = problems[0]
@@ -640,42 +581,47 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     prob, sol, p, rest = best
     base = prob.base
     x, p, rest = _moved_on(prob, sol, p, rest)
+    bases = prob.bases_at(x)
+    base = bases[0]
     for i, (n, final) in enumerate(rounds):
         if i > 0:
-            prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, base)
-            sol = _solve(prob, verbose)
-            nfev += sol.nfev * (lay.size + 1)
+            prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, base, bases)
+            sol = _solve(prob, verbose, final)
+            nfev += sol.nfev * (prob.lay.size + 1)
             x, p, rest = _moved_on(prob, sol, p, rest)
+            bases = prob.bases_at(x)
+            base = bases[0]
         if final:
-            level = _levels(_Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base), x)
+            level = _levels(_Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base, bases), x)
             new_scale = np.maximum(level, 1.0)
             if np.allclose(new_scale, noise_scale, rtol=0.05) or np.max(level) > REWEIGHT_LIMIT:
                 break
             noise_scale = new_scale
-    last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, base)
-    minima = [(0.5 * float(np.sum(last.residual(np.zeros(lay.size)) ** 2)), x, p, rest)]
+    last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, base, bases)
+    minima = [(0.5 * float(np.sum(last.residual(np.zeros(last.lay.size)) ** 2)), x, p, rest, bases)]
     for sign in (1.0, -1.0):
-        x2, p2, rest2, cost2, runs = _restarted(rec, p, lay, x, prior, noise_scale, rest, base, lengths, sign,
-                                                verbose)
+        x2, p2, rest2, cost2, runs, bases2 = _restarted(rec, p, lay, x, prior, noise_scale, rest, bases, sign,
+                                                        verbose)
         nfev += runs
-        minima.append((cost2, x2, p2, rest2))
+        minima.append((cost2, x2, p2, rest2, bases2))
     minima.sort(key=lambda m: m[0])
-    cost, x, p, rest = minima[0]
+    cost, x, p, rest, bases = minima[0]
+    base = bases[0]
     others = np.array([m[1][lay.inertia] for m in minima[1:]])
     other_chi2 = np.array([2 * (m[0] - cost) for m in minima[1:]])
     log.info("rig fit: the other minima settled %s from the estimate, χ² %s", np.round(others - x[lay.inertia], 3),
              np.round(other_chi2, 2))
-    last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, base)
-    fisher, sandwich, bound = _covariance(last, np.zeros(lay.size), noise_scale)
+    last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, base, bases)
+    fisher, sandwich, bound = _covariance(last, np.zeros(last.lay.size), noise_scale)
     # σ: the larger of the two per unknown, the correlations the Fisher information's
     sd = np.sqrt(np.maximum(np.diag(fisher), np.diag(sandwich)))
     fd = np.sqrt(np.diag(fisher))
     cov = fisher / np.outer(fd, fd) * np.outer(sd, sd)
-    unit = _Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base)
+    unit = _Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base, bases)
     level = _levels(unit, x)
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
-                  freqs, lay, nfev, others, other_chi2)
+                  freqs, last.lay, nfev, others, other_chi2)
 
 
 def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.ndarray:
@@ -684,9 +630,7 @@ def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.
     weighted residual (Gaussian white noise per channel, in the fit's band), the priors of
     ``prior``, the initial state at the fit's start free."""
     lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1])
-    x = _vector(truth, np.zeros(12), lay)
+    x = vector(truth, np.zeros(12), lay)
     rest = rest_pose(truth)
-    prob = _Problem(rec, truth, lay, x, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start, rest,
-                    np.zeros(13))
-    prob.base = _base_state(rec, truth, rest, prob.substeps)
-    return _covariance(prob, np.zeros(lay.size))[0]
+    prob = _Problem(rec, truth, lay, x, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start, rest, None)
+    return _covariance(prob, np.zeros(prob.lay.size))[0]

@@ -57,7 +57,7 @@ class Record:
     is known less well: :func:`smooth_force`); the model runs from the record's start to it.
     force_knots: s from ``t0``, the interior knots of the denoised force's amplitude and phase
     splines after ``start`` (empty when the force is not a rotating vector): the fit corrects
-    the force in that spline space (:class:`~rig_identification.estimation.rig_fit.Layout` ``force``).
+    the force in that spline space (:class:`~rig_identification.estimation.rig_unknowns.Layout` ``force``).
     """
 
     t0: float
@@ -214,7 +214,7 @@ def smooth_force(u: np.ndarray, dt: float, band: float, noise: float | None = No
     (its noise is near the swinging modes' frequencies while the motor passes them): the fit
     starts :data:`SETTLE` s after it, from a free state.  What noise the splines keep is not
     left in the input: the rig fit corrects the force within the same splines with the exciter's
-    readings as an output (:class:`~rig_identification.estimation.rig_fit.Layout` ``force``), so
+    readings as an output (:class:`~rig_identification.estimation.rig_unknowns.Layout` ``force``), so
     the load cells inform the force too and the fit is an output-error fit with no noisy input
     (no errors-in-variables bias)."""
     fallback = sosfiltfilt(butter(4, band, fs=1.0 / dt, output="sos"), u, axis=0), 0, np.zeros(0)

@@ -23,8 +23,9 @@ from ..estimation.harmonic_start import harmonic_start
 from ..estimation.identification import IdentificationError
 from ..estimation.precision import Z95
 from ..estimation.quality import check_motion, check_units, clean_sensors
-from ..estimation.rig_fit import Prior, RigFit, fit_rig
+from ..estimation.rig_fit import RigFit, fit_rig
 from ..estimation.rig_record import Record, record
+from ..estimation.rig_unknowns import Prior
 from ..io.recording import Recording
 from ..io.rig import Survey
 from ..io.verdict import KEYS

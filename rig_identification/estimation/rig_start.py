@@ -1,0 +1,110 @@
+"""Where the rig model's fit starts: its parameters before any dynamics are fitted.
+
+rig.yaml's geometry, the prior's mass, CG and cable stiffness (:class:`~.rig_unknowns.Prior`),
+and, from the recording, the unstretched lengths and the CG's position that the measured mean
+tensions imply (:func:`start_geometry`).  A hanging rig with more than three nearly vertical
+cables is statically indeterminate: a cable length off by a survey's millimetre moves
+kilonewtons between the cables (k ≈ 5·10⁶ N/m), and a fit that starts there can meet a slack
+cable or start far from the recording.  The mean tensions pin each length to their σ over k
+(~1 µm at a load cell's 0.1 % gain class).  The fit's priors stay centred on rig.yaml's survey:
+only its start moves.
+"""
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..io.rig import Rig
+from ..model.cables import DEFAULT_DAMPING_RATIO
+from ..model.dynamics import SimulationError
+from ..model.linear_rig import RestPose, RigParameters, rest_pose
+from .rig_record import Record, RigFitError
+from .rig_unknowns import Prior
+
+log = logging.getLogger(__name__)
+
+#: σ of a mean tension as a share of it where rig.yaml's survey states exact load-cell gains
+#: (a load cell's zero: ~0.5 N of 5 kN).
+MEAN_TENSION_SHARE = 1e-4
+#: The CG coordinates without a prior σ move in steps of this scale, m (x and y only: the
+#: tensions do not see the CG's height on a level body).
+FREE_CG_SCALE = 1e-3
+#: The unit of the tensions' common scale in the least squares (no prior: free).
+SCALE_UNIT = 1e-3
+#: The residual's every row where a trial geometry has no rest pose.
+OUTSIDE = 1e6
+
+
+def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, rec: Record | None = None,
+                     damping_time: float | None = None) -> tuple[RigParameters, RestPose]:
+    """The parameters a fit starts from and their rest pose: rig.yaml's geometry, the prior's
+    mass, CG and stiffness, the tensor entries ``inertia0`` (6,) kg·m² about the CG, τ
+    ``damping_time`` s (default the default cable's, 2 ζ sqrt(m / (N k))); with ``rec`` the
+    lengths and CG its mean tensions imply (:func:`start_geometry`).  Raises
+    :class:`~.rig_record.RigFitError` when the rig as described has no rest pose."""
+    n = len(rig.cables)
+    tau = 2 * DEFAULT_DAMPING_RATIO * np.sqrt(prior.mass / (n * prior.stiffness.mean())) \
+        if damping_time is None else damping_time
+    start = RigParameters.from_rig(rig, np.zeros(6), prior.stiffness, tau, prior.mass, prior.cg)
+    try:
+        rest = rest_pose(start)
+    except SimulationError as e:
+        raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e})") from None
+    if rec is not None:
+        start, rest = start_geometry(start, rest, rec.y[rec.start:, :n].mean(axis=0), prior)
+    return start.replace(inertia=np.asarray(inertia0, float)), rest
+
+
+def start_geometry(p: RigParameters, rest: RestPose, tensions: np.ndarray, prior: Prior
+                   ) -> tuple[RigParameters, RestPose]:
+    """``p`` with the cable lengths and CG that best explain the measured mean ``tensions``
+    (N,) N at rest, and its rest pose: the maximum a posteriori estimate under the prior's survey
+    σ of the lengths and σ of the CG (x and y without a σ move freely, z stays), each tension
+    weighted by its gain's σ (rig.yaml ``survey.load_cell_gain``, at least
+    :data:`MEAN_TENSION_SHARE`), their common scale free (the gains' common part against the
+    mass).  The rest tensions are the static equilibrium's (thesis eqs. 2.20–2.25 with springs,
+    :func:`~rig_identification.model.linear_rig.rest_pose`).  Where no such geometry is found
+    (a trial with a slack cable throughout) ``p`` and ``rest`` come back unchanged and the log
+    says so."""
+    n = p.cables
+    T = np.asarray(tensions, float)
+    if T.shape != (n,) or not np.all(np.isfinite(T)) or np.any(T <= 0):
+        log.info("rig fit: start geometry from rig.yaml (mean tensions not all positive: %s N)", np.round(T, 1))
+        return p, rest
+    sigma_t = max(prior.gain_std, MEAN_TENSION_SHARE) * T
+    has_prior = np.isfinite(prior.cg_std)
+    moves = has_prior | (np.arange(3) < 2)
+    cg_scale = np.where(has_prior, prior.cg_std, FREE_CG_SCALE)[moves]
+    length_std = prior.survey.lengths
+
+    def trial(v: np.ndarray) -> RigParameters:
+        cg = p.cg.copy()
+        cg[moves] += cg_scale * v[n:-1]
+        return p.replace(length=p.length + length_std * v[:n], cg=cg)
+
+    def residual(v: np.ndarray) -> np.ndarray:
+        try:
+            at = rest_pose(trial(v), rest)
+        except SimulationError:
+            return np.full(2 * n + int(has_prior.sum()), OUTSIDE)
+        return np.concatenate([(at.tensions - (1.0 + SCALE_UNIT * v[-1]) * T) / sigma_t, v[:n],
+                               v[n:-1][has_prior[moves]]])
+
+    before = float(np.abs(rest.tensions - T * rest.tensions.sum() / T.sum()).max())
+    sol = least_squares(residual, np.zeros(n + int(moves.sum()) + 1), method="trf", diff_step=1e-4)
+    q = trial(sol.x)
+    try:
+        at = rest_pose(q, rest)
+    except SimulationError as e:
+        log.info("rig fit: start geometry from rig.yaml (the tensions' lengths have no rest pose: %s)", e)
+        return p, rest
+    log.info("rig fit: start lengths from the mean tensions: moved %s mm, the CG %s mm; the tensions "
+             "%.3g N from the measured at most (rig.yaml's: %.3g N)", np.round(1e3 * (q.length - p.length), 2),
+             np.round(1e3 * (q.cg - p.cg), 2), np.abs(at.tensions - (1.0 + SCALE_UNIT * sol.x[-1]) * T).max(),
+             before)
+    return q, at
+
+
+__all__ = ["FREE_CG_SCALE", "MEAN_TENSION_SHARE", "SCALE_UNIT", "start_geometry", "start_parameters"]

@@ -1,0 +1,222 @@
+"""The unknowns of the rig model (:mod:`~rig_identification.estimation.rig_fit`): where each sits in
+the parameter vector (:class:`Layout`), what is known of them before the fit (:class:`Prior`),
+their priors' centres and σ, and their units.
+
+The vector, in order: the inertia tensor (6 entries about the CG, kg·m²), the CG (3, body m),
+the mass (kg), log(stiffness) per cable, the cables' damping time τ (s), per-load-cell gain,
+the body's viscous damping (linear N·s/m, angular N·m·s), the first segment's initial state
+(12: δp_cg m, δφ rad, δv_cg m/s, δω rad/s), the geometry (every ceiling anchor, body anchor and
+cable length, m), the exciter force's correction (2 K), then the later segments' initial states
+(12 each).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from ..io.rig import Rig, Survey
+from ..model.cables import DEFAULT_STIFFNESS
+from ..model.linear_rig import RigParameters
+from .rig_record import RigFitError
+
+#: The longest segment, s, of a fitted span (:mod:`~rig_identification.estimation.rig_fit`): each
+#: segment starts from its own initial state (unknowns, no prior), so a swinging mode's phase is
+#: never carried further.
+SEGMENT = 15.0
+
+#: The smallest σ a prior takes, m: a survey σ of 0 (exact) becomes this (the unknown then
+#: stays put without dividing by zero).
+EXACT_STD = 1e-7
+#: The smallest σ a load cell's gain takes (a survey σ of 0, exact, becomes this).
+EXACT_GAIN_STD = 1e-9
+#: σ of the force's correction unknowns (:class:`Layout` ``force``, share and rad): far wider than
+#: the record determines them (~3e-5); it holds those whose spline reaches past a stage's span,
+#: which would otherwise drive the next stage's model off (shipped case 16: 60 kN after 40 s).
+FORCE_CORRECTION_STD = 0.01
+#: σ of log(stiffness) for a cable whose stiffness rig.yaml gives (a datasheet's EA) or does not
+#: (the default steel cable's, a factor e either way).  A load cell's gain takes rig.yaml's
+#: ``survey.load_cell_gain``.
+STIFFNESS_LOG_STD_GIVEN = 0.2
+STIFFNESS_LOG_STD_DEFAULT = 1.0
+
+
+@dataclass(frozen=True)
+class Prior:
+    """What is known before the fit: centre and σ of each unknown with a prior (σ = inf: none).
+
+    mass, mass_std: kg.  cg: (3,) body m, cg_std: (3,) m (inf: the data alone).  stiffness: (N,)
+    N/m, stiffness_log_std: (N,).  survey: the σ of every anchor coordinate, cable length and
+    load-cell gain (:class:`~rig_identification.io.rig.Survey`).  geometry: (7 N,) m the surveyed
+    ceiling anchors, body anchors (row-major) and cable lengths the geometry's prior is centred on
+    (rig.yaml's; empty: centred on the fit's start).
+    """
+
+    mass: float
+    mass_std: float
+    cg: np.ndarray
+    cg_std: np.ndarray
+    stiffness: np.ndarray
+    stiffness_log_std: np.ndarray
+    survey: Survey = Survey()
+    geometry: np.ndarray = field(default_factory=lambda: np.zeros(0))
+
+    @property
+    def gain_std(self) -> float:
+        """σ of each load cell's gain, share (the survey's)."""
+        return self.survey.load_cell_gain
+
+    @staticmethod
+    def from_rig(rig: Rig, cg: ArrayLike | None = None, cg_std: ArrayLike | None = None) -> "Prior":
+        """rig.yaml's mass and geometry (σ rig.yaml's ``survey``), CG (``cg``/``cg_std`` override; without a
+        σ the CG is free), cable stiffness (the default steel cable's where rig.yaml has none)."""
+        given = np.array([c.stiffness is not None for c in rig.cables])
+        k = np.array([DEFAULT_STIFFNESS if c.stiffness is None else c.stiffness for c in rig.cables])
+        c0 = rig.center_of_gravity if cg is None else np.asarray(cg, float)
+        if c0 is None:
+            raise RigFitError(f"{rig.source}: no centre of gravity to start from (rig.yaml body.center_of_gravity, "
+                              "or the static test's: rig-identify cg)")
+        return Prior(rig.mass, rig.survey.mass_std(rig.mass), np.asarray(c0, float),
+                     np.full(3, np.inf) if cg_std is None else np.broadcast_to(np.asarray(cg_std, float), (3,)),
+                     k, np.where(given, STIFFNESS_LOG_STD_GIVEN, STIFFNESS_LOG_STD_DEFAULT), rig.survey,
+                     np.concatenate([rig.ceiling_anchors.ravel(), rig.body_anchors.ravel(), rig.cable_lengths]))
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Where each unknown sits in the parameter vector.
+
+    n_cables: the rig's cables.  n_force: the exciter force's correction unknowns (0 or 2 K):
+    K B-spline coefficients of its amplitude's relative change, then K of its phase's change,
+    rad, over the fit's span (:meth:`Record.force_basis`).  n_segments: the span's segments
+    (:data:`SEGMENT`), each after the first with its own initial state (12 unknowns, last).
+    """
+
+    n_cables: int
+    n_force: int = 0
+    n_segments: int = 1
+
+    @property
+    def inertia(self) -> slice:
+        return slice(0, 6)
+
+    @property
+    def cg(self) -> slice:
+        return slice(6, 9)
+
+    @property
+    def mass(self) -> int:
+        return 9
+
+    @property
+    def log_stiffness(self) -> slice:
+        return slice(10, 10 + self.n_cables)
+
+    @property
+    def damping(self) -> int:
+        return 10 + self.n_cables
+
+    @property
+    def gain(self) -> slice:
+        return slice(11 + self.n_cables, 11 + 2 * self.n_cables)
+
+    @property
+    def body_damping(self) -> slice:
+        return slice(11 + 2 * self.n_cables, 13 + 2 * self.n_cables)
+
+    @property
+    def initial(self) -> slice:
+        return slice(13 + 2 * self.n_cables, 25 + 2 * self.n_cables)
+
+    @property
+    def geometry(self) -> slice:
+        return slice(25 + 2 * self.n_cables, 25 + 9 * self.n_cables)
+
+    @property
+    def force(self) -> slice:
+        return slice(25 + 9 * self.n_cables, 25 + 9 * self.n_cables + self.n_force)
+
+    @property
+    def segments(self) -> slice:
+        """The initial states (12 each) of the segments after the first, segment by segment."""
+        start = 25 + 9 * self.n_cables + self.n_force
+        return slice(start, start + 12 * (self.n_segments - 1))
+
+    @property
+    def size(self) -> int:
+        return 25 + 9 * self.n_cables + self.n_force + 12 * (self.n_segments - 1)
+
+    def state(self, k: int) -> slice:
+        """Segment ``k``'s initial-state unknowns (12)."""
+        if k == 0:
+            return self.initial
+        return slice(self.segments.start + 12 * (k - 1), self.segments.start + 12 * k)
+
+    def for_span(self, samples: int, dt: float) -> "Layout":
+        """This layout for a span of ``samples`` grid samples ``dt`` s apart: segments of at most
+        :data:`SEGMENT` s."""
+        n = max(1, int(np.ceil((samples - 1) * dt / SEGMENT - 1e-9)))
+        return Layout(self.n_cables, self.n_force, n)
+
+
+def relayout(x: np.ndarray, lay: Layout) -> np.ndarray:
+    """The unknowns ``x`` (of any segment count) in layout ``lay``: the segments' initial states
+    kept where the count is the same, else zero (the model's own continuation)."""
+    common = lay.segments.start
+    if len(x) == lay.size:
+        return x
+    return np.concatenate([x[:common], np.zeros(lay.size - common)])
+
+
+def vector(p: RigParameters, initial: np.ndarray, lay: Layout) -> np.ndarray:
+    return np.concatenate([p.inertia, p.cg, [p.mass], np.log(p.stiffness), [p.damping_time], p.gain, p.body_damping,
+                           initial, p.ceiling.ravel(), p.body.ravel(), p.length, np.zeros(lay.size - lay.force.start)])
+
+
+def parameters_of(x: np.ndarray, like: RigParameters, lay: Layout) -> RigParameters:
+    n = lay.n_cables
+    g = x[lay.geometry]
+    return like.replace(inertia=x[lay.inertia], cg=x[lay.cg], mass=float(x[lay.mass]),
+                        stiffness=np.exp(x[lay.log_stiffness]), damping_time=float(x[lay.damping]),
+                        gain=x[lay.gain], body_damping=x[lay.body_damping], ceiling=g[:3 * n].reshape(n, 3),
+                        body=g[3 * n:6 * n].reshape(n, 3),
+                        length=g[6 * n:])
+
+
+def priors(prior: Prior, lay: Layout, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Centres and σ of the priors over the parameter vector (σ inf: none; the centre of an
+    unknown without a prior is its start in ``x0``).  The geometry's centre is the survey's
+    (:attr:`Prior.geometry`) in every stage, not the stage's start: centred on each stage's
+    estimate, the survey's pull would weaken stage by stage."""
+    centre = x0.copy()
+    std = np.full(lay.size, np.inf)
+    centre[lay.cg], std[lay.cg] = prior.cg, prior.cg_std
+    centre[lay.mass], std[lay.mass] = prior.mass, prior.mass_std
+    centre[lay.log_stiffness], std[lay.log_stiffness] = np.log(prior.stiffness), prior.stiffness_log_std
+    centre[lay.gain], std[lay.gain] = 1.0, max(prior.gain_std, EXACT_GAIN_STD)
+    centre[lay.force], std[lay.force] = 0.0, FORCE_CORRECTION_STD
+    n = lay.n_cables
+    if len(prior.geometry):
+        centre[lay.geometry] = prior.geometry
+    std[lay.geometry] = np.concatenate([np.full(6 * n, max(prior.survey.anchors, EXACT_STD)),
+                                        np.full(n, max(prior.survey.lengths, EXACT_STD))])
+    return centre, std
+
+
+def unit_scale(x0: np.ndarray, lay: Layout, prior: Prior) -> np.ndarray:
+    """Each unknown's unit: a change that moves the outputs by a small, comparable amount."""
+    s = np.ones(lay.size)
+    big = max(abs(x0[0]), abs(x0[3]), abs(x0[5]))
+    s[lay.inertia] = 1e-3 * big
+    s[lay.cg] = 1e-3
+    s[lay.mass] = 1e-3 * prior.mass
+    s[lay.log_stiffness] = 1e-2
+    s[lay.damping] = 0.1 * max(abs(x0[lay.damping]), 1e-5)
+    s[lay.gain] = 1e-3
+    s[lay.body_damping] = (1e-3 * prior.mass, 1e-3 * big)      # ζ ≈ 1e-3 of a 1 rad/s mode
+    s[lay.initial] = 1e-4
+    s[lay.segments] = 1e-4
+    s[lay.geometry] = 1e-4
+    s[lay.force] = 1e-2
+    return s
