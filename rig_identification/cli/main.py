@@ -42,6 +42,8 @@ a rig day:
   rig-identify inertia REC --json                one JSON object (schema rig_identification.inertia_result)
   rig-identify inertia REC --urdf --yaml F.yaml  a URDF <inertial> element; a YAML file
   rig-identify diagnose REC                      where the model and the recording disagree, and why
+research baselines (not for a rig day):
+  rig-identify thesis-table                      the thesis's 17 case studies: its errors, ours, --model thesis
 Exit status: 0 done, 2 a user error (one line on stderr, naming the file or the option)."""
 
 
@@ -64,12 +66,13 @@ TENSOR_HELP = ("tensor entries about the CG, body axes of rig.yaml, kg·m², in 
                "entries as in truth.yaml and the JSON, i.e. the negated products of inertia (ixy = −Ixy)")
 
 
-def add_command(sub, name: str, help: str, description: str, run: Callable, inputs=(),
+def add_command(sub, name: str, help: str | None, description: str, run: Callable, inputs=(),
                 outputs=(), output_dirs=()) -> argparse.ArgumentParser:
     """A sub-command parser with a description paragraph, its runner, the destinations of its
     input paths (checked to exist before any work), of its output files and of its output folders
-    (:func:`check_paths`: the folder an output goes into must exist)."""
-    p = sub.add_parser(name, help=help, description=description)
+    (:func:`check_paths`: the folder an output goes into must exist).  ``help`` None: not in the
+    list of commands (a research baseline, named in :data:`EPILOG` instead)."""
+    p = sub.add_parser(name, description=description, **({} if help is None else {"help": help}))
     p.set_defaults(func=run, inputs=tuple(inputs), outputs=tuple(outputs), output_dirs=tuple(output_dirs))
     p.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
                    help="no progress lines on stderr (warnings still)")
@@ -217,7 +220,7 @@ def add_modes_parser(sub) -> None:
 
 
 def add_thesis_table_parser(sub) -> None:
-    t = add_command(sub, "thesis-table", "the thesis's 17 case studies: reported errors vs ours vs --model thesis",
+    t = add_command(sub, "thesis-table", None,
                     "Simulate the thesis's case studies (config/cases) noise-free, identify each with our method and "
                     "with the thesis's, and print the errors beside those the thesis reported.",
                     lazy("rig_identification.cli.plan", "cmd_thesis_table"))

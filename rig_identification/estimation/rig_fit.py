@@ -560,8 +560,9 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     best = None
     nfev = 0
     problems = []
+    geometry, rest0 = start_parameters(rig, prior, np.zeros(6), rec, damping_time)
     for start in np.atleast_2d(np.asarray(inertia0, float)):
-        p0, rest0 = start_parameters(rig, prior, start, rec, damping_time)
+        p0 = geometry.replace(inertia=start)
         prob = _Problem(rec, p0, lay, vector(p0, np.zeros(12), lay), prior, noise_scale, rounds[0][0], rest0, None)
         prob = _Problem(rec, p0, lay, _settled(prob, rec, p0, lay, prior, rest0), prior, noise_scale, rounds[0][0],
                         rest0, prob.base)
