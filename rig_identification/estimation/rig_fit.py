@@ -125,15 +125,15 @@ JACOBIAN_STEP = 1e-4
 class _Problem:
     """The weighted residual of ``n`` samples from the record's ``start`` as a function of the
     scaled unknowns z (x = x0 + scale z): the span cut into segments (:data:`~.rig_unknowns.SEGMENT`), each run
-    from its own state, ``bases[k]`` moved by segment k's initial-state unknowns.  ``base``: the
-    first segment's state (13,) (None: the model's run from rest through the spin-up,
-    :func:`_base_state`); ``bases``: (n_segments, 13) every segment's, as a previous problem
-    of the same span had them (None: the model's own continuation at ``x0`` from ``base``).
-    ``x0`` of any segment count (:func:`relayout`)."""
+    from its own state, ``bases[k]`` moved by segment k's initial-state unknowns.  ``bases``:
+    (k, 13) the segments' states as a previous problem had them (:meth:`bases_at`): with k this
+    span's segment count and ``x0`` of its size, taken as they are; otherwise the first is taken
+    and the later ones are the model's continuation at ``x0`` from it; None: the first is the
+    model's run from rest through the spin-up (:func:`_base_state`).  ``x0`` of any segment
+    count (:func:`relayout`)."""
 
     def __init__(self, rec: Record, like: RigParameters, lay: Layout, x0: np.ndarray, prior: Prior,
-                 noise_scale: np.ndarray, n: int, rest: RestPose, base: np.ndarray | None,
-                 bases: np.ndarray | None = None):
+                 noise_scale: np.ndarray, n: int, rest: RestPose, bases: np.ndarray | None = None):
         self.rec, self.like, self.n = rec, like, n
         self.lay = lay.for_span(n, rec.dt)
         self.x0 = relayout(x0, self.lay)
@@ -161,14 +161,9 @@ class _Problem:
             self.x0 = self.x0.copy()
             self.x0[self.lay.segments] = 0.0
             start = parameters_of(self.x0, like, self.lay)
-            self.bases = self._continued(_base_state(rec, start, rest, self.substeps) if base is None else base)
+            first = _base_state(rec, start, rest, self.substeps) if bases is None else bases[0]
+            self.bases = self._continued(first)
             self._settle_segments()
-
-    @property
-    def base(self) -> np.ndarray:
-        """(13,) the first segment's state before its unknowns move it."""
-        first: np.ndarray = self.bases[0]
-        return first
 
     def _continued(self, base: np.ndarray) -> np.ndarray:
         """(n_segments, 13) each segment's state on the model's run at x0 from ``base`` (moved by
@@ -202,8 +197,7 @@ class _Problem:
                     e = self.rec.y[a + b:a + c] - self.segment_outputs(x, k, u)
                 except (SimulationError, ValueError, np.linalg.LinAlgError):
                     return np.full((len(range(0, c - b, self.step)) * len(self.rec.channels)), OUTSIDE)
-                f: np.ndarray = (sosfiltfilt(self.sos, e - e.mean(axis=0), axis=0)[::self.step] * self.weight).ravel()
-                return f
+                return self.weighted(e).ravel()
 
             sol = least_squares(residual, np.zeros(12), method="trf", diff_step=JACOBIAN_STEP, xtol=XTOL, ftol=FTOL,
                                 gtol=GTOL, max_nfev=MAX_ITERATIONS)
@@ -243,7 +237,7 @@ class _Problem:
         pose itself is not what the data see).  Raises
         :class:`~rig_identification.model.dynamics.SimulationError` where ``p`` has no rest pose."""
         key = p.ceiling.tobytes() + p.body.tobytes() + p.length.tobytes() + p.cg.tobytes() + p.stiffness.tobytes() \
-            + np.array([p.mass]).tobytes() + p.inertia.tobytes()
+            + np.array([p.mass]).tobytes()
         ref = self._rest_cache.get(key)
         if ref is None:
             ref = rest_state(p, rest_pose(p, self.rest))
@@ -269,10 +263,13 @@ class _Problem:
         """(m, n_out) weighted, low-passed and decimated to the band, each channel's offset
         projected out; ``outputs``: :meth:`outputs` at x where already known."""
         a = self.rec.start
-        e = self.rec.y[a:a + self.n] - np.concatenate(self.outputs(x) if outputs is None else outputs)
-        e = sosfiltfilt(self.sos, e - e.mean(axis=0), axis=0)[::self.step]
-        weighted: np.ndarray = e * self.weight
-        return weighted
+        return self.weighted(self.rec.y[a:a + self.n] - np.concatenate(self.outputs(x) if outputs is None else outputs))
+
+    def weighted(self, e: np.ndarray) -> np.ndarray:
+        """(m, n_out) the data-minus-model ``e`` (samples, n_out) with each channel's offset
+        projected out, low-passed, decimated to the band and weighted by its noise."""
+        filtered: np.ndarray = sosfiltfilt(self.sos, e - e.mean(axis=0), axis=0)[::self.step] * self.weight
+        return filtered
 
     def residual(self, z: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:
         """The weighted residual (data rows, then the priors' rows); outside the physical
@@ -498,7 +495,7 @@ def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: 
     modes' phase hardly depends on the parameters: the state is found before the parameters
     make the likelihood multimodal; Ljung 1999, §7.3 on the initial state)."""
     n = min(prob.n, int(round(INITIAL_SPAN / rec.dt)) + 1)
-    short = _Problem(rec, p, lay, prob.x0, prior, np.ones(len(rec.channels)), n, rest, prob.base)
+    short = _Problem(rec, p, lay, prob.x0, prior, np.ones(len(rec.channels)), n, rest, prob.bases)
     part = lay.initial
 
     def residual(zi: np.ndarray) -> np.ndarray:
@@ -533,7 +530,7 @@ def _restarted(rec: Record, p: RigParameters, lay: Layout, x: np.ndarray, prior:
             break
         shift = shift / 2
     p1 = parameters_of(x1, p, lay)
-    prob = _Problem(rec, p1, lay, x1, prior, noise_scale, len(rec.y) - rec.start, rest, bases[0], bases)
+    prob = _Problem(rec, p1, lay, x1, prior, noise_scale, len(rec.y) - rec.start, rest, bases)
     sol = _solve(prob, verbose, True)
     x1, p1, rest = _moved_on(prob, sol, p1, rest)
     return x1, p1, rest, float(sol.cost), sol.nfev * (prob.lay.size + 1), prob.bases_at(x1)
@@ -563,9 +560,9 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     geometry, rest0 = start_parameters(rig, prior, np.zeros(6), rec, damping_time)
     for start in np.atleast_2d(np.asarray(inertia0, float)):
         p0 = geometry.replace(inertia=start)
-        prob = _Problem(rec, p0, lay, vector(p0, np.zeros(12), lay), prior, noise_scale, rounds[0][0], rest0, None)
+        prob = _Problem(rec, p0, lay, vector(p0, np.zeros(12), lay), prior, noise_scale, rounds[0][0], rest0)
         prob = _Problem(rec, p0, lay, _settled(prob, rec, p0, lay, prior, rest0), prior, noise_scale, rounds[0][0],
-                        rest0, prob.base)
+                        rest0, prob.bases)
         problems.append((prob, p0, rest0))
         if np.all(prob.residual(np.zeros(prob.lay.size)) == OUTSIDE):
             log.info("rig fit: the start %s leaves the physical region or diverges: the next", np.round(start, 1))
@@ -580,25 +577,22 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
         prob, p0, rest0 = problems[0]
         best = (prob, _solve(prob, verbose), p0, rest0)
     prob, sol, p, rest = best
-    base = prob.base
     x, p, rest = _moved_on(prob, sol, p, rest)
     bases = prob.bases_at(x)
-    base = bases[0]
     for i, (n, final) in enumerate(rounds):
         if i > 0:
-            prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, base, bases)
+            prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, bases)
             sol = _solve(prob, verbose, final)
             nfev += sol.nfev * (prob.lay.size + 1)
             x, p, rest = _moved_on(prob, sol, p, rest)
             bases = prob.bases_at(x)
-            base = bases[0]
         if final:
-            level = _levels(_Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base, bases), x)
+            level = _levels(_Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases), x)
             new_scale = np.maximum(level, 1.0)
             if np.allclose(new_scale, noise_scale, rtol=0.05) or np.max(level) > REWEIGHT_LIMIT:
                 break
             noise_scale = new_scale
-    last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, base, bases)
+    last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
     minima = [(0.5 * float(np.sum(last.residual(np.zeros(last.lay.size)) ** 2)), x, p, rest, bases)]
     for sign in (1.0, -1.0):
         x2, p2, rest2, cost2, runs, bases2 = _restarted(rec, p, lay, x, prior, noise_scale, rest, bases, sign,
@@ -607,18 +601,17 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
         minima.append((cost2, x2, p2, rest2, bases2))
     minima.sort(key=lambda m: m[0])
     cost, x, p, rest, bases = minima[0]
-    base = bases[0]
     others = np.array([m[1][lay.inertia] for m in minima[1:]])
     other_chi2 = np.array([2 * (m[0] - cost) for m in minima[1:]])
     log.info("rig fit: the other minima settled %s from the estimate, χ² %s", np.round(others - x[lay.inertia], 3),
              np.round(other_chi2, 2))
-    last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, base, bases)
+    last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
     fisher, sandwich, bound = _covariance(last, np.zeros(last.lay.size), noise_scale)
     # σ: the larger of the two per unknown, the correlations the Fisher information's
     sd = np.sqrt(np.maximum(np.diag(fisher), np.diag(sandwich)))
     fd = np.sqrt(np.diag(fisher))
     cov = fisher / np.outer(fd, fd) * np.outer(sd, sd)
-    unit = _Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, base, bases)
+    unit = _Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases)
     level = _levels(unit, x)
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
@@ -633,5 +626,5 @@ def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.
     lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1])
     x = vector(truth, np.zeros(12), lay)
     rest = rest_pose(truth)
-    prob = _Problem(rec, truth, lay, x, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start, rest, None)
+    prob = _Problem(rec, truth, lay, x, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start, rest)
     return _covariance(prob, np.zeros(prob.lay.size))[0]
