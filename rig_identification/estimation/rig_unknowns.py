@@ -170,11 +170,15 @@ def relayout(x: np.ndarray, lay: Layout) -> np.ndarray:
 
 
 def vector(p: RigParameters, initial: np.ndarray, lay: Layout) -> np.ndarray:
+    """(lay.size,) the unknowns of ``p`` in the order of the module docstring: the first segment's
+    initial state ``initial`` (12,), the force's correction and the later segments' states zero."""
     return np.concatenate([p.inertia, p.cg, [p.mass], np.log(p.stiffness), [p.damping_time], p.gain, p.body_damping,
                            initial, p.ceiling.ravel(), p.body.ravel(), p.length, np.zeros(lay.size - lay.force.start)])
 
 
 def parameters_of(x: np.ndarray, like: RigParameters, lay: Layout) -> RigParameters:
+    """``like`` with every parameter the unknowns ``x`` (layout ``lay``) hold: the inverse of
+    :func:`vector` (the stiffness from its log)."""
     n = lay.n_cables
     g = x[lay.geometry]
     return like.replace(inertia=x[lay.inertia], cg=x[lay.cg], mass=float(x[lay.mass]),
