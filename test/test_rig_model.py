@@ -39,7 +39,7 @@ from rig_identification.model.linear_rig import (
     stiffness_matrix,
 )
 from rig_identification.model.parametrisation import entry_scales, from_tensor
-from rig_identification.model.rig_ode import rest_state, simulate
+from rig_identification.model.rig_ode import drive, rest_state, simulate
 from rig_identification.model.simulator import simulate as simulate_experiment
 from rig_identification.pipeline.offline import default_initial_guess
 from rig_identification.pipeline.rig_model import (
@@ -125,7 +125,7 @@ def test_the_compiled_model_reproduces_the_simulator(quiet_rig):
     rest = rest_pose(p)
     s = sim.sensors
     force = s.exciter.data
-    out, _ = simulate(p, rest_state(p, rest), force, 1 / 200.0, 4)
+    out, _ = simulate(p, rest_state(p, rest), drive(force, 1 / 200.0, 4))
     T = np.column_stack([s.load_cells[n].data[:, 0] for n in sim.rig.cable_names])
     n = len(sim.rig.cables)
     assert np.max(np.abs(out[:, :n] - T)) < 0.5

@@ -62,7 +62,7 @@ from ..io.rig import Rig
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
-from ..model.rig_ode import moved_state, rest_state, simulate, substeps_for
+from ..model.rig_ode import Drive, drive, moved_state, rest_state, simulate, substeps_for
 from .rig_record import Record
 from .rig_start import start_parameters
 from .rig_unknowns import Layout, Prior, parameters_of, priors, relayout, unit_scale, vector
@@ -117,6 +117,12 @@ CHI2_95_6 = 12.592
 #: valley and the trust region stopped 9 σ short (case-16 rig); the model is smooth and
 #: deterministic, so rounding stays ~1e-8 of a column at 1e-4.
 JACOBIAN_STEP = 1e-4
+#: A segment's change is filtered over the samples where the filter's response to an impulse
+#: exceeds this share of its peak (:meth:`_Problem.segment_change`).
+IMPULSE_TAIL = 1e-12
+#: A solve's Jacobian is made afresh where a tried step lowered the cost by less than this share
+#: of what the Jacobian's linear model predicted (:class:`_ReusedJacobian`).
+REUSE_RATIO = 0.5
 
 
 # --- the model's residual ------------------------------------------------------------------------------
@@ -146,11 +152,17 @@ class _Problem:
         # a decimated sample stands for the `step` grid samples around it (weighting it as an
         # independent sample of the filtered noise overstates an in-band signal's information
         # ~1.8×); `unit`: the RMS of a weighted residual of noise alone.
-        self.unit = float(np.sqrt(self.step * np.sum(sosfiltfilt(self.sos, impulse) ** 2)))
+        response = sosfiltfilt(self.sos, impulse)
+        self.unit = float(np.sqrt(self.step * np.sum(response ** 2)))
+        # samples beyond which the filter's response to a change is below rounding (:meth:`segment_change`)
+        tail = np.flatnonzero(np.abs(response) > IMPULSE_TAIL * np.abs(response).max())
+        self.reach = int(max(tail.max() - 2000, 2000 - tail.min())) + 1 if tail.max() < 4000 and tail.min() > 0 \
+            else n
         self.weight = np.sqrt(self.step) / (rec.sigma * noise_scale * np.sqrt(rec.oversampling))
         self.rest = rest
         self.ref = rest_state(parameters_of(self.x0, like, self.lay), rest)
         self._rest_cache: dict[bytes, np.ndarray] = {}
+        self._drives: dict[tuple[int, int, bytes], Drive] = {}
         lin = linearise(parameters_of(self.x0, like, self.lay), rest)
         self.substeps = substeps_for(2 * np.pi * natural_frequencies(lin).max(), rec.dt)
         self.basis = rec.force_basis()[:n] if self.lay.n_force else np.zeros((n, 0))
@@ -176,7 +188,7 @@ class _Problem:
         u = self.force(x)
         y = moved_state(bases[0], x[self.lay.initial])
         for a, b in zip(self.edges[1:-1], self.edges[2:]):
-            y = simulate(p, y, u[self.edges[len(bases) - 1]:a + 1], self.rec.dt, self.substeps)[1]
+            y = simulate(p, y, self.drive(x, u, self.edges[len(bases) - 1], a + 1))[1]
             bases.append(y)
         return np.array(bases)
 
@@ -186,11 +198,12 @@ class _Problem:
         every later segment, and the response is nearly linear in the state (Ljung 1999, §7.3)."""
         u = self.force(self.x0)
         a = self.rec.start
-        for k in range(1, self.lay.n_segments):
+
+        def settle(k: int) -> np.ndarray:
             b, c = self.edges[k], self.edges[k + 1]
             part = self.lay.state(k)
 
-            def residual(zk: np.ndarray, k: int = k, b: int = b, c: int = c, part: slice = part) -> np.ndarray:
+            def residual(zk: np.ndarray) -> np.ndarray:
                 x = self.x0.copy()
                 x[part] += self.scale[part] * zk
                 try:
@@ -201,7 +214,13 @@ class _Problem:
 
             sol = least_squares(residual, np.zeros(12), method="trf", diff_step=JACOBIAN_STEP, xtol=XTOL, ftol=FTOL,
                                 gtol=GTOL, max_nfev=MAX_ITERATIONS)
-            self.x0[part] += self.scale[part] * sol.x
+            move: np.ndarray = self.scale[part] * sol.x
+            return move
+
+        with ThreadPoolExecutor(THREADS) as pool:     # each segment's state alone: independent solves
+            moves = list(pool.map(settle, range(1, self.lay.n_segments)))
+        for k, move in enumerate(moves, 1):
+            self.x0[self.lay.state(k)] += move
 
     def x(self, z: np.ndarray) -> np.ndarray:
         x = self.x0.copy()
@@ -220,6 +239,17 @@ class _Problem:
         z = (u[:, 0] + 1j * u[:, 1]) * (1.0 + self.basis @ c[:k]) * np.exp(1j * (self.basis @ c[k:]))
         return np.column_stack([z.real, z.imag])
 
+    def drive(self, x: np.ndarray, u: np.ndarray, a: int, b: int) -> Drive:
+        """The force ``u`` (:meth:`force` at ``x``) over the span's samples a to b as the model
+        takes it, kept while the force's unknowns stay (a Jacobian's other columns)."""
+        key = (a, b, x[self.lay.force].tobytes())
+        d = self._drives.get(key)
+        if d is None:
+            if len(self._drives) > 4 * self.lay.n_segments:
+                self._drives.clear()
+            d = self._drives[key] = drive(u[a:b], self.rec.dt, self.substeps)
+        return d
+
     def segment_outputs(self, x: np.ndarray, k: int, u: np.ndarray | None = None) -> np.ndarray:
         """(samples, n_out) the model's readings over segment ``k`` (the force's last where it is
         an output); ``u``: the span's force at x (:meth:`force`) where already known."""
@@ -227,7 +257,7 @@ class _Problem:
         u = self.force(x) if u is None else u
         a, b = self.edges[k], self.edges[k + 1]
         y0 = moved_state(self._rebased(p, self.bases[k]), x[self.lay.state(k)])
-        out = simulate(p, y0, u[a:b], self.rec.dt, self.substeps)[0]
+        out = simulate(p, y0, self.drive(x, u, a, b))[0]
         return np.column_stack([out, u[a:b]]) if self.lay.n_force else out
 
     def _rebased(self, p: RigParameters, base: np.ndarray) -> np.ndarray:
@@ -285,9 +315,32 @@ class _Problem:
             return outside
         if not np.all(np.isfinite(r)):
             return outside
+        return np.concatenate([r, self.prior_rows(z)])
+
+    def prior_rows(self, z: np.ndarray) -> np.ndarray:
+        """The priors' rows of :meth:`residual`: each unknown with a prior off its centre in its σ."""
+        x = self.x(z)
         std = self.prior_std[:len(z)]
         finite = np.isfinite(std)
-        return np.concatenate([r, (x[:len(z)][finite] - self.centre[:len(z)][finite]) / std[finite]])
+        rows: np.ndarray = (x[:len(z)][finite] - self.centre[:len(z)][finite]) / std[finite]
+        return rows
+
+    def segment_change(self, change: np.ndarray, k: int) -> np.ndarray:
+        """(data_rows,) the change of :meth:`residual`'s data rows when the model's readings over
+        segment ``k`` change by ``change`` (samples, n_out) and nowhere else: :meth:`weighted` is
+        linear, so the change is the weighted change filtered over the segment and the filter's
+        reach either side (exact to :data:`IMPULSE_TAIL`), less its mean over the span."""
+        b, c = self.edges[k], self.edges[k + 1]
+        lo = max(0, b - self.reach) // self.step * self.step
+        hi = min(self.n, c + self.reach)
+        d = np.zeros((hi - lo, change.shape[1]))
+        d[b - lo:c - lo] = change
+        rows = np.tile(change.sum(axis=0) / self.n, (len(range(0, self.n, self.step)), 1))
+        first = lo // self.step
+        local = sosfiltfilt(self.sos, d, axis=0)[::self.step]
+        rows[first:first + len(local)] -= local
+        out: np.ndarray = (rows * self.weight).ravel()
+        return out
 
     @property
     def data_rows(self) -> int:
@@ -316,14 +369,16 @@ class _Problem:
         def column(i: int) -> np.ndarray:
             e = z.copy()
             e[i] += JACOBIAN_STEP
-            moved = None
-            if outs is not None and i in owner and i < len(z):
+            if outs is not None and i in owner and i < len(z) and base[0] != OUTSIDE:
                 k = owner[i]
                 try:
-                    moved = outs[:k] + [self.segment_outputs(self.x(e), k, u)] + outs[k + 1:]
+                    change = self.segment_outputs(self.x(e), k, u) - outs[k]
                 except (SimulationError, ValueError, np.linalg.LinAlgError):
-                    moved = None
-            col: np.ndarray = (self.residual(e, moved) - base) / JACOBIAN_STEP
+                    pass
+                else:
+                    return np.concatenate([self.segment_change(change, k),
+                                           self.prior_rows(e) - self.prior_rows(z)]) / JACOBIAN_STEP
+            col: np.ndarray = (self.residual(e) - base) / JACOBIAN_STEP
             return col
 
         with ThreadPoolExecutor(THREADS) as pool:
@@ -397,17 +452,17 @@ class RigFit:
         return np.sqrt(np.diag(self.covariance)[self.layout.cg])
 
 
-def _covariance(prob: _Problem, z: np.ndarray, noise_scale: np.ndarray | None = None
+def _covariance(prob: _Problem, J: np.ndarray, noise_scale: np.ndarray | None = None
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The unknowns' covariance (size, size) in x units: the inverse Fisher information of the
-    weighted residual (the priors' rows included), the sandwich (Huber 1967; White 1982)
+    """The unknowns' covariance (size, size) in x units at ``prob``'s x0, ``J`` its Jacobian there
+    (:meth:`_Problem.jacobian`): the inverse Fisher information of the weighted residual (the
+    priors' rows included), the sandwich (Huber 1967; White 1982)
     H⁻¹ (Σ_b s_b s_bᵀ + P) H⁻¹, its meat the data's scores summed over :data:`SANDWICH_BLOCKS`
     blocks of the record (batch means: a residual that is not white — a model error — is
     correlated within a block) plus the priors' information P, and the inverse Fisher information
     with each channel's noise at its own level: ``prob``'s weights times ``noise_scale`` (n_out,),
     the factors ``prob`` put on them (None: the first again)."""
-    J = prob.jacobian(z)
-    r = prob.residual(z)
+    r = prob.residual(np.zeros(prob.lay.size))
     rows = prob.data_rows
     H = J.T @ J
     Hinv = np.linalg.pinv(H, rcond=1e-13, hermitian=True)
@@ -433,46 +488,104 @@ def _base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) ->
     y = rest_state(p, rest)
     if rec.start == 0:
         return y
-    return simulate(p, y, rec.u[:rec.start + 1], rec.dt, substeps)[1]
+    return simulate(p, y, drive(rec.u[:rec.start + 1], rec.dt, substeps))[1]
 
 
-def _solve(prob: _Problem, verbose: int, whole: bool = False) -> OptimizeResult:
-    """One least-squares solve of ``prob`` from its x0 (scipy's trust region), stopped where the
-    Gauss–Newton decrement ½ gᵀ (JᵀJ)⁺ g falls below :data:`NEWTON_DECREMENT` (Boyd &
+class _ReusedJacobian:
+    """The Jacobian of ``prob``'s residual for a least-squares solve, computed afresh only where the
+    linear model it makes mispredicted a tried step: otherwise the last one with Broyden's rank-one
+    update along the accepted step (Broyden 1965; Dennis & Schnabel, *Numerical Methods for
+    Unconstrained Optimization and Nonlinear Equations*, §8.2).  A step whose cost fell by less than
+    :data:`REUSE_RATIO` of the fall the Jacobian predicted asks for a fresh one at the next
+    accepted point.  Each fresh Jacobian costs a model run per unknown, an update none."""
+
+    def __init__(self, prob: _Problem, J0: np.ndarray | None = None):
+        self.prob = prob
+        self.z: np.ndarray | None = None
+        self.J = np.zeros((0, 0))
+        self.r = np.zeros(0)
+        self.fresh = False
+        self.stale_model = True
+        if J0 is not None:                  # a fresh Jacobian at z = 0, the solve starting elsewhere
+            self.z, self.J, self.r, self.stale_model = np.zeros(prob.lay.size), J0, prob.residual(
+                np.zeros(prob.lay.size)), False
+        self.last: tuple[np.ndarray, np.ndarray] | None = None    # the last residual away from z
+        self.runs = 0
+        self.jacobians = 0
+
+    def residual(self, z: np.ndarray) -> np.ndarray:
+        r = self.prob.residual(z)
+        self.runs += 1
+        if self.z is not None and not np.array_equal(z, self.z):
+            predicted = self.r @ self.r - np.sum((self.r + self.J @ (z - self.z)) ** 2)
+            if predicted > 0 and self.r @ self.r - r @ r < REUSE_RATIO * predicted:
+                self.stale_model = True
+            self.last = (z.copy(), r)
+        return r
+
+    def refresh(self, z: np.ndarray) -> np.ndarray:
+        """A fresh Jacobian at ``z`` (a model run per unknown)."""
+        self.J = self.prob.jacobian(z)
+        self.z, self.r = z.copy(), self.prob.residual(z)
+        self.fresh, self.stale_model = True, False
+        self.runs += self.prob.lay.size + 2
+        self.jacobians += 1
+        return self.J
+
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        if self.z is None or self.stale_model or self.last is None or not np.array_equal(self.last[0], z):
+            return self.refresh(z)
+        s = z - self.z
+        r = self.last[1]
+        self.J = self.J + np.outer(r - self.r - self.J @ s, s / (s @ s))
+        self.z, self.r, self.fresh = z.copy(), r, False
+        return self.J
+
+
+def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | None = None,
+           J0: np.ndarray | None = None) -> tuple[OptimizeResult, int]:
+    """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``J0``: the Jacobian
+    at 0 where known) (scipy's trust region, the Jacobian reused
+    where it predicts the steps: :class:`_ReusedJacobian`), stopped where the Gauss–Newton
+    decrement ½ gᵀ (JᵀJ)⁺ g of a fresh Jacobian falls below :data:`NEWTON_DECREMENT` (Boyd &
     Vandenberghe, *Convex Optimization*, §9.5.1: the cost the Gauss–Newton step would still
     gain), where the last :data:`STALL_ITERATIONS` iterations gained less than that together,
     or by the tolerances; on the ``whole`` record (no stage after it) also where the Gauss–Newton
     step would move no tensor entry, CG coordinate or the mass by :data:`RESULT_STEP` of its σ
     (the trust region then crawls along a valley of the nuisance unknowns: the segments' states
-    and the force's correction)."""
-    last: dict[str, np.ndarray] = {}
-
-    def jacobian(z: np.ndarray) -> np.ndarray:
-        last["z"], last["J"] = z.copy(), prob.jacobian(z)
-        return last["J"]
-
+    and the force's correction).  Returns the solution and the model runs it took."""
+    jac = _ReusedJacobian(prob, J0)
     costs: list[float] = []
+    result = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
+
+    def done(f: np.ndarray) -> bool:
+        g = jac.J.T @ f
+        Hinv = np.linalg.pinv(jac.J.T @ jac.J, rcond=1e-13, hermitian=True)
+        step = Hinv @ g
+        decrement = 0.5 * g @ step
+        return bool(decrement < NEWTON_DECREMENT
+                    or whole and decrement < 0.5 * CHI2_95_6
+                    and np.all(np.abs(step[result]) < RESULT_STEP * np.sqrt(np.diag(Hinv)[result])))
 
     def converged(intermediate_result: OptimizeResult) -> None:
         costs.append(float(intermediate_result.cost))
-        if len(costs) > STALL_ITERATIONS and costs[-1 - STALL_ITERATIONS] - costs[-1] < NEWTON_DECREMENT:
-            raise StopIteration
-        if "z" not in last or not np.array_equal(last["z"], intermediate_result.x):
+        z = intermediate_result.x
+        stalled = len(costs) > STALL_ITERATIONS and costs[-1 - STALL_ITERATIONS] - costs[-1] < NEWTON_DECREMENT
+        if jac.z is None or not np.array_equal(jac.z, z) or not (stalled or done(intermediate_result.fun)):
             return
-        J = last["J"]
-        g = J.T @ intermediate_result.fun
-        Hinv = np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True)
-        step = Hinv @ g
-        if 0.5 * g @ step < NEWTON_DECREMENT:
-            raise StopIteration
-        result = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
-        if whole and np.all(np.abs(step[result]) < RESULT_STEP * np.sqrt(np.diag(Hinv)[result])):
-            raise StopIteration
+        if not jac.fresh:                   # a stale Jacobian's stall or decrement: checked with a fresh one
+            jac.refresh(z)
+            costs.clear()
+            if not done(intermediate_result.fun):
+                return
+        raise StopIteration
 
-    sol = least_squares(prob.residual, np.zeros(prob.lay.size), jac=jacobian, method="trf", x_scale=1.0, xtol=XTOL,
-                        ftol=FTOL, gtol=GTOL, max_nfev=MAX_ITERATIONS, verbose=verbose, callback=converged)
-    log.info("rig fit: %.0f s of record, %d iterations, cost %.6g", prob.n * prob.rec.dt, sol.nfev, sol.cost)
-    return sol
+    sol = least_squares(jac.residual, np.zeros(prob.lay.size) if z0 is None else z0, jac=jac.jacobian,
+                        method="trf", x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=GTOL, max_nfev=MAX_ITERATIONS,
+                        verbose=verbose, callback=converged)
+    log.info("rig fit: %.0f s of record, %d iterations, %d Jacobians, cost %.6g", prob.n * prob.rec.dt, sol.nfev,
+             jac.jacobians, sol.cost)
+    return sol, jac.runs
 
 
 def _moved_on(prob: _Problem, sol: OptimizeResult, p: RigParameters, rest: RestPose
@@ -512,28 +625,26 @@ def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: 
     return x
 
 
-def _restarted(rec: Record, p: RigParameters, lay: Layout, x: np.ndarray, prior: Prior, noise_scale: np.ndarray,
-               rest: RestPose, bases: np.ndarray, sign: float, verbose: int
+def _restarted(prob: _Problem, J: np.ndarray, p: RigParameters, rest: RestPose, sign: float, verbose: int
                ) -> tuple[np.ndarray, RigParameters, RestPose, float, int, np.ndarray]:
-    """The fit restarted on the whole record from the estimate ``x`` with each tensor entry moved
-    by ``sign`` :data:`RESTART_SHIFT` of its scale (signs alternating; halved until the tensor is
-    physical), every other unknown at the estimate, each segment from the estimate's state
-    (``bases``, :class:`_Problem`): its unknowns, parameters, rest pose, cost (½ χ², the same
-    weights), model runs and the segments' states.  A well-determined minimum draws the restart back
-    within its σ; where the likelihood is flat or multimodal along some direction of the tensor
-    it settles elsewhere at a χ² about as low."""
+    """The whole-record fit ``prob`` (its x0 the estimate, ``J`` its Jacobian there) restarted with
+    each tensor entry moved by ``sign`` :data:`RESTART_SHIFT` of its scale (signs alternating;
+    halved until the tensor is physical), every other unknown at the estimate: its unknowns,
+    parameters, rest pose, cost (½ χ², the same weights), model runs and the segments' states.  A
+    well-determined minimum draws the restart back within its σ; where the likelihood is flat or
+    multimodal along some direction of the tensor it settles elsewhere at a χ² about as low."""
+    lay = prob.lay
+    x = prob.x0
     shift = sign * RESTART_SHIFT * entry_scales(x[lay.inertia]) * np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
-    x1 = x.copy()
     for _ in range(6):
-        x1[lay.inertia] = x[lay.inertia] + shift
-        if physically_consistent(to_tensor(x1[lay.inertia])):
+        if physically_consistent(to_tensor(x[lay.inertia] + shift)):
             break
         shift = shift / 2
-    p1 = parameters_of(x1, p, lay)
-    prob = _Problem(rec, p1, lay, x1, prior, noise_scale, len(rec.y) - rec.start, rest, bases)
-    sol = _solve(prob, verbose, True)
-    x1, p1, rest = _moved_on(prob, sol, p1, rest)
-    return x1, p1, rest, float(sol.cost), sol.nfev * (prob.lay.size + 1), prob.bases_at(x1)
+    z0 = np.zeros(lay.size)
+    z0[lay.inertia] = shift / prob.scale[lay.inertia]
+    sol, runs = _solve(prob, verbose, True, z0, J)
+    x1, p1, rest = _moved_on(prob, sol, p, rest)
+    return x1, p1, rest, float(sol.cost), runs, prob.bases_at(x1)
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_time: float | None = None,
@@ -567,23 +678,23 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
         if np.all(prob.residual(np.zeros(prob.lay.size)) == OUTSIDE):
             log.info("rig fit: the start %s leaves the physical region or diverges: the next", np.round(start, 1))
             continue
-        sol = _solve(prob, verbose)
-        nfev += sol.nfev * (prob.lay.size + 1)
+        sol, runs = _solve(prob, verbose)
+        nfev += runs
         if best is None or sol.cost < best[1].cost:
             best = (prob, sol, p0, rest0)
         if 2 * sol.cost <= START_LEVEL ** 2 * prob.noise_cost(prob.lay.size):
             break
     if best is None:                # every start outside: the first, which the verdict will call failed
         prob, p0, rest0 = problems[0]
-        best = (prob, _solve(prob, verbose), p0, rest0)
+        best = (prob, _solve(prob, verbose)[0], p0, rest0)
     prob, sol, p, rest = best
     x, p, rest = _moved_on(prob, sol, p, rest)
     bases = prob.bases_at(x)
     for i, (n, final) in enumerate(rounds):
         if i > 0:
             prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, bases)
-            sol = _solve(prob, verbose, final)
-            nfev += sol.nfev * (prob.lay.size + 1)
+            sol, runs = _solve(prob, verbose, final)
+            nfev += runs
             x, p, rest = _moved_on(prob, sol, p, rest)
             bases = prob.bases_at(x)
         if final:
@@ -593,20 +704,24 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
                 break
             noise_scale = new_scale
     last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
+    J = last.jacobian(np.zeros(last.lay.size))
+    nfev += last.lay.size + 1
     minima = [(0.5 * float(np.sum(last.residual(np.zeros(last.lay.size)) ** 2)), x, p, rest, bases)]
     for sign in (1.0, -1.0):
-        x2, p2, rest2, cost2, runs, bases2 = _restarted(rec, p, lay, x, prior, noise_scale, rest, bases, sign,
-                                                        verbose)
+        x2, p2, rest2, cost2, runs, bases2 = _restarted(last, J, p, rest, sign, verbose)
         nfev += runs
         minima.append((cost2, x2, p2, rest2, bases2))
+    minima_costs = [m[0] for m in minima]
     minima.sort(key=lambda m: m[0])
     cost, x, p, rest, bases = minima[0]
     others = np.array([m[1][lay.inertia] for m in minima[1:]])
     other_chi2 = np.array([2 * (m[0] - cost) for m in minima[1:]])
     log.info("rig fit: the other minima settled %s from the estimate, χ² %s", np.round(others - x[lay.inertia], 3),
              np.round(other_chi2, 2))
-    last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
-    fisher, sandwich, bound = _covariance(last, np.zeros(last.lay.size), noise_scale)
+    if cost != minima_costs[0]:           # a restart settled lower: the estimate's problem and Jacobian
+        last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
+        J = last.jacobian(np.zeros(last.lay.size))
+    fisher, sandwich, bound = _covariance(last, J, noise_scale)
     # σ: the larger of the two per unknown, the correlations the Fisher information's
     sd = np.sqrt(np.maximum(np.diag(fisher), np.diag(sandwich)))
     fd = np.sqrt(np.diag(fisher))
@@ -627,4 +742,4 @@ def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.
     x = vector(truth, np.zeros(12), lay)
     rest = rest_pose(truth)
     prob = _Problem(rec, truth, lay, x, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start, rest)
-    return _covariance(prob, np.zeros(prob.lay.size))[0]
+    return _covariance(prob, prob.jacobian(np.zeros(prob.lay.size)))[0]
