@@ -1,6 +1,7 @@
 """Any legitimate rig (issue 21): random clean rigs of every geometry, identified, judged against the truth.
 
-Usage: python bench/bench_any_rig.py [--rigs N] [--first-seed S] [--procs P] [--json FILE] [--model rig]
+Usage: python bench/bench_any_rig.py [--rigs N] [--first-seed S] [--procs P] [--json FILE]
+                                     [--model rig [--exact-survey]]
        python bench/bench_any_rig.py --pool FILE [FILE ...]   (the counts of several sweeps' --json together)
 
 Draws N random rigs (default 32) with the package's own simulator
@@ -53,7 +54,16 @@ from dataclasses import replace
 
 import numpy as np
 from bench_crb import QUIET, bound, channel_noise, truth_parameters
-from scoring import entry_scales, predicted_rel_std, print_unscored, run_jobs, score_entries, worst
+from scoring import (
+    entry_scales,
+    load_cell_errors,
+    predicted_rel_std,
+    print_unscored,
+    run_jobs,
+    score_entries,
+    surveyed,
+    worst,
+)
 
 from rig_identification.design.scenarios import simulate_random
 from rig_identification.estimation.errors_in_variables import (
@@ -68,12 +78,13 @@ from rig_identification.estimation.rig_record import record
 from rig_identification.estimation.uncertainty import add_noise
 from rig_identification.estimation.validation import REL_STD_LIMIT, WEAK_SHARE, with_products
 from rig_identification.io.recording import Recording
+from rig_identification.io.rig import Survey
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.experiment import REFERENCE_NOISE
 from rig_identification.model.parametrisation import basis, from_tensor, to_tensor
 from rig_identification.pipeline.offline import identify_recording
 from rig_identification.pipeline.prepare import prepare_recording, replay_window
-from rig_identification.pipeline.rig_model import fit_whole_recording
+from rig_identification.pipeline.rig_model import RIG_YAML_CG_STD, fit_whole_recording
 from rig_identification.pipeline.sigma import REPLAY_PAIRS, fit_input
 
 CABLES = (3, 4, 5, 6)
@@ -188,16 +199,24 @@ def claims_one_percent(verdict: str, std, scale) -> bool:
     return verdict == "ok" and bool(np.all(1.96 * np.asarray(std) <= 0.01 * np.asarray(scale)))
 
 
-def job_rig(seed: int) -> dict:
+def job_rig(args: tuple[int, bool]) -> dict:
     """One rig (``--model rig``): the bound from the noise-free run (bench_crb's nuisance model), the
-    default path and the rig model on the noisy recording, both judged against the truth."""
+    default path and the rig model on the noisy recording, both judged against the truth.  Unless
+    ``exact`` (the second of ``args``), the recording is the lab's: rig.yaml's geometry, mass and
+    CG and the load cells' gains off by concealed errors of the survey's σ
+    (:func:`~scoring.surveyed`, :func:`~scoring.load_cell_errors`; the CG by rig.yaml's assumed
+    :data:`~rig_identification.pipeline.rig_model.RIG_YAML_CG_STD`)."""
+    seed, exact = args
     warnings.simplefilter("ignore")
     kind = draw(seed)
-    row = {"seed": seed, "model": "rig"} | kind
+    row = {"seed": seed, "model": "rig", "survey": "exact" if exact else "concealed errors"} | kind
     t0 = time.process_time()
+    rng = np.random.default_rng([seed, 33])
     args = (seed, kind["cables"], kind["layout"], [], kind["duration"])
+    gains = [] if exact else load_cell_errors(kind["cables"], Survey().load_cell_gain, rng)
     try:
-        d, sim = simulate_random(*args, exciter=kind["exciter"])
+        d, sim = simulate_random(seed, kind["cables"], kind["layout"], gains, kind["duration"],
+                                 exciter=kind["exciter"])
         _, quiet = simulate_random(*args, noise=QUIET, exciter=kind["exciter"])
     except Exception as e:                      # noqa: BLE001 — a rig the simulator cannot make is skipped
         return row | {"skipped": f"{type(e).__name__}: {e}"}
@@ -208,7 +227,8 @@ def job_rig(seed: int) -> dict:
     crb = bound(replace(rc, sigma=channel_noise(rc.channels)), quiet.rig, quiet.truth)
     row["crb_percent"] = list(100 * crb / scale)
     row["kind_truth"] = "determined" if 1.96 * np.max(crb / scale) <= 0.01 else "undetermined"
-    rec = Recording(sim.rig, sim.sensors, sim.truth, None)
+    rig = sim.rig if exact else surveyed(sim.rig, rng, cg_std=RIG_YAML_CG_STD)
+    rec = Recording(rig, sim.sensors, sim.truth, None)
     try:
         old = identify_recording(rec)
         row["before"] = {"verdict": old.validation.verdict, "std": list(old.inertia_std),
@@ -234,6 +254,9 @@ def job_rig(seed: int) -> dict:
 
 def summary_rig(rows: list[dict], t0: float, procs: int) -> None:
     """The per-rig table and the acceptance counts of issue 33 for ``--model rig`` rows."""
+    surveys = sorted({r.get("survey", "exact") for r in rows})
+    print(f"rig.yaml and load cells: {' and '.join(surveys)} (of the survey's σ: anchors and lengths 1 mm, mass and "
+          f"gains 0.1 %, CG {1e3 * RIG_YAML_CG_STD:g} mm)")
     print(f"{'seed':>6s} {'rig':27s} {'CRB %':>6s} {'truth':12s} {'before':16s} {'verdict':16s} {'max e%':>7s} "
           f"{'max|e|/σ':>8s} {'σ/CRB':>9s} {'cpu s':>5s}  undetermined | inconsistent | misfit")
     for r in rows:
@@ -295,6 +318,9 @@ def main(argv=None) -> int:
     ap.add_argument("--json", metavar="FILE", help="also write the rows to FILE (after each rig)")
     ap.add_argument("--model", choices=["pem", "rig"], default="pem",
                     help="rig: the rig model (inertia --model rig) judged against the Cramér–Rao bound, beside pem")
+    ap.add_argument("--exact-survey", action="store_true",
+                    help="--model rig: rig.yaml and the load cells exact (default: off by concealed errors of the "
+                         "survey's σ)")
     ap.add_argument("--pool", nargs="+", metavar="FILE",
                     help="run nothing: the acceptance counts of the rows of these --json files together")
     a = ap.parse_args(argv)
@@ -305,7 +331,8 @@ def main(argv=None) -> int:
         (summary_rig if rows and rows[0].get("model") == "rig" else summary)(rows, t0, 0)
         return 0
     seeds = list(range(a.first_seed, a.first_seed + a.rigs))
-    rows = run_jobs(job_rig if a.model == "rig" else job, seeds, a.procs, a.json,
+    jobs = [(s, a.exact_survey) for s in seeds] if a.model == "rig" else seeds
+    rows = run_jobs(job_rig if a.model == "rig" else job, jobs, a.procs, a.json,
                     lambda r: f"seed {r['seed']} {short(r)}")
     (summary_rig if a.model == "rig" else summary)(rows, t0, a.procs)
     return 0

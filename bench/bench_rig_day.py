@@ -28,27 +28,18 @@ import json
 import sys
 import time
 import warnings
-from dataclasses import replace
 
 import numpy as np
-from scoring import run_jobs
+from scoring import run_jobs, surveyed
 
 from rig_identification.design.scenarios import EXCITER_PLACEMENTS, simulate_random
 from rig_identification.io.recording import Recording
-from rig_identification.io.rig import DummyMass, Rig, inertia_tensor
+from rig_identification.io.rig import DummyMass, inertia_tensor
 from rig_identification.model.experiment import experiment_from_dict
 from rig_identification.model.parametrisation import entry_scales, from_tensor
 from rig_identification.model.simulator import simulate
 from rig_identification.pipeline.rig_model import fit_whole_recording
 from rig_identification.statics import StaticState, estimate_cg
-
-
-def surveyed(rig: Rig, std: float, rng: np.random.Generator) -> Rig:
-    """``rig`` with every anchor coordinate and cable length off by N(0, ``std``) m and its survey σ ``std``."""
-    cables = tuple(replace(c, ceiling_anchor=c.ceiling_anchor + rng.normal(0, std, 3),
-                           body_anchor=c.body_anchor + rng.normal(0, std, 3), length=c.length + rng.normal(0, std))
-                   for c in rig.cables)
-    return replace(rig, cables=cables, survey=replace(rig.survey, anchors=std, lengths=std))
 
 
 def job(args: tuple) -> dict:
@@ -67,7 +58,7 @@ def job(args: tuple) -> dict:
     dummy = DummyMass(dummy_kg, np.array([0.8 * anchor[0], 0.8 * anchor[1], anchor[2]]))
     base = simulate(exp.with_overrides(static="baseline"))
     with_dummy = simulate(exp.with_overrides(static="dummy", dummy=dummy))
-    rig = surveyed(dyn.rig, survey_std, np.random.default_rng([seed, 34]))
+    rig = surveyed(dyn.rig, np.random.default_rng([seed, 34]), survey_std)
     truth_cg = np.asarray(dyn.truth["center_of_gravity"], float)
     J = from_tensor(inertia_tensor(dyn.truth["inertia_about_cg"]))
     try:

@@ -2,7 +2,8 @@
 bench_any_rig.py): the scale each entry's error is judged on, the σ the geometry and the
 excitation give each entry *with the true tensor* (decided from the truth, independently of
 the fit), each reported entry's error % and error/σ, the rows every table prints the same way
-(a rig the simulator could not make, a recording the tool refused), and the run over worker
+(a rig the simulator could not make, a recording the tool refused), the rig as a lab surveys it
+(errors concealed in rig.yaml and the load cells, each of the survey's σ), and the run over worker
 processes that says each recording on stderr as it is done and keeps what it measured.
 """
 from __future__ import annotations
@@ -11,6 +12,7 @@ import json
 import sys
 import time
 from concurrent.futures import ProcessPoolExecutor
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +20,7 @@ import numpy as np
 from rig_identification.estimation.inertia_result import InertiaResult
 from rig_identification.estimation.uncertainty import propagated, sensor_noise
 from rig_identification.io.recording import Recording
+from rig_identification.io.rig import Rig
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import entry_scales, from_tensor, to_tensor
 from rig_identification.pipeline.prepare import prepare_recording
@@ -33,6 +36,27 @@ def predicted_rel_std(rec: Recording, theta_true: np.ndarray, band_hz, prep=None
     noise, rates = sensor_noise(rec.rig, prep.sensors)
     pred = propagated(rec.rig, prep.poses, prep.sensors, prep.t, to_tensor(theta_true), band_hz, noise, rates)
     return pred.std / entry_scales(theta_true)
+
+
+def surveyed(rig: Rig, rng: np.random.Generator, std: float | None = None, cg_std: float = 0.0) -> Rig:
+    """``rig`` as the lab's rig.yaml has it: every anchor coordinate and cable length off by
+    N(0, σ) m (σ: rig.yaml's survey, or ``std``, which becomes its survey σ), the mass by N(0, its
+    survey σ), the CG by N(0, ``cg_std``) m per coordinate (a static test's error)."""
+    sv = rig.survey if std is None else replace(rig.survey, anchors=std, lengths=std)
+    cables = tuple(replace(c, ceiling_anchor=c.ceiling_anchor + rng.normal(0, sv.anchors, 3),
+                           body_anchor=c.body_anchor + rng.normal(0, sv.anchors, 3),
+                           length=c.length + rng.normal(0, sv.lengths)) for c in rig.cables)
+    cg = rig.center_of_gravity
+    return replace(rig, cables=cables, survey=sv, mass=rig.mass + rng.normal(0, sv.mass_std(rig.mass)),
+                   center_of_gravity=None if cg is None else cg + rng.normal(0, cg_std, 3))
+
+
+def load_cell_errors(cables: int, share: float, rng: np.random.Generator) -> list[dict]:
+    """The effects (:mod:`~rig_identification.model.effects` ``load_cell_scale``) that give each of
+    the ``cables`` load cells (named c0, c1, … as :func:`~rig_identification.design.scenarios.random_experiment`
+    names them) a gain off by N(0, ``share``): a calibrated load cell's accuracy class."""
+    return [{"name": "load_cell_scale", "cable": f"c{i}", "scale": float(1 + rng.normal(0, share))}
+            for i in range(cables)]
 
 
 def score_entries(res: InertiaResult, truth: dict) -> dict:

@@ -85,8 +85,8 @@ def print_rig_model(res: RigModelResult) -> None:
           "it does not fit) or the sandwich over 12 blocks, whichever is larger; the CG, mass, cables, gains and "
           f"the geometry as surveyed (anchors {1e3 * sv['anchors_m']:g} mm, lengths {1e3 * sv['lengths_m']:g} mm, "
           f"load-cell gains {100 * sv['load_cell_gain']:g} %: rig.yaml survey) are in it.  CRB: the bound of this "
-          "run at the sensors' own noise.  σ holds the noise, not the model's own fidelity: on another simulator's "
-          "case 16 the errors were up to 0.06 %, 13 σ (docs/rig_model.md)")
+          "run at the sensors' own noise.  σ holds the noise and the priors; physics the model lacks shows as a "
+          f"channel beyond {LEVEL_LIMIT:g}× its noise (verdict model_error), not in σ")
     print(f"time: {res.seconds:.1f} s")
 
 

@@ -123,6 +123,9 @@ IMPULSE_TAIL = 1e-12
 #: A solve's Jacobian is made afresh where a tried step lowered the cost by less than this share
 #: of what the Jacobian's linear model predicted (:class:`_ReusedJacobian`).
 REUSE_RATIO = 0.5
+#: A whole-record solve, its Jacobian reused, may run this many times :data:`MAX_ITERATIONS` model
+#: evaluations (each an iteration without a Jacobian costs one).
+REUSED_EVALUATIONS = 3
 
 
 # --- the model's residual ------------------------------------------------------------------------------
@@ -354,7 +357,8 @@ class _Problem:
         return self.data_rows + int(np.isfinite(self.prior_std[:nz]).sum())
 
     def jacobian(self, z: np.ndarray) -> np.ndarray:
-        """Forward differences (size, len(z)) of :meth:`residual` (step :data:`JACOBIAN_STEP`),
+        """Forward differences (size, len(z)) of :meth:`residual` (step :data:`JACOBIAN_STEP`;
+        backward where the step leaves the physical region, a zero column where both do),
         the columns on :data:`THREADS` threads (the compiled model releases the GIL); a segment's
         initial state moves only that segment's run, which alone is run again for its columns."""
         x = self.x(z)
@@ -378,7 +382,12 @@ class _Problem:
                 else:
                     return np.concatenate([self.segment_change(change, k),
                                            self.prior_rows(e) - self.prior_rows(z)]) / JACOBIAN_STEP
-            col: np.ndarray = (self.residual(e) - base) / JACOBIAN_STEP
+            moved = self.residual(e)
+            if moved[0] == OUTSIDE and base[0] != OUTSIDE:    # the step left the physical region: step back
+                e[i] -= 2 * JACOBIAN_STEP
+                back = self.residual(e)
+                moved = base if back[0] == OUTSIDE else 2 * base - back    # neither: no information
+            col: np.ndarray = (moved - base) / JACOBIAN_STEP
             return col
 
         with ThreadPoolExecutor(THREADS) as pool:
@@ -479,7 +488,15 @@ def _covariance(prob: _Problem, J: np.ndarray, noise_scale: np.ndarray | None = 
         Ju = J.copy()
         Ju[:rows] *= np.tile(noise_scale, samples)[:, None]
         unit = np.linalg.pinv(Ju.T @ Ju, rcond=1e-13, hermitian=True)
-    return Hinv * S, Hinv @ meat @ Hinv * S, unit * S
+    dead = ~np.any(J, axis=0)                     # unknowns the residual does not see: σ inf
+
+    def in_x(M: np.ndarray) -> np.ndarray:
+        M = M * S
+        M[dead, :] = M[:, dead] = 0.0
+        M[dead, dead] = np.inf
+        return M
+
+    return in_x(Hinv), in_x(Hinv @ meat @ Hinv), in_x(unit)
 
 
 def _base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) -> np.ndarray:
@@ -497,10 +514,12 @@ class _ReusedJacobian:
     update along the accepted step (Broyden 1965; Dennis & Schnabel, *Numerical Methods for
     Unconstrained Optimization and Nonlinear Equations*, §8.2).  A step whose cost fell by less than
     :data:`REUSE_RATIO` of the fall the Jacobian predicted asks for a fresh one at the next
-    accepted point.  Each fresh Jacobian costs a model run per unknown, an update none."""
+    accepted point.  Each fresh Jacobian costs a model run per unknown, an update none.  Without
+    ``reuse`` (a short stage from a far start, where the model is far from linear and steps
+    mispredicted are the rule), every Jacobian is fresh."""
 
-    def __init__(self, prob: _Problem, J0: np.ndarray | None = None):
-        self.prob = prob
+    def __init__(self, prob: _Problem, reuse: bool, J0: np.ndarray | None = None):
+        self.prob, self.reuse = prob, reuse
         self.z: np.ndarray | None = None
         self.J = np.zeros((0, 0))
         self.r = np.zeros(0)
@@ -533,7 +552,8 @@ class _ReusedJacobian:
         return self.J
 
     def jacobian(self, z: np.ndarray) -> np.ndarray:
-        if self.z is None or self.stale_model or self.last is None or not np.array_equal(self.last[0], z):
+        if (not self.reuse or self.z is None or self.stale_model or self.last is None
+                or not np.array_equal(self.last[0], z)):
             return self.refresh(z)
         s = z - self.z
         r = self.last[1]
@@ -545,8 +565,8 @@ class _ReusedJacobian:
 def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | None = None,
            J0: np.ndarray | None = None) -> tuple[OptimizeResult, int]:
     """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``J0``: the Jacobian
-    at 0 where known) (scipy's trust region, the Jacobian reused
-    where it predicts the steps: :class:`_ReusedJacobian`), stopped where the Gauss–Newton
+    at 0 where known) (scipy's trust region; on the ``whole`` record the Jacobian reused where it
+    predicts the steps: :class:`_ReusedJacobian`), stopped where the Gauss–Newton
     decrement ½ gᵀ (JᵀJ)⁺ g of a fresh Jacobian falls below :data:`NEWTON_DECREMENT` (Boyd &
     Vandenberghe, *Convex Optimization*, §9.5.1: the cost the Gauss–Newton step would still
     gain), where the last :data:`STALL_ITERATIONS` iterations gained less than that together,
@@ -554,7 +574,7 @@ def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | N
     step would move no tensor entry, CG coordinate or the mass by :data:`RESULT_STEP` of its σ
     (the trust region then crawls along a valley of the nuisance unknowns: the segments' states
     and the force's correction).  Returns the solution and the model runs it took."""
-    jac = _ReusedJacobian(prob, J0)
+    jac = _ReusedJacobian(prob, whole, J0)
     costs: list[float] = []
     result = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
 
@@ -581,7 +601,8 @@ def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | N
         raise StopIteration
 
     sol = least_squares(jac.residual, np.zeros(prob.lay.size) if z0 is None else z0, jac=jac.jacobian,
-                        method="trf", x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=GTOL, max_nfev=MAX_ITERATIONS,
+                        method="trf", x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=GTOL,
+                        max_nfev=MAX_ITERATIONS * (REUSED_EVALUATIONS if whole else 1),
                         verbose=verbose, callback=converged)
     log.info("rig fit: %.0f s of record, %d iterations, %d Jacobians, cost %.6g", prob.n * prob.rec.dt, sol.nfev,
              jac.jacobians, sol.cost)
@@ -724,8 +745,10 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     fisher, sandwich, bound = _covariance(last, J, noise_scale)
     # σ: the larger of the two per unknown, the correlations the Fisher information's
     sd = np.sqrt(np.maximum(np.diag(fisher), np.diag(sandwich)))
+    seen = np.isfinite(sd)
     fd = np.sqrt(np.diag(fisher))
-    cov = fisher / np.outer(fd, fd) * np.outer(sd, sd)
+    cov = np.diag(sd ** 2)                  # an unknown the residual does not see: σ inf, uncorrelated
+    cov[np.ix_(seen, seen)] = (fisher / np.outer(fd, fd) * np.outer(sd, sd))[np.ix_(seen, seen)]
     unit = _Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases)
     level = _levels(unit, x)
     freqs = natural_frequencies(linearise(p, rest))
