@@ -24,7 +24,7 @@ from rig_identification.estimation.rig_record import (
     record,
     smooth_force,
 )
-from rig_identification.estimation.rig_start import start_geometry
+from rig_identification.estimation.rig_start import start_geometry, start_parameters
 from rig_identification.estimation.rig_unknowns import Layout, Prior
 from rig_identification.io.recording import Recording, SensorData
 from rig_identification.io.rig import Survey, inertia_tensor
@@ -114,6 +114,27 @@ def test_start_lengths_from_the_mean_tensions_restore_how_the_cables_share_the_l
     assert np.abs(pose.tensions - rest.tensions).max() < 3.0
     assert np.abs(q.length - p.length).max() < 1.5e-3
     assert np.abs(q.cg - p.cg)[:2].max() < 3e-3 and abs(q.cg[2] - wrong.cg[2]) < 5e-3
+
+
+def test_a_rig_yaml_whose_rest_pose_has_a_slack_cable_starts_from_the_mean_tensions(quiet_rig):
+    """One cable 2.5 mm longer in rig.yaml than on the rig (a survey's slip): at rig.yaml's rest
+    pose it is slack (−4.6 kN: its 3.4 kN need 0.7 mm of stretch), which the fit cannot start
+    from.  The start lengths that carry the measured mean tensions restore a rest pose whose
+    tensions are within 3 N of the record's means (swinging, they are up to 26 N off the rest
+    tensions), every length within 1.5 mm of the rig's."""
+    sim = quiet_rig
+    rig = sim.rig
+    c4 = rig.cables[4]
+    bad = dataclasses.replace(rig, cables=rig.cables[:4] + (dataclasses.replace(c4, length=c4.length + 2.5e-3),))
+    p = _truth_parameters(sim)
+    prior = Prior.from_rig(bad, p.cg, np.full(3, 5e-3))
+    with pytest.raises(Exception, match="slack"):
+        rest_pose(RigParameters.from_rig(bad, p.inertia, p.stiffness, p.damping_time, p.mass, p.cg))
+    rc = record(sim.sensors, bad)
+    q, pose = start_parameters(bad, prior, p.inertia, rc)
+    mean = rc.y[rc.start:, :5].mean(axis=0)
+    assert np.abs(pose.tensions - mean).max() < 3.0
+    assert np.abs(q.length - p.length).max() < 1.5e-3
 
 
 def test_the_compiled_model_reproduces_the_simulator(quiet_rig):

@@ -48,20 +48,44 @@ def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, rec: Record |
     tau = 2 * DEFAULT_DAMPING_RATIO * np.sqrt(prior.mass / (n * prior.stiffness.mean())) \
         if damping_time is None else damping_time
     start = RigParameters.from_rig(rig, np.zeros(6), prior.stiffness, tau, prior.mass, prior.cg)
+    surveyed = start.length
+    tensions = None if rec is None else rec.y[rec.start:, :n].mean(axis=0)
     try:
         rest = rest_pose(start)
     except SimulationError as e:
-        raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e})") from None
-    if rec is not None:
-        start, rest = start_geometry(start, rest, rec.y[rec.start:, :n].mean(axis=0), prior)
+        if tensions is None or not np.all(tensions > 0):
+            raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e})") from None
+        start, rest = _taut_start(start, tensions, rig, e)
+    if tensions is not None:
+        start, rest = start_geometry(start, rest, tensions, prior, surveyed)
     return start.replace(inertia=np.asarray(inertia0, float)), rest
 
 
-def start_geometry(p: RigParameters, rest: RestPose, tensions: np.ndarray, prior: Prior
-                   ) -> tuple[RigParameters, RestPose]:
+def _taut_start(p: RigParameters, tensions: np.ndarray, rig: Rig, why: SimulationError
+                ) -> tuple[RigParameters, RestPose]:
+    """``p`` (rig.yaml's geometry, a cable slack at its rest pose: stiff cables turn a survey's
+    millimetre into kilonewtons) with each length shortened or lengthened so that, at the linear
+    springs' equilibrium, it carries its measured mean tension (their sum scaled to the
+    equilibrium's), and its rest pose.  Raises :class:`~.rig_record.RigFitError` where none is found."""
+    try:
+        near = rest_pose(p, taut=False)
+        stretched = p.length + near.tensions / p.stiffness
+        q = p.replace(length=stretched - tensions * near.tensions.sum() / tensions.sum() / p.stiffness)
+        rest = rest_pose(q, near)
+    except SimulationError as e:
+        raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({why}), nor with the lengths its "
+                          f"mean tensions imply ({e})") from None
+    log.info("rig fit: rig.yaml's geometry has no rest pose (%s): the start's lengths moved %s mm to carry the mean "
+             "tensions", why, np.round(1e3 * (q.length - p.length), 2))
+    return q, rest
+
+
+def start_geometry(p: RigParameters, rest: RestPose, tensions: np.ndarray, prior: Prior,
+                   surveyed: np.ndarray | None = None) -> tuple[RigParameters, RestPose]:
     """``p`` with the cable lengths and CG that best explain the measured mean ``tensions``
     (N,) N at rest, and its rest pose: the maximum a posteriori estimate under the prior's survey
-    σ of the lengths and σ of the CG (x and y without a σ move freely, z stays), each tension
+    σ of the lengths about ``surveyed`` (N,) m (default ``p``'s) and σ of the CG about ``p``'s
+    (x and y without a σ move freely, z stays), each tension
     weighted by its gain's σ (rig.yaml ``survey.load_cell_gain``, at least
     :data:`MEAN_TENSION_SHARE`), their common scale free (the gains' common part against the
     mass).  The rest tensions are the static equilibrium's (thesis eqs. 2.20–2.25 with springs,
@@ -78,6 +102,7 @@ def start_geometry(p: RigParameters, rest: RestPose, tensions: np.ndarray, prior
     moves = has_prior | (np.arange(3) < 2)
     cg_scale = np.where(has_prior, prior.cg_std, FREE_CG_SCALE)[moves]
     length_std = prior.survey.lengths
+    offset = np.zeros(n) if surveyed is None or length_std == 0 else (p.length - surveyed) / length_std
 
     def trial(v: np.ndarray) -> RigParameters:
         cg = p.cg.copy()
@@ -89,7 +114,7 @@ def start_geometry(p: RigParameters, rest: RestPose, tensions: np.ndarray, prior
             at = rest_pose(trial(v), rest)
         except SimulationError:
             return np.full(2 * n + int(has_prior.sum()), OUTSIDE)
-        return np.concatenate([(at.tensions - (1.0 + SCALE_UNIT * v[-1]) * T) / sigma_t, v[:n],
+        return np.concatenate([(at.tensions - (1.0 + SCALE_UNIT * v[-1]) * T) / sigma_t, v[:n] + offset,
                                v[n:-1][has_prior[moves]]])
 
     before = float(np.abs(rest.tensions - T * rest.tensions.sum() / T.sum()).max())

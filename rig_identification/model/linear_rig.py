@@ -166,11 +166,13 @@ def stiffness_matrix(p: RigParameters, position: np.ndarray, R: np.ndarray, axia
     return K
 
 
-def rest_pose(p: RigParameters, near: RestPose | None = None) -> RestPose:
+def rest_pose(p: RigParameters, near: RestPose | None = None, taut: bool = True) -> RestPose:
     """The static equilibrium of the elastic rig (thesis eqs. 2.20–2.25 with springs): Newton on
     the net wrench from ``near`` (a nearby rest pose), else from
-    :func:`~rig_identification.model.equilibrium.equilibrium`.  Raises
-    :class:`~rig_identification.model.dynamics.SimulationError` (no equilibrium, a slack cable)."""
+    :func:`~rig_identification.model.equilibrium.equilibrium`.  ``taut=False``: the linear
+    springs' equilibrium even where a cable would push (a negative tension: a pose to start
+    from, not a rig).  Raises :class:`~rig_identification.model.dynamics.SimulationError` (no
+    equilibrium; a slack cable unless ``taut`` is False)."""
     if near is None:
         rig = _as_rig(p)
         eq = equilibrium(rig, p.mass, p.cg, CableModel("spring", p.stiffness, np.zeros(p.cables)))
@@ -187,7 +189,7 @@ def rest_pose(p: RigParameters, near: RestPose | None = None) -> RestPose:
         R = Rotation.from_rotvec(step[3:]).as_matrix() @ R
     else:
         raise SimulationError("the elastic rig has no rest pose near the one given (Newton did not converge)")
-    if T.min() <= 0:
+    if taut and T.min() <= 0:
         raise SimulationError(f"cable {int(np.argmin(T))} is slack at rest (tension {T.min():.1f} N)")
     return RestPose(position, R, T)
 
