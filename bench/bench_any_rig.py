@@ -243,7 +243,7 @@ def job_rig(args: tuple[int, bool]) -> dict:
         return row | {"verdict": "refused", "error": str(e), "cpu_s": time.process_time() - t0}
     f = res.fit
     err = f.inertia - J
-    row.update(verdict=res.verdict, undetermined=res.undetermined, inconsistent=res.inconsistent,
+    row.update(verdict=res.verdict, undetermined=res.undetermined, ambiguous=res.ambiguous,
                poorly_fitted=res.poorly_fitted, errors=list(err), std=list(f.inertia_std),
                error_percent=list(100 * err / scale), error_sigma=list(err / f.inertia_std),
                sigma_over_crb=list(f.inertia_std / crb), finite=bool(np.all(np.isfinite(f.inertia_std))),
@@ -258,7 +258,7 @@ def summary_rig(rows: list[dict], t0: float, procs: int) -> None:
     print(f"rig.yaml and load cells: {' and '.join(surveys)} (of the survey's σ: anchors and lengths 1 mm, mass and "
           f"gains 0.1 %, CG {1e3 * RIG_YAML_CG_STD:g} mm)")
     print(f"{'seed':>6s} {'rig':27s} {'CRB %':>6s} {'truth':12s} {'before':16s} {'verdict':16s} {'max e%':>7s} "
-          f"{'max|e|/σ':>8s} {'σ/CRB':>9s} {'cpu s':>5s}  undetermined | inconsistent | misfit")
+          f"{'max|e|/σ':>8s} {'σ/CRB':>9s} {'cpu s':>5s}  undetermined | ambiguous | misfit")
     for r in rows:
         if print_unscored(r, f"{r['seed']:6d} {short(r):27s}", 0):
             continue
@@ -269,7 +269,7 @@ def summary_rig(rows: list[dict], t0: float, procs: int) -> None:
         print(f"{r['seed']:6d} {short(r):27s} {max(r['crb_percent']):6.3f} {r['kind_truth']:12s} "
               f"{r['before']['verdict']:16s} {r['verdict']:16s} {'-' if ep is None else f'{ep:.3f}':>7s} "
               f"{'-' if es is None else f'{es:.2f}':>8s} {min(soc):4.2f}–{max(soc):4.2f} {r['rig_cpu_s']:5.0f}  "
-              f"{','.join(r['undetermined']) or '-'} | {','.join(r['inconsistent']) or '-'} | "
+              f"{','.join(r['undetermined']) or '-'} | {','.join(r.get('ambiguous', [])) or '-'} | "
               f"{','.join(r['poorly_fitted']) or '-'}")
     done = [r for r in rows if "skipped" not in r and r.get("verdict") != "refused"]
     det = [r for r in done if r["kind_truth"] == "determined"]
@@ -283,7 +283,7 @@ def summary_rig(rows: list[dict], t0: float, procs: int) -> None:
     if det:
         print(f"determined rigs ok with every entry within 1 % and 3 σ: {sum(map(good, det))}/{len(det)} "
               "[goal all]" + "".join(f"\n  seed {r['seed']} {short(r)}: {r['verdict']} "
-                                     f"{','.join(r['undetermined'] + r['inconsistent'] + r['poorly_fitted'])}"
+                                     f"{','.join(r['undetermined'] + r.get('ambiguous', []) + r['poorly_fitted'])}"
                                      for r in det if not good(r)))
     print(f"rigs the package determines to ±1 % at 95 % (ok, all six, 1.96 σ ≤ 1 %): before (default path) "
           f"{sum(r['before']['claims'] for r in done)}/{len(done)}, after (rig model) "

@@ -84,7 +84,7 @@ def judge(J: np.ndarray, crb: np.ndarray, rec: Recording | None) -> dict:
     err = f.inertia - J
     row.update(error_percent=(100 * err / entry_scales(J)).tolist(), error_sigma=(err / f.inertia_std).tolist(),
                sigma_over_crb=(f.inertia_std / crb).tolist(), poorly_fitted=res.poorly_fitted,
-               verdict=res.verdict, undetermined=res.undetermined, inconsistent=res.inconsistent,
+               verdict=res.verdict, undetermined=res.undetermined, ambiguous=res.ambiguous,
                start_error_sigma=((res.inertia_start - J) / res.start_std).tolist(), seconds=time.perf_counter() - t)
     return row
 
@@ -99,9 +99,9 @@ def line(name: str, row: dict) -> str:
               f"|err/σ| max {max(np.abs(row['error_sigma'])):5.2f}"
               f"  σ/CRB {min(soc):.2f}–{max(soc):.2f}  {row['verdict']}  misfit {','.join(row['poorly_fitted']) or '-'}"
               f"  {row['seconds']:.0f} s")
-        for k in row.get("inconsistent", []):
+        for k in row.get("ambiguous", []):
             i = list(KEYS).index(k)
-            s += f"\n{'':<34} {k}: the rig model {row['error_sigma'][i]:+.1f} σ, the gyro-only start " \
+            s += f"\n{'':<34} {k} ambiguous: the rig model {row['error_sigma'][i]:+.1f} σ, the gyro-only start " \
                  f"{row['start_error_sigma'][i]:+.1f} σ from the truth"
     return s
 

@@ -31,14 +31,11 @@ def print_rig_model(res: RigModelResult) -> None:
              "not_identifiable": "not_identifiable — " + (
                  ", ".join(res.undetermined) + " not determined to ±1 % at 95 %: the fit may sit in another minimum "
                  "that explains the data as well, and the tensor's directions are coupled" if res.undetermined else
-                 "restarted 1 % away, the fit settled more than 3 σ off on " + ", ".join(res.ambiguous)
+                 "restarted, the fit settled more than 3 σ off on " + ", ".join(res.ambiguous)
                  + f" at a χ² only {min(f.other_chi2):.1f} above the estimate's: the likelihood is flat where σ "
                  "says it is sharp") + "; no entry below is an estimate to use",
-             "inconsistent": "inconsistent — " + ("the rig model and the gyro-only fit disagree beyond 3 σ on "
-                                                  + ", ".join(res.inconsistent) + ": the fit may have settled in "
-                                                  "another minimum" if res.inconsistent else
-                                                  "the static and the dynamic test's CG disagree (below)")
-                             + "; the numbers below are not an estimate to use",
+             "inconsistent": "inconsistent — the static and the dynamic test's CG disagree (below); the numbers "
+                             "below are not an estimate to use",
              "failed": "failed — the fit did not find the motion (a channel beyond 10× its noise, or a number not "
                        "finite): the numbers below are not an estimate"}
     print(f"verdict: {words[res.verdict]}")

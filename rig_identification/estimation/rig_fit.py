@@ -39,11 +39,14 @@ pose of the parameters tried: a change of geometry, CG or mass moves the rest po
 millimetres, which a start held fixed would turn into a swing the data do not show, and the fit
 would have to cancel the two through a linearisation (the 3-cable test rig's whole-record solve
 then crawled for 100 iterations).  The fit starts on the record's first :data:`STAGES`
-seconds, one segment each, then takes the whole record.  Its minimum is then checked by two restarts
-from tensors :data:`RESTART_SHIFT` away on either side (:func:`_restarted`): where one settles
+seconds, one segment each, then takes the whole record.  Its minimum is then checked by
+restarts on the whole record (:func:`_restarted`) from tensors :data:`RESTART_SHIFT` away on
+either side and from another estimator's tensor where the caller gives one: where one settles
 more than 3 σ off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is
 flat or multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`);
-the lowest of the three minima is the estimate.
+the lowest of the minima is the estimate.  On the whole record the Jacobian is reused where it
+predicts the trust region's steps (:class:`_ReusedJacobian`), and a restart starts from the
+estimate's.
 """
 from __future__ import annotations
 
@@ -419,9 +422,9 @@ class RigFit:
     residual_level: (n_out,) each channel's residual RMS over its noise's.  noise_scale: (n_out,)
     the factor the fit put on each channel's noise (≥ 1).  channels: names.
     natural_frequencies: (6,) Hz, linearised about the rest pose.  nfev: model runs.
-    other_minima: (2, 6) kg·m² the tensors where the other two of the three whole-record fits
-    settled (the staged fit and its two restarts, :func:`_restarted`: the lowest is the
-    estimate), other_chi2: (2,) their χ² less the estimate's (≥ 0).
+    other_minima: (k, 6) kg·m² the tensors where the other whole-record fits settled (the staged
+    fit, its two restarts :data:`RESTART_SHIFT` away and those from ``restarts``, :func:`fit_rig`:
+    the lowest is the estimate), other_chi2: (k,) their χ² less the estimate's (≥ 0).
     """
 
     parameters: RigParameters
@@ -646,37 +649,44 @@ def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: 
     return x
 
 
-def _restarted(prob: _Problem, J: np.ndarray, p: RigParameters, rest: RestPose, sign: float, verbose: int
+def _shifted(x: np.ndarray, sign: float) -> np.ndarray:
+    """(6,) the tensor entries of ``x`` (6,) moved by ``sign`` :data:`RESTART_SHIFT` of their scale
+    (signs alternating entry by entry; halved until the tensor is physical)."""
+    shift = sign * RESTART_SHIFT * entry_scales(x) * np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+    for _ in range(6):
+        if physically_consistent(to_tensor(x + shift)):
+            break
+        shift = shift / 2
+    moved: np.ndarray = x + shift
+    return moved
+
+
+def _restarted(prob: _Problem, J: np.ndarray, p: RigParameters, rest: RestPose, tensor: np.ndarray, verbose: int
                ) -> tuple[np.ndarray, RigParameters, RestPose, float, int, np.ndarray]:
-    """The whole-record fit ``prob`` (its x0 the estimate, ``J`` its Jacobian there) restarted with
-    each tensor entry moved by ``sign`` :data:`RESTART_SHIFT` of its scale (signs alternating;
-    halved until the tensor is physical), every other unknown at the estimate: its unknowns,
+    """The whole-record fit ``prob`` (its x0 the estimate, ``J`` its Jacobian there) restarted from
+    the tensor entries ``tensor`` (6,) kg·m², every other unknown at the estimate: its unknowns,
     parameters, rest pose, cost (½ χ², the same weights), model runs and the segments' states.  A
     well-determined minimum draws the restart back within its σ; where the likelihood is flat or
     multimodal along some direction of the tensor it settles elsewhere at a χ² about as low."""
     lay = prob.lay
-    x = prob.x0
-    shift = sign * RESTART_SHIFT * entry_scales(x[lay.inertia]) * np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
-    for _ in range(6):
-        if physically_consistent(to_tensor(x[lay.inertia] + shift)):
-            break
-        shift = shift / 2
     z0 = np.zeros(lay.size)
-    z0[lay.inertia] = shift / prob.scale[lay.inertia]
+    z0[lay.inertia] = (tensor - prob.x0[lay.inertia]) / prob.scale[lay.inertia]
     sol, runs = _solve(prob, verbose, True, z0, J)
     x1, p1, rest = _moved_on(prob, sol, p, rest)
     return x1, p1, rest, float(sol.cost), runs, prob.bases_at(x1)
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_time: float | None = None,
-            verbose: int = 0) -> RigFit:
+            verbose: int = 0, restarts: ArrayLike = ()) -> RigFit:
     """Fit the rig model to a :class:`Record` (module docstring).
 
     rig: rig.yaml (geometry, mounts).  prior: :class:`Prior` (its CG is the start).
     inertia0: starts of the tensor entries, (6,) or (k, 6) kg·m² about the CG, tried in order
     over the first stage until one fits it within :data:`START_LEVEL` of the noise (else the one
     of least cost goes on): the swinging modes make the likelihood multimodal where a start's
-    frequencies are far off.
+    frequencies are far off.  restarts: (k, 6) kg·m² tensors the whole-record fit is restarted
+    from besides the two :data:`RESTART_SHIFT` away (another estimator's: a minimum it found is
+    one the likelihood may hold too); a tensor no body has is left out.
     damping_time: start of τ, s (default the default cable's: 2 ζ sqrt(m / (N k))).
     Raises :class:`~.rig_record.RigFitError` when the rig has no rest pose.
     """
@@ -728,16 +738,17 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     J = last.jacobian(np.zeros(last.lay.size))
     nfev += last.lay.size + 1
     minima = [(0.5 * float(np.sum(last.residual(np.zeros(last.lay.size)) ** 2)), x, p, rest, bases)]
-    for sign in (1.0, -1.0):
-        x2, p2, rest2, cost2, runs, bases2 = _restarted(last, J, p, rest, sign, verbose)
+    others = [t for t in np.asarray(restarts, float).reshape(-1, 6) if physically_consistent(to_tensor(t))]
+    for tensor in [_shifted(x[lay.inertia], 1.0), _shifted(x[lay.inertia], -1.0)] + others:
+        x2, p2, rest2, cost2, runs, bases2 = _restarted(last, J, p, rest, tensor, verbose)
         nfev += runs
         minima.append((cost2, x2, p2, rest2, bases2))
     minima_costs = [m[0] for m in minima]
     minima.sort(key=lambda m: m[0])
     cost, x, p, rest, bases = minima[0]
-    others = np.array([m[1][lay.inertia] for m in minima[1:]])
+    settled = np.array([m[1][lay.inertia] for m in minima[1:]])
     other_chi2 = np.array([2 * (m[0] - cost) for m in minima[1:]])
-    log.info("rig fit: the other minima settled %s from the estimate, χ² %s", np.round(others - x[lay.inertia], 3),
+    log.info("rig fit: the other minima settled %s from the estimate, χ² %s", np.round(settled - x[lay.inertia], 3),
              np.round(other_chi2, 2))
     if cost != minima_costs[0]:           # a restart settled lower: the estimate's problem and Jacobian
         last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
@@ -753,7 +764,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     level = _levels(unit, x)
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
-                  freqs, last.lay, nfev, others, other_chi2)
+                  freqs, last.lay, nfev, settled, other_chi2)
 
 
 def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.ndarray:

@@ -5,7 +5,8 @@ exciter's force denoised) → a start for the tensor (the prediction-error fit o
 :func:`~rig_identification.pipeline.offline.identify_recording`, unrefined, where it gives a
 physical tensor; else the body anchors' box) → :func:`~rig_identification.estimation.rig_fit.fit_rig`
 (the exact model, every sensor an output, mass, CG, cables, load cells and geometry fitted with
-their priors) → :class:`RigModelResult`.
+their priors; the whole-record fit also restarted from the gyro-only fit's tensor: a minimum
+another estimator found is one the likelihood may hold too) → :class:`RigModelResult`.
 
 The CG's prior: a saved static result (``--cg CG.json``, its σ), else rig.yaml's CG with σ
 :data:`RIG_YAML_CG_STD`; the result gives the static and the fitted CG side by side and their
@@ -44,7 +45,7 @@ FAILED_LEVEL = 10.0
 RIG_YAML_CG_STD = 5e-3
 #: An entry is determined when its 95 % half-width is within this share of its scale.
 DETERMINED_SHARE = 0.01
-#: The rig model's tensor and the gyro-only fit's must agree within this many combined σ.
+#: The static and the dynamic test's CG must agree within this many combined σ.
 CONSISTENCY_SIGMA = 3.0
 #: The gyro-only fit is a start only where its trace is within this factor of the box's.
 START_TRACE_FACTOR = 5.0
@@ -159,8 +160,8 @@ class RigModelResult:
         :attr:`ambiguous`:
         then no entry is an estimate — the directions of the tensor are coupled, and on bench_crb's
         31003 a moment whose σ said ±0.85 % at 95 % was 9 % off beside the undetermined one),
-        ``inconsistent`` (:attr:`inconsistent` entries, or the static and dynamic CG disagree
-        beyond :data:`CONSISTENCY_SIGMA`: not an estimate to use) or ``failed`` (a channel beyond
+        ``inconsistent`` (the static and dynamic CG disagree beyond :data:`CONSISTENCY_SIGMA`:
+        not an estimate to use) or ``failed`` (a channel beyond
         :data:`FAILED_LEVEL`, or a number not
         finite: the fit did not find the motion; the numbers are not an estimate)."""
         f = self.fit
@@ -171,16 +172,7 @@ class RigModelResult:
             return "model_error"
         if self.undetermined or self.ambiguous:
             return "not_identifiable"
-        return "inconsistent" if self.inconsistent or not self.cg.agree else "ok"
-
-    @property
-    def inconsistent(self) -> list[str]:
-        """The entries where the rig model and the gyro-only fit it started from differ by more
-        than :data:`CONSISTENCY_SIGMA` of their combined σ (one of them is wrong: the rig model
-        can settle in another minimum that explains the data as well where a direction of the
-        tensor is weakly determined)."""
-        d = (self.fit.inertia - self.inertia_start) / np.sqrt(self.fit.inertia_std ** 2 + self.start_std ** 2)
-        return [k for k, z in zip(KEYS, d) if abs(z) > CONSISTENCY_SIGMA]
+        return "ok" if self.cg.agree else "inconsistent"
 
     @property
     def undetermined(self) -> list[str]:
@@ -219,15 +211,15 @@ class RigModelResult:
         sd = f.inertia_std
         bd_cov = f.covariance[f.layout.body_damping][:, f.layout.body_damping]
         d = {
-            "schema": "rig_identification.rig_model_result", "schema_version": 3,
+            "schema": "rig_identification.rig_model_result", "schema_version": 4,
             "recording": self.path, "model": "rig (grey-box, every sensor an output)",
-            "verdict": self.verdict, "undetermined": self.undetermined, "inconsistent": self.inconsistent,
-            "ambiguous": self.ambiguous,
+            "verdict": self.verdict, "undetermined": self.undetermined, "ambiguous": self.ambiguous,
             "other_minima": [{"inertia_about_cg": {k: float(v) for k, v in zip(KEYS, m)},
                               "chi2_over_estimate": float(c)} for m, c in zip(f.other_minima, f.other_chi2)],
-            "other_minima_note": "the whole-record fit restarted with every entry 1 % away, once each way; the "
-                                 "lowest of the three minima is the estimate; another more than 3 σ off at a χ² "
-                                 "within 12.6 of the estimate's makes those entries ambiguous",
+            "other_minima_note": "the whole-record fit restarted with every entry 1 % away, once each way, and "
+                                 "from the gyro-only fit's tensor where it gave one; the lowest of the minima is the "
+                                 "estimate; another more than 3 σ off at a χ² within 12.6 of the estimate's makes "
+                                 "those entries ambiguous",
             "window": {"start_s": self.start_s, "duration_s": self.duration_s, "band_hz": [0.0, self.band_hz]},
             "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, p.inertia)},
             "inertia_std": {k: float(v) for k, v in zip(KEYS, sd)},
@@ -322,7 +314,8 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     prior = Prior.from_rig(rec.rig, cg, cg_std)
     guess, guess_std, source = start_tensor(rec)
     log.info("fitting the rig model to every sensor (%.0f s, %d channels)", rc.duration, len(rc.channels))
-    fit = fit_rig(rc, rec.rig, prior, start_tensors(rec, rc, prior, guess, guess_std))
+    fit = fit_rig(rc, rec.rig, prior, start_tensors(rec, rc, prior, guess, guess_std),
+                  restarts=guess[None] if np.any(np.isfinite(guess_std)) else ())
     return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
                           (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, guess_std, source, prior.cg, prior.cg_std,
                           cg_source or ("rig.yaml (start only)" if cg_std is None else "given"), rec.rig.survey,
