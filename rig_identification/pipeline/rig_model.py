@@ -186,8 +186,9 @@ class RigModelResult:
 
     @property
     def ambiguous(self) -> list[str]:
-        """The entries on which a restart of the fit 1 % away settled more than 3 σ from the
-        estimate at a χ² within the tensor's 95 % likelihood-ratio region
+        """The entries on which a restart of the fit (1 % away, or from the gyro-only fit's
+        tensor) settled more than 3 σ from the estimate at a χ² within the tensor's 95 %
+        likelihood-ratio region
         (:attr:`~rig_identification.estimation.rig_fit.RigFit.ambiguous`): the likelihood is
         flat where σ says it is sharp, so σ is not the error's size and no entry is an estimate."""
         return [KEYS[i] for i in self.fit.ambiguous]
