@@ -154,7 +154,8 @@ class _Problem:
         self.sos = butter(4, rec.band, fs=1.0 / rec.dt, output="sos")
         self.step = max(1, int(1.0 / (DECIMATED_RATE * rec.band * rec.dt)))
         impulse = np.zeros(4001)
-        impulse[2000] = 1.0
+        mid = len(impulse) // 2
+        impulse[mid] = 1.0
         # a decimated sample stands for the `step` grid samples around it (weighting it as an
         # independent sample of the filtered noise overstates an in-band signal's information
         # ~1.8×); `unit`: the RMS of a weighted residual of noise alone.
@@ -162,7 +163,7 @@ class _Problem:
         self.unit = float(np.sqrt(self.step * np.sum(response ** 2)))
         # samples beyond which the filter's response to a change is below rounding (:meth:`segment_change`)
         tail = np.flatnonzero(np.abs(response) > IMPULSE_TAIL * np.abs(response).max())
-        self.reach = int(max(tail.max() - 2000, 2000 - tail.min())) + 1 if tail.max() < 4000 and tail.min() > 0 \
+        self.reach = int(max(tail.max() - mid, mid - tail.min())) + 1 if 0 < tail.min() and tail.max() < 2 * mid \
             else n
         self.weight = np.sqrt(self.step) / (rec.sigma * noise_scale * np.sqrt(rec.oversampling))
         self.rest = rest
@@ -521,24 +522,26 @@ class _ReusedJacobian:
     ``reuse`` (a short stage from a far start, where the model is far from linear and steps
     mispredicted are the rule), every Jacobian is fresh."""
 
-    def __init__(self, prob: _Problem, reuse: bool, J0: np.ndarray | None = None):
+    def __init__(self, prob: _Problem, reuse: bool, at_x0: tuple[np.ndarray, np.ndarray] | None = None):
         self.prob, self.reuse = prob, reuse
         self.z: np.ndarray | None = None
         self.J = np.zeros((0, 0))
         self.r = np.zeros(0)
         self.fresh = False
         self.stale_model = True
-        if J0 is not None:                  # a fresh Jacobian at z = 0, the solve starting elsewhere
-            self.z, self.J, self.r, self.stale_model = np.zeros(prob.lay.size), J0, prob.residual(
-                np.zeros(prob.lay.size)), False
-        self.last: tuple[np.ndarray, np.ndarray] | None = None    # the last residual away from z
+        if at_x0 is not None:               # a fresh Jacobian and the residual at z = 0, the solve starting elsewhere
+            self.z, self.stale_model = np.zeros(prob.lay.size), False
+            self.J, self.r = at_x0
+        self.last: tuple[np.ndarray, np.ndarray] | None = None    # the last residual evaluated away from z
         self.runs = 0
         self.jacobians = 0
 
     def residual(self, z: np.ndarray) -> np.ndarray:
         r = self.prob.residual(z)
         self.runs += 1
-        if self.z is not None and not np.array_equal(z, self.z):
+        if self.z is None:
+            self.last = (z.copy(), r)
+        elif not np.array_equal(z, self.z):
             predicted = self.r @ self.r - np.sum((self.r + self.J @ (z - self.z)) ** 2)
             if predicted > 0 and self.r @ self.r - r @ r < REUSE_RATIO * predicted:
                 self.stale_model = True
@@ -548,9 +551,11 @@ class _ReusedJacobian:
     def refresh(self, z: np.ndarray) -> np.ndarray:
         """A fresh Jacobian at ``z`` (a model run per unknown)."""
         self.J = self.prob.jacobian(z)
-        self.z, self.r = z.copy(), self.prob.residual(z)
+        known = self.last is not None and np.array_equal(self.last[0], z)
+        self.r = self.last[1] if self.last is not None and known else self.prob.residual(z)
+        self.z = z.copy()
         self.fresh, self.stale_model = True, False
-        self.runs += self.prob.lay.size + 2
+        self.runs += self.prob.lay.size + 1 + int(not known)
         self.jacobians += 1
         return self.J
 
@@ -566,9 +571,9 @@ class _ReusedJacobian:
 
 
 def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | None = None,
-           J0: np.ndarray | None = None) -> tuple[OptimizeResult, int]:
-    """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``J0``: the Jacobian
-    at 0 where known) (scipy's trust region; on the ``whole`` record the Jacobian reused where it
+           at_x0: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[OptimizeResult, int]:
+    """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``at_x0``: the Jacobian
+    and the residual at 0 where known) (scipy's trust region; on the ``whole`` record the Jacobian reused where it
     predicts the steps: :class:`_ReusedJacobian`), stopped where the Gauss–Newton
     decrement ½ gᵀ (JᵀJ)⁺ g of a fresh Jacobian falls below :data:`NEWTON_DECREMENT` (Boyd &
     Vandenberghe, *Convex Optimization*, §9.5.1: the cost the Gauss–Newton step would still
@@ -577,7 +582,7 @@ def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | N
     step would move no tensor entry, CG coordinate or the mass by :data:`RESULT_STEP` of its σ
     (the trust region then crawls along a valley of the nuisance unknowns: the segments' states
     and the force's correction).  Returns the solution and the model runs it took."""
-    jac = _ReusedJacobian(prob, whole, J0)
+    jac = _ReusedJacobian(prob, whole, at_x0)
     costs: list[float] = []
     result = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
 
@@ -661,9 +666,9 @@ def _shifted(x: np.ndarray, sign: float) -> np.ndarray:
     return moved
 
 
-def _restarted(prob: _Problem, J: np.ndarray, p: RigParameters, rest: RestPose, tensor: np.ndarray, verbose: int
-               ) -> tuple[np.ndarray, RigParameters, RestPose, float, int, np.ndarray]:
-    """The whole-record fit ``prob`` (its x0 the estimate, ``J`` its Jacobian there) restarted from
+def _restarted(prob: _Problem, at_x0: tuple[np.ndarray, np.ndarray], p: RigParameters, rest: RestPose,
+               tensor: np.ndarray, verbose: int) -> tuple[np.ndarray, RigParameters, RestPose, float, int, np.ndarray]:
+    """The whole-record fit ``prob`` (its x0 the estimate, ``at_x0`` its Jacobian and residual there) restarted from
     the tensor entries ``tensor`` (6,) kg·m², every other unknown at the estimate: its unknowns,
     parameters, rest pose, cost (½ χ², the same weights), model runs and the segments' states.  A
     well-determined minimum draws the restart back within its σ; where the likelihood is flat or
@@ -671,7 +676,7 @@ def _restarted(prob: _Problem, J: np.ndarray, p: RigParameters, rest: RestPose, 
     lay = prob.lay
     z0 = np.zeros(lay.size)
     z0[lay.inertia] = (tensor - prob.x0[lay.inertia]) / prob.scale[lay.inertia]
-    sol, runs = _solve(prob, verbose, True, z0, J)
+    sol, runs = _solve(prob, verbose, True, z0, at_x0)
     x1, p1, rest = _moved_on(prob, sol, p, rest)
     return x1, p1, rest, float(sol.cost), runs, prob.bases_at(x1)
 
@@ -736,11 +741,12 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
             noise_scale = new_scale
     last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
     J = last.jacobian(np.zeros(last.lay.size))
-    nfev += last.lay.size + 1
-    minima = [(0.5 * float(np.sum(last.residual(np.zeros(last.lay.size)) ** 2)), x, p, rest, bases)]
+    r = last.residual(np.zeros(last.lay.size))
+    nfev += last.lay.size + 2
+    minima = [(0.5 * float(r @ r), x, p, rest, bases)]
     others = [t for t in np.asarray(restarts, float).reshape(-1, 6) if physically_consistent(to_tensor(t))]
     for tensor in [_shifted(x[lay.inertia], 1.0), _shifted(x[lay.inertia], -1.0)] + others:
-        x2, p2, rest2, cost2, runs, bases2 = _restarted(last, J, p, rest, tensor, verbose)
+        x2, p2, rest2, cost2, runs, bases2 = _restarted(last, (J, r), p, rest, tensor, verbose)
         nfev += runs
         minima.append((cost2, x2, p2, rest2, bases2))
     minima_costs = [m[0] for m in minima]
