@@ -1,6 +1,6 @@
-"""Scaling bench (issue "fast at lab scale"): wall time, CPU time and peak memory of
-``rig-identify inertia REC --json --no-diagnose`` (with the σ from the noise: the replays with
-fresh noise and the noise propagation) and ``--quick --json`` against the recording's length, at
+"""Scaling bench (issue "fast at lab scale"): wall time, CPU time and peak memory of the
+gyro-only fit, ``rig-identify inertia REC --model pem --json --no-diagnose`` (with the σ from the
+noise: the replays with fresh noise and the noise propagation) and ``--quick --json`` against the recording's length, at
 200 Hz and with every stream at 1 kHz, so that a user sees how the cost grows with the recording.
 
     bench/bench_scaling.py [--runs N] [--dir DIR] [--durations S ...] [--rates HZ ...]
@@ -135,7 +135,7 @@ def main(argv: list[str] | None = None) -> int:
             cases.append(("default rig", f"{rate:.0f}" + (" (incl. 50)" if rate == 200.0 else ""), d, rec))
     if not a.no_reference:
         cases.append(("visible_case16_clean", "200 (incl. 50)", 120.0, REFERENCE))
-    full = ["--json"] if a.diagnose else ["--json", "--no-diagnose"]
+    full = ["--model", "pem", "--json"] + ([] if a.diagnose else ["--no-diagnose"])
     variants = [["--quick", "--json"]] if a.quick_only else [full, ["--quick", "--json"]]
     print(f"# load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; {os.cpu_count()} CPUs; "
           f"OMP_NUM_THREADS={env['OMP_NUM_THREADS']}; {a.runs} counted runs after one warm-up, whole processes",

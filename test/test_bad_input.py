@@ -326,7 +326,7 @@ def test_refined_run_on_bad_input(sim, tmp_path):
     def bad(s):
         keep = (s.imu.t < s.imu.t[0] + 30.0) | (s.imu.t > s.imu.t[0] + 30.5)
         s.imu = type(s.imu)(s.imu.t[keep], s.imu.data[keep])
-    rc, out, err = run(make(sim, tmp_path, bad), quick=False)
+    rc, out, err = run(make(sim, tmp_path, bad), "--model", "pem", quick=False)
     assert rc == 0, err
     assert out["uncertainty"].startswith("propagated sensor noise") and out["bias_correction"] is not None
     assert out["validation"]["verdict"] == "ok", out["validation"]["summary"]

@@ -40,9 +40,9 @@ def _identified(name: str):
 
 # the longest first
 background("reference_cli", __file__, _cli, {
-    "diagnosed": ("visible_case16_damped", True, "--json", "--end", "60"),
+    "diagnosed": ("visible_case16_damped", True, "--model", "pem", "--json", "--end", "60"),
     "no_diagnose": ("visible_case16_damped", False, "--json", "--end", "60", "--no-diagnose"),
-    "json_keys": ("visible_case14_clean", False, "--json", "--end", "60"),
+    "json_keys": ("visible_case14_clean", False, "--model", "pem", "--json", "--end", "60"),
 })
 background("reference_identified", __file__, _identified,
            {"visible_case16_clean": ("visible_case16_clean",), "visible_case14_clean": ("visible_case14_clean",)})

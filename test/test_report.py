@@ -126,11 +126,12 @@ def assert_readable(out: Path, seen: dict, result: InertiaResult | None = None) 
 
 
 def _made():
-    """Job: `rig-identify inertia visible_case16_clean --json --report OUT` (in the worker's
+    """Job: `rig-identify inertia visible_case16_clean --model pem --json --report OUT` (in the worker's
     process), OUT in a fresh temporary folder that the module's tests read and the fixture
     removes.  Returns (OUT, exit status, stdout, stderr)."""
     out = Path(tempfile.mkdtemp(prefix="test_report_")) / "case16"
-    code, stdout, stderr = run_cli("inertia", recording("visible_case16_clean"), "--json", "--report", out)
+    code, stdout, stderr = run_cli("inertia", recording("visible_case16_clean"), "--model", "pem", "--json",
+                                   "--report", out)
     return out, code, stdout, stderr
 
 
@@ -365,7 +366,7 @@ def test_report_refuses_foreign_folder_and_thesis_model(tmp_path, capsys):
     assert code == 2 and str(foreign) in err and "refusing to replace" in err, err
     assert (foreign / "todo.txt").read_text() == "keep me"
     code, err = run(rec, "--model", "thesis", "--report", tmp_path / "new")
-    assert code == 2 and "--report needs --model pem" in err, err
+    assert code == 2 and "--report needs --model rig or pem" in err, err
     assert not (tmp_path / "new").exists()
     # several recordings: --model thesis is refused too (the joint fit is the prediction-error model's)
     code, err = run(rec, rec, "--model", "thesis")

@@ -13,6 +13,8 @@ from conftest import background, gather, recording, run_cli
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
+from rig_identification.cli.inertia import resolve_model
+from rig_identification.cli.main import build_parser
 from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random
 from rig_identification.estimation import rig_unknowns
 from rig_identification.estimation.harmonic_start import harmonic_start, harmonics
@@ -20,6 +22,7 @@ from rig_identification.estimation.rig_fit import RigFit, cramer_rao
 from rig_identification.estimation.rig_record import (
     FORCE_CHANNELS,
     MODEL_RATE_BANDS,
+    ChannelSeries,
     RigFitError,
     record,
     smooth_force,
@@ -252,12 +255,19 @@ def test_a_recording_without_exciter_or_too_short_is_refused(quiet_rig):
         record(s, quiet_rig.rig, t1=s.t_start + 8.0)
 
 
-def test_rig_model_takes_one_recording_and_no_report(tmp_path):
+def test_the_rig_model_takes_one_recording_and_none_of_the_gyro_fits_options():
+    """Refused before any bag is read: several recordings with --model rig, and the options that
+    only the gyro-only fit takes; without --model, --quick and several recordings mean that fit."""
     rec = recording("visible_case16_clean")
     code, _, err = run_cli("inertia", rec, rec, "--model", "rig")
     assert code == 2 and "--model rig fits one recording" in err
-    code, _, err = run_cli("inertia", rec, "--model", "rig", "--report", tmp_path / "r")
-    assert code == 2 and "--model rig" in err
+    for opts in (["--quick"], ["--band", "0.5", "3"], ["--target", "2"], ["--no-diagnose"]):
+        code, _, err = run_cli("inertia", rec, "--model", "rig", *opts)
+        assert code == 2 and f"{opts[0]}: options of --model pem" in err, (opts, err)
+    parse = build_parser(["inertia"]).parse_args
+    for argv, model in ((["inertia", "R"], "rig"), (["inertia", "R", "--quick"], "pem"),
+                        (["inertia", "R", "S"], "pem"), (["inertia", "R", "--model", "thesis"], "thesis")):
+        assert resolve_model(parse(argv)) == model, argv
 
 
 @pytest.mark.parametrize("cables,seed", [(3, 7101), (5, 7206)])
@@ -322,7 +332,8 @@ def test_a_restart_that_settles_elsewhere_as_well_is_not_identifiable(quiet_rig)
     def verdict(shift_sigma: float, chi2: float) -> tuple[list[str], str]:
         other = p.inertia + shift_sigma * (np.arange(6) == KEYS.index("iyy"))
         fit = RigFit(p, np.zeros(12), cov, np.ones(6), np.ones(4), np.ones(4), ("a", "b", "c", "d"), np.ones(6), lay,
-                     1, np.array([p.inertia + 0.5, other]), np.array([0.3, chi2]))
+                     1, np.array([p.inertia + 0.5, other]), np.array([0.3, chi2]),
+                     ChannelSeries(np.zeros(1), np.zeros((1, 4)), np.zeros((1, 4)), ("a", "b", "c", "d")))
         res = RigModelResult(fit, "rec", 0.0, 0.0, 60.0, 4.0, p.inertia, np.full(6, np.inf), "start", p.cg,
                              np.full(3, np.inf), "rig.yaml", Survey(), 1.0, None)
         return res.ambiguous, res.verdict

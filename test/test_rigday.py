@@ -8,6 +8,7 @@ reference pair (its CG 2.2 mm below truth.yaml's, the body origin)."""
 import html
 import json
 import tempfile
+import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
@@ -125,16 +126,21 @@ def test_the_exports_say_where_the_cg_came_from(day, tmp_path):
 
 
 def _chain():
-    """Job: ``cg`` on the static pair, then ``inertia --model rig --cg cg.json`` on 45 s of the
-    clean run (in the worker's process).  Returns (cg JSON, the rig model's JSON, its exit status
-    and stderr)."""
+    """Job: ``cg`` on the static pair, then ``inertia --cg cg.json`` (the default: the rig model)
+    on 45 s of the clean run with ``--report``, ``--yaml`` and ``--urdf`` (in the worker's
+    process).  Returns (cg JSON, the rig model's JSON, its exit status and stderr, the report's
+    index.html, its report.json, the YAML export)."""
     code, out, err = run_cli("cg", BASE, DUMMY, "--json", "-q")
     assert code == 0, err
     with tempfile.TemporaryDirectory() as tmp:
         cg_file = Path(tmp) / "cg.json"
         cg_file.write_text(out)
-        code2, out2, err2 = run_cli("inertia", CLEAN, "--model", "rig", "--cg", cg_file, "--end", "45", "--json", "-q")
-    return out, out2, code2, err2
+        report, exported = Path(tmp) / "report", Path(tmp) / "mass.yaml"
+        code2, out2, err2 = run_cli("inertia", CLEAN, "--cg", cg_file, "--end", "45", "--json", "-q", "--report",
+                                    report, "--yaml", exported, "--urdf")
+        pngs = sorted(p.name for p in report.glob("*.png"))
+        return (out, out2, code2, err2, (report / "index.html").read_text(), (report / "report.json").read_text(),
+                exported.read_text(), pngs)
 
 
 background("rig_day_chain", __file__, _chain, {"run": ()}, first=True)
@@ -146,7 +152,7 @@ def test_the_rig_model_carries_the_static_cg_and_finds_its_own():
     1 mm and 3 σ of the truth (the body origin) with σ at least ten times smaller in height than
     the static test's; the combined CG is the tensor's point, and the tensor is within 1 % of the
     truth (its σ: the next test)."""
-    cg_text, out, code, err = gather("rig_day_chain")["run"]
+    cg_text, out, code, err = gather("rig_day_chain")["run"][:4]
     assert code == 0, err
     cg = json.loads(cg_text)
     res = json.loads(out)
@@ -164,7 +170,37 @@ def test_the_rig_model_carries_the_static_cg_and_finds_its_own():
 
 def test_the_rig_models_sigma_after_the_chain_covers_its_error():
     """The chain's tensor (the test above) within 3 σ of the truth, its σ carrying the CG's."""
-    _, out, code, err = gather("rig_day_chain")["run"]
+    _, out, code, err = gather("rig_day_chain")["run"][:4]
     assert code == 0, err
     for k, t in json.loads(out)["truth_comparison"].items():
         assert abs(t["error_sigma"]) < 3.0, (k, t)
+
+
+def test_the_default_inertia_is_the_rig_model_with_its_report_yaml_and_urdf():
+    """``inertia`` without --model fits the rig model; its report shows the tensor with σ and the
+    Cramér–Rao bound, the CG three ways, every channel against its noise and a figure per sensor
+    group; report.json's products are the negated entries; the YAML export and the URDF element
+    carry the same numbers (the fitted CG and mass)."""
+    _, out, code, err, page, data, exported, pngs = gather("rig_day_chain")["run"]
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["schema"] == "rig_identification.rig_model_result" and res["verdict"] == "ok"
+    for words in ("Cramér–Rao bound", "the swinging body alone", "Every channel against its noise", "tension:c0",
+                  "Restarts: other minima"):
+        assert words in page, words
+    assert pngs == ["fit_accelerometer.png", "fit_exciter_force.png", "fit_gyro.png", "fit_inclinometer.png",
+                    "fit_tensions.png", "principal_axes.png"]
+    rep = json.loads(data)
+    assert rep["result"]["inertia_about_cg"] == res["inertia_about_cg"]
+    mp = rep["mass_properties"]
+    for k, v in res["inertia_about_cg"].items():
+        sign = -1.0 if k in ("ixy", "ixz", "iyz") else 1.0
+        assert mp["about_cg"]["I" + k[1:]] == pytest.approx(sign * v, abs=1e-9)
+        assert mp["crb_std"]["I" + k[1:]] == pytest.approx(res["inertia_crb"][k], rel=1e-9)
+    y = yaml.safe_load(exported)
+    assert y["verdict"] == "ok" and y["inertia_about_cg"]["iyy"] == pytest.approx(res["inertia_about_cg"]["iyy"])
+    np.testing.assert_allclose(y["center_of_gravity"], res["center_of_gravity"]["combined"], atol=1e-12)
+    assert y["mass"] == pytest.approx(res["mass"]) and y["center_of_gravity_source"].startswith("fitted")
+    u = ET.fromstring(res["urdf_inertial"])
+    assert float(u.find("mass").get("value")) == pytest.approx(res["mass"], rel=1e-6)
+    assert float(u.find("inertia").get("iyz")) == pytest.approx(res["inertia_about_cg"]["iyz"], rel=1e-6)

@@ -132,8 +132,8 @@ def print_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> Non
               + entries_line(out["inertia_about_cg_after"], {k: std[k] for k in ORDER}))
         if rec.truth and "inertia_about_cg" in rec.truth:
             print("truth (truth.yaml), kg·m²: " + entries_line(rec.truth["inertia_about_cg"]))
-        print("(rig-identify inertia adds what diagnose names to the model, fits again and validates: its tensor "
-              "is the one to use)")
+        print("(rig-identify inertia --model pem adds what diagnose names to the model, fits again and validates: "
+              "its tensor is the one to use)")
     for line in compliant_lines(out["compliant_body"]):
         print(line)
     for name, loc in out["located"].items():
@@ -178,6 +178,6 @@ def cmd_diagnose(args) -> int:
         print_diagnosis(rec, result, d, out, args.model)
     args.progress.warn_rest(result.warnings + d.warnings)
     if result.validation is not None and result.validation.verdict != "ok":
-        print(f"note: the rigid-body fit's verdict is {result.validation.verdict}: rig-identify inertia (without "
-              "--no-diagnose) adds what diagnose names to the model and reports that fit", file=sys.stderr)
+        print(f"note: the rigid-body fit's verdict is {result.validation.verdict}: rig-identify inertia --model pem "
+              "(without --no-diagnose) adds what diagnose names to the model and reports that fit", file=sys.stderr)
     return 0

@@ -51,11 +51,11 @@ from ..pipeline.offline import (
     with_cg_uncertainty,
     with_diagnosis,
 )
-from ..report.page import Job, ReportError, check_report_dir, common_truth, write_report
+from ..report.page import ReportError, check_report_dir, common_truth, write_report
 from ..statics.handover import load_cg_result
 from .arg_types import JOB_OPTIONS
 from .progress import heading, step, warn
-from .rig_model import cmd_rig_model
+from .rig_model import cmd_rig_model, job_of
 from .text import (
     TABLE_CAPTION,
     effect_text,
@@ -268,18 +268,33 @@ def output_axes(option: str | None, recs: list) -> tuple[Axes, list[str]]:
         raise AxesError(f"--axes {name}: {why}" if option is not None else why) from None
 
 
-def job_of(args) -> Job:
-    """The report's :class:`~rig_identification.report.page.Job` from ``--vehicle-name``,
-    ``--customer`` and ``--operator`` (each one line; stripped)."""
-    return Job(*(getattr(args, k, None) and getattr(args, k).strip() or None for _, k, _ in JOB_OPTIONS))
+#: The options only the gyro-only prediction-error fit (--model pem or thesis) takes.
+PEM_ONLY = (("band", "--band"), ("initial_guess", "--initial-guess"), ("target", "--target"),
+            ("no_diagnose", "--no-diagnose"))
+
+
+def resolve_model(args) -> str:
+    """The model ``--model`` names, else the default: ``rig`` for one recording, ``pem`` for
+    ``--quick`` (the gyro-only fit, unrefined) or several recordings (fitted jointly)."""
+    if args.model is not None:
+        return str(args.model)
+    return "pem" if args.quick or len(args.recording) > 1 or any(getattr(args, k, None) for k, _ in PEM_ONLY) \
+        else "rig"
 
 
 def check_options(args) -> None:
-    """Refuse option combinations that cannot run, before reading any bag."""
+    """Refuse option combinations that cannot run, before reading any bag; sets ``args.model``
+    (:func:`resolve_model`)."""
     paths = args.recording
-    if args.model == "rig" and (len(paths) > 1 or args.report):
-        raise IdentificationError("--model rig fits one recording and writes no report yet: give one RECORDING, "
-                                  "without --report")
+    args.model = resolve_model(args)
+    if args.model == "rig":
+        given = [flag for k, flag in PEM_ONLY if getattr(args, k, None)] + (["--quick"] if args.quick else [])
+        if len(paths) > 1:
+            raise IdentificationError("--model rig fits one recording at a time: give one RECORDING (several are "
+                                      "fitted jointly by --model pem)")
+        if given:
+            raise IdentificationError(f"{', '.join(given)}: options of --model pem, the gyro-only fit; the rig model "
+                                      "takes none of them")
     if len(paths) > 1:
         if args.model != "pem":
             raise IdentificationError("--model thesis fits one recording at a time: give one RECORDING "
@@ -289,9 +304,9 @@ def check_options(args) -> None:
     if args.axes is not None and args.axes != "body" and all((Path(p) / "rig.yaml").is_file() for p in paths):
         output_axes(args.axes, [SimpleNamespace(rig=load_rig(Path(p) / "rig.yaml")) for p in paths])  # refused now
     if args.report:
-        if args.model != "pem":
-            raise IdentificationError("--report needs --model pem (the thesis baseline has no predicted output "
-                                      "to plot)")
+        if args.model == "thesis":
+            raise IdentificationError("--report needs --model rig or pem (the thesis baseline has no predicted "
+                                      "output to plot)")
         check_report_dir(Path(args.report))  # before the fit, not after it
     for flag, key, _ in JOB_OPTIONS:
         text = getattr(args, key, None)
@@ -338,7 +353,10 @@ def cmd_inertia(args) -> int:
     check_options(args)
     recs = read_all(args.recording)
     if args.model == "rig":
-        return cmd_rig_model(args, recs[0])
+        axes, axes_notes = output_axes(args.axes, recs)
+        for note in axes_notes:
+            warn(note)
+        return cmd_rig_model(args, recs[0], axes)
     cg_source = "rig.yaml body.center_of_gravity"
     cg_note = None
     cg_cov = None
@@ -351,7 +369,7 @@ def cmd_inertia(args) -> int:
     result = identify(args, recs, cg_cov)
     if cg_cov is not None:
         result = cg_uncertainty(args, recs, result, cg_cov)
-    result.precision_target = args.target / 100
+    result.precision_target = (1.0 if args.target is None else args.target) / 100
     if cg_note is not None:
         result.warnings.insert(0, cg_note)
     t0s = [float(r.sensors.t_start) for r in recs]

@@ -38,8 +38,8 @@ a rig day:
   rig-identify cg-plan RIG                       plan the static test
   rig-identify cg BASE DUMMY --write-rig R.yaml  centre of gravity from the two static recordings
   rig-identify plan RIG --inertia ...            plan the exciter run(s)
-  rig-identify inertia REC                       verdict, tensor, products, principal axes
-  rig-identify inertia REC --json                one JSON object (schema rig_identification.inertia_result)
+  rig-identify inertia REC                       verdict, tensor, CG, products, principal axes (every sensor fitted)
+  rig-identify inertia REC --json                one JSON object (schema rig_identification.rig_model_result)
   rig-identify inertia REC --urdf --yaml F.yaml  a URDF <inertial> element; a YAML file
   rig-identify diagnose REC                      where the model and the recording disagree, and why
 research baselines (not for a rig day):
@@ -97,7 +97,8 @@ def add_inertia_parser(sub) -> None:
     for flag, _, what in JOB_OPTIONS:
         p.add_argument(flag, metavar="TEXT", help=f"with --report: {what}, named in the report's header (one line)")
     p.add_argument("--json", action="store_true",
-                   help="print one JSON object (schema rig_identification.inertia_result, with units per field)")
+                   help="print one JSON object (schema rig_identification.rig_model_result, or "
+                        "rig_identification.inertia_result for --model pem; units per field)")
     p.add_argument("--urdf", action="store_true",
                    help="also print a URDF <inertial> element (origin at the CG, mass, tensor entries; always in "
                         "rig.yaml's body axes, REP-103, whatever --axes says)")
@@ -111,27 +112,30 @@ def add_inertia_parser(sub) -> None:
     p.add_argument("--start", type=float, metavar="S", help="window start, s from the first IMU sample")
     p.add_argument("--end", type=float, metavar="S", help="window end, s from the first IMU sample")
     p.add_argument("--band", type=float, nargs=2, metavar=("LOW_HZ", "HIGH_HZ"),
-                   help="pass band of the fit (default: around the spectral peaks of the gyro)")
-    p.add_argument("--model", choices=["pem", "rig", "thesis"], default="pem",
-                   help="pem: ours (default); rig: the rig's grey-box model fitted to every sensor (tensions, gyro, "
-                        "accelerometer, inclinometer), σ against the Cramér–Rao bound (one recording; no report "
-                        "yet); thesis: the thesis's model and estimator, as a baseline")
+                   help="--model pem: pass band of the fit (default: around the spectral peaks of the gyro; the rig "
+                        "model chooses its own band from the exciter's force)")
+    p.add_argument("--model", choices=["rig", "pem", "thesis"], default=None,
+                   help="rig (default for one recording): the rig's grey-box model fitted to every sensor (tensions, "
+                        "gyro, accelerometer, inclinometer), the CG and mass with the tensor, σ against the "
+                        "Cramér–Rao bound; pem (default for --quick and for several recordings, fitted jointly): the "
+                        "gyro-only prediction-error fit, the tensions as its input, with the diagnosis of a model "
+                        "error; thesis: the thesis's model and estimator, as a baseline")
     p.add_argument("--initial-guess", type=float, nargs=6, metavar=TENSOR,
                    help="starting tensor for --model thesis: " + TENSOR_HELP)
     p.add_argument("--quick", action="store_true",
-                   help="the plain fit: not compensated for the noise in its input, σ from the fit's residuals "
-                        "(sandwich) instead of the propagated sensor noise, no diagnosis; about half the time "
-                        "(docs/results.md)")
+                   help="the plain gyro-only fit (--model pem): not compensated for the noise in its input, σ from "
+                        "the fit's residuals (sandwich), no diagnosis; seconds (docs/results.md)")
     p.add_argument("--cg", metavar="CG.json",
                    help="take the centre of gravity from a saved 'rig-identify cg --json' result instead of "
                         "rig.yaml's body.center_of_gravity")
-    p.add_argument("--target", type=number("--target"), default=1.0, metavar="PCT",
-                   help="the precision the lab asks of every entry, %% at 95 %% (of a moment, of the largest moment "
-                        "for a product; default 1): the output says which entries fall short of it and how long a "
-                        "recording would reach it")
+    p.add_argument("--target", type=number("--target"), default=None, metavar="PCT",
+                   help="--model pem: the precision the lab asks of every entry, %% at 95 %% (of a moment, of the "
+                        "largest moment for a product; default 1): the output says which entries fall short of it and "
+                        "how long a recording would reach it (the rig model holds every entry to ±1 %%: short of it, "
+                        "not_identifiable)")
     p.add_argument("--no-diagnose", action="store_true",
-                   help="report the rigid-body fit even when its residual shows model error (by default one "
-                        "recording with model error is diagnosed, as rig-identify diagnose, and the tensor of the "
+                   help="--model pem: report the rigid-body fit even when its residual shows model error (by default "
+                        "one recording with model error is diagnosed, as rig-identify diagnose, and the tensor of the "
                         "fit with the physics found is reported)")
 
 

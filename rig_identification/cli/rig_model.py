@@ -9,36 +9,42 @@ channel's residual against its noise, and what the numbers assume.  ``--json`` p
 from __future__ import annotations
 
 import json
+import sys
+from datetime import datetime, timezone
 
 import numpy as np
 
-from ..io.export import ORDER, VEHICLE_SIGN
+from ..io.atomic import atomic_write_text
+from ..io.export import BODY, ORDER, VEHICLE_SIGN, Axes, axes_block, export_dict, urdf_inertial, yaml_text
+from ..io.package import package_version
+from ..io.recording import Recording
 from ..io.verdict import KEYS
 from ..pipeline.rig_model import CONSISTENCY_SIGMA, LEVEL_LIMIT, CentreOfGravity, RigModelResult, fit_whole_recording
+from ..report.page import Job, ReportError
+from ..report.rig_page import write_rig_report
 from ..statics.handover import load_cg_result
-from .progress import heading
-from .text import TABLE_CAPTION
+from .arg_types import JOB_OPTIONS
+from .progress import heading, step
+from .text import TABLE_CAPTION, origin_line, principal_lines, tensor_table
+
+#: What the σ of the rig model are (the YAML export's ``std_is``).
+STD_IS = ("the larger of the inverse Fisher information and the sandwich, the CG, mass, cables, load cells and "
+          "surveyed geometry fitted with their priors")
 
 
-def print_rig_model(res: RigModelResult) -> None:
-    """The text output of ``rig-identify inertia --model rig``."""
+def job_of(args) -> Job:
+    """The report's :class:`~rig_identification.report.page.Job` from ``--vehicle-name``,
+    ``--customer`` and ``--operator`` (each one line; stripped)."""
+    return Job(*(getattr(args, k, None) and getattr(args, k).strip() or None for _, k, _ in JOB_OPTIONS))
+
+
+def print_rig_model(res: RigModelResult, axes: Axes = BODY) -> None:
+    """The text output of ``rig-identify inertia`` (the rig model); ``axes``: the vehicle axes
+    the tensor is given in too (``--axes``, rig.yaml ``output_axes``)."""
     f = res.fit
     p = f.parameters
     d = res.to_dict()
-    words = {"ok": "ok — the model explains every channel at its noise level",
-             "model_error": "model_error — " + ", ".join(res.poorly_fitted) + f" beyond {LEVEL_LIMIT}× their noise: "
-                            "the model misses something there; σ below is not calibrated",
-             "not_identifiable": "not_identifiable — " + (
-                 ", ".join(res.undetermined) + " not determined to ±1 % at 95 %: the fit may sit in another minimum "
-                 "that explains the data as well, and the tensor's directions are coupled" if res.undetermined else
-                 "restarted, the fit settled more than 3 σ off on " + ", ".join(res.ambiguous)
-                 + f" at a χ² only {min(f.other_chi2):.1f} above the estimate's: the likelihood is flat where σ "
-                 "says it is sharp") + "; no entry below is an estimate to use",
-             "inconsistent": "inconsistent — the static and the dynamic test's CG disagree (below); the numbers "
-                             "below are not an estimate to use",
-             "failed": "failed — the fit did not find the motion (a channel beyond 10× its noise, or a number not "
-                       "finite): the numbers below are not an estimate"}
-    print(f"verdict: {words[res.verdict]}")
+    print(f"verdict: {res.summary}")
     print(f"recording: {res.path}")
     for w in res.warnings:
         print(f"warning: {w}")
@@ -62,9 +68,19 @@ def print_rig_model(res: RigModelResult) -> None:
         if truth:
             t = truth[k]
             line += (f"{sign * t['truth'] + 0.0:>11.2f}{sign * t['error_percent'] + 0.0:>+9.3f}%"
-                     f"{sign * t['error_sigma'] + 0.0:>+7.2f}")
+                     f"{sign * t['error_sigma'] + 0.0:>+7.1f}")
         print(line)
     print("(the tensor's off-diagonal entries, the JSON's ixy, ixz, iyz, are the negated products)")
+    body = res.expressed(BODY)
+    if axes.name != "body":
+        print(f"in {axes.label}:")
+        print(f"  centre of gravity ({', '.join(f'{x:.4f}' for x in res.expressed(axes).cg)}) m")
+        print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
+    for line in principal_lines(body) + [origin_line(body)]:
+        print(line)
+    if res.verdict == "model_error":
+        print(f"diagnosis: rig-identify diagnose {res.path} names the physics the gyro-only model misses; "
+              "rig-identify inertia --model pem adds what it names and fits again")
     sv = d["survey"]
     print(f"mass {p.mass:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
     print_cg(res.cg)
@@ -111,8 +127,10 @@ def print_cg(cg: CentreOfGravity) -> None:
                                                                for x in d) + " σ)")
 
 
-def cmd_rig_model(args, rec) -> int:
-    """``rig-identify inertia --model rig`` on one recording ``rec``; returns the exit status."""
+def cmd_rig_model(args, rec: Recording, axes: Axes = BODY) -> int:
+    """``rig-identify inertia`` (the rig model) on one recording ``rec``; ``axes`` those of the
+    printout, the YAML and the JSON's extra block; ``--urdf``, ``--yaml``, ``--report`` as for
+    the prediction-error fit.  Returns the exit status."""
     cg = cg_std = None
     source = None
     if args.cg:
@@ -120,9 +138,38 @@ def cmd_rig_model(args, rec) -> int:
         cg, cg_std, source = saved.center_of_gravity, saved.center_of_gravity_std, args.cg
     heading("fitting the rig's model to every sensor (tensions, gyro, accelerometer, inclinometer)")
     res = fit_whole_recording(rec, cg, cg_std, source, args.start, args.end)
+    index = None
+    if args.report:
+        step(f"writing the report to {args.report}")
+        try:
+            index = write_rig_report(args.report, res, rec, axes, job_of(args))
+        except OSError as e:
+            raise ReportError(f"{args.report}: cannot write the report ({e.strerror or e})") from None
+    urdf = urdf_inertial(res.expressed(BODY)) if args.urdf else None
+    if args.yaml:
+        content = export_dict(res.expressed(axes), verdict=res.verdict, summary=res.summary,
+                              std_kind=STD_IS, sources=[str(rec.path)],
+                              window={"start": float(res.start_s), "end": float(res.start_s + res.duration_s)},
+                              created=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                              version=package_version())
+        content["center_of_gravity_source"] = "fitted (the rig model), its prior " + res.cg_source
+        atomic_write_text(args.yaml, yaml_text(content))
     args.progress.finish()
     if args.json:
-        print(json.dumps(res.to_dict()))
+        d = res.to_dict()
+        if axes.name != "body":
+            d[axes.json_key] = axes_block(res.expressed(axes))
+        if urdf is not None:
+            d["urdf_inertial"] = urdf
+        print(json.dumps(d))
     else:
-        print_rig_model(res)
+        print_rig_model(res, axes)
+        if urdf is not None:
+            print("URDF inertial element (link frame: rig.yaml's body frame; ixy, ixz, iyz: the tensor's entries):")
+            print(urdf)
+    out = sys.stderr if args.json else sys.stdout
+    if args.yaml:
+        print(f"yaml: {args.yaml}", file=out)
+    if index is not None:
+        print(f"report: {index}", file=out)
     return 0

@@ -45,7 +45,7 @@ either side and from another estimator's tensor where the caller gives one: wher
 more than 3 σ off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is
 flat or multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`);
 the lowest of the minima is the estimate.  On the whole record the Jacobian is reused where it
-predicts the trust region's steps (:class:`_ReusedJacobian`), and a restart starts from the
+predicts the trust region's steps (:class:`~.reused_jacobian.ReusedJacobian`), and a restart starts from the
 estimate's.
 """
 from __future__ import annotations
@@ -66,7 +66,8 @@ from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
 from ..model.rig_ode import Drive, drive, moved_state, rest_state, simulate, substeps_for
-from .rig_record import Record
+from .reused_jacobian import ReusedJacobian
+from .rig_record import ChannelSeries, Record
 from .rig_start import start_parameters
 from .rig_unknowns import Layout, Prior, parameters_of, priors, relayout, unit_scale, vector
 
@@ -101,6 +102,8 @@ STALL_ITERATIONS = 5
 #: A whole-record solve stops where the Gauss–Newton step would move every tensor entry, CG
 #: coordinate and the mass by less than this share of its σ (:func:`_solve`).
 RESULT_STEP = 0.25
+#: Gauss–Newton steps with the estimate's Jacobian that finish the fit (:func:`_polished`), at most.
+POLISH_STEPS = 4
 #: The residual's every row outside the physical region or where the model diverges.
 OUTSIDE = 1e6
 #: s over which the initial state is fitted alone before each start's first stage (:func:`_settled`).
@@ -124,7 +127,7 @@ JACOBIAN_STEP = 1e-4
 #: exceeds this share of its peak (:meth:`_Problem.segment_change`).
 IMPULSE_TAIL = 1e-12
 #: A solve's Jacobian is made afresh where a tried step lowered the cost by less than this share
-#: of what the Jacobian's linear model predicted (:class:`_ReusedJacobian`).
+#: of what the Jacobian's linear model predicted (:class:`~.reused_jacobian.ReusedJacobian`).
 REUSE_RATIO = 0.5
 #: A whole-record solve, its Jacobian reused, may run this many times :data:`MAX_ITERATIONS` model
 #: evaluations (each an iteration without a Jacobian costs one).
@@ -302,6 +305,18 @@ class _Problem:
         a = self.rec.start
         return self.weighted(self.rec.y[a:a + self.n] - np.concatenate(self.outputs(x) if outputs is None else outputs))
 
+    def fitted(self, x: np.ndarray) -> ChannelSeries:
+        """The measured and the model's readings at ``x`` over the span as the fit compares them
+        (low-passed and decimated to the band), each channel's offset put on the measured one's."""
+        a = self.rec.start
+        measured = self.rec.y[a:a + self.n]
+        predicted = np.concatenate(self.outputs(x))
+        predicted = predicted - predicted.mean(axis=0) + measured.mean(axis=0)
+        low = [sosfiltfilt(self.sos, v - v.mean(axis=0), axis=0)[::self.step] + v.mean(axis=0)
+               for v in (measured, predicted)]
+        t = self.rec.dt * np.arange(a, a + self.n)[::self.step]
+        return ChannelSeries(t, low[0], low[1], self.rec.channels)
+
     def weighted(self, e: np.ndarray) -> np.ndarray:
         """(m, n_out) the data-minus-model ``e`` (samples, n_out) with each channel's offset
         projected out, low-passed, decimated to the band and weighted by its noise."""
@@ -425,7 +440,8 @@ class RigFit:
     natural_frequencies: (6,) Hz, linearised about the rest pose.  nfev: model runs.
     other_minima: (k, 6) kg·m² the tensors where the other whole-record fits settled (the staged
     fit, its two restarts :data:`RESTART_SHIFT` away and those from ``restarts``, :func:`fit_rig`:
-    the lowest is the estimate), other_chi2: (k,) their χ² less the estimate's (≥ 0).
+    the lowest is the estimate), other_chi2: (k,) their χ² less the estimate's (≥ 0).  series:
+    every channel at the estimate (:class:`ChannelSeries`).
     """
 
     parameters: RigParameters
@@ -440,6 +456,7 @@ class RigFit:
     nfev: int
     other_minima: np.ndarray
     other_chi2: np.ndarray
+    series: ChannelSeries
 
     @property
     def ambiguous(self) -> list[int]:
@@ -512,69 +529,11 @@ def _base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) ->
     return simulate(p, y, drive(rec.u[:rec.start + 1], rec.dt, substeps))[1]
 
 
-class _ReusedJacobian:
-    """The Jacobian of ``prob``'s residual for a least-squares solve, computed afresh only where the
-    linear model it makes mispredicted a tried step: otherwise the last one with Broyden's rank-one
-    update along the accepted step (Broyden 1965; Dennis & Schnabel, *Numerical Methods for
-    Unconstrained Optimization and Nonlinear Equations*, §8.2).  A step whose cost fell by less than
-    :data:`REUSE_RATIO` of the fall the Jacobian predicted asks for a fresh one at the next
-    accepted point.  Each fresh Jacobian costs a model run per unknown, an update none.  Without
-    ``reuse`` (a short stage from a far start, where the model is far from linear and steps
-    mispredicted are the rule), every Jacobian is fresh."""
-
-    def __init__(self, prob: _Problem, reuse: bool, at_x0: tuple[np.ndarray, np.ndarray] | None = None):
-        self.prob, self.reuse = prob, reuse
-        self.z: np.ndarray | None = None
-        self.J = np.zeros((0, 0))
-        self.r = np.zeros(0)
-        self.fresh = False
-        self.stale_model = True
-        if at_x0 is not None:               # a fresh Jacobian and the residual at z = 0, the solve starting elsewhere
-            self.z, self.stale_model = np.zeros(prob.lay.size), False
-            self.J, self.r = at_x0
-        self.last: tuple[np.ndarray, np.ndarray] | None = None    # the last residual evaluated away from z
-        self.runs = 0
-        self.jacobians = 0
-
-    def residual(self, z: np.ndarray) -> np.ndarray:
-        r = self.prob.residual(z)
-        self.runs += 1
-        if self.z is None:
-            self.last = (z.copy(), r)
-        elif not np.array_equal(z, self.z):
-            predicted = self.r @ self.r - np.sum((self.r + self.J @ (z - self.z)) ** 2)
-            if predicted > 0 and self.r @ self.r - r @ r < REUSE_RATIO * predicted:
-                self.stale_model = True
-            self.last = (z.copy(), r)
-        return r
-
-    def refresh(self, z: np.ndarray) -> np.ndarray:
-        """A fresh Jacobian at ``z`` (a model run per unknown)."""
-        self.J = self.prob.jacobian(z)
-        known = self.last is not None and np.array_equal(self.last[0], z)
-        self.r = self.last[1] if self.last is not None and known else self.prob.residual(z)
-        self.z = z.copy()
-        self.fresh, self.stale_model = True, False
-        self.runs += self.prob.lay.size + 1 + int(not known)
-        self.jacobians += 1
-        return self.J
-
-    def jacobian(self, z: np.ndarray) -> np.ndarray:
-        if (not self.reuse or self.z is None or self.stale_model or self.last is None
-                or not np.array_equal(self.last[0], z)):
-            return self.refresh(z)
-        s = z - self.z
-        r = self.last[1]
-        self.J = self.J + np.outer(r - self.r - self.J @ s, s / (s @ s))
-        self.z, self.r, self.fresh = z.copy(), r, False
-        return self.J
-
-
 def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | None = None,
            at_x0: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[OptimizeResult, int]:
     """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``at_x0``: the Jacobian
     and the residual at 0 where known) (scipy's trust region; on the ``whole`` record the Jacobian reused where it
-    predicts the steps: :class:`_ReusedJacobian`), stopped where the Gauss–Newton
+    predicts the steps: :class:`~.reused_jacobian.ReusedJacobian`), stopped where the Gauss–Newton
     decrement ½ gᵀ (JᵀJ)⁺ g of a fresh Jacobian falls below :data:`NEWTON_DECREMENT` (Boyd &
     Vandenberghe, *Convex Optimization*, §9.5.1: the cost the Gauss–Newton step would still
     gain), where the last :data:`STALL_ITERATIONS` iterations gained less than that together,
@@ -582,7 +541,7 @@ def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | N
     step would move no tensor entry, CG coordinate or the mass by :data:`RESULT_STEP` of its σ
     (the trust region then crawls along a valley of the nuisance unknowns: the segments' states
     and the force's correction).  Returns the solution and the model runs it took."""
-    jac = _ReusedJacobian(prob, whole, at_x0)
+    jac = ReusedJacobian(prob.residual, prob.jacobian, prob.lay.size, whole, at_x0, REUSE_RATIO)
     costs: list[float] = []
     result = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
 
@@ -652,6 +611,35 @@ def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: 
     log.info("rig fit: initial state over %.0f s, %d iterations, cost %.4g → %.4g", n * rec.dt, sol.nfev,
              0.5 * np.sum(residual(np.zeros(part.stop - part.start)) ** 2), sol.cost)
     return x
+
+
+def _polished(prob: _Problem, J: np.ndarray, r: np.ndarray, p: RigParameters, rest: RestPose
+              ) -> tuple[np.ndarray, RigParameters, RestPose, np.ndarray, int]:
+    """The estimate after Gauss–Newton steps from ``prob``'s x0 with its Jacobian ``J`` there (the
+    chord method; ``r``: the residual at x0), each taken where it lowers the cost, at most
+    :data:`POLISH_STEPS`: a solve stops within :data:`RESULT_STEP` σ of the minimum, and the steps
+    carry it to the minimum wherever in that neighbourhood it stopped (the estimate then does not
+    depend on the rounding that steered the iterations).  Returns the unknowns, parameters, rest
+    pose, the segments' states and the model runs."""
+    gain = np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True) @ J.T
+    z = np.zeros(prob.lay.size)
+    runs = 0
+    for _ in range(POLISH_STEPS):
+        step = -gain @ r
+        r1 = prob.residual(z + step)
+        runs += 1
+        if not r1 @ r1 < r @ r:
+            break
+        z, r = z + step, r1
+    if not np.any(z):
+        return prob.x0, p, rest, prob.bases, runs
+    x = prob.x(z)
+    p = parameters_of(x, p, prob.lay)
+    try:
+        rest = rest_pose(p, rest)
+    except SimulationError as e:
+        log.info("rig fit: no rest pose at the polished estimate (%s)", e)
+    return x, p, rest, prob.bases_at(x), runs
 
 
 def _shifted(x: np.ndarray, sign: float) -> np.ndarray:
@@ -759,6 +747,10 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     if cost != minima_costs[0]:           # a restart settled lower: the estimate's problem and Jacobian
         last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
         J = last.jacobian(np.zeros(last.lay.size))
+        r = last.residual(np.zeros(last.lay.size))
+        nfev += last.lay.size + 2
+    x, p, rest, bases, runs = _polished(last, J, r, p, rest)
+    nfev += runs
     fisher, sandwich, bound = _covariance(last, J, noise_scale)
     # σ: the larger of the two per unknown, the correlations the Fisher information's
     sd = np.sqrt(np.maximum(np.diag(fisher), np.diag(sandwich)))
@@ -770,7 +762,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     level = _levels(unit, x)
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
-                  freqs, last.lay, nfev, settled, other_chi2)
+                  freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x))
 
 
 def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.ndarray:

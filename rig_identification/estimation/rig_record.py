@@ -87,6 +87,20 @@ class Record:
         return basis
 
 
+@dataclass(frozen=True)
+class ChannelSeries:
+    """Every channel over the fit's span as the fit compares it, for plots: t (m,) s from the
+    record's first sample; measured, predicted (m, n_out) the readings and the model's at the
+    estimate (channel units: N, rad/s, m/s², rad), low-passed to the fit's band and decimated,
+    the model's offset put on the measured one's (the fit projects each channel's offset out).
+    channels: (n_out,) names."""
+
+    t: np.ndarray
+    measured: np.ndarray
+    predicted: np.ndarray
+    channels: tuple[str, ...]
+
+
 #: The exciter's two measured force components as outputs of the rig model (exciter frame).
 FORCE_CHANNELS = ("exciter_x", "exciter_y")
 

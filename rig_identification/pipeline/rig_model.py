@@ -27,10 +27,11 @@ from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.rig_fit import RigFit, fit_rig
 from ..estimation.rig_record import Record, record
 from ..estimation.rig_unknowns import Prior
+from ..io.export import Axes, Expressed, express
 from ..io.recording import Recording
 from ..io.rig import Survey
 from ..io.verdict import KEYS
-from ..model.parametrisation import entry_scales, from_tensor, physically_consistent
+from ..model.parametrisation import entry_scales, from_tensor, physically_consistent, to_tensor
 from .offline import default_initial_guess, identify_recording
 
 log = logging.getLogger(__name__)
@@ -192,6 +193,43 @@ class RigModelResult:
         (:attr:`~rig_identification.estimation.rig_fit.RigFit.ambiguous`): the likelihood is
         flat where σ says it is sharp, so σ is not the error's size and no entry is an estimate."""
         return [KEYS[i] for i in self.fit.ambiguous]
+
+    @property
+    def summary(self) -> str:
+        """The verdict and what it means for the numbers, one line."""
+        v = self.verdict
+        if v == "ok":
+            return "ok — the model explains every channel at its noise level"
+        if v == "model_error":
+            return (f"model_error — {', '.join(self.poorly_fitted)} beyond {LEVEL_LIMIT}× their noise: the model "
+                    "misses something there; σ below is not calibrated")
+        if v == "not_identifiable":
+            why = (f"{', '.join(self.undetermined)} not determined to ±1 % at 95 %: the fit may sit in another "
+                   "minimum that explains the data as well, and the tensor's directions are coupled"
+                   if self.undetermined else
+                   f"restarted, the fit settled more than 3 σ off on {', '.join(self.ambiguous)} at a χ² only "
+                   f"{min(self.fit.other_chi2):.1f} above the estimate's: the likelihood is flat where σ says it is "
+                   "sharp")
+            return f"not_identifiable — {why}; no entry below is an estimate to use"
+        if v == "inconsistent":
+            return ("inconsistent — the static and the dynamic test's CG disagree (below); the numbers below are not "
+                    "an estimate to use")
+        return ("failed — the fit did not find the motion (a channel beyond 10× its noise, or a number not finite): "
+                "the numbers below are not an estimate")
+
+    @property
+    def withheld(self) -> tuple[str, ...]:
+        """The entries given as no estimate: all six where the verdict is ``not_identifiable`` or
+        ``failed`` (no entry is one then: :attr:`verdict`), else none."""
+        return KEYS if self.verdict in ("not_identifiable", "failed") else ()
+
+    def expressed(self, axes: str | Axes = "body") -> Expressed:
+        """The mass, the fitted CG (m) and the tensor about it in ``axes`` with σ
+        (:func:`~rig_identification.io.export.express`, the one way to other axes), the
+        :attr:`withheld` entries left out.  The σ hold the CG's and the mass's (fitted with it)."""
+        f = self.fit
+        return express(float(f.parameters.mass), f.parameters.cg, to_tensor(f.inertia), f.inertia_std,
+                       self.withheld, axes)
 
     @property
     def poorly_fitted(self) -> list[str]:

@@ -135,6 +135,44 @@ def residual_figure(path: Path, s: FitSeries, title: str) -> None:
     fig.savefig(path)
 
 
+#: The channel groups of :func:`channels_figure`: name prefix, label, unit, scale from SI.
+CHANNEL_GROUPS = (("tension:", "tensions", "N", 1.0), ("gyro_", "gyro", "mrad/s", 1e3),
+                  ("accel_", "accelerometer", "m/s²", 1.0), ("incl_", "inclinometer", "mrad", 1e3),
+                  ("exciter_", "exciter force", "N", 1.0))
+
+
+def channels_figure(path: Path, t: np.ndarray, measured: np.ndarray, predicted: np.ndarray,
+                    channels: tuple[str, ...], prefix: str, title: str) -> bool:
+    """Measured vs predicted for the channels whose names start with ``prefix`` (a group of
+    :data:`CHANNEL_GROUPS`), one row each: the whole span and 10 s in its middle.  t (m,) s;
+    measured, predicted (m, n_out) in SI units, ``channels`` (n_out,) their names.  Returns False
+    (nothing written) when no channel has the prefix."""
+    cols = [i for i, c in enumerate(channels) if c.startswith(prefix)]
+    if not cols:
+        return False
+    label, unit, scale = next((lab, u, k) for p, lab, u, k in CHANNEL_GROUPS if p == prefix)
+    fig = figure(11, 1.0 + 1.45 * len(cols))
+    ax = np.atleast_2d(fig.subplots(len(cols), 2, sharex="col", width_ratios=(2, 1), squeeze=False))
+    tt = t - t[0]
+    mid = tt[len(tt) // 2]
+    zoom = (tt >= mid - 5) & (tt <= mid + 5)
+    for r, i in enumerate(cols):
+        for c, m in ((0, slice(None)), (1, zoom)):
+            a = ax[r, c]
+            a.plot(tt[m], scale * measured[m, i], color="0.55", lw=1.8, label="measured (in the fit's band)")
+            a.plot(tt[m], scale * predicted[m, i], color="tab:red", lw=0.8, ls="--", label="the model at the estimate")
+            a.grid(alpha=0.3)
+        ax[r, 0].set_ylabel(f"{channels[i].removeprefix(prefix)}, {unit}", fontsize=8)
+    ax[0, 0].set_title("whole span")
+    ax[0, 1].set_title("10 s in the middle")
+    for c in (0, 1):
+        ax[-1, c].set_xlabel("time from the span's start, s")
+    fig.legend(*ax[0, 0].get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=9)
+    fig.suptitle(f"{title}: {label}, measured vs the rig model")
+    fig.savefig(path)
+    return True
+
+
 def offset_label(sym: str, c: float) -> str:
     """Axis label of a deviation from the estimate ``c``: "Ixx − 2897.1 kg·m²", "Ixy + 0.7 kg·m²"."""
     return f"{sym} − {c:.1f} kg·m²" if c >= 0 else f"{sym} + {-c:.1f} kg·m²"
@@ -289,4 +327,5 @@ def ellipsoid_figure(path: Path, mp: MassProperties, rig: Rig | None) -> bool:
     return True
 
 
-__all__ = ["fit_figure", "residual_figure", "ellipse_figure", "ellipsoid_figure", "edge_seconds", "figure"]
+__all__ = ["fit_figure", "residual_figure", "ellipse_figure", "ellipsoid_figure", "edge_seconds", "figure",
+           "channels_figure", "CHANNEL_GROUPS"]

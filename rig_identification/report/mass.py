@@ -119,20 +119,29 @@ def equimomental_semi_axes(principal: np.ndarray, mass: float) -> np.ndarray:
 def mass_properties(result: InertiaResult, vehicle: Vehicle | None = None) -> MassProperties:
     """The page's mass properties of ``result`` (see :class:`MassProperties`); ``vehicle``: where the
     vehicle lies in the body frame (rig.yaml ``body.vehicle``; None: not stated)."""
-    J = np.asarray(result.inertia, float)
-    gone = set(result.undetermined)
+    return mass_properties_of(result.mass, result.center_of_gravity, result.inertia, result.inertia_std,
+                              result.covariance, result.crb_std, result.undetermined, vehicle)
+
+
+def mass_properties_of(mass: float, cg: np.ndarray, J: np.ndarray, std: np.ndarray, covariance: np.ndarray,
+                       crb: np.ndarray | None, undetermined=(), vehicle: Vehicle | None = None) -> MassProperties:
+    """:class:`MassProperties` of ``mass`` kg, ``cg`` (3,) m and ``J`` (3,3) kg·m² about it (body
+    axes) with σ ``std`` (6,), ``covariance`` (6,6) and the bound ``crb`` (6,) or None (KEYS order);
+    ``undetermined`` entries (and those not finite) left out."""
+    J = np.asarray(J, float)
+    gone = set(undetermined)
     theta = from_tensor(J)
-    gone |= {k for k, v, s in zip(KEYS, theta, result.inertia_std) if not (finite(v) and finite(s))}
-    c = np.asarray(result.center_of_gravity, float)
-    Jo = parallel_axis(J, result.mass, c)
-    crb = None if result.crb_std is None else np.asarray(result.crb_std, float)
+    gone |= {k for k, v, s in zip(KEYS, theta, std) if not (finite(v) and finite(s))}
+    c = np.asarray(cg, float)
+    Jo = parallel_axis(J, mass, c)
+    crb = None if crb is None else np.asarray(crb, float)
     principal = pstd = axes = semi = None
     if not gone and np.all(np.isfinite(J)):
         principal, axes = np.linalg.eigh(0.5 * (J + J.T))
         axes = axes * np.where(axes[np.argmax(np.abs(axes), axis=0), range(3)] < 0, -1.0, 1.0)
-        pstd = principal_std(axes, np.asarray(result.covariance, float))
-        semi = equimomental_semi_axes(principal, result.mass)
-    return MassProperties(float(result.mass), c, SIGN * theta, np.asarray(result.inertia_std, float), crb,
+        pstd = principal_std(axes, np.asarray(covariance, float))
+        semi = equimomental_semi_axes(principal, mass)
+    return MassProperties(float(mass), c, SIGN * theta, np.asarray(std, float), crb,
                           SIGN * from_tensor(Jo), J, Jo, principal, pstd, axes, semi, frozenset(gone),
                           axes_for("body", vehicle))
 
@@ -267,8 +276,8 @@ def to_json(mp: MassProperties, errors: dict | None) -> dict:
     return out
 
 
-__all__ = ["SIGN", "ORDER", "SYMBOL", "convention", "MassProperties", "mass_properties", "parallel_axis",
-           "principal_std", "equimomental_semi_axes", "truth_rows", "moments_table", "matrices_html",
+__all__ = ["SIGN", "ORDER", "SYMBOL", "convention", "MassProperties", "mass_properties", "mass_properties_of",
+           "parallel_axis", "principal_std", "equimomental_semi_axes", "truth_rows", "moments_table", "matrices_html",
            "principal_html", "to_json"]
 
 
