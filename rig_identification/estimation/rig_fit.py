@@ -129,6 +129,9 @@ IMPULSE_TAIL = 1e-12
 #: A solve's Jacobian is made afresh where a tried step lowered the cost by less than this share
 #: of what the Jacobian's linear model predicted (:class:`~.reused_jacobian.ReusedJacobian`).
 REUSE_RATIO = 0.5
+#: A solve that stops within this many σ (tensor, CG, mass) of the point whose Jacobian it was
+#: given judges its stop with that Jacobian (:func:`_solve`): the model is linear that near.
+ANCHOR_SIGMA = 1.0
 #: A whole-record solve, its Jacobian reused, may run this many times :data:`MAX_ITERATIONS` model
 #: evaluations (each an iteration without a Jacobian costs one).
 REUSED_EVALUATIONS = 3
@@ -169,6 +172,7 @@ class _Problem:
         self.reach = int(max(tail.max() - mid, mid - tail.min())) + 1 if 0 < tail.min() and tail.max() < 2 * mid \
             else n
         self.weight = np.sqrt(self.step) / (rec.sigma * noise_scale * np.sqrt(rec.oversampling))
+        self.weight_scale = np.asarray(noise_scale, float).copy()
         self.rest = rest
         self.ref = rest_state(parameters_of(self.x0, like, self.lay), rest)
         self._rest_cache: dict[bytes, np.ndarray] = {}
@@ -530,7 +534,8 @@ def _base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) ->
 
 
 def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | None = None,
-           at_x0: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[OptimizeResult, int]:
+           at_x0: tuple[np.ndarray, np.ndarray] | None = None
+           ) -> tuple[OptimizeResult, int, np.ndarray | None]:
     """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``at_x0``: the Jacobian
     and the residual at 0 where known) (scipy's trust region; on the ``whole`` record the Jacobian reused where it
     predicts the steps: :class:`~.reused_jacobian.ReusedJacobian`), stopped where the Gauss–Newton
@@ -540,10 +545,16 @@ def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | N
     or by the tolerances; on the ``whole`` record (no stage after it) also where the Gauss–Newton
     step would move no tensor entry, CG coordinate or the mass by :data:`RESULT_STEP` of its σ
     (the trust region then crawls along a valley of the nuisance unknowns: the segments' states
-    and the force's correction).  Returns the solution and the model runs it took."""
+    and the force's correction).  A stop within :data:`ANCHOR_SIGMA` of the point ``at_x0`` gives
+    (a restart that came back to the estimate) is judged with that point's Jacobian, updated on
+    the way, not a fresh one.  Returns the solution, the model runs it took and the fresh
+    Jacobian at the solution where the stop made one (else None)."""
     jac = ReusedJacobian(prob.residual, prob.jacobian, prob.lay.size, whole, at_x0, REUSE_RATIO)
     costs: list[float] = []
     result = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
+    # where the solve ends within ANCHOR_SIGMA of the point whose Jacobian it was given, that one serves its stop
+    anchor_std = None if at_x0 is None else \
+        np.sqrt(np.diag(np.linalg.pinv(at_x0[0].T @ at_x0[0], rcond=1e-13, hermitian=True))[result])
 
     def done(f: np.ndarray) -> bool:
         g = jac.J.T @ f
@@ -560,7 +571,8 @@ def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | N
         stalled = len(costs) > STALL_ITERATIONS and costs[-1 - STALL_ITERATIONS] - costs[-1] < NEWTON_DECREMENT
         if jac.z is None or not np.array_equal(jac.z, z) or not (stalled or done(intermediate_result.fun)):
             return
-        if not jac.fresh:                   # a stale Jacobian's stall or decrement: checked with a fresh one
+        near = anchor_std is not None and bool(np.all(np.abs(z[result]) < ANCHOR_SIGMA * anchor_std))
+        if not (jac.fresh or near):         # a stale Jacobian's stall or decrement: checked with a fresh one
             jac.refresh(z)
             costs.clear()
             if not done(intermediate_result.fun):
@@ -573,7 +585,8 @@ def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | N
                         verbose=verbose, callback=converged)
     log.info("rig fit: %.0f s of record, %d iterations, %d Jacobians, cost %.6g", prob.n * prob.rec.dt, sol.nfev,
              jac.jacobians, sol.cost)
-    return sol, jac.runs
+    fresh = jac.fresh and jac.z is not None and np.array_equal(jac.z, sol.x)
+    return sol, jac.runs, jac.J if fresh else None
 
 
 def _moved_on(prob: _Problem, sol: OptimizeResult, p: RigParameters, rest: RestPose
@@ -611,6 +624,18 @@ def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: 
     log.info("rig fit: initial state over %.0f s, %d iterations, cost %.4g → %.4g", n * rec.dt, sol.nfev,
              0.5 * np.sum(residual(np.zeros(part.stop - part.start)) ** 2), sol.cost)
     return x
+
+
+def _jacobian_at_x0(prob: _Problem, solved: _Problem, J: np.ndarray | None, weights: np.ndarray
+                    ) -> tuple[np.ndarray, int]:
+    """``prob``'s Jacobian at its x0 and the model runs it took: that of the solve that ended
+    there (``J`` of ``solved`` at its solution, rescaled to ``prob``'s units: the same residual
+    of the same unknowns, only the units' scale differs) where it is fresh and the weights and
+    the integrator's step are ``prob``'s, else computed."""
+    if (J is not None and solved.lay.size == prob.lay.size and solved.n == prob.n
+            and solved.substeps == prob.substeps and np.array_equal(weights, prob.weight_scale)):
+        return J * (prob.scale / solved.scale)[None, :], 0
+    return prob.jacobian(np.zeros(prob.lay.size)), prob.lay.size + 1
 
 
 def _polished(prob: _Problem, J: np.ndarray, r: np.ndarray, p: RigParameters, rest: RestPose
@@ -664,7 +689,7 @@ def _restarted(prob: _Problem, at_x0: tuple[np.ndarray, np.ndarray], p: RigParam
     lay = prob.lay
     z0 = np.zeros(lay.size)
     z0[lay.inertia] = (tensor - prob.x0[lay.inertia]) / prob.scale[lay.inertia]
-    sol, runs = _solve(prob, verbose, True, z0, at_x0)
+    sol, runs, _ = _solve(prob, verbose, True, z0, at_x0)
     x1, p1, rest = _moved_on(prob, sol, p, rest)
     return x1, p1, rest, float(sol.cost), runs, prob.bases_at(x1)
 
@@ -702,22 +727,25 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
         if np.all(prob.residual(np.zeros(prob.lay.size)) == OUTSIDE):
             log.info("rig fit: the start %s leaves the physical region or diverges: the next", np.round(start, 1))
             continue
-        sol, runs = _solve(prob, verbose)
+        sol, runs, J_end = _solve(prob, verbose)
         nfev += runs
         if best is None or sol.cost < best[1].cost:
             best = (prob, sol, p0, rest0)
+            solved = (prob, J_end, noise_scale)
         if 2 * sol.cost <= START_LEVEL ** 2 * prob.noise_cost(prob.lay.size):
             break
     if best is None:                # every start outside: the first, which the verdict will call failed
         prob, p0, rest0 = problems[0]
-        best = (prob, _solve(prob, verbose)[0], p0, rest0)
+        sol, _, J_end = _solve(prob, verbose)
+        best, solved = (prob, sol, p0, rest0), (prob, J_end, noise_scale)
     prob, sol, p, rest = best
     x, p, rest = _moved_on(prob, sol, p, rest)
     bases = prob.bases_at(x)
     for i, (n, final) in enumerate(rounds):
         if i > 0:
             prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, bases)
-            sol, runs = _solve(prob, verbose, final)
+            sol, runs, J_end = _solve(prob, verbose, final)
+            solved = (prob, J_end, noise_scale)
             nfev += runs
             x, p, rest = _moved_on(prob, sol, p, rest)
             bases = prob.bases_at(x)
@@ -728,9 +756,9 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
                 break
             noise_scale = new_scale
     last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
-    J = last.jacobian(np.zeros(last.lay.size))
+    J, runs = _jacobian_at_x0(last, *solved)
     r = last.residual(np.zeros(last.lay.size))
-    nfev += last.lay.size + 2
+    nfev += runs + 1
     minima = [(0.5 * float(r @ r), x, p, rest, bases)]
     others = [t for t in np.asarray(restarts, float).reshape(-1, 6) if physically_consistent(to_tensor(t))]
     for tensor in [_shifted(x[lay.inertia], 1.0), _shifted(x[lay.inertia], -1.0)] + others:
