@@ -104,7 +104,7 @@ def test_cg_plan_says_what_it_is_doing_on_stderr():
     steps = [ln.split(" … ")[0] for ln in err.splitlines() if ln.startswith("rig-identify: ")]
     assert steps == [f"rig-identify: reading {BASE} (its sensor noise)",
                      "rig-identify: predicting the CG σ of the planned test",
-                     "rig-identify: searching dummy masses (50 kg) and positions for ±2.5 mm"], err
+                     "rig-identify: searching dummy masses (50 kg) and positions for ±2 mm"], err
     assert out.startswith("rig: ")
     assert "rig-identify: " not in run("cg-plan", BASE, "--masses", "50", "--position", "0.5", "0.5", "0.3", "-q")[2]
 

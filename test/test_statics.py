@@ -375,7 +375,7 @@ def test_cg_plan_cli(reference_pair):
     assert code == 0, stderr
     j = json.loads(stdout)
     assert j["planned"]["reaches_target"] and j["recommended"]["dummy_mass"] == 50.0
-    assert all(h <= 2.5e-3 for h in j["recommended"]["half_width_95"])
+    assert all(h <= 2.0e-3 for h in j["recommended"]["half_width_95"]) and j["target_half_width_95"] == 2.0e-3
 
 
 def test_scale_and_load_cells_disagree(reference_pair):
