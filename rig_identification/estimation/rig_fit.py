@@ -35,18 +35,16 @@ fraction of a percent apart, each as sharp as its Fisher information says, at ab
 χ²).  Within a segment a phase error stays small, and what the segments lose is that ambiguous
 information alone (the bound grows ≤ 1.5× on regular rigs, up to 25× on an entry of rigs whose
 long-record minima are ambiguous).  Each segment's start is held as its offset from the rest
-pose of the parameters tried: a change of geometry, CG or mass moves the rest pose by up to
-millimetres, which a start held fixed would turn into a swing the data do not show, and the fit
-would have to cancel the two through a linearisation (the 3-cable test rig's whole-record solve
-then crawled for 100 iterations).  The fit starts on the record's first :data:`STAGES`
-seconds, one segment each, then takes the whole record.  Its minimum is then checked by
+pose of the parameters tried (a changed geometry, CG or mass moves the rest pose, and a start
+held fixed would become a swing the data do not show).  The fit starts on the record's first
+:data:`STAGES` seconds, one segment each, then takes the whole record.  Its minimum is then checked by
 restarts on the whole record (:func:`_restarted`) from tensors :data:`RESTART_SHIFT` away on
 either side and from another estimator's tensor where the caller gives one: where one settles
 more than 3 σ off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is
 flat or multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`);
 the lowest of the minima is the estimate.  On the whole record the Jacobian is reused where it
-predicts the trust region's steps (:class:`~.reused_jacobian.ReusedJacobian`), and a restart starts from the
-estimate's.
+predicts the trust region's steps (:class:`~.reused_jacobian.ReusedJacobian`); a restart starts
+from the estimate's, and stops on it where it comes back.
 """
 from __future__ import annotations
 
@@ -419,8 +417,7 @@ class _Problem:
 
 def _levels(prob: _Problem, x: np.ndarray) -> np.ndarray:
     """Each channel's residual RMS in the band over its noise's (1: noise alone)."""
-    levels: np.ndarray = np.sqrt(np.mean(prob.data_residual(x) ** 2, axis=0)) / prob.unit
-    return levels
+    return np.asarray(np.sqrt(np.mean(prob.data_residual(x) ** 2, axis=0)) / prob.unit)
 
 
 # --- the fit -------------------------------------------------------------------------------------------
@@ -628,10 +625,8 @@ def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: 
 
 def _jacobian_at_x0(prob: _Problem, solved: _Problem, J: np.ndarray | None, weights: np.ndarray
                     ) -> tuple[np.ndarray, int]:
-    """``prob``'s Jacobian at its x0 and the model runs it took: that of the solve that ended
-    there (``J`` of ``solved`` at its solution, rescaled to ``prob``'s units: the same residual
-    of the same unknowns, only the units' scale differs) where it is fresh and the weights and
-    the integrator's step are ``prob``'s, else computed."""
+    """``prob``'s Jacobian at its x0 and the model runs it took: ``J``, fresh at the solution of
+    ``solved`` (weighted by ``weights``), in ``prob``'s units where the residual is the same, else computed."""
     if (J is not None and solved.lay.size == prob.lay.size and solved.n == prob.n
             and solved.substeps == prob.substeps and np.array_equal(weights, prob.weight_scale)):
         return J * (prob.scale / solved.scale)[None, :], 0

@@ -83,6 +83,14 @@ Services (std_srvs/Trigger; ``message`` is JSON):
                       streams disagree and which physics is missing (rig_identification.diagnosis.selection,
                       as ``rig-identify diagnose``); success=true: the diagnosis JSON; the improved
                       tensor (inertia_about_cg_after) is published on /rig/mass_properties
+  ~/identify_rig_model  the rig model of ``rig-identify inertia`` (every sensor an output: the
+                      tensions, gyro, accelerometer, inclinometer and exciter force; the mass, CG
+                      and tensor fitted together) on the last ``diagnose_seconds`` of the raw
+                      streams; the CG's prior the last ~/estimate_cg with its σ, else rig.yaml's;
+                      success=true: the JSON of ``rig-identify inertia --json``
+                      (RigModelResult.to_dict); under verdict ok the fitted mass, CG and tensor
+                      are published on /rig/mass_properties.  The rig day in service order:
+                      capture_cg_baseline, capture_cg_dummy, estimate_cg, identify_rig_model
   ~/status            buffered samples: {"imu": n, "wrench": n, "duration": s, "busy": bool, ...}
   (served by the helper node ``<name>_services`` under this node's name, see below)
 
@@ -125,6 +133,8 @@ from ..estimation.identification import identify_inertia
 from ..estimation.precision import TARGET as PRECISION_TARGET
 from ..io.recording import Recording
 from ..io.rig import DummyMass
+from ..model.parametrisation import to_tensor
+from ..pipeline.rig_model import fit_whole_recording
 from ..pipeline.stream_fit import StreamBuffer, identify_window, validate_stream_fit
 from ..statics.capture import CgSession
 from .codec import imu_layout, odometry_layout, vector_layout, wrench_layout
@@ -185,6 +195,7 @@ class IdentifierNode(Node):
         self.diag_buffer = CgSession(rig, float(self.get_parameter("diagnose_seconds").value))
         self.last_inertia = None
         self.last_cg = rig.center_of_gravity
+        self.last_cg_std: np.ndarray | None = None      # the σ of a CG from ~/estimate_cg
         self.lock = threading.RLock()
         self.busy = threading.Lock()
         self.t_first_imu: float | None = None
@@ -223,7 +234,8 @@ class IdentifierNode(Node):
         log_interface(self, [inp.endpoint() for inp, _ in self.inputs],
                              [Endpoint(self.pub, f"frame {frames.body}, latched")], self.service_node.trigger_services)
         self.get_logger().info(f"ready: rig {rig.source}; services {self.get_fully_qualified_name()}/"
-                               "identify_inertia, diagnose, capture_cg_baseline, capture_cg_dummy, estimate_cg, status")
+                               "identify_inertia, identify_rig_model, diagnose, capture_cg_baseline, capture_cg_dummy, "
+                               "estimate_cg, status")
 
     def close(self) -> None:
         """Stop and destroy the service node (called by :func:`~.runtime.run` at shutdown)."""
@@ -295,7 +307,7 @@ class IdentifierNode(Node):
         dummy = None
         if dm is not None or dp is not None:
             try:
-                dummy = DummyMass(float(dm), [float(x) for x in dp])
+                dummy = DummyMass(float(dm), np.array([float(x) for x in dp]))
                 ok = dummy.mass > 0 and len(dummy.position) == 3
             except (TypeError, ValueError):
                 ok = False
@@ -319,6 +331,7 @@ class IdentifierNode(Node):
         result = self.cg_session.estimate()
         d = result.to_dict()
         self.last_cg = result.center_of_gravity
+        self.last_cg_std = np.asarray(result.center_of_gravity_std, float)
         self._publish_mass_properties(None, result.mass, result.center_of_gravity, self.last_inertia)
         c = result.center_of_gravity
         self.get_logger().info(f"centre of gravity: {c[0]:.4f}, {c[1]:.4f}, {c[2]:.4f} m (body)")
@@ -341,6 +354,31 @@ class IdentifierNode(Node):
         names = ", ".join(e["name"] for e in d.effects) or "no significant mismatch"
         self.get_logger().info(f"diagnose: {names}")
         return d.to_dict()
+
+    def identify_rig_model(self) -> dict:
+        """``~/identify_rig_model`` (runs in a service thread): the rig model fitted to the
+        buffered raw streams (:func:`~rig_identification.pipeline.rig_model.fit_whole_recording`,
+        as ``rig-identify inertia``), the CG's prior the last ~/estimate_cg (its σ) where there
+        was one, else rig.yaml's.  Returns the result's JSON; publishes the fitted mass, CG and
+        tensor under verdict ok.  Raises ValueError (RigFitError, RecordingError, RigError) with
+        a clear message."""
+        cg, cg_std, source = (None, None, None) if self.last_cg_std is None else \
+            (self.last_cg, self.last_cg_std, f"{self.get_fully_qualified_name()}/estimate_cg")
+        if cg is None and self.rig.center_of_gravity is None:
+            raise ValueError(f"{self.rig.source} has no body.center_of_gravity: run the static experiment first "
+                             "(capture_cg_baseline, capture_cg_dummy, estimate_cg)")
+        with self.lock:
+            data = self.diag_buffer.sensor_data()
+        rec = Recording(self.rig, data, None, Path(f"{self.get_fully_qualified_name()} buffer"))
+        res = fit_whole_recording(rec, cg, cg_std, source)
+        f = res.fit
+        if res.verdict == "ok":
+            J = to_tensor(f.inertia)
+            self.last_inertia = J
+            self._publish_mass_properties(None, float(f.parameters.mass), f.parameters.cg, J)
+        self.get_logger().info(f"rig model: verdict {res.verdict}; Ixx {f.inertia[0]:.1f} Iyy {f.inertia[3]:.1f} "
+                               f"Izz {f.inertia[5]:.1f} kg m^2 over {res.duration_s:.1f} s")
+        return res.to_dict()
 
     def _publish_mass_properties(self, stamp: float | None, mass: float, cg, J) -> None:
         """/rig/mass_properties (InertiaStamped, frame body): mass kg, CG m, tensor entries

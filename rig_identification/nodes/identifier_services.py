@@ -23,8 +23,8 @@ from .messages import to_json
 class IdentifierServices(Node):
     """The identifier's services, on their own node and executor thread (see the module docstring).
 
-    owner: the identifier node, whose ``identify``, ``estimate_cg``, ``capture_cg``, ``diagnose``
-    and ``status`` the services call, one at a time (``owner.busy``, a lock)."""
+    owner: the identifier node, whose ``identify``, ``identify_rig_model``, ``estimate_cg``,
+    ``capture_cg``, ``diagnose`` and ``status`` the services call, one at a time (``owner.busy``, a lock)."""
 
     def __init__(self, owner: Node):
         super().__init__(f"{owner.get_name()}_services", namespace=owner.get_namespace(),
@@ -41,7 +41,9 @@ class IdentifierServices(Node):
             srv("capture_cg_dummy",
                 lambda rq, rs: self._guarded_call(rs, lambda: owner.capture_cg("dummy"), "capture_cg_dummy")),
             srv("status", self.on_status),
-            srv("diagnose", lambda rq, rs: self._guarded_call(rs, owner.diagnose, "diagnose"))]
+            srv("diagnose", lambda rq, rs: self._guarded_call(rs, owner.diagnose, "diagnose")),
+            srv("identify_rig_model",
+                lambda rq, rs: self._guarded_call(rs, owner.identify_rig_model, "identify_rig_model"))]
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
 
