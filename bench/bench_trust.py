@@ -1,11 +1,13 @@
 """Trust benchmark: does `rig-identify inertia` ever print a wrong number without saying so?
 
-Usage: python bench/bench_trust.py [--seeds N] [--procs P] [--duration S] [--only ROW,ROW] [--no-diagnose]
+Usage: python bench/bench_trust.py [--seeds N] [--procs P] [--duration S] [--only ROW,ROW] [--model rig|pem]
+                                   [--no-diagnose]
 
 Builds, with the package's own simulator (:mod:`rig_identification.design.scenarios`: random NHTSA
 vehicles in carrying frames, the body frame off the CG, random exciter placement, realistic
 noise, 200 Hz), N random rigs (default 2) for each row below, runs the whole inertia command
-on each (identification, uncertainty, validation and — unless --no-diagnose — diagnosis) and
+on each (``--model rig``, the default: the rig model fitted to every sensor and its verdict;
+``--model pem``: identification, uncertainty, validation and — unless --no-diagnose — diagnosis) and
 prints per recording: verdict, largest |error|/σ and error % of the entries it reports,
 named effects, what stayed unexplained; then the acceptance counts of the "never silently
 wrong" issue:
@@ -63,18 +65,49 @@ ROWS = {
 }
 
 
+def _rig_model_row(row: dict, rec, sim, t0: float) -> dict:
+    """The row of the rig model (``rig-identify inertia``'s default): its verdict, the channels
+    it does not fit (``failed``), the entries it gives; it names no effect."""
+    from types import SimpleNamespace
+
+    from scoring import score_entries, worst
+
+    from rig_identification.model.parametrisation import to_tensor
+    from rig_identification.pipeline.rig_model import fit_whole_recording
+    try:
+        res = fit_whole_recording(rec)
+    except ValueError as e:                     # a user error: refused, with its message
+        row.update(verdict="refused", error=str(e), seconds=time.perf_counter() - t0)
+        return row
+    f = res.fit
+    given = SimpleNamespace(inertia=to_tensor(f.inertia), inertia_std=f.inertia_std, undetermined=res.withheld)
+    entries = score_entries(given, sim.truth["inertia_about_cg"])
+    max_pct, max_z = worst(entries)
+    row.update(verdict=res.verdict, failed=res.poorly_fitted, undetermined=list(res.undetermined + res.ambiguous),
+               finite=all(e["finite"] for e in entries.values()), max_err_pct=max_pct, max_err_sigma=max_z,
+               z=[e["z"] for e in entries.values() if e["finite"]], named=[], classes=[], unexplained=[],
+               truth_effects=[e["name"] for e in sim.truth.get("effects", [])],
+               levels={c: float(v) for c, v in zip(f.channels, f.residual_level)},
+               seconds=time.perf_counter() - t0)
+    return json.loads(json.dumps(row, default=float))
+
+
 def _job(args):
-    name, seed, duration, diagnose = args
+    name, seed, duration, diagnose, model = args
     import warnings
     warnings.simplefilter("ignore")
+    from dataclasses import replace
+
+    from bench_crb import bound, channel_noise, truth_parameters
     from scoring import predicted_rel_std, score_entries, worst
 
     from rig_identification.design.scenarios import simulate_random
     from rig_identification.estimation.identification import identify_inertia
+    from rig_identification.estimation.rig_record import record
     from rig_identification.estimation.validation import REL_STD_LIMIT
     from rig_identification.io.recording import Recording
     from rig_identification.io.verdict import KEYS
-    from rig_identification.model.parametrisation import from_tensor, to_tensor
+    from rig_identification.model.parametrisation import entry_scales, from_tensor, to_tensor
     from rig_identification.pipeline.offline import identify_recording, with_diagnosis
     from rig_identification.pipeline.prepare import prepare_recording
     cables, layout, effects, clean, *rest = ROWS[name]
@@ -100,6 +133,19 @@ def _job(args):
     except Exception as e:   # noqa: BLE001 — the prediction is the bench's aid, not the tool's result
         row["identifiable_truth"] = None
         row["prediction_error"] = str(e)
+    if model == "rig":
+        row["vehicle"] = d["description"]
+        # determined: every entry's Cramér–Rao bound (the rig model's, at the truth) within ±1 % at 95 %
+        try:
+            rc = record(sim.sensors, sim.rig)
+            crb = bound(replace(rc, sigma=channel_noise(rc.channels)), sim.rig, sim.truth)
+            J, _ = truth_parameters(sim.rig, sim.truth)
+            row["crb_percent"] = list(100 * crb / entry_scales(J))
+            row["identifiable_truth"] = bool(1.96 * np.max(crb / entry_scales(J)) <= 0.01)
+        except Exception as e:   # noqa: BLE001 — the bound is the bench's aid, not the tool's result
+            row["identifiable_truth"] = None
+            row["prediction_error"] = str(e)
+        return _rig_model_row(row, rec, sim, t0)
     try:
         res = identify_recording(rec)
         if diagnose:
@@ -131,7 +177,10 @@ def main(argv=None) -> int:
     ap.add_argument("--procs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--duration", type=float, default=90.0, help="seconds per recording (default 90)")
     ap.add_argument("--only", help="comma-separated rows (default all): " + ", ".join(ROWS))
-    ap.add_argument("--no-diagnose", action="store_true", help="the rigid-body fit and its verdict only")
+    ap.add_argument("--no-diagnose", action="store_true", help="--model pem: the rigid-body fit and its verdict only")
+    ap.add_argument("--model", choices=("rig", "pem"), default="rig",
+                    help="rig: the rig model, rig-identify inertia's default (names no effect); pem: the gyro-only "
+                         "fit with its diagnosis (--model pem)")
     ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--json", metavar="FILE", help="also write the rows to FILE")
     a = ap.parse_args(argv)
@@ -139,7 +188,7 @@ def main(argv=None) -> int:
     bad = set(names) - set(ROWS)
     if bad:
         ap.error(f"unknown rows {sorted(bad)}")
-    jobs = [(n, 7000 + 100 * i + a.first_seed + k, a.duration, not a.no_diagnose)
+    jobs = [(n, 7000 + 100 * i + a.first_seed + k, a.duration, not a.no_diagnose, a.model)
             for i, n in enumerate(ROWS) if n in names for k in range(a.seeds)]
     t0 = time.perf_counter()
     rows = run_jobs(_job, jobs, a.procs, a.json, lambda r: f"{r['row']} seed {r['seed']}")
