@@ -49,33 +49,35 @@ from the estimate's, and stops on it where it comes back.
 from __future__ import annotations
 
 import logging
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
 from scipy.optimize import OptimizeResult, least_squares
-from scipy.signal import butter, sosfiltfilt
-from scipy.spatial.transform import Rotation
 
 from ..io.rig import Rig
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
-from ..model.rig_ode import Drive, drive, moved_state, rest_state, simulate, substeps_for
 from .reused_jacobian import ReusedJacobian
+from .rig_problem import (
+    FTOL,
+    GTOL,
+    JACOBIAN_STEP,
+    MAX_ITERATIONS,
+    OUTSIDE,
+    XTOL,
+    RigProblem,
+    levels,
+)
 from .rig_record import ChannelSeries, Record
 from .rig_start import start_parameters
-from .rig_unknowns import Layout, Prior, parameters_of, priors, relayout, unit_scale, vector
+from .rig_unknowns import Layout, Prior, parameters_of, vector
 
 log = logging.getLogger(__name__)
 
 #: The record's lengths, s, stage by stage before the whole record (module docstring).
 STAGES = (5.0, 15.0)
-
-#: The decimated residual's rate over the fit's band edge (:func:`~.rig_record.band_edge`).
-DECIMATED_RATE = 3.0
 #: Re-weighting rounds: each channel's noise level replaced by its residual's where the
 #: residual is larger (a channel the model does not fit at its noise level is leaned on less).
 REWEIGHT_ROUNDS = 2
@@ -84,12 +86,6 @@ REWEIGHT_ROUNDS = 2
 REWEIGHT_LIMIT = 10.0
 #: Blocks of the record whose scores make the sandwich covariance's meat (:func:`_covariance`).
 SANDWICH_BLOCKS = 12
-#: Threads that compute the Jacobian's columns (the machine's cores, at most 4).
-THREADS = max(1, min(4, os.cpu_count() or 1))
-#: Stopping rules of each least-squares solve (scipy.optimize.least_squares): its iterations
-#: at most, and the tolerances on the step, the cost's change and the gradient.
-MAX_ITERATIONS = 100
-XTOL, FTOL, GTOL = 1e-10, 1e-10, 1e-10
 #: A solve stops where the Gauss–Newton step would lower the cost (½ χ²) by less than this: the
 #: estimate is then within sqrt(2 · 0.01) = 0.14 σ of the minimum in every direction.
 NEWTON_DECREMENT = 0.01
@@ -102,8 +98,6 @@ STALL_ITERATIONS = 5
 RESULT_STEP = 0.25
 #: Gauss–Newton steps with the estimate's Jacobian that finish the fit (:func:`_polished`), at most.
 POLISH_STEPS = 4
-#: The residual's every row outside the physical region or where the model diverges.
-OUTSIDE = 1e6
 #: s over which the initial state is fitted alone before each start's first stage (:func:`_settled`).
 INITIAL_SPAN = 3.0
 #: A start that fits the first stage within this RMS over the noise (the priors' rows counted)
@@ -113,17 +107,12 @@ START_LEVEL = 1.5
 #: share of its scale (:func:`~rig_identification.model.parametrisation.entry_scales`), the
 #: signs alternating entry by entry, once each way.
 RESTART_SHIFT = 0.01
+#: The restarts along the tensor's most weakly determined direction go this many σ either way
+#: (:func:`_along_weakest`).
+WEAK_RESTART_SIGMA = 10.0
 #: 95 % quantile of χ² with 6 degrees of freedom: a second minimum whose χ² exceeds the fit's by
 #: less lies inside the tensor's 95 % likelihood-ratio region.
 CHI2_95_6 = 12.592
-#: Forward-difference step of the Jacobian in the unknowns' units of :func:`unit_scale`: at 1e-2 its
-#: error (half the step times the curvature) turned the small gradient along the mass–moments
-#: valley and the trust region stopped 9 σ short (case-16 rig); the model is smooth and
-#: deterministic, so rounding stays ~1e-8 of a column at 1e-4.
-JACOBIAN_STEP = 1e-4
-#: A segment's change is filtered over the samples where the filter's response to an impulse
-#: exceeds this share of its peak (:meth:`_Problem.segment_change`).
-IMPULSE_TAIL = 1e-12
 #: A solve's Jacobian is made afresh where a tried step lowered the cost by less than this share
 #: of what the Jacobian's linear model predicted (:class:`~.reused_jacobian.ReusedJacobian`).
 REUSE_RATIO = 0.5
@@ -133,292 +122,6 @@ ANCHOR_SIGMA = 1.0
 #: A whole-record solve, its Jacobian reused, may run this many times :data:`MAX_ITERATIONS` model
 #: evaluations (each an iteration without a Jacobian costs one).
 REUSED_EVALUATIONS = 3
-
-
-# --- the model's residual ------------------------------------------------------------------------------
-
-
-class _Problem:
-    """The weighted residual of ``n`` samples from the record's ``start`` as a function of the
-    scaled unknowns z (x = x0 + scale z): the span cut into segments (:data:`~.rig_unknowns.SEGMENT`), each run
-    from its own state, ``bases[k]`` moved by segment k's initial-state unknowns.  ``bases``:
-    (k, 13) the segments' states as a previous problem had them (:meth:`bases_at`): with k this
-    span's segment count and ``x0`` of its size, taken as they are; otherwise the first is taken
-    and the later ones are the model's continuation at ``x0`` from it; None: the first is the
-    model's run from rest through the spin-up (:func:`_base_state`).  ``x0`` of any segment
-    count (:func:`relayout`)."""
-
-    def __init__(self, rec: Record, like: RigParameters, lay: Layout, x0: np.ndarray, prior: Prior,
-                 noise_scale: np.ndarray, n: int, rest: RestPose, bases: np.ndarray | None = None):
-        self.rec, self.like, self.n = rec, like, n
-        self.lay = lay.for_span(n, rec.dt)
-        self.x0 = relayout(x0, self.lay)
-        self.scale = unit_scale(self.x0, self.lay, prior)
-        self.centre, self.prior_std = priors(prior, self.lay, self.x0)
-        self.sos = butter(4, rec.band, fs=1.0 / rec.dt, output="sos")
-        self.step = max(1, int(1.0 / (DECIMATED_RATE * rec.band * rec.dt)))
-        impulse = np.zeros(4001)
-        mid = len(impulse) // 2
-        impulse[mid] = 1.0
-        # a decimated sample stands for the `step` grid samples around it (weighting it as an
-        # independent sample of the filtered noise overstates an in-band signal's information
-        # ~1.8×); `unit`: the RMS of a weighted residual of noise alone.
-        response = sosfiltfilt(self.sos, impulse)
-        self.unit = float(np.sqrt(self.step * np.sum(response ** 2)))
-        # samples beyond which the filter's response to a change is below rounding (:meth:`segment_change`)
-        tail = np.flatnonzero(np.abs(response) > IMPULSE_TAIL * np.abs(response).max())
-        self.reach = int(max(tail.max() - mid, mid - tail.min())) + 1 if 0 < tail.min() and tail.max() < 2 * mid \
-            else n
-        self.weight = np.sqrt(self.step) / (rec.sigma * noise_scale * np.sqrt(rec.oversampling))
-        self.weight_scale = np.asarray(noise_scale, float).copy()
-        self.rest = rest
-        self.ref = rest_state(parameters_of(self.x0, like, self.lay), rest)
-        self._rest_cache: dict[bytes, np.ndarray] = {}
-        self._drives: dict[tuple[int, int, bytes], Drive] = {}
-        lin = linearise(parameters_of(self.x0, like, self.lay), rest)
-        self.substeps = substeps_for(2 * np.pi * natural_frequencies(lin).max(), rec.dt)
-        self.basis = rec.force_basis()[:n] if self.lay.n_force else np.zeros((n, 0))
-        self.edges = np.linspace(0, n, self.lay.n_segments + 1).round().astype(int)
-        if bases is not None and len(bases) == self.lay.n_segments and len(x0) == self.lay.size:
-            self.bases = bases
-        else:
-            self.x0 = self.x0.copy()
-            self.x0[self.lay.segments] = 0.0
-            start = parameters_of(self.x0, like, self.lay)
-            first = _base_state(rec, start, rest, self.substeps) if bases is None else bases[0]
-            self.bases = self._continued(first)
-            self._settle_segments()
-
-    def _continued(self, base: np.ndarray) -> np.ndarray:
-        """(n_segments, 13) each segment's state on the model's run at x0 from ``base`` (moved by
-        the first segment's unknowns), the later segments' unknowns zero."""
-        bases = [np.asarray(base, float)]
-        if self.lay.n_segments == 1:
-            return np.array(bases)
-        x = self.x0
-        p = parameters_of(x, self.like, self.lay)
-        u = self.force(x)
-        y = moved_state(bases[0], x[self.lay.initial])
-        for a, b in zip(self.edges[1:-1], self.edges[2:]):
-            y = simulate(p, y, self.drive(x, u, self.edges[len(bases) - 1], a + 1))[1]
-            bases.append(y)
-        return np.array(bases)
-
-    def _settle_segments(self) -> None:
-        """Each later segment's initial state fitted alone to its own samples (the parameters
-        at x0): the model's continuation carries the phase error of x0's mode frequencies into
-        every later segment, and the response is nearly linear in the state (Ljung 1999, §7.3)."""
-        u = self.force(self.x0)
-        a = self.rec.start
-
-        def settle(k: int) -> np.ndarray:
-            b, c = self.edges[k], self.edges[k + 1]
-            part = self.lay.state(k)
-
-            def residual(zk: np.ndarray) -> np.ndarray:
-                x = self.x0.copy()
-                x[part] += self.scale[part] * zk
-                try:
-                    e = self.rec.y[a + b:a + c] - self.segment_outputs(x, k, u)
-                except (SimulationError, ValueError, np.linalg.LinAlgError):
-                    return np.full((len(range(0, c - b, self.step)) * len(self.rec.channels)), OUTSIDE)
-                return self.weighted(e).ravel()
-
-            sol = least_squares(residual, np.zeros(12), method="trf", diff_step=JACOBIAN_STEP, xtol=XTOL, ftol=FTOL,
-                                gtol=GTOL, max_nfev=MAX_ITERATIONS)
-            move: np.ndarray = self.scale[part] * sol.x
-            return move
-
-        with ThreadPoolExecutor(THREADS) as pool:     # each segment's state alone: independent solves
-            moves = list(pool.map(settle, range(1, self.lay.n_segments)))
-        for k, move in enumerate(moves, 1):
-            self.x0[self.lay.state(k)] += move
-
-    def x(self, z: np.ndarray) -> np.ndarray:
-        x = self.x0.copy()
-        x[:len(z)] += self.scale[:len(z)] * z
-        return x
-
-    def force(self, x: np.ndarray) -> np.ndarray:
-        """(n, 2) N the exciter force over the span: the denoised one times (1 + a(t)) e^{iφ(t)},
-        a and φ the B-splines of the unknowns ``force`` (:class:`Layout`)."""
-        a = self.rec.start
-        u = self.rec.u[a:a + self.n]
-        if not self.lay.n_force:
-            return u
-        c = x[self.lay.force]
-        k = self.lay.n_force // 2
-        z = (u[:, 0] + 1j * u[:, 1]) * (1.0 + self.basis @ c[:k]) * np.exp(1j * (self.basis @ c[k:]))
-        return np.column_stack([z.real, z.imag])
-
-    def drive(self, x: np.ndarray, u: np.ndarray, a: int, b: int) -> Drive:
-        """The force ``u`` (:meth:`force` at ``x``) over the span's samples a to b as the model
-        takes it, kept while the force's unknowns stay (a Jacobian's other columns)."""
-        key = (a, b, x[self.lay.force].tobytes())
-        d = self._drives.get(key)
-        if d is None:
-            if len(self._drives) > 4 * self.lay.n_segments:
-                self._drives.clear()
-            d = self._drives[key] = drive(u[a:b], self.rec.dt, self.substeps)
-        return d
-
-    def segment_outputs(self, x: np.ndarray, k: int, u: np.ndarray | None = None) -> np.ndarray:
-        """(samples, n_out) the model's readings over segment ``k`` (the force's last where it is
-        an output); ``u``: the span's force at x (:meth:`force`) where already known."""
-        p = parameters_of(x, self.like, self.lay)
-        u = self.force(x) if u is None else u
-        a, b = self.edges[k], self.edges[k + 1]
-        y0 = moved_state(self._rebased(p, self.bases[k]), x[self.lay.state(k)])
-        out = simulate(p, y0, self.drive(x, u, a, b))[0]
-        return np.column_stack([out, u[a:b]]) if self.lay.n_force else out
-
-    def _rebased(self, p: RigParameters, base: np.ndarray) -> np.ndarray:
-        """``base`` (13,) moved with the rest pose: its offset from the rest state at x0 put on the
-        rest state of ``p`` (a shifted geometry or CG moves the start with it, so the fit need not
-        cancel the two against each other: each channel's offset is projected out, and the rest
-        pose itself is not what the data see).  Raises
-        :class:`~rig_identification.model.dynamics.SimulationError` where ``p`` has no rest pose."""
-        key = p.ceiling.tobytes() + p.body.tobytes() + p.length.tobytes() + p.cg.tobytes() + p.stiffness.tobytes() \
-            + np.array([p.mass]).tobytes()
-        ref = self._rest_cache.get(key)
-        if ref is None:
-            ref = rest_state(p, rest_pose(p, self.rest))
-            self._rest_cache = {key: ref}
-        R0 = Rotation.from_quat(self.ref[[4, 5, 6, 3]])
-        R1 = Rotation.from_quat(ref[[4, 5, 6, 3]])
-        Rb = Rotation.from_quat(base[[4, 5, 6, 3]])
-        q = (R1 * R0.inv() * Rb).as_quat()
-        return np.concatenate([base[:3] - self.ref[:3] + ref[:3], [q[3], q[0], q[1], q[2]], base[7:]])
-
-    def bases_at(self, x: np.ndarray) -> np.ndarray:
-        """(n_segments, 13) the segments' states before their unknowns, moved with the rest pose
-        to the parameters of ``x``: what a problem made at ``x`` takes as ``bases``."""
-        p = parameters_of(x, self.like, self.lay)
-        return np.array([self._rebased(p, b) for b in self.bases])
-
-    def outputs(self, x: np.ndarray) -> list[np.ndarray]:
-        """The model's readings over the span, segment by segment ((samples, n_out) each)."""
-        u = self.force(x)
-        return [self.segment_outputs(x, k, u) for k in range(self.lay.n_segments)]
-
-    def data_residual(self, x: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:
-        """(m, n_out) weighted, low-passed and decimated to the band, each channel's offset
-        projected out; ``outputs``: :meth:`outputs` at x where already known."""
-        a = self.rec.start
-        return self.weighted(self.rec.y[a:a + self.n] - np.concatenate(self.outputs(x) if outputs is None else outputs))
-
-    def fitted(self, x: np.ndarray) -> ChannelSeries:
-        """The measured and the model's readings at ``x`` over the span as the fit compares them
-        (low-passed and decimated to the band), each channel's offset put on the measured one's."""
-        a = self.rec.start
-        measured = self.rec.y[a:a + self.n]
-        predicted = np.concatenate(self.outputs(x))
-        predicted = predicted - predicted.mean(axis=0) + measured.mean(axis=0)
-        low = [sosfiltfilt(self.sos, v - v.mean(axis=0), axis=0)[::self.step] + v.mean(axis=0)
-               for v in (measured, predicted)]
-        t = self.rec.dt * np.arange(a, a + self.n)[::self.step]
-        return ChannelSeries(t, low[0], low[1], self.rec.channels)
-
-    def weighted(self, e: np.ndarray) -> np.ndarray:
-        """(m, n_out) the data-minus-model ``e`` (samples, n_out) with each channel's offset
-        projected out, low-passed, decimated to the band and weighted by its noise."""
-        filtered: np.ndarray = sosfiltfilt(self.sos, e - e.mean(axis=0), axis=0)[::self.step] * self.weight
-        return filtered
-
-    def residual(self, z: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:
-        """The weighted residual (data rows, then the priors' rows); outside the physical
-        region (a tensor no body has, a negative damping time) or where the model's motion
-        diverges, a constant large residual, which the trust region steps back from."""
-        x = self.x(z)
-        outside = np.full(self.size(len(z)), OUTSIDE)
-        if not physically_consistent(to_tensor(x[self.lay.inertia])) or x[self.lay.damping] < 0:
-            return outside
-        try:
-            r = self.data_residual(x, outputs).ravel()
-        except (SimulationError, ValueError, np.linalg.LinAlgError):
-            return outside
-        if not np.all(np.isfinite(r)):
-            return outside
-        return np.concatenate([r, self.prior_rows(z)])
-
-    def prior_rows(self, z: np.ndarray) -> np.ndarray:
-        """The priors' rows of :meth:`residual`: each unknown with a prior off its centre in its σ."""
-        x = self.x(z)
-        std = self.prior_std[:len(z)]
-        finite = np.isfinite(std)
-        rows: np.ndarray = (x[:len(z)][finite] - self.centre[:len(z)][finite]) / std[finite]
-        return rows
-
-    def segment_change(self, change: np.ndarray, k: int) -> np.ndarray:
-        """(data_rows,) the change of :meth:`residual`'s data rows when the model's readings over
-        segment ``k`` change by ``change`` (samples, n_out) and nowhere else: :meth:`weighted` is
-        linear, so the change is the weighted change filtered over the segment and the filter's
-        reach either side (exact to :data:`IMPULSE_TAIL`), less its mean over the span."""
-        b, c = self.edges[k], self.edges[k + 1]
-        lo = max(0, b - self.reach) // self.step * self.step
-        hi = min(self.n, c + self.reach)
-        d = np.zeros((hi - lo, change.shape[1]))
-        d[b - lo:c - lo] = change
-        rows = np.tile(change.sum(axis=0) / self.n, (len(range(0, self.n, self.step)), 1))
-        first = lo // self.step
-        local = sosfiltfilt(self.sos, d, axis=0)[::self.step]
-        rows[first:first + len(local)] -= local
-        out: np.ndarray = (rows * self.weight).ravel()
-        return out
-
-    @property
-    def data_rows(self) -> int:
-        return len(range(0, self.n, self.step)) * len(self.rec.channels)
-
-    def noise_cost(self, nz: int) -> float:
-        """The sum of squares of :meth:`residual` (``nz`` unknowns) expected of noise alone."""
-        return self.data_rows * self.unit ** 2 + int(np.isfinite(self.prior_std[:nz]).sum())
-
-    def size(self, nz: int) -> int:
-        return self.data_rows + int(np.isfinite(self.prior_std[:nz]).sum())
-
-    def jacobian(self, z: np.ndarray) -> np.ndarray:
-        """Forward differences (size, len(z)) of :meth:`residual` (step :data:`JACOBIAN_STEP`;
-        backward where the step leaves the physical region, a zero column where both do),
-        the columns on :data:`THREADS` threads (the compiled model releases the GIL); a segment's
-        initial state moves only that segment's run, which alone is run again for its columns."""
-        x = self.x(z)
-        try:
-            outs = self.outputs(x)
-        except (SimulationError, ValueError, np.linalg.LinAlgError):
-            outs = None
-        base = self.residual(z, outs)
-        owner = {i: k for k in range(self.lay.n_segments) for i in range(*self.lay.state(k).indices(self.lay.size))}
-        u = self.force(x)
-
-        def column(i: int) -> np.ndarray:
-            e = z.copy()
-            e[i] += JACOBIAN_STEP
-            if outs is not None and i in owner and i < len(z) and base[0] != OUTSIDE:
-                k = owner[i]
-                try:
-                    change = self.segment_outputs(self.x(e), k, u) - outs[k]
-                except (SimulationError, ValueError, np.linalg.LinAlgError):
-                    pass
-                else:
-                    return np.concatenate([self.segment_change(change, k),
-                                           self.prior_rows(e) - self.prior_rows(z)]) / JACOBIAN_STEP
-            moved = self.residual(e)
-            if moved[0] == OUTSIDE and base[0] != OUTSIDE:    # the step left the physical region: step back
-                e[i] -= 2 * JACOBIAN_STEP
-                back = self.residual(e)
-                moved = base if back[0] == OUTSIDE else 2 * base - back    # neither: no information
-            col: np.ndarray = (moved - base) / JACOBIAN_STEP
-            return col
-
-        with ThreadPoolExecutor(THREADS) as pool:
-            return np.column_stack(list(pool.map(column, range(len(z)))))
-
-
-def _levels(prob: _Problem, x: np.ndarray) -> np.ndarray:
-    """Each channel's residual RMS in the band over its noise's (1: noise alone)."""
-    return np.asarray(np.sqrt(np.mean(prob.data_residual(x) ** 2, axis=0)) / prob.unit)
-
 
 # --- the fit -------------------------------------------------------------------------------------------
 
@@ -442,7 +145,8 @@ class RigFit:
     other_minima: (k, 6) kg·m² the tensors where the other whole-record fits settled (the staged
     fit, its two restarts :data:`RESTART_SHIFT` away and those from ``restarts``, :func:`fit_rig`:
     the lowest is the estimate), other_chi2: (k,) their χ² less the estimate's (≥ 0).  series:
-    every channel at the estimate (:class:`ChannelSeries`).
+    every channel at the estimate (:class:`ChannelSeries`).  descent: (6,) kg·m² where the staged
+    fit's own descent ended (the estimate unless a restart settled lower).
     """
 
     parameters: RigParameters
@@ -458,16 +162,21 @@ class RigFit:
     other_minima: np.ndarray
     other_chi2: np.ndarray
     series: ChannelSeries
+    descent: np.ndarray | None = None
 
     @property
     def ambiguous(self) -> list[int]:
         """The tensor entries (indices, KEYS order) on which another minimum differs from the
-        estimate by more than 3 σ while its χ² is within :data:`CHI2_95_6` of the estimate's: the
-        likelihood is flat where the Fisher information says it is sharp, and σ is not the
-        estimate's uncertainty (the fit is in a curved valley or among several minima)."""
+        estimate by more than 3 σ while its χ² is within :data:`CHI2_95_6` of the estimate's, or
+        on which the staged fit's own descent ended more than 3 σ away (a restart found the
+        estimate: the descent was trapped, and a lower minimum may lie where no start went):
+        the likelihood is flat or multimodal where the Fisher information says it is sharp, and
+        σ is not the estimate's uncertainty."""
         d = np.abs(self.other_minima - self.inertia) / self.inertia_std
         close = np.asarray(self.other_chi2) < CHI2_95_6
-        return [i for i in range(6) if np.any(close & (d[:, i] > 3.0))]
+        trapped = np.zeros(6, bool) if self.descent is None else \
+            np.abs(self.descent - self.inertia) > 3.0 * self.inertia_std
+        return [i for i in range(6) if np.any(close & (d[:, i] > 3.0)) or trapped[i]]
 
     @property
     def inertia(self) -> np.ndarray:
@@ -483,10 +192,10 @@ class RigFit:
         return np.sqrt(np.diag(self.covariance)[self.layout.cg])
 
 
-def _covariance(prob: _Problem, J: np.ndarray, noise_scale: np.ndarray | None = None
+def _covariance(prob: RigProblem, J: np.ndarray, noise_scale: np.ndarray | None = None
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The unknowns' covariance (size, size) in x units at ``prob``'s x0, ``J`` its Jacobian there
-    (:meth:`_Problem.jacobian`): the inverse Fisher information of the weighted residual (the
+    (:meth:`RigProblem.jacobian`): the inverse Fisher information of the weighted residual (the
     priors' rows included), the sandwich (Huber 1967; White 1982)
     H⁻¹ (Σ_b s_b s_bᵀ + P) H⁻¹, its meat the data's scores summed over :data:`SANDWICH_BLOCKS`
     blocks of the record (batch means: a residual that is not white — a model error — is
@@ -521,16 +230,7 @@ def _covariance(prob: _Problem, J: np.ndarray, noise_scale: np.ndarray | None = 
     return in_x(Hinv), in_x(Hinv @ meat @ Hinv), in_x(unit)
 
 
-def _base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) -> np.ndarray:
-    """The state at the fit's first sample: the model run from rest at the record's start
-    through the spin-up (the rest state itself when the fit starts there)."""
-    y = rest_state(p, rest)
-    if rec.start == 0:
-        return y
-    return simulate(p, y, drive(rec.u[:rec.start + 1], rec.dt, substeps))[1]
-
-
-def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | None = None,
+def _solve(prob: RigProblem, verbose: int, whole: bool = False, z0: np.ndarray | None = None,
            at_x0: tuple[np.ndarray, np.ndarray] | None = None
            ) -> tuple[OptimizeResult, int, np.ndarray | None]:
     """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``at_x0``: the Jacobian
@@ -586,7 +286,7 @@ def _solve(prob: _Problem, verbose: int, whole: bool = False, z0: np.ndarray | N
     return sol, jac.runs, jac.J if fresh else None
 
 
-def _moved_on(prob: _Problem, sol: OptimizeResult, p: RigParameters, rest: RestPose
+def _moved_on(prob: RigProblem, sol: OptimizeResult, p: RigParameters, rest: RestPose
               ) -> tuple[np.ndarray, RigParameters, RestPose]:
     """The unknowns, parameters and rest pose after ``sol`` (the rest pose sets only the
     integrator's step: where none is found at the estimate the last one serves)."""
@@ -599,14 +299,14 @@ def _moved_on(prob: _Problem, sol: OptimizeResult, p: RigParameters, rest: RestP
     return x, p, rest
 
 
-def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: Prior, rest: RestPose
+def _settled(prob: RigProblem, rec: Record, p: RigParameters, lay: Layout, prior: Prior, rest: RestPose
              ) -> np.ndarray:
     """``prob``'s unknowns with the initial state fitted alone over the first
     :data:`INITIAL_SPAN` s, every parameter at its start (over so short a span the swinging
     modes' phase hardly depends on the parameters: the state is found before the parameters
     make the likelihood multimodal; Ljung 1999, §7.3 on the initial state)."""
     n = min(prob.n, int(round(INITIAL_SPAN / rec.dt)) + 1)
-    short = _Problem(rec, p, lay, prob.x0, prior, np.ones(len(rec.channels)), n, rest, prob.bases)
+    short = RigProblem(rec, p, lay, prob.x0, prior, np.ones(len(rec.channels)), n, rest, prob.bases)
     part = lay.initial
 
     def residual(zi: np.ndarray) -> np.ndarray:
@@ -623,7 +323,7 @@ def _settled(prob: _Problem, rec: Record, p: RigParameters, lay: Layout, prior: 
     return x
 
 
-def _jacobian_at_x0(prob: _Problem, solved: _Problem, J: np.ndarray | None, weights: np.ndarray
+def _jacobian_at_x0(prob: RigProblem, solved: RigProblem, J: np.ndarray | None, weights: np.ndarray
                     ) -> tuple[np.ndarray, int]:
     """``prob``'s Jacobian at its x0 and the model runs it took: ``J``, fresh at the solution of
     ``solved`` (weighted by ``weights``), in ``prob``'s units where the residual is the same, else computed."""
@@ -633,7 +333,7 @@ def _jacobian_at_x0(prob: _Problem, solved: _Problem, J: np.ndarray | None, weig
     return prob.jacobian(np.zeros(prob.lay.size)), prob.lay.size + 1
 
 
-def _polished(prob: _Problem, J: np.ndarray, r: np.ndarray, p: RigParameters, rest: RestPose
+def _polished(prob: RigProblem, J: np.ndarray, r: np.ndarray, p: RigParameters, rest: RestPose
               ) -> tuple[np.ndarray, RigParameters, RestPose, np.ndarray, int]:
     """The estimate after Gauss–Newton steps from ``prob``'s x0 with its Jacobian ``J`` there (the
     chord method; ``r``: the residual at x0), each taken where it lowers the cost, at most
@@ -662,6 +362,20 @@ def _polished(prob: _Problem, J: np.ndarray, r: np.ndarray, p: RigParameters, re
     return x, p, rest, prob.bases_at(x), runs
 
 
+def _along_weakest(prob: RigProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
+    """The tensors :data:`WEAK_RESTART_SIGMA` σ either way of ``tensor`` (6,) along the tensor's
+    most weakly determined direction (the inverse Fisher information of ``J``, ``prob``'s
+    Jacobian at x0, each entry in units of its scale): where the likelihood has other minima,
+    they lie along it (bench_any_rig 21003: minima 5–20 % apart in Ixx and Iyy, each with σ 0.4 %)."""
+    cov = np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True)[prob.lay.inertia, prob.lay.inertia]
+    unit = prob.scale[prob.lay.inertia] / entry_scales(tensor)
+    w, v = np.linalg.eigh(cov * np.outer(unit, unit))
+    if not w[-1] > 0:
+        return []
+    step = WEAK_RESTART_SIGMA * np.sqrt(w[-1]) * v[:, -1] * entry_scales(tensor)
+    return [tensor + step, tensor - step]
+
+
 def _shifted(x: np.ndarray, sign: float) -> np.ndarray:
     """(6,) the tensor entries of ``x`` (6,) moved by ``sign`` :data:`RESTART_SHIFT` of their scale
     (signs alternating entry by entry; halved until the tensor is physical)."""
@@ -674,7 +388,7 @@ def _shifted(x: np.ndarray, sign: float) -> np.ndarray:
     return moved
 
 
-def _restarted(prob: _Problem, at_x0: tuple[np.ndarray, np.ndarray], p: RigParameters, rest: RestPose,
+def _restarted(prob: RigProblem, at_x0: tuple[np.ndarray, np.ndarray], p: RigParameters, rest: RestPose,
                tensor: np.ndarray, verbose: int) -> tuple[np.ndarray, RigParameters, RestPose, float, int, np.ndarray]:
     """The whole-record fit ``prob`` (its x0 the estimate, ``at_x0`` its Jacobian and residual there) restarted from
     the tensor entries ``tensor`` (6,) kg·m², every other unknown at the estimate: its unknowns,
@@ -715,8 +429,8 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     geometry, rest0 = start_parameters(rig, prior, np.zeros(6), rec, damping_time)
     for start in np.atleast_2d(np.asarray(inertia0, float)):
         p0 = geometry.replace(inertia=start)
-        prob = _Problem(rec, p0, lay, vector(p0, np.zeros(12), lay), prior, noise_scale, rounds[0][0], rest0)
-        prob = _Problem(rec, p0, lay, _settled(prob, rec, p0, lay, prior, rest0), prior, noise_scale, rounds[0][0],
+        prob = RigProblem(rec, p0, lay, vector(p0, np.zeros(12), lay), prior, noise_scale, rounds[0][0], rest0)
+        prob = RigProblem(rec, p0, lay, _settled(prob, rec, p0, lay, prior, rest0), prior, noise_scale, rounds[0][0],
                         rest0, prob.bases)
         problems.append((prob, p0, rest0))
         if np.all(prob.residual(np.zeros(prob.lay.size)) == OUTSIDE):
@@ -738,29 +452,31 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     bases = prob.bases_at(x)
     for i, (n, final) in enumerate(rounds):
         if i > 0:
-            prob = _Problem(rec, p, lay, x, prior, noise_scale, n, rest, bases)
+            prob = RigProblem(rec, p, lay, x, prior, noise_scale, n, rest, bases)
             sol, runs, J_end = _solve(prob, verbose, final)
             solved = (prob, J_end, noise_scale)
             nfev += runs
             x, p, rest = _moved_on(prob, sol, p, rest)
             bases = prob.bases_at(x)
         if final:
-            level = _levels(_Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases), x)
+            level = levels(RigProblem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases), x)
             new_scale = np.maximum(level, 1.0)
             if np.allclose(new_scale, noise_scale, rtol=0.05) or np.max(level) > REWEIGHT_LIMIT:
                 break
             noise_scale = new_scale
-    last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
+    last = RigProblem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
     J, runs = _jacobian_at_x0(last, *solved)
     r = last.residual(np.zeros(last.lay.size))
     nfev += runs + 1
     minima = [(0.5 * float(r @ r), x, p, rest, bases)]
-    others = [t for t in np.asarray(restarts, float).reshape(-1, 6) if physically_consistent(to_tensor(t))]
+    given = list(np.asarray(restarts, float).reshape(-1, 6)) + _along_weakest(last, J, x[lay.inertia])
+    others = [t for t in given if physically_consistent(to_tensor(t))]
     for tensor in [_shifted(x[lay.inertia], 1.0), _shifted(x[lay.inertia], -1.0)] + others:
         x2, p2, rest2, cost2, runs, bases2 = _restarted(last, (J, r), p, rest, tensor, verbose)
         nfev += runs
         minima.append((cost2, x2, p2, rest2, bases2))
     minima_costs = [m[0] for m in minima]
+    descent = minima[0][1][lay.inertia]
     minima.sort(key=lambda m: m[0])
     cost, x, p, rest, bases = minima[0]
     settled = np.array([m[1][lay.inertia] for m in minima[1:]])
@@ -768,7 +484,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     log.info("rig fit: the other minima settled %s from the estimate, χ² %s", np.round(settled - x[lay.inertia], 3),
              np.round(other_chi2, 2))
     if cost != minima_costs[0]:           # a restart settled lower: the estimate's problem and Jacobian
-        last = _Problem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
+        last = RigProblem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
         J = last.jacobian(np.zeros(last.lay.size))
         r = last.residual(np.zeros(last.lay.size))
         nfev += last.lay.size + 2
@@ -781,11 +497,11 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     fd = np.sqrt(np.diag(fisher))
     cov = np.diag(sd ** 2)                  # an unknown the residual does not see: σ inf, uncorrelated
     cov[np.ix_(seen, seen)] = (fisher / np.outer(fd, fd) * np.outer(sd, sd))[np.ix_(seen, seen)]
-    unit = _Problem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases)
-    level = _levels(unit, x)
+    unit = RigProblem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases)
+    level = levels(unit, x)
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
-                  freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x))
+                  freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x), descent)
 
 
 def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.ndarray:
@@ -796,5 +512,5 @@ def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.
     lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1])
     x = vector(truth, np.zeros(12), lay)
     rest = rest_pose(truth)
-    prob = _Problem(rec, truth, lay, x, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start, rest)
+    prob = RigProblem(rec, truth, lay, x, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start, rest)
     return _covariance(prob, prob.jacobian(np.zeros(prob.lay.size)))[0]

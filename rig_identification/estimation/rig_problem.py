@@ -1,0 +1,338 @@
+"""The rig model's weighted residual over a span of a record, as a function of the scaled unknowns:
+:class:`RigProblem` (segments, their states settled, the force's correction, the Jacobian by
+forward differences with each segment's state column filtered over its reach), what
+:func:`~rig_identification.estimation.rig_fit.fit_rig` minimises.
+"""
+from __future__ import annotations
+
+import logging
+import os
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+from scipy.optimize import least_squares
+from scipy.signal import butter, sosfiltfilt
+from scipy.spatial.transform import Rotation
+
+from ..model.dynamics import SimulationError
+from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
+from ..model.parametrisation import physically_consistent, to_tensor
+from ..model.rig_ode import Drive, drive, moved_state, rest_state, simulate, substeps_for
+from .rig_record import ChannelSeries, Record
+from .rig_unknowns import Layout, Prior, parameters_of, priors, relayout, unit_scale
+
+log = logging.getLogger(__name__)
+
+#: The decimated residual's rate over the fit's band edge (:func:`~.rig_record.band_edge`).
+DECIMATED_RATE = 3.0
+#: Threads that compute the Jacobian's columns (the machine's cores, at most 4).
+THREADS = max(1, min(4, os.cpu_count() or 1))
+#: Stopping rules of each least-squares solve (scipy.optimize.least_squares): its iterations
+#: at most, and the tolerances on the step, the cost's change and the gradient.
+MAX_ITERATIONS = 100
+XTOL, FTOL, GTOL = 1e-10, 1e-10, 1e-10
+#: The residual's every row outside the physical region or where the model diverges.
+OUTSIDE = 1e6
+#: Forward-difference step of the Jacobian in the unknowns' units of :func:`unit_scale`: at 1e-2 its
+#: error (half the step times the curvature) turned the small gradient along the mass–moments
+#: valley and the trust region stopped 9 σ short (case-16 rig); the model is smooth and
+#: deterministic, so rounding stays ~1e-8 of a column at 1e-4.
+JACOBIAN_STEP = 1e-4
+#: A segment's change is filtered over the samples where the filter's response to an impulse
+#: exceeds this share of its peak (:meth:`RigProblem.segment_change`).
+IMPULSE_TAIL = 1e-12
+
+
+class RigProblem:
+    """The weighted residual of ``n`` samples from the record's ``start`` as a function of the
+    scaled unknowns z (x = x0 + scale z): the span cut into segments (:data:`~.rig_unknowns.SEGMENT`), each run
+    from its own state, ``bases[k]`` moved by segment k's initial-state unknowns.  ``bases``:
+    (k, 13) the segments' states as a previous problem had them (:meth:`bases_at`): with k this
+    span's segment count and ``x0`` of its size, taken as they are; otherwise the first is taken
+    and the later ones are the model's continuation at ``x0`` from it; None: the first is the
+    model's run from rest through the spin-up (:func:`base_state`).  ``x0`` of any segment
+    count (:func:`relayout`)."""
+
+    def __init__(self, rec: Record, like: RigParameters, lay: Layout, x0: np.ndarray, prior: Prior,
+                 noise_scale: np.ndarray, n: int, rest: RestPose, bases: np.ndarray | None = None):
+        self.rec, self.like, self.n = rec, like, n
+        self.lay = lay.for_span(n, rec.dt)
+        self.x0 = relayout(x0, self.lay)
+        self.scale = unit_scale(self.x0, self.lay, prior)
+        self.centre, self.prior_std = priors(prior, self.lay, self.x0)
+        self.sos = butter(4, rec.band, fs=1.0 / rec.dt, output="sos")
+        self.step = max(1, int(1.0 / (DECIMATED_RATE * rec.band * rec.dt)))
+        impulse = np.zeros(4001)
+        mid = len(impulse) // 2
+        impulse[mid] = 1.0
+        # a decimated sample stands for the `step` grid samples around it (weighting it as an
+        # independent sample of the filtered noise overstates an in-band signal's information
+        # ~1.8×); `unit`: the RMS of a weighted residual of noise alone.
+        response = sosfiltfilt(self.sos, impulse)
+        self.unit = float(np.sqrt(self.step * np.sum(response ** 2)))
+        # samples beyond which the filter's response to a change is below rounding (:meth:`segment_change`)
+        tail = np.flatnonzero(np.abs(response) > IMPULSE_TAIL * np.abs(response).max())
+        self.reach = int(max(tail.max() - mid, mid - tail.min())) + 1 if 0 < tail.min() and tail.max() < 2 * mid \
+            else n
+        self.weight = np.sqrt(self.step) / (rec.sigma * noise_scale * np.sqrt(rec.oversampling))
+        self.weight_scale = np.asarray(noise_scale, float).copy()
+        self.rest = rest
+        self.ref = rest_state(parameters_of(self.x0, like, self.lay), rest)
+        self._rest_cache: dict[bytes, np.ndarray] = {}
+        self._drives: dict[tuple[int, int, bytes], Drive] = {}
+        lin = linearise(parameters_of(self.x0, like, self.lay), rest)
+        self.substeps = substeps_for(2 * np.pi * natural_frequencies(lin).max(), rec.dt)
+        self.basis = rec.force_basis()[:n] if self.lay.n_force else np.zeros((n, 0))
+        self.edges = np.linspace(0, n, self.lay.n_segments + 1).round().astype(int)
+        if bases is not None and len(bases) == self.lay.n_segments and len(x0) == self.lay.size:
+            self.bases = bases
+        else:
+            self.x0 = self.x0.copy()
+            self.x0[self.lay.segments] = 0.0
+            start = parameters_of(self.x0, like, self.lay)
+            first = base_state(rec, start, rest, self.substeps) if bases is None else bases[0]
+            self.bases = self._continued(first)
+            self._settle_segments()
+
+    def _continued(self, base: np.ndarray) -> np.ndarray:
+        """(n_segments, 13) each segment's state on the model's run at x0 from ``base`` (moved by
+        the first segment's unknowns), the later segments' unknowns zero."""
+        bases = [np.asarray(base, float)]
+        if self.lay.n_segments == 1:
+            return np.array(bases)
+        x = self.x0
+        p = parameters_of(x, self.like, self.lay)
+        u = self.force(x)
+        y = moved_state(bases[0], x[self.lay.initial])
+        for a, b in zip(self.edges[1:-1], self.edges[2:]):
+            y = simulate(p, y, self.drive(x, u, self.edges[len(bases) - 1], a + 1))[1]
+            bases.append(y)
+        return np.array(bases)
+
+    def _settle_segments(self) -> None:
+        """Each later segment's initial state fitted alone to its own samples (the parameters
+        at x0): the model's continuation carries the phase error of x0's mode frequencies into
+        every later segment, and the response is nearly linear in the state (Ljung 1999, §7.3)."""
+        u = self.force(self.x0)
+        a = self.rec.start
+
+        def settle(k: int) -> np.ndarray:
+            b, c = self.edges[k], self.edges[k + 1]
+            part = self.lay.state(k)
+
+            def residual(zk: np.ndarray) -> np.ndarray:
+                x = self.x0.copy()
+                x[part] += self.scale[part] * zk
+                try:
+                    e = self.rec.y[a + b:a + c] - self.segment_outputs(x, k, u)
+                except (SimulationError, ValueError, np.linalg.LinAlgError):
+                    return np.full((len(range(0, c - b, self.step)) * len(self.rec.channels)), OUTSIDE)
+                return self.weighted(e).ravel()
+
+            sol = least_squares(residual, np.zeros(12), method="trf", diff_step=JACOBIAN_STEP, xtol=XTOL, ftol=FTOL,
+                                gtol=GTOL, max_nfev=MAX_ITERATIONS)
+            move: np.ndarray = self.scale[part] * sol.x
+            return move
+
+        with ThreadPoolExecutor(THREADS) as pool:     # each segment's state alone: independent solves
+            moves = list(pool.map(settle, range(1, self.lay.n_segments)))
+        for k, move in enumerate(moves, 1):
+            self.x0[self.lay.state(k)] += move
+
+    def x(self, z: np.ndarray) -> np.ndarray:
+        x = self.x0.copy()
+        x[:len(z)] += self.scale[:len(z)] * z
+        return x
+
+    def force(self, x: np.ndarray) -> np.ndarray:
+        """(n, 2) N the exciter force over the span: the denoised one times (1 + a(t)) e^{iφ(t)},
+        a and φ the B-splines of the unknowns ``force`` (:class:`Layout`)."""
+        a = self.rec.start
+        u = self.rec.u[a:a + self.n]
+        if not self.lay.n_force:
+            return u
+        c = x[self.lay.force]
+        k = self.lay.n_force // 2
+        z = (u[:, 0] + 1j * u[:, 1]) * (1.0 + self.basis @ c[:k]) * np.exp(1j * (self.basis @ c[k:]))
+        return np.column_stack([z.real, z.imag])
+
+    def drive(self, x: np.ndarray, u: np.ndarray, a: int, b: int) -> Drive:
+        """The force ``u`` (:meth:`force` at ``x``) over the span's samples a to b as the model
+        takes it, kept while the force's unknowns stay (a Jacobian's other columns)."""
+        key = (a, b, x[self.lay.force].tobytes())
+        d = self._drives.get(key)
+        if d is None:
+            if len(self._drives) > 4 * self.lay.n_segments:
+                self._drives.clear()
+            d = self._drives[key] = drive(u[a:b], self.rec.dt, self.substeps)
+        return d
+
+    def segment_outputs(self, x: np.ndarray, k: int, u: np.ndarray | None = None) -> np.ndarray:
+        """(samples, n_out) the model's readings over segment ``k`` (the force's last where it is
+        an output); ``u``: the span's force at x (:meth:`force`) where already known."""
+        p = parameters_of(x, self.like, self.lay)
+        u = self.force(x) if u is None else u
+        a, b = self.edges[k], self.edges[k + 1]
+        y0 = moved_state(self._rebased(p, self.bases[k]), x[self.lay.state(k)])
+        out = simulate(p, y0, self.drive(x, u, a, b))[0]
+        return np.column_stack([out, u[a:b]]) if self.lay.n_force else out
+
+    def _rebased(self, p: RigParameters, base: np.ndarray) -> np.ndarray:
+        """``base`` (13,) moved with the rest pose: its offset from the rest state at x0 put on the
+        rest state of ``p`` (a shifted geometry or CG moves the start with it, so the fit need not
+        cancel the two against each other: each channel's offset is projected out, and the rest
+        pose itself is not what the data see).  Raises
+        :class:`~rig_identification.model.dynamics.SimulationError` where ``p`` has no rest pose."""
+        key = p.ceiling.tobytes() + p.body.tobytes() + p.length.tobytes() + p.cg.tobytes() + p.stiffness.tobytes() \
+            + np.array([p.mass]).tobytes()
+        ref = self._rest_cache.get(key)
+        if ref is None:
+            ref = rest_state(p, rest_pose(p, self.rest))
+            self._rest_cache = {key: ref}
+        R0 = Rotation.from_quat(self.ref[[4, 5, 6, 3]])
+        R1 = Rotation.from_quat(ref[[4, 5, 6, 3]])
+        Rb = Rotation.from_quat(base[[4, 5, 6, 3]])
+        q = (R1 * R0.inv() * Rb).as_quat()
+        return np.concatenate([base[:3] - self.ref[:3] + ref[:3], [q[3], q[0], q[1], q[2]], base[7:]])
+
+    def bases_at(self, x: np.ndarray) -> np.ndarray:
+        """(n_segments, 13) the segments' states before their unknowns, moved with the rest pose
+        to the parameters of ``x``: what a problem made at ``x`` takes as ``bases``."""
+        p = parameters_of(x, self.like, self.lay)
+        return np.array([self._rebased(p, b) for b in self.bases])
+
+    def outputs(self, x: np.ndarray) -> list[np.ndarray]:
+        """The model's readings over the span, segment by segment ((samples, n_out) each)."""
+        u = self.force(x)
+        return [self.segment_outputs(x, k, u) for k in range(self.lay.n_segments)]
+
+    def data_residual(self, x: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:
+        """(m, n_out) weighted, low-passed and decimated to the band, each channel's offset
+        projected out; ``outputs``: :meth:`outputs` at x where already known."""
+        a = self.rec.start
+        return self.weighted(self.rec.y[a:a + self.n] - np.concatenate(self.outputs(x) if outputs is None else outputs))
+
+    def fitted(self, x: np.ndarray) -> ChannelSeries:
+        """The measured and the model's readings at ``x`` over the span as the fit compares them
+        (low-passed and decimated to the band), each channel's offset put on the measured one's."""
+        a = self.rec.start
+        measured = self.rec.y[a:a + self.n]
+        predicted = np.concatenate(self.outputs(x))
+        predicted = predicted - predicted.mean(axis=0) + measured.mean(axis=0)
+        low = [sosfiltfilt(self.sos, v - v.mean(axis=0), axis=0)[::self.step] + v.mean(axis=0)
+               for v in (measured, predicted)]
+        t = self.rec.dt * np.arange(a, a + self.n)[::self.step]
+        return ChannelSeries(t, low[0], low[1], self.rec.channels)
+
+    def weighted(self, e: np.ndarray) -> np.ndarray:
+        """(m, n_out) the data-minus-model ``e`` (samples, n_out) with each channel's offset
+        projected out, low-passed, decimated to the band and weighted by its noise."""
+        filtered: np.ndarray = sosfiltfilt(self.sos, e - e.mean(axis=0), axis=0)[::self.step] * self.weight
+        return filtered
+
+    def residual(self, z: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:
+        """The weighted residual (data rows, then the priors' rows); outside the physical
+        region (a tensor no body has, a negative damping time) or where the model's motion
+        diverges, a constant large residual, which the trust region steps back from."""
+        x = self.x(z)
+        outside = np.full(self.size(len(z)), OUTSIDE)
+        if not physically_consistent(to_tensor(x[self.lay.inertia])) or x[self.lay.damping] < 0:
+            return outside
+        try:
+            r = self.data_residual(x, outputs).ravel()
+        except (SimulationError, ValueError, np.linalg.LinAlgError):
+            return outside
+        if not np.all(np.isfinite(r)):
+            return outside
+        return np.concatenate([r, self.prior_rows(z)])
+
+    def prior_rows(self, z: np.ndarray) -> np.ndarray:
+        """The priors' rows of :meth:`residual`: each unknown with a prior off its centre in its σ."""
+        x = self.x(z)
+        std = self.prior_std[:len(z)]
+        finite = np.isfinite(std)
+        rows: np.ndarray = (x[:len(z)][finite] - self.centre[:len(z)][finite]) / std[finite]
+        return rows
+
+    def segment_change(self, change: np.ndarray, k: int) -> np.ndarray:
+        """(data_rows,) the change of :meth:`residual`'s data rows when the model's readings over
+        segment ``k`` change by ``change`` (samples, n_out) and nowhere else: :meth:`weighted` is
+        linear, so the change is the weighted change filtered over the segment and the filter's
+        reach either side (exact to :data:`IMPULSE_TAIL`), less its mean over the span."""
+        b, c = self.edges[k], self.edges[k + 1]
+        lo = max(0, b - self.reach) // self.step * self.step
+        hi = min(self.n, c + self.reach)
+        d = np.zeros((hi - lo, change.shape[1]))
+        d[b - lo:c - lo] = change
+        rows = np.tile(change.sum(axis=0) / self.n, (len(range(0, self.n, self.step)), 1))
+        first = lo // self.step
+        local = sosfiltfilt(self.sos, d, axis=0)[::self.step]
+        rows[first:first + len(local)] -= local
+        out: np.ndarray = (rows * self.weight).ravel()
+        return out
+
+    @property
+    def data_rows(self) -> int:
+        return len(range(0, self.n, self.step)) * len(self.rec.channels)
+
+    def noise_cost(self, nz: int) -> float:
+        """The sum of squares of :meth:`residual` (``nz`` unknowns) expected of noise alone."""
+        return self.data_rows * self.unit ** 2 + int(np.isfinite(self.prior_std[:nz]).sum())
+
+    def size(self, nz: int) -> int:
+        return self.data_rows + int(np.isfinite(self.prior_std[:nz]).sum())
+
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        """Forward differences (size, len(z)) of :meth:`residual` (step :data:`JACOBIAN_STEP`;
+        backward where the step leaves the physical region, a zero column where both do),
+        the columns on :data:`THREADS` threads (the compiled model releases the GIL); a segment's
+        initial state moves only that segment's run, which alone is run again for its columns."""
+        x = self.x(z)
+        try:
+            outs = self.outputs(x)
+        except (SimulationError, ValueError, np.linalg.LinAlgError):
+            outs = None
+        base = self.residual(z, outs)
+        owner = {i: k for k in range(self.lay.n_segments) for i in range(*self.lay.state(k).indices(self.lay.size))}
+        u = self.force(x)
+
+        def column(i: int) -> np.ndarray:
+            e = z.copy()
+            e[i] += JACOBIAN_STEP
+            if outs is not None and i in owner and i < len(z) and base[0] != OUTSIDE:
+                k = owner[i]
+                try:
+                    change = self.segment_outputs(self.x(e), k, u) - outs[k]
+                except (SimulationError, ValueError, np.linalg.LinAlgError):
+                    pass
+                else:
+                    return np.concatenate([self.segment_change(change, k),
+                                           self.prior_rows(e) - self.prior_rows(z)]) / JACOBIAN_STEP
+            moved = self.residual(e)
+            if moved[0] == OUTSIDE and base[0] != OUTSIDE:    # the step left the physical region: step back
+                e[i] -= 2 * JACOBIAN_STEP
+                back = self.residual(e)
+                moved = base if back[0] == OUTSIDE else 2 * base - back    # neither: no information
+            col: np.ndarray = (moved - base) / JACOBIAN_STEP
+            return col
+
+        with ThreadPoolExecutor(THREADS) as pool:
+            return np.column_stack(list(pool.map(column, range(len(z)))))
+
+
+def levels(prob: RigProblem, x: np.ndarray) -> np.ndarray:
+    """Each channel's residual RMS in the band over its noise's (1: noise alone)."""
+    return np.asarray(np.sqrt(np.mean(prob.data_residual(x) ** 2, axis=0)) / prob.unit)
+
+
+def base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) -> np.ndarray:
+    """The state at the fit's first sample: the model run from rest at the record's start
+    through the spin-up (the rest state itself when the fit starts there)."""
+    y = rest_state(p, rest)
+    if rec.start == 0:
+        return y
+    return simulate(p, y, drive(rec.u[:rec.start + 1], rec.dt, substeps))[1]
+
+
+__all__ = ["RigProblem", "levels", "base_state", "DECIMATED_RATE", "THREADS", "MAX_ITERATIONS", "XTOL", "FTOL", "GTOL",
+           "OUTSIDE", "JACOBIAN_STEP", "IMPULSE_TAIL"]
