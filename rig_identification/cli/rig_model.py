@@ -1,4 +1,4 @@
-"""``rig-identify inertia --model rig``: the whole recording read by the rig's grey-box model.
+"""``rig-identify inertia`` (the default, ``--model rig``): the whole recording read by the rig's grey-box model.
 
 Prints the fit's span and band, the tensor about the CG with σ, the Cramér–Rao bound and σ/CRB
 (and the truth when truth.yaml is there), the mass, the centre of gravity the dynamic test

@@ -1,4 +1,4 @@
-"""A recording read whole: the rig's grey-box model fitted to every sensor (``rig-identify inertia --model rig``).
+"""A recording read whole: the rig's grey-box model fitted to every sensor (``rig-identify inertia``).
 
 recording → :func:`~rig_identification.estimation.rig_record.record` (every stream on one grid, the
 exciter's force denoised) → a start for the tensor (the prediction-error fit of
@@ -187,11 +187,13 @@ class RigModelResult:
 
     @property
     def ambiguous(self) -> list[str]:
-        """The entries on which a restart of the fit (1 % away, or from the gyro-only fit's
-        tensor) settled more than 3 σ from the estimate at a χ² within the tensor's 95 %
-        likelihood-ratio region
+        """The entries on which a restart of the fit (1 % away, 10 σ along the weakest direction,
+        or from the gyro-only fit's tensor) settled more than 3 σ from the estimate at a χ²
+        within the tensor's 95 % likelihood-ratio region, or on which the fit's own descent ended
+        more than 3 σ from a lower minimum a restart found
         (:attr:`~rig_identification.estimation.rig_fit.RigFit.ambiguous`): the likelihood is
-        flat where σ says it is sharp, so σ is not the error's size and no entry is an estimate."""
+        flat or multimodal where σ says it is sharp, so σ is not the error's size and no entry is
+        an estimate."""
         return [KEYS[i] for i in self.fit.ambiguous]
 
     @property
@@ -255,10 +257,11 @@ class RigModelResult:
             "verdict": self.verdict, "undetermined": self.undetermined, "ambiguous": self.ambiguous,
             "other_minima": [{"inertia_about_cg": {k: float(v) for k, v in zip(KEYS, m)},
                               "chi2_over_estimate": float(c)} for m, c in zip(f.other_minima, f.other_chi2)],
-            "other_minima_note": "the whole-record fit restarted with every entry 1 % away, once each way, and "
-                                 "from the gyro-only fit's tensor where it gave one; the lowest of the minima is the "
-                                 "estimate; another more than 3 σ off at a χ² within 12.6 of the estimate's makes "
-                                 "those entries ambiguous",
+            "other_minima_note": "the whole-record fit restarted with every entry 1 % away, once each way, 10 σ "
+                                 "either way along the tensor's weakest direction, and from the gyro-only fit's "
+                                 "tensor where it gave one; the lowest of the minima is the estimate; another more "
+                                 "than 3 σ off at a χ² within 12.6 of the estimate's, or the fit's own descent ending "
+                                 "more than 3 σ from it, makes those entries ambiguous",
             "window": {"start_s": self.start_s, "duration_s": self.duration_s, "band_hz": [0.0, self.band_hz]},
             "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, p.inertia)},
             "inertia_std": {k: float(v) for k, v in zip(KEYS, sd)},
