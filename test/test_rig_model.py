@@ -323,17 +323,19 @@ def test_segments_give_up_little_information_on_a_regular_rig(quiet_rig, monkeyp
 def test_a_restart_that_settles_elsewhere_as_well_is_not_identifiable(quiet_rig):
     """Another minimum more than 3 σ off whose χ² is within the tensor's 95 % likelihood-ratio
     region (12.6) makes those entries ambiguous and the verdict not_identifiable; one 2 σ off,
-    or one whose χ² is 20 higher, does not (the other restart came back within 0.5 σ)."""
+    or one whose χ² is 20 higher, does not (the other restart came back within 0.5 σ) — unless
+    that one was the fit's own descent, which a restart then beat more than 3 σ away: trapped."""
     p = _truth_parameters(quiet_rig)
     lay = Layout(len(quiet_rig.rig.cables))
     cov = np.diag(np.full(lay.size, 1e-8))
     cov[lay.inertia, lay.inertia] = 1.0                              # σ 1 kg·m² on each entry
 
-    def verdict(shift_sigma: float, chi2: float) -> tuple[list[str], str]:
+    def verdict(shift_sigma: float, chi2: float, descent: bool = False) -> tuple[list[str], str]:
         other = p.inertia + shift_sigma * (np.arange(6) == KEYS.index("iyy"))
         fit = RigFit(p, np.zeros(12), cov, np.ones(6), np.ones(4), np.ones(4), ("a", "b", "c", "d"), np.ones(6), lay,
                      1, np.array([p.inertia + 0.5, other]), np.array([0.3, chi2]),
-                     ChannelSeries(np.zeros(1), np.zeros((1, 4)), np.zeros((1, 4)), ("a", "b", "c", "d")))
+                     ChannelSeries(np.zeros(1), np.zeros((1, 4)), np.zeros((1, 4)), ("a", "b", "c", "d")),
+                     other if descent else p.inertia)
         res = RigModelResult(fit, "rec", 0.0, 0.0, 60.0, 4.0, p.inertia, np.full(6, np.inf), "start", p.cg,
                              np.full(3, np.inf), "rig.yaml", Survey(), 1.0, None)
         return res.ambiguous, res.verdict
@@ -341,6 +343,8 @@ def test_a_restart_that_settles_elsewhere_as_well_is_not_identifiable(quiet_rig)
     assert verdict(5.0, 2.0) == (["iyy"], "not_identifiable")
     assert verdict(2.0, 2.0) == ([], "ok")
     assert verdict(5.0, 20.0) == ([], "ok")
+    assert verdict(5.0, 20.0, descent=True) == (["iyy"], "not_identifiable")
+    assert verdict(2.0, 20.0, descent=True) == ([], "ok")
 
 
 def test_a_trusted_gyro_fit_is_the_first_start_else_the_forced_response():
