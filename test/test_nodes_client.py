@@ -13,7 +13,8 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from conftest import recording  # noqa: E402
+import test_rigday  # noqa: E402,F401  (registers the "rig_day_chain" job this module reads)
+from conftest import gather, recording  # noqa: E402
 
 from rig_identification.io.recording import read_recording  # noqa: E402
 from rig_identification.nodes.client import KEYS, UNVALIDATED, format_table  # noqa: E402
@@ -90,3 +91,28 @@ def test_the_table_says_sigma_leaves_out_the_given_mass_and_cg(answer):
     text = format_table(d, truth)
     assert "mass and CG: the known values of rig.yaml" in text
     assert "taken as exact: the tensor's error from an error of the CG is not in its σ" in text
+
+
+def test_the_rig_model_answer_reads_verdict_first_with_the_bound_and_the_cg_of_both_tests():
+    """``mass_properties_client rig-model``'s text (``format_rig_model``) of a real answer: the
+    JSON of ``rig-identify inertia --cg cg.json`` on the clean run (test_rigday's chain job, the
+    identifier's ~/identify_rig_model answers the same object): the verdict first, each entry with
+    σ and the bound, products with the vehicle-dynamics sign and their error against the truth,
+    the CG of the static test, the run alone and both."""
+    from rig_identification.nodes.client import format_rig_model
+    res = json.loads(gather("rig_day_chain")["run"][1])
+    truth = read_recording(recording("visible_case16_clean")).truth
+    text = format_rig_model(res, truth)
+    lines = text.splitlines()
+    assert lines[2] == f"verdict: {res['verdict']}" and res["verdict"] == "ok"
+    r = rows(text)
+    iyz = r["iyz"].split()
+    assert float(iyz[1]) == pytest.approx(-res["inertia_about_cg"]["iyz"], abs=0.006)      # the product's sign
+    assert float(iyz[3]) == pytest.approx(res["inertia_crb"]["iyz"], rel=2e-3)
+    assert float(iyz[4]) == pytest.approx(-truth["inertia_about_cg"]["iyz"], abs=0.006)
+    ixx = r["ixx"].split()
+    err = 100 * (res["inertia_about_cg"]["ixx"] - truth["inertia_about_cg"]["ixx"]) / truth["inertia_about_cg"]["ixx"]
+    assert float(ixx[5].rstrip("%")) == pytest.approx(err, abs=6e-4)
+    for label in ("CG static", "CG dynamic", "CG combined"):
+        assert any(line.startswith(label) for line in lines), label
+    assert "tension:c0" in lines[-1] or any("tension:c0" in line for line in lines)

@@ -32,6 +32,12 @@ Verbs (ROS arguments may follow ``--ros-args``; ``--identifier NAME`` picks the 
       must be the identifier's); an existing OUT is replaced only with ``--force``.  The
       dynamic experiment's tracker, preprocessor and identifier then start with
       ``rig:=OUT.yaml``.
+  mass_properties_client rig-model [--json] [--fit-timeout S]
+      ~/identify_rig_model: the rig model of ``rig-identify inertia`` (every sensor an output,
+      the mass, CG and tensor fitted together, the CG's prior the last cg-estimate) on the
+      identifier's buffered raw streams; prints the verdict, the tensor with σ and the
+      Cramér–Rao bound (and the error against /rig/sim_truth), the mass, the CG from both tests
+      and each channel's residual over its noise (:func:`format_rig_model`).
   mass_properties_client status [--json]
       ~/status: samples buffered by the identifier.
 
@@ -153,6 +159,43 @@ def format_table(result: dict, truth: dict | None, cg_answer: str | None = None,
     return "\n".join(lines)
 
 
+def format_rig_model(answer: dict, truth: dict | None, name: str = "/identifier") -> str:
+    """Text for the answer of ~/identify_rig_model (``RigModelResult.to_dict``, the JSON of
+    ``rig-identify inertia --json``): the verdict first, the conventions, the moments and
+    products of inertia about the CG (products with the vehicle-dynamics sign) with σ and the
+    Cramér–Rao bound (and the error against ``truth`` when given), the mass, the centre of gravity
+    from the static test, the run alone and both, and each channel's residual over its noise."""
+    head = f"Mass properties identified by {name} (the rig model, every sensor an output)"
+    lines = [head, "=" * len(head), f"verdict: {answer['verdict']}"]
+    lines += convention_lines(BODY)
+    J, sd, crb = answer["inertia_about_cg"], answer["inertia_std"], answer["inertia_crb"]
+    Jt = (truth or {}).get("inertia_about_cg")
+    big = max(abs(Jt["ixx"]), abs(Jt["iyy"]), abs(Jt["izz"])) if Jt else None
+    hdr = f"{'quantity':<10}{'identified':>12}{'±1σ':>9}{'CRB':>9}" + (f"{'truth':>11}{'error':>11}" if Jt else "")
+    lines += [hdr + "   (kg·m²)", "-" * len(hdr)]
+    for k in KEYS:
+        sign = -1.0 if k in PRODUCTS else 1.0     # the table's products: vehicle-dynamics sign, Ixy = −ixy
+        row = f"{'I' + k[1:]:<10}{sign * J[k] + 0.0:>12.2f}{sd[k]:>9.3g}{crb[k]:>9.3g}"
+        if Jt:
+            ref = big if k in PRODUCTS else abs(Jt[k])
+            row += f"{sign * Jt[k] + 0.0:>11.2f}{sign * 100 * (J[k] - Jt[k]) / ref + 0.0:>+10.3f}%"
+        lines.append(row)
+    if answer["verdict"] in ("not_identifiable", "failed"):
+        lines.append("no entry above is an estimate to use (verdict " + answer["verdict"] + ")")
+    lines.append(f"mass {answer['mass']:.2f} ± {answer['mass_std']:.2f} kg (fitted, the scale's value its prior)")
+    c = answer["center_of_gravity"]
+    for label, key, what in (("static", "static", c.get("static_source", "")), ("dynamic", "dynamic", "the run alone"),
+                             ("combined", "combined", "the tensor is about it")):
+        v, s_ = c[key], c[key + "_std"]
+        if v is None or v[0] is None:
+            continue
+        lines.append(f"CG {label:<9} (" + ", ".join(f"{1e3 * x:.1f}" if x is not None else "—" for x in v)
+                     + ") ± (" + ", ".join(f"{1e3 * x:.2g}" if x is not None else "—" for x in s_) + f") mm  {what}")
+    lines.append("residual over the noise: " + ", ".join(f"{k} {v:.2f}" for k, v in answer["residual_level"].items()))
+    lines += [f"warning: {w}" for w in answer.get("warnings", [])]
+    return "\n".join(lines)
+
+
 def error_text(message: str) -> str:
     """The ``error`` of a service's JSON answer (or the answer itself when it is not JSON)."""
     try:
@@ -252,10 +295,10 @@ def parser(verb: str) -> argparse.ArgumentParser:
                         help="the rig description to copy (rig.yaml, recording folder or experiment file; default: "
                              "the identifier's rig parameter)")
         ap.add_argument("--force", action="store_true", help="let --write-rig replace an existing file")
-    if verb in ("identify", "cg-estimate"):
-        ap.add_argument("--truth-timeout", type=float, default=3.0 if verb == "identify" else 1.0,
+    if verb in ("identify", "cg-estimate", "rig-model"):
+        ap.add_argument("--truth-timeout", type=float, default=1.0 if verb == "cg-estimate" else 3.0,
                         help="wait this long for /rig/sim_truth (simulations only), s")
-    if verb == "identify":
+    if verb in ("identify", "rig-model"):
         ap.add_argument("--fit-timeout", type=float, default=300.0, help="wait this long for the fit, s (default 300)")
         ap.add_argument("--wait-stable", type=float, default=0.0, metavar="S",
                         help="first wait until the identifier has received no new sample for S s")
@@ -264,6 +307,8 @@ def parser(verb: str) -> argparse.ArgumentParser:
 
 VERBS = {
     "identify": "Identify the inertia tensor (~/identify_inertia) and print the mass properties.",
+    "rig-model": "Fit the rig model to the buffered raw streams (~/identify_rig_model: rig-identify inertia's core) "
+                 "and print the mass, CG and tensor.",
     "cg-capture": "Static CG experiment, step 1 or 2: capture the body at rest without (baseline) or with "
                   "(dummy) the dummy mass.",
     "cg-estimate": "Static CG experiment, step 3: estimate the centre of gravity from the two captured states.",
@@ -273,6 +318,7 @@ VERBS = {
 #: every help's closing text: the verbs, each with what it does, and the static CG procedure
 EPILOG = ("verbs (mass_properties_client VERB --help for each):\n"
           "  [identify]                 fit the inertia tensor; print the mass properties, verdict first\n"
+          "  rig-model                  the rig model on the buffered raw streams (rig-identify inertia's core)\n"
           "  cg-capture baseline|dummy  CG steps 1, 2: capture the body at rest without / with the dummy\n"
           "  cg-estimate                CG step 3: the centre of gravity and its σ from the two captures\n"
           "  status                     samples buffered by the identifier\n"
@@ -328,8 +374,8 @@ def run(verb: str, args, node: Node) -> int:
     """Carry out ``verb`` (see the module docstring); the exit status."""
     idf = IdentifierClient(node, args.identifier)
     first = {"identify": "identify_inertia", "cg-capture": f"capture_cg_{getattr(args, 'state', '')}",
-             "cg-estimate": "estimate_cg", "status": "status"}[verb]
-    truth = truth_listener(node) if verb in ("identify", "cg-estimate") else {}
+             "cg-estimate": "estimate_cg", "status": "status", "rig-model": "identify_rig_model"}[verb]
+    truth = truth_listener(node) if verb in ("identify", "cg-estimate", "rig-model") else {}
     if not idf.wait(first, args.timeout):
         log(f"mass_properties_client: error: service {idf.base}/{first} not available "
             f"after {args.timeout:.0f} s (is the identifier running, same ROS_DOMAIN_ID?)")
@@ -343,9 +389,10 @@ def run(verb: str, args, node: Node) -> int:
         except (RigError, CgResultError) as e:
             log(f"mass_properties_client: error: {e}")
             return 2
-    r = idf.call(first, 60.0)
+    wait = args.fit_timeout if verb == "rig-model" else 60.0
+    r = idf.call(first, wait)
     if r is None:
-        log(f"mass_properties_client: error: no answer from {idf.base}/{first} within 60 s")
+        log(f"mass_properties_client: error: no answer from {idf.base}/{first} within {wait:.0f} s")
         return 2
     if not r.success:
         log(f"mass_properties_client: {first} refused: {error_text(r.message)}")
@@ -361,6 +408,9 @@ def run(verb: str, args, node: Node) -> int:
         print(json.dumps(answer))
     elif verb == "cg-capture":
         print(format_capture(args.state, answer))
+    elif verb == "rig-model":
+        wait_truth(node, truth, args.truth_timeout)
+        print(format_rig_model(answer, truth or None, idf.base))
     elif verb == "cg-estimate":
         wait_truth(node, truth, args.truth_timeout)
         print(format_cg(answer, truth or None, idf.base))
