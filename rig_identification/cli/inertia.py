@@ -1,7 +1,10 @@
 """``rig-identify inertia``: identify the inertia tensor of one or more dynamic recordings.
 
-Prints, in this order: the verdict (:attr:`~rig_identification.io.verdict.Validation.summary`), the recording(s),
-the conventions (frame, units, sign: :func:`~rig_identification.io.export.convention_lines`), mass and CG, the
+One recording, by default: the rig model (:mod:`rig_identification.cli.rig_model`).  ``--quick``,
+several recordings or ``--model pem`` (:func:`resolve_model`): the gyro-only prediction-error fit,
+whose output this module prints, in this order: the verdict
+(:attr:`~rig_identification.io.verdict.Validation.summary`), the recording(s), the conventions
+(frame, units, sign: :func:`~rig_identification.io.export.convention_lines`), mass and CG, the
 window, the tensor about the CG with σ (and the truth when truth.yaml is there), the products
 of inertia with the vehicle-dynamics sign, the principal moments and axes, the tensor about the
 body frame's origin, what σ is, the precision against ``--target``

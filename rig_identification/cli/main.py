@@ -81,13 +81,14 @@ def add_command(sub, name: str, help: str | None, description: str, run: Callabl
 
 def add_inertia_parser(sub) -> None:
     p = add_command(sub, "inertia", "identify the inertia tensor from one or more dynamic recordings",
-                    "Replay dynamic recording(s) through tracker, preprocessor and identifier and print the mass "
-                    "properties: the verdict first (ok / model_error / not_identifiable), then the frame and "
-                    "sign convention, the tensor about the CG with σ (and the truth when truth.yaml is there), "
-                    "the products of inertia with the vehicle-dynamics sign, the principal moments and axes and "
-                    "the tensor about the body frame's origin. Entries the recording does not determine print as "
-                    "\"not determined\" (null in JSON/YAML). Several recordings of the same body are fitted "
-                    "jointly with one tensor.",
+                    "Fit the rig's grey-box model to every sensor of one dynamic recording (tensions, gyro, "
+                    "accelerometer, inclinometer; the mass, CG and tensor together) and print the mass "
+                    "properties: the verdict first (ok / model_error / not_identifiable / inconsistent / failed), "
+                    "the tensor about the CG with σ beside the Cramér–Rao bound (and the truth when truth.yaml is "
+                    "there), the principal moments and axes, the tensor about the body frame's origin, the mass "
+                    "and the CG from the static test, the run and both, and each channel's residual against its "
+                    "noise. --quick and several recordings (fitted jointly with one tensor): the gyro-only "
+                    "prediction-error fit (--model pem) through tracker, preprocessor and identifier.",
                     lazy("rig_identification.cli.inertia", "cmd_inertia"), inputs=("recording", "cg"),
                     outputs=("yaml",), output_dirs=("report",))
     p.add_argument("recording", nargs="+",
