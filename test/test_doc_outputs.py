@@ -5,7 +5,7 @@ import re
 from pathlib import Path
 
 import pytest
-from doc_outputs import blocks, documents, match, run, same
+from doc_outputs import blocks, documents, match, numbers_agree, run, same
 
 from rig_identification.model import experiment
 
@@ -35,3 +35,11 @@ def test_the_experiment_file_format_in_the_docs_is_the_parsers():
     doc = (Path(__file__).resolve().parent.parent / "docs" / "cli.md").read_text()
     shown = re.search(r"### Experiment files\n.*?```yaml\n(.*?)\n```", doc, re.S)
     assert shown and shown.group(1).splitlines() == lines
+
+
+def test_a_shown_number_may_differ_by_one_unit_of_its_last_digit_and_nothing_else():
+    assert same("Izz    3101.32   0.621   +0.5", "Izz    3101.31   0.621   +0.5")
+    assert not same("Izz    3101.32   0.621   +0.5", "Izz    3101.30   0.621   +0.5")
+    assert not same("Izz    3101.32   0.621   +0.5", "Izz    3101.3   0.621   +0.5")       # digits differ
+    assert not numbers_agree("verdict: ok — 1 channel", "verdict: model_error — 1 channel")
+    assert same("mass 1810.08 ± 0.19 kg ...", "mass 1810.07 ± 0.19 kg (the scale's value)")
