@@ -223,7 +223,8 @@ def matrices_html(mp: MassProperties) -> str:
                           "inertia tensor J about the body-frame origin, kg·m² (off-diagonal: −products)") + "</div>"
             + '<p class="note">About the origin: parallel-axis theorem, J_O = J + m (|c|² I − c cᵀ), with the mass '
             + f"{mp.mass:g} kg and the CG c = [{', '.join(num(x, '.4f') for x in mp.cg)}] m; σ as about the CG "
-            "(the parallel-axis term's own uncertainty, from the mass's and the CG's, left out)." + (" The CG is at the origin: the two are the same." if same else "")
+            "(the parallel-axis term's own uncertainty, from the mass's and the CG's, left out)."
+            + (" The CG is at the origin: the two are the same." if same else "")
             + "</p>")
 
 
