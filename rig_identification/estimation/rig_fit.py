@@ -498,10 +498,11 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     cov = np.diag(sd ** 2)                  # an unknown the residual does not see: σ inf, uncorrelated
     cov[np.ix_(seen, seen)] = (fisher / np.outer(fd, fd) * np.outer(sd, sd))[np.ix_(seen, seen)]
     unit = RigProblem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases)
-    level = levels(unit, x)
+    outputs = unit.outputs(x)             # one model run for the levels and the plotted series
+    level = levels(unit, x, outputs)
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
-                  freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x), descent)
+                  freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x, outputs), descent)
 
 
 def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.ndarray:

@@ -212,12 +212,13 @@ class RigProblem:
         a = self.rec.start
         return self.weighted(self.rec.y[a:a + self.n] - np.concatenate(self.outputs(x) if outputs is None else outputs))
 
-    def fitted(self, x: np.ndarray) -> ChannelSeries:
+    def fitted(self, x: np.ndarray, outputs: list[np.ndarray] | None = None) -> ChannelSeries:
         """The measured and the model's readings at ``x`` over the span as the fit compares them
-        (low-passed and decimated to the band), each channel's offset put on the measured one's."""
+        (low-passed and decimated to the band), each channel's offset put on the measured one's;
+        ``outputs``: :meth:`outputs` at x where already known."""
         a = self.rec.start
         measured = self.rec.y[a:a + self.n]
-        predicted = np.concatenate(self.outputs(x))
+        predicted = np.concatenate(self.outputs(x) if outputs is None else outputs)
         predicted = predicted - predicted.mean(axis=0) + measured.mean(axis=0)
         low = [sosfiltfilt(self.sos, v - v.mean(axis=0), axis=0)[::self.step] + v.mean(axis=0)
                for v in (measured, predicted)]
@@ -320,9 +321,10 @@ class RigProblem:
             return np.column_stack(list(pool.map(column, range(len(z)))))
 
 
-def levels(prob: RigProblem, x: np.ndarray) -> np.ndarray:
-    """Each channel's residual RMS in the band over its noise's (1: noise alone)."""
-    return np.asarray(np.sqrt(np.mean(prob.data_residual(x) ** 2, axis=0)) / prob.unit)
+def levels(prob: RigProblem, x: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:
+    """Each channel's residual RMS in the band over its noise's (1: noise alone); ``outputs``:
+    :meth:`RigProblem.outputs` at x where already known."""
+    return np.asarray(np.sqrt(np.mean(prob.data_residual(x, outputs) ** 2, axis=0)) / prob.unit)
 
 
 def base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) -> np.ndarray:
