@@ -54,10 +54,11 @@ METHOD = ("the rig's grey-box model (rigid body on elastic cables, driven by the
           "the surveyed geometry fitted with their priors")
 
 
-def truth_errors(res: RigModelResult) -> dict | None:
+def truth_errors(res: RigModelResult, d: dict) -> dict | None:
     """The errors against truth.yaml as the main table takes them, products with the
-    vehicle-dynamics sign: {key: {"truth", "error" kg·m², "error_percent", "error_sigma"}}, or None."""
-    cmp = res.to_dict().get("truth_comparison")
+    vehicle-dynamics sign: {key: {"truth", "error" kg·m², "error_percent", "error_sigma"}}, or None;
+    ``d``: ``res.to_dict()``."""
+    cmp = d.get("truth_comparison")
     if not cmp:
         return None
     out = {}
@@ -68,10 +69,10 @@ def truth_errors(res: RigModelResult) -> dict | None:
     return out
 
 
-def cg_html(res: RigModelResult) -> str:
-    """The mass and the CG from each test (mm, σ), and whether the two tests agree."""
+def cg_html(res: RigModelResult, d: dict) -> str:
+    """The mass and the CG from each test (mm, σ), and whether the two tests agree; ``d``:
+    ``res.to_dict()``."""
     f = res.fit
-    d = res.to_dict()
     cg = res.cg
     rows = [[name, ", ".join(num(1e3 * x, ".1f") for x in v), ", ".join(num(1e3 * x, ".2g") for x in s), what]
             for name, v, s, what in (("static", cg.static, cg.static_std, cg.static_source),
@@ -133,7 +134,8 @@ def write_rig_report(out_dir, res: RigModelResult, rec: Recording, axes: str | A
     cov = f.covariance[f.layout.inertia][:, f.layout.inertia]
     mp = mass_properties_of(float(f.parameters.mass), f.parameters.cg, to_tensor(f.inertia), f.inertia_std, cov,
                             f.crb, res.withheld, vehicle)
-    errors = truth_errors(res)
+    result = res.to_dict()
+    errors = truth_errors(res, result)
     when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     label = Path(res.path).name
     title = f"inertia identification (the rig model): {label}"
@@ -147,7 +149,7 @@ def write_rig_report(out_dir, res: RigModelResult, rec: Recording, axes: str | A
              f'<div class="verdict {cls}" id="verdict"><p class="sentence">{esc(res.summary)}</p></div>',
              '<table class="meta"><tbody>' + "".join(f"<tr><th>{esc(a)}</th><td>{esc(b)}</td></tr>" for a, b in meta)
              + "</tbody></table>",
-             "<h2>Mass and centre of gravity</h2>", cg_html(res),
+             "<h2>Mass and centre of gravity</h2>", cg_html(res, result),
              "<h2>Moments and products of inertia about the CG</h2>"]
     if res.verdict != "ok":
         parts.append(f'<p class="untrusted">Not an estimate to sign (verdict {esc(res.verdict)}): see the verdict.</p>')
@@ -180,7 +182,7 @@ def write_rig_report(out_dir, res: RigModelResult, rec: Recording, axes: str | A
             if channels_figure(tmp / png, s.t, s.measured, s.predicted, s.channels, prefix, label):
                 parts.append(f"<h2>Measured vs the model: {esc(name)}</h2>"
                              f'<img src="{png}" alt="measured and predicted {esc(name)}">')
-        data = {"result": res.to_dict(),
+        data = {"result": result,
                 "report": {**job.to_dict(), "generated": when, "software": PACKAGE, "version": package_version(),
                            "recording": str(Path(res.path).resolve()), "rig": rig_label(rec.rig), "method": METHOD,
                            "frame": mp.axes.label, "units": "SI"},
