@@ -17,7 +17,7 @@ from scipy.spatial.transform import Rotation
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import physically_consistent, to_tensor
-from ..model.rig_ode import Drive, drive, moved_state, rest_state, simulate, substeps_for
+from ..model.rig_ode import Drive, drive, moved_state, rest_state, simulate, substeps_for, with_sensor_traits
 from .rig_record import ChannelSeries, Record
 from .rig_unknowns import Layout, Prior, parameters_of, priors, relayout, unit_scale
 
@@ -41,6 +41,8 @@ JACOBIAN_STEP = 1e-4
 #: A segment's change is filtered over the samples where the filter's response to an impulse
 #: exceeds this share of its peak (:meth:`RigProblem.segment_change`).
 IMPULSE_TAIL = 1e-12
+#: Extensions (:data:`~.rig_unknowns.EXTENSIONS`) whose unknowns are never negative: a damping.
+NON_NEGATIVE = ("air_drag", "coulomb_friction")
 
 
 class RigProblem:
@@ -174,7 +176,7 @@ class RigProblem:
         u = self.force(x) if u is None else u
         a, b = self.edges[k], self.edges[k + 1]
         y0 = moved_state(self._rebased(p, self.bases[k]), x[self.lay.state(k)])
-        out = simulate(p, y0, self.drive(x, u, a, b))[0]
+        out = with_sensor_traits(simulate(p, y0, self.drive(x, u, a, b))[0], p, a * self.rec.dt, self.rec.dt)
         return np.column_stack([out, u[a:b]]) if self.lay.n_force else out
 
     def _rebased(self, p: RigParameters, base: np.ndarray) -> np.ndarray:
@@ -233,11 +235,12 @@ class RigProblem:
 
     def residual(self, z: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:
         """The weighted residual (data rows, then the priors' rows); outside the physical
-        region (a tensor no body has, a negative damping time) or where the model's motion
+        region (a tensor no body has, a negative damping time or drag) or where the model's motion
         diverges, a constant large residual, which the trust region steps back from."""
         x = self.x(z)
         outside = np.full(self.size(len(z)), OUTSIDE)
-        if not physically_consistent(to_tensor(x[self.lay.inertia])) or x[self.lay.damping] < 0:
+        if not physically_consistent(to_tensor(x[self.lay.inertia])) or x[self.lay.damping] < 0 \
+                or any(np.any(x[self.lay.extension_of(e)] < 0) for e in NON_NEGATIVE if e in self.lay.extensions):
             return outside
         try:
             r = self.data_residual(x, outputs).ravel()
@@ -337,4 +340,4 @@ def base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) -> 
 
 
 __all__ = ["RigProblem", "levels", "base_state", "DECIMATED_RATE", "THREADS", "MAX_ITERATIONS", "XTOL", "FTOL", "GTOL",
-           "OUTSIDE", "JACOBIAN_STEP", "IMPULSE_TAIL"]
+           "OUTSIDE", "JACOBIAN_STEP", "IMPULSE_TAIL", "NON_NEGATIVE"]

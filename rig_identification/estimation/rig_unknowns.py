@@ -6,8 +6,8 @@ The vector, in order: the inertia tensor (6 entries about the CG, kg·m²), the 
 the mass (kg), log(stiffness) per cable, the cables' damping time τ (s), per-load-cell gain,
 the body's viscous damping (linear N·s/m, angular N·m·s), the first segment's initial state
 (12: δp_cg m, δφ rad, δv_cg m/s, δω rad/s), the geometry (every ceiling anchor, body anchor and
-cable length, m), the exciter force's correction (2 K), then the later segments' initial states
-(12 each).
+cable length, m), the extensions the layout holds (:data:`EXTENSIONS`, in its order), the
+exciter force's correction (2 K), then the later segments' initial states (12 each).
 """
 from __future__ import annotations
 
@@ -40,6 +40,21 @@ FORCE_CORRECTION_STD = 0.01
 #: ``survey.load_cell_gain``.
 STIFFNESS_LOG_STD_GIVEN = 0.2
 STIFFNESS_LOG_STD_DEFAULT = 1.0
+#: The rig model's extensions (the physics and sensor traits the diagnosis tries,
+#: :mod:`~rig_identification.diagnosis.rig_diagnosis`): name -> (unknowns, units).  Their values sit in
+#: :class:`~rig_identification.model.linear_rig.RigParameters`: ``air_drag`` (quadratic damping,
+#: linear and angular), ``coulomb_friction`` (force and moment), ``load_cell_delay`` (s),
+#: ``imu_offset`` (the IMU's position, body m), ``gyro_scale`` (3, share) and ``gyro_bias_drift``
+#: (3, rad/s²) and ``exciter_rotor`` (the unbalance, kg·m, whose weight turns with the force).
+EXTENSIONS: dict[str, tuple[int, str]] = {
+    "air_drag": (2, "N s^2/m^2, N m s^2/rad^2"),
+    "coulomb_friction": (2, "N, N m"),
+    "load_cell_delay": (1, "s"),
+    "imu_offset": (3, "m (the IMU's position, body frame)"),
+    "gyro_scale": (3, "share (reading / rate - 1), IMU axes"),
+    "gyro_bias_drift": (3, "rad/s^2, IMU axes"),
+    "exciter_rotor": (1, "kg m (the unbalance: mass times eccentricity)"),
+}
 
 
 @dataclass(frozen=True)
@@ -91,11 +106,13 @@ class Layout:
     K B-spline coefficients of its amplitude's relative change, then K of its phase's change,
     rad, over the fit's span (:meth:`Record.force_basis`).  n_segments: the span's segments
     (:data:`SEGMENT`), each after the first with its own initial state (12 unknowns, last).
+    extensions: names of :data:`EXTENSIONS` whose unknowns the vector holds (after the geometry).
     """
 
     n_cables: int
     n_force: int = 0
     n_segments: int = 1
+    extensions: tuple[str, ...] = ()
 
     @property
     def inertia(self) -> slice:
@@ -134,18 +151,32 @@ class Layout:
         return slice(25 + 2 * self.n_cables, 25 + 9 * self.n_cables)
 
     @property
+    def extension(self) -> slice:
+        """Every extension's unknowns (:meth:`extension_of` each)."""
+        start = 25 + 9 * self.n_cables
+        return slice(start, start + sum(EXTENSIONS[e][0] for e in self.extensions))
+
+    def extension_of(self, name: str) -> slice:
+        """The unknowns of extension ``name`` (KeyError where the layout does not hold it)."""
+        if name not in self.extensions:
+            raise KeyError(name)
+        start = 25 + 9 * self.n_cables + sum(EXTENSIONS[e][0] for e in self.extensions[:self.extensions.index(name)])
+        return slice(start, start + EXTENSIONS[name][0])
+
+    @property
     def force(self) -> slice:
-        return slice(25 + 9 * self.n_cables, 25 + 9 * self.n_cables + self.n_force)
+        start = self.extension.stop
+        return slice(start, start + self.n_force)
 
     @property
     def segments(self) -> slice:
         """The initial states (12 each) of the segments after the first, segment by segment."""
-        start = 25 + 9 * self.n_cables + self.n_force
+        start = self.force.stop
         return slice(start, start + 12 * (self.n_segments - 1))
 
     @property
     def size(self) -> int:
-        return 25 + 9 * self.n_cables + self.n_force + 12 * (self.n_segments - 1)
+        return self.segments.stop
 
     def state(self, k: int) -> slice:
         """Segment ``k``'s initial-state unknowns (12)."""
@@ -157,7 +188,12 @@ class Layout:
         """This layout for a span of ``samples`` grid samples ``dt`` s apart: segments of at most
         :data:`SEGMENT` s."""
         n = max(1, int(np.ceil((samples - 1) * dt / SEGMENT - 1e-9)))
-        return Layout(self.n_cables, self.n_force, n)
+        return Layout(self.n_cables, self.n_force, n, self.extensions)
+
+    def extended(self, names: tuple[str, ...]) -> "Layout":
+        """This layout holding the extensions ``names`` (in :data:`EXTENSIONS` order) besides its own."""
+        held = set(self.extensions) | set(names)
+        return Layout(self.n_cables, self.n_force, self.n_segments, tuple(e for e in EXTENSIONS if e in held))
 
 
 def relayout(x: np.ndarray, lay: Layout) -> np.ndarray:
@@ -169,11 +205,31 @@ def relayout(x: np.ndarray, lay: Layout) -> np.ndarray:
     return np.concatenate([x[:common], np.zeros(lay.size - common)])
 
 
+def _extension_values(p: RigParameters, name: str) -> np.ndarray:
+    values = {"air_drag": p.air_drag, "coulomb_friction": p.friction, "load_cell_delay": [p.load_cell_delay],
+              "imu_offset": p.imu_position, "gyro_scale": p.gyro_scale, "gyro_bias_drift": p.gyro_drift,
+              "exciter_rotor": [p.rotor_unbalance]}
+    return np.asarray(values[name], float)
+
+
 def vector(p: RigParameters, initial: np.ndarray, lay: Layout) -> np.ndarray:
     """(lay.size,) the unknowns of ``p`` in the order of the module docstring: the first segment's
     initial state ``initial`` (12,), the force's correction and the later segments' states zero."""
     return np.concatenate([p.inertia, p.cg, [p.mass], np.log(p.stiffness), [p.damping_time], p.gain, p.body_damping,
-                           initial, p.ceiling.ravel(), p.body.ravel(), p.length, np.zeros(lay.size - lay.force.start)])
+                           initial, p.ceiling.ravel(), p.body.ravel(), p.length]
+                          + [_extension_values(p, e) for e in lay.extensions] + [np.zeros(lay.size - lay.force.start)])
+
+
+def in_layout(x: np.ndarray, old: Layout, new: Layout, p: RigParameters) -> np.ndarray:
+    """The unknowns ``x`` (layout ``old``, parameters ``p``) in layout ``new`` (the same segments and
+    force correction, other extensions): an extension ``old`` lacks takes its value in ``p``."""
+    out = vector(p, x[old.initial], new)
+    out[new.force] = x[old.force]
+    out[new.segments] = x[old.segments]
+    for e in old.extensions:
+        if e in new.extensions:
+            out[new.extension_of(e)] = x[old.extension_of(e)]
+    return out
 
 
 def parameters_of(x: np.ndarray, like: RigParameters, lay: Layout) -> RigParameters:
@@ -181,11 +237,18 @@ def parameters_of(x: np.ndarray, like: RigParameters, lay: Layout) -> RigParamet
     :func:`vector` (the stiffness from its log)."""
     n = lay.n_cables
     g = x[lay.geometry]
+    held = {e: x[lay.extension_of(e)] for e in lay.extensions}
+    fields = (("air_drag", "air_drag"), ("coulomb_friction", "friction"), ("imu_offset", "imu_position"),
+              ("gyro_scale", "gyro_scale"), ("gyro_bias_drift", "gyro_drift"))
+    extra: dict[str, object] = {name: held[e] for e, name in fields if e in held}
+    for e, name in (("load_cell_delay", "load_cell_delay"), ("exciter_rotor", "rotor_unbalance")):
+        if e in held:
+            extra[name] = float(held[e][0])
     return like.replace(inertia=x[lay.inertia], cg=x[lay.cg], mass=float(x[lay.mass]),
                         stiffness=np.exp(x[lay.log_stiffness]), damping_time=float(x[lay.damping]),
                         gain=x[lay.gain], body_damping=x[lay.body_damping], ceiling=g[:3 * n].reshape(n, 3),
                         body=g[3 * n:6 * n].reshape(n, 3),
-                        length=g[6 * n:])
+                        length=g[6 * n:], **extra)
 
 
 def priors(prior: Prior, lay: Layout, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -223,4 +286,11 @@ def unit_scale(x0: np.ndarray, lay: Layout, prior: Prior) -> np.ndarray:
     s[lay.segments] = 1e-4
     s[lay.geometry] = 1e-4
     s[lay.force] = 1e-2
+    # the extensions' units: quadratic drag and Coulomb friction as strong as the viscous unit at
+    # 0.02 m/s and rad/s (a swing's typical speed)
+    units = {"air_drag": (5e-2 * prior.mass, 5e-2 * big), "coulomb_friction": (2e-5 * prior.mass, 2e-5 * big),
+             "load_cell_delay": (1e-3,), "imu_offset": (1e-3,) * 3, "gyro_scale": (1e-3,) * 3,
+             "gyro_bias_drift": (1e-5,) * 3, "exciter_rotor": (1e-2,)}
+    for e in lay.extensions:
+        s[lay.extension_of(e)] = units[e]
     return s

@@ -55,6 +55,17 @@ class RigParameters:
     stiffness: (N,) N/m.  damping_time: τ, s (cable damping τ k_i).  gain: (N,) load-cell gains.
     body_damping: (2,) the body's viscous damping: linear N·s/m on the CG's velocity, angular
     N·m·s on the angular velocity (air, joints; the ``viscous_damping`` effect).
+    air_drag: (2,) quadratic damping: linear N·s²/m² (force −c |v| v on the CG), angular
+    N·m·s²/rad² (moment −c |ω| ω).  friction: (2,) Coulomb friction, regularised
+    (:data:`~rig_identification.model.rig_ode.FRICTION_SPEED`): force N (−f v/|v|), moment N·m
+    (−τ ω/|ω|).  These two leave the linearised equations (zero slope at rest, or none) and
+    act in the exact model (:mod:`~rig_identification.model.rig_ode`).  rotor_unbalance: kg·m,
+    the exciter's unbalanced mass times its eccentricity: its weight's moment about the CG turns
+    with the force's direction (exact model only).
+    load_cell_delay: s, the load cells' readings lag the IMU's by this.  gyro_scale: (3,) each
+    gyro axis reads (1 + s) times the rate (IMU axes).  gyro_drift: (3,) rad/s² each gyro
+    axis's bias grows at this rate (IMU axes).  The last three are sensor traits: they shape
+    the readings, not the motion (:func:`~rig_identification.model.rig_ode.with_sensor_traits`).
     gravity: m/s².  imu_position: (3,) body m; imu_rotation, exciter_rotation,
     inclinometer_rotation: (3, 3) sensor axes -> body axes (None: no inclinometer).
     exciter_position: (3,) body m.
@@ -76,6 +87,12 @@ class RigParameters:
     exciter_rotation: np.ndarray
     inclinometer_rotation: np.ndarray | None
     body_damping: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    air_drag: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    friction: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    load_cell_delay: float = 0.0
+    gyro_scale: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gyro_drift: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    rotor_unbalance: float = 0.0
 
     @property
     def cables(self) -> int:

@@ -2,7 +2,9 @@
 
 The same physics as :class:`~rig_identification.model.dynamics.RigDynamics` with spring-damper
 cables (Newton–Euler with the gyroscopic term; tension max(0, k_i (l_i - L_i) + τ k_i dl_i/dt)
-along the cable; the body's viscous damping, -c_lin v_cg and -c_ang ω), driven by the measured
+along the cable; the body's damping on the CG's velocity and the angular velocity: viscous
+-c v, quadratic -c |v| v and Coulomb -f v/|v|, regularised; the exciter's unbalanced mass,
+whose weight turns with the measured force's direction), driven by the measured
 exciter force (its frame turning with the body), the force a cubic spline through the samples of
 a uniform grid (linear interpolation of a 200 Hz force leaves 0.2 N in the tensions: they see
 the motion that finely).  Classical fourth-order Runge–Kutta with a fixed step (``substeps``
@@ -34,6 +36,8 @@ from .parametrisation import to_tensor
 #: ω_max h of the fixed step: RK4 is stable to 2.8; the cables' axial modes it integrates
 #: coarsely lie above the fit's band, and the band's motion (≤ 5 Hz) is resolved to ~1e-6.
 STEP_OMEGA = 0.5
+#: m/s and rad/s: Coulomb friction −f v/sqrt(|v|² + ε²) is regularised over this speed ε.
+FRICTION_SPEED = 1e-3
 
 
 @numba.njit(cache=True, nogil=True)
@@ -94,12 +98,24 @@ def _rhs(y: np.ndarray, u0: float, u1: float, A: np.ndarray, r: np.ndarray, L: n
     Mx += re[1] * ez - re[2] * ey
     My += re[2] * ex - re[0] * ez
     Mz += re[0] * ey - re[1] * ex
-    Fx -= bd[0] * y[7]                     # the body's viscous damping
-    Fy -= bd[0] * y[8]
-    Fz -= bd[0] * y[9]
-    Mx -= bd[1] * wx
-    My -= bd[1] * wy
-    Mz -= bd[1] * wz
+    fn = math.sqrt(ex * ex + ey * ey + ez * ez)
+    if bd[6] != 0.0 and fn > 0.0:          # the exciter's unbalanced mass, its weight turning with it
+        gx, gy, gz = -g * R[2, 0], -g * R[2, 1], -g * R[2, 2]
+        Mx += bd[6] * (ey * gz - ez * gy) / fn
+        My += bd[6] * (ez * gx - ex * gz) / fn
+        Mz += bd[6] * (ex * gy - ey * gx) / fn
+    # the body's damping: viscous bd[0:2], quadratic bd[2:4], Coulomb bd[4:6] (linear, angular); bd[6]: the
+    # exciter's unbalance (above)
+    speed = math.sqrt(y[7] * y[7] + y[8] * y[8] + y[9] * y[9])
+    spin = math.sqrt(wx * wx + wy * wy + wz * wz)
+    fl = bd[0] + bd[2] * speed + bd[4] / math.sqrt(speed * speed + FRICTION_SPEED * FRICTION_SPEED)
+    fa = bd[1] + bd[3] * spin + bd[5] / math.sqrt(spin * spin + FRICTION_SPEED * FRICTION_SPEED)
+    Fx -= fl * y[7]
+    Fy -= fl * y[8]
+    Fz -= fl * y[9]
+    Mx -= fa * wx
+    My -= fa * wy
+    Mz -= fa * wz
     dy[0], dy[1], dy[2] = y[7], y[8], y[9]
     dy[3] = 0.5 * (-qx * wx - qy * wy - qz * wz)
     dy[4] = 0.5 * (qw * wx + qy * wz - qz * wy)
@@ -239,9 +255,28 @@ def _arguments(p: RigParameters, y0: ArrayLike, d: Drive) -> tuple[Any, ...]:
             np.ascontiguousarray(p.ceiling), np.ascontiguousarray(p.body - p.cg), p.length.astype(float),
             p.stiffness.astype(float), (p.damping_time * p.stiffness).astype(float), p.gain.astype(float),
             float(p.mass), J, np.linalg.inv(J), float(p.gravity), np.ascontiguousarray(p.exciter_rotation[:, :2]),
-            p.exciter_position - p.cg, np.asarray(p.body_damping, float), np.ascontiguousarray(p.imu_rotation),
-            p.imu_position - p.cg,
+            p.exciter_position - p.cg,
+            np.concatenate([p.body_damping, p.air_drag, p.friction, [p.rotor_unbalance]]).astype(float),
+            np.ascontiguousarray(p.imu_rotation), p.imu_position - p.cg,
             np.ascontiguousarray(Rinc), has_inc)
+
+
+def with_sensor_traits(out: np.ndarray, p: RigParameters, t0: float, dt: float) -> np.ndarray:
+    """The readings ``out`` (n, n_out) of :func:`simulate` over samples ``dt`` s apart, the first
+    ``t0`` s after the fit's start, with the sensor traits of ``p`` applied: the load cells' delay
+    (their columns read at t − delay, a cubic spline through the segment's samples, extrapolated
+    at its start), each gyro axis's scale (1 + s) and its bias drift (rate × t).  ``out`` itself
+    where ``p`` has none."""
+    n_c = p.cables
+    delayed = p.load_cell_delay != 0.0
+    if not (delayed or np.any(p.gyro_scale) or np.any(p.gyro_drift)):
+        return out
+    out = out.copy()
+    t = np.arange(len(out)) * dt
+    if delayed:
+        out[:, :n_c] = CubicSpline(t, out[:, :n_c], axis=0, extrapolate=True)(t - p.load_cell_delay)
+    out[:, n_c:n_c + 3] = out[:, n_c:n_c + 3] * (1.0 + p.gyro_scale) + np.outer(t0 + t, p.gyro_drift)
+    return out
 
 
 def simulate(p: RigParameters, y0: np.ndarray, force: Drive) -> tuple[np.ndarray, np.ndarray]:
