@@ -67,7 +67,8 @@ ROWS = {
 
 def _rig_model_row(row: dict, rec, sim, t0: float) -> dict:
     """The row of the rig model (``rig-identify inertia``'s default): its verdict, the channels
-    it does not fit (``failed``), the entries it gives; it names no effect."""
+    it does not fit (``failed``), the entries it gives, the extensions its diagnosis named (an
+    extension's effect name: :data:`EFFECT_OF`) and the classes it did not tell apart."""
     from types import SimpleNamespace
 
     from scoring import score_entries, worst
@@ -85,11 +86,26 @@ def _rig_model_row(row: dict, rec, sim, t0: float) -> dict:
     max_pct, max_z = worst(entries)
     row.update(verdict=res.verdict, failed=res.poorly_fitted, undetermined=list(res.undetermined + res.ambiguous),
                finite=all(e["finite"] for e in entries.values()), max_err_pct=max_pct, max_err_sigma=max_z,
-               z=[e["z"] for e in entries.values() if e["finite"]], named=[], classes=[], unexplained=[],
+               z=[e["z"] for e in entries.values() if e["finite"]], **_named(res.diagnosis), unexplained=[],
                truth_effects=[e["name"] for e in sim.truth.get("effects", [])],
                levels={c: float(v) for c, v in zip(f.channels, f.residual_level)},
                seconds=time.perf_counter() - t0)
     return json.loads(json.dumps(row, default=float))
+
+
+#: The simulator's effect each rig-model extension stands for.
+EFFECT_OF = {"load_cell_delay": "sensor_delay"}
+
+
+def _named(dg) -> dict:
+    """``named`` (the extensions told apart, as effect names) and ``classes`` (the candidates of
+    each class not told apart) of a rig-model diagnosis (None: none)."""
+    if dg is None:
+        return {"named": [], "classes": []}
+    classes = [[EFFECT_OF.get(e, e) for e in (s.best,) + s.indistinguishable] for s in dg.steps if not s.named]
+    if dg.damping is not None and dg.damping.indistinguishable:
+        classes.append(["viscous_damping"] + list(dg.damping.indistinguishable))
+    return {"named": [EFFECT_OF.get(e, e) for e in dg.named], "classes": classes}
 
 
 def _job(args):

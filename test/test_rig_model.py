@@ -308,7 +308,7 @@ def test_the_rig_model_takes_one_recording_and_none_of_the_gyro_fits_options():
 def test_three_and_five_cable_rigs_within_one_percent_three_sigma_near_the_bound(cables, seed):
     """Every entry within 1 % (products: of the largest moment) and 3 σ, σ within 4× of the
     Cramér–Rao bound, no channel beyond its noise, the dynamic CG within 3 mm and 3 σ, the mass
-    within 3 σ."""
+    within 3 σ; the diagnosis names nothing."""
     truth, d = gather("rig_model", cables)[cables]
     tru = np.array([truth["inertia_about_cg"][k] for k in KEYS])
     est = np.array([d["inertia_about_cg"][k] for k in KEYS])
@@ -327,6 +327,9 @@ def test_three_and_five_cable_rigs_within_one_percent_three_sigma_near_the_bound
         other = np.array([m["inertia_about_cg"][k] for k in KEYS])
         assert np.all(np.abs(other - est) < 3 * sd) and m["chi2_over_estimate"] >= 0, ((other - est) / sd, m)
     assert not d["ambiguous"]
+    # nothing concealed: the diagnosis names nothing and finds no data error
+    dg = d["diagnosis"]
+    assert not dg["named"] and not dg["extensions"] and not dg["data_errors"], dg
 
 
 def test_segments_give_up_little_information_on_a_regular_rig(quiet_rig, monkeypatch):

@@ -14,6 +14,9 @@ from datetime import datetime, timezone
 
 import numpy as np
 
+from ..diagnosis.rig_diagnosis import RigDiagnosis
+from ..estimation.rig_fit import RigFit
+from ..estimation.rig_unknowns import EXTENSION_FIELDS, EXTENSIONS
 from ..io.atomic import atomic_write_text
 from ..io.export import BODY, ORDER, VEHICLE_SIGN, Axes, axes_block, export_dict, urdf_inertial, yaml_text
 from ..io.package import package_version
@@ -78,9 +81,8 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY) -> None:
         print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
     for line in principal_lines(body) + [origin_line(body)]:
         print(line)
-    if res.verdict == "model_error":
-        print(f"diagnosis: rig-identify diagnose {res.path} names the physics the gyro-only model misses; "
-              "rig-identify inertia --model pem adds what it names and fits again")
+    if res.diagnosis is not None:
+        print_diagnosis(res.diagnosis)
     sv = d["survey"]
     print(f"mass {p.mass:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
     print_cg(res.cg)
@@ -101,6 +103,45 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY) -> None:
           "run at the sensors' own noise.  σ holds the noise and the priors; physics the model lacks shows as a "
           f"channel beyond {LEVEL_LIMIT:g}× its noise (verdict model_error), not in σ")
     print(f"time: {res.seconds:.1f} s")
+
+
+def _fitted(fit: RigFit, name: str) -> str:
+    """An extension's fitted values with σ in ``fit``."""
+    v = np.atleast_1d(getattr(fit.parameters, EXTENSION_FIELDS[name]))
+    s = np.sqrt(np.diag(fit.covariance)[fit.layout.extension_of(name)])
+    return ", ".join(f"{a:.4g} ± {b:.2g}" for a, b in zip(v, s)) + f" {EXTENSIONS[name][1]}"
+
+
+def print_diagnosis(dg: RigDiagnosis) -> None:
+    """What the rigid-body rig model left out (:class:`~rig_identification.diagnosis.rig_diagnosis.RigDiagnosis`):
+    the data errors, each extension added and whether the recording told it apart, what would
+    tell the rest apart, and each channel's residual before and after."""
+    print("what the model leaves out (each extension tested at the estimate, every other unknown refitted):")
+    if dg.conflicts:
+        print("  data errors (the fit pulls these off rig.yaml's or the static test's values):")
+        for c in dg.conflicts[:6]:
+            print(f"    {c.unknown}: {c.estimate:.6g} ± {c.std:.2g}, given {c.prior:.6g} ± {c.prior_std:.2g} "
+                  f"({c.z:+.1f} σ of the given)")
+    for st in dg.steps:
+        c = next(c for c in st.candidates if c.name == st.best)
+        word = "named" if st.named else f"not told apart from {', '.join(st.indistinguishable)}"
+        print(f"  {st.best}: χ² falls {c.statistic:.0f} (threshold {c.threshold:.1f}), cross-validated; {word}"
+              + ("" if st.added == st.best else f"; the model takes {st.added}, the class's simplest"))
+        if dg.refit is not None:
+            print(f"    fitted: {_fitted(dg.refit, st.added)}")
+    if not dg.steps:
+        print("  no extension significant, plausible and cross-validated"
+              + (": the model explains the recording" if not dg.conflicts else ""))
+    if dg.damping is not None:
+        alt = ", ".join(f"{e} z {z:+.1f}" for e, z in dg.damping.alternatives.items())
+        print(f"  damping: viscous, {max(dg.damping.significance):.0f} σ; in its place (Vuong's z, + viscous "
+              f"better): {alt}")
+    for line in dg.advice:
+        print(f"  {line}")
+    if dg.refit is not None:
+        print("  residual over the noise before → after: " + ", ".join(
+            f"{c} {a:.2f} → {b:.2f}" for c, a, b in zip(dg.rigid.channels, dg.rigid.residual_level,
+                                                     dg.refit.residual_level)))
 
 
 def _mm(x: np.ndarray) -> str:

@@ -72,7 +72,7 @@ from .rig_problem import (
 )
 from .rig_record import ChannelSeries, Record
 from .rig_start import start_parameters
-from .rig_unknowns import Layout, Prior, parameters_of, vector
+from .rig_unknowns import EXTENSIONS, Layout, Prior, extension_fields, parameters_of, vector
 
 log = logging.getLogger(__name__)
 
@@ -146,7 +146,10 @@ class RigFit:
     fit, its two restarts :data:`RESTART_SHIFT` away and those from ``restarts``, :func:`fit_rig`:
     the lowest is the estimate), other_chi2: (k,) their χ² less the estimate's (≥ 0).  series:
     every channel at the estimate (:class:`ChannelSeries`).  descent: (6,) kg·m² where the staged
-    fit's own descent ended (the estimate unless a restart settled lower).
+    fit's own descent ended (the estimate unless a restart settled lower).  unknowns: (size,) every
+    unknown at the estimate (``layout``), bases: (segments, 13) the segments' states before their
+    unknowns, rest: the rest pose — what the model is linearised about
+    (:mod:`~rig_identification.estimation.rig_extensions`).
     """
 
     parameters: RigParameters
@@ -163,6 +166,9 @@ class RigFit:
     other_chi2: np.ndarray
     series: ChannelSeries
     descent: np.ndarray | None = None
+    unknowns: np.ndarray | None = None
+    bases: np.ndarray | None = None
+    rest: RestPose | None = None
 
     @property
     def ambiguous(self) -> list[int]:
@@ -404,7 +410,7 @@ def _restarted(prob: RigProblem, at_x0: tuple[np.ndarray, np.ndarray], p: RigPar
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_time: float | None = None,
-            verbose: int = 0, restarts: ArrayLike = ()) -> RigFit:
+            verbose: int = 0, restarts: ArrayLike = (), extensions: dict[str, ArrayLike] | None = None) -> RigFit:
     """Fit the rig model to a :class:`Record` (module docstring).
 
     rig: rig.yaml (geometry, mounts).  prior: :class:`Prior` (its CG is the start).
@@ -415,9 +421,13 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     from besides the two :data:`RESTART_SHIFT` away (another estimator's: a minimum it found is
     one the likelihood may hold too); a tensor no body has is left out.
     damping_time: start of τ, s (default the default cable's: 2 ζ sqrt(m / (N k))).
+    extensions: the model's extensions (:data:`~.rig_unknowns.EXTENSIONS`: name -> the start of
+    its unknowns; None: the rigid-body rig model).
     Raises :class:`~.rig_record.RigFitError` when the rig has no rest pose.
     """
-    lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1])
+    extensions = extensions or {}
+    lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1],
+                 extensions=tuple(e for e in EXTENSIONS if e in extensions))
     n_all = len(rec.y) - rec.start
     channels = len(rec.channels)
     noise_scale = np.ones(channels)
@@ -427,6 +437,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     nfev = 0
     problems = []
     geometry, rest0 = start_parameters(rig, prior, np.zeros(6), rec, damping_time)
+    geometry = geometry.replace(**extension_fields(extensions))
     for start in np.atleast_2d(np.asarray(inertia0, float)):
         p0 = geometry.replace(inertia=start)
         prob = RigProblem(rec, p0, lay, vector(p0, np.zeros(12), lay), prior, noise_scale, rounds[0][0], rest0)
@@ -464,6 +475,16 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
             if np.allclose(new_scale, noise_scale, rtol=0.05) or np.max(level) > REWEIGHT_LIMIT:
                 break
             noise_scale = new_scale
+    return _concluded(rec, prior, lay, x, p, rest, bases, noise_scale, solved, restarts, nfev, verbose)
+
+
+def _concluded(rec: Record, prior: Prior, lay: Layout, x: np.ndarray, p: RigParameters, rest: RestPose,
+               bases: np.ndarray, noise_scale: np.ndarray, solved: tuple[RigProblem, np.ndarray | None, np.ndarray],
+               restarts: ArrayLike, nfev: int, verbose: int) -> RigFit:
+    """The whole-record fit at ``x`` (its last solve ``solved``: problem, fresh Jacobian or None,
+    weights) checked by restarts, polished, its covariance and levels: the :class:`RigFit`."""
+    n_all = len(rec.y) - rec.start
+    channels = len(rec.channels)
     last = RigProblem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
     J, runs = _jacobian_at_x0(last, *solved)
     r = last.residual(np.zeros(last.lay.size))
@@ -502,7 +523,9 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     level = levels(unit, x, outputs)
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
-                  freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x, outputs), descent)
+                  freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x, outputs), descent, x, bases, rest)
+
+
 
 
 def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.ndarray:

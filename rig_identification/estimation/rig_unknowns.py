@@ -196,6 +196,21 @@ class Layout:
         return Layout(self.n_cables, self.n_force, self.n_segments, tuple(e for e in EXTENSIONS if e in held))
 
 
+def labels(lay: Layout, cables: list[str]) -> list[str]:
+    """A name for each unknown up to the extensions' end (``cables``: the cables' names)."""
+    axes = "xyz"
+    out = ["ixx", "iyy", "izz", "ixy", "ixz", "iyz"] + [f"cg {a}" for a in axes] + ["mass"]
+    out += [f"stiffness {c}" for c in cables] + ["cable damping time"] + [f"load-cell gain {c}" for c in cables]
+    out += ["viscous damping linear", "viscous damping angular"]
+    out += [f"initial {q} {a}" for q in ("position", "rotation", "velocity", "angular velocity") for a in axes]
+    out += [f"ceiling anchor {c} {a}" for c in cables for a in axes]
+    out += [f"body anchor {c} {a}" for c in cables for a in axes] + [f"length {c}" for c in cables]
+    for e in lay.extensions:
+        n = EXTENSIONS[e][0]
+        out += [e] if n == 1 else [f"{e} {i}" for i in range(n)]
+    return out
+
+
 def relayout(x: np.ndarray, lay: Layout) -> np.ndarray:
     """The unknowns ``x`` (of any segment count) in layout ``lay``: the segments' initial states
     kept where the count is the same, else zero (the model's own continuation)."""
@@ -206,10 +221,7 @@ def relayout(x: np.ndarray, lay: Layout) -> np.ndarray:
 
 
 def _extension_values(p: RigParameters, name: str) -> np.ndarray:
-    values = {"air_drag": p.air_drag, "coulomb_friction": p.friction, "load_cell_delay": [p.load_cell_delay],
-              "imu_offset": p.imu_position, "gyro_scale": p.gyro_scale, "gyro_bias_drift": p.gyro_drift,
-              "exciter_rotor": [p.rotor_unbalance]}
-    return np.asarray(values[name], float)
+    return np.atleast_1d(np.asarray(getattr(p, EXTENSION_FIELDS[name]), float))
 
 
 def vector(p: RigParameters, initial: np.ndarray, lay: Layout) -> np.ndarray:
@@ -232,18 +244,28 @@ def in_layout(x: np.ndarray, old: Layout, new: Layout, p: RigParameters) -> np.n
     return out
 
 
+#: The :class:`~rig_identification.model.linear_rig.RigParameters` field each extension sets.
+EXTENSION_FIELDS = {"air_drag": "air_drag", "coulomb_friction": "friction", "load_cell_delay": "load_cell_delay",
+                    "imu_offset": "imu_position", "gyro_scale": "gyro_scale", "gyro_bias_drift": "gyro_drift",
+                    "exciter_rotor": "rotor_unbalance"}
+
+
+def extension_fields(values: dict[str, ArrayLike]) -> dict[str, object]:
+    """The :class:`~rig_identification.model.linear_rig.RigParameters` fields that the extensions'
+    ``values`` (name -> its unknowns) set, for ``RigParameters.replace``."""
+    out: dict[str, object] = {}
+    for e, v in values.items():
+        a = np.asarray(v, float)
+        out[EXTENSION_FIELDS[e]] = float(a.reshape(-1)[0]) if EXTENSIONS[e][0] == 1 else a
+    return out
+
+
 def parameters_of(x: np.ndarray, like: RigParameters, lay: Layout) -> RigParameters:
     """``like`` with every parameter the unknowns ``x`` (layout ``lay``) hold: the inverse of
     :func:`vector` (the stiffness from its log)."""
     n = lay.n_cables
     g = x[lay.geometry]
-    held = {e: x[lay.extension_of(e)] for e in lay.extensions}
-    fields = (("air_drag", "air_drag"), ("coulomb_friction", "friction"), ("imu_offset", "imu_position"),
-              ("gyro_scale", "gyro_scale"), ("gyro_bias_drift", "gyro_drift"))
-    extra: dict[str, object] = {name: held[e] for e, name in fields if e in held}
-    for e, name in (("load_cell_delay", "load_cell_delay"), ("exciter_rotor", "rotor_unbalance")):
-        if e in held:
-            extra[name] = float(held[e][0])
+    extra = extension_fields({e: x[lay.extension_of(e)] for e in lay.extensions})
     return like.replace(inertia=x[lay.inertia], cg=x[lay.cg], mass=float(x[lay.mass]),
                         stiffness=np.exp(x[lay.log_stiffness]), damping_time=float(x[lay.damping]),
                         gain=x[lay.gain], body_damping=x[lay.body_damping], ceiling=g[:3 * n].reshape(n, 3),

@@ -20,13 +20,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..diagnosis.rig_diagnosis import RigDiagnosis, diagnose_rig
 from ..estimation.harmonic_start import harmonic_start
 from ..estimation.identification import IdentificationError
 from ..estimation.precision import Z95
 from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.rig_fit import RigFit, fit_rig
 from ..estimation.rig_record import Record, record
-from ..estimation.rig_unknowns import Prior
+from ..estimation.rig_unknowns import EXTENSION_FIELDS, EXTENSIONS, Prior
 from ..io.export import Axes, Expressed, express
 from ..io.recording import Recording
 from ..io.rig import Survey
@@ -133,7 +134,9 @@ class RigModelResult:
     cg_source: where it came from.  survey: the geometry's, the mass's and the gains' σ the fit assumed
     (rig.yaml ``survey``).  seconds: wall time.  truth: truth.yaml or None.  warnings: what the
     data's cleaning did (:func:`~rig_identification.estimation.quality.clean_sensors`: spans
-    excluded, gaps bridged, spikes replaced).
+    excluded, gaps bridged, spikes replaced).  diagnosis: what the rigid-body rig model left out
+    (:func:`~rig_identification.diagnosis.rig_diagnosis.diagnose_rig`; None: not run); where it
+    added extensions, ``fit`` is the refit with them and ``diagnosis.rigid`` the fit before.
     """
 
     fit: RigFit
@@ -152,6 +155,7 @@ class RigModelResult:
     seconds: float
     truth: dict | None
     warnings: tuple[str, ...] = ()
+    diagnosis: RigDiagnosis | None = None
 
     @property
     def verdict(self) -> str:
@@ -199,6 +203,10 @@ class RigModelResult:
     @property
     def summary(self) -> str:
         """The verdict and what it means for the numbers, one line."""
+        added = self.diagnosis.extensions if self.diagnosis is not None else ()
+        return self._verdict_line() + (f" (the model with {', '.join(added)} added: below)" if added else "")
+
+    def _verdict_line(self) -> str:
         v = self.verdict
         if v == "ok":
             return "ok — the model explains every channel at its noise level"
@@ -287,6 +295,10 @@ class RigModelResult:
             "natural_frequencies_hz": f.natural_frequencies.tolist(),
             "seconds": self.seconds,
             "warnings": list(self.warnings),
+            "extensions": {e: {"values": np.atleast_1d(getattr(p, EXTENSION_FIELDS[e])).tolist(),
+                               "std": np.sqrt(np.diag(f.covariance)[f.layout.extension_of(e)]).tolist(),
+                               "units": EXTENSIONS[e][1]} for e in f.layout.extensions},
+            "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
         }
         if self.truth and "inertia_about_cg" in self.truth:
             t = np.array([float(self.truth["inertia_about_cg"][k]) for k in KEYS])
@@ -332,11 +344,14 @@ def start_tensors(rec: Recording, rc: Record, prior: Prior, first: np.ndarray, f
 
 
 def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | None = None,
-                        start: float | None = None, end: float | None = None) -> RigModelResult:
+                        start: float | None = None, end: float | None = None, diagnose: bool = True
+                        ) -> RigModelResult:
     """Fit the rig model to the whole recording (module docstring).
 
     cg, cg_std: the static CG (3,) m and its σ (3,) m as the CG's prior (default: rig.yaml's CG
-    with σ :data:`RIG_YAML_CG_STD`).  start/end: s from the first IMU sample.  The data are checked
+    with σ :data:`RIG_YAML_CG_STD`).  start/end: s from the first IMU sample.  diagnose: what the
+    model leaves out tested and, where the recording tells it, added (:func:`~rig_identification.
+    diagnosis.rig_diagnosis.diagnose_rig`: the reported fit is then the refit).  The data are checked
     and cleaned as for every fit (:mod:`~rig_identification.estimation.quality`: the tensions'
     units, bad spans, spikes, a body that did not move).  Raises
     :class:`~rig_identification.estimation.rig_record.RigFitError`,
@@ -356,9 +371,21 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     prior = Prior.from_rig(rec.rig, cg, cg_std)
     guess, guess_std, source = start_tensor(rec)
     log.info("fitting the rig model to every sensor (%.0f s, %d channels)", rc.duration, len(rc.channels))
-    fit = fit_rig(rc, rec.rig, prior, start_tensors(rec, rc, prior, guess, guess_std),
-                  restarts=guess[None] if np.any(np.isfinite(guess_std)) else ())
+    starts = start_tensors(rec, rc, prior, guess, guess_std)
+    restarts = guess[None] if np.any(np.isfinite(guess_std)) else ()
+    fit = fit_rig(rc, rec.rig, prior, starts, restarts=restarts)
+    diagnosis = None
+    if diagnose and np.all(np.isfinite(fit.inertia_std)):
+        log.info("testing what the model leaves out")
+
+        def refit(extensions: dict[str, np.ndarray]) -> RigFit:
+            log.info("fitting the rig model with %s", ", ".join(extensions))
+            return fit_rig(rc, rec.rig, prior, np.vstack([fit.inertia, starts]), restarts=restarts,
+                           extensions=extensions)
+
+        diagnosis = diagnose_rig(rc, prior, fit, list(rec.rig.cable_names), refit)
+        fit = diagnosis.refit or fit
     return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
                           (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, guess_std, source, prior.cg, prior.cg_std,
                           cg_source or ("rig.yaml (start only)" if cg_std is None else "given"), rec.rig.survey,
-                          time.perf_counter() - t_wall, rec.truth, tuple(warnings))
+                          time.perf_counter() - t_wall, rec.truth, tuple(warnings), diagnosis)

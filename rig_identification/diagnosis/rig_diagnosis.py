@@ -1,0 +1,329 @@
+"""What the fitted rig model leaves out, named only where the recording tells it apart.
+
+Two kinds of finding.  Data errors come first: they are unknowns of the model itself.
+
+* **Data errors** — an unknown that has a prior (the mass, the CG from the static test, each
+  cable's stiffness, each load cell's gain, every surveyed anchor coordinate and cable length)
+  and that the data pull more than :data:`CONFLICT_SIGMA` of the prior's σ off its centre: a
+  wrong rig.yaml or static result, found and corrected by the fit itself (:class:`PriorConflict`).
+* **Physics and sensor traits** the model leaves out — the extensions of
+  :data:`~rig_identification.estimation.rig_unknowns.EXTENSIONS` — tried one at a time at the
+  estimate (:class:`~rig_identification.estimation.rig_extensions.LinearisedRig`: the score test,
+  every rigid-body unknown refitted).  An extension is a candidate where it is *significant* (its
+  fall of χ² beyond the χ² quantile :data:`SIGNIFICANCE`), *plausible* (:func:`plausible`) and
+  *cross-validated* (fitted on either half of the record it lowers χ² on the other).  The best
+  candidate is *named* only where Vuong's test tells it apart from every other candidate (|z| above
+  Student's t at 97.5 %); otherwise the step names the class — the best and those it cannot be
+  told from — and the model takes its simplest member (fewest unknowns), so the tensor is still
+  corrected.  The model is then refitted with it (the caller's ``refit``, from its linearised
+  estimate), and further extensions are tested at the refit's estimate, each only as above (at
+  most :data:`MAX_EXTENSIONS`; one whose refit does not lower the misfit is left out).  The rig
+  model already holds viscous damping; where it is significant,
+  quadratic drag and Coulomb friction are tried in its place, and said indistinguishable from it
+  where Vuong's test cannot tell them apart (at one forcing amplitude they are nearly the same
+  force).
+
+The last refit's tensor is the estimate, and each channel's residual before and after shows the
+fit improve.  The data errors are those of the last fit.
+"""
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.stats import chi2, t
+
+from ..estimation.rig_extensions import ExtensionFit, LinearisedRig
+from ..estimation.rig_fit import SANDWICH_BLOCKS, RigFit
+from ..estimation.rig_record import Record
+from ..estimation.rig_unknowns import EXTENSIONS, Prior, labels, priors
+
+log = logging.getLogger(__name__)
+
+#: An extension is significant where its fall of χ² exceeds this quantile of χ² with its unknowns'
+#: count of degrees of freedom (one test per extension of the library: 0.999 keeps the family's
+#: false alarms near 1 %).
+SIGNIFICANCE = 0.999
+#: Vuong's z beyond Student's t at this level (SANDWICH_BLOCKS − 1 degrees of freedom) tells two
+#: explanations apart.
+APART_LEVEL = 0.975
+#: Extensions the selection adds at most.
+MAX_EXTENSIONS = 3
+#: A prior is in conflict with the data where the estimate lies more than this many of its σ off.
+CONFLICT_SIGMA = 3.0
+#: Viscous damping counts as found where one of its two terms exceeds this many σ.
+DAMPING_SIGMA = 3.0
+#: Physical bounds of each extension's values (plausible): at most this in size (the IMU's offset:
+#: its change from rig.yaml's position).
+BOUNDS = {"load_cell_delay": 0.1, "imu_offset": 0.5, "gyro_scale": 0.05, "gyro_bias_drift": 1e-3}
+#: Extensions whose every value is ≥ 0 (a damping, a weight's moment arm).
+NON_NEGATIVE = ("air_drag", "coulomb_friction", "exciter_rotor")
+#: What tells two candidates apart (:meth:`RigDiagnosis.advice`), by the pair's class.
+DAMPING = ("viscous_damping", "air_drag", "coulomb_friction")
+APART_ADVICE = {
+    "damping": "a run at a second forcing amplitude (viscous, quadratic and dry friction scale differently with "
+               "the swing's speed)",
+    "other": "a run at another exciter frequency or position (rig-identify plan)",
+}
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One extension's test at one step (:mod:`~rig_identification.estimation.rig_extensions`).
+
+    name: :data:`~rig_identification.estimation.rig_unknowns.EXTENSIONS`'s.  statistic: the fall
+    of χ², dof its degrees of freedom, threshold the χ² quantile it must exceed.  values, std: its
+    unknowns' linearised estimate and σ (units of EXTENSIONS).  held_out: (2,) the fall of χ² on
+    each half of the record, fitted on the other.  plausible: :func:`plausible`.
+    """
+
+    name: str
+    statistic: float
+    dof: int
+    threshold: float
+    values: np.ndarray
+    std: np.ndarray
+    held_out: np.ndarray
+    plausible: bool
+
+    @property
+    def significant(self) -> bool:
+        return self.statistic > self.threshold
+
+    @property
+    def cross_validated(self) -> bool:
+        return bool(np.all(self.held_out > 0))
+
+    @property
+    def eligible(self) -> bool:
+        return self.significant and self.plausible and self.cross_validated
+
+    def to_dict(self) -> dict:
+        return {"name": self.name, "chi2_fall": self.statistic, "dof": self.dof, "threshold": self.threshold,
+                "values": self.values.tolist(), "std": self.std.tolist(), "units": EXTENSIONS[self.name][1],
+                "held_out_chi2_fall": self.held_out.tolist(), "significant": self.significant,
+                "plausible": self.plausible, "cross_validated": self.cross_validated}
+
+
+@dataclass(frozen=True)
+class Step:
+    """One extension added to the model: ``added``, and ``indistinguishable`` the eligible
+    candidates Vuong's test could not tell from the best (then ``added`` is the simplest of the
+    class); ``vuong``: z of the best against each other eligible candidate; ``candidates``: every
+    test of the step."""
+
+    added: str
+    best: str
+    indistinguishable: tuple[str, ...]
+    vuong: dict[str, float]
+    candidates: tuple[Candidate, ...]
+
+    @property
+    def named(self) -> bool:
+        """The step's extension is told apart from every other candidate."""
+        return not self.indistinguishable
+
+    def to_dict(self) -> dict:
+        return {"added": self.added, "best": self.best, "named": self.named,
+                "indistinguishable": list(self.indistinguishable), "vuong_z": self.vuong,
+                "candidates": [c.to_dict() for c in self.candidates]}
+
+
+@dataclass(frozen=True)
+class Damping:
+    """The model's viscous damping and what else would explain it.
+
+    significance: (2,) |c|/σ of its linear and angular terms.  alternatives: Vuong's z of the
+    viscous model against each of ``air_drag`` and ``coulomb_friction`` put in its place
+    (positive: viscous fits better); indistinguishable: those within Student's t at 97.5 %."""
+
+    significance: np.ndarray
+    alternatives: dict[str, float]
+    indistinguishable: tuple[str, ...]
+
+    def to_dict(self) -> dict:
+        return {"significance_sigma": self.significance.tolist(), "vuong_z_viscous_over": self.alternatives,
+                "indistinguishable": list(self.indistinguishable)}
+
+
+@dataclass(frozen=True)
+class PriorConflict:
+    """An unknown the data pull off its prior: ``unknown`` (its label), ``estimate`` and ``prior``
+    (its centre) with σ ``prior_std`` and the estimate's ``std`` (stiffness: N/m, from the log),
+    ``z`` = (estimate − prior) / prior_std in the fitted unknown."""
+
+    unknown: str
+    estimate: float
+    std: float
+    prior: float
+    prior_std: float
+    z: float
+
+    def to_dict(self) -> dict:
+        return {"unknown": self.unknown, "estimate": self.estimate, "std": self.std, "prior": self.prior,
+                "prior_std": self.prior_std, "z": self.z}
+
+
+@dataclass(frozen=True)
+class RigDiagnosis:
+    """What :func:`diagnose_rig` found: the data errors (``conflicts``), the viscous damping's
+    alternatives (``damping``, None where it is not significant), the extensions added step by
+    step (``steps``), the refit with them (``refit``, None where none was added) and the fit it
+    started from (``rigid``)."""
+
+    conflicts: tuple[PriorConflict, ...]
+    damping: Damping | None
+    steps: tuple[Step, ...]
+    rigid: RigFit
+    refit: RigFit | None
+
+    @property
+    def extensions(self) -> tuple[str, ...]:
+        """The extensions the refit holds."""
+        return tuple(s.added for s in self.steps)
+
+    @property
+    def named(self) -> tuple[str, ...]:
+        """The extensions the recording tells apart from every other candidate, and
+        ``viscous_damping`` where the model's viscous damping is significant and told apart from
+        quadratic drag and Coulomb friction in its place."""
+        viscous = ("viscous_damping",) if self.damping is not None and not self.damping.indistinguishable else ()
+        return tuple(s.added for s in self.steps if s.named) + viscous
+
+    @property
+    def advice(self) -> list[str]:
+        """For each class not told apart, what would tell its members apart."""
+        out = []
+        groups = [(s.best,) + s.indistinguishable for s in self.steps if not s.named]
+        if self.damping is not None and self.damping.indistinguishable:
+            groups.append(("viscous_damping",) + self.damping.indistinguishable)
+        for g in groups:
+            kind = "damping" if all(e in DAMPING for e in g) else "other"
+            out.append(f"{' or '.join(g)}: not told apart by this recording; {APART_ADVICE[kind]} tells them apart")
+        return out
+
+    def to_dict(self) -> dict:
+        d: dict = {"data_errors": [c.to_dict() for c in self.conflicts],
+                   "damping": None if self.damping is None else self.damping.to_dict(),
+                   "steps": [s.to_dict() for s in self.steps], "extensions": list(self.extensions),
+                   "named": list(self.named), "advice": self.advice,
+                   "residual_level_before": {c: float(v) for c, v in
+                                             zip(self.rigid.channels, self.rigid.residual_level)}}
+        if self.refit is not None:
+            d["residual_level_after"] = {c: float(v) for c, v in zip(self.refit.channels, self.refit.residual_level)}
+        return d
+
+
+def plausible(name: str, fit: ExtensionFit) -> bool:
+    """The extension's values are physical: a damping or an unbalance not below zero beyond 3 σ;
+    a delay, an IMU offset, a gyro's scale error or drift within :data:`BOUNDS`."""
+    v, s = fit.values, fit.std
+    if name in NON_NEGATIVE:
+        return bool(np.all(v > -3 * s))
+    size = fit.change if name == "imu_offset" else v
+    return bool(np.all(np.abs(size) <= BOUNDS[name]))
+
+
+def prior_conflicts(fit: RigFit, prior: Prior, cables: list[str]) -> tuple[PriorConflict, ...]:
+    """The unknowns with a prior whose estimate lies more than :data:`CONFLICT_SIGMA` of the
+    prior's σ off its centre, the largest first (the exciter force's correction and the state
+    left out: their priors only hold the fit's span)."""
+    if fit.unknowns is None:
+        return ()
+    lay = fit.layout
+    x = fit.unknowns
+    centre, std = priors(prior, lay, x)
+    names = labels(lay, cables)
+    post = np.sqrt(np.diag(fit.covariance))
+    out = []
+    for i in range(lay.geometry.stop):
+        if not np.isfinite(std[i]):
+            continue
+        z = (x[i] - centre[i]) / std[i]
+        if abs(z) > CONFLICT_SIGMA:
+            stiff = lay.log_stiffness.start <= i < lay.log_stiffness.stop
+            f = np.exp if stiff else float
+            estimate, p = float(f(x[i])), float(f(centre[i]))
+            out.append(PriorConflict(names[i], estimate, float(estimate * post[i] if stiff else post[i]), p,
+                                     float(p * std[i] if stiff else std[i]), float(z)))
+    return tuple(sorted(out, key=lambda c: -abs(c.z)))
+
+
+def _candidates(lin: LinearisedRig, held: tuple[str, ...]) -> dict[str, tuple[Candidate, ExtensionFit]]:
+    out = {}
+    for e in lin.names:
+        if e in held:
+            continue
+        f = lin.fitted((e,), held)
+        out[e] = (Candidate(e, f.statistic, f.dof, float(chi2.ppf(SIGNIFICANCE, f.dof)), f.values, f.std,
+                            f.held_out, plausible(e, f)), f)
+    return out
+
+
+def next_step(lin: LinearisedRig) -> Step | None:
+    """The extension to add to the fitted model ``lin`` linearises, or None where no candidate is
+    eligible (module docstring)."""
+    tests = _candidates(lin, ())
+    eligible = {e: cf for e, cf in tests.items() if cf[0].eligible}
+    if not eligible:
+        return None
+    apart = float(t.ppf(APART_LEVEL, SANDWICH_BLOCKS - 1))
+    best = max(eligible, key=lambda e: eligible[e][0].statistic - eligible[e][0].dof)
+    z = {e: lin.vuong(eligible[best][1], eligible[e][1]) for e in eligible if e != best}
+    close = tuple(e for e, v in z.items() if v < apart)
+    added = min((best,) + close, key=lambda e: (EXTENSIONS[e][0], list(EXTENSIONS).index(e)))
+    return Step(added, best, close, z, tuple(c for c, _ in tests.values()))
+
+
+def damping_alternatives(lin: LinearisedRig, fit: RigFit) -> Damping | None:
+    """The viscous damping's alternatives (:class:`Damping`), None where neither of its terms
+    exceeds :data:`DAMPING_SIGMA`."""
+    lay = fit.layout
+    c = fit.parameters.body_damping
+    sd = np.sqrt(np.diag(fit.covariance)[lay.body_damping])
+    significance = np.abs(c) / sd
+    if not np.any(significance > DAMPING_SIGMA):
+        return None
+    apart = float(t.ppf(APART_LEVEL, SANDWICH_BLOCKS - 1))
+    without = lin.without(lay.body_damping)
+    z = {e: lin.vuong(lin.base(), without.fitted((e,))) for e in ("air_drag", "coulomb_friction")}
+    return Damping(significance, z, tuple(e for e, v in z.items() if v < apart))
+
+
+def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
+                 refit: Callable[[dict[str, np.ndarray]], RigFit] | None = None) -> RigDiagnosis:
+    """The data errors and the extensions the recording tells apart (module docstring), and the
+    rig model refitted with those added: ``refit`` (extensions -> the fit), given the linearised
+    estimates of the extensions' unknowns as their starts (None: no refit).
+
+    rec, prior: the record and prior ``fit`` was made from; cables: the cables' names (rig.yaml).
+    """
+    steps: list[Step] = []
+    current = fit
+    while True:
+        untried = tuple(e for e in EXTENSIONS if e not in current.layout.extensions)
+        lin = LinearisedRig(rec, prior, current, untried)
+        step = next_step(lin) if len(steps) < MAX_EXTENSIONS and refit is not None else None
+        if step is None:
+            break
+        start = lin.fitted((step.added,)).of(step.added)
+        values = {e: current.unknowns[current.layout.extension_of(e)] for e in current.layout.extensions}
+        values[step.added] = np.maximum(start, 0.0) if step.added in NON_NEGATIVE else start
+        log.info("diagnosis: adding %s (%s)", step.added, np.round(start, 5))
+        after = refit(values)
+        if not np.sum(after.residual_level ** 2) < np.sum(current.residual_level ** 2):
+            log.info("diagnosis: with %s the fit is no better: left out", step.added)
+            break
+        steps.append(step)
+        current = after
+    damping = damping_alternatives(lin, current)
+    conflicts = prior_conflicts(current, prior, cables)
+    log.info("diagnosis: data errors %s; extensions %s", [c.unknown for c in conflicts], [s.added for s in steps])
+    return RigDiagnosis(conflicts, damping, tuple(steps), fit, current if steps else None)
+
+
+__all__ = ["Candidate", "Step", "Damping", "PriorConflict", "RigDiagnosis", "plausible", "prior_conflicts", "next_step",
+           "damping_alternatives", "diagnose_rig", "SIGNIFICANCE", "APART_LEVEL", "MAX_EXTENSIONS", "CONFLICT_SIGMA",
+           "DAMPING_SIGMA", "BOUNDS", "NON_NEGATIVE", "DAMPING", "APART_ADVICE"]
