@@ -176,7 +176,7 @@ class Layout:
 
     @property
     def size(self) -> int:
-        return self.segments.stop
+        return int(self.force.stop + 12 * (self.n_segments - 1))
 
     def state(self, k: int) -> slice:
         """Segment ``k``'s initial-state unknowns (12)."""

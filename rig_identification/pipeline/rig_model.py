@@ -260,7 +260,7 @@ class RigModelResult:
         sd = f.inertia_std
         bd_cov = f.covariance[f.layout.body_damping][:, f.layout.body_damping]
         d = {
-            "schema": "rig_identification.rig_model_result", "schema_version": 4,
+            "schema": "rig_identification.rig_model_result", "schema_version": 5,
             "recording": self.path, "model": "rig (grey-box, every sensor an output)",
             "verdict": self.verdict, "undetermined": self.undetermined, "ambiguous": self.ambiguous,
             "other_minima": [{"inertia_about_cg": {k: float(v) for k, v in zip(KEYS, m)},

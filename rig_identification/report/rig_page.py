@@ -7,7 +7,8 @@ software, recording, rig, method, frame and units; the mass and the centre of gr
 static test, the run alone and both (:class:`~rig_identification.pipeline.rig_model.CentreOfGravity`);
 the moments and products of inertia about the CG with σ, the Cramér–Rao bound and the errors
 against ``truth.yaml`` when there is one (:mod:`rig_identification.report.mass`), the matrices,
-principal moments and axes and the equimomental ellipsoid; every channel's residual against its
+principal moments and axes and the equimomental ellipsoid; what the model leaves out
+(:func:`diagnosis_html`); every channel's residual against its
 noise; the cables and load cells; the other minima the restarts found; and, per sensor group,
 the measured readings beside the model's (:func:`~rig_identification.report.figures.channels_figure`).
 
@@ -119,6 +120,43 @@ def minima_html(res: RigModelResult) -> str:
               "ambiguous (verdict not_identifiable).</p>")
 
 
+def diagnosis_html(res: RigModelResult) -> str:
+    """What the model leaves out: the data errors, each extension tested (its fall of χ², whether
+    significant, plausible, cross-validated, told apart), the damping's alternatives, the advice and
+    each channel's residual before and after the refit."""
+    dg = res.diagnosis
+    if dg is None:
+        return "<p>Not tested.</p>"
+    out = []
+    if dg.conflicts:
+        rows = [[c.unknown, num(c.estimate, ".6g"), num(c.std, ".2g"), num(c.prior, ".6g"), num(c.prior_std, ".2g"),
+                 num(c.z, "+.1f")] for c in dg.conflicts]
+        out.append("<h3>Data errors</h3>" + table(["unknown", "fitted", "σ", "given", "σ given", "off, σ given"], rows,
+                                                  ident="data-errors-table"))
+    for i, st in enumerate(dg.steps, 1):
+        rows = [[c.name, num(c.statistic, ".1f"), num(c.threshold, ".1f"), "yes" if c.plausible else "no",
+                 "yes" if c.cross_validated else "no", num(st.vuong[c.name], "+.1f") if c.name in st.vuong else ""]
+                for c in sorted(st.candidates, key=lambda c: -c.statistic)]
+        word = "named" if st.named else f"not told apart from {', '.join(st.indistinguishable)}; the model takes it"
+        out.append(f"<h3>Step {i}: {esc(st.added)} added ({esc(word)})</h3>"
+                   + table(["extension", "χ² fall", "threshold", "plausible", "cross-validated",
+                            "Vuong z of the best over it"], rows, ident=f"step-{i}-table"))
+    if not dg.steps:
+        out.append("<p>No extension is significant, plausible and cross-validated.</p>")
+    if dg.damping is not None:
+        out.append("<p>Viscous damping " + num(float(max(dg.damping.significance)), ".0f") + " σ; in its place "
+                   + ", ".join(f"{esc(e)} Vuong z {num(z, '+.1f')}" for e, z in dg.damping.alternatives.items())
+                   + " (positive: viscous fits better).</p>")
+    if dg.advice:
+        out.append("<ul>" + "".join(f"<li>{esc(a)}</li>" for a in dg.advice) + "</ul>")
+    if dg.refit is not None:
+        rows = [[c, num(a, ".2f"), num(b, ".2f")] for c, a, b in zip(dg.rigid.channels, dg.rigid.residual_level,
+                                                                      dg.refit.residual_level)]
+        out.append(table(["channel", "residual over noise, rigid-body model", "with the extensions"], rows,
+                         ident="before-after-table"))
+    return "".join(out)
+
+
 def write_rig_report(out_dir, res: RigModelResult, rec: Recording, axes: str | Axes = "body",
                      job: Job = Job()) -> Path:
     """Write the report of ``res`` (the rig model fitted to ``rec``) to the folder ``out_dir``
@@ -165,7 +203,8 @@ def write_rig_report(out_dir, res: RigModelResult, rec: Recording, axes: str | A
         parts.append(f"<h3>In {esc(VEHICLE_AXES[shown.name][0])} axes</h3>" + axes_html(ex))
         in_axes = {"axes": ex.axes.name, "center_of_gravity": [float(x) for x in ex.cg],
                    "inertia_about_cg": ex.entries(), "products_of_inertia": ex.products()}
-    parts += ["<h2>Every channel against its noise</h2>", channels_html(res),
+    parts += ["<h2>What the model leaves out</h2>", diagnosis_html(res),
+              "<h2>Every channel against its noise</h2>", channels_html(res),
               "<h2>Cables and load cells</h2>", cables_html(res),
               "<h2>Restarts: other minima</h2>", minima_html(res)]
     if res.warnings:
@@ -194,4 +233,4 @@ def write_rig_report(out_dir, res: RigModelResult, rec: Recording, axes: str | A
     return out_dir / "index.html"
 
 
-__all__ = ["write_rig_report", "truth_errors", "METHOD"]
+__all__ = ["write_rig_report", "truth_errors", "diagnosis_html", "METHOD"]
