@@ -57,7 +57,7 @@ CONFLICT_SIGMA = 3.0
 DAMPING_SIGMA = 3.0
 #: Physical bounds of each extension's values (plausible): at most this in size (the IMU's offset:
 #: its change from rig.yaml's position).
-BOUNDS = {"load_cell_delay": 0.1, "imu_offset": 0.5, "gyro_scale": 0.05, "gyro_bias_drift": 1e-3}
+BOUNDS = {"load_cell_delay": 0.1, "exciter_delay": 0.1, "imu_offset": 0.5, "gyro_scale": 0.05, "gyro_bias_drift": 1e-3}
 #: Extensions whose every value is ≥ 0 (a damping, a weight's moment arm).
 NON_NEGATIVE = ("air_drag", "coulomb_friction", "exciter_rotor")
 #: What tells two candidates apart (:meth:`RigDiagnosis.advice`), by the pair's class.

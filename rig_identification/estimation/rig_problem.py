@@ -10,6 +10,7 @@ import os
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
@@ -159,13 +160,19 @@ class RigProblem:
         return np.column_stack([z.real, z.imag])
 
     def drive(self, x: np.ndarray, u: np.ndarray, a: int, b: int) -> Drive:
-        """The force ``u`` (:meth:`force` at ``x``) over the span's samples a to b as the model
-        takes it, kept while the force's unknowns stay (a Jacobian's other columns)."""
-        key = (a, b, x[self.lay.force].tobytes())
+        """The force ``u`` (:meth:`force` at ``x``, as read) over the span's samples a to b as the
+        model takes it — read ``exciter_delay`` s later where the layout holds that extension (a
+        cubic spline through the span's samples, extrapolated at its end) — kept while the force's
+        unknowns stay (a Jacobian's other columns)."""
+        lag = float(x[self.lay.extension_of("exciter_delay")][0]) if "exciter_delay" in self.lay.extensions else 0.0
+        key = (a, b, x[self.lay.force].tobytes() + np.float64(lag).tobytes())
         d = self._drives.get(key)
         if d is None:
             if len(self._drives) > 4 * self.lay.n_segments:
                 self._drives.clear()
+            if lag:
+                t = np.arange(len(u))
+                u = CubicSpline(t, u, axis=0, extrapolate=True)(t + lag / self.rec.dt)
             d = self._drives[key] = drive(u[a:b], self.rec.dt, self.substeps)
         return d
 

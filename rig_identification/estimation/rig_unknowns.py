@@ -43,13 +43,15 @@ STIFFNESS_LOG_STD_DEFAULT = 1.0
 #: The rig model's extensions (the physics and sensor traits the diagnosis tries,
 #: :mod:`~rig_identification.diagnosis.rig_diagnosis`): name -> (unknowns, units).  Their values sit in
 #: :class:`~rig_identification.model.linear_rig.RigParameters`: ``air_drag`` (quadratic damping,
-#: linear and angular), ``coulomb_friction`` (force and moment), ``load_cell_delay`` (s),
+#: linear and angular), ``coulomb_friction`` (force and moment), ``load_cell_delay`` and
+#: ``exciter_delay`` (s, the stream's readings behind the IMU's),
 #: ``imu_offset`` (the IMU's position, body m), ``gyro_scale`` (3, share) and ``gyro_bias_drift``
 #: (3, rad/s²) and ``exciter_rotor`` (the unbalance, kg·m, whose weight turns with the force).
 EXTENSIONS: dict[str, tuple[int, str]] = {
     "air_drag": (2, "N s^2/m^2, N m s^2/rad^2"),
     "coulomb_friction": (2, "N, N m"),
     "load_cell_delay": (1, "s"),
+    "exciter_delay": (1, "s"),
     "imu_offset": (3, "m (the IMU's position, body frame)"),
     "gyro_scale": (3, "share (reading / rate - 1), IMU axes"),
     "gyro_bias_drift": (3, "rad/s^2, IMU axes"),
@@ -246,6 +248,7 @@ def in_layout(x: np.ndarray, old: Layout, new: Layout, p: RigParameters) -> np.n
 
 #: The :class:`~rig_identification.model.linear_rig.RigParameters` field each extension sets.
 EXTENSION_FIELDS = {"air_drag": "air_drag", "coulomb_friction": "friction", "load_cell_delay": "load_cell_delay",
+                    "exciter_delay": "exciter_delay",
                     "imu_offset": "imu_position", "gyro_scale": "gyro_scale", "gyro_bias_drift": "gyro_drift",
                     "exciter_rotor": "rotor_unbalance"}
 
@@ -311,7 +314,7 @@ def unit_scale(x0: np.ndarray, lay: Layout, prior: Prior) -> np.ndarray:
     # the extensions' units: quadratic drag and Coulomb friction as strong as the viscous unit at
     # 0.02 m/s and rad/s (a swing's typical speed)
     units = {"air_drag": (5e-2 * prior.mass, 5e-2 * big), "coulomb_friction": (2e-5 * prior.mass, 2e-5 * big),
-             "load_cell_delay": (1e-3,), "imu_offset": (1e-3,) * 3, "gyro_scale": (1e-3,) * 3,
+             "load_cell_delay": (1e-3,), "exciter_delay": (1e-3,), "imu_offset": (1e-3,) * 3, "gyro_scale": (1e-3,) * 3,
              "gyro_bias_drift": (1e-5,) * 3, "exciter_rotor": (1e-2,)}
     for e in lay.extensions:
         s[lay.extension_of(e)] = units[e]

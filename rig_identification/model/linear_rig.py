@@ -62,7 +62,9 @@ class RigParameters:
     act in the exact model (:mod:`~rig_identification.model.rig_ode`).  rotor_unbalance: kg·m,
     the exciter's unbalanced mass times its eccentricity: its weight's moment about the CG turns
     with the force's direction (exact model only).
-    load_cell_delay: s, the load cells' readings lag the IMU's by this.  gyro_scale: (3,) each
+    load_cell_delay: s, the load cells' readings lag the IMU's by this; exciter_delay: s, the
+    exciter force's readings lag the IMU's by this (the force that moves the body at t is the
+    one read at t + delay).  gyro_scale: (3,) each
     gyro axis reads (1 + s) times the rate (IMU axes).  gyro_drift: (3,) rad/s² each gyro
     axis's bias grows at this rate (IMU axes).  The last three are sensor traits: they shape
     the readings, not the motion (:func:`~rig_identification.model.rig_ode.with_sensor_traits`).
@@ -93,6 +95,7 @@ class RigParameters:
     gyro_scale: np.ndarray = field(default_factory=lambda: np.zeros(3))
     gyro_drift: np.ndarray = field(default_factory=lambda: np.zeros(3))
     rotor_unbalance: float = 0.0
+    exciter_delay: float = 0.0
 
     @property
     def cables(self) -> int:
