@@ -144,7 +144,8 @@ class RigFit:
     natural_frequencies: (6,) Hz, linearised about the rest pose.  nfev: model runs.
     other_minima: (k, 6) kg·m² the tensors where the other whole-record fits settled (the staged
     fit, its two restarts :data:`RESTART_SHIFT` away and those from ``restarts``, :func:`fit_rig`:
-    the lowest is the estimate), other_chi2: (k,) their χ² less the estimate's (≥ 0).  series:
+    the lowest is the estimate; none where a channel is beyond :data:`REWEIGHT_LIMIT` of its noise:
+    the motion not found), other_chi2: (k,) their χ² less the estimate's (≥ 0).  series:
     every channel at the estimate (:class:`ChannelSeries`).  descent: (6,) kg·m² where the staged
     fit's own descent ended (the estimate unless a restart settled lower).  unknowns: (size,) every
     unknown at the estimate (``layout``), bases: (segments, 13) the segments' states before their
@@ -475,14 +476,21 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
             if np.allclose(new_scale, noise_scale, rtol=0.05) or np.max(level) > REWEIGHT_LIMIT:
                 break
             noise_scale = new_scale
-    return _concluded(rec, prior, lay, x, p, rest, bases, noise_scale, solved, restarts, nfev, verbose)
+    if np.max(level) > REWEIGHT_LIMIT:     # the motion not found: no minimum to check by restarts
+        log.info("rig fit: a channel %.0f× its noise: no restarts", np.max(level))
+        restarts, check = (), False
+    else:
+        check = True
+    return _concluded(rec, prior, lay, x, p, rest, bases, noise_scale, solved, restarts, nfev, verbose, check)
 
 
 def _concluded(rec: Record, prior: Prior, lay: Layout, x: np.ndarray, p: RigParameters, rest: RestPose,
                bases: np.ndarray, noise_scale: np.ndarray, solved: tuple[RigProblem, np.ndarray | None, np.ndarray],
-               restarts: ArrayLike, nfev: int, verbose: int) -> RigFit:
+               restarts: ArrayLike, nfev: int, verbose: int, check: bool = True) -> RigFit:
     """The whole-record fit at ``x`` (its last solve ``solved``: problem, fresh Jacobian or None,
-    weights) checked by restarts, polished, its covariance and levels: the :class:`RigFit`."""
+    weights) checked by restarts (``check``: False where a channel is beyond
+    :data:`REWEIGHT_LIMIT` of its noise, the motion not found), polished, its covariance and
+    levels: the :class:`RigFit`."""
     n_all = len(rec.y) - rec.start
     channels = len(rec.channels)
     last = RigProblem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
@@ -492,7 +500,8 @@ def _concluded(rec: Record, prior: Prior, lay: Layout, x: np.ndarray, p: RigPara
     minima = [(0.5 * float(r @ r), x, p, rest, bases)]
     given = list(np.asarray(restarts, float).reshape(-1, 6)) + _along_weakest(last, J, x[lay.inertia])
     others = [t for t in given if physically_consistent(to_tensor(t))]
-    for tensor in [_shifted(x[lay.inertia], 1.0), _shifted(x[lay.inertia], -1.0)] + others:
+    tried = [_shifted(x[lay.inertia], 1.0), _shifted(x[lay.inertia], -1.0)] + others if check else []
+    for tensor in tried:
         x2, p2, rest2, cost2, runs, bases2 = _restarted(last, (J, r), p, rest, tensor, verbose)
         nfev += runs
         minima.append((cost2, x2, p2, rest2, bases2))
@@ -500,7 +509,7 @@ def _concluded(rec: Record, prior: Prior, lay: Layout, x: np.ndarray, p: RigPara
     descent = minima[0][1][lay.inertia]
     minima.sort(key=lambda m: m[0])
     cost, x, p, rest, bases = minima[0]
-    settled = np.array([m[1][lay.inertia] for m in minima[1:]])
+    settled = np.array([m[1][lay.inertia] for m in minima[1:]]).reshape(-1, 6)
     other_chi2 = np.array([2 * (m[0] - cost) for m in minima[1:]])
     log.info("rig fit: the other minima settled %s from the estimate, χ² %s", np.round(settled - x[lay.inertia], 3),
              np.round(other_chi2, 2))
