@@ -94,6 +94,12 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY) -> None:
     print("natural frequencies (linearised at rest): " + ", ".join(f"{x:.3g}" for x in f.natural_frequencies) + " Hz")
     print("residual in the band over the noise (1: noise alone): "
           + ", ".join(f"{c} {v:.2f}" for c, v in zip(f.channels, f.residual_level)))
+    if f.offsets is not None:
+        n = len(p.stiffness)
+        o = f.offsets
+        print("offsets eliminated (reading − model, mean): load cells " + ", ".join(f"{v:.2f}" for v in o[:n])
+              + " N; gyro " + ", ".join(f"{v:.5f}" for v in o[n:n + 3]) + " rad/s (its bias); accelerometer "
+              + ", ".join(f"{v:.4f}" for v in o[n + 3:n + 6]) + " m/s²")
     if res.poorly_fitted:
         print(f"the fit leans less on {', '.join(res.poorly_fitted)} (their noise raised to their residual's)")
     print("σ: the inverse Fisher information (each channel's noise as estimated from the recording, raised where "

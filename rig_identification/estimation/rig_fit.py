@@ -150,7 +150,9 @@ class RigFit:
     fit's own descent ended (the estimate unless a restart settled lower).  unknowns: (size,) every
     unknown at the estimate (``layout``), bases: (segments, 13) the segments' states before their
     unknowns, rest: the rest pose — what the model is linearised about
-    (:mod:`~rig_identification.estimation.rig_extensions`).
+    (:mod:`~rig_identification.estimation.rig_extensions`).  offsets: (n_out,) each channel's
+    offset the fit eliminated, the mean of reading − model over the span (a load cell's bias N, a
+    gyro's rad/s, an accelerometer's m/s², an inclinometer's rad; the exciter's N).
     """
 
     parameters: RigParameters
@@ -170,6 +172,7 @@ class RigFit:
     unknowns: np.ndarray | None = None
     bases: np.ndarray | None = None
     rest: RestPose | None = None
+    offsets: np.ndarray | None = None
 
     @property
     def ambiguous(self) -> list[int]:
@@ -530,9 +533,11 @@ def _concluded(rec: Record, prior: Prior, lay: Layout, x: np.ndarray, p: RigPara
     unit = RigProblem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases)
     outputs = unit.outputs(x)             # one model run for the levels and the plotted series
     level = levels(unit, x, outputs)
+    offsets = np.mean(rec.y[rec.start:rec.start + n_all] - np.concatenate(outputs), axis=0)
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
-                  freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x, outputs), descent, x, bases, rest)
+                  freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x, outputs), descent, x, bases, rest,
+                  offsets)
 
 
 

@@ -291,6 +291,7 @@ class RigModelResult:
                              "linear_std": float(np.sqrt(bd_cov[0, 0])), "angular_std": float(np.sqrt(bd_cov[1, 1])),
                              "units": "N s/m on the CG's velocity, N m s on the angular velocity"},
             "residual_level": {c: float(v) for c, v in zip(f.channels, f.residual_level)},
+            "offsets": None if f.offsets is None else {c: float(v) for c, v in zip(f.channels, f.offsets)},
             "poorly_fitted_channels": self.poorly_fitted,
             "natural_frequencies_hz": f.natural_frequencies.tolist(),
             "seconds": self.seconds,
