@@ -140,14 +140,18 @@ DAQ_DELAY = [{"name": "sensor_delay", "stream": "load_cells", "delay": 0.015},
 SEEDS = {"body_mass": 1112}
 
 
+#: The library's slowest cases (35–70 s each) are measured by bench/bench_diagnose.py, with the
+#: thesis model's gyroscopic coupling on a planned 120 s run, and left out of the suite.
+BENCH_ONLY = ("load_cell_scale", "cg_offset", "cable_mass", "imu_misalignment")
+SUITE_CASES = {k: v for k, v in CASES.items() if k not in BENCH_ONLY}
+
+
 def _jobs() -> dict:
-    """The fixture's simulations and diagnoses, the longest first (the planned run's 120 s,
-    then the exciter's rotor, the slowest to simulate)."""
-    # the gyroscopic term grows with the square of the motion: the run a lab would make (the
-    # planner's amplitude, the default rig's 120 s), with the thesis's model
-    jobs = {"thesis": (303, [], "thesis", 120.0, True)}
+    """The fixture's simulations and diagnoses, the longest first (the exciter's rotor, the
+    slowest to simulate)."""
     cases = {name: (SEEDS.get(name, 100 + i), [eff], "pem", DURATION, False)
-             for i, (name, (eff, _)) in enumerate(CASES.items())}
+             for i, (name, (eff, _)) in enumerate(CASES.items()) if name in SUITE_CASES}
+    jobs = {}
     jobs["exciter_rotor"] = cases.pop("exciter_rotor")
     jobs.update(cases)
     jobs["clean"] = (301, [], "pem", DURATION, False)
@@ -223,7 +227,7 @@ def check_inertia(res: dict, key: str = "inertia_about_cg_after", std_key: str =
                 f"{k}: error {100 * err0 / ref:+.2f} % before, {100 * err / ref:+.2f} % after"
 
 
-@pytest.mark.parametrize("name", list(CASES))
+@pytest.mark.parametrize("name", list(SUITE_CASES))
 def test_concealed_effect_is_named_estimated_and_removed(results, name):
     res = results[name]
     eff, group = CASES[name]
@@ -246,13 +250,12 @@ def candidate_names(entry: dict) -> set:
 
 def test_only_what_the_recording_tells_apart_is_named(results):
     """On every recording of the fixture (each effect of the library concealed alone, a clean
-    run, the thesis-model run), no absent effect is named: every plausible and determined effect
+    run), no absent effect is named: every plausible and determined effect
     told apart is the concealed one, and an effect not told apart stands for a class whose candidates hold the
     concealed one, with its rivals' likelihood ratios within the bar and what would tell them
     apart (:mod:`~rig_identification.diagnosis.distinguish`)."""
     for case, res in results.items():
-        truth = {e["name"] for e in res["truth"].get("effects", [])} | ({"gyroscopic_coupling"} if case == "thesis"
-                                                                        else set())
+        truth = {e["name"] for e in res["truth"].get("effects", [])}
         for e in res["effects"]:
             if not e.get("plausible", True):   # said to be no finding (implausible or not determined)
                 continue
@@ -282,8 +285,7 @@ NEW_CANDIDATES = {"gyro_bias_drift", "gyro_scale", "structural_mode"}
 def test_new_candidates_are_not_named_where_the_recording_lacks_them(results):
     """The gyro's bias drift and scale and a sensor mount's structural mode (the library's
     newest, with many columns or fitted from outside the band) are named on none of the
-    fixture's recordings: the clean one, the thesis-model run and each of the thirteen with
-    another effect concealed."""
+    fixture's recordings: the clean one and each with another effect concealed."""
     for name, res in results.items():
         named = {e["name"] for e in res["effects"]}
         assert not named & NEW_CANDIDATES, (name, sorted(named))
@@ -293,24 +295,6 @@ def test_clean_simulation_has_no_mismatch(results):
     res = results["clean"]
     assert not res["mismatch"], [e["name"] for e in res["effects"]]
     assert res["inertia_about_cg_after"] == res["inertia_about_cg_before"]
-    check_inertia(res)
-
-
-def test_thesis_model_misses_the_gyroscopic_coupling(results):
-    """The thesis's model (no ω × Jω) on a clean recording of a planned run: the coupling is
-    named first, its scale is the physics' (1) within 15 %, the inertia comes back within
-    the bounds, and the torque residual locked to the forcing (time-synchronous average over
-    the exciter's revolutions) falls by ≥ 30 %.  The plain residual RMS cannot: at the rig's
-    limits the term is a fraction of the white sensor noise in the band (it falls 5–15 %)."""
-    res = results["thesis"]
-    assert res["effects"] and res["effects"][0]["name"] == "gyroscopic_coupling", res["effects"]
-    p = res["effects"][0]["parameters"]["scale"]
-    assert abs(p - 1.0) < 0.15, res["effects"][0]
-    s0, s1 = res["residual_rms_synchronous_before"], res["residual_rms_synchronous_after"]
-    assert res["synchronous_revolutions"] > 50
-    red = {k: 1 - s1[k] / s0[k] for k in s0 if k.startswith("torque")}
-    plain = {k: 1 - res["residual_rms_after"][k] / res["residual_rms_before"][k] for k in red}
-    assert max(red.values()) >= 0.30, (red, plain)
     check_inertia(res)
 
 

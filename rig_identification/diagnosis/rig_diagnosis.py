@@ -36,7 +36,7 @@ import numpy as np
 from scipy.stats import chi2, t
 
 from ..estimation.rig_extensions import ExtensionFit, LinearisedRig
-from ..estimation.rig_fit import SANDWICH_BLOCKS, RigFit
+from ..estimation.rig_fit import REWEIGHT_LIMIT, SANDWICH_BLOCKS, RigFit
 from ..estimation.rig_record import Record
 from ..estimation.rig_unknowns import EXTENSIONS, Prior, labels, priors
 
@@ -229,8 +229,10 @@ def plausible(name: str, fit: ExtensionFit) -> bool:
 def prior_conflicts(fit: RigFit, prior: Prior, cables: list[str]) -> tuple[PriorConflict, ...]:
     """The unknowns with a prior whose estimate lies more than :data:`CONFLICT_SIGMA` of the
     prior's σ off its centre, the largest first (the exciter force's correction and the state
-    left out: their priors only hold the fit's span)."""
-    if fit.unknowns is None:
+    left out: their priors only hold the fit's span); none where a channel is beyond
+    :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise (the fit did not
+    find the motion, and what it pulls off its priors says nothing)."""
+    if fit.unknowns is None or np.max(fit.residual_level) > REWEIGHT_LIMIT:
         return ()
     lay = fit.layout
     x = fit.unknowns
