@@ -5,7 +5,8 @@ Two kinds of finding.  Data errors come first: they are unknowns of the model it
 * **Data errors** — an unknown that has a prior (the mass, the CG from the static test, each
   cable's stiffness, each load cell's gain, every surveyed anchor coordinate and cable length)
   and that the data pull more than :data:`CONFLICT_SIGMA` of the prior's σ off its centre: a
-  wrong rig.yaml or static result, found and corrected by the fit itself (:class:`PriorConflict`).
+  wrong rig.yaml or static result, found and corrected by the fit itself (:class:`PriorConflict`),
+  listed where every channel fits.
 * **Physics and sensor traits** the model leaves out — the extensions of
   :data:`~rig_identification.estimation.rig_unknowns.EXTENSIONS` — tried one at a time at the
   estimate (:class:`~rig_identification.estimation.rig_extensions.LinearisedRig`: the score test,
@@ -36,7 +37,7 @@ import numpy as np
 from scipy.stats import chi2, t
 
 from ..estimation.rig_extensions import ExtensionFit, LinearisedRig
-from ..estimation.rig_fit import REWEIGHT_LIMIT, SANDWICH_BLOCKS, RigFit
+from ..estimation.rig_fit import LEVEL_LIMIT, SANDWICH_BLOCKS, RigFit
 from ..estimation.rig_record import Record
 from ..estimation.rig_unknowns import EXTENSIONS, Prior, labels, priors
 
@@ -230,9 +231,9 @@ def prior_conflicts(fit: RigFit, prior: Prior, cables: list[str]) -> tuple[Prior
     """The unknowns with a prior whose estimate lies more than :data:`CONFLICT_SIGMA` of the
     prior's σ off its centre, the largest first (the exciter force's correction and the state
     left out: their priors only hold the fit's span); none where a channel is beyond
-    :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise (the fit did not
-    find the motion, and what it pulls off its priors says nothing)."""
-    if fit.unknowns is None or np.max(fit.residual_level) > REWEIGHT_LIMIT:
+    :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` of its noise (the model does not
+    fit: what it pulls off its priors may be the misfit's, not a data error)."""
+    if fit.unknowns is None or np.max(fit.residual_level) > LEVEL_LIMIT:
         return ()
     lay = fit.layout
     x = fit.unknowns

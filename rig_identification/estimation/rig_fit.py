@@ -78,6 +78,9 @@ log = logging.getLogger(__name__)
 
 #: The record's lengths, s, stage by stage before the whole record (module docstring).
 STAGES = (5.0, 15.0)
+#: A channel whose residual in the band exceeds its noise by this factor does not fit (the
+#: verdict ``model_error``).
+LEVEL_LIMIT = 1.5
 #: Re-weighting rounds: each channel's noise level replaced by its residual's where the
 #: residual is larger (a channel the model does not fit at its noise level is leaned on less).
 REWEIGHT_ROUNDS = 2

@@ -25,7 +25,7 @@ from ..estimation.harmonic_start import harmonic_start
 from ..estimation.identification import IdentificationError
 from ..estimation.precision import Z95
 from ..estimation.quality import check_motion, check_units, clean_sensors
-from ..estimation.rig_fit import RigFit, fit_rig
+from ..estimation.rig_fit import LEVEL_LIMIT, RigFit, fit_rig
 from ..estimation.rig_record import Record, record
 from ..estimation.rig_unknowns import EXTENSION_FIELDS, EXTENSIONS, Prior
 from ..io.export import Axes, Expressed, express
@@ -37,9 +37,8 @@ from .offline import default_initial_guess, identify_recording
 
 log = logging.getLogger(__name__)
 
-#: A channel whose residual in the band exceeds its noise by this factor is said not to fit;
-#: beyond :data:`FAILED_LEVEL` the fit has not found the motion at all (verdict ``failed``).
-LEVEL_LIMIT = 1.5
+#: Beyond :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` a channel does not fit; beyond
+#: this the fit has not found the motion at all (verdict ``failed``).
 FAILED_LEVEL = 10.0
 #: σ (m) assumed of rig.yaml's CG when no static result with its own σ is given (``--cg``): a
 #: static test's typical z (docs/cg.md).  Without any prior the CG's height, the mass and the
