@@ -18,7 +18,9 @@ Two kinds of finding.  Data errors come first: they are unknowns of the model it
   told from — and the model takes its simplest member (fewest unknowns), so the tensor is still
   corrected.  The model is then refitted with it (the caller's ``refit``, from its linearised
   estimate), and further extensions are tested at the refit's estimate, each only as above (at
-  most :data:`MAX_EXTENSIONS`; one whose refit does not lower the misfit is left out).  The rig
+  most :data:`MAX_EXTENSIONS`; one whose refit does not lower the misfit, or leaves a channel
+  beyond :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise — the motion
+  still not found, where any extension lowers the misfit somewhat — is left out).  The rig
   model already holds viscous damping; where it is significant,
   quadratic drag and Coulomb friction are tried in its place, and said indistinguishable from it
   where Vuong's test cannot tell them apart (at one forcing amplitude they are nearly the same
@@ -37,7 +39,7 @@ import numpy as np
 from scipy.stats import chi2, t
 
 from ..estimation.rig_extensions import ExtensionFit, LinearisedRig
-from ..estimation.rig_fit import LEVEL_LIMIT, SANDWICH_BLOCKS, RigFit
+from ..estimation.rig_fit import LEVEL_LIMIT, REWEIGHT_LIMIT, SANDWICH_BLOCKS, RigFit
 from ..estimation.rig_record import Record
 from ..estimation.rig_unknowns import EXTENSIONS, Prior, labels, priors
 
@@ -318,6 +320,9 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
         after = refit(values)
         if not np.sum(after.residual_level ** 2) < np.sum(current.residual_level ** 2):
             log.info("diagnosis: with %s the fit is no better: left out", step.added)
+            break
+        if np.max(after.residual_level) > REWEIGHT_LIMIT:
+            log.info("diagnosis: with %s the fit still does not find the motion: nothing named", step.added)
             break
         steps.append(step)
         current = after
