@@ -62,10 +62,6 @@ class ExtensionFit:
         start = sum(EXTENSIONS[e][0] for e in self.names[:self.names.index(name)])
         return self.values[start:start + EXTENSIONS[name][0]]
 
-    def std_of(self, name: str) -> np.ndarray:
-        start = sum(EXTENSIONS[e][0] for e in self.names[:self.names.index(name)])
-        return self.std[start:start + EXTENSIONS[name][0]]
-
 
 class LinearisedRig:
     """The fitted rig model's residual about its estimate, linearised in every unknown and every
