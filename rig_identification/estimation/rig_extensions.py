@@ -97,7 +97,6 @@ class LinearisedRig:
         d = np.abs(np.diag(rr))
         self.q = q[:, :int(np.sum(d > RANK_TOLERANCE * d[0]))]
         self.r = self.projected(r)
-        self.chi2 = float(self.r @ self.r)
 
     def projected(self, v: np.ndarray) -> np.ndarray:
         """``v`` (rows,) or (rows, k) less its part in the base Jacobian's range."""
