@@ -25,7 +25,7 @@ from scipy.linalg import qr
 from .rig_fit import SANDWICH_BLOCKS, RigFit
 from .rig_problem import RigProblem
 from .rig_record import Record
-from .rig_unknowns import EXTENSIONS, Prior, in_layout
+from .rig_unknowns import EXTENSIONS, Layout, Prior, in_layout, positions
 
 #: A base Jacobian column whose pivot is below this share of the largest is left out of the
 #: projection (the unknowns the residual does not see).
@@ -66,8 +66,9 @@ class ExtensionFit:
 class LinearisedRig:
     """The fitted rig model's residual about its estimate, linearised in every unknown and every
     extension of ``names`` (module docstring; those the fit already holds are base unknowns): one
-    Jacobian of the model with every tested extension at its value in ``fit``, made once; the
-    tests are linear algebra on it."""
+    Jacobian of the model with every tested extension at its value in ``fit`` — the fit's own
+    columns where it carries them, the tested ones new — made once; the tests are linear algebra
+    on it."""
 
     def __init__(self, rec: Record, prior: Prior, fit: RigFit, names: tuple[str, ...]):
         if fit.unknowns is None or fit.bases is None or fit.rest is None:
@@ -76,11 +77,18 @@ class LinearisedRig:
         x = in_layout(fit.unknowns, fit.layout, lay, fit.parameters)
         prob = RigProblem(rec, fit.parameters, lay, x, prior, fit.noise_scale, len(rec.y) - rec.start, fit.rest,
                           fit.bases)
-        self.J = prob.jacobian(np.zeros(lay.size))
+        tested = [i for e in self.names_of(lay, names) for i in range(*lay.extension_of(e).indices(lay.size))]
+        if fit.jacobian is not None and fit.jacobian.shape[1] == fit.layout.size:
+            # the fit's own Jacobian at the estimate for every other unknown: only the tested columns are new
+            self.J = np.zeros((fit.jacobian.shape[0], lay.size))
+            self.J[:, positions(fit.layout, lay)] = fit.jacobian
+            self.J[:, tested] = prob.jacobian(np.zeros(lay.size), tested)
+        else:
+            self.J = prob.jacobian(np.zeros(lay.size))
         self.r_hat = prob.residual(np.zeros(lay.size))
         self.rows = prob.data_rows
         self.channels = len(rec.channels)
-        self.names = tuple(e for e in lay.extensions if e in names)
+        self.names = self.names_of(lay, names)
         self.columns = {e: lay.extension_of(e) for e in self.names}
         self.scale = prob.scale
         self.x = x
@@ -88,6 +96,11 @@ class LinearisedRig:
         for c in self.columns.values():
             self.extension[c] = True
         self._based(np.zeros(lay.size, bool), self.r_hat)
+
+    @staticmethod
+    def names_of(lay: Layout, names: tuple[str, ...]) -> tuple[str, ...]:
+        """The extensions of ``names`` in ``lay``'s order."""
+        return tuple(e for e in lay.extensions if e in names)
 
     def _based(self, dropped: np.ndarray, r: np.ndarray) -> None:
         """The projection off the base columns less ``dropped`` (mask), and ``r`` projected."""

@@ -155,7 +155,9 @@ class RigFit:
     unknowns, rest: the rest pose — what the model is linearised about
     (:mod:`~rig_identification.estimation.rig_extensions`).  offsets: (n_out,) each channel's
     offset the fit eliminated, the mean of reading − model over the span (a load cell's bias N, a
-    gyro's rad/s, an accelerometer's m/s², an inclinometer's rad; the exciter's N).
+    gyro's rad/s, an accelerometer's m/s², an inclinometer's rad; the exciter's N).  jacobian:
+    (rows, size) the weighted residual's Jacobian the covariance was made from (per unit of each
+    unknown's scale), reused where the model is linearised again at the estimate.
     """
 
     parameters: RigParameters
@@ -176,6 +178,7 @@ class RigFit:
     bases: np.ndarray | None = None
     rest: RestPose | None = None
     offsets: np.ndarray | None = None
+    jacobian: np.ndarray | None = None
 
     @property
     def ambiguous(self) -> list[int]:
@@ -540,7 +543,7 @@ def _concluded(rec: Record, prior: Prior, lay: Layout, x: np.ndarray, p: RigPara
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
                   freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x, outputs), descent, x, bases, rest,
-                  offsets)
+                  offsets, J)
 
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -293,11 +294,12 @@ class RigProblem:
     def size(self, nz: int) -> int:
         return self.data_rows + int(np.isfinite(self.prior_std[:nz]).sum())
 
-    def jacobian(self, z: np.ndarray) -> np.ndarray:
+    def jacobian(self, z: np.ndarray, columns: Sequence[int] | None = None) -> np.ndarray:
         """Forward differences (size, len(z)) of :meth:`residual` (step :data:`JACOBIAN_STEP`;
         backward where the step leaves the physical region, a zero column where both do),
         the columns on :data:`THREADS` threads (the compiled model releases the GIL); a segment's
-        initial state moves only that segment's run, which alone is run again for its columns."""
+        initial state moves only that segment's run, which alone is run again for its columns.
+        ``columns``: only these unknowns' columns (size, len(columns)), in that order."""
         x = self.x(z)
         try:
             outs = self.outputs(x)
@@ -328,7 +330,7 @@ class RigProblem:
             return col
 
         with ThreadPoolExecutor(THREADS) as pool:
-            return np.column_stack(list(pool.map(column, range(len(z)))))
+            return np.column_stack(list(pool.map(column, range(len(z)) if columns is None else columns)))
 
 
 def levels(prob: RigProblem, x: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:

@@ -234,6 +234,17 @@ def vector(p: RigParameters, initial: np.ndarray, lay: Layout) -> np.ndarray:
                           + [_extension_values(p, e) for e in lay.extensions] + [np.zeros(lay.size - lay.force.start)])
 
 
+def positions(old: Layout, new: Layout) -> np.ndarray:
+    """(old.size,) where each unknown of layout ``old`` sits in layout ``new`` (the same cables,
+    force correction and segments; ``new`` holds every extension ``old`` does)."""
+    out = np.arange(old.size)
+    for e in old.extensions:
+        out[old.extension_of(e)] = np.arange(new.extension_of(e).start, new.extension_of(e).stop)
+    out[old.force] = np.arange(new.force.start, new.force.stop)
+    out[old.segments] = np.arange(new.segments.start, new.segments.stop)
+    return out
+
+
 def in_layout(x: np.ndarray, old: Layout, new: Layout, p: RigParameters) -> np.ndarray:
     """The unknowns ``x`` (layout ``old``, parameters ``p``) in layout ``new`` (the same segments and
     force correction, other extensions): an extension ``old`` lacks takes its value in ``p``."""
