@@ -16,7 +16,7 @@ import numpy as np
 
 from ..diagnosis.rig_diagnosis import RigDiagnosis
 from ..estimation.rig_fit import RigFit
-from ..estimation.rig_unknowns import EXTENSION_FIELDS, EXTENSIONS
+from ..estimation.rig_unknowns import EXTENSIONS
 from ..io.atomic import atomic_write_text
 from ..io.export import BODY, ORDER, VEHICLE_SIGN, Axes, axes_block, export_dict, urdf_inertial, yaml_text
 from ..io.package import package_version
@@ -113,8 +113,7 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY) -> None:
 
 def _fitted(fit: RigFit, name: str) -> str:
     """An extension's fitted values with σ in ``fit``."""
-    v = np.atleast_1d(getattr(fit.parameters, EXTENSION_FIELDS[name]))
-    s = np.sqrt(np.diag(fit.covariance)[fit.layout.extension_of(name)])
+    v, s = fit.extension(name)
     return ", ".join(f"{a:.4g} ± {b:.2g}" for a, b in zip(v, s)) + f" {EXTENSIONS[name][1]}"
 
 

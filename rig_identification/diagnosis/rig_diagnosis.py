@@ -40,6 +40,7 @@ from scipy.stats import chi2, t
 
 from ..estimation.rig_extensions import ExtensionFit, LinearisedRig
 from ..estimation.rig_fit import LEVEL_LIMIT, REWEIGHT_LIMIT, SANDWICH_BLOCKS, RigFit
+from ..estimation.rig_problem import NON_NEGATIVE as FIT_NON_NEGATIVE
 from ..estimation.rig_record import Record
 from ..estimation.rig_unknowns import EXTENSIONS, Prior, labels, priors
 
@@ -61,8 +62,9 @@ DAMPING_SIGMA = 3.0
 #: Physical bounds of each extension's values (plausible): at most this in size (the IMU's offset:
 #: its change from rig.yaml's position).
 BOUNDS = {"load_cell_delay": 0.1, "exciter_delay": 0.1, "imu_offset": 0.5, "gyro_scale": 0.05, "gyro_bias_drift": 1e-3}
-#: Extensions whose every value is ≥ 0 (a damping, a weight's moment arm).
-NON_NEGATIVE = ("air_drag", "coulomb_friction", "exciter_rotor")
+#: Extensions whose every value is ≥ 0: the dampings the fit holds there, and the unbalance (its
+#: mass lies toward the force it makes).
+NON_NEGATIVE = FIT_NON_NEGATIVE + ("exciter_rotor",)
 #: What tells two candidates apart (:meth:`RigDiagnosis.advice`), by the pair's class.
 DAMPING = ("viscous_damping", "air_drag", "coulomb_friction")
 APART_ADVICE = {
@@ -256,12 +258,10 @@ def prior_conflicts(fit: RigFit, prior: Prior, cables: list[str]) -> tuple[Prior
     return tuple(sorted(out, key=lambda c: -abs(c.z)))
 
 
-def _candidates(lin: LinearisedRig, held: tuple[str, ...]) -> dict[str, tuple[Candidate, ExtensionFit]]:
+def _candidates(lin: LinearisedRig) -> dict[str, tuple[Candidate, ExtensionFit]]:
     out = {}
     for e in lin.names:
-        if e in held:
-            continue
-        f = lin.fitted((e,), held)
+        f = lin.fitted((e,))
         out[e] = (Candidate(e, f.statistic, f.dof, float(chi2.ppf(SIGNIFICANCE, f.dof)), f.values, f.std,
                             f.held_out, plausible(e, f)), f)
     return out
@@ -270,7 +270,7 @@ def _candidates(lin: LinearisedRig, held: tuple[str, ...]) -> dict[str, tuple[Ca
 def next_step(lin: LinearisedRig) -> Step | None:
     """The extension to add to the fitted model ``lin`` linearises, or None where no candidate is
     eligible (module docstring)."""
-    tests = _candidates(lin, ())
+    tests = _candidates(lin)
     eligible = {e: cf for e, cf in tests.items() if cf[0].eligible}
     if not eligible:
         return None

@@ -52,11 +52,6 @@ class ExtensionFit:
     held_out: np.ndarray
     residual: np.ndarray
 
-    @property
-    def cross_validated(self) -> bool:
-        """Fitted on either half of the record, the extension lowers χ² on the other."""
-        return bool(np.all(self.held_out > 0))
-
     def of(self, name: str) -> np.ndarray:
         """The values of extension ``name`` (its units)."""
         start = sum(EXTENSIONS[e][0] for e in self.names[:self.names.index(name)])
@@ -116,16 +111,10 @@ class LinearisedRig:
         out: np.ndarray = v - self.q @ (self.q.T @ v)
         return out
 
-    def fitted(self, names: tuple[str, ...], held: tuple[str, ...] = ()) -> ExtensionFit:
-        """The extensions ``names`` fitted together with ``held`` (already in the model: their
-        columns join the base's), ``names``' statistic the further fall of χ²."""
+    def fitted(self, names: tuple[str, ...]) -> ExtensionFit:
+        """The extensions ``names`` fitted together, every base unknown refitted (module docstring)."""
         E = self.projected(self._cols(names))
         r = self.r
-        if held:
-            H = self.projected(self._cols(held))
-            qh = np.linalg.qr(H)[0]
-            E = E - qh @ (qh.T @ E)
-            r = r - qh @ (qh.T @ r)
         theta, cov = _least_squares(E, r)
         after = r + E @ theta
         statistic = float(r @ r - after @ after)

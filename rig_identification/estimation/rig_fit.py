@@ -72,7 +72,7 @@ from .rig_problem import (
 )
 from .rig_record import ChannelSeries, Record
 from .rig_start import start_parameters
-from .rig_unknowns import EXTENSIONS, Layout, Prior, extension_fields, parameters_of, vector
+from .rig_unknowns import EXTENSION_FIELDS, EXTENSIONS, Layout, Prior, extension_fields, parameters_of, vector
 
 log = logging.getLogger(__name__)
 
@@ -206,6 +206,13 @@ class RigFit:
     @property
     def cg_std(self) -> np.ndarray:
         return np.sqrt(np.diag(self.covariance)[self.layout.cg])
+
+    def extension(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """The fitted values and σ of extension ``name`` (units of :data:`~.rig_unknowns.EXTENSIONS`;
+        KeyError where the model does not hold it)."""
+        index = self.layout.extension_of(name)
+        value = np.atleast_1d(np.asarray(getattr(self.parameters, EXTENSION_FIELDS[name]), float))
+        return value, np.sqrt(np.diag(self.covariance)[index])
 
 
 def _covariance(prob: RigProblem, J: np.ndarray, noise_scale: np.ndarray | None = None

@@ -27,7 +27,7 @@ from ..estimation.precision import Z95
 from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.rig_fit import LEVEL_LIMIT, RigFit, fit_rig
 from ..estimation.rig_record import Record, record
-from ..estimation.rig_unknowns import EXTENSION_FIELDS, EXTENSIONS, Prior
+from ..estimation.rig_unknowns import EXTENSIONS, Prior
 from ..io.export import Axes, Expressed, express
 from ..io.recording import Recording
 from ..io.rig import Survey
@@ -295,9 +295,8 @@ class RigModelResult:
             "natural_frequencies_hz": f.natural_frequencies.tolist(),
             "seconds": self.seconds,
             "warnings": list(self.warnings),
-            "extensions": {e: {"values": np.atleast_1d(getattr(p, EXTENSION_FIELDS[e])).tolist(),
-                               "std": np.sqrt(np.diag(f.covariance)[f.layout.extension_of(e)]).tolist(),
-                               "units": EXTENSIONS[e][1]} for e in f.layout.extensions},
+            "extensions": {e: dict(zip(("values", "std"), (a.tolist() for a in f.extension(e))),
+                                   units=EXTENSIONS[e][1]) for e in f.layout.extensions},
             "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
         }
         if self.truth and "inertia_about_cg" in self.truth:
