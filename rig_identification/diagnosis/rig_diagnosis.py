@@ -18,9 +18,10 @@ Two kinds of finding.  Data errors come first: they are unknowns of the model it
   told from — and the model takes its simplest member (fewest unknowns), so the tensor is still
   corrected.  The model is then refitted with it (the caller's ``refit``, from its linearised
   estimate), and further extensions are tested at the refit's estimate, each only as above (at
-  most :data:`MAX_EXTENSIONS`; one whose refit does not lower the misfit, or leaves a channel
-  beyond :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise — the motion
-  still not found, where any extension lowers the misfit somewhat — is left out).  The rig
+  most :data:`MAX_EXTENSIONS`; one whose refit does not lower the misfit is left out).  Where the
+  last refit still leaves a channel beyond
+  :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise nothing is named: the
+  motion is still not found, and any extension lowers such a misfit somewhat.  The rig
   model already holds viscous damping; where it is significant,
   quadratic drag and Coulomb friction are tried in its place, and said indistinguishable from it
   where Vuong's test cannot tell them apart (at one forcing amplitude they are nearly the same
@@ -321,11 +322,12 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
         if not np.sum(after.residual_level ** 2) < np.sum(current.residual_level ** 2):
             log.info("diagnosis: with %s the fit is no better: left out", step.added)
             break
-        if np.max(after.residual_level) > REWEIGHT_LIMIT:
-            log.info("diagnosis: with %s the fit still does not find the motion: nothing named", step.added)
-            break
         steps.append(step)
         current = after
+    if steps and np.max(current.residual_level) > REWEIGHT_LIMIT:
+        log.info("diagnosis: with %s the fit still does not find the motion: nothing named",
+                 ", ".join(s.added for s in steps))
+        steps, current = [], fit
     damping = damping_alternatives(lin, current)
     conflicts = prior_conflicts(current, prior, cables)
     log.info("diagnosis: data errors %s; extensions %s", [c.unknown for c in conflicts], [s.added for s in steps])
