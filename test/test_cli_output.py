@@ -354,7 +354,7 @@ def test_diagnosed_model_error_warning_gives_effect_parameters_with_units(monkey
 
 
 def test_diagnose_prints_the_rigid_body_fit_of_inertia(monkeypatch, json_run):
-    """diagnose's rigid-body fit is rig-identify inertia --quick --no-diagnose's, number for number
+    """diagnose --model pem: its rigid-body fit is rig-identify inertia --quick --no-diagnose's, number for number
     (the effect search itself is test_diagnose's: stubbed here)."""
     from rig_identification.diagnosis.result import Diagnosis
     J = np.eye(3)
@@ -362,7 +362,7 @@ def test_diagnose_prints_the_rigid_body_fit_of_inertia(monkeypatch, json_run):
     def stub(rec, model="pem", cg_free=False):
         return Diagnosis(False, [], {}, {}, {}, J, J, np.ones(6), np.ones(6), [], (0.5, 3.0), model)
     monkeypatch.setattr(cli_diagnose, "diagnose", stub)
-    code, out, err = run("diagnose", CLEAN, "--json", "-q")
+    code, out, err = run("diagnose", CLEAN, "--model", "pem", "--json", "-q")
     assert code == 0, err
     d = json.loads(out)
     rb = d["rigid_body_fit"]

@@ -158,7 +158,7 @@ def test_inertia_says_the_body_may_not_be_rigid_without_fitting_it():
     assert entry["plausible"] is False and entry["parameters"] == {} and entry["implausible"].startswith("not fitted")
     advice = entry["advice"]
     assert advice.startswith("the body may not be rigid: ") and "lock the suspension" in advice
-    assert "rig-identify diagnose RECORDING --two-body" in advice
+    assert "rig-identify diagnose RECORDING --model pem --two-body" in advice
     tried = [h for h in res.diagnosis["combinations_tried"] if [e["name"] for e in h["effects"]] == ["compliant_body"]]
     assert tried and tried[0]["not_named"] == entry["implausible"]
     assert f"advice: {advice}" in diagnosis_lines(res)

@@ -306,8 +306,8 @@ def test_reference_clean_recording_has_no_mismatch():
 
 
 def _damped_cli():
-    """Job of test_reference_damped_recording_names_the_damping: `rig-identify diagnose --json
-    --report` on the damped reference recording.  Returns (exit status, stdout, stderr, the
+    """Job of test_reference_damped_recording_names_the_damping: `rig-identify diagnose --model pem
+    --json --report` on the damped reference recording.  Returns (exit status, stdout, stderr, the
     report folder's file names)."""
     import shutil
     import subprocess
@@ -317,7 +317,8 @@ def _damped_cli():
     tmp = Path(tempfile.mkdtemp(prefix="test_diagnose_"))
     try:
         out = subprocess.run([sys.executable, "-m", "rig_identification.cli.main", "diagnose",
-                              str(recording("visible_case16_damped")), "--json", "--report", str(tmp / "report")],
+                              str(recording("visible_case16_damped")), "--model", "pem", "--json", "--report",
+                              str(tmp / "report")],
                              capture_output=True, text=True, timeout=600)
         files = sorted(p.name for p in (tmp / "report").iterdir()) if (tmp / "report").is_dir() else []
         return out.returncode, out.stdout, out.stderr, files

@@ -1,6 +1,15 @@
-"""``rig-identify diagnose``: where the rigid-body model and a recording disagree, and why.
+"""``rig-identify diagnose``: where the model and a recording disagree, and which physics is missing.
 
-Two fits, said apart:
+The default (``--model rig``) is the rig model's own diagnosis, the same fit and the same
+diagnosis as ``rig-identify inertia`` (:func:`~rig_identification.pipeline.rig_model.fit_whole_recording`;
+:mod:`~rig_identification.diagnosis.rig_diagnosis`), its output turned to the diagnosis: the
+rigid-body rig model's verdict and each channel's residual over its noise, the data errors, each
+extension tested (named only where the recording tells it apart from the others, else its
+class and what would tell them apart), the residual before and after, and the tensor of the
+model with what was added.  ``--json`` prints the same object as ``rig-identify inertia --json``
+(its ``diagnosis`` and ``rigid_body_fit``).
+
+``--model pem`` / ``thesis``: the gyro-only fit's diagnosis — two fits, said apart:
 
 * the rigid-body fit — the same pipeline as ``rig-identify inertia --quick --no-diagnose``
   (:func:`~rig_identification.pipeline.offline.identify_recording` without the σ replays: tracker, preprocessor,
@@ -20,21 +29,29 @@ from __future__ import annotations
 
 import json
 import sys
+from pathlib import Path
 
 from ..diagnosis.compliant_body import diagnosis_alternative
 from ..diagnosis.distinguish import effect_name
 from ..diagnosis.not_rigid import not_rigid_hypothesis, two_body_reason
 from ..diagnosis.result import Combination
 from ..diagnosis.selection import diagnose
+from ..estimation.identification import IdentificationError
 from ..estimation.inertia_result import InertiaResult
-from ..io.export import ORDER, axes_for, convention_lines
-from ..io.recording import read_recording
+from ..io.export import BODY, ORDER, axes_for, convention_lines
+from ..io.recording import Recording, read_recording
 from ..io.verdict import KEYS
 from ..pipeline.offline import identify_recording
+from ..pipeline.rig_model import RigModelResult, fit_whole_recording
 from ..report.diagnosis import diagnosis_json
 from ..report.diagnosis_page import write_report
+from ..report.page import ReportError, check_report_dir
+from ..report.rig_page import write_rig_report
+from ..statics.handover import load_cg_result
+from .arg_types import JOB_OPTIONS
 from .inertia import truth_columns, window_line
 from .progress import heading, step
+from .rig_model import job_of, print_diagnosis
 from .text import TABLE_CAPTION, effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
 
 
@@ -85,8 +102,8 @@ def compliant_lines(cb: dict) -> list[str]:
         [f"advice: {h['advice']}"] if h.get("advice") else [])
 
 
-def print_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> None:
-    """The text output of ``rig-identify diagnose``."""
+def print_gyro_diagnosis(rec, result: InertiaResult, d, out: dict, model: str) -> None:
+    """The text output of ``rig-identify diagnose --model pem`` / ``thesis``."""
     t0 = float(rec.sensors.t_start)
     print(f"recording: {rec.path}")
     body = axes_for("body", rec.rig.vehicle)
@@ -149,10 +166,83 @@ def mismatch_channel(out: dict, name: str) -> bool:
     return any(name in e["evidence"]["rms_reduction"] for e in out["effects"])
 
 
+def print_rig_diagnosis_text(res: RigModelResult) -> None:
+    """The text output of ``rig-identify diagnose`` (the rig model): the rigid-body rig model's
+    verdict and channels, what it leaves out (:func:`~rig_identification.cli.rig_model.print_diagnosis`),
+    and the model with what was added: its verdict and tensor with σ (and truth.yaml's)."""
+    print(f"recording: {res.path}")
+    for w in res.warnings:
+        print(f"warning: {w}")
+    rigid = res.rigid_body or res
+    print("rigid-body rig model (every sensor an output; as rig-identify inertia fits it first):")
+    print(f"  verdict: {rigid.summary}")
+    print("  residual in the band over the noise (1: noise alone): "
+          + ", ".join(f"{c} {v:.2f}" for c, v in zip(rigid.fit.channels, rigid.fit.residual_level)))
+    if res.diagnosis is None:
+        print("not diagnosed: the fit gave no finite σ (the motion was not found), so there is no estimate to "
+              "test extensions at")
+        return
+    print_diagnosis(res.diagnosis)
+    if res.rigid_body is None:
+        print("the model is the rigid-body rig model: the tensor is rig-identify inertia's")
+        return
+    print(f"the model with {', '.join(res.diagnosis.extensions)}: verdict {res.summary}")
+    body = res.expressed(BODY)
+    d = res.to_dict()
+    truth = d.get("truth_comparison")
+    print("  " + TABLE_CAPTION)
+    for line in tensor_table(body, truth):
+        print("  " + line)
+    print("(rig-identify inertia reports this fit with everything else it measures: mass, CG, cables)")
+
+
 def cmd_diagnose(args) -> int:
     """``rig-identify diagnose``; returns the exit status (user errors raise)."""
+    rig_only = [flag for flag, k in (("--cg", "cg"), ("--start", "start"), ("--end", "end")) if getattr(args, k)]
+    rig_only += [flag for flag, k, _ in JOB_OPTIONS if getattr(args, k, None)]
+    pem_only = [flag for flag, k in (("--cg-free", "cg_free"), ("--two-body", "two_body")) if getattr(args, k)]
+    if args.model == "rig" and pem_only:
+        raise IdentificationError(f"{', '.join(pem_only)}: options of --model pem, the gyro-only diagnosis; the rig "
+                                  "model fits the CG always and has no sprung body")
+    if args.model != "rig" and rig_only:
+        raise IdentificationError(f"{', '.join(rig_only)}: options of the rig model (the default --model rig)")
+    if args.report:
+        check_report_dir(Path(args.report))     # before the fit, not after it
     step(f"reading {args.recording}")
     rec = read_recording(args.recording)
+    if args.model == "rig":
+        return cmd_rig_diagnose(args, rec)
+    return cmd_gyro_diagnose(args, rec)
+
+
+def cmd_rig_diagnose(args, rec: Recording) -> int:
+    """``rig-identify diagnose`` with the rig model (the default); returns the exit status."""
+    cg = cg_std = source = None
+    if args.cg:
+        saved = load_cg_result(args.cg)
+        cg, cg_std, source = saved.center_of_gravity, saved.center_of_gravity_std, args.cg
+    heading("fitting the rig's model to every sensor, then testing what it leaves out")
+    res = fit_whole_recording(rec, cg, cg_std, source, args.start, args.end)
+    index = None
+    if args.report:
+        step(f"writing the report to {args.report}")
+        try:
+            index = write_rig_report(args.report, res, rec, BODY, job_of(args))
+        except OSError as e:
+            raise ReportError(f"{args.report}: cannot write the report ({e.strerror or e})") from None
+    args.progress.finish()
+    if args.json:
+        print(json.dumps(res.to_dict()))
+    else:
+        print_rig_diagnosis_text(res)
+    if index is not None:
+        print(f"report: {index}", file=sys.stderr if args.json else sys.stdout)
+    return 0
+
+
+def cmd_gyro_diagnose(args, rec: Recording) -> int:
+    """``rig-identify diagnose --model pem`` / ``thesis``: the gyro-only fit's diagnosis; returns
+    the exit status."""
     heading(f"the rigid-body fit, as {same_as(args.model)} (tracker, preprocessor, fit, validation)")
     result = identify_recording(rec, refine=False, model=args.model)
     step("diagnosing (effect library, likelihood-ratio selection)")
@@ -175,7 +265,7 @@ def cmd_diagnose(args) -> int:
     if args.json:
         print(json.dumps(diagnosis_json(out)))
     else:
-        print_diagnosis(rec, result, d, out, args.model)
+        print_gyro_diagnosis(rec, result, d, out, args.model)
     args.progress.warn_rest(result.warnings + d.warnings)
     if result.validation is not None and result.validation.verdict != "ok":
         print(f"note: the rigid-body fit's verdict is {result.validation.verdict}: rig-identify inertia --model pem "

@@ -142,25 +142,39 @@ def add_inertia_parser(sub) -> None:
 
 def add_diagnose_parser(sub) -> None:
     dp = add_command(sub, "diagnose",
-                     "where the rigid-body model and a recording disagree, and which physics is missing",
-                     "Fit the rigid-body model as 'rig-identify inertia' does and print its fit and verdict; then test "
-                     "the effect library (damping, drag, sensor delays and gains, IMU pose, cable mass and elasticity, "
-                     "…) by likelihood-ratio selection and print the effects found, their parameters with units and "
-                     "evidence, and the tensor of the model with them.",
-                     lazy("rig_identification.cli.diagnose", "cmd_diagnose"), inputs=("recording",),
+                     "where the model and a recording disagree, and which physics is missing",
+                     "Fit the rig's grey-box model to every sensor as 'rig-identify inertia' does, print its verdict "
+                     "and each channel's residual over its noise; then test what the model may leave out (quadratic "
+                     "drag, dry friction, the exciter's unbalance, the load cells' and the exciter's delay, the "
+                     "IMU's position, gyro scale and drift), name an extension only where the recording tells it "
+                     "apart from the others (else its class, and what would tell them apart), add it, fit again and "
+                     "print each channel's residual before and after and the tensor of the model with it.",
+                     lazy("rig_identification.cli.diagnose", "cmd_diagnose"), inputs=("recording", "cg"),
                      output_dirs=("report",))
     dp.add_argument("recording", help="recording folder (rig.yaml + bag/)")
-    dp.add_argument("--json", action="store_true", help="print one JSON object")
-    dp.add_argument("--report", metavar="DIR", help="write plots (residuals and spectra before/after) and the JSON")
-    dp.add_argument("--model", choices=["pem", "thesis"], default="pem",
-                    help="pem: ours (default); thesis: the thesis's model without gyroscopic terms")
+    dp.add_argument("--json", action="store_true",
+                    help="print one JSON object (the rig model: rig-identify inertia's, schema "
+                         "rig_identification.rig_model_result; --model pem/thesis: "
+                         "rig_identification.diagnosis_result)")
+    dp.add_argument("--report", metavar="DIR", help="write an HTML report (index.html + figures) to the folder DIR")
+    for flag, _, what in JOB_OPTIONS:
+        dp.add_argument(flag, metavar="TEXT", help=f"with --report: {what}, named in the report's header (one line)")
+    dp.add_argument("--cg", metavar="CG.json",
+                    help="the rig model: the centre of gravity's prior from a saved 'rig-identify cg --json' result "
+                         "(its σ) instead of rig.yaml's")
+    dp.add_argument("--start", type=float, metavar="S", help="the rig model: window start, s from the first IMU sample")
+    dp.add_argument("--end", type=float, metavar="S", help="the rig model: window end, s from the first IMU sample")
+    dp.add_argument("--model", choices=["rig", "pem", "thesis"], default="rig",
+                    help="rig (default): the rig model's diagnosis, every sensor an output; pem: the gyro-only "
+                         "fit's effect library and likelihood-ratio selection (the tensions as its input); thesis: "
+                         "the same with the thesis's model without gyroscopic terms")
     dp.add_argument("--cg-free", action="store_true",
-                    help="screen rig.yaml's centre of gravity as a candidate error too (cg_offset: where the CG is "
-                         "known only roughly, e.g. its height from a dummy-mass static test)")
+                    help="--model pem: screen rig.yaml's centre of gravity as a candidate error too (cg_offset: "
+                         "where the CG is known only roughly; the rig model fits the CG always)")
     dp.add_argument("--two-body", action="store_true",
-                    help="experimental: where the body may not be rigid (the rigid-body fit failed sub_bands and "
-                         "no effect explained it, or the exciter swept), fit a sprung body on its suspension "
-                         "(about a minute): its modes as a hypothesis, never a tensor")
+                    help="--model pem, experimental: where the body may not be rigid (the rigid-body fit failed "
+                         "sub_bands and no effect explained it, or the exciter swept), fit a sprung body on its "
+                         "suspension (about a minute): its modes as a hypothesis, never a tensor")
 
 
 def add_plan_parser(sub) -> None:

@@ -139,8 +139,12 @@ def print_diagnosis(dg: RigDiagnosis) -> None:
               + (": the model explains the recording" if not dg.conflicts else ""))
     if dg.damping is not None:
         alt = ", ".join(f"{e} z {z:+.1f}" for e, z in dg.damping.alternatives.items())
-        print(f"  damping: viscous, {max(dg.damping.significance):.0f} σ; in its place (Vuong's z, + viscous "
-              f"better): {alt}")
+        f = dg.refit or dg.rigid
+        b = f.layout.body_damping
+        c, sd = f.parameters.body_damping, np.sqrt(np.diag(f.covariance[b, b]))
+        word = "viscous_damping named" if "viscous_damping" in dg.named else "not told apart"
+        print(f"  damping: viscous, {max(dg.damping.significance):.0f} σ (linear {c[0]:.4g} ± {sd[0]:.2g} N·s/m, "
+              f"angular {c[1]:.4g} ± {sd[1]:.2g} N·m·s); in its place (Vuong's z, + viscous better): {alt}: {word}")
     for line in dg.advice:
         print(f"  {line}")
     if dg.refit is not None:

@@ -27,8 +27,8 @@ NON_RIGID_ADVICE = (
     "either lock the suspension (strap the body to the frame) and record as usual, or record a slow sweep - spin "
     f"the exciter up from rest to {SWEEP_TOP_HZ:g} Hz over the whole recording (90-120 s; the force grows with the "
     "speed squared: size the unbalance for the cables at the top speed) - so that the compliant_body candidate of "
-    "`rig-identify diagnose` can fit the sprung body's modes (its tensor at rest is not yet reported: "
-    "bench/bench_compliant_body.py).")
+    "`rig-identify diagnose --model pem --two-body` can fit the sprung body's modes (its tensor at rest is not yet "
+    "reported: bench/bench_compliant_body.py).")
 
 
 def sweep_excitation(unbalance: float, duration: float, top_hz: float = SWEEP_TOP_HZ, settle: float = 5.0) -> dict:

@@ -31,7 +31,7 @@ hypothesis that says why, what to do (:data:`SWEEP_ADVICE`), and where the misma
 body's (``rigid_mismatch``) and what the sprung body
 leaves (``unexplained``): channel, band, size.
 
-Experimental: only ``rig-identify diagnose --two-body`` runs it, where the gate
+Experimental: only ``rig-identify diagnose --model pem --two-body`` runs it, where the gate
 (:func:`~rig_identification.diagnosis.not_rigid.two_body_reason`) is open; ``rig-identify
 inertia`` carries the unfitted hypothesis instead (:mod:`~rig_identification.diagnosis.not_rigid`).
 """

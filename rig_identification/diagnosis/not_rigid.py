@@ -8,7 +8,7 @@ costs 50–90 s of CPU and gives a hypothesis only — its tensor at rest is not
 (:data:`~rig_identification.diagnosis.compliant_body.TENSOR_TRUSTED`) — so
 ``rig-identify inertia`` does not run it: when :func:`two_body_reason` says the body may not be
 rigid, the diagnosis carries :func:`not_rigid_hypothesis`, which costs nothing and says what to
-do (lock the suspension; ``rig-identify diagnose --two-body`` fits the sprung body, experimental).
+do (lock the suspension; ``rig-identify diagnose --model pem --two-body`` fits the sprung body, experimental).
 
 The exciter's speeds (:func:`exciter_speeds`) decide whether a recording swept through the
 body's modes (:func:`sweeps`, :data:`SWEEP_MARGIN`).
@@ -32,8 +32,8 @@ off).  A sweep through the modes shows each resonance's peak and phase turn, whi
 ζ, and with them the limit."""
 
 NOT_RIGID_ADVICE = ("lock the suspension (strap the body to the frame) and record again; `rig-identify diagnose "
-                    "RECORDING --two-body` fits a sprung body to this recording (experimental, about a minute: its "
-                    "modes as a hypothesis, never a tensor)")
+                    "RECORDING --model pem --two-body` fits a sprung body to this recording (experimental, about a "
+                    "minute: its modes as a hypothesis, never a tensor)")
 
 
 def exciter_speeds(sensors: SensorData, lo: float, hi: float) -> tuple[float, float] | None:

@@ -79,10 +79,10 @@ Services (std_srvs/Trigger; ``message`` is JSON):
                       dummy_mass / dummy_position parameters)
   ~/estimate_cg       step 3: the CG from the two states (rig_identification.statics, as
                       ``rig-identify cg``); success=true: CgResult.to_dict(); publishes it
-  ~/diagnose          where the rigid-body model and the last ``diagnose_seconds`` of the raw
-                      streams disagree and which physics is missing (rig_identification.diagnosis.selection,
-                      as ``rig-identify diagnose``); success=true: the diagnosis JSON; the improved
-                      tensor (inertia_about_cg_after) is published on /rig/mass_properties
+  ~/diagnose          the same call as ~/identify_rig_model (as ``rig-identify diagnose``, whose
+                      JSON is ``rig-identify inertia``'s): the rig model's diagnosis of the last
+                      ``diagnose_seconds`` of the raw streams is its JSON's ``diagnosis`` (what was
+                      tested, named, added) and ``rigid_body_fit`` (the fit before the extensions)
   ~/identify_rig_model  the rig model of ``rig-identify inertia`` (every sensor an output: the
                       tensions, gyro, accelerometer, inclinometer and exciter force; the mass, CG
                       and tensor fitted together) on the last ``diagnose_seconds`` of the raw
@@ -127,7 +127,6 @@ from geometry_msgs.msg import InertiaStamped
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
-from ..diagnosis.selection import diagnose
 from ..estimation.fit_window import fit_window
 from ..estimation.identification import identify_inertia
 from ..estimation.precision import TARGET as PRECISION_TARGET
@@ -338,22 +337,8 @@ class IdentifierNode(Node):
         return d
 
     def diagnose(self) -> dict:
-        """``~/diagnose``: the diagnosis of the buffered raw streams (runs in a service thread);
-        publishes the improved tensor.  Raises ValueError (RecordingError, IdentificationError...)
-        with a clear message."""
-        if self.rig.center_of_gravity is None:
-            raise ValueError("rig.yaml has no body.center_of_gravity: diagnose needs it (run the CG experiment)")
-        with self.lock:
-            data = self.diag_buffer.sensor_data()
-        rec = Recording(self.rig, data, None, Path(f"{self.get_fully_qualified_name()} buffer"))
-        d = diagnose(rec)
-        J = d.inertia_after
-        self.last_inertia = J
-        self._publish_mass_properties(None, self.rig.mass,
-                                      self.last_cg if self.last_cg is not None else self.rig.center_of_gravity, J)
-        names = ", ".join(e["name"] for e in d.effects) or "no significant mismatch"
-        self.get_logger().info(f"diagnose: {names}")
-        return d.to_dict()
+        """``~/diagnose``: :meth:`identify_rig_model` (the rig model's fit carries its diagnosis)."""
+        return self.identify_rig_model()
 
     def identify_rig_model(self) -> dict:
         """``~/identify_rig_model`` (runs in a service thread): the rig model fitted to the
@@ -376,8 +361,9 @@ class IdentifierNode(Node):
             J = to_tensor(f.inertia)
             self.last_inertia = J
             self._publish_mass_properties(None, float(f.parameters.mass), f.parameters.cg, J)
+        named = ", ".join(res.diagnosis.named) if res.diagnosis is not None and res.diagnosis.named else "nothing"
         self.get_logger().info(f"rig model: verdict {res.verdict}; Ixx {f.inertia[0]:.1f} Iyy {f.inertia[3]:.1f} "
-                               f"Izz {f.inertia[5]:.1f} kg m^2 over {res.duration_s:.1f} s")
+                               f"Izz {f.inertia[5]:.1f} kg m^2 over {res.duration_s:.1f} s; named {named}")
         return res.to_dict()
 
     def _publish_mass_properties(self, stamp: float | None, mass: float, cg, J) -> None:

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -227,6 +227,25 @@ class RigModelResult:
                 "the numbers below are not an estimate")
 
     @property
+    def rigid_body(self) -> "RigModelResult | None":
+        """The rigid-body rig model's fit before the diagnosis added extensions (its verdict, tensor
+        and channels), or None where nothing was added (then :attr:`fit` is that fit)."""
+        if self.diagnosis is None or self.diagnosis.refit is None:
+            return None
+        return replace(self, fit=self.diagnosis.rigid, diagnosis=None)
+
+    def rigid_body_dict(self) -> dict | None:
+        """The JSON of :attr:`rigid_body` (verdict, summary, tensor with σ, each channel's residual
+        over its noise), or None."""
+        r = self.rigid_body
+        if r is None:
+            return None
+        return {"verdict": r.verdict, "summary": r.summary,
+                "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, r.fit.inertia)},
+                "inertia_std": {k: float(v) for k, v in zip(KEYS, r.fit.inertia_std)},
+                "residual_level": {c: float(v) for c, v in zip(r.fit.channels, r.fit.residual_level)}}
+
+    @property
     def withheld(self) -> tuple[str, ...]:
         """The entries given as no estimate: all six where the verdict is ``not_identifiable`` or
         ``failed`` (no entry is one then: :attr:`verdict`), else none."""
@@ -259,7 +278,7 @@ class RigModelResult:
         sd = f.inertia_std
         bd_cov = f.covariance[f.layout.body_damping][:, f.layout.body_damping]
         d = {
-            "schema": "rig_identification.rig_model_result", "schema_version": 5,
+            "schema": "rig_identification.rig_model_result", "schema_version": 6,
             "recording": self.path, "model": "rig (grey-box, every sensor an output)",
             "verdict": self.verdict, "undetermined": self.undetermined, "ambiguous": self.ambiguous,
             "other_minima": [{"inertia_about_cg": {k: float(v) for k, v in zip(KEYS, m)},
@@ -298,6 +317,7 @@ class RigModelResult:
             "extensions": {e: dict(zip(("values", "std"), (a.tolist() for a in f.extension(e))),
                                    units=EXTENSIONS[e][1]) for e in f.layout.extensions},
             "diagnosis": None if self.diagnosis is None else self.diagnosis.to_dict(),
+            "rigid_body_fit": self.rigid_body_dict(),
         }
         if self.truth and "inertia_about_cg" in self.truth:
             t = np.array([float(self.truth["inertia_about_cg"][k]) for k in KEYS])
