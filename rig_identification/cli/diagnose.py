@@ -186,7 +186,7 @@ def print_rig_diagnosis_text(res: RigModelResult) -> None:
     if res.rigid_body is None:
         print("the model is the rigid-body rig model: the tensor is rig-identify inertia's")
         return
-    print(f"the model with {', '.join(res.diagnosis.extensions)}: verdict {res.summary}")
+    print(f"the model with {', '.join(res.diagnosis.extensions)}: verdict {res.verdict_line}")
     body = res.expressed(BODY)
     d = res.to_dict()
     truth = d.get("truth_comparison")

@@ -203,9 +203,11 @@ class RigModelResult:
     def summary(self) -> str:
         """The verdict and what it means for the numbers, one line."""
         added = self.diagnosis.extensions if self.diagnosis is not None else ()
-        return self._verdict_line() + (f" (the model with {', '.join(added)} added: below)" if added else "")
+        return self.verdict_line + (f" (the model with {', '.join(added)} added: below)" if added else "")
 
-    def _verdict_line(self) -> str:
+    @property
+    def verdict_line(self) -> str:
+        """The verdict and what it means for the numbers, one line, without what the diagnosis added."""
         v = self.verdict
         if v == "ok":
             return "ok — the model explains every channel at its noise level"
