@@ -16,7 +16,7 @@ one warm-up run (numba's on-disk cache, the page cache), each in a process of it
 * ``diagnose()``: :func:`rig_identification.diagnosis.selection.diagnose` alone on the read
   recording, timed inside the child (``time.process_time`` for CPU, ``time.perf_counter`` for
   wall) — the diagnosis's own cost, without start-up, bag reading and the rigid-body fit;
-* ``rig-identify diagnose REC --json``: the whole process (start-up, reading, the rigid-body fit
+* ``rig-identify diagnose REC --model pem --json``: the whole process (start-up, reading, the rigid-body fit
   the command prints beside the diagnosis, the diagnosis), timed from outside by
   ``/usr/bin/time`` as ``bench_scaling.py`` does; peak resident memory too.
 
@@ -61,12 +61,13 @@ def call_once(rec: Path, env: dict) -> dict:
 
 
 def cli_once(rec: Path, env: dict) -> dict:
-    """``rig-identify diagnose REC --json``, the whole process timed by ``/usr/bin/time``."""
+    """``rig-identify diagnose REC --model pem --json``, the whole process timed by ``/usr/bin/time``."""
     with tempfile.TemporaryFile() as out, tempfile.NamedTemporaryFile("r") as tm:
-        p = subprocess.run([TIME, "-o", tm.name, "-f", "%e %U %S %M", str(CLI), "diagnose", str(rec), "--json"],
-                           stdout=out, stderr=subprocess.PIPE, env=env)
+        p = subprocess.run([TIME, "-o", tm.name, "-f", "%e %U %S %M", str(CLI), "diagnose", str(rec), "--model", "pem",
+                            "--json"], stdout=out, stderr=subprocess.PIPE, env=env)
         if p.returncode != 0:
-            raise SystemExit(f"rig-identify diagnose {rec} failed ({p.returncode}):\n{p.stderr.decode()[-2000:]}")
+            raise SystemExit(f"rig-identify diagnose --model pem {rec} failed ({p.returncode}):\n"
+                             f"{p.stderr.decode()[-2000:]}")
         wall, user, system, rss_kib = (float(x) for x in tm.read().split()[-4:])
         out.seek(0)
         named = [e["name"] for e in json.loads(out.read()).get("effects", [])]
@@ -98,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
                                                             "default rig 180 s at 1 kHz)")
     p.add_argument("--runs", type=int, default=3, help="counted runs per row (median; default 3)")
     p.add_argument("--dir", type=Path, default=Path("/tmp/bench_scaling"), help="folder of the simulated recording")
-    p.add_argument("--no-cli", action="store_true", help="without the rig-identify diagnose rows")
+    p.add_argument("--no-cli", action="store_true", help="without the rig-identify diagnose --model pem rows")
     p.add_argument("--no-call", action="store_true", help="without the diagnose() rows")
     a = p.parse_args(argv)
     if not a.no_cli and not (CLI.exists() and Path(TIME).exists()):
@@ -118,7 +119,7 @@ def main(argv: list[str] | None = None) -> int:
     for rec in recs:
         name, length, rate = describe(rec)
         rows = ([] if a.no_call else [("`diagnose()` alone", call_once)]) + \
-               ([] if a.no_cli else [("`rig-identify diagnose REC --json`", cli_once)])
+               ([] if a.no_cli else [("`rig-identify diagnose REC --model pem --json`", cli_once)])
         for what, once in rows:
             m = measure(once, rec, a.runs, env)
             mem = "—" if m["mem"] is None else f"{m['mem']:.0f}"
