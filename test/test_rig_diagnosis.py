@@ -79,3 +79,23 @@ def test_diagnose_says_the_rigid_fit_what_was_named_and_the_fit_with_it():
     assert f"the model with load_cell_delay: verdict {d['verdict']}" in text
     iyy = next(x for x in lines if x.strip().startswith("Iyy"))
     assert f"{d['inertia_about_cg']['iyy']:.2f}" in iyy and f"{truth['inertia_about_cg']['iyy']:.2f}" in iyy, iyy
+
+
+def test_a_fit_that_did_not_find_the_motion_names_nothing(capsys):
+    """Where the last fit leaves a channel beyond 10× its noise its estimate is no minimum: the
+    diagnosis says so, names nothing and gives no advice (a test at it is no evidence), and does
+    not say the model explains the recording; at 1.2× it would."""
+    from types import SimpleNamespace
+
+    from rig_identification.cli.rig_model import print_diagnosis
+    from rig_identification.diagnosis.rig_diagnosis import RigDiagnosis
+    lost = SimpleNamespace(residual_level=np.array([0.98, 318.3, 11.0]), channels=("gyro_x", "tension:c0", "gyro_y"))
+    dg = RigDiagnosis((), None, (), lost, None)
+    assert not dg.found_motion and dg.named == () and dg.advice == [] and dg.to_dict()["found_motion"] is False
+    print_diagnosis(dg)
+    out = capsys.readouterr().out
+    assert "did not find the motion" in out and "nothing is named" in out and "explains" not in out, out
+    fits = SimpleNamespace(residual_level=np.array([0.98, 1.2, 1.0]), channels=lost.channels)
+    assert RigDiagnosis((), None, (), fits, None).found_motion
+    print_diagnosis(RigDiagnosis((), None, (), fits, None))
+    assert "the model explains the recording" in capsys.readouterr().out

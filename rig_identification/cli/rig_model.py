@@ -15,7 +15,7 @@ from datetime import datetime, timezone
 import numpy as np
 
 from ..diagnosis.rig_diagnosis import RigDiagnosis
-from ..estimation.rig_fit import RigFit
+from ..estimation.rig_fit import REWEIGHT_LIMIT, RigFit
 from ..estimation.rig_unknowns import EXTENSIONS
 from ..io.atomic import atomic_write_text
 from ..io.export import BODY, ORDER, VEHICLE_SIGN, Axes, axes_block, export_dict, urdf_inertial, yaml_text
@@ -134,9 +134,13 @@ def print_diagnosis(dg: RigDiagnosis) -> None:
               + ("" if st.added == st.best else f"; the model takes {st.added}, the class's simplest"))
         if dg.refit is not None:
             print(f"    fitted: {_fitted(dg.refit, st.added)}")
-    if not dg.steps:
+    if not dg.found_motion:
+        print(f"  the fit did not find the motion (a channel beyond {REWEIGHT_LIMIT:g}× its noise): its estimate is no "
+              "minimum, so no test at it is evidence; nothing is named")
+    elif not dg.steps:
+        explained = not dg.conflicts and max(dg.rigid.residual_level) <= LEVEL_LIMIT
         print("  no extension significant, plausible and cross-validated"
-              + (": the model explains the recording" if not dg.conflicts else ""))
+              + (": the model explains the recording" if explained else ""))
     if dg.damping is not None:
         alt = ", ".join(f"{e} z {z:+.1f}" for e, z in dg.damping.alternatives.items())
         f = dg.refit or dg.rigid

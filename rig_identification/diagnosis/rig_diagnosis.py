@@ -186,6 +186,13 @@ class RigDiagnosis:
     refit: RigFit | None
 
     @property
+    def found_motion(self) -> bool:
+        """Whether the last fit found the motion (every channel within
+        :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise): where it did
+        not, nothing is named and no test at it is evidence."""
+        return bool(np.max((self.refit or self.rigid).residual_level) <= REWEIGHT_LIMIT)
+
+    @property
     def extensions(self) -> tuple[str, ...]:
         """The extensions the refit holds."""
         return tuple(s.added for s in self.steps)
@@ -211,7 +218,7 @@ class RigDiagnosis:
         return out
 
     def to_dict(self) -> dict:
-        d: dict = {"data_errors": [c.to_dict() for c in self.conflicts],
+        d: dict = {"found_motion": self.found_motion, "data_errors": [c.to_dict() for c in self.conflicts],
                    "damping": None if self.damping is None else self.damping.to_dict(),
                    "steps": [s.to_dict() for s in self.steps], "extensions": list(self.extensions),
                    "named": list(self.named), "advice": self.advice,
@@ -328,7 +335,8 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
         log.info("diagnosis: with %s the fit still does not find the motion: nothing named",
                  ", ".join(s.added for s in steps))
         steps, current = [], fit
-    damping = damping_alternatives(lin, current)
+    # where the fit has not found the motion, the estimate is no minimum: a test there is no evidence
+    damping = damping_alternatives(lin, current) if np.max(current.residual_level) <= REWEIGHT_LIMIT else None
     conflicts = prior_conflicts(current, prior, cables)
     log.info("diagnosis: data errors %s; extensions %s", [c.unknown for c in conflicts], [s.added for s in steps])
     return RigDiagnosis(conflicts, damping, tuple(steps), fit, current if steps else None)
