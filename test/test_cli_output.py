@@ -406,10 +406,12 @@ def test_version_and_help(capsys):
 
 
 def test_every_command_line_entry_point_says_its_version():
-    """rig-identify, rig-sim and rig-record answer --version with the installed version, exit 0
-    (the console scripts of setup.py; rig-record without starting ROS)."""
+    """Every console script of setup.py (rig-identify, rig-sim, rig-record, the nodes, the client
+    and the demo) answers --version with the installed version, exit 0, without starting ROS."""
     bin_dir = Path(sys.executable).parent
-    for prog in ("rig-identify", "rig-sim", "rig-record"):
+    nodes = ("sensor_driver", "tracker", "preprocessor", "identifier", "mass_properties_client", "recorder",
+             "rig_visualizer", "demo")
+    for prog in ("rig-identify", "rig-sim", "rig-record") + nodes:
         p = subprocess.run([str(bin_dir / prog), "--version"], capture_output=True, text=True, timeout=60)
         assert p.returncode == 0, (prog, p.stderr)
         assert p.stdout.strip() == f"{prog} (rig_identification) {version('rig_identification')}", p.stdout

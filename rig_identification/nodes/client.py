@@ -64,6 +64,7 @@ from std_srvs.srv import Trigger
 
 from ..io.atomic import atomic_write_text
 from ..io.export import BODY, convention_lines
+from ..io.package import PACKAGE, package_version
 from ..io.rig import RigError
 from ..statics.handover import CgResultError, cg_result_from_dict, check_rig_target, rig_with_cg_text
 from .parameters import load_rig_source
@@ -284,6 +285,7 @@ def parser(verb: str) -> argparse.ArgumentParser:
     if verb == "cg-capture":
         ap.add_argument("state", choices=("baseline", "dummy"),
                         help="baseline: the body at rest without the dummy mass; dummy: with it")
+    ap.add_argument("--version", action="version", version=f"mass_properties_client ({PACKAGE}) {package_version()}")
     ap.add_argument("--identifier", default="/identifier", help="identifier node (default /identifier)")
     ap.add_argument("--timeout", type=float, default=60.0, help="wait this long for the services, s (default 60)")
     ap.add_argument("--json", action="store_true", help="print the identifier's answer as one JSON object")

@@ -35,6 +35,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import String
 
+from ..io.package import PACKAGE, package_version
 from .diagnostics import diagnostic_values
 from .environment import default_experiment, ros_env
 from .qos import DIAGNOSTICS_QOS, LATCHED_QOS
@@ -170,6 +171,7 @@ def counts_table(diagnostics: dict[str, dict], status: dict) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="demo", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--version", action="version", version=f"demo ({PACKAGE}) {package_version()}")
     ap.add_argument("--rate", type=float, default=3.0,
                     help="replay speed, times real time (default 3: measured without backlog on 2 cores)")
     ap.add_argument("--experiment", help="experiment YAML (default: the package's config/rigs/default.yaml)")

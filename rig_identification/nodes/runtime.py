@@ -23,6 +23,7 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.task import Future
 
+from ..io.package import PACKAGE, package_version
 from ..io.rig import RigError
 from .environment import dds_profile
 
@@ -42,8 +43,8 @@ def plain_text(doc: str) -> str:
 
 
 def handle_help(argv: list[str] | None, prog: str, doc: str) -> list[str]:
-    """Print the node's documentation (:func:`plain_text`) and exit 0 on ``-h``/``--help``
-    (before any ROS set-up).
+    """Print the node's documentation (:func:`plain_text`) and exit 0 on ``-h``/``--help``, its
+    version on ``--version`` (before any ROS set-up).
 
     ROS arguments (after ``--ros-args``) are left for ``rclpy.init``.  Returns ``argv``.
     """
@@ -52,6 +53,9 @@ def handle_help(argv: list[str] | None, prog: str, doc: str) -> list[str]:
     if "-h" in user or "--help" in user:
         print(f"usage: {prog} [--ros-args -p NAME:=VALUE ... | --params-file FILE]\n")
         print(plain_text(doc).strip())
+        raise SystemExit(0)
+    if "--version" in user:
+        print(f"{prog} ({PACKAGE}) {package_version()}")
         raise SystemExit(0)
     unknown = [a for a in user if a.startswith("-")]
     if unknown:
