@@ -257,3 +257,22 @@ def test_spin_axes_point_where_their_names_say():
         z = Rotation.from_euler("xyz", rpy).apply([0.0, 0.0, 1.0])
         assert z == pytest.approx(v, abs=1e-12), name
         assert Run(1.5, 500.0, (0.0, 0.0, 0.0), name).to_dict()["spin_axis_unit_body"] == pytest.approx(v, abs=1e-6)
+
+
+def test_the_force_amplitude_stays_within_the_exciters_limit():
+    """The planner's largest force within the limits (amplitude_at_limits, as plan brings every
+    candidate run to it): on the config rig the thesis's run at 1.05 Hz may go well beyond 200 N
+    by the rotation and tension limits alone; with the exciter's max_force 150 N it is 150 N, with
+    its rotation and tensions within the limits.  plan takes rig.yaml's exciter.max_force unless
+    --max-force says otherwise (test_rig.py)."""
+    from rig_identification.design.planning import amplitude_at_limits
+    from rig_identification.design.run import Run, load_plan_input, make_body
+    rig, _, k = load_plan_input(str(DEFAULT))
+    body = make_body(rig, None, [2894.0, 0.0, 0.0, 695.0, -102.0, 3101.0], k)     # KEYS order
+    run = Run(1.05, 200.0, tuple(rig.exciter.position), "z", 20.0, 2.0, rpy=(0.0, 0.0, 0.0))
+    free = amplitude_at_limits(body, run)
+    limited = amplitude_at_limits(body, run, max_force=150.0)
+    assert free is not None and limited is not None
+    assert free.run.amplitude > 200.0, free.run.amplitude
+    assert limited.run.amplitude == pytest.approx(150.0, rel=0.03) and limited.run.amplitude <= 150.0
+    assert limited.peak_rotation_deg <= 3.0 and limited.min_tension_ratio >= 0.2

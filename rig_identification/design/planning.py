@@ -153,7 +153,8 @@ def _sim_check(body: Body, run: Run, limits: dict, settle: float, tracker_params
 
 def _feasible(c: Candidate, limits: dict) -> bool:
     return (c.prediction is not None and c.peak_rotation_deg <= limits["max_rotation_deg"] * 1.001
-            and c.min_tension_ratio >= limits["min_tension_ratio"] * 0.999 and not getattr(c, "growing", False))
+            and c.min_tension_ratio >= limits["min_tension_ratio"] * 0.999 and not getattr(c, "growing", False)
+            and c.run.amplitude <= limits["max_force_n"] * 1.001)
 
 
 def _fit_amplitude(body: Body, run: Run, limits: dict, settle: float, tracker_params, limit: str,
@@ -172,11 +173,12 @@ def _fit_amplitude(body: Body, run: Run, limits: dict, settle: float, tracker_pa
         s_force = limits["max_force_n"] / run.amplitude
         s = min(s_rot, s_ten)
         if s >= 1.0:
-            s = min(0.97 * s, s_force) if grow else 1.0
-            if s < 1.05:
+            s = 0.97 * s if grow else 1.0
+            if s < 1.05 and s_force >= 1.0:
                 break
+            s = min(s, s_force)         # a force beyond the exciter's is brought down to it
         else:
-            s *= 0.97
+            s = min(0.97 * s, s_force)
         run = replace(run, amplitude=run.amplitude * s)
         cand, _ = _sim_check(body, run, limits, settle, tracker_params, rot_f)
         grow = False
