@@ -366,7 +366,7 @@ def test_rig_sim_simulates_a_labs_rig_yaml_with_a_force_given_by_options(tmp_pat
     rig_yaml.parent.mkdir()
     rig_yaml.write_text(yaml.safe_dump(default_dict()["rig"]))
     out = tmp_path / "run"
-    assert sim_main([str(rig_yaml), str(out), "--inertia", "900", "5", "-20", "1100", "10", "1500",
+    assert sim_main([str(rig_yaml), str(out), "--inertia", "900", "1100", "1500", "5", "-20", "10",
                      "--force", "150", "--frequency", "1.3", "--ramp", "1", "--duration", "12", "--seed", "4"]) == 0
     rec = read_recording(out)
     assert rec.truth["mass"] == load_rig(rig_yaml).mass

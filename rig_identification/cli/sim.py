@@ -2,7 +2,7 @@
 
     rig-sim CONFIG OUTDIR [--duration S] [--seed N] [--noise-free] [--storage mcap|sqlite3]
             [--static baseline|dummy [--dummy-mass KG --dummy-position X Y Z]] [--overwrite] [-q]
-            [--inertia IXX IXY IXZ IYY IYZ IZZ [--force N] [--frequency HZ] [--ramp S]]
+            [--inertia IXX IYY IZZ IXY IXZ IYZ [--force N] [--frequency HZ] [--ramp S]]
 
 CONFIG is an experiment file (schema: :mod:`rig_identification.model.experiment`, docs/cli.md), e.g.
 ``config/cases/case16.yaml`` or ``config/rigs/default.yaml``, or a lab's rig.yaml with
@@ -20,6 +20,7 @@ import sys
 
 import numpy as np
 
+from ..io.export import entries_from_option
 from ..io.recording import RecordingError
 from ..io.recording_writer import write_recording
 from ..io.rig import DummyMass, RigError
@@ -40,7 +41,7 @@ def sim_main(argv: list[str] | None = None) -> int:
     with attached(quiet=args.quiet, prog="rig-sim") as printer:
         try:
             given = {k: getattr(args, k) for k in ("force", "frequency", "ramp") if getattr(args, k) is not None}
-            run = None if args.inertia is None else RigRun(tuple(args.inertia), **given)
+            run = None if args.inertia is None else RigRun(tuple(entries_from_option(args.inertia)), **given)
             exp = load_simulation(args.config, run).with_overrides(duration=args.duration, seed=args.seed,
                                                              noise_free=args.noise_free, static=args.static,
                                                              dummy=dummy)

@@ -25,9 +25,10 @@ def sim_parser() -> argparse.ArgumentParser:
     p.add_argument("--dummy-mass", type=float, metavar="KG", help="dummy mass, kg (default: rig.dummy_mass)")
     p.add_argument("--dummy-position", type=float, nargs=3, metavar=("X", "Y", "Z"),
                    help="dummy mass position, body frame, m (default: rig.dummy_mass)")
-    p.add_argument("--inertia", type=float, nargs=6, metavar=("IXX", "IXY", "IXZ", "IYY", "IYZ", "IZZ"),
-                   help="with a rig.yaml: the body's inertia tensor entries about its CG, body axes, kg m^2 "
-                   "(as truth.yaml: off-diagonal entries are the negated products of inertia)")
+    p.add_argument("--inertia", type=float, nargs=6, metavar=("IXX", "IYY", "IZZ", "IXY", "IXZ", "IYZ"),
+                   help="with a rig.yaml: the body's inertia tensor entries about its CG, body axes, kg m^2, in the "
+                   "order ixx iyy izz ixy ixz iyz (moments, then products: the order of every option); ixy, ixz, "
+                   "iyz as in truth.yaml, the negated products of inertia")
     p.add_argument("--force", type=float, metavar="N", help="with a rig.yaml: the rotating force's amplitude, N "
                    "(default 200)")
     p.add_argument("--frequency", type=float, metavar="HZ", help="with a rig.yaml: its frequency, Hz (default 1.05)")
