@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 import yaml
 from conftest import background, gather, recording, run_cli
+from report_render import render
 
 CLEAN = recording("visible_case16_clean")
 BASE = recording("visible_case16_static/static_baseline")
@@ -139,8 +140,9 @@ def _chain():
         code2, out2, err2 = run_cli("inertia", CLEAN, "--cg", cg_file, "--end", "45", "--json", "-q", "--report",
                                     report, "--yaml", exported, "--urdf")
         pngs = sorted(p.name for p in report.glob("*.png"))
+        seen = render(report, Path(tmp) / "render") if code2 == 0 else None
         return (out, out2, code2, err2, (report / "index.html").read_text(), (report / "report.json").read_text(),
-                exported.read_text(), pngs)
+                exported.read_text(), pngs, seen)
 
 
 background("rig_day_chain", __file__, _chain, {"run": ()}, first=True)
@@ -181,7 +183,7 @@ def test_the_default_inertia_is_the_rig_model_with_its_report_yaml_and_urdf():
     Cramér–Rao bound, the CG three ways, every channel against its noise and a figure per sensor
     group; report.json's products are the negated entries; the YAML export and the URDF element
     carry the same numbers (the fitted CG and mass)."""
-    _, out, code, err, page, data, exported, pngs = gather("rig_day_chain")["run"]
+    _, out, code, err, page, data, exported, pngs, _ = gather("rig_day_chain")["run"]
     assert code == 0, err
     res = json.loads(out)
     assert res["schema"] == "rig_identification.rig_model_result" and res["verdict"] == "ok"
@@ -204,3 +206,19 @@ def test_the_default_inertia_is_the_rig_model_with_its_report_yaml_and_urdf():
     u = ET.fromstring(res["urdf_inertial"])
     assert float(u.find("mass").get("value")) == pytest.approx(res["mass"], rel=1e-6)
     assert float(u.find("inertia").get("iyz")) == pytest.approx(res["inertia_about_cg"]["iyz"], rel=1e-6)
+
+
+def test_the_rig_models_report_reads_in_a_browser():
+    """The default report of the chain (the rig model), rendered in headless Chromium: every
+    figure loaded and inside the page's width, no nan/inf in its text, the verdict before the
+    tensor table, the job's sections in order; the screenshot is not blank (test_report.render)."""
+    *_, pngs, seen = gather("rig_day_chain")["run"]
+    assert seen is not None
+    assert seen["images"] == len(pngs) == seen["loaded"], seen["images"]
+    assert seen["wide"] == [] and seen["bad_words"] == [], (seen["wide"], seen["bad_words"])
+    assert seen["verdict"].startswith("ok") and seen["verdict_before_tensor"], seen["verdict"]
+    text = seen["text"]
+    heads = ["Mass and centre of gravity", "Moments and products of inertia about the CG", "Principal moments and axes",
+             "What the model leaves out", "Every channel against its noise", "Cables and load cells",
+             "Measured vs the model: tensions"]
+    assert [text.index(h) for h in heads] == sorted(text.index(h) for h in heads), heads
