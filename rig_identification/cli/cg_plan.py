@@ -6,7 +6,7 @@
                     [--load-cell-rate HZ] [--inclinometer-rate HZ] [--anchor-std MM]
                     [--length-std MM] [--dummy-position-std MM] [--max-duration S] [--json]
 
-It recommends a test that reaches ±2.5 mm (1.96 σ) on every coordinate
+It recommends a test that reaches ±2 mm (1.96 σ; --target-mm) on every coordinate
 (:func:`~rig_identification.statics.plan.plan_static_test`).  RIG is a rig.yaml file, an
 experiment file or a recording folder (whose data give the sensor noise).
 """
@@ -31,7 +31,7 @@ from .progress import step
 def add_cg_plan_parser(subparsers) -> argparse.ArgumentParser:
     """Add the ``cg-plan`` sub-command (experiment design of the static test); returns it."""
     p = subparsers.add_parser("cg-plan", help="predict the CG uncertainty of a planned static test and "
-                                              "recommend one reaching ±2.5 mm",
+                                              "recommend one reaching ±2 mm",
                               description="Experiment design for the static CG test: predicted CG σ of a "
                                           "planned test and a recommended plan.")
     p.add_argument("rig", help="rig.yaml file, an experiment file (config/cases/*.yaml), or a recording folder "

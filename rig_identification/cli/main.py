@@ -249,7 +249,7 @@ def add_thesis_table_parser(sub) -> None:
 
 STATIC = {"cg": ("centre of gravity from the two static recordings (without and with the dummy mass)",
                  ("baseline", "dummy"), ("write_rig",)),
-          "cg-plan": ("predict the CG uncertainty of a planned static test and recommend one reaching ±2.5 mm",
+          "cg-plan": ("predict the CG uncertainty of a planned static test and recommend one reaching ±2 mm",
                       ("rig", "noise_from"), ())}
 """The static-test commands (cli.cg, cli.cg_plan): their one-line help (for the top-level help, which does
 not import them), the destinations of their input paths and of their output files."""
