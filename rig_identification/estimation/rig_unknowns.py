@@ -84,6 +84,12 @@ class Prior:
         """σ of each load cell's gain, share (the survey's)."""
         return self.survey.load_cell_gain
 
+    @property
+    def stiffness_given(self) -> np.ndarray:
+        """(N,) bool: the cables whose stiffness rig.yaml gives (their prior's σ
+        :data:`STIFFNESS_LOG_STD_GIVEN` or narrower); the others' is the default steel cable's."""
+        return np.asarray(self.stiffness_log_std <= STIFFNESS_LOG_STD_GIVEN)
+
     @staticmethod
     def from_rig(rig: Rig, cg: ArrayLike | None = None, cg_std: ArrayLike | None = None) -> "Prior":
         """rig.yaml's mass and geometry (σ rig.yaml's ``survey``), CG (``cg``/``cg_std`` override; without a
