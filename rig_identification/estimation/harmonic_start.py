@@ -12,6 +12,10 @@ the compared span, each weighted by its noise), from each of several starts, and
 one of least misfit: the frequency-domain start of a grey-box fit (Ljung, *System
 Identification*, 2nd ed., §7.7 and ch. 14 on starts; Pintelon & Schoukens, *System
 Identification: A Frequency Domain Approach*, 2012).
+
+The same misfit gives the cables' stiffness its start where rig.yaml gives none
+(:func:`stiffness_start`): soft cables bring the bounce and rocking modes near the band, and the
+fundamental then depends on their stiffness as much as on the tensor.
 """
 from __future__ import annotations
 

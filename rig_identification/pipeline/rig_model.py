@@ -3,7 +3,9 @@
 recording → :func:`~rig_identification.estimation.rig_record.record` (every stream on one grid, the
 exciter's force denoised) → a start for the tensor (the prediction-error fit of
 :func:`~rig_identification.pipeline.offline.identify_recording`, unrefined, where it gives a
-physical tensor; else the body anchors' box) → :func:`~rig_identification.estimation.rig_fit.fit_rig`
+physical tensor; else the body anchors' box; the cables' stiffness, where rig.yaml gives none, from the
+forced response: :func:`~rig_identification.estimation.harmonic_start.stiffness_start`) →
+:func:`~rig_identification.estimation.rig_fit.fit_rig`
 (the exact model, every sensor an output, mass, CG, cables, load cells and geometry fitted with
 their priors; the whole-record fit also restarted from the gyro-only fit's tensor: a minimum
 another estimator found is one the likelihood may hold too) → :class:`RigModelResult`.
