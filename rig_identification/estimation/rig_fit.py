@@ -427,7 +427,8 @@ def _restarted(prob: RigProblem, at_x0: tuple[np.ndarray, np.ndarray], p: RigPar
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_time: float | None = None,
-            verbose: int = 0, restarts: ArrayLike = (), extensions: dict[str, ArrayLike] | None = None) -> RigFit:
+            verbose: int = 0, restarts: ArrayLike = (), extensions: dict[str, ArrayLike] | None = None,
+            stiffness: ArrayLike | None = None) -> RigFit:
     """Fit the rig model to a :class:`Record` (module docstring).
 
     rig: rig.yaml (geometry, mounts).  prior: :class:`Prior` (its CG is the start).
@@ -439,7 +440,8 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     one the likelihood may hold too); a tensor no body has is left out.
     damping_time: start of τ, s (default the default cable's: 2 ζ sqrt(m / (N k))).
     extensions: the model's extensions (:data:`~.rig_unknowns.EXTENSIONS`: name -> the start of
-    its unknowns; None: the rigid-body rig model).
+    its unknowns; None: the rigid-body rig model).  stiffness: the cables' start (N,) N/m (default
+    the prior's centre; :func:`~.harmonic_start.stiffness_start`'s where rig.yaml gives none).
     Raises :class:`~.rig_record.RigFitError` when the rig has no rest pose.
     """
     extensions = extensions or {}
@@ -453,7 +455,8 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     best = None
     nfev = 0
     problems = []
-    geometry, rest0 = start_parameters(rig, prior, np.zeros(6), rec, damping_time)
+    geometry, rest0 = start_parameters(rig, prior, np.zeros(6), rec, damping_time,
+                                       None if stiffness is None else np.asarray(stiffness, float))
     geometry = geometry.replace(**extension_fields(extensions))
     for start in np.atleast_2d(np.asarray(inertia0, float)):
         p0 = geometry.replace(inertia=start)

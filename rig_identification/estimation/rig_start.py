@@ -38,16 +38,18 @@ OUTSIDE = 1e6
 
 
 def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, rec: Record | None = None,
-                     damping_time: float | None = None) -> tuple[RigParameters, RestPose]:
+                     damping_time: float | None = None, stiffness: np.ndarray | None = None
+                     ) -> tuple[RigParameters, RestPose]:
     """The parameters a fit starts from and their rest pose: rig.yaml's geometry, the prior's
-    mass, CG and stiffness, the tensor entries ``inertia0`` (6,) kg·m² about the CG, τ
-    ``damping_time`` s (default the default cable's, 2 ζ sqrt(m / (N k))); with ``rec`` the
-    lengths and CG its mean tensions imply (:func:`start_geometry`).  Raises
-    :class:`~.rig_record.RigFitError` when the rig as described has no rest pose."""
+    mass and CG, the cables' ``stiffness`` (N,) N/m (default the prior's centre), the tensor
+    entries ``inertia0`` (6,) kg·m² about the CG, τ ``damping_time`` s (default the default
+    cable's, 2 ζ sqrt(m / (N k)) with that stiffness); with ``rec`` the lengths and CG its mean
+    tensions imply (:func:`start_geometry`).  Raises :class:`~.rig_record.RigFitError` when the
+    rig as described has no rest pose."""
     n = len(rig.cables)
-    tau = 2 * DEFAULT_DAMPING_RATIO * np.sqrt(prior.mass / (n * prior.stiffness.mean())) \
-        if damping_time is None else damping_time
-    start = RigParameters.from_rig(rig, np.zeros(6), prior.stiffness, tau, prior.mass, prior.cg)
+    k = prior.stiffness if stiffness is None else np.broadcast_to(np.asarray(stiffness, float), (n,))
+    tau = 2 * DEFAULT_DAMPING_RATIO * np.sqrt(prior.mass / (n * k.mean())) if damping_time is None else damping_time
+    start = RigParameters.from_rig(rig, np.zeros(6), k, tau, prior.mass, prior.cg)
     surveyed = start.length
     tensions = None if rec is None else rec.y[rec.start:, :n].mean(axis=0)
     try:
