@@ -42,16 +42,14 @@ from ..io.export import BODY, ORDER, axes_for, convention_lines
 from ..io.recording import Recording, read_recording
 from ..io.verdict import KEYS
 from ..pipeline.offline import identify_recording
-from ..pipeline.rig_model import RigModelResult, fit_whole_recording
+from ..pipeline.rig_model import RigModelResult
 from ..report.diagnosis import diagnosis_json
 from ..report.diagnosis_page import write_report
-from ..report.page import ReportError, check_report_dir
-from ..report.rig_page import write_rig_report
-from ..statics.handover import load_cg_result
+from ..report.page import check_report_dir
 from .arg_types import JOB_OPTIONS
 from .inertia import truth_columns, window_line
 from .progress import heading, step
-from .rig_model import job_of, print_diagnosis
+from .rig_model import fitted_and_reported, print_diagnosis
 from .text import TABLE_CAPTION, effect_text, entries_line, evidence_text, fmt, p_text, tensor_table
 
 
@@ -217,19 +215,8 @@ def cmd_diagnose(args) -> int:
 
 def cmd_rig_diagnose(args, rec: Recording) -> int:
     """``rig-identify diagnose`` with the rig model (the default); returns the exit status."""
-    cg = cg_std = source = None
-    if args.cg:
-        saved = load_cg_result(args.cg)
-        cg, cg_std, source = saved.center_of_gravity, saved.center_of_gravity_std, args.cg
-    heading("fitting the rig's model to every sensor, then testing what it leaves out")
-    res = fit_whole_recording(rec, cg, cg_std, source, args.start, args.end)
-    index = None
-    if args.report:
-        step(f"writing the report to {args.report}")
-        try:
-            index = write_rig_report(args.report, res, rec, BODY, job_of(args))
-        except OSError as e:
-            raise ReportError(f"{args.report}: cannot write the report ({e.strerror or e})") from None
+    res, index = fitted_and_reported(args, rec, BODY, "fitting the rig's model to every sensor, then testing what "
+                                     "it leaves out")
     args.progress.finish()
     if args.json:
         print(json.dumps(res.to_dict()))

@@ -79,6 +79,13 @@ def add_command(sub, name: str, help: str | None, description: str, run: Callabl
     return p
 
 
+def add_report_options(p: argparse.ArgumentParser) -> None:
+    """``--report DIR`` and the report header's job options (:data:`~.arg_types.JOB_OPTIONS`)."""
+    p.add_argument("--report", metavar="DIR", help="also write an HTML report (index.html + figures) to the folder DIR")
+    for flag, _, what in JOB_OPTIONS:
+        p.add_argument(flag, metavar="TEXT", help=f"with --report: {what}, named in the report's header (one line)")
+
+
 def add_inertia_parser(sub) -> None:
     p = add_command(sub, "inertia", "identify the inertia tensor from one or more dynamic recordings",
                     "Fit the rig's grey-box model to every sensor of one dynamic recording (tensions, gyro, "
@@ -94,9 +101,7 @@ def add_inertia_parser(sub) -> None:
     p.add_argument("recording", nargs="+",
                    help="recording folder (rig.yaml + bag/); several recordings of the same body (other exciter "
                         "frequencies or positions, cable geometries) are fitted jointly with one tensor")
-    p.add_argument("--report", metavar="DIR", help="also write an HTML report (index.html + figures) to the folder DIR")
-    for flag, _, what in JOB_OPTIONS:
-        p.add_argument(flag, metavar="TEXT", help=f"with --report: {what}, named in the report's header (one line)")
+    add_report_options(p)
     p.add_argument("--json", action="store_true",
                    help="print one JSON object (schema rig_identification.rig_model_result, or "
                         "rig_identification.inertia_result for --model pem; units per field)")
@@ -156,9 +161,7 @@ def add_diagnose_parser(sub) -> None:
                     help="print one JSON object (the rig model: rig-identify inertia's, schema "
                          "rig_identification.rig_model_result; --model pem/thesis: "
                          "rig_identification.diagnosis_result)")
-    dp.add_argument("--report", metavar="DIR", help="write an HTML report (index.html + figures) to the folder DIR")
-    for flag, _, what in JOB_OPTIONS:
-        dp.add_argument(flag, metavar="TEXT", help=f"with --report: {what}, named in the report's header (one line)")
+    add_report_options(dp)
     dp.add_argument("--cg", metavar="CG.json",
                     help="the rig model: the centre of gravity's prior from a saved 'rig-identify cg --json' result "
                          "(its σ) instead of rig.yaml's")

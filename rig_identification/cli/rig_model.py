@@ -181,16 +181,17 @@ def print_cg(cg: CentreOfGravity) -> None:
                                                                for x in d) + " σ)")
 
 
-def cmd_rig_model(args, rec: Recording, axes: Axes = BODY) -> int:
-    """``rig-identify inertia`` (the rig model) on one recording ``rec``; ``axes`` those of the
-    printout, the YAML and the JSON's extra block; ``--urdf``, ``--yaml``, ``--report`` as for
-    the prediction-error fit.  Returns the exit status."""
-    cg = cg_std = None
-    source = None
+def fitted_and_reported(args, rec: Recording, axes: Axes, what: str) -> tuple[RigModelResult, object | None]:
+    """The rig model fitted to ``rec`` (``--cg``'s saved static result as the CG's prior, the
+    window ``--start``/``--end``; :func:`~rig_identification.pipeline.rig_model.fit_whole_recording`)
+    and, with ``--report``, its report in ``axes`` (the page's index, else None); ``what``: the
+    progress heading.  Raises :class:`~rig_identification.report.page.ReportError` where the
+    report cannot be written."""
+    cg = cg_std = source = None
     if args.cg:
         saved = load_cg_result(args.cg)
         cg, cg_std, source = saved.center_of_gravity, saved.center_of_gravity_std, args.cg
-    heading("fitting the rig's model to every sensor (tensions, gyro, accelerometer, inclinometer)")
+    heading(what)
     res = fit_whole_recording(rec, cg, cg_std, source, args.start, args.end)
     index = None
     if args.report:
@@ -199,6 +200,15 @@ def cmd_rig_model(args, rec: Recording, axes: Axes = BODY) -> int:
             index = write_rig_report(args.report, res, rec, axes, job_of(args))
         except OSError as e:
             raise ReportError(f"{args.report}: cannot write the report ({e.strerror or e})") from None
+    return res, index
+
+
+def cmd_rig_model(args, rec: Recording, axes: Axes = BODY) -> int:
+    """``rig-identify inertia`` (the rig model) on one recording ``rec``; ``axes`` those of the
+    printout, the YAML and the JSON's extra block; ``--urdf``, ``--yaml``, ``--report`` as for
+    the prediction-error fit.  Returns the exit status."""
+    res, index = fitted_and_reported(args, rec, axes, "fitting the rig's model to every sensor (tensions, gyro, "
+                                     "accelerometer, inclinometer)")
     urdf = urdf_inertial(res.expressed(BODY)) if args.urdf else None
     if args.yaml:
         content = export_dict(res.expressed(axes), verdict=res.verdict, summary=res.summary,
