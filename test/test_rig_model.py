@@ -17,7 +17,7 @@ from rig_identification.cli.inertia import resolve_model
 from rig_identification.cli.main import build_parser
 from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random
 from rig_identification.estimation import rig_unknowns
-from rig_identification.estimation.harmonic_start import harmonic_start, harmonics, stiffness_start
+from rig_identification.estimation.harmonic_start import forced_response_start, harmonics
 from rig_identification.estimation.rig_fit import RigFit, cramer_rao
 from rig_identification.estimation.rig_record import (
     FORCE_CHANNELS,
@@ -275,9 +275,10 @@ def test_the_forced_response_is_the_fundamental_of_the_exact_model():
     model = frequency_response(p, linearise(p, rest_pose(p)), h.omega, h.force)
     assert np.all(np.abs(model - h.readings) <= 0.02 * np.abs(h.readings)), \
         np.abs(model - h.readings) / np.abs(h.readings)
-    prior = Prior.from_rig(sim.rig, p.cg, np.full(3, 5e-3))
+    prior = Prior.from_rig(sim.rig, p.cg, np.full(3, 5e-3))        # the true stiffness given: no scan
+    prior = dataclasses.replace(prior, stiffness_log_std=np.zeros(p.cables))
     box = default_initial_guess(sim.rig)
-    start, level = harmonic_start(rc, sim.rig, prior, box[None])
+    start = forced_response_start(rc, sim.rig, prior, box[None]).tensor
     scale = entry_scales(p.inertia)
     assert np.max(np.abs(start - p.inertia) / scale) < np.max(np.abs(box - p.inertia) / scale)
 
@@ -295,7 +296,7 @@ def test_soft_cables_start_at_the_stiffness_their_forced_response_gives(stiffnes
     prior = Prior.from_rig(sim.rig, np.asarray(sim.truth["center_of_gravity"]), np.full(3, 5e-3))
     assert not np.any(prior.stiffness_given)
     box = default_initial_guess(sim.rig)
-    start = stiffness_start(rc, sim.rig, prior, np.vstack([box, 0.6 * box, 0.35 * box]))
+    start = forced_response_start(rc, sim.rig, prior, np.vstack([box, 0.6 * box, 0.35 * box]))
     truth = np.asarray(sim.truth["simulator"]["cable_stiffness"])
     if stiffness is None:
         assert not start.moved and np.all(start.stiffness == DEFAULT_STIFFNESS) and np.all(truth == DEFAULT_STIFFNESS)
@@ -418,13 +419,14 @@ def test_a_trusted_gyro_fit_is_the_first_start_else_the_forced_response():
     tru = from_tensor(inertia_tensor(sim.truth["inertia_about_cg"]))
     guess = tru * np.array([1.2, 1.0, 1.0, 0.8, 1.0, 1.2])
     scale = entry_scales(guess)
-    trusted = start_tensors(rec, rc, prior, guess, 0.5 * TRUSTED_START_SHARE * scale)
-    doubted = start_tensors(rec, rc, prior, guess, 2.0 * TRUSTED_START_SHARE * scale)
+    box = default_initial_guess(sim.rig)
+    harmonic = forced_response_start(rc, sim.rig, prior, np.vstack([guess, box, 0.6 * box, 0.35 * box])).tensor
+    trusted = start_tensors(rec, guess, 0.5 * TRUSTED_START_SHARE * scale, harmonic)
+    doubted = start_tensors(rec, guess, 2.0 * TRUSTED_START_SHARE * scale, harmonic)
     assert np.allclose(trusted[0], guess) and np.allclose(doubted[1], guess)
     assert np.allclose(trusted[1], doubted[0]) and np.allclose(trusted[2:], doubted[2:])
-    harmonic = inertia_tensor(dict(zip(KEYS, doubted[0])))        # a tensor of its own, a physical one
-    assert not any(np.allclose(doubted[0], row) for row in doubted[1:]) and np.all(np.linalg.eigvalsh(harmonic) > 0)
-    box = default_initial_guess(sim.rig)
+    tensor = inertia_tensor(dict(zip(KEYS, doubted[0])))        # a tensor of its own, a physical one
+    assert not any(np.allclose(doubted[0], row) for row in doubted[1:]) and np.all(np.linalg.eigvalsh(tensor) > 0)
     assert any(np.allclose(row, box) for row in trusted[2:])
 
 

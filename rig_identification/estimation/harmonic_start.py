@@ -14,7 +14,7 @@ Identification*, 2nd ed., §7.7 and ch. 14 on starts; Pintelon & Schoukens, *Sys
 Identification: A Frequency Domain Approach*, 2012).
 
 The same misfit gives the cables' stiffness its start where rig.yaml gives none
-(:func:`stiffness_start`): soft cables bring the bounce and rocking modes near the band, and the
+(:func:`forced_response_start`): soft cables bring the bounce and rocking modes near the band, and the
 fundamental then depends on their stiffness as much as on the tensor.
 """
 from __future__ import annotations
@@ -44,6 +44,10 @@ MAX_ITERATIONS = 200
 STIFFNESS_SCAN = np.arange(-6.0, 1.0 + 1e-9, 0.25)
 #: The scan's best is refined to this in log(stiffness).
 STIFFNESS_SCAN_TOLERANCE = 0.01
+#: The relative tolerance (on the cost, the step and the gradient) of each scan point's fit of
+#: the tensor: the scan only ranks the stiffnesses (their misfits differ by factors, not per
+#: cent); the two misfits the decision compares are fitted to scipy's default 1e-8.
+SCAN_TOLERANCE = 1e-3
 #: A scanned stiffness is the fit's start only where its misfit (RMS over the noise) is below
 #: this share of the prior's (:func:`stiffness_start`).  On the package's random rigs 1–12
 #: (3–6 cables, every layout, 30 s) and 7206 with steel cables the scan's best was 0.86–1.0 of
@@ -103,10 +107,12 @@ def harmonics(rec: Record, cables: int) -> Harmonics:
                      rec.sigma[outputs] * np.sqrt(2.0 / samples))
 
 
-def _fitted(h: Harmonics, p0: RigParameters, rest: RestPose, starts: np.ndarray) -> tuple[np.ndarray, float]:
+def _fitted(h: Harmonics, p0: RigParameters, rest: RestPose, starts: np.ndarray,
+            tolerance: float = 1e-8) -> tuple[np.ndarray, float]:
     """The tensor entries (6,) whose forced response (``p0`` otherwise, about ``rest``) best
-    matches ``h``, fitted from each row of ``starts`` (k, 6), and that fit's cost (½ Σ of the
-    squared amplitudes' errors over their σ, real and imaginary parts)."""
+    matches ``h``, fitted from each row of ``starts`` (k, 6) to the relative ``tolerance`` (cost,
+    step and gradient), and that fit's cost (½ Σ of the squared amplitudes' errors over their σ,
+    real and imaginary parts)."""
     weight = 1.0 / h.std
     big = np.full(2 * len(h.readings), 1e6)
 
@@ -124,7 +130,8 @@ def _fitted(h: Harmonics, p0: RigParameters, rest: RestPose, starts: np.ndarray)
     for s in np.atleast_2d(starts):
         scale = np.full(6, 1e-2 * max(abs(s[0]), abs(s[3]), abs(s[5])))
         sol = least_squares(lambda z: residual(s + scale * z), np.zeros(6), method="trf",
-                            max_nfev=MAX_ITERATIONS, x_scale=1.0)
+                            max_nfev=MAX_ITERATIONS, x_scale=1.0, ftol=tolerance, xtol=tolerance,
+                            gtol=tolerance)
         if best is None or sol.cost < best[1]:
             best = (s + scale * sol.x, float(sol.cost))
     assert best is not None
@@ -136,52 +143,41 @@ def _level(cost: float, h: Harmonics) -> float:
     return float(np.sqrt(2 * cost / (2 * len(h.readings))))
 
 
-def harmonic_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarray,
-                   stiffness: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """The tensor entries (6,) kg·m² whose linearised forced response best matches the record's
-    fundamental (module docstring), fitted from each row of ``starts`` (k, 6); and that fit's
-    RMS misfit over the amplitudes' noise (1: noise alone; the linearisation's own error adds
-    to it).  Mass, CG and geometry are the fit's start (:func:`~.rig_start.start_parameters`,
-    the lengths and CG from the record's mean tensions), the cables' ``stiffness`` (N,) N/m
-    (default the prior's; :func:`stiffness_start`'s where rig.yaml gives none).
-    Raises :class:`RigFitError` when the rig has no rest pose."""
-    h = harmonics(rec, len(rig.cables))
-    p0, rest = start_parameters(rig, prior, np.asarray(starts[0], float), rec, stiffness=stiffness)
-    tensor, cost = _fitted(h, p0, rest, starts)
-    level = _level(cost, h)
-    log.info("harmonic start: %s kg·m² at %.3g Hz, misfit %.3g× the noise", np.round(tensor, 1),
-             h.omega / (2 * np.pi), level)
-    if not np.all(np.isfinite(tensor)):
-        raise RigFitError(f"{rig.source}: the forced response gives no start for the tensor")
-    return tensor, level
-
-
 @dataclass(frozen=True)
-class StiffnessStart:
-    """Where the fit's cable stiffness starts (:func:`stiffness_start`).
+class ForcedResponseStart:
+    """The rig model's start from the record's fundamental (:func:`forced_response_start`).
 
-    stiffness: (N,) N/m, the start.  log_scale: the natural log of the factor on the prior's
-    stiffness of the cables rig.yaml gives none for (0: the prior's, the default steel cable's).
-    level: the harmonic start's RMS misfit over the noise at ``stiffness``; prior_level: at the
-    prior's stiffness (nan where nothing was scanned: rig.yaml gives every cable's).
+    tensor: (6,) kg·m² tensor entries about the CG (ixx, ixy, ixz, iyy, iyz, izz) whose
+    linearised forced response best matches the fundamental at ``stiffness``.  level: that fit's
+    RMS misfit over the amplitudes' noise (1: noise alone; the linearisation's own error adds to
+    it).  stiffness: (N,) N/m, the cables' stiffness the fit starts from.  log_scale: the natural
+    log of the factor on the prior's stiffness of the cables rig.yaml gives none for (0: the
+    prior's, the default steel cable's).  prior_level: the misfit at the prior's stiffness (nan
+    where nothing was scanned: rig.yaml gives every cable's).
     """
 
+    tensor: np.ndarray
+    level: float
     stiffness: np.ndarray
     log_scale: float
-    level: float
     prior_level: float
 
     @property
     def moved(self) -> bool:
-        """The start is not the prior's stiffness."""
+        """The stiffness's start is not the prior's."""
         return self.log_scale != 0.0
 
 
-def stiffness_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarray) -> StiffnessStart:
-    """The cables' stiffness the fit starts from: the prior's where rig.yaml gives every cable's
+def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarray) -> ForcedResponseStart:
+    """The tensor and the cables' stiffness the rig model's fit starts from: the tensor entries
+    whose linearised forced response best matches the record's fundamental (module docstring),
+    fitted from each row of ``starts`` (k, 6) kg·m²; mass, CG and geometry the fit's start
+    (:func:`~.rig_start.start_parameters`, the lengths and CG from the record's mean tensions).
+
+    The stiffness is the prior's where rig.yaml gives every cable's
     (:attr:`~.rig_unknowns.Prior.stiffness_given`), else the stiffness of those it does not give
-    scaled by the common factor whose linearised forced response, the tensor fitted beside it
-    from ``starts`` (k, 6) kg·m² (:func:`harmonic_start`), best matches the record's fundamental.
+    scaled by the common factor whose linearised forced response, the tensor fitted beside it,
+    best matches the record's fundamental.
 
     Where the cables are soft enough to bring their bounce and rocking modes near the band
     (vertical ≈ sqrt(Σk / m) / 2π: 3 Hz for 4 cables of 150 kN/m under 1.7 t, 17 Hz for steel),
@@ -201,39 +197,47 @@ def stiffness_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarray) -> 
     evidence: on the shipped cases 14 and 16 it changes by a few percent over a factor 10 of
     stiffness.  The stiffness's prior
     itself stays (:class:`~.rig_unknowns.Prior`): only the start moves.  Raises
-    :class:`RigFitError` when the rig has no rest pose."""
+    :class:`RigFitError` when the rig has no rest pose or the fit no finite tensor."""
     free = ~prior.stiffness_given
-    if not np.any(free):
-        return StiffnessStart(prior.stiffness.copy(), 0.0, float("nan"), float("nan"))
     h = harmonics(rec, len(rig.cables))
     inertia0 = np.asarray(np.atleast_2d(starts)[0], float)
 
-    def misfit(s: float, tensors: np.ndarray) -> tuple[float, np.ndarray]:
+    def misfit(s: float, tensors: np.ndarray, tolerance: float = 1e-8) -> tuple[float, np.ndarray]:
         k = prior.stiffness * np.exp(s * free)
         try:
             p0, rest = start_parameters(rig, prior, inertia0, rec, stiffness=k)
         except RigFitError:
             return float("inf"), tensors[0]
-        tensor, cost = _fitted(h, p0, rest, tensors)
+        tensor, cost = _fitted(h, p0, rest, tensors, tolerance)
         return _level(cost, h), tensor
 
-    scanned = [misfit(float(s), np.atleast_2d(starts)) for s in STIFFNESS_SCAN]
+    def found(tensor: np.ndarray, level: float, log_scale: float, prior_level: float) -> ForcedResponseStart:
+        if not np.all(np.isfinite(tensor)):
+            raise RigFitError(f"{rig.source}: the forced response gives no start for the tensor")
+        log.info("forced-response start: %s kg·m² at %.3g Hz, misfit %.3g× the noise, the cables' stiffness ×%.4g "
+                 "of the prior's", np.round(tensor, 1), h.omega / (2 * np.pi), level, np.exp(log_scale))
+        return ForcedResponseStart(tensor, level, prior.stiffness * np.exp(log_scale * free), log_scale, prior_level)
+
+    if not np.any(free):
+        level, tensor = misfit(0.0, np.atleast_2d(starts))
+        return found(tensor, level, 0.0, float("nan"))
+    scanned = [misfit(float(s), np.atleast_2d(starts), SCAN_TOLERANCE) for s in STIFFNESS_SCAN]
     levels = np.array([m[0] for m in scanned])
-    prior_level = float(levels[np.argmin(np.abs(STIFFNESS_SCAN))])
+    at_prior = int(np.argmin(np.abs(STIFFNESS_SCAN)))
     i = int(np.argmin(levels))
-    best_s, best_level = float(STIFFNESS_SCAN[i]), float(levels[i])
-    if i != int(np.argmin(np.abs(STIFFNESS_SCAN))):   # the prior's tensor fit also from the best's: not trapped
-        prior_level = min(prior_level, misfit(0.0, scanned[i][1][None])[0])
+    best_s, (best_level, best_tensor) = float(STIFFNESS_SCAN[i]), misfit(float(STIFFNESS_SCAN[i]), scanned[i][1][None])
+    # the prior's tensor fitted also from the best's: not trapped in a minimum of its own
+    prior_level, prior_tensor = misfit(0.0, np.vstack([scanned[at_prior][1], best_tensor])) if i != at_prior \
+        else (best_level, best_tensor)
     log.info("stiffness start: the forced response's misfit %s× the noise over the stiffness scaled by e^%s; "
              "least %.3g× at ×%.3g of the prior's (%.3g× there)", np.round(levels, 1), STIFFNESS_SCAN.round(2),
              best_level, np.exp(best_s), prior_level)
     if not (best_level < STIFFNESS_MISFIT_SHARE * prior_level):
-        return StiffnessStart(prior.stiffness.copy(), 0.0, prior_level, prior_level)
+        return found(prior_tensor, prior_level, 0.0, prior_level)
     step = float(np.diff(STIFFNESS_SCAN).max())
-    near = scanned[i][1][None]
-    refined = minimize_scalar(lambda s: misfit(s, near)[0], bounds=(best_s - step, best_s + step), method="bounded",
-                              options={"xatol": STIFFNESS_SCAN_TOLERANCE})
+    refined = minimize_scalar(lambda s: misfit(s, best_tensor[None])[0], bounds=(best_s - step, best_s + step),
+                              method="bounded", options={"xatol": STIFFNESS_SCAN_TOLERANCE})
     if refined.fun < best_level:
-        best_s, best_level = float(refined.x), float(refined.fun)
-    log.info("stiffness start: ×%.4g of the prior's, misfit %.3g× the noise", np.exp(best_s), best_level)
-    return StiffnessStart(prior.stiffness * np.exp(best_s * free), best_s, best_level, prior_level)
+        best_s = float(refined.x)
+        best_level, best_tensor = misfit(best_s, best_tensor[None])
+    return found(best_tensor, best_level, best_s, prior_level)

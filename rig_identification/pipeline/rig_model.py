@@ -4,7 +4,7 @@ recording → :func:`~rig_identification.estimation.rig_record.record` (every st
 exciter's force denoised) → a start for the tensor (the prediction-error fit of
 :func:`~rig_identification.pipeline.offline.identify_recording`, unrefined, where it gives a
 physical tensor; else the body anchors' box; the cables' stiffness, where rig.yaml gives none, from the
-forced response: :func:`~rig_identification.estimation.harmonic_start.stiffness_start`) →
+forced response: :func:`~rig_identification.estimation.harmonic_start.forced_response_start`) →
 :func:`~rig_identification.estimation.rig_fit.fit_rig`
 (the exact model, every sensor an output, mass, CG, cables, load cells and geometry fitted with
 their priors; the whole-record fit also restarted from the gyro-only fit's tensor: a minimum
@@ -23,12 +23,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..diagnosis.rig_diagnosis import RigDiagnosis, diagnose_rig
-from ..estimation.harmonic_start import harmonic_start, stiffness_start
+from ..estimation.harmonic_start import forced_response_start
 from ..estimation.identification import IdentificationError
 from ..estimation.precision import Z95
 from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.rig_fit import LEVEL_LIMIT, RigFit, fit_rig
-from ..estimation.rig_record import Record, record
+from ..estimation.rig_record import record
 from ..estimation.rig_unknowns import EXTENSIONS, Prior
 from ..io.export import Axes, Expressed, express
 from ..io.recording import Recording
@@ -352,18 +352,15 @@ def start_tensor(rec: Recording) -> tuple[np.ndarray, np.ndarray, str]:
     return box, np.full(6, np.inf), "the body anchors' box (a guess)"
 
 
-def start_tensors(rec: Recording, rc: Record, prior: Prior, first: np.ndarray, first_std: np.ndarray,
-                  stiffness: np.ndarray | None = None) -> np.ndarray:
+def start_tensors(rec: Recording, first: np.ndarray, first_std: np.ndarray, harmonic: np.ndarray) -> np.ndarray:
     """(k, 6) the starts the fit tries in turn: ``first`` (the gyro-only fit's, σ ``first_std``)
-    where every σ is within :data:`TRUSTED_START_SHARE` of its entry's scale, then the tensor
-    whose linearised forced response matches the record's fundamental
-    (:func:`~rig_identification.estimation.harmonic_start.harmonic_start`, itself fitted from the
-    others; first where ``first`` is not trusted), then the body anchors' box scaled by
-    :data:`BOX_SCALES` (a body's radius of gyration is some fraction of the frame that carries it).
-    stiffness: the cables' (N,) N/m the harmonic start assumes (default the prior's)."""
+    where every σ is within :data:`TRUSTED_START_SHARE` of its entry's scale, then ``harmonic``,
+    the tensor whose linearised forced response matches the record's fundamental
+    (:func:`~rig_identification.estimation.harmonic_start.forced_response_start`, itself fitted
+    from the others; first where ``first`` is not trusted), then the body anchors' box scaled by
+    :data:`BOX_SCALES` (a body's radius of gyration is some fraction of the frame that carries it)."""
     box = default_initial_guess(rec.rig)
     boxes = [f * box for f in BOX_SCALES if not np.allclose(f * box, first)]
-    harmonic, _ = harmonic_start(rc, rec.rig, prior, np.vstack([first] + boxes), stiffness)
     trusted = bool(np.all(first_std <= TRUSTED_START_SHARE * entry_scales(first)))
     return np.vstack(([first, harmonic] if trusted else [harmonic, first]) + boxes)
 
@@ -397,12 +394,13 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     guess, guess_std, source = start_tensor(rec)
     log.info("fitting the rig model to every sensor (%.0f s, %d channels)", rc.duration, len(rc.channels))
     box = default_initial_guess(rec.rig)
-    stiff = stiffness_start(rc, rec.rig, prior, np.vstack([guess] + [f * box for f in BOX_SCALES]))
+    stiff = forced_response_start(rc, rec.rig, prior,
+                                  np.vstack([guess] + [f * box for f in BOX_SCALES if not np.allclose(f * box, guess)]))
     if stiff.moved:
         warnings.append(f"the cables' stiffness starts at {np.exp(stiff.log_scale):.3g}× the default steel cable's "
                         f"({np.mean(stiff.stiffness):.3g} N/m; rig.yaml gives none): the forced response's misfit "
                         f"{stiff.level:.3g}× the noise there, {stiff.prior_level:.3g}× at the default's")
-    starts = start_tensors(rec, rc, prior, guess, guess_std, stiff.stiffness)
+    starts = start_tensors(rec, guess, guess_std, stiff.tensor)
     restarts = guess[None] if np.any(np.isfinite(guess_std)) else ()
     fit = fit_rig(rc, rec.rig, prior, starts, restarts=restarts, stiffness=stiff.stiffness)
     diagnosis = None
