@@ -102,10 +102,8 @@ def _named(dg) -> dict:
     each class not told apart) of a rig-model diagnosis (None: none)."""
     if dg is None:
         return {"named": [], "classes": []}
-    classes = [[EFFECT_OF.get(e, e) for e in (s.best,) + s.indistinguishable] for s in dg.steps if not s.named]
-    if dg.damping is not None and dg.damping.indistinguishable:
-        classes.append(["viscous_damping"] + list(dg.damping.indistinguishable))
-    return {"named": [EFFECT_OF.get(e, e) for e in dg.named], "classes": classes}
+    return {"named": [EFFECT_OF.get(e, e) for e in dg.named],
+            "classes": [[EFFECT_OF.get(e, e) for e in g] for g in dg.classes]}
 
 
 def _job(args):

@@ -42,7 +42,8 @@ def test_a_load_cell_delay_is_named_fitted_and_the_tensor_corrected():
     """An 8 ms delay of the load cells: the rigid-body rig model does not find the motion (its
     tensions 20–30× their noise); the diagnosis names load_cell_delay, told apart from every other
     extension, and nothing else; the refit gives the delay within 3 σ and 0.2 ms, every channel
-    but the exciter's within its noise level, and every tensor entry within 1 % and 3 σ."""
+    within 1.5× its noise (the exciter's too: its σ from its samples as read, not from the grid
+    of the late load cells), and every tensor entry within 1 % and 3 σ."""
     truth, d, _ = gather("rig_diagnosis", "delay")["delay"]
     dg = d["diagnosis"]
     assert dg["named"] == ["load_cell_delay"] and dg["extensions"] == ["load_cell_delay"], dg["steps"]
@@ -51,7 +52,7 @@ def test_a_load_cell_delay_is_named_fitted_and_the_tensor_corrected():
     ext = d["extensions"]["load_cell_delay"]
     assert abs(ext["values"][0] - DELAY) < max(3 * ext["std"][0], 2e-4), ext
     after = dg["residual_level_after"]
-    assert all(v < LEVEL_LIMIT for c, v in after.items() if not c.startswith("exciter")), after
+    assert all(v < LEVEL_LIMIT for v in after.values()) and d["verdict"] == "ok", (after, d["verdict"])
     tru = np.array([truth["inertia_about_cg"][k] for k in KEYS])
     est = np.array([d["inertia_about_cg"][k] for k in KEYS])
     sd = np.array([d["inertia_std"][k] for k in KEYS])
@@ -99,3 +100,38 @@ def test_a_fit_that_did_not_find_the_motion_names_nothing(capsys):
     assert RigDiagnosis((), None, (), fits, None).found_motion
     print_diagnosis(RigDiagnosis((), None, (), fits, None))
     assert "the model explains the recording" in capsys.readouterr().out
+
+
+def test_an_extension_that_lowers_a_misfit_it_does_not_explain_is_not_named(capsys):
+    """An extension added where the refit still leaves a channel beyond 1.5× its noise (the fit's
+    own model_error: on the package's simulator an 8 Hz structural mode took imu_offset and
+    gyro_scale) stays in the model but is not named, nor its class, nor viscous damping; the
+    advice says what is left unexplained.  With every channel fitted the same step is named."""
+    from types import SimpleNamespace
+
+    from rig_identification.cli.rig_model import print_diagnosis
+    from rig_identification.diagnosis.rig_diagnosis import Candidate, Damping, RigDiagnosis, Step
+    channels = ("tension:c0", "gyro_x", "gyro_y")
+    rigid = SimpleNamespace(residual_level=np.array([4.0, 6.1, 3.2]), channels=channels)
+    cand = Candidate("imu_offset", 120.0, 3, 16.3, np.array([0.01, 0.0, 0.02]), np.full(3, 1e-3),
+                     np.array([40.0, 50.0]), True)
+    step = Step("imu_offset", "imu_offset", (), {}, (cand,))
+    damping = Damping(np.array([5.0, 0.5]), {"air_drag": 3.0, "coulomb_friction": 4.0}, ())
+    after = SimpleNamespace(residual_level=np.array([1.1, 2.3, 1.2]), channels=channels)
+    dg = RigDiagnosis((), damping, (step,), rigid, after)
+    assert dg.found_motion and not dg.explained and dg.unexplained == ("gyro_x",)
+    assert dg.extensions == ("imu_offset",) and dg.named == () and dg.classes == ()
+    assert len(dg.advice) == 1 and "gyro_x" in dg.advice[0] and "nothing is named" in dg.advice[0], dg.advice
+    d = dg.to_dict()
+    assert d["explained"] is False and d["named"] == [] and d["unexplained_channels"] == ["gyro_x"]
+    fitted = SimpleNamespace(residual_level=np.array([1.1, 1.3, 1.2]), channels=channels)
+    good = RigDiagnosis((), damping, (step,), rigid, fitted)
+    assert good.explained and good.named == ("imu_offset", "viscous_damping") and good.advice == []
+    unsure = RigDiagnosis((), damping, (Step("imu_offset", "imu_offset", ("gyro_scale",), {"gyro_scale": 1.0},
+                                             (cand,)),), rigid, fitted)
+    assert unsure.classes == (("imu_offset", "gyro_scale"),) and "tells them apart" in unsure.advice[0]
+    # the text: the step added, not named (the refit's extension values are not printed: no refit record)
+    dg_text = RigDiagnosis((), None, (step,), rigid, None)
+    print_diagnosis(dg_text)
+    out = capsys.readouterr().out
+    assert "imu_offset: χ² falls 120 (threshold 16.3), cross-validated; added, not named" in out, out

@@ -129,7 +129,8 @@ def print_diagnosis(dg: RigDiagnosis) -> None:
                   f"({c.z:+.1f} σ of the given)")
     for st in dg.steps:
         c = next(c for c in st.candidates if c.name == st.best)
-        word = "named" if st.named else f"not told apart from {', '.join(st.indistinguishable)}"
+        word = ("named" if st.named else f"not told apart from {', '.join(st.indistinguishable)}") if dg.explained \
+            else "added, not named"
         print(f"  {st.best}: χ² falls {c.statistic:.0f} (threshold {c.threshold:.1f}), cross-validated; {word}"
               + ("" if st.added == st.best else f"; the model takes {st.added}, the class's simplest"))
         if dg.refit is not None:
@@ -146,7 +147,8 @@ def print_diagnosis(dg: RigDiagnosis) -> None:
         f = dg.refit or dg.rigid
         b = f.layout.body_damping
         c, sd = f.parameters.body_damping, np.sqrt(np.diag(f.covariance[b, b]))
-        word = "viscous_damping named" if "viscous_damping" in dg.named else "not told apart"
+        word = "viscous_damping named" if "viscous_damping" in dg.named else \
+            "not told apart" if dg.explained else "not named"
         print(f"  damping: viscous, {max(dg.damping.significance):.0f} σ (linear {c[0]:.4g} ± {sd[0]:.2g} N·s/m, "
               f"angular {c[1]:.4g} ± {sd[1]:.2g} N·m·s); in its place (Vuong's z, + viscous better): {alt}: {word}")
     for line in dg.advice:

@@ -20,8 +20,12 @@ Two kinds of finding.  Data errors come first: they are unknowns of the model it
   estimate), and further extensions are tested at the refit's estimate, each only as above (at
   most :data:`MAX_EXTENSIONS`; one whose refit does not lower the misfit is left out).  Where the
   last refit still leaves a channel beyond
-  :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise nothing is named: the
-  motion is still not found, and any extension lowers such a misfit somewhat.  The rig
+  :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise nothing is added: the
+  motion is still not found, and any extension lowers such a misfit somewhat.  Where it leaves one
+  beyond :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` (the fit's own ``model_error``)
+  the extensions stay in the model but nothing is named (:attr:`RigDiagnosis.named`): they lowered a
+  misfit they do not explain (on the package's simulator a structural mode at 8 Hz took
+  imu_offset and gyro_scale), and the advice says so.  The rig
   model already holds viscous damping; where it is significant,
   quadratic drag and Coulomb friction are tried in its place, and said indistinguishable from it
   where Vuong's test cannot tell them apart (at one forcing amplitude they are nearly the same
@@ -193,35 +197,68 @@ class RigDiagnosis:
         return bool(np.max((self.refit or self.rigid).residual_level) <= REWEIGHT_LIMIT)
 
     @property
+    def explained(self) -> bool:
+        """Whether the last fit explains the recording: every channel within
+        :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` of its noise.  Where it does not,
+        what the model holds lowered the misfit without explaining it, and nothing is named."""
+        return bool(np.max((self.refit or self.rigid).residual_level) <= LEVEL_LIMIT)
+
+    @property
+    def unexplained(self) -> tuple[str, ...]:
+        """The channels the last fit leaves beyond :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT`
+        of their noise."""
+        f = self.refit or self.rigid
+        return tuple(c for c, v in zip(f.channels, f.residual_level) if v > LEVEL_LIMIT)
+
+    @property
     def extensions(self) -> tuple[str, ...]:
         """The extensions the refit holds."""
         return tuple(s.added for s in self.steps)
 
     @property
     def named(self) -> tuple[str, ...]:
-        """The extensions the recording tells apart from every other candidate, and
-        ``viscous_damping`` where the model's viscous damping is significant and told apart from
-        quadratic drag and Coulomb friction in its place."""
+        """Where the last fit explains the recording (:attr:`explained`): the extensions the
+        recording tells apart from every other candidate, and ``viscous_damping`` where the model's
+        viscous damping is significant and told apart from quadratic drag and Coulomb friction in
+        its place.  Otherwise none."""
+        if not self.explained:
+            return ()
         viscous = ("viscous_damping",) if self.damping is not None and not self.damping.indistinguishable else ()
         return tuple(s.added for s in self.steps if s.named) + viscous
 
     @property
-    def advice(self) -> list[str]:
-        """For each class not told apart, what would tell its members apart."""
-        out = []
+    def classes(self) -> tuple[tuple[str, ...], ...]:
+        """Where the last fit explains the recording: each class the recording does not tell apart
+        (the best candidate first, then those it cannot be told from; the damping's with
+        ``viscous_damping`` first).  Otherwise none."""
+        if not self.explained:
+            return ()
         groups = [(s.best,) + s.indistinguishable for s in self.steps if not s.named]
         if self.damping is not None and self.damping.indistinguishable:
             groups.append(("viscous_damping",) + self.damping.indistinguishable)
-        for g in groups:
+        return tuple(groups)
+
+    @property
+    def advice(self) -> list[str]:
+        """For each class not told apart, what would tell its members apart; where the last fit
+        does not explain the recording, that nothing is named and why."""
+        if self.found_motion and not self.explained and (self.steps or self.damping is not None):
+            held = ", ".join(self.extensions) or "its viscous damping"
+            return [f"the model with {held} still leaves {', '.join(self.unexplained)} beyond {LEVEL_LIMIT:g}× the "
+                    "noise: what it leaves out is none of the extensions tested alone (a structural mode, a sprung "
+                    "body, several effects at once?); nothing is named"]
+        out = []
+        for g in self.classes:
             kind = "damping" if all(e in DAMPING for e in g) else "other"
             out.append(f"{' or '.join(g)}: not told apart by this recording; {APART_ADVICE[kind]} tells them apart")
         return out
 
     def to_dict(self) -> dict:
-        d: dict = {"found_motion": self.found_motion, "data_errors": [c.to_dict() for c in self.conflicts],
+        d: dict = {"found_motion": self.found_motion, "explained": self.explained,
+                   "unexplained_channels": list(self.unexplained), "data_errors": [c.to_dict() for c in self.conflicts],
                    "damping": None if self.damping is None else self.damping.to_dict(),
                    "steps": [s.to_dict() for s in self.steps], "extensions": list(self.extensions),
-                   "named": list(self.named), "advice": self.advice,
+                   "named": list(self.named), "classes": [list(g) for g in self.classes], "advice": self.advice,
                    "residual_level_before": {c: float(v) for c, v in
                                              zip(self.rigid.channels, self.rigid.residual_level)}}
         if self.refit is not None:

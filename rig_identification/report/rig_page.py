@@ -137,7 +137,8 @@ def diagnosis_html(res: RigModelResult) -> str:
         rows = [[c.name, num(c.statistic, ".1f"), num(c.threshold, ".1f"), "yes" if c.plausible else "no",
                  "yes" if c.cross_validated else "no", num(st.vuong[c.name], "+.1f") if c.name in st.vuong else ""]
                 for c in sorted(st.candidates, key=lambda c: -c.statistic)]
-        word = "named" if st.named else f"not told apart from {', '.join(st.indistinguishable)}; the model takes it"
+        word = ("named" if st.named else f"not told apart from {', '.join(st.indistinguishable)}; the model takes it") \
+            if dg.explained else "not named: the model with it still does not fit"
         out.append(f"<h3>Step {i}: {esc(st.added)} added ({esc(word)})</h3>"
                    + table(["extension", "χ² fall", "threshold", "plausible", "cross-validated",
                             "Vuong z of the best over it"], rows, ident=f"step-{i}-table"))
