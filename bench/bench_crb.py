@@ -33,6 +33,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from rig_identification.design import information
 from rig_identification.design.scenarios import EXCITER_PLACEMENTS, LAYOUTS, REFERENCE_NOISE, simulate_random
 from rig_identification.estimation.rig_fit import cramer_rao
 from rig_identification.estimation.rig_record import record
@@ -50,26 +51,17 @@ QUIET = {k: 0.0 for k in REFERENCE_NOISE}
 
 def channel_noise(channels) -> np.ndarray:
     """The reference noise σ per channel of the rig model."""
-    out = []
-    for c in channels:
-        out.append(REFERENCE_NOISE["load_cell"] if c.startswith("tension") else
-                   REFERENCE_NOISE["gyro"] if c.startswith("gyro") else
-                   REFERENCE_NOISE["accelerometer"] if c.startswith("accel") else
-                   REFERENCE_NOISE["exciter"] if c.startswith("exciter") else REFERENCE_NOISE["inclinometer"])
-    return np.array(out)
+    return information.channel_noise(channels, REFERENCE_NOISE)
 
 
 def truth_parameters(rig, truth: dict) -> tuple[np.ndarray, RigParameters]:
-    J = from_tensor(inertia_tensor(truth["inertia_about_cg"]))
-    sim = truth["simulator"]
-    k = np.asarray(sim.get("cable_stiffness", [5e6] * len(rig.cables)), float)
-    c = np.asarray(sim.get("cable_damping", 2 * 0.01 * np.sqrt(k * truth["mass"] / len(k))), float)
-    return J, RigParameters.from_rig(rig, J, k, float(np.mean(c / k)), truth["mass"], truth["center_of_gravity"])
+    """The true tensor entries (6,) and the rig model's true parameters of a truth mapping."""
+    return from_tensor(inertia_tensor(truth["inertia_about_cg"])), information.true_parameters(rig, truth)
 
 
 def bound(rec_record, rig, truth: dict) -> np.ndarray:
     """The tensor entries' bound (6,) kg·m² (1 σ)."""
-    J, p = truth_parameters(rig, truth)
+    p = information.true_parameters(rig, truth)
     cov = cramer_rao(rec_record, rig, Prior.from_rig(rig.with_cg(p.cg)), p)
     return np.sqrt(np.diag(cov)[Layout(len(rig.cables)).inertia])
 

@@ -117,14 +117,20 @@ def test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation():
     assert weak["text"].startswith("The most weakly determined combination is ")
     assert f"the body hardly turned about z (rate about z {rot[2]:.2g} rad/s RMS" in weak["text"], weak["text"]
     assert set(d["prediction"]["std"]) == {"ixx", "ixy", "ixz", "iyy", "iyz", "izz"}
+    # the σ inertia reaches, every sensor an output: the rig model's bound, below the gyro-only fit's on
+    # every entry (the load cells see the motion more finely) for the baseline and the plan alike
+    rig = d["rig_model"]
+    for rm, gyro in ((rig["std"], d["prediction"]["std"]), (rig["baseline_std"], base["std"])):
+        assert all(0 < rm[k] < gyro[k] for k in KEYS), (rm, gyro)
+    assert d["improvement"] == pytest.approx({k: rig["baseline_std"][k] / rig["std"][k] for k in KEYS})
     # both against the default target, ±1 % at 95 % of each entry's scale; the plan's half-widths
     # are 1.96 times its predicted σ over that scale, and a run of length_factor × 30 s reaches it
     pb, pp = d["precision"]["baseline"], d["precision"]["plan"]
     theta = np.array([2894.0, 0.0, 0.0, 695.0, -102.0, 3101.0])   # KEYS order
     scale = np.where([True, False, False, True, False, True], theta, 3101.0)
-    for p, pred in ((pb, base), (pp, d["prediction"])):
+    for p, std in ((pb, rig["baseline_std"]), (pp, rig["std"])):
         hw = np.array([p["half_width"][k] for k in KEYS])
-        np.testing.assert_allclose(hw, 1.959963984540054 * np.array([pred["std"][k] for k in KEYS]) / scale, rtol=1e-9)
+        np.testing.assert_allclose(hw, 1.959963984540054 * np.array([std[k] for k in KEYS]) / scale, rtol=1e-9)
         assert p["short"] == [k for k, h in zip(KEYS, hw) if h > 0.01]
         if p["short"]:
             assert p["length_factor"] == pytest.approx((hw.max() / 0.01) ** 2) and "each run's 30 s" in p["text"]

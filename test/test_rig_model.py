@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from rig_identification.cli.inertia import resolve_model
 from rig_identification.cli.main import build_parser
+from rig_identification.design.information import tensor_bound
 from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random
 from rig_identification.estimation import rig_unknowns
 from rig_identification.estimation.harmonic_start import forced_response_start, harmonics
@@ -58,10 +59,12 @@ QUIET = {k: 0.0 for k in REFERENCE_NOISE}
 
 
 def _fit(cables: int, seed: int):
-    """Job: a random 'wide' rig (seed), 45 s, reference noise, fitted by the rig model."""
+    """Job: a random 'wide' rig (seed), 45 s, reference noise, fitted by the rig model; and the
+    σ ``rig-identify plan`` predicts for that run (the rig model's bound of its noise-free twin)."""
     _, sim = simulate_random(seed, cables, "wide", [], 45.0)
     res = fit_whole_recording(Recording(sim.rig, sim.sensors, sim.truth, None))
-    return sim.truth, res.to_dict()
+    _, quiet = simulate_random(seed, cables, "wide", [], 45.0, noise=QUIET)
+    return sim.truth, res.to_dict(), tensor_bound(quiet, REFERENCE_NOISE)
 
 
 background("rig_model", __file__, _fit, {3: (3, 7101), 5: (5, 7206)}, first=True)
@@ -328,12 +331,23 @@ def test_the_rig_model_takes_one_recording_and_none_of_the_gyro_fits_options():
         assert resolve_model(parse(argv)) == model, argv
 
 
+@pytest.mark.parametrize("cables", [3, 5])
+def test_the_plans_sigma_is_the_sigma_the_fit_of_the_run_reaches(cables):
+    """``rig-identify plan``'s σ of a run (design.information.tensor_bound: the rig model's bound
+    along the noise-free run at the reference noise) against the σ the rig model's fit gives on a
+    recording of that run with that noise: every entry within a factor 0.9–1.5 (the fit's σ is
+    the bound at its estimate and its noise estimates, widened where the residual is not white)."""
+    _, d, bound = gather("rig_model", cables)[cables]
+    sd = np.array([d["inertia_std"][k] for k in KEYS])
+    assert np.all((sd / bound > 0.9) & (sd / bound < 1.5)), sd / bound
+
+
 @pytest.mark.parametrize("cables,seed", [(3, 7101), (5, 7206)])
 def test_three_and_five_cable_rigs_within_one_percent_three_sigma_near_the_bound(cables, seed):
     """Every entry within 1 % (products: of the largest moment) and 3 σ, σ within 4× of the
     Cramér–Rao bound, no channel beyond its noise, the dynamic CG within 3 mm and 3 σ, the mass
     within 3 σ; the diagnosis names nothing."""
-    truth, d = gather("rig_model", cables)[cables]
+    truth, d, _ = gather("rig_model", cables)[cables]
     tru = np.array([truth["inertia_about_cg"][k] for k in KEYS])
     est = np.array([d["inertia_about_cg"][k] for k in KEYS])
     sd = np.array([d["inertia_std"][k] for k in KEYS])

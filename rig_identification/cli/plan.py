@@ -17,13 +17,14 @@ import numpy as np
 from ..design.planning import PlanError, geometry_variants, plan_experiment
 from ..design.run import Run, load_plan_input, make_body
 from ..estimation.precision import precision_of
+from ..estimation.rig_record import RigFitError
 from ..io.export import ORDER, VEHICLE_SIGN, entries_from_option, tensor_from_option
 from ..io.recording import read_recording
 from ..io.verdict import KEYS
 from ..model.dynamics import SimulationError
 from ..model.experiment import ExperimentError
 from ..model.modes import estimate_modes, match_modes, natural_modes
-from ..model.parametrisation import from_tensor
+from ..model.parametrisation import entry_scales, from_tensor
 from ..pipeline.offline import identify_recording
 from ..pipeline.thesis_table import print_summary, print_table, run_case
 from .progress import heading, step
@@ -164,9 +165,8 @@ def plan_precision(body, plan, args) -> dict:
     """The baseline's and the plan's predicted σ against ``--target``
     (:func:`~rig_identification.estimation.precision.precision_of`; each run of ``--duration``):
     {"baseline": Precision, "plan": Precision}."""
-    return {title: precision_of(body.inertia, pr.std, (), args.duration, "ok", args.target / 100,
-                                subject="each run's")
-            for title, pr in (("baseline", plan.baseline.prediction), ("plan", plan.prediction))}
+    return {title: precision_of(body.inertia, std, (), args.duration, "ok", args.target / 100, subject="each run's")
+            for title, std in (("baseline", plan.rig_model["baseline_std"]), ("plan", plan.rig_model["std"]))}
 
 
 def cmd_plan(args) -> int:
@@ -175,7 +175,7 @@ def cmd_plan(args) -> int:
     returns 0 (2 on a user error)."""
     try:
         rig, body, plan = plan_from_args(args)
-    except (PlanError, ExperimentError, SimulationError) as e:
+    except (PlanError, ExperimentError, SimulationError, RigFitError) as e:
         args.progress.fail()
         print(f"rig-identify: error: {e}", file=sys.stderr)
         return 2
@@ -212,19 +212,23 @@ def cmd_plan(args) -> int:
     print(f"predicted σ at the noise levels {', '.join(f'{kk} {v:g}' for kk, v in body.noise.items())} "
           "(rad/s, m/s², N, N, rad):")
     print(TABLE_CAPTION)
-    print(f"{'':6s} {'value':>9s} {'baseline σ':>11s} {'plan σ':>9s} {'ratio':>6s} {'plan σ rel.':>11s}")
+    print("σ: the rig model's Cramér–Rao bound (every sensor an output: what rig-identify inertia reaches); "
+          "gyro-only: the prediction-error fit on the gyro (--model pem), which ranks the runs")
+    print(f"{'':6s} {'value':>9s} {'baseline σ':>11s} {'plan σ':>9s} {'ratio':>6s} {'plan σ rel.':>11s}   "
+          f"{'gyro-only: baseline σ':>21s} {'plan σ':>9s}")
     theta = from_tensor(body.inertia)
+    scale = entry_scales(theta)
     for kk in ORDER:
         i = KEYS.index(kk)
-        b, p, rel = bp.std[i], pp.std[i], pp.relative_std[i]
+        b, p = plan.rig_model["baseline_std"][i], plan.rig_model["std"][i]
         print(f"{'I' + kk[1:]:6s} {VEHICLE_SIGN[i] * theta[i] + 0.0:9.1f} {b:11.3f} {p:9.3f} {b / p:6.1f} "
-              f"{100 * rel:10.4f}%")
+              f"{100 * p / scale[i]:10.4f}%   {bp.std[i]:21.3f} {pp.std[i]:9.3f}")
     print("(relative: of the entry for moments, of the largest moment for products)")
     for title, p in reach.items():
         print(f"{title}: {p.text()}")
     for title, pr in (("baseline", bp), ("plan", pp)):
         for w in pr.weak(1):
-            print(f"{title}: {w['text']}")
+            print(f"{title} (gyro-only fit): {w['text']}")
     for n in plan.notes:
         print("note: " + n)
     return 0
