@@ -84,7 +84,8 @@ def _rig_model_row(row: dict, rec, sim, t0: float) -> dict:
     given = SimpleNamespace(inertia=to_tensor(f.inertia), inertia_std=f.inertia_std, undetermined=res.withheld)
     entries = score_entries(given, sim.truth["inertia_about_cg"])
     max_pct, max_z = worst(entries)
-    row.update(verdict=res.verdict, failed=res.poorly_fitted, undetermined=list(res.undetermined + res.ambiguous),
+    row.update(verdict=res.verdict, failed=res.poorly_fitted,
+               undetermined=list(dict.fromkeys(res.undetermined + res.ambiguous)),
                finite=all(e["finite"] for e in entries.values()), max_err_pct=max_pct, max_err_sigma=max_z,
                z=[e["z"] for e in entries.values() if e["finite"]], **_named(res.diagnosis), unexplained=[],
                truth_effects=[e["name"] for e in sim.truth.get("effects", [])],

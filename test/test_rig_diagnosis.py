@@ -10,6 +10,7 @@ import contextlib
 import io
 
 import numpy as np
+import pytest
 from conftest import background, gather
 
 from rig_identification.cli.diagnose import print_rig_diagnosis_text
@@ -135,3 +136,18 @@ def test_an_extension_that_lowers_a_misfit_it_does_not_explain_is_not_named(caps
     print_diagnosis(dg_text)
     out = capsys.readouterr().out
     assert "imu_offset: χ² falls 120 (threshold 16.3), cross-validated; added, not named" in out, out
+
+
+def test_a_candidate_is_eligible_only_where_the_recording_determines_one_of_its_values():
+    """A 2-unknown quadratic drag whose joint fall of χ² just passes the 0.999 quantile (13.9 >
+    13.8) with each value within 3.29 σ (2.4 σ and 2.9 σ: what the package's clean, undetermined
+    near-parallel rig 7501 gave) is not a candidate; the same fall with one value at 3.5 σ is."""
+    from rig_identification.diagnosis.rig_diagnosis import DETERMINED_Z, Candidate
+    assert DETERMINED_Z == pytest.approx(3.2905, abs=1e-4)
+    weak = Candidate("air_drag", 13.95, 2, 13.82, np.array([1466.0, 556.6]), np.array([611.4, 190.8]),
+                     np.array([3.9, 0.5]), True)
+    assert weak.significant and weak.cross_validated and weak.plausible and not weak.determined
+    assert not weak.eligible and weak.to_dict()["determined"] is False
+    firm = Candidate("air_drag", 13.95, 2, 13.82, np.array([1466.0, 667.8]), np.array([611.4, 190.8]),
+                     np.array([3.9, 0.5]), True)
+    assert firm.determined and firm.eligible
