@@ -113,8 +113,8 @@ class Candidate:
     @property
     def determined(self) -> bool:
         """Some value of the extension lies beyond :data:`DETERMINED_Z` of its σ: the recording
-        determines it, not only the joint fall of χ² (a 2-unknown drag at 2.4 σ and 2.9 σ passed
-        the χ² test at 13.9 > 13.8 on a clean, undetermined rig of the package's simulator)."""
+        determines the extension itself, not only the joint fall of χ² of its unknowns (two
+        unknowns each within 3 σ can pass the χ² test together)."""
         return bool(np.any(np.abs(self.values) > DETERMINED_Z * self.std))
 
     @property
