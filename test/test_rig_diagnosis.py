@@ -151,3 +151,36 @@ def test_a_candidate_is_eligible_only_where_the_recording_determines_one_of_its_
     firm = Candidate("air_drag", 13.95, 2, 13.82, np.array([1466.0, 667.8]), np.array([611.4, 190.8]),
                      np.array([3.9, 0.5]), True)
     assert firm.determined and firm.eligible
+
+
+def test_the_dampings_alternatives_leave_out_one_the_model_already_holds():
+    """Where a step added coulomb_friction (the independent simulator's pin friction), the
+    viscous damping's alternatives are those the linearisation still tests — air_drag alone —
+    not the friction the model holds beside it (it asked for its column and raised KeyError)."""
+    from types import SimpleNamespace
+
+    from rig_identification.diagnosis.rig_diagnosis import damping_alternatives
+    asked = []
+
+    class Lin:
+        names = ("air_drag", "load_cell_delay")
+
+        def without(self, index):
+            return self
+
+        def base(self):
+            return "base"
+
+        def fitted(self, names):
+            asked.append(names)
+            return names
+
+        def vuong(self, a, b):
+            return 5.0
+
+    lay = SimpleNamespace(body_damping=slice(0, 2))
+    fit = SimpleNamespace(layout=lay, parameters=SimpleNamespace(body_damping=np.array([150.0, 300.0])),
+                          covariance=np.diag([1.0, 4.0]))
+    d = damping_alternatives(Lin(), fit)
+    assert asked == [("air_drag",)] and d.alternatives == {"air_drag": 5.0} and d.indistinguishable == ()
+    np.testing.assert_allclose(d.significance, [150.0, 150.0])

@@ -340,7 +340,8 @@ def next_step(lin: LinearisedRig) -> Step | None:
 
 def damping_alternatives(lin: LinearisedRig, fit: RigFit) -> Damping | None:
     """The viscous damping's alternatives (:class:`Damping`), None where neither of its terms
-    exceeds :data:`DAMPING_SIGMA`."""
+    exceeds :data:`DAMPING_SIGMA`.  Those ``lin`` tests (``lin.names``) are put in its place: one
+    the fit already holds (a step of the diagnosis added it) is beside it, not an alternative."""
     lay = fit.layout
     c = fit.parameters.body_damping
     sd = np.sqrt(np.diag(fit.covariance)[lay.body_damping])
@@ -349,7 +350,7 @@ def damping_alternatives(lin: LinearisedRig, fit: RigFit) -> Damping | None:
         return None
     apart = float(t.ppf(APART_LEVEL, SANDWICH_BLOCKS - 1))
     without = lin.without(lay.body_damping)
-    z = {e: lin.vuong(lin.base(), without.fitted((e,))) for e in ("air_drag", "coulomb_friction")}
+    z = {e: lin.vuong(lin.base(), without.fitted((e,))) for e in ("air_drag", "coulomb_friction") if e in lin.names}
     return Damping(significance, z, tuple(e for e, v in z.items() if v < apart))
 
 
