@@ -37,7 +37,7 @@ log = logging.getLogger(__name__)
 
 #: Iterations of each start's least squares (each costs a 6×6 solve per evaluation).
 MAX_ITERATIONS = 200
-#: The logs of the factor on the default steel cable's stiffness that :func:`stiffness_start`
+#: The logs of the factor on the default steel cable's stiffness that :func:`forced_response_start`
 #: scans where rig.yaml gives none: 1/400 (12 kN/m: a soft sling or a spring suspension) to
 #: e (14 MN/m: a thick steel rope), in steps of a quarter (the misfit's minimum on a soft rig
 #: is about that wide: ×2/3 of it already 1.4× its misfit, ×5/3 28×).
@@ -49,11 +49,9 @@ STIFFNESS_SCAN_TOLERANCE = 0.01
 #: cent); the two misfits the decision compares are fitted to scipy's default 1e-8.
 SCAN_TOLERANCE = 1e-3
 #: A scanned stiffness is the fit's start only where its misfit (RMS over the noise) is below
-#: this share of the prior's (:func:`stiffness_start`).  On the package's random rigs 1–12
-#: (3–6 cables, every layout, 30 s) and 7206 with steel cables the scan's best was 0.86–1.0 of
-#: the default's (no evidence: the linearisation's error and the tensor's own minima dominate);
-#: with 500 kN/m cables 0.001–0.12 on eleven of them (the best within a grid step of the truth),
-#: 0.66 on the near-parallel rig 6 (left at steel); the independent simulator's 150 kN/m rig 0.002.
+#: this share of the prior's (:func:`forced_response_start`): with steel cables the scan's best
+#: lies near the default's (the linearisation's error and the tensor's own minima dominate the
+#: misfit), with soft ones orders of magnitude below it (``python bench/bench_stiffness_start.py``).
 STIFFNESS_MISFIT_SHARE = 0.5
 
 
@@ -184,19 +182,16 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
     the tensions' and the gyro's amplitudes at the exciter's frequency depend on the stiffness
     (thesis eqs. 3.1–3.10: K's axial part), and a fit started at steel's never finds the motion
     (its swinging phase drifts, the bounce modes sit at the wrong frequency).  The factor is
-    scanned over :data:`STIFFNESS_SCAN` (the misfit has several minima in it: on the independent
-    simulator's 150 kN/m rig 6·10⁴× the noise at 5 MN/m, 8·10⁴ at 1.5 MN/m, 2.8·10⁴ at 500 kN/m,
-    134 at 150 kN/m).  The scan's best is taken only where its misfit is below
-    :data:`STIFFNESS_MISFIT_SHARE` of the prior's (both fitted from the same starts, the prior's
-    also from the best's tensor: the tensor's fit has minima of its own, and on the package's
-    random steel rig 7 one of them put the default's misfit 4× too high), then refined by a
+    scanned over :data:`STIFFNESS_SCAN` (the misfit has several minima in it), each point's tensor
+    fitted to :data:`SCAN_TOLERANCE`.  The scan's best is taken only where its misfit is below
+    :data:`STIFFNESS_MISFIT_SHARE` of the prior's (both refitted to full precision, the prior's
+    also from the best's tensor: the tensor's fit has minima of its own), then refined by a
     bounded scalar search about it (its tensor fitted from the best's; the decision is the
-    grid's: refined, the steel rig 7206's misfit dips 2.3× within 1 % of stiffness).  On steel
-    cables the modes lie far above the band and the misfit, dominated by the linearisation's
-    error and a tensor the one frequency determines poorly (3–5000× the noise), is no
-    evidence: on the shipped cases 14 and 16 it changes by a few percent over a factor 10 of
-    stiffness.  The stiffness's prior
-    itself stays (:class:`~.rig_unknowns.Prior`): only the start moves.  Raises
+    grid's: a refined misfit can dip within 1 % of stiffness).  On steel cables the modes lie
+    far above the band and the misfit, dominated by the linearisation's error and a tensor the
+    one frequency determines poorly, is no evidence: it changes by a few per cent over a factor
+    10 of stiffness.  The stiffness's prior itself stays (:class:`~.rig_unknowns.Prior`): only
+    the start moves.  Raises
     :class:`RigFitError` when the rig has no rest pose or the fit no finite tensor."""
     free = ~prior.stiffness_given
     h = harmonics(rec, len(rig.cables))
