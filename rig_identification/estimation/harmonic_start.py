@@ -220,15 +220,19 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
     levels = np.array([m[0] for m in scanned])
     at_prior = int(np.argmin(np.abs(STIFFNESS_SCAN)))
     i = int(np.argmin(levels))
-    best_s, (best_level, best_tensor) = float(STIFFNESS_SCAN[i]), misfit(float(STIFFNESS_SCAN[i]), scanned[i][1][None])
-    # the prior's tensor fitted also from the best's: not trapped in a minimum of its own
-    prior_level, prior_tensor = misfit(0.0, np.vstack([scanned[at_prior][1], best_tensor])) if i != at_prior \
-        else (best_level, best_tensor)
+    # at the prior's stiffness the tensor fitted to full precision from every start; its misfit
+    # also from the best's tensor: not trapped in a minimum of its own
+    own_level, prior_tensor = misfit(0.0, np.atleast_2d(starts))
+    best_s, best_level, best_tensor, prior_level = 0.0, own_level, prior_tensor, own_level
+    if i != at_prior:
+        best_s = float(STIFFNESS_SCAN[i])
+        best_level, best_tensor = misfit(best_s, scanned[i][1][None])
+        prior_level = min(own_level, misfit(0.0, best_tensor[None])[0])
     log.info("stiffness start: the forced response's misfit %s× the noise over the stiffness scaled by e^%s; "
              "least %.3g× at ×%.3g of the prior's (%.3g× there)", np.round(levels, 1), STIFFNESS_SCAN.round(2),
              best_level, np.exp(best_s), prior_level)
     if not (best_level < STIFFNESS_MISFIT_SHARE * prior_level):
-        return found(prior_tensor, prior_level, 0.0, prior_level)
+        return found(prior_tensor, own_level, 0.0, prior_level)
     step = float(np.diff(STIFFNESS_SCAN).max())
     refined = minimize_scalar(lambda s: misfit(s, best_tensor[None])[0], bounds=(best_s - step, best_s + step),
                               method="bounded", options={"xatol": STIFFNESS_SCAN_TOLERANCE})
