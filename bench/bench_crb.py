@@ -35,9 +35,7 @@ import numpy as np
 
 from rig_identification.design import information
 from rig_identification.design.scenarios import EXCITER_PLACEMENTS, LAYOUTS, REFERENCE_NOISE, simulate_random
-from rig_identification.estimation.rig_fit import cramer_rao
 from rig_identification.estimation.rig_record import record
-from rig_identification.estimation.rig_unknowns import Layout, Prior
 from rig_identification.io.recording import Recording, read_recording
 from rig_identification.io.rig import inertia_tensor
 from rig_identification.io.verdict import KEYS
@@ -61,9 +59,7 @@ def truth_parameters(rig, truth: dict) -> tuple[np.ndarray, RigParameters]:
 
 def bound(rec_record, rig, truth: dict) -> np.ndarray:
     """The tensor entries' bound (6,) kg·m² (1 σ)."""
-    p = information.true_parameters(rig, truth)
-    cov = cramer_rao(rec_record, rig, Prior.from_rig(rig.with_cg(p.cg)), p)
-    return np.sqrt(np.diag(cov)[Layout(len(rig.cables)).inertia])
+    return np.sqrt(np.diag(information.record_covariance(rec_record, rig, truth)))
 
 
 def judge(J: np.ndarray, crb: np.ndarray, rec: Recording | None) -> dict:

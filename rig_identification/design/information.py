@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from ..estimation.rig_fit import cramer_rao
-from ..estimation.rig_record import record
+from ..estimation.rig_record import Record, record
 from ..estimation.rig_unknowns import Layout, Prior
 from ..io.rig import Rig, inertia_tensor
 from ..model.cables import DEFAULT_DAMPING_RATIO
@@ -64,10 +64,17 @@ def tensor_covariance(sim: SimResult, noise: dict[str, float]) -> np.ndarray:
     :class:`~rig_identification.estimation.rig_record.RigFitError` where the run gives the rig
     model nothing to fit (no exciter, under 10 s after the spin-up)."""
     rc = record(sim.sensors, sim.rig)
-    rc = replace(rc, sigma=channel_noise(rc.channels, noise))
-    p = true_parameters(sim.rig, sim.truth)
-    cov = cramer_rao(rc, sim.rig, Prior.from_rig(sim.rig.with_cg(p.cg)), p)
-    block: np.ndarray = cov[Layout(len(sim.rig.cables)).inertia, Layout(len(sim.rig.cables)).inertia]
+    return record_covariance(replace(rc, sigma=channel_noise(rc.channels, noise)), sim.rig, sim.truth)
+
+
+def record_covariance(rc: Record, rig: Rig, truth: dict[str, Any]) -> np.ndarray:
+    """(6, 6) kg²·m⁴ the Cramér–Rao bound of the tensor entries for the record ``rc`` (its input
+    and its channels' σ) at the true parameters of ``truth`` (:func:`true_parameters`), under the
+    rig model's nuisance model (module docstring)."""
+    p = true_parameters(rig, truth)
+    cov = cramer_rao(rc, rig, Prior.from_rig(rig.with_cg(p.cg)), p)
+    inertia = Layout(len(rig.cables)).inertia
+    block: np.ndarray = cov[inertia, inertia]
     return block
 
 
@@ -84,4 +91,5 @@ def combined_std(covariances: Sequence[np.ndarray]) -> np.ndarray:
     return np.sqrt(np.diag(np.linalg.pinv(np.asarray(info), hermitian=True)))
 
 
-__all__ = ["NOISE_OF_CHANNEL", "channel_noise", "true_parameters", "tensor_covariance", "tensor_bound", "combined_std"]
+__all__ = ["NOISE_OF_CHANNEL", "channel_noise", "true_parameters", "tensor_covariance", "record_covariance",
+           "tensor_bound", "combined_std"]
