@@ -19,11 +19,10 @@ import time
 import numpy as np
 
 from rig_identification.design.scenarios import simulate_random
-from rig_identification.estimation.harmonic_start import forced_response_start
+from rig_identification.estimation.harmonic_start import box_tensor, forced_response_start
 from rig_identification.estimation.rig_record import record
 from rig_identification.estimation.rig_unknowns import Prior
 from rig_identification.model.simulator import SimulationError
-from rig_identification.pipeline.offline import default_initial_guess
 from rig_identification.pipeline.rig_model import BOX_SCALES
 
 
@@ -48,7 +47,7 @@ def main(argv=None) -> int:
                 continue
             rc = record(sim.sensors, sim.rig)
             prior = Prior.from_rig(sim.rig, np.asarray(sim.truth["center_of_gravity"]), np.full(3, 5e-3))
-            box = default_initial_guess(sim.rig)
+            box = box_tensor(sim.rig)
             t = time.perf_counter()
             s = forced_response_start(rc, sim.rig, prior, np.vstack([f * box for f in BOX_SCALES]))
             seconds.append(time.perf_counter() - t)

@@ -18,7 +18,7 @@ from rig_identification.cli.main import build_parser
 from rig_identification.design.information import tensor_bound
 from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random
 from rig_identification.estimation import rig_unknowns
-from rig_identification.estimation.harmonic_start import forced_response_start, harmonics
+from rig_identification.estimation.harmonic_start import box_tensor, forced_response_start, harmonics
 from rig_identification.estimation.rig_fit import RigFit, cramer_rao
 from rig_identification.estimation.rig_record import (
     FORCE_CHANNELS,
@@ -46,7 +46,6 @@ from rig_identification.model.linear_rig import (
 from rig_identification.model.parametrisation import entry_scales, from_tensor
 from rig_identification.model.rig_ode import drive, rest_state, simulate, with_sensor_traits
 from rig_identification.model.simulator import simulate as simulate_experiment
-from rig_identification.pipeline.offline import default_initial_guess
 from rig_identification.pipeline.rig_model import (
     TRUSTED_START_SHARE,
     RigModelResult,
@@ -280,7 +279,7 @@ def test_the_forced_response_is_the_fundamental_of_the_exact_model():
         np.abs(model - h.readings) / np.abs(h.readings)
     prior = Prior.from_rig(sim.rig, p.cg, np.full(3, 5e-3))        # the true stiffness given: no scan
     prior = dataclasses.replace(prior, stiffness_log_std=np.zeros(p.cables))
-    box = default_initial_guess(sim.rig)
+    box = box_tensor(sim.rig)
     start = forced_response_start(rc, sim.rig, prior, box[None]).tensor
     scale = entry_scales(p.inertia)
     assert np.max(np.abs(start - p.inertia) / scale) < np.max(np.abs(box - p.inertia) / scale)
@@ -298,7 +297,7 @@ def test_soft_cables_start_at_the_stiffness_their_forced_response_gives(stiffnes
     rc = record(sim.sensors, sim.rig)
     prior = Prior.from_rig(sim.rig, np.asarray(sim.truth["center_of_gravity"]), np.full(3, 5e-3))
     assert not np.any(prior.stiffness_given)
-    box = default_initial_guess(sim.rig)
+    box = box_tensor(sim.rig)
     start = forced_response_start(rc, sim.rig, prior, np.vstack([box, 0.6 * box, 0.35 * box]))
     truth = np.asarray(sim.truth["simulator"]["cable_stiffness"])
     if stiffness is None:
@@ -433,7 +432,7 @@ def test_a_trusted_gyro_fit_is_the_first_start_else_the_forced_response():
     tru = from_tensor(inertia_tensor(sim.truth["inertia_about_cg"]))
     guess = tru * np.array([1.2, 1.0, 1.0, 0.8, 1.0, 1.2])
     scale = entry_scales(guess)
-    box = default_initial_guess(sim.rig)
+    box = box_tensor(sim.rig)
     harmonic = forced_response_start(rc, sim.rig, prior, np.vstack([guess, box, 0.6 * box, 0.35 * box])).tensor
     trusted = start_tensors(rec, guess, 0.5 * TRUSTED_START_SHARE * scale, harmonic)
     doubted = start_tensors(rec, guess, 2.0 * TRUSTED_START_SHARE * scale, harmonic)

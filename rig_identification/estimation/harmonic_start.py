@@ -71,6 +71,14 @@ class Harmonics:
     std: np.ndarray
 
 
+def box_tensor(rig: Rig) -> np.ndarray:
+    """A rough tensor (6,) kg·m² about the CG, body axes: rig.yaml's mass spread evenly over the
+    box the body anchors span, 0.1 m added on every side; diagonal (a start, not an estimate)."""
+    half = np.ptp(rig.body_anchors, axis=0) / 2 + 0.1
+    sx, sy, sz = half**2
+    return rig.mass / 3 * np.array([sy + sz, 0.0, 0.0, sx + sz, 0.0, sx + sy])
+
+
 def _peak_frequency(u: np.ndarray, dt: float) -> float:
     """rad/s: the rotating force's strongest frequency (the periodogram's peak, refined to the
     maximum of |Σ u_c e^{-iωt}|)."""

@@ -12,6 +12,7 @@ from ..diagnosis.not_rigid import not_rigid_hypothesis, two_body_reason
 from ..diagnosis.residuals import unexplained
 from ..diagnosis.result import Combination, Diagnosis
 from ..diagnosis.selection import body_inertia, corrected, diagnose, with_stiffness
+from ..estimation.harmonic_start import box_tensor
 from ..estimation.identification import identify_inertia, identify_inertia_joint
 from ..estimation.inertia_result import InertiaResult
 from ..estimation.thesis_estimator import identify_inertia_thesis
@@ -25,14 +26,6 @@ from .sigma import MODEL_ERROR_RATIO, refine_uncertainty
 log = logging.getLogger(__name__)   # steps (INFO) and warnings as they happen: cli_progress shows them
 
 
-def default_initial_guess(rig) -> np.ndarray:
-    """A rough tensor (6,) for the thesis model when none is given: the mass spread over
-    a box spanned by the body anchors, diagonal (kg·m²)."""
-    half = np.ptp(rig.body_anchors, axis=0) / 2 + 0.1
-    sx, sy, sz = half**2
-    return rig.mass / 3 * np.array([sy + sz, 0.0, 0.0, sx + sz, 0.0, sx + sy])
-
-
 def identify_recording(rec: Recording, start: float | None = None, end: float | None = None,
                        settle: float = 5.0, band_hz: tuple[float, float] | None = None,
                        model: str = "pem", initial_guess=None, refine: bool = True,
@@ -44,7 +37,8 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     compensated for the noise in its input, σ propagated from the estimated sensor noise — about
     three times the work of the plain fit) or ``"thesis"`` (the thesis's model and estimator,
     :func:`~rig_identification.estimation.thesis_estimator.identify_inertia_thesis`, from
-    ``initial_guess`` (6,) tensor entries or :func:`default_initial_guess`).  effect_wrench:
+    ``initial_guess`` (6,) tensor entries or the body anchors' box,
+    :func:`~rig_identification.estimation.harmonic_start.box_tensor`).  effect_wrench:
     physics added to the model (:class:`~rig_identification.diagnosis.result.EffectWrench`,
     :func:`~rig_identification.pipeline.prepare.with_effect_wrench`).  Every fit is validated
     (:func:`~rig_identification.pipeline.fit_validation.validate_fit`: ``result.validation``).  Raises
@@ -57,7 +51,7 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
         prep = with_effect_wrench(prep, effect_wrench)
     rig = rec.rig
     if model == "thesis":
-        guess = default_initial_guess(rig) if initial_guess is None else np.asarray(initial_guess, float)
+        guess = box_tensor(rig) if initial_guess is None else np.asarray(initial_guess, float)
         result = identify_inertia_thesis(rig, prep.t, prep.gyro_body, prep.torque, guess)
     elif model == "pem":
         log.info("fitting the inertia tensor (prediction error, %.0f s of data)", prep.t[-1] - prep.t[0])

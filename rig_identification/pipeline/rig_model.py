@@ -1,10 +1,11 @@
 """A recording read whole: the rig's grey-box model fitted to every sensor (``rig-identify inertia``).
 
 recording → :func:`~rig_identification.estimation.rig_record.record` (every stream on one grid, the
-exciter's force denoised) → a start for the tensor (the prediction-error fit of
-:func:`~rig_identification.pipeline.offline.identify_recording`, unrefined, where it gives a
-physical tensor; else the body anchors' box; the cables' stiffness, where rig.yaml gives none, from the
-forced response: :func:`~rig_identification.estimation.harmonic_start.forced_response_start`) →
+exciter's force denoised) → a start for the tensor (the prediction-error fit on the gyro,
+:func:`~rig_identification.estimation.identification.identify_inertia`, where it gives a
+physical tensor: its first stage a linear regression that needs no start; else the body anchors'
+box; the cables' stiffness, where rig.yaml gives none, from the forced response:
+:func:`~rig_identification.estimation.harmonic_start.forced_response_start`) →
 :func:`~rig_identification.estimation.rig_fit.fit_rig`
 (the exact model, every sensor an output, mass, CG, cables, load cells and geometry fitted with
 their priors; the whole-record fit also restarted from the gyro-only fit's tensor: a minimum
@@ -23,8 +24,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..diagnosis.rig_diagnosis import RigDiagnosis, diagnose_rig
-from ..estimation.harmonic_start import forced_response_start
-from ..estimation.identification import IdentificationError
+from ..estimation.harmonic_start import box_tensor, forced_response_start
+from ..estimation.identification import IdentificationError, identify_inertia
 from ..estimation.precision import Z95
 from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.rig_fit import LEVEL_LIMIT, RigFit, fit_rig
@@ -35,7 +36,7 @@ from ..io.recording import Recording
 from ..io.rig import Survey
 from ..io.verdict import KEYS
 from ..model.parametrisation import entry_scales, from_tensor, physically_consistent, to_tensor
-from .offline import default_initial_guess, identify_recording
+from .prepare import prepare_recording
 
 log = logging.getLogger(__name__)
 
@@ -334,11 +335,15 @@ class RigModelResult:
 
 def start_tensor(rec: Recording) -> tuple[np.ndarray, np.ndarray, str]:
     """The tensor entries (6,) the fit starts from, their σ (6,) (inf: a guess) and their source:
-    the prediction-error fit on the gyro (unrefined) where it gives a physical tensor whose
-    trace is within a factor :data:`START_TRACE_FACTOR` of the body anchors' box's, else that box."""
-    box = default_initial_guess(rec.rig)
+    the prediction-error fit on the gyro, the tensions its input
+    (:func:`~rig_identification.pipeline.prepare.prepare_recording`: tracker and preprocessor;
+    :func:`~rig_identification.estimation.identification.identify_inertia`; thesis §3.3), where it
+    gives a physical tensor whose trace is within a factor :data:`START_TRACE_FACTOR` of the body
+    anchors' box's, else that box (:func:`~rig_identification.estimation.harmonic_start.box_tensor`)."""
+    box = box_tensor(rec.rig)
     try:
-        res = identify_recording(rec, refine=False)
+        prep = prepare_recording(rec)
+        res = identify_inertia(rec.rig, prep.t, prep.gyro_body, prep.torque)
         tensor = np.asarray(res.inertia, float)      # (3, 3)
         if np.all(np.isfinite(tensor)) and physically_consistent(tensor):
             ratio = np.trace(tensor) / (box[0] + box[3] + box[5])
@@ -359,7 +364,7 @@ def start_tensors(rec: Recording, first: np.ndarray, first_std: np.ndarray, harm
     (:func:`~rig_identification.estimation.harmonic_start.forced_response_start`, itself fitted
     from the others; first where ``first`` is not trusted), then the body anchors' box scaled by
     :data:`BOX_SCALES` (a body's radius of gyration is some fraction of the frame that carries it)."""
-    box = default_initial_guess(rec.rig)
+    box = box_tensor(rec.rig)
     boxes = [f * box for f in BOX_SCALES if not np.allclose(f * box, first)]
     trusted = bool(np.all(first_std <= TRUSTED_START_SHARE * entry_scales(first)))
     return np.vstack(([first, harmonic] if trusted else [harmonic, first]) + boxes)
@@ -393,7 +398,7 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     prior = Prior.from_rig(rec.rig, cg, cg_std)
     guess, guess_std, source = start_tensor(rec)
     log.info("fitting the rig model to every sensor (%.0f s, %d channels)", rc.duration, len(rc.channels))
-    box = default_initial_guess(rec.rig)
+    box = box_tensor(rec.rig)
     stiff = forced_response_start(rc, rec.rig, prior,
                                   np.vstack([guess] + [f * box for f in BOX_SCALES if not np.allclose(f * box, guess)]))
     if stiff.moved:
