@@ -1,15 +1,12 @@
-"""Scaling bench (issue "fast at lab scale"): wall time, CPU time and peak memory of the
-gyro-only fit, ``rig-identify inertia REC --model pem --json --no-diagnose`` (with the σ from the
-noise: the replays with fresh noise and the noise propagation) and ``--quick --json`` against the recording's length, at
-200 Hz and with every stream at 1 kHz, so that a user sees how the cost grows with the recording.
+"""Scaling bench (issue "fast at lab scale"): wall time, CPU time and peak memory of
+``rig-identify inertia REC --json`` (the rig model fitted to every sensor, with its diagnosis)
+and of the gyro-only ``--quick --json`` against the recording's length, at 200 Hz and with every
+stream at 1 kHz, so that a user sees how the cost grows with the recording.
 
     bench/bench_scaling.py [--runs N] [--dir DIR] [--durations S ...] [--rates HZ ...]
-                           [--no-reference] [--quick-only] [--help-row] [--diagnose]
+                           [--no-reference] [--quick-only] [--help-row]
 
-``--no-diagnose`` times the identification itself; the "verdict" column says what the fit's
-validation found: where it is ``model_error``, plain ``--json`` would also run the diagnosis
-(``rig-identify diagnose`` and the fit again, ``bench/bench_diagnose.py``), which ``--diagnose``
-times instead.
+The "verdict" column says what the fit's validation found.
 
 Recordings: ``config/rigs/default.yaml`` simulated by the package's simulator (4 cables,
 the exciter; at 200 Hz its own rates — IMU, load cells, exciter 200 Hz, inclinometer 50 Hz —
@@ -89,7 +86,8 @@ def run_once(args: list[str], env: dict) -> tuple[float, float, float, str]:
         out.seek(0)
         verdict = "—"
         if "--json" in args:
-            verdict = (json.loads(out.read()).get("validation") or {}).get("verdict", "—")
+            d = json.loads(out.read())     # the rig model's JSON has "verdict", the gyro-only fit's "validation"
+            verdict = d.get("verdict") or (d.get("validation") or {}).get("verdict", "—")
     return wall, user + system, rss_kib / 1024.0, verdict
 
 
@@ -118,8 +116,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-reference", action="store_true", help="without visible_case16_clean")
     p.add_argument("--quick-only", action="store_true", help="only inertia --quick --json")
     p.add_argument("--help-row", action="store_true", help="also time rig-identify --help")
-    p.add_argument("--diagnose", action="store_true",
-                   help="time plain --json (with the diagnosis of a model_error verdict) instead of --no-diagnose")
     a = p.parse_args(argv)
     if not CLI.exists():
         raise SystemExit(f"{CLI}: no rig-identify entry point beside this interpreter (make setup)")
@@ -135,7 +131,7 @@ def main(argv: list[str] | None = None) -> int:
             cases.append(("default rig", f"{rate:.0f}" + (" (incl. 50)" if rate == 200.0 else ""), d, rec))
     if not a.no_reference:
         cases.append(("visible_case16_clean", "200 (incl. 50)", 120.0, REFERENCE))
-    full = ["--model", "pem", "--json"] + ([] if a.diagnose else ["--no-diagnose"])
+    full = ["--json"]
     variants = [["--quick", "--json"]] if a.quick_only else [full, ["--quick", "--json"]]
     print(f"# load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; {os.cpu_count()} CPUs; "
           f"OMP_NUM_THREADS={env['OMP_NUM_THREADS']}; {a.runs} counted runs after one warm-up, whole processes",

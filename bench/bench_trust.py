@@ -1,13 +1,11 @@
 """Trust benchmark: does `rig-identify inertia` ever print a wrong number without saying so?
 
-Usage: python bench/bench_trust.py [--seeds N] [--procs P] [--duration S] [--only ROW,ROW] [--model rig|pem]
-                                   [--no-diagnose]
+Usage: python bench/bench_trust.py [--seeds N] [--procs P] [--duration S] [--only ROW,ROW]
 
 Builds, with the package's own simulator (:mod:`rig_identification.design.scenarios`: random NHTSA
 vehicles in carrying frames, the body frame off the CG, random exciter placement, realistic
 noise, 200 Hz), N random rigs (default 2) for each row below, runs the whole inertia command
-on each (``--model rig``, the default: the rig model fitted to every sensor and its verdict;
-``--model pem``: identification, uncertainty, validation and — unless --no-diagnose — diagnosis) and
+on each (the rig model fitted to every sensor, its verdict and its diagnosis) and
 prints per recording: verdict, largest |error|/σ and error % of the entries it reports,
 named effects, what stayed unexplained; then the acceptance counts of the "never silently
 wrong" issue:
@@ -108,23 +106,17 @@ def _named(dg) -> dict:
 
 
 def _job(args):
-    name, seed, duration, diagnose, model = args
+    name, seed, duration = args
     import warnings
     warnings.simplefilter("ignore")
     from dataclasses import replace
 
     from bench_crb import bound, channel_noise, truth_parameters
-    from scoring import predicted_rel_std, score_entries, worst
 
     from rig_identification.design.scenarios import simulate_random
-    from rig_identification.estimation.identification import identify_inertia
     from rig_identification.estimation.rig_record import record
-    from rig_identification.estimation.validation import REL_STD_LIMIT
     from rig_identification.io.recording import Recording
-    from rig_identification.io.verdict import KEYS
-    from rig_identification.model.parametrisation import entry_scales, from_tensor, to_tensor
-    from rig_identification.pipeline.offline import identify_recording, with_diagnosis
-    from rig_identification.pipeline.prepare import prepare_recording
+    from rig_identification.model.parametrisation import entry_scales
     cables, layout, effects, clean, *rest = ROWS[name]
     exciter = rest[0] if rest else "corner"
     t0 = time.perf_counter()
@@ -135,55 +127,18 @@ def _job(args):
         row.update(skipped=f"{type(e).__name__}: {e}")
         return row
     rec = Recording(sim.rig, sim.sensors, sim.truth, None)
-    # what the geometry and the excitation determine, from the truth: the σ the reference noise
-    # gives each entry along this recording's trajectory with the true tensor (the planner's
-    # propagation); "identifiable" when every entry's is within half the validation's limit
+    row["vehicle"] = d["description"]
+    # determined: every entry's Cramér–Rao bound (the rig model's, at the truth) within ±1 % at 95 %
     try:
-        J_true = to_tensor([sim.truth["inertia_about_cg"][k] for k in KEYS])
-        prep = prepare_recording(rec)
-        band = identify_inertia(sim.rig, prep.t, prep.gyro_body, prep.torque).band_hz
-        rel = predicted_rel_std(rec, from_tensor(J_true), band, prep)
-        row["predicted_rel_std"] = {k: float(r) for k, r in zip(KEYS, rel)}
-        row["identifiable_truth"] = bool(np.all(rel <= 0.5 * REL_STD_LIMIT))
-    except Exception as e:   # noqa: BLE001 — the prediction is the bench's aid, not the tool's result
+        rc = record(sim.sensors, sim.rig)
+        crb = bound(replace(rc, sigma=channel_noise(rc.channels)), sim.rig, sim.truth)
+        J, _ = truth_parameters(sim.rig, sim.truth)
+        row["crb_percent"] = list(100 * crb / entry_scales(J))
+        row["identifiable_truth"] = bool(1.96 * np.max(crb / entry_scales(J)) <= 0.01)
+    except Exception as e:   # noqa: BLE001 — the bound is the bench's aid, not the tool's result
         row["identifiable_truth"] = None
         row["prediction_error"] = str(e)
-    if model == "rig":
-        row["vehicle"] = d["description"]
-        # determined: every entry's Cramér–Rao bound (the rig model's, at the truth) within ±1 % at 95 %
-        try:
-            rc = record(sim.sensors, sim.rig)
-            crb = bound(replace(rc, sigma=channel_noise(rc.channels)), sim.rig, sim.truth)
-            J, _ = truth_parameters(sim.rig, sim.truth)
-            row["crb_percent"] = list(100 * crb / entry_scales(J))
-            row["identifiable_truth"] = bool(1.96 * np.max(crb / entry_scales(J)) <= 0.01)
-        except Exception as e:   # noqa: BLE001 — the bound is the bench's aid, not the tool's result
-            row["identifiable_truth"] = None
-            row["prediction_error"] = str(e)
-        return _rig_model_row(row, rec, sim, t0)
-    try:
-        res = identify_recording(rec)
-        if diagnose:
-            res = with_diagnosis(rec, res)
-    except ValueError as e:                     # a user error: refused, with its message
-        row.update(verdict="refused", error=str(e), seconds=time.perf_counter() - t0)
-        return row
-    out = res.to_dict()
-    entries = score_entries(res, sim.truth["inertia_about_cg"])
-    max_pct, max_z = worst(entries)
-    zs = [e["z"] for e in entries.values() if e["finite"]]
-    v = res.validation
-    diag = out.get("diagnosis") or {}
-    row.update(checks={c.name: [c.statistic, c.threshold, c.passed] for c in v.checks} if v else {},
-               verdict=v.verdict if v else "none", failed=list(v.failed) if v else [],
-               undetermined=list(res.undetermined), finite=all(e["finite"] for e in entries.values()),
-               max_err_pct=max_pct, max_err_sigma=max_z, z=zs,
-               named=[e["name"] for e in diag.get("effects", []) if e.get("told_apart", True)],
-               classes=[e["candidates"] for e in diag.get("effects", []) if not e.get("told_apart", True)],
-               unexplained=diag.get("unexplained", []),
-               truth_effects=[e["name"] for e in sim.truth.get("effects", [])],
-               vehicle=d["description"], seconds=time.perf_counter() - t0)
-    return json.loads(json.dumps(row, default=float))
+    return _rig_model_row(row, rec, sim, t0)
 
 
 def main(argv=None) -> int:
@@ -192,10 +147,6 @@ def main(argv=None) -> int:
     ap.add_argument("--procs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--duration", type=float, default=90.0, help="seconds per recording (default 90)")
     ap.add_argument("--only", help="comma-separated rows (default all): " + ", ".join(ROWS))
-    ap.add_argument("--no-diagnose", action="store_true", help="--model pem: the rigid-body fit and its verdict only")
-    ap.add_argument("--model", choices=("rig", "pem"), default="rig",
-                    help="rig: the rig model, rig-identify inertia's default (names no effect); pem: the gyro-only "
-                         "fit with its diagnosis (--model pem)")
     ap.add_argument("--first-seed", type=int, default=0)
     ap.add_argument("--json", metavar="FILE", help="also write the rows to FILE")
     a = ap.parse_args(argv)
@@ -203,7 +154,7 @@ def main(argv=None) -> int:
     bad = set(names) - set(ROWS)
     if bad:
         ap.error(f"unknown rows {sorted(bad)}")
-    jobs = [(n, 7000 + 100 * i + a.first_seed + k, a.duration, not a.no_diagnose, a.model)
+    jobs = [(n, 7000 + 100 * i + a.first_seed + k, a.duration)
             for i, n in enumerate(ROWS) if n in names for k in range(a.seeds)]
     t0 = time.perf_counter()
     rows = run_jobs(_job, jobs, a.procs, a.json, lambda r: f"{r['row']} seed {r['seed']}")

@@ -18,10 +18,9 @@ import pytest
 import yaml
 from conftest import recording, run_cli
 
-from rig_identification.cli import diagnose as cli_diagnose
 from rig_identification.cli.inertia import print_inertia
 from rig_identification.cli.main import TENSOR, build_parser, identify_main
-from rig_identification.cli.text import TABLE_CAPTION, effect_text, evidence_text
+from rig_identification.cli.text import TABLE_CAPTION
 from rig_identification.estimation import directions, validation
 from rig_identification.estimation.directions import describe_direction, weak_directions
 from rig_identification.estimation.inertia_result import FitSeries, InertiaResult
@@ -311,83 +310,6 @@ def test_direction_words_are_one_scale():
     assert describe_direction(5e-3, D, undetermined=("izz",))["level"] == "not determined"
 
 
-def test_effect_parameters_carry_units_and_p_values_underflow():
-    e = {"name": "viscous_damping", "parameters": {"angular": 300.9, "linear": 148.7},
-         "parameters_std": {"angular": 1.0, "linear": 3.2},
-         "evidence": {"likelihood_ratio": 5000.0, "p_value": 0.0, "rms_reduction": {}}}
-    assert effect_text(e) == "angular = 300.9 ± 1 N·m·s/rad, linear = 148.7 ± 3.2 N·s/m"
-    assert evidence_text(e) == "likelihood ratio 5000.0 (p < 1e-300)"
-
-
-def test_diagnosed_model_error_warning_gives_effect_parameters_with_units(monkeypatch):
-    """The warning "model error diagnosed: …" of inertia's diagnosis (pipeline.with_diagnosis)
-    names each effect's parameters with their units, in the CLI's own words (export.effect_text).
-    diagnose and the second fit are stand-ins: only the warning's text is under test."""
-    from types import SimpleNamespace
-
-    from rig_identification.diagnosis.result import Combination, Diagnosis
-    from rig_identification.pipeline import offline as pipeline
-    effect = {"name": "viscous_damping", "parameters": {"angular": 300.9, "linear": 148.7},
-              "parameters_std": {"angular": 1.0, "linear": 3.2}, "plausible": True}
-    rigid = _partial_result(undetermined=())
-    rigid.validation = Validation("model_error", (Check("segments", 9.0, 1.0, False, "apart"),), failed=("segments",))
-    again = _partial_result(undetermined=())
-    again.validation = Validation("ok", ())
-    J = np.eye(3)
-    d = Diagnosis(True, [effect], {}, {}, {}, J, J, np.ones(6), np.ones(6), [], (0.4, 3.0), "pem",
-                  alternatives=[Combination([effect], {}, None, None, J, None, 0.0, 5000.0, 2, -4980.0,
-                                            (("viscous_damping", ""),))])
-    monkeypatch.setattr(pipeline, "diagnose", lambda rec, **kw: d)
-    monkeypatch.setattr(pipeline, "corrected", lambda rec, applied: rec)
-    monkeypatch.setattr(pipeline, "identify_recording", lambda rec, **kw: again)
-    out = pipeline.with_diagnosis(SimpleNamespace(rig=SimpleNamespace(exciter=None), sensors=None), rigid)
-    line = next(w for w in out.warnings if w.startswith("model error diagnosed: "))
-    assert "viscous_damping (angular = 300.9 ± 1 N·m·s/rad, linear = 148.7 ± 3.2 N·s/m)" in line, line
-    assert effect_text(effect) in line
-    # a combination whose fit no longer determines the tensor is not named, and the reason says
-    # that (not "not physically plausible", not a failed consistency check)
-    monkeypatch.setattr(pipeline, "identify_recording", lambda rec, **kw: _partial_result())
-    out = pipeline.with_diagnosis(SimpleNamespace(rig=SimpleNamespace(exciter=None), sensors=None), rigid)
-    assert out is rigid and not any(w.startswith("model error diagnosed: ") for w in out.warnings)
-    why = out.diagnosis["combinations_tried"][0]["not_named"]
-    assert why == "the fit with it does not determine the tensor (not_identifiable: identifiable, iyy, ixy, iyz)", why
-
-
-def test_diagnose_prints_the_rigid_body_fit_of_inertia(monkeypatch, json_run):
-    """diagnose --model pem: its rigid-body fit is rig-identify inertia --quick --no-diagnose's, number for number
-    (the effect search itself is test_diagnose's: stubbed here)."""
-    from rig_identification.diagnosis.result import Diagnosis
-    J = np.eye(3)
-
-    def stub(rec, model="pem", cg_free=False):
-        return Diagnosis(False, [], {}, {}, {}, J, J, np.ones(6), np.ones(6), [], (0.5, 3.0), model)
-    monkeypatch.setattr(cli_diagnose, "diagnose", stub)
-    code, out, err = run("diagnose", CLEAN, "--model", "pem", "--json", "-q")
-    assert code == 0, err
-    d = json.loads(out)
-    rb = d["rigid_body_fit"]
-    assert rb["inertia_about_cg"] == json_run[0]["inertia_about_cg"]
-    assert rb["as"] == "rig-identify inertia --quick --no-diagnose" and rb["verdict"] == "ok"
-    # a schema, and a unit for every numeric field; each tensor says which fit it is
-    assert d["schema"] == "rig_identification.diagnosis_result" and d["schema_version"] == 1
-    def numbers(v):   # a number, or a list / dict of numbers
-        vals = list(v.values()) if isinstance(v, dict) else v if isinstance(v, list) else [v]
-        return len(vals) > 0 and all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in vals)
-    numeric = [k for k, v in d.items() if k != "schema_version" and v is not None and numbers(v)]
-    assert numeric and all(k in d["units"] for k in numeric), [k for k in numeric if k not in d["units"]]
-    assert set(d["fits"]) == {"rigid_body_fit", "inertia_about_cg_before", "inertia_about_cg_after"}
-
-
-def test_diagnose_json_gives_the_units_of_every_effect_parameter():
-    from rig_identification.report.diagnosis import diagnosis_json
-    d = diagnosis_json({"effects": [{"name": "viscous_damping", "parameters": {"angular": 300.9, "linear": 148.7}}],
-                        "candidates": [{"name": "sensor_delay"}, {"name": "viscous_damping"}],
-                        "inertia_about_cg_before": {}})
-    assert d["units"]["effects.parameters"] == {"viscous_damping": {"angular": "N·m·s/rad", "linear": "N·s/m"},
-                                                "sensor_delay": {"delay": "s"}}
-    assert "not a result to quote" in d["fits"]["inertia_about_cg_before"] and "rigid_body_fit" not in d["fits"]
-
-
 def test_version_and_help(capsys):
     with pytest.raises(SystemExit) as e:
         identify_main(["--version"])
@@ -433,7 +355,7 @@ def test_core_log_records_become_steps_and_warnings():
             printer.finish()                    # as the commands do before their output
             printer.warn_rest(["gap in /rig/imu", "another"])
         with attached(quiet=True) as printer:
-            logging.getLogger("rig_identification.diagnosis.selection").info("selection step 1")
+            logging.getLogger("rig_identification.diagnosis.rig_diagnosis").info("selection step 1")
         with attached(quiet=True) as printer:
             heading("a stage")
     lines = err.getvalue().splitlines()
@@ -443,22 +365,6 @@ def test_core_log_records_become_steps_and_warnings():
     assert lines[2].startswith("rig-identify: tracking the pose … ") and lines[2].endswith(" s")   # closed
     assert lines[3].startswith("rig-identify: fitting … ") and lines[3].endswith(" s")
     assert lines[4:] == ["warning: another"]                      # quiet: no step line
-
-
-def test_the_rigid_body_fit_beside_a_diagnosed_one_says_which_command_gives_it():
-    """inertia's rigid-body line names its command (--no-diagnose), diagnose's names its own
-    (--quick --no-diagnose): the two tensors printed for one recording are told apart."""
-    from types import SimpleNamespace
-
-    from rig_identification.cli.inertia import diagnosis_lines
-    effect = {"name": "viscous_damping", "parameters": {"angular": 300.9, "linear": 148.7},
-              "parameters_std": {"angular": 1.0, "linear": 3.2}}
-    r = SimpleNamespace(diagnosis={"effects": [effect], "handled": "added to the model"},
-                        rigid_body={"inertia_about_cg": dict(zip(ORDER, [2901.7, 698.0, 3200.4, -1.3, -5.2, -101.3])),
-                                    "validation": "model_error"})
-    first = diagnosis_lines(r)[0]
-    assert "rigid-body fit (as rig-identify inertia --no-diagnose; verdict model_error): ixx 2901.70" in first, first
-    assert cli_diagnose.same_as("pem") == "rig-identify inertia --quick --no-diagnose"
 
 
 def test_rig_sim_help_is_quick_and_the_simulation_says_what_it_does(tmp_path, capsys):

@@ -40,8 +40,7 @@ def _identified(name: str):
 
 # the longest first
 background("reference_cli", __file__, _cli, {
-    "diagnosed": ("visible_case16_damped", True, "--model", "pem", "--json", "--end", "60"),
-    "no_diagnose": ("visible_case16_damped", False, "--json", "--end", "60", "--no-diagnose"),
+    "rigid_body": ("visible_case16_damped", False, "--model", "pem", "--json", "--end", "60"),
     "json_keys": ("visible_case14_clean", False, "--model", "pem", "--json", "--end", "60"),
 })
 background("reference_identified", __file__, _identified,
@@ -83,10 +82,10 @@ def test_identify_reference_recording(name):
 
 @pytest.fixture(scope="module")
 def damped_rigid_body():
-    """`rig-identify inertia --no-diagnose --json` on the first 60 s of the damped reference
-    recording: the rigid-body fit."""
+    """`rig-identify inertia --model pem --json` on the first 60 s of the damped reference
+    recording: the gyro-only rigid-body fit."""
     rec = read_recording(recording("visible_case16_damped"))
-    code, stdout, stderr, _ = gather("reference_cli", "no_diagnose")["no_diagnose"]
+    code, stdout, stderr, _ = gather("reference_cli", "rigid_body")["rigid_body"]
     assert code == 0, stderr
     return rec, json.loads(stdout)
 
@@ -106,46 +105,6 @@ def test_model_error_falls_back_to_the_residuals(damped_rigid_body):
     assert any("MODEL ERROR" in w for w in d["warnings"]) and "diagnosis" not in d
     tru = rec.truth["inertia_about_cg"]
     assert all(abs(d["inertia_about_cg"][k] - tru[k]) < 3.0 * d["inertia_std"][k] for k in KEYS), d
-
-
-def test_cli_inertia_diagnoses_model_error(damped_rigid_body):
-    """`rig-identify inertia` on the damped reference recording: the rigid-body fit shows
-    model error, so the recording is diagnosed and the tensor of the fit with the damping
-    is reported — within 0.5 % (products: of the largest diagonal) and 3 σ, where the
-    rigid-body fit is off by ~2 % on Izz; the rigid-body fit stays in the JSON, and the
-    report says what was added.  First 60 s (the whole recording: bench figures in the
-    README)."""
-    rec, rigid = damped_rigid_body
-    code, stdout, stderr, page = gather("reference_cli", "diagnosed")["diagnosed"]
-    assert code == 0, stderr
-    d = json.loads(stdout)
-    tru = rec.truth["inertia_about_cg"]
-    big = max(tru["ixx"], tru["iyy"], tru["izz"])
-    assert [e["name"] for e in d["diagnosis"]["effects"]] == ["viscous_damping"]
-    # its parameters carry their units in the JSON too
-    assert d["diagnosis"]["effects"][0]["units"] == {"angular": "N·m·s/rad", "linear": "N·s/m"}
-    assert set(d["diagnosis"]["effects"][0]["parameters"]) <= set(d["diagnosis"]["effects"][0]["units"])
-    # the fit with the damping passes the same validation as every fit
-    assert d["validation"]["verdict"] == "ok", d["validation"]["summary"]
-    # ... and the verdict says which model it validated: not the rigid body's alone
-    assert d["validation"]["model"] == "the rigid-body model with viscous_damping"
-    assert d["validation"]["summary"].startswith("verdict: ok — the rigid-body model with viscous_damping explains")
-    for k in KEYS:
-        ref = abs(tru[k]) if k in ("ixx", "iyy", "izz") else big
-        err = d["inertia_about_cg"][k] - tru[k]
-        assert abs(err) < 0.005 * ref and abs(err) < 3 * d["inertia_std"][k], (k, d["inertia_about_cg"][k], tru[k])
-    assert abs(d["rigid_body"]["inertia_about_cg"]["izz"] / tru["izz"] - 1) > 0.01
-    said = next(w for w in d["warnings"] if "model error diagnosed: " in w)
-    e = d["diagnosis"]["effects"][0]
-    if e.get("told_apart", True):
-        assert "model error diagnosed: viscous_damping" in said, said
-    else:   # one forcing amplitude: the damping named by its class, modelled as viscous, what tells them apart said
-        assert "model error diagnosed: velocity-dependent damping: " in said and "modelled as viscous_damping" in said
-        assert "viscous_damping" in e["candidates"] and "second forcing amplitude" in said, said
-    assert page is not None, "no index.html in the report folder"
-    assert "Model error: what diagnosis found" in page and "viscous_damping" in page
-    # --no-diagnose: the rigid-body fit, as before
-    assert rigid["inertia_about_cg"] == d["rigid_body"]["inertia_about_cg"]
 
 
 def test_cli_json_keys():

@@ -4,8 +4,8 @@
 The pages are rendered in headless Chromium (Debian's ``chromium``, installed by ``make setup``
 when run as root) and checked there, on what a reader sees: every figure loads, no ``nan`` or
 ``inf`` anywhere in the text, the validation verdict comes before the tensor, an entry the
-recording does not determine reads "not determined", the model-error sections render (named
-effects; or where the mismatch is and the hypotheses, labelled as such).  One page comes from a
+recording does not determine reads "not determined", a model error reads "not trustworthy" and
+sends the reader to ``rig-identify diagnose``.  One page comes from a
 real identification of a reference recording (its numbers checked against the truth); the
 others from one small in-memory fit dressed with each verdict (no simulation).  The folder is
 written atomically and never replaces a foreign folder.
@@ -88,10 +88,6 @@ def fitted():
     return identify_inertia(RIG, t, w, M, band_hz=(0.5, 5.0))
 
 
-RIGID = {"inertia_about_cg": {"ixx": 905.0, "ixy": -14.0, "ixz": 38.0, "iyy": 2490.0, "iyz": 27.0, "izz": 2870.0},
-         "inertia_std": {k: 30.0 for k in KEYS}, "uncertainty": "sandwich (model error)", "validation": "model_error"}
-
-
 def not_identifiable(res: InertiaResult) -> InertiaResult:
     """The fit with verdict not_identifiable: Ixx and the products with x undetermined (their σ
     not finite, as a failed fit leaves them)."""
@@ -107,40 +103,14 @@ def not_identifiable(res: InertiaResult) -> InertiaResult:
     return r
 
 
-def model_error_unexplained(res: InertiaResult) -> InertiaResult:
-    """The fit with verdict model_error, and a diagnosis that named nothing."""
+def model_error(res: InertiaResult) -> InertiaResult:
+    """The fit with verdict model_error, σ the residuals' (no propagated-noise σ)."""
     r = copy.deepcopy(res)
+    r.crb_std = None
     r.validation = Validation("model_error", (
         Check("residual_level", 4.2, 1.6, False, "the fit's residual is 4.20× what the sensors' noise explains"),
         Check("sub_bands", 25.0, 7.5, False, "izz 2790 below vs 2850 kg·m² above")), failed=("residual_level",
                                                                                           "sub_bands"))
-    r.rigid_body = RIGID
-    r.diagnosis = {
-        "effects": [], "handled": "not: with structural_mode the fit still fails its validation (sub_bands)",
-        "hypotheses": [{"name": "structural_mode", "parameters": {"sensor": "imu", "frequency": 1.6,
-                                                                   "damping_ratio": 0.2},
-                        "parameters_std": {"frequency": 0.02, "damping_ratio": float("nan")},
-                        "evidence": {"likelihood_ratio": 88.2, "dof": 3, "p_value": 1e-12}, "plausible": False,
-                        "implausible": "frequency = 1.6 outside 5…20"}],
-        "unexplained": [{"channel": "gyro_y", "band_hz": [1.55, 1.65], "time_s": [0.0, 30.0], "size": 37.5,
-                         "is": "unexplained (no rigid-body mode or forcing harmonic)"},
-                        {"channel": "torque_x", "band_hz": None, "time_s": [9.0, 12.0], "size": 12.3,
-                         "is": "a coloured residual (not white)"}]}
-    return r
-
-
-def diagnosed(res: InertiaResult) -> InertiaResult:
-    """The fit as diagnosis leaves it when it named an effect: verdict ok, the effect's
-    parameters, the rigid-body fit beside, no propagated-noise σ."""
-    r = copy.deepcopy(res)
-    r.crb_std = None
-    r.validation = Validation("ok", (Check("residual_level", 1.1, 1.6, True, "1.10× the noise"),))
-    r.rigid_body = RIGID
-    r.diagnosis = {"effects": [{"name": "viscous_damping", "parameters": {"angular": 300.47, "linear": 145.01},
-                                "parameters_std": {"angular": 1.469, "linear": 3.50},
-                                "evidence": {"likelihood_ratio": 1216.3, "dof": 2, "p_value": 7.7e-265},
-                                "plausible": True}],
-                   "hypotheses": [], "unexplained": [], "handled": "added to the model"}
     return r
 
 
@@ -160,8 +130,8 @@ def pages(fitted, tmp_path_factory):
     """The in-memory pages: {name: (folder, result, what Chromium saw)}."""
     base = tmp_path_factory.mktemp("pages")
     out = {}
-    for name, res in (("not_identifiable", not_identifiable(fitted)), ("model_error", model_error_unexplained(fitted)),
-                      ("diagnosed", diagnosed(fitted)), ("failed", failed_fit())):
+    for name, res in (("not_identifiable", not_identifiable(fitted)), ("model_error", model_error(fitted)),
+                      ("failed", failed_fit())):
         folder = base / name
         report.write_report(folder, res, [], modes=False, rig=RIG)
         out[name] = (folder, res, render(folder, base / "render"))
@@ -243,35 +213,19 @@ def test_not_identifiable_entries_read_not_determined(pages):
     assert "No fit output" in seen["text"]
 
 
-def test_model_error_shows_where_and_hypotheses(pages):
+def test_model_error_is_said_untrusted_and_sends_to_diagnose(pages):
     out, res, seen = pages["model_error"]
     assert_readable(out, seen, res)
     assert "not trustworthy" in seen["verdict"] and "widened" in seen["verdict"]
+    assert "rig-identify diagnose" in seen["verdict"]
     assert [r[4] for r in seen["checks"]] == ["FAIL", "FAIL"]
-    ids = seen["ids"]
-    assert ids.index("unexplained-table") < ids.index("hypotheses-table")
-    text = seen["text"]
-    assert "Hypotheses — not findings" in text and "Model error: not explained" in text
-    assert "gyro_y" in text and "1.55–1.65" in text and "RMS 12.3 N·m" in text
-    assert "frequency = 1.600 ± 0.020 Hz" in text and "not plausible" in text
-    assert "what diagnosis found" not in text
-
-
-def test_diagnosed_effects_are_findings(pages):
-    out, res, seen = pages["diagnosed"]
-    assert_readable(out, seen, res)
-    assert "Diagnosis found viscous damping" in seen["verdict"]
-    assert {"effects-table", "rigid-body-table"} <= set(seen["ids"]) and "hypotheses-table" not in seen["ids"]
-    text = seen["text"]
-    assert "angular = 300.5 ± 1.5 N·m·s/rad" in text and "linear = 145.0 ± 3.5 N·s/m" in text
-    assert "passed its validation" in text
     # no propagated-noise σ for this fit: its column is left out, not filled with nan
-    assert len(seen["tensor"][0]) == 5 and "σ propagated" not in text
+    assert len(seen["tensor"][0]) == 5 and "σ propagated" not in seen["text"]
 
 
 def test_report_folder_is_atomic(pages, fitted, tmp_path, monkeypatch):
     out = tmp_path / "rep"
-    shutil.copytree(pages["diagnosed"][0], out)         # an earlier report
+    shutil.copytree(pages["model_error"][0], out)       # an earlier report
     before = {p.name: p.read_bytes() for p in out.iterdir()}
     assert {"index.html", "report.json", "ellipses.png", "principal_axes.png", "fit_1.png",
             "residuals_1.png"} <= set(before)

@@ -321,7 +321,7 @@ def test_the_rig_model_takes_one_recording_and_none_of_the_gyro_fits_options():
     rec = recording("visible_case16_clean")
     code, _, err = run_cli("inertia", rec, rec, "--model", "rig")
     assert code == 2 and "--model rig fits one recording" in err
-    for opts in (["--quick"], ["--band", "0.5", "3"], ["--target", "2"], ["--no-diagnose"]):
+    for opts in (["--quick"], ["--band", "0.5", "3"], ["--target", "2"]):
         code, _, err = run_cli("inertia", rec, "--model", "rig", *opts)
         assert code == 2 and f"{opts[0]}: options of --model pem" in err, (opts, err)
     parse = build_parser(["inertia"]).parse_args

@@ -37,29 +37,21 @@ from rig_identification.estimation.validation import (
 from rig_identification.io.recording import Recording
 from rig_identification.io.verdict import KEYS, Validation
 from rig_identification.model.parametrisation import from_tensor
-from rig_identification.pipeline.offline import identify_recording, with_diagnosis
+from rig_identification.pipeline.offline import identify_recording
 
 DURATION = 45.0
 
 
-def _identify(seed, cables=4, layout="wide", effects=(), duration=DURATION, diagnose=False):
-    """Job: simulate a random rig, identify it (and diagnose under model error).  Returns
-    (truth, rigid-body result, result)."""
+def _identify(seed, cables=4, layout="wide", effects=(), duration=DURATION):
+    """Job: simulate a random rig and identify it with the gyro-only fit.  Returns (truth, result)."""
     _, sim = simulate_random(seed, cables, layout, list(effects), duration)
-    rec = Recording(sim.rig, sim.sensors, sim.truth, None)
-    res = identify_recording(rec)
-    rigid = res
-    if diagnose:
-        res = with_diagnosis(rec, res)
-    return sim.truth, rigid, res
+    return sim.truth, identify_recording(Recording(sim.rig, sim.sensors, sim.truth, None))
 
 
 # the longest first
 background("validation", __file__, _identify, {
-    "compliant": (7700, 4, "wide", [{"name": "compliant_body", "mass_share": 0.68, "frequencies": [1.6, 1.3, 2.2],
-                                     "damping_ratio": 0.2}], DURATION, True),
     "parallel": (3100, 4, "parallel"),
-    "damped": (8200, 4, "wide", [{"name": "viscous_damping", "linear": 150.0, "angular": 300.0}], DURATION, True),
+    "damped": (8200, 4, "wide", [{"name": "viscous_damping", "linear": 150.0, "angular": 300.0}], DURATION),
     "clean": (101,),
 })
 
@@ -89,7 +81,7 @@ def clean():
 
 
 def test_clean_rig_is_ok_and_within_three_sigma(clean):
-    truth, _, res = clean
+    truth, res = clean
     v = res.validation
     assert isinstance(v, Validation) and v.verdict == "ok", v.summary
     assert all(c.passed is not False for c in v.checks), [(c.name, c.detail) for c in v.checks]
@@ -106,7 +98,7 @@ def test_near_parallel_cables_are_not_identifiable():
     """2 cm of splay over the cable length: roll and pitch ride on the cables' stretch and the
     recording does not determine them — verdict not_identifiable, those entries null, advice
     to splay the cables, and never a non-finite number."""
-    truth, _, res = gather("validation", "parallel")["parallel"]
+    truth, res = gather("validation", "parallel")["parallel"]
     v = res.validation
     assert v.verdict == "not_identifiable", v.summary
     assert {"ixx", "iyy"} <= set(v.undetermined)
@@ -138,34 +130,14 @@ def damped():
     return gather("validation", "damped")["damped"]
 
 
-def test_unmodelled_damping_is_model_error_then_named_and_validated(damped):
-    truth, rigid, res = damped
+def test_unmodelled_damping_is_model_error(damped):
+    """Damping the gyro-only model leaves out: its verdict is model_error, and its σ is widened
+    beyond what the noise alone gives (the rig model's diagnosis names the damping:
+    test_rig_diagnosis)."""
+    _, rigid = damped
     assert rigid.validation.verdict == "model_error", rigid.validation.summary
-    # the rigid-body fit is off, and its σ widened beyond what the noise says
     assert np.all(rigid.inertia_std >= rigid.crb_std)
-    assert res.diagnosis is not None and [e["name"] for e in res.diagnosis["effects"]] == ["viscous_damping"]
-    assert res.validation.verdict == "ok", res.validation.summary
-    # honest: every entry within 3 σ (this rig's roll is weakly excited: Ixx's σ is several per
-    # cent), and the entries the damping moved most brought back
-    before, after = _errors(rigid, truth), _errors(res, truth)
-    for k, (pct, z) in after.items():
-        assert abs(z) < 3.0, (k, pct, z)
-    worst = max(before, key=lambda k: abs(before[k][0]))
-    assert abs(after[worst][0]) < 0.5 * abs(before[worst][0]), (worst, before[worst], after[worst])
-    par = res.diagnosis["effects"][0]["parameters"]
-    assert par["angular"] == pytest.approx(300.0, rel=0.15)
-
-
-def test_physics_outside_the_library_is_not_given_a_name():
-    """A sprung body on its unlocked suspension (not rigid): the rigid-body fit's verdict is
-    model_error, and diagnosis names no effect of its library (none is a compliant body) —
-    the result says where the mismatch is and keeps the rigid-body fit, σ widened."""
-    _, rigid, res = gather("validation", "compliant")["compliant"]
-    assert rigid.validation.verdict != "ok", rigid.validation.summary
-    assert res.validation.verdict != "ok"
-    if res.diagnosis is not None:
-        assert res.diagnosis["effects"] == [] or all(
-            e["name"] == "compliant_body" for e in res.diagnosis["effects"]), res.diagnosis["effects"]
+    assert np.any(rigid.inertia_std > 1.5 * rigid.crb_std), rigid.inertia_std / rigid.crb_std
 
 
 def test_chi2_check_widens_sigma_between_significance_and_failure():
@@ -188,7 +160,7 @@ def test_missed_noise_is_the_propagated_covariance_beyond_the_frequency_domain_o
     per-entry factor √(C_ii / V_ii) used before left such a direction short: bench_any_rig's
     seed 21008, a false segments alarm), a direction where the propagated covariance is below
     V gets none (never narrower), and no propagated covariance means none."""
-    _, _, res = clean
+    _, res = clean
     series = [s for s in res.series if s.jacobian is not None]
     _, V = wls_step_joint([spectra(s) for s in series])
     V = 0.5 * (V + V.T)
@@ -238,7 +210,7 @@ def test_input_correlation_fails_only_when_the_misfit_moves_the_tensor(clean, da
     the truth; a misfit in one bin that fails the regression's χ² passes when it moves
     nothing; the band-wide one fails before it moves the tensor 3 σ; the unmodelled damping
     of the damped rig fails."""
-    truth, _, res = clean
+    truth, res = clean
     tru = np.array([truth["inertia_about_cg"][k] for k in KEYS])
     theta, sig = from_tensor(res.inertia), np.asarray(res.crb_std)
     s = next(x for x in res.series if x.jacobian is not None)
@@ -263,7 +235,7 @@ def test_input_correlation_fails_only_when_the_misfit_moves_the_tensor(clean, da
                 broad_fail.append(c.passed is False)
     assert any(shape == "bin" for shape, _ in judged_by_tensor), judged_by_tensor
     assert broad_fail and all(broad_fail)
-    _, rigid, _ = damped
+    _, rigid = damped
     c = next(c for c in rigid.validation.checks if c.name == "input_correlation")
     assert c.passed is False and "Hausman" in c.detail, c.detail
 

@@ -8,7 +8,7 @@ whose output this module prints, in this order: the verdict
 window, the tensor about the CG with σ (and the truth when truth.yaml is there), the products
 of inertia with the vehicle-dynamics sign, the principal moments and axes, the tensor about the
 body frame's origin, what σ is, the precision against ``--target``
-(:mod:`~rig_identification.estimation.precision`), the diagnosis, the bias correction, the
+(:mod:`~rig_identification.estimation.precision`), the bias correction, the
 validation's checks and the most weakly determined combination.  ``--json`` prints
 :meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`
 instead; ``--urdf`` adds a URDF ``<inertial>`` element and ``--yaml FILE`` writes
@@ -25,7 +25,6 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from ..diagnosis.distinguish import effect_name
 from ..estimation.identification import IdentificationError
 from ..estimation.inertia_result import InertiaResult
 from ..io.atomic import atomic_write_text
@@ -52,7 +51,6 @@ from ..pipeline.offline import (
     identify_recordings,
     recording_labels,
     with_cg_uncertainty,
-    with_diagnosis,
 )
 from ..report.page import ReportError, check_report_dir, common_truth, write_report
 from ..statics.handover import load_cg_result
@@ -61,7 +59,6 @@ from .progress import heading, step, warn
 from .rig_model import cmd_rig_model, job_of
 from .text import (
     TABLE_CAPTION,
-    effect_text,
     entries_line,
     fmt,
     origin_line,
@@ -88,35 +85,6 @@ def window_line(result: InertiaResult, t0: float) -> str:
     return (f"window: {result.t_start - t0:.1f}–{result.t_end - t0:.1f} s from the first IMU sample "
             f"({result.t_end - result.t_start:.1f} s, {result.n_samples} samples); "
             f"band {fmt(result.band_hz[0])}–{fmt(result.band_hz[1])} Hz")
-
-
-def diagnosis_lines(result: InertiaResult) -> list[str]:
-    """What the diagnosis of a model error found (effects with units), or where the mismatch is."""
-    dg = result.diagnosis
-    rb = result.rigid_body or {}
-    rigid = entries_line(rb.get("inertia_about_cg", {}))
-    if dg["effects"]:
-        lines = [f"model error diagnosed ({dg['handled']}); the tensor above is the fit with it, validated; "
-                 f"rigid-body fit (as rig-identify inertia --no-diagnose; verdict {rb.get('validation')}): "
-                 f"{rigid} kg·m²"]
-        for e in dg["effects"]:
-            if e.get("told_apart", True):
-                lines.append(f"  effect {e['name']}: {effect_text(e)}")
-            else:
-                lines += [f"  effect class {effect_name(e)}; modelled as {e['name']}: {effect_text(e)}",
-                          f"  what would tell them apart: {e['tells_apart']}"]
-        return lines
-    lines = ["model error NOT explained (" + dg["handled"].removeprefix("not: ") + "); the tensor above is the "
-             "rigid-body fit's, σ widened"]
-    for u in dg.get("unexplained", []):
-        band = "" if u["band_hz"] is None else f" {u['band_hz'][0]:.2f}–{u['band_hz'][1]:.2f} Hz"
-        lines.append(f"  unexplained: {u['channel']}{band}, t = {u['time_s'][0]:.0f}–{u['time_s'][1]:.0f} s, "
-                     f"size {fmt(u['size'], '.3g')} ({u['is']})")
-    for e in dg.get("hypotheses", []):
-        what = effect_text(e) if e["parameters"] else e["implausible"]   # an unfitted one: why
-        lines.append(f"  hypothesis (not a finding): {e['name']}: {what}")
-    lines += [f"advice: {e['advice']}" for e in dg.get("hypotheses", []) if e.get("advice")]
-    return lines
 
 
 #: what σ leaves out, said with every tensor (a CG error moves the tensor: the tutorial's step 6)
@@ -147,8 +115,8 @@ def std_line(result: InertiaResult) -> str:
     return f"σ: from the fit's residuals (sandwich): they exceed what the sensors' noise ({noise}) explains"
 
 
-BRIEF_TAIL = ("(-q: the short result; without -q also the tensor entries, principal axes, σ's source, the "
-              "diagnosis and every check; --json gives everything)")
+BRIEF_TAIL = ("(-q: the short result; without -q also the tensor entries, principal axes, σ's source and "
+              "every check; --json gives everything)")
 
 
 def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: list[float], axes: str | Axes,
@@ -193,9 +161,6 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
     print(std_line(result))
     print(result.precision.text())
     print(GIVEN_EXACT if result.cg_contribution_std is None else cg_in_sigma_line(result))
-    if result.diagnosis is not None:
-        for line in diagnosis_lines(result):
-            print(line)
     eiv = result.errors_in_variables
     if eiv is not None:
         print(f"noise in the fit's input (errors in variables): {100 * min(eiv.share, 9.99):.3g} % of it along its "
@@ -272,8 +237,7 @@ def output_axes(option: str | None, recs: list) -> tuple[Axes, list[str]]:
 
 
 #: The options only the gyro-only prediction-error fit (--model pem or thesis) takes.
-PEM_ONLY = (("band", "--band"), ("initial_guess", "--initial-guess"), ("target", "--target"),
-            ("no_diagnose", "--no-diagnose"))
+PEM_ONLY = (("band", "--band"), ("initial_guess", "--initial-guess"), ("target", "--target"))
 
 
 def resolve_model(args) -> str:
@@ -319,9 +283,8 @@ def check_options(args) -> None:
             raise IdentificationError(f"{flag}: one line of text, not {text!r}")
 
 
-def identify(args, recs: list, cg_cov: np.ndarray | None = None) -> InertiaResult:
-    """The fit the options ask for (one recording or a joint fit; diagnosis of a model error,
-    with the CG a candidate error within its σ ``cg_cov`` (3, 3) m² when ``--cg`` gave one)."""
+def identify(args, recs: list) -> InertiaResult:
+    """The fit the options ask for (one recording or a joint fit)."""
     band = tuple(args.band) if args.band else None
     refine = not args.quick
     what = "tracker, preprocessor, fit" + (", σ from replays with fresh noise" if refine and args.model == "pem"
@@ -330,21 +293,16 @@ def identify(args, recs: list, cg_cov: np.ndarray | None = None) -> InertiaResul
     if len(recs) > 1:
         return identify_recordings(recs, start=args.start, end=args.end, band_hz=band, refine=refine)
     guess = None if args.initial_guess is None else entries_from_option(args.initial_guess)
-    result = identify_recording(recs[0], start=args.start, end=args.end, band_hz=band, model=args.model,
-                                initial_guess=guess, refine=refine)
-    if args.model == "pem" and refine and not args.no_diagnose:
-        if result.validation is not None and result.validation.verdict != "ok":
-            heading("model error: diagnosing it (rig-identify diagnose), then identifying again with what it names")
-        result = with_diagnosis(recs[0], result, args.start, args.end, band, cg_covariance=cg_cov)
-    return result
+    return identify_recording(recs[0], start=args.start, end=args.end, band_hz=band, model=args.model,
+                              initial_guess=guess, refine=refine)
 
 
 def cg_uncertainty(args, recs: list, result: InertiaResult, cg_cov: np.ndarray) -> InertiaResult:
     """The CG's σ (from ``--cg``) carried into the tensor's
-    (:func:`~rig_identification.pipeline.offline.with_cg_uncertainty`) for a single recording
-    whose fit no diagnosed effect changed; otherwise a warning that it is not."""
-    if len(recs) > 1 or (result.diagnosis or {}).get("effects"):
-        result.warnings.append("the CG's σ is not carried into the tensor's σ for a joint or diagnosed fit: "
+    (:func:`~rig_identification.pipeline.offline.with_cg_uncertainty`) for a single recording;
+    for a joint fit a warning that it is not."""
+    if len(recs) > 1:
+        result.warnings.append("the CG's σ is not carried into the tensor's σ for a joint fit: "
                                "σ leaves the CG's error out")
         return result
     heading("carrying the CG's σ into the tensor's (the tensor refitted with the CG ±1 σ)")
@@ -369,7 +327,7 @@ def cmd_inertia(args) -> int:
     axes, axes_notes = output_axes(args.axes, recs)
     for note in axes_notes:
         warn(note)
-    result = identify(args, recs, cg_cov)
+    result = identify(args, recs)
     if cg_cov is not None:
         result = cg_uncertainty(args, recs, result, cg_cov)
     result.precision_target = (1.0 if args.target is None else args.target) / 100

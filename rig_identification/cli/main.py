@@ -124,13 +124,13 @@ def add_inertia_parser(sub) -> None:
                    help="rig (default for one recording): the rig's grey-box model fitted to every sensor (tensions, "
                         "gyro, accelerometer, inclinometer), the CG and mass with the tensor, σ against the "
                         "Cramér–Rao bound; pem (default for --quick and for several recordings, fitted jointly): the "
-                        "gyro-only prediction-error fit, the tensions as its input, with the diagnosis of a model "
-                        "error; thesis: the thesis's model and estimator, as a baseline")
+                        "gyro-only prediction-error fit, the tensions as its input (no diagnosis: rig-identify "
+                        "diagnose is the rig model's); thesis: the thesis's model and estimator, as a baseline")
     p.add_argument("--initial-guess", type=float, nargs=6, metavar=TENSOR,
                    help="starting tensor for --model thesis: " + TENSOR_HELP)
     p.add_argument("--quick", action="store_true",
                    help="the plain gyro-only fit (--model pem): not compensated for the noise in its input, σ from "
-                        "the fit's residuals (sandwich), no diagnosis; seconds (docs/results.md)")
+                        "the fit's residuals (sandwich); seconds (docs/results.md)")
     p.add_argument("--cg", metavar="CG.json",
                    help="take the centre of gravity from a saved 'rig-identify cg --json' result instead of "
                         "rig.yaml's body.center_of_gravity")
@@ -139,10 +139,6 @@ def add_inertia_parser(sub) -> None:
                         "largest moment for a product; default 1): the output says which entries fall short of it and "
                         "how long a recording would reach it (the rig model holds every entry to ±1 %%: short of it, "
                         "not_identifiable)")
-    p.add_argument("--no-diagnose", action="store_true",
-                   help="--model pem: report the rigid-body fit even when its residual shows model error (by default "
-                        "one recording with model error is diagnosed, as rig-identify diagnose, and the tensor of the "
-                        "fit with the physics found is reported)")
 
 
 def add_diagnose_parser(sub) -> None:
@@ -158,26 +154,14 @@ def add_diagnose_parser(sub) -> None:
                      output_dirs=("report",))
     dp.add_argument("recording", help="recording folder (rig.yaml + bag/)")
     dp.add_argument("--json", action="store_true",
-                    help="print one JSON object (the rig model: rig-identify inertia's, schema "
-                         "rig_identification.rig_model_result; --model pem/thesis: "
-                         "rig_identification.diagnosis_result)")
+                    help="print one JSON object (rig-identify inertia's, schema "
+                         "rig_identification.rig_model_result)")
     add_report_options(dp)
     dp.add_argument("--cg", metavar="CG.json",
-                    help="the rig model: the centre of gravity's prior from a saved 'rig-identify cg --json' result "
+                    help="the centre of gravity's prior from a saved 'rig-identify cg --json' result "
                          "(its σ) instead of rig.yaml's")
-    dp.add_argument("--start", type=float, metavar="S", help="the rig model: window start, s from the first IMU sample")
-    dp.add_argument("--end", type=float, metavar="S", help="the rig model: window end, s from the first IMU sample")
-    dp.add_argument("--model", choices=["rig", "pem", "thesis"], default="rig",
-                    help="rig (default): the rig model's diagnosis, every sensor an output; pem: the gyro-only "
-                         "fit's effect library and likelihood-ratio selection (the tensions as its input); thesis: "
-                         "the same with the thesis's model without gyroscopic terms")
-    dp.add_argument("--cg-free", action="store_true",
-                    help="--model pem: screen rig.yaml's centre of gravity as a candidate error too (cg_offset: "
-                         "where the CG is known only roughly; the rig model fits the CG always)")
-    dp.add_argument("--two-body", action="store_true",
-                    help="--model pem, experimental: where the body may not be rigid (the rigid-body fit failed "
-                         "sub_bands and no effect explained it, or the exciter swept), fit a sprung body on its "
-                         "suspension (about a minute): its modes as a hypothesis, never a tensor")
+    dp.add_argument("--start", type=float, metavar="S", help="window start, s from the first IMU sample")
+    dp.add_argument("--end", type=float, metavar="S", help="window end, s from the first IMU sample")
 
 
 def add_plan_parser(sub) -> None:

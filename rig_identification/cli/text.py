@@ -1,7 +1,5 @@
 """Text blocks of the ``rig-identify`` printouts: the tensor table, the products, the principal
-axes, the tensor about the origin, effect parameters with their units
-(:func:`~rig_identification.io.export.effect_text`,
-the one text of them, also in the core's warnings: re-exported here).
+axes, the tensor about the origin.
 
 Undetermined entries print as "not determined", never as a number or ``nan``
 (:data:`~rig_identification.io.export.NOT_DETERMINED`).  Entry order everywhere:
@@ -13,35 +11,20 @@ from __future__ import annotations
 import numpy as np
 
 from ..io.export import (
-    EFFECT_UNITS,
     MOMENTS,
     NOT_DETERMINED,
     ORDER,
     PRODUCTS,
     VEHICLE_SIGN,
     Expressed,
-    effect_text,
-    value_text,
 )
-from ..io.verdict import KEYS, fmt_p
+from ..io.verdict import KEYS
 
 
 def fmt(x, spec: str = ".2f", width: int = 0) -> str:
     """A number, or "not determined" for None / not finite; right-aligned to ``width``."""
     text = NOT_DETERMINED if x is None or not np.isfinite(x) else format(float(x), spec)
     return f"{text:>{width}s}"
-
-
-def evidence_text(e: dict) -> str:
-    """The likelihood-ratio evidence of an effect: ``likelihood ratio 812.3 (p < 1e-300)``."""
-    ev = e["evidence"]
-    return f"likelihood ratio {ev['likelihood_ratio']:.1f} (p {p_text(ev['p_value'])})"
-
-
-def p_text(p: float) -> str:
-    """``= 0.012`` or ``< 1e-300`` (:func:`~rig_identification.io.verdict.fmt_p`)."""
-    s = fmt_p(p)
-    return s if s.startswith("<") else f"= {s}"
 
 
 #: The main table's caption: which convention its numbers are in (the one every main table uses).
@@ -134,5 +117,5 @@ def entries_line(d: dict, std: dict | None = None, spec: str = ".2f") -> str:
     return ", ".join(one(k) for k in ORDER if k in d)
 
 
-__all__ = ["EFFECT_UNITS", "effect_text", "entries_line", "evidence_text", "fmt", "origin_line", "p_text",
-           "principal_lines", "TABLE_CAPTION", "tensor_entries_line", "tensor_table", "value_text"]
+__all__ = ["entries_line", "fmt", "origin_line", "principal_lines", "TABLE_CAPTION", "tensor_entries_line",
+           "tensor_table"]

@@ -1,2 +1,2 @@
-"""Which physics the model is missing: the model extended by effect columns, the candidates,
-the residuals, the selection. Layer 3."""
+"""Which physics the rig model leaves out: its extensions tested, named where the recording
+tells them apart (:mod:`~rig_identification.diagnosis.rig_diagnosis`). Layer 3."""

@@ -1,5 +1,5 @@
 """The identified mass properties as data: :class:`InertiaResult` (the tensor, its σ and
-covariance, the fit's window, validation and diagnosis) with its JSON (:meth:`InertiaResult.to_dict`),
+covariance, the fit's window and validation) with its JSON (:meth:`InertiaResult.to_dict`),
 and :class:`FitSeries`, the fit's output over one segment.
 """
 from __future__ import annotations
@@ -19,7 +19,6 @@ from ..io.export import (
     convention_lines,
     express,
     finite_or_none,
-    with_effect_units,
 )
 from ..io.verdict import KEYS, Validation
 from ..model.parametrisation import from_tensor, physically_consistent
@@ -111,10 +110,6 @@ class InertiaResult:
     # rig.yaml's weight, − 1 (pipeline.weight_surplus)
     weight_surplus: float | None = None
     uncertainty: str = "sandwich"   # what inertia_std is: "sandwich", "propagated sensor noise", …
-    # filled by pipeline.with_diagnosis when the fit showed model error and diagnose named its
-    # cause: the rigid-body fit's tensor and σ, and the effects added (JSON of each)
-    rigid_body: dict[str, Any] | None = None
-    diagnosis: dict[str, Any] | None = None
     # filled by pipeline.identify_recording(s): the model validation's verdict and checks
     # (validation.validate); whether bias_correction was removed (it is not when the noise
     # dominates a direction of the input: then the compensation is impossible)
@@ -260,9 +255,7 @@ class InertiaResult:
             "fit_r2": [num(x) for x in self.fit_r2],
             "method": self.method,
             "warnings": list(self.warnings),
-        } | ({"rigid_body": self.rigid_body, "diagnosis": with_effect_units(self.diagnosis)}
-             if self.diagnosis is not None else {}) \
-          | ({"recordings": [{"label": s.label, "window": window(float(s.t[0]), float(s.t[-1]), len(s.t), o),
+        } | ({"recordings": [{"label": s.label, "window": window(float(s.t[0]), float(s.t[-1]), len(s.t), o),
                                "band_hz": [float(s.band_hz[0]), float(s.band_hz[1])],
                                "residual_rms_rad_s": [float(x) for x in np.sqrt(np.mean(s.residual**2, 0))]}
                               for s, o in zip(self.series, origins)]} if len(self.series) > 1 else {})

@@ -22,9 +22,8 @@ did not determine stay undetermined in everything derived from them: ``None`` in
 "not determined" in text; the principal moments need every entry.
 
 Exports: :func:`urdf_inertial` (a URDF ``<inertial>`` element) and :func:`yaml_text` (the
-YAML file of ``rig-identify inertia --yaml``).  Units: of the JSON's fields (:data:`UNITS`)
-and of the diagnosed effects' parameters (:data:`EFFECT_UNITS`, :func:`effect_text`: the one
-text of them, in the printouts and the core's warnings).  Pure numpy; no ROS.
+YAML file of ``rig-identify inertia --yaml``).  Units of the JSON's fields: :data:`UNITS`.
+Pure numpy; no ROS.
 """
 from __future__ import annotations
 
@@ -311,7 +310,6 @@ UNITS = {
     "correlation": "1", "weakly_determined.relative_std": "1: σ over tr J / 3", "weakly_determined.std": "kg·m²",
     "weakly_determined.direction": "1: unit vector of tensor entries (ixx..izz, Frobenius norm; 'combination' is the "
                                    "same direction in products of inertia with the vehicle-dynamics sign)",
-    "diagnosis.effects.parameters": "per effect: its 'units'",
     "window.start": "s from the recording's first IMU sample", "window.end": "s from the recording's first IMU sample",
     "window.start_stamp": "s, header stamps", "window.end_stamp": "s, header stamps", "band_hz": "Hz",
     "residual_rms_rad_s": "rad/s", "residual_excess": "1: residual RMS over the noise's", "fit_r2": "1",
@@ -331,71 +329,6 @@ UNITS = {
 }
 """Units of the fields of the inertia JSON (``"units"`` of
 :meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`)."""
-
-
-# --- effect parameters with their units ------------------------------------------------------------
-
-EFFECT_UNITS = {
-    "viscous_damping": {"angular": "N·m·s/rad", "linear": "N·s/m"},
-    "air_drag": {"angular": "N·m·s²/rad²", "linear": "N·s²/m²"},
-    "coulomb_friction": {"torque": "N·m", "force": "N", "velocity_scale": "rad/s or m/s"},
-    "cable_elasticity": {"stiffness": "N/m", "declared_stiffness": "N/m"},
-    "cable_mass": {"mass": "kg per cable"},
-    "body_mass": {"mass_error": "kg"},
-    "exciter_rotor": {"unbalance": "kg·m", "rotor_inertia": "kg·m²"},
-    "cg_offset": {"offset": "m, body axes"},
-    "imu_offset": {"offset": "m, body axes"},
-    "imu_misalignment": {"rpy": "rad"},
-    "sensor_delay": {"delay": "s"},
-    "gyro_bias": {"bias": "rad/s, IMU axes"},
-    "accelerometer_bias": {"bias": "m/s², IMU axes"},
-    "load_cell_scale": {"scale": "(reading / tension)"},
-    "gyroscopic_coupling": {"scale": "(κ, 1 = the full ω × Jω)"},
-    "gyro_bias_drift": {"random_walk": "rad/s/√s", "knot_spacing": "s", "bias_range": "rad/s, IMU axes"},
-    "gyro_scale": {"scale": "(reading / rate), IMU axes"},
-    "structural_mode": {"frequency": "Hz", "damping_ratio": "", "participation": ""},
-    "compliant_body": {"mass_share": "", "frequencies": "Hz", "damping_ratio": "", "lock_frequency": "Hz",
-                       "sprung_cg": "m"},
-}
-"""Units of the effects' parameters (SI, as :mod:`~rig_identification.model.effects` lists them; the one
-definition: the CLI, the JSON and the diagnosis report take theirs from it); a parameter not here (a name:
-``stream``, ``cable``, ``sensor``) has none, "" is dimensionless."""
-
-
-def value_text(v: Any, spec: str = ".4g") -> str:
-    """A parameter value (number, list, dict, name) as text."""
-    if isinstance(v, dict):
-        return "{" + ", ".join(f"{k}: {value_text(x, spec)}" for k, x in v.items()) + "}"
-    if isinstance(v, (list, tuple, np.ndarray)):
-        return "[" + ", ".join(value_text(x, spec) for x in v) + "]"
-    if isinstance(v, (float, np.floating)):
-        return format(float(v), spec) if np.isfinite(v) else "nan"
-    return str(v)
-
-
-def effect_text(e: dict[str, Any]) -> str:
-    """``name = v ± σ unit, …`` of one effect (an entry of
-    :attr:`~rig_identification.diagnosis.result.Diagnosis.effects`,
-    a dict with ``name``, ``parameters`` and optionally ``parameters_std``), units from
-    :data:`EFFECT_UNITS`: the one text of effect parameters, in the CLI's printouts and in the
-    warning of a diagnosed model error (:func:`~rig_identification.pipeline.offline.with_diagnosis`)."""
-    units = EFFECT_UNITS.get(e["name"], {})
-    std = e.get("parameters_std", {})
-    out = []
-    for k, v in e["parameters"].items():
-        s = f"{k} = {value_text(v)}" + (f" ± {value_text(std[k])}" if k in std else "")
-        out.append(s + (f" {units[k]}" if units.get(k) else ""))
-    return ", ".join(out)
-
-
-def with_effect_units(diagnosis: dict[str, Any]) -> dict[str, Any]:
-    """``diagnosis`` (the JSON's ``"diagnosis"``) with ``"units"`` beside the ``"parameters"``
-    of every effect and hypothesis: :data:`EFFECT_UNITS` of its name (a parameter without
-    one is a name or dimensionless)."""
-    def unit(e: Any) -> Any:
-        return {**e, "units": dict(EFFECT_UNITS.get(e["name"], {}))} if isinstance(e, dict) and "name" in e else e
-    return {**diagnosis, **{k: [unit(e) for e in diagnosis[k]] for k in ("effects", "hypotheses")
-                            if isinstance(diagnosis.get(k), list)}}
 
 
 def axes_block(ex: Expressed) -> dict[str, Any]:
@@ -440,9 +373,9 @@ def yaml_text(content: dict[str, Any]) -> str:
     return text
 
 
-__all__ = ["AXES", "Axes", "AxesError", "BODY", "BODY_LABEL", "EFFECT_UNITS", "ENTRY_NAMES", "EXPORT_SCHEMA",
+__all__ = ["AXES", "Axes", "AxesError", "BODY", "BODY_LABEL", "ENTRY_NAMES", "EXPORT_SCHEMA",
            "EXPORT_SCHEMA_VERSION", "Expressed", "INERTIA_SCHEMA", "INERTIA_SCHEMA_VERSION", "JSON_KEYS",
            "NOT_DETERMINED", "ORDER", "PRODUCTS", "SYMBOL", "UNITS", "VEHICLE_SIGN", "axes_block", "axes_for",
-           "convention_lines", "effect_text", "entries_from_option", "export_dict", "express", "finite_or_none",
-           "parallel_axis", "principal", "tensor_from_option", "urdf_inertial", "value_text", "with_effect_units",
+           "convention_lines", "entries_from_option", "export_dict", "express", "finite_or_none",
+           "parallel_axis", "principal", "tensor_from_option", "urdf_inertial",
            "yaml_text"]

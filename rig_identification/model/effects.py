@@ -1,8 +1,9 @@
 """The library of physics beyond the rigid-body, rigid-cable model (issue "diagnose").
 
-One name per effect, used alike by the simulator (``effects:`` in an experiment file,
-which conceals the effect in a simulated recording and lists it in truth.yaml) and by
-:mod:`~rig_identification.diagnosis.selection` (which names it in a recording).  Parameters (SI):
+One name per effect, used by the simulator (``effects:`` in an experiment file, which conceals
+the effect in a simulated recording and lists it in truth.yaml); the rig model's diagnosis
+(:mod:`~rig_identification.diagnosis.rig_diagnosis`) names those of them it models by the same
+names.  Parameters (SI):
 
 =====================  ==================================================================
 name                   parameters

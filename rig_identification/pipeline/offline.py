@@ -7,29 +7,23 @@ from pathlib import Path
 
 import numpy as np
 
-from ..diagnosis.distinguish import effect_name, finding_text
-from ..diagnosis.not_rigid import not_rigid_hypothesis, two_body_reason
-from ..diagnosis.residuals import unexplained
-from ..diagnosis.result import Combination, Diagnosis
-from ..diagnosis.selection import body_inertia, corrected, diagnose, with_stiffness
 from ..estimation.harmonic_start import box_tensor
 from ..estimation.identification import identify_inertia, identify_inertia_joint
 from ..estimation.inertia_result import InertiaResult
 from ..estimation.thesis_estimator import identify_inertia_thesis
-from ..io.recording import Recording, RecordingError, crop
+from ..io.recording import Recording, RecordingError
 from ..io.verdict import KEYS
 from ..model.parametrisation import entry_scales, from_tensor
-from .fit_validation import WEIGHT_TOLERANCE, validate_fit, weight_surplus, weight_warning
-from .prepare import PreparedRecording, prepare_recording, with_effect_wrench
-from .sigma import MODEL_ERROR_RATIO, refine_uncertainty
+from .fit_validation import validate_fit, weight_surplus, weight_warning
+from .prepare import PreparedRecording, prepare_recording
+from .sigma import refine_uncertainty
 
 log = logging.getLogger(__name__)   # steps (INFO) and warnings as they happen: cli_progress shows them
 
 
 def identify_recording(rec: Recording, start: float | None = None, end: float | None = None,
                        settle: float = 5.0, band_hz: tuple[float, float] | None = None,
-                       model: str = "pem", initial_guess=None, refine: bool = True,
-                       effect_wrench=None) -> InertiaResult:
+                       model: str = "pem", initial_guess=None, refine: bool = True) -> InertiaResult:
     """Identify the inertia tensor of a dynamic recording.
 
     start/end/settle: the window, see :func:`~rig_identification.pipeline.prepare.prepare_recording`.
@@ -38,17 +32,13 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
     three times the work of the plain fit) or ``"thesis"`` (the thesis's model and estimator,
     :func:`~rig_identification.estimation.thesis_estimator.identify_inertia_thesis`, from
     ``initial_guess`` (6,) tensor entries or the body anchors' box,
-    :func:`~rig_identification.estimation.harmonic_start.box_tensor`).  effect_wrench:
-    physics added to the model (:class:`~rig_identification.diagnosis.result.EffectWrench`,
-    :func:`~rig_identification.pipeline.prepare.with_effect_wrench`).  Every fit is validated
+    :func:`~rig_identification.estimation.harmonic_start.box_tensor`).  Every fit is validated
     (:func:`~rig_identification.pipeline.fit_validation.validate_fit`: ``result.validation``).  Raises
     :class:`~rig_identification.io.recording.RecordingError`,
     :class:`~rig_identification.io.rig.RigError`,
     :class:`~rig_identification.estimation.identification.IdentificationError`.
     """
     prep = prepare_recording(rec, start, end, settle)
-    if effect_wrench is not None:
-        prep = with_effect_wrench(prep, effect_wrench)
     rig = rec.rig
     if model == "thesis":
         guess = box_tensor(rig) if initial_guess is None else np.asarray(initial_guess, float)
@@ -80,222 +70,6 @@ def unidentified(rig, prep: PreparedRecording, reason: str) -> InertiaResult:
                         float(prep.t[0]), float(prep.t[-1]), len(prep.t), (np.nan, np.nan), np.full(3, np.nan),
                         np.full(3, np.nan), warnings=[reason])
     return res
-
-
-def with_diagnosis(rec: Recording, result: InertiaResult, start: float | None = None,
-                   end: float | None = None, band_hz: tuple[float, float] | None = None,
-                   cg_covariance: np.ndarray | None = None) -> InertiaResult:
-    """Model error handled — or said plainly.  When the rigid-body fit's validation says
-    ``model_error`` (:func:`validate_fit`; also when its residual exceeds what the sensors'
-    noise explains by :data:`MODEL_ERROR_RATIO`, or the load cells' mean vertical force
-    differs from rig.yaml's weight by :data:`WEIGHT_TOLERANCE`), run
-    :func:`~rig_identification.diagnosis.selection.diagnose` on the recording (cut to
-    ``start``/``end``, s from the first
-    IMU sample) and test what it proposes the way every fit is tested.  diagnose fits the
-    library's most significant effects jointly, in every combination, and ranks the admissible
-    ones by an information criterion (:attr:`~rig_identification.diagnosis.result.Diagnosis.alternatives`);
-    each, best first (at most :data:`~rig_identification.diagnosis.selection.ALTERNATIVES`, and
-    the best one's admissible proper subsets):
-
-    * the errors of the data it holds (a sensor delay, gain, bias or bias drift, gyro scale,
-      a sensor mount's structural mode, the IMU's pose, the body's or the cables' mass, the
-      cables' stiffness) are removed from the recording
-      (:func:`~rig_identification.diagnosis.selection.corrected`) and the physics (damping, drag, the exciter's
-      rotor, …) is added to the model as the wrench it contributes
-      (:class:`~rig_identification.diagnosis.result.EffectWrench`, :func:`with_effect_wrench`);
-    * the recording is identified again the ordinary way (same window and band: fit,
-      propagated σ, validation).
-
-    An effect the recording does not tell from a rival's (``told_apart`` false:
-    :mod:`~rig_identification.diagnosis.distinguish`) is named by its class, with the
-    candidates and what would tell them apart; the fit is made with the preferred member.
-
-    The first combination whose fit's validation says ``ok`` and whose every effect is
-    physically plausible (:func:`~rig_identification.diagnosis.plausible.implausible`) is *named*
-    — unless one of its proper subsets passes too: then the smallest such is (an effect is named
-    only when the model fails its validation without it);
-    the result is then that fit (σ: the propagated noise, or diagnose's joint fit's where
-    larger — it carries the effects' own uncertainty), the cables' share taken off when their
-    mass was found (:func:`~rig_identification.diagnosis.selection.body_inertia`).  A
-    combination with an implausible effect is not tried.  When none passes, nothing is
-    named: ``result`` stays the rigid-body fit with its ``model_error`` verdict and widened
-    σ, ``diagnosis`` says where the mismatch is (``unexplained``: channel, band, time, size;
-    :func:`~rig_identification.diagnosis.residuals.unexplained`, with the departures of the
-    accelerometer from the load cells above the fit band) and lists the combinations as
-    ``hypotheses`` (each with the checks its fit still failed), never their tensors.
-
-    cg_covariance: (3, 3) m², the σ of the CG the recording was given (``inertia --cg``): the
-    diagnosis then screens the CG as a data error (``cg_offset``), plausible within 3 σ of it.
-
-    ``diagnosis`` also keeps the residual RMS before/after; ``rigid_body`` the rigid-body
-    tensor and σ.  A fit without model error is returned as it was.
-    """
-    misfit = result.residual_excess is not None and np.max(result.residual_excess) > MODEL_ERROR_RATIO
-    heavier = result.weight_surplus is not None and abs(result.weight_surplus) > WEIGHT_TOLERANCE
-    flagged = result.validation is not None and result.validation.verdict == "model_error"
-    if not (misfit or heavier or flagged):
-        return result
-    full = rec
-    if start is not None or end is not None:
-        t0 = rec.sensors.t_start
-        lo = t0 + (start if start is not None else 0.0)
-        hi = t0 + end if end is not None else rec.sensors.t_end
-        rec = replace(rec, sensors=crop(rec.sensors, lo, hi))
-    log.info("diagnosing the model error")
-    try:
-        d = diagnose(rec, cg_covariance=cg_covariance)
-    except (ValueError, np.linalg.LinAlgError) as e:   # RecordingError, RigError, TrackerError, IdentificationError
-        result.warnings.append(f"diagnose could not run on the recording ({e}); the tensor is the rigid-body fit's")
-        return result
-    rigid_body = {"inertia_about_cg": {k: float(v) for k, v in zip(KEYS, from_tensor(result.inertia))},
-                  "inertia_std": {k: float(v) for k, v in zip(KEYS, result.inertia_std)},
-                  "uncertainty": result.uncertainty,
-                  "validation": None if result.validation is None else result.validation.verdict}
-    where = mismatch_places(d, float(result.t_end - result.t_start))
-    hypotheses: list[dict] = []
-    again, chosen, chosen_hyp = None, None, None
-    for alt in d.alternatives:
-        if chosen is not None and not set(alt.keys) < set(chosen.keys):
-            continue   # after a validated combination, only its proper subsets are tried (parsimony)
-        fit, hyp = _refit(full, alt, start, end, band_hz)
-        hypotheses.append(hyp)
-        if fit is not None:
-            again, chosen, chosen_hyp = fit, alt, hyp   # kept looking: a smaller one that also validates is named
-    # a body that may not be rigid: said, with what to do, not fitted (the two-body fit is
-    # rig-identify diagnose --two-body's, experimental)
-    gate = two_body_reason(rec, result, again is not None)
-    if gate:
-        hypotheses.append(_refit(full, not_rigid_hypothesis(gate), start, end, band_hz)[1])
-    diagnosis = {"effects": [], "hypotheses": [e for h in hypotheses for e in h["effects"]],
-                 "combinations_tried": hypotheses, "unexplained": where,
-                 "residual_rms_before": d.rms_before, "residual_rms_after": d.rms_after,
-                 "band_hz": [float(x) for x in d.band]}
-    if again is None or chosen is None:
-        return _not_explained(result, rigid_body, diagnosis, hypotheses, where)
-    diagnosis["combinations_tried"] = [h for h in hypotheses if h is not chosen_hyp]
-    return _named(result, again, chosen, rec, rigid_body, diagnosis)
-
-
-def mismatch_places(d: Diagnosis, window_s: float) -> list[dict]:
-    """Where a recording and the rigid-body model disagree, for a diagnosis that names nothing:
-    :func:`~rig_identification.diagnosis.residuals.unexplained` of ``d.located`` (channel,
-    band Hz, time s from the window's start, size, what the frequency is) over the diagnosis
-    window (``window_s`` s when it kept no series), then the accelerometer's departures from
-    Newton's prediction from the load cells above the fit band (``d.out_of_band``), over the
-    whole window, their size in σ."""
-    duration = float(d.series["t"][-1]) if d.series else window_s
-    return unexplained(d.located, duration) + [
-        {"channel": u["channel"], "band_hz": u["band_hz"], "time_s": [0.0, round(duration, 1)], "size": u["sigma"],
-         "is": f"above the fit band: the accelerometer over Newton's prediction from the load cells departs from 1 "
-               f"by {u['size']:.3g} ({u['sigma']:.0f} σ; size in σ) — a sensor mount's structural mode, or a body "
-               "that is not rigid?"}
-        for u in d.out_of_band]
-
-
-def _why(hyp: dict) -> str:
-    """A combination tried and not named, in one phrase: its effects and why not."""
-    return f"{' + '.join(e['name'] for e in hyp['effects'])}: {hyp['not_named']}"
-
-
-def _refit(full: Recording, alt: Combination, start: float | None, end: float | None,
-           band_hz: tuple[float, float] | None) -> tuple[InertiaResult | None, dict]:
-    """One combination tested the way every fit is: the recording ``full`` corrected, identified
-    again with its wrench (same window and band), validated.  Returns (its fit when the
-    validation says ``ok``, else None; the combination as tried: ``effects``, and when not named
-    ``not_named`` (why) and ``failed_checks``).  A hypothesis by its own test (``not_named``
-    set: the unfitted sprung body) or a combination with an implausible effect is not fitted."""
-    names = [e["name"] for e in alt.effects]
-    bad = [e for e in alt.effects if not e.get("plausible", True)]
-    hyp: dict = {"effects": alt.effects}
-    if alt.not_named:
-        hyp["not_named"] = alt.not_named
-        return None, hyp
-    if bad:
-        hyp["not_named"] = "not physically plausible: " + "; ".join(f"{e['name']}: {e['implausible']}" for e in bad)
-        return None, hyp
-    fixed = corrected(full, alt.applied)
-    if alt.stiffness is not None:
-        fixed = with_stiffness(fixed, alt.stiffness)
-    log.info("identifying again with %s", ", ".join(names))
-    try:
-        fit = identify_recording(fixed, start=start, end=end, band_hz=band_hz, effect_wrench=alt.effect_wrench)
-    except (ValueError, np.linalg.LinAlgError) as e:
-        hyp["not_named"] = f"could not be identified again ({e})"
-        return None, hyp
-    if fit.validation is None or fit.validation.verdict != "ok":
-        failed = () if fit.validation is None else fit.validation.failed
-        hyp["not_named"] = (f"the fit with it does not determine the tensor (not_identifiable: "
-                            f"{', '.join(failed + tuple(fit.undetermined))})"
-                            if fit.validation is not None and fit.validation.verdict == "not_identifiable" else
-                            f"the fit with it still fails its validation ({', '.join(failed)})")
-        hyp["failed_checks"] = list(failed)
-        return None, hyp
-    return fit, hyp
-
-
-def _not_explained(result: InertiaResult, rigid_body: dict, diagnosis: dict, hypotheses: list[dict],
-                   where: list[dict]) -> InertiaResult:
-    """``result`` (the rigid-body fit) with the diagnosis that names nothing: why, the
-    hypotheses, where the mismatch is."""
-    why = ("diagnose found no effect of its library that explains the misfit" if not hypotheses else
-           "no combination of the library's effects explains it: " + "; ".join(_why(h) for h in hypotheses))
-    names = [e["name"] for h in hypotheses for e in h["effects"]]
-    diagnosis["handled"] = "not: " + why
-    result.rigid_body, result.diagnosis = rigid_body, diagnosis
-    result.warnings.append(
-        f"model error not explained: {why}; the tensor is the rigid-body fit's (σ widened, not trustworthy)"
-        + (f"; hypotheses, not findings: {', '.join(dict.fromkeys(names))}" if names else "")
-        + ("; the mismatch is in " + ", ".join(f"{u['channel']} at {u['band_hz'][0] + 0.05:.2f} Hz"
-                                               for u in where if u["band_hz"]) if where else ""))
-    return result
-
-
-def _named(result: InertiaResult, again: InertiaResult, chosen: Combination, rec: Recording, rigid_body: dict,
-           diagnosis: dict) -> InertiaResult:
-    """The fit ``again`` with the named combination ``chosen``: the cables' share taken off the
-    tensor when their mass was found, σ at least diagnose's joint fit's (and widened by what the
-    corrections fixed from outside the band leave), the diagnosis, verdict, method and warnings
-    saying what was named (a class where the recording does not tell its candidates apart)."""
-    effects = chosen.effects
-    names = [effect_name(e) for e in effects]
-    found = "; ".join(finding_text(e) for e in effects)   # with units, as the CLI's
-    applied = chosen.applied
-    mu = float(applied.get(("cable_mass", ""), 0.0))
-    if mu:   # the fit's tensor is the body's with the cables' lower halves, about their combined CG
-        body_rig = replace(rec.rig, mass=rec.rig.mass + float(applied.get(("body_mass", ""), 0.0)))
-        again.inertia = body_inertia(again.inertia, body_rig, mu)
-        again.mass, again.center_of_gravity = body_rig.mass, body_rig.require_cg().copy()
-    if chosen.effect_wrench is not None and chosen.covariance is not None:
-        # the effects' own uncertainty: diagnose's joint fit of the tensor with them
-        joint = np.sqrt(np.clip(np.diag(chosen.covariance), 0, None))
-        wider = np.maximum(joint, again.inertia_std)
-        again.covariance = again.covariance + np.diag(wider**2 - again.inertia_std**2)
-        again.inertia_std = wider
-        again.uncertainty += "; at least diagnose's joint fit with the effects (their own uncertainty)"
-    rel = chosen.relative_std
-    if rel > 0:
-        # a correction fixed from outside the fit band (a structural mode's shape) leaves a
-        # relative error of the readings in the band, and so about of the tensor
-        wider = np.sqrt(again.inertia_std ** 2 + (rel * entry_scales(from_tensor(again.inertia))) ** 2)
-        again.covariance = again.covariance + np.diag(wider ** 2 - again.inertia_std ** 2)
-        again.inertia_std = wider
-        again.uncertainty += f"; with the {100 * rel:.3g} % the corrections fixed from outside the band leave"
-    handled = ("removed from the data" if chosen.effect_wrench is None else
-               "added to the model" if not applied and chosen.stiffness is None else
-               "removed from the data and added to the model")
-    diagnosis["effects"], diagnosis["hypotheses"], diagnosis["unexplained"] = effects, [], []
-    again.rigid_body, again.diagnosis = rigid_body, {**diagnosis, "handled": handled}
-    # the verdict is on the model with the effects, not the rigid body's alone
-    modelled = ", ".join(e["name"] for e in effects)
-    assert again.validation is not None   # _refit names only a fit whose validation is ok
-    again.validation = replace(again.validation, model=f"the rigid-body model with {modelled}")
-    again.method += f"; {', '.join(names)} diagnosed (rig-identify diagnose), {handled}, validated"
-    rigid_verdict = result.validation.summary if result.validation is not None else None
-    again.warnings = [w for w in result.warnings if w != rigid_verdict] + [
-        f"model error diagnosed: {found} — {handled}, the recording identified again and validated (the "
-        "rigid-body fit's verdict was model_error; it is under 'rigid_body' in the JSON, --no-diagnose reports "
-        "it instead)"] + [w for w in again.warnings if w not in result.warnings]
-    return again
 
 
 def with_cg_uncertainty(rec: Recording, result: InertiaResult, cg_covariance: np.ndarray,

@@ -5,7 +5,7 @@ replay every fit of a recording makes (:func:`replay_window`).
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -38,11 +38,6 @@ class PreparedRecording:
     poses: object = None        # the tracker's PoseTrack over it
     window: tuple = (0.0, 0.0)  # (lo, hi) absolute stamps, s, of the fit window
     force: np.ndarray | None = None
-    # the wrench of physics added to the rigid-body model (diagnosis.EffectWrench) on t: torque
-    # (N,3) N·m and force (N,3) N, body axes, already in ``torque``/``force``; the replays of
-    # refine_uncertainty add them too
-    extra_torque: np.ndarray | None = None
-    extra_force: np.ndarray | None = None
     # refine_uncertainty's replays with fresh noise (antithetic pair): (torque, force) on t, for
     # the validation's noise of channels predicted from the wrench (validation.AccelInput)
     replays: list = field(default_factory=list)
@@ -62,16 +57,6 @@ class Replay:
     torque: np.ndarray
     force: np.ndarray
     anchor: YawAnchor
-
-
-def with_effect_wrench(prep: PreparedRecording, effect) -> PreparedRecording:
-    """``prep`` with the wrench of the diagnosed physics (:class:`~rig_identification.diagnosis.result.EffectWrench`,
-    interpolated onto ``prep.t``) added to the measured generalized wrench: the rigid-body
-    identifier then fits the model extended by it (Newton–Euler with the effect's moment
-    and force)."""
-    tq, fc = effect.at(prep.t)
-    return replace(prep, torque=prep.torque + tq, force=None if prep.force is None else prep.force + fc,
-                   extra_torque=tq, extra_force=fc)
 
 
 def replay_window(rig, s, lo: float, hi: float) -> Replay:

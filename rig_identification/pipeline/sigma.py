@@ -89,8 +89,6 @@ def refine_uncertainty(preps: list[PreparedRecording], result: InertiaResult, se
     def replay(i, r, s, p):
         rp = replay_window(r, s, *p.window)
         t, gyro, torque, force = rp.t, rp.gyro_body, rp.torque, rp.force
-        if p.extra_torque is not None and len(t) == len(p.t):
-            torque, force = torque + p.extra_torque, force + p.extra_force
         seg = prepare_segment(t, gyro, torque, bands[i], label=labels[i])
         same = len(t) == len(p.t)
         if same:

@@ -17,9 +17,6 @@ engineer signs it:
   the same about the body frame's origin (parallel-axis theorem), the tensor as matrices,
   the principal moments and axes, the equimomental ellipsoid on the body (:mod:`rig_identification.report.mass`);
 * the validation checks as a table;
-* when the fit showed model error: what diagnosis found (effects with parameters and units,
-  the fit with them validated) or where the mismatch is and the hypotheses, labelled as such
-  (:mod:`rig_identification.report.diagnosis`);
 * the identifiability table (:mod:`rig_identification.report.identifiability`), the uncertainty ellipses, per
   recording the fit of the reported model (measured vs predicted angular velocity, as the
   thesis's "comparison of the identified and measured systems"), its residuals and their
@@ -30,8 +27,7 @@ No number on the page or in report.json is ``nan`` or ``inf``: what does not exi
 on the page and null in the JSON, an undetermined entry "not determined".
 ``report.json``: ``result`` (:meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`, tensor entries
 as geometry_msgs/Inertia), ``report`` (date, version, recordings, rig), ``mass_properties``
-(the page's table, products with the vehicle-dynamics sign), ``diagnosis``,
-``identifiability``, ``modes``.
+(the page's table, products with the vehicle-dynamics sign), ``identifiability``, ``modes``.
 """
 from __future__ import annotations
 
@@ -53,7 +49,6 @@ from ..io.rig import Rig
 from ..io.vehicle import VEHICLE_AXES, Vehicle, common_vehicle
 from ..io.verdict import KEYS
 from ..pipeline.offline import recording_labels
-from .diagnosis import diagnosis_html, effects_text
 from .figures import edge_seconds, ellipse_figure, ellipsoid_figure, fit_figure, residual_figure
 from .html import GENERATOR, bullets, esc, json_safe, num, page, table
 from .identifiability import axis_signal, identifiability, identifiability_html
@@ -153,8 +148,7 @@ def header_html(result: InertiaResult, recs: list[Recording], labels: list[str],
     where = esc(cg_source) if cg_source else \
         "rig.yaml body.center_of_gravity, as measured — e.g. with <code>rig-identify cg</code>"
     declared = rig.mass if rig is not None else result.mass
-    msrc = "rig.yaml body.mass" if abs(result.mass - declared) <= 1e-9 * abs(declared) else \
-        f"rig.yaml's {num(declared, 'g')} kg corrected by the diagnosis"
+    msrc = "rig.yaml body.mass"
     mass_std = rig.survey.mass_std(declared) if rig is not None else None
     sd = "" if mass_std is None else f" ± {num(mass_std, '.3g')} kg (1 σ, rig.yaml survey.mass)"
     mass = (f"<p>Mass <b>{num(result.mass, 'g')} kg</b>{sd} ({esc(msrc)}), centre of gravity "
@@ -253,9 +247,7 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
     when = datetime.now(timezone.utc).strftime("%Y-%m-%d %H:%M UTC")
     mp = mass_properties(result, vehicle)
     errors = truth_rows(result, truth)
-    diag_html, diag_data = diagnosis_html(result)
-    found = effects_text(result.diagnosis) if result.diagnosis else ""
-    parts: list[str] = [f"<h1>{esc(title)}</h1>", verdict_html(result, found)]
+    parts: list[str] = [f"<h1>{esc(title)}</h1>", verdict_html(result)]
     rig = rig if rig is not None else recs[0].rig if recs else None
     head, head_data = header_html(result, recs, labels, truth, when, rig, cg_source, mp.axes, job)
     parts.append(head)
@@ -287,7 +279,6 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
 
         parts.append("<h2>Validation checks</h2>")
         parts.append(checks_table(v) if v is not None and v.checks else "<p>No validation was run on this fit.</p>")
-        parts.append(diag_html)
 
         parts.append("<h2>Recordings fitted</h2>" + recordings_html(result, recs, labels))
 
@@ -309,8 +300,7 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
             parts.append(f"<h2>Measured vs predicted: {esc(lab)}</h2>")
             parts.append(f'<img src="fit_{n}.png" alt="measured and predicted angular velocity, {esc(lab)}">')
             parts.append('<p class="note">The model whose tensor this page reports'
-                         + (" (with the diagnosed effects)" if found else "")
-                         + f". Shaded: the band-pass filter's edge transients ({edge_seconds(s):.1f} s at each "
+                         f". Shaded: the band-pass filter's edge transients ({edge_seconds(s):.1f} s at each "
                          "end).</p>")
             parts.append(f"<h2>Residuals: {esc(lab)}</h2>")
             parts.append(f'<img src="residuals_{n}.png" alt="residuals and their spectrum, {esc(lab)}">')
@@ -325,7 +315,7 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
                 parts.extend(f'<p class="note">note: {esc(w)}</p>' for w in notes)
 
         report_data = {"result": result.to_dict(), "report": head_data, "mass_properties": to_json(mp, errors),
-                       "diagnosis": diag_data, "identifiability": ident, "modes": mode_data}
+                       "identifiability": ident, "modes": mode_data}
         if in_axes is not None:
             report_data["output_axes"] = in_axes
         (tmp / "index.html").write_text(page(title, parts), encoding="utf-8")

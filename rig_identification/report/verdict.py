@@ -69,41 +69,23 @@ def headline(v: Validation) -> str:
     return s[:-len(tail)] if v.advice and s.endswith(tail) else s
 
 
-def diagnosed_named(result: InertiaResult) -> bool:
-    """True when diagnosis named the model error's cause and the reported fit is the one
-    with it (validated)."""
-    d = result.diagnosis
-    return bool(d and d.get("effects") and not str(d.get("handled", "")).startswith("not"))
-
-
-def verdict_html(result: InertiaResult, effects_text: str = "") -> str:
+def verdict_html(result: InertiaResult) -> str:
     """The verdict box (HTML, element id ``verdict``): the sentence, what it means for the
     tensor below, the advice, and the precision against the lab's target (element id
-    ``precision``: :attr:`~rig_identification.estimation.inertia_result.InertiaResult.precision`).
-    effects_text: the named effects in words, for a fit
-    that diagnosis made valid."""
+    ``precision``: :attr:`~rig_identification.estimation.inertia_result.InertiaResult.precision`)."""
     v = result.validation
     if v is None:
         return ('<div class="verdict none" id="verdict"><p class="sentence">No validation verdict: this fit was not '
                 "validated (an identifier run outside the pipeline); its σ are the identifier's own.</p></div>")
     cls = ' untrusted' if v.verdict == "model_error" else ""
     parts = [f'<p class="sentence{cls}">{esc(headline(v))}</p>']
-    if v.verdict == "ok" and diagnosed_named(result):
-        rb = (result.rigid_body or {}).get("validation") or "model_error"
-        parts.append(f"<p>The rigid-body model alone did not explain the recording (its verdict: {esc(rb)}). "
-                     f"Diagnosis found {esc(effects_text)}; {esc(result.diagnosis['handled'])}, the recording was "
-                     "identified again, and that fit — whose tensor and plots this page reports — passed every "
-                     "validation check below.</p>")
-    elif v.verdict == "model_error":
+    if v.verdict == "model_error":
         if "not trustworthy" not in v.summary:
             parts.append('<p class="untrusted">The tensor below is not trustworthy: the recording disagrees with the '
                          "rigid-body model. Its σ is widened to the spread the checks saw between time segments and "
                          "frequency sub-bands — a lower bound of the error, not a calibrated σ.</p>")
-        d = result.diagnosis
-        if d is not None and not diagnosed_named(result):
-            why = str(d.get("handled", "")).removeprefix("not: ")
-            parts.append(f"<p>Diagnosis could not name the cause ({esc(why)}). Where the mismatch is, and the "
-                         "hypotheses it tried, are in the section “Model error: not explained” below.</p>")
+        parts.append("<p>rig-identify diagnose fits the rig model to every sensor and tests what it leaves "
+                     "out.</p>")
     elif v.verdict == "not_identifiable":
         gone = ", ".join(SYMBOL[k] for k in v.undetermined)
         parts.append(f"<p>Shown as “{NOT_DETERMINED}” below (null in report.json): {esc(gone)}. Nothing derived "
@@ -114,4 +96,4 @@ def verdict_html(result: InertiaResult, effects_text: str = "") -> str:
     return f'<div class="verdict {v.verdict}" id="verdict">' + "".join(parts) + "</div>"
 
 
-__all__ = ["CHECKS", "checks_table", "headline", "verdict_html", "diagnosed_named", "statistic_text"]
+__all__ = ["CHECKS", "checks_table", "headline", "verdict_html", "statistic_text"]
