@@ -9,10 +9,10 @@ import time
 from pathlib import Path
 
 from rig_identification.estimation.identification import identify_inertia
+from rig_identification.estimation.inertia_result import compare_to_truth
 from rig_identification.estimation.preprocessor import preprocess
 from rig_identification.estimation.tracker_replay import track
 from rig_identification.io.recording import read_recording
-from rig_identification.pipeline.offline import compare_to_truth
 
 SHARED = Path(__file__).resolve().parents[2] / "shared" / "recordings"
 

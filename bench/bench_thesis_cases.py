@@ -9,12 +9,13 @@ import sys
 import time
 from pathlib import Path
 
+from rig_identification.estimation.inertia_result import compare_to_truth
 from rig_identification.io.recording import Recording
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.experiment import load_experiment
 from rig_identification.model.parametrisation import PAIRS
 from rig_identification.model.simulator import simulate
-from rig_identification.pipeline.offline import compare_to_truth, identify_recording
+from rig_identification.pipeline.offline import identify_recording
 
 CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
 

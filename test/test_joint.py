@@ -14,6 +14,7 @@ import pytest
 from conftest import REPO, run_cli
 
 from rig_identification.estimation.identification import identify_inertia, identify_inertia_joint
+from rig_identification.estimation.inertia_result import compare_to_truth
 from rig_identification.io.recording import Recording, RecordingError
 from rig_identification.io.rig import RigError, dump_rig, read_yaml
 from rig_identification.io.verdict import KEYS
@@ -70,7 +71,7 @@ def test_joint_fit_recovers_truth_and_beats_each_recording(recs, cached_prepare)
     truth = recs["A"].truth
     single = {n: pipeline.identify_recording(r) for n, r in recs.items()}
     joint = pipeline.identify_recordings([recs["A"], recs["B"]])
-    cmp = pipeline.compare_to_truth(joint, truth)
+    cmp = compare_to_truth(joint, truth)
     for k in KEYS:
         assert abs(cmp[k]["error_percent"]) < 0.5, (k, cmp[k])
         assert abs(cmp[k]["error_sigma"]) < 3.0, (k, cmp[k])
@@ -106,7 +107,7 @@ def test_single_segment_joint_is_identify_inertia(recs, cached_prepare):
     # the fit's output series: predicted = measured − residual, and it carries the fit
     s = one.series[0]
     np.testing.assert_allclose(np.sqrt(np.mean(s.residual ** 2, 0)), one.residual_rms)
-    cmp = pipeline.compare_to_truth(one, recs["B"].truth)
+    cmp = compare_to_truth(one, recs["B"].truth)
     assert all(abs(cmp[k]["error_percent"]) < 1.0 for k in KEYS), cmp
 
 

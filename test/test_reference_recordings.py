@@ -13,10 +13,11 @@ import numpy as np
 import pytest
 from conftest import background, gather, recording, run_cli
 
+from rig_identification.estimation.inertia_result import compare_to_truth
 from rig_identification.io.recording import read_recording
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import physically_consistent
-from rig_identification.pipeline.offline import compare_to_truth, identify_recording
+from rig_identification.pipeline.offline import identify_recording
 
 
 def _cli(name: str, report: bool, *args: str):

@@ -31,7 +31,7 @@ def test_name_and_output_axes_are_optional_and_kept(rig_dict, tmp_path):
     """rig.yaml's optional ``name`` (the report shows it) and ``output_axes`` (the default of
     rig-identify inertia --axes) are read, written back by dump_rig (so --write-rig copies keep
     them) and absent by default."""
-    from rig_identification.report.page import rig_label
+    from rig_identification.report.folder import rig_label
     plain = rig_from_dict(rig_dict, "rig.yaml")
     assert plain.name is None and plain.output_axes is None
     assert "name" not in plain.to_dict() and "output_axes" not in plain.to_dict()

@@ -13,7 +13,7 @@ from conftest import background, gather, recording, run_cli
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
-from rig_identification.cli.inertia import resolve_model
+from rig_identification.cli.arg_types import resolve_model
 from rig_identification.cli.main import build_parser
 from rig_identification.design.information import tensor_bound
 from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random

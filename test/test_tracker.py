@@ -17,6 +17,7 @@ from conftest import background, gather, recording
 from scipy.spatial.transform import Rotation
 
 from rig_identification.design.scenarios import simulate_random
+from rig_identification.estimation.inertia_result import compare_to_truth
 from rig_identification.estimation.tracker import TrackerError
 from rig_identification.estimation.tracker_replay import (
     EVENT_EXCITER,
@@ -30,7 +31,7 @@ from rig_identification.estimation.tracker_replay import (
 from rig_identification.io.recording import Recording, crop, read_recording
 from rig_identification.model.experiment import experiment_from_dict, load_experiment
 from rig_identification.model.simulator import simulate
-from rig_identification.pipeline.offline import compare_to_truth, identify_recording
+from rig_identification.pipeline.offline import identify_recording
 
 CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
 

@@ -11,7 +11,8 @@ import pytest
 import yaml
 from conftest import run_cli
 
-from rig_identification.cli.inertia import output_axes, print_inertia
+from rig_identification.cli.inertia import print_inertia
+from rig_identification.cli.recordings import output_axes
 from rig_identification.cli.text import principal_lines, tensor_table
 from rig_identification.estimation.directions import weak_directions
 from rig_identification.estimation.inertia_result import InertiaResult

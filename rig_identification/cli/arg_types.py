@@ -25,4 +25,17 @@ JOB_OPTIONS = (("--vehicle-name", "vehicle_name", "the vehicle measured (make, m
                ("--customer", "customer", "the customer"),
                ("--operator", "operator", "who ran the test"))
 
-__all__ = ["JOB_OPTIONS", "number"]
+#: The options only the gyro-only prediction-error fit (--model pem or thesis) takes.
+PEM_ONLY = (("band", "--band"), ("initial_guess", "--initial-guess"), ("target", "--target"))
+
+
+def resolve_model(args) -> str:
+    """The model ``--model`` names, else the default: ``rig`` for one recording, ``pem`` for
+    ``--quick`` (the gyro-only fit, unrefined) or several recordings (fitted jointly)."""
+    if args.model is not None:
+        return str(args.model)
+    return "pem" if args.quick or len(args.recording) > 1 or any(getattr(args, k, None) for k, _ in PEM_ONLY) \
+        else "rig"
+
+
+__all__ = ["JOB_OPTIONS", "PEM_ONLY", "number", "resolve_model"]

@@ -18,7 +18,7 @@ from pathlib import Path
 from ..io.export import BODY
 from ..io.recording import read_recording
 from ..pipeline.rig_model import RigModelResult
-from ..report.page import check_report_dir
+from ..report.folder import check_report_dir
 from .progress import step
 from .rig_model import fitted_and_reported, print_diagnosis
 from .text import TABLE_CAPTION, tensor_table

@@ -1,8 +1,7 @@
-"""``rig-identify inertia``: identify the inertia tensor of one or more dynamic recordings.
-
-One recording, by default: the rig model (:mod:`rig_identification.cli.rig_model`).  ``--quick``,
-several recordings or ``--model pem`` (:func:`resolve_model`): the gyro-only prediction-error fit,
-whose output this module prints, in this order: the verdict
+"""``rig-identify inertia`` with the gyro-only prediction-error fit: ``--model pem|thesis``,
+``--quick`` or several recordings fitted jointly
+(:func:`~rig_identification.cli.arg_types.resolve_model`; the default, the rig model, is
+:mod:`rig_identification.cli.rig_model`'s).  Its output, in this order: the verdict
 (:attr:`~rig_identification.io.verdict.Validation.summary`), the recording(s), the conventions
 (frame, units, sign: :func:`~rig_identification.io.export.convention_lines`), mass and CG, the
 window, the tensor about the CG with σ (and the truth when truth.yaml is there), the products
@@ -26,11 +25,10 @@ from types import SimpleNamespace
 import numpy as np
 
 from ..estimation.identification import IdentificationError
-from ..estimation.inertia_result import InertiaResult
+from ..estimation.inertia_result import InertiaResult, compare_to_truth
 from ..io.atomic import atomic_write_text
 from ..io.export import (
     Axes,
-    AxesError,
     axes_block,
     axes_for,
     convention_lines,
@@ -40,23 +38,21 @@ from ..io.export import (
     yaml_text,
 )
 from ..io.package import package_version
-from ..io.recording import read_recording
 from ..io.rig import load_rig
 from ..io.vehicle import common_vehicle
 from ..io.verdict import KEYS
 from ..pipeline.offline import (
     check_same_body,
-    compare_to_truth,
     identify_recording,
     identify_recordings,
-    recording_labels,
     with_cg_uncertainty,
 )
-from ..report.page import ReportError, check_report_dir, common_truth, write_report
+from ..report.folder import ReportError
+from ..report.page import common_truth, write_report
 from ..statics.handover import load_cg_result
-from .arg_types import JOB_OPTIONS
 from .progress import heading, step, warn
-from .rig_model import cmd_rig_model, job_of
+from .recordings import check_common, output_axes, read_all
+from .rig_model import job_of
 from .text import (
     TABLE_CAPTION,
     entries_line,
@@ -69,7 +65,7 @@ from .text import (
 
 
 def truth_columns(result: InertiaResult, truth: dict | None, axes: Axes) -> dict | None:
-    """truth.yaml's comparison (:func:`~rig_identification.pipeline.offline.compare_to_truth`) in
+    """truth.yaml's comparison (:func:`~rig_identification.estimation.inertia_result.compare_to_truth`) in
     ``axes``: each column turned as the entries (:attr:`~rig_identification.io.export.Axes.entry_map`, a signed
     permutation: an entry's truth, error % and error / σ are those of the body entry it is)."""
     if not truth or "inertia_about_cg" not in truth:
@@ -180,22 +176,6 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
         print("note: " + w["text"])
 
 
-def read_all(paths: list[str]) -> list:
-    """Read the recordings (one progress step each); their reader warnings shown at once."""
-    recs = []
-    for p in paths:
-        step(f"reading {p}")
-        recs.append(read_recording(p))
-    if len(recs) == 1:
-        for w in recs[0].warnings:
-            warn(w)
-    else:
-        for lab, r in zip(recording_labels(recs), recs):
-            for w in r.warnings:
-                warn(f"{lab}: {w}")
-    return recs
-
-
 def with_saved_cg(recs: list, cg_file: str) -> tuple[list, str, np.ndarray]:
     """The recordings with the CG of a saved ``rig-identify cg --json`` result, the note, and the
     CG's covariance (3, 3) m²."""
@@ -214,73 +194,20 @@ def with_saved_cg(recs: list, cg_file: str) -> tuple[list, str, np.ndarray]:
     return out, note, np.asarray(saved.covariance, float)
 
 
-def output_axes(option: str | None, recs: list) -> tuple[Axes, list[str]]:
-    """The axes of the printout and the YAML: ``--axes`` when given, else the recordings'
-    rig.yaml ``output_axes`` (when they state one and agree), else ``body``; made with the
-    vehicle's orientation of their rig.yaml ``body.vehicle`` (when those that state one agree:
-    :func:`~rig_identification.io.vehicle.common_vehicle`).  ``recs``: objects with a ``rig``.
-    Returns (axes, warnings: recordings whose rig.yaml state different axes or vehicles).
-    Raises :class:`~rig_identification.io.vehicle.AxesError` for vehicle axes (``sae``,
-    ``iso8855``) when rig.yaml does not say where the vehicle lies (naming ``body.vehicle``)."""
-    vehicle, vnote = common_vehicle(r.rig.vehicle for r in recs)
-    notes = [] if vnote is None else [vnote]
-    stated = {r.rig.output_axes for r in recs if r.rig.output_axes is not None}
-    name = option if option is not None else stated.pop() if len(stated) == 1 else "body"
-    if option is None and len(stated) > 1:
-        notes.append(f"the recordings' rig.yaml state different output_axes ({', '.join(sorted(stated))}): "
-                     "body axes; --axes chooses")
-    try:
-        return axes_for(name, vehicle), notes
-    except AxesError as e:
-        why = f"{e} ({vnote})" if vnote is not None else str(e)
-        raise AxesError(f"--axes {name}: {why}" if option is not None else why) from None
-
-
-#: The options only the gyro-only prediction-error fit (--model pem or thesis) takes.
-PEM_ONLY = (("band", "--band"), ("initial_guess", "--initial-guess"), ("target", "--target"))
-
-
-def resolve_model(args) -> str:
-    """The model ``--model`` names, else the default: ``rig`` for one recording, ``pem`` for
-    ``--quick`` (the gyro-only fit, unrefined) or several recordings (fitted jointly)."""
-    if args.model is not None:
-        return str(args.model)
-    return "pem" if args.quick or len(args.recording) > 1 or any(getattr(args, k, None) for k, _ in PEM_ONLY) \
-        else "rig"
-
-
 def check_options(args) -> None:
-    """Refuse option combinations that cannot run, before reading any bag; sets ``args.model``
-    (:func:`resolve_model`)."""
+    """Refuse option combinations the gyro-only fit cannot run, before reading any bag
+    (``args.model``: ``pem`` or ``thesis``, :func:`~rig_identification.cli.arg_types.resolve_model`)."""
     paths = args.recording
-    args.model = resolve_model(args)
-    if args.model == "rig":
-        given = [flag for k, flag in PEM_ONLY if getattr(args, k, None)] + (["--quick"] if args.quick else [])
-        if len(paths) > 1:
-            raise IdentificationError("--model rig fits one recording at a time: give one RECORDING (several are "
-                                      "fitted jointly by --model pem)")
-        if given:
-            raise IdentificationError(f"{', '.join(given)}: options of --model pem, the gyro-only fit; the rig model "
-                                      "takes none of them")
     if len(paths) > 1:
         if args.model != "pem":
             raise IdentificationError("--model thesis fits one recording at a time: give one RECORDING "
                                       "(the joint fit of several recordings is the prediction-error model's)")
         if all((Path(p) / "rig.yaml").is_file() for p in paths):  # different bodies: say so before reading bags
             check_same_body([SimpleNamespace(path=Path(p), rig=load_rig(Path(p) / "rig.yaml")) for p in paths])
-    if args.axes is not None and args.axes != "body" and all((Path(p) / "rig.yaml").is_file() for p in paths):
-        output_axes(args.axes, [SimpleNamespace(rig=load_rig(Path(p) / "rig.yaml")) for p in paths])  # refused now
-    if args.report:
-        if args.model == "thesis":
-            raise IdentificationError("--report needs --model rig or pem (the thesis baseline has no predicted "
-                                      "output to plot)")
-        check_report_dir(Path(args.report))  # before the fit, not after it
-    for flag, key, _ in JOB_OPTIONS:
-        text = getattr(args, key, None)
-        if text is not None and not args.report:
-            raise IdentificationError(f"{flag} names the report's {key.replace('_name', '')}: give --report DIR too")
-        if text is not None and ("\n" in text or not text.strip()):
-            raise IdentificationError(f"{flag}: one line of text, not {text!r}")
+    if args.report and args.model == "thesis":
+        raise IdentificationError("--report needs --model rig or pem (the thesis baseline has no predicted "
+                                  "output to plot)")
+    check_common(args)
 
 
 def identify(args, recs: list) -> InertiaResult:
@@ -310,14 +237,10 @@ def cg_uncertainty(args, recs: list, result: InertiaResult, cg_cov: np.ndarray) 
 
 
 def cmd_inertia(args) -> int:
-    """``rig-identify inertia``; returns the exit status (user errors raise, see cli.user_errors)."""
+    """``rig-identify inertia --model pem|thesis`` (also ``--quick`` and several recordings: the
+    gyro-only fit); returns the exit status (user errors raise, see cli.user_errors)."""
     check_options(args)
     recs = read_all(args.recording)
-    if args.model == "rig":
-        axes, axes_notes = output_axes(args.axes, recs)
-        for note in axes_notes:
-            warn(note)
-        return cmd_rig_model(args, recs[0], axes)
     cg_source = "rig.yaml body.center_of_gravity"
     cg_note = None
     cg_cov = None

@@ -17,7 +17,7 @@ import sys
 from typing import Callable
 
 from ..io.package import package_version
-from .arg_types import JOB_OPTIONS, number
+from .arg_types import JOB_OPTIONS, number, resolve_model
 from .progress import attached
 from .sim_args import parse_sim_args
 
@@ -60,6 +60,16 @@ def lazy(module: str, name: str) -> Callable:
     return run
 
 
+def run_inertia(args) -> int:
+    """``rig-identify inertia``: the rig model's command (:mod:`rig_identification.cli.rig_model`), or
+    the gyro-only fit's (:mod:`rig_identification.cli.inertia`) where ``--model``, ``--quick``, several
+    recordings or its own options ask for it (:func:`~rig_identification.cli.arg_types.resolve_model`;
+    ``args.model`` set); each imported only when it runs."""
+    args.model = resolve_model(args)
+    module = "rig_identification.cli.rig_model" if args.model == "rig" else "rig_identification.cli.inertia"
+    return lazy(module, "cmd_inertia")(args)
+
+
 TENSOR = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")   # metavars of every option that takes a tensor (export.ORDER)
 TENSOR_HELP = ("tensor entries about the CG, body axes of rig.yaml, kg·m², in the order ixx iyy izz ixy ixz iyz "
                "(moments, then products: the order of every option); ixy, ixz, iyz are the tensor's off-diagonal "
@@ -96,7 +106,7 @@ def add_inertia_parser(sub) -> None:
                     "and the CG from the static test, the run and both, and each channel's residual against its "
                     "noise. --quick and several recordings (fitted jointly with one tensor): the gyro-only "
                     "prediction-error fit (--model pem) through tracker, preprocessor and identifier.",
-                    lazy("rig_identification.cli.inertia", "cmd_inertia"), inputs=("recording", "cg"),
+                    run_inertia, inputs=("recording", "cg"),
                     outputs=("yaml",), output_dirs=("report",))
     p.add_argument("recording", nargs="+",
                    help="recording folder (rig.yaml + bag/); several recordings of the same body (other exciter "
@@ -315,9 +325,10 @@ def user_errors() -> tuple:
     from ..io.recording import RecordingError
     from ..io.rig import RigError
     from ..io.vehicle import AxesError
+    from ..report.folder import ReportError
     from ..statics import StaticsError
     return (UsageError, RecordingError, RigError, IdentificationError, TrackerError, StaticsError, RigFitError,
-            AxesError, FileNotFoundError)
+            AxesError, ReportError, FileNotFoundError)
 
 
 def identify_main(argv: list[str] | None = None) -> int:

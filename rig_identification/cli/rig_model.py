@@ -15,6 +15,7 @@ from datetime import datetime, timezone
 import numpy as np
 
 from ..diagnosis.rig_diagnosis import RigDiagnosis
+from ..estimation.identification import IdentificationError
 from ..estimation.rig_fit import REWEIGHT_LIMIT, RigFit
 from ..estimation.rig_unknowns import EXTENSIONS
 from ..io.atomic import atomic_write_text
@@ -23,11 +24,12 @@ from ..io.package import package_version
 from ..io.recording import Recording
 from ..io.verdict import KEYS
 from ..pipeline.rig_model import CONSISTENCY_SIGMA, LEVEL_LIMIT, CentreOfGravity, RigModelResult, fit_whole_recording
-from ..report.page import Job, ReportError
+from ..report.folder import Job, ReportError
 from ..report.rig_page import write_rig_report
 from ..statics.handover import load_cg_result
-from .arg_types import JOB_OPTIONS
-from .progress import heading, step
+from .arg_types import JOB_OPTIONS, PEM_ONLY
+from .progress import heading, step, warn
+from .recordings import check_common, output_axes, read_all
 from .text import TABLE_CAPTION, origin_line, principal_lines, tensor_table
 
 #: What the σ of the rig model are (the YAML export's ``std_is``).
@@ -239,3 +241,21 @@ def cmd_rig_model(args, rec: Recording, axes: Axes = BODY) -> int:
     if index is not None:
         print(f"report: {index}", file=out)
     return 0
+
+
+def cmd_inertia(args) -> int:
+    """``rig-identify inertia`` with the rig model (the default: one recording, none of the
+    gyro-only fit's options); returns the exit status (user errors raise, see cli.user_errors)."""
+    given = [flag for k, flag in PEM_ONLY if getattr(args, k, None)] + (["--quick"] if args.quick else [])
+    if len(args.recording) > 1:
+        raise IdentificationError("--model rig fits one recording at a time: give one RECORDING (several are "
+                                  "fitted jointly by --model pem)")
+    if given:
+        raise IdentificationError(f"{', '.join(given)}: options of --model pem, the gyro-only fit; the rig model "
+                                  "takes none of them")
+    check_common(args)
+    recs = read_all(args.recording)
+    axes, axes_notes = output_axes(args.axes, recs)
+    for note in axes_notes:
+        warn(note)
+    return cmd_rig_model(args, recs[0], axes)

@@ -21,7 +21,7 @@ from ..io.export import (
     finite_or_none,
 )
 from ..io.verdict import KEYS, Validation
-from ..model.parametrisation import from_tensor, physically_consistent
+from ..model.parametrisation import entry_scales, from_tensor, physically_consistent
 from .directions import describe_direction
 from .errors_in_variables import Compensation
 from .precision import TARGET, Precision, precision_of
@@ -259,3 +259,19 @@ class InertiaResult:
                                "band_hz": [float(s.band_hz[0]), float(s.band_hz[1])],
                                "residual_rms_rad_s": [float(x) for x in np.sqrt(np.mean(s.residual**2, 0))]}
                               for s, o in zip(self.series, origins)]} if len(self.series) > 1 else {})
+
+
+def compare_to_truth(result: InertiaResult, truth: dict[str, Any]) -> dict[str, dict[str, float]]:
+    """Errors of the identified tensor against truth.yaml's ``inertia_about_cg``.
+
+    Returns {key: {"value", "truth", "error", "error_percent", "error_sigma"}}; the
+    percentage is of the entry for diagonals and of the largest diagonal for products.
+    """
+    tru = truth["inertia_about_cg"]
+    refs = entry_scales([tru[k] for k in KEYS])
+    out = {}
+    for k, v, s, ref in zip(KEYS, from_tensor(result.inertia), result.inertia_std, refs):
+        e = float(v - tru[k])
+        out[k] = {"value": float(v), "truth": float(tru[k]), "error": e, "error_percent": 100 * e / ref,
+                  "error_sigma": e / s if s > 0 else float(np.inf)}
+    return out

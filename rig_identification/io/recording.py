@@ -368,3 +368,9 @@ def read_recording(path: str | Path) -> Recording:
         except yaml.YAMLError as e:
             raise RecordingError(f"{p / 'truth.yaml'}: not valid YAML ({e})") from None
     return Recording(rig, sensors, truth, p, warnings)
+
+
+def recording_labels(recs: list[Recording]) -> list[str]:
+    """Short names of the recordings: folder names, or full paths where names repeat."""
+    names = [Path(r.path).name if r.path is not None else f"recording {i + 1}" for i, r in enumerate(recs)]
+    return [n if names.count(n) == 1 else str(r.path) for n, r in zip(names, recs)]

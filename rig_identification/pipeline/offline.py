@@ -11,9 +11,8 @@ from ..estimation.harmonic_start import box_tensor
 from ..estimation.identification import identify_inertia, identify_inertia_joint
 from ..estimation.inertia_result import InertiaResult
 from ..estimation.thesis_estimator import identify_inertia_thesis
-from ..io.recording import Recording, RecordingError
-from ..io.verdict import KEYS
-from ..model.parametrisation import entry_scales, from_tensor
+from ..io.recording import Recording, RecordingError, recording_labels
+from ..model.parametrisation import from_tensor
 from .fit_validation import validate_fit, weight_surplus, weight_warning
 from .prepare import PreparedRecording, prepare_recording
 from .sigma import refine_uncertainty
@@ -140,12 +139,6 @@ def check_same_body(recs: list[Recording], mass_rtol: float = MASS_RTOL, cg_tol:
                                  f"{1000 * cg_tol:g} mm)")
 
 
-def recording_labels(recs: list[Recording]) -> list[str]:
-    """Short names of the recordings: folder names, or full paths where names repeat."""
-    names = [Path(r.path).name if r.path is not None else f"recording {i + 1}" for i, r in enumerate(recs)]
-    return [n if names.count(n) == 1 else str(r.path) for n, r in zip(names, recs)]
-
-
 def identify_recordings(recs: list[Recording], start: float | None = None, end: float | None = None,
                         settle: float = 5.0, band_hz: tuple[float, float] | None = None,
                         mass_rtol: float = MASS_RTOL, cg_tol: float = CG_TOL, refine: bool = True) -> InertiaResult:
@@ -159,7 +152,7 @@ def identify_recordings(recs: list[Recording], start: float | None = None, end: 
     band-passed on its own, ``band_hz`` or automatic per recording) and, with ``refine``,
     :func:`~rig_identification.pipeline.sigma.refine_uncertainty` over them all.  One recording:
     :func:`identify_recording`.  Warnings are prefixed with the recording's name; the
-    result's ``series`` labels are :func:`recording_labels`.  Raises like
+    result's ``series`` labels are :func:`~rig_identification.io.recording.recording_labels`.  Raises like
     :func:`identify_recording`.
     """
     recs = list(recs)
@@ -178,19 +171,3 @@ def identify_recordings(recs: list[Recording], start: float | None = None, end: 
     result.warnings[:0] = [f"{lab}: {w}" for lab, p in zip(labels, preps) for w in p.rec.warnings + p.warnings]
     validate_fit(preps, result)
     return result
-
-
-def compare_to_truth(result: InertiaResult, truth: dict) -> dict:
-    """Errors of the identified tensor against truth.yaml's ``inertia_about_cg``.
-
-    Returns {key: {"value", "truth", "error", "error_percent", "error_sigma"}}; the
-    percentage is of the entry for diagonals and of the largest diagonal for products.
-    """
-    tru = truth["inertia_about_cg"]
-    refs = entry_scales([tru[k] for k in KEYS])
-    out = {}
-    for k, v, s, ref in zip(KEYS, from_tensor(result.inertia), result.inertia_std, refs):
-        e = float(v - tru[k])
-        out[k] = {"value": float(v), "truth": float(tru[k]), "error": e, "error_percent": 100 * e / ref,
-                  "error_sigma": e / s if s > 0 else float(np.inf)}
-    return out

@@ -12,13 +12,14 @@ from pathlib import Path
 import numpy as np
 
 from ..estimation.identification import IdentificationError
+from ..estimation.inertia_result import compare_to_truth
 from ..io.export import ORDER
 from ..io.recording import Recording
 from ..io.verdict import KEYS
 from ..model.experiment import load_experiment
 from ..model.parametrisation import PAIRS
 from ..model.simulator import simulate
-from .offline import compare_to_truth, identify_recording
+from .offline import identify_recording
 
 CASES = Path(__file__).resolve().parents[2] / "config" / "cases"
 

@@ -27,13 +27,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..estimation.inertia_result import InertiaResult
+from ..estimation.inertia_result import InertiaResult, compare_to_truth
 from ..io.export import BODY, MOMENTS, SYMBOL, Axes, Expressed, axes_for
 from ..io.export import VEHICLE_SIGN as SIGN
 from ..io.vehicle import Vehicle
 from ..io.verdict import KEYS
 from ..model.parametrisation import from_tensor
-from ..pipeline.offline import compare_to_truth
 from .html import MISSING, NOT_DETERMINED, Cell, esc, finite, num, table
 
 ORDER = (0, 3, 5, 1, 2, 4)                           # display order: Ixx, Iyy, Izz, Ixy, Ixz, Iyz
@@ -149,7 +148,7 @@ def mass_properties_of(mass: float, cg: np.ndarray, J: np.ndarray, std: np.ndarr
 def truth_rows(result: InertiaResult, truth: dict | None) -> dict | None:
     """Errors against truth.yaml, products with the vehicle-dynamics sign: {key: {"truth",
     "error" kg·m², "error_percent" (of the entry for moments, of the largest moment for
-    products), "error_sigma"}} (:func:`~rig_identification.pipeline.offline.compare_to_truth`, signs
+    products), "error_sigma"}} (:func:`~rig_identification.estimation.inertia_result.compare_to_truth`, signs
     turned), or None."""
     if not truth or "inertia_about_cg" not in truth:
         return None

@@ -33,24 +33,22 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 
-from ..estimation.identification import IdentificationError
 from ..estimation.inertia_result import InertiaResult
 from ..io.atomic import atomic_directory
 from ..io.export import Axes, axes_for
 from ..io.package import PACKAGE, package_version
-from ..io.recording import Recording
+from ..io.recording import Recording, recording_labels
 from ..io.rig import Rig
 from ..io.vehicle import VEHICLE_AXES, Vehicle, common_vehicle
 from ..io.verdict import KEYS
-from ..pipeline.offline import recording_labels
 from .figures import edge_seconds, ellipse_figure, ellipsoid_figure, fit_figure, residual_figure
-from .html import GENERATOR, bullets, esc, json_safe, num, page, table
+from .folder import Job, ReportError, check_report_dir, rig_label
+from .html import bullets, esc, json_safe, num, page, table
 from .identifiability import axis_signal, identifiability, identifiability_html
 from .mass import (
     axes_html,
@@ -66,42 +64,6 @@ from .modes import modes_section
 from .verdict import checks_table, verdict_html
 
 
-@dataclass(frozen=True)
-class Job:
-    """Who and what the report is for, as the lab gives it (``rig-identify inertia --vehicle-name
-    --customer --operator``): each a line of text or None (not given, not shown)."""
-
-    vehicle: str | None = None
-    customer: str | None = None
-    operator: str | None = None
-
-    def rows(self) -> list[list[str]]:
-        """The header's rows for the fields given: [label, text]."""
-        return [[label, text] for label, text in (("vehicle", self.vehicle), ("customer", self.customer),
-                                                  ("operator", self.operator)) if text]
-
-    def to_dict(self) -> dict[str, str | None]:
-        """report.json's fields (``vehicle_name``: ``vehicle`` there is where the vehicle lies)."""
-        return {"vehicle_name": self.vehicle, "customer": self.customer, "operator": self.operator}
-
-
-class ReportError(IdentificationError):
-    """The result cannot be reported (the thesis baseline has no fit output series), or
-    the report folder would replace something that is not an earlier report."""
-
-
-def check_report_dir(out: Path) -> None:
-    """Refuse to replace a file, or a non-empty folder that is not an earlier report."""
-    if not out.exists():
-        return
-    if not out.is_dir():
-        raise ReportError(f"{out}: exists and is not a folder (refusing to replace it with the report)")
-    index = out / "index.html"
-    if any(out.iterdir()) and not (index.is_file() and GENERATOR in index.read_text(errors="replace")[:2000]):
-        raise ReportError(f"{out}: exists and is not an earlier rig-identify report (refusing to replace it); "
-                          "give a new folder")
-
-
 def common_truth(recs) -> dict | None:
     """truth.yaml of the recordings if every one has it and their ``inertia_about_cg`` agree
     (to 1e-9 relative), else None."""
@@ -114,12 +76,6 @@ def common_truth(recs) -> dict | None:
         if np.any(np.abs(v - ref) > 1e-9 * np.abs(ref).max()):
             return None
     return truths[0]
-
-
-def rig_label(rig: Rig) -> str:
-    """The rig's name (rig.yaml ``name``) with where it was read from, or only the latter when
-    rig.yaml names none."""
-    return f"{rig.name} ({rig.source})" if rig.name else str(rig.source)
 
 
 def header_html(result: InertiaResult, recs: list[Recording], labels: list[str], truth: dict | None,
@@ -323,5 +279,4 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
     return out_dir / "index.html"
 
 
-__all__ = ["write_report", "Job", "check_report_dir", "identifiability", "common_truth", "axis_signal", "ReportError",
-           "json_safe", "package_version", "rig_label"]
+__all__ = ["write_report", "identifiability", "common_truth", "axis_signal", "json_safe", "package_version"]

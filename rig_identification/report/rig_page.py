@@ -35,6 +35,7 @@ from ..io.verdict import KEYS
 from ..model.parametrisation import to_tensor
 from ..pipeline.rig_model import LEVEL_LIMIT, RigModelResult
 from .figures import CHANNEL_GROUPS, channels_figure, ellipsoid_figure
+from .folder import Job, check_report_dir, rig_label
 from .html import esc, json_safe, num, page, table
 from .mass import (
     SIGN,
@@ -46,7 +47,6 @@ from .mass import (
     principal_html,
     to_json,
 )
-from .page import Job, check_report_dir, rig_label
 
 #: What the rig model is, as the header says it.
 METHOD = ("the rig's grey-box model (rigid body on elastic cables, driven by the measured exciter force), every "
