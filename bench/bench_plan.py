@@ -80,10 +80,10 @@ def one_run(args):
     key, seed, band = args
     sim = _clean(key)
     rng = np.random.default_rng(seed)
-    # refine=False: the estimator the prediction models (first order; the bias correction
-    # moves each estimate by a few % of σ), and crb_std stays the identifier's white-gyro bound
+    # the plain gyro-only fit: the estimator the prediction models (first order); crb_std is the
+    # identifier's white-gyro bound
     rec = Recording(sim.rig, add_noise(sim.sensors, REFERENCE_NOISE, rng), sim.truth)
-    res = identify_recording(rec, band_hz=band, refine=False)
+    res = identify_recording(rec, band_hz=band)
     return from_tensor(res.inertia), res.crb_std
 
 
@@ -216,7 +216,7 @@ def one_run_plan(args):
         _EXP_SIMS[key] = [simulate(e) for e in exps]
     recs = [Recording(sim.rig, add_noise(sim.sensors, REFERENCE_NOISE, np.random.default_rng(seed + i)), sim.truth)
             for i, sim in enumerate(_EXP_SIMS[key])]
-    res = identify_recordings(recs, band_hz=band, refine=False)
+    res = identify_recordings(recs, band_hz=band)
     return from_tensor(res.inertia)
 
 

@@ -27,10 +27,7 @@ subtracted; the least-squares fit (the chain: tracker, yaw anchor, preprocessor,
 recording's band) of each: ½[θ(s + n) − θ(s − n)] is the chain's first-order error for n, every path
 included, ½[θ(s + n) + θ(s − n)] − θ(s) its even part.  Printed per entry: the propagated σ of the
 least-squares fit (``uncertainty.propagated``) and the RMS of the first-order errors — equal within
-the sample's ±1/√(2N) when the linearisation holds every path — and the even part's mean and sd;
-then the pipeline's replay test (``NoiseReplays.birge_ratio``) on these N draws, against the propagated
-covariance and against its diagonal alone: the first is what widens σ in ``refine_uncertainty``, the
-second what the entries' σ need.
+the sample's ±1/√(2N) when the linearisation holds every path — and the even part's mean and sd.
 With ``--first-noise-seed K`` the realisations are the simulator's own instead (n = the recording of
 noise seed k minus the noise-free one, k = K..K+N−1: the --any-rig recordings' noise).
 """
@@ -179,7 +176,6 @@ def _first_order_job(args):
 
 def first_order_main(a) -> int:
     """The --any-rig --first-order mode (see module docstring)."""
-    from rig_identification.estimation.uncertainty import NoiseReplays
     from rig_identification.io.verdict import KEYS
     simulator = a.first_noise_seed_given
     ks = range(a.first_noise_seed, a.first_noise_seed + a.first_order) if simulator else range(a.first_order)
@@ -200,13 +196,6 @@ def first_order_main(a) -> int:
         print(f"{k:6s} {prop[i]:13.4g} {rms:16.4g} {rms / prop[i]:6.2f} {E[:, i].mean():+10.4g} "
               f"{E[:, i].std(ddof=1):8.4g}")
     print(f"(the ratio's sampling spread alone: ±{100 / np.sqrt(2 * len(rows)):.0f} %)")
-    # the replays' test of the pipeline (uncertainty.NoiseReplays.birge_ratio) on these draws: the
-    # whitened spread against the propagated covariance, and the entries' σ alone (its diagonal)
-    cov = np.array(next(r["propagated_cov"] for r in rows if "propagated_cov" in r))
-    whole, dof = NoiseReplays(np.zeros(6), F).birge_ratio(cov)
-    diag, _ = NoiseReplays(np.zeros(6), F).birge_ratio(np.diag(np.diag(cov)))
-    print(f"Birge ratio of the draws against the propagated covariance: {whole:.2f} ({dof} dof); "
-          f"against its diagonal (the entries' σ alone): {diag:.2f}")
     return 0
 
 

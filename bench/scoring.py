@@ -1,7 +1,6 @@
 """What the benches that judge fits against the simulator's truth share (bench_trust.py,
-bench_any_rig.py): the scale each entry's error is judged on, the σ the geometry and the
-excitation give each entry *with the true tensor* (decided from the truth, independently of
-the fit), each reported entry's error % and error/σ, the rows every table prints the same way
+bench_any_rig.py): the scale each entry's error is judged on, each reported entry's error % and
+error/σ, the rows every table prints the same way
 (a rig the simulator could not make, a recording the tool refused), the rig as a lab surveys it
 (errors concealed in rig.yaml and the load cells, each of the survey's σ), and the run over worker
 processes that says each recording on stderr as it is done and keeps what it measured.
@@ -18,24 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from rig_identification.estimation.inertia_result import InertiaResult
-from rig_identification.estimation.uncertainty import propagated, sensor_noise
-from rig_identification.io.recording import Recording
 from rig_identification.io.rig import Rig
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import entry_scales, from_tensor, to_tensor
-from rig_identification.pipeline.prepare import prepare_recording
-
-
-def predicted_rel_std(rec: Recording, theta_true: np.ndarray, band_hz, prep=None) -> np.ndarray:
-    """(6,) the σ the recording's noise gives each entry along its own trajectory with the true
-    tensor ``theta_true`` (6,) kg·m² (the planner's propagation,
-    :func:`~rig_identification.estimation.uncertainty.propagated`), over :func:`entry_scales`.
-    ``prep``: the recording's :func:`~rig_identification.pipeline.prepare.prepare_recording`
-    when the caller has it.  Raises what the propagation raises (the caller keeps the bench going)."""
-    prep = prepare_recording(rec) if prep is None else prep
-    noise, rates = sensor_noise(rec.rig, prep.sensors)
-    pred = propagated(rec.rig, prep.poses, prep.sensors, prep.t, to_tensor(theta_true), band_hz, noise, rates)
-    return pred.std / entry_scales(theta_true)
+from rig_identification.model.parametrisation import entry_scales, from_tensor
 
 
 def surveyed(rig: Rig, rng: np.random.Generator, std: float | None = None, cg_std: float = 0.0) -> Rig:

@@ -188,7 +188,7 @@ def test_identify_service_validates_as_rig_identify(graph):
     g, lis, sim, rec = graph
     d = json.loads(lis.call("/identifier/identify_inertia").message)
     offline_rec = read_recording(rec)
-    off = identify_recording(offline_rec, refine=False).to_dict(t0=float(offline_rec.sensors.t_start))
+    off = identify_recording(offline_rec).to_dict(t0=float(offline_rec.sensors.t_start))
     v, vo = d["validation"], off["validation"]
     assert v is not None, "the node's answer has no validation"
     assert v["verdict"] == vo["verdict"]

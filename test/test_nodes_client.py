@@ -24,7 +24,7 @@ from rig_identification.pipeline.offline import identify_recording  # noqa: E402
 @pytest.fixture(scope="module")
 def answer():
     rec = read_recording(recording("visible_case16_clean"))
-    d = json.loads(json.dumps(identify_recording(rec, refine=False).to_dict(t0=float(rec.sensors.t_start))))
+    d = json.loads(json.dumps(identify_recording(rec).to_dict(t0=float(rec.sensors.t_start))))
     return d, rec.truth
 
 

@@ -3,7 +3,7 @@ the verdict, the widened σ and null entries for what the recording does not det
 
 * No DDS: ``pipeline.stream_fit`` fed with a prepared recording's streams (the IMU, the
   generalized wrench, the tracked orientation, as the node buffers them) gives the validation
-  of ``rig-identify inertia --quick`` (``pipeline.identify_recording(refine=False)``): the
+  of ``rig-identify inertia --quick`` (``pipeline.identify_recording``): the
   same checks and statistics, the same widened σ, on the clean and on the damped reference
   recordings (``ok``, ``model_error``).
 * Over DDS: a rig with near-parallel cables (``scenarios`` layout "parallel", 30 s) replayed
@@ -48,7 +48,7 @@ def node_validation(rec):
 @pytest.mark.parametrize("name, verdict", [("visible_case16_clean", "ok"), ("visible_case16_damped", "model_error")])
 def test_node_validation_is_rig_identify_quick(name, verdict):
     rec = read_recording(recording(name))
-    off = identify_recording(rec, refine=False)
+    off = identify_recording(rec)
     node = node_validation(rec)
     v, vo = node.validation, off.validation
     assert v is not None and v.verdict == vo.verdict == verdict, (v and v.summary, vo.summary)

@@ -64,8 +64,8 @@ def test_predicted_std_matches_noisy_replays():
     z, zl = [], []
     for seed in range(8):
         noisy = add_noise(sim.sensors, REFERENCE_NOISE, np.random.default_rng(100 + seed))
-        # refine=False: the first-order estimator the prediction models
-        res = identify_recording(Recording(sim.rig, noisy, sim.truth), refine=False)
+        # the plain fit: the first-order estimator the prediction models
+        res = identify_recording(Recording(sim.rig, noisy, sim.truth))
         z.append((from_tensor(res.inertia) - truth) / pred.std)
         gyro = REFERENCE_NOISE["gyro"] * np.random.default_rng(100 + seed).standard_normal(
             sim.sensors.imu.data.shape)[:, :3]

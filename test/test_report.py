@@ -145,7 +145,7 @@ def test_report_renders_with_all_images(made, tmp_path):
     # the principal axes, the ellipses, and per recording the fit and the residuals
     assert len(seen["tensor"]) == 6 and seen["images"] == 4
     assert seen["verdict"].startswith("verdict: ok")
-    assert [r[0] for r in seen["checks"]][:2] == ["residual_level", "segments"]
+    assert [r[0] for r in seen["checks"]][:2] == ["segments", "sub_bands"]
     for word in ("REP-103", "SAE J670", "rig_identification 0.1.0", "visible_case16_clean", "rig.yaml",
                  "Principal moments and axes"):
         assert word in seen["text"], word

@@ -3,7 +3,7 @@
 The model's physics against the package's simulator (noise-free), the exciter force's
 denoising, a fast recording's decimation, the refusals, and the fit of random 3- and 5-cable
 rigs (reference noise, 45 s) within 1 % and 3 σ with σ near the Cramér–Rao bound.  The sweep
-over many rigs is ``bench/bench_any_rig.py --model rig``.
+over many rigs is ``bench/bench_any_rig.py``.
 """
 import dataclasses
 

@@ -24,7 +24,7 @@ def test_noise_free_case(case):
     # 0.021 % and 0.0002 %; case 10 wanders 0.02–0.04 % between 30 and 60 s)
     exp = load_experiment(CASES / f"{case}.yaml")
     sim = simulate(replace(exp, duration=30.0))
-    res = identify_recording(Recording(sim.rig, sim.sensors, sim.truth), refine=False)  # noise-free
+    res = identify_recording(Recording(sim.rig, sim.sensors, sim.truth))  # noise-free
     for k, c in compare_to_truth(res, sim.truth).items():
         assert abs(c["error_percent"]) < 0.1, (case, k, c)
 

@@ -138,7 +138,7 @@ def test_offset_rotated_imu_and_origin_away_from_cg(offset_sim):
     t, dp, dr = pose_errors(sim, track(sim.rig, sim.sensors))
     assert np.abs(dr).max() < 2e-5, np.abs(dr).max(0)
     assert np.abs(dp).max() < 2e-5, np.abs(dp).max(0)
-    res = identify_recording(Recording(sim.rig, sim.sensors, sim.truth), refine=False)
+    res = identify_recording(Recording(sim.rig, sim.sensors, sim.truth))
     for k, c in compare_to_truth(res, sim.truth).items():
         assert abs(c["error_percent"]) < 0.05, (k, c)
 

@@ -213,15 +213,12 @@ def check_options(args) -> None:
 def identify(args, recs: list) -> InertiaResult:
     """The fit the options ask for (one recording or a joint fit)."""
     band = tuple(args.band) if args.band else None
-    refine = not args.quick
-    what = "tracker, preprocessor, fit" + (", σ from replays with fresh noise" if refine and args.model == "pem"
-                                           else "") + ", validation"
-    heading(f"identifying ({what})")
+    heading("identifying (tracker, preprocessor, fit, validation)")
     if len(recs) > 1:
-        return identify_recordings(recs, start=args.start, end=args.end, band_hz=band, refine=refine)
+        return identify_recordings(recs, start=args.start, end=args.end, band_hz=band)
     guess = None if args.initial_guess is None else entries_from_option(args.initial_guess)
     return identify_recording(recs[0], start=args.start, end=args.end, band_hz=band, model=args.model,
-                              initial_guess=guess, refine=refine)
+                              initial_guess=guess)
 
 
 def cg_uncertainty(args, recs: list, result: InertiaResult, cg_cov: np.ndarray) -> InertiaResult:

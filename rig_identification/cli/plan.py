@@ -58,7 +58,7 @@ def cmd_modes(args) -> int:
         source = "--inertia"
     else:
         heading("identifying the tensor (rig-identify inertia --quick)")
-        J = identify_recording(rec, refine=False).inertia
+        J = identify_recording(rec).inertia
         source = "identified from the recording"
     if args.stiffness is not None:
         k, kname = args.stiffness, f"spring cables k = {args.stiffness:g} N/m"

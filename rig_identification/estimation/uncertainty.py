@@ -1,4 +1,4 @@
-"""What the noise does to a recording's inertia estimate: its σ, and draws of its noise.
+"""What the noise does to a recording's gyro-only inertia estimate: its σ, and draws of noise.
 
 The identifier's own sandwich covariance (:func:`~rig_identification.estimation.identification.identify_inertia`) sees
 the fit's residuals only; the noise reaches the estimate by more paths than the output
@@ -11,27 +11,16 @@ the load cells, the exciter; see :mod:`rig_identification.design.planning`).  Fo
   identifier along the recording's own tracked trajectory
   (:func:`~rig_identification.estimation.propagation.predict_from_trajectory`; :func:`propagated`): the Cramér–Rao-type
   bound of this estimator for the recording's excitation, coloured residuals included;
-* re-runs the chain with fresh noise at those levels (:func:`noise_replays`, antithetic
-  pairs ``s ± m``): ``½[x(s + m) − x(s − m)]`` of any quantity x of the chain is a draw of
-  its first-order noise.  The identifier's draws check the propagated σ
-  (:meth:`NoiseReplays.sigma_factor`); the regressor's and output's are the realisations
-  with which the fit is compensated for the noise in its input
-  (:mod:`rig_identification.estimation.errors_in_variables`: the tracker's pose carries the integrated gyro noise into
-  the torque while the output carries the same gyro noise — an errors-in-variables bias,
-  on thesis case 16 at the reference noise +0.035 kg·m² on Iyy, a third of its σ; on an
-  axis the body hardly turns, many σ).
+* adds fresh white noise at given levels to a recording's streams (:func:`add_noise`; antithetic
+  pairs ``s ± m`` with ``sign``), for the benches' Monte Carlo draws.
 """
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike
 from scipy.spatial.transform import Rotation
-from scipy.stats import chi2
 
 from ..io.noise import white_sigma
 from ..io.recording import SensorData, TimeSeries
@@ -43,8 +32,6 @@ if TYPE_CHECKING:
     from .prediction import Prediction
     from .tracker import PoseTrack
 
-REPLAY_ALPHA = 0.05
-"""Significance at which the replays' spread widens the propagated σ (:meth:`NoiseReplays.sigma_factor`)."""
 
 
 def sensor_noise(rig: Rig, sensors: SensorData) -> tuple[dict[str, float], dict[str, float]]:
@@ -124,105 +111,3 @@ def add_noise(sensors: SensorData, noise: dict[str, float], rng: np.random.Gener
     cells = {n: add(sensors.load_cells[n], noise["load_cell"]) for n in sensors.load_cells}
     return SensorData(imu, cells, add(sensors.exciter, noise["exciter"]),  # type: ignore[arg-type]  # add(): None for None only
                       add(sensors.inclinometer, noise["inclinometer"]))
-
-
-@dataclass(frozen=True)
-class NoiseReplays:
-    """What replays with fresh noise say of an estimate (:func:`noise_replays`).
-
-    bias (6,) kg·m²: the mean over the antithetic pairs of ``½[θ(s + m) + θ(s − m)] − θ(s)``,
-    SIMEX's second-order estimate of the bias (Cook & Stefanski 1994; it sees only part of
-    the errors-in-variables bias, which :mod:`rig_identification.estimation.errors_in_variables`
-    removes); draws (K,6) kg·m²: ``½[θ(s + m) − θ(s − m)]`` per pair,
-    each a draw of the estimate's first-order error at the recording's noise levels (the
-    linear term ``L m``; the noise already in the data moves only the point it is taken at)."""
-
-    bias: np.ndarray
-    draws: np.ndarray
-
-    def birge_ratio(self, covariance: np.ndarray) -> tuple[float, int]:
-        """How much larger the replays' spread is than ``covariance`` (6,6) predicts: the
-        Birge ratio √(Σ_k d_kᵀ C⁻¹ d_k / (6K)) (χ² with 6K degrees of freedom when C is right)
-        and its degrees of freedom."""
-        C = 0.5 * (covariance + covariance.T)
-        ev, U = np.linalg.eigh(C)
-        keep = ev > 1e-12 * max(ev.max(), 1e-300)
-        z = self.draws @ U[:, keep]
-        stat = float(np.sum(z**2 / ev[keep]))
-        dof = int(keep.sum()) * len(self.draws)
-        return float(np.sqrt(stat / max(dof, 1))), dof
-
-    def sigma_factor(self, covariance: np.ndarray) -> tuple[float, int]:
-        """The factor by which σ of ``covariance`` (6,6) must widen for the replays' spread, and
-        the degrees of freedom of the comparison: the Birge ratio (:meth:`birge_ratio`) where
-        the replays spread significantly more than the covariance predicts — its χ² beyond the
-        1 − :data:`REPLAY_ALPHA` quantile —, else 1.  The rule of the validation's consistency
-        checks (widened only beyond significance): with three pairs (18 dof) the ratio of a
-        right covariance scatters ±17 %, and widening by every ratio above 1 made σ about 7 %
-        too large on average (thesis case 16, 60 replays: the spread 1.05× the propagated σ,
-        0.95× the widened one; bench_any_rig's clean sweep: error/σ RMS 1.04 with the
-        propagated σ, 0.95 widened)."""
-        ratio, dof = self.birge_ratio(covariance)
-        significant = ratio**2 * dof > chi2.ppf(1.0 - REPLAY_ALPHA, max(dof, 1))
-        return (ratio if significant else 1.0), dof
-
-
-def noise_replays(fit: Callable[[list[SensorData]], ArrayLike], base: np.ndarray, sensors: list[SensorData],
-                  noises: list[dict[str, float]], seed: int = 0, pairs: int = 1,
-                  first: int = 0) -> NoiseReplays:
-    """The estimate re-run on the recording(s) with ``pairs`` antithetic pairs of fresh white
-    noise at the estimated levels (:func:`add_noise`): draws of the first-order error and
-    the antithetic mean shift (:class:`NoiseReplays`).
-
-    fit(list of SensorData) -> (6,) entries (the whole chain with the estimate's band and
-    window); base: ``fit(sensors)``; sensors, noises: per recording.  ``fit`` is called
-    2 × ``pairs`` times.  first: the number of the first pair — pairs first … first + pairs − 1
-    draw the same noise whatever call makes them, so that a second call with ``first`` = the
-    first call's ``pairs`` continues the series (:func:`pooled_replays`)."""
-    base = np.asarray(base, float)
-    bias, draws = [], []
-    for p in range(first, first + pairs):
-        out = []
-        for sign in (+1.0, -1.0):
-            out.append(np.asarray(fit([add_noise(s, n, np.random.default_rng([seed, i] if p == 0 else [seed, i, p]),
-                                                 sign)
-                                       for i, (s, n) in enumerate(zip(sensors, noises))]), float))
-        bias.append(0.5 * (out[0] + out[1]) - base)
-        draws.append(0.5 * (out[0] - out[1]))
-    return NoiseReplays(np.mean(bias, axis=0), np.array(draws))
-
-
-def pooled_replays(a: NoiseReplays, b: NoiseReplays) -> NoiseReplays:
-    """The replays of ``a`` and ``b`` as one series (:func:`noise_replays` continued with
-    ``first``): the bias averaged over all their pairs, the draws (K_a + K_b, 6) together."""
-    ka, kb = len(a.draws), len(b.draws)
-    return NoiseReplays((ka * np.asarray(a.bias) + kb * np.asarray(b.bias)) / max(ka + kb, 1),
-                        np.vstack([a.draws, b.draws]))
-
-
-@dataclass(frozen=True)
-class ReplayFactor:
-    """The replays' verdict on a propagated covariance (:func:`confirmed_sigma_factor`).
-
-    factor ≥ 1: by which σ widens; dof: the degrees of freedom of the comparison (6 per pair);
-    replays: every pair replayed (the confirmation's too)."""
-
-    factor: float
-    dof: int
-    replays: NoiseReplays
-
-
-def confirmed_sigma_factor(replays: NoiseReplays, covariance: np.ndarray, more: Callable[[int, int], NoiseReplays],
-                           pairs: int) -> ReplayFactor:
-    """:meth:`NoiseReplays.sigma_factor` of ``replays`` against ``covariance`` (6,6), confirmed:
-    where it is significant, ``more(pairs, first)`` (:func:`noise_replays` continued at pair
-    ``first``) replays ``pairs`` pairs more and the factor is that of all of them together —
-    1 unless they still spread significantly more.  A sequential test: under a right covariance
-    three pairs widen by chance 5 % of the time, by at least their threshold ratio (1.27 over
-    18 dof); with three more the rate falls to 2 % and the factor is measured on 36 dof
-    (±12 % instead of ±17 %; test_uncertainty measures both).  pairs = 0: no confirmation."""
-    factor, dof = replays.sigma_factor(covariance)
-    if factor > 1.0 and pairs > 0:
-        replays = pooled_replays(replays, more(pairs, len(replays.draws)))
-        factor, dof = replays.sigma_factor(covariance)
-    return ReplayFactor(float(factor), int(dof), replays)

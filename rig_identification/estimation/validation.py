@@ -363,11 +363,7 @@ class AccelInput:
     """What the accelerometer check needs of one prepared recording: t (N,) s; gyro (N,3)
     rad/s and torque (N,3) N·m and force (N,3) N (generalized, weight excluded), body axes;
     accel (N,3) m/s² the measured specific force, body axes; mass kg; rho (3,) m from the CG to
-    the IMU, body axes; band_hz; noise m/s² the accelerometer's white σ; replays: (torque,
-    force) pairs of the same window replayed with a fresh realisation of the sensors' noise
-    added and subtracted (:func:`~rig_identification.pipeline.sigma.refine_uncertainty`'s antithetic pair): half their
-    difference is a draw of the prediction's own noise (the tracker's pose error seen through
-    the tensions' lever arms), which the check adds to the accelerometer's."""
+    the IMU, body axes; band_hz; noise m/s² the accelerometer's white σ."""
 
     t: np.ndarray
     gyro: np.ndarray
@@ -378,7 +374,6 @@ class AccelInput:
     rho: np.ndarray
     band_hz: tuple[float, ...]
     noise: float
-    replays: tuple[tuple[np.ndarray, np.ndarray], ...] = ()
 
 
 def accelerometer_check(inputs: list[AccelInput], J: np.ndarray) -> Check | None:
@@ -407,17 +402,13 @@ def accelerometer_check(inputs: list[AccelInput], J: np.ndarray) -> Check | None
         imp = np.zeros(4096)
         imp[2048] = 1.0
         gain = float(np.sqrt(np.sum(sosfiltfilt(sos, imp) ** 2)))   # noise gain of the filter
-        pred_noise = np.zeros(3)
-        if len(a.replays) == 2:
-            (tq1, f1), (tq2, f2) = a.replays
-            pred_noise = band_rms(0.5 * (predicted(tq1, f1) - predicted(tq2, f2)))
-        ratio = res_rms / np.sqrt((a.noise * gain) ** 2 + pred_noise**2)
+        ratio = res_rms / (a.noise * gain)
         if ratio.max() > worst:
             worst, axis = float(ratio.max()), int(np.argmax(ratio))
     return Check("accelerometer", worst, ACCEL_RATIO, bool(worst <= ACCEL_RATIO),
                  f"the specific force predicted from the load cells, exciter and identified tensor vs the "
                  f"accelerometer (a channel the fit does not use): residual {worst:.2f}× what the noise explains "
-                 f"(the accelerometer's and the prediction's own, in band; body {'xyz'[axis]})")
+                 f"(the accelerometer's, in band; body {'xyz'[axis]})")
 
 
 def identifiability(result: InertiaResult, std: np.ndarray, cov: np.ndarray | None = None
@@ -522,8 +513,7 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     """The verdict on an inertia fit (see module docstring).
 
     result: the fit (:func:`~rig_identification.estimation.identification.identify_inertia`, with ``series`` carrying
-    the Jacobian; ``residual_excess`` and ``bias_correction`` from
-    :func:`~rig_identification.pipeline.sigma.refine_uncertainty` are used when set).  accel: the accelerometer
+    the Jacobian; ``residual_excess`` and ``bias_correction`` are used when set).  accel: the accelerometer
     check's inputs, one per fitted recording.  weight_surplus: see
     :func:`~rig_identification.pipeline.fit_validation.weight_surplus`.  rig: for the advice on
     geometry.  Never raises on

@@ -66,22 +66,21 @@ def accel_inputs(preps: list[PreparedRecording], result: InertiaResult) -> list[
     bands = [s.band_hz for s in result.series] if len(result.series) == len(preps) else [result.band_hz] * len(preps)
     for p, band in zip(preps, bands):
         out.append(accel_input(p.rec.rig, p.t, p.gyro_body, p.torque, p.force, p.sensors.imu.interp(p.t)[:, 3:6],
-                               white_sigma(p.sensors.imu.data[:, 3:6]), band,
-                               tuple(p.replays[-2:]) if len(p.replays) >= 2 else ()))
+                               white_sigma(p.sensors.imu.data[:, 3:6]), band))
     return out
 
 
 def accel_input(rig, t: np.ndarray, gyro_body: np.ndarray, torque: np.ndarray, force: np.ndarray,
-                accel_imu: np.ndarray, accel_noise: float, band_hz, replays: tuple = ()) -> AccelInput:
+                accel_imu: np.ndarray, accel_noise: float, band_hz) -> AccelInput:
     """The accelerometer check's input
     (:class:`~rig_identification.estimation.validation.AccelInput`) of one fit window:
     t (N,) s the fit's stamps; gyro_body (N,3) rad/s, torque (N,3) N·m about the CG and force
     (N,3) N (generalized, weight excluded), body axes, at t; accel_imu (N,3) m/s² the measured
     specific force at t, IMU axes (turned to body axes here); accel_noise m/s² its white σ
-    (:func:`~rig_identification.io.noise.white_sigma`); band_hz the fit's band; replays: see AccelInput.  Used by
+    (:func:`~rig_identification.io.noise.white_sigma`); band_hz the fit's band.  Used by
     :func:`accel_inputs` and by the identifier node."""
     return AccelInput(t, gyro_body, torque, force, rig.imu.rotation.apply(accel_imu), rig.mass,
-                      rig.imu.position - rig.require_cg(), tuple(band_hz), float(accel_noise), tuple(replays))
+                      rig.imu.position - rig.require_cg(), tuple(band_hz), float(accel_noise))
 
 
 def validate_fit(preps: list[PreparedRecording], result: InertiaResult) -> InertiaResult:

@@ -15,20 +15,19 @@ from ..io.recording import Recording, RecordingError, recording_labels
 from ..model.parametrisation import from_tensor
 from .fit_validation import validate_fit, weight_surplus, weight_warning
 from .prepare import PreparedRecording, prepare_recording
-from .sigma import refine_uncertainty
 
 log = logging.getLogger(__name__)   # steps (INFO) and warnings as they happen: cli_progress shows them
 
 
 def identify_recording(rec: Recording, start: float | None = None, end: float | None = None,
                        settle: float = 5.0, band_hz: tuple[float, float] | None = None,
-                       model: str = "pem", initial_guess=None, refine: bool = True) -> InertiaResult:
+                       model: str = "pem", initial_guess=None) -> InertiaResult:
     """Identify the inertia tensor of a dynamic recording.
 
     start/end/settle: the window, see :func:`~rig_identification.pipeline.prepare.prepare_recording`.
-    model: ``"pem"`` (ours; with ``refine``, :func:`~rig_identification.pipeline.sigma.refine_uncertainty`:
-    compensated for the noise in its input, σ propagated from the estimated sensor noise — about
-    three times the work of the plain fit) or ``"thesis"`` (the thesis's model and estimator,
+    model: ``"pem"`` (the prediction-error fit on the gyro, the tensions its input through tracker
+    and preprocessor, :func:`~rig_identification.estimation.identification.identify_inertia`; σ its
+    own sandwich, from the residuals) or ``"thesis"`` (the thesis's model and estimator,
     :func:`~rig_identification.estimation.thesis_estimator.identify_inertia_thesis`, from
     ``initial_guess`` (6,) tensor entries or the body anchors' box,
     :func:`~rig_identification.estimation.harmonic_start.box_tensor`).  Every fit is validated
@@ -48,8 +47,6 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
             result = identify_inertia(rig, prep.t, prep.gyro_body, prep.torque, band_hz=band_hz)
         except np.linalg.LinAlgError as e:
             result = unidentified(rig, prep, f"the fit's normal equations are singular ({e})")
-        if refine and np.all(np.isfinite(result.inertia)):
-            refine_uncertainty([prep], result)
     else:
         raise ValueError(f"unknown model {model!r} (pem or thesis)")
     result.warnings[:0] = rec.warnings + prep.warnings
@@ -141,7 +138,7 @@ def check_same_body(recs: list[Recording], mass_rtol: float = MASS_RTOL, cg_tol:
 
 def identify_recordings(recs: list[Recording], start: float | None = None, end: float | None = None,
                         settle: float = 5.0, band_hz: tuple[float, float] | None = None,
-                        mass_rtol: float = MASS_RTOL, cg_tol: float = CG_TOL, refine: bool = True) -> InertiaResult:
+                        mass_rtol: float = MASS_RTOL, cg_tol: float = CG_TOL) -> InertiaResult:
     """One inertia tensor from several recordings of the same body (different exciter
     frequencies or positions, cable geometries).
 
@@ -149,8 +146,7 @@ def identify_recordings(recs: list[Recording], start: float | None = None, end: 
     each recording with :func:`~rig_identification.pipeline.prepare.prepare_recording` (the same
     start/end/settle window on each), then fits jointly with
     :func:`~rig_identification.estimation.identification.identify_inertia_joint` (each recording
-    band-passed on its own, ``band_hz`` or automatic per recording) and, with ``refine``,
-    :func:`~rig_identification.pipeline.sigma.refine_uncertainty` over them all.  One recording:
+    band-passed on its own, ``band_hz`` or automatic per recording).  One recording:
     :func:`identify_recording`.  Warnings are prefixed with the recording's name; the
     result's ``series`` labels are :func:`~rig_identification.io.recording.recording_labels`.  Raises like
     :func:`identify_recording`.
@@ -159,15 +155,13 @@ def identify_recordings(recs: list[Recording], start: float | None = None, end: 
     if not recs:
         raise RecordingError("no recording given")
     if len(recs) == 1:
-        return identify_recording(recs[0], start=start, end=end, settle=settle, band_hz=band_hz, refine=refine)
+        return identify_recording(recs[0], start=start, end=end, settle=settle, band_hz=band_hz)
     check_same_body(recs, mass_rtol, cg_tol)
     labels = recording_labels(recs)
     preps = [prepare_recording(r, start, end, settle) for r in recs]
     log.info("fitting one inertia tensor to %d recordings (prediction error)", len(preps))
     result = identify_inertia_joint([p.rec.rig for p in preps], [(p.t, p.gyro_body, p.torque) for p in preps],
                                     band_hz=band_hz, labels=labels)
-    if refine:
-        refine_uncertainty(preps, result)
     result.warnings[:0] = [f"{lab}: {w}" for lab, p in zip(labels, preps) for w in p.rec.warnings + p.warnings]
     validate_fit(preps, result)
     return result

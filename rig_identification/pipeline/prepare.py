@@ -38,9 +38,6 @@ class PreparedRecording:
     poses: object = None        # the tracker's PoseTrack over it
     window: tuple = (0.0, 0.0)  # (lo, hi) absolute stamps, s, of the fit window
     force: np.ndarray | None = None
-    # refine_uncertainty's replays with fresh noise (antithetic pair): (torque, force) on t, for
-    # the validation's noise of channels predicted from the wrench (validation.AccelInput)
-    replays: list = field(default_factory=list)
     yaw_anchor: YawAnchor | None = None     # what the yaw anchoring did (yaw_anchor.anchor_yaw)
 
 
@@ -63,8 +60,7 @@ def replay_window(rig, s, lo: float, hi: float) -> Replay:
     """Tracker -> yaw anchoring (:func:`~rig_identification.estimation.yaw_anchor.anchor_yaw`: where
     the cables leave the
     yaw free) -> preprocessor over the cleaned sensors ``s``; the window [lo, hi] (absolute
-    stamps, s).  The one replay every fit of a recording makes (the identification, the
-    replays of :func:`~rig_identification.pipeline.sigma.refine_uncertainty`).  Returns a :class:`Replay`."""
+    stamps, s): the pass the gyro-only fit makes of a recording.  Returns a :class:`Replay`."""
     poses, anchor = anchor_yaw(rig, track(rig, s), s, lo, hi)
     wrench = preprocess(rig, poses, s)
     m = (wrench.t >= lo) & (wrench.t <= hi)
