@@ -5,9 +5,8 @@ integrated by ``solve_ivp`` from the measured moment at every residual evaluatio
 Both fit the same 120 s, 200 Hz reference recording (visible_case16_clean) after the same
 tracker and preprocessor, with the same band-pass on both sides; the table gives the wall
 time of the fit alone and the largest error against truth.yaml.  A second table times the
-whole ``rig-identify inertia`` path (``pipeline.identify_recording``: cleaning, tracker,
-preprocessor, fit) without and with the uncertainty refinement (noise estimate, antithetic
-bias correction: two more replays, noise propagation).
+whole gyro-only path of ``rig-identify inertia --model pem`` (``pipeline.identify_recording``:
+cleaning, tracker, preprocessor, fit, validation).
 Usage: bench_pem_speed.py [--no-naive]
 """
 import sys

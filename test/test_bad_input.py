@@ -46,8 +46,7 @@ def run(path, *extra, quick=True):
     (``identify_main``, as test_cli_output does; the command as a process is run by
     test_reference_recordings and test_report): (exit status, JSON or None, stderr).  An
     exception the command does not turn into exit status 2 and one line propagates."""
-    # --quick: these tests are about what bad input does to the replay and the fit; the
-    # uncertainty refinement re-runs the same replay (test_refined_run_on_bad_input).
+    # --quick: these tests are about what bad input does to the replay and the fit.
     # --quiet: stderr holds the warnings and the error only (no progress lines)
     argv = ["inertia", str(path), "--json", "--quiet", *map(str, extra), *(["--quick"] if quick else [])]
     out, err = io.StringIO(), io.StringIO()

@@ -132,7 +132,9 @@ def test_quiet_prints_the_short_result_with_the_same_table(text_run):
 
 def test_json_schema_units_window_and_derived_quantities(json_run):
     d, _, _ = json_run
-    assert d["schema"] == "rig_identification.inertia_result" and d["schema_version"] == 2
+    assert d["schema"] == "rig_identification.inertia_result" and d["schema_version"] == 3
+    # one σ, the fit's own: no field of the σ replays or the input-noise compensation
+    assert not {"errors_in_variables", "bias_correction", "replay_sigma_factor", "sensor_noise"} & set(d)
     assert {"mass", "inertia_about_cg", "window.start", "principal_moments"} <= set(d["units"])
     assert d["correlation"]["keys"] == list(KEYS) and len(d["correlation"]["matrix"]) == 6
     w = d["window"]

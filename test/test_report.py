@@ -95,7 +95,7 @@ def not_identifiable(res: InertiaResult) -> InertiaResult:
     r.inertia_std = r.inertia_std.copy()
     r.inertia_std[[0, 1, 2]] = [np.nan, np.inf, np.nan]
     r.validation = Validation("not_identifiable", (
-        Check("residual_level", 1.1, 1.6, True, "the fit's residual is 1.10× what the sensors' noise explains"),
+        Check("whiteness", 4.1, 44.0, True, "largest residual line 4.1× its local median level"),
         Check("segments", None, None, None, "does not apply"),
         Check("identifiable", 0.42, 0.1, False, "largest relative σ ixx 42 % (limit 10 %)")),
         undetermined=("ixx", "ixy", "ixz"),
@@ -108,8 +108,8 @@ def model_error(res: InertiaResult) -> InertiaResult:
     r = copy.deepcopy(res)
     r.crb_std = None
     r.validation = Validation("model_error", (
-        Check("residual_level", 4.2, 1.6, False, "the fit's residual is 4.20× what the sensors' noise explains"),
-        Check("sub_bands", 25.0, 7.5, False, "izz 2790 below vs 2850 kg·m² above")), failed=("residual_level",
+        Check("whiteness", 85.0, 44.0, False, "largest residual line 85.0× its local median level"),
+        Check("sub_bands", 25.0, 7.5, False, "izz 2790 below vs 2850 kg·m² above")), failed=("whiteness",
                                                                                           "sub_bands"))
     return r
 

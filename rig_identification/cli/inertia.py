@@ -55,7 +55,6 @@ from .recordings import check_common, output_axes, read_all
 from .rig_model import job_of
 from .text import (
     TABLE_CAPTION,
-    entries_line,
     fmt,
     origin_line,
     principal_lines,
@@ -98,17 +97,9 @@ def cg_in_sigma_line(result: InertiaResult) -> str:
 
 
 def std_line(result: InertiaResult) -> str:
-    """What σ is: the propagated sensor noise or the fit's residuals."""
-    n = result.sensor_noise
-    if n is None:
-        return (f"σ: from the fit's residuals ({result.uncertainty}; --quick and --model thesis do not propagate "
-                "the sensors' noise)")
-    noise = (f"gyro {n['gyro']:.2g} rad/s, accelerometer {n['accelerometer']:.2g} m/s², load cells "
-             f"{n['load_cell']:.2g} N, exciter {n['exciter']:.2g} N, inclinometer {1000 * n['inclinometer']:.2g} mrad")
-    if result.uncertainty.startswith("propagated"):
-        return (f"σ: the sensors' noise, estimated from the recording ({noise}), propagated through tracker, "
-                "preprocessor and identifier")
-    return f"σ: from the fit's residuals (sandwich): they exceed what the sensors' noise ({noise}) explains"
+    """What σ is: the gyro-only fit's sandwich, from its residuals."""
+    return (f"σ: from the fit's residuals ({result.uncertainty}; the gyro-only fit does not propagate the sensors' "
+            "noise: the rig model's σ, rig-identify inertia without --model pem/--quick, is the Cramér–Rao bound's)")
 
 
 BRIEF_TAIL = ("(-q: the short result; without -q also the tensor entries, principal axes, σ's source and "
@@ -157,17 +148,6 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
     print(std_line(result))
     print(result.precision.text())
     print(GIVEN_EXACT if result.cg_contribution_std is None else cg_in_sigma_line(result))
-    eiv = result.errors_in_variables
-    if eiv is not None:
-        print(f"noise in the fit's input (errors in variables): {100 * min(eiv.share, 9.99):.3g} % of it along its "
-              "noisiest direction; "
-              + ("the least-squares bias it causes, removed (kg·m², tensor entries): " if result.bias_applied else
-                 "too large to compensate; the least-squares bias NOT removed: ")
-              + entries_line(dict(zip(KEYS, result.bias_correction)), spec="+.3g"))
-        s2 = eiv.second_order_std
-        if s2 is not None and np.any(s2 > 0.3 * np.asarray(result.inertia_std, float)):
-            print("σ holds the spread of that noise's second-order term, which the removal leaves (kg·m²): "
-                  + entries_line(dict(zip(KEYS, s2)), spec=".3g"))
     if result.validation is not None:
         for c in result.validation.checks:
             mark = "pass" if c.passed else ("FAIL" if c.passed is False else "n/a ")

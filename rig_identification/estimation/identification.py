@@ -49,7 +49,6 @@ from ..model.parametrisation import (
     to_tensor,
 )
 from .directions import weak_directions
-from .errors_in_variables import NoiseRealisations, compensate
 from .inertia_result import FitSeries, InertiaResult
 from .signals import auto_band, cumulative_integral, step_indices
 
@@ -151,22 +150,10 @@ def prepare_segment(t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
     return Segment(t, w, fs, (lo, hi), filt, y, IM, G, label)
 
 
-def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent: bool = True,
-                 noise: list[NoiseRealisations] | None = None) -> InertiaResult:
+def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent: bool = True) -> InertiaResult:
     """The two-stage fit of :func:`identify_inertia` over one or more prepared segments
     (:func:`prepare_segment`) with a common tensor: residuals and Jacobians stacked,
-    sandwich meat and Cramér–Rao information summed over the segments (they are independent).
-
-    noise: one :class:`~rig_identification.estimation.errors_in_variables.NoiseRealisations` per
-    segment (the regressor's
-    and output's first-order noise, from replays with fresh noise): the least-squares
-    estimate is then compensated for the noise in its input (bias-compensated least squares,
-    :func:`~rig_identification.estimation.errors_in_variables.compensate`;
-    ``result.errors_in_variables``), and the result's series carry the
-    noise realisations of the Jacobian and residual.  When the noise dominates a direction
-    (share ≥ 1) the compensation is impossible: the least-squares estimate is kept with a
-    warning and ``errors_in_variables.share`` says it.  Raises :class:`IdentificationError`
-    for mismatched noise."""
+    sandwich meat and Cramér–Rao information summed over the segments (they are independent)."""
     E = basis()
 
     def predict(j: np.ndarray, s: Segment) -> tuple[np.ndarray, np.ndarray]:
@@ -214,15 +201,6 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
                             xtol=1e-12, ftol=1e-12)
         j, _ = consistent_from_params(sol.x)
         method += "; Levenberg–Marquardt on a physically consistent parametrisation"
-    comp = None
-    eiv_warnings: list[str] = []
-    if noise is not None:
-        if len(noise) != len(segs) or any(nz.du.shape[1:] != s.y.shape for nz, s in zip(noise, segs)):
-            raise IdentificationError("identifier: one noise realisation set (K,N,3) per segment is needed")
-        j, comp, eiv_warnings = compensate(segs, j, sigma, noise, consistent)
-        if not eiv_warnings:
-            method += (f"; compensated for the noise in its input (bias-compensated least squares, "
-                       f"{comp.count} noise realisations)")
     if len(segs) > 1:
         method += f"; joint fit of {len(segs)} recordings with a common tensor"
     J = to_tensor(j)
@@ -255,7 +233,7 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
     y_all = np.concatenate([s.y for s in segs])
     res_rms = np.sqrt(np.mean(resid**2, axis=0))
     r2 = 1 - np.sum(resid**2, 0) / np.sum(y_all**2, 0)
-    warnings = list(eiv_warnings)
+    warnings: list[str] = []
     if not physically_consistent(J):
         warnings.append("the identified tensor is not physically consistent (not positive definite "
                         "or violates the triangle inequality): the window does not excite the body enough")
@@ -268,14 +246,6 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
     res.gyro_noise = sgs[0] if len(sgs) == 1 else float(np.sqrt(np.mean(np.square(sgs))))
     res.series = [FitSeries(s.t, s.y, yh, s.band, s.label, A3, sigma.copy(), s.fs)
                   for s, yh, A3 in zip(segs, yhats, A3s)]
-    if comp is not None:
-        res.errors_in_variables = comp
-        P = np.linalg.inv(J)
-        for ser, nz in zip(res.series, noise):  # type: ignore[arg-type]  # noise is not None where comp is not
-            dyh = nz.du @ P.T                                         # (K,N,3) P Δu
-            ser.noise_jacobian = -np.einsum("ij,knjq->kniq", P, np.einsum("qjl,knl->knjq", E, dyh))
-            ser.noise_residual = nz.dy - dyh
-            ser.noise_predicted = dyh
     return res
 
 

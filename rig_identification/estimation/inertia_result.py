@@ -23,7 +23,6 @@ from ..io.export import (
 from ..io.verdict import KEYS, Validation
 from ..model.parametrisation import entry_scales, from_tensor, physically_consistent
 from .directions import describe_direction
-from .errors_in_variables import Compensation
 from .precision import TARGET, Precision, precision_of
 
 
@@ -44,18 +43,6 @@ class FitSeries:
     jacobian: np.ndarray | None = None
     axis_scale: np.ndarray | None = None
     fs: float | None = None
-    # first-order noise realisations of the Jacobian (K,N,3,6), of the residual (K,N,3) and of
-    # the prediction (K,N,3) at the fitted tensor (:mod:`rig_identification.estimation.errors_in_variables`), when the
-    # fit was compensated: the validation's sub-band, segment and input-correlation fits
-    # compensate with them too
-    noise_jacobian: np.ndarray | None = None
-    noise_residual: np.ndarray | None = None
-    noise_predicted: np.ndarray | None = None
-    # (6,6) kg⁴·m⁴, KEYS order: the fitted tensor's covariance from the sensors' noise alone
-    # (pipeline.refine_uncertainty's propagation, widened to the replays' spread where they
-    # confirmed a wider one; not by a consistency check's Birge ratio): the residual at the
-    # fitted tensor carries the estimate's own error, jacobian · δθ (the validation's whiteness null)
-    noise_covariance: np.ndarray | None = None
 
     @property
     def residual(self) -> np.ndarray:
@@ -96,28 +83,13 @@ class InertiaResult:
     crb_std: np.ndarray | None = None
     gyro_noise: float | None = None
     series: list[FitSeries] = field(default_factory=list)
-    # filled by pipeline.refine_uncertainty (None otherwise): the identifier's own sandwich
-    # σ (6,), the least-squares bias removed by the compensation for the noise in the input
-    # (6,) kg·m², the estimated white-noise σ per sensor source, and the per-gyro-axis ratio
-    # (3,) of the fit's residual RMS to the one the noise's replays predict
-    sandwich_std: np.ndarray | None = None
-    bias_correction: np.ndarray | None = None
-    sensor_noise: dict[str, float] | None = None
-    residual_excess: np.ndarray | None = None
-    # the propagated σ widened to the spread of replays with fresh noise (pipeline.refine_uncertainty)
-    replay_factor: float | None = None
     # filled by pipeline.identify_recording: the load cells' mean vertical force over
     # rig.yaml's weight, − 1 (pipeline.weight_surplus)
     weight_surplus: float | None = None
-    uncertainty: str = "sandwich"   # what inertia_std is: "sandwich", "propagated sensor noise", …
+    uncertainty: str = "sandwich"   # what inertia_std is: the sandwich, widened where the validation says
     # filled by pipeline.identify_recording(s): the model validation's verdict and checks
-    # (validation.validate); whether bias_correction was removed (it is not when the noise
-    # dominates a direction of the input: then the compensation is impossible)
+    # (validation.validate)
     validation: Validation | None = None
-    bias_applied: bool = False
-    # filled by a fit compensated for the noise in its input (pipeline.refine_uncertainty):
-    # errors_in_variables.Compensation (share of noise in the regressor, the correction, its σ)
-    errors_in_variables: Compensation | None = None
     # the lab's precision target (a fraction: 0.01 is ±1 % at 95 %), which :attr:`precision` judges
     precision_target: float = TARGET
     # filled by pipeline.with_cg_uncertainty: the σ (6,) kg·m² that the CG's own σ adds to the
@@ -229,19 +201,7 @@ class InertiaResult:
             "products_of_inertia": ex.products(),
             "inertia_about_origin": {k: ex.entry(k, "origin") for k in KEYS},
             "uncertainty": self.uncertainty,
-            "residual_excess": None if self.residual_excess is None else [num(x) for x in self.residual_excess],
             "weight_surplus": num(self.weight_surplus),
-            "inertia_sandwich_std": per_key(self.sandwich_std),
-            "bias_correction": per_key(self.bias_correction),
-            "bias_correction_applied": bool(self.bias_applied),
-            "errors_in_variables": None if self.errors_in_variables is None else {
-                "noise_share": num(self.errors_in_variables.share),
-                "direction": {k: num(x) for k, x in zip(KEYS, self.errors_in_variables.direction)},
-                "correction_std": per_key(self.errors_in_variables.correction_std),
-                "second_order_std": per_key(self.errors_in_variables.second_order_std),
-                "realisations": int(self.errors_in_variables.count)},
-            "replay_sigma_factor": num(self.replay_factor),
-            "sensor_noise": None if self.sensor_noise is None else {k: num(v) for k, v in self.sensor_noise.items()},
             "principal_moments": None if pm is None else pm["moments"],
             "principal_axes": None if pm is None else pm["axes"],
             "physically_consistent": bool(np.all(np.isfinite(self.inertia)) and physically_consistent(self.inertia)),

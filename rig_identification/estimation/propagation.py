@@ -34,9 +34,7 @@ estimate errors (0.99+); on thesis cases 10–17 its σ match the spread of 60 M
 replays per case within ±20 % on 46 of 48 entries (median ratio 1.00; the pitch inertia Iyy is
 predicted 10–25 % conservative on some cases), where the white-gyro bound alone is off by
 −23 … +130 % (``bench/bench_plan.py``).  Second-order effects (errors in the integrated torque acting as
-errors in variables) are not modelled here: the fit's compensation removes their mean and σ
-adds their spread (:mod:`rig_identification.estimation.errors_in_variables`,
-:func:`~rig_identification.estimation.errors_in_variables.second_order_covariance`).
+errors in variables: a bias of least squares) are not modelled here.
 """
 from __future__ import annotations
 

@@ -19,11 +19,6 @@ Theory for the User*, 2nd ed., ch. 16, "Model validation") and gives one of thre
 The checks (each a :class:`Check` with its statistic, threshold, pass/fail and a line of
 detail):
 
-``residual_level``
-    the band-passed gyro residual RMS over the one the sensors' noise predicts (the noise
-    realisations of the residual, :func:`residual_excess`, away from the band-pass's edge
-    transients, :func:`interior`; else the fit's ``residual_excess``; per axis, the
-    largest), ≤ :data:`RESIDUAL_RATIO`.
 ``segments``
     cross-validation between time segments: the tensor fitted on each of K consecutive
     segments must agree with the whole window's within the noise — a Wald χ² of the
@@ -51,11 +46,7 @@ detail):
 ``whiteness``
     no spectral line in the residual: Fisher's g-test (Fisher 1929) of the largest
     periodogram ordinate of the residual in the band over the noise's level there (the
-    noise realisations' spectrum plus the estimate's own error through the fit's Jacobian,
-    :func:`~rig_identification.estimation.spectral_wls.fitted_noise_level` — without it a rig
-    driven near one frequency showed its estimate's 2 σ error as a line, and failed on 2 of
-    13 noise seeds of bench_any_rig's 27020; without realisations the residual's local
-    median), with the Bonferroni correction over the bins and axes.  A misfit locked to the
+    residual's local median), with the Bonferroni correction over the bins and axes.  A misfit locked to the
     forcing, a mode of the body or of the structure shows as a line.
 ``accelerometer``
     a channel the fit does not use: the specific force at the IMU predicted from the
@@ -67,12 +58,6 @@ detail):
 ``weight``
     the load cells' mean vertical force against rig.yaml's weight
     (:func:`~rig_identification.pipeline.fit_validation.weight_surplus`), within :data:`WEIGHT_TOLERANCE`.
-``errors_in_variables``
-    the share of the fit's input that is the sensors' noise (the gyro's reaches the moment
-    through the tracked pose), along its noisiest direction, within
-    :data:`~rig_identification.estimation.errors_in_variables.EIV_LIMIT`: the fit is compensated for that noise
-    (:mod:`rig_identification.estimation.errors_in_variables`), which holds to first order; beyond the limit the noise
-    is as large as the signal and the entries along that direction are not determined.
 ``identifiable``
     every entry's σ within :data:`REL_STD_LIMIT` of its scale (its own value for a moment,
     the largest moment for a product), every number finite, a physically consistent
@@ -98,18 +83,12 @@ from scipy.stats import chi2
 
 from ..io.export import MOMENTS
 from ..io.verdict import KEYS, Check, Validation, fmt_p
-from ..model.parametrisation import entry_scales, from_tensor, physically_consistent
+from ..model.parametrisation import from_tensor, physically_consistent
 from .directions import AXIS_WORDS, ENTRY_AXES, weak_directions
-from .errors_in_variables import EIV_LIMIT
 from .inertia_result import FitSeries, InertiaResult
 from .spectral_wls import (
-    determined,
-    fitted_noise_level,
     interior,
     missed_noise,
-    piece_noise,
-    projector,
-    residual_excess,
     spectra,
     wald,
     wls_step,
@@ -122,7 +101,6 @@ if TYPE_CHECKING:
 ALPHA = 1e-3                # significance of each statistical check
 EFFECT_FACTOR = 2.0         # a consistency check fails beyond this multiple of its significance threshold
 WHITENESS_FACTOR = 3.0      # the whiteness check fails beyond this multiple of its significance threshold
-RESIDUAL_RATIO = 1.6        # residual RMS / the noise's, per gyro axis
 ACCEL_RATIO = 1.6           # accelerometer residual RMS / its in-band noise, per axis
 REL_STD_LIMIT = 0.10        # σ of an entry beyond this fraction of its scale: not determined
 WEAK_SHARE = 0.3            # an entry with this share of an undetermined tensor direction is not determined
@@ -202,10 +180,8 @@ def segment_check(series: list[FitSeries], theta: np.ndarray,
             lo, hi = max(a, inner.start), min(b, inner.stop)
             part = spectra(s, slice(lo, hi))
             frac = (hi - lo) / (inner.stop - inner.start)
-            mom = [piece_noise(full, part, frac)]
-            d, V = wls_step_joint([part], moments=mom)
-            B = determined([part], moments=mom)
-            x, k = wald(B.T @ (d - d0), B.T @ (V + E / frac) @ B)
+            d, V = wls_step_joint([part])
+            x, k = wald(d - d0, V + E / frac)
             stat += x
             dof += k
             ests.append(theta + d)
@@ -242,12 +218,7 @@ def band_check(series: list[FitSeries], theta: np.ndarray,
         halves.append((np.arange(k), np.arange(k, len(sp.f))))
     (d1, V1), (d2, V2) = [wls_step_joint(sps, [h[i] for h in halves]) for i in (0, 1)]
     E = np.asarray(scale, float)
-    B1, B2 = [determined(sps, [h[i] for h in halves]) for i in (0, 1)]
-    # the directions both halves determine (the complement of the union of the noisy ones)
-    U, sv, _ = np.linalg.svd(np.eye(6) - projector(B1) @ projector(B2) @ projector(B1) if B1.shape[1] < 6 or
-                             B2.shape[1] < 6 else np.zeros((6, 6)))
-    B = U[:, sv < 0.5]
-    stat, dof = wald(B.T @ (d1 - d2), B.T @ (V1 + V2 + 4.0 * E) @ B)
+    stat, dof = wald(d1 - d2, V1 + V2 + 4.0 * E)
     f = sps[0].f
     split = 0.5 * (f[halves[0][0][-1]] + f[halves[0][1][0]])
     edges = (float(series[0].band_hz[0]), float(split), float(series[0].band_hz[1]))
@@ -273,10 +244,7 @@ def quadrature_check(series: list[FitSeries]) -> Check:
             X[..., a, 3 * a:3 * a + 3] = -1j * y         # Hilbert transform, positive frequencies
         return X
 
-    extras = [quadrature(sp.y) for sp in sps]
-    # the predicted ω carries the input's noise: the regressors' realisations (a compensated fit)
-    noisy = [None if sp.dy is None else quadrature(sp.dy) for sp in sps]
-    step, cov = wls_step_joint(sps, extras=extras, extras_noise=noisy)
+    step, cov = wls_step_joint(sps, extras=[quadrature(sp.y) for sp in sps])
     beta, V = step[6:], cov[6:, 6:]
     stat, dof = wald(beta, V)
     B = beta.reshape(3, 3)
@@ -322,39 +290,23 @@ def hausman(diff: np.ndarray, V1: np.ndarray, V0: np.ndarray) -> tuple[float, in
 def whiteness_check(series: list[FitSeries]) -> Check:
     """Fisher's g-test for a spectral line in the residual (see module docstring): the
     largest ratio of a periodogram ordinate to the noise's level there
-    (:class:`~rig_identification.estimation.spectral_wls.Spectra`'s S:
-    the noise realisations' spectrum, the ratio then F(2, 2ν) distributed; without them the
-    residual's running median, the ratio exponential), Bonferroni over the bins and axes.
-    Statistic and threshold in units of that ratio."""
-    worst, where, n, nu = 0.0, "", 0, None
+    (:class:`~rig_identification.estimation.spectral_wls.Spectra`'s S, the residual's running
+    median: the ratio exponential), Bonferroni over the bins and axes.  Statistic and threshold
+    in units of that ratio."""
+    worst, where, n = 0.0, "", 0
     for s in series:
         sp = spectra(s)
         lo, hi = s.band_hz
         inner = (sp.f >= EDGE_MARGIN * lo) & (sp.f <= hi / EDGE_MARGIN)   # the filter's skirts excluded
-        # the noise's level in the residual at the fitted tensor, the estimate's own error in it
-        # (a line where the motion fills one frequency)
-        level = sp.S if s.noise_covariance is None else fitted_noise_level(sp, s.noise_covariance)
-        ratio = (np.abs(sp.r) ** 2 / level)[inner]                     # P / the noise's level
+        ratio = (np.abs(sp.r) ** 2 / sp.S)[inner]                      # P / the noise's level
         n += ratio.size
-        if sp.dof is not None:
-            nu = sp.dof // 2 if nu is None else min(nu, sp.dof // 2)
         i, a = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
         if ratio[i, a] > worst:
             worst, where = float(ratio[i, a]), f"gyro {'xyz'[a]} at {sp.f[inner][i]:.3f} Hz"
-    if nu is None:
-        # the level a running median: P / level is exponential, P(ratio > x) = e^−x
-        thr, p = float(np.log(n / ALPHA)), min(1.0, n * float(np.exp(-worst)))
-        what = "its local median level"
-    else:
-        # the level the noise realisations' mean over 2ν degrees of freedom: P / level is
-        # F(2, 2ν), P(ratio > x) = (1 + x/ν)^−ν
-        thr = float(nu * ((n / ALPHA) ** (1.0 / nu) - 1.0))
-        p = min(1.0, n * float((1.0 + worst / nu) ** -nu))
-        what = "the noise's level there (the replays' residual spectrum" + (
-            ", and the estimate's own error through the fit's Jacobian)"
-            if any(s.noise_covariance is not None for s in series) else ")")
+    # the level a running median: P / level is exponential, P(ratio > x) = e^−x
+    thr, p = float(np.log(n / ALPHA)), min(1.0, n * float(np.exp(-worst)))
     return Check("whiteness", worst, WHITENESS_FACTOR * thr, bool(worst <= WHITENESS_FACTOR * thr),
-                 f"largest residual line {worst:.1f}× {what} ({where}); p = {fmt_p(p)}"
+                 f"largest residual line {worst:.1f}× its local median level ({where}); p = {fmt_p(p)}"
                  + (" (significant, but too small to matter)" if thr < worst <= WHITENESS_FACTOR * thr else ""))
 
 
@@ -513,7 +465,7 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     """The verdict on an inertia fit (see module docstring).
 
     result: the fit (:func:`~rig_identification.estimation.identification.identify_inertia`, with ``series`` carrying
-    the Jacobian; ``residual_excess`` and ``bias_correction`` are used when set).  accel: the accelerometer
+    the Jacobian).  accel: the accelerometer
     check's inputs, one per fitted recording.  weight_surplus: see
     :func:`~rig_identification.pipeline.fit_validation.weight_surplus`.  rig: for the advice on
     geometry.  Never raises on
@@ -526,14 +478,6 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     finite = bool(np.all(np.isfinite(theta)) and np.all(np.isfinite(std)))
     segs = times = bands = edges = None
     series = [s for s in result.series if s.jacobian is not None]
-    excess = residual_excess(series) if series else None
-    if excess is None and result.residual_excess is not None:
-        excess = np.asarray(result.residual_excess, float)
-    if excess is not None:
-        r = excess
-        checks.append(Check("residual_level", float(np.max(r)), RESIDUAL_RATIO, bool(np.max(r) <= RESIDUAL_RATIO),
-                            f"the fit's residual is {np.max(r):.2f}× what the sensors' noise explains "
-                            f"(gyro {'xyz'[int(np.argmax(r))]})"))
     if series and finite:
         with np.errstate(all="ignore"):
             try:
@@ -556,31 +500,6 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
                             bool(abs(weight_surplus) <= WEIGHT_TOLERANCE),
                             f"the load cells carry {100 * weight_surplus:+.3f} % of rig.yaml's weight beyond it"))
     factor = max([1.0] + [c.sigma_factor for c in checks])
-    biased: tuple[str, ...] = ()
-    eiv = result.errors_in_variables
-    if eiv is not None and finite:
-        if not (eiv.share <= EIV_LIMIT and eiv.applied):
-            biased = tuple(k for k, x in zip(KEYS, eiv.direction) if abs(x) >= WEAK_SHARE) or tuple(KEYS)
-            if eiv.leak is not None:
-                # and every entry the bias reaches beyond the limit through J = P⁻¹ (the
-                # correction not made, errors_in_variables.attenuation_leak), not only those
-                # with a share of the noisiest direction (bench_any_rig's
-                # seed 25004 gave Izz at 4.75 σ with 10⁻⁴ of it, 7400 of bench_trust Iyy 71 % off
-                # at 5 σ with a share beyond 1)
-                with np.errstate(all="ignore"):
-                    reach = np.abs(np.asarray(eiv.leak, float)) / entry_scales(theta)
-                biased = tuple(k for k, r in zip(KEYS, reach) if k in biased or not r <= REL_STD_LIMIT)
-        main = KEYS[int(np.argmax(np.abs(eiv.direction)))]
-        moved = np.abs(eiv.correction) / np.maximum(std, 1e-300)
-        k = int(np.argmax(moved))
-        checks.append(Check("errors_in_variables", float(eiv.share), EIV_LIMIT, not biased,
-                            f"the sensors' noise is {100 * min(eiv.share, 9.99):.3g} % of the fit's input along its "
-                            f"noisiest direction (mostly {main}); the compensation for it moved {KEYS[k]} by "
-                            f"{moved[k]:.2f} σ"
-                            + ((f" (beyond {100 * EIV_LIMIT:g} %: " if not eiv.share <= EIV_LIMIT else
-                                " (the fit could not be compensated for it: ")
-                               + "the entries along that direction are not determined; the body hardly turns about "
-                               "it)" if biased else "")))
     # whether the recording determines an entry is the noise's question (the propagated σ, checked
     # against the replays): a model error's residuals widen the sandwich σ of an entry the
     # excitation determines well (unmodelled damping: Ixx's σ 4 % from the noise, 20 % widened).
@@ -589,12 +508,12 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
     # how much the geometry and the excitation tell about an entry — with it, a damped 4-cable
     # rig (test_validation's, Ixx's noise σ 4.7 %) turned not_identifiable as soon as its
     # sub-band misfit fell from "failed" to "widened 2.48×"
-    noise_std = std if result.crb_std is None else np.asarray(result.crb_std, float) * (result.replay_factor or 1.0)
+    noise_std = std if result.crb_std is None else np.asarray(result.crb_std, float)
     ident, bad = identifiability(result, noise_std)
     # a product is not determined when a moment about one of its axes is not, whichever check
     # found the moment undetermined (the noise in the input along it too: bench_any_rig's seed
     # 21000 gave Ixy 22 % off under a biased Ixx)
-    out = with_products(set(bad) | set(biased))
+    out = with_products(set(bad))
     bad = tuple(k for k in KEYS if k in out)
     checks.append(ident)
     parts = [np.zeros(6)]
@@ -604,7 +523,7 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
         parts.append(np.abs(bands[0] - bands[1]))
     spread = np.max(parts, axis=0)
     failed = tuple(c.name for c in checks
-                   if c.passed is False and c.name not in ("identifiable", "errors_in_variables"))
+                   if c.passed is False and c.name != "identifiable")
     if bad:
         verdict = "not_identifiable"
     elif failed:

@@ -40,7 +40,7 @@ from .vehicle import MOTIONS, VEHICLE_AXES, AxesError, Vehicle, vehicle_rotation
 from .verdict import KEYS
 
 INERTIA_SCHEMA = "rig_identification.inertia_result"    # the JSON of rig-identify inertia --json
-INERTIA_SCHEMA_VERSION = 2   # 2: validation.segments[].start/end in s from the first IMU sample (were stamps)
+INERTIA_SCHEMA_VERSION = 3   # 3: no σ replays or input-noise compensation; 2: segment times from the first IMU sample
 EXPORT_SCHEMA = "rig_identification.inertia_export"     # the YAML file of rig-identify inertia --yaml
 EXPORT_SCHEMA_VERSION = 1
 
@@ -300,11 +300,7 @@ def urdf_inertial(ex: Expressed, fmt: str = ".7g") -> str:
 UNITS = {
     "mass": "kg", "center_of_gravity": "m, body frame", "inertia_about_cg": "kg·m², body axes, tensor entries",
     "inertia_about_origin": "kg·m², body axes, tensor entries", "inertia_std": "kg·m²",
-    "inertia_crb_std": "kg·m²", "inertia_sandwich_std": "kg·m²",
-    "bias_correction": "kg·m²: the least-squares estimate's bias removed",
-    "errors_in_variables.noise_share": "1: share of the fit's input that is noise, along its noisiest direction",
-    "errors_in_variables.direction": "1: unit vector of tensor entries", "errors_in_variables.correction_std": "kg·m²",
-    "errors_in_variables.second_order_std": "kg·m²",
+    "inertia_crb_std": "kg·m²",
     "products_of_inertia": "kg·m², body axes, vehicle-dynamics sign (Ixy = −ixy)",
     "principal_moments": "kg·m², ascending", "principal_axes": "1: unit vectors, body axes, one per principal moment",
     "correlation": "1", "weakly_determined.relative_std": "1: σ over tr J / 3", "weakly_determined.std": "kg·m²",
@@ -312,10 +308,8 @@ UNITS = {
                                    "same direction in products of inertia with the vehicle-dynamics sign)",
     "window.start": "s from the recording's first IMU sample", "window.end": "s from the recording's first IMU sample",
     "window.start_stamp": "s, header stamps", "window.end_stamp": "s, header stamps", "band_hz": "Hz",
-    "residual_rms_rad_s": "rad/s", "residual_excess": "1: residual RMS over the noise's", "fit_r2": "1",
-    "weight_surplus": "1: load cells' mean vertical force over rig.yaml's weight, − 1", "replay_sigma_factor": "1",
-    "sensor_noise.gyro": "rad/s", "sensor_noise.accelerometer": "m/s²", "sensor_noise.load_cell": "N",
-    "sensor_noise.exciter": "N", "sensor_noise.inclinometer": "rad",
+    "residual_rms_rad_s": "rad/s", "fit_r2": "1",
+    "weight_surplus": "1: load cells' mean vertical force over rig.yaml's weight, − 1",
     "precision.target": "1: the 95 % half-width asked, a fraction of the entry's scale (a moment's own, the "
                         "largest moment's for a product)", "precision.half_width": "1: 1.96 σ over the entry's scale",
     "precision.duration_s": "s", "precision.length_factor": "1: multiple of duration_s",

@@ -4,8 +4,8 @@ The entries in :data:`~rig_identification.io.verdict.KEYS` order (ixx, ixy, ixz,
 geometry_msgs/Inertia, the negated products of inertia), the symmetric basis that maps them
 to the (3,3) tensor, and the log-Cholesky parametrisation of Wensing, Kim & Slotine (IEEE
 RA-L 2017) under which every tensor is positive definite and obeys the triangle
-inequalities.  Used by the identifier (:mod:`rig_identification.estimation.identification`) and by the
-errors-in-variables compensation (:mod:`rig_identification.estimation.errors_in_variables`).
+inequalities.  Used by the identifiers (:mod:`rig_identification.estimation.identification`,
+:mod:`rig_identification.estimation.rig_fit`).
 """
 from __future__ import annotations
 

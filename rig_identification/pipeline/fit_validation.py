@@ -111,13 +111,6 @@ def apply_validation(result: InertiaResult, accel: list[AccelInput] | None, surp
     v = validate(result, accel, surplus, rig)
     result.validation = v
     w = widened_std(result.inertia_std, v)
-    eiv = result.errors_in_variables
-    leak = None if eiv is None or eiv.leak is None else np.where(np.isfinite(eiv.leak), eiv.leak, 0.0)
-    if leak is not None:
-        # the fit could not be compensated for the noise in its input: the entries it gives carry
-        # the correction it did not make (errors_in_variables.attenuation_leak; one beyond the
-        # limit makes its entry undetermined, null, in validate)
-        w = np.sqrt(w**2 + leak**2)
     if np.any(w > result.inertia_std):
         result.covariance = result.covariance * v.sigma_factor**2 + np.diag(
             np.maximum(w**2 - (v.sigma_factor * result.inertia_std) ** 2, 0.0))
@@ -127,9 +120,6 @@ def apply_validation(result: InertiaResult, accel: list[AccelInput] | None, surp
                                    "noise" if not v.failed else
                                    f"; widened to the validation's spread ({', '.join(v.failed)} failed: a lower bound "
                                    "of the error)")
-        if leak is not None and np.any(leak != 0):
-            result.uncertainty += ("; with the least-squares bias the fit could not be compensated for (errors in "
-                                   "variables: the correction not made, in quadrature)")
         # under not_identifiable, an entry the widening leaves beyond the limit is not given either
         v = beyond_limit_widened(from_tensor(result.inertia), w, v, rig)
         result.validation = v

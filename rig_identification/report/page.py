@@ -130,15 +130,9 @@ def report_vehicle(recs: list[Recording], rig: Rig | None) -> Vehicle | None:
 
 def sigma_note(result: InertiaResult) -> str:
     """What the σ of the tensor table are."""
-    if result.sandwich_std is not None:
-        txt = ("σ: the sensors' noise, estimated from the recording, propagated through tracker, preprocessor and "
-               "identifier (the propagated-noise column), or the fit's own sandwich σ where the residual shows "
-               f"model error; here: {result.uncertainty}. "
-               + ("Compensated for the noise in the fit's input (errors in variables: the gyro's noise reaches the "
-                  "moment through the tracked pose). " if result.bias_applied else ""))
-    else:
-        txt = ("σ: the identifier's sandwich (batch-means) standard deviation, calibrated for coloured residuals. ")
-    return txt + "σ %: of the entry for moments, of the largest moment for products (so are the error %)."
+    return ("σ: the identifier's sandwich (batch-means) standard deviation, calibrated for coloured residuals"
+            f" ({result.uncertainty}). σ %: of the entry for moments, of the largest moment for products (so are "
+            "the error %).")
 
 
 def recordings_html(result: InertiaResult, recs: list[Recording], labels: list[str]) -> str:
@@ -215,8 +209,7 @@ def write_report(out_dir, result: InertiaResult, recs, truth: dict | None = None
         if untrusted:
             parts.append('<p class="untrusted">Not trustworthy (verdict model_error): the σ are a lower bound of '
                          "the error.</p>")
-        parts.append(moments_table(mp, errors, "σ propagated sensor noise" if result.sandwich_std is not None
-                                   else "σ white gyro noise alone"))
+        parts.append(moments_table(mp, errors, "σ white gyro noise alone"))
         parts.append(f'<p class="note" id="convention">{esc(convention(mp.axes))} {esc(sigma_note(result))}</p>')
         parts.append("<h3>The tensor as a matrix</h3>" + matrices_html(mp))
         parts.append("<h3>Principal moments and axes</h3>" + principal_html(mp))

@@ -18,15 +18,12 @@ from .mass import SYMBOL
 # what each check tests, and how its statistic reads: "ratio" (×), "chi2" (χ²/dof), "fraction"
 # (shown in %), "sigma" (σ)
 CHECKS = {
-    "residual_level": ("the gyro residual is at the sensors' noise (RMS ratio)", "ratio"),
     "segments": ("time segments of the window give the same tensor", "chi2"),
     "sub_bands": ("the lower and upper half of the fit band give the same tensor", "chi2"),
     "input_correlation": ("the residual is not correlated with the input", "chi2"),
     "whiteness": ("no spectral line in the residual (over its local level)", "ratio"),
     "accelerometer": ("the accelerometer, which the fit does not use, is predicted (RMS ratio)", "ratio"),
     "weight": ("the load cells carry rig.yaml's weight", "fraction"),
-    "errors_in_variables": ("the sensors' noise is a minor share of the fit's input (along its noisiest "
-                            "direction)", "fraction"),
     "identifiable": ("every entry is determined (largest σ over its scale)", "fraction"),
 }
 
