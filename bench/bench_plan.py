@@ -159,14 +159,15 @@ def crb_table(runs=30, procs=2, cases=None):
 
 
 def plan_table(confirm=8, procs=2, vary=False):
-    from rig_identification.design.planning import Body, Run, geometry_variants, plan_experiment
+    from rig_identification.design.planning import Body, PlanOptions, Run, geometry_variants, plan_experiment
     t0 = time.perf_counter()
     exp = load_experiment(ROOT / "config" / "rigs" / "default.yaml")
     rig = exp.rig
     body = Body(rig, exp.mass, exp.inertia, np.full(len(rig.cables), 5e6), dict(REFERENCE_RATES), dict(REFERENCE_NOISE))
     base = Run(1.05, 200.0, tuple(rig.exciter.position), "z", 120.0, 2.0, tuple(rig.exciter.rpy))
-    geometries = geometry_variants(body, 1.0) if vary else None
-    plan = plan_experiment(body, base, geometries=geometries, progress=lambda s: print("  " + s, flush=True))
+    geometries = tuple(geometry_variants(body, 1.0)) if vary else ()
+    plan = plan_experiment(body, base, PlanOptions(geometries=geometries),
+                           progress=lambda s: print("  " + s, flush=True))
     print(f"plan for case 16{' (cable geometry variants: ceiling anchors moved 1 m)' if vary else ''} "
           f"({time.perf_counter() - t0:.0f} s):")
     for i, c in enumerate(plan.runs, 1):

@@ -9,7 +9,7 @@ import pytest
 from conftest import background, gather
 from synthetic import static_pair
 
-from rig_identification.design.planning import Run, make_body, plan_experiment
+from rig_identification.design.planning import PlanOptions, Run, make_body, plan_experiment
 from rig_identification.design.scenarios import CABLE_STIFFNESS, simulate_random
 from rig_identification.estimation.precision import Z95
 from rig_identification.io.recording import Recording
@@ -37,8 +37,8 @@ def _plan(cables: int, seed: int, frequencies: tuple):
     rig = sim.rig
     base = Run(ex["frequency"], ex["amplitude"], tuple(rig.exciter.position), "z", 30.0, 2.0, tuple(rig.exciter.rpy))
     freqs = tuple(ex["frequency"] if f is None else f for f in frequencies)
-    return plan_experiment(body, base, duration=30.0, refine=1, max_runs=1, frequencies=freqs,
-                           positions=[tuple(rig.exciter.position)])
+    return plan_experiment(body, base, PlanOptions(duration=30.0, refine=1, max_runs=1, frequencies=freqs,
+                                                   positions=(tuple(rig.exciter.position),)))
 
 
 background("any_rig_plan", __file__, _plan, {"3": (3, 7102, (0.8, 1.6)), "5": (5, 7206, (0.8, None, 1.6))})

@@ -197,13 +197,14 @@ def _second_geometry_plan():
     """Job of test_second_run_on_another_cable_geometry_stays_within_the_limits: the plan, and
     its other geometry's best second run simulated again on that geometry and on the rig's
     own cables.  Returns (body, label, variant rig, plan, (limits there, limits on the rig))."""
-    from rig_identification.design.planning import Run, geometry_variants, plan_experiment
+    from rig_identification.design.planning import PlanOptions, Run, geometry_variants, plan_experiment
     body = _default_body()
     rig = body.rig
     label, vr = next((lab, r) for lab, r in geometry_variants(body, 1.0) if "farther apart along world y" in lab)
     base = Run(1.05, 200.0, tuple(rig.exciter.position), "z", 30.0, 2.0, tuple(rig.exciter.rpy))
-    kw = dict(duration=30.0, refine=1, frequencies=(1.3, 1.6), positions=[(0.8, 1.25, 1.29), (0.8, -1.25, -0.46)])
-    plan = plan_experiment(body, base, geometries=[(label, vr)], **kw)
+    opts = PlanOptions(duration=30.0, refine=1, frequencies=(1.3, 1.6),
+                       positions=((0.8, 1.25, 1.29), (0.8, -1.25, -0.46)), geometries=((label, vr),))
+    plan = plan_experiment(body, base, opts)
     limits = None
     if len(plan.other_geometries) == 1:
         c = plan.other_geometries[0]

@@ -88,8 +88,7 @@ def test_clean_rig_is_ok_and_within_three_sigma(clean):
     d = res.to_dict()
     assert d["validation"]["verdict"] == "ok" and _finite_json(d)
     names = {c["name"] for c in d["validation"]["checks"]}
-    assert {"segments", "sub_bands", "input_correlation", "whiteness", "accelerometer", "weight",
-            "identifiable"} <= names
+    assert {"segments", "sub_bands", "input_correlation", "whiteness", "weight", "identifiable"} <= names
 
 
 def test_near_parallel_cables_are_not_identifiable():

@@ -14,7 +14,7 @@ import sys
 
 import numpy as np
 
-from ..design.planning import PlanError, geometry_variants, plan_experiment
+from ..design.planning import PlanError, PlanOptions, geometry_variants, plan_experiment
 from ..design.run import Run, load_plan_input, make_body
 from ..estimation.precision import precision_of
 from ..estimation.rig_record import RigFitError
@@ -139,11 +139,12 @@ def plan_from_args(args):
         raise PlanError("--geometry / --vary-geometry are for a second run: they need --runs 2")
     max_force = args.max_force if args.max_force is not None else (
         rig.exciter.max_force if rig.exciter is not None and rig.exciter.max_force is not None else math.inf)
-    plan = plan_experiment(body, baseline, duration=args.duration, max_force=max_force,
-                           max_rotation_deg=args.max_rotation, min_tension_ratio=args.min_tension,
-                           frequencies=tuple(args.frequencies), positions=args.position, max_runs=args.runs,
-                           objective=args.objective, refine=max(1, args.refine), geometries=geometries,
-                           progress=step)
+    options = PlanOptions(duration=args.duration, max_force=max_force, max_rotation_deg=args.max_rotation,
+                          min_tension_ratio=args.min_tension, frequencies=tuple(args.frequencies),
+                          positions=None if not args.position else tuple(tuple(p) for p in args.position),
+                          max_runs=args.runs, objective=args.objective, refine=max(1, args.refine),
+                          geometries=tuple(geometries))
+    plan = plan_experiment(body, baseline, options, progress=step)
     return rig, body, plan
 
 

@@ -52,8 +52,8 @@ from .run import SPIN_AXES, Body, Run, load_plan_input, make_body, recommended_b
 from .screen import DesignScreen, linear_rig
 
 # the public names, with those of planning_run that users import from here
-__all__ = ["SPIN_AXES", "Body", "Candidate", "Plan", "PlanError", "Run", "amplitude_at_limits", "candidate_positions",
-           "geometry_variants", "load_plan_input", "make_body", "plan_experiment", "resonances"]
+__all__ = ["SPIN_AXES", "Body", "Candidate", "Plan", "PlanError", "PlanOptions", "Run", "amplitude_at_limits",
+           "candidate_positions", "geometry_variants", "load_plan_input", "make_body", "plan_experiment", "resonances"]
 
 
 @dataclass
@@ -223,85 +223,81 @@ def _limits(max_force: float, max_rotation_deg: float, min_tension_ratio: float)
     return {"max_force_n": max_force, "max_rotation_deg": max_rotation_deg, "min_tension_ratio": min_tension_ratio}
 
 
-def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_force: float = math.inf,
-                    max_rotation_deg: float = 3.0, min_tension_ratio: float = 0.2,
-                    frequencies: tuple[float, float] = (0.3, 4.0), positions: list | None = None,
-                    max_runs: int = 2, objective: str = "baseline", refine: int = 3, settle: float = 5.0,
-                    short: float = 30.0, mode_margin: float = 0.1, tracker_params: dict | None = None,
-                    geometries: list | None = None, progress=None) -> Plan:
-    """Recommend one or two exciter runs (see module docstring).
+@dataclass(frozen=True)
+class PlanOptions:
+    """What :func:`plan_experiment` searches and within which limits.
 
-    body: :class:`Body`.  baseline: the run to compare with (e.g. the thesis's 200 N at
-    1.05 Hz at the rig's exciter).  objective: ``"baseline"`` — make the least-improved
-    entry as much better than the baseline as possible (minimise max_k σ_k / σ_k,baseline),
-    or ``"relative"`` — minimise the largest relative σ (diagonals relative to themselves,
-    products to the largest diagonal).  Limits: force amplitude ≤ ``max_force`` N, body
-    rotation ≤ ``max_rotation_deg`` (peak, start-up included), every cable ≥
-    ``min_tension_ratio`` × its static tension, no growing swing; exciter frequencies in
-    ``frequencies`` Hz and at least ``mode_margin`` (relative) away from every natural
-    frequency, its double and every pairwise sum (:func:`resonances`).  positions:
-    candidate mounting points (body m; default :func:`candidate_positions`).  max_runs: 1
-    or 2.  refine: how many screened candidates are simulated (``short`` s each).
-    geometries: other cable geometries the rig can take for the second run, [(label,
-    :class:`~rig_identification.io.rig.Rig`)] with the same body (e.g. :func:`geometry_variants`); the best runs
-    on each are searched like the rig's own and paired with the best run on the rig.
-    progress: optional callable(str) for status lines.
-    Raises :class:`PlanError`, :class:`~rig_identification.model.simulator.SimulationError`.
-    """
-    say = progress or (lambda s: None)
-    limits = _limits(max_force, max_rotation_deg, min_tension_ratio)
-    if not 0 < frequencies[0] < frequencies[1]:
-        raise PlanError(f"frequency range {frequencies} Hz must be 0 < low < high")
-    if objective not in ("baseline", "relative"):
-        raise PlanError(f"objective {objective!r}: baseline or relative")
-    if not duration > settle + 10.0:
-        raise PlanError(f"--duration {duration:g} s: runs must last more than {settle + 10:g} s")
-    short = min(short, duration)
-    limits.update({"duration_s": duration, "frequency_range_hz": list(frequencies), "mode_margin": mode_margin,
-                   "objective": objective})
-    rig = body.rig
-    modes = natural_modes(rig, body.mass, rig.require_cg(), body.inertia, body.stiffness)
-    rot_f = _rotational(modes)
-    rot_fs = {None: rot_f}   # per cable geometry: its rotational modes (Hz), for the identification band
-    screen = DesignScreen(body, linear_rig(body), duration, settle, tracker_params=tracker_params)
-    # --- the baseline, simulated in full and screened (each stage compares like with like)
-    say(f"simulating the baseline ({baseline.amplitude:.0f} N at {baseline.frequency:.2f} Hz, {duration:.0f} s) ...")
-    base, _ = _sim_check(body, replace(baseline, duration=duration), limits, settle, tracker_params)
-    base.limit = "baseline"
-    if base.prediction is None:
-        raise PlanError(f"the baseline excitation ({baseline.amplitude:g} N at {baseline.frequency:g} Hz) slackens "
-                        "cables so often that the identifier could not fit it; choose a gentler --baseline-force")
-    bband = screen.band(baseline.frequency, rot_f)
-    base_screen = screen.candidate(screen.responses(baseline.frequency), baseline.position, baseline.exciter_rpy,
-                                   limits, screen.noise_density(bband), bband, baseline.amplitude)[4]
-    if objective == "baseline":
-        ref_screen = base_screen.std if base_screen is not None else base.prediction.std
-        ref_sim = base.prediction.std
-    else:
-        ref_screen = ref_sim = base.prediction.scale
-    done: dict = {}
+    duration: s of each run.  Limits: force amplitude ≤ ``max_force`` N, body rotation ≤
+    ``max_rotation_deg`` (peak, start-up included), every cable ≥ ``min_tension_ratio`` × its
+    static tension, no growing swing; exciter frequencies in ``frequencies`` Hz and at least
+    ``mode_margin`` (relative) away from every natural frequency, its double and every pairwise
+    sum (:func:`resonances`).  positions: candidate mounting points (body m; default
+    :func:`candidate_positions`).  max_runs: 1 or 2.  objective: ``"baseline"`` — make the
+    least-improved entry as much better than the baseline as possible (minimise
+    max_k σ_k / σ_k,baseline), or ``"relative"`` — minimise the largest relative σ (diagonals
+    relative to themselves, products to the largest diagonal).  refine: how many screened
+    candidates are simulated (``short`` s each).  settle: s the identifier leaves out at the
+    start.  tracker_params: the tracker's, for the prediction (default its own).  geometries:
+    other cable geometries the rig can take for the second run, [(label,
+    :class:`~rig_identification.io.rig.Rig`)] with the same body (e.g. :func:`geometry_variants`);
+    the best runs on each are searched like the rig's own and paired with the best run on the rig."""
 
-    def search(b: Body, label: str | None, scr: DesignScreen | None = None, partner: Candidate | None = None):
+    duration: float = 120.0
+    max_force: float = math.inf
+    max_rotation_deg: float = 3.0
+    min_tension_ratio: float = 0.2
+    frequencies: tuple[float, float] = (0.3, 4.0)
+    positions: tuple | None = None
+    max_runs: int = 2
+    objective: str = "baseline"
+    refine: int = 3
+    settle: float = 5.0
+    short: float = 30.0
+    mode_margin: float = 0.1
+    tracker_params: dict | None = None
+    geometries: tuple = ()
+
+
+class _Search:
+    """One plan's search (:func:`plan_experiment`): the limits, the reference σ the runs are
+    ranked against, and the short and full-length simulations made so far (each run once)."""
+
+    def __init__(self, body: Body, opts: PlanOptions, limits: dict, say, ref_screen: np.ndarray,
+                 ref_sim: np.ndarray, rot_f: list[float]):
+        self.body, self.opts, self.limits, self.say = body, opts, limits, say
+        self.ref_screen, self.ref_sim = ref_screen, ref_sim
+        self.short = min(opts.short, opts.duration)
+        self.rot_fs: dict = {None: rot_f}   # per cable geometry: its rotational modes (Hz), for the band
+        self.done: dict = {}
+        self.full: dict = {}
+
+    def worst(self, *cs: Candidate) -> float:
+        """The worst entry's σ over the reference of ``cs`` done together."""
+        return combine([c.prediction for c in cs]).worst(self.ref_sim)
+
+    def search(self, b: Body, label: str | None, modes, scr: DesignScreen | None = None,
+               partner: Candidate | None = None) -> tuple[list[Candidate], list[Candidate]]:
         """Screen frequencies, mounting points and spin axes on the body ``b`` (cable
-        geometry ``label``; None: the rig's own), then simulate the best distinct
-        ``refine`` of them (``short`` s, amplitude brought to the limits): best alone and,
-        with ``partner`` given, also best together with that run (a second run).  Returns
-        (screened, simulated singles)."""
+        geometry ``label``; None: the rig's own, whose ``modes`` are given), then simulate the
+        best distinct ``refine`` of them (``short`` s, amplitude brought to the limits): best
+        alone and, with ``partner`` given, also best together with that run (a second run).
+        Returns (screened, simulated singles)."""
+        o = self.opts
         where = "" if label is None else f" ({label})"
         ms = modes if label is None else natural_modes(b.rig, b.mass, b.rig.require_cg(), b.inertia, b.stiffness)
         mf = np.array([m.frequency for m in ms])
-        rf = rot_fs.setdefault(label, _rotational(ms))
-        scr = scr or DesignScreen(b, linear_rig(b), duration, settle, tracker_params=tracker_params)
-        say(f"screening frequencies, mounting points and spin axes (linearised rig{where}) ...")
+        rf = self.rot_fs.setdefault(label, _rotational(ms))
+        scr = scr or DesignScreen(b, linear_rig(b), o.duration, o.settle, tracker_params=o.tracker_params)
+        self.say(f"screening frequencies, mounting points and spin axes (linearised rig{where}) ...")
         avoid = resonances(mf)
-        freqs = [f for f in np.geomspace(frequencies[0], frequencies[1], 30)
-                 if np.all(np.abs(f / avoid - 1) >= mode_margin)]
+        freqs = [f for f in np.geomspace(o.frequencies[0], o.frequencies[1], 30)
+                 if np.all(np.abs(f / avoid - 1) >= o.mode_margin)]
         if not freqs:
-            raise PlanError(f"no exciter frequency in {frequencies[0]:g}–{frequencies[1]:g} Hz is "
-                            f"{100 * mode_margin:.0f} % "
+            raise PlanError(f"no exciter frequency in {o.frequencies[0]:g}–{o.frequencies[1]:g} Hz is "
+                            f"{100 * o.mode_margin:.0f} % "
                             f"away from the rig's modes{where} ({', '.join(f'{f:.2f}' for f in mf)} Hz), their doubles "
                             "and their pairwise sums")
-        pts = [np.asarray(p, float) for p in (positions if positions else candidate_positions(b.rig))]
+        pts = [np.asarray(p, float) for p in (o.positions if o.positions else candidate_positions(b.rig))]
         screened: list[Candidate] = []
         for f in freqs:
             X = scr.responses(f)
@@ -310,149 +306,215 @@ def plan_experiment(body: Body, baseline: Run, duration: float = 120.0, max_forc
             for p in pts:
                 for ax in SPIN_AXES:
                     for sense in (1, -1):
-                        amp, lim, rot, tmin, pred = scr.candidate(X, p, SPIN_AXES[ax], limits, dens, band,
+                        amp, lim, rot, tmin, pred = scr.candidate(X, p, SPIN_AXES[ax], self.limits, dens, band,
                                                                   direction=sense)
                         if pred is None or not np.all(np.isfinite(pred.std)):
                             continue
-                        screened.append(Candidate(Run(float(f), float(amp), tuple(float(x) for x in p), ax, duration,
-                                                      direction=sense), pred, lim, False, float(rot), float(tmin),
-                                                  geometry=label, body=b))
-        screened.sort(key=lambda c: c.prediction.worst(ref_screen))
-        picks = _distinct(screened, refine)
+                        screened.append(Candidate(Run(float(f), float(amp), tuple(float(x) for x in p), ax,
+                                                      o.duration, direction=sense), pred, lim, False, float(rot),
+                                                  float(tmin), geometry=label, body=b))
+        screened.sort(key=lambda c: c.prediction.worst(self.ref_screen))
+        picks = _distinct(screened, o.refine)
         if partner is not None:   # a ranking only: the partner's prediction is simulated, the candidates' screened
-            together = sorted(screened, key=lambda c: combine([partner.prediction, c.prediction]).worst(ref_sim))
-            picks += [c for c in _distinct(together, refine) if all(not _same(c, o) for o in picks)]
-        singles = [x for x in (simulate_short(c, "a candidate run") for c in picks) if x is not None]
+            together = sorted(screened, key=lambda c: combine([partner.prediction, c.prediction]).worst(self.ref_sim))
+            picks += [c for c in _distinct(together, o.refine) if all(not _same(c, o_) for o_ in picks)]
+        singles = [x for x in (self.simulate_short(c, "a candidate run") for c in picks) if x is not None]
         return screened, singles
 
-    def simulate_short(c: Candidate, what: str) -> Candidate | None:
+    def simulate_short(self, c: Candidate, what: str) -> Candidate | None:
+        """``c`` simulated over ``short`` s, its amplitude brought to the limits, its prediction
+        scaled to the full length; None if it breaks a limit."""
         key = _run_key(c)
-        if key not in done:
+        if key not in self.done:
+            o = self.opts
             where = "" if c.geometry is None else f" ({c.geometry})"
-            say(f"simulating {what}{where}: {c.run.frequency:.2f} Hz, {c.run.amplitude:.0f} N, spin axis "
-                f"{c.run.spin_axis}, at {np.round(c.run.position, 2).tolist()} m ({short:.0f} s) ...")
-            cs = _fit_amplitude(c.body, replace(c.run, duration=short), limits, settle, tracker_params, c.limit,
-                                rot_f=rot_fs[c.geometry])
+            self.say(f"simulating {what}{where}: {c.run.frequency:.2f} Hz, {c.run.amplitude:.0f} N, spin axis "
+                     f"{c.run.spin_axis}, at {np.round(c.run.position, 2).tolist()} m ({self.short:.0f} s) ...")
+            cs = _fit_amplitude(c.body, replace(c.run, duration=self.short), self.limits, o.settle, o.tracker_params,
+                                c.limit, rot_f=self.rot_fs[c.geometry])
             if cs is not None:
-                cs.prediction = cs.prediction.scaled((duration - settle) / cs.prediction.duration)
+                cs.prediction = cs.prediction.scaled((o.duration - o.settle) / cs.prediction.duration)
                 cs.geometry, cs.body = c.geometry, c.body
-            done[key] = cs
-        return done[key]
+            self.done[key] = cs
+        return self.done[key]
 
-    def worst(*cs: Candidate) -> float:
-        return combine([c.prediction for c in cs]).worst(ref_sim)
-
-    screened, singles = search(body, None, screen)
-    if not screened:
-        raise PlanError("no candidate run moves the body measurably")
-    if not singles:
-        raise PlanError("every screened candidate broke a limit in simulation (cable slack, rotation, growing "
-                        "swing): lower --max-force or change the frequency range")
-    singles.sort(key=worst)
-    full: dict = {}
-
-    def simulate_full(c: Candidate, what: str) -> Candidate | None:
+    def simulate_full(self, c: Candidate, what: str) -> Candidate | None:
         """``c`` simulated over the whole ``duration``, its amplitude brought to the limits
         again (a run can break a limit late: beats, slow growth).  None if it cannot."""
         key = _run_key(c)
-        if key not in full:
-            if short >= duration:   # already simulated in full
-                full[key] = c
+        if key not in self.full:
+            o = self.opts
+            if self.short >= o.duration:   # already simulated in full
+                self.full[key] = c
                 return c
             where = "" if c.geometry is None else f" on cable geometry {c.geometry!r}"
-            say(f"simulating {what}{where} in full ({c.run.frequency:.2f} Hz, {duration:.0f} s) ...")
-            cf = _fit_amplitude(c.body, replace(c.run, duration=duration), limits, settle, tracker_params, c.limit,
-                                rot_f=rot_fs[c.geometry])
+            self.say(f"simulating {what}{where} in full ({c.run.frequency:.2f} Hz, {o.duration:.0f} s) ...")
+            cf = _fit_amplitude(c.body, replace(c.run, duration=o.duration), self.limits, o.settle, o.tracker_params,
+                                c.limit, rot_f=self.rot_fs[c.geometry])
             if cf is not None:
                 cf.geometry, cf.body = c.geometry, c.body
-            full[key] = cf
-        return full[key]
+            self.full[key] = cf
+        return self.full[key]
 
-    # --- the best single run, confirmed in full (falling back on the next if it breaks a limit late)
-    first = None
+
+def _checked_limits(opts: PlanOptions) -> dict:
+    """The run limits and the search's settings as the plan reports them.  Raises :class:`PlanError`."""
+    limits = _limits(opts.max_force, opts.max_rotation_deg, opts.min_tension_ratio)
+    if not 0 < opts.frequencies[0] < opts.frequencies[1]:
+        raise PlanError(f"frequency range {opts.frequencies} Hz must be 0 < low < high")
+    if opts.objective not in ("baseline", "relative"):
+        raise PlanError(f"objective {opts.objective!r}: baseline or relative")
+    if not opts.duration > opts.settle + 10.0:
+        raise PlanError(f"--duration {opts.duration:g} s: runs must last more than {opts.settle + 10:g} s")
+    limits.update({"duration_s": opts.duration, "frequency_range_hz": list(opts.frequencies),
+                   "mode_margin": opts.mode_margin, "objective": opts.objective})
+    return limits
+
+
+def _baseline(body: Body, baseline: Run, opts: PlanOptions, limits: dict, screen: DesignScreen, rot_f: list[float],
+              say) -> tuple[Candidate, np.ndarray, np.ndarray]:
+    """The baseline simulated in full and screened (each stage compares like with like):
+    (its candidate, the reference σ of the screen's ranking, that of the simulations')."""
+    say(f"simulating the baseline ({baseline.amplitude:.0f} N at {baseline.frequency:.2f} Hz, "
+        f"{opts.duration:.0f} s) ...")
+    base, _ = _sim_check(body, replace(baseline, duration=opts.duration), limits, opts.settle, opts.tracker_params)
+    base.limit = "baseline"
+    if base.prediction is None:
+        raise PlanError(f"the baseline excitation ({baseline.amplitude:g} N at {baseline.frequency:g} Hz) slackens "
+                        "cables so often that the identifier could not fit it; choose a gentler --baseline-force")
+    bband = screen.band(baseline.frequency, rot_f)
+    base_screen = screen.candidate(screen.responses(baseline.frequency), baseline.position, baseline.exciter_rpy,
+                                   limits, screen.noise_density(bband), bband, baseline.amplitude)[4]
+    if opts.objective == "baseline":
+        return base, (base_screen.std if base_screen is not None else base.prediction.std), base.prediction.std
+    return base, base.prediction.scale, base.prediction.scale
+
+
+def _first_run(s: _Search, singles: list[Candidate]) -> Candidate:
+    """The best single run, confirmed in full (falling back on the next if it breaks a limit late)."""
     for n_c, c in enumerate(singles):
-        first = simulate_full(c, "the best run" if n_c == 0 else "the next candidate")
+        first = s.simulate_full(c, "the best run" if n_c == 0 else "the next candidate")
         if first is not None:
-            break
-    if first is None:
-        raise PlanError(f"every candidate run broke a limit over {duration:.0f} s in simulation (cable slack, "
-                        "rotation, growing swing); lower --max-force or change the frequency range")
-    chosen = [first]
+            return first
+    raise PlanError(f"every candidate run broke a limit over {s.opts.duration:.0f} s in simulation (cable slack, "
+                    "rotation, growing swing); lower --max-force or change the frequency range")
+
+
+def _second_run(s: _Search, first: Candidate, singles: list[Candidate], screened: list[Candidate], modes
+                ) -> tuple[list[Candidate], list[str], list[Candidate]]:
+    """The second run: a complementary one (on the rig's geometry or another of ``geometries``)
+    or the first again.  Returns (the chosen runs, notes, each other geometry's best second run)."""
+    body, rig, o = s.body, s.body.rig, s.opts
     notes: list[str] = []
     others: list[Candidate] = []
-    if max_runs >= 2:
-        sims2 = []
-        for a, b in _best_pairs(screened, max(2, refine // 2), ref_screen):
-            sa, sb = simulate_short(a, "a pair, first run"), simulate_short(b, "a pair, second run")
-            if sa is not None and sb is not None:
-                sims2.append((sa, sb))
-        sims2 += [(x, y) for k, x in enumerate(singles) for y in singles[k + 1:]]
-        g_best: dict = {}
-        for label, grig in (geometries or []):
-            if len(grig.cables) != len(rig.cables):
-                notes.append(f"cable geometry {label!r} not usable: {len(grig.cables)} cables, the rig has "
-                             f"{len(rig.cables)}")
-                continue
-            try:
-                gb = replace(body, rig=replace(grig, mass=body.mass, center_of_gravity=rig.require_cg()))
-                _, gs = search(gb, label, partner=singles[0])
-            except (PlanError, SimulationError) as e:
-                notes.append(f"cable geometry {label!r} not usable: {e}")
-                continue
-            if not gs:
-                notes.append(f"cable geometry {label!r}: every candidate run broke a limit in simulation")
-            sims2 += [(singles[0], y) for y in gs]
-            if gs:
-                g_best[label] = min(gs, key=lambda y: worst(singles[0], y))
-        # the short runs' predictions, scaled to the full length, only rank the pairs (beats and
-        # start-up weigh differently in 30 s): the best few that promise to beat the best run done
-        # twice are simulated in full and compared in full
-        repeat_short = worst(singles[0]) / math.sqrt(2)
-        promising = [ab for ab in sorted(sims2, key=lambda ab: worst(*ab)) if worst(*ab) < repeat_short][:3]
-        repeat = worst(first) / math.sqrt(2)
-        best, best_val = None, repeat
-        for a, b in promising:
-            fa, fb = simulate_full(a, "a pair's first run"), simulate_full(b, "a pair's second run")
-            if fa is not None and fb is not None and worst(fa, fb) < best_val:
-                best, best_val = (fa, fb), worst(fa, fb)
-            # a run simulated in full for a pair may itself be the better run to do twice than the
-            # best screened single (with 20 s runs a pair's first run twice gave 0.306 of the
-            # reference σ, the pair 0.388, the best single twice more)
-            for f in (fa, fb):
-                if f is not None and worst(f, f) < best_val:
-                    best, best_val = (f, f), worst(f, f)
-        if best is not None and best[0] is best[1]:
-            chosen = list(best)
-            notes.append(f"a run simulated as part of a pair, done twice: worst entry σ/reference {best_val:.3g}, "
-                         f"against {repeat:.3g} for the best screened run done twice")
-        elif best is not None:
-            chosen = list(best)
-            other = "" if best[1].geometry is None else f" (the second on cable geometry {best[1].geometry!r})"
-            notes.append(f"two complementary runs{other}: worst entry σ/reference {best_val:.3g}, against "
-                         f"{repeat:.3g} for the best run done twice and {worst(first):.3g} for it alone")
-        else:
-            chosen = [first, first]
-            notes.append(f"no other run complements the best one better than itself: do it twice (every σ / √2; "
-                         f"worst entry σ/reference {repeat:.3g} against {worst(first):.3g} for one run)")
-        for label, y in g_best.items():   # what each other geometry offered (full-length where simulated so)
-            key = _run_key(y)
-            yf = full.get(key)
-            others.append(yf if yf is not None else y)
-            how = ("full-length simulation" if yf is not None else
-                   "short simulation; it broke a limit over the full length" if key in full else "short simulation")
-            notes.append(f"cable geometry {label!r}: its best second run, {others[-1].run.amplitude:.0f} N at "
-                         f"{others[-1].run.frequency:.2f} Hz, gives worst entry σ/reference "
-                         f"{worst(first, others[-1]):.3g} with the best run ({how})")
-    # --- the σ ``rig-identify inertia`` reaches: the rig model's bound, every sensor an output
+    sims2 = []
+    for a, b in _best_pairs(screened, max(2, o.refine // 2), s.ref_screen):
+        sa, sb = s.simulate_short(a, "a pair, first run"), s.simulate_short(b, "a pair, second run")
+        if sa is not None and sb is not None:
+            sims2.append((sa, sb))
+    sims2 += [(x, y) for k, x in enumerate(singles) for y in singles[k + 1:]]
+    g_best: dict = {}
+    for label, grig in o.geometries:
+        if len(grig.cables) != len(rig.cables):
+            notes.append(f"cable geometry {label!r} not usable: {len(grig.cables)} cables, the rig has "
+                         f"{len(rig.cables)}")
+            continue
+        try:
+            gb = replace(body, rig=replace(grig, mass=body.mass, center_of_gravity=rig.require_cg()))
+            _, gs = s.search(gb, label, modes, partner=singles[0])
+        except (PlanError, SimulationError) as e:
+            notes.append(f"cable geometry {label!r} not usable: {e}")
+            continue
+        if not gs:
+            notes.append(f"cable geometry {label!r}: every candidate run broke a limit in simulation")
+        sims2 += [(singles[0], y) for y in gs]
+        if gs:
+            g_best[label] = min(gs, key=lambda y: s.worst(singles[0], y))
+    # the short runs' predictions, scaled to the full length, only rank the pairs (beats and
+    # start-up weigh differently in 30 s): the best few that promise to beat the best run done
+    # twice are simulated in full and compared in full
+    repeat_short = s.worst(singles[0]) / math.sqrt(2)
+    promising = [ab for ab in sorted(sims2, key=lambda ab: s.worst(*ab)) if s.worst(*ab) < repeat_short][:3]
+    repeat = s.worst(first) / math.sqrt(2)
+    best, best_val = None, repeat
+    for a, b in promising:
+        fa, fb = s.simulate_full(a, "a pair's first run"), s.simulate_full(b, "a pair's second run")
+        if fa is not None and fb is not None and s.worst(fa, fb) < best_val:
+            best, best_val = (fa, fb), s.worst(fa, fb)
+        # a run simulated in full for a pair may itself be the better run to do twice than the
+        # best screened single (with 20 s runs a pair's first run twice gave 0.306 of the
+        # reference σ, the pair 0.388, the best single twice more)
+        for f in (fa, fb):
+            if f is not None and s.worst(f, f) < best_val:
+                best, best_val = (f, f), s.worst(f, f)
+    if best is not None and best[0] is best[1]:
+        chosen = list(best)
+        notes.append(f"a run simulated as part of a pair, done twice: worst entry σ/reference {best_val:.3g}, "
+                     f"against {repeat:.3g} for the best screened run done twice")
+    elif best is not None:
+        chosen = list(best)
+        other = "" if best[1].geometry is None else f" (the second on cable geometry {best[1].geometry!r})"
+        notes.append(f"two complementary runs{other}: worst entry σ/reference {best_val:.3g}, against "
+                     f"{repeat:.3g} for the best run done twice and {s.worst(first):.3g} for it alone")
+    else:
+        chosen = [first, first]
+        notes.append(f"no other run complements the best one better than itself: do it twice (every σ / √2; "
+                     f"worst entry σ/reference {repeat:.3g} against {s.worst(first):.3g} for one run)")
+    for label, y in g_best.items():   # what each other geometry offered (full-length where simulated so)
+        key = _run_key(y)
+        yf = s.full.get(key)
+        others.append(yf if yf is not None else y)
+        how = ("full-length simulation" if yf is not None else
+               "short simulation; it broke a limit over the full length" if key in s.full else "short simulation")
+        notes.append(f"cable geometry {label!r}: its best second run, {others[-1].run.amplitude:.0f} N at "
+                     f"{others[-1].run.frequency:.2f} Hz, gives worst entry σ/reference "
+                     f"{s.worst(first, others[-1]):.3g} with the best run ({how})")
+    return chosen, notes, others
+
+
+def _rig_model_std(body: Body, base: Candidate, chosen: list[Candidate], say) -> dict:
+    """The σ ``rig-identify inertia`` reaches: the rig model's bound, every sensor an output, of
+    the chosen runs together and of the baseline (:mod:`~rig_identification.design.information`)."""
     say("the rig model's Cramér–Rao bound of the baseline and the chosen runs (a simulation and a Jacobian each) ...")
     bound: dict = {}
     for c in [base, *chosen]:
         key = _run_key(c)
         if key not in bound:
             bound[key] = tensor_covariance(simulate((c.body or body).experiment(c.run)), body.noise)
-    rig_model = {"std": combined_std([bound[_run_key(c)] for c in chosen]),
-                 "baseline_std": combined_std([bound[_run_key(base)]])}
-    return Plan(chosen, combine([c.prediction for c in chosen]), base, modes, limits, notes, others, rig_model)
+    return {"std": combined_std([bound[_run_key(c)] for c in chosen]),
+            "baseline_std": combined_std([bound[_run_key(base)]])}
+
+
+def plan_experiment(body: Body, baseline: Run, options: PlanOptions = PlanOptions(), progress=None) -> Plan:
+    """Recommend one or two exciter runs (see module docstring).
+
+    body: :class:`Body`.  baseline: the run to compare with (e.g. the thesis's 200 N at
+    1.05 Hz at the rig's exciter).  options: :class:`PlanOptions` (limits, search, objective).
+    progress: optional callable(str) for status lines.
+    Raises :class:`PlanError`, :class:`~rig_identification.model.simulator.SimulationError`.
+    """
+    say = progress or (lambda s: None)
+    limits = _checked_limits(options)
+    rig = body.rig
+    modes = natural_modes(rig, body.mass, rig.require_cg(), body.inertia, body.stiffness)
+    rot_f = _rotational(modes)
+    screen = DesignScreen(body, linear_rig(body), options.duration, options.settle,
+                          tracker_params=options.tracker_params)
+    base, ref_screen, ref_sim = _baseline(body, baseline, options, limits, screen, rot_f, say)
+    s = _Search(body, options, limits, say, ref_screen, ref_sim, rot_f)
+    screened, singles = s.search(body, None, modes, screen)
+    if not screened:
+        raise PlanError("no candidate run moves the body measurably")
+    if not singles:
+        raise PlanError("every screened candidate broke a limit in simulation (cable slack, rotation, growing "
+                        "swing): lower --max-force or change the frequency range")
+    singles.sort(key=s.worst)
+    first = _first_run(s, singles)
+    chosen, notes, others = [first], [], []
+    if options.max_runs >= 2:
+        chosen, notes, others = _second_run(s, first, singles, screened, modes)
+    return Plan(chosen, combine([c.prediction for c in chosen]), base, modes, limits, notes, others,
+                _rig_model_std(body, base, chosen, say))
 
 
 def geometry_variants(body: Body, shift: float = 1.0) -> list[tuple[str, Rig]]:

@@ -48,13 +48,6 @@ detail):
     periodogram ordinate of the residual in the band over the noise's level there (the
     residual's local median), with the Bonferroni correction over the bins and axes.  A misfit locked to the
     forcing, a mode of the body or of the structure shows as a line.
-``accelerometer``
-    a channel the fit does not use: the specific force at the IMU predicted from the
-    generalized force and the identified model, ``f = F/m + α × ρ + ω × (ω × ρ)`` with
-    ``α = J⁻¹(M − ω × Jω)`` (Newton–Euler, ρ from the CG to the IMU), band-passed as the
-    fit, against the accelerometer: residual RMS over the accelerometer's in-band noise
-    ≤ :data:`ACCEL_RATIO`.  A body that is not rigid, a wrong IMU position, a load-cell
-    delay or gain fail it.
 ``weight``
     the load cells' mean vertical force against rig.yaml's weight
     (:func:`~rig_identification.pipeline.fit_validation.weight_surplus`), within :data:`WEIGHT_TOLERANCE`.
@@ -74,11 +67,10 @@ its spectrum; Brillinger, *Time Series*, 1981, §4.4).  Their covariance is then
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 from scipy.stats import chi2
 
 from ..io.export import MOMENTS
@@ -101,7 +93,6 @@ if TYPE_CHECKING:
 ALPHA = 1e-3                # significance of each statistical check
 EFFECT_FACTOR = 2.0         # a consistency check fails beyond this multiple of its significance threshold
 WHITENESS_FACTOR = 3.0      # the whiteness check fails beyond this multiple of its significance threshold
-ACCEL_RATIO = 1.6           # accelerometer residual RMS / its in-band noise, per axis
 REL_STD_LIMIT = 0.10        # σ of an entry beyond this fraction of its scale: not determined
 WEAK_SHARE = 0.3            # an entry with this share of an undetermined tensor direction is not determined
 DEGENERATE = 1e-6           # a σ (of an entry, or along a tensor direction) below this fraction of the largest
@@ -310,59 +301,6 @@ def whiteness_check(series: list[FitSeries]) -> Check:
                  + (" (significant, but too small to matter)" if thr < worst <= WHITENESS_FACTOR * thr else ""))
 
 
-@dataclass(frozen=True)
-class AccelInput:
-    """What the accelerometer check needs of one prepared recording: t (N,) s; gyro (N,3)
-    rad/s and torque (N,3) N·m and force (N,3) N (generalized, weight excluded), body axes;
-    accel (N,3) m/s² the measured specific force, body axes; mass kg; rho (3,) m from the CG to
-    the IMU, body axes; band_hz; noise m/s² the accelerometer's white σ."""
-
-    t: np.ndarray
-    gyro: np.ndarray
-    torque: np.ndarray
-    force: np.ndarray
-    accel: np.ndarray
-    mass: float
-    rho: np.ndarray
-    band_hz: tuple[float, ...]
-    noise: float
-
-
-def accelerometer_check(inputs: list[AccelInput], J: np.ndarray) -> Check | None:
-    """The specific force at the IMU predicted by the identified model against the
-    accelerometer (see module docstring); None without inputs or noise level."""
-    worst, axis = 0.0, 0
-    for a in inputs:
-        if a.noise <= 0 or len(a.t) < 100:
-            return None
-        fs = 1.0 / float(np.median(np.diff(a.t)))
-        w = a.gyro
-
-        def predicted(torque: np.ndarray, force: np.ndarray) -> np.ndarray:
-            alpha = np.linalg.solve(J, (torque - np.cross(w, w @ J.T)).T).T
-            f: np.ndarray = force / a.mass + np.cross(alpha, a.rho) + np.cross(w, np.cross(w, a.rho))
-            return f
-        lo, hi = a.band_hz
-        sos = butter(4, [lo, min(hi, 0.45 * fs)], btype="bandpass", fs=fs, output="sos")
-        cut = int(min(len(a.t) // 10, 2 * fs / lo))          # the filter's edge transients
-
-        def band_rms(x: np.ndarray) -> np.ndarray:
-            y = sosfiltfilt(sos, x, axis=0)[cut:len(x) - cut]
-            rms: np.ndarray = np.sqrt(np.mean(y**2, axis=0))
-            return rms
-        res_rms = band_rms(a.accel - predicted(a.torque, a.force))
-        imp = np.zeros(4096)
-        imp[2048] = 1.0
-        gain = float(np.sqrt(np.sum(sosfiltfilt(sos, imp) ** 2)))   # noise gain of the filter
-        ratio = res_rms / (a.noise * gain)
-        if ratio.max() > worst:
-            worst, axis = float(ratio.max()), int(np.argmax(ratio))
-    return Check("accelerometer", worst, ACCEL_RATIO, bool(worst <= ACCEL_RATIO),
-                 f"the specific force predicted from the load cells, exciter and identified tensor vs the "
-                 f"accelerometer (a channel the fit does not use): residual {worst:.2f}× what the noise explains "
-                 f"(the accelerometer's, in band; body {'xyz'[axis]})")
-
-
 def identifiability(result: InertiaResult, std: np.ndarray, cov: np.ndarray | None = None
                     ) -> tuple[Check, tuple[str, ...]]:
     """Which entries the recording determines (see module docstring): std (6,) kg·m² the σ the
@@ -460,13 +398,11 @@ def propagated_covariance(result: InertiaResult) -> np.ndarray | None:
     return corr * np.outer(result.crb_std, result.crb_std)
 
 
-def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weight_surplus: float | None = None,
-             rig: Rig | None = None) -> Validation:
+def validate(result: InertiaResult, weight_surplus: float | None = None, rig: Rig | None = None) -> Validation:
     """The verdict on an inertia fit (see module docstring).
 
     result: the fit (:func:`~rig_identification.estimation.identification.identify_inertia`, with ``series`` carrying
-    the Jacobian).  accel: the accelerometer
-    check's inputs, one per fitted recording.  weight_surplus: see
+    the Jacobian).  weight_surplus: see
     :func:`~rig_identification.pipeline.fit_validation.weight_surplus`.  rig: for the advice on
     geometry.  Never raises on
     bad numbers: a fit that produced them is ``not_identifiable``.
@@ -491,10 +427,6 @@ def validate(result: InertiaResult, accel: list[AccelInput] | None = None, weigh
                 checks.append(whiteness_check(series))
             except (np.linalg.LinAlgError, ValueError) as e:
                 checks.append(Check("segments", None, None, False, f"the validation could not run ({e})"))
-    if accel and finite:
-        c = accelerometer_check(accel, result.inertia)
-        if c is not None:
-            checks.append(c)
     if weight_surplus is not None:
         checks.append(Check("weight", abs(weight_surplus), WEIGHT_TOLERANCE,
                             bool(abs(weight_surplus) <= WEIGHT_TOLERANCE),

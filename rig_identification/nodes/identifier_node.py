@@ -57,7 +57,7 @@ end.
 Subscribes (RELIABLE, KEEP_ALL):
   /rig/imu                 sensor_msgs/Imu, frame imu_frame (gyro, rad/s; specific force for the CG states)
   /rig/generalized_wrench  geometry_msgs/WrenchStamped, frame body_frame (torque about the CG, N·m;
-                           the force, N, for the validation's accelerometer and weight checks)
+                           the force, N, for the validation's weight check)
   /rig/pose                nav_msgs/Odometry, world_frame -> body_frame (the tracked orientation, for
                            the validation's weight check)
   /rig/load_cells/<cable>, /rig/exciter/wrench, /rig/inclinometer  raw streams of the static

@@ -1,6 +1,6 @@
 """A fit validated the one way the offline path and the identifier node share: the load cells'
-weight surplus (:func:`force_weight_surplus`), the accelerometer check's inputs (:func:`accel_input`),
-the verdict applied to the result (:func:`apply_validation`: σ widened, warnings).
+weight surplus (:func:`force_weight_surplus`), the verdict applied to the result
+(:func:`apply_validation`: σ widened, warnings).
 """
 from __future__ import annotations
 
@@ -10,8 +10,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ..estimation.inertia_result import InertiaResult
-from ..estimation.validation import AccelInput, beyond_limit_widened, validate, widened_std
-from ..io.noise import white_sigma
+from ..estimation.validation import beyond_limit_widened, validate, widened_std
 from ..model.parametrisation import from_tensor
 from .prepare import PreparedRecording
 
@@ -58,31 +57,6 @@ def weight_warning(surplus: float | None, rig) -> str | None:
             "load cell, a load cell's gain, or a wrong body.mass); rig-identify diagnose looks for the cause")
 
 
-def accel_inputs(preps: list[PreparedRecording], result: InertiaResult) -> list[AccelInput]:
-    """The accelerometer check's inputs (:class:`~rig_identification.estimation.validation.AccelInput`) of each prepared
-    recording: its fit window, the gyro, torque and generalized force of the replay, the
-    measured specific force turned to body axes, the accelerometer's estimated noise."""
-    out = []
-    bands = [s.band_hz for s in result.series] if len(result.series) == len(preps) else [result.band_hz] * len(preps)
-    for p, band in zip(preps, bands):
-        out.append(accel_input(p.rec.rig, p.t, p.gyro_body, p.torque, p.force, p.sensors.imu.interp(p.t)[:, 3:6],
-                               white_sigma(p.sensors.imu.data[:, 3:6]), band))
-    return out
-
-
-def accel_input(rig, t: np.ndarray, gyro_body: np.ndarray, torque: np.ndarray, force: np.ndarray,
-                accel_imu: np.ndarray, accel_noise: float, band_hz) -> AccelInput:
-    """The accelerometer check's input
-    (:class:`~rig_identification.estimation.validation.AccelInput`) of one fit window:
-    t (N,) s the fit's stamps; gyro_body (N,3) rad/s, torque (N,3) N·m about the CG and force
-    (N,3) N (generalized, weight excluded), body axes, at t; accel_imu (N,3) m/s² the measured
-    specific force at t, IMU axes (turned to body axes here); accel_noise m/s² its white σ
-    (:func:`~rig_identification.io.noise.white_sigma`); band_hz the fit's band.  Used by
-    :func:`accel_inputs` and by the identifier node."""
-    return AccelInput(t, gyro_body, torque, force, rig.imu.rotation.apply(accel_imu), rig.mass,
-                      rig.imu.position - rig.require_cg(), tuple(band_hz), float(accel_noise))
-
-
 def validate_fit(preps: list[PreparedRecording], result: InertiaResult) -> InertiaResult:
     """Model validation of the fit (:func:`~rig_identification.estimation.validation.validate`): ``result.validation``.
     When a consistency check fails (verdict ``model_error``, or ``not_identifiable`` with
@@ -92,23 +66,20 @@ def validate_fit(preps: list[PreparedRecording], result: InertiaResult) -> Inert
     entries reported as null and what to change.  Returns ``result``, updated in place."""
     log.info("validating the fit")
     surplus = [weight_surplus(p) for p in preps]
-    return apply_validation(result, accel_inputs(preps, result) if result.series else None,
-                            max(surplus, key=abs), preps[0].rec.rig)
+    return apply_validation(result, max(surplus, key=abs), preps[0].rec.rig)
 
 
-def apply_validation(result: InertiaResult, accel: list[AccelInput] | None, surplus: float | None,
-                     rig) -> InertiaResult:
+def apply_validation(result: InertiaResult, surplus: float | None, rig) -> InertiaResult:
     """The model validation of a fit from its inputs, as :func:`validate_fit` makes it (the
     one core the offline path and the identifier node run): :func:`~rig_identification.estimation.validation.validate`
-    with the accelerometer check's inputs ``accel`` (None: skipped), the load cells' weight
-    surplus ``surplus`` (:func:`force_weight_surplus`; None: skipped) and the ``rig`` (for
+    with the load cells' weight surplus ``surplus`` (:func:`force_weight_surplus`; None: skipped) and the ``rig`` (for
     the advice); ``result.validation`` set, σ and covariance widened
     (:func:`~rig_identification.estimation.validation.widened_std`; under ``not_identifiable`` the entries
     that widening leaves beyond the identifiability limit are null too:
     :func:`~rig_identification.estimation.validation.beyond_limit_widened`), the verdict's summary a
     warning unless ``ok``.
     Returns ``result``, updated in place."""
-    v = validate(result, accel, surplus, rig)
+    v = validate(result, surplus, rig)
     result.validation = v
     w = widened_std(result.inertia_std, v)
     if np.any(w > result.inertia_std):

@@ -8,14 +8,12 @@ on the wrench samples in the window, the gyro interpolated to their stamps), and
 
 ``rig-identify inertia`` validates every fit (:func:`~rig_identification.pipeline.fit_validation.validate_fit`:
 the verdict ok | model_error | not_identifiable, σ widened, undetermined entries null).  Besides
-the fit's own gyro and torque, the checks read three streams the fit does not use: the
-accelerometer (the ``accelerometer`` check), the generalized force and the tracked orientation
-(the ``weight`` check).  :func:`validate_stream_fit` cuts them to the fit's window as
-:func:`identify_window` cuts it and hands them to the
-same core function the offline path runs (:func:`~rig_identification.pipeline.fit_validation.apply_validation`,
-inputs built by :func:`~rig_identification.pipeline.fit_validation.accel_input` and
-:func:`~rig_identification.pipeline.fit_validation.force_weight_surplus`).  The node's fit does not propagate
-the sensors' noise (no replays), so its validation is that of ``rig-identify inertia --quick``.
+the fit's own gyro and torque, the ``weight`` check reads two streams the fit does not use: the
+generalized force and the tracked orientation.  :func:`validate_stream_fit` cuts them to the
+fit's window as :func:`identify_window` cuts it and hands them to the same core function the
+offline path runs (:func:`~rig_identification.pipeline.fit_validation.apply_validation`, the
+surplus from :func:`~rig_identification.pipeline.fit_validation.force_weight_surplus`): its
+validation is that of ``rig-identify inertia --quick``.
 
 ROS-free (plain numpy), in the core: the identifier node only feeds it.
 """
@@ -27,9 +25,8 @@ import numpy as np
 
 from ..estimation.identification import IdentificationError, identify_inertia
 from ..estimation.inertia_result import InertiaResult
-from ..io.noise import white_sigma
 from ..io.rig import Rig
-from .fit_validation import accel_input, apply_validation, force_weight_surplus, weight_warning
+from .fit_validation import apply_validation, force_weight_surplus, weight_warning
 
 STAMP_MATCH = 1e-6   # s: a pose and a wrench sample are the same instant (the wrench carries the pose's stamp)
 
@@ -142,22 +139,13 @@ def validate_stream_fit(rig: Rig, result: InertiaResult, win: StreamWindow, lo: 
     """Validate the node's fit ``result`` over the window [lo, hi] (absolute stamps, s) with the
     offline core (:func:`~rig_identification.pipeline.fit_validation.apply_validation`).
 
-    The samples are those of the fit (:func:`fit_samples`), the gyro and the specific force
-    interpolated to them and turned to body axes (as :func:`identify_window` and
-    :func:`~rig_identification.pipeline.fit_validation.accel_inputs` do); the accelerometer's noise is
-    :func:`~rig_identification.io.noise.white_sigma` of the window's samples.  The weight check
-    uses the poses stamped as the wrench samples; with fewer than 90 % of them matched (no
+    The samples are those of the fit (:func:`fit_samples`).  The weight check uses the poses
+    stamped as the wrench samples; with fewer than 90 % of them matched (no
     ``/rig/pose`` received) it is skipped and a warning says so.  Sets ``result.validation``,
     ``result.weight_surplus``; widens σ; adds the verdict's and the weight's warnings.
     Returns ``result``, updated in place.  Never raises on bad numbers (the core does not)."""
-    tw, ti = win.wrench_t, win.imu_t
     m = fit_samples(win, lo, hi)
-    t = tw[m]
-    accel = None
-    if len(t) >= 10 and len(ti) >= 10 and result.series:
-        imu = np.column_stack([np.interp(t, ti, c) for c in win.imu.T])
-        accel = [accel_input(rig, t, rig.imu.rotation.apply(imu[:, :3]), win.wrench[m, 3:], win.wrench[m, :3],
-                             imu[:, 3:6], white_sigma(win.imu[:, 3:6]), result.series[0].band_hz)]
+    t = win.wrench_t[m]
     surplus = None
     if len(t) >= 10 and len(win.pose_t):
         i = np.clip(np.searchsorted(win.pose_t, t), 0, len(win.pose_t) - 1)
@@ -168,7 +156,7 @@ def validate_stream_fit(rig: Rig, result: InertiaResult, win: StreamWindow, lo: 
         result.warnings.append("the weight check did not run: no tracked orientation (/rig/pose) at the fit's "
                                "samples")
     result.weight_surplus = surplus
-    apply_validation(result, accel, surplus, rig)
+    apply_validation(result, surplus, rig)
     note = weight_warning(surplus, rig)
     if note is not None:
         result.warnings.append(note)

@@ -41,7 +41,7 @@ def figure(w: float, h: float):
 def edge_seconds(s: FitSeries) -> float:
     """Duration s at each end of the window where the zero-phase band-pass filter's start-up
     transient lives: two periods of the band's low edge, at most a tenth of the window (as the
-    validation's accelerometer check)."""
+    validation's segments)."""
     T = float(s.t[-1] - s.t[0])
     lo = float(s.band_hz[0]) if np.isfinite(s.band_hz[0]) and s.band_hz[0] > 0 else 1.0
     return min(0.1 * T, 2.0 / lo)

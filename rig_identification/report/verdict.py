@@ -22,7 +22,6 @@ CHECKS = {
     "sub_bands": ("the lower and upper half of the fit band give the same tensor", "chi2"),
     "input_correlation": ("the residual is not correlated with the input", "chi2"),
     "whiteness": ("no spectral line in the residual (over its local level)", "ratio"),
-    "accelerometer": ("the accelerometer, which the fit does not use, is predicted (RMS ratio)", "ratio"),
     "weight": ("the load cells carry rig.yaml's weight", "fraction"),
     "identifiable": ("every entry is determined (largest σ over its scale)", "fraction"),
 }
