@@ -392,3 +392,22 @@ def test_rig_sim_help_is_quick_and_the_simulation_says_what_it_does(tmp_path, ca
     assert all(ln.endswith(" s") for ln in err.splitlines()) and out.startswith("rig-sim: wrote ")
     assert sim_main([str(config), str(tmp_path / "b"), "--duration", "1", "-q"]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_quiet_rig_model_output_is_the_short_result_with_the_same_table(capsys):
+    """``rig-identify inertia -q`` (the rig model, print_rig_model's ``brief``): the verdict first,
+    the same table as the full output, the mass and CG, at most 20 lines, the last saying what the
+    full output adds; the full output holds every line of the short one but the last."""
+    from rig_identification.cli.rig_model import BRIEF_TAIL, print_rig_model
+    from rig_identification.io.recording import read_recording
+    from rig_identification.pipeline.rig_model import fit_whole_recording
+    res = fit_whole_recording(read_recording(recording("visible_case16_clean")), end=40.0, diagnose=False)
+    print_rig_model(res, brief=True)
+    short = capsys.readouterr().out.splitlines()
+    print_rig_model(res)
+    full = capsys.readouterr().out.splitlines()
+    assert short[0].startswith("verdict: ") and short[0] == full[0]
+    assert short[-1] == BRIEF_TAIL and len(short) <= 20 < len(full)
+    assert all(line in full for line in short[:-1])
+    rows = [line for line in short if line.split()[:1] in (["Ixx"], ["Iyy"], ["Izz"], ["Ixy"], ["Ixz"], ["Iyz"])]
+    assert len(rows) == 6 and any(line.startswith("mass ") for line in short)

@@ -43,9 +43,17 @@ def job_of(args) -> Job:
     return Job(*(getattr(args, k, None) and getattr(args, k).strip() or None for _, k, _ in JOB_OPTIONS))
 
 
-def print_rig_model(res: RigModelResult, axes: Axes = BODY) -> None:
+#: The last line of ``-q``'s short result: what the full output adds.
+BRIEF_TAIL = ("(-q: the short result; without -q also the model, span and band, the principal moments and axes, the "
+              "tensor about the origin, what the model leaves out, cables, damping, modes, each channel's residual "
+              "and what σ holds; --json gives everything)")
+
+
+def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False) -> None:
     """The text output of ``rig-identify inertia`` (the rig model); ``axes``: the vehicle axes
-    the tensor is given in too (``--axes``, rig.yaml ``output_axes``)."""
+    the tensor is given in too (``--axes``, rig.yaml ``output_axes``).  ``brief`` (``-q``): the
+    verdict, the recording, the tensor table, the mass and the CG, the channels the fit leans
+    less on, then :data:`BRIEF_TAIL`."""
     f = res.fit
     p = f.parameters
     d = res.to_dict()
@@ -53,12 +61,13 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY) -> None:
     print(f"recording: {res.path}")
     for w in res.warnings:
         print(f"warning: {w}")
-    print("model: the rig's grey-box model, every sensor an output (tensions, gyro, accelerometer, inclinometer); "
-          "mass, CG, cable stiffness and damping, load-cell gains, the initial state and the surveyed geometry "
-          "fitted with their priors")
-    print(f"span: {res.start_s:.1f}–{res.start_s + res.duration_s:.1f} s from the first IMU sample "
-          f"({res.duration_s:.1f} s, after the exciter's spin-up); band 0–{res.band_hz:.2f} Hz; "
-          f"started from {res.start_source}")
+    if not brief:
+        print("model: the rig's grey-box model, every sensor an output (tensions, gyro, accelerometer, "
+              "inclinometer); mass, CG, cable stiffness and damping, load-cell gains, the initial state and the "
+              "surveyed geometry fitted with their priors")
+        print(f"span: {res.start_s:.1f}–{res.start_s + res.duration_s:.1f} s from the first IMU sample "
+              f"({res.duration_s:.1f} s, after the exciter's spin-up); band 0–{res.band_hz:.2f} Hz; "
+              f"started from {res.start_source}")
     print(TABLE_CAPTION[:-1] + "; body axes:")
     truth = d.get("truth_comparison")
     head = f"{'':<7}{'kg·m²':>12}{'σ':>10}{'CRB':>10}{'σ/CRB':>7}"
@@ -81,11 +90,20 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY) -> None:
         print(f"in {axes.label}:")
         print(f"  centre of gravity ({', '.join(f'{x:.4f}' for x in res.expressed(axes).cg)}) m")
         print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
+    sv = d["survey"]
+    if brief:
+        print(f"mass {p.mass:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
+        print_cg(res.cg)
+        if res.diagnosis is not None and res.diagnosis.extensions:
+            print(f"added to the model: {', '.join(res.diagnosis.extensions)} (rig-identify diagnose says why)")
+        if res.poorly_fitted:
+            print(f"the fit leans less on {', '.join(res.poorly_fitted)} (their noise raised to their residual's)")
+        print(BRIEF_TAIL)
+        return
     for line in principal_lines(body) + [origin_line(body)]:
         print(line)
     if res.diagnosis is not None:
         print_diagnosis(res.diagnosis)
-    sv = d["survey"]
     print(f"mass {p.mass:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
     print_cg(res.cg)
     print("cables: stiffness " + ", ".join(f"{k / 1e6:.3f}" for k in p.stiffness) + " MN/m, damping time "
@@ -231,7 +249,7 @@ def cmd_rig_model(args, rec: Recording, axes: Axes = BODY) -> int:
             d["urdf_inertial"] = urdf
         print(json.dumps(d))
     else:
-        print_rig_model(res, axes)
+        print_rig_model(res, axes, brief=bool(getattr(args, "quiet", False)))
         if urdf is not None:
             print("URDF inertial element (link frame: rig.yaml's body frame; ixy, ixz, iyz: the tensor's entries):")
             print(urdf)
