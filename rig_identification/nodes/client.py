@@ -391,6 +391,8 @@ def run(verb: str, args, node: Node) -> int:
         except (RigError, CgResultError) as e:
             log(f"mass_properties_client: error: {e}")
             return 2
+    if verb == "rig-model":
+        wait_stable(args, idf)
     wait = args.fit_timeout if verb == "rig-model" else 60.0
     r = idf.call(first, wait)
     if r is None:
@@ -479,8 +481,9 @@ class RigTarget:
         return str(self.out)
 
 
-def identify(args, node: Node, idf: IdentifierClient, truth: dict) -> int:
-    """The ``identify`` verb: fit, CG answer, table (or JSON)."""
+def wait_stable(args, idf: IdentifierClient) -> None:
+    """``--wait-stable S``: wait (at most ``--timeout``) until the identifier's buffer has received
+    no new sample for S s."""
     if args.wait_stable > 0 and idf.wait("status", 5.0):
         last, since, t_end = None, time.monotonic(), time.monotonic() + args.timeout
         while time.monotonic() < t_end:
@@ -492,6 +495,11 @@ def identify(args, node: Node, idf: IdentifierClient, truth: dict) -> int:
                 break
             time.sleep(0.2)
         log(f"identifier buffer: {last} wrench samples")
+
+
+def identify(args, node: Node, idf: IdentifierClient, truth: dict) -> int:
+    """The ``identify`` verb: fit, CG answer, table (or JSON)."""
+    wait_stable(args, idf)
     t0 = time.monotonic()
     while True:
         r = idf.call("identify_inertia", max(1.0, args.fit_timeout - (time.monotonic() - t0)))

@@ -7,8 +7,9 @@ discovery limited to this machine:
                      its rig.yaml to a temporary folder;
   2. tracker, preprocessor, identifier   with that rig.yaml;
   3. the driver publishes at ``--rate`` times real time once every consumer is subscribed;
-  4. mass_properties_client, once the driver is done and the identifier's buffer is
-     complete: prints the identified mass properties beside the truth.
+  4. mass_properties_client rig-model, once the driver is done and the identifier's buffer is
+     complete: the rig model of the buffered raw streams (``~/identify_rig_model``, the core of
+     ``rig-identify inertia``), its mass properties printed beside the truth.
 
 Then it prints the message counts of every node (received / rejected / published, from
 /diagnostics), stops the nodes (SIGINT, then SIGKILL after a grace period) and exits with
@@ -232,7 +233,7 @@ def main(argv=None) -> int:
         say("CPU time so far: " + ", ".join(f"{n} {c:.1f} s" for n, c in cpu.items() if c is not None))
         say("running mass_properties_client")
         client = graph.start("mass_properties_client", module=NODE_MODULES["mass_properties_client"],
-                             args=["--wait-stable", "1.5", "--timeout", "60"], stdout=sys.stdout)
+                             args=["rig-model", "--wait-stable", "1.5", "--timeout", "60"], stdout=sys.stdout)
         rc = client.wait()
         time.sleep(1.2)  # one more round of /diagnostics
         print("\nmessage counts (driver status and /diagnostics):")
