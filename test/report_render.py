@@ -30,6 +30,9 @@ window.addEventListener('load', function () {
     wide: imgs.filter(function (i) {
       return i.getBoundingClientRect().right > document.documentElement.clientWidth + 1;
     }).map(function (i) { return i.getAttribute('src'); }),
+    wide_tables: Array.prototype.filter.call(document.querySelectorAll('table'), function (t) {
+      return t.getBoundingClientRect().right > document.documentElement.clientWidth + 1;
+    }).map(function (t) { return t.id || t.className || 'table'; }),
     bad_words: text.match(/\b(nan|inf|infinity)\b/gi) || [],
     verdict: verdict ? verdict.innerText : null,
     verdict_before_tensor: !!(verdict && tensor &&

@@ -210,12 +210,15 @@ def test_the_default_inertia_is_the_rig_model_with_its_report_yaml_and_urdf():
 
 def test_the_rig_models_report_reads_in_a_browser():
     """The default report of the chain (the rig model), rendered in headless Chromium: every
-    figure loaded and inside the page's width, no nan/inf in its text, the verdict before the
-    tensor table, the job's sections in order; the screenshot is not blank (test_report.render)."""
+    figure loaded and inside the page's width, every table inside 800 px (A4), no nan/inf in its
+    text, the verdict before the tensor table, the job's sections in order; the screenshot is not
+    blank (test_report.render)."""
     *_, pngs, seen = gather("rig_day_chain")["run"]
     assert seen is not None
     assert seen["images"] == len(pngs) == seen["loaded"], seen["images"]
     assert seen["wide"] == [] and seen["bad_words"] == [], (seen["wide"], seen["bad_words"])
+    # at the headless window's 800 px (an A4 page's width) every table fits: the print style sheet
+    assert seen["wide_tables"] == [], seen["wide_tables"]
     assert seen["verdict"].startswith("ok") and seen["verdict_before_tensor"], seen["verdict"]
     text = seen["text"]
     heads = ["Mass and centre of gravity", "Moments and products of inertia about the CG", "Principal moments and axes",

@@ -138,6 +138,13 @@ tr.weak td { background: #fff1f0; }
 tr.failed td { background: #fff1f0; }
 table.matrix td { min-width: 6em; }
 img { max-width: 100%; border: 1px solid #ddd; margin: 0.4em 0; }
+@media print, (max-width: 900px) {
+  body { margin: 0.5em auto; padding: 0 0.3em; }
+  table { font-size: 0.78em; }
+  th, td { padding: 2px 4px; }
+  h2 { break-after: avoid; }
+  table, img, .verdict { break-inside: avoid; }
+}
 .verdict { border: 2px solid; border-radius: 6px; padding: 0.6em 1em; margin: 1em 0; }
 .verdict p { margin: 0.3em 0; }
 .verdict.ok { border-color: #2a7a2a; background: #f1f9f1; }
