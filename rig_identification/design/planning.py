@@ -169,12 +169,12 @@ def _feasible(c: Candidate, limits: dict) -> bool:
 
 
 def _fit_amplitude(body: Body, run: Run, limits: dict, settle: float, tracker_params, limit: str,
-                   tries: int = 2, grow: bool = True, rot_f=None) -> Candidate | None:
+                   tries: int = 2, grow: bool = True, rot_f=None, say=None) -> Candidate | None:
     """Simulate ``run`` and bring its force amplitude to the limits: scale it linearly so
     that the simulated peak rotation and lowest tension (start-up transients and beats
     included) meet them with a 3 % margin, at most ``limits["max_force_n"]`` (up only if
-    ``grow``), and simulate again.  None if the run still breaks a limit or its swing keeps
-    growing (a parametric resonance)."""
+    ``grow``), and simulate again (announced to ``say``, callable(str), when given).  None if
+    the run still breaks a limit or its swing keeps growing (a parametric resonance)."""
     cand, _ = _sim_check(body, run, limits, settle, tracker_params, rot_f)
     for _ in range(tries):
         if getattr(cand, "growing", False):
@@ -191,6 +191,8 @@ def _fit_amplitude(body: Body, run: Run, limits: dict, settle: float, tracker_pa
         else:
             s = min(0.97 * s, s_force)
         run = replace(run, amplitude=run.amplitude * s)
+        if say is not None:
+            say(f"simulating it again at {run.amplitude:.0f} N (its amplitude brought to the limits) ...")
         cand, _ = _sim_check(body, run, limits, settle, tracker_params, rot_f)
         grow = False
     if not _feasible(cand, limits):
@@ -258,6 +260,10 @@ class PlanOptions:
     geometries: tuple = ()
 
 
+#: Frequencies screened per progress line of :func:`plan_experiment` (each line about 10 s on the thesis rig).
+SCREEN_GROUP = 4
+
+
 class _Search:
     """One plan's search (:func:`plan_experiment`): the limits, the reference σ the runs are
     ranked against, and the short and full-length simulations made so far (each run once)."""
@@ -288,7 +294,6 @@ class _Search:
         mf = np.array([m.frequency for m in ms])
         rf = self.rot_fs.setdefault(label, _rotational(ms))
         scr = scr or DesignScreen(b, linear_rig(b), o.duration, o.settle, tracker_params=o.tracker_params)
-        self.say(f"screening frequencies, mounting points and spin axes (linearised rig{where}) ...")
         avoid = resonances(mf)
         freqs = [f for f in np.geomspace(o.frequencies[0], o.frequencies[1], 30)
                  if np.all(np.abs(f / avoid - 1) >= o.mode_margin)]
@@ -299,20 +304,13 @@ class _Search:
                             "and their pairwise sums")
         pts = [np.asarray(p, float) for p in (o.positions if o.positions else candidate_positions(b.rig))]
         screened: list[Candidate] = []
-        for f in freqs:
-            X = scr.responses(f)
-            band = scr.band(f, rf)
-            dens = scr.noise_density(band)
-            for p in pts:
-                for ax in SPIN_AXES:
-                    for sense in (1, -1):
-                        amp, lim, rot, tmin, pred = scr.candidate(X, p, SPIN_AXES[ax], self.limits, dens, band,
-                                                                  direction=sense)
-                        if pred is None or not np.all(np.isfinite(pred.std)):
-                            continue
-                        screened.append(Candidate(Run(float(f), float(amp), tuple(float(x) for x in p), ax,
-                                                      o.duration, direction=sense), pred, lim, False, float(rot),
-                                                  float(tmin), geometry=label, body=b))
+        for i in range(0, len(freqs), SCREEN_GROUP):
+            group = freqs[i:i + SCREEN_GROUP]
+            self.say(f"screening {group[0]:.2f}–{group[-1]:.2f} Hz (frequencies {i + 1}–{i + len(group)} of "
+                     f"{len(freqs)}; at each {len(pts)} mounting points × {len(SPIN_AXES)} spin axes × 2 senses, "
+                     f"linearised rig{where}) ...")
+            for f in group:
+                screened += self._screen_frequency(scr, b, label, f, pts, rf)
         screened.sort(key=lambda c: c.prediction.worst(self.ref_screen))
         picks = _distinct(screened, o.refine)
         if partner is not None:   # a ranking only: the partner's prediction is simulated, the candidates' screened
@@ -320,6 +318,26 @@ class _Search:
             picks += [c for c in _distinct(together, o.refine) if all(not _same(c, o_) for o_ in picks)]
         singles = [x for x in (self.simulate_short(c, "a candidate run") for c in picks) if x is not None]
         return screened, singles
+
+    def _screen_frequency(self, scr: DesignScreen, b: Body, label: str | None, f: float, pts: list[np.ndarray],
+                          rf: list[float]) -> list[Candidate]:
+        """The screened candidates at ``f`` Hz on the body ``b`` (cable geometry ``label``): every
+        mounting point of ``pts`` (body m), spin axis and sense whose prediction is finite."""
+        X = scr.responses(f)
+        band = scr.band(f, rf)
+        dens = scr.noise_density(band)
+        out = []
+        for p in pts:
+            for ax in SPIN_AXES:
+                for sense in (1, -1):
+                    amp, lim, rot, tmin, pred = scr.candidate(X, p, SPIN_AXES[ax], self.limits, dens, band,
+                                                              direction=sense)
+                    if pred is None or not np.all(np.isfinite(pred.std)):
+                        continue
+                    out.append(Candidate(Run(float(f), float(amp), tuple(float(x) for x in p), ax, self.opts.duration,
+                                             direction=sense), pred, lim, False, float(rot), float(tmin),
+                                         geometry=label, body=b))
+        return out
 
     def simulate_short(self, c: Candidate, what: str) -> Candidate | None:
         """``c`` simulated over ``short`` s, its amplitude brought to the limits, its prediction
@@ -348,9 +366,10 @@ class _Search:
                 self.full[key] = c
                 return c
             where = "" if c.geometry is None else f" on cable geometry {c.geometry!r}"
-            self.say(f"simulating {what}{where} in full ({c.run.frequency:.2f} Hz, {o.duration:.0f} s) ...")
+            self.say(f"simulating {what}{where} in full ({c.run.amplitude:.0f} N at {c.run.frequency:.2f} Hz, "
+                     f"{o.duration:.0f} s) ...")
             cf = _fit_amplitude(c.body, replace(c.run, duration=o.duration), self.limits, o.settle, o.tracker_params,
-                                c.limit, rot_f=self.rot_fs[c.geometry])
+                                c.limit, rot_f=self.rot_fs[c.geometry], say=self.say)
             if cf is not None:
                 cf.geometry, cf.body = c.geometry, c.body
             self.full[key] = cf
@@ -475,11 +494,13 @@ def _second_run(s: _Search, first: Candidate, singles: list[Candidate], screened
 def _rig_model_std(body: Body, base: Candidate, chosen: list[Candidate], say) -> dict:
     """The σ ``rig-identify inertia`` reaches: the rig model's bound, every sensor an output, of
     the chosen runs together and of the baseline (:mod:`~rig_identification.design.information`)."""
-    say("the rig model's Cramér–Rao bound of the baseline and the chosen runs (a simulation and a Jacobian each) ...")
     bound: dict = {}
-    for c in [base, *chosen]:
+    for n, c in enumerate([base, *chosen]):
         key = _run_key(c)
         if key not in bound:
+            what = "the baseline" if n == 0 else f"run {n}" if len(chosen) > 1 else "the run"
+            say(f"the rig model's Cramér–Rao bound of {what} ({c.run.amplitude:.0f} N at {c.run.frequency:.2f} Hz: "
+                "a simulation and a Jacobian) ...")
             bound[key] = tensor_covariance(simulate((c.body or body).experiment(c.run)), body.noise)
     return {"std": combined_std([bound[_run_key(c)] for c in chosen]),
             "baseline_std": combined_std([bound[_run_key(base)]])}
@@ -490,7 +511,8 @@ def plan_experiment(body: Body, baseline: Run, options: PlanOptions = PlanOption
 
     body: :class:`Body`.  baseline: the run to compare with (e.g. the thesis's 200 N at
     1.05 Hz at the rig's exciter).  options: :class:`PlanOptions` (limits, search, objective).
-    progress: optional callable(str) for status lines.
+    progress: optional callable(str), called as each step starts: each group of
+    :data:`SCREEN_GROUP` frequencies screened, each simulation, each run's Cramér–Rao bound.
     Raises :class:`PlanError`, :class:`~rig_identification.model.simulator.SimulationError`.
     """
     say = progress or (lambda s: None)
