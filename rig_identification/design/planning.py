@@ -190,6 +190,8 @@ def _fit_amplitude(body: Body, run: Run, limits: dict, settle: float, tracker_pa
             s = min(s, s_force)         # a force beyond the exciter's is brought down to it
         else:
             s = min(0.97 * s, s_force)
+        if s == 1.0:                    # at the force limit already: the same run again would change nothing
+            break
         run = replace(run, amplitude=run.amplitude * s)
         if say is not None:
             say(f"simulating it again at {run.amplitude:.0f} N (its amplitude brought to the limits) ...")
