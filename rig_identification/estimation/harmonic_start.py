@@ -30,7 +30,7 @@ from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, frequency_response, linearise
 from ..model.parametrisation import physically_consistent, to_tensor
 from .rig_record import Record, RigFitError
-from .rig_start import start_parameters
+from .rig_start import carried_to, start_parameters
 from .rig_unknowns import Prior
 
 log = logging.getLogger(__name__)
@@ -191,10 +191,11 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
     (thesis eqs. 3.1–3.10: K's axial part), and a fit started at steel's never finds the motion
     (its swinging phase drifts, the bounce modes sit at the wrong frequency).  The factor is
     scanned over :data:`STIFFNESS_SCAN` (the misfit has several minima in it), each point's tensor
-    fitted to :data:`SCAN_TOLERANCE`.  The scan's best is taken only where its misfit is below
-    :data:`STIFFNESS_MISFIT_SHARE` of the prior's (both refitted to full precision, the prior's
-    also from the best's tensor: the tensor's fit has minima of its own), then refined by a
-    bounded scalar search about it (its tensor fitted from the best's; the decision is the
+    fitted to :data:`SCAN_TOLERANCE`, its geometry the prior's start carried to that stiffness
+    (:func:`~.rig_start.carried_to`: the same rest pose and tensions).  The scan's best is taken
+    only where its misfit is below :data:`STIFFNESS_MISFIT_SHARE` of the prior's (both refitted
+    to full precision, the prior's also from the best's tensor: the tensor's fit has minima of
+    its own), then refined by a bounded scalar search about it (its tensor fitted from the best's; the decision is the
     grid's: a refined misfit can dip within 1 % of stiffness).  On steel cables the modes lie
     far above the band and the misfit, dominated by the linearisation's error and a tensor the
     one frequency determines poorly, is no evidence: it changes by a few per cent over a factor
@@ -214,6 +215,12 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
         tensor, cost = _fitted(h, p0, rest, tensors, tolerance)
         return _level(cost, h), tensor
 
+    def scanned_misfit(s: float, at_prior: tuple[RigParameters, RestPose]) -> tuple[float, np.ndarray]:
+        # the scan's geometry carried from the prior's stiffness (rig_start.carried_to), not searched anew
+        p0, rest = carried_to(*at_prior, prior.stiffness * np.exp(s * free))
+        tensor, cost = _fitted(h, p0, rest, np.atleast_2d(starts), SCAN_TOLERANCE)
+        return _level(cost, h), tensor
+
     def found(tensor: np.ndarray, level: float, log_scale: float, prior_level: float) -> ForcedResponseStart:
         if not np.all(np.isfinite(tensor)):
             raise RigFitError(f"{rig.source}: the forced response gives no start for the tensor")
@@ -224,15 +231,16 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
     if not np.any(free):
         level, tensor = misfit(0.0, np.atleast_2d(starts))
         return found(tensor, level, 0.0, float("nan"))
-    scanned = [misfit(float(s), np.atleast_2d(starts), SCAN_TOLERANCE) for s in STIFFNESS_SCAN]
+    at_prior = start_parameters(rig, prior, inertia0, rec)
+    scanned = [scanned_misfit(float(s), at_prior) for s in STIFFNESS_SCAN]
     levels = np.array([m[0] for m in scanned])
-    at_prior = int(np.argmin(np.abs(STIFFNESS_SCAN)))
+    prior_index = int(np.argmin(np.abs(STIFFNESS_SCAN)))
     i = int(np.argmin(levels))
     # at the prior's stiffness the tensor fitted to full precision from every start; its misfit
     # also from the best's tensor: not trapped in a minimum of its own
     own_level, prior_tensor = misfit(0.0, np.atleast_2d(starts))
     best_s, best_level, best_tensor, prior_level = 0.0, own_level, prior_tensor, own_level
-    if i != at_prior:
+    if i != prior_index:
         best_s = float(STIFFNESS_SCAN[i])
         best_level, best_tensor = misfit(best_s, scanned[i][1][None])
         prior_level = min(own_level, misfit(0.0, best_tensor[None])[0])

@@ -12,7 +12,6 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
@@ -43,6 +42,10 @@ JACOBIAN_STEP = 1e-4
 #: A segment's change is filtered over the samples where the filter's response to an impulse
 #: exceeds this share of its peak (:meth:`RigProblem.segment_change`).
 IMPULSE_TAIL = 1e-12
+#: Gauss–Newton steps that settle a segment's initial state alone (:meth:`RigProblem._settle_segments`), at
+#: most, and the fall of the cost (½ χ²) below which they stop.
+SETTLE_STEPS = 6
+SETTLE_DECREMENT = 0.01
 #: Extensions (:data:`~.rig_unknowns.EXTENSIONS`) whose unknowns are never negative: a damping.
 NON_NEGATIVE = ("air_drag", "coulomb_friction")
 
@@ -116,7 +119,10 @@ class RigProblem:
     def _settle_segments(self) -> None:
         """Each later segment's initial state fitted alone to its own samples (the parameters
         at x0): the model's continuation carries the phase error of x0's mode frequencies into
-        every later segment, and the response is nearly linear in the state (Ljung 1999, §7.3)."""
+        every later segment, and the response is nearly linear in the state (Ljung 1999, §7.3):
+        Gauss–Newton steps with the Jacobian at x0 (the chord method), at most
+        :data:`SETTLE_STEPS`, each taken where it lowers the cost, until one gains less than
+        :data:`SETTLE_DECREMENT`.  The whole fit refines these states with every other unknown."""
         u = self.force(self.x0)
         a = self.rec.start
 
@@ -133,9 +139,21 @@ class RigProblem:
                     return np.full((len(range(0, c - b, self.step)) * len(self.rec.channels)), OUTSIDE)
                 return self.weighted(e).ravel()
 
-            sol = least_squares(residual, np.zeros(12), method="trf", diff_step=JACOBIAN_STEP, xtol=XTOL, ftol=FTOL,
-                                gtol=GTOL, max_nfev=MAX_ITERATIONS)
-            move: np.ndarray = self.scale[part] * sol.x
+            r = residual(np.zeros(12))
+            if r[0] == OUTSIDE:
+                return np.zeros(12)
+            J = np.column_stack([(residual(JACOBIAN_STEP * e) - r) / JACOBIAN_STEP for e in np.eye(12)])
+            z = np.zeros(12)
+            for _ in range(SETTLE_STEPS):          # Gauss–Newton with the first Jacobian (the chord method)
+                step = np.linalg.lstsq(J, -r, rcond=None)[0]
+                r1 = residual(z + step)
+                fall = r @ r - r1 @ r1
+                if not fall > 0:
+                    break
+                z, r = z + step, r1
+                if fall < 2 * SETTLE_DECREMENT:
+                    break
+            move: np.ndarray = self.scale[part] * z
             return move
 
         with ThreadPoolExecutor(THREADS) as pool:     # each segment's state alone: independent solves
@@ -294,11 +312,25 @@ class RigProblem:
     def size(self, nz: int) -> int:
         return self.data_rows + int(np.isfinite(self.prior_std[:nz]).sum())
 
+    def owners(self) -> dict[int, tuple[int, ...]]:
+        """The unknowns that move only some segments' runs, each with those segments: a segment's
+        initial state its own, a B-spline coefficient of the force's correction those its
+        support overlaps (each segment runs from its own state, its force a spline through its
+        own samples)."""
+        lay = self.lay
+        out = {i: (k,) for k in range(lay.n_segments) for i in range(*lay.state(k).indices(lay.size))}
+        K = lay.n_force // 2
+        for j in range(K):
+            hit = tuple(k for k in range(lay.n_segments)
+                        if np.any(self.basis[self.edges[k]:self.edges[k + 1], j] != 0.0))
+            out[lay.force.start + j] = out[lay.force.start + K + j] = hit
+        return out
+
     def jacobian(self, z: np.ndarray, columns: Sequence[int] | None = None) -> np.ndarray:
         """Forward differences (size, len(z)) of :meth:`residual` (step :data:`JACOBIAN_STEP`;
         backward where the step leaves the physical region, a zero column where both do),
-        the columns on :data:`THREADS` threads (the compiled model releases the GIL); a segment's
-        initial state moves only that segment's run, which alone is run again for its columns.
+        the columns on :data:`THREADS` threads (the compiled model releases the GIL); an unknown
+        that moves only some segments' runs (:meth:`owners`) runs those alone again.
         ``columns``: only these unknowns' columns (size, len(columns)), in that order."""
         x = self.x(z)
         try:
@@ -306,21 +338,22 @@ class RigProblem:
         except (SimulationError, ValueError, np.linalg.LinAlgError):
             outs = None
         base = self.residual(z, outs)
-        owner = {i: k for k in range(self.lay.n_segments) for i in range(*self.lay.state(k).indices(self.lay.size))}
+        owners = self.owners()
         u = self.force(x)
 
         def column(i: int) -> np.ndarray:
             e = z.copy()
             e[i] += JACOBIAN_STEP
-            if outs is not None and i in owner and i < len(z) and base[0] != OUTSIDE:
-                k = owner[i]
+            if outs is not None and i in owners and i < len(z) and base[0] != OUTSIDE:
+                xe = self.x(e)
+                ue = u if i not in range(*self.lay.force.indices(self.lay.size)) else self.force(xe)
                 try:
-                    change = self.segment_outputs(self.x(e), k, u) - outs[k]
+                    rows = sum((self.segment_change(self.segment_outputs(xe, k, ue) - outs[k], k) for k in owners[i]),
+                               np.zeros(self.data_rows))
                 except (SimulationError, ValueError, np.linalg.LinAlgError):
                     pass
                 else:
-                    return np.concatenate([self.segment_change(change, k),
-                                           self.prior_rows(e) - self.prior_rows(z)]) / JACOBIAN_STEP
+                    return np.concatenate([rows, self.prior_rows(e) - self.prior_rows(z)]) / JACOBIAN_STEP
             moved = self.residual(e)
             if moved[0] == OUTSIDE and base[0] != OUTSIDE:    # the step left the physical region: step back
                 e[i] -= 2 * JACOBIAN_STEP
@@ -349,4 +382,4 @@ def base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) -> 
 
 
 __all__ = ["RigProblem", "levels", "base_state", "DECIMATED_RATE", "THREADS", "MAX_ITERATIONS", "XTOL", "FTOL", "GTOL",
-           "OUTSIDE", "JACOBIAN_STEP", "IMPULSE_TAIL", "NON_NEGATIVE"]
+           "OUTSIDE", "JACOBIAN_STEP", "IMPULSE_TAIL", "NON_NEGATIVE", "SETTLE_STEPS", "SETTLE_DECREMENT"]

@@ -48,7 +48,7 @@ def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, rec: Record |
     rig as described has no rest pose."""
     n = len(rig.cables)
     k = prior.stiffness if stiffness is None else np.broadcast_to(np.asarray(stiffness, float), (n,))
-    tau = 2 * DEFAULT_DAMPING_RATIO * np.sqrt(prior.mass / (n * k.mean())) if damping_time is None else damping_time
+    tau = default_damping_time(prior.mass, k) if damping_time is None else damping_time
     start = RigParameters.from_rig(rig, np.zeros(6), k, tau, prior.mass, prior.cg)
     surveyed = start.length
     tensions = None if rec is None else rec.y[rec.start:, :n].mean(axis=0)
@@ -61,6 +61,23 @@ def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, rec: Record |
     if tensions is not None:
         start, rest = start_geometry(start, rest, tensions, prior, surveyed)
     return start.replace(inertia=np.asarray(inertia0, float)), rest
+
+
+def default_damping_time(mass: float, stiffness: np.ndarray) -> float:
+    """τ, s, of the default cable's damping for a body of ``mass`` kg on cables of ``stiffness``
+    (N,) N/m: 2 ζ sqrt(m / (N k̄)), ζ :data:`~rig_identification.model.cables.DEFAULT_DAMPING_RATIO`."""
+    return float(2 * DEFAULT_DAMPING_RATIO * np.sqrt(mass / (len(stiffness) * np.mean(stiffness))))
+
+
+def carried_to(p: RigParameters, rest: RestPose, stiffness: np.ndarray) -> tuple[RigParameters, RestPose]:
+    """``p`` on cables of ``stiffness`` (N,) N/m (τ the default cable's for it:
+    :func:`default_damping_time`), each unstretched length moved so that the cable carries its
+    tension at ``rest`` at the same stretched length, and that rest pose (the same pose and
+    tensions: the net wrench is unchanged).  A start's geometry for another stiffness without a
+    new search (:func:`start_geometry`'s lengths at ``p``'s stiffness, moved by T (1/k − 1/k'))."""
+    k = np.asarray(stiffness, float)
+    length = p.length + rest.tensions * (1.0 / p.stiffness - 1.0 / k)
+    return p.replace(stiffness=k, length=length, damping_time=default_damping_time(p.mass, k)), rest
 
 
 def _taut_start(p: RigParameters, tensions: np.ndarray, rig: Rig, why: SimulationError
@@ -134,4 +151,5 @@ def start_geometry(p: RigParameters, rest: RestPose, tensions: np.ndarray, prior
     return q, at
 
 
-__all__ = ["FREE_CG_SCALE", "MEAN_TENSION_SHARE", "SCALE_UNIT", "start_geometry", "start_parameters"]
+__all__ = ["FREE_CG_SCALE", "MEAN_TENSION_SHARE", "SCALE_UNIT", "carried_to", "default_damping_time", "start_geometry",
+           "start_parameters"]
