@@ -117,7 +117,7 @@ def test_an_extension_that_lowers_a_misfit_it_does_not_explain_is_not_named(caps
     cand = Candidate("imu_offset", 120.0, 3, 16.3, np.array([0.01, 0.0, 0.02]), np.full(3, 1e-3),
                      np.array([40.0, 50.0]), True)
     step = Step("imu_offset", "imu_offset", (), {}, (cand,))
-    damping = Damping(np.array([5.0, 0.5]), {"air_drag": 3.0, "coulomb_friction": 4.0}, ())
+    damping = Damping(np.array([5.0, 0.5]), {"air_drag": 3.0, "coulomb_friction": 4.0}, (), np.array([9.0, 14.0]))
     after = SimpleNamespace(residual_level=np.array([1.1, 2.3, 1.2]), channels=channels)
     dg = RigDiagnosis((), damping, (step,), rigid, after)
     assert dg.found_motion and not dg.explained and dg.unexplained == ("gyro_x",)
@@ -128,6 +128,17 @@ def test_an_extension_that_lowers_a_misfit_it_does_not_explain_is_not_named(caps
     fitted = SimpleNamespace(residual_level=np.array([1.1, 1.3, 1.2]), channels=channels)
     good = RigDiagnosis((), damping, (step,), rigid, fitted)
     assert good.explained and good.named == ("imu_offset", "viscous_damping") and good.advice == []
+    # a significant damping that fails an extension's other tests is no name and no class: negative beyond
+    # 3 σ (it puts energy in), or not lowering χ² on the half of the record it was not fitted on
+    for bad in (Damping(np.array([10.4, -3.3]), {"air_drag": 0.5}, ("air_drag",), np.array([9.0, 14.0])),
+                Damping(np.array([10.4, 1.0]), {"air_drag": 0.5}, ("air_drag",), np.array([9.0, -2.0]))):
+        assert not bad.found and bad.significance[0] == 10.4
+        dg_bad = RigDiagnosis((), bad, (), rigid, None)
+        clean = RigDiagnosis((), bad, (), fitted, None)
+        assert clean.explained and clean.named == () and clean.classes == () and clean.advice == [], clean.advice
+        assert dg_bad.to_dict()["damping"]["found"] is False
+    told = Damping(np.array([10.4, 1.0]), {"air_drag": 0.5}, ("air_drag",), np.array([9.0, 2.0]))
+    assert RigDiagnosis((), told, (), fitted, None).classes == (("viscous_damping", "air_drag"),)
     unsure = RigDiagnosis((), damping, (Step("imu_offset", "imu_offset", ("gyro_scale",), {"gyro_scale": 1.0},
                                              (cand,)),), rigid, fitted)
     assert unsure.classes == (("imu_offset", "gyro_scale"),) and "tells them apart" in unsure.advice[0]
@@ -178,9 +189,13 @@ def test_the_dampings_alternatives_leave_out_one_the_model_already_holds():
         def vuong(self, a, b):
             return 5.0
 
+        def held_out(self, index):
+            return np.array([3.0, 4.0])
+
     lay = SimpleNamespace(body_damping=slice(0, 2))
     fit = SimpleNamespace(layout=lay, parameters=SimpleNamespace(body_damping=np.array([150.0, 300.0])),
                           covariance=np.diag([1.0, 4.0]))
     d = damping_alternatives(Lin(), fit)
     assert asked == [("air_drag",)] and d.alternatives == {"air_drag": 5.0} and d.indistinguishable == ()
     np.testing.assert_allclose(d.significance, [150.0, 150.0])
+    assert d.found and d.plausible and d.cross_validated

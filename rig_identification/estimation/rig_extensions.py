@@ -120,6 +120,12 @@ class LinearisedRig:
         statistic = float(r @ r - after @ after)
         scale = np.concatenate([self.scale[self.columns[e]] for e in names])
         value = np.concatenate([self.x[self.columns[e]] for e in names])
+        change = theta * scale
+        return ExtensionFit(tuple(names), statistic, len(theta), change, np.sqrt(np.diag(cov)) * scale,
+                            value + change, self._held_out(E, r), after[:self.rows])
+
+    def _held_out(self, E: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """(2,) the fall of ‖r‖² on each half of the record of the columns ``E`` fitted on the other."""
         half = self._halves()
         held_out = []
         for fit_rows, test_rows in ((half[0], half[1]), (half[1], half[0])):
@@ -127,9 +133,14 @@ class LinearisedRig:
             e = r[test_rows]
             moved = e + E[test_rows] @ t
             held_out.append(float(e @ e - moved @ moved))
-        change = theta * scale
-        return ExtensionFit(tuple(names), statistic, len(theta), change, np.sqrt(np.diag(cov)) * scale,
-                            value + change, np.array(held_out), after[:self.rows])
+        return np.array(held_out)
+
+    def held_out(self, index: slice) -> np.ndarray:
+        """(2,) the fall of χ² on each half of the record of the base unknowns ``index`` fitted on
+        the other, every other base unknown refitted: the model without them (:meth:`without`)
+        against the model with them, cross-validated like an extension (:meth:`fitted`)."""
+        out = self.without(index)
+        return self._held_out(out.projected(self.J[:, index]), out.r)
 
     def base(self) -> ExtensionFit:
         """The model without extensions as an :class:`ExtensionFit` (its residual r̃)."""
