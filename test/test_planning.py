@@ -87,21 +87,23 @@ def _plan_cli():
     plan` (in the worker's process).  Returns (exit status, stdout, stderr)."""
     return run_cli("plan", DEFAULT, "--inertia", "2894", "695", "3101", "0", "0", "-102", "--json", "--quiet",
                    "--duration", "30", "--runs", "1", "--refine", "1", "--frequencies", "1.3", "1.6",
-                   "--position", "0.8", "1.25", "1.29", "--position", "0.8", "-1.25", "1.29")
+                   "--position", "0.8", "1.25", "1.29", "--position", "0.8", "-1.25", "1.29", "--max-force", "1000")
 
 
 background("plan_cli", __file__, _plan_cli, {"run": ()})
 
 
 def test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation():
-    """rig-identify plan on the config rig (short runs, a narrowed search to keep it quick):
-    modes, runs, predictions, identifiability; the recommended run keeps every cable above
-    20 % of its static tension and the rotation below 3° in simulation, and every entry's
-    predicted σ is smaller than with the thesis's 200 N at 1.05 Hz."""
+    """rig-identify plan on the config rig (short runs, a narrowed search to keep it quick), its
+    force limit raised by --max-force 1000 over rig.yaml's 200 N: modes, runs, predictions,
+    identifiability; the recommended run keeps every cable above 20 % of its static tension and
+    the rotation below 3° in simulation, and every entry's predicted σ is smaller than with the
+    thesis's 200 N at 1.05 Hz."""
     code, stdout, stderr = gather("plan_cli")["run"]
     assert code == 0, stderr
     d = json.loads(stdout)
     assert {"modes", "runs", "prediction", "baseline", "improvement", "limits"} <= set(d)
+    assert d["limits"]["max_force_n"] == 1000.0 and d["runs"][0]["run"]["amplitude_n"] > 200.0
     assert [round(m["frequency_hz"], 2) for m in d["modes"][:3]] == [0.85, 1.18, 2.78]
     run = d["runs"][0]
     assert 1.3 <= run["run"]["frequency_hz"] <= 1.6 and run["run"]["spin_axis_body"] in SPIN_AXES
@@ -134,6 +136,52 @@ def test_plan_cli_json_keeps_cables_taut_and_beats_the_thesis_excitation():
         assert p["short"] == [k for k, h in zip(KEYS, hw) if h > 0.01]
         if p["short"]:
             assert p["length_factor"] == pytest.approx((hw.max() / 0.01) ** 2) and "each run's 30 s" in p["text"]
+
+
+LIMIT = 150.0   # N: the exciter's max_force of test_a_rig_yaml_max_force_bounds_every_recommended_force
+
+
+def _plan_with_max_force(max_force):
+    """Job of test_a_rig_yaml_max_force_bounds_every_recommended_force: `rig-identify plan --json`
+    (the planner's smallest search: 20 s runs, one run, one candidate simulated, 1.3–1.6 Hz, the
+    top corner) on the config rig with rig.yaml's ``exciter.max_force`` set to ``max_force`` N, or
+    without it (None).  Returns (exit status, stdout, stderr)."""
+    import tempfile
+
+    import yaml
+    d = yaml.safe_load(DEFAULT.read_text())
+    d["rig"]["exciter"].pop("max_force", None)
+    if max_force is not None:
+        d["rig"]["exciter"]["max_force"] = max_force
+    with tempfile.TemporaryDirectory(prefix="test_planning_") as tmp:
+        path = f"{tmp}/rig.yaml"
+        with open(path, "w") as f:
+            yaml.safe_dump(d, f)
+        return run_cli("plan", path, "--inertia", "2894", "695", "3101", "0", "0", "-102", "--json",
+                       "--duration", "20", "--runs", "1", "--refine", "1", "--frequencies", "1.3", "1.6",
+                       "--position", "0.8", "1.25", "1.29")
+
+
+background("plan_max_force", __file__, _plan_with_max_force, {"limited": (LIMIT,), "free": (None,)})
+
+
+def test_a_rig_yaml_max_force_bounds_every_recommended_force():
+    """rig.yaml ``exciter.max_force: 150`` → every force amplitude plan recommends is ≤ 150 N and
+    the limits say 150 N; the same rig without it asks more than 150 N (the rotation and tension
+    limits alone allow it) and says on stderr that the force is not limited because rig.yaml gives
+    no max_force.  Each screening line on stderr counts the frequencies screened."""
+    out = gather("plan_max_force")
+    (code, stdout, err), (code_free, stdout_free, err_free) = out["limited"], out["free"]
+    assert code == 0, err
+    assert code_free == 0, err_free
+    limited, free = json.loads(stdout), json.loads(stdout_free)
+    assert limited["limits"]["max_force_n"] == LIMIT and free["limits"]["max_force_n"] == float("inf")
+    assert limited["runs"] and all(r["run"]["amplitude_n"] <= LIMIT for r in limited["runs"]), limited["runs"]
+    assert max(r["run"]["amplitude_n"] for r in free["runs"]) > LIMIT, free["runs"]
+    assert "warning: the exciter's force is not limited: rig.yaml gives no exciter.max_force" in err_free
+    assert "not limited" not in err
+    screening = [ln for ln in err.splitlines() if ln.startswith("rig-identify: screening ")]
+    assert screening and all(" of " in ln and ln.endswith(" s") for ln in screening), err
 
 
 @pytest.mark.parametrize("args, words", [

@@ -277,4 +277,6 @@ def test_exciter_max_force_is_read_and_bounds_the_plan(rig_dict):
         rig_from_dict(copy.deepcopy(rig_dict) | {"exciter": rig_dict["exciter"] | {"max_force": 0}}, "rig.yaml")
     assert force_limit(150.0, rig) == "force ≤ 150 N (rig.yaml exciter.max_force)"
     assert force_limit(120.0, rig) == "force ≤ 120 N (--max-force)"
-    assert force_limit(float("inf"), rig).startswith("force not limited (rig.yaml exciter.max_force not set")
+    assert force_limit(float("inf"), rig) == "force not limited (--max-force inf)"
+    assert force_limit(float("inf"), rig_from_dict(rig_dict)).startswith(
+        "force not limited (rig.yaml gives no exciter.max_force")

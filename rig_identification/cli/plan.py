@@ -27,7 +27,7 @@ from ..model.modes import estimate_modes, match_modes, natural_modes
 from ..model.parametrisation import entry_scales, from_tensor
 from ..pipeline.offline import identify_recording
 from ..pipeline.thesis_table import print_summary, print_table, run_case
-from .progress import heading, step
+from .progress import heading, step, warn
 from .text import TABLE_CAPTION
 
 
@@ -105,17 +105,25 @@ def cmd_modes(args) -> int:
     return 0
 
 
+#: What plan says when neither rig.yaml nor --max-force limits the exciter's force.
+UNLIMITED = ("the exciter's force is not limited: rig.yaml gives no exciter.max_force (its largest force amplitude, "
+             "N) and no --max-force was given, so the plan may ask more than the exciter makes")
+
+
 def force_limit(max_force: float, rig) -> str:
     """The force limit as the plan's text says it, with where it came from."""
+    in_rig = rig.exciter is not None and rig.exciter.max_force is not None
     if not math.isfinite(max_force):
-        return "force not limited (rig.yaml exciter.max_force not set: the plan may ask more than the exciter makes)"
-    given = rig.exciter is not None and rig.exciter.max_force == max_force
+        return "force not limited (--max-force inf)" if in_rig else \
+            "force not limited (rig.yaml gives no exciter.max_force: the plan may ask more than the exciter makes)"
+    given = in_rig and rig.exciter.max_force == max_force
     return f"force ≤ {max_force:g} N" + (" (rig.yaml exciter.max_force)" if given else " (--max-force)")
 
 
 def plan_from_args(args):
     """The rig, the nominal body and the plan (:func:`~rig_identification.design.planning.plan_experiment`) the options
-    ask for.  Raises PlanError, ExperimentError, SimulationError."""
+    ask for; the force limit is ``--max-force``, else rig.yaml's ``exciter.max_force``, else none, with
+    the warning :data:`UNLIMITED` on stderr.  Raises PlanError, ExperimentError, SimulationError."""
     rig, base_exc, k = load_plan_input(args.rig)
     body = make_body(rig, args.mass, entries_from_option(args.inertia), k)
     if rig.exciter is None and args.baseline_position is None:
@@ -139,6 +147,8 @@ def plan_from_args(args):
         raise PlanError("--geometry / --vary-geometry are for a second run: they need --runs 2")
     max_force = args.max_force if args.max_force is not None else (
         rig.exciter.max_force if rig.exciter is not None and rig.exciter.max_force is not None else math.inf)
+    if args.max_force is None and not math.isfinite(max_force):
+        warn(UNLIMITED)
     options = PlanOptions(duration=args.duration, max_force=max_force, max_rotation_deg=args.max_rotation,
                           min_tension_ratio=args.min_tension, frequencies=tuple(args.frequencies),
                           positions=None if not args.position else tuple(tuple(p) for p in args.position),
