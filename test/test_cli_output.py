@@ -7,6 +7,7 @@ The fits are --quick runs of the clean reference recording (a few seconds each).
 import contextlib
 import io
 import json
+import re
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -394,14 +395,21 @@ def test_rig_sim_help_is_quick_and_the_simulation_says_what_it_does(tmp_path, ca
     assert capsys.readouterr().err == ""
 
 
-def test_quiet_rig_model_output_is_the_short_result_with_the_same_table(capsys):
+@pytest.fixture(scope="module")
+def rig_fit():
+    """The rig model fitted to the clean recording's first 40 s, undiagnosed: (recording, result)."""
+    from rig_identification.io.recording import read_recording
+    from rig_identification.pipeline.rig_model import fit_whole_recording
+    rec = read_recording(recording("visible_case16_clean"))
+    return rec, fit_whole_recording(rec, end=40.0, diagnose=False)
+
+
+def test_quiet_rig_model_output_is_the_short_result_with_the_same_table(rig_fit, capsys):
     """``rig-identify inertia -q`` (the rig model, print_rig_model's ``brief``): the verdict first,
     the same table as the full output, the mass and CG, at most 20 lines, the last saying what the
     full output adds; the full output holds every line of the short one but the last."""
     from rig_identification.cli.rig_model import BRIEF_TAIL, print_rig_model
-    from rig_identification.io.recording import read_recording
-    from rig_identification.pipeline.rig_model import fit_whole_recording
-    res = fit_whole_recording(read_recording(recording("visible_case16_clean")), end=40.0, diagnose=False)
+    _, res = rig_fit
     print_rig_model(res, brief=True)
     short = capsys.readouterr().out.splitlines()
     print_rig_model(res)
@@ -411,3 +419,33 @@ def test_quiet_rig_model_output_is_the_short_result_with_the_same_table(capsys):
     assert all(line in full for line in short[:-1])
     rows = [line for line in short if line.split()[:1] in (["Ixx"], ["Iyy"], ["Izz"], ["Ixy"], ["Ixz"], ["Iyz"])]
     assert len(rows) == 6 and any(line.startswith("mass ") for line in short)
+
+
+def test_the_rig_models_console_and_report_main_tables_use_one_convention(rig_fit, capsys, tmp_path):
+    """``rig-identify inertia`` (the rig model) and its ``--report``: both main tables give the
+    moments and products of inertia (products with the vehicle-dynamics sign, Ixy = ∫xy dm = −ixy),
+    the convention named in each caption, the same numbers row by row (truth iyz −102: Iyz ≈ +102);
+    the console's line below its table gives the tensor's entries (−products) with σ and σ/CRB."""
+    from rig_identification.cli.rig_model import print_rig_model
+    from rig_identification.io.export import PRODUCTS_SIGN
+    from rig_identification.report.rig_page import write_rig_report
+    rec, res = rig_fit
+    print_rig_model(res)
+    lines = capsys.readouterr().out.splitlines()
+    caption = next(i for i, ln in enumerate(lines) if ln.startswith("moments and products of inertia about the CG"))
+    assert f"({PRODUCTS_SIGN})" in lines[caption]
+    console = {r[0]: float(r[1]) for r in (ln.split() for ln in lines[caption + 2:caption + 8])}
+    assert list(console) == ["Ixx", "Iyy", "Izz", "Ixy", "Ixz", "Iyz"] and 101 < console["Iyz"] < 103
+    entries = lines[caption + 8]
+    assert entries.startswith("the inertia tensor's off-diagonal entries about the CG (= −products")
+    for k in ("ixy", "ixz", "iyz"):
+        value, ratio = re.search(rf"{k} ([-+.\d]+) ± [-+.e\d]+ \(σ/CRB ([.\d]+)\)", entries).groups()
+        i = KEYS.index(k)
+        assert float(value) == pytest.approx(-console["I" + k[1:]], abs=0.011)
+        assert float(ratio) == pytest.approx(res.fit.inertia_std[i] / res.fit.crb[i], abs=0.006)
+    page = (write_rig_report(tmp_path / "report", res, rec)).read_text()
+    table = page.split('id="tensor-table">')[1].split("</table>")[0]
+    assert f"<caption>moments and products of inertia, kg·m² ({PRODUCTS_SIGN})</caption>" in table
+    rows = [re.findall(r"<t[dh][^>]*>([^<]*)</t[dh]>", r) for r in table.split("<tbody>")[1].split("</tr>")[:-1]]
+    report = {r[0].split()[0]: float(r[1]) for r in rows}
+    assert report == console, (report, console)

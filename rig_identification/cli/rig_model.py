@@ -30,7 +30,7 @@ from ..statics.handover import load_cg_result
 from .arg_types import JOB_OPTIONS, PEM_ONLY
 from .progress import heading, step, warn
 from .recordings import check_common, output_axes, read_all
-from .text import TABLE_CAPTION, origin_line, principal_lines, tensor_table
+from .text import TABLE_CAPTION, origin_line, principal_lines, tensor_entries_line, tensor_table
 
 #: What the σ of the rig model are (the YAML export's ``std_is``).
 STD_IS = ("the larger of the inverse Fisher information and the sandwich, the CG, mass, cables, load cells and "
@@ -51,9 +51,11 @@ BRIEF_TAIL = ("(-q: the short result; without -q also the model, span and band, 
 
 def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False) -> None:
     """The text output of ``rig-identify inertia`` (the rig model); ``axes``: the vehicle axes
-    the tensor is given in too (``--axes``, rig.yaml ``output_axes``).  ``brief`` (``-q``): the
-    verdict, the recording, the tensor table, the mass and the CG, the channels the fit leans
-    less on, then :data:`BRIEF_TAIL`."""
+    the tensor is given in too (``--axes``, rig.yaml ``output_axes``).  The main table gives the
+    moments and products of inertia (:data:`TABLE_CAPTION`'s convention, as the report's), the
+    line below it the tensor's off-diagonal entries (−products) with σ and σ/CRB.  ``brief``
+    (``-q``): the verdict, the recording, the tensor table and entries, the mass and the CG, the
+    channels the fit leans less on, then :data:`BRIEF_TAIL`."""
     f = res.fit
     p = f.parameters
     d = res.to_dict()
@@ -84,8 +86,8 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
             line += (f"{sign * t['truth'] + 0.0:>11.2f}{sign * t['error_percent'] + 0.0:>+9.3f}%"
                      f"{sign * t['error_sigma'] + 0.0:>+7.1f}")
         print(line)
-    print("(the tensor's off-diagonal entries, the JSON's ixy, ixz, iyz, are the negated products)")
     body = res.expressed(BODY)
+    print(tensor_entries_line(body, f.crb))
     if axes.name != "body":
         print(f"in {axes.label}:")
         print(f"  centre of gravity ({', '.join(f'{x:.4f}' for x in res.expressed(axes).cg)}) m")

@@ -15,6 +15,7 @@ from ..io.export import (
     NOT_DETERMINED,
     ORDER,
     PRODUCTS,
+    TABLE_CAPTION,
     VEHICLE_SIGN,
     Expressed,
 )
@@ -25,11 +26,6 @@ def fmt(x, spec: str = ".2f", width: int = 0) -> str:
     """A number, or "not determined" for None / not finite; right-aligned to ``width``."""
     text = NOT_DETERMINED if x is None or not np.isfinite(x) else format(float(x), spec)
     return f"{text:>{width}s}"
-
-
-#: The main table's caption: which convention its numbers are in (the one every main table uses).
-TABLE_CAPTION = ("moments and products of inertia about the CG, kg·m² (products with the vehicle-dynamics sign, "
-                 "SAE J670 / ISO 8855: Ixy = ∫xy dm = −ixy):")
 
 
 def tensor_table(ex: Expressed, truth: dict | None = None) -> list[str]:
@@ -67,15 +63,26 @@ def tensor_table(ex: Expressed, truth: dict | None = None) -> list[str]:
     return lines
 
 
-def tensor_entries_line(ex: Expressed) -> str:
+def tensor_entries_line(ex: Expressed, crb=None) -> str:
     """The tensor's off-diagonal entries about the CG (the negated products: what
-    geometry_msgs/Inertia, URDF, truth.yaml and the JSON hold)."""
+    geometry_msgs/Inertia, URDF, truth.yaml and the JSON hold), kg·m², each with its σ and,
+    with ``crb`` ((6,) kg·m², :data:`~rig_identification.io.verdict.KEYS` order: the run's
+    Cramér–Rao bound), σ/CRB."""
     parts = []
     for k in PRODUCTS:
         v = ex.entry(k)
-        parts.append(f"{k} {NOT_DETERMINED}" if v is None else f"{k} {v:+.2f} ± {fmt(ex.sigma(k), '.3g')}")
+        if v is None:
+            parts.append(f"{k} {NOT_DETERMINED}")
+            continue
+        ratio = "" if crb is None else f" (σ/CRB {fmt(_ratio(ex.sigma(k), crb[KEYS.index(k)]))})"
+        parts.append(f"{k} {v:+.2f} ± {fmt(ex.sigma(k), '.3g')}{ratio}")
     return ("the inertia tensor's off-diagonal entries about the CG (= −products; geometry_msgs/Inertia, URDF, "
             "the JSON): " + ", ".join(parts) + " kg·m²")
+
+
+def _ratio(a: float | None, b: float) -> float | None:
+    """a / b, or None when it is not a finite number."""
+    return None if a is None or not b > 0 else a / b
 
 
 def principal_lines(ex: Expressed) -> list[str]:

@@ -56,6 +56,10 @@ ENTRY_NAMES = {"ixx": "moment Ixx", "iyy": "moment Iyy", "izz": "moment Izz",
 """An entry in words where the axes' vehicle is not at hand (the weakly determined directions)."""
 INDEX = {"ixx": (0, 0), "ixy": (0, 1), "ixz": (0, 2), "iyy": (1, 1), "iyz": (1, 2), "izz": (2, 2)}
 NOT_DETERMINED = "not determined"
+#: The convention of every main table of the tensor (console and report), as their captions name it.
+PRODUCTS_SIGN = "products with the vehicle-dynamics sign, SAE J670 / ISO 8855: Ixy = ∫xy dm = −ixy"
+#: The caption of the console's main table.
+TABLE_CAPTION = f"moments and products of inertia about the CG, kg·m² ({PRODUCTS_SIGN}):"
 
 
 def tensor_from_option(values: Iterable[float]) -> np.ndarray:
@@ -369,7 +373,7 @@ def yaml_text(content: dict[str, Any]) -> str:
 
 __all__ = ["AXES", "Axes", "AxesError", "BODY", "BODY_LABEL", "ENTRY_NAMES", "EXPORT_SCHEMA",
            "EXPORT_SCHEMA_VERSION", "Expressed", "INERTIA_SCHEMA", "INERTIA_SCHEMA_VERSION", "JSON_KEYS",
-           "NOT_DETERMINED", "ORDER", "PRODUCTS", "SYMBOL", "UNITS", "VEHICLE_SIGN", "axes_block", "axes_for",
-           "convention_lines", "entries_from_option", "export_dict", "express", "finite_or_none",
-           "parallel_axis", "principal", "tensor_from_option", "urdf_inertial",
+           "NOT_DETERMINED", "ORDER", "PRODUCTS", "PRODUCTS_SIGN", "SYMBOL", "TABLE_CAPTION", "UNITS",
+           "VEHICLE_SIGN", "axes_block", "axes_for", "convention_lines", "entries_from_option", "export_dict",
+           "express", "finite_or_none", "parallel_axis", "principal", "tensor_from_option", "urdf_inertial",
            "yaml_text"]

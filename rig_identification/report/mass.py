@@ -28,7 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..estimation.inertia_result import InertiaResult, compare_to_truth
-from ..io.export import BODY, MOMENTS, SYMBOL, Axes, Expressed, axes_for
+from ..io.export import BODY, MOMENTS, PRODUCTS_SIGN, SYMBOL, Axes, Expressed, axes_for
 from ..io.export import VEHICLE_SIGN as SIGN
 from ..io.vehicle import Vehicle
 from ..io.verdict import KEYS
@@ -174,7 +174,8 @@ def crb_shown(mp: MassProperties) -> bool:
 def moments_table(mp: MassProperties, errors: dict | None, crb_label: str = "σ propagated sensor noise") -> str:
     """The main table: moments and products of inertia about the CG (σ, σ %, the σ of the
     propagated noise when there is one — column ``crb_label`` —, the errors against truth.yaml
-    when there is one) and about the body frame's origin."""
+    when there is one) and about the body frame's origin; its caption names the convention
+    (:data:`~rig_identification.io.export.PRODUCTS_SIGN`, as the console's main table)."""
     big = max((abs(mp.values[KEYS.index(k)]) for k in MOMENTS if k not in mp.undetermined
                and finite(mp.values[KEYS.index(k)])), default=float("nan"))
     head = ["quantity", "about the CG kg·m²", "σ kg·m²"] + ([f"{crb_label} kg·m²"] if crb_shown(mp)
@@ -197,7 +198,8 @@ def moments_table(mp: MassProperties, errors: dict | None, crb_label: str = "σ 
                     entry_cell(mp, k, e["error_percent"], "+.3f"), entry_cell(mp, k, e["error_sigma"], "+.2f")]
         row.append(entry_cell(mp, k, mp.about_origin[i], ".2f", main=True))
         rows.append(row)
-    return table(head, rows, cls="tensor", ident="tensor-table")
+    return table(head, rows, cls="tensor", ident="tensor-table",
+                 caption=f"moments and products of inertia, kg·m² ({PRODUCTS_SIGN})")
 
 
 def matrix_html(M: np.ndarray, gone: frozenset, caption: str) -> str:
