@@ -192,10 +192,11 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
     (its swinging phase drifts, the bounce modes sit at the wrong frequency).  The factor is
     scanned over :data:`STIFFNESS_SCAN` (the misfit has several minima in it), each point's tensor
     fitted to :data:`SCAN_TOLERANCE`, its geometry the prior's start carried to that stiffness
-    (:func:`~.rig_start.carried_to`: the same rest pose and tensions).  The scan's best is taken
-    only where its misfit is below :data:`STIFFNESS_MISFIT_SHARE` of the prior's (both refitted
-    to full precision, the prior's also from the best's tensor: the tensor's fit has minima of
-    its own), then refined by a bounded scalar search about it (its tensor fitted from the best's; the decision is the
+    (:func:`~.rig_start.carried_to`: the tensions' shares kept, the body lower on softer
+    cables).  The scan's best is taken only where its misfit is below
+    :data:`STIFFNESS_MISFIT_SHARE` of the prior's (both refitted to full precision, the prior's
+    also from the best's tensor: the tensor's fit has minima of its own), then refined by a
+    bounded scalar search about it (its tensor fitted from the best's; the decision is the
     grid's: a refined misfit can dip within 1 % of stiffness).  On steel cables the modes lie
     far above the band and the misfit, dominated by the linearisation's error and a tensor the
     one frequency determines poorly, is no evidence: it changes by a few per cent over a factor
@@ -217,7 +218,10 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
 
     def scanned_misfit(s: float, at_prior: tuple[RigParameters, RestPose]) -> tuple[float, np.ndarray]:
         # the scan's geometry carried from the prior's stiffness (rig_start.carried_to), not searched anew
-        p0, rest = carried_to(*at_prior, prior.stiffness * np.exp(s * free))
+        try:
+            p0, rest = carried_to(*at_prior, prior.stiffness * np.exp(s * free), rig.cable_lengths)
+        except SimulationError:
+            return float("inf"), np.atleast_2d(starts)[0]
         tensor, cost = _fitted(h, p0, rest, np.atleast_2d(starts), SCAN_TOLERANCE)
         return _level(cost, h), tensor
 

@@ -69,15 +69,19 @@ def default_damping_time(mass: float, stiffness: np.ndarray) -> float:
     return float(2 * DEFAULT_DAMPING_RATIO * np.sqrt(mass / (len(stiffness) * np.mean(stiffness))))
 
 
-def carried_to(p: RigParameters, rest: RestPose, stiffness: np.ndarray) -> tuple[RigParameters, RestPose]:
-    """``p`` on cables of ``stiffness`` (N,) N/m (τ the default cable's for it:
-    :func:`default_damping_time`), each unstretched length moved so that the cable carries its
-    tension at ``rest`` at the same stretched length, and that rest pose (the same pose and
-    tensions: the net wrench is unchanged).  A start's geometry for another stiffness without a
-    new search (:func:`start_geometry`'s lengths at ``p``'s stiffness, moved by T (1/k − 1/k'))."""
+def carried_to(p: RigParameters, rest: RestPose, stiffness: np.ndarray, surveyed: np.ndarray
+               ) -> tuple[RigParameters, RestPose]:
+    """``p`` (:func:`start_geometry`'s at its stiffness) carried to cables of ``stiffness`` (N,)
+    N/m without a new search, and its rest pose: each unstretched length moved by
+    T (1/k − 1/k') so that the cable keeps its tension at ``rest``'s stretched length, then every
+    length moved by their mean offset from ``surveyed`` (N,) m (the survey's prior holds their
+    common part: on softer cables the body hangs lower, the tensions' shares alike), the rest
+    pose found by Newton from ``rest``; τ the default cable's (:func:`default_damping_time`).
+    Raises :class:`~rig_identification.model.dynamics.SimulationError` where it has no rest pose."""
     k = np.asarray(stiffness, float)
     length = p.length + rest.tensions * (1.0 / p.stiffness - 1.0 / k)
-    return p.replace(stiffness=k, length=length, damping_time=default_damping_time(p.mass, k)), rest
+    q = p.replace(stiffness=k, length=length + np.mean(surveyed - length), damping_time=default_damping_time(p.mass, k))
+    return q, rest_pose(q, rest)
 
 
 def _taut_start(p: RigParameters, tensions: np.ndarray, rig: Rig, why: SimulationError
