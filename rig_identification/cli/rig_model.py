@@ -170,7 +170,9 @@ def print_diagnosis(dg: RigDiagnosis) -> None:
         b = f.layout.body_damping
         c, sd = f.parameters.body_damping, np.sqrt(np.diag(f.covariance[b, b]))
         word = "viscous_damping named" if "viscous_damping" in dg.named else \
-            "not told apart" if dg.explained else "not named"
+            "not named: " + ", ".join(w for w, bad in (("below zero beyond 3 σ", not dg.damping.plausible),
+                                                     ("raises χ² held out", not dg.damping.cross_validated)) if bad) \
+            if not dg.damping.found else "not told apart" if dg.explained else "not named"
         print(f"  damping: viscous, {max(dg.damping.significance):.0f} σ (linear {c[0]:.4g} ± {sd[0]:.2g} N·s/m, "
               f"angular {c[1]:.4g} ± {sd[1]:.2g} N·m·s); in its place (Vuong's z, + viscous better): {alt}: {word}")
     for line in dg.advice:

@@ -147,7 +147,10 @@ def diagnosis_html(res: RigModelResult) -> str:
     if dg.damping is not None:
         out.append("<p>Viscous damping " + num(float(max(dg.damping.significance)), ".0f") + " σ; in its place "
                    + ", ".join(f"{esc(e)} Vuong z {num(z, '+.1f')}" for e, z in dg.damping.alternatives.items())
-                   + " (positive: viscous fits better).</p>")
+                   + " (positive: viscous fits better)"
+                   + ("" if dg.damping.found else "; not named: it fails an extension's plausibility or "
+                      "cross-validation (held out χ² fall " + ", ".join(num(v, ".1f") for v in dg.damping.held_out)
+                      + ")") + ".</p>")
     if dg.advice:
         out.append("<ul>" + "".join(f"<li>{esc(a)}</li>" for a in dg.advice) + "</ul>")
     if dg.refit is not None:
