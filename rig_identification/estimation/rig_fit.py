@@ -253,7 +253,7 @@ def _covariance(prob: RigProblem, J: np.ndarray, noise_scale: np.ndarray | None 
     return in_x(Hinv), in_x(Hinv @ meat @ Hinv), in_x(unit)
 
 
-def _solve(prob: RigProblem, verbose: int, whole: bool = False, z0: np.ndarray | None = None,
+def _solve(prob: RigProblem, whole: bool = False, z0: np.ndarray | None = None,
            at_x0: tuple[np.ndarray, np.ndarray] | None = None
            ) -> tuple[OptimizeResult, int, np.ndarray | None]:
     """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``at_x0``: the Jacobian
@@ -302,7 +302,7 @@ def _solve(prob: RigProblem, verbose: int, whole: bool = False, z0: np.ndarray |
     sol = least_squares(jac.residual, np.zeros(prob.lay.size) if z0 is None else z0, jac=jac.jacobian,
                         method="trf", x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=GTOL,
                         max_nfev=MAX_ITERATIONS * (REUSED_EVALUATIONS if whole else 1),
-                        verbose=verbose, callback=converged)
+                        callback=converged)
     log.info("rig fit: %.0f s of record, %d iterations, %d Jacobians, cost %.6g", prob.n * prob.rec.dt, sol.nfev,
              jac.jacobians, sol.cost)
     fresh = jac.fresh and jac.z is not None and np.array_equal(jac.z, sol.x)
@@ -412,7 +412,7 @@ def _shifted(x: np.ndarray, sign: float) -> np.ndarray:
 
 
 def _restarted(prob: RigProblem, at_x0: tuple[np.ndarray, np.ndarray], p: RigParameters, rest: RestPose,
-               tensor: np.ndarray, verbose: int) -> tuple[np.ndarray, RigParameters, RestPose, float, int, np.ndarray]:
+               tensor: np.ndarray) -> tuple[np.ndarray, RigParameters, RestPose, float, int, np.ndarray]:
     """The whole-record fit ``prob`` (its x0 the estimate, ``at_x0`` its Jacobian and residual there) restarted from
     the tensor entries ``tensor`` (6,) kg·m², every other unknown at the estimate: its unknowns,
     parameters, rest pose, cost (½ χ², the same weights), model runs and the segments' states.  A
@@ -421,14 +421,13 @@ def _restarted(prob: RigProblem, at_x0: tuple[np.ndarray, np.ndarray], p: RigPar
     lay = prob.lay
     z0 = np.zeros(lay.size)
     z0[lay.inertia] = (tensor - prob.x0[lay.inertia]) / prob.scale[lay.inertia]
-    sol, runs, _ = _solve(prob, verbose, True, z0, at_x0)
+    sol, runs, _ = _solve(prob, True, z0, at_x0)
     x1, p1, rest = _moved_on(prob, sol, p, rest)
     return x1, p1, rest, float(sol.cost), runs, prob.bases_at(x1)
 
 
-def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_time: float | None = None,
-            verbose: int = 0, restarts: ArrayLike = (), extensions: dict[str, ArrayLike] | None = None,
-            stiffness: ArrayLike | None = None) -> RigFit:
+def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: ArrayLike = (),
+            extensions: dict[str, ArrayLike] | None = None, stiffness: ArrayLike | None = None) -> RigFit:
     """Fit the rig model to a :class:`Record` (module docstring).
 
     rig: rig.yaml (geometry, mounts).  prior: :class:`Prior` (its CG is the start).
@@ -438,7 +437,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     frequencies are far off.  restarts: (k, 6) kg·m² tensors the whole-record fit is restarted
     from besides the two :data:`RESTART_SHIFT` away (another estimator's: a minimum it found is
     one the likelihood may hold too); a tensor no body has is left out.
-    damping_time: start of τ, s (default the default cable's: 2 ζ sqrt(m / (N k))).
+    τ starts at the default cable's (:func:`~.rig_start.default_damping_time`).
     extensions: the model's extensions (:data:`~.rig_unknowns.EXTENSIONS`: name -> the start of
     its unknowns; None: the rigid-body rig model).  stiffness: the cables' start (N,) N/m (default
     the prior's centre; :func:`~.harmonic_start.stiffness_start`'s where rig.yaml gives none).
@@ -455,8 +454,8 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     best = None
     nfev = 0
     problems = []
-    geometry, rest0 = start_parameters(rig, prior, np.zeros(6), rec, damping_time,
-                                       None if stiffness is None else np.asarray(stiffness, float))
+    geometry, rest0 = start_parameters(rig, prior, np.zeros(6), rec,
+                                       stiffness=None if stiffness is None else np.asarray(stiffness, float))
     geometry = geometry.replace(**extension_fields(extensions))
     for start in np.atleast_2d(np.asarray(inertia0, float)):
         p0 = geometry.replace(inertia=start)
@@ -467,7 +466,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
         if np.all(prob.residual(np.zeros(prob.lay.size)) == OUTSIDE):
             log.info("rig fit: the start %s leaves the physical region or diverges: the next", np.round(start, 1))
             continue
-        sol, runs, J_end = _solve(prob, verbose)
+        sol, runs, J_end = _solve(prob)
         nfev += runs
         if best is None or sol.cost < best[1].cost:
             best = (prob, sol, p0, rest0)
@@ -476,7 +475,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
             break
     if best is None:                # every start outside: the first, which the verdict will call failed
         prob, p0, rest0 = problems[0]
-        sol, _, J_end = _solve(prob, verbose)
+        sol, _, J_end = _solve(prob)
         best, solved = (prob, sol, p0, rest0), (prob, J_end, noise_scale)
     prob, sol, p, rest = best
     x, p, rest = _moved_on(prob, sol, p, rest)
@@ -484,7 +483,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
     for i, (n, final) in enumerate(rounds):
         if i > 0:
             prob = RigProblem(rec, p, lay, x, prior, noise_scale, n, rest, bases)
-            sol, runs, J_end = _solve(prob, verbose, final)
+            sol, runs, J_end = _solve(prob, final)
             solved = (prob, J_end, noise_scale)
             nfev += runs
             x, p, rest = _moved_on(prob, sol, p, rest)
@@ -500,19 +499,20 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, damping_ti
         restarts, check = (), False
     else:
         check = True
-    return _concluded(rec, prior, lay, x, p, rest, bases, noise_scale, solved, restarts, nfev, verbose, check)
-
-
-def _concluded(rec: Record, prior: Prior, lay: Layout, x: np.ndarray, p: RigParameters, rest: RestPose,
-               bases: np.ndarray, noise_scale: np.ndarray, solved: tuple[RigProblem, np.ndarray | None, np.ndarray],
-               restarts: ArrayLike, nfev: int, verbose: int, check: bool = True) -> RigFit:
-    """The whole-record fit at ``x`` (its last solve ``solved``: problem, fresh Jacobian or None,
-    weights) checked by restarts (``check``: False where a channel is beyond
-    :data:`REWEIGHT_LIMIT` of its noise, the motion not found), polished, its covariance and
-    levels: the :class:`RigFit`."""
-    n_all = len(rec.y) - rec.start
-    channels = len(rec.channels)
     last = RigProblem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
+    return _concluded(last, solved, restarts, nfev, check)
+
+
+def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np.ndarray], restarts: ArrayLike,
+               nfev: int, check: bool = True) -> RigFit:
+    """The whole-record fit ``last`` (its x0 the estimate; its last solve ``solved``: problem,
+    fresh Jacobian or None, weights) checked by restarts (``check``: False where a channel is
+    beyond :data:`REWEIGHT_LIMIT` of its noise, the motion not found), polished, its covariance
+    and levels: the :class:`RigFit`."""
+    rec, prior, lay, noise_scale = last.rec, last.prior, last.lay, last.weight_scale
+    x, p, rest, bases = last.x0, last.like, last.rest, last.bases
+    n_all = last.n
+    channels = len(rec.channels)
     J, runs = _jacobian_at_x0(last, *solved)
     r = last.residual(np.zeros(last.lay.size))
     nfev += runs + 1
@@ -521,7 +521,7 @@ def _concluded(rec: Record, prior: Prior, lay: Layout, x: np.ndarray, p: RigPara
     others = [t for t in given if physically_consistent(to_tensor(t))]
     tried = [_shifted(x[lay.inertia], 1.0), _shifted(x[lay.inertia], -1.0)] + others if check else []
     for tensor in tried:
-        x2, p2, rest2, cost2, runs, bases2 = _restarted(last, (J, r), p, rest, tensor, verbose)
+        x2, p2, rest2, cost2, runs, bases2 = _restarted(last, (J, r), p, rest, tensor)
         nfev += runs
         minima.append((cost2, x2, p2, rest2, bases2))
     minima_costs = [m[0] for m in minima]

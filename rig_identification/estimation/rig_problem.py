@@ -62,7 +62,7 @@ class RigProblem:
 
     def __init__(self, rec: Record, like: RigParameters, lay: Layout, x0: np.ndarray, prior: Prior,
                  noise_scale: np.ndarray, n: int, rest: RestPose, bases: np.ndarray | None = None):
-        self.rec, self.like, self.n = rec, like, n
+        self.rec, self.like, self.n, self.prior = rec, like, n, prior
         self.lay = lay.for_span(n, rec.dt)
         self.x0 = relayout(x0, self.lay)
         self.scale = unit_scale(self.x0, self.lay, prior)
@@ -318,7 +318,8 @@ class RigProblem:
         support overlaps (each segment runs from its own state, its force a spline through its
         own samples)."""
         lay = self.lay
-        out = {i: (k,) for k in range(lay.n_segments) for i in range(*lay.state(k).indices(lay.size))}
+        out: dict[int, tuple[int, ...]] = {i: (k,) for k in range(lay.n_segments)
+                                           for i in range(*lay.state(k).indices(lay.size))}
         K = lay.n_force // 2
         for j in range(K):
             hit = tuple(k for k in range(lay.n_segments)
