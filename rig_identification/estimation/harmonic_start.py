@@ -203,60 +203,80 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
     10 of stiffness.  The stiffness's prior itself stays (:class:`~.rig_unknowns.Prior`): only
     the start moves.  Raises
     :class:`RigFitError` when the rig has no rest pose or the fit no finite tensor."""
-    free = ~prior.stiffness_given
-    h = harmonics(rec, len(rig.cables))
-    inertia0 = np.asarray(np.atleast_2d(starts)[0], float)
-
-    def misfit(s: float, tensors: np.ndarray, tolerance: float = 1e-8) -> tuple[float, np.ndarray]:
-        k = prior.stiffness * np.exp(s * free)
-        try:
-            p0, rest = start_parameters(rig, prior, inertia0, rec, stiffness=k)
-        except RigFitError:
-            return float("inf"), tensors[0]
-        tensor, cost = _fitted(h, p0, rest, tensors, tolerance)
-        return _level(cost, h), tensor
-
-    def scanned_misfit(s: float, at_prior: tuple[RigParameters, RestPose]) -> tuple[float, np.ndarray]:
-        # the scan's geometry carried from the prior's stiffness (rig_start.carried_to), not searched anew
-        try:
-            p0, rest = carried_to(*at_prior, prior.stiffness * np.exp(s * free), rig.cable_lengths)
-        except SimulationError:
-            return float("inf"), np.atleast_2d(starts)[0]
-        tensor, cost = _fitted(h, p0, rest, np.atleast_2d(starts), SCAN_TOLERANCE)
-        return _level(cost, h), tensor
-
-    def found(tensor: np.ndarray, level: float, log_scale: float, prior_level: float) -> ForcedResponseStart:
-        if not np.all(np.isfinite(tensor)):
-            raise RigFitError(f"{rig.source}: the forced response gives no start for the tensor")
-        log.info("forced-response start: %s kg·m² at %.3g Hz, misfit %.3g× the noise, the cables' stiffness ×%.4g "
-                 "of the prior's", np.round(tensor, 1), h.omega / (2 * np.pi), level, np.exp(log_scale))
-        return ForcedResponseStart(tensor, level, prior.stiffness * np.exp(log_scale * free), log_scale, prior_level)
-
-    if not np.any(free):
-        level, tensor = misfit(0.0, np.atleast_2d(starts))
-        return found(tensor, level, 0.0, float("nan"))
-    at_prior = start_parameters(rig, prior, inertia0, rec)
-    scanned = [scanned_misfit(float(s), at_prior) for s in STIFFNESS_SCAN]
-    levels = np.array([m[0] for m in scanned])
+    m = _Misfit(rec, rig, prior, np.atleast_2d(np.asarray(starts, float)))
+    if not np.any(m.free):
+        level, tensor = m.at(0.0, m.starts)
+        return m.found(tensor, level, 0.0, float("nan"))
+    levels, tensors = m.scan()
     prior_index = int(np.argmin(np.abs(STIFFNESS_SCAN)))
     i = int(np.argmin(levels))
     # at the prior's stiffness the tensor fitted to full precision from every start; its misfit
     # also from the best's tensor: not trapped in a minimum of its own
-    own_level, prior_tensor = misfit(0.0, np.atleast_2d(starts))
+    own_level, prior_tensor = m.at(0.0, m.starts)
     best_s, best_level, best_tensor, prior_level = 0.0, own_level, prior_tensor, own_level
     if i != prior_index:
         best_s = float(STIFFNESS_SCAN[i])
-        best_level, best_tensor = misfit(best_s, scanned[i][1][None])
-        prior_level = min(own_level, misfit(0.0, best_tensor[None])[0])
+        best_level, best_tensor = m.at(best_s, tensors[i][None])
+        prior_level = min(own_level, m.at(0.0, best_tensor[None])[0])
     log.info("stiffness start: the forced response's misfit %s× the noise over the stiffness scaled by e^%s; "
              "least %.3g× at ×%.3g of the prior's (%.3g× there)", np.round(levels, 1), STIFFNESS_SCAN.round(2),
              best_level, np.exp(best_s), prior_level)
     if not (best_level < STIFFNESS_MISFIT_SHARE * prior_level):
-        return found(prior_tensor, own_level, 0.0, prior_level)
+        return m.found(prior_tensor, own_level, 0.0, prior_level)
     step = float(np.diff(STIFFNESS_SCAN).max())
-    refined = minimize_scalar(lambda s: misfit(s, best_tensor[None])[0], bounds=(best_s - step, best_s + step),
+    refined = minimize_scalar(lambda s: m.at(s, best_tensor[None])[0], bounds=(best_s - step, best_s + step),
                               method="bounded", options={"xatol": STIFFNESS_SCAN_TOLERANCE})
     if refined.fun < best_level:
         best_s = float(refined.x)
-        best_level, best_tensor = misfit(best_s, best_tensor[None])
-    return found(best_tensor, best_level, best_s, prior_level)
+        best_level, best_tensor = m.at(best_s, best_tensor[None])
+    return m.found(best_tensor, best_level, best_s, prior_level)
+
+
+class _Misfit:
+    """The forced response's misfit as a function of the log factor on the stiffness of the
+    cables rig.yaml gives none for (``free``), the tensor fitted from ``starts`` (k, 6)
+    (:func:`forced_response_start`)."""
+
+    def __init__(self, rec: Record, rig: Rig, prior: Prior, starts: np.ndarray):
+        self.rec, self.rig, self.prior, self.starts = rec, rig, prior, starts
+        self.free = ~prior.stiffness_given
+        self.h = harmonics(rec, len(rig.cables))
+
+    def stiffness(self, s: float) -> np.ndarray:
+        return np.asarray(self.prior.stiffness * np.exp(s * self.free), float)
+
+    def at(self, s: float, tensors: np.ndarray, tolerance: float = 1e-8) -> tuple[float, np.ndarray]:
+        """The misfit (RMS over the noise) at e^s and its tensor, the start's geometry searched at that
+        stiffness (:func:`~.rig_start.start_parameters`; inf where it has no rest pose)."""
+        try:
+            p0, rest = start_parameters(self.rig, self.prior, self.starts[0], self.rec, stiffness=self.stiffness(s))
+        except RigFitError:
+            return float("inf"), tensors[0]
+        tensor, cost = _fitted(self.h, p0, rest, tensors, tolerance)
+        return _level(cost, self.h), tensor
+
+    def scan(self) -> tuple[np.ndarray, np.ndarray]:
+        """The misfits (len(STIFFNESS_SCAN),) and tensors (len(STIFFNESS_SCAN), 6) over the scan, each
+        tensor fitted to :data:`SCAN_TOLERANCE`, the geometry the prior's start carried to each
+        stiffness (:func:`~.rig_start.carried_to`; inf where it has no rest pose)."""
+        at_prior = start_parameters(self.rig, self.prior, self.starts[0], self.rec)
+        levels, tensors = [], []
+        for s in STIFFNESS_SCAN:
+            try:
+                p0, rest = carried_to(*at_prior, self.stiffness(float(s)), self.rig.cable_lengths)
+            except SimulationError:
+                levels.append(float("inf"))
+                tensors.append(self.starts[0])
+                continue
+            tensor, cost = _fitted(self.h, p0, rest, self.starts, SCAN_TOLERANCE)
+            levels.append(_level(cost, self.h))
+            tensors.append(tensor)
+        return np.array(levels), np.array(tensors)
+
+    def found(self, tensor: np.ndarray, level: float, log_scale: float, prior_level: float) -> ForcedResponseStart:
+        """The start (tensor at e^log_scale), logged.  Raises :class:`RigFitError` where the tensor is not finite."""
+        if not np.all(np.isfinite(tensor)):
+            raise RigFitError(f"{self.rig.source}: the forced response gives no start for the tensor")
+        log.info("forced-response start: %s kg·m² at %.3g Hz, misfit %.3g× the noise, the cables' stiffness ×%.4g "
+                 "of the prior's", np.round(tensor, 1), self.h.omega / (2 * np.pi), level, np.exp(log_scale))
+        return ForcedResponseStart(tensor, level, self.stiffness(log_scale), log_scale, prior_level)
