@@ -134,9 +134,11 @@ class RigModelResult:
     (``start_source``), with its σ (6,) (inf: none).  cg_prior: (3,) m and cg_prior_std (3,) m
     (inf: none) of the CG's prior,
     cg_source: where it came from.  survey: the geometry's, the mass's and the gains' σ the fit assumed
-    (rig.yaml ``survey``).  seconds: wall time.  truth: truth.yaml or None.  warnings: what the
-    data's cleaning did (:func:`~rig_identification.estimation.quality.clean_sensors`: spans
-    excluded, gaps bridged, spikes replaced).  diagnosis: what the rigid-body rig model left out
+    (rig.yaml ``survey``).  seconds: wall time.  truth: truth.yaml or None.  warnings: what reading
+    the recording did (:attr:`~rig_identification.io.recording.Recording.warnings`: stamps put on
+    their rate, samples dropped) and the data's cleaning
+    (:func:`~rig_identification.estimation.quality.clean_sensors`: spans excluded, gaps bridged,
+    spikes replaced).  diagnosis: what the rigid-body rig model left out
     (:func:`~rig_identification.diagnosis.rig_diagnosis.diagnose_rig`; None: not run); where it
     added extensions, ``fit`` is the refit with them and ``diagnosis.rigid`` the fit before.
     """
@@ -387,7 +389,7 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     t_wall = time.perf_counter()
     t_first = float(rec.sensors.t_start)
     check_units(rec)
-    warnings: list[str] = []
+    warnings = list(rec.warnings)       # the reader's (stamps regularised, samples dropped), then the cleaning's
     sensors = clean_sensors(rec, warnings)
     check_motion(rec, sensors)
     rc = record(sensors, rec.rig, None if start is None else t_first + start,
