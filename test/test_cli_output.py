@@ -5,6 +5,7 @@ from diagnose and inertia, progress on stderr (silenced by --quiet), a quick --h
 
 The fits are --quick runs of the clean reference recording (a few seconds each)."""
 import contextlib
+import dataclasses
 import io
 import json
 import re
@@ -449,3 +450,11 @@ def test_the_rig_models_console_and_report_main_tables_use_one_convention(rig_fi
     rows = [re.findall(r"<t[dh][^>]*>([^<]*)</t[dh]>", r) for r in table.split("<tbody>")[1].split("</tr>")[:-1]]
     report = {r[0].split()[0]: float(r[1]) for r in rows}
     assert report == console, (report, console)
+    # σ 100x wider: not_identifiable, every entry withheld in the console's table as in the report's
+    wide = dataclasses.replace(res, fit=dataclasses.replace(res.fit, covariance=res.fit.covariance * 1e4))
+    assert wide.verdict == "not_identifiable" and wide.withheld == KEYS
+    print_rig_model(wide)
+    lines = capsys.readouterr().out.splitlines()
+    caption = next(i for i, ln in enumerate(lines) if ln.startswith("moments and products of inertia about the CG"))
+    for ln in lines[caption + 2:caption + 8]:
+        assert ln.split()[1:3] == ["not", "determined"], ln

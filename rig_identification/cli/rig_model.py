@@ -19,7 +19,17 @@ from ..estimation.identification import IdentificationError
 from ..estimation.rig_fit import REWEIGHT_LIMIT, RigFit
 from ..estimation.rig_unknowns import EXTENSIONS
 from ..io.atomic import atomic_write_text
-from ..io.export import BODY, ORDER, VEHICLE_SIGN, Axes, axes_block, export_dict, urdf_inertial, yaml_text
+from ..io.export import (
+    BODY,
+    NOT_DETERMINED,
+    ORDER,
+    VEHICLE_SIGN,
+    Axes,
+    axes_block,
+    export_dict,
+    urdf_inertial,
+    yaml_text,
+)
 from ..io.package import package_version
 from ..io.recording import Recording
 from ..io.verdict import KEYS
@@ -72,14 +82,15 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
               f"started from {res.start_source}")
     print(TABLE_CAPTION[:-1] + "; body axes:")
     truth = d.get("truth_comparison")
-    head = f"{'':<7}{'kg·m²':>12}{'σ':>10}{'CRB':>10}{'σ/CRB':>7}"
+    head = f"{'':<7}{'kg·m²':>14}{'σ':>10}{'CRB':>10}{'σ/CRB':>7}"
     if truth:
         head += f"{'truth':>11}{'error':>10}{'err/σ':>7}"
     print(head)
     for k in ORDER:
         i = KEYS.index(k)
         sign = VEHICLE_SIGN[i]
-        line = (f"{'I' + k[1:]:<7}{sign * p.inertia[i] + 0.0:>12.2f}{f.inertia_std[i]:>10.3g}{f.crb[i]:>10.3g}"
+        value = NOT_DETERMINED if k in res.withheld else f"{sign * p.inertia[i] + 0.0:.2f}"
+        line = (f"{'I' + k[1:]:<7}{value:>14}{f.inertia_std[i]:>10.3g}{f.crb[i]:>10.3g}"
                 f"{f.inertia_std[i] / f.crb[i]:>7.2f}")
         if truth:
             t = truth[k]
