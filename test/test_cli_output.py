@@ -229,9 +229,8 @@ def _partial_result(undetermined=("iyy", "ixy", "iyz")) -> InertiaResult:
     res = InertiaResult(1810.0, np.array([0.1, 0.0, -0.2]), J, std, cov, 100.0, 160.0, 12001, (0.4, 3.0),
                         np.full(3, 1e-3), np.full(3, 0.99), weak_directions(J, cov))
     check = Check("identifiable", 0.15, validation.REL_STD_LIMIT, False, "iyy 15 %")
-    res.validation = Validation("not_identifiable", (check,), tuple(undetermined), ("excite pitch more",),
-                                failed=("identifiable",))
-    return res
+    return dataclasses.replace(res, validation=Validation("not_identifiable", (check,), tuple(undetermined),
+                                                          ("excite pitch more",), failed=("identifiable",)))
 
 
 def test_undetermined_entries_print_as_not_determined(capsys):
@@ -261,10 +260,10 @@ def test_segment_times_of_a_joint_fit_count_from_their_own_recording():
     without t0 (a stream) they stay the stamps and the units say so."""
     res = _partial_result()
     t1, t2 = np.linspace(100.0, 160.0, 61), np.linspace(500.0, 560.0, 61)
-    res.series = [FitSeries(t, np.zeros((61, 3)), np.zeros((61, 3)), (0.4, 3.0), lab)
-                  for t, lab in ((t1, "a"), (t2, "b"))]
     times = np.array([[100.0, 129.0], [130.0, 160.0], [500.0, 529.0], [530.0, 560.0]])
-    res.validation = Validation("ok", (), segment_inertia=np.zeros((4, 6)), segment_times=times)
+    res = dataclasses.replace(res, series=[FitSeries(t, np.zeros((61, 3)), np.zeros((61, 3)), (0.4, 3.0), lab)
+                                           for t, lab in ((t1, "a"), (t2, "b"))],
+                              validation=Validation("ok", (), segment_inertia=np.zeros((4, 6)), segment_times=times))
     segs = res.to_dict(t0=[90.0, 480.0])["validation"]["segments"]
     assert [(sg["start"], sg["end"]) for sg in segs] == [(10.0, 39.0), (40.0, 70.0), (20.0, 49.0), (50.0, 80.0)]
     assert [sg["start_stamp"] for sg in segs] == [100.0, 130.0, 500.0, 530.0]

@@ -77,7 +77,7 @@ def test_node_validation_without_poses_skips_the_weight_check_and_says_so():
     buf.add_imu(prep.sensors.imu.t, prep.sensors.imu.data)
     buf.add_wrench(prep.t, np.column_stack([prep.force, prep.torque]))
     lo, hi = prep.window
-    validate_stream_fit(rec.rig, result, buf.snapshot(lo, hi), lo, hi)
+    result = validate_stream_fit(rec.rig, result, buf.snapshot(lo, hi), lo, hi)
     assert "weight" not in [c.name for c in result.validation.checks]
     assert "segments" in [c.name for c in result.validation.checks]
     assert any("weight check did not run" in w for w in result.warnings)

@@ -16,6 +16,7 @@ import json
 import re
 import shutil
 import tempfile
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -91,27 +92,22 @@ def fitted():
 def not_identifiable(res: InertiaResult) -> InertiaResult:
     """The fit with verdict not_identifiable: Ixx and the products with x undetermined (their σ
     not finite, as a failed fit leaves them)."""
-    r = copy.deepcopy(res)
-    r.inertia_std = r.inertia_std.copy()
-    r.inertia_std[[0, 1, 2]] = [np.nan, np.inf, np.nan]
-    r.validation = Validation("not_identifiable", (
+    std = res.inertia_std.copy()
+    std[[0, 1, 2]] = [np.nan, np.inf, np.nan]
+    return replace(copy.deepcopy(res), inertia_std=std, validation=Validation("not_identifiable", (
         Check("whiteness", 4.1, 44.0, True, "largest residual line 4.1× its local median level"),
         Check("segments", None, None, None, "does not apply"),
         Check("identifiable", 0.42, 0.1, False, "largest relative σ ixx 42 % (limit 10 %)")),
         undetermined=("ixx", "ixy", "ixz"),
-        advice=("the body hardly turned about x: move the exciter farther from that axis",))
-    return r
+        advice=("the body hardly turned about x: move the exciter farther from that axis",)))
 
 
 def model_error(res: InertiaResult) -> InertiaResult:
     """The fit with verdict model_error, σ the residuals' (no propagated-noise σ)."""
-    r = copy.deepcopy(res)
-    r.crb_std = None
-    r.validation = Validation("model_error", (
+    return replace(copy.deepcopy(res), crb_std=None, validation=Validation("model_error", (
         Check("whiteness", 85.0, 44.0, False, "largest residual line 85.0× its local median level"),
         Check("sub_bands", 25.0, 7.5, False, "izz 2790 below vs 2850 kg·m² above")), failed=("whiteness",
-                                                                                          "sub_bands"))
-    return r
+                                                                                          "sub_bands")))
 
 
 def failed_fit() -> InertiaResult:
@@ -120,9 +116,9 @@ def failed_fit() -> InertiaResult:
     r = InertiaResult(RIG.mass, RIG.require_cg().copy(), np.full((3, 3), np.nan), nan, np.full((6, 6), np.nan),
                       0.0, 30.0, 3000, (np.nan, np.nan), np.full(3, np.nan), np.full(3, np.nan),
                       warnings=["the fit's normal equations are singular"])
-    r.validation = Validation("not_identifiable", (Check("identifiable", None, 0.1, False, "non-finite numbers"),),
-                              undetermined=tuple(KEYS), advice=("splay the ceiling anchors outward",))
-    return r
+    return replace(r, validation=Validation("not_identifiable",
+                                            (Check("identifiable", None, 0.1, False, "non-finite numbers"),),
+                                            undetermined=tuple(KEYS), advice=("splay the ceiling anchors outward",)))
 
 
 @pytest.fixture(scope="module")
@@ -269,8 +265,7 @@ def test_report_in_sae_axes(fitted, tmp_path):
     from dataclasses import replace
 
     from rig_identification.io.vehicle import Vehicle
-    res = copy.deepcopy(fitted)
-    res.center_of_gravity = np.array([0.1, 0.2, 0.3])
+    res = replace(copy.deepcopy(fitted), center_of_gravity=np.array([0.1, 0.2, 0.3]))
     out = tmp_path / "sae"
     rig = replace(RIG, vehicle=Vehicle("+y", "+z"))
     report.write_report(out, res, [], modes=False, rig=rig, axes="sae")

@@ -4,6 +4,7 @@ ISO 8855 tensors are J' = R J Rᵀ with R from it, the words roll/pitch/yaw labe
 it names, and without it neither the words nor the vehicle axes are given.
 
 Synthetic inputs only (a hand-made rig and tensor): each test takes well under a second."""
+import dataclasses
 import re
 
 import numpy as np
@@ -54,8 +55,7 @@ def result(undetermined=()) -> InertiaResult:
     cov = np.diag(STD**2)
     res = InertiaResult(1810.0, CG.copy(), J.copy(), STD.copy(), cov, 100.0, 160.0, 12001, (0.4, 3.0),
                         np.full(3, 1e-3), np.full(3, 0.99), weak_directions(J, cov))
-    res.validation = Validation("ok", (), tuple(undetermined))
-    return res
+    return dataclasses.replace(res, validation=Validation("ok", (), tuple(undetermined)))
 
 
 # --- rig.yaml body.vehicle ------------------------------------------------------------------------

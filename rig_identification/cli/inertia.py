@@ -206,9 +206,8 @@ def cg_uncertainty(args, recs: list, result: InertiaResult, cg_cov: np.ndarray) 
     (:func:`~rig_identification.pipeline.offline.with_cg_uncertainty`) for a single recording;
     for a joint fit a warning that it is not."""
     if len(recs) > 1:
-        result.warnings.append("the CG's σ is not carried into the tensor's σ for a joint fit: "
-                               "σ leaves the CG's error out")
-        return result
+        return replace(result, warnings=result.warnings + ["the CG's σ is not carried into the tensor's σ for a "
+                                                           "joint fit: σ leaves the CG's error out"])
     heading("carrying the CG's σ into the tensor's (the tensor refitted with the CG ±1 σ)")
     return with_cg_uncertainty(recs[0], result, cg_cov, args.start, args.end)
 
@@ -230,9 +229,8 @@ def cmd_inertia(args) -> int:
     result = identify(args, recs)
     if cg_cov is not None:
         result = cg_uncertainty(args, recs, result, cg_cov)
-    result.precision_target = (1.0 if args.target is None else args.target) / 100
-    if cg_note is not None:
-        result.warnings.insert(0, cg_note)
+    result = replace(result, precision_target=(1.0 if args.target is None else args.target) / 100,
+                     warnings=([] if cg_note is None else [cg_note]) + result.warnings)
     t0s = [float(r.sensors.t_start) for r in recs]
     # where the CG came from, as the report's header says it: "from CG.json (σ x, y, z mm)" or rig.yaml's
     cg_origin = cg_source if cg_note is None else cg_note.removeprefix("centre of gravity ")

@@ -32,7 +32,7 @@ of J tell which combinations the recording determines poorly (see
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -242,11 +242,10 @@ def fit_segments(rig: Rig, segs: list[Segment], block_s: float = 4.0, consistent
     band = (min(s.band[0] for s in segs), max(s.band[1] for s in segs))
     res = InertiaResult(rig.mass, rig.require_cg().copy(), J, std, cov_J, t0, t1, int(sum(len(s.t) for s in segs)),
                         band, res_rms, r2, weak_directions(J, cov_J), method=method, warnings=warnings)
-    res.crb_std = np.sqrt(np.clip(np.diag(crb), 0, None))
-    res.gyro_noise = sgs[0] if len(sgs) == 1 else float(np.sqrt(np.mean(np.square(sgs))))
-    res.series = [FitSeries(s.t, s.y, yh, s.band, s.label, A3, sigma.copy(), s.fs)
-                  for s, yh, A3 in zip(segs, yhats, A3s)]
-    return res
+    return replace(res, crb_std=np.sqrt(np.clip(np.diag(crb), 0, None)),
+                   gyro_noise=sgs[0] if len(sgs) == 1 else float(np.sqrt(np.mean(np.square(sgs)))),
+                   series=[FitSeries(s.t, s.y, yh, s.band, s.label, A3, sigma.copy(), s.fs)
+                           for s, yh, A3 in zip(segs, yhats, A3s)])
 
 
 def identify_inertia(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,

@@ -51,7 +51,7 @@ class FitSeries:
         return r
 
 
-@dataclass
+@dataclass(frozen=True)
 class InertiaResult:
     """Identified mass properties.
 

@@ -120,6 +120,7 @@ import math
 import sys
 import threading
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -444,8 +445,7 @@ class IdentifierNode(Node):
         t_fit = time.monotonic()
         result = identify_window(self.rig, streams, lo, hi, **params)
         # the model validation of rig-identify inertia (--quick: the node propagates no noise), same core
-        validate_stream_fit(self.rig, result, streams, lo, hi)
-        result.precision_target = float(target) / 100
+        result = replace(validate_stream_fit(self.rig, result, streams, lo, hi), precision_target=float(target) / 100)
         delay = float(self.get_parameter("debug_fit_delay").value)
         if delay > 0:
             time.sleep(delay)

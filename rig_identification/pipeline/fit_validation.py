@@ -5,6 +5,7 @@ weight surplus (:func:`force_weight_surplus`), the verdict applied to the result
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -63,7 +64,7 @@ def validate_fit(preps: list[PreparedRecording], result: InertiaResult) -> Inert
     a failed check) the σ (``inertia_std``, the covariance's diagonal) is
     widened to the spread the checks saw (:func:`~rig_identification.estimation.validation.widened_std`) and a warning
     says the tensor is not trustworthy; under ``not_identifiable`` a warning names the
-    entries reported as null and what to change.  Returns ``result``, updated in place."""
+    entries reported as null and what to change.  Returns the validated result (a new record)."""
     log.info("validating the fit")
     surplus = [weight_surplus(p) for p in preps]
     return apply_validation(result, max(surplus, key=abs), preps[0].rec.rig)
@@ -78,24 +79,20 @@ def apply_validation(result: InertiaResult, surplus: float | None, rig) -> Inert
     that widening leaves beyond the identifiability limit are null too:
     :func:`~rig_identification.estimation.validation.beyond_limit_widened`), the verdict's summary a
     warning unless ``ok``.
-    Returns ``result``, updated in place."""
+    Returns the validated result (a new record)."""
     v = validate(result, surplus, rig)
-    result.validation = v
     w = widened_std(result.inertia_std, v)
     if np.any(w > result.inertia_std):
-        result.covariance = result.covariance * v.sigma_factor**2 + np.diag(
+        covariance = result.covariance * v.sigma_factor**2 + np.diag(
             np.maximum(w**2 - (v.sigma_factor * result.inertia_std) ** 2, 0.0))
-        result.inertia_std = w
+        uncertainty = result.uncertainty
         if v.sigma_factor > 1.0 or v.failed:
-            result.uncertainty += (f"; widened {v.sigma_factor:.2f}× for what the consistency checks saw beyond the "
-                                   "noise" if not v.failed else
-                                   f"; widened to the validation's spread ({', '.join(v.failed)} failed: a lower bound "
-                                   "of the error)")
+            uncertainty += (f"; widened {v.sigma_factor:.2f}× for what the consistency checks saw beyond the "
+                            "noise" if not v.failed else
+                            f"; widened to the validation's spread ({', '.join(v.failed)} failed: a lower bound "
+                            "of the error)")
+        result = replace(result, covariance=covariance, inertia_std=w, uncertainty=uncertainty)
         # under not_identifiable, an entry the widening leaves beyond the limit is not given either
         v = beyond_limit_widened(from_tensor(result.inertia), w, v, rig)
-        result.validation = v
-    if v.verdict == "model_error":
-        result.warnings.append(v.summary)
-    elif v.verdict == "not_identifiable":
-        result.warnings.append(v.summary)
-    return result
+    warned = [v.summary] if v.verdict in ("model_error", "not_identifiable") else []
+    return replace(result, validation=v, warnings=result.warnings + warned)

@@ -49,13 +49,11 @@ def identify_recording(rec: Recording, start: float | None = None, end: float | 
             result = unidentified(rig, prep, f"the fit's normal equations are singular ({e})")
     else:
         raise ValueError(f"unknown model {model!r} (pem or thesis)")
-    result.warnings[:0] = rec.warnings + prep.warnings
-    result.weight_surplus = weight_surplus(prep)
-    validate_fit([prep], result)
+    result = replace(result, warnings=rec.warnings + prep.warnings + result.warnings,
+                     weight_surplus=weight_surplus(prep))
+    result = validate_fit([prep], result)
     note = weight_warning(result.weight_surplus, rig)
-    if note is not None:
-        result.warnings.append(note)
-    return result
+    return result if note is None else replace(result, warnings=result.warnings + [note])
 
 
 def unidentified(rig, prep: PreparedRecording, reason: str) -> InertiaResult:
@@ -98,12 +96,11 @@ def with_cg_uncertainty(rec: Recording, result: InertiaResult, cg_covariance: np
                                                      band_hz=tuple(result.band_hz)).inertia))
         d = 0.5 * (fits[0] - fits[1])
         added += np.outer(d, d)
-    result.covariance = result.covariance + added
-    result.inertia_std = np.sqrt(np.clip(np.diag(result.covariance), 0, None))
-    result.cg_contribution_std = np.sqrt(np.clip(np.diag(added), 0, None))
-    result.uncertainty += ("; with the CG's σ propagated (the tensor refitted with the CG ±1 σ along each "
-                           "principal axis of its covariance)")
-    return result
+    covariance = result.covariance + added
+    return replace(result, covariance=covariance, inertia_std=np.sqrt(np.clip(np.diag(covariance), 0, None)),
+                   cg_contribution_std=np.sqrt(np.clip(np.diag(added), 0, None)),
+                   uncertainty=result.uncertainty + "; with the CG's σ propagated (the tensor refitted with the CG "
+                   "±1 σ along each principal axis of its covariance)")
 
 
 MASS_RTOL = 1e-3   # relative: rig.yaml body.mass of recordings fitted jointly must agree this well
@@ -162,6 +159,6 @@ def identify_recordings(recs: list[Recording], start: float | None = None, end: 
     log.info("fitting one inertia tensor to %d recordings (prediction error)", len(preps))
     result = identify_inertia_joint([p.rec.rig for p in preps], [(p.t, p.gyro_body, p.torque) for p in preps],
                                     band_hz=band_hz, labels=labels)
-    result.warnings[:0] = [f"{lab}: {w}" for lab, p in zip(labels, preps) for w in p.rec.warnings + p.warnings]
-    validate_fit(preps, result)
-    return result
+    result = replace(result, warnings=[f"{lab}: {w}" for lab, p in zip(labels, preps)
+                                       for w in p.rec.warnings + p.warnings] + result.warnings)
+    return validate_fit(preps, result)

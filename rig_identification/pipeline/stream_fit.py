@@ -19,7 +19,7 @@ ROS-free (plain numpy), in the core: the identifier node only feeds it.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -143,7 +143,7 @@ def validate_stream_fit(rig: Rig, result: InertiaResult, win: StreamWindow, lo: 
     stamped as the wrench samples; with fewer than 90 % of them matched (no
     ``/rig/pose`` received) it is skipped and a warning says so.  Sets ``result.validation``,
     ``result.weight_surplus``; widens σ; adds the verdict's and the weight's warnings.
-    Returns ``result``, updated in place.  Never raises on bad numbers (the core does not)."""
+    Returns the validated result (a new record).  Never raises on bad numbers (the core does not)."""
     m = fit_samples(win, lo, hi)
     t = win.wrench_t[m]
     surplus = None
@@ -152,12 +152,9 @@ def validate_stream_fit(rig: Rig, result: InertiaResult, win: StreamWindow, lo: 
         same = np.abs(win.pose_t[i] - t) <= STAMP_MATCH
         if same.mean() >= 0.9:
             surplus = force_weight_surplus(rig, win.quaternion[i[same]], win.wrench[m][same, :3])
-    if surplus is None:
-        result.warnings.append("the weight check did not run: no tracked orientation (/rig/pose) at the fit's "
-                               "samples")
-    result.weight_surplus = surplus
-    apply_validation(result, surplus, rig)
+    skipped = [] if surplus is not None else \
+        ["the weight check did not run: no tracked orientation (/rig/pose) at the fit's samples"]
+    result = apply_validation(replace(result, warnings=result.warnings + skipped, weight_surplus=surplus), surplus,
+                              rig)
     note = weight_warning(surplus, rig)
-    if note is not None:
-        result.warnings.append(note)
-    return result
+    return result if note is None else replace(result, warnings=result.warnings + [note])
