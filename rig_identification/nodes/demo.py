@@ -167,6 +167,8 @@ def counts_table(diagnostics: dict[str, dict], status: dict) -> str:
         for topic in topics:
             lines.append(f"{name:<16}{topic:<28}{d.get('tx ' + topic, ''):>10}{d.get('rx ' + topic, ''):>10}"
                          f"{d.get('rejected ' + topic, ''):>10}")
+    lines.append("rejected: messages a node refused and logged (malformed, not finite, a stamp not after the "
+                 "previous one, not a unit quaternion); 0 on a clean run")
     return "\n".join(lines)
 
 
