@@ -199,3 +199,20 @@ def test_the_dampings_alternatives_leave_out_one_the_model_already_holds():
     assert asked == [("air_drag",)] and d.alternatives == {"air_drag": 5.0} and d.indistinguishable == ()
     np.testing.assert_allclose(d.significance, [150.0, 150.0])
     assert d.found and d.plausible and d.cross_validated
+
+
+def test_nothing_is_tested_where_the_fit_leaves_the_tensor_undetermined():
+    """A fit that leaves the tensor undetermined (verdict not_identifiable) sits at one of many
+    estimates along its undetermined directions: diagnose_rig tests nothing there (no extension,
+    no damping), names nothing and says why; the linearisation is never made (rec None)."""
+    from types import SimpleNamespace
+
+    from rig_identification.diagnosis.rig_diagnosis import diagnose_rig
+
+    def refit(extensions):
+        raise AssertionError("no refit where the tensor is not determined")
+    fit = SimpleNamespace(unknowns=None, residual_level=np.array([1.0, 1.02]), channels=("tension:c0", "gyro_x"))
+    dg = diagnose_rig(None, None, fit, ["c0"], refit, determined=False)
+    assert dg.steps == () and dg.damping is None and dg.refit is None and dg.named == () and dg.classes == ()
+    assert len(dg.advice) == 1 and "not determined" in dg.advice[0] and "nothing is named" in dg.advice[0]
+    assert dg.to_dict()["determined"] is False

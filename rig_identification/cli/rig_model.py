@@ -171,7 +171,7 @@ def print_diagnosis(dg: RigDiagnosis) -> None:
     if not dg.found_motion:
         print(f"  the fit did not find the motion (a channel beyond {REWEIGHT_LIMIT:g}× its noise): its estimate is no "
               "minimum, so no test at it is evidence; nothing is named")
-    elif not dg.steps:
+    elif not dg.steps and dg.determined:
         explained = not dg.conflicts and max(dg.rigid.residual_level) <= LEVEL_LIMIT
         print("  no extension significant, plausible and cross-validated"
               + (": the model explains the recording" if explained else ""))

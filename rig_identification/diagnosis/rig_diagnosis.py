@@ -221,13 +221,15 @@ class RigDiagnosis:
     """What :func:`diagnose_rig` found: the data errors (``conflicts``), the viscous damping's
     alternatives (``damping``, None where it is not significant), the extensions added step by
     step (``steps``), the refit with them (``refit``, None where none was added) and the fit it
-    started from (``rigid``)."""
+    started from (``rigid``); ``determined``: whether the fit determined the tensor (where it did
+    not, nothing was tested: :func:`diagnose_rig`)."""
 
     conflicts: tuple[PriorConflict, ...]
     damping: Damping | None
     steps: tuple[Step, ...]
     rigid: RigFit
     refit: RigFit | None
+    determined: bool = True
 
     @property
     def found_motion(self) -> bool:
@@ -289,6 +291,9 @@ class RigDiagnosis:
             return [f"the model with {held} still leaves {', '.join(self.unexplained)} beyond {LEVEL_LIMIT:g}× the "
                     "noise: what it leaves out is none of the extensions tested alone (a structural mode, a sprung "
                     "body, several effects at once?); nothing is named"]
+        if not self.determined:
+            return ["the tensor is not determined (not_identifiable): the estimate is one of many that fit the "
+                    "recording as well, so no test at it tells what the model leaves out; nothing is named"]
         out = []
         for g in self.classes:
             kind = "damping" if all(e in DAMPING for e in g) else "other"
@@ -296,7 +301,7 @@ class RigDiagnosis:
         return out
 
     def to_dict(self) -> dict:
-        d: dict = {"found_motion": self.found_motion, "explained": self.explained,
+        d: dict = {"determined": self.determined, "found_motion": self.found_motion, "explained": self.explained,
                    "unexplained_channels": list(self.unexplained), "data_errors": [c.to_dict() for c in self.conflicts],
                    "damping": None if self.damping is None else self.damping.to_dict(),
                    "steps": [s.to_dict() for s in self.steps], "extensions": list(self.extensions),
@@ -386,13 +391,21 @@ def damping_alternatives(lin: LinearisedRig, fit: RigFit) -> Damping | None:
 
 
 def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
-                 refit: Callable[[dict[str, np.ndarray]], RigFit] | None = None) -> RigDiagnosis:
+                 refit: Callable[[dict[str, np.ndarray]], RigFit] | None = None,
+                 determined: bool = True) -> RigDiagnosis:
     """The data errors and the extensions the recording tells apart (module docstring), and the
     rig model refitted with those added: ``refit`` (extensions -> the fit), given the linearised
     estimates of the extensions' unknowns as their starts (None: no refit).
 
     rec, prior: the record and prior ``fit`` was made from; cables: the cables' names (rig.yaml).
+    determined: whether ``fit`` determines the tensor (the caller's verdict not
+    ``not_identifiable``).  Where it does not, no extension and no damping is tested: the
+    estimate is one of many along the tensor's undetermined directions, and the tests at it name
+    physics that is not there (bench_trust's clean, undetermined 7201 took ``sensor_delay``, 7501 the
+    damping's class); the data errors are listed as ever.
     """
+    if not determined:
+        return RigDiagnosis(prior_conflicts(fit, prior, cables), None, (), fit, None, False)
     steps: list[Step] = []
     current = fit
     while True:

@@ -190,8 +190,7 @@ class RigModelResult:
         where the recording determines a direction of the tensor that weakly, the likelihood is
         far from quadratic and another minimum may explain the data as well (bench_crb 31003,
         6 cables: every channel at its noise, Ixx 37 % off at 10 σ with σ 2.5 %)."""
-        scale = entry_scales(self.fit.inertia)
-        return [k for k, s, c in zip(KEYS, self.fit.inertia_std, scale) if not Z95 * s <= DETERMINED_SHARE * c]
+        return undetermined_entries(self.fit)
 
     @property
     def ambiguous(self) -> list[str]:
@@ -335,6 +334,13 @@ class RigModelResult:
         return d
 
 
+def undetermined_entries(fit: RigFit) -> list[str]:
+    """The tensor entries (KEYS names) whose 95 % half-width exceeds :data:`DETERMINED_SHARE` of
+    their scale (:attr:`RigModelResult.undetermined`)."""
+    scale = entry_scales(fit.inertia)
+    return [k for k, s, c in zip(KEYS, fit.inertia_std, scale) if not Z95 * s <= DETERMINED_SHARE * c]
+
+
 def start_tensor(rec: Recording) -> tuple[np.ndarray, np.ndarray, str]:
     """The tensor entries (6,) the fit starts from, their σ (6,) (inf: a guess) and their source:
     the prediction-error fit on the gyro, the tensions its input
@@ -419,7 +425,8 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
             return fit_rig(rc, rec.rig, prior, np.vstack([fit.inertia, starts]), restarts=restarts,
                            extensions=extensions, stiffness=stiff.stiffness)
 
-        diagnosis = diagnose_rig(rc, prior, fit, list(rec.rig.cable_names), refit)
+        determined = not undetermined_entries(fit) and not fit.ambiguous
+        diagnosis = diagnose_rig(rc, prior, fit, list(rec.rig.cable_names), refit, determined)
         fit = diagnosis.refit or fit
     return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
                           (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, guess_std, source, prior.cg, prior.cg_std,

@@ -142,7 +142,7 @@ def diagnosis_html(res: RigModelResult) -> str:
         out.append(f"<h3>Step {i}: {esc(st.added)} added ({esc(word)})</h3>"
                    + table(["extension", "χ² fall", "threshold", "plausible", "cross-validated",
                             "Vuong z of the best over it"], rows, ident=f"step-{i}-table"))
-    if not dg.steps:
+    if not dg.steps and dg.determined:
         out.append("<p>No extension is significant, plausible and cross-validated.</p>")
     if dg.damping is not None:
         out.append("<p>Viscous damping " + num(float(max(dg.damping.significance)), ".0f") + " σ; in its place "
