@@ -398,11 +398,13 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     estimates of the extensions' unknowns as their starts (None: no refit).
 
     rec, prior: the record and prior ``fit`` was made from; cables: the cables' names (rig.yaml).
-    determined: whether ``fit`` determines the tensor (the caller's verdict not
-    ``not_identifiable``).  Where it does not, no extension and no damping is tested: the
-    estimate is one of many along the tensor's undetermined directions, and the tests at it name
-    physics that is not there (bench_trust's clean, undetermined 7201 took ``sensor_delay``, 7501 the
-    damping's class); the data errors are listed as ever.
+    determined: False where ``fit`` explains every channel (within
+    :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` of its noise) but leaves the
+    tensor undetermined (the caller's verdict ``not_identifiable``).  Then no extension and no
+    damping is tested: the estimate is one of many along the tensor's undetermined directions,
+    and the tests at it name physics that is not there (bench_trust's clean, undetermined 7201
+    took ``sensor_delay``); the data errors are listed as ever.  Under a misfit the tests run
+    (σ is not calibrated there, so it does not judge the tensor undetermined).
     """
     if not determined:
         return RigDiagnosis(prior_conflicts(fit, prior, cables), None, (), fit, None, False)

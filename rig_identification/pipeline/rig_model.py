@@ -425,7 +425,10 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
             return fit_rig(rc, rec.rig, prior, np.vstack([fit.inertia, starts]), restarts=restarts,
                            extensions=extensions, stiffness=stiff.stiffness)
 
-        determined = not undetermined_entries(fit) and not fit.ambiguous
+        # a fit that explains every channel but leaves the tensor undetermined is tested for nothing;
+        # a misfit is what the diagnosis is for (its σ not calibrated, undetermined is not judged there)
+        determined = (not undetermined_entries(fit) and not fit.ambiguous) \
+            or bool(np.max(fit.residual_level) > LEVEL_LIMIT)
         diagnosis = diagnose_rig(rc, prior, fit, list(rec.rig.cable_names), refit, determined)
         fit = diagnosis.refit or fit
     return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
