@@ -4,6 +4,8 @@ Random NHTSA vehicles in carrying frames (the body frame off the CG), cables spl
 their lines cross near the CG (rig_identification.design.scenarios, layout "wide"), reference noise,
 45 s at 200 Hz.  The sweep over many rigs is bench/bench_any_rig.py (and bench_trust.py).
 """
+import dataclasses
+
 import numpy as np
 import pytest
 from conftest import background, gather
@@ -71,7 +73,7 @@ def test_the_precision_asks_for_the_length_that_reaches_the_target(cables, seed)
     _, full, half = gather("any_rig", (cables, seed))[(cables, seed)]
     assert full.validation.verdict == "ok" and half.validation.verdict == "ok", half.validation.summary
     target = float(np.max(Z95 * full.crb_std / entry_scales(from_tensor(full.inertia))))
-    half.precision_target = full.precision_target = target
+    half, full = (dataclasses.replace(r, precision_target=target) for r in (half, full))
     p = half.precision
     assert p.short and p.length_factor is not None and p.noise_limited, p.text()
     whole = full.t_end - full.t_start

@@ -90,7 +90,7 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
         i = KEYS.index(k)
         sign = VEHICLE_SIGN[i]
         value = NOT_DETERMINED if k in res.withheld else f"{sign * p.inertia[i] + 0.0:.2f}"
-        line = (f"{'I' + k[1:]:<7}{value:>14}{f.inertia_std[i]:>10.3g}{f.crb[i]:>10.3g}"
+        line = (f"{'I' + k[1:]:<7}{value:>14}{f.inertia_std[i]:>#10.3g}{f.crb[i]:>#10.3g}"
                 f"{f.inertia_std[i] / f.crb[i]:>7.2f}")
         if truth:
             t = truth[k]
