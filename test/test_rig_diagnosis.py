@@ -211,8 +211,9 @@ def test_nothing_is_tested_where_the_fit_leaves_the_tensor_undetermined():
 
     def refit(extensions):
         raise AssertionError("no refit where the tensor is not determined")
-    fit = SimpleNamespace(unknowns=None, residual_level=np.array([1.0, 1.02]), channels=("tension:c0", "gyro_x"))
-    dg = diagnose_rig(None, None, fit, ["c0"], refit, determined=False)
+    fit = SimpleNamespace(unknowns=None, residual_level=np.array([1.0, 1.02]), channels=("tension:c0", "gyro_x"),
+                          determined=False)
+    dg = diagnose_rig(None, None, fit, ["c0"], refit)
     assert dg.steps == () and dg.damping is None and dg.refit is None and dg.named == () and dg.classes == ()
     assert len(dg.advice) == 1 and "not determined" in dg.advice[0] and "nothing is named" in dg.advice[0]
     assert dg.to_dict()["determined"] is False

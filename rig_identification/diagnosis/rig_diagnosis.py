@@ -265,9 +265,8 @@ class RigDiagnosis:
         its place.  Otherwise none."""
         if not self.explained:
             return ()
-        found = self.damping is not None and self.damping.found
-        viscous = ("viscous_damping",) if found and self.damping is not None and not self.damping.indistinguishable \
-            else ()
+        d = self.damping
+        viscous = ("viscous_damping",) if d is not None and d.found and not d.indistinguishable else ()
         return tuple(s.added for s in self.steps if s.named) + viscous
 
     @property
@@ -391,22 +390,22 @@ def damping_alternatives(lin: LinearisedRig, fit: RigFit) -> Damping | None:
 
 
 def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
-                 refit: Callable[[dict[str, np.ndarray]], RigFit] | None = None,
-                 determined: bool = True) -> RigDiagnosis:
+                 refit: Callable[[dict[str, np.ndarray]], RigFit] | None = None) -> RigDiagnosis:
     """The data errors and the extensions the recording tells apart (module docstring), and the
     rig model refitted with those added: ``refit`` (extensions -> the fit), given the linearised
     estimates of the extensions' unknowns as their starts (None: no refit).
 
     rec, prior: the record and prior ``fit`` was made from; cables: the cables' names (rig.yaml).
-    determined: False where ``fit`` explains every channel (within
-    :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` of its noise) but leaves the
-    tensor undetermined (the caller's verdict ``not_identifiable``).  Then no extension and no
-    damping is tested: the estimate is one of many along the tensor's undetermined directions,
-    and the tests at it name physics that is not there (bench_trust's clean, undetermined 7201
-    took ``sensor_delay``); the data errors are listed as ever.  Under a misfit the tests run
-    (σ is not calibrated there, so it does not judge the tensor undetermined).
+    Where ``fit`` explains every channel (within
+    :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` of its noise) but does not
+    determine the tensor (:attr:`~rig_identification.estimation.rig_fit.RigFit.determined`:
+    verdict ``not_identifiable``), no extension and no damping is tested: the estimate is one of
+    many along the tensor's undetermined directions, and the tests at it name physics that is not
+    there (bench_trust's clean, undetermined 7201 took ``sensor_delay``); the data errors are
+    listed as ever.  Under a misfit the tests run (σ is not calibrated there, so it does not judge
+    the tensor undetermined).
     """
-    if not determined:
+    if not fit.determined and np.max(fit.residual_level) <= LEVEL_LIMIT:
         return RigDiagnosis(prior_conflicts(fit, prior, cables), None, (), fit, None, False)
     steps: list[Step] = []
     current = fit

@@ -241,6 +241,13 @@ class _Misfit:
         self.rec, self.rig, self.prior, self.starts = rec, rig, prior, starts
         self.free = ~prior.stiffness_given
         self.h = harmonics(rec, len(rig.cables))
+        self._at_prior: tuple[RigParameters, RestPose] | None = None
+
+    def prior_start(self) -> tuple[RigParameters, RestPose]:
+        """The start's parameters and rest pose at the prior's stiffness (searched once)."""
+        if self._at_prior is None:
+            self._at_prior = start_parameters(self.rig, self.prior, self.starts[0], self.rec)
+        return self._at_prior
 
     def stiffness(self, s: float) -> np.ndarray:
         return np.asarray(self.prior.stiffness * np.exp(s * self.free), float)
@@ -249,7 +256,8 @@ class _Misfit:
         """The misfit (RMS over the noise) at e^s and its tensor, the start's geometry searched at that
         stiffness (:func:`~.rig_start.start_parameters`; inf where it has no rest pose)."""
         try:
-            p0, rest = start_parameters(self.rig, self.prior, self.starts[0], self.rec, stiffness=self.stiffness(s))
+            p0, rest = self.prior_start() if s == 0.0 else \
+                start_parameters(self.rig, self.prior, self.starts[0], self.rec, stiffness=self.stiffness(s))
         except RigFitError:
             return float("inf"), tensors[0]
         tensor, cost = _fitted(self.h, p0, rest, tensors, tolerance)
@@ -259,7 +267,7 @@ class _Misfit:
         """The misfits (len(STIFFNESS_SCAN),) and tensors (len(STIFFNESS_SCAN), 6) over the scan, each
         tensor fitted to :data:`SCAN_TOLERANCE`, the geometry the prior's start carried to each
         stiffness (:func:`~.rig_start.carried_to`; inf where it has no rest pose)."""
-        at_prior = start_parameters(self.rig, self.prior, self.starts[0], self.rec)
+        at_prior = self.prior_start()
         levels, tensors = [], []
         for s in STIFFNESS_SCAN:
             try:

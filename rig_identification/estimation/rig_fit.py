@@ -56,9 +56,11 @@ from numpy.typing import ArrayLike
 from scipy.optimize import OptimizeResult, least_squares
 
 from ..io.rig import Rig
+from ..io.verdict import KEYS
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
+from .precision import Z95
 from .reused_jacobian import ReusedJacobian
 from .rig_problem import (
     FTOL,
@@ -81,6 +83,9 @@ STAGES = (5.0, 15.0)
 #: A channel whose residual in the band exceeds its noise by this factor does not fit (the
 #: verdict ``model_error``).
 LEVEL_LIMIT = 1.5
+#: A tensor entry is determined when its 95 % half-width is within this share of its scale
+#: (:attr:`RigFit.undetermined`).
+DETERMINED_SHARE = 0.01
 #: Re-weighting rounds: each channel's noise level replaced by its residual's where the
 #: residual is larger (a channel the model does not fit at its noise level is leaned on less).
 REWEIGHT_ROUNDS = 2
@@ -193,6 +198,18 @@ class RigFit:
         trapped = np.zeros(6, bool) if self.descent is None else \
             np.abs(self.descent - self.inertia) > 3.0 * self.inertia_std
         return [i for i in range(6) if np.any(close & (d[:, i] > 3.0)) or trapped[i]]
+
+    @property
+    def undetermined(self) -> list[str]:
+        """The tensor entries (KEYS names) whose 95 % half-width exceeds :data:`DETERMINED_SHARE`
+        of their scale (a moment's own, the largest moment's for a product)."""
+        scale = entry_scales(self.inertia)
+        return [k for k, s, c in zip(KEYS, self.inertia_std, scale) if not Z95 * s <= DETERMINED_SHARE * c]
+
+    @property
+    def determined(self) -> bool:
+        """Every entry determined (:attr:`undetermined` empty) and none :attr:`ambiguous`."""
+        return not self.undetermined and not self.ambiguous
 
     @property
     def inertia(self) -> np.ndarray:

@@ -26,7 +26,6 @@ import numpy as np
 from ..diagnosis.rig_diagnosis import RigDiagnosis, diagnose_rig
 from ..estimation.harmonic_start import box_tensor, forced_response_start
 from ..estimation.identification import IdentificationError, identify_inertia
-from ..estimation.precision import Z95
 from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.rig_fit import LEVEL_LIMIT, RigFit, fit_rig
 from ..estimation.rig_record import record
@@ -47,8 +46,6 @@ FAILED_LEVEL = 10.0
 #: static test's typical z (docs/cg.md).  Without any prior the CG's height, the mass and the
 #: moments trade along a curved valley on some rigs (bench_crb 31003: ixx 37 % off at 10 σ).
 RIG_YAML_CG_STD = 5e-3
-#: An entry is determined when its 95 % half-width is within this share of its scale.
-DETERMINED_SHARE = 0.01
 #: The static and the dynamic test's CG must agree within this many combined σ.
 CONSISTENCY_SIGMA = 3.0
 #: The gyro-only fit is a start only where its trace is within this factor of the box's.
@@ -185,12 +182,14 @@ class RigModelResult:
 
     @property
     def undetermined(self) -> list[str]:
-        """The entries whose 95 % half-width exceeds :data:`DETERMINED_SHARE` of their scale (a
-        moment's own, the largest moment's for a product).  Their values are not an estimate:
+        """The entries whose 95 % half-width exceeds
+        :data:`~rig_identification.estimation.rig_fit.DETERMINED_SHARE` of their scale (a moment's
+        own, the largest moment's for a product; :attr:`~.rig_fit.RigFit.undetermined`).  Their values
+        are not an estimate:
         where the recording determines a direction of the tensor that weakly, the likelihood is
         far from quadratic and another minimum may explain the data as well (bench_crb 31003,
         6 cables: every channel at its noise, Ixx 37 % off at 10 σ with σ 2.5 %)."""
-        return undetermined_entries(self.fit)
+        return self.fit.undetermined
 
     @property
     def ambiguous(self) -> list[str]:
@@ -334,13 +333,6 @@ class RigModelResult:
         return d
 
 
-def undetermined_entries(fit: RigFit) -> list[str]:
-    """The tensor entries (KEYS names) whose 95 % half-width exceeds :data:`DETERMINED_SHARE` of
-    their scale (:attr:`RigModelResult.undetermined`)."""
-    scale = entry_scales(fit.inertia)
-    return [k for k, s, c in zip(KEYS, fit.inertia_std, scale) if not Z95 * s <= DETERMINED_SHARE * c]
-
-
 def start_tensor(rec: Recording) -> tuple[np.ndarray, np.ndarray, str]:
     """The tensor entries (6,) the fit starts from, their σ (6,) (inf: a guess) and their source:
     the prediction-error fit on the gyro, the tensions its input
@@ -425,11 +417,7 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
             return fit_rig(rc, rec.rig, prior, np.vstack([fit.inertia, starts]), restarts=restarts,
                            extensions=extensions, stiffness=stiff.stiffness)
 
-        # a fit that explains every channel but leaves the tensor undetermined is tested for nothing;
-        # a misfit is what the diagnosis is for (its σ not calibrated, undetermined is not judged there)
-        determined = (not undetermined_entries(fit) and not fit.ambiguous) \
-            or bool(np.max(fit.residual_level) > LEVEL_LIMIT)
-        diagnosis = diagnose_rig(rc, prior, fit, list(rec.rig.cable_names), refit, determined)
+        diagnosis = diagnose_rig(rc, prior, fit, list(rec.rig.cable_names), refit)
         fit = diagnosis.refit or fit
     return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
                           (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, guess_std, source, prior.cg, prior.cg_std,
