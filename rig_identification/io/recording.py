@@ -223,6 +223,151 @@ def _bulk_rows(reader: AnyReader, bag: Path, conns: Sequence[Connection],
     return read_topics(reader, conns, decode)
 
 
+def _stream_names(cable_names: list[str], topics: Topics) -> dict[str, str]:
+    """The streams' own names (:data:`IMU_TOPIC`, ...) by the bag's topic names (``topics``)."""
+    canon = {topics.imu: IMU_TOPIC, topics.exciter: EXCITER_TOPIC, topics.inclinometer: INCLINOMETER_TOPIC}
+    for name in cable_names:
+        canon[topics.load_cells + name] = LOAD_CELL_PREFIX + name
+    return canon
+
+
+def _rig_connections(reader: AnyReader, bag: Path, canon: dict[str, str], cable_names: list[str],
+                     topics: Topics) -> list[Connection]:
+    """The bag's connections of the rig's streams (``canon``: the streams' own names by the bag's topic
+    names).  Raises :class:`RecordingError` for a topic of the wrong type or a load-cell topic of a cable
+    not in ``cable_names``."""
+    wanted = {IMU_TOPIC: IMU_TYPE, EXCITER_TOPIC: WRENCH_TYPE, INCLINOMETER_TOPIC: VECTOR_TYPE}
+    wanted |= {LOAD_CELL_PREFIX + name: WRENCH_TYPE for name in cable_names}
+    conns = []
+    for c in reader.connections:
+        if c.topic in canon:
+            expected = wanted[canon[c.topic]]
+            if c.msgtype != expected:
+                raise RecordingError(f"{bag}: topic {c.topic} has type {c.msgtype}, expected {expected}")
+            conns.append(c)
+        elif c.topic.startswith(topics.load_cells):
+            raise RecordingError(f"{bag}: topic {c.topic} is a load cell of cable "
+                                 f"{c.topic[len(topics.load_cells):]!r}, which rig.yaml does not list "
+                                 f"(rig.yaml cables: {', '.join(cable_names)}); rig.yaml and the bag "
+                                 "do not describe the same rig")
+    return conns
+
+
+@dataclass(frozen=True)
+class _BagRows:
+    """The rig streams' rows as read from a bag, before any check of their samples.
+
+    names: the streams' own names by the bag's topic names.  rows: per stream (its own name),
+    (N, 1 + k) rows of stamp (s) and values in write order.  found: the bag's topics as
+    ``"topic (type)"``, sorted (for the error that names a missing one).
+    """
+
+    bag: Path
+    names: dict[str, str]
+    rows: dict[str, np.ndarray | list[tuple[float, ...]]]
+    found: list[str]
+
+    @overload
+    def series(self, topic: str, required: Literal[True], warnings: list[str]) -> TimeSeries: ...
+
+    @overload
+    def series(self, topic: str, required: bool, warnings: list[str]) -> TimeSeries | None: ...
+
+    def series(self, topic: str, required: bool, warnings: list[str]) -> TimeSeries | None:
+        """Stream ``topic`` (its own name) cleaned by :func:`_time_series`; None for a missing or
+        empty one, unless ``required``: then :class:`RecordingError`."""
+        rows = self.rows.get(topic)
+        if rows is None or not len(rows):
+            if required:
+                own = {v: k for k, v in self.names.items()}[topic]
+                raise RecordingError(f"{self.bag}: topic {own} is missing or empty; the bag holds "
+                                     f"{', '.join(self.found) or 'no topics'} (a bag recorded under other topic "
+                                     "names: map them in rig.yaml topics, docs/recording_format.md)")
+            return None
+        return _time_series(self.bag, topic, rows, warnings)
+
+
+def _read_rows(bag: Path, cable_names: list[str], bulk: bool, topics: Topics) -> _BagRows:
+    """The rows of the rig's streams in ``bag`` (an existing path), read in bulk or message by
+    message (:func:`read_sensor_data`'s ``bulk``).  Raises :class:`RecordingError` for an unreadable
+    bag, an undecodable message, a topic of the wrong type or a load cell of an unlisted cable."""
+    try:
+        reader = _open_reader(bag, bulk)
+        try:
+            canon = _stream_names(cable_names, topics)
+            found = sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections)
+            conns = _rig_connections(reader, bag, canon, cable_names, topics)
+            rows: Mapping[str, np.ndarray | list[tuple[float, ...]]]
+            if not conns:
+                rows = {}
+            elif bulk and reader.is2:
+                rows = _bulk_rows(reader, bag, conns, canon)
+            else:
+                rows = _per_message_rows(reader, bag, conns, canon)
+            columns = {canon[k]: v for k, v in rows.items()}
+        finally:
+            reader.close()
+    except RecordingError:
+        raise
+    except Exception as e:  # rosbags raises several exception types for broken bags
+        raise RecordingError(f"{bag}: cannot read the bag ({type(e).__name__}: {e})") from None
+    return _BagRows(bag, canon, columns, found)
+
+
+def _drop_non_finite(bag: Path, topic: str, a: np.ndarray, warnings: list[str]) -> np.ndarray:
+    """Rows ``a`` (N, 1 + k) without those holding a NaN or inf, with a warning if any."""
+    finite = np.isfinite(a).all(axis=1)
+    if not finite.all():
+        bad = a[~finite, 0]
+        warnings.append(f"{bag}: topic {topic}: {int((~finite).sum())} non-finite (NaN/inf) sample(s) "
+                        f"between t={bad.min():.3f} and t={bad.max():.3f} s dropped")
+        a = a[finite]
+    return a
+
+
+def _sort_by_stamp(bag: Path, topic: str, a: np.ndarray, warnings: list[str]) -> np.ndarray:
+    """Rows ``a`` (N, 1 + k) sorted by stamp (stable), with a warning when a row was written
+    :data:`QUIET_DISORDER` sampling periods or more after a later-stamped one."""
+    order = np.argsort(a[:, 0], kind="stable")
+    if np.any(order != np.arange(len(order))):
+        late = float(np.max(np.maximum.accumulate(a[:, 0]) - a[:, 0]))
+        step = np.diff(a[order, 0])
+        period = float(np.median(step[step > 0])) if np.any(step > 0) else np.nan
+        if not late < QUIET_DISORDER * period:
+            warnings.append(f"{bag}: topic {topic}: samples out of stamp order (a sample written up to "
+                            f"{late:.3g} s after a later-stamped one; sampling period {period:.3g} s); "
+                            "sorted by header.stamp")
+        a = a[order]
+    return a
+
+
+def _drop_duplicated_stamps(bag: Path, topic: str, a: np.ndarray, warnings: list[str]) -> np.ndarray:
+    """Rows ``a`` (N, 1 + k, sorted by stamp) without those whose stamp repeats the previous one's
+    (the first kept), with a warning if any."""
+    dup = np.concatenate([[False], np.diff(a[:, 0]) <= 0])
+    if dup.any():
+        warnings.append(f"{bag}: topic {topic}: {int(dup.sum())} duplicated stamp(s) dropped")
+        a = a[~dup]
+    return a
+
+
+def _time_series(bag: Path, topic: str, rows: np.ndarray | list[tuple[float, ...]],
+                 warnings: list[str]) -> TimeSeries:
+    """A stream from its rows (N, 1 + k: stamp s, then the values; write order): non-finite samples
+    and duplicated stamps dropped, sorted by stamp, put on the stream's own rate
+    (:func:`~rig_identification.io.stamps.regular_stamps`), each change with a warning appended to
+    ``warnings``.  Raises :class:`RecordingError` when fewer than 2 samples remain."""
+    a = _drop_non_finite(bag, topic, np.asarray(rows, float), warnings)
+    a = _sort_by_stamp(bag, topic, a, warnings)
+    a = _drop_duplicated_stamps(bag, topic, a, warnings)
+    if len(a) < 2:
+        raise RecordingError(f"{bag}: topic {topic} has fewer than 2 valid samples")
+    t, note = regular_stamps(a[:, 0], topic)
+    if note:
+        warnings.append(f"{bag}: {note}")
+    return TimeSeries(t, a[:, 1:])
+
+
 def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | None = None,
                      bulk: bool = True, topics: Topics = Topics()) -> SensorData:
     """Read the rig topics of a rosbag2 folder (or a single .mcap/.db3 file).
@@ -249,88 +394,11 @@ def read_sensor_data(bag: Path, cable_names: list[str], warnings: list[str] | No
     bag = Path(bag)
     if not bag.exists():
         raise RecordingError(f"{bag}: no bag here")
-    try:
-        reader = _open_reader(bag, bulk)
-        try:
-            canon = {topics.imu: IMU_TOPIC, topics.exciter: EXCITER_TOPIC, topics.inclinometer: INCLINOMETER_TOPIC}
-            for name in cable_names:
-                canon[topics.load_cells + name] = LOAD_CELL_PREFIX + name
-            wanted = {IMU_TOPIC: IMU_TYPE, EXCITER_TOPIC: WRENCH_TYPE, INCLINOMETER_TOPIC: VECTOR_TYPE}
-            wanted |= {LOAD_CELL_PREFIX + name: WRENCH_TYPE for name in cable_names}
-            conns = []
-            found = sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections)
-            for c in reader.connections:
-                if c.topic in canon:
-                    expected = wanted[canon[c.topic]]
-                    if c.msgtype != expected:
-                        raise RecordingError(f"{bag}: topic {c.topic} has type {c.msgtype}, expected {expected}")
-                    conns.append(c)
-                elif c.topic.startswith(topics.load_cells):
-                    raise RecordingError(f"{bag}: topic {c.topic} is a load cell of cable "
-                                         f"{c.topic[len(topics.load_cells):]!r}, which rig.yaml does not list "
-                                         f"(rig.yaml cables: {', '.join(cable_names)}); rig.yaml and the bag "
-                                         "do not describe the same rig")
-            rows: Mapping[str, np.ndarray | list[tuple[float, ...]]]
-            if not conns:
-                rows = {}
-            elif bulk and reader.is2:
-                rows = _bulk_rows(reader, bag, conns, canon)
-            else:
-                rows = _per_message_rows(reader, bag, conns, canon)
-            columns = {canon[k]: v for k, v in rows.items()}
-        finally:
-            reader.close()
-    except RecordingError:
-        raise
-    except Exception as e:  # rosbags raises several exception types for broken bags
-        raise RecordingError(f"{bag}: cannot read the bag ({type(e).__name__}: {e})") from None
-
-    @overload
-    def series(topic: str, required: Literal[True]) -> TimeSeries: ...
-
-    @overload
-    def series(topic: str, required: bool) -> TimeSeries | None: ...
-
-    def series(topic: str, required: bool) -> TimeSeries | None:
-        rows = columns.get(topic)
-        if rows is None or not len(rows):
-            if required:
-                own = {v: k for k, v in canon.items()}[topic]
-                raise RecordingError(f"{bag}: topic {own} is missing or empty; the bag holds "
-                                     f"{', '.join(found) or 'no topics'} (a bag recorded under other topic names: "
-                                     "map them in rig.yaml topics, docs/recording_format.md)")
-            return None
-        a = np.asarray(rows, float)
-        finite = np.isfinite(a).all(axis=1)
-        if not finite.all():
-            bad = a[~finite, 0]
-            warnings.append(f"{bag}: topic {topic}: {int((~finite).sum())} non-finite (NaN/inf) sample(s) "
-                            f"between t={bad.min():.3f} and t={bad.max():.3f} s dropped")
-            a = a[finite]
-        order = np.argsort(a[:, 0], kind="stable")
-        if np.any(order != np.arange(len(order))):
-            late = float(np.max(np.maximum.accumulate(a[:, 0]) - a[:, 0]))
-            step = np.diff(a[order, 0])
-            period = float(np.median(step[step > 0])) if np.any(step > 0) else np.nan
-            if not late < QUIET_DISORDER * period:
-                warnings.append(f"{bag}: topic {topic}: samples out of stamp order (a sample written up to "
-                                f"{late:.3g} s after a later-stamped one; sampling period {period:.3g} s); "
-                                "sorted by header.stamp")
-            a = a[order]
-        dup = np.concatenate([[False], np.diff(a[:, 0]) <= 0])
-        if dup.any():
-            warnings.append(f"{bag}: topic {topic}: {int(dup.sum())} duplicated stamp(s) dropped")
-            a = a[~dup]
-        if len(a) < 2:
-            raise RecordingError(f"{bag}: topic {topic} has fewer than 2 valid samples")
-        t, note = regular_stamps(a[:, 0], topic)
-        if note:
-            warnings.append(f"{bag}: {note}")
-        return TimeSeries(t, a[:, 1:])
-
-    imu = series(IMU_TOPIC, True)
-    cells = {n: series(LOAD_CELL_PREFIX + n, True) for n in cable_names}
-    return SensorData(imu, cells, series(EXCITER_TOPIC, False), series(INCLINOMETER_TOPIC, False))
+    read = _read_rows(bag, cable_names, bulk, topics)
+    imu = read.series(IMU_TOPIC, True, warnings)
+    cells = {n: read.series(LOAD_CELL_PREFIX + n, True, warnings) for n in cable_names}
+    return SensorData(imu, cells, read.series(EXCITER_TOPIC, False, warnings),
+                      read.series(INCLINOMETER_TOPIC, False, warnings))
 
 
 def crop(sensors: SensorData, t0: float, t1: float) -> SensorData:
