@@ -211,6 +211,133 @@ def shared_lengths(ceiling: np.ndarray, anchors_world: np.ndarray, anchors_body:
     return dist - T / stiffness, float(np.linalg.norm(A @ T - b) / w)
 
 
+def _level_offsets(rng: np.random.Generator, layout: str, body: Body, radial: np.ndarray, out: np.ndarray,
+                   length: float) -> np.ndarray:
+    """(n, 3) horizontal offsets, m, of the ceiling anchors from the body anchors at the reference
+    pose for the ``"wide"``, ``"splayed"`` and ``"parallel"`` layouts.  radial: (n, 3) the body
+    anchors' horizontal offsets from their centroid, m; out: (n, 3) the same as unit vectors;
+    length: the cables' nominal length, m."""
+    if layout == "wide":
+        # each cable's line, seen from the front and from the side, crosses the body's plane of
+        # symmetry 1–2.5 times as deep below the anchors as the CG (the thesis's rigs: about 1×)
+        depth = body.size[2] - body.cg[2]
+        offset = radial * (length / (rng.uniform(1.0, 2.5) * depth))
+        return offset * np.minimum(1.0, 1.5 * length / np.linalg.norm(offset, axis=1))[:, None]
+    if layout == "splayed":
+        return out * rng.uniform(0.3, 0.8)
+    return out * (0.02 * length / 2.5)
+
+
+def _drawn_ceiling(rng: np.random.Generator, layout: str, body: Body, b: np.ndarray, out: np.ndarray,
+                   length: float, p0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ceiling anchors (n, 3) world m, unstretched lengths (n,) m) of the ``"mixed"`` and
+    ``"random"`` layouts.  b: (n, 3) body anchors, body frame m; out: (n, 3) their outward
+    horizontal unit vectors; length: the cables' nominal length, m; p0: (3,) the body origin at
+    the reference pose, world m.
+
+    Each cable its own splay and ceiling height, drawn until the cables can share the weight at
+    the level pose (else the body swings to where one goes slack), at most :data:`MIXED_TRIES`
+    times; then the draw nearest to sharing it, as ``"splayed"`` does (three cables at different
+    heights never share it exactly): the body hangs a little tilted, and :func:`simulate_random`
+    checks that every cable stays taut."""
+    level = float(np.exp(rng.uniform(*np.log(RANDOM_SPLAY)))) if layout == "random" else 0.0
+    best = None
+    for _ in range(MIXED_TRIES):
+        if layout == "mixed":
+            offset = out * rng.uniform(0.2, 0.8, len(b))[:, None]
+        else:
+            offset = out * (level * length * rng.uniform(0.7, 1.3, len(b)))[:, None]
+        heights = rng.uniform(-HEIGHTS, HEIGHTS, len(b))
+        ceiling = p0 + b + offset
+        ceiling[:, 2] = heights
+        lengths, resid = shared_lengths(ceiling, p0 + b, b, body.cg, body.mass, 9.80665, CABLE_STIFFNESS)
+        if best is None or resid < best[2]:
+            best = (ceiling, lengths, resid)
+        if resid < 1e-4:
+            break
+    ceiling, lengths, _ = best
+    return ceiling, lengths
+
+
+def _cables(rng: np.random.Generator, layout: str, body: Body, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(ceiling anchors (n, 3) world m, unstretched lengths (n,) m) of a ``layout`` for the body
+    anchors ``b`` (n, 3), body frame m; the reference pose: body level, its anchors' centroid
+    below the ceiling anchors' centroid."""
+    centre = b.mean(axis=0)
+    radial = np.c_[b[:, :2] - centre[:2], np.zeros(len(b))]
+    out = radial / np.linalg.norm(radial, axis=1)[:, None]
+    length = rng.uniform(1.8, 3.0)
+    p0 = np.array([3.0, 3.0, -length - body.size[2]])   # the body origin at the reference pose, world m
+    if layout in ("mixed", "random"):
+        return _drawn_ceiling(rng, layout, body, b, out, length, p0)
+    ceiling = p0 + b + _level_offsets(rng, layout, body, radial, out, length)
+    ceiling[:, 2] = 0.0
+    lengths, _ = shared_lengths(ceiling, p0 + b, b, body.cg, body.mass, 9.80665, CABLE_STIFFNESS)
+    return ceiling, lengths
+
+
+def _frame_corner(rng: np.random.Generator, size: np.ndarray, height: tuple[float, float]) -> np.ndarray:
+    """(3,) a random corner of the frame of ``size`` (3,) m, a little inside it, at a random
+    fraction in ``height`` of its height; body frame m."""
+    sx, sy = rng.choice([-1.0, 1.0], 2)
+    return np.array([sx * size[0] / 2 * rng.uniform(0.85, 1.0), sy * size[1] / 2 * rng.uniform(0.85, 1.0),
+                     rng.uniform(*height) * size[2]])
+
+
+def _frame_face_point(rng: np.random.Generator, size: np.ndarray) -> np.ndarray:
+    """(3,) a random point on a random face (±x, ±y, floor, top) of the frame of ``size`` (3,) m;
+    body frame m."""
+    face = int(rng.integers(6))
+    pos = np.array([rng.uniform(-0.5, 0.5) * size[0], rng.uniform(-0.5, 0.5) * size[1],
+                    rng.uniform(0.0, 1.0) * size[2]])
+    if face < 4:
+        pos[face // 2] = (1 if face % 2 else -1) * size[face // 2] / 2
+    else:
+        pos[2] = 0.0 if face == 4 else size[2]
+    return pos
+
+
+def _exciter_placement(rng: np.random.Generator, exciter: str, size: np.ndarray) -> tuple[np.ndarray, int]:
+    """(position (3,) body frame m, spin axis: 0, 1, 2 for body x, y, z, 3 for a random direction)
+    of an ``exciter`` placement (:data:`EXCITER_PLACEMENTS`) on the frame of ``size`` (3,) m."""
+    if exciter == "corner":
+        # a bottom corner of the frame (a little inside it), spinning about body z or a horizontal axis
+        pos = _frame_corner(rng, size, (0.0, 0.1))
+        return pos, int(rng.choice([2, 2, 0, 1]))
+    if exciter == "top_corner":
+        # a top corner of the frame (a little inside it), spinning about body x
+        return _frame_corner(rng, size, (0.9, 1.0)), 0
+    pos = _frame_face_point(rng, size)
+    spin = int(rng.integers(3)) if exciter == "anywhere" else 3
+    return pos, spin
+
+
+def _exciter_orientation(rng: np.random.Generator, spin: int) -> tuple[list[float], str]:
+    """(rpy, rad, of the exciter frame whose z (its spin axis) is along body x, y, z for ``spin``
+    0, 1, 2, or for 3 a uniformly random direction; the axis in words: ``"x"``, or its unit vector)."""
+    rpy = ([[0.0, np.pi / 2, 0.0], [-np.pi / 2, 0.0, 0.0], [0.0, 0.0, 0.0]][spin] if spin < 3
+           else Rotation.random(rng=rng).as_euler("xyz").tolist())
+    axis = "xyz"[spin] if spin < 3 else "({:+.2f}, {:+.2f}, {:+.2f})".format(
+        *Rotation.from_euler("xyz", rpy).as_matrix()[:, 2])
+    return rpy, axis
+
+
+def _rig_mapping(rng: np.random.Generator, body: Body, b: np.ndarray, ceiling: np.ndarray, lengths: np.ndarray,
+                 exciter_position: np.ndarray, exciter_rpy: list[float]) -> dict:
+    """The ``rig:`` mapping (rig.yaml schema) of the random rig, its IMU drawn on the frame: b (n, 3)
+    body anchors, body frame m; ceiling (n, 3) world m; lengths (n,) m; the exciter's position
+    (3,) body frame m and rpy rad."""
+    imu = np.array([rng.uniform(-0.4, 0.4) * body.size[0], rng.uniform(-0.4, 0.4) * body.size[1],
+                    rng.uniform(0.1, 0.9) * body.size[2]])
+    return {"gravity": 9.80665,
+            "cables": [{"name": f"c{i}", "ceiling_anchor": ceiling[i].tolist(), "body_anchor": b[i].tolist(),
+                        "length": float(lengths[i])} for i in range(len(b))],
+            "body": {"mass": float(body.mass), "center_of_gravity": body.cg.tolist()},
+            "imu": {"position": imu.tolist(), "rpy": [0.0, 0.0, float(rng.choice([0.0, np.pi / 2]))]},
+            "exciter": {"position": exciter_position.tolist(), "rpy": exciter_rpy},
+            "inclinometer": {"rpy": [0.0, 0.0, 0.0]}}
+
+
 def random_experiment(seed: int, cables: int = 4, layout: str = "wide", effects: list | tuple = (),
                       duration: float = 120.0, force: float | None = None, noise: dict | None = None,
                       exciter: str = "corner") -> dict:
@@ -231,86 +358,10 @@ def random_experiment(seed: int, cables: int = 4, layout: str = "wide", effects:
     rng = np.random.default_rng(seed)
     body = random_body(rng)
     b = body_anchors(body.size, cables)
-    centre = b.mean(axis=0)
-    radial = np.c_[b[:, :2] - centre[:2], np.zeros(len(b))]
-    out = radial / np.linalg.norm(radial, axis=1)[:, None]
-    length = rng.uniform(1.8, 3.0)
-    heights = np.zeros(len(b))
-    if layout == "wide":
-        # each cable's line, seen from the front and from the side, crosses the body's plane of
-        # symmetry 1–2.5 times as deep below the anchors as the CG (the thesis's rigs: about 1×)
-        depth = body.size[2] - body.cg[2]
-        offset = radial * (length / (rng.uniform(1.0, 2.5) * depth))
-        offset = offset * np.minimum(1.0, 1.5 * length / np.linalg.norm(offset, axis=1))[:, None]
-    elif layout == "splayed":
-        offset = out * rng.uniform(0.3, 0.8)
-    elif layout == "parallel":
-        offset = out * (0.02 * length / 2.5)
-    else:
-        offset = np.zeros_like(b)            # drawn below
-    # reference pose: body level, its anchors' centroid below the ceiling anchors' centroid
-    p0 = np.array([3.0, 3.0, -length - body.size[2]])
-    if layout in ("mixed", "random"):
-        # each cable its own splay and ceiling height, drawn until the cables can share the
-        # weight at the level pose (else the body swings to where one goes slack), at most
-        # MIXED_TRIES times; then the draw nearest to sharing it, as "splayed" does (three cables
-        # at different heights never share it exactly): the body hangs a little tilted, and
-        # simulate_random checks that every cable stays taut
-        level = float(np.exp(rng.uniform(*np.log(RANDOM_SPLAY)))) if layout == "random" else 0.0
-        best = None
-        for _ in range(MIXED_TRIES):
-            if layout == "mixed":
-                offset = out * rng.uniform(0.2, 0.8, len(b))[:, None]
-            else:
-                offset = out * (level * length * rng.uniform(0.7, 1.3, len(b)))[:, None]
-            heights = rng.uniform(-HEIGHTS, HEIGHTS, len(b))
-            ceiling = p0 + b + offset
-            ceiling[:, 2] = heights
-            lengths, resid = shared_lengths(ceiling, p0 + b, b, body.cg, body.mass, 9.80665, CABLE_STIFFNESS)
-            if best is None or resid < best[2]:
-                best = (ceiling, lengths, resid)
-            if resid < 1e-4:
-                break
-        ceiling, lengths, _ = best
-    else:
-        ceiling = p0 + b + offset
-        ceiling[:, 2] = heights
-        lengths, _ = shared_lengths(ceiling, p0 + b, b, body.cg, body.mass, 9.80665, CABLE_STIFFNESS)
-    if exciter == "corner":
-        # a bottom corner of the frame (a little inside it), spinning about body z or a horizontal axis
-        sx, sy = rng.choice([-1.0, 1.0], 2)
-        pos = np.array([sx * body.size[0] / 2 * rng.uniform(0.85, 1.0), sy * body.size[1] / 2 * rng.uniform(0.85, 1.0),
-                        rng.uniform(0.0, 0.1) * body.size[2]])
-        spin = int(rng.choice([2, 2, 0, 1]))
-    elif exciter == "top_corner":
-        # a top corner of the frame (a little inside it), spinning about body x
-        sx, sy = rng.choice([-1.0, 1.0], 2)
-        pos = np.array([sx * body.size[0] / 2 * rng.uniform(0.85, 1.0), sy * body.size[1] / 2 * rng.uniform(0.85, 1.0),
-                        rng.uniform(0.9, 1.0) * body.size[2]])
-        spin = 0
-    else:
-        face = int(rng.integers(6))                          # ±x, ±y, floor, top
-        pos = np.array([rng.uniform(-0.5, 0.5) * body.size[0], rng.uniform(-0.5, 0.5) * body.size[1],
-                        rng.uniform(0.0, 1.0) * body.size[2]])
-        if face < 4:
-            pos[face // 2] = (1 if face % 2 else -1) * body.size[face // 2] / 2
-        else:
-            pos[2] = 0.0 if face == 4 else body.size[2]
-        spin = int(rng.integers(3)) if exciter == "anywhere" else 3
-    # the exciter's z (its spin axis) along body x, y, z, or (spin 3) a uniformly random direction
-    rpy = ([[0.0, np.pi / 2, 0.0], [-np.pi / 2, 0.0, 0.0], [0.0, 0.0, 0.0]][spin] if spin < 3
-           else Rotation.random(rng=rng).as_euler("xyz").tolist())
-    axis = "xyz"[spin] if spin < 3 else "({:+.2f}, {:+.2f}, {:+.2f})".format(
-        *Rotation.from_euler("xyz", rpy).as_matrix()[:, 2])
-    imu = np.array([rng.uniform(-0.4, 0.4) * body.size[0], rng.uniform(-0.4, 0.4) * body.size[1],
-                    rng.uniform(0.1, 0.9) * body.size[2]])
-    rig = {"gravity": 9.80665,
-           "cables": [{"name": f"c{i}", "ceiling_anchor": ceiling[i].tolist(), "body_anchor": b[i].tolist(),
-                       "length": float(lengths[i])} for i in range(len(b))],
-           "body": {"mass": float(body.mass), "center_of_gravity": body.cg.tolist()},
-           "imu": {"position": imu.tolist(), "rpy": [0.0, 0.0, float(rng.choice([0.0, np.pi / 2]))]},
-           "exciter": {"position": pos.tolist(), "rpy": rpy},
-           "inclinometer": {"rpy": [0.0, 0.0, 0.0]}}
+    ceiling, lengths = _cables(rng, layout, body, b)
+    pos, spin = _exciter_placement(rng, exciter, body.size)
+    rpy, axis = _exciter_orientation(rng, spin)
+    rig = _rig_mapping(rng, body, b, ceiling, lengths, pos, rpy)
     r = rig_from_dict(rig, f"random rig {seed}")
     f_modes = [m.frequency for m in natural_modes(r, body.mass, body.cg, body.inertia, CABLE_STIFFNESS)
                if m.frequency > 0.05]
