@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 
 from ..io.recording import RecordingError, read_recording
-from ..io.rig import DummyMass, load_rig
+from ..io.rig import DummyMass, Rig, load_rig
 from ..model.experiment import load_rig_or_experiment
-from ..statics import SensorNoise, StaticsError, StaticState, plan_static_test, predict_cg_std
+from ..statics import CgOptions, CgPlan, SensorNoise, StaticsError, StaticState, plan_static_test, predict_cg_std
 from .arg_types import number
 from .cg import add_geometry_options, cg_options
 from .progress import step
@@ -66,19 +66,27 @@ def add_cg_plan_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-def cmd_cg_plan(args) -> int:
-    """``rig-identify cg-plan``: predicted σ of the planned test and the recommended plan; returns 0."""
+def _plan_rig(args) -> Rig:
+    """The rig of ``args.rig``: a rig.yaml file, an experiment file, or a recording folder (its
+    rig.yaml), which with a bag in it also gives the noise when ``--noise-from`` names none
+    (``args.noise_from`` set to it).  Raises :class:`RecordingError` for a folder without rig.yaml."""
     src = Path(args.rig)
+    if not src.is_dir():
+        return load_rig_or_experiment(src)
+    if not (src / "rig.yaml").exists():
+        raise RecordingError(f"{src}: no rig.yaml in the recording folder")
+    rig = load_rig(src / "rig.yaml")
+    if args.noise_from is None and (src / "bag").exists():
+        args.noise_from = str(src)
+    return rig
+
+
+def _sensor_noise(args) -> tuple[SensorNoise, str]:
+    """(the planned test's sensor noise, where it came from in words): measured in the recording
+    ``--noise-from`` (else the reference recordings' defaults), with the σ and rates given on the
+    command line in its place."""
     noise = SensorNoise()
     noise_src = "defaults (the reference recordings' sensors)"
-    if src.is_dir():
-        rig = load_rig(src / "rig.yaml") if (src / "rig.yaml").exists() else None
-        if rig is None:
-            raise RecordingError(f"{src}: no rig.yaml in the recording folder")
-        if args.noise_from is None and (src / "bag").exists():
-            args.noise_from = str(src)
-    else:
-        rig = load_rig_or_experiment(src)
     if args.noise_from is not None:
         step(f"reading {args.noise_from} (its sensor noise)")
         rec = read_recording(args.noise_from)
@@ -92,33 +100,109 @@ def cmd_cg_plan(args) -> int:
     if kw:
         noise = replace(noise, **kw)
         noise_src += " (with command-line overrides)"
+    return noise, noise_src
+
+
+def _cg_guess(args, rig: Rig) -> np.ndarray:
+    """(3,) the assumed CG, body frame m: ``--cg-guess``, else rig.yaml's, else 1 m below the body
+    anchors' centroid."""
     if args.cg_guess is not None:
-        guess = np.array(args.cg_guess, float)
-    elif rig.center_of_gravity is not None:
-        guess = rig.center_of_gravity
-    else:
-        guess = rig.body_anchors.mean(0) - np.array([0.0, 0.0, 1.0])
+        return np.array(args.cg_guess, float)
+    if rig.center_of_gravity is not None:
+        return rig.center_of_gravity
+    return rig.body_anchors.mean(0) - np.array([0.0, 0.0, 1.0])
+
+
+def _planned_dummy(args, rig: Rig) -> DummyMass | None:
+    """The planned dummy mass: ``--dummy-mass`` and ``--dummy-position``, each else rig.yaml's
+    dummy_mass; None when neither is given anywhere.  Raises :class:`StaticsError` for one of the
+    two options alone when rig.yaml has no dummy_mass."""
     if (args.dummy_mass is None) != (args.dummy_position is None) and rig.dummy_mass is None:
         raise StaticsError("--dummy-mass and --dummy-position go together when rig.yaml has no dummy_mass")
-    planned = None
-    if args.dummy_mass is not None or args.dummy_position is not None or rig.dummy_mass is not None:
-        m = args.dummy_mass if args.dummy_mass is not None else rig.dummy_mass.mass
-        pos = args.dummy_position if args.dummy_position is not None else rig.dummy_mass.position
-        planned = DummyMass(float(m), np.array(pos, float))
+    if args.dummy_mass is None and args.dummy_position is None and rig.dummy_mass is None:
+        return None
+    m = args.dummy_mass if args.dummy_mass is not None else rig.dummy_mass.mass
+    pos = args.dummy_position if args.dummy_position is not None else rig.dummy_mass.position
+    return DummyMass(float(m), np.array(pos, float))
+
+
+def _planned_prediction(rig: Rig, guess: np.ndarray, planned: DummyMass, duration: float, noise: SensorNoise,
+                        opts: CgOptions, target: float) -> dict:
+    """The ``planned`` entry of the JSON output: the predicted CG σ (3,) m and 95 % half-widths of
+    the planned test (dummy ``planned``, ``duration`` s per state) and whether they reach
+    ``target`` (m) on every coordinate."""
+    step("predicting the CG σ of the planned test")
+    r = predict_cg_std(rig, guess, planned, duration, noise, opts)
+    return {"dummy_mass": planned.mass, "dummy_position": [float(x) for x in planned.position],
+            "duration": duration,
+            "center_of_gravity_std": [float(x) for x in r.center_of_gravity_std],
+            "half_width_95": [float(1.96 * x) for x in r.center_of_gravity_std],
+            "reaches_target": bool(np.all(1.96 * r.center_of_gravity_std <= target)),
+            "tilt_change_rad": r.weakly_determined["tilt_change_rad"]}
+
+
+def _print_assumptions(rig: Rig, guess: np.ndarray, noise: SensorNoise, noise_src: str, opts: CgOptions) -> None:
+    """The text output's head: the rig, the assumed CG, the sensor noise and the geometry's σ."""
+    print(f"rig: {rig.source}; assumed CG {', '.join(f'{x:.3f}' for x in guess)} m (body); sensor noise {noise_src}: "
+          f"load cells {noise.load_cell:.3g} N at {noise.rate_load_cells:.0f} Hz, inclinometer "
+          f"{noise.inclinometer:.3g} rad at {noise.rate_inclinometer:.0f} Hz")
+    print(f"geometry as surveyed (in σ): anchors {opts.anchor_std * 1e3:g} mm, cable lengths "
+          f"{opts.length_std * 1e3:g} mm, dummy position {opts.dummy_position_std * 1e3:g} mm (1 σ per coordinate; "
+          "--anchor-std, --length-std, "
+          "--dummy-position-std)")
+
+
+def _print_planned(planned: DummyMass, p: dict, duration: float, target_mm: float) -> None:
+    """The planned test's line: ``p`` its :func:`_planned_prediction`; duration s per state;
+    target_mm the 95 % half-width required, mm."""
+    print(f"planned: {planned.mass:g} kg at {', '.join(f'{x:.3f}' for x in planned.position)} m, "
+          f"{duration:g} s per state: CG σ " + ", ".join(f"{x * 1e3:.3f}" for x in p["center_of_gravity_std"])
+          + " mm, ±" + ", ".join(f"{x * 1e3:.2f}" for x in p["half_width_95"]) + " mm (95 %) -> "
+          + ("reaches" if p["reaches_target"] else "does NOT reach") + f" ±{target_mm:g} mm")
+
+
+def _print_candidates(candidates: list[dict]) -> None:
+    """The table of the first 12 candidates (:meth:`CgPlan.to_dict`, in the order given)."""
+    print(f"{'mass kg':>8s} {'position m':>24s} {'time s':>7s} {'σ x mm':>7s} {'σ y mm':>7s} {'σ z mm':>7s} "
+          f"{'tilt mrad':>9s} {'ok':>3s}")
+    for p in candidates[:12]:
+        print(f"{p['dummy_mass']:8.1f} {'(' + ', '.join(f'{x:.2f}' for x in p['dummy_position']) + ')':>24s} "
+              f"{p['duration']:7.0f} " + " ".join(f"{x * 1e3:7.3f}" for x in p["center_of_gravity_std"])
+              + f" {p['tilt_change_rad'] * 1e3:9.2f} {'yes' if p['reaches_target'] else 'no':>3s}")
+
+
+def _print_unreached(plans: list[CgPlan], target_mm: float, max_duration: float) -> None:
+    """Why no candidate reaches ±``target_mm`` mm: the surveyed geometry's floor (then survey more
+    precisely or widen the target), else the averaging time ``max_duration`` s (then a heavier
+    dummy, farther positions or better sensors)."""
+    target = target_mm * 1e-3
+    floors = [p for p in plans if p.floor is not None]
+    best_floor = min(floors, key=lambda p: float(p.floor.max())) if floors else None
+    if best_floor is not None and 1.96 * best_floor.floor.max() > target:
+        where = ", ".join(f"{x:.2f}" for x in best_floor.dummy.position)
+        print(f"no candidate reaches ±{target_mm:g} mm: the rig's geometry as surveyed alone leaves σ "
+              + ", ".join(f"{x * 1e3:.2f}" for x in best_floor.floor)
+              + f" mm (x, y, z) at best ({best_floor.dummy.mass:g} kg at ({where}) m, however long the averaging): "
+              "survey the anchors, cable lengths and dummy position more precisely (and say so with --anchor-std, "
+              "--length-std, --dummy-position-std), or accept a wider target (--target-mm)")
+    else:
+        print(f"no candidate reaches ±{target_mm:g} mm within {max_duration:g} s per state: "
+              "use a heavier dummy, positions farther out, or better sensors")
+
+
+def cmd_cg_plan(args) -> int:
+    """``rig-identify cg-plan``: predicted σ of the planned test and the recommended plan; returns 0."""
+    rig = _plan_rig(args)
+    noise, noise_src = _sensor_noise(args)
+    guess = _cg_guess(args, rig)
+    planned = _planned_dummy(args, rig)
     opts = cg_options(args, rig.survey)
     target = args.target_mm * 1e-3
     out: dict = {"cg_guess": [float(x) for x in guess], "target_half_width_95": target,
                  "noise": {k: float(v) for k, v in vars(noise).items()}, "noise_source": noise_src,
                  "geometry_std": opts.geometry_std()}
     if planned is not None:
-        step("predicting the CG σ of the planned test")
-        r = predict_cg_std(rig, guess, planned, args.duration, noise, opts)
-        out["planned"] = {"dummy_mass": planned.mass, "dummy_position": [float(x) for x in planned.position],
-                          "duration": args.duration,
-                          "center_of_gravity_std": [float(x) for x in r.center_of_gravity_std],
-                          "half_width_95": [float(1.96 * x) for x in r.center_of_gravity_std],
-                          "reaches_target": bool(np.all(1.96 * r.center_of_gravity_std <= target)),
-                          "tilt_change_rad": r.weakly_determined["tilt_change_rad"]}
+        out["planned"] = _planned_prediction(rig, guess, planned, args.duration, noise, opts, target)
     masses = args.masses or (25.0, 50.0, 100.0, 200.0)
     step(f"searching dummy masses ({', '.join(f'{m:g}' for m in masses)} kg) and positions for ±{args.target_mm:g} mm")
     best, plans = plan_static_test(rig, guess, masses=masses,
@@ -132,39 +216,12 @@ def cmd_cg_plan(args) -> int:
     if args.json:
         print(json.dumps(out))
         return 0
-    print(f"rig: {rig.source}; assumed CG {', '.join(f'{x:.3f}' for x in guess)} m (body); sensor noise {noise_src}: "
-          f"load cells {noise.load_cell:.3g} N at {noise.rate_load_cells:.0f} Hz, inclinometer "
-          f"{noise.inclinometer:.3g} rad at {noise.rate_inclinometer:.0f} Hz")
-    print(f"geometry as surveyed (in σ): anchors {opts.anchor_std * 1e3:g} mm, cable lengths "
-          f"{opts.length_std * 1e3:g} mm, dummy position {opts.dummy_position_std * 1e3:g} mm (1 σ per coordinate; "
-          "--anchor-std, --length-std, "
-          "--dummy-position-std)")
+    _print_assumptions(rig, guess, noise, noise_src, opts)
     if planned is not None:
-        p = out["planned"]
-        print(f"planned: {planned.mass:g} kg at {', '.join(f'{x:.3f}' for x in planned.position)} m, "
-              f"{args.duration:g} s per state: CG σ " + ", ".join(f"{x * 1e3:.3f}" for x in p["center_of_gravity_std"])
-              + " mm, ±" + ", ".join(f"{x * 1e3:.2f}" for x in p["half_width_95"]) + " mm (95 %) -> "
-              + ("reaches" if p["reaches_target"] else "does NOT reach") + f" ±{args.target_mm:g} mm")
-    print(f"{'mass kg':>8s} {'position m':>24s} {'time s':>7s} {'σ x mm':>7s} {'σ y mm':>7s} {'σ z mm':>7s} "
-          f"{'tilt mrad':>9s} {'ok':>3s}")
-    for p in out["candidates"][:12]:
-        print(f"{p['dummy_mass']:8.1f} {'(' + ', '.join(f'{x:.2f}' for x in p['dummy_position']) + ')':>24s} "
-              f"{p['duration']:7.0f} " + " ".join(f"{x * 1e3:7.3f}" for x in p["center_of_gravity_std"])
-              + f" {p['tilt_change_rad'] * 1e3:9.2f} {'yes' if p['reaches_target'] else 'no':>3s}")
+        _print_planned(planned, out["planned"], args.duration, args.target_mm)
+    _print_candidates(out["candidates"])
     if best is None:
-        target = args.target_mm * 1e-3
-        floors = [p for p in plans if p.floor is not None]
-        best_floor = min(floors, key=lambda p: float(p.floor.max())) if floors else None
-        if best_floor is not None and 1.96 * best_floor.floor.max() > target:
-            where = ", ".join(f"{x:.2f}" for x in best_floor.dummy.position)
-            print(f"no candidate reaches ±{args.target_mm:g} mm: the rig's geometry as surveyed alone leaves σ "
-                  + ", ".join(f"{x * 1e3:.2f}" for x in best_floor.floor)
-                  + f" mm (x, y, z) at best ({best_floor.dummy.mass:g} kg at ({where}) m, however long the averaging): "
-                  "survey the anchors, cable lengths and dummy position more precisely (and say so with --anchor-std, "
-                  "--length-std, --dummy-position-std), or accept a wider target (--target-mm)")
-        else:
-            print(f"no candidate reaches ±{args.target_mm:g} mm within {args.max_duration:g} s per state: "
-                  "use a heavier dummy, positions farther out, or better sensors")
+        _print_unreached(plans, args.target_mm, args.max_duration)
     else:
         print(f"recommended: {best.dummy.mass:g} kg at ({', '.join(f'{x:.3f}' for x in best.dummy.position)}) m, "
               f"average {best.duration:g} s per state: ±" + ", ".join(f"{1.96 * x * 1e3:.2f}" for x in best.std)
