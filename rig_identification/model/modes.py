@@ -251,6 +251,161 @@ def _combination(fr: float, base: list[float], tol: float, order: int = 4) -> bo
     return False
 
 
+@dataclass(frozen=True)
+class _ImuWindow:
+    """The IMU signals the modes are estimated from.  t: (N,) s, a uniform grid at ``fs`` Hz.
+    y: (N, 3) gyro, or (N, 6) gyro then specific force, body axes, each channel less its mean and
+    divided by ``scale`` (3,) or (6,) (its RMS, rad/s or m/s²; 1 for a zero channel)."""
+
+    t: np.ndarray
+    y: np.ndarray
+    scale: np.ndarray
+    fs: float
+
+    @property
+    def duration(self) -> float:
+        """T = t[-1] - t[0], s."""
+        T: float = self.t[-1] - self.t[0]
+        return T
+
+
+def _imu_window(rec: Recording, settle: float, use_accel: bool) -> _ImuWindow:
+    """The IMU of ``rec`` from ``settle`` s after its start (at most a tenth of it) to its end,
+    resampled at its median rate, rotated into body axes and scaled to unit RMS per channel."""
+    rig, s = rec.rig, rec.sensors
+    fs = 1.0 / np.median(np.diff(s.imu.t))
+    t0 = s.t_start + min(settle, 0.1 * (s.t_end - s.t_start))
+    t, x = _uniform(s.imu, t0, s.t_end, fs)
+    g = rig.imu.rotation.apply(x[:, :3])
+    chans = [g]
+    if use_accel:
+        chans.append(rig.imu.rotation.apply(x[:, 3:]))
+    y = np.hstack(chans)
+    y = y - y.mean(axis=0)
+    scale = np.sqrt(np.mean(y**2, axis=0))
+    scale[scale <= 0] = 1.0
+    return _ImuWindow(t, y / scale, scale, fs)
+
+
+def _spectral_peaks(imu: _ImuWindow, forced: list[float], f_min: float, f_max: float,
+                    prominence: float) -> tuple[list[tuple[float, float]], float]:
+    """(candidate peaks as (power, frequency Hz refined by :func:`_peak_refine`), strongest first;
+    the periodogram's bin width df, Hz).
+
+    Hann periodogram of ``imu.y`` (zero-padded to 4× the next power of 2), summed over the
+    channels; a peak is the maximum within ±2/T, at least ``prominence`` times the local median
+    floor, in [f_min, f_max] Hz and outside ±max(0.02, 2/T) Hz of every ``forced`` frequency."""
+    T = imu.duration
+    nfft = int(2 ** np.ceil(np.log2(len(imu.t)) + 2))
+    f, P = periodogram(imu.y, fs=imu.fs, window="hann", nfft=nfft, axis=0)
+    Ps = P.sum(axis=1)
+    df = f[1] - f[0]
+    w = max(5, int(1.0 / df) | 1)
+    floor = median_filter(Ps, size=w, mode="nearest")
+    lobe = max(1, int(round(2.0 / T / df)))
+    bad = np.zeros(len(f), bool)
+    for fh in forced:
+        bad |= np.abs(f - fh) < max(0.02, 2.0 / T)
+    loc = maximum_filter1d(Ps, size=2 * lobe + 1, mode="nearest")
+    cand = [(Ps[i], _peak_refine(Ps, f, i)) for i in range(1, len(f) - 1)
+            if f_min <= f[i] <= f_max and not bad[i] and Ps[i] >= loc[i] and Ps[i] > prominence * floor[i]]
+    cand.sort(reverse=True)
+    return cand, df
+
+
+def _free_peaks(cand: list[tuple[float, float]], fex: float | None, tol: float,
+                max_modes: int) -> tuple[list[float], list[float]]:
+    """(free-vibration frequencies, at most ``max_modes``; intermodulation/harmonic frequencies),
+    Hz, from the candidate peaks ``cand`` (strongest first): a peak within ``tol`` Hz of a
+    combination (:func:`_combination`) of the exciter frequency ``fex`` and the first free peaks
+    (3 frequencies in all) is not free."""
+    freqs: list[float]
+    combos: list[float]
+    freqs, combos = [], []
+    for _, fr in cand:
+        base = ([fex] if fex is not None else []) + freqs
+        if base and _combination(fr, base[:3], tol):
+            combos.append(fr)
+            continue
+        freqs.append(fr)
+        if len(freqs) >= max_modes:
+            break
+    return freqs, combos
+
+
+def _damped_basis(p: np.ndarray, tt: np.ndarray, forced: list[float]) -> np.ndarray:
+    """(N, 2 nm + 2 len(forced) + 1) columns: per mode j (p = [f_d (nm) Hz, σ (nm) 1/s]) the damped
+    cosine and sine e^(-σ_j t) cos/sin(2π f_j t), the cosine and sine of every ``forced``
+    frequency, and a constant; tt (N,) s from the window's start."""
+    nm = len(p) // 2
+    cols: list[np.ndarray] = []
+    for j in range(nm):
+        e = np.exp(-p[nm + j] * tt)
+        cols += [e * np.cos(2 * np.pi * p[j] * tt), e * np.sin(2 * np.pi * p[j] * tt)]
+    for fh in forced:
+        cols += [np.cos(2 * np.pi * fh * tt), np.sin(2 * np.pi * fh * tt)]
+    cols.append(np.ones_like(tt))
+    return np.column_stack(cols)
+
+
+def _basis_coefficients(B: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """(k, channels) least-squares coefficients of the basis B (N, k) for y (N, channels)."""
+    # normal equations (the columns are near-orthogonal sinusoids; much faster than SVD lstsq)
+    N = B.T @ B
+    return np.linalg.solve(N + 1e-12 * np.trace(N) / len(N) * np.eye(len(N)), B.T @ y)
+
+
+def _fit_damped_sinusoids(imu: _ImuWindow, freqs: list[float], forced: list[float],
+                          warnings: list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """(p = [damped frequencies f_d (nm) Hz, decay rates σ (nm) 1/s], coefficients (2 nm +
+    2 len(forced) + 1, channels) of :func:`_damped_basis`): one nonlinear least-squares fit over
+    the window, each frequency within ±1/T of its peak ``freqs`` (nm,).  A failed fit keeps the
+    peaks (σ 0.01 1/s) with a warning appended to ``warnings``."""
+    T = imu.duration
+    tt = imu.t - imu.t[0]
+    nm = len(freqs)
+
+    def resid(p: np.ndarray) -> np.ndarray:
+        B = _damped_basis(p, tt, forced)
+        r: np.ndarray = (imu.y - B @ _basis_coefficients(B, imu.y)).ravel()
+        return r
+
+    p0 = np.r_[freqs, np.full(nm, 0.01)]
+    lb = np.r_[np.array(freqs) - 1.0 / T, np.full(nm, -0.05)]
+    ub = np.r_[np.array(freqs) + 1.0 / T, np.full(nm, 50.0)]
+    p0 = np.clip(p0, lb + 1e-9, ub - 1e-9)
+    try:
+        p = least_squares(resid, p0, bounds=(lb, ub),
+                          x_scale=np.r_[np.full(nm, 1e-3), np.full(nm, 1e-2)]).x
+    except (ValueError, np.linalg.LinAlgError) as e:   # pragma: no cover - fall back to the peaks
+        warnings.append(f"damped-sinusoid fit failed ({e}); spectral peaks only")
+        p = p0
+    return p, _basis_coefficients(_damped_basis(p, tt, forced), imu.y)
+
+
+def _fitted_modes(p: np.ndarray, C: np.ndarray, scale: np.ndarray,
+                  max_damping: float) -> tuple[list[EstimatedMode], list[str]]:
+    """(the modes of the fit ``p``, ``C`` (:func:`_fit_damped_sinusoids`; ``scale`` the channels'
+    RMS), each with its undamped natural frequency sqrt(ω_d² + σ²)/2π and gyro share; the damped
+    frequencies, as text in Hz, of the components dropped for a damping ratio above
+    ``max_damping``)."""
+    nm = len(p) // 2
+    modes, dropped = [], []
+    for j in range(nm):
+        amp = np.hypot(C[2 * j], C[2 * j + 1])[:3] * scale[:3]       # gyro rad/s per body axis
+        tot = amp.sum()
+        share = amp / tot if tot > 0 else amp
+        axes = "+".join("xyz"[a] for a in np.argsort(share)[::-1] if share[a] >= 0.25)
+        fd, sig = float(p[j]), float(p[nm + j])
+        wn = np.hypot(2 * np.pi * fd, sig)
+        if sig / wn > max_damping:
+            dropped.append(f"{fd:.2f}")
+            continue
+        modes.append(EstimatedMode(float(wn / (2 * np.pi)), float(sig / wn), share,
+                                   "gyro " + (axes or "-"), float(np.linalg.norm(amp))))
+    return modes, dropped
+
+
 def estimate_modes(rec: Recording, f_min: float = 0.2, f_max: float = 40.0, max_modes: int = 8,
                    prominence: float = 30.0, settle: float = 3.0, use_accel: bool = True,
                    max_damping: float = 0.2) -> ModalEstimate:
@@ -268,48 +423,11 @@ def estimate_modes(rec: Recording, f_min: float = 0.2, f_max: float = 40.0, max_
     sqrt(ω_d² + σ²)/2π.  Note: a large forced response shifts the pendulum frequencies
     (amplitude-dependent, about −0.8 % at 200 N on case 16).
     """
-    rig, s = rec.rig, rec.sensors
-    fs = 1.0 / np.median(np.diff(s.imu.t))
-    t0 = s.t_start + min(settle, 0.1 * (s.t_end - s.t_start))
-    t, x = _uniform(s.imu, t0, s.t_end, fs)
-    T = t[-1] - t[0]
-    g = rig.imu.rotation.apply(x[:, :3])
-    chans = [g]
-    if use_accel:
-        chans.append(rig.imu.rotation.apply(x[:, 3:]))
-    y = np.hstack(chans)
-    y = y - y.mean(axis=0)
-    scale = np.sqrt(np.mean(y**2, axis=0))
-    scale[scale <= 0] = 1.0
-    y = y / scale
+    imu = _imu_window(rec, settle, use_accel)
     fex = exciter_frequency(rec)
-    nfft = int(2 ** np.ceil(np.log2(len(t)) + 2))
-    f, P = periodogram(y, fs=fs, window="hann", nfft=nfft, axis=0)
-    Ps = P.sum(axis=1)
-    df = f[1] - f[0]
-    w = max(5, int(1.0 / df) | 1)
-    floor = median_filter(Ps, size=w, mode="nearest")
-    lobe = max(1, int(round(2.0 / T / df)))
-    bad = np.zeros(len(f), bool)
-    forced = [] if fex is None else [h * fex for h in (1, 2, 3) if h * fex < fs / 2]
-    for fh in forced:
-        bad |= np.abs(f - fh) < max(0.02, 2.0 / T)
-    loc = maximum_filter1d(Ps, size=2 * lobe + 1, mode="nearest")
-    cand = [(Ps[i], _peak_refine(Ps, f, i)) for i in range(1, len(f) - 1)
-            if f_min <= f[i] <= f_max and not bad[i] and Ps[i] >= loc[i] and Ps[i] > prominence * floor[i]]
-    cand.sort(reverse=True)
-    freqs: list[float]
-    combos: list[float]
-    freqs, combos = [], []
-    tol = max(0.3 / T, 2 * df)
-    for _, fr in cand:
-        base = ([fex] if fex is not None else []) + freqs
-        if base and _combination(fr, base[:3], tol):
-            combos.append(fr)
-            continue
-        freqs.append(fr)
-        if len(freqs) >= max_modes:
-            break
+    forced = [] if fex is None else [h * fex for h in (1, 2, 3) if h * fex < imu.fs / 2]
+    cand, df = _spectral_peaks(imu, forced, f_min, f_max, prominence)
+    freqs, combos = _free_peaks(cand, fex, max(0.3 / imu.duration, 2 * df), max_modes)
     warnings = []
     if combos:
         warnings.append("intermodulation/harmonic peaks ignored at " + ", ".join(f"{c:.3f}" for c in sorted(combos))
@@ -317,58 +435,12 @@ def estimate_modes(rec: Recording, f_min: float = 0.2, f_max: float = 40.0, max_
     if not freqs:
         return ModalEstimate([], fex, warnings + ["no free-vibration peak found in the IMU spectrum"])
     freqs.sort()
-    tt = t - t[0]
-    nm = len(freqs)
-
-    def basis(p: np.ndarray) -> np.ndarray:
-        cols: list[np.ndarray] = []
-        for j in range(nm):
-            e = np.exp(-p[nm + j] * tt)
-            cols += [e * np.cos(2 * np.pi * p[j] * tt), e * np.sin(2 * np.pi * p[j] * tt)]
-        for fh in forced:
-            cols += [np.cos(2 * np.pi * fh * tt), np.sin(2 * np.pi * fh * tt)]
-        cols.append(np.ones_like(tt))
-        return np.column_stack(cols)
-
-    def coeffs(B: np.ndarray) -> np.ndarray:
-        # normal equations (the columns are near-orthogonal sinusoids; much faster than SVD lstsq)
-        N = B.T @ B
-        return np.linalg.solve(N + 1e-12 * np.trace(N) / len(N) * np.eye(len(N)), B.T @ y)
-
-    def resid(p: np.ndarray) -> np.ndarray:
-        B = basis(p)
-        r: np.ndarray = (y - B @ coeffs(B)).ravel()
-        return r
-
-    p0 = np.r_[freqs, np.full(nm, 0.01)]
-    lb = np.r_[np.array(freqs) - 1.0 / T, np.full(nm, -0.05)]
-    ub = np.r_[np.array(freqs) + 1.0 / T, np.full(nm, 50.0)]
-    p0 = np.clip(p0, lb + 1e-9, ub - 1e-9)
-    try:
-        p = least_squares(resid, p0, bounds=(lb, ub),
-                          x_scale=np.r_[np.full(nm, 1e-3), np.full(nm, 1e-2)]).x
-    except (ValueError, np.linalg.LinAlgError) as e:   # pragma: no cover - fall back to the peaks
-        warnings.append(f"damped-sinusoid fit failed ({e}); spectral peaks only")
-        p = p0
-    C = coeffs(basis(p))
-    modes, dropped = [], []
-    for j in range(nm):
-        amp = np.hypot(C[2 * j], C[2 * j + 1])[:3] * scale[:3]       # gyro rad/s per body axis
-        tot = amp.sum()
-        share = amp / tot if tot > 0 else amp
-        axes = "+".join("xyz"[a] for a in np.argsort(share)[::-1] if share[a] >= 0.25)
-        fd, sig = float(p[j]), float(p[nm + j])
-        wn = np.hypot(2 * np.pi * fd, sig)
-        if sig / wn > max_damping:
-            dropped.append(f"{fd:.2f}")
-            continue
-        modes.append(EstimatedMode(float(wn / (2 * np.pi)), float(sig / wn), share,
-                                   "gyro " + (axes or "-"), float(np.linalg.norm(amp))))
+    p, C = _fit_damped_sinusoids(imu, freqs, forced, warnings)
+    modes, dropped = _fitted_modes(p, C, imu.scale, max_damping)
     if dropped:
         warnings.append("heavily damped transient components ignored (damping ratio > "
                         f"{max_damping}) at " + ", ".join(dropped) + " Hz")
     return ModalEstimate(modes, fex, warnings)
-
 
 def match_modes(geometric: list[Mode], estimated: list[EstimatedMode],
                 tol: float = 0.1) -> list[tuple[Mode, EstimatedMode | None, float | None]]:
