@@ -55,7 +55,7 @@ ROWS = {
     "structural_mode": (4, "wide", [{"name": "structural_mode", "sensor": "imu", "frequency": 8.0,
                                      "damping_ratio": 0.03}], False),
     "viscous_damping": (4, "wide", [{"name": "viscous_damping", "linear": 150.0, "angular": 300.0}], False),
-    "exciter_rotor": (4, "wide", [{"name": "exciter_rotor"}], False),
+    "exciter_rotor": (4, "wide", [{"name": "exciter_rotor", "rotor_mass": 10.0}], False),
     "soft_cables": (4, "wide", [{"name": "cable_elasticity", "stiffness": 5.0e5}], False),
     "air_drag": (4, "wide", [{"name": "air_drag", "linear": 5000.0, "angular": 5000.0}], False),
     "sensor_delay": (4, "wide", [{"name": "sensor_delay", "stream": "load_cells", "delay": 0.02}], False),

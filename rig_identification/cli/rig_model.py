@@ -89,7 +89,7 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
     for k in ORDER:
         i = KEYS.index(k)
         sign = VEHICLE_SIGN[i]
-        value = NOT_DETERMINED if k in res.withheld else f"{sign * p.inertia[i] + 0.0:.2f}"
+        value = NOT_DETERMINED if k in res.withheld else f"{sign * f.inertia[i] + 0.0:.2f}"
         line = (f"{'I' + k[1:]:<7}{value:>14}{f.inertia_std[i]:>#10.3g}{f.crb[i]:>#10.3g}"
                 f"{f.inertia_std[i] / f.crb[i]:>7.2f}")
         if truth:
@@ -105,7 +105,8 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
         print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
     sv = d["survey"]
     if brief:
-        print(f"mass {p.mass:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
+        print(f"mass {d['mass']:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
+        print_rotor(d)
         print_cg(res.cg)
         if res.diagnosis is not None and res.diagnosis.extensions:
             print(f"added to the model: {', '.join(res.diagnosis.extensions)} (rig-identify diagnose says why)")
@@ -117,7 +118,8 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
         print(line)
     if res.diagnosis is not None:
         print_diagnosis(res.diagnosis)
-    print(f"mass {p.mass:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
+    print(f"mass {d['mass']:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
+    print_rotor(d)
     print_cg(res.cg)
     print("cables: stiffness " + ", ".join(f"{k / 1e6:.3f}" for k in p.stiffness) + " MN/m, damping time "
           f"{1e3 * p.damping_time:.3f} ms; load-cell gains " + ", ".join(f"{g:.4f}" for g in p.gain))
@@ -200,6 +202,14 @@ def _mm(x: np.ndarray) -> str:
 
 def _mm_std(x: np.ndarray) -> str:
     return "(" + ", ".join("—" if not np.isfinite(a) else f"{1e3 * a:.2g}" for a in x) + ")"
+
+
+def print_rotor(d: dict) -> None:
+    """Where the diagnosis found the exciter's rotor, that the mass, CG and tensor are the body's
+    without it (``d``: the result's JSON)."""
+    if d["exciter_rotor_removed_kg"]:
+        print(f"the body without the exciter's rotor: its {d['exciter_rotor_removed_kg']:.2f} kg, on the spin axis at "
+              "the exciter's position, taken out of the suspended body's mass, CG and tensor")
 
 
 def print_cg(cg: CentreOfGravity) -> None:

@@ -324,17 +324,20 @@ def plausible(name: str, fit: ExtensionFit) -> bool:
 
 def prior_conflicts(fit: RigFit, prior: Prior, cables: list[str]) -> tuple[PriorConflict, ...]:
     """The unknowns with a prior whose estimate lies more than :data:`CONFLICT_SIGMA` of the
-    prior's σ off its centre, the largest first (the exciter force's correction and the state
+    prior's σ off its centre (the mass and the CG the body's, :attr:`~.rig_fit.RigFit.body`), the
+    largest first (the exciter force's correction and the state
     left out: their priors only hold the fit's span); none where a channel is beyond
     :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` of its noise (the model does not
     fit: what it pulls off its priors may be the misfit's, not a data error)."""
     if fit.unknowns is None or np.max(fit.residual_level) > LEVEL_LIMIT:
         return ()
     lay = fit.layout
-    x = fit.unknowns
+    x = fit.unknowns.copy()
     centre, std = priors(prior, lay, x)
     names = labels(lay, cables)
     post = np.sqrt(np.diag(fit.covariance))
+    # the mass's and the CG's priors are the body's (the suspended body less an exciter rotor's mass)
+    x[:10], post[:10] = np.r_[fit.body.inertia, fit.body.cg, fit.body.mass], fit.body.std
     out = []
     for i in range(lay.geometry.stop):
         if not np.isfinite(std[i]):

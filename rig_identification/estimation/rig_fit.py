@@ -50,6 +50,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -59,7 +60,7 @@ from ..io.rig import Rig
 from ..io.verdict import KEYS
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
-from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
+from ..model.parametrisation import entry_scales, physically_consistent, to_tensor, without_point_mass
 from .precision import Z95
 from .reused_jacobian import ReusedJacobian
 from .rig_problem import (
@@ -135,6 +136,25 @@ REUSED_EVALUATIONS = 3
 
 
 @dataclass(frozen=True)
+class Body:
+    """The body's mass properties as a fit gives them: ``mass`` kg, ``cg`` (3,) m and ``inertia``
+    (6,) kg·m² about it (body frame, KEYS order), ``covariance`` (10, 10) of (inertia, cg, mass)
+    in that order; ``rotor`` kg the exciter rotor's mass taken out (0: none)."""
+
+    mass: float
+    cg: np.ndarray
+    inertia: np.ndarray
+    covariance: np.ndarray
+    rotor: float = 0.0
+
+    @property
+    def std(self) -> np.ndarray:
+        """(10,) σ of (inertia, cg, mass)."""
+        out: np.ndarray = np.sqrt(np.diag(self.covariance))
+        return out
+
+
+@dataclass(frozen=True)
 class RigFit:
     """The rig model fitted to a whole recording.
 
@@ -150,10 +170,11 @@ class RigFit:
     residual_level: (n_out,) each channel's residual RMS over its noise's.  noise_scale: (n_out,)
     the factor the fit put on each channel's noise (≥ 1).  channels: names.
     natural_frequencies: (6,) Hz, linearised about the rest pose.  nfev: model runs.
-    other_minima: (k, 6) kg·m² the tensors where the other whole-record fits settled (the staged
-    fit, its two restarts :data:`RESTART_SHIFT` away and those from ``restarts``, :func:`fit_rig`:
-    the lowest is the estimate; none where a channel is beyond :data:`REWEIGHT_LIMIT` of its noise:
-    the motion not found), other_chi2: (k,) their χ² less the estimate's (≥ 0).  series:
+    other_minima: (k, 6) kg·m² the suspended body's tensors (:attr:`parameters`) where the other
+    whole-record fits settled (the staged fit, its two restarts :data:`RESTART_SHIFT` away and
+    those from ``restarts``, :func:`fit_rig`: the lowest is the estimate; none where a channel is
+    beyond :data:`REWEIGHT_LIMIT` of its noise: the motion not found), other_chi2: (k,) their χ²
+    less the estimate's (≥ 0).  series:
     every channel at the estimate (:class:`ChannelSeries`).  descent: (6,) kg·m² where the staged
     fit's own descent ended (the estimate unless a restart settled lower).  unknowns: (size,) every
     unknown at the estimate (``layout``), bases: (segments, 13) the segments' states before their
@@ -193,10 +214,10 @@ class RigFit:
         estimate: the descent was trapped, and a lower minimum may lie where no start went):
         the likelihood is flat or multimodal where the Fisher information says it is sharp, and
         σ is not the estimate's uncertainty."""
-        d = np.abs(self.other_minima - self.inertia) / self.inertia_std
+        d = np.abs(self.other_minima - self.parameters.inertia) / self.inertia_std      # the suspended body's
         close = np.asarray(self.other_chi2) < CHI2_95_6
         trapped = np.zeros(6, bool) if self.descent is None else \
-            np.abs(self.descent - self.inertia) > 3.0 * self.inertia_std
+            np.abs(self.descent - self.parameters.inertia) > 3.0 * self.inertia_std
         return [i for i in range(6) if np.any(close & (d[:, i] > 3.0)) or trapped[i]]
 
     @property
@@ -211,18 +232,43 @@ class RigFit:
         """Every entry determined (:attr:`undetermined` empty) and none :attr:`ambiguous`."""
         return not self.undetermined and not self.ambiguous
 
+    @cached_property
+    def body(self) -> Body:
+        """The body's mass, CG and tensor with their covariance.  The model's are the suspended
+        body's; where it holds the exciter rotor's mass m_r (``exciter_rotor``), the body is that
+        less the rotor, a point mass on its axis at the exciter's position
+        (:func:`~rig_identification.model.parametrisation.without_point_mass`; the ring it turns
+        on, m_r e² ≈ 1 kg·m² on the shared recording's 11 kg rotor, stays in the tensor), the
+        covariance carried through the map's Jacobian (central differences)."""
+        lay, p = self.layout, self.parameters
+        m_r = float(p.rotor[1]) if "exciter_rotor" in lay.extensions else 0.0
+        cov = self.covariance[:10, :10]
+        if m_r == 0.0:
+            return Body(float(p.mass), p.cg, p.inertia, cov)
+        where = np.r_[np.arange(10), lay.extension_of("exciter_rotor").start + 1]
+
+        def body_of(v: np.ndarray) -> np.ndarray:
+            mass, cg, theta = without_point_mass(v[9], v[6:9], v[:6], v[10], p.exciter_position)
+            return np.concatenate([theta, cg, [mass]])
+
+        v = np.concatenate([p.inertia, p.cg, [p.mass, m_r]])
+        h = 1e-6 * np.maximum(np.abs(v), 1.0)
+        D = np.column_stack([(body_of(v + e) - body_of(v - e)) / (2 * e[i]) for i, e in enumerate(np.diag(h))])
+        b = body_of(v)
+        return Body(float(b[9]), b[6:9], b[:6], D @ self.covariance[np.ix_(where, where)] @ D.T, m_r)
+
     @property
     def inertia(self) -> np.ndarray:
-        """(6,) tensor entries about the CG, body axes, kg·m² (KEYS order)."""
-        return self.parameters.inertia
+        """(6,) the body's tensor entries about its CG, body axes, kg·m² (KEYS order; :attr:`body`)."""
+        return self.body.inertia
 
     @property
     def inertia_std(self) -> np.ndarray:
-        return np.sqrt(np.diag(self.covariance)[self.layout.inertia])
+        return self.body.std[:6]
 
     @property
     def cg_std(self) -> np.ndarray:
-        return np.sqrt(np.diag(self.covariance)[self.layout.cg])
+        return self.body.std[6:9]
 
     def extension(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """The fitted values and σ of extension ``name`` (units of :data:`~.rig_unknowns.EXTENSIONS`;
@@ -559,8 +605,8 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     fisher, sandwich, bound = _covariance(last, J, noise_scale)
     # σ: the larger of the two per unknown, the correlations the Fisher information's
     sd = np.sqrt(np.maximum(np.diag(fisher), np.diag(sandwich)))
-    seen = np.isfinite(sd)
     fd = np.sqrt(np.diag(fisher))
+    seen = np.isfinite(sd) & (fd > 0)       # a column of zeros (pinv's null space): no correlation to scale
     cov = np.diag(sd ** 2)                  # an unknown the residual does not see: σ inf, uncorrelated
     cov[np.ix_(seen, seen)] = (fisher / np.outer(fd, fd) * np.outer(sd, sd))[np.ix_(seen, seen)]
     unit = RigProblem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases)

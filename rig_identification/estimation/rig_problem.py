@@ -18,7 +18,16 @@ from scipy.spatial.transform import Rotation
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import physically_consistent, to_tensor
-from ..model.rig_ode import Drive, drive, moved_state, rest_state, simulate, substeps_for, with_sensor_traits
+from ..model.rig_ode import (
+    Drive,
+    drive,
+    exciter_readings,
+    moved_state,
+    rest_state,
+    simulate,
+    substeps_for,
+    with_sensor_traits,
+)
 from .rig_record import ChannelSeries, Record
 from .rig_unknowns import Layout, Prior, parameters_of, priors, relayout, unit_scale
 
@@ -196,14 +205,16 @@ class RigProblem:
         return d
 
     def segment_outputs(self, x: np.ndarray, k: int, u: np.ndarray | None = None) -> np.ndarray:
-        """(samples, n_out) the model's readings over segment ``k`` (the force's last where it is
-        an output); ``u``: the span's force at x (:meth:`force`) where already known."""
+        """(samples, n_out) the model's readings over segment ``k`` (the exciter's last where its
+        force is an output: :func:`~rig_identification.model.rig_ode.exciter_readings`); ``u``: the
+        span's force at x (:meth:`force`) where already known."""
         p = parameters_of(x, self.like, self.lay)
         u = self.force(x) if u is None else u
         a, b = self.edges[k], self.edges[k + 1]
         y0 = moved_state(self._rebased(p, self.bases[k]), x[self.lay.state(k)])
-        out = with_sensor_traits(simulate(p, y0, self.drive(x, u, a, b))[0], p, a * self.rec.dt, self.rec.dt)
-        return np.column_stack([out, u[a:b]]) if self.lay.n_force else out
+        raw = simulate(p, y0, self.drive(x, u, a, b))[0]
+        out = with_sensor_traits(raw, p, a * self.rec.dt, self.rec.dt)
+        return np.column_stack([out, exciter_readings(raw, u[a:b], p, self.rec.dt)]) if self.lay.n_force else out
 
     def _rebased(self, p: RigParameters, base: np.ndarray) -> np.ndarray:
         """``base`` (13,) moved with the rest pose: its offset from the rest state at x0 put on the
@@ -277,8 +288,16 @@ class RigProblem:
         return np.concatenate([r, self.prior_rows(z)])
 
     def prior_rows(self, z: np.ndarray) -> np.ndarray:
-        """The priors' rows of :meth:`residual`: each unknown with a prior off its centre in its σ."""
+        """The priors' rows of :meth:`residual`: each unknown with a prior off its centre in its σ.
+        The mass's and the CG's priors (the scale's, the static test's) are the body's: where the
+        layout holds the exciter rotor's mass, the suspended body's less the rotor on its axis."""
         x = self.x(z)
+        if "exciter_rotor" in self.lay.extensions:
+            m_r = float(x[self.lay.extension_of("exciter_rotor")][1])
+            m, lay = float(x[self.lay.mass]), self.lay
+            if m_r != 0.0 and m_r < m:
+                x[lay.cg] = (m * x[lay.cg] - m_r * self.like.exciter_position) / (m - m_r)
+                x[lay.mass] = m - m_r
         std = self.prior_std[:len(z)]
         finite = np.isfinite(std)
         rows: np.ndarray = (x[:len(z)][finite] - self.centre[:len(z)][finite]) / std[finite]

@@ -49,7 +49,10 @@ STIFFNESS_LOG_STD_DEFAULT = 1.0
 #: linear and angular), ``coulomb_friction`` (force and moment), ``load_cell_delay`` and
 #: ``exciter_delay`` (s, the stream's readings behind the IMU's),
 #: ``imu_offset`` (the IMU's position, body m), ``gyro_scale`` (3, share) and ``gyro_bias_drift``
-#: (3, rad/s²) and ``exciter_rotor`` (the unbalance, kg·m, whose weight turns with the force).
+#: (3, rad/s²) and ``exciter_rotor`` (2: the unbalance, kg·m, whose weight turns with the force; the
+#: rotor's mass, kg, whose inertial force the exciter's load cells read: the fitted mass, CG and
+#: tensor are then the suspended body's, the rotor on its axis included,
+#: :meth:`~.rig_fit.RigFit.body` the body's without it).
 EXTENSIONS: dict[str, tuple[int, str]] = {
     "air_drag": (2, "N s^2/m^2, N m s^2/rad^2"),
     "coulomb_friction": (2, "N, N m"),
@@ -58,7 +61,7 @@ EXTENSIONS: dict[str, tuple[int, str]] = {
     "imu_offset": (3, "m (the IMU's position, body frame)"),
     "gyro_scale": (3, "share (reading / rate - 1), IMU axes"),
     "gyro_bias_drift": (3, "rad/s^2, IMU axes"),
-    "exciter_rotor": (1, "kg m (the unbalance: mass times eccentricity)"),
+    "exciter_rotor": (2, "kg m (the unbalance: mass times eccentricity), kg (the rotor's mass)"),
 }
 
 
@@ -270,7 +273,7 @@ def in_layout(x: np.ndarray, old: Layout, new: Layout, p: RigParameters) -> np.n
 EXTENSION_FIELDS = {"air_drag": "air_drag", "coulomb_friction": "friction", "load_cell_delay": "load_cell_delay",
                     "exciter_delay": "exciter_delay",
                     "imu_offset": "imu_position", "gyro_scale": "gyro_scale", "gyro_bias_drift": "gyro_drift",
-                    "exciter_rotor": "rotor_unbalance"}
+                    "exciter_rotor": "rotor"}
 
 
 def extension_fields(values: dict[str, ArrayLike]) -> dict[str, object]:
@@ -335,7 +338,7 @@ def unit_scale(x0: np.ndarray, lay: Layout, prior: Prior) -> np.ndarray:
     # 0.02 m/s and rad/s (a swing's typical speed)
     units = {"air_drag": (5e-2 * prior.mass, 5e-2 * big), "coulomb_friction": (2e-5 * prior.mass, 2e-5 * big),
              "load_cell_delay": (1e-3,), "exciter_delay": (1e-3,), "imu_offset": (1e-3,) * 3, "gyro_scale": (1e-3,) * 3,
-             "gyro_bias_drift": (1e-5,) * 3, "exciter_rotor": (1e-2,)}
+             "gyro_bias_drift": (1e-5,) * 3, "exciter_rotor": (1e-2, 1e-2)}
     for e in lay.extensions:
         s[lay.extension_of(e)] = units[e]
     return s

@@ -26,8 +26,12 @@ body_mass              ``mass_error`` kg: the body weighs this much more than ri
                        body.mass states (a weighing error; centre of gravity unchanged)
 exciter_rotor          ``unbalance`` kg·m (unbalanced mass × eccentricity; default: the
                        rotating force's amplitude / (2π f)², i.e. the mass that makes it),
-                       ``rotor_inertia`` kg·m² (polar, about the spin axis; default 0): the
-                       rotor's weight, turning with it, and its spin angular momentum
+                       ``rotor_inertia`` kg·m² (polar, about the spin axis; default 0),
+                       ``rotor_mass`` kg (default 0): the rotor's weight, turning with it,
+                       its spin angular momentum, and its mass, carried on the exciter's
+                       bearing at exciter.position (the cables carry it; rig.yaml's body
+                       and truth.yaml's are the body without it; the exciter's load cells
+                       read the bearing's force, the rotor's inertial force −m_r a among it)
 cg_offset              ``offset`` (3,) m, body axes: the body's centre of gravity is at
                        rig.yaml's body.center_of_gravity + offset (rig.yaml's CG is off: a
                        static test's error)
@@ -94,7 +98,7 @@ PARAMETERS: dict[str, dict[str, tuple[int | tuple[int, int], bool]]] = {
     "cable_elasticity": {"stiffness": (0, True), "declared_stiffness": (0, False)},
     "cable_mass": {"mass": (0, True)},
     "body_mass": {"mass_error": (0, True)},
-    "exciter_rotor": {"unbalance": (0, False), "rotor_inertia": (0, False)},
+    "exciter_rotor": {"unbalance": (0, False), "rotor_inertia": (0, False), "rotor_mass": (0, False)},
     "cg_offset": {"offset": (3, True)},
     "imu_offset": {"offset": (3, True)},
     "imu_misalignment": {"rpy": (3, True)},

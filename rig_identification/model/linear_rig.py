@@ -59,9 +59,12 @@ class RigParameters:
     N·m·s²/rad² (moment −c |ω| ω).  friction: (2,) Coulomb friction, regularised
     (:data:`~rig_identification.model.rig_ode.FRICTION_SPEED`): force N (−f v/|v|), moment N·m
     (−τ ω/|ω|).  These two leave the linearised equations (zero slope at rest, or none) and
-    act in the exact model (:mod:`~rig_identification.model.rig_ode`).  rotor_unbalance: kg·m,
-    the exciter's unbalanced mass times its eccentricity: its weight's moment about the CG turns
-    with the force's direction (exact model only).
+    act in the exact model (:mod:`~rig_identification.model.rig_ode`).  rotor: (2,) the exciter's
+    rotor (exact model only): its unbalance, kg·m (the unbalanced mass times its eccentricity:
+    its weight's moment about the CG turns with the force's direction), and its mass, kg (carried
+    on the exciter's bearing: the exciter's load cells read the bearing's force, the rotor's own
+    inertial force −m a among it, :func:`~rig_identification.model.rig_ode.exciter_readings`).
+    mass, cg and inertia are then the suspended body's, the rotor's mass on its axis included.
     load_cell_delay: s, the load cells' readings lag the IMU's by this; exciter_delay: s, the
     exciter force's readings lag the IMU's by this (the force that moves the body at t is the
     one read at t + delay).  gyro_scale: (3,) each
@@ -94,7 +97,7 @@ class RigParameters:
     load_cell_delay: float = 0.0
     gyro_scale: np.ndarray = field(default_factory=lambda: np.zeros(3))
     gyro_drift: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    rotor_unbalance: float = 0.0
+    rotor: np.ndarray = field(default_factory=lambda: np.zeros(2))
     exciter_delay: float = 0.0
 
     @property

@@ -86,3 +86,24 @@ def params_from_consistent(J: np.ndarray) -> np.ndarray:
     ev = np.maximum(ev, 1e-6 * max(ev.max(), 1e-12))
     L = np.linalg.cholesky(V @ np.diag(ev) @ V.T)
     return np.array([np.log(L[0, 0]), L[1, 0], np.log(L[1, 1]), L[2, 0], L[2, 1], np.log(L[2, 2])])
+
+
+def without_point_mass(mass: float, cg: ArrayLike, theta: ArrayLike, part: float, position: ArrayLike
+                       ) -> tuple[float, np.ndarray, np.ndarray]:
+    """A body (``mass`` kg, ``cg`` (3,) m, tensor entries ``theta`` (6,) kg·m² about it, one frame)
+    less a point mass ``part`` kg at ``position`` (3,) m: the mass m − m_p, the CG
+    c' = (m c − m_p p)/(m − m_p) and the entries (6,) about c', J − m_p S(p − c) − (m − m_p) S(c' − c)
+    with S(d) = |d|² I − d dᵀ (Steiner's parallel-axis theorem, applied to each part about the
+    whole's CG).  Raises ValueError where m_p is not below m."""
+    if not part < mass:
+        raise ValueError(f"a point mass of {part} kg cannot be taken from a body of {mass} kg")
+    c, p = np.asarray(cg, float), np.asarray(position, float)
+    rest = mass - part
+    c_rest = (mass * c - part * p) / rest
+
+    def steiner(m: float, d: np.ndarray) -> np.ndarray:
+        term: np.ndarray = m * (d @ d * np.eye(3) - np.outer(d, d))
+        return term
+
+    J = to_tensor(theta) - steiner(part, p - c) - steiner(rest, c_rest - c)
+    return rest, c_rest, from_tensor(J)

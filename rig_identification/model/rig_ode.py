@@ -16,7 +16,8 @@ perturbation.
 Outputs on the grid, in this order:
 the N tensions times the load cells' gains, the gyro (IMU axes), the accelerometer's specific
 force (IMU axes, the lever arm's tangential and centripetal terms included), the
-inclinometer's two elevations asin(z_world · axis).
+inclinometer's two elevations asin(z_world · axis); the exciter's load cells' readings apart
+(:func:`exciter_readings`).
 """
 from __future__ import annotations
 
@@ -256,7 +257,7 @@ def _arguments(p: RigParameters, y0: ArrayLike, d: Drive) -> tuple[Any, ...]:
             p.stiffness.astype(float), (p.damping_time * p.stiffness).astype(float), p.gain.astype(float),
             float(p.mass), J, np.linalg.inv(J), float(p.gravity), np.ascontiguousarray(p.exciter_rotation[:, :2]),
             p.exciter_position - p.cg,
-            np.concatenate([p.body_damping, p.air_drag, p.friction, [p.rotor_unbalance]]).astype(float),
+            np.concatenate([p.body_damping, p.air_drag, p.friction, p.rotor[:1]]).astype(float),
             np.ascontiguousarray(p.imu_rotation), p.imu_position - p.cg,
             np.ascontiguousarray(Rinc), has_inc)
 
@@ -277,6 +278,29 @@ def with_sensor_traits(out: np.ndarray, p: RigParameters, t0: float, dt: float) 
         out[:, :n_c] = CubicSpline(t, out[:, :n_c], axis=0, extrapolate=True)(t - p.load_cell_delay)
     out[:, n_c:n_c + 3] = out[:, n_c:n_c + 3] * (1.0 + p.gyro_scale) + np.outer(t0 + t, p.gyro_drift)
     return out
+
+
+def exciter_readings(out: np.ndarray, force: np.ndarray, p: RigParameters, dt: float) -> np.ndarray:
+    """(n, 2) N what the exciter's two load cells read (exciter frame) while the model runs under
+    ``force`` (n, 2) N, its readings ``out`` (n, n_out) of :func:`simulate` (before
+    :func:`with_sensor_traits`) on samples ``dt`` s apart: the force on the body, less the
+    rotor's own inertial force where ``p`` gives the rotor a mass.  The load cells hold the
+    rotor's bearing, so they read F − m_r f_e (Newton's second law on the rotor: the bearing
+    carries its weight and accelerates it with the body), f_e the specific force at the exciter
+    (body axes: the accelerometer's, moved by ω̇ × d + ω × (ω × d), d the IMU-to-exciter arm, ω̇
+    the gyro's central differences), the x and y of the exciter frame.  ``force`` itself
+    without a rotor mass."""
+    m_r = float(p.rotor[1])
+    if m_r == 0.0:
+        return force
+    n_c = p.cables
+    w = out[:, n_c:n_c + 3] @ p.imu_rotation.T                     # body axes
+    f_imu = out[:, n_c + 3:n_c + 6] @ p.imu_rotation.T
+    dw = np.gradient(w, dt, axis=0, edge_order=2)
+    d = p.exciter_position - p.imu_position
+    f_e = f_imu + np.cross(dw, d) + np.cross(w, np.cross(w, d))
+    readings: np.ndarray = force - m_r * (f_e @ p.exciter_rotation)[:, :2]
+    return readings
 
 
 def simulate(p: RigParameters, y0: np.ndarray, force: Drive) -> tuple[np.ndarray, np.ndarray]:

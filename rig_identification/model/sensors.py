@@ -5,7 +5,8 @@ Each sensor at its own rate, samples t_k = k / rate for k = 0 .. floor(duration 
 header stamp = stamp_origin + t_k, white Gaussian noise σ plus constant bias:
 gyro = R_imuᵀ ω; accelerometer = specific force R_imuᵀ Rᵀ (a_imu - g_world) at the IMU
 point (reads +g along the up axis at rest); load cells = T_i; exciter = x, y of the
-exciter force (rotating + measured pulses) in the exciter frame; inclinometer =
+exciter force (rotating + measured pulses) in the exciter frame, less the rotor's inertial
+force m_r f_e where ``exciter_rotor`` gives it a mass (f_e the specific force at the exciter); inclinometer =
 (asin(z_world · x_incl), asin(z_world · y_incl)), incl axes = R R_incl.  Order on the
 gyro: true rate (+ structural mode) × gyro_scale, + noise, + biases, + gyro_bias_drift
 (drawn after every other stream's noise, so adding it changes no other reading).  The
@@ -117,7 +118,15 @@ def sample_sensors(exp: Experiment, model: RigDynamics, traj: Callable[[np.ndarr
     exc = None
     if rig.exciter is not None:
         t, Y, ev = at(spec.rates["exciter"])
-        exc = TimeSeries(exp.stamp_origin + t + delay.get("exciter", 0.0), noisy(ev.exciter, "exciter"))
+        force = ev.exciter
+        if "exciter_rotor" in eff and eff["exciter_rotor"].get("rotor_mass") > 0:
+            # the load cells hold the rotor's bearing: they read the force less the rotor's m_r f_e
+            r_e = rig.exciter.position - model.cg
+            a_e = ev.a + np.einsum("kij,kj->ki", ev.R, np.cross(ev.alpha, r_e) + np.cross(Y[:, 15:18],
+                                                                                          np.cross(Y[:, 15:18], r_e)))
+            f_e = np.einsum("kji,kj->ki", ev.R, a_e - g_world) @ rig.exciter.rotation.as_matrix()
+            force = force - eff["exciter_rotor"].get("rotor_mass") * f_e[:, :2]
+        exc = TimeSeries(exp.stamp_origin + t + delay.get("exciter", 0.0), noisy(force, "exciter"))
     # inclinometer
     inc = None
     if rig.inclinometer is not None:

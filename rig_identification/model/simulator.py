@@ -221,6 +221,10 @@ def simulate(exp: Experiment) -> SimResult:
     if cable_mass is not None:  # half of each cable hangs on its body anchor, outside the load cell
         for b in exp.rig.body_anchors:
             mass, cg, J = _with_dummy(mass, cg, J, DummyMass(0.5 * cable_mass.get("mass"), np.asarray(b, float)))
+    rotor = exp.effect("exciter_rotor")
+    if rotor is not None and rotor.get("rotor_mass") > 0:     # the rotor rides on the body, on its axis
+        assert exp.rig.exciter is not None      # the experiment refuses exciter_rotor without excitation
+        mass, cg, J = _with_dummy(mass, cg, J, DummyMass(rotor.get("rotor_mass"), exp.rig.exciter.position))
     model = RigDynamics(exp.rig, mass, cg, J, cables, excitation, exp.effects)
     compliant = exp.effect("compliant_body")
     rtol, atol = RTOL, ATOL

@@ -361,7 +361,7 @@ class IdentifierNode(Node):
         if res.verdict == "ok":
             J = to_tensor(f.inertia)
             self.last_inertia = J
-            self._publish_mass_properties(None, float(f.parameters.mass), f.parameters.cg, J)
+            self._publish_mass_properties(None, f.body.mass, f.body.cg, J)
         named = ", ".join(res.diagnosis.named) if res.diagnosis is not None and res.diagnosis.named else "nothing"
         self.get_logger().info(f"rig model: verdict {res.verdict}; Ixx {f.inertia[0]:.1f} Iyy {f.inertia[3]:.1f} "
                                f"Izz {f.inertia[5]:.1f} kg m^2 over {res.duration_s:.1f} s; named {named}")

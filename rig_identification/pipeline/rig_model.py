@@ -261,7 +261,7 @@ class RigModelResult:
         (:func:`~rig_identification.io.export.express`, the one way to other axes), the
         :attr:`withheld` entries left out.  The σ hold the CG's and the mass's (fitted with it)."""
         f = self.fit
-        return express(float(f.parameters.mass), f.parameters.cg, to_tensor(f.inertia), f.inertia_std,
+        return express(f.body.mass, f.body.cg, to_tensor(f.inertia), f.inertia_std,
                        self.withheld, axes)
 
     @property
@@ -273,7 +273,7 @@ class RigModelResult:
     def cg(self) -> CentreOfGravity:
         """The CG from the static test (the prior), the run alone and both (:func:`split_cg`)."""
         f = self.fit
-        return split_cg(f.parameters.cg, f.covariance[f.layout.cg, f.layout.cg], self.cg_prior, self.cg_prior_std,
+        return split_cg(f.body.cg, f.body.covariance[6:9, 6:9], self.cg_prior, self.cg_prior_std,
                         self.cg_source)
 
     def to_dict(self) -> dict:
@@ -283,10 +283,10 @@ class RigModelResult:
         sd = f.inertia_std
         bd_cov = f.covariance[f.layout.body_damping][:, f.layout.body_damping]
         d = {
-            "schema": "rig_identification.rig_model_result", "schema_version": 6,
+            "schema": "rig_identification.rig_model_result", "schema_version": 7,
             "recording": self.path, "model": "rig (grey-box, every sensor an output)",
             "verdict": self.verdict, "undetermined": self.undetermined, "ambiguous": self.ambiguous,
-            "other_minima": [{"inertia_about_cg": {k: float(v) for k, v in zip(KEYS, m)},
+            "other_minima": [{"inertia_about_cg": {k: float(v) for k, v in zip(KEYS, m + f.inertia - p.inertia)},
                               "chi2_over_estimate": float(c)} for m, c in zip(f.other_minima, f.other_chi2)],
             "other_minima_note": "the whole-record fit restarted with every entry 1 % away, once each way, 10 σ "
                                  "either way along the tensor's weakest direction, and from the gyro-only fit's "
@@ -294,7 +294,7 @@ class RigModelResult:
                                  "than 3 σ off at a χ² within 12.6 of the estimate's, or the fit's own descent ending "
                                  "more than 3 σ from it, makes those entries ambiguous",
             "window": {"start_s": self.start_s, "duration_s": self.duration_s, "band_hz": [0.0, self.band_hz]},
-            "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, p.inertia)},
+            "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, f.inertia)},
             "inertia_std": {k: float(v) for k, v in zip(KEYS, sd)},
             "inertia_crb": {k: float(v) for k, v in zip(KEYS, f.crb)},
             "sigma_over_crb": {k: float(a / b) for k, a, b in zip(KEYS, sd, f.crb)},
@@ -302,10 +302,10 @@ class RigModelResult:
             "inertia_start": {"entries": {k: float(v) for k, v in zip(KEYS, self.inertia_start)},
                               "std": {k: float(v) if np.isfinite(v) else None for k, v in zip(KEYS, self.start_std)},
                               "source": self.start_source},
-            "mass": float(p.mass), "mass_std": float(np.sqrt(f.covariance[f.layout.mass, f.layout.mass])),
+            "mass": f.body.mass, "mass_std": float(f.body.std[9]), "exciter_rotor_removed_kg": f.body.rotor,
             "center_of_gravity": self.cg.to_dict(),
             "survey": {"anchors_m": self.survey.anchors, "lengths_m": self.survey.lengths,
-                       "mass_kg": self.survey.mass_std(float(self.fit.parameters.mass)),
+                       "mass_kg": self.survey.mass_std(f.body.mass),
                        "load_cell_gain": self.survey.load_cell_gain,
                        "source": "rig.yaml survey (defaults where it says nothing)"},
             "cables": {"stiffness": p.stiffness.tolist(), "damping_time": float(p.damping_time),
@@ -326,7 +326,7 @@ class RigModelResult:
         }
         if self.truth and "inertia_about_cg" in self.truth:
             t = np.array([float(self.truth["inertia_about_cg"][k]) for k in KEYS])
-            err = p.inertia - t
+            err = f.inertia - t
             d["truth_comparison"] = {k: {"truth": float(a), "error_percent": float(100 * e / s),
                                          "error_sigma": float(e / sg)}
                                      for k, a, e, s, sg in zip(KEYS, t, err, entry_scales(t), sd)}

@@ -83,8 +83,12 @@ def cg_html(res: RigModelResult, d: dict) -> str:
     agree = cg.difference_sigma
     words = "not compared (one of them is not determined)" if not np.any(np.isfinite(agree)) else (
         ("agree" if cg.agree else "DISAGREE") + " (" + ", ".join(num(x, "+.1f") for x in agree) + " σ)")
-    return (f"<p>Mass <b>{num(f.parameters.mass, '.2f')} ± {num(d['mass_std'], '.2g')} kg</b> (the scale's value, "
-            f"a prior of σ {num(d['survey']['mass_kg'], '.3g')} kg).</p>"
+    return (f"<p>Mass <b>{num(f.body.mass, '.2f')} ± {num(d['mass_std'], '.2g')} kg</b> (the scale's value, "
+            f"a prior of σ {num(d['survey']['mass_kg'], '.3g')} kg)"
+            + (f"; the body without the exciter's rotor, its {num(d['exciter_rotor_removed_kg'], '.2f')} kg on the "
+               "spin axis taken out of the suspended body's mass, CG and tensor"
+               if d["exciter_rotor_removed_kg"] else "")
+            + ".</p>"
             + table(["centre of gravity", "x, y, z mm (body axes)", "σ mm", "from"], rows, ident="cg-table")
             + f"<p>Static and dynamic test: {esc(words)}.</p>")
 
@@ -173,8 +177,7 @@ def write_rig_report(out_dir, res: RigModelResult, rec: Recording, axes: str | A
     f = res.fit
     vehicle = rec.rig.vehicle
     shown = axes if isinstance(axes, Axes) else axes_for(axes, vehicle)
-    cov = f.covariance[f.layout.inertia][:, f.layout.inertia]
-    mp = mass_properties_of(float(f.parameters.mass), f.parameters.cg, to_tensor(f.inertia), f.inertia_std, cov,
+    mp = mass_properties_of(f.body.mass, f.body.cg, to_tensor(f.inertia), f.inertia_std, f.body.covariance[:6, :6],
                             f.crb, res.withheld, vehicle)
     result = res.to_dict()
     errors = truth_errors(res, result)
