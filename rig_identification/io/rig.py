@@ -19,7 +19,7 @@ import difflib
 import itertools
 import math
 import re
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Collection, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -451,6 +451,98 @@ def check_scale(rig: Rig) -> None:
                            f"{100 * LARGEST_STRETCH:g} % of its length (EA/L is in N/m -- N/mm?)")
 
 
+def _rig_name(v: Any, src: str) -> str | None:
+    """rig.yaml ``name``: a non-empty one-line text, stripped (a number is taken as its text);
+    None when absent."""
+    if v is None:
+        return None
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        v = str(v)    # name: 7 is a name
+    if not isinstance(v, str) or not v.strip() or "\n" in v.strip():
+        raise RigError(f"{src}: field name must be a one-line text (the rig's name), got {v!r}")
+    return v.strip()
+
+
+def _output_axes(v: Any, src: str) -> str | None:
+    """rig.yaml ``output_axes``: a key of :data:`~rig_identification.io.export.AXES` (a wrong
+    one refused with the closest key); None when absent."""
+    if v is not None and (not isinstance(v, str) or v not in AXES):
+        close = difflib.get_close_matches(str(v).lower(), sorted(AXES), n=1, cutoff=0.5)
+        raise RigError(f"{src}: field output_axes must be one of {', '.join(AXES)} (the axes rig-identify "
+                       f"prints and exports in by default), got {v!r}"
+                       + (f" (did you mean {close[0]}?)" if close else ""))
+    return v
+
+
+def _gravity(v: Any, src: str) -> float:
+    """rig.yaml ``gravity``, m/s²: a number between 9 and 10.5 (an Earth gravity)."""
+    gravity = _number(v, "gravity", src, positive=True)
+    if not 9.0 < gravity < 10.5:
+        raise RigError(f"{src}: field gravity = {gravity} m/s^2 is not an Earth gravity (units?)")
+    return gravity
+
+
+def _cable(c: Any, where: str, taken: Collection[str], src: str) -> Cable:
+    """rig.yaml ``cables[i]`` (at ``where``): a name matching :data:`CABLE_NAME` and not among
+    ``taken`` (the names of the cables before it), the two anchors (3,) m, the length m > 0
+    and the optional stiffness N/m > 0."""
+    name = _get(c, "name", where, src)
+    _check_fields(c, "cable", where, src)
+    if not isinstance(name, str) or not CABLE_NAME.match(name):
+        raise RigError(f"{src}: field {where}.name must match [a-z0-9_]+, got {name!r}")
+    if name in taken:
+        raise RigError(f"{src}: field {where}.name: duplicate cable name {name!r}")
+    ca = _vector(_get(c, "ceiling_anchor", where, src), f"{where}.ceiling_anchor", src)
+    ba = _vector(_get(c, "body_anchor", where, src), f"{where}.body_anchor", src)
+    length = _number(_get(c, "length", where, src), f"{where}.length", src, positive=True)
+    k_raw = _get(c, "stiffness", where, src, required=False)
+    k = None if k_raw is None else _number(k_raw, f"{where}.stiffness", src, positive=True)
+    return Cable(name, ca, ba, length, k)
+
+
+def _cables(raw: Any, src: str) -> list[Cable]:
+    """rig.yaml ``cables``: a list of at least 3 cables (:func:`_cable`), their body anchors not
+    collinear, their geometry one pose can hold taut (:func:`check_reach`)."""
+    if not isinstance(raw, list):
+        raise RigError(f"{src}: field cables must be a list")
+    if len(raw) < 3:
+        raise RigError(f"{src}: field cables lists {len(raw)} cable(s); at least 3 are needed")
+    cables: list[Cable] = []
+    for i, c in enumerate(raw):
+        cables.append(_cable(c, f"cables[{i}]", [x.name for x in cables], src))
+    anchors = np.array([c.body_anchor for c in cables])
+    if np.linalg.matrix_rank(anchors - anchors.mean(0), tol=1e-6) < 2:
+        raise RigError(f"{src}: field cables: the body anchors are collinear; the body could spin freely")
+    check_reach(cables, src)
+    return cables
+
+
+def _body(body: Any, output_axes: str | None, src: str) -> tuple[float, np.ndarray | None, Vehicle | None]:
+    """rig.yaml ``body``: (mass kg > 0, center_of_gravity (3,) m body frame or None, vehicle
+    (:func:`_vehicle`) or None); vehicle axes as ``output_axes`` need the vehicle."""
+    if isinstance(body, dict):
+        _check_fields(body, "body", "body", src)
+    mass = _number(_get(body, "mass", "body", src), "body.mass", src, positive=True)
+    cg_raw = _get(body, "center_of_gravity", "body", src, required=False)
+    cg = None if cg_raw is None else _vector(cg_raw, "body.center_of_gravity", src)
+    vehicle = _vehicle(_get(body, "vehicle", "body", src, required=False), src)
+    if output_axes in VEHICLE_AXES and vehicle is None:
+        raise RigError(f"{src}: field output_axes: {output_axes} (vehicle axes) needs field body.vehicle, where the "
+                       "vehicle's front and top point in the body frame (e.g. body: {vehicle: {front: +x, top: +z}}); "
+                       "without it only output_axes: body")
+    return mass, cg, vehicle
+
+
+def _dummy_mass(d: Any, src: str) -> DummyMass | None:
+    """rig.yaml ``dummy_mass``: mass kg > 0 and position (3,) m body frame; None when absent."""
+    if d is None:
+        return None
+    if isinstance(d, dict):
+        _check_fields(d, "dummy_mass", "dummy_mass", src)
+    return DummyMass(_number(_get(d, "mass", "dummy_mass", src), "dummy_mass.mass", src, positive=True),
+                     _vector(_get(d, "position", "dummy_mass", src), "dummy_mass.position", src))
+
+
 def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     """Validate a rig.yaml mapping and build a :class:`Rig`.
 
@@ -471,71 +563,17 @@ def rig_from_dict(d: Any, source: str = "<memory>") -> Rig:
     if not isinstance(d, dict):
         raise RigError(f"{src}: the rig description must be a YAML mapping")
     _check_fields(d, "", "", src)
-    rig_name = _get(d, "name", "", src, required=False)
-    if rig_name is not None:
-        if isinstance(rig_name, (int, float)) and not isinstance(rig_name, bool):
-            rig_name = str(rig_name)    # name: 7 is a name
-        if not isinstance(rig_name, str) or not rig_name.strip() or "\n" in rig_name.strip():
-            raise RigError(f"{src}: field name must be a one-line text (the rig's name), got {rig_name!r}")
-        rig_name = rig_name.strip()
-    output_axes = _get(d, "output_axes", "", src, required=False)
-    if output_axes is not None and (not isinstance(output_axes, str) or output_axes not in AXES):
-        close = difflib.get_close_matches(str(output_axes).lower(), sorted(AXES), n=1, cutoff=0.5)
-        raise RigError(f"{src}: field output_axes must be one of {', '.join(AXES)} (the axes rig-identify "
-                       f"prints and exports in by default), got {output_axes!r}"
-                       + (f" (did you mean {close[0]}?)" if close else ""))
-    gravity = _number(_get(d, "gravity", "", src), "gravity", src, positive=True)
-    if not 9.0 < gravity < 10.5:
-        raise RigError(f"{src}: field gravity = {gravity} m/s^2 is not an Earth gravity (units?)")
-    raw_cables = _get(d, "cables", "", src)
-    if not isinstance(raw_cables, list):
-        raise RigError(f"{src}: field cables must be a list")
-    if len(raw_cables) < 3:
-        raise RigError(f"{src}: field cables lists {len(raw_cables)} cable(s); at least 3 are needed")
-    cables = []
-    seen = set()
-    for i, c in enumerate(raw_cables):
-        w = f"cables[{i}]"
-        name = _get(c, "name", w, src)
-        _check_fields(c, "cable", w, src)
-        if not isinstance(name, str) or not CABLE_NAME.match(name):
-            raise RigError(f"{src}: field {w}.name must match [a-z0-9_]+, got {name!r}")
-        if name in seen:
-            raise RigError(f"{src}: field {w}.name: duplicate cable name {name!r}")
-        seen.add(name)
-        ca = _vector(_get(c, "ceiling_anchor", w, src), f"{w}.ceiling_anchor", src)
-        ba = _vector(_get(c, "body_anchor", w, src), f"{w}.body_anchor", src)
-        length = _number(_get(c, "length", w, src), f"{w}.length", src, positive=True)
-        k_raw = _get(c, "stiffness", w, src, required=False)
-        k = None if k_raw is None else _number(k_raw, f"{w}.stiffness", src, positive=True)
-        cables.append(Cable(name, ca, ba, length, k))
-    anchors = np.array([c.body_anchor for c in cables])
-    if np.linalg.matrix_rank(anchors - anchors.mean(0), tol=1e-6) < 2:
-        raise RigError(f"{src}: field cables: the body anchors are collinear; the body could spin freely")
-    check_reach(cables, src)
-    body = _get(d, "body", "", src)
-    if isinstance(body, dict):
-        _check_fields(body, "body", "body", src)
-    mass = _number(_get(body, "mass", "body", src), "body.mass", src, positive=True)
-    cg_raw = _get(body, "center_of_gravity", "body", src, required=False)
-    cg = None if cg_raw is None else _vector(cg_raw, "body.center_of_gravity", src)
-    vehicle = _vehicle(_get(body, "vehicle", "body", src, required=False), src)
-    if output_axes in VEHICLE_AXES and vehicle is None:
-        raise RigError(f"{src}: field output_axes: {output_axes} (vehicle axes) needs field body.vehicle, where the "
-                       "vehicle's front and top point in the body frame (e.g. body: {vehicle: {front: +x, top: +z}}); "
-                       "without it only output_axes: body")
+    rig_name = _rig_name(_get(d, "name", "", src, required=False), src)
+    output_axes = _output_axes(_get(d, "output_axes", "", src, required=False), src)
+    gravity = _gravity(_get(d, "gravity", "", src), src)
+    cables = _cables(_get(d, "cables", "", src), src)
+    mass, cg, vehicle = _body(_get(d, "body", "", src), output_axes, src)
     imu = _mount(_get(d, "imu", "", src), "imu", src)
     ex_raw = _get(d, "exciter", "", src, required=False)
     exciter = None if ex_raw is None else _mount(ex_raw, "exciter", src)
     inc_raw = _get(d, "inclinometer", "", src, required=False)
     incl = None if inc_raw is None else _mount(inc_raw, "inclinometer", src, with_position=False)
-    dm_raw = _get(d, "dummy_mass", "", src, required=False)
-    dummy = None
-    if dm_raw is not None:
-        if isinstance(dm_raw, dict):
-            _check_fields(dm_raw, "dummy_mass", "dummy_mass", src)
-        dummy = DummyMass(_number(_get(dm_raw, "mass", "dummy_mass", src), "dummy_mass.mass", src, positive=True),
-                          _vector(_get(dm_raw, "position", "dummy_mass", src), "dummy_mass.position", src))
+    dummy = _dummy_mass(_get(d, "dummy_mass", "", src, required=False), src)
     topics = _topics(_get(d, "topics", "", src, required=False), src)
     survey = _survey(_get(d, "survey", "", src, required=False), src)
     rig = Rig(gravity, tuple(cables), mass, cg, imu, exciter, incl, dummy, src, name=rig_name, output_axes=output_axes,
