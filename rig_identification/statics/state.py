@@ -80,6 +80,108 @@ def _stats(x: np.ndarray, K: int, accept_motion: bool) -> StreamStats:
     return StreamStats(x.mean(0), se, scatter, n, p)
 
 
+@dataclass(frozen=True)
+class _Windows:
+    """Every stream of a state over one window: ``streams`` the samples of each (``imu``,
+    ``load_cell:<name>``, ``inclinometer``, ``exciter``) within it, [``a``, ``b``] s the header
+    stamps all of them cover, ``K`` the batches of the stationarity test (5 to 20)."""
+
+    streams: dict[str, TimeSeries]
+    a: float
+    b: float
+    K: int
+
+
+def _stream_windows(sensors: SensorData, t0: float, t1: float, label: str, batch_seconds: float) -> _Windows:
+    """The streams of ``sensors`` within header stamps [t0, t1] s, cut into batches of about
+    ``batch_seconds`` s.  Raises :class:`StaticsError` for a stream with under 10 samples there
+    or streams that do not overlap in time."""
+    streams: dict[str, TimeSeries] = {"imu": sensors.imu}
+    for name, ts in sensors.load_cells.items():
+        streams["load_cell:" + name] = ts
+    if sensors.inclinometer is not None:
+        streams["inclinometer"] = sensors.inclinometer
+    if sensors.exciter is not None:
+        streams["exciter"] = sensors.exciter
+    win = {}
+    for k, ts in streams.items():
+        w = ts.window(t0, t1)
+        if len(w) < 10:
+            raise StaticsError(f"{label}: stream {k} has {len(w)} sample(s) in the window "
+                               f"[{t0:.3f}, {t1:.3f}] s; at least 10 are needed")
+        win[k] = w
+    a = max(w.t[0] for w in win.values())
+    b = min(w.t[-1] for w in win.values())
+    if b - a <= 0:
+        raise StaticsError(f"{label}: the streams do not overlap in time")
+    return _Windows(win, a, b, int(np.clip(round((b - a) / batch_seconds), 5, 20)))
+
+
+def _stationarity(win: _Windows, ta: float) -> tuple[float, str]:
+    """The smallest p-value of the stationarity test (:func:`_batch_test`) over every channel
+    of every stream in [ta, b] s, and the channel (``stream[column]``); 0 when a stream has
+    fewer than 2 K samples there."""
+    worst, what = 1.0, ""
+    for k, w in win.streams.items():
+        x = w.window(ta, win.b).data
+        if len(x) < 2 * win.K:
+            return 0.0, f"{k}: too few samples"
+        p, _, _ = _batch_test(x, win.K)
+        if p.min() < worst:
+            worst, what = float(p.min()), f"{k}[{int(np.argmin(p))}]"
+    return worst, what
+
+
+def _first_quiet(win: _Windows, min_fraction: float) -> float | None:
+    """The first batch edge a + j (b - a) / K, j >= 1, from which every stream is at rest (p of
+    :func:`_stationarity` at least :data:`MOTION_P`) with at least ``min_fraction`` of the
+    window left; None when there is none."""
+    a, b = win.a, win.b
+    step = (b - a) / win.K
+    j = 1
+    while (b - (a + j * step)) >= min_fraction * (b - a) - 1e-9:
+        pj, _ = _stationarity(win, a + j * step)
+        if pj >= MOTION_P:
+            return a + j * step
+        j += 1
+    return None
+
+
+def _rest_start(win: _Windows, label: str, settle: bool, allow_motion: bool,
+                min_fraction: float) -> tuple[float, bool, list[str]]:
+    """(start s of the span averaged, moving, warnings) of :meth:`StaticState.from_window`: the
+    window's start when it is at rest; with ``settle``, the start of its quiet tail
+    (:func:`_first_quiet`); else, with ``allow_motion``, the start and moving.  Raises
+    :class:`StaticsError` when the body still moves."""
+    a, b = win.a, win.b
+    p, what = _stationarity(win, a)
+    if not p < MOTION_P:
+        return a, False, []
+    start = _first_quiet(win, min_fraction) if settle else None
+    if start is not None:
+        return start, False, [f"{label}: the body still moved during the first {start - a:.1f} s "
+                              f"({what} not stationary); averaged the last {b - start:.1f} s"]
+    if allow_motion:
+        return a, True, [f"{label}: the body still moves over the whole window ({what} not "
+                         f"stationary, p = {p:.1e}); averaged anyway with the batch-means "
+                         "uncertainty"]
+    raise StaticsError(f"{label}: the body still moves ({what} is not stationary over "
+                       f"{b - a:.1f} s, p = {p:.1e}): no state at rest to use; wait until it "
+                       "settles and record again")
+
+
+def _exciter_warnings(exc: StreamStats | None, label: str) -> list[str]:
+    """A warning when the exciter's load cells (their :class:`StreamStats`, or None) read a
+    mean force at rest, N, beyond 1 N and 5 σ of the mean."""
+    if exc is None:
+        return []
+    f = exc.mean
+    if np.linalg.norm(f) > max(1.0, 5 * np.linalg.norm(exc.std_of_mean)):
+        return [f"{label}: the exciter load cells read a mean force of "
+                f"{np.linalg.norm(f):.1f} N at rest; ignored (is the exciter off?)"]
+    return []
+
+
 @dataclass
 class StaticState:
     """One static state of the body: the mean of every sensor stream over a window at rest.
@@ -137,83 +239,21 @@ class StaticState:
         """
         t0 = -np.inf if t0 is None else float(t0)
         t1 = np.inf if t1 is None else float(t1)
-        streams: dict[str, TimeSeries] = {"imu": sensors.imu}
-        for name, ts in sensors.load_cells.items():
-            streams["load_cell:" + name] = ts
-        if sensors.inclinometer is not None:
-            streams["inclinometer"] = sensors.inclinometer
-        if sensors.exciter is not None:
-            streams["exciter"] = sensors.exciter
-        win = {}
-        for k, ts in streams.items():
-            w = ts.window(t0, t1)
-            if len(w) < 10:
-                raise StaticsError(f"{label}: stream {k} has {len(w)} sample(s) in the window "
-                                   f"[{t0:.3f}, {t1:.3f}] s; at least 10 are needed")
-            win[k] = w
-        a = max(w.t[0] for w in win.values())
-        b = min(w.t[-1] for w in win.values())
-        if b - a <= 0:
-            raise StaticsError(f"{label}: the streams do not overlap in time")
-        K = int(np.clip(round((b - a) / batch_seconds), 5, 20))
-
-        def test(ta: float) -> tuple[float, str]:
-            worst, what = 1.0, ""
-            for k, w in win.items():
-                x = w.window(ta, b).data
-                if len(x) < 2 * K:
-                    return 0.0, f"{k}: too few samples"
-                p, _, _ = _batch_test(x, K)
-                if p.min() < worst:
-                    worst, what = float(p.min()), f"{k}[{int(np.argmin(p))}]"
-            return worst, what
-
-        warnings: list[str] = []
-        start, moving = a, False
-        p, what = test(a)
-        if p < MOTION_P:
-            found = False
-            if settle:
-                step = (b - a) / K
-                j = 1
-                while (b - (a + j * step)) >= min_fraction * (b - a) - 1e-9:
-                    pj, _ = test(a + j * step)
-                    if pj >= MOTION_P:
-                        found, start = True, a + j * step
-                        break
-                    j += 1
-            if found:
-                warnings.append(f"{label}: the body still moved during the first {start - a:.1f} s "
-                                f"({what} not stationary); averaged the last {b - start:.1f} s")
-            elif allow_motion:
-                moving = True
-                warnings.append(f"{label}: the body still moves over the whole window ({what} not "
-                                f"stationary, p = {p:.1e}); averaged anyway with the batch-means "
-                                "uncertainty")
-            else:
-                raise StaticsError(f"{label}: the body still moves ({what} is not stationary over "
-                                   f"{b - a:.1f} s, p = {p:.1e}): no state at rest to use; wait until it "
-                                   "settles and record again")
-        st = {}
-        for k, w in win.items():
-            x = w.window(start, b).data
-            st[k] = _stats(x, K, moving)
+        win = _stream_windows(sensors, t0, t1, label, batch_seconds)
+        start, moving, warnings = _rest_start(win, label, settle, allow_motion, min_fraction)
+        st = {k: _stats(w.window(start, win.b).data, win.K, moving) for k, w in win.streams.items()}
+        exc = st.get("exciter")
+        warnings += _exciter_warnings(exc, label)
         names = tuple(sensors.load_cells)
         tens = np.array([st["load_cell:" + n].mean[0] for n in names]) if names else None
         tens_sd = np.array([st["load_cell:" + n].std_of_mean[0] for n in names]) if names else None
         inc = st.get("inclinometer")
         imu = st["imu"]
-        exc = st.get("exciter")
-        if exc is not None:
-            f = exc.mean
-            if np.linalg.norm(f) > max(1.0, 5 * np.linalg.norm(exc.std_of_mean)):
-                warnings.append(f"{label}: the exciter load cells read a mean force of "
-                                f"{np.linalg.norm(f):.1f} N at rest; ignored (is the exciter off?)")
         return cls(cable_names=names or None, tensions=tens, tensions_std=tens_sd,
                    elevations=None if inc is None else inc.mean,
                    elevations_std=None if inc is None else inc.std_of_mean,
                    specific_force=imu.mean[3:6], specific_force_std=imu.std_of_mean[3:6],
-                   added=None if added is None else tuple(added), window=(float(start), float(b)),
+                   added=None if added is None else tuple(added), window=(float(start), float(win.b)),
                    samples={k: v.n for k, v in st.items()}, label=label, warnings=warnings,
                    moving=moving, stats=st, exciter_force=None if exc is None else exc.mean)
 
