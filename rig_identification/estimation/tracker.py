@@ -137,6 +137,136 @@ class StaticPose:
     residuals: np.ndarray
 
 
+COMPLIANCE_PRIOR = 2e-7  # m/N: a steel cable of a few metres (k = 5e6 N/m), static_pose's prior
+
+
+@dataclass(frozen=True)
+class _PoseProblem:
+    """The weighted least squares of :func:`static_pose` in x = (rotation vector body -> world
+    (3,) rad, position (3,) world m[, common compliance of the cables without stiffness, 1e-7
+    m/N]).
+
+    L (N,) m unstretched lengths; T (N,) N tensions (zeros when ``has_tensions`` is false);
+    elevations (2,) rad or None; incl the inclinometer -> body rotation or None; up_imu (3,)
+    the accelerometer's up direction in IMU axes, used when the elevations are not; f_up (3,)
+    m/s² the specific force in body axes or None; f_exc (3,) N body axes; cg (3,) body m or
+    None; known (N,) whether rig.yaml gives each stiffness k (N,) N/m; use_moment: the moment
+    balance about cg is a residual; fit_c: x holds the common compliance; sigma_len m: the
+    length residuals' σ.
+    """
+
+    rig: Rig
+    L: np.ndarray
+    T: np.ndarray
+    has_tensions: bool
+    elevations: np.ndarray | None
+    incl: Rotation | None
+    up_imu: np.ndarray | None
+    f_up: np.ndarray | None
+    f_exc: np.ndarray
+    cg: np.ndarray | None
+    at_rest: bool
+    known: np.ndarray
+    k: np.ndarray
+    use_moment: bool
+    fit_c: bool
+    sigma_len: float
+
+    def compliance(self, x: np.ndarray) -> np.ndarray:
+        """Cable compliances (N,) m/N at x: 1/k where known, else the fitted one (``fit_c``),
+        :data:`COMPLIANCE_PRIOR` with tensions, 0 without."""
+        c = np.where(self.known, 1.0 / np.where(self.known, self.k, 1.0),
+                     0.0 if not self.has_tensions else COMPLIANCE_PRIOR)
+        if self.fit_c:
+            c = np.where(self.known, c, x[6] * 1e-7)
+        return c
+
+    def residuals(self, x: np.ndarray) -> np.ndarray:
+        """Normalised residuals at x: the cable lengths, the tilt (:meth:`tilt`), with tensions
+        the force and moment balance (:meth:`balance`), and the compliance's prior."""
+        rot = Rotation.from_rotvec(x[:3])
+        v = cable_vectors(self.rig, x[3:6], rot)
+        lv = np.linalg.norm(v, axis=1)
+        r = [(lv - self.L - self.T * self.compliance(x)) / self.sigma_len]
+        tilt = self.tilt(rot)
+        if tilt is not None:
+            r.append(tilt)
+        if self.has_tensions:
+            r.extend(self.balance(rot, v, lv))
+        if self.fit_c:
+            r.append([(x[6] * 1e-7 - COMPLIANCE_PRIOR) / 1e-6])
+        return np.concatenate(r)
+
+    def tilt(self, rot: Rotation) -> np.ndarray | None:
+        """Tilt residuals of the pose ``rot``: the inclinometer's elevations (2,), else the
+        accelerometer's up direction (3,), each with σ 1e-4; None with neither."""
+        if self.elevations is not None and self.incl is not None:
+            elevations: np.ndarray = (inclinometer_elevations(rot, self.incl) - self.elevations) / 1e-4
+            return elevations
+        if self.up_imu is not None:
+            up: np.ndarray = ((rot * self.rig.imu.rotation).inv().apply(Z) - self.up_imu) / 1e-4
+            return up
+        return None
+
+    def balance(self, rot: Rotation, v: np.ndarray, lv: np.ndarray) -> list[np.ndarray]:
+        """Horizontal force balance (2,) (at rest or without specific force: the weight, σ 1 N;
+        else Newton's law with the accelerometer, σ 5 % of the weight) and, with
+        ``use_moment``, the moment balance (3,) about cg (σ 0.2 N m) of the pose ``rot``, cable
+        vectors v (N, 3) world m of lengths lv (N,) m."""
+        rig = self.rig
+        f_b = self.T[:, None] * rot.inv().apply(v / lv[:, None])
+        if self.at_rest or self.f_up is None:  # weight, exact
+            r = [(rot.apply(f_b.sum(0) + self.f_exc) - [0.0, 0.0, rig.mass * rig.gravity])[:2] / 1.0]
+        else:  # Newton's law with the accelerometer (its bias, ~0.05 m/s^2, sets the weight)
+            r = [(rot.apply(f_b.sum(0) + self.f_exc - rig.mass * self.f_up))[:2] / (0.05 * rig.mass)]
+        if self.use_moment:
+            m = np.cross(rig.body_anchors - self.cg, f_b).sum(0)
+            if rig.exciter is not None:
+                m = m + np.cross(rig.exciter.position - self.cg, self.f_exc)
+            r.append(m / 0.2)
+        return r
+
+
+def _pose_problem(rig: Rig, tensions: np.ndarray | None, elevations: np.ndarray | None,
+                  specific_force: np.ndarray | None, exciter_force_body: np.ndarray | None,
+                  cg: np.ndarray | None, at_rest: bool) -> _PoseProblem:
+    """The least squares of :func:`static_pose` for these readings (its parameters)."""
+    k = rig.cable_stiffness
+    known = np.isfinite(k)
+    use_moment = tensions is not None and cg is not None and at_rest
+    fit_c = use_moment and not known.all()
+    incl = rig.inclinometer.rotation if rig.inclinometer is not None else None
+    up_imu = None
+    if (elevations is None or incl is None) and specific_force is not None:
+        up_imu = np.asarray(specific_force, float) / np.linalg.norm(specific_force)
+    f_up = None
+    if specific_force is not None:
+        f_up = rig.imu.rotation.apply(np.asarray(specific_force, float))  # body axes
+    return _PoseProblem(
+        rig=rig, L=rig.cable_lengths, T=np.zeros(len(rig.cables)) if tensions is None else np.asarray(tensions, float),
+        has_tensions=tensions is not None, elevations=elevations, incl=incl, up_imu=up_imu, f_up=f_up,
+        f_exc=np.zeros(3) if exciter_force_body is None else np.asarray(exciter_force_body, float), cg=cg,
+        at_rest=at_rest, known=known, k=k, use_moment=use_moment, fit_c=fit_c,
+        sigma_len=1e-4 if (fit_c or known.all() or tensions is None) else 5e-4)
+
+
+def _initial_guess(rig: Rig, guess: tuple[np.ndarray, Rotation] | None, fit_c: bool) -> np.ndarray:
+    """Starting x of :func:`static_pose`: ``guess`` (position (3,) world m, rotation), else no
+    rotation and the body hanging below the ceiling anchors' mean offset by the cables' mean
+    drop; with ``fit_c`` the compliance's prior appended."""
+    if guess is None:
+        L = rig.cable_lengths
+        rel = rig.ceiling_anchors[:, :2] - rig.body_anchors[:, :2]
+        drop = np.sqrt(np.maximum(L**2 - np.sum((rel - rel.mean(0)) ** 2, 1), 0.01))
+        p0 = np.r_[rel.mean(0), (rig.ceiling_anchors[:, 2] - rig.body_anchors[:, 2] - drop).mean()]
+        x0: np.ndarray = np.r_[np.zeros(3), p0]
+    else:
+        x0 = np.r_[guess[1].as_rotvec(), guess[0]]
+    if fit_c:
+        x0 = np.r_[x0, COMPLIANCE_PRIOR * 1e7]
+    return x0
+
+
 def static_pose(rig: Rig, tensions: np.ndarray | None = None, elevations: np.ndarray | None = None,
                 specific_force: np.ndarray | None = None, exciter_force_body: np.ndarray | None = None,
                 cg: np.ndarray | None = None, guess: tuple[np.ndarray, Rotation] | None = None,
@@ -160,72 +290,17 @@ def static_pose(rig: Rig, tensions: np.ndarray | None = None, elevations: np.nda
     tensions: (N,) N.  elevations: (2,) rad.  specific_force: (3,) m/s^2, IMU axes.
     exciter_force_body: (3,) N.  Raises :class:`TrackerError` if no consistent pose exists.
     """
-    L = rig.cable_lengths
-    k = rig.cable_stiffness
-    known = np.isfinite(k)
-    use_moment = tensions is not None and cg is not None and at_rest
-    fit_c = use_moment and not known.all()
-    T = np.zeros(len(L)) if tensions is None else np.asarray(tensions, float)
-    incl = rig.inclinometer.rotation if rig.inclinometer is not None else None
-    up_imu = None
-    if (elevations is None or incl is None) and specific_force is not None:
-        up_imu = np.asarray(specific_force, float) / np.linalg.norm(specific_force)
-    f_exc = np.zeros(3) if exciter_force_body is None else np.asarray(exciter_force_body, float)
-    c_prior = 2e-7  # m/N: a steel cable of a few metres (k = 5e6 N/m)
-    sigma_len = 1e-4 if (fit_c or known.all() or tensions is None) else 5e-4
-    f_up = None
-    if specific_force is not None:
-        f_up = rig.imu.rotation.apply(np.asarray(specific_force, float))  # body axes
-
-    def compliance(x: np.ndarray) -> np.ndarray:
-        c = np.where(known, 1.0 / np.where(known, k, 1.0), 0.0 if tensions is None else c_prior)
-        if fit_c:
-            c = np.where(known, c, x[6] * 1e-7)
-        return c
-
-    def residuals(x: np.ndarray) -> np.ndarray:
-        rot = Rotation.from_rotvec(x[:3])
-        v = cable_vectors(rig, x[3:6], rot)
-        lv = np.linalg.norm(v, axis=1)
-        r = [(lv - L - T * compliance(x)) / sigma_len]
-        if elevations is not None and incl is not None:
-            r.append((inclinometer_elevations(rot, incl) - elevations) / 1e-4)
-        elif up_imu is not None:
-            r.append(((rot * rig.imu.rotation).inv().apply(Z) - up_imu) / 1e-4)
-        if tensions is not None:
-            f_b = T[:, None] * rot.inv().apply(v / lv[:, None])
-            if at_rest or f_up is None:  # weight, exact
-                r.append((rot.apply(f_b.sum(0) + f_exc) - [0.0, 0.0, rig.mass * rig.gravity])[:2] / 1.0)
-            else:  # Newton's law with the accelerometer (its bias, ~0.05 m/s^2, sets the weight)
-                r.append((rot.apply(f_b.sum(0) + f_exc - rig.mass * f_up))[:2] / (0.05 * rig.mass))
-            if use_moment:
-                m = np.cross(rig.body_anchors - cg, f_b).sum(0)
-                if rig.exciter is not None:
-                    m = m + np.cross(rig.exciter.position - cg, f_exc)
-                r.append(m / 0.2)
-        if fit_c:
-            r.append([(x[6] * 1e-7 - c_prior) / 1e-6])
-        return np.concatenate(r)
-
-    if guess is None:
-        rel = rig.ceiling_anchors[:, :2] - rig.body_anchors[:, :2]
-        drop = np.sqrt(np.maximum(L**2 - np.sum((rel - rel.mean(0)) ** 2, 1), 0.01))
-        p0 = np.r_[rel.mean(0), (rig.ceiling_anchors[:, 2] - rig.body_anchors[:, 2] - drop).mean()]
-        x0 = np.r_[np.zeros(3), p0]
-    else:
-        x0 = np.r_[guess[1].as_rotvec(), guess[0]]
-    if fit_c:
-        x0 = np.r_[x0, c_prior * 1e7]
-    sol = least_squares(residuals, x0, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=2000)
+    problem = _pose_problem(rig, tensions, elevations, specific_force, exciter_force_body, cg, at_rest)
+    x0 = _initial_guess(rig, guess, problem.fit_c)
+    sol = least_squares(problem.residuals, x0, method="lm", xtol=1e-15, ftol=1e-15, gtol=1e-15, max_nfev=2000)
     worst = float(np.max(np.abs(sol.fun))) if sol.fun.size else 0.0
     if worst > 50.0:
         raise TrackerError(f"no pose of the body matches the cable lengths and the sensor readings "
                            f"(worst normalised residual {worst:.0f}); check the rig.yaml geometry and units")
     rot = Rotation.from_rotvec(sol.x[:3])
-    c = compliance(sol.x)
+    c = problem.compliance(sol.x)
     lv = np.linalg.norm(cable_vectors(rig, sol.x[3:6], rot), axis=1)
-    return StaticPose(sol.x[3:6].copy(), rot, c, lv - T * c, sol.fun)
-
+    return StaticPose(sol.x[3:6].copy(), rot, c, lv - problem.T * c, sol.fun)
 
 class PoseTracker:
     """Causal complementary-filter tracker (see module docstring).
