@@ -41,7 +41,6 @@ velocity in body axes (rad/s); ``velocity`` is the origin's velocity in world (m
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from typing import cast
 
@@ -302,6 +301,43 @@ def static_pose(rig: Rig, tensions: np.ndarray | None = None, elevations: np.nda
     lv = np.linalg.norm(cable_vectors(rig, sol.x[3:6], rot), axis=1)
     return StaticPose(sol.x[3:6].copy(), rot, c, lv - problem.T * c, sol.fun)
 
+def _vec(x: ArrayLike) -> np.ndarray:
+    """A fresh float64 array of ``x`` (the compiled filter updates its arrays in place)."""
+    return np.array(x, float)
+
+
+def _at_end(samples: list[tuple[float, np.ndarray]], t_end: float, moving: bool) -> np.ndarray:
+    """The value of (stamp s, reading (k,)) ``samples`` at the stamp ``t_end`` s: their mean
+    at rest; when ``moving``, a quadratic (a line under 4 samples) through them taken at
+    ``t_end`` (their mean under 3 samples or when their stamps do not differ)."""
+    ts = np.array([s[0] for s in samples])
+    x = np.array([s[1] for s in samples], float)
+    if not moving or len(x) < 3 or np.ptp(ts) <= 0:
+        mean: np.ndarray = x.mean(0)
+        return mean
+    c = np.polynomial.polynomial.polyfit(ts - t_end, x, 2 if len(x) >= 4 else 1)
+    c0: np.ndarray = c[0]
+    return c0
+
+
+@dataclass(frozen=True)
+class _InitWindow:
+    """What the samples of :class:`PoseTracker`'s initialisation window say, each at the
+    window's last IMU stamp ``t_end`` s (:func:`_at_end`): specific force ``f_imu`` (3,) m/s²
+    IMU axes, ``tensions`` (N,) N, inclinometer ``elevations`` (2,) rad, exciter force
+    ``exciter`` (3,) N body axes (each None without its stream); ``at_rest``: the gyro reads
+    only noise and the exciter less than 10 N; ``gyro`` (3,) rad/s body axes when the body
+    already moves (None at rest)."""
+
+    t_end: float
+    f_imu: np.ndarray
+    tensions: np.ndarray | None
+    elevations: np.ndarray | None
+    exciter: np.ndarray | None
+    at_rest: bool
+    gyro: np.ndarray | None
+
+
 class PoseTracker:
     """Causal complementary-filter tracker (see module docstring).
 
@@ -522,6 +558,24 @@ class PoseTracker:
         self.compliance_sums.extend((t, a, b, int(n)) for t, a, b, n in out.sums[:counts[kernel.SUMS]].tolist())
 
     def _initialise(self) -> None:
+        """Set the compiled filter's constants and state from the samples buffered over the
+        initialisation window: the pose from :func:`static_pose` (:meth:`_initial_pose`), the
+        velocity from the cables' length rates when the body already moves."""
+        w = self._init_window()
+        pose = self._initial_pose(w)
+        Rm = pose.rotation.as_matrix()
+        # online compliance refinement (only when rig.yaml gives no stiffness)
+        # needs the inclinometer: without it the in-band tilt is too rough to tell stretch
+        adapt = bool(w.tensions is not None and w.elevations is not None
+                     and not np.isfinite(self.rig.cable_stiffness).all())
+        T0 = w.tensions if w.tensions is not None else np.zeros(len(pose.lengths))
+        v = np.zeros(3) if w.gyro is None else self._initial_velocity(pose, Rm, w.gyro)
+        self._const = self._constants(pose, T0, adapt)
+        self._state = self._initial_state(pose, Rm, v, T0, float(w.t_end))
+        self._init.clear()
+
+    def _init_window(self) -> _InitWindow:
+        """What the buffered initialisation samples say (:class:`_InitWindow`)."""
         t = np.array([s[0] for s in self._init])
         gyro = np.array([s[1] for s in self._init])
         # at rest: the gyro's RMS about zero is its noise (σ from the first differences: the
@@ -533,84 +587,84 @@ class PoseTracker:
         # a body already swinging (a recording, or a span after an excluded one, that starts
         # in motion; the mean gyro over the window is far above its noise): the readings at
         # the window's last IMU stamp, from a quadratic through the window — their mean
-        # would lag by half the window — and the velocity from the cables' length rates below
+        # would lag by half the window — and the velocity from the cables' length rates
         # (thesis case 7, fitted after a slack span: pose errors 45 mm / 3.6 mrad -> 0.6 mm /
         # 0.07 mrad, the tensor 0.43 % -> 0.006 %)
         moving = float(np.linalg.norm(gyro.mean(0))) > 5e-3
-
-        def at_end(samples: list[tuple[float, np.ndarray]]) -> np.ndarray:
-            ts = np.array([s[0] for s in samples])
-            x = np.array([s[1] for s in samples], float)
-            if not moving or len(x) < 3 or np.ptp(ts) <= 0:
-                mean: np.ndarray = x.mean(0)
-                return mean
-            c = np.polynomial.polynomial.polyfit(ts - t[-1], x, 2 if len(x) >= 4 else 1)
-            c0: np.ndarray = c[0]
-            return c0
-
-        f_b = at_end([(s[0], s[2]) for s in self._init])
-        tens = at_end(self._init_tens) if self._init_tens else None
-        elev = at_end(self._init_incl) if (self._init_incl and self._incl is not None) else None
-        f_imu = self._imu_to_body.inv().apply(f_b)
+        t_end = t[-1]
+        f_b = _at_end([(s[0], s[2]) for s in self._init], t_end, moving)
+        tens = _at_end(self._init_tens, t_end, moving) if self._init_tens else None
+        elev = _at_end(self._init_incl, t_end, moving) if (self._init_incl and self._incl is not None) else None
         exc = None
         if self._init_exc:   # (only filled when the rig has an exciter: add_exciter)
-            exc = self.rig.exciter.rotation.apply(np.r_[at_end(self._init_exc), 0.0])  # type: ignore[union-attr]
-        at_rest = quiet and (exc is None or np.linalg.norm(exc) < 10.0)  # N: ramping exciters start small
-        # first as an equilibrium; if that does not fit (released from a displaced pose, or
-        # an unmeasured force already acting), from the geometry and Newton's law alone
+            exc = self.rig.exciter.rotation.apply(  # type: ignore[union-attr]
+                np.r_[_at_end(self._init_exc, t_end, moving), 0.0])
+        return _InitWindow(
+            t_end=t_end, f_imu=self._imu_to_body.inv().apply(f_b), tensions=tens, elevations=elev, exciter=exc,
+            at_rest=bool(quiet and (exc is None or np.linalg.norm(exc) < 10.0)),  # N: ramping exciters start small
+            gyro=_at_end([(s[0], s[1]) for s in self._init], t_end, moving) if moving else None)
+
+    def _initial_pose(self, w: _InitWindow) -> StaticPose:
+        """The initial pose: first as an equilibrium; if that does not fit (released from a
+        displaced pose, or an unmeasured force already acting), from the geometry and Newton's
+        law alone (:func:`static_pose`).  Raises :class:`TrackerError` when neither fits."""
         pose = None
-        for rest in ((True, False) if at_rest else (False,)):
+        for rest in ((True, False) if w.at_rest else (False,)):
             try:
-                pose = static_pose(self.rig, tens, elev, f_imu, exc, cg=self.rig.center_of_gravity, at_rest=rest)
+                pose = static_pose(self.rig, w.tensions, w.elevations, w.f_imu, w.exciter,
+                                   cg=self.rig.center_of_gravity, at_rest=rest)
             except TrackerError:
                 continue
             if np.max(np.abs(pose.residuals)) <= 5.0:
                 break
         if pose is None:
-            pose = static_pose(self.rig, None, elev, f_imu)
-        Rm = pose.rotation.as_matrix()
-        # online compliance refinement (only when rig.yaml gives no stiffness)
-        # needs the inclinometer: without it the in-band tilt is too rough to tell stretch
-        adapt = bool(tens is not None and elev is not None and not np.isfinite(self.rig.cable_stiffness).all())
-        n = len(pose.lengths)
-        T0 = tens if tens is not None else np.zeros(n)
-        v = np.zeros(3)
-        if moving:
-            # taut cables keep their lengths: u_i · (v + R (ω × r_i)) = 0 for each cable
-            # direction u_i and body anchor r_i from the IMU point (the time derivative of
-            # thesis eqs. 2.13–2.16; the stretch rate, ~mm/s, is left out) — N equations,
-            # least squares for the IMU point's velocity v
-            w = at_end([(s[0], s[1]) for s in self._init])
-            u = cable_vectors(self.rig, pose.position, pose.rotation)
-            u = u / np.linalg.norm(u, axis=1)[:, None]
-            rhs = -np.einsum("ij,ij->i", u, np.cross(w, self._anchors_from_imu) @ Rm.T)
-            v = np.linalg.lstsq(u, rhs, rcond=None)[0]
-        a0 = Rm @ self._init[-1][2] + self._g
-        # (fresh float64 arrays: the filter updates them in place)
-        vec: Callable[[ArrayLike], np.ndarray] = lambda x: np.array(x, float)  # noqa: E731
-        self._const = kernel.Constants(
-            imu_m=vec(self._imu_m.ravel()), incl_m=vec(self._incl.as_matrix().ravel() if self._incl is not None
-                                                       else np.zeros(9)),
-            has_incl=self._incl is not None, anchors=vec(self._anchors_from_imu),
-            ceiling=vec(self.rig.ceiling_anchors), r_imu=vec(self.rig.imu.position),
+            pose = static_pose(self.rig, None, w.elevations, w.f_imu)
+        return pose
+
+    def _initial_velocity(self, pose: StaticPose, Rm: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """World velocity (3,) m/s of the IMU point of a body moving at ``omega`` (3,) rad/s,
+        body axes, in ``pose`` (rotation matrix ``Rm``): taut cables keep their lengths, u_i ·
+        (v + R (ω × r_i)) = 0 for each cable direction u_i and body anchor r_i from the IMU
+        point (the time derivative of thesis eqs. 2.13–2.16; the stretch rate, ~mm/s, is left
+        out) — N equations, least squares for v."""
+        u = cable_vectors(self.rig, pose.position, pose.rotation)
+        u = u / np.linalg.norm(u, axis=1)[:, None]
+        rhs = -np.einsum("ij,ij->i", u, np.cross(omega, self._anchors_from_imu) @ Rm.T)
+        v: np.ndarray = np.linalg.lstsq(u, rhs, rcond=None)[0]
+        return v
+
+    def _constants(self, pose: StaticPose, T0: np.ndarray, adapt: bool) -> kernel.Constants:
+        """The compiled filter's constants for the initial ``pose``, tensions ``T0`` (N,) N and
+        whether the compliance is refined online (``adapt``)."""
+        return kernel.Constants(
+            imu_m=_vec(self._imu_m.ravel()), incl_m=_vec(self._incl.as_matrix().ravel() if self._incl is not None
+                                                         else np.zeros(9)),
+            has_incl=self._incl is not None, anchors=_vec(self._anchors_from_imu),
+            ceiling=_vec(self.rig.ceiling_anchors), r_imu=_vec(self.rig.imu.position),
             gravity=float(self.rig.gravity), step_accel=self.step_accel, tau_tilt=float(self.tau_tilt),
             tau_yaw=float(self.tau_yaw), f_position=float(self.f_position), tau_bias=float(self.tau_bias),
             tau_tilt_accel=float(self.tau_tilt_accel), yaw_prior=float(YAW_PRIOR), adapt=adapt,
-            fit=~np.isfinite(self.rig.cable_stiffness), l0=vec(pose.lengths + T0 * pose.compliance), T0=vec(T0))
-        t_end = float(t[-1])
+            fit=~np.isfinite(self.rig.cable_stiffness), l0=_vec(pose.lengths + T0 * pose.compliance), T0=_vec(T0))
+
+    def _initial_state(self, pose: StaticPose, Rm: np.ndarray, v: np.ndarray, T0: np.ndarray,
+                       t_end: float) -> kernel.State:
+        """The compiled filter's state at the initialisation window's last IMU stamp ``t_end`` s:
+        ``pose`` (rotation matrix ``Rm``), the IMU point's velocity ``v`` (3,) m/s world and the
+        tensions ``T0`` (N,) N."""
+        n = len(pose.lengths)
+        a0 = Rm @ self._init[-1][2] + self._g
         clock = np.zeros(4)
         clock[kernel.T], clock[kernel.T_ADAPT] = t_end, t_end
         clock[kernel.T_INCL] = np.nan if self._t_incl is None else self._t_incl
         clock[kernel.T_INCL_USED] = t_end if self._t_incl is None else self._t_incl
         flags = np.zeros(4, np.int64)
         flags[kernel.HAS_TENSIONS] = self._tensions is not None
-        self._state = kernel.State(
-            R=vec(Rm.ravel()), p=vec(pose.position + Rm @ self.rig.imu.position),   # the IMU point
-            v=vec(v), v_prev=vec(v), omega=vec(self._init[-1][1]), omega_prev2=np.zeros(3), dphi=np.zeros(3),
-            a_hist=vec([a0, a0, a0]), a_bias=np.zeros(3), gyro_bias=np.zeros(3),
+        return kernel.State(
+            R=_vec(Rm.ravel()), p=_vec(pose.position + Rm @ self.rig.imu.position),   # the IMU point
+            v=_vec(v), v_prev=_vec(v), omega=_vec(self._init[-1][1]), omega_prev2=np.zeros(3), dphi=np.zeros(3),
+            a_hist=_vec([a0, a0, a0]), a_bias=np.zeros(3), gyro_bias=np.zeros(3),
             # constraint lengths consistent with the initial pose (absorbs the static stretch)
-            lengths=vec(pose.lengths), compliance=vec(pose.compliance),
-            tensions=vec(self._tensions if self._tensions is not None else np.zeros(n)),
-            hp_e=np.zeros(n), hp_T=vec(T0), S=np.zeros(2), blk=np.zeros(3), clock=clock,
+            lengths=_vec(pose.lengths), compliance=_vec(pose.compliance),
+            tensions=_vec(self._tensions if self._tensions is not None else np.zeros(n)),
+            hp_e=np.zeros(n), hp_T=_vec(T0), S=np.zeros(2), blk=np.zeros(3), clock=clock,
             incl_pending=np.zeros(2), flags=flags)
-        self._init.clear()
