@@ -237,7 +237,7 @@ def test_nothing_is_tested_where_the_fit_leaves_the_tensor_undetermined():
 
     from rig_identification.diagnosis.rig_diagnosis import diagnose_rig
 
-    def refit(extensions):
+    def refit(extensions, start):
         raise AssertionError("no refit where the tensor is not determined")
     fit = SimpleNamespace(unknowns=None, residual_level=np.array([1.0, 1.02]), channels=("tension:c0", "gyro_x"),
                           determined=False)
@@ -245,3 +245,40 @@ def test_nothing_is_tested_where_the_fit_leaves_the_tensor_undetermined():
     assert dg.steps == () and dg.damping is None and dg.refit is None and dg.named == () and dg.classes == ()
     assert len(dg.advice) == 1 and "not determined" in dg.advice[0] and "nothing is named" in dg.advice[0]
     assert dg.to_dict()["determined"] is False
+
+
+def test_no_name_where_the_rigid_model_restarted_from_the_extended_fit_explains_every_channel(monkeypatch):
+    """An extension found at a rigid fit that misfits, whose refit leaves the tensor undetermined:
+    the rigid-body model is fitted again from the refit's tensor.  Where that explains every
+    channel, the misfit was the first descent's (another minimum of a flat likelihood), so nothing
+    is named and that rigid fit is reported; where it still misfits, the extension is named."""
+    from types import SimpleNamespace
+
+    from rig_identification.diagnosis import rig_diagnosis
+
+    def fake(level, extensions=(), determined=True):
+        return SimpleNamespace(residual_level=np.array(level), channels=("tension:c0", "gyro_x"), unknowns=None,
+                               determined=determined, parameters=SimpleNamespace(inertia=np.arange(6.0)),
+                               layout=SimpleNamespace(extensions=extensions))
+    step = SimpleNamespace(added="load_cell_delay", best="load_cell_delay", named=True, indistinguishable=())
+    lin = SimpleNamespace(fitted=lambda names: SimpleNamespace(of=lambda e: np.array([0.008])))
+    monkeypatch.setattr(rig_diagnosis, "LinearisedRig", lambda rec, prior, current, untried: lin)
+    monkeypatch.setattr(rig_diagnosis, "damping_alternatives", lambda lin, fit: None)
+    rigid = fake([2.4, 1.0])
+    extended = fake([1.0, 1.0], ("load_cell_delay",), determined=False)
+    for again_level, named in (([1.1, 1.0], ()), ([1.8, 1.0], ("load_cell_delay",))):
+        again = fake(again_level)
+        calls = []
+
+        def refit(extensions, start):
+            calls.append((tuple(extensions), start))
+            return extended if extensions else again
+        steps = iter([step])
+        monkeypatch.setattr(rig_diagnosis, "next_step", lambda lin: next(steps, None))
+        dg = rig_diagnosis.diagnose_rig(None, None, rigid, ["c0"], refit)
+        assert [c[0] for c in calls] == [("load_cell_delay",), ()], calls
+        assert dg.named == named, (again_level, dg.named)
+        if named:
+            assert dg.refit is extended and dg.rigid is rigid and dg.determined
+        else:
+            assert dg.refit is None and dg.rigid is again and not dg.determined and "not determined" in dg.advice[0]

@@ -412,13 +412,13 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     if diagnose and np.all(np.isfinite(fit.inertia_std)):
         log.info("testing what the model leaves out")
 
-        def refit(extensions: dict[str, np.ndarray]) -> RigFit:
-            log.info("fitting the rig model with %s", ", ".join(extensions))
-            return fit_rig(rc, rec.rig, prior, np.vstack([fit.inertia, starts]), restarts=restarts,
+        def refit(extensions: dict[str, np.ndarray], start: np.ndarray) -> RigFit:
+            log.info("fitting the rig model with %s", ", ".join(extensions) or "nothing added, again")
+            return fit_rig(rc, rec.rig, prior, np.vstack([start, starts]), restarts=restarts,
                            extensions=extensions, stiffness=stiff.stiffness)
 
         diagnosis = diagnose_rig(rc, prior, fit, list(rec.rig.cable_names), refit)
-        fit = diagnosis.refit or fit
+        fit = diagnosis.refit or diagnosis.rigid
     return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
                           (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, guess_std, source, prior.cg, prior.cg_std,
                           cg_source or ("rig.yaml (start only)" if cg_std is None else "given"), rec.rig.survey,
