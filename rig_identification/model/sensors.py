@@ -16,6 +16,7 @@ the sampled readings (:func:`mode_response`, :func:`random_walk`).
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from typing import Any, Callable, NamedTuple
 
 import numpy as np
@@ -58,26 +59,60 @@ def sample_sensors(exp: Experiment, model: RigDynamics, traj: Callable[[np.ndarr
     spec = exp.sensors
     rng = np.random.default_rng(exp.seed if exp.static is None
                                 else [exp.seed, STATIC_STREAMS[exp.static.kind]])
-    noise, bias = spec.noise, spec.bias
+    run = _Run(exp, model, traj, rig, duration, cache, rng, eff={e.name: e for e in exp.effects},
+               delay={e.get("stream", ""): e.get("delay") for e in exp.effects if e.name == "sensor_delay"},
+               mode={e.get("sensor"): e for e in exp.effects if e.name == "structural_mode"})
+    # the streams' noise drawn in this order from the one generator
+    t_imu, gyro, acc = _imu_readings(run)
+    cells = _load_cell_readings(run)
+    exc = _exciter_readings(run)
+    inc = _inclinometer_readings(run)
+    if "gyro_bias_drift" in run.eff:    # drawn last: every other stream's noise stays as without it
+        gyro += random_walk(rng, len(t_imu), 1.0 / spec.rates["imu"], run.eff["gyro_bias_drift"].get("random_walk"))
+    imu = TimeSeries(exp.stamp_origin + t_imu, np.hstack([gyro, acc]))
+    return SensorData(imu, cells, exc, inc)
 
-    def at(rate: float) -> Sampled:
-        if rate not in cache:
-            t = sample_times(duration, rate)
-            Y = traj(t)
-            cache[rate] = Sampled(t, Y, model.evaluate(t, Y))
-        return cache[rate]
 
-    def noisy(x: np.ndarray, key: str) -> np.ndarray:
-        reading: np.ndarray = x + bias[key] + noise[key] * rng.standard_normal(x.shape)
+@dataclass(frozen=True)
+class _Run:
+    """What each sensor of :func:`sample_sensors` samples from: ``exp``, ``model``, its true
+    motion ``traj``, ``rig`` (the rig.yaml written), ``duration`` s, the :class:`Sampled` motion
+    per rate (``cache``), the seeded generator ``rng`` every stream's noise is drawn from in
+    turn, the effects by name (``eff``), the delays s by stream (``delay``, sensor_delay) and
+    the structural modes by sensor (``mode``)."""
+
+    exp: Experiment
+    model: RigDynamics
+    traj: Callable[[np.ndarray], np.ndarray]
+    rig: Rig
+    duration: float
+    cache: dict[float, Sampled]
+    rng: np.random.Generator
+    eff: dict[str, Effect]
+    delay: dict[str, Any]
+    mode: dict[Any, Effect]
+
+    def at(self, rate: float) -> Sampled:
+        """The true motion sampled at ``rate`` Hz (:func:`sample_times`), cached."""
+        if rate not in self.cache:
+            t = sample_times(self.duration, rate)
+            Y = self.traj(t)
+            self.cache[rate] = Sampled(t, Y, self.model.evaluate(t, Y))
+        return self.cache[rate]
+
+    def noisy(self, x: np.ndarray, key: str) -> np.ndarray:
+        """Readings x (K, n) plus the sensor ``key``'s bias and white noise (drawn from ``rng``)."""
+        spec = self.exp.sensors
+        reading: np.ndarray = x + spec.bias[key] + spec.noise[key] * self.rng.standard_normal(x.shape)
         return reading
 
-    eff = {e.name: e for e in exp.effects}
-    delay = {e.get("stream", ""): e.get("delay") for e in exp.effects if e.name == "sensor_delay"}
-    mode = {e.get("sensor"): e for e in exp.effects if e.name == "structural_mode"}
 
-    g_world = model.g
-    # IMU
-    t, Y, ev = at(spec.rates["imu"])
+def _imu_readings(run: _Run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The IMU's sample times t (K,) s, gyro (K, 3) rad/s and accelerometer (K, 3) m/s², IMU
+    axes (module docstring: imu_misalignment, imu_offset, structural_mode, gyro_scale, the
+    noise (gyro's drawn first), gyro_bias, accelerometer_bias; not gyro_bias_drift)."""
+    rig, model, eff, mode = run.rig, run.model, run.eff, run.mode
+    t, Y, ev = run.at(run.exp.sensors.rates["imu"])
     R_imu = rig.imu.rotation.as_matrix()
     if "imu_misalignment" in eff:   # true IMU axes: turned beyond rig.yaml's imu.rpy
         R_imu = R_imu @ Rotation.from_euler("xyz", eff["imu_misalignment"].get("rpy")).as_matrix()
@@ -87,58 +122,67 @@ def sample_sensors(exp: Experiment, model: RigDynamics, traj: Callable[[np.ndarr
         rho = rho + eff["imu_offset"].get("offset")
     a_rel_body = np.cross(alpha, rho) + np.cross(omega, np.cross(omega, rho))
     a_imu = ev.a + np.einsum("kij,kj->ki", ev.R, a_rel_body)
-    f_body = np.einsum("kji,kj->ki", ev.R, a_imu - g_world)
+    f_body = np.einsum("kji,kj->ki", ev.R, a_imu - model.g)
     gyro_true, acc_true = omega @ R_imu, f_body @ R_imu
     if "imu" in mode:               # the IMU's mount rings: ω + θ̇, specific force + ẍ
         gyro_true = gyro_true + mode_response(t, gyro_true, mode["imu"])
         acc_true = acc_true + mode_response(t, acc_true, mode["imu"])
     if "gyro_scale" in eff:         # scale errors act on the sensed rate, before noise and bias
         gyro_true = gyro_true * eff["gyro_scale"].get("scale")
-    gyro = noisy(gyro_true, "gyro")
-    acc = noisy(acc_true, "accelerometer")
+    gyro = run.noisy(gyro_true, "gyro")
+    acc = run.noisy(acc_true, "accelerometer")
     if "gyro_bias" in eff:
         gyro += eff["gyro_bias"].get("bias")
     if "accelerometer_bias" in eff:
         acc += eff["accelerometer_bias"].get("bias")
-    t_imu = t
-    # load cells
-    t, Y, ev = at(spec.rates["load_cells"])
+    return t, gyro, acc
+
+
+def _load_cell_readings(run: _Run) -> dict[str, TimeSeries]:
+    """Each cable's load cell (K, 1) N by name (structural_mode, load_cell_scale, noise,
+    sensor_delay).  Raises :class:`SimulationError` when an inextensible cable goes slack."""
+    rig, model, exp = run.rig, run.model, run.exp
+    t, Y, ev = run.at(exp.sensors.rates["load_cells"])
     if model.cables.type == "inextensible" and not model.cables.compression:
-        check_taut(rig, t, ev.T, model.m * np.linalg.norm(g_world))
+        check_taut(rig, t, ev.T, model.m * np.linalg.norm(model.g))
     T = ev.T.copy()
-    if "load_cells" in mode:        # each load cell reads its flexible anchor's spring force
-        T = T + mode_response(t, T, mode["load_cells"])
+    if "load_cells" in run.mode:    # each load cell reads its flexible anchor's spring force
+        T = T + mode_response(t, T, run.mode["load_cells"])
     for e in exp.effects:
         if e.name == "load_cell_scale":
             T[:, rig.cable_names.index(e.get("cable"))] *= e.get("scale")
-    T = noisy(T, "load_cell")
-    t_cells = exp.stamp_origin + t + delay.get("load_cells", 0.0)
-    cells = {name: TimeSeries(t_cells, T[:, i]) for i, name in enumerate(rig.cable_names)}
-    # exciter
-    exc = None
-    if rig.exciter is not None:
-        t, Y, ev = at(spec.rates["exciter"])
-        force = ev.exciter
-        if "exciter_rotor" in eff and eff["exciter_rotor"].get("rotor_mass") > 0:
-            # the load cells hold the rotor's bearing: they read the force less the rotor's m_r f_e
-            r_e = rig.exciter.position - model.cg
-            a_e = ev.a + np.einsum("kij,kj->ki", ev.R, np.cross(ev.alpha, r_e) + np.cross(Y[:, 15:18],
-                                                                                          np.cross(Y[:, 15:18], r_e)))
-            f_e = np.einsum("kji,kj->ki", ev.R, a_e - g_world) @ rig.exciter.rotation.as_matrix()
-            force = force - eff["exciter_rotor"].get("rotor_mass") * f_e[:, :2]
-        exc = TimeSeries(exp.stamp_origin + t + delay.get("exciter", 0.0), noisy(force, "exciter"))
-    # inclinometer
-    inc = None
-    if rig.inclinometer is not None:
-        t, Y, ev = at(spec.rates["inclinometer"])
-        axes = ev.R @ rig.inclinometer.rotation.as_matrix()
-        angles = np.arcsin(np.clip(axes[:, 2, :2], -1.0, 1.0))
-        inc = TimeSeries(exp.stamp_origin + t + delay.get("inclinometer", 0.0), noisy(angles, "inclinometer"))
-    if "gyro_bias_drift" in eff:    # drawn last: every other stream's noise stays as without it
-        gyro += random_walk(rng, len(t_imu), 1.0 / spec.rates["imu"], eff["gyro_bias_drift"].get("random_walk"))
-    imu = TimeSeries(exp.stamp_origin + t_imu, np.hstack([gyro, acc]))
-    return SensorData(imu, cells, exc, inc)
+    T = run.noisy(T, "load_cell")
+    t_cells = exp.stamp_origin + t + run.delay.get("load_cells", 0.0)
+    return {name: TimeSeries(t_cells, T[:, i]) for i, name in enumerate(rig.cable_names)}
 
+
+def _exciter_readings(run: _Run) -> TimeSeries | None:
+    """The exciter's load cells (K, 2) N, exciter frame: the force less the rotor's m_r f_e
+    (exciter_rotor with a rotor_mass), noise, sensor_delay; None without an exciter."""
+    rig, model, eff = run.rig, run.model, run.eff
+    if rig.exciter is None:
+        return None
+    t, Y, ev = run.at(run.exp.sensors.rates["exciter"])
+    force = ev.exciter
+    if "exciter_rotor" in eff and eff["exciter_rotor"].get("rotor_mass") > 0:
+        # the load cells hold the rotor's bearing: they read the force less the rotor's m_r f_e
+        r_e = rig.exciter.position - model.cg
+        a_e = ev.a + np.einsum("kij,kj->ki", ev.R, np.cross(ev.alpha, r_e) + np.cross(Y[:, 15:18],
+                                                                                      np.cross(Y[:, 15:18], r_e)))
+        f_e = np.einsum("kji,kj->ki", ev.R, a_e - model.g) @ rig.exciter.rotation.as_matrix()
+        force = force - eff["exciter_rotor"].get("rotor_mass") * f_e[:, :2]
+    return TimeSeries(run.exp.stamp_origin + t + run.delay.get("exciter", 0.0), run.noisy(force, "exciter"))
+
+
+def _inclinometer_readings(run: _Run) -> TimeSeries | None:
+    """The inclinometer's elevations (K, 2) rad (noise, sensor_delay); None without one."""
+    rig = run.rig
+    if rig.inclinometer is None:
+        return None
+    t, Y, ev = run.at(run.exp.sensors.rates["inclinometer"])
+    axes = ev.R @ rig.inclinometer.rotation.as_matrix()
+    angles = np.arcsin(np.clip(axes[:, 2, :2], -1.0, 1.0))
+    return TimeSeries(run.exp.stamp_origin + t + run.delay.get("inclinometer", 0.0), run.noisy(angles, "inclinometer"))
 
 def random_walk(rng: np.random.Generator, n: int, dt: float, sigma: float) -> np.ndarray:
     """(n, 3) random-walk (Wiener) bias on a grid of step dt s: b_0 = 0,
