@@ -107,6 +107,16 @@ class _Run:
         return reading
 
 
+def _specific_force(ev: Evaluation, omega: np.ndarray, alpha: np.ndarray, rho: np.ndarray,
+                    g: np.ndarray) -> np.ndarray:
+    """(K, 3) m/s², body axes: the specific force R^T (a_p − g) at the body point ``rho`` (3,) m
+    from the CG, a_p = a_cg + R (α × ρ + ω × (ω × ρ)); ``omega``, ``alpha`` (K, 3) body rad/s and
+    rad/s², ``g`` (3,) world m/s²."""
+    a_p = ev.a + np.einsum("kij,kj->ki", ev.R, np.cross(alpha, rho) + np.cross(omega, np.cross(omega, rho)))
+    f: np.ndarray = np.einsum("kji,kj->ki", ev.R, a_p - g)
+    return f
+
+
 def _imu_readings(run: _Run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The IMU's sample times t (K,) s, gyro (K, 3) rad/s and accelerometer (K, 3) m/s², IMU
     axes (module docstring: imu_misalignment, imu_offset, structural_mode, gyro_scale, the
@@ -120,10 +130,7 @@ def _imu_readings(run: _Run) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rho = rig.imu.position - model.cg
     if "imu_offset" in eff:         # true IMU position: rig.yaml's + offset
         rho = rho + eff["imu_offset"].get("offset")
-    a_rel_body = np.cross(alpha, rho) + np.cross(omega, np.cross(omega, rho))
-    a_imu = ev.a + np.einsum("kij,kj->ki", ev.R, a_rel_body)
-    f_body = np.einsum("kji,kj->ki", ev.R, a_imu - model.g)
-    gyro_true, acc_true = omega @ R_imu, f_body @ R_imu
+    gyro_true, acc_true = omega @ R_imu, _specific_force(ev, omega, alpha, rho, model.g) @ R_imu
     if "imu" in mode:               # the IMU's mount rings: ω + θ̇, specific force + ẍ
         gyro_true = gyro_true + mode_response(t, gyro_true, mode["imu"])
         acc_true = acc_true + mode_response(t, acc_true, mode["imu"])
@@ -166,10 +173,8 @@ def _exciter_readings(run: _Run) -> TimeSeries | None:
     force = ev.exciter
     if "exciter_rotor" in eff and eff["exciter_rotor"].get("rotor_mass") > 0:
         # the load cells hold the rotor's bearing: they read the force less the rotor's m_r f_e
-        r_e = rig.exciter.position - model.cg
-        a_e = ev.a + np.einsum("kij,kj->ki", ev.R, np.cross(ev.alpha, r_e) + np.cross(Y[:, 15:18],
-                                                                                      np.cross(Y[:, 15:18], r_e)))
-        f_e = np.einsum("kji,kj->ki", ev.R, a_e - model.g) @ rig.exciter.rotation.as_matrix()
+        f_e = _specific_force(ev, Y[:, 15:18], ev.alpha, rig.exciter.position - model.cg, model.g) \
+            @ rig.exciter.rotation.as_matrix()
         force = force - eff["exciter_rotor"].get("rotor_mass") * f_e[:, :2]
     return TimeSeries(run.exp.stamp_origin + t + run.delay.get("exciter", 0.0), run.noisy(force, "exciter"))
 
