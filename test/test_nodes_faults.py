@@ -88,13 +88,13 @@ def long_recording(tmp_path_factory):
     return default_recording(tmp_path_factory, 90.0)
 
 
-def start_graph(tmp: Path, rec: Path, cables, driver_extra=None, identifier_extra=None, rate=RATE):
+def start_graph(tmp: Path, rec: Path, cables, driver_extra=None, identifier_extra=None, rate=RATE, tracker_extra=None):
     g = Graph(workdir=tmp / "nodes", domain_id=random.Random().randint(120, 230))
     lis = StatusListener(g.domain_id, cables)
     rig = str(rec / "rig.yaml")
     g.start("sensor_driver", {"recording": str(rec), "rate": rate, "start_delay": 1.0, "wait_timeout": 60.0,
                               "wait_for": WAIT_FOR, **(driver_extra or {})})
-    g.start("tracker", {"rig": rig})
+    g.start("tracker", {"rig": rig, **(tracker_extra or {})})
     g.start("preprocessor", {"rig": rig})
     g.start("identifier", {"rig": rig, "min_duration": 10.0, **(identifier_extra or {})})
     return g, lis
@@ -116,7 +116,11 @@ def relative_errors(d: dict, truth: dict) -> dict:
 def test_a_silent_load_cell_is_reported_and_not_fitted_over(recording, tmp_path):
     rec, sim = recording
     topic = LOAD_CELL_PREFIX + "c1"
-    g, lis = start_graph(tmp_path, rec, sim.rig.cable_names, {"silence": [f"{topic}:10.0:22.0"]})
+    # max_delay is data time: at RATE x real time the tracker's 5 s default tolerates only 5 / RATE s
+    # of wall-time lag between topics, and under a loaded CI machine a topic lagged more (its late
+    # samples refused by the stamp merger); the lab's 5 s of wall time, scaled to the replay
+    g, lis = start_graph(tmp_path, rec, sim.rig.cable_names, {"silence": [f"{topic}:10.0:22.0"]},
+                         tracker_extra={"max_delay": 5.0 * RATE})
     try:
         wait_until(lambda: drained(lis), 120.0, "the replay to finish and drain", g)
         time.sleep(1.2)
@@ -143,7 +147,8 @@ def test_a_silent_load_cell_is_reported_and_not_fitted_over(recording, tmp_path)
         # nothing else was lost or rejected
         for node in ("/tracker", "/preprocessor", "/identifier"):
             assert lis.diag[node][f"rx {topic}"] == lis.status["total"][topic]
-            assert all(v == 0 for k, v in lis.diag[node].items() if k.startswith("rejected")), lis.diag[node]
+            rejected = {k: v for k, v in lis.diag[node].items() if k.startswith("rejected") and v}
+            assert not rejected, (node, rejected, [h[3] for h in lis.history if h[1] == node and h[2] == 1])
         # a window over the gap is refused, naming the topic and the span
         lis.set_params("/identifier", {"window_start": 5.0, "window_end": 40.0})
         r = lis.call("/identifier/identify_inertia")
