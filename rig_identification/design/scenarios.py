@@ -46,6 +46,7 @@ from scipy.spatial.transform import Rotation
 from ..io.rig import rig_from_dict
 from ..model.experiment import REFERENCE_NOISE, REFERENCE_RATES
 from ..model.modes import natural_modes
+from ..model.parametrisation import joined
 from ..model.simulator import SimResult, SimulationError, experiment_from_dict, simulate
 from .planning import resonances
 
@@ -109,10 +110,6 @@ def _box_shell(mass: float, size: np.ndarray) -> np.ndarray:
     return np.diag(J)
 
 
-def _steiner(m: float, d: np.ndarray) -> np.ndarray:
-    return m * (d @ d * np.eye(3) - np.outer(d, d))
-
-
 @dataclass(frozen=True)
 class Body:
     """The suspended body: mass kg, CG (3,) body frame m, tensor (3,3) about the CG kg·m²,
@@ -143,9 +140,7 @@ def random_body(rng: np.random.Generator) -> Body:
     mf = float(rng.uniform(*FRAME_MASS))
     c_vehicle = np.array([rng.uniform(-0.2, 0.2), rng.uniform(-0.03, 0.03), 0.15 + v.cg_height])
     c_frame = np.array([0.0, 0.0, height / 2])
-    m = v.mass + mf
-    cg = (v.mass * c_vehicle + mf * c_frame) / m
-    J = Jv + _steiner(v.mass, c_vehicle - cg) + _box_shell(mf, size) + _steiner(mf, c_frame - cg)
+    m, cg, J = joined(v.mass, c_vehicle, Jv, mf, c_frame, _box_shell(mf, size))
     return Body(m, cg, J, size, v.name)
 
 

@@ -4,7 +4,8 @@ The entries in :data:`~rig_identification.io.verdict.KEYS` order (ixx, ixy, ixz,
 geometry_msgs/Inertia, the negated products of inertia), the symmetric basis that maps them
 to the (3,3) tensor, and the log-Cholesky parametrisation of Wensing, Kim & Slotine (IEEE
 RA-L 2017) under which every tensor is positive definite and obeys the triangle
-inequalities.  Used by the identifiers (:mod:`rig_identification.estimation.identification`,
+inequalities; and the parallel-axis arithmetic (Steiner's theorem) of joining two bodies and
+taking one from another.  Used by the identifiers (:mod:`rig_identification.estimation.identification`,
 :mod:`rig_identification.estimation.rig_fit`).
 """
 from __future__ import annotations
@@ -88,22 +89,48 @@ def params_from_consistent(J: np.ndarray) -> np.ndarray:
     return np.array([np.log(L[0, 0]), L[1, 0], np.log(L[1, 1]), L[2, 0], L[2, 1], np.log(L[2, 2])])
 
 
+def parallel_axis(mass: float, offset: ArrayLike) -> np.ndarray:
+    """The parallel-axis term (3, 3) kg·m² of ``mass`` kg whose CG is ``offset`` (3,) m from the
+    reference point: m (|d|² I − d dᵀ) (Steiner's theorem)."""
+    d = np.asarray(offset, float)
+    term: np.ndarray = mass * (d @ d * np.eye(3) - np.outer(d, d))
+    return term
+
+
+def joined(mass: float, cg: ArrayLike, inertia: ArrayLike, part: float, part_cg: ArrayLike,
+           part_inertia: ArrayLike | None = None) -> tuple[float, np.ndarray, np.ndarray]:
+    """Two bodies as one: a body (``mass`` kg, ``cg`` (3,) m, ``inertia`` (3, 3) kg·m² about its CG)
+    and a part (``part`` kg at ``part_cg``, its own tensor ``part_inertia`` about its CG; a point
+    mass where None), in one frame.  Returns the mass, the CG c = (m c₁ + m_p c_p)/(m + m_p) and
+    the tensor about c, J₁ + P(m, c₁ − c) + J_p + P(m_p, c_p − c) (:func:`parallel_axis`)."""
+    c1, cp = np.asarray(cg, float), np.asarray(part_cg, float)
+    m = mass + part
+    c = (mass * c1 + part * cp) / m
+    Jp = np.zeros((3, 3)) if part_inertia is None else np.asarray(part_inertia, float)
+    return m, c, np.asarray(inertia, float) + parallel_axis(mass, c1 - c) + Jp + parallel_axis(part, cp - c)
+
+
+def parted(mass: float, cg: ArrayLike, inertia: ArrayLike, part: float, part_cg: ArrayLike,
+           part_inertia: ArrayLike | None = None) -> tuple[float, np.ndarray, np.ndarray]:
+    """A body (``mass`` kg, ``cg`` (3,) m, ``inertia`` (3, 3) kg·m² about its CG) less a part
+    (``part`` kg at ``part_cg``, its tensor ``part_inertia`` about its own CG; a point mass where
+    None), in one frame: the inverse of :func:`joined`.  Returns the mass m − m_p, the CG
+    c' = (m c − m_p c_p)/(m − m_p) and the tensor about c', J − J_p − P(m_p, c_p − c) − P(m − m_p, c' − c)
+    (:func:`parallel_axis`, each part about the whole's CG).  Raises ValueError where m_p is not
+    below m."""
+    if not part < mass:
+        raise ValueError(f"a part of {part} kg cannot be taken from a body of {mass} kg")
+    c, p = np.asarray(cg, float), np.asarray(part_cg, float)
+    rest = mass - part
+    c_rest = (mass * c - part * p) / rest
+    Jp = np.zeros((3, 3)) if part_inertia is None else np.asarray(part_inertia, float)
+    return rest, c_rest, np.asarray(inertia, float) - Jp - parallel_axis(part, p - c) - parallel_axis(rest, c_rest - c)
+
+
 def without_point_mass(mass: float, cg: ArrayLike, theta: ArrayLike, part: float, position: ArrayLike
                        ) -> tuple[float, np.ndarray, np.ndarray]:
     """A body (``mass`` kg, ``cg`` (3,) m, tensor entries ``theta`` (6,) kg·m² about it, one frame)
-    less a point mass ``part`` kg at ``position`` (3,) m: the mass m − m_p, the CG
-    c' = (m c − m_p p)/(m − m_p) and the entries (6,) about c', J − m_p S(p − c) − (m − m_p) S(c' − c)
-    with S(d) = |d|² I − d dᵀ (Steiner's parallel-axis theorem, applied to each part about the
-    whole's CG).  Raises ValueError where m_p is not below m."""
-    if not part < mass:
-        raise ValueError(f"a point mass of {part} kg cannot be taken from a body of {mass} kg")
-    c, p = np.asarray(cg, float), np.asarray(position, float)
-    rest = mass - part
-    c_rest = (mass * c - part * p) / rest
-
-    def steiner(m: float, d: np.ndarray) -> np.ndarray:
-        term: np.ndarray = m * (d @ d * np.eye(3) - np.outer(d, d))
-        return term
-
-    J = to_tensor(theta) - steiner(part, p - c) - steiner(rest, c_rest - c)
+    less a point mass ``part`` kg at ``position`` (3,) m: :func:`parted` on the entries (6,).
+    Raises ValueError where m_p is not below m."""
+    rest, c_rest, J = parted(mass, cg, to_tensor(theta), part, position)
     return rest, c_rest, from_tensor(J)

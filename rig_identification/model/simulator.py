@@ -47,12 +47,13 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from ..io.recording import SensorData
-from ..io.rig import DummyMass, Rig, inertia_entries, inertia_tensor
+from ..io.rig import Rig, inertia_entries, inertia_tensor
 from .cables import CableModel
 from .dynamics import Evaluation, RigDynamics, SimulationError
 from .equilibrium import hanging_equilibrium, initial_state
 from .excitation import Excitation
 from .experiment import Experiment, Initial, experiment_from_dict
+from .parametrisation import joined
 from .sensors import Sampled, sample_sensors
 from .suspension import Suspension, split_body, without
 
@@ -173,18 +174,6 @@ def true_states(model: RigDynamics, stamp_origin: float, t: np.ndarray, Y: np.nd
                   suspension=None if model.suspension is None else model.suspension.relative(Y))
 
 
-def _with_dummy(mass: float, cg: np.ndarray, J: np.ndarray, dummy: DummyMass) -> tuple[float, np.ndarray, np.ndarray]:
-    """Mass (kg), CG (3,) and inertia about the new CG (3, 3) of the body plus a point-mass dummy."""
-    m = mass + dummy.mass
-    c = (mass * cg + dummy.mass * dummy.position) / m
-
-    def steiner(mm: float, d: np.ndarray) -> np.ndarray:
-        term: np.ndarray = mm * (d @ d * np.eye(3) - np.outer(d, d))
-        return term
-
-    return m, c, J + steiner(mass, cg - c) + steiner(dummy.mass, dummy.position - c)
-
-
 def simulate(exp: Experiment) -> SimResult:
     """Run the experiment: equilibrium, integration (DOP853), sensor sampling with noise.
 
@@ -201,7 +190,7 @@ def simulate(exp: Experiment) -> SimResult:
         excitation, duration, initial = Excitation(), static.duration, Initial()
         if static.kind == "dummy":
             assert exp.rig.dummy_mass is not None   # a dummy static experiment has one (experiment_from_dict)
-            mass, cg, J = _with_dummy(mass, cg, J, exp.rig.dummy_mass)
+            mass, cg, J = joined(mass, cg, J, exp.rig.dummy_mass.mass, exp.rig.dummy_mass.position)
         rig_out = replace(exp.rig, center_of_gravity=None)
     else:
         rig_out = replace(exp.rig, dummy_mass=None)
@@ -220,11 +209,11 @@ def simulate(exp: Experiment) -> SimResult:
     cable_mass = exp.effect("cable_mass")
     if cable_mass is not None:  # half of each cable hangs on its body anchor, outside the load cell
         for b in exp.rig.body_anchors:
-            mass, cg, J = _with_dummy(mass, cg, J, DummyMass(0.5 * cable_mass.get("mass"), np.asarray(b, float)))
+            mass, cg, J = joined(mass, cg, J, 0.5 * cable_mass.get("mass"), b)
     rotor = exp.effect("exciter_rotor")
     if rotor is not None and rotor.get("rotor_mass") > 0:     # the rotor rides on the body, on its axis
         assert exp.rig.exciter is not None      # the experiment refuses exciter_rotor without excitation
-        mass, cg, J = _with_dummy(mass, cg, J, DummyMass(rotor.get("rotor_mass"), exp.rig.exciter.position))
+        mass, cg, J = joined(mass, cg, J, rotor.get("rotor_mass"), exp.rig.exciter.position)
     model = RigDynamics(exp.rig, mass, cg, J, cables, excitation, exp.effects)
     compliant = exp.effect("compliant_body")
     rtol, atol = RTOL, ATOL

@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation
 
 from ..io.rig import inertia_entries
 from .effects import DEFAULT_LOCK_DAMPING_RATIO, DEFAULT_LOCK_FREQUENCY, Effect
+from .parametrisation import parted
 
 SPRUNG_RAISE = 0.2                 # m: compliant_body's default sprung-CG height above the CG (at most half
                                    # the largest raise the body's mass distribution allows, see split_body)
@@ -36,12 +37,6 @@ def _second_moment(J: np.ndarray) -> np.ndarray:
     """S = ∫ r rᵀ dm (3, 3) of an inertia tensor J = tr(S) I − S (about the same point)."""
     S: np.ndarray = 0.5 * np.trace(J) * np.eye(3) - J
     return S
-
-
-def _steiner(m: float, d: np.ndarray) -> np.ndarray:
-    """Parallel-axis term (3, 3) of a mass m kg offset by d (3,) m."""
-    term: np.ndarray = m * (d @ d * np.eye(3) - np.outer(d, d))
-    return term
 
 
 def split_body(mass: float, cg: ArrayLike, inertia: ArrayLike, effect: Effect,
@@ -97,10 +92,9 @@ def split_body(mass: float, cg: ArrayLike, inertia: ArrayLike, effect: Effect,
 
 
 def without(mass: float, cg: np.ndarray, J: np.ndarray, part: RigidPart) -> RigidPart:
-    """The rigid body (mass kg, cg (3,) m, J (3, 3) about cg) less ``part``."""
-    m = mass - part.mass
-    c = (mass * cg - part.mass * part.cg) / m
-    return RigidPart(m, c, J - part.inertia - _steiner(part.mass, part.cg - cg) - _steiner(m, c - cg))
+    """The rigid body (mass kg, cg (3,) m, J (3, 3) about cg) less ``part``
+    (:func:`~rig_identification.model.parametrisation.parted`)."""
+    return RigidPart(*parted(mass, cg, J, part.mass, part.cg, part.inertia))
 
 
 def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
