@@ -60,7 +60,7 @@ from ..io.rig import Rig
 from ..io.verdict import KEYS
 from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
-from ..model.parametrisation import entry_scales, physically_consistent, to_tensor, without_point_mass
+from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
 from .precision import Z95
 from .reused_jacobian import ReusedJacobian
 from .rig_problem import (
@@ -75,7 +75,16 @@ from .rig_problem import (
 )
 from .rig_record import ChannelSeries, Record
 from .rig_start import start_parameters
-from .rig_unknowns import EXTENSION_FIELDS, EXTENSIONS, Layout, Prior, extension_fields, parameters_of, vector
+from .rig_unknowns import (
+    EXTENSION_FIELDS,
+    EXTENSIONS,
+    Layout,
+    Prior,
+    body_unknowns,
+    extension_fields,
+    parameters_of,
+    vector,
+)
 
 log = logging.getLogger(__name__)
 
@@ -237,7 +246,7 @@ class RigFit:
         """The body's mass, CG and tensor with their covariance.  The model's are the suspended
         body's; where it holds the exciter rotor's mass m_r (``exciter_rotor``), the body is that
         less the rotor, a point mass on its axis at the exciter's position
-        (:func:`~rig_identification.model.parametrisation.without_point_mass`; the ring it turns
+        (:func:`~.rig_unknowns.body_unknowns`; the ring it turns
         on, m_r e² ≈ 1 kg·m² on the shared recording's 11 kg rotor, stays in the tensor), the
         covariance carried through the map's Jacobian (central differences)."""
         lay, p = self.layout, self.parameters
@@ -246,12 +255,14 @@ class RigFit:
         if m_r == 0.0:
             return Body(float(p.mass), p.cg, p.inertia, cov)
         where = np.r_[np.arange(10), lay.extension_of("exciter_rotor").start + 1]
+        x = vector(p, self.initial, lay)
 
         def body_of(v: np.ndarray) -> np.ndarray:
-            mass, cg, theta = without_point_mass(v[9], v[6:9], v[:6], v[10], p.exciter_position)
-            return np.concatenate([theta, cg, [mass]])
+            y = x.copy()
+            y[where] = v
+            return body_unknowns(y, lay, p.exciter_position)[:10]
 
-        v = np.concatenate([p.inertia, p.cg, [p.mass, m_r]])
+        v = x[where]
         h = 1e-6 * np.maximum(np.abs(v), 1.0)
         D = np.column_stack([(body_of(v + e) - body_of(v - e)) / (2 * e[i]) for i, e in enumerate(np.diag(h))])
         b = body_of(v)

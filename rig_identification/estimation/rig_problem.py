@@ -29,7 +29,7 @@ from ..model.rig_ode import (
     with_sensor_traits,
 )
 from .rig_record import ChannelSeries, Record
-from .rig_unknowns import Layout, Prior, parameters_of, priors, relayout, unit_scale
+from .rig_unknowns import Layout, Prior, body_unknowns, parameters_of, priors, relayout, unit_scale
 
 log = logging.getLogger(__name__)
 
@@ -290,14 +290,9 @@ class RigProblem:
     def prior_rows(self, z: np.ndarray) -> np.ndarray:
         """The priors' rows of :meth:`residual`: each unknown with a prior off its centre in its σ.
         The mass's and the CG's priors (the scale's, the static test's) are the body's: where the
-        layout holds the exciter rotor's mass, the suspended body's less the rotor on its axis."""
-        x = self.x(z)
-        if "exciter_rotor" in self.lay.extensions:
-            m_r = float(x[self.lay.extension_of("exciter_rotor")][1])
-            m, lay = float(x[self.lay.mass]), self.lay
-            if m_r != 0.0 and m_r < m:
-                x[lay.cg] = (m * x[lay.cg] - m_r * self.like.exciter_position) / (m - m_r)
-                x[lay.mass] = m - m_r
+        layout holds the exciter rotor's mass, the suspended body's less the rotor on its axis
+        (:func:`~.rig_unknowns.body_unknowns`)."""
+        x = body_unknowns(self.x(z), self.lay, self.like.exciter_position)
         std = self.prior_std[:len(z)]
         finite = np.isfinite(std)
         rows: np.ndarray = (x[:len(z)][finite] - self.centre[:len(z)][finite]) / std[finite]

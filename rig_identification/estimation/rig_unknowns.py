@@ -19,6 +19,7 @@ from numpy.typing import ArrayLike
 from ..io.rig import Rig, Survey
 from ..model.cables import DEFAULT_STIFFNESS
 from ..model.linear_rig import RigParameters
+from ..model.parametrisation import without_point_mass
 from .rig_record import RigFitError
 
 #: The longest segment, s, of a fitted span (:mod:`~rig_identification.estimation.rig_fit`): each
@@ -283,6 +284,22 @@ def extension_fields(values: dict[str, ArrayLike]) -> dict[str, object]:
     for e, v in values.items():
         a = np.asarray(v, float)
         out[EXTENSION_FIELDS[e]] = float(a.reshape(-1)[0]) if EXTENSIONS[e][0] == 1 else a
+    return out
+
+
+def body_unknowns(x: np.ndarray, lay: Layout, exciter_position: ArrayLike) -> np.ndarray:
+    """The unknowns ``x`` (layout ``lay``) with the body's tensor entries kg·m², CG m and mass kg in
+    place of the suspended body's: where the layout holds the exciter rotor's mass m_r
+    (``exciter_rotor``, 0 < m_r < the mass), the suspended body less a point mass m_r at
+    ``exciter_position`` (3,) m on the rotor's axis
+    (:func:`~rig_identification.model.parametrisation.without_point_mass`); ``x`` itself otherwise.
+    The scale weighs the body, and rig.yaml and the static test describe it."""
+    m_r = float(x[lay.extension_of("exciter_rotor")][1]) if "exciter_rotor" in lay.extensions else 0.0
+    if not 0.0 < m_r < float(x[lay.mass]):
+        return x
+    mass, cg, theta = without_point_mass(float(x[lay.mass]), x[lay.cg], x[lay.inertia], m_r, exciter_position)
+    out = x.copy()
+    out[lay.inertia], out[lay.cg], out[lay.mass] = theta, cg, mass
     return out
 
 
