@@ -163,6 +163,9 @@ def print_diagnosis(dg: RigDiagnosis) -> None:
             print(f"    {c.unknown}: {c.estimate:.6g} ± {c.std:.2g}, given {c.prior:.6g} ± {c.prior_std:.2g} "
                   f"({c.z:+.1f} σ of the given)")
     for st in dg.steps:
+        if st.restart:
+            print(f"  the rigid-body fit did not find the motion; fitted again with {st.added} from the value the "
+                  "recording gives it, the fit found it; tested there:")
         c = next(c for c in st.candidates if c.name == st.best)
         word = ("named" if st.named else f"not told apart from {', '.join(st.indistinguishable)}") if dg.explained \
             else "added, not named"

@@ -80,6 +80,18 @@ class Record:
     def duration(self) -> float:
         return self.dt * (len(self.y) - 1)
 
+    def unbalance(self) -> float | None:
+        """The unbalance m_u e, kg·m, whose rotation makes the denoised force over the fit's span:
+        its median amplitude over Ω², with Ω rad/s the mean rate of its phase (a rotating
+        unbalance's force is m_u e Ω²: Rao, *Mechanical Vibrations*, 6th ed., §3.7).  None where
+        the force is not a rotating vector (then it is no output: :data:`FORCE_CHANNELS`)."""
+        if self.channels[-len(FORCE_CHANNELS):] != FORCE_CHANNELS:
+            return None
+        z = self.u[self.start:, 0] + 1j * self.u[self.start:, 1]
+        phase = np.unwrap(np.angle(z))
+        omega = abs(phase[-1] - phase[0]) / (self.dt * (len(z) - 1))
+        return float(np.median(np.abs(z)) / omega ** 2) if omega > 0 else None
+
     def force_basis(self) -> np.ndarray:
         """(n - start, K) the cubic B-splines on :attr:`force_knots` over the fit's span, one
         column each ((n - start, 0) when the force is not an output: not a rotating vector)."""

@@ -143,6 +143,8 @@ def diagnosis_html(res: RigModelResult) -> str:
                 for c in sorted(st.candidates, key=lambda c: -c.statistic)]
         word = ("named" if st.named else f"not told apart from {', '.join(st.indistinguishable)}; the model takes it") \
             if dg.explained else "not named: the model with it still does not fit"
+        if st.restart:
+            word += "; fitted from the value the recording gives it, where the rigid-body fit had not found the motion"
         out.append(f"<h3>Step {i}: {esc(st.added)} added ({esc(word)})</h3>"
                    + table(["extension", "χ² fall", "threshold", "plausible", "cross-validated",
                             "Vuong z of the best over it"], rows, ident=f"step-{i}-table"))
