@@ -619,7 +619,8 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     fd = np.sqrt(np.diag(fisher))
     seen = np.isfinite(sd) & (fd > 0)       # a column of zeros (pinv's null space): no correlation to scale
     cov = np.diag(sd ** 2)                  # an unknown the residual does not see: σ inf, uncorrelated
-    cov[np.ix_(seen, seen)] = (fisher / np.outer(fd, fd) * np.outer(sd, sd))[np.ix_(seen, seen)]
+    both = np.ix_(seen, seen)
+    cov[both] = fisher[both] / np.outer(fd[seen], fd[seen]) * np.outer(sd[seen], sd[seen])
     unit = RigProblem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases)
     outputs = unit.outputs(x)             # one model run for the levels and the plotted series
     level = levels(unit, x, outputs)
