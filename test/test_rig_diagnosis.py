@@ -288,3 +288,70 @@ def test_no_name_where_the_rigid_model_restarted_from_the_extended_fit_explains_
             assert dg.refit is extended and dg.rigid is rigid and dg.determined
         else:
             assert dg.refit is None and dg.rigid is again and not dg.determined and "not determined" in dg.advice[0]
+
+
+def test_the_rotor_fitted_from_its_unbalance_is_named_only_where_it_finds_the_motion_and_is_told_apart(monkeypatch):
+    """Where the rigid-body fit lost the motion, the rotor is fitted from the unbalance the
+    measured force gives (its mass 0): no step where that fit loses it too or the recording gives
+    no unbalance; where it finds it, the rotor is the step (restart) when its fall of χ² without
+    it is significant and it is determined, and a class where an eligible extension in its place
+    fits as well (Vuong's z below Student's t)."""
+    from types import SimpleNamespace
+
+    from rig_identification.diagnosis import rig_diagnosis
+    from rig_identification.estimation.rig_extensions import ExtensionFit
+    from rig_identification.estimation.rig_unknowns import EXTENSIONS, Layout
+
+    lay = Layout(1, extensions=("exciter_rotor",))
+    every = lay.extended(tuple(EXTENSIONS))        # the linearisation's layout: every untried extension
+    rotor = every.extension_of("exciter_rotor")
+
+    def found(level):
+        return SimpleNamespace(residual_level=np.array(level), layout=lay, covariance=np.eye(lay.size) * 1e-4,
+                               parameters=SimpleNamespace(inertia=np.arange(6.0)))
+
+    def ext(name, statistic, value):
+        return ExtensionFit((name,), statistic, 2, np.full(2, value), np.full(2, 0.01), np.full(2, value),
+                            np.array([9.0, 9.0]), np.zeros(4))
+
+    class Lin:
+        def __init__(self, r, z):
+            self.r, self.rows, self.names, self.z = r, 4, ("air_drag",), z
+            self.x = np.zeros(every.size)
+            self.x[rotor] = [4.0, 10.0]
+
+        def without(self, index):
+            assert index == rotor
+            return Lin(np.full(6, 30.0), self.z)
+
+        def held_out(self, index):
+            return np.array([50.0, 50.0])
+
+        def fitted(self, names):
+            return ext(names[0], 900.0, 0.5)
+
+        def vuong(self, a, b):
+            return self.z
+
+    rec = SimpleNamespace(unbalance=lambda: 4.0)
+    lost = SimpleNamespace(parameters=SimpleNamespace(inertia=np.arange(6.0)))
+    calls = []
+
+    def refit(extensions, start):
+        calls.append({e: v.tolist() for e, v in extensions.items()})
+        return after
+    for after_level, z, expected in (([1.0, 1.1], 9.0, ((), True)), ([1.0, 1.1], 0.5, (("air_drag",), True)),
+                                     ([1.0, 40.0], 9.0, None)):
+        after = found(after_level)
+        monkeypatch.setattr(rig_diagnosis, "LinearisedRig", lambda rec_, prior, fit, untried, z=z: Lin(np.ones(6), z))
+        got = rig_diagnosis.restart_step(rec, None, lost, refit)
+        assert calls[-1] == {"exciter_rotor": [4.0, 0.0]}, calls
+        if expected is None:
+            assert got is None
+            continue
+        step, fit = got
+        assert fit is after and step.added == "exciter_rotor" and step.restart == expected[1]
+        assert step.indistinguishable == expected[0] and step.named == (not expected[0]), step
+        own = next(c for c in step.candidates if c.name == "exciter_rotor")
+        assert own.statistic == pytest.approx(6 * 30.0 ** 2 - 6.0) and own.eligible
+    assert rig_diagnosis.restart_step(SimpleNamespace(unbalance=lambda: None), None, lost, refit) is None
