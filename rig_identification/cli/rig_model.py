@@ -66,9 +66,41 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
     line below it the tensor's off-diagonal entries (−products) with σ and σ/CRB.  ``brief``
     (``-q``): the verdict, the recording, the tensor table and entries, the mass and the CG, the
     channels the fit leans less on, then :data:`BRIEF_TAIL`."""
-    f = res.fit
-    p = f.parameters
     d = res.to_dict()
+    _print_head(res, brief)
+    _print_tensor(res, d.get("truth_comparison"))
+    body = res.expressed(BODY)
+    print(tensor_entries_line(body, res.fit.crb))
+    if axes.name != "body":
+        print(f"in {axes.label}:")
+        print(f"  centre of gravity ({', '.join(f'{x:.4f}' for x in res.expressed(axes).cg)}) m")
+        print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
+    if brief:
+        _print_mass_and_cg(res, d)
+        if res.diagnosis is not None and res.diagnosis.extensions:
+            print(f"added to the model: {', '.join(res.diagnosis.extensions)} (rig-identify diagnose says why)")
+        _print_leaned_less(res)
+        print(BRIEF_TAIL)
+        return
+    for line in principal_lines(body) + [origin_line(body)]:
+        print(line)
+    if res.diagnosis is not None:
+        print_diagnosis(res.diagnosis)
+    _print_mass_and_cg(res, d)
+    _print_nuisance(res.fit, d)
+    _print_leaned_less(res)
+    sv = d["survey"]
+    print("σ: the inverse Fisher information (each channel's noise as estimated from the recording, raised where "
+          "it does not fit) or the sandwich over 12 blocks, whichever is larger; the CG, mass, cables, gains and "
+          f"the geometry as surveyed (anchors {1e3 * sv['anchors_m']:g} mm, lengths {1e3 * sv['lengths_m']:g} mm, "
+          f"load-cell gains {100 * sv['load_cell_gain']:g} %: rig.yaml survey) are in it.  CRB: the bound of this "
+          "run at the sensors' own noise.  σ holds the noise and the priors; physics the model lacks shows as a "
+          f"channel beyond {LEVEL_LIMIT:g}× its noise (verdict model_error), not in σ")
+    print(f"time: {res.seconds:.1f} s")
+
+
+def _print_head(res: RigModelResult, brief: bool) -> None:
+    """The verdict, the recording and its warnings; without ``brief`` the model, span and band."""
     print(f"verdict: {res.summary}")
     print(f"recording: {res.path}")
     for w in res.warnings:
@@ -80,8 +112,13 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
         print(f"span: {res.start_s:.1f}–{res.start_s + res.duration_s:.1f} s from the first IMU sample "
               f"({res.duration_s:.1f} s, after the exciter's spin-up); band 0–{res.band_hz:.2f} Hz; "
               f"started from {res.start_source}")
+
+
+def _print_tensor(res: RigModelResult, truth: dict | None) -> None:
+    """The moments and products of inertia (body axes) with σ, the CRB and σ/CRB, and against the
+    truth where the recording has one (``truth``: the JSON's ``truth_comparison``)."""
+    f = res.fit
     print(TABLE_CAPTION[:-1] + "; body axes:")
-    truth = d.get("truth_comparison")
     head = f"{'':<7}{'kg·m²':>14}{'σ':>10}{'CRB':>10}{'σ/CRB':>7}"
     if truth:
         head += f"{'truth':>11}{'error':>10}{'err/σ':>7}"
@@ -97,30 +134,25 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
             line += (f"{sign * t['truth'] + 0.0:>11.2f}{sign * t['error_percent'] + 0.0:>+9.3f}%"
                      f"{sign * t['error_sigma'] + 0.0:>+7.1f}")
         print(line)
-    body = res.expressed(BODY)
-    print(tensor_entries_line(body, f.crb))
-    if axes.name != "body":
-        print(f"in {axes.label}:")
-        print(f"  centre of gravity ({', '.join(f'{x:.4f}' for x in res.expressed(axes).cg)}) m")
-        print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
-    sv = d["survey"]
-    if brief:
-        print(f"mass {d['mass']:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
-        print_rotor(d)
-        print_cg(res.cg)
-        if res.diagnosis is not None and res.diagnosis.extensions:
-            print(f"added to the model: {', '.join(res.diagnosis.extensions)} (rig-identify diagnose says why)")
-        if res.poorly_fitted:
-            print(f"the fit leans less on {', '.join(res.poorly_fitted)} (their noise raised to their residual's)")
-        print(BRIEF_TAIL)
-        return
-    for line in principal_lines(body) + [origin_line(body)]:
-        print(line)
-    if res.diagnosis is not None:
-        print_diagnosis(res.diagnosis)
-    print(f"mass {d['mass']:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ {sv['mass_kg']:.3g} kg)")
+
+
+def _print_mass_and_cg(res: RigModelResult, d: dict) -> None:
+    """The mass with σ, the exciter's rotor taken out, the CG (``d``: the JSON)."""
+    print(f"mass {d['mass']:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ "
+          f"{d['survey']['mass_kg']:.3g} kg)")
     print_rotor(d)
     print_cg(res.cg)
+
+
+def _print_leaned_less(res: RigModelResult) -> None:
+    if res.poorly_fitted:
+        print(f"the fit leans less on {', '.join(res.poorly_fitted)} (their noise raised to their residual's)")
+
+
+def _print_nuisance(f: RigFit, d: dict) -> None:
+    """The cables, the body's damping, the natural frequencies, each channel's residual level and
+    the offsets the fit eliminated (``d``: the JSON)."""
+    p = f.parameters
     print("cables: stiffness " + ", ".join(f"{k / 1e6:.3f}" for k in p.stiffness) + " MN/m, damping time "
           f"{1e3 * p.damping_time:.3f} ms; load-cell gains " + ", ".join(f"{g:.4f}" for g in p.gain))
     bd = d["body_damping"]
@@ -135,15 +167,6 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
         print("offsets eliminated (reading − model, mean): load cells " + ", ".join(f"{v:.2f}" for v in o[:n])
               + " N; gyro " + ", ".join(f"{v:.5f}" for v in o[n:n + 3]) + " rad/s (its bias); accelerometer "
               + ", ".join(f"{v:.4f}" for v in o[n + 3:n + 6]) + " m/s²")
-    if res.poorly_fitted:
-        print(f"the fit leans less on {', '.join(res.poorly_fitted)} (their noise raised to their residual's)")
-    print("σ: the inverse Fisher information (each channel's noise as estimated from the recording, raised where "
-          "it does not fit) or the sandwich over 12 blocks, whichever is larger; the CG, mass, cables, gains and "
-          f"the geometry as surveyed (anchors {1e3 * sv['anchors_m']:g} mm, lengths {1e3 * sv['lengths_m']:g} mm, "
-          f"load-cell gains {100 * sv['load_cell_gain']:g} %: rig.yaml survey) are in it.  CRB: the bound of this "
-          "run at the sensors' own noise.  σ holds the noise and the priors; physics the model lacks shows as a "
-          f"channel beyond {LEVEL_LIMIT:g}× its noise (verdict model_error), not in σ")
-    print(f"time: {res.seconds:.1f} s")
 
 
 def _fitted(fit: RigFit, name: str) -> str:
