@@ -6,6 +6,11 @@ import argparse
 import math
 
 
+class UsageError(ValueError):
+    """A command line that cannot run: a path that does not exist, an output that cannot be
+    written, options that do not go together.  Names the path or the option."""
+
+
 def number(name: str, zero: bool = False):
     """argparse type of option ``name``: a finite number > 0 (``zero``: >= 0); anything else
     is an argparse error naming the option."""

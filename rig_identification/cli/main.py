@@ -17,7 +17,7 @@ import sys
 from typing import Callable
 
 from ..io.package import package_version
-from .arg_types import JOB_OPTIONS, number, resolve_model
+from .arg_types import JOB_OPTIONS, UsageError, number, resolve_model
 from .progress import attached
 from .sim_args import parse_sim_args
 
@@ -45,11 +45,6 @@ a rig day:
 research baselines (not for a rig day):
   rig-identify thesis-table                      the thesis's 17 case studies: its errors, ours, --model thesis
 Exit status: 0 done, 2 a user error (one line on stderr, naming the file or the option)."""
-
-
-class UsageError(ValueError):
-    """A command line that cannot run: a path that does not exist, an output that cannot be
-    written, options that do not go together.  Names the path or the option."""
 
 
 def lazy(module: str, name: str) -> Callable:

@@ -6,13 +6,12 @@ from __future__ import annotations
 from pathlib import Path
 from types import SimpleNamespace
 
-from ..estimation.identification import IdentificationError
 from ..io.export import Axes, AxesError, axes_for
 from ..io.recording import read_recording, recording_labels
 from ..io.rig import load_rig
 from ..io.vehicle import common_vehicle
 from ..report.folder import check_report_dir
-from .arg_types import JOB_OPTIONS
+from .arg_types import JOB_OPTIONS, UsageError
 from .progress import step, warn
 
 
@@ -57,7 +56,7 @@ def output_axes(option: str | None, recs: list) -> tuple[Axes, list[str]]:
 def check_common(args) -> None:
     """Refuse, before any bag is read, what neither fit can run: vehicle axes rig.yaml cannot give,
     a report folder that is not an earlier report, a report header option without ``--report`` or
-    of more than one line.  Raises :class:`~rig_identification.estimation.identification.IdentificationError`,
+    of more than one line.  Raises :class:`~.arg_types.UsageError`,
     :class:`~rig_identification.io.vehicle.AxesError`,
     :class:`~rig_identification.report.folder.ReportError`."""
     paths = args.recording
@@ -68,9 +67,9 @@ def check_common(args) -> None:
     for flag, key, _ in JOB_OPTIONS:
         text = getattr(args, key, None)
         if text is not None and not args.report:
-            raise IdentificationError(f"{flag} names the report's {key.replace('_name', '')}: give --report DIR too")
+            raise UsageError(f"{flag} names the report's {key.replace('_name', '')}: give --report DIR too")
         if text is not None and ("\n" in text or not text.strip()):
-            raise IdentificationError(f"{flag}: one line of text, not {text!r}")
+            raise UsageError(f"{flag}: one line of text, not {text!r}")
 
 
 __all__ = ["check_common", "output_axes", "read_all"]

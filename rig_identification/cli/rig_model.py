@@ -15,7 +15,6 @@ from datetime import datetime, timezone
 import numpy as np
 
 from ..diagnosis.rig_diagnosis import RigDiagnosis
-from ..estimation.identification import IdentificationError
 from ..estimation.rig_fit import REWEIGHT_LIMIT, RigFit
 from ..estimation.rig_unknowns import EXTENSIONS
 from ..io.atomic import atomic_write_text
@@ -37,7 +36,7 @@ from ..pipeline.rig_model import CONSISTENCY_SIGMA, LEVEL_LIMIT, CentreOfGravity
 from ..report.folder import Job, ReportError
 from ..report.rig_page import write_rig_report
 from ..statics.handover import load_cg_result
-from .arg_types import JOB_OPTIONS, PEM_ONLY
+from .arg_types import JOB_OPTIONS, PEM_ONLY, UsageError
 from .progress import heading, step, warn
 from .recordings import check_common, output_axes, read_all
 from .text import TABLE_CAPTION, origin_line, principal_lines, tensor_entries_line, tensor_table
@@ -317,10 +316,10 @@ def cmd_inertia(args) -> int:
     gyro-only fit's options); returns the exit status (user errors raise, see cli.user_errors)."""
     given = [flag for k, flag in PEM_ONLY if getattr(args, k, None)] + (["--quick"] if args.quick else [])
     if len(args.recording) > 1:
-        raise IdentificationError("--model rig fits one recording at a time: give one RECORDING (several are "
+        raise UsageError("--model rig fits one recording at a time: give one RECORDING (several are "
                                   "fitted jointly by --model pem)")
     if given:
-        raise IdentificationError(f"{', '.join(given)}: options of --model pem, the gyro-only fit; the rig model "
+        raise UsageError(f"{', '.join(given)}: options of --model pem, the gyro-only fit; the rig model "
                                   "takes none of them")
     check_common(args)
     recs = read_all(args.recording)
