@@ -24,9 +24,10 @@ from ..io.verdict import KEYS
 from ..model.dynamics import SimulationError
 from ..model.experiment import ExperimentError
 from ..model.modes import estimate_modes, match_modes, natural_modes
-from ..model.parametrisation import entry_scales, from_tensor
-from ..pipeline.offline import identify_recording
+from ..model.parametrisation import entry_scales, from_tensor, to_tensor
+from ..pipeline.rig_model import fit_whole_recording
 from ..pipeline.thesis_table import print_summary, print_table, run_case
+from .arg_types import UsageError
 from .progress import heading, step, warn
 from .text import TABLE_CAPTION
 
@@ -57,9 +58,13 @@ def cmd_modes(args) -> int:
         J = tensor_from_option(args.inertia)
         source = "--inertia"
     else:
-        heading("identifying the tensor (rig-identify inertia --quick)")
-        J = identify_recording(rec).inertia
-        source = "identified from the recording"
+        heading("identifying the tensor (the rig model, as rig-identify inertia)")
+        res = fit_whole_recording(rec, diagnose=False)
+        if res.verdict == "failed":
+            raise UsageError(f"{args.recording}: the rig model did not identify the tensor ({res.summary}); "
+                             "give it with --inertia")
+        J = to_tensor(res.fit.inertia)
+        source = f"identified from the recording (the rig model, verdict {res.verdict})"
     if args.stiffness is not None:
         k, kname = args.stiffness, f"spring cables k = {args.stiffness:g} N/m"
     elif all(c.stiffness is not None for c in rig.cables):
