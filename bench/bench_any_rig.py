@@ -25,6 +25,7 @@ and ambiguous entries and the channels that do not fit; then the acceptance coun
 * σ within 2× of the bound on ≥ 90 % of the entries of the ``ok`` fits; coverage of ±1.96 σ
   93–97 % and the RMS of error/σ (1 when calibrated);
 * silent failures (``ok`` and beyond 3 σ, or a non-finite number): 0;
+* wrong names: a clean rig on which the diagnosis names an extension (the JSON's ``named``): 0;
 * the rigs the package determines to ±1 % at 95 % (verdict ok, all six, 1.96 σ ≤ 1 %).
 """
 from __future__ import annotations
@@ -107,7 +108,8 @@ def job_rig(args: tuple[int, bool]) -> dict:
         return row | {"verdict": "refused", "error": str(e), "cpu_s": time.process_time() - t0}
     f = res.fit
     err = f.inertia - J
-    row.update(verdict=res.verdict, undetermined=res.undetermined, ambiguous=res.ambiguous,
+    row.update(verdict=res.verdict, named=list(res.diagnosis.named if res.diagnosis is not None else ()),
+               undetermined=res.undetermined, ambiguous=res.ambiguous,
                poorly_fitted=res.poorly_fitted, errors=list(err), std=list(f.inertia_std),
                error_percent=list(100 * err / scale), error_sigma=list(err / f.inertia_std),
                sigma_over_crb=list(f.inertia_std / crb), finite=bool(np.all(np.isfinite(f.inertia_std))),
@@ -160,6 +162,10 @@ def summary_rig(rows: list[dict], t0: float, procs: int) -> None:
     silent = [r for r in done if r["verdict"] == "ok" and (not r["finite"] or max(map(abs, r["error_sigma"])) > 3)]
     print(f"silent failures (ok and an entry beyond 3 σ, or non-finite): {len(silent)} [goal 0]"
           + "".join(f"\n  seed {r['seed']}: {max(map(abs, r['error_sigma'])):.1f} σ" for r in silent))
+    recorded = [r for r in done if "named" in r]           # rows of older runs do not record it
+    named = [r for r in recorded if r["named"]]
+    print(f"clean rigs with an extension named (wrong names): {len(named)} of {len(recorded)} [goal 0]"
+          + "".join(f"\n  seed {r['seed']}: {', '.join(r['named'])}" for r in named))
     print("verdicts: " + ", ".join(f"{v} {sum(r.get('verdict') == v for r in done)}" for v in
                                     ("ok", "model_error", "not_identifiable", "inconsistent", "failed")))
     cpu = sum(r.get("rig_cpu_s", 0) for r in rows)
