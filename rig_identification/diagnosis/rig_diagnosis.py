@@ -224,6 +224,13 @@ class PriorConflict:
                 "prior_std": self.prior_std, "z": self.z}
 
 
+def _lost(fit: RigFit) -> bool:
+    """The fit has not found the motion: a channel beyond
+    :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise (its estimate is no
+    minimum, and no test at it is evidence)."""
+    return bool(np.max(fit.residual_level) > REWEIGHT_LIMIT)
+
+
 @dataclass(frozen=True)
 class RigDiagnosis:
     """What :func:`diagnose_rig` found: the data errors (``conflicts``), the viscous damping's
@@ -244,7 +251,7 @@ class RigDiagnosis:
         """Whether the last fit found the motion (every channel within
         :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise): where it did
         not, nothing is named and no test at it is evidence."""
-        return bool(np.max((self.refit or self.rigid).residual_level) <= REWEIGHT_LIMIT)
+        return not _lost(self.refit or self.rigid)
 
     @property
     def explained(self) -> bool:
@@ -410,7 +417,7 @@ def restart_step(rec: Record, prior: Prior, fit: RigFit,
     for name, start in physical_starts(rec).items():
         log.info("diagnosis: the fit did not find the motion; fitting it with %s from %s", name, np.round(start, 4))
         after = refit({name: start}, fit.parameters.inertia)
-        if np.max(after.residual_level) > REWEIGHT_LIMIT:
+        if _lost(after):
             log.info("diagnosis: with %s it still does not", name)
             continue
         untried = tuple(e for e in EXTENSIONS if e not in after.layout.extensions)
@@ -501,11 +508,11 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     if not fit.determined and np.max(fit.residual_level) <= LEVEL_LIMIT:
         return RigDiagnosis(prior_conflicts(fit, prior, cables), None, (), fit, None, False)
     steps, current, lin = _extended(rec, prior, [], fit, refit)
-    if steps and np.max(current.residual_level) > REWEIGHT_LIMIT:
+    if steps and _lost(current):
         log.info("diagnosis: with %s the fit still does not find the motion: nothing named",
                  ", ".join(s.added for s in steps))
         steps, current = [], fit
-    if not steps and refit is not None and np.max(fit.residual_level) > REWEIGHT_LIMIT:
+    if not steps and refit is not None and _lost(fit):
         restarted = restart_step(rec, prior, fit, refit)
         if restarted is not None:
             steps, current, lin = _extended(rec, prior, [restarted[0]], restarted[1], refit)
@@ -516,7 +523,7 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
                      "the tensor undetermined: nothing named", ", ".join(s.added for s in steps))
             return RigDiagnosis(prior_conflicts(again, prior, cables), None, (), again, None, False)
     # where the fit has not found the motion, the estimate is no minimum: a test there is no evidence
-    damping = damping_alternatives(lin, current) if np.max(current.residual_level) <= REWEIGHT_LIMIT else None
+    damping = None if _lost(current) else damping_alternatives(lin, current)
     conflicts = prior_conflicts(current, prior, cables)
     log.info("diagnosis: data errors %s; extensions %s", [c.unknown for c in conflicts], [s.added for s in steps])
     return RigDiagnosis(conflicts, damping, tuple(steps), fit, current if steps else None)
