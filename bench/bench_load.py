@@ -8,7 +8,7 @@ The sensor driver simulates ``config/rigs/default.yaml`` (thesis case 16) at ``-
 for ``--duration`` s (the simulation runs first, before the clock starts) and publishes it at
 1x real time, restamped to the wall clock, so that a header stamp is the time the sample was
 taken.  This process listens to /rig/generalized_wrench and /diagnostics only (the nodes count
-what they receive) and calls ``/identifier/identify_inertia`` (window: the last ``--window``
+what they receive) and calls ``/identifier/identify_rig_model`` (window: the last ``--window``
 s) every ``--fit-every`` s.  It prints:
 
 * messages in/out per topic: published by the driver, received by each node, rejected,
@@ -125,11 +125,16 @@ def percentiles(x: np.ndarray, ps=(50, 90, 99, 99.9)) -> dict:
     return {p: float(np.percentile(x, p)) for p in ps} | {"max": float(np.max(x))}
 
 
+def span_of(answer: dict) -> float:
+    """The seconds of data an ~/identify_rig_model answer fitted."""
+    return float(answer["window"]["end_relative"] - answer["window"]["start_relative"])
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="bench_load", description=__doc__.split("\n\n")[0])
     ap.add_argument("--duration", type=float, default=60.0, help="seconds of data published in real time (60)")
     ap.add_argument("--rate-hz", type=float, default=1000.0, help="IMU, load cell and exciter rate (1000)")
-    ap.add_argument("--fit-every", type=float, default=30.0, help="call identify_inertia every S s (30)")
+    ap.add_argument("--fit-every", type=float, default=30.0, help="call identify_rig_model every S s (30)")
     ap.add_argument("--window", type=float, default=120.0, help="fit window: the last S s (120)")
     ap.add_argument("--publish-period", type=float, default=0.002, help="driver timer period, s (0.002)")
     ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: random)")
@@ -150,7 +155,7 @@ def main(argv=None) -> int:
             "experiment": str(exp), "rate": 1.0, "restamp": True, "rig_out": str(rig_path),
             "publish_period": args.publish_period, "wait_timeout": 600.0, "start_delay": 1.0,
             "wait_for": ["/rig/imu:2", "/rig/load_cells/*:3", "/rig/exciter/wrench:3", "/rig/inclinometer:2",
-                         "/rig/pose:1", "/rig/generalized_wrench:2"]})
+                         "/rig/pose:1", "/rig/generalized_wrench:1"]})
         lis = Listener(graph.domain_id)
         say(f"sensor_driver simulating {args.duration:g} s at {args.rate_hz:g} Hz ...")
         while not rig_path.exists():
@@ -174,11 +179,11 @@ def main(argv=None) -> int:
                 raise RuntimeError(f"node(s) {graph.dead()} stopped:\n"
                                    + "\n".join(graph.log(n)[-2000:] for n in graph.dead()))
             if time.monotonic() >= next_fit:
-                r, dt = lis.call("/identifier/identify_inertia")
+                r, dt = lis.call("/identifier/identify_rig_model")
                 d = json.loads(r.message) if r is not None else {"error": "no answer"}
                 fits.append((time.monotonic() - t_pub, dt, r is not None and r.success, d))
-                say(f"identify_inertia answered in {dt:.2f} s: "
-                    + (f"fit {d['fit_seconds']:.2f} s over {d['window']['end'] - d['window']['start']:.1f} s"
+                say(f"identify_rig_model answered in {dt:.2f} s: "
+                    + (f"fit {d['fit_seconds']:.2f} s over {span_of(d):.1f} s, verdict {d['verdict']}"
                        if r is not None and r.success else d.get("error", "")))
                 next_fit += args.fit_every
             time.sleep(0.05)
@@ -190,12 +195,12 @@ def main(argv=None) -> int:
         end = time.monotonic() + 30.0
         while time.monotonic() < end:
             d = lis.diag.get("/identifier", {})
-            sent = lis.diag.get("/preprocessor", {}).get(f"tx {WRENCH_TOPIC}")
-            if d.get(f"rx {WRENCH_TOPIC}") == sent and d.get(f"rx {IMU_TOPIC}") == total[IMU_TOPIC]:
+            if len(lis.arrivals) == lis.diag.get("/preprocessor", {}).get(f"tx {WRENCH_TOPIC}") \
+                    and d.get(f"rx {IMU_TOPIC}") == total[IMU_TOPIC]:
                 break
             time.sleep(0.2)
         time.sleep(1.5)
-        r, dt = lis.call("/identifier/identify_inertia")
+        r, dt = lis.call("/identifier/identify_rig_model")
         d = json.loads(r.message) if r is not None else {"error": "no answer"}
         fits.append((time.monotonic() - t_pub, dt, r is not None and r.success, d))
 
@@ -244,12 +249,11 @@ def main(argv=None) -> int:
             p = percentiles(lat[skip:])
             print("\nlatency sensor sample -> generalized wrench received (ms, after the first 2 s): "
                   + ", ".join(f"p{k:g} {v:.1f}" if k != "max" else f"max {v:.1f}" for k, v in p.items()))
-        print("\nidentify_inertia (window_last "
-              f"{args.window:g} s): call at s, answered in s, fit s, window s")
+        print("\nidentify_rig_model (window_last "
+              f"{args.window:g} s): call at s, answered in s, fit s, window s, verdict")
         for t_call, dt, ok, d in fits:
             if ok:
-                span = d["window"]["end"] - d["window"]["start"]
-                print(f"  {t_call:7.1f}  {dt:6.2f}  {d['fit_seconds']:6.2f}  {span:6.1f}")
+                print(f"  {t_call:7.1f}  {dt:6.2f}  {d['fit_seconds']:6.2f}  {span_of(d):6.1f}  {d['verdict']}")
             else:
                 print(f"  {t_call:7.1f}  {dt:6.2f}  refused: {d.get('error')}")
         ok_fits = [f for f in fits if f[2]]

@@ -115,8 +115,7 @@ def node_specs(config: dict[str, str], share: Path) -> list[NodeSpec]:
         except ValueError:
             raise ValueError(f"launch argument rate:={cfg['rate']!r}: expected a number") from None
         readers = 1 if record else 0  # the recorder reads the raw streams too
-        wait_for = [f"/rig/imu:{2 + readers}", f"/rig/load_cells/*:{3 + readers}", "/rig/pose:1",
-                    "/rig/generalized_wrench:1"]
+        wait_for = [f"/rig/imu:{2 + readers}", f"/rig/load_cells/*:{3 + readers}", "/rig/pose:1"]
         specs.append(spec("sensor_driver", {**driver_source(rig), "rate": rate, "wait_for": wait_for}))
     for executable in ("tracker", "preprocessor", "identifier"):
         specs.append(spec(executable, {"rig": str(rig)}))

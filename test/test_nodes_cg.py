@@ -68,7 +68,7 @@ def test_cg_services_on_the_reference_pair(tmp_path):
         early = client(g, "cg-estimate")  # the verbs in the wrong order: refused, with the reason
         assert early.returncode == 1, early.stdout + early.stderr
         assert "estimate_cg refused" in early.stderr and "capture the baseline and dummy" in early.stderr
-        no_cg = lis.call("/identifier/identify_inertia")
+        no_cg = lis.call("/identifier/identify_rig_model")
         assert not no_cg.success and "center_of_gravity" in json.loads(no_cg.message)["error"]
         replay(g, lis, "driver_baseline", base_path)
         p = client(g, "cg-capture", "baseline")

@@ -24,7 +24,7 @@ def test_diagnose_service_names_the_damping():
     rec = read_recording(recording("visible_case16_damped"))
     s = rec.sensors
     t0, t1 = s.t_start, s.t_start + 70.0
-    rclpy.init(args=["--ros-args", "-p", f"rig:={rec.path / 'rig.yaml'}", "-p", "diagnose_seconds:=70.0"])
+    rclpy.init(args=["--ros-args", "-p", f"rig:={rec.path / 'rig.yaml'}", "-p", "window_last:=70.0"])
     node = None
     try:
         node = IdentifierNode()
@@ -32,11 +32,11 @@ def test_diagnose_service_names_the_damping():
         node._add_imu(imu.t.tolist(), imu.data)
         for n in rec.rig.cable_names:
             c = s.load_cells[n].window(t0, t1)
-            node._to_cg(f"/rig/load_cells/{n}", "add_tension", [(n, t, x) for t, x in zip(c.t, c.data[:, 0])])
+            node._add_raw(f"/rig/load_cells/{n}", "add_tension", [(n, t, x) for t, x in zip(c.t, c.data[:, 0])])
         e = s.exciter.window(t0, t1)
-        node._to_cg("/rig/exciter/wrench", "add_exciter", [(t, x, y) for t, (x, y) in zip(e.t, e.data)])
+        node._add_raw("/rig/exciter/wrench", "add_exciter", [(t, x, y) for t, (x, y) in zip(e.t, e.data)])
         i = s.inclinometer.window(t0, t1)
-        node._to_cg("/rig/inclinometer", "add_inclinometer", [(t, xy) for t, xy in zip(i.t, i.data)])
+        node._add_raw("/rig/inclinometer", "add_inclinometer", [(t, xy) for t, xy in zip(i.t, i.data)])
         resp = node.service_node._guarded_call(Trigger.Response(), node.diagnose, "diagnose")
         assert resp.success, resp.message
         d = json.loads(resp.message)

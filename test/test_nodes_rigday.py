@@ -25,12 +25,12 @@ def feed(node, rec, t0: float, t1: float, shift: float) -> None:
     node._add_imu((imu.t + shift).tolist(), imu.data)
     for n in rec.rig.cable_names:
         c = s.load_cells[n].window(t0, t1)
-        node._to_cg(f"/rig/load_cells/{n}", "add_tension", [(n, t + shift, x) for t, x in zip(c.t, c.data[:, 0])])
+        node._add_raw(f"/rig/load_cells/{n}", "add_tension", [(n, t + shift, x) for t, x in zip(c.t, c.data[:, 0])])
     if s.exciter is not None:
         e = s.exciter.window(t0, t1)
-        node._to_cg("/rig/exciter/wrench", "add_exciter", [(t + shift, x, y) for t, (x, y) in zip(e.t, e.data)])
+        node._add_raw("/rig/exciter/wrench", "add_exciter", [(t + shift, x, y) for t, (x, y) in zip(e.t, e.data)])
     i = s.inclinometer.window(t0, t1)
-    node._to_cg("/rig/inclinometer", "add_inclinometer", [(t + shift, xy) for t, xy in zip(i.t, i.data)])
+    node._add_raw("/rig/inclinometer", "add_inclinometer", [(t + shift, xy) for t, xy in zip(i.t, i.data)])
 
 
 def test_the_rig_day_in_service_order_carries_the_static_cg_into_the_rig_model():
@@ -43,7 +43,7 @@ def test_the_rig_day_in_service_order_carries_the_static_cg_into_the_rig_model()
     base = read_recording(recording("visible_case16_static/static_baseline"))
     dummy = read_recording(recording("visible_case16_static/static_dummy"))
     shake = read_recording(recording("visible_case16_clean"))
-    rclpy.init(args=["--ros-args", "-p", f"rig:={shake.path / 'rig.yaml'}", "-p", "diagnose_seconds:=45.0",
+    rclpy.init(args=["--ros-args", "-p", f"rig:={shake.path / 'rig.yaml'}", "-p", "window_last:=45.0",
                      "-p", "cg_capture_seconds:=10.0", "-p", f"dummy_mass:={dummy.rig.dummy_mass.mass}",
                      "-p", f"dummy_position:={list(map(float, dummy.rig.dummy_mass.position))}"])
     node = None

@@ -2,20 +2,19 @@
 
 Verbs (ROS arguments may follow ``--ros-args``; ``--identifier NAME`` picks the node):
 
-  mass_properties_client [identify] [--json] [--wait-stable S]
+  mass_properties_client [identify] [--json] [--wait-stable S] [--fit-timeout S]
       waits for the identifier's services, optionally until its buffer stops growing (the
-      recording has been processed), calls ~/identify_inertia and ~/estimate_cg, and prints
-      the identified mass properties beside the truth of a simulated experiment (latched
-      ``/rig/sim_truth``, when a sensor driver publishes one) with the error of each entry:
-      % of the true value for mass and the diagonal of the tensor, % of the largest true
-      diagonal entry for the products of inertia, mm for the centre of gravity.  First the
-      verdict of the node's model validation (ok | model_error | not_identifiable, as
-      ``rig-identify inertia --quick`` gives it) and the conventions of ``rig-identify
-      inertia`` (body frame, SI units, the moments and products of inertia Ixx..Iyz in its
-      order, products with the vehicle-dynamics sign; an entry the recording does not
-      determine is "not determined"); then the tensor's off-diagonal entries (the negated
-      products, as the service's JSON holds them).  When the
-      identifier is busy with another request's fit, the client asks again.
+      recording has been processed), calls ~/identify_rig_model (the rig model of
+      ``rig-identify inertia``: every sensor an output, the mass, CG and tensor fitted together,
+      the CG's prior the last cg-estimate, over the identifier's window of its raw streams) and
+      prints (:func:`format_rig_model`) the verdict first, the conventions of ``rig-identify
+      inertia`` (body frame, SI units, products with the vehicle-dynamics sign), the tensor with
+      σ and the Cramér–Rao bound beside the truth of a simulated experiment (latched
+      ``/rig/sim_truth``, when a sensor driver publishes one) with the error of each entry (% of
+      the true value for the moments, % of the largest true moment for the products), the
+      mass, the CG from the static test, the run alone and both, and each channel's residual
+      over its noise.  When the identifier is busy with another request's fit, the client asks
+      again.
   mass_properties_client cg-capture baseline|dummy [--json]
       the static centre-of-gravity experiment, steps 1 and 2: ~/capture_cg_baseline
       (body at rest without the dummy mass) or ~/capture_cg_dummy (with it, at rig.yaml
@@ -32,12 +31,6 @@ Verbs (ROS arguments may follow ``--ros-args``; ``--identifier NAME`` picks the 
       must be the identifier's); an existing OUT is replaced only with ``--force``.  The
       dynamic experiment's tracker, preprocessor and identifier then start with
       ``rig:=OUT.yaml``.
-  mass_properties_client rig-model [--json] [--fit-timeout S]
-      ~/identify_rig_model: the rig model of ``rig-identify inertia`` (every sensor an output,
-      the mass, CG and tensor fitted together, the CG's prior the last cg-estimate) on the
-      identifier's buffered raw streams; prints the verdict, the tensor with σ and the
-      Cramér–Rao bound (and the error against /rig/sim_truth), the mass, the CG from both tests
-      and each channel's residual over its noise (:func:`format_rig_model`).
   mass_properties_client status [--json]
       ~/status: samples buffered by the identifier.
 
@@ -74,97 +67,16 @@ from .topics import TRUTH_TOPIC
 #: the tensor entries in the order of every rig-identify table and option (moments, then products)
 KEYS = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")
 PRODUCTS = ("ixy", "ixz", "iyz")
+#: beside an entry the recording does not determine (the answer's "undetermined")
 NOT_DETERMINED = "not determined"
-#: the verdict line when the answer has no model validation (an identifier older than this client)
-UNVALIDATED = ("verdict: none — this answer carries no model validation (an identifier older than this client?): "
-               "record the run (rig-record) and take the verdict from `rig-identify inertia RUN`")
-
-
-def format_table(result: dict, truth: dict | None, cg_answer: str | None = None, name: str = "/identifier") -> str:
-    """The mass-properties table (see module docstring) as text: the verdict first, then the
-    conventions (as ``rig-identify inertia``: frame, units, the tensor's off-diagonal entries
-    are the negated products of inertia), the window, the table of mass, CG, moments and products
-    of inertia (products with the vehicle-dynamics sign, as every rig-identify table; ``null``
-    entries, which the recording does not determine, as "not determined"), the tensor's
-    off-diagonal entries, notes and warnings."""
-    lines = []
-    w = result.get("window", {})
-    head = f"Mass properties identified by {name}"
-    lines.append(head)
-    lines.append("=" * len(head))
-    summary = (result.get("validation") or {}).get("summary")
-    lines.append(summary or UNVALIDATED)
-    lines += convention_lines(BODY)
-    if w:
-        span = w.get("end", 0.0) - w.get("start", 0.0)
-        rel = ""
-        if "start_relative" in w:
-            rel = f" ({w['start_relative']:.1f}–{w['end_relative']:.1f} s after the first IMU sample)"
-        band = result.get("band_hz")
-        lines.append(f"window: {span:.1f} s{rel}, {w.get('samples', 0)} samples"
-                     + (f"; fit band {band[0]:.2f}–{band[1]:.2f} Hz" if band else ""))
-    has_truth = truth is not None and "inertia_about_cg" in truth
-    hdr = f"{'quantity':<10}{'unit':>7}{'identified':>13}{'±1σ':>10}"
-    if has_truth:
-        hdr += f"{'truth':>13}{'error':>12}"
-    lines.append(hdr)
-    lines.append("-" * len(hdr))
-
-    def row(label, unit, value, std, true, err):
-        s = f"{label:<10}{unit:>7}{value:>13}{std:>10}"
-        if has_truth:
-            s += f"{true:>13}{err:>12}"
-        lines.append(s)
-
-    m = result["mass"]
-    mt = truth.get("mass") if has_truth else None
-    row("mass", "kg", f"{m:.2f}", "given", f"{mt:.2f}" if mt is not None else "—",
-        f"{100 * (m - mt) / mt:+.3f} %" if mt else "—")
-    cg = result["center_of_gravity"]
-    cgt = truth.get("center_of_gravity") if has_truth else None
-    for k, axis in enumerate("xyz"):
-        row(f"CG {axis}", "m", f"{cg[k]:.4f}", "given", f"{cgt[k]:.4f}" if cgt else "—",
-            f"{1000 * (cg[k] - cgt[k]):+.1f} mm" if cgt else "—")
-    J = result["inertia_about_cg"]
-    std = result.get("inertia_std", {})
-    Jt = truth["inertia_about_cg"] if has_truth else None
-    big = max(abs(Jt["ixx"]), abs(Jt["iyy"]), abs(Jt["izz"])) if Jt else None
-    for k in KEYS:
-        diag = k not in PRODUCTS
-        sign = 1.0 if diag else -1.0            # the table's products: vehicle-dynamics sign, Ixy = −ixy
-        name = "I" + k[1:]
-        err = "—"
-        if Jt is not None and J.get(k) is not None:
-            ref = abs(Jt[k]) if diag else big
-            err = f"{sign * 100 * (J[k] - Jt[k]) / ref + 0.0:+.3f} %" + ("" if diag else "*")
-        if J.get(k) is None:
-            lines.append(f"{name:<10}{'kg·m²':>7}  {NOT_DETERMINED}")
-            continue
-        row(name, "kg·m²", f"{sign * J[k] + 0.0:.2f}", f"{std[k]:.2f}" if std.get(k) is not None else "—",
-            f"{sign * Jt[k] + 0.0:.2f}" if Jt else "—", err)
-    lines.append("mass and CG: the known values of rig.yaml (the dynamic experiment identifies the tensor), taken "
-                 "as exact: the tensor's error from an error of the CG is not in its σ")
-    if has_truth:
-        lines.append("error: % of the true value; * products of inertia: % of the largest true diagonal entry")
-    entries = [f"{k} " + (NOT_DETERMINED if J.get(k) is None else f"{J[k] + 0.0:+.2f}"
-                          + (f" ± {std[k]:.2f}" if std.get(k) is not None else "")) for k in PRODUCTS]
-    lines.append("the inertia tensor's off-diagonal entries about the CG (= −products; geometry_msgs/Inertia, the "
-                 "service's JSON): " + ", ".join(entries) + " kg·m²")
-    for wd in result.get("weakly_determined", [])[:1]:
-        if isinstance(wd, dict) and wd.get("text"):
-            lines.append("note: " + wd["text"])
-    for warning in result.get("warnings", []):
-        lines.append("warning: " + warning)
-    if cg_answer is not None:
-        lines.append(f"centre-of-gravity estimate (~/estimate_cg): {cg_answer}")
-    return "\n".join(lines)
 
 
 def format_rig_model(answer: dict, truth: dict | None, name: str = "/identifier") -> str:
     """Text for the answer of ~/identify_rig_model (``RigModelResult.to_dict``, the JSON of
     ``rig-identify inertia --json``): the verdict first, the conventions, the moments and
     products of inertia about the CG (products with the vehicle-dynamics sign) with σ and the
-    Cramér–Rao bound (and the error against ``truth`` when given), the mass, the centre of gravity
+    Cramér–Rao bound (and the error against ``truth`` when given; "not determined" beside an entry
+    of the answer's ``undetermined``), the mass, the centre of gravity
     from the static test, the run alone and both, and each channel's residual over its noise."""
     head = f"Mass properties identified by {name} (the rig model, every sensor an output)"
     lines = [head, "=" * len(head), f"verdict: {answer['verdict']}"]
@@ -174,13 +86,14 @@ def format_rig_model(answer: dict, truth: dict | None, name: str = "/identifier"
     big = max(abs(Jt["ixx"]), abs(Jt["iyy"]), abs(Jt["izz"])) if Jt else None
     hdr = f"{'quantity':<10}{'identified':>12}{'±1σ':>9}{'CRB':>9}" + (f"{'truth':>11}{'error':>11}" if Jt else "")
     lines += [hdr + "   (kg·m²)", "-" * len(hdr)]
+    undetermined = set(answer.get("undetermined") or ())
     for k in KEYS:
         sign = -1.0 if k in PRODUCTS else 1.0     # the table's products: vehicle-dynamics sign, Ixy = −ixy
         row = f"{'I' + k[1:]:<10}{sign * J[k] + 0.0:>12.2f}{sd[k]:>9.3g}{crb[k]:>9.3g}"
         if Jt:
             ref = big if k in PRODUCTS else abs(Jt[k])
             row += f"{sign * Jt[k] + 0.0:>11.2f}{sign * 100 * (J[k] - Jt[k]) / ref + 0.0:>+10.3f}%"
-        lines.append(row)
+        lines.append(row + (f"  {NOT_DETERMINED}" if k in undetermined else ""))
     if answer["verdict"] in ("not_identifiable", "failed"):
         lines.append("no entry above is an estimate to use (verdict " + answer["verdict"] + ")")
     lines.append(f"mass {answer['mass']:.2f} ± {answer['mass_std']:.2f} kg (fitted, the scale's value its prior)")
@@ -297,10 +210,10 @@ def parser(verb: str) -> argparse.ArgumentParser:
                         help="the rig description to copy (rig.yaml, recording folder or experiment file; default: "
                              "the identifier's rig parameter)")
         ap.add_argument("--force", action="store_true", help="let --write-rig replace an existing file")
-    if verb in ("identify", "cg-estimate", "rig-model"):
+    if verb in ("identify", "cg-estimate"):
         ap.add_argument("--truth-timeout", type=float, default=1.0 if verb == "cg-estimate" else 3.0,
                         help="wait this long for /rig/sim_truth (simulations only), s")
-    if verb in ("identify", "rig-model"):
+    if verb == "identify":
         ap.add_argument("--fit-timeout", type=float, default=300.0, help="wait this long for the fit, s (default 300)")
         ap.add_argument("--wait-stable", type=float, default=0.0, metavar="S",
                         help="first wait until the identifier has received no new sample for S s")
@@ -308,9 +221,8 @@ def parser(verb: str) -> argparse.ArgumentParser:
 
 
 VERBS = {
-    "identify": "Identify the inertia tensor (~/identify_inertia) and print the mass properties.",
-    "rig-model": "Fit the rig model to the buffered raw streams (~/identify_rig_model: rig-identify inertia's core) "
-                 "and print the mass, CG and tensor.",
+    "identify": "Fit the rig model (rig-identify inertia's core) to the identifier's buffered raw streams\n"
+                "(~/identify_rig_model) and print the mass, CG and inertia tensor, verdict first.",
     "cg-capture": "Static CG experiment, step 1 or 2: capture the body at rest without (baseline) or with "
                   "(dummy) the dummy mass.",
     "cg-estimate": "Static CG experiment, step 3: estimate the centre of gravity from the two captured states.",
@@ -319,8 +231,7 @@ VERBS = {
 
 #: every help's closing text: the verbs, each with what it does, and the static CG procedure
 EPILOG = ("verbs (mass_properties_client VERB --help for each):\n"
-          "  [identify]                 fit the inertia tensor; print the mass properties, verdict first\n"
-          "  rig-model                  the rig model on the buffered raw streams (rig-identify inertia's core)\n"
+          "  [identify]                 fit the rig model; print the mass, CG and tensor, verdict first\n"
           "  cg-capture baseline|dummy  CG steps 1, 2: capture the body at rest without / with the dummy\n"
           "  cg-estimate                CG step 3: the centre of gravity and its σ from the two captures\n"
           "  status                     samples buffered by the identifier\n"
@@ -375,9 +286,9 @@ def wait_truth(node: Node, truth: dict, timeout: float) -> None:
 def run(verb: str, args, node: Node) -> int:
     """Carry out ``verb`` (see the module docstring); the exit status."""
     idf = IdentifierClient(node, args.identifier)
-    first = {"identify": "identify_inertia", "cg-capture": f"capture_cg_{getattr(args, 'state', '')}",
-             "cg-estimate": "estimate_cg", "status": "status", "rig-model": "identify_rig_model"}[verb]
-    truth = truth_listener(node) if verb in ("identify", "cg-estimate", "rig-model") else {}
+    first = {"identify": "identify_rig_model", "cg-capture": f"capture_cg_{getattr(args, 'state', '')}",
+             "cg-estimate": "estimate_cg", "status": "status"}[verb]
+    truth = truth_listener(node) if verb in ("identify", "cg-estimate") else {}
     if not idf.wait(first, args.timeout):
         log(f"mass_properties_client: error: service {idf.base}/{first} not available "
             f"after {args.timeout:.0f} s (is the identifier running, same ROS_DOMAIN_ID?)")
@@ -391,9 +302,7 @@ def run(verb: str, args, node: Node) -> int:
         except (RigError, CgResultError) as e:
             log(f"mass_properties_client: error: {e}")
             return 2
-    if verb == "rig-model":
-        wait_stable(args, idf)
-    wait = args.fit_timeout if verb == "rig-model" else 60.0
+    wait = 60.0
     r = idf.call(first, wait)
     if r is None:
         log(f"mass_properties_client: error: no answer from {idf.base}/{first} within {wait:.0f} s")
@@ -412,9 +321,6 @@ def run(verb: str, args, node: Node) -> int:
         print(json.dumps(answer))
     elif verb == "cg-capture":
         print(format_capture(args.state, answer))
-    elif verb == "rig-model":
-        wait_truth(node, truth, args.truth_timeout)
-        print(format_rig_model(answer, truth or None, idf.base))
     elif verb == "cg-estimate":
         wait_truth(node, truth, args.truth_timeout)
         print(format_cg(answer, truth or None, idf.base))
@@ -488,33 +394,32 @@ def wait_stable(args, idf: IdentifierClient) -> None:
         last, since, t_end = None, time.monotonic(), time.monotonic() + args.timeout
         while time.monotonic() < t_end:
             r = idf.call("status", 5.0)
-            n = json.loads(r.message).get("wrench") if r is not None else None
+            n = json.loads(r.message).get("imu") if r is not None else None
             if n != last:
                 last, since = n, time.monotonic()
             elif n and time.monotonic() - since >= args.wait_stable:
                 break
             time.sleep(0.2)
-        log(f"identifier buffer: {last} wrench samples")
+        log(f"identifier buffer: {last} IMU samples")
 
 
 def identify(args, node: Node, idf: IdentifierClient, truth: dict) -> int:
-    """The ``identify`` verb: fit, CG answer, table (or JSON)."""
+    """The ``identify`` verb: the rig model's fit (asked again while the identifier is busy), its
+    text (:func:`format_rig_model`) or JSON."""
     wait_stable(args, idf)
     t0 = time.monotonic()
     while True:
-        r = idf.call("identify_inertia", max(1.0, args.fit_timeout - (time.monotonic() - t0)))
+        r = idf.call("identify_rig_model", max(1.0, args.fit_timeout - (time.monotonic() - t0)))
         busy = r is not None and not r.success and error_text(r.message).startswith("busy")
         if not busy or time.monotonic() - t0 > args.fit_timeout:
             break
         log("the identifier is busy with another fit; asking again in 1 s")
         time.sleep(1.0)
     if r is None:
-        log(f"mass_properties_client: error: no answer from {idf.base}/identify_inertia "
+        log(f"mass_properties_client: error: no answer from {idf.base}/identify_rig_model "
             f"within {args.fit_timeout:.0f} s")
         return 2
-    log(f"identify_inertia answered in {time.monotonic() - t0:.1f} s")
-    cg = idf.call("estimate_cg", 10.0) if idf.wait("estimate_cg", 2.0) else None
-    cg_text = None if cg is None else (cg.message if cg.success else error_text(cg.message))
+    log(f"identify_rig_model answered in {time.monotonic() - t0:.1f} s")
     wait_truth(node, truth, args.truth_timeout)
     if not r.success:
         log(f"mass_properties_client: identification failed: {error_text(r.message)}")
@@ -523,7 +428,7 @@ def identify(args, node: Node, idf: IdentifierClient, truth: dict) -> int:
     if args.json:
         print(json.dumps(result))
     else:
-        print(format_table(result, truth or None, cg_text, idf.base))
+        print(format_rig_model(result, truth or None, idf.base))
     return 0
 
 

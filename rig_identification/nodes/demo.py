@@ -7,7 +7,7 @@ discovery limited to this machine:
                      its rig.yaml to a temporary folder;
   2. tracker, preprocessor, identifier   with that rig.yaml;
   3. the driver publishes at ``--rate`` times real time once every consumer is subscribed;
-  4. mass_properties_client rig-model, once the driver is done and the identifier's buffer is
+  4. mass_properties_client (identify), once the driver is done and the identifier's buffer is
      complete: the rig model of the buffered raw streams (``~/identify_rig_model``, the core of
      ``rig-identify inertia``), its mass properties printed beside the truth.
 
@@ -195,7 +195,7 @@ def main(argv=None) -> int:
         rig_path = graph.dir / "rig.yaml"
         driver = {"rate": args.rate, "rig_out": str(rig_path), "duration": args.duration,
                   "wait_for": ["/rig/imu:2", "/rig/load_cells/*:2", "/rig/exciter/wrench:2",
-                               "/rig/inclinometer:1", "/rig/pose:1", "/rig/generalized_wrench:1"],
+                               "/rig/inclinometer:1", "/rig/pose:1"],
                   "wait_timeout": 120.0, "start_delay": 1.0}
         if args.recording:
             driver["recording"] = str(Path(args.recording).resolve())
@@ -235,7 +235,7 @@ def main(argv=None) -> int:
         say("CPU time so far: " + ", ".join(f"{n} {c:.1f} s" for n, c in cpu.items() if c is not None))
         say("running mass_properties_client")
         client = graph.start("mass_properties_client", module=NODE_MODULES["mass_properties_client"],
-                             args=["rig-model", "--wait-stable", "1.5", "--timeout", "60"], stdout=sys.stdout)
+                             args=["identify", "--wait-stable", "1.5", "--timeout", "60"], stdout=sys.stdout)
         rc = client.wait()
         time.sleep(1.2)  # one more round of /diagnostics
         print("\nmessage counts (driver status and /diagnostics):")

@@ -4,7 +4,7 @@ MultiThreadedExecutor in a background thread.
 The rclpy 7.1.6 EventsExecutor ignores callback groups, runs only one callback at a time and
 cannot run ``async`` service callbacks (rclpy issue #1473, fixed in 7.1.11), so a fit inside a
 service callback of the identifier node would stop its message flow.  The services therefore
-live on ``<name>_services`` (service names ``/<name>/identify_inertia`` ...) with a
+live on ``<name>_services`` (service names ``/<name>/identify_rig_model`` ...) with a
 ReentrantCallbackGroup: a fit runs in its own thread while the identifier keeps receiving, and
 a second request during a fit is answered "busy" at once.
 """
@@ -23,7 +23,7 @@ from .messages import to_json
 class IdentifierServices(Node):
     """The identifier's services, on their own node and executor thread (see the module docstring).
 
-    owner: the identifier node, whose ``identify``, ``identify_rig_model``, ``estimate_cg``,
+    owner: the identifier node, whose ``identify_rig_model``, ``estimate_cg``,
     ``capture_cg``, ``diagnose`` and ``status`` the services call, one at a time (``owner.busy``, a lock)."""
 
     def __init__(self, owner: Node):
@@ -34,7 +34,6 @@ class IdentifierServices(Node):
         group = ReentrantCallbackGroup()
         srv = lambda name, cb: self.create_service(Trigger, f"{base}/{name}", cb, callback_group=group)  # noqa: E731
         self.trigger_services = [
-            srv("identify_inertia", self.on_identify),
             srv("estimate_cg", self.on_estimate_cg),
             srv("capture_cg_baseline",
                 lambda rq, rs: self._guarded_call(rs, lambda: owner.capture_cg("baseline"), "capture_cg_baseline")),
@@ -68,15 +67,12 @@ class IdentifierServices(Node):
         if self._thread is not None:
             self._thread.join(timeout=3.0)
 
-    def on_identify(self, request, response):
-        return self._guarded_call(response, self.owner.identify, "identify_inertia")
-
     def on_estimate_cg(self, request, response):
         return self._guarded_call(response, self.owner.estimate_cg, "estimate_cg")
 
     def _guarded_call(self, response, action, what: str):
         """Run a fit or a CG step, one at a time: a call while another runs is answered
-        "busy"; user errors (IdentificationError, StaticsError: ValueErrors) come back as
+        "busy"; user errors (FitWindowError, RigFitError, StaticsError: ValueErrors) come back as
         JSON errors; a bug is logged and answered, never kills the node."""
         if not self.owner.busy.acquire(blocking=False):
             response.success = False
