@@ -23,7 +23,7 @@ import numpy as np
 from scipy.linalg import qr
 
 from .rig_fit import SANDWICH_BLOCKS, RigFit
-from .rig_problem import RigProblem
+from .rig_problem import RigPoint, RigProblem
 from .rig_record import Record
 from .rig_unknowns import EXTENSIONS, Layout, Prior, in_layout, positions
 
@@ -70,8 +70,8 @@ class LinearisedRig:
             raise ValueError("the fit carries no estimate to linearise about")
         lay = fit.layout.extended(names)
         x = in_layout(fit.unknowns, fit.layout, lay, fit.parameters)
-        prob = RigProblem(rec, fit.parameters, lay, x, prior, fit.noise_scale, len(rec.y) - rec.start, fit.rest,
-                          fit.bases)
+        prob = RigProblem(rec, RigPoint(x, fit.parameters, fit.rest, fit.bases), lay, prior, fit.noise_scale,
+                          len(rec.y) - rec.start)
         tested = [i for e in self.names_of(lay, names) for i in range(*lay.extension_of(e).indices(lay.size))]
         if fit.jacobian is not None and fit.jacobian.shape[1] == fit.layout.size:
             # the fit's own Jacobian at the estimate for every other unknown: only the tested columns are new

@@ -70,6 +70,7 @@ from .rig_problem import (
     MAX_ITERATIONS,
     OUTSIDE,
     XTOL,
+    RigPoint,
     RigProblem,
     levels,
 )
@@ -383,27 +384,26 @@ def _solve(prob: RigProblem, whole: bool = False, z0: np.ndarray | None = None,
     return sol, jac.runs, jac.J if fresh else None
 
 
-def _moved_on(prob: RigProblem, sol: OptimizeResult, p: RigParameters, rest: RestPose
-              ) -> tuple[np.ndarray, RigParameters, RestPose]:
-    """The unknowns, parameters and rest pose after ``sol`` (the rest pose sets only the
-    integrator's step: where none is found at the estimate the last one serves)."""
+def _moved_on(prob: RigProblem, sol: OptimizeResult) -> RigPoint:
+    """The point after ``sol`` (the rest pose sets only the integrator's step: where none is
+    found at the estimate the last one serves)."""
     x = prob.x(sol.x)
-    p = parameters_of(x, p, prob.lay)
+    rest = prob.rest
     try:
-        rest = rest_pose(p, rest)
+        rest = rest_pose(parameters_of(x, prob.like, prob.lay), rest)
     except SimulationError as e:
         log.info("rig fit: no rest pose at the estimate (%s)", e)
-    return x, p, rest
+    return prob.point(x, rest)
 
 
-def _settled(prob: RigProblem, rec: Record, p: RigParameters, lay: Layout, prior: Prior, rest: RestPose
-             ) -> np.ndarray:
+def _settled(prob: RigProblem, lay: Layout) -> np.ndarray:
     """``prob``'s unknowns with the initial state fitted alone over the first
     :data:`INITIAL_SPAN` s, every parameter at its start (over so short a span the swinging
     modes' phase hardly depends on the parameters: the state is found before the parameters
     make the likelihood multimodal; Ljung 1999, §7.3 on the initial state)."""
+    rec = prob.rec
     n = min(prob.n, int(round(INITIAL_SPAN / rec.dt)) + 1)
-    short = RigProblem(rec, p, lay, prob.x0, prior, np.ones(len(rec.channels)), n, rest, prob.bases)
+    short = RigProblem(rec, prob.at_x0, lay, prob.prior, np.ones(len(rec.channels)), n)
     part = lay.initial
 
     def residual(zi: np.ndarray) -> np.ndarray:
@@ -430,14 +430,12 @@ def _jacobian_at_x0(prob: RigProblem, solved: RigProblem, J: np.ndarray | None, 
     return prob.jacobian(np.zeros(prob.lay.size)), prob.lay.size + 1
 
 
-def _polished(prob: RigProblem, J: np.ndarray, r: np.ndarray, p: RigParameters, rest: RestPose
-              ) -> tuple[np.ndarray, RigParameters, RestPose, np.ndarray, int]:
+def _polished(prob: RigProblem, J: np.ndarray, r: np.ndarray) -> tuple[RigPoint, int]:
     """The estimate after Gauss–Newton steps from ``prob``'s x0 with its Jacobian ``J`` there (the
     chord method; ``r``: the residual at x0), each taken where it lowers the cost, at most
     :data:`POLISH_STEPS`: a solve stops within :data:`RESULT_STEP` σ of the minimum, and the steps
     carry it to the minimum wherever in that neighbourhood it stopped (the estimate then does not
-    depend on the rounding that steered the iterations).  Returns the unknowns, parameters, rest
-    pose, the segments' states and the model runs."""
+    depend on the rounding that steered the iterations).  Returns the point and the model runs."""
     gain = np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True) @ J.T
     z = np.zeros(prob.lay.size)
     runs = 0
@@ -449,14 +447,14 @@ def _polished(prob: RigProblem, J: np.ndarray, r: np.ndarray, p: RigParameters, 
             break
         z, r = z + step, r1
     if not np.any(z):
-        return prob.x0, p, rest, prob.bases, runs
+        return prob.at_x0, runs
     x = prob.x(z)
-    p = parameters_of(x, p, prob.lay)
+    rest = prob.rest
     try:
-        rest = rest_pose(p, rest)
+        rest = rest_pose(parameters_of(x, prob.like, prob.lay), rest)
     except SimulationError as e:
         log.info("rig fit: no rest pose at the polished estimate (%s)", e)
-    return x, p, rest, prob.bases_at(x), runs
+    return prob.point(x, rest), runs
 
 
 def _along_weakest(prob: RigProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
@@ -485,19 +483,18 @@ def _shifted(x: np.ndarray, sign: float) -> np.ndarray:
     return moved
 
 
-def _restarted(prob: RigProblem, at_x0: tuple[np.ndarray, np.ndarray], p: RigParameters, rest: RestPose,
-               tensor: np.ndarray) -> tuple[np.ndarray, RigParameters, RestPose, float, int, np.ndarray]:
+def _restarted(prob: RigProblem, at_x0: tuple[np.ndarray, np.ndarray], tensor: np.ndarray
+               ) -> tuple[RigPoint, float, int]:
     """The whole-record fit ``prob`` (its x0 the estimate, ``at_x0`` its Jacobian and residual there) restarted from
-    the tensor entries ``tensor`` (6,) kg·m², every other unknown at the estimate: its unknowns,
-    parameters, rest pose, cost (½ χ², the same weights), model runs and the segments' states.  A
+    the tensor entries ``tensor`` (6,) kg·m², every other unknown at the estimate: the point it
+    settles at, its cost (½ χ², the same weights) and the model runs.  A
     well-determined minimum draws the restart back within its σ; where the likelihood is flat or
     multimodal along some direction of the tensor it settles elsewhere at a χ² about as low."""
     lay = prob.lay
     z0 = np.zeros(lay.size)
     z0[lay.inertia] = (tensor - prob.x0[lay.inertia]) / prob.scale[lay.inertia]
     sol, runs, _ = _solve(prob, True, z0, at_x0)
-    x1, p1, rest = _moved_on(prob, sol, p, rest)
-    return x1, p1, rest, float(sol.cost), runs, prob.bases_at(x1)
+    return _moved_on(prob, sol), float(sol.cost), runs
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: ArrayLike = (),
@@ -533,37 +530,35 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
     geometry = geometry.replace(**extension_fields(extensions))
     for start in np.atleast_2d(np.asarray(inertia0, float)):
         p0 = geometry.replace(inertia=start)
-        prob = RigProblem(rec, p0, lay, vector(p0, np.zeros(12), lay), prior, noise_scale, rounds[0][0], rest0)
-        prob = RigProblem(rec, p0, lay, _settled(prob, rec, p0, lay, prior, rest0), prior, noise_scale, rounds[0][0],
-                        rest0, prob.bases)
-        problems.append((prob, p0, rest0))
+        n0 = rounds[0][0]
+        prob = RigProblem(rec, RigPoint(vector(p0, np.zeros(12), lay), p0, rest0), lay, prior, noise_scale, n0)
+        prob = RigProblem(rec, RigPoint(_settled(prob, lay), p0, rest0, prob.bases), lay, prior, noise_scale, n0)
+        problems.append(prob)
         if np.all(prob.residual(np.zeros(prob.lay.size)) == OUTSIDE):
             log.info("rig fit: the start %s leaves the physical region or diverges: the next", np.round(start, 1))
             continue
         sol, runs, J_end = _solve(prob)
         nfev += runs
         if best is None or sol.cost < best[1].cost:
-            best = (prob, sol, p0, rest0)
+            best = (prob, sol)
             solved = (prob, J_end, noise_scale)
         if 2 * sol.cost <= START_LEVEL ** 2 * prob.noise_cost(prob.lay.size):
             break
     if best is None:                # every start outside: the first, which the verdict will call failed
-        prob, p0, rest0 = problems[0]
+        prob = problems[0]
         sol, _, J_end = _solve(prob)
-        best, solved = (prob, sol, p0, rest0), (prob, J_end, noise_scale)
-    prob, sol, p, rest = best
-    x, p, rest = _moved_on(prob, sol, p, rest)
-    bases = prob.bases_at(x)
+        best, solved = (prob, sol), (prob, J_end, noise_scale)
+    prob, sol = best
+    at = _moved_on(prob, sol)
     for i, (n, final) in enumerate(rounds):
         if i > 0:
-            prob = RigProblem(rec, p, lay, x, prior, noise_scale, n, rest, bases)
+            prob = RigProblem(rec, at, lay, prior, noise_scale, n)
             sol, runs, J_end = _solve(prob, final)
             solved = (prob, J_end, noise_scale)
             nfev += runs
-            x, p, rest = _moved_on(prob, sol, p, rest)
-            bases = prob.bases_at(x)
+            at = _moved_on(prob, sol)
         if final:
-            level = levels(RigProblem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases), x)
+            level = levels(RigProblem(rec, at, lay, prior, np.ones(channels), n_all), at.x)
             new_scale = np.maximum(level, 1.0)
             if np.allclose(new_scale, noise_scale, rtol=0.05) or np.max(level) > REWEIGHT_LIMIT:
                 break
@@ -573,7 +568,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
         restarts, check = (), False
     else:
         check = True
-    last = RigProblem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
+    last = RigProblem(rec, at, lay, prior, noise_scale, n_all)
     return _concluded(last, solved, restarts, nfev, check)
 
 
@@ -584,34 +579,36 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     beyond :data:`REWEIGHT_LIMIT` of its noise, the motion not found), polished, its covariance
     and levels: the :class:`RigFit`."""
     rec, prior, lay, noise_scale = last.rec, last.prior, last.lay, last.weight_scale
-    x, p, rest, bases = last.x0, last.like, last.rest, last.bases
+    x = last.x0
     n_all = last.n
     channels = len(rec.channels)
     J, runs = _jacobian_at_x0(last, *solved)
     r = last.residual(np.zeros(last.lay.size))
     nfev += runs + 1
-    minima = [(0.5 * float(r @ r), x, p, rest, bases)]
+    minima = [(0.5 * float(r @ r), last.at_x0)]
     given = list(np.asarray(restarts, float).reshape(-1, 6)) + _along_weakest(last, J, x[lay.inertia])
     others = [t for t in given if physically_consistent(to_tensor(t))]
     tried = [_shifted(x[lay.inertia], 1.0), _shifted(x[lay.inertia], -1.0)] + others if check else []
     for tensor in tried:
-        x2, p2, rest2, cost2, runs, bases2 = _restarted(last, (J, r), p, rest, tensor)
+        at2, cost2, runs = _restarted(last, (J, r), tensor)
         nfev += runs
-        minima.append((cost2, x2, p2, rest2, bases2))
+        minima.append((cost2, at2))
     minima_costs = [m[0] for m in minima]
-    descent = minima[0][1][lay.inertia]
+    descent = minima[0][1].x[lay.inertia]
     minima.sort(key=lambda m: m[0])
-    cost, x, p, rest, bases = minima[0]
-    settled = np.array([m[1][lay.inertia] for m in minima[1:]]).reshape(-1, 6)
+    cost, at = minima[0]
+    x = at.x
+    settled = np.array([m[1].x[lay.inertia] for m in minima[1:]]).reshape(-1, 6)
     other_chi2 = np.array([2 * (m[0] - cost) for m in minima[1:]])
     log.info("rig fit: the other minima settled %s from the estimate, χ² %s", np.round(settled - x[lay.inertia], 3),
              np.round(other_chi2, 2))
     if cost != minima_costs[0]:           # a restart settled lower: the estimate's problem and Jacobian
-        last = RigProblem(rec, p, lay, x, prior, noise_scale, n_all, rest, bases)
+        last = RigProblem(rec, at, lay, prior, noise_scale, n_all)
         J = last.jacobian(np.zeros(last.lay.size))
         r = last.residual(np.zeros(last.lay.size))
         nfev += last.lay.size + 2
-    x, p, rest, bases, runs = _polished(last, J, r, p, rest)
+    at, runs = _polished(last, J, r)
+    x, p, rest, bases = at.x, at.parameters, at.rest, at.bases
     nfev += runs
     fisher, sandwich, bound = _covariance(last, J, noise_scale)
     # σ: the larger of the two per unknown, the correlations the Fisher information's
@@ -621,7 +618,7 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     cov = np.diag(sd ** 2)                  # an unknown the residual does not see: σ inf, uncorrelated
     both = np.ix_(seen, seen)
     cov[both] = fisher[both] / np.outer(fd[seen], fd[seen]) * np.outer(sd[seen], sd[seen])
-    unit = RigProblem(rec, p, lay, x, prior, np.ones(channels), n_all, rest, bases)
+    unit = RigProblem(rec, at, lay, prior, np.ones(channels), n_all)
     outputs = unit.outputs(x)             # one model run for the levels and the plotted series
     level = levels(unit, x, outputs)
     offsets = np.mean(rec.y[rec.start:rec.start + n_all] - np.concatenate(outputs), axis=0)
@@ -641,5 +638,5 @@ def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.
     lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1])
     x = vector(truth, np.zeros(12), lay)
     rest = rest_pose(truth)
-    prob = RigProblem(rec, truth, lay, x, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start, rest)
+    prob = RigProblem(rec, RigPoint(x, truth, rest), lay, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start)
     return _covariance(prob, prob.jacobian(np.zeros(prob.lay.size)))[0]

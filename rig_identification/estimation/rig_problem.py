@@ -9,6 +9,7 @@ import logging
 import os
 from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -59,18 +60,32 @@ SETTLE_DECREMENT = 0.01
 NON_NEGATIVE = ("air_drag", "coulomb_friction")
 
 
+@dataclass(frozen=True)
+class RigPoint:
+    """The point a :class:`RigProblem` is made at: the unknowns ``x`` (any segment count:
+    :func:`~.rig_unknowns.relayout`), the ``parameters`` they fill (:func:`~.rig_unknowns.parameters_of`:
+    what the unknowns leave fixed), the ``rest`` pose (it sets the integrator's step and moves the
+    segments' states with the parameters) and ``bases`` (k, 13), the segments' states before
+    their unknowns (:meth:`RigProblem.bases_at`; None: from rest through the spin-up)."""
+
+    x: np.ndarray
+    parameters: RigParameters
+    rest: RestPose
+    bases: np.ndarray | None = None
+
+
 class RigProblem:
     """The weighted residual of ``n`` samples from the record's ``start`` as a function of the
-    scaled unknowns z (x = x0 + scale z): the span cut into segments (:data:`~.rig_unknowns.SEGMENT`), each run
-    from its own state, ``bases[k]`` moved by segment k's initial-state unknowns.  ``bases``:
-    (k, 13) the segments' states as a previous problem had them (:meth:`bases_at`): with k this
-    span's segment count and ``x0`` of its size, taken as they are; otherwise the first is taken
-    and the later ones are the model's continuation at ``x0`` from it; None: the first is the
-    model's run from rest through the spin-up (:func:`base_state`).  ``x0`` of any segment
-    count (:func:`relayout`)."""
+    scaled unknowns z (x = x0 + scale z, x0 the point ``at``'s :class:`RigPoint`): the span cut into
+    segments (:data:`~.rig_unknowns.SEGMENT`), each run from its own state, ``bases[k]`` moved by
+    segment k's initial-state unknowns.  The point's ``bases``: (k, 13) the segments' states as a
+    previous problem had them (:meth:`bases_at`): with k this span's segment count and its ``x`` of
+    this layout's size, taken as they are; otherwise the first is taken and the later ones are the
+    model's continuation at x0 from it; None: the first is the model's run from rest through the
+    spin-up (:func:`base_state`).  ``noise_scale`` (n_out,): each channel's noise over the record's."""
 
-    def __init__(self, rec: Record, like: RigParameters, lay: Layout, x0: np.ndarray, prior: Prior,
-                 noise_scale: np.ndarray, n: int, rest: RestPose, bases: np.ndarray | None = None):
+    def __init__(self, rec: Record, at: RigPoint, lay: Layout, prior: Prior, noise_scale: np.ndarray, n: int):
+        like, x0, rest, bases = at.parameters, at.x, at.rest, at.bases
         self.rec, self.like, self.n, self.prior = rec, like, n, prior
         self.lay = lay.for_span(n, rec.dt)
         self.x0 = relayout(x0, self.lay)
@@ -169,6 +184,16 @@ class RigProblem:
             moves = list(pool.map(settle, range(1, self.lay.n_segments)))
         for k, move in enumerate(moves, 1):
             self.x0[self.lay.state(k)] += move
+
+    @property
+    def at_x0(self) -> RigPoint:
+        """The point the problem holds: its x0, parameters, rest pose and segments' states."""
+        return RigPoint(self.x0, self.like, self.rest, self.bases)
+
+    def point(self, x: np.ndarray, rest: RestPose) -> RigPoint:
+        """The point at the unknowns ``x`` (this layout): their parameters, ``rest`` and the
+        segments' states moved there (:meth:`bases_at`)."""
+        return RigPoint(x, parameters_of(x, self.like, self.lay), rest, self.bases_at(x))
 
     def x(self, z: np.ndarray) -> np.ndarray:
         x = self.x0.copy()
@@ -396,5 +421,6 @@ def base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) -> 
     return simulate(p, y, drive(rec.u[:rec.start + 1], rec.dt, substeps))[1]
 
 
-__all__ = ["RigProblem", "levels", "base_state", "DECIMATED_RATE", "THREADS", "MAX_ITERATIONS", "XTOL", "FTOL", "GTOL",
-           "OUTSIDE", "JACOBIAN_STEP", "IMPULSE_TAIL", "NON_NEGATIVE", "SETTLE_STEPS", "SETTLE_DECREMENT"]
+__all__ = ["RigPoint", "RigProblem", "levels", "base_state", "DECIMATED_RATE", "THREADS", "MAX_ITERATIONS", "XTOL",
+           "FTOL", "GTOL", "OUTSIDE", "JACOBIAN_STEP", "IMPULSE_TAIL", "NON_NEGATIVE", "SETTLE_STEPS",
+           "SETTLE_DECREMENT"]
