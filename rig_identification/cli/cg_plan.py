@@ -22,7 +22,16 @@ import numpy as np
 from ..io.recording import RecordingError, read_recording
 from ..io.rig import DummyMass, Rig, load_rig
 from ..model.experiment import load_rig_or_experiment
-from ..statics import CgOptions, CgPlan, SensorNoise, StaticsError, StaticState, plan_static_test, predict_cg_std
+from ..statics import (
+    CgOptions,
+    CgPlan,
+    PlanLimits,
+    SensorNoise,
+    StaticsError,
+    StaticState,
+    plan_static_test,
+    predict_cg_std,
+)
 from .arg_types import number
 from .cg import add_geometry_options, cg_options
 from .progress import step
@@ -205,9 +214,8 @@ def cmd_cg_plan(args) -> int:
         out["planned"] = _planned_prediction(rig, guess, planned, args.duration, noise, opts, target)
     masses = args.masses or (25.0, 50.0, 100.0, 200.0)
     step(f"searching dummy masses ({', '.join(f'{m:g}' for m in masses)} kg) and positions for ±{args.target_mm:g} mm")
-    best, plans = plan_static_test(rig, guess, masses=masses,
-                                   positions=args.position, target=target, noise=noise,
-                                   max_duration=args.max_duration, options=opts)
+    best, plans = plan_static_test(rig, guess, masses=masses, positions=args.position, noise=noise, options=opts,
+                                   limits=PlanLimits(target=target, max_duration=args.max_duration))
     out["recommended"] = None if best is None else best.to_dict()
     out["candidates"] = [p.to_dict() for p in sorted(plans, key=lambda p: (not p.reaches_target, p.duration,
                                                                             p.dummy.mass))]

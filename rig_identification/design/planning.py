@@ -128,6 +128,10 @@ def candidate_positions(rig: Rig) -> list[np.ndarray]:
     return [np.array([x, y, z]) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
 
 
+#: Times :func:`_fit_amplitude` rescales a run's force and simulates it again, at most.
+AMPLITUDE_TRIES = 2
+
+
 def _sim_check(body: Body, run: Run, limits: dict, settle: float, tracker_params,
                rot_f=None) -> tuple[Candidate, object]:
     """Simulate ``run`` without noise, measure its peak rotation, lowest tension ratio and
@@ -168,15 +172,16 @@ def _feasible(c: Candidate, limits: dict) -> bool:
             and c.run.amplitude <= limits["max_force_n"] * 1.001)
 
 
-def _fit_amplitude(body: Body, run: Run, limits: dict, settle: float, tracker_params, limit: str,
-                   tries: int = 2, grow: bool = True, rot_f=None, say=None) -> Candidate | None:
+def _fit_amplitude(body: Body, run: Run, limits: dict, settle: float, tracker_params,
+                   grow: bool = True, rot_f=None, say=None) -> Candidate | None:
     """Simulate ``run`` and bring its force amplitude to the limits: scale it linearly so
     that the simulated peak rotation and lowest tension (start-up transients and beats
     included) meet them with a 3 % margin, at most ``limits["max_force_n"]`` (up only if
-    ``grow``), and simulate again (announced to ``say``, callable(str), when given).  None if
-    the run still breaks a limit or its swing keeps growing (a parametric resonance)."""
+    ``grow``), and simulate again (announced to ``say``, callable(str), when given), at most
+    :data:`AMPLITUDE_TRIES` times.  None if the run still breaks a limit or its swing keeps
+    growing (a parametric resonance)."""
     cand, _ = _sim_check(body, run, limits, settle, tracker_params, rot_f)
-    for _ in range(tries):
+    for _ in range(AMPLITUDE_TRIES):
         if getattr(cand, "growing", False):
             return None
         s_rot = np.radians(limits["max_rotation_deg"]) / max(np.radians(cand.peak_rotation_deg), 1e-12)
@@ -217,7 +222,7 @@ def amplitude_at_limits(body: Body, run: Run, max_rotation_deg: float = 3.0, min
     ``.min_tension_ratio``, ``.prediction``), or None if no amplitude keeps the run within
     the limits (its swing keeps growing).  Raises :class:`PlanError` for bad limits,
     :class:`~rig_identification.model.simulator.SimulationError`."""
-    return _fit_amplitude(body, run, _limits(max_force, max_rotation_deg, min_tension_ratio), settle, None, "")
+    return _fit_amplitude(body, run, _limits(max_force, max_rotation_deg, min_tension_ratio), settle, None)
 
 
 def _limits(max_force: float, max_rotation_deg: float, min_tension_ratio: float) -> dict:
@@ -351,7 +356,7 @@ class _Search:
             self.say(f"simulating {what}{where}: {c.run.frequency:.2f} Hz, {c.run.amplitude:.0f} N, spin axis "
                      f"{c.run.spin_axis}, at {np.round(c.run.position, 2).tolist()} m ({self.short:.0f} s) ...")
             cs = _fit_amplitude(c.body, replace(c.run, duration=self.short), self.limits, o.settle, o.tracker_params,
-                                c.limit, rot_f=self.rot_fs[c.geometry])
+                                rot_f=self.rot_fs[c.geometry])
             if cs is not None:
                 cs.prediction = cs.prediction.scaled((o.duration - o.settle) / cs.prediction.duration)
                 cs.geometry, cs.body = c.geometry, c.body
@@ -371,7 +376,7 @@ class _Search:
             self.say(f"simulating {what}{where} in full ({c.run.amplitude:.0f} N at {c.run.frequency:.2f} Hz, "
                      f"{o.duration:.0f} s) ...")
             cf = _fit_amplitude(c.body, replace(c.run, duration=o.duration), self.limits, o.settle, o.tracker_params,
-                                c.limit, rot_f=self.rot_fs[c.geometry], say=self.say)
+                                rot_f=self.rot_fs[c.geometry], say=self.say)
             if cf is not None:
                 cf.geometry, cf.body = c.geometry, c.body
             self.full[key] = cf

@@ -70,20 +70,20 @@ import X``):
   load and tilt; no stream contradicting the fitted equilibrium);
 * :mod:`.estimation` -- the fit, :func:`estimate_cg`;
 * :mod:`.plan` -- design of the static test (:class:`SensorNoise`, :func:`predict_cg_std`,
-  :class:`CgPlan`, :func:`plan_static_test`);
+  :class:`CgPlan`, :class:`PlanLimits`, :func:`plan_static_test`);
 * :mod:`.capture` -- live capture of the states (the identifier node's CG services);
 * :mod:`.handover` -- the CG handed on: a saved result read back, rig.yaml written with the CG
   (not re-exported).
 """
 from .estimation import estimate_cg
 from .model import DEFAULT_ANCHOR_STD, DEFAULT_DUMMY_POSITION_STD, DEFAULT_LENGTH_STD, CgOptions, static_equilibrium
-from .plan import CgPlan, SensorNoise, candidate_positions, plan_static_test, predict_cg_std
+from .plan import CgPlan, PlanLimits, SensorNoise, candidate_positions, plan_static_test, predict_cg_std
 from .result import CG_RESULT_SCHEMA, CG_RESULT_SCHEMA_VERSION, CG_RESULT_UNITS, CgResult, StatePose
 from .state import StaticsError, StaticState, StreamStats
 from .validation import CG_MODEL_CHECKS, CG_VERDICTS, VALIDATION_SIGMA, CgValidation
 
 __all__ = ["CG_MODEL_CHECKS", "CG_RESULT_SCHEMA", "CG_RESULT_SCHEMA_VERSION", "CG_RESULT_UNITS", "CG_VERDICTS",
            "DEFAULT_ANCHOR_STD", "DEFAULT_DUMMY_POSITION_STD", "DEFAULT_LENGTH_STD", "VALIDATION_SIGMA", "CgOptions",
-           "CgPlan", "CgResult", "CgValidation", "SensorNoise", "StatePose", "StaticState",
+           "CgPlan", "CgResult", "CgValidation", "PlanLimits", "SensorNoise", "StatePose", "StaticState",
            "StaticsError", "StreamStats", "candidate_positions", "estimate_cg", "plan_static_test",
            "predict_cg_std", "static_equilibrium"]

@@ -137,27 +137,43 @@ def candidate_positions(rig: Rig) -> list[np.ndarray]:
     return uniq
 
 
+@dataclass(frozen=True)
+class PlanLimits:
+    """What a static test's plan must reach and may not do (:func:`plan_static_test`).
+
+    target: the CG's 95 % half-width asked of every coordinate, m.  max_duration: the longest
+    averaging per state, s.  max_tilt: the most the dummy may tilt the body, rad.
+    min_tension_fraction: the least tension a cable may keep, as a share of an even share of the
+    weight.
+    """
+
+    target: float = 2.5e-3
+    max_duration: float = 600.0
+    max_tilt: float = math.radians(5.0)
+    min_tension_fraction: float = 0.1
+
+
 def plan_static_test(rig: Rig, cg_guess, masses: Sequence[float] = (25.0, 50.0, 100.0, 200.0),
-                     positions: Sequence | None = None, target: float = 2.5e-3,
-                     noise: SensorNoise | None = None, max_duration: float = 600.0,
-                     options: CgOptions | None = None, max_tilt: float = math.radians(5.0),
-                     min_tension_fraction: float = 0.1) -> tuple[CgPlan | None, list[CgPlan]]:
-    """Recommend a static test reaching ±``target`` m (1.96 σ) on every CG coordinate.
+                     positions: Sequence | None = None, noise: SensorNoise | None = None,
+                     options: CgOptions | None = None, limits: PlanLimits = PlanLimits()
+                     ) -> tuple[CgPlan | None, list[CgPlan]]:
+    """Recommend a static test reaching ±``limits.target`` m (1.96 σ) on every CG coordinate.
 
     For every dummy mass (kg) in ``masses`` and position (body m; default
     :func:`candidate_positions`), the CG variance is predicted (:func:`predict_cg_std`) at 10 s
     and 100 s of averaging per state and modelled per coordinate as σ²(t) = a/t + b (the
     noise of the means averages down, priors such as the dummy-position σ do not); the
     shortest time (rounded up to 5 s, at least 10 s) reaching the target is re-checked.
-    Plans that tilt the body by more than ``max_tilt`` rad or leave a cable below
-    ``min_tension_fraction`` of an even share of the weight are skipped.  The recommendation
-    is the plan reaching the target within ``max_duration`` s with the shortest time, then
-    the smallest mass, then the smallest σ.
+    Plans that tilt the body by more than ``limits.max_tilt`` rad or leave a cable below
+    ``limits.min_tension_fraction`` of an even share of the weight are skipped.  The
+    recommendation is the plan reaching the target within ``limits.max_duration`` s with the
+    shortest time, then the smallest mass, then the smallest σ.
 
     Returns (recommended :class:`CgPlan` or None, every evaluated plan -- for those that cannot
     reach the target, ``duration`` is ``max_duration`` and ``reaches_target`` false).
     """
     noise = noise or SensorNoise()
+    target, max_duration = limits.target, limits.max_duration
     positions = candidate_positions(rig) if positions is None else [np.asarray(p, float) for p in positions]
     share = rig.mass * rig.gravity / len(rig.cables)
     s2 = (target / 1.96) ** 2
@@ -172,7 +188,7 @@ def plan_static_test(rig: Rig, cg_guess, masses: Sequence[float] = (25.0, 50.0, 
                 continue
             tilt = r10.weakly_determined["tilt_change_rad"]
             tmin = min(float(st.tensions.min()) for st in r10.states)
-            if tilt > max_tilt or tmin < min_tension_fraction * share:
+            if tilt > limits.max_tilt or tmin < limits.min_tension_fraction * share:
                 continue
             v10, v100 = r10.center_of_gravity_std ** 2, r100.center_of_gravity_std ** 2
             a = np.maximum((v10 - v100) / (1 / 10.0 - 1 / 100.0), 0.0)
