@@ -172,7 +172,7 @@ def counts_table(diagnostics: dict[str, dict], status: dict) -> str:
     return "\n".join(lines)
 
 
-def main(argv=None) -> int:
+def _parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="demo", description=__doc__.split("\n\n")[0])
     ap.add_argument("--version", action="version", version=f"demo ({PACKAGE}) {package_version()}")
     ap.add_argument("--rate", type=float, default=3.0,
@@ -182,8 +182,76 @@ def main(argv=None) -> int:
     ap.add_argument("--duration", type=float, default=0.0, help="only the first DURATION s of data")
     ap.add_argument("--domain-id", type=int, help="ROS_DOMAIN_ID (default: random 20-99)")
     ap.add_argument("--keep-logs", action="store_true", help="print where the node logs are and keep them")
-    args = ap.parse_args(argv)
+    return ap
 
+
+def _driver_params(args: argparse.Namespace, rig_path: Path) -> dict:
+    """The sensor driver's parameters: the recording replayed or the experiment simulated, at
+    ``args.rate``, its rig.yaml written to ``rig_path``, publishing once the nodes subscribe."""
+    driver: dict = {"rate": args.rate, "rig_out": str(rig_path), "duration": args.duration,
+                    "wait_for": ["/rig/imu:2", "/rig/load_cells/*:2", "/rig/exciter/wrench:2",
+                                 "/rig/inclinometer:1", "/rig/pose:1"],
+                    "wait_timeout": 120.0, "start_delay": 1.0}
+    if args.recording:
+        driver["recording"] = str(Path(args.recording).resolve())
+    else:
+        driver["experiment"] = str(Path(args.experiment).resolve() if args.experiment else default_experiment())
+    return driver
+
+
+def _start_nodes(graph: Graph, rig_path: Path, say) -> None:
+    """The tracker, preprocessor and identifier on the rig.yaml the driver writes, once it is
+    there.  Raises RuntimeError when the driver stops first."""
+    while not rig_path.exists():
+        if graph.dead():
+            raise RuntimeError("the sensor driver stopped:\n" + graph.log("sensor_driver")[-3000:])
+        time.sleep(0.2)
+    say(f"rig description ready ({rig_path}); starting tracker, preprocessor, identifier")
+    for name in ("tracker", "preprocessor", "identifier"):
+        graph.start(name, {"rig": str(rig_path)})
+
+
+def _wait_for_driver(graph: Graph, monitor: Monitor, rate: float, say) -> None:
+    """Until the driver has published everything, saying when it starts and ends.  Raises
+    RuntimeError when a node stops."""
+    state = None
+    while True:
+        st = monitor.status.get("state")
+        if st != state:
+            state = st
+            if st == "publishing":
+                total = sum(monitor.status.get("total", {}).values())
+                say(f"every node subscribed; driver publishing {total} messages at {rate:g}x real time")
+            elif st == "done":
+                a = monitor.status.get("achieved", {})
+                say(f"driver done publishing: {a.get('wall_seconds', 0):.1f} s, "
+                    f"{a.get('rate', 0):.2f}x real time")
+                break
+        dead = graph.dead()
+        if dead:
+            raise RuntimeError(f"node(s) {', '.join(dead)} stopped:\n"
+                               + "\n".join(graph.log(n)[-2000:] for n in dead))
+        time.sleep(0.1)
+
+
+def _run_client(graph: Graph, monitor: Monitor, say) -> int:
+    """mass_properties_client's default verb once the identifier's buffer is complete, then the
+    message counts; the client's exit status."""
+    cpu = {n: graph.cpu_seconds(n) for n in ("sensor_driver", "tracker", "preprocessor", "identifier")}
+    say("CPU time so far: " + ", ".join(f"{n} {c:.1f} s" for n, c in cpu.items() if c is not None))
+    say("running mass_properties_client")
+    client = graph.start("mass_properties_client", module=NODE_MODULES["mass_properties_client"],
+                         args=["identify", "--wait-stable", "1.5", "--timeout", "60"], stdout=sys.stdout)
+    rc = client.wait()
+    time.sleep(1.2)  # one more round of /diagnostics
+    print("\nmessage counts (driver status and /diagnostics):")
+    print(counts_table(monitor.diagnostics, monitor.status))
+    say(f"client exit status {rc}")
+    return int(rc)
+
+
+def main(argv=None) -> int:
+    args = _parser().parse_args(argv)
     t_start = time.monotonic()
     graph = Graph(domain_id=args.domain_id)
     say = lambda s: print(f"[demo {time.monotonic() - t_start:6.1f} s] {s}", flush=True)  # noqa: E731
@@ -193,54 +261,14 @@ def main(argv=None) -> int:
     rc = 1
     try:
         rig_path = graph.dir / "rig.yaml"
-        driver = {"rate": args.rate, "rig_out": str(rig_path), "duration": args.duration,
-                  "wait_for": ["/rig/imu:2", "/rig/load_cells/*:2", "/rig/exciter/wrench:2",
-                               "/rig/inclinometer:1", "/rig/pose:1"],
-                  "wait_timeout": 120.0, "start_delay": 1.0}
-        if args.recording:
-            driver["recording"] = str(Path(args.recording).resolve())
-        else:
-            driver["experiment"] = str(Path(args.experiment).resolve() if args.experiment
-                                       else default_experiment())
+        driver = _driver_params(args, rig_path)
         graph.start("sensor_driver", driver)
         monitor = Monitor(graph.domain_id)
         say("sensor_driver: " + (f"replaying {driver['recording']}" if args.recording
                                  else f"simulating {driver['experiment']}"))
-        while not rig_path.exists():
-            if graph.dead():
-                raise RuntimeError("the sensor driver stopped:\n" + graph.log("sensor_driver")[-3000:])
-            time.sleep(0.2)
-        say(f"rig description ready ({rig_path}); starting tracker, preprocessor, identifier")
-        for name in ("tracker", "preprocessor", "identifier"):
-            graph.start(name, {"rig": str(rig_path)})
-        state = None
-        while True:
-            st = monitor.status.get("state")
-            if st != state:
-                state = st
-                if st == "publishing":
-                    total = sum(monitor.status.get("total", {}).values())
-                    say(f"every node subscribed; driver publishing {total} messages at {args.rate:g}x real time")
-                elif st == "done":
-                    a = monitor.status.get("achieved", {})
-                    say(f"driver done publishing: {a.get('wall_seconds', 0):.1f} s, "
-                        f"{a.get('rate', 0):.2f}x real time")
-                    break
-            dead = graph.dead()
-            if dead:
-                raise RuntimeError(f"node(s) {', '.join(dead)} stopped:\n"
-                                   + "\n".join(graph.log(n)[-2000:] for n in dead))
-            time.sleep(0.1)
-        cpu = {n: graph.cpu_seconds(n) for n in ("sensor_driver", "tracker", "preprocessor", "identifier")}
-        say("CPU time so far: " + ", ".join(f"{n} {c:.1f} s" for n, c in cpu.items() if c is not None))
-        say("running mass_properties_client")
-        client = graph.start("mass_properties_client", module=NODE_MODULES["mass_properties_client"],
-                             args=["identify", "--wait-stable", "1.5", "--timeout", "60"], stdout=sys.stdout)
-        rc = client.wait()
-        time.sleep(1.2)  # one more round of /diagnostics
-        print("\nmessage counts (driver status and /diagnostics):")
-        print(counts_table(monitor.diagnostics, monitor.status))
-        say(f"client exit status {rc}")
+        _start_nodes(graph, rig_path, say)
+        _wait_for_driver(graph, monitor, args.rate, say)
+        rc = _run_client(graph, monitor, say)
     except KeyboardInterrupt:
         rc = 130
     except RuntimeError as e:

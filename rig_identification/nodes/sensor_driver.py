@@ -161,21 +161,39 @@ class SensorDriver(Node):
 
         rig, sensors, truth = self._load(get("experiment"), get("recording"), float(get("duration")))
         self.rig = rig
-        if get("rig_out"):
-            out = Path(get("rig_out"))
-            out.parent.mkdir(parents=True, exist_ok=True)
-            # atomic: readers never see half a file
-            atomic_write_text(out, dump_rig(rig, f"rig description published by sensor_driver ({self.source})"))
-            self.get_logger().info(f"wrote the rig description to {out}")
-        if truth is not None:
-            self.truth_pub.publish(String(data=to_json(truth)))
+        self._hand_out(rig, truth, get("rig_out"))
         self.streams = self._make_streams(rig, sensors)
         fr = {IMU_TOPIC: self.frames.imu, EXCITER_TOPIC: self.frames.exciter,
               INCLINOMETER_TOPIC: self.frames.inclinometer}
         log_interface(self, [], [Endpoint(st.publisher, "frame " + fr.get(
             st.topic, self.frames.load_cell_frame(st.topic[len(LOAD_CELL_PREFIX):]))) for st in self.streams]
             + [Endpoint(self.truth_pub, "latched"), Endpoint(self.status_pub, "latched")])
-        # merged publication order: by stamp, ties in stream order (as recording.sensor_messages)
+        self._schedule()
+        self._t_wait = time.monotonic()
+        self._t_ready = None
+        self._last_status = 0.0
+        self.state = "waiting" if self.wait_for else "publishing"
+        if self.state == "publishing":
+            self._begin()
+        else:
+            self.get_logger().info("waiting for subscribers: " + ", ".join(self.wait_for))
+        self._publish_status()
+        self.timer = self.create_timer(float(get("publish_period")), self._tick)
+
+    def _hand_out(self, rig, truth: dict | None, rig_out: str) -> None:
+        """rig.yaml written to ``rig_out`` (atomically: readers never see half a file; "" none) and
+        the truth published (latched), before anything else."""
+        if rig_out:
+            out = Path(rig_out)
+            out.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(out, dump_rig(rig, f"rig description published by sensor_driver ({self.source})"))
+            self.get_logger().info(f"wrote the rig description to {out}")
+        if truth is not None:
+            self.truth_pub.publish(String(data=to_json(truth)))
+
+    def _schedule(self) -> None:
+        """The merged publication order of every stream's samples: by stamp, ties in stream order
+        (as recording.sensor_messages), the silenced spans left out."""
         t_all = np.concatenate([s.t for s in self.streams])
         k_all = np.concatenate([np.full(len(s.t), k) for k, s in enumerate(self.streams)])
         i_all = np.concatenate([np.arange(len(s.t)) for s in self.streams])
@@ -190,16 +208,6 @@ class SensorDriver(Node):
         self.stalls = 0  # publish attempts refused by a full KEEP_ALL writer (back-pressure)
         self.t_first = self.ev_t[0]
         self.total = {s.topic: int(np.count_nonzero(self.ev_k_arr == k)) for k, s in enumerate(self.streams)}
-        self._t_wait = time.monotonic()
-        self._t_ready = None
-        self._last_status = 0.0
-        self.state = "waiting" if self.wait_for else "publishing"
-        if self.state == "publishing":
-            self._begin()
-        else:
-            self.get_logger().info("waiting for subscribers: " + ", ".join(self.wait_for))
-        self._publish_status()
-        self.timer = self.create_timer(float(get("publish_period")), self._tick)
 
     # --- source ------------------------------------------------------------------------
     def _load(self, experiment: str, recording: str, duration: float):
