@@ -21,6 +21,10 @@ from ..io.recording import SensorData, TimeSeries
 from ..io.rig import DummyMass, Rig
 
 MOTION_P = 1e-4                  # per-channel p-value below which a state is "moving"
+#: The stationarity test's batches last about this long, s (5 to 20 batches a window).
+BATCH_SECONDS = 1.0
+#: The quiet tail averaged where a state's first batches still move: at least this share of its window.
+MIN_QUIET_FRACTION = 0.4
 
 
 class StaticsError(ValueError):
@@ -92,9 +96,9 @@ class _Windows:
     K: int
 
 
-def _stream_windows(sensors: SensorData, t0: float, t1: float, label: str, batch_seconds: float) -> _Windows:
+def _stream_windows(sensors: SensorData, t0: float, t1: float, label: str) -> _Windows:
     """The streams of ``sensors`` within header stamps [t0, t1] s, cut into batches of about
-    ``batch_seconds`` s.  Raises :class:`StaticsError` for a stream with under 10 samples there
+    :data:`BATCH_SECONDS` s.  Raises :class:`StaticsError` for a stream with under 10 samples there
     or streams that do not overlap in time."""
     streams: dict[str, TimeSeries] = {"imu": sensors.imu}
     for name, ts in sensors.load_cells.items():
@@ -114,7 +118,7 @@ def _stream_windows(sensors: SensorData, t0: float, t1: float, label: str, batch
     b = min(w.t[-1] for w in win.values())
     if b - a <= 0:
         raise StaticsError(f"{label}: the streams do not overlap in time")
-    return _Windows(win, a, b, int(np.clip(round((b - a) / batch_seconds), 5, 20)))
+    return _Windows(win, a, b, int(np.clip(round((b - a) / BATCH_SECONDS), 5, 20)))
 
 
 def _stationarity(win: _Windows, ta: float) -> tuple[float, str]:
@@ -132,14 +136,14 @@ def _stationarity(win: _Windows, ta: float) -> tuple[float, str]:
     return worst, what
 
 
-def _first_quiet(win: _Windows, min_fraction: float) -> float | None:
+def _first_quiet(win: _Windows) -> float | None:
     """The first batch edge a + j (b - a) / K, j >= 1, from which every stream is at rest (p of
-    :func:`_stationarity` at least :data:`MOTION_P`) with at least ``min_fraction`` of the
-    window left; None when there is none."""
+    :func:`_stationarity` at least :data:`MOTION_P`) with at least :data:`MIN_QUIET_FRACTION` of
+    the window left; None when there is none."""
     a, b = win.a, win.b
     step = (b - a) / win.K
     j = 1
-    while (b - (a + j * step)) >= min_fraction * (b - a) - 1e-9:
+    while (b - (a + j * step)) >= MIN_QUIET_FRACTION * (b - a) - 1e-9:
         pj, _ = _stationarity(win, a + j * step)
         if pj >= MOTION_P:
             return a + j * step
@@ -147,17 +151,16 @@ def _first_quiet(win: _Windows, min_fraction: float) -> float | None:
     return None
 
 
-def _rest_start(win: _Windows, label: str, settle: bool, allow_motion: bool,
-                min_fraction: float) -> tuple[float, bool, list[str]]:
+def _rest_start(win: _Windows, label: str, allow_motion: bool) -> tuple[float, bool, list[str]]:
     """(start s of the span averaged, moving, warnings) of :meth:`StaticState.from_window`: the
-    window's start when it is at rest; with ``settle``, the start of its quiet tail
-    (:func:`_first_quiet`); else, with ``allow_motion``, the start and moving.  Raises
-    :class:`StaticsError` when the body still moves."""
+    window's start when it is at rest; else the start of its quiet tail (:func:`_first_quiet`);
+    else, with ``allow_motion``, the start and moving.  Raises :class:`StaticsError` when the
+    body still moves."""
     a, b = win.a, win.b
     p, what = _stationarity(win, a)
     if not p < MOTION_P:
         return a, False, []
-    start = _first_quiet(win, min_fraction) if settle else None
+    start = _first_quiet(win)
     if start is not None:
         return start, False, [f"{label}: the body still moved during the first {start - a:.1f} s "
                               f"({what} not stationary); averaged the last {b - start:.1f} s"]
@@ -223,24 +226,23 @@ class StaticState:
 
     @classmethod
     def from_window(cls, sensors: SensorData, t0: float | None = None, t1: float | None = None,
-                    label: str = "state", settle: bool = True, allow_motion: bool = False,
-                    batch_seconds: float = 1.0, min_fraction: float = 0.4,
+                    label: str = "state", allow_motion: bool = False,
                     added: Sequence[DummyMass] | None = None) -> "StaticState":
         """Average every stream of ``sensors`` over header stamps [t0, t1] s (default: all).
 
-        Stationarity: each channel's window is cut into ~``batch_seconds`` batches (5 to 20);
-        if their means scatter more than the sample-to-sample noise allows (χ² test,
-        p < 1e-4 on any channel: the body still swings or drifts) and ``settle`` is true,
-        leading batches are dropped until the rest is at rest (at least ``min_fraction`` of
-        the window); a warning says so.  If no quiet tail exists: :class:`StaticsError`
+        Stationarity: each channel's window is cut into ~:data:`BATCH_SECONDS` batches (5 to
+        20); if their means scatter more than the sample-to-sample noise allows (χ² test,
+        p < :data:`MOTION_P` on any channel: the body still swings or drifts), leading batches
+        are dropped until the rest is at rest (at least :data:`MIN_QUIET_FRACTION` of the
+        window); a warning says so.  If no quiet tail exists: :class:`StaticsError`
         ("the body still moves"), unless ``allow_motion`` (then the batch-means standard
         error is used and a warning is added).  ``added``: the dummy masses fixed in this
         state (body frame), if known here.  Raises :class:`StaticsError` for an empty window.
         """
         t0 = -np.inf if t0 is None else float(t0)
         t1 = np.inf if t1 is None else float(t1)
-        win = _stream_windows(sensors, t0, t1, label, batch_seconds)
-        start, moving, warnings = _rest_start(win, label, settle, allow_motion, min_fraction)
+        win = _stream_windows(sensors, t0, t1, label)
+        start, moving, warnings = _rest_start(win, label, allow_motion)
         st = {k: _stats(w.window(start, win.b).data, win.K, moving) for k, w in win.streams.items()}
         exc = st.get("exciter")
         warnings += _exciter_warnings(exc, label)
