@@ -20,14 +20,14 @@ fundamental then depends on their stiffness as much as on the tensor.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from ..io.rig import Rig
 from ..model.dynamics import SimulationError
-from ..model.linear_rig import RestPose, RigParameters, frequency_response, linearise
+from ..model.linear_rig import RestPose, RigParameters, frequency_response, linearise, mass_matrix
 from ..model.parametrisation import physically_consistent, to_tensor
 from .rig_record import Record, RigFitError
 from .rig_start import carried_to, start_parameters
@@ -121,13 +121,14 @@ def _fitted(h: Harmonics, p0: RigParameters, rest: RestPose, starts: np.ndarray,
     real and imaginary parts)."""
     weight = 1.0 / h.std
     big = np.full(2 * len(h.readings), 1e6)
+    lin0 = linearise(p0, rest)          # K, D and G do not depend on the tensor: only M is made again
 
     def residual(x: np.ndarray) -> np.ndarray:
         if not physically_consistent(to_tensor(x)):
             return big
         p = p0.replace(inertia=x)
         try:
-            e = (h.readings - frequency_response(p, linearise(p, rest), h.omega, h.force)) * weight
+            e = (h.readings - frequency_response(p, replace(lin0, M=mass_matrix(p, rest)), h.omega, h.force)) * weight
         except (np.linalg.LinAlgError, SimulationError):
             return big
         return np.concatenate([e.real, e.imag])

@@ -223,15 +223,24 @@ def _as_rig(p: RigParameters) -> Rig:
     return Rig(p.gravity, cables, p.mass, p.cg, Mount(p.imu_position, np.zeros(3)))
 
 
+def mass_matrix(p: RigParameters, rest: RestPose) -> np.ndarray:
+    """M (6, 6) of the module docstring: the rigid body's mass matrix about the body origin at
+    ``rest``, world axes (the only part of :func:`linearise` that depends on the tensor)."""
+    R0 = rest.rotation
+    c = R0 @ p.cg
+    Jcg = R0 @ to_tensor(p.inertia) @ R0.T
+    Io = Jcg + p.mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
+    M: np.ndarray = np.block([[p.mass * np.eye(3), -p.mass * skew(c)], [p.mass * skew(c), Io]])
+    return M
+
+
 def linearise(p: RigParameters, rest: RestPose) -> LinearRig:
     """The :class:`LinearRig` of ``p`` about ``rest`` (module docstring)."""
     R0 = rest.rotation
     s, u, _ = _cable_geometry(p, rest.position, R0)
     Gu = np.hstack([u, np.cross(s, u)])                                       # (N, 6): -∂l_i/∂q
     c = R0 @ p.cg
-    Jcg = R0 @ to_tensor(p.inertia) @ R0.T
-    Io = Jcg + p.mass * (np.dot(c, c) * np.eye(3) - np.outer(c, c))
-    M = np.block([[p.mass * np.eye(3), -p.mass * skew(c)], [p.mass * skew(c), Io]])
+    M = mass_matrix(p, rest)
     K = stiffness_matrix(p, rest.position, R0)
     Gc = np.vstack([np.eye(3), skew(c)])                                      # CG velocity -> generalized force
     D = p.damping_time * np.einsum("n,ni,nj->ij", p.stiffness, Gu, Gu) + p.body_damping[0] * Gc @ Gc.T
