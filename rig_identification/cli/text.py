@@ -115,14 +115,5 @@ def origin_line(ex: Expressed) -> str:
             f"CG c above{'; the CG is at the origin: the same' if same else ''}): {vals} kg·m²")
 
 
-def entries_line(d: dict, std: dict | None = None, spec: str = ".2f") -> str:
-    """A {KEYS: value} dict (tensor entries) as ``ixx 2894.00, iyy …`` in :data:`ORDER`."""
-    def one(k):
-        v = d.get(k)
-        s = "" if std is None or std.get(k) is None else f" ± {fmt(std[k], '.3g')}"
-        return f"{k} {fmt(v, spec)}{s}" if v is not None else f"{k} {NOT_DETERMINED}"
-    return ", ".join(one(k) for k in ORDER if k in d)
-
-
-__all__ = ["entries_line", "fmt", "origin_line", "principal_lines", "TABLE_CAPTION", "tensor_entries_line",
+__all__ = ["fmt", "origin_line", "principal_lines", "TABLE_CAPTION", "tensor_entries_line",
            "tensor_table"]
