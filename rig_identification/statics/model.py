@@ -94,6 +94,21 @@ class CgOptions:
                 "dummy_position": float(self.dummy_position_std), "dummy_mass": float(self.dummy_mass_std)}
 
 
+@dataclass(frozen=True)
+class FittedGlobals:
+    """Which global unknowns the static fit frees besides the CG and the mass (each fixed at its
+    rig.yaml value where False): the cables' compliance, a common load-cell gain, the
+    inclinometer's offsets, the cable lengths, each dummy's position and mass, the anchors."""
+
+    compliance: bool
+    load_cell_gain: bool
+    inclinometer_offset: bool
+    lengths: bool
+    dummy_position: bool = False
+    dummy_mass: bool = False
+    anchors: bool = False
+
+
 class ParameterLayout:
     """Indices of the global unknowns θ (internal scaled units) and their scales.
 
@@ -107,25 +122,24 @@ class ParameterLayout:
     are not systematic inputs (lengths, dummy, anchors) -- those of the noise-only σ.
     """
 
-    def __init__(self, n_cables: int, fit_c: bool, fit_kappa: bool, fit_off: bool, fit_len: bool,
-                 n_states: int = 2, fit_dpos: bool = False, fit_dmass: bool = False, fit_anchors: bool = False):
+    def __init__(self, n_cables: int, fitted: FittedGlobals, n_states: int = 2):
         self.names: list[str] = ["cg_x", "cg_y", "cg_z"]
         self.scale: list[float] = [1.0, 1.0, 1.0]
-        self.fit_c, self.fit_kappa, self.fit_off, self.fit_len = fit_c, fit_kappa, fit_off, fit_len
-        self.i_C = self._add("compliance", 1e-7) if fit_c else None
+        self.fitted = fitted
+        self.i_C = self._add("compliance", 1e-7) if fitted.compliance else None
         self.i_m = self._add("mass", 1.0)
-        self.i_k = self._add("load_cell_gain", 1e-3) if fit_kappa else None
-        self.i_off = [self._add(f"incl_offset_{a}", 1e-3) for a in "xy"] if fit_off else None
-        self.i_L = [self._add(f"length_{i}", 1e-3) for i in range(n_cables)] if fit_len else None
+        self.i_k = self._add("load_cell_gain", 1e-3) if fitted.load_cell_gain else None
+        self.i_off = [self._add(f"incl_offset_{a}", 1e-3) for a in "xy"] if fitted.inclinometer_offset else None
+        self.i_L = [self._add(f"length_{i}", 1e-3) for i in range(n_cables)] if fitted.lengths else None
         # per dummy state (1 .. n_states-1): position offset (3) and mass offset of its dummy
         self.i_dd = [[self._add(f"dummy{s}_{a}", 1e-3) for a in "xyz"] for s in range(1, n_states)] \
-            if fit_dpos else None
-        self.i_dm = [self._add(f"dummy{s}_mass", 1.0) for s in range(1, n_states)] if fit_dmass else None
+            if fitted.dummy_position else None
+        self.i_dm = [self._add(f"dummy{s}_mass", 1.0) for s in range(1, n_states)] if fitted.dummy_mass else None
         # anchors: (N, 3) row-major, ceiling (world) then body (body frame)
         self.i_A = [self._add(f"ceiling_anchor_{i}_{a}", 1e-3) for i in range(n_cables) for a in "xyz"] \
-            if fit_anchors else None
+            if fitted.anchors else None
         self.i_B = [self._add(f"body_anchor_{i}_{a}", 1e-3) for i in range(n_cables) for a in "xyz"] \
-            if fit_anchors else None
+            if fitted.anchors else None
         self.core = [i for i, nm in enumerate(self.names)
                      if not nm.startswith(("length_", "dummy", "ceiling_anchor_", "body_anchor_"))]
         self.scale_arr = np.array(self.scale)
@@ -212,9 +226,10 @@ class StaticModel:
             fit_c = tensions_used
         fit_c = bool(fit_c) and not self.known.all()
         self.n_states = n_states
-        self.layout = ParameterLayout(self.n, fit_c, opts.fit_load_cell_gain and tensions_used,
-                              opts.fit_inclinometer_offset and self.incl is not None, opts.length_std > 0,
-                              n_states, opts.dummy_position_std > 0, opts.dummy_mass_std > 0, opts.anchor_std > 0)
+        fitted = FittedGlobals(fit_c, bool(opts.fit_load_cell_gain and tensions_used),
+                               bool(opts.fit_inclinometer_offset and self.incl is not None), opts.length_std > 0,
+                               opts.dummy_position_std > 0, opts.dummy_mass_std > 0, opts.anchor_std > 0)
+        self.layout = ParameterLayout(self.n, fitted, n_states)
 
     # θ (internal) <-> physical
     def unpack(self, th: np.ndarray, fixed: GlobalUnknowns) -> GlobalUnknowns:
