@@ -317,10 +317,10 @@ def cmd_inertia(args) -> int:
     given = [flag for k, flag in PEM_ONLY if getattr(args, k, None)] + (["--quick"] if args.quick else [])
     if len(args.recording) > 1:
         raise UsageError("--model rig fits one recording at a time: give one RECORDING (several are "
-                                  "fitted jointly by --model pem)")
+                         "fitted jointly by --model pem)")
     if given:
         raise UsageError(f"{', '.join(given)}: options of --model pem, the gyro-only fit; the rig model "
-                                  "takes none of them")
+                         "takes none of them")
     check_common(args)
     recs = read_all(args.recording)
     axes, axes_notes = output_axes(args.axes, recs)

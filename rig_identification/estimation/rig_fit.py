@@ -58,7 +58,6 @@ from scipy.optimize import OptimizeResult, least_squares
 
 from ..io.rig import Rig
 from ..io.verdict import KEYS
-from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
 from .precision import Z95
@@ -83,7 +82,6 @@ from .rig_unknowns import (
     Prior,
     body_unknowns,
     extension_fields,
-    parameters_of,
     vector,
 )
 
@@ -384,18 +382,6 @@ def _solve(prob: RigProblem, whole: bool = False, z0: np.ndarray | None = None,
     return sol, jac.runs, jac.J if fresh else None
 
 
-def _moved_on(prob: RigProblem, sol: OptimizeResult) -> RigPoint:
-    """The point after ``sol`` (the rest pose sets only the integrator's step: where none is
-    found at the estimate the last one serves)."""
-    x = prob.x(sol.x)
-    rest = prob.rest
-    try:
-        rest = rest_pose(parameters_of(x, prob.like, prob.lay), rest)
-    except SimulationError as e:
-        log.info("rig fit: no rest pose at the estimate (%s)", e)
-    return prob.point(x, rest)
-
-
 def _settled(prob: RigProblem, lay: Layout) -> np.ndarray:
     """``prob``'s unknowns with the initial state fitted alone over the first
     :data:`INITIAL_SPAN` s, every parameter at its start (over so short a span the swinging
@@ -448,13 +434,7 @@ def _polished(prob: RigProblem, J: np.ndarray, r: np.ndarray) -> tuple[RigPoint,
         z, r = z + step, r1
     if not np.any(z):
         return prob.at_x0, runs
-    x = prob.x(z)
-    rest = prob.rest
-    try:
-        rest = rest_pose(parameters_of(x, prob.like, prob.lay), rest)
-    except SimulationError as e:
-        log.info("rig fit: no rest pose at the polished estimate (%s)", e)
-    return prob.point(x, rest), runs
+    return prob.point(prob.x(z)), runs
 
 
 def _along_weakest(prob: RigProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
@@ -494,7 +474,7 @@ def _restarted(prob: RigProblem, at_x0: tuple[np.ndarray, np.ndarray], tensor: n
     z0 = np.zeros(lay.size)
     z0[lay.inertia] = (tensor - prob.x0[lay.inertia]) / prob.scale[lay.inertia]
     sol, runs, _ = _solve(prob, True, z0, at_x0)
-    return _moved_on(prob, sol), float(sol.cost), runs
+    return prob.point(prob.x(sol.x)), float(sol.cost), runs
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: ArrayLike = (),
@@ -549,14 +529,14 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
         sol, _, J_end = _solve(prob)
         best, solved = (prob, sol), (prob, J_end, noise_scale)
     prob, sol = best
-    at = _moved_on(prob, sol)
+    at = prob.point(prob.x(sol.x))
     for i, (n, final) in enumerate(rounds):
         if i > 0:
             prob = RigProblem(rec, at, lay, prior, noise_scale, n)
             sol, runs, J_end = _solve(prob, final)
             solved = (prob, J_end, noise_scale)
             nfev += runs
-            at = _moved_on(prob, sol)
+            at = prob.point(prob.x(sol.x))
         if final:
             level = levels(RigProblem(rec, at, lay, prior, np.ones(channels), n_all), at.x)
             new_scale = np.maximum(level, 1.0)

@@ -190,10 +190,17 @@ class RigProblem:
         """The point the problem holds: its x0, parameters, rest pose and segments' states."""
         return RigPoint(self.x0, self.like, self.rest, self.bases)
 
-    def point(self, x: np.ndarray, rest: RestPose) -> RigPoint:
-        """The point at the unknowns ``x`` (this layout): their parameters, ``rest`` and the
-        segments' states moved there (:meth:`bases_at`)."""
-        return RigPoint(x, parameters_of(x, self.like, self.lay), rest, self.bases_at(x))
+    def point(self, x: np.ndarray) -> RigPoint:
+        """The point at the unknowns ``x`` (this layout): their parameters, the rest pose there
+        (searched from this problem's; where there is none, this problem's serves: it sets only the
+        integrator's step) and the segments' states moved there (:meth:`bases_at`)."""
+        p = parameters_of(x, self.like, self.lay)
+        rest = self.rest
+        try:
+            rest = rest_pose(p, rest)
+        except SimulationError as e:
+            log.info("rig fit: no rest pose at the estimate (%s)", e)
+        return RigPoint(x, p, rest, self.bases_at(x))
 
     def x(self, z: np.ndarray) -> np.ndarray:
         x = self.x0.copy()
