@@ -20,8 +20,8 @@ where the pipeline follows the model (correlation ρ ≈ 0.9) most of the draws'
 
 ``plan`` — the recommended plan for case 16 (config/rigs/default.yaml: the thesis rig and the
 Jeep Cherokee, 120 s runs) against the thesis's own excitation (200 N at 1.05 Hz at the rig's
-exciter), then CONFIRM noisy simulations of the plan (its runs identified jointly, as
-``rig-identify inertia REC1 REC2``) and of the baseline, with the ordinary pipeline: their
+exciter), then CONFIRM noisy simulations of the plan (its runs fitted at once by the rig model, as
+``rig-identify inertia REC1 REC2``) and of the baseline (the rig model): their
 RMS errors against the predictions.  ``vary``: the second run may also use another cable
 geometry (:func:`rig_identification.design.planning.geometry_variants`, ceiling anchors moved 1 m;
 ``rig-identify plan --vary-geometry 1``).
@@ -209,16 +209,17 @@ _EXP_SIMS: dict = {}
 
 def one_run_plan(args):
     """Worker: noisy copies (seed, seed+1, ...) of the noise-free simulations of ``exps``
-    (cached per worker), identified jointly when there are several."""
-    from rig_identification.pipeline.offline import identify_recordings
+    (cached per worker), fitted by the rig model (``rig-identify inertia``: several at once, the body
+    shared; no diagnosis); ``band`` is the gyro-only prediction's and unused."""
+    from rig_identification.pipeline.rig_model import fit_recordings, fit_whole_recording
     key, exps, seed, band = args
     if key not in _EXP_SIMS:
         _EXP_SIMS.clear()
         _EXP_SIMS[key] = [simulate(e) for e in exps]
     recs = [Recording(sim.rig, add_noise(sim.sensors, REFERENCE_NOISE, np.random.default_rng(seed + i)), sim.truth)
             for i, sim in enumerate(_EXP_SIMS[key])]
-    res = identify_recordings(recs, band_hz=band)
-    return from_tensor(res.inertia)
+    fit = fit_recordings(recs).first.fit if len(recs) > 1 else fit_whole_recording(recs[0], diagnose=False).fit
+    return np.asarray(fit.inertia, float)
 
 
 if __name__ == "__main__":

@@ -1,27 +1,27 @@
-"""Joint identification over several recordings of the same body (issue 7).
+"""One body over several recordings: the rig model fitted to both at once.
 
 Two short simulated recordings of thesis case 16 (realistic noise), the exciter at two
 positions and frequencies: the joint fit recovers the true tensor and is more certain
 than either recording alone; recordings of different bodies are refused with a clear
-error naming the files (exit status 2 from the command line).
+error naming the files (exit status 2 from the command line), and the gyro-only fit
+refuses several recordings.
 """
 import copy
 import dataclasses
-import inspect
+import json
 
 import numpy as np
 import pytest
 from conftest import REPO, run_cli
 
-from rig_identification.estimation.identification import identify_inertia, identify_inertia_joint
-from rig_identification.estimation.inertia_result import compare_to_truth
+from rig_identification.cli.rig_model import print_joint
 from rig_identification.io.recording import Recording, RecordingError
 from rig_identification.io.rig import RigError, dump_rig, read_yaml
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.experiment import experiment_from_dict
-from rig_identification.model.parametrisation import physically_consistent
+from rig_identification.model.parametrisation import entry_scales, physically_consistent, to_tensor
 from rig_identification.model.simulator import simulate
-from rig_identification.pipeline import offline as pipeline
+from rig_identification.pipeline import rig_model
 
 DEFAULT = REPO / "config" / "rigs" / "default.yaml"
 # exciter A: the thesis's (corner, below the CG), 1.05 Hz; B: the opposite corner, 0.95 Hz
@@ -47,68 +47,49 @@ def recs(tmp_path_factory):
     return out
 
 
-_PREPARED: dict = {}
+@pytest.fixture(scope="module")
+def joint(recs):
+    return rig_model.fit_recordings([recs["A"], recs["B"]])
 
 
-@pytest.fixture
-def cached_prepare(monkeypatch):
-    """Run the tracker/preprocessor once per recording in this module (memoised, not faked)."""
-    real, cache = pipeline.prepare_recording, _PREPARED
+def test_joint_fit_recovers_truth_and_beats_each_recording(recs, joint):
+    """One body over two runs: ok, every entry within 0.5 % and 3 σ of the truth; the information
+    adds (σ and the Cramér–Rao bound below either run's alone on every entry); σ near the joint
+    bound; each run's own channels at their noise; the body the same in each run's view."""
+    assert joint.verdict == "ok", joint.summary
+    truth = np.array([recs["A"].truth["inertia_about_cg"][k] for k in KEYS])
+    f = joint.first.fit
+    err = f.inertia - truth
+    assert np.all(np.abs(err) / entry_scales(truth) < 0.005), err
+    assert np.all(np.abs(err) / f.inertia_std < 3.0), err / f.inertia_std
+    assert physically_consistent(to_tensor(f.inertia))
+    for a in joint.alone:
+        assert a.verdict == "ok", a.summary
+        assert np.all(f.inertia_std < a.fit.inertia_std), (f.inertia_std, a.fit.inertia_std)
+        assert np.all(f.crb < a.fit.crb), (f.crb, a.fit.crb)
+    assert np.all(f.inertia_std < 1.5 * f.crb), f.inertia_std / f.crb
+    for r in joint.results:
+        np.testing.assert_array_equal(r.fit.inertia, f.inertia)
+        np.testing.assert_array_equal(r.fit.inertia_std, f.inertia_std)
+        assert r.fit.residual_level.max() < 1.5, dict(zip(r.fit.channels, r.fit.residual_level))
+        # each run keeps its own states: the exciter's channels fitted to its own force
+        assert r.fit.layout.n_force > 0
+    assert abs(f.body.mass - recs["A"].truth["mass"]) < 3 * f.body.std[9]
 
-    sig = inspect.signature(real)
 
-    def prep(rec, *a, **k):
-        bound = sig.bind(rec, *a, **k)
-        bound.apply_defaults()
-        key = (id(rec), *list(bound.arguments.values())[1:])
-        if key not in cache:
-            cache[key] = real(rec, *a, **k)
-        return cache[key]
-    monkeypatch.setattr(pipeline, "prepare_recording", prep)
-
-
-def test_joint_fit_recovers_truth_and_beats_each_recording(recs, cached_prepare):
-    truth = recs["A"].truth
-    single = {n: pipeline.identify_recording(r) for n, r in recs.items()}
-    joint = pipeline.identify_recordings([recs["A"], recs["B"]])
-    cmp = compare_to_truth(joint, truth)
-    for k in KEYS:
-        assert abs(cmp[k]["error_percent"]) < 0.5, (k, cmp[k])
-        assert abs(cmp[k]["error_sigma"]) < 3.0, (k, cmp[k])
-    assert physically_consistent(joint.inertia)
-    a, b = single["A"], single["B"]
-    # information adds: the white-noise (Cramér–Rao) std of every entry is below either recording's
-    assert np.all(joint.crb_std < np.minimum(a.crb_std, b.crb_std)), (joint.crb_std, a.crb_std, b.crb_std)
-    # the reported std (each recording's noise propagated through the chain, combined):
-    # the uncertainty volume (geometric mean of the σ of the covariance's eigen-directions) is below
-    # either recording's, and no entry is less certain than in the less informative recording
-    vol = {n: np.linalg.det(r.covariance) ** (1 / 12) for n, r in (("A", a), ("B", b), ("joint", joint))}
-    assert vol["joint"] < min(vol["A"], vol["B"]), vol
-    assert np.all(joint.inertia_std < np.maximum(a.inertia_std, b.inertia_std)), \
-        (joint.inertia_std, a.inertia_std, b.inertia_std)
-    # the joint result knows its recordings: one fit series per recording, each fitted well
-    assert [s.label for s in joint.series] == ["A", "B"]
+def test_joint_json_and_text(joint, capsys):
+    """The JSON says one body over both recordings and what each determines alone; the text
+    names both recordings and their verdicts before the tensor table."""
     d = joint.to_dict()
-    assert [r["label"] for r in d["recordings"]] == ["A", "B"]
-    assert joint.n_samples == sum(len(s.t) for s in joint.series) == a.n_samples + b.n_samples
-    for s in joint.series:
-        r2 = 1 - np.sum(s.residual ** 2, 0) / np.sum(s.measured ** 2, 0)
-        assert np.all(r2 > 0.99), (s.label, r2)
-
-
-def test_single_segment_joint_is_identify_inertia(recs, cached_prepare):
-    p = pipeline.prepare_recording(recs["B"])
-    one = identify_inertia(p.rec.rig, p.t, p.gyro_body, p.torque)
-    joint = identify_inertia_joint([p.rec.rig], [(p.t, p.gyro_body, p.torque)])
-    np.testing.assert_array_equal(one.inertia, joint.inertia)
-    np.testing.assert_array_equal(one.covariance, joint.covariance)
-    np.testing.assert_array_equal(one.crb_std, joint.crb_std)
-    np.testing.assert_array_equal(one.series[0].predicted, joint.series[0].predicted)
-    # the fit's output series: predicted = measured − residual, and it carries the fit
-    s = one.series[0]
-    np.testing.assert_allclose(np.sqrt(np.mean(s.residual ** 2, 0)), one.residual_rms)
-    cmp = compare_to_truth(one, recs["B"].truth)
-    assert all(abs(cmp[k]["error_percent"]) < 1.0 for k in KEYS), cmp
+    json.dumps(d, allow_nan=False)
+    assert d["schema"] == "rig_identification.joint_rig_model_result" and d["verdict"] == "ok"
+    assert [r["recording"] for r in d["recordings"]] == [str(joint.results[0].path), str(joint.results[1].path)]
+    assert all(r["alone"]["verdict"] == "ok" and set(r["residual_level"]) for r in d["recordings"])
+    assert "cables" not in d and "inertia_about_cg" in d and "truth_comparison" in d
+    print_joint(joint)
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("verdict: ok") and out[1] == "recordings (one body, fitted at once): 2"
+    assert str(joint.results[1].path) in out[3] and "alone ok" in out[3]
 
 
 @pytest.mark.parametrize("change", ["mass", "cg"])
@@ -121,14 +102,14 @@ def test_different_bodies_refused(recs, change):
         rig = dataclasses.replace(rig, center_of_gravity=rig.center_of_gravity + np.array([0.0, 0.0, 0.005]))
     other = dataclasses.replace(b, rig=rig)
     with pytest.raises(RecordingError) as e:
-        pipeline.identify_recordings([a, other])
+        rig_model.fit_recordings([a, other])
     msg = str(e.value)
     assert str(a.path / "rig.yaml") in msg and str(b.path / "rig.yaml") in msg
     assert ("body.mass" if change == "mass" else "body.center_of_gravity") in msg
     # within the tolerance (a re-weighing, a CG re-measured to a millimetre) it is the same body
-    close = dataclasses.replace(b.rig, mass=b.rig.mass * (1 + 0.2 * pipeline.MASS_RTOL),
-                                center_of_gravity=b.rig.center_of_gravity + 0.4 * pipeline.CG_TOL)
-    pipeline.check_same_body([a, dataclasses.replace(b, rig=close)])
+    close = dataclasses.replace(b.rig, mass=b.rig.mass * (1 + 0.2 * rig_model.MASS_RTOL),
+                                center_of_gravity=b.rig.center_of_gravity + 0.4 * rig_model.CG_TOL)
+    rig_model.check_same_body([a, dataclasses.replace(b, rig=close)])
 
 
 def test_cli_different_bodies_exit_2(recs, tmp_path):
@@ -143,3 +124,13 @@ def test_cli_different_bodies_exit_2(recs, tmp_path):
     assert "Traceback" not in err and len(err.splitlines()) == 1, err
     assert str(tmp_path / "light" / "rig.yaml") in err and str(tmp_path / "heavy" / "rig.yaml") in err
     assert "body.mass" in err and "1810" in err and "1900" in err
+
+
+def test_gyro_only_fit_refuses_several_recordings(recs, tmp_path):
+    """--model pem / --quick fit one recording: several are the rig model's, and the message says so."""
+    for name in ("a", "b"):
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "rig.yaml").write_text(dump_rig(recs["A"].rig))
+    for flags in (("--model", "pem"), ("--quick",)):
+        code, _, err = run_cli("inertia", tmp_path / "a", tmp_path / "b", *flags)
+        assert code == 2 and "fits one recording at a time" in err and "rig model" in err, err

@@ -35,12 +35,11 @@ PEM_ONLY = (("band", "--band"), ("initial_guess", "--initial-guess"), ("target",
 
 
 def resolve_model(args) -> str:
-    """The model ``--model`` names, else the default: ``rig`` for one recording, ``pem`` for
-    ``--quick`` (the gyro-only fit, unrefined) or several recordings (fitted jointly)."""
+    """The model ``--model`` names, else the default: ``rig`` (one recording, or several fitted
+    jointly), ``pem`` for ``--quick`` (the gyro-only fit, unrefined) or its own options."""
     if args.model is not None:
         return str(args.model)
-    return "pem" if args.quick or len(args.recording) > 1 or any(getattr(args, k, None) for k, _ in PEM_ONLY) \
-        else "rig"
+    return "pem" if args.quick or any(getattr(args, k, None) for k, _ in PEM_ONLY) else "rig"
 
 
 __all__ = ["JOB_OPTIONS", "PEM_ONLY", "number", "resolve_model"]

@@ -1,8 +1,8 @@
-"""``rig-identify inertia`` with the gyro-only prediction-error fit: ``--model pem|thesis``,
-``--quick`` or several recordings fitted jointly
-(:func:`~rig_identification.cli.arg_types.resolve_model`; the default, the rig model, is
-:mod:`rig_identification.cli.rig_model`'s).  Its output, in this order: the verdict
-(:attr:`~rig_identification.io.verdict.Validation.summary`), the recording(s), the conventions
+"""``rig-identify inertia`` with the gyro-only prediction-error fit of one recording: ``--model pem|thesis``
+or ``--quick`` (:func:`~rig_identification.cli.arg_types.resolve_model`; the default, the rig model,
+and the joint fit of several recordings are :mod:`rig_identification.cli.rig_model`'s).  Its output,
+in this order: the verdict
+(:attr:`~rig_identification.io.verdict.Validation.summary`), the recording, the conventions
 (frame, units, sign: :func:`~rig_identification.io.export.convention_lines`), mass and CG, the
 window, the tensor about the CG with σ (and the truth when truth.yaml is there), the products
 of inertia with the vehicle-dynamics sign, the principal moments and axes, the tensor about the
@@ -19,8 +19,6 @@ import json
 import sys
 from dataclasses import replace
 from datetime import datetime, timezone
-from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -38,18 +36,16 @@ from ..io.export import (
     yaml_text,
 )
 from ..io.package import package_version
-from ..io.rig import load_rig
 from ..io.vehicle import common_vehicle
 from ..io.verdict import KEYS
 from ..pipeline.offline import (
-    check_same_body,
     identify_recording,
-    identify_recordings,
     with_cg_uncertainty,
 )
 from ..report.folder import ReportError
-from ..report.page import common_truth, write_report
+from ..report.page import write_report
 from ..statics.handover import load_cg_result
+from .arg_types import UsageError
 from .progress import heading, step, warn
 from .recordings import check_common, output_axes, read_all
 from .rig_model import job_of
@@ -117,20 +113,12 @@ def print_inertia(result: InertiaResult, truth: dict | None, paths: list, t0s: l
     ex = result.expressed(axes)
     print(result.validation.summary if result.validation is not None else
           "verdict: none — this fit has no model validation (the thesis's baseline)")
-    if len(paths) == 1:
-        print(f"recording: {paths[0]}")
-    else:
-        print(f"recordings (joint fit, one tensor): {len(paths)}")
+    print(f"recording: {paths[0]}")
     for line in convention_lines(axes):
         print(line)
     print(f"mass {ex.mass:.2f} kg (rig.yaml body.mass) and centre of gravity ({', '.join(f'{x:.4f}' for x in ex.cg)}) "
           f"m ({cg_source}): given, not identified by the dynamic test")
-    if len(paths) == 1:
-        print(window_line(result, t0s[0]))
-    else:
-        for p, s, t0 in zip(paths, result.series, t0s):
-            print(f"  {p}: window {s.t[0] - t0:.1f}–{s.t[-1] - t0:.1f} s from its first IMU sample, "
-                  f"{len(s.t)} samples; band {s.band_hz[0]:.2f}–{s.band_hz[1]:.2f} Hz")
+    print(window_line(result, t0s[0]))
     print(TABLE_CAPTION)
     for line in tensor_table(ex, truth_columns(result, truth, axes)):
         print(line)
@@ -179,11 +167,9 @@ def check_options(args) -> None:
     (``args.model``: ``pem`` or ``thesis``, :func:`~rig_identification.cli.arg_types.resolve_model`)."""
     paths = args.recording
     if len(paths) > 1:
-        if args.model != "pem":
-            raise IdentificationError("--model thesis fits one recording at a time: give one RECORDING "
-                                      "(the joint fit of several recordings is the prediction-error model's)")
-        if all((Path(p) / "rig.yaml").is_file() for p in paths):  # different bodies: say so before reading bags
-            check_same_body([SimpleNamespace(path=Path(p), rig=load_rig(Path(p) / "rig.yaml")) for p in paths])
+        raise UsageError(f"--model {args.model}{' / --quick' if args.quick else ''} fits one recording at a time: "
+                         "several recordings of one body are fitted at once by the rig model (the default: "
+                         "leave out --model and --quick)")
     if args.report and args.model == "thesis":
         raise IdentificationError("--report needs --model rig or pem (the thesis baseline has no predicted "
                                   "output to plot)")
@@ -191,11 +177,9 @@ def check_options(args) -> None:
 
 
 def identify(args, recs: list) -> InertiaResult:
-    """The fit the options ask for (one recording or a joint fit)."""
+    """The fit the options ask for (of the one recording)."""
     band = tuple(args.band) if args.band else None
     heading("identifying (tracker, preprocessor, fit, validation)")
-    if len(recs) > 1:
-        return identify_recordings(recs, start=args.start, end=args.end, band_hz=band)
     guess = None if args.initial_guess is None else entries_from_option(args.initial_guess)
     return identify_recording(recs[0], start=args.start, end=args.end, band_hz=band, model=args.model,
                               initial_guess=guess)
@@ -203,18 +187,14 @@ def identify(args, recs: list) -> InertiaResult:
 
 def cg_uncertainty(args, recs: list, result: InertiaResult, cg_cov: np.ndarray) -> InertiaResult:
     """The CG's σ (from ``--cg``) carried into the tensor's
-    (:func:`~rig_identification.pipeline.offline.with_cg_uncertainty`) for a single recording;
-    for a joint fit a warning that it is not."""
-    if len(recs) > 1:
-        return replace(result, warnings=result.warnings + ["the CG's σ is not carried into the tensor's σ for a "
-                                                           "joint fit: σ leaves the CG's error out"])
+    (:func:`~rig_identification.pipeline.offline.with_cg_uncertainty`)."""
     heading("carrying the CG's σ into the tensor's (the tensor refitted with the CG ±1 σ)")
     return with_cg_uncertainty(recs[0], result, cg_cov, args.start, args.end)
 
 
 def cmd_inertia(args) -> int:
-    """``rig-identify inertia --model pem|thesis`` (also ``--quick`` and several recordings: the
-    gyro-only fit); returns the exit status (user errors raise, see cli.user_errors)."""
+    """``rig-identify inertia --model pem|thesis`` (also ``--quick``: the gyro-only fit) of one
+    recording; returns the exit status (user errors raise, see cli.user_errors)."""
     check_options(args)
     recs = read_all(args.recording)
     cg_source = "rig.yaml body.center_of_gravity"
@@ -268,7 +248,7 @@ def cmd_inertia(args) -> int:
             d["urdf_inertial"] = urdf
         print(json.dumps(d))
     else:
-        print_inertia(result, common_truth(recs) if len(recs) > 1 else recs[0].truth,
+        print_inertia(result, recs[0].truth,
                       [r.path for r in recs], t0s, axes, cg_source, brief=bool(getattr(args, "quiet", False)))
         if urdf is not None:
             print("URDF inertial element (link frame: rig.yaml's body frame; ixy, ixz, iyz: the tensor's entries):")

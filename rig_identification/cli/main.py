@@ -57,8 +57,8 @@ def lazy(module: str, name: str) -> Callable:
 
 def run_inertia(args) -> int:
     """``rig-identify inertia``: the rig model's command (:mod:`rig_identification.cli.rig_model`), or
-    the gyro-only fit's (:mod:`rig_identification.cli.inertia`) where ``--model``, ``--quick``, several
-    recordings or its own options ask for it (:func:`~rig_identification.cli.arg_types.resolve_model`;
+    the gyro-only fit's (:mod:`rig_identification.cli.inertia`) where ``--model``, ``--quick`` or its
+    own options ask for it (:func:`~rig_identification.cli.arg_types.resolve_model`;
     ``args.model`` set); each imported only when it runs."""
     args.model = resolve_model(args)
     module = "rig_identification.cli.rig_model" if args.model == "rig" else "rig_identification.cli.inertia"
@@ -93,22 +93,24 @@ def add_report_options(p: argparse.ArgumentParser) -> None:
 
 def add_inertia_parser(sub) -> None:
     p = add_command(sub, "inertia", "identify the inertia tensor from one or more dynamic recordings",
-                    "Fit the rig's grey-box model to every sensor of one dynamic recording (tensions, gyro, "
+                    "Fit the rig's grey-box model to every sensor of a dynamic recording (tensions, gyro, "
                     "accelerometer, inclinometer; the mass, CG and tensor together) and print the mass "
                     "properties: the verdict first (ok / model_error / not_identifiable / inconsistent / failed), "
                     "the tensor about the CG with σ beside the Cramér–Rao bound (and the truth when truth.yaml is "
                     "there), the principal moments and axes, the tensor about the body frame's origin, the mass "
                     "and the CG from the static test, the run and both, and each channel's residual against its "
-                    "noise. --quick and several recordings (fitted jointly with one tensor): the gyro-only "
-                    "prediction-error fit (--model pem) through tracker, preprocessor and identifier.",
+                    "noise. Several recordings of one body: fitted at once, each with its own rig model, the "
+                    "body's mass, CG and tensor shared. --quick: the gyro-only prediction-error fit (--model pem) "
+                    "of one recording through tracker, preprocessor and identifier.",
                     run_inertia, inputs=("recording", "cg"),
                     outputs=("yaml",), output_dirs=("report",))
     p.add_argument("recording", nargs="+",
                    help="recording folder (rig.yaml + bag/); several recordings of the same body (other exciter "
-                        "frequencies or positions, cable geometries) are fitted jointly with one tensor")
+                        "frequencies or positions, cable geometries) are fitted at once, one body shared")
     add_report_options(p)
     p.add_argument("--json", action="store_true",
-                   help="print one JSON object (schema rig_identification.rig_model_result, or "
+                   help="print one JSON object (schema rig_identification.rig_model_result; "
+                        "rig_identification.joint_rig_model_result for several recordings; "
                         "rig_identification.inertia_result for --model pem; units per field)")
     p.add_argument("--urdf", action="store_true",
                    help="also print a URDF <inertial> element (origin at the CG, mass, tensor entries; always in "
@@ -126,11 +128,12 @@ def add_inertia_parser(sub) -> None:
                    help="--model pem: pass band of the fit (default: around the spectral peaks of the gyro; the rig "
                         "model chooses its own band from the exciter's force)")
     p.add_argument("--model", choices=["rig", "pem", "thesis"], default=None,
-                   help="rig (default for one recording): the rig's grey-box model fitted to every sensor (tensions, "
+                   help="rig (default): the rig's grey-box model fitted to every sensor (tensions, "
                         "gyro, accelerometer, inclinometer), the CG and mass with the tensor, σ against the "
-                        "Cramér–Rao bound; pem (default for --quick and for several recordings, fitted jointly): the "
-                        "gyro-only prediction-error fit, the tensions as its input (no diagnosis: rig-identify "
-                        "diagnose is the rig model's); thesis: the thesis's model and estimator, as a baseline")
+                        "Cramér–Rao bound, one recording or several at once; pem (default for --quick): the "
+                        "gyro-only prediction-error fit of one recording, the tensions as its input (no diagnosis: "
+                        "rig-identify diagnose is the rig model's); thesis: the thesis's model and estimator, as a "
+                        "baseline")
     p.add_argument("--initial-guess", type=float, nargs=6, metavar=TENSOR,
                    help="starting tensor for --model thesis: " + TENSOR_HELP)
     p.add_argument("--quick", action="store_true",

@@ -11,6 +11,8 @@ from __future__ import annotations
 import json
 import sys
 from datetime import datetime, timezone
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -31,8 +33,18 @@ from ..io.export import (
 )
 from ..io.package import package_version
 from ..io.recording import Recording
+from ..io.rig import load_rig
 from ..io.verdict import KEYS
-from ..pipeline.rig_model import CONSISTENCY_SIGMA, LEVEL_LIMIT, CentreOfGravity, RigModelResult, fit_whole_recording
+from ..pipeline.rig_model import (
+    CONSISTENCY_SIGMA,
+    LEVEL_LIMIT,
+    CentreOfGravity,
+    JointResult,
+    RigModelResult,
+    check_same_body,
+    fit_recordings,
+    fit_whole_recording,
+)
 from ..report.folder import Job, ReportError
 from ..report.rig_page import write_rig_report
 from ..statics.handover import load_cg_result
@@ -113,10 +125,12 @@ def _print_head(res: RigModelResult, brief: bool) -> None:
               f"started from {res.start_source}")
 
 
-def _print_tensor(res: RigModelResult, truth: dict | None) -> None:
+def _print_tensor(res: RigModelResult, truth: dict | None, withheld: tuple[str, ...] | None = None) -> None:
     """The moments and products of inertia (body axes) with σ, the CRB and σ/CRB, and against the
-    truth where the recording has one (``truth``: the JSON's ``truth_comparison``)."""
+    truth where the recording has one (``truth``: the JSON's ``truth_comparison``); ``withheld``:
+    the entries given as not determined (default: ``res``'s)."""
     f = res.fit
+    withheld = res.withheld if withheld is None else withheld
     print(TABLE_CAPTION[:-1] + "; body axes:")
     head = f"{'':<7}{'kg·m²':>14}{'σ':>10}{'CRB':>10}{'σ/CRB':>7}"
     if truth:
@@ -125,7 +139,7 @@ def _print_tensor(res: RigModelResult, truth: dict | None) -> None:
     for k in ORDER:
         i = KEYS.index(k)
         sign = VEHICLE_SIGN[i]
-        value = NOT_DETERMINED if k in res.withheld else f"{sign * f.inertia[i] + 0.0:.2f}"
+        value = NOT_DETERMINED if k in withheld else f"{sign * f.inertia[i] + 0.0:.2f}"
         line = (f"{'I' + k[1:]:<7}{value:>14}{f.inertia_std[i]:>#10.3g}{f.crb[i]:>#10.3g}"
                 f"{f.inertia_std[i] / f.crb[i]:>7.2f}")
         if truth:
@@ -311,19 +325,104 @@ def cmd_rig_model(args, rec: Recording, axes: Axes = BODY) -> int:
     return 0
 
 
+def print_joint(res: JointResult, axes: Axes = BODY, brief: bool = False) -> None:
+    """The text output of ``rig-identify inertia REC1 REC2 …`` (the rig model over several
+    recordings at once): the verdict, each recording with its own verdict, span and what it
+    determines alone, the body's tensor (as :func:`print_rig_model`'s), mass and CG; without
+    ``brief`` each recording's cables and channels."""
+    first = res.first
+    d = first.to_dict()
+    print(f"verdict: {res.summary}")
+    print(f"recordings (one body, fitted at once): {len(res.results)}")
+    for r, a in zip(res.results, res.alone):
+        alone = "every entry determined" if not (a.undetermined or a.ambiguous) else \
+            "not determined: " + ", ".join(a.undetermined or a.ambiguous)
+        print(f"  {r.path}: {r.verdict}; span {r.start_s:.1f}–{r.start_s + r.duration_s:.1f} s, band "
+              f"0–{r.band_hz:.2f} Hz; alone {a.verdict} ({alone})")
+        for w in r.warnings:
+            print(f"    warning: {w}")
+    if not brief:
+        print("model: each recording's rig model (its cables, load cells, surveyed geometry and states), every "
+              "sensor an output; the body's mass, CG and tensor shared by all")
+    _print_tensor(first, d.get("truth_comparison"), res.withheld)
+    body = res.expressed(BODY)
+    print(tensor_entries_line(body, first.fit.crb))
+    if axes.name != "body":
+        print(f"in {axes.label}:")
+        print(f"  centre of gravity ({', '.join(f'{x:.4f}' for x in res.expressed(axes).cg)}) m")
+        print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
+    if brief:
+        _print_mass_and_cg(first, d)
+        print(BRIEF_TAIL)
+        return
+    for line in principal_lines(body) + [origin_line(body)]:
+        print(line)
+    _print_mass_and_cg(first, d)
+    for r in res.results:
+        print(f"{r.path}:")
+        _print_nuisance(r.fit, r.to_dict())
+        _print_leaned_less(r)
+    print("σ: the inverse Fisher information of all the recordings at once (each channel's noise as estimated "
+          "from its recording, raised where it does not fit) or the sandwich over 12 blocks of each, whichever is "
+          "larger; CRB: the bound of these runs at the sensors' own noise")
+    print(f"time: {res.seconds:.1f} s")
+
+
+def cmd_joint(args, recs: list[Recording], axes: Axes = BODY) -> int:
+    """``rig-identify inertia REC1 REC2 …``: the rig model fitted to the recordings at once
+    (:func:`~rig_identification.pipeline.rig_model.fit_recordings`); ``--json``, ``--yaml`` and
+    ``--urdf`` as for one recording.  Returns the exit status."""
+    cg = cg_std = source = None
+    if args.cg:
+        saved = load_cg_result(args.cg)
+        cg, cg_std, source = saved.center_of_gravity, saved.center_of_gravity_std, args.cg
+    heading(f"fitting the rig's model to every sensor of {len(recs)} recordings at once")
+    res = fit_recordings(recs, cg, cg_std, source, args.start, args.end)
+    urdf = urdf_inertial(res.expressed(BODY)) if args.urdf else None
+    if args.yaml:
+        content = export_dict(res.expressed(axes), verdict=res.verdict, summary=res.summary, std_kind=STD_IS,
+                              sources=[str(r.path) for r in recs], window=None,
+                              created=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                              version=package_version())
+        content["center_of_gravity_source"] = "fitted (the rig model), its prior " + res.first.cg_source
+        atomic_write_text(args.yaml, yaml_text(content))
+    args.progress.finish()
+    if args.json:
+        d = res.to_dict()
+        if axes.name != "body":
+            d[axes.json_key] = axes_block(res.expressed(axes))
+        if urdf is not None:
+            d["urdf_inertial"] = urdf
+        print(json.dumps(d))
+    else:
+        print_joint(res, axes, brief=bool(getattr(args, "quiet", False)))
+        if urdf is not None:
+            print("URDF inertial element (link frame: rig.yaml's body frame; ixy, ixz, iyz: the tensor's entries):")
+            print(urdf)
+    if args.yaml:
+        print(f"yaml: {args.yaml}", file=sys.stderr if args.json else sys.stdout)
+    return 0
+
+
 def cmd_inertia(args) -> int:
-    """``rig-identify inertia`` with the rig model (the default: one recording, none of the
-    gyro-only fit's options); returns the exit status (user errors raise, see cli.user_errors)."""
+    """``rig-identify inertia`` with the rig model (the default: none of the gyro-only fit's
+    options): one recording, or several of one body fitted at once (their rig.yaml's mass and CG
+    checked to agree before any bag is read); returns the exit status (user errors raise, see
+    cli.user_errors)."""
     given = [flag for k, flag in PEM_ONLY if getattr(args, k, None)] + (["--quick"] if args.quick else [])
-    if len(args.recording) > 1:
-        raise UsageError("--model rig fits one recording at a time: give one RECORDING (several are "
-                         "fitted jointly by --model pem)")
     if given:
         raise UsageError(f"{', '.join(given)}: options of --model pem, the gyro-only fit; the rig model "
                          "takes none of them")
+    paths = args.recording
+    if len(paths) > 1:
+        if args.report:
+            raise UsageError("--report takes one recording: a joint fit of several has no report page yet "
+                             "(give each recording its own --report run)")
+        if all((Path(p) / "rig.yaml").is_file() for p in paths):  # different bodies: said before reading bags
+            check_same_body([SimpleNamespace(path=Path(p), rig=load_rig(Path(p) / "rig.yaml")) for p in paths])
     check_common(args)
-    recs = read_all(args.recording)
+    recs = read_all(paths)
     axes, axes_notes = output_axes(args.axes, recs)
     for note in axes_notes:
         warn(note)
-    return cmd_rig_model(args, recs[0], axes)
+    return cmd_rig_model(args, recs[0], axes) if len(recs) == 1 else cmd_joint(args, recs, axes)

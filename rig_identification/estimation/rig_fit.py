@@ -38,7 +38,7 @@ long-record minima are ambiguous).  Each segment's start is held as its offset f
 pose of the parameters tried (a changed geometry, CG or mass moves the rest pose, and a start
 held fixed would become a swing the data do not show).  The fit starts on the record's first
 :data:`STAGES` seconds, one segment each, then takes the whole record.  Its minimum is then checked by
-restarts on the whole record (:func:`_restarted`) from tensors :data:`RESTART_SHIFT` away on
+restarts on the whole record (:func:`restarted`) from tensors :data:`RESTART_SHIFT` away on
 either side and from another estimator's tensor where the caller gives one: where one settles
 more than 3 σ off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is
 flat or multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`);
@@ -69,6 +69,7 @@ from .rig_problem import (
     MAX_ITERATIONS,
     OUTSIDE,
     XTOL,
+    JointProblem,
     RigPoint,
     RigProblem,
     levels,
@@ -101,7 +102,7 @@ REWEIGHT_ROUNDS = 2
 #: No re-weighting where a channel's residual exceeds this many times its noise: the fit has not
 #: found the motion there, and raising the channel's noise would hide it, not lean on the rest.
 REWEIGHT_LIMIT = 10.0
-#: Blocks of the record whose scores make the sandwich covariance's meat (:func:`_covariance`).
+#: Blocks of the record whose scores make the sandwich covariance's meat (:func:`covariance`).
 SANDWICH_BLOCKS = 12
 #: A solve stops where the Gauss–Newton step would lower the cost (½ χ²) by less than this: the
 #: estimate is then within sqrt(2 · 0.01) = 0.14 σ of the minimum in every direction.
@@ -111,21 +112,21 @@ NEWTON_DECREMENT = 0.01
 #: together gained less than :data:`NEWTON_DECREMENT`.
 STALL_ITERATIONS = 5
 #: A whole-record solve stops where the Gauss–Newton step would move every tensor entry, CG
-#: coordinate and the mass by less than this share of its σ (:func:`_solve`).
+#: coordinate and the mass by less than this share of its σ (:func:`solve`).
 RESULT_STEP = 0.25
-#: Gauss–Newton steps with the estimate's Jacobian that finish the fit (:func:`_polished`), at most.
+#: Gauss–Newton steps with the estimate's Jacobian that finish the fit (:func:`polished`), at most.
 POLISH_STEPS = 4
 #: s over which the initial state is fitted alone before each start's first stage (:func:`_settled`).
 INITIAL_SPAN = 3.0
 #: A start that fits the first stage within this RMS over the noise (the priors' rows counted)
 #: is taken without trying the next (:func:`fit_rig`).
 START_LEVEL = 1.5
-#: The restarts that check a fit's minimum (:func:`_restarted`) move each tensor entry by this
+#: The restarts that check a fit's minimum (:func:`restarted`) move each tensor entry by this
 #: share of its scale (:func:`~rig_identification.model.parametrisation.entry_scales`), the
 #: signs alternating entry by entry, once each way.
 RESTART_SHIFT = 0.01
 #: The restarts along the tensor's most weakly determined direction go this many σ either way
-#: (:func:`_along_weakest`).
+#: (:func:`along_weakest`).
 WEAK_RESTART_SIGMA = 10.0
 #: 95 % quantile of χ² with 6 degrees of freedom: a second minimum whose χ² exceeds the fit's by
 #: less lies inside the tensor's 95 % likelihood-ratio region.
@@ -134,7 +135,7 @@ CHI2_95_6 = 12.592
 #: of what the Jacobian's linear model predicted (:class:`~.reused_jacobian.ReusedJacobian`).
 REUSE_RATIO = 0.5
 #: A solve that stops within this many σ (tensor, CG, mass) of the point whose Jacobian it was
-#: given judges its stop with that Jacobian (:func:`_solve`): the model is linear that near.
+#: given judges its stop with that Jacobian (:func:`solve`): the model is linear that near.
 ANCHOR_SIGMA = 1.0
 #: A whole-record solve, its Jacobian reused, may run this many times :data:`MAX_ITERATIONS` model
 #: evaluations (each an iteration without a Jacobian costs one).
@@ -172,7 +173,7 @@ class RigFit:
     body damping N·s/m and N·m·s, initial state (δp_cg m, δφ rad, v_cg m/s, ω rad/s), geometry m):
     each σ the larger of the
     Fisher information's (each channel's noise raised to its residual's level) and the
-    sandwich's (:func:`_covariance`), the correlations the Fisher information's.
+    sandwich's (:func:`covariance`), the correlations the Fisher information's.
     crb: (6,) the Cramér–Rao bound of the tensor entries at the estimate with the sensors' own
     noise levels, the nuisance unknowns under their priors, kg·m².
     residual_level: (n_out,) each channel's residual RMS over its noise's.  noise_scale: (n_out,)
@@ -288,32 +289,31 @@ class RigFit:
         return value, np.sqrt(np.diag(self.covariance)[index])
 
 
-def _covariance(prob: RigProblem, J: np.ndarray, noise_scale: np.ndarray | None = None
-                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def covariance(prob: RigProblem | JointProblem, J: np.ndarray, row_scale: np.ndarray | None = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The unknowns' covariance (size, size) in x units at ``prob``'s x0, ``J`` its Jacobian there
     (:meth:`RigProblem.jacobian`): the inverse Fisher information of the weighted residual (the
     priors' rows included), the sandwich (Huber 1967; White 1982)
     H⁻¹ (Σ_b s_b s_bᵀ + P) H⁻¹, its meat the data's scores summed over :data:`SANDWICH_BLOCKS`
-    blocks of the record (batch means: a residual that is not white — a model error — is
+    blocks of each record (batch means: a residual that is not white — a model error — is
     correlated within a block) plus the priors' information P, and the inverse Fisher information
-    with each channel's noise at its own level: ``prob``'s weights times ``noise_scale`` (n_out,),
-    the factors ``prob`` put on them (None: the first again)."""
+    with each channel's noise at its own level: the data rows' weights times ``row_scale``
+    (data_rows,), the factors ``prob`` put on them (:meth:`RigProblem.row_scale`; None: the first again)."""
     r = prob.residual(np.zeros(prob.lay.size))
     rows = prob.data_rows
     H = J.T @ J
     Hinv = np.linalg.pinv(H, rcond=1e-13, hermitian=True)
     Jd, rd = J[:rows], r[:rows]
-    per_sample = len(prob.rec.channels)
-    samples = rows // per_sample
-    edges = np.linspace(0, samples, SANDWICH_BLOCKS + 1).astype(int) * per_sample
-    scores = np.array([Jd[a:b].T @ rd[a:b] for a, b in zip(edges[:-1], edges[1:])])
+    edges = prob.score_edges(SANDWICH_BLOCKS)
+    scores = np.array([Jd[a:b].T @ rd[a:b] for a, b in zip(edges[:-1], edges[1:]) if b > a])
     scores -= scores.mean(axis=0)
-    meat = scores.T @ scores * SANDWICH_BLOCKS / (SANDWICH_BLOCKS - 1) + J[rows:].T @ J[rows:]
+    blocks = len(scores)
+    meat = scores.T @ scores * blocks / (blocks - 1) + J[rows:].T @ J[rows:]
     S = np.outer(prob.scale, prob.scale)
     unit = Hinv
-    if noise_scale is not None and not np.all(noise_scale == 1):
+    if row_scale is not None and not np.all(row_scale == 1):
         Ju = J.copy()
-        Ju[:rows] *= np.tile(noise_scale, samples)[:, None]
+        Ju[:rows] *= row_scale[:, None]
         unit = np.linalg.pinv(Ju.T @ Ju, rcond=1e-13, hermitian=True)
     dead = ~np.any(J, axis=0)                     # unknowns the residual does not see: σ inf
 
@@ -326,9 +326,22 @@ def _covariance(prob: RigProblem, J: np.ndarray, noise_scale: np.ndarray | None 
     return in_x(Hinv), in_x(Hinv @ meat @ Hinv), in_x(unit)
 
 
-def _solve(prob: RigProblem, whole: bool = False, z0: np.ndarray | None = None,
-           at_x0: tuple[np.ndarray, np.ndarray] | None = None
-           ) -> tuple[OptimizeResult, int, np.ndarray | None]:
+def larger_of(fisher: np.ndarray, sandwich: np.ndarray) -> np.ndarray:
+    """The covariance (size, size) whose σ is, per unknown, the larger of the Fisher information's and the
+    sandwich's (:func:`covariance`), its correlations the Fisher information's; an unknown the
+    residual does not see (σ inf, or a zero column: pinv's null space) uncorrelated."""
+    sd = np.sqrt(np.maximum(np.diag(fisher), np.diag(sandwich)))
+    fd = np.sqrt(np.diag(fisher))
+    seen = np.isfinite(sd) & (fd > 0)
+    cov = np.diag(sd ** 2)
+    both = np.ix_(seen, seen)
+    cov[both] = fisher[both] / np.outer(fd[seen], fd[seen]) * np.outer(sd[seen], sd[seen])
+    return cov
+
+
+def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray | None = None,
+          at_x0: tuple[np.ndarray, np.ndarray] | None = None
+          ) -> tuple[OptimizeResult, int, np.ndarray | None]:
     """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``at_x0``: the Jacobian
     and the residual at 0 where known) (scipy's trust region; on the ``whole`` record the Jacobian reused where it
     predicts the steps: :class:`~.reused_jacobian.ReusedJacobian`), stopped where the Gauss–Newton
@@ -376,7 +389,7 @@ def _solve(prob: RigProblem, whole: bool = False, z0: np.ndarray | None = None,
                         method="trf", x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=GTOL,
                         max_nfev=MAX_ITERATIONS * (REUSED_EVALUATIONS if whole else 1),
                         callback=converged)
-    log.info("rig fit: %.0f s of record, %d iterations, %d Jacobians, cost %.6g", prob.n * prob.rec.dt, sol.nfev,
+    log.info("rig fit: %.0f s of record, %d iterations, %d Jacobians, cost %.6g", prob.seconds, sol.nfev,
              jac.jacobians, sol.cost)
     fresh = jac.fresh and jac.z is not None and np.array_equal(jac.z, sol.x)
     return sol, jac.runs, jac.J if fresh else None
@@ -416,12 +429,13 @@ def _jacobian_at_x0(prob: RigProblem, solved: RigProblem, J: np.ndarray | None, 
     return prob.jacobian(np.zeros(prob.lay.size)), prob.lay.size + 1
 
 
-def _polished(prob: RigProblem, J: np.ndarray, r: np.ndarray) -> tuple[RigPoint, int]:
+def polished(prob: RigProblem | JointProblem, J: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, int]:
     """The estimate after Gauss–Newton steps from ``prob``'s x0 with its Jacobian ``J`` there (the
     chord method; ``r``: the residual at x0), each taken where it lowers the cost, at most
     :data:`POLISH_STEPS`: a solve stops within :data:`RESULT_STEP` σ of the minimum, and the steps
     carry it to the minimum wherever in that neighbourhood it stopped (the estimate then does not
-    depend on the rounding that steered the iterations).  Returns the point and the model runs."""
+    depend on the rounding that steered the iterations).  Returns the scaled unknowns z there and the
+    model runs."""
     gain = np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True) @ J.T
     z = np.zeros(prob.lay.size)
     runs = 0
@@ -432,12 +446,10 @@ def _polished(prob: RigProblem, J: np.ndarray, r: np.ndarray) -> tuple[RigPoint,
         if not r1 @ r1 < r @ r:
             break
         z, r = z + step, r1
-    if not np.any(z):
-        return prob.at_x0, runs
-    return prob.point(prob.x(z)), runs
+    return z, runs
 
 
-def _along_weakest(prob: RigProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
+def along_weakest(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
     """The tensors :data:`WEAK_RESTART_SIGMA` σ either way of ``tensor`` (6,) along the tensor's
     most weakly determined direction (the inverse Fisher information of ``J``, ``prob``'s
     Jacobian at x0, each entry in units of its scale): where the likelihood has other minima,
@@ -451,7 +463,7 @@ def _along_weakest(prob: RigProblem, J: np.ndarray, tensor: np.ndarray) -> list[
     return [tensor + step, tensor - step]
 
 
-def _shifted(x: np.ndarray, sign: float) -> np.ndarray:
+def shifted(x: np.ndarray, sign: float) -> np.ndarray:
     """(6,) the tensor entries of ``x`` (6,) moved by ``sign`` :data:`RESTART_SHIFT` of their scale
     (signs alternating entry by entry; halved until the tensor is physical)."""
     shift = sign * RESTART_SHIFT * entry_scales(x) * np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
@@ -463,18 +475,18 @@ def _shifted(x: np.ndarray, sign: float) -> np.ndarray:
     return moved
 
 
-def _restarted(prob: RigProblem, at_x0: tuple[np.ndarray, np.ndarray], tensor: np.ndarray
-               ) -> tuple[RigPoint, float, int]:
+def restarted(prob: RigProblem | JointProblem, at_x0: tuple[np.ndarray, np.ndarray], tensor: np.ndarray
+              ) -> tuple[np.ndarray, float, int]:
     """The whole-record fit ``prob`` (its x0 the estimate, ``at_x0`` its Jacobian and residual there) restarted from
-    the tensor entries ``tensor`` (6,) kg·m², every other unknown at the estimate: the point it
-    settles at, its cost (½ χ², the same weights) and the model runs.  A
+    the tensor entries ``tensor`` (6,) kg·m², every other unknown at the estimate: the unknowns x
+    it settles at, its cost (½ χ², the same weights) and the model runs.  A
     well-determined minimum draws the restart back within its σ; where the likelihood is flat or
     multimodal along some direction of the tensor it settles elsewhere at a χ² about as low."""
     lay = prob.lay
     z0 = np.zeros(lay.size)
     z0[lay.inertia] = (tensor - prob.x0[lay.inertia]) / prob.scale[lay.inertia]
-    sol, runs, _ = _solve(prob, True, z0, at_x0)
-    return prob.point(prob.x(sol.x)), float(sol.cost), runs
+    sol, runs, _ = solve(prob, True, z0, at_x0)
+    return prob.x(sol.x), float(sol.cost), runs
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: ArrayLike = (),
@@ -517,7 +529,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
         if np.all(prob.residual(np.zeros(prob.lay.size)) == OUTSIDE):
             log.info("rig fit: the start %s leaves the physical region or diverges: the next", np.round(start, 1))
             continue
-        sol, runs, J_end = _solve(prob)
+        sol, runs, J_end = solve(prob)
         nfev += runs
         if best is None or sol.cost < best[1].cost:
             best = (prob, sol)
@@ -526,14 +538,14 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
             break
     if best is None:                # every start outside: the first, which the verdict will call failed
         prob = problems[0]
-        sol, _, J_end = _solve(prob)
+        sol, _, J_end = solve(prob)
         best, solved = (prob, sol), (prob, J_end, noise_scale)
     prob, sol = best
     at = prob.point(prob.x(sol.x))
     for i, (n, final) in enumerate(rounds):
         if i > 0:
             prob = RigProblem(rec, at, lay, prior, noise_scale, n)
-            sol, runs, J_end = _solve(prob, final)
+            sol, runs, J_end = solve(prob, final)
             solved = (prob, J_end, noise_scale)
             nfev += runs
             at = prob.point(prob.x(sol.x))
@@ -566,13 +578,13 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     r = last.residual(np.zeros(last.lay.size))
     nfev += runs + 1
     minima = [(0.5 * float(r @ r), last.at_x0)]
-    given = list(np.asarray(restarts, float).reshape(-1, 6)) + _along_weakest(last, J, x[lay.inertia])
+    given = list(np.asarray(restarts, float).reshape(-1, 6)) + along_weakest(last, J, x[lay.inertia])
     others = [t for t in given if physically_consistent(to_tensor(t))]
-    tried = [_shifted(x[lay.inertia], 1.0), _shifted(x[lay.inertia], -1.0)] + others if check else []
+    tried = [shifted(x[lay.inertia], 1.0), shifted(x[lay.inertia], -1.0)] + others if check else []
     for tensor in tried:
-        at2, cost2, runs = _restarted(last, (J, r), tensor)
+        x2, cost2, runs = restarted(last, (J, r), tensor)
         nfev += runs
-        minima.append((cost2, at2))
+        minima.append((cost2, last.point(x2)))
     minima_costs = [m[0] for m in minima]
     descent = minima[0][1].x[lay.inertia]
     minima.sort(key=lambda m: m[0])
@@ -587,17 +599,12 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
         J = last.jacobian(np.zeros(last.lay.size))
         r = last.residual(np.zeros(last.lay.size))
         nfev += last.lay.size + 2
-    at, runs = _polished(last, J, r)
+    z, runs = polished(last, J, r)
+    at = last.point(last.x(z)) if np.any(z) else last.at_x0
     x, p, rest, bases = at.x, at.parameters, at.rest, at.bases
     nfev += runs
-    fisher, sandwich, bound = _covariance(last, J, noise_scale)
-    # σ: the larger of the two per unknown, the correlations the Fisher information's
-    sd = np.sqrt(np.maximum(np.diag(fisher), np.diag(sandwich)))
-    fd = np.sqrt(np.diag(fisher))
-    seen = np.isfinite(sd) & (fd > 0)       # a column of zeros (pinv's null space): no correlation to scale
-    cov = np.diag(sd ** 2)                  # an unknown the residual does not see: σ inf, uncorrelated
-    both = np.ix_(seen, seen)
-    cov[both] = fisher[both] / np.outer(fd[seen], fd[seen]) * np.outer(sd[seen], sd[seen])
+    fisher, sandwich, bound = covariance(last, J, last.row_scale(noise_scale))
+    cov = larger_of(fisher, sandwich)
     unit = RigProblem(rec, at, lay, prior, np.ones(channels), n_all)
     outputs = unit.outputs(x)             # one model run for the levels and the plotted series
     level = levels(unit, x, outputs)
@@ -619,4 +626,4 @@ def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.
     x = vector(truth, np.zeros(12), lay)
     rest = rest_pose(truth)
     prob = RigProblem(rec, RigPoint(x, truth, rest), lay, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start)
-    return _covariance(prob, prob.jacobian(np.zeros(prob.lay.size)))[0]
+    return covariance(prob, prob.jacobian(np.zeros(prob.lay.size)))[0]

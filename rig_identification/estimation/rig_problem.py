@@ -351,6 +351,22 @@ class RigProblem:
     def data_rows(self) -> int:
         return len(range(0, self.n, self.step)) * len(self.rec.channels)
 
+    @property
+    def seconds(self) -> float:
+        """The span's length, s."""
+        return self.n * self.rec.dt
+
+    def score_edges(self, blocks: int) -> np.ndarray:
+        """(blocks + 1,) the data rows' edges of ``blocks`` consecutive blocks of the span, each
+        of whole decimated samples (every channel's row of a sample in one block)."""
+        per_sample = len(self.rec.channels)
+        edges: np.ndarray = np.linspace(0, self.data_rows // per_sample, blocks + 1).astype(int) * per_sample
+        return edges
+
+    def row_scale(self, noise_scale: np.ndarray) -> np.ndarray:
+        """(data_rows,) each data row's factor of ``noise_scale`` (n_out,), one per channel."""
+        return np.tile(np.asarray(noise_scale, float), self.data_rows // len(self.rec.channels))
+
     def noise_cost(self, nz: int) -> float:
         """The sum of squares of :meth:`residual` (``nz`` unknowns) expected of noise alone."""
         return self.data_rows * self.unit ** 2 + int(np.isfinite(self.prior_std[:nz]).sum())
@@ -413,6 +429,103 @@ class RigProblem:
             return np.column_stack(list(pool.map(column, range(len(z)) if columns is None else columns)))
 
 
+#: The unknowns the records of a joint fit share (:class:`JointProblem`): the first ten of every
+#: :class:`~.rig_unknowns.Layout`, the tensor (6), the CG (3) and the mass.
+BODY = 10
+
+
+@dataclass(frozen=True)
+class JointLayout:
+    """Where the unknowns of a :class:`JointProblem` sit: the body's (:data:`BODY`: the tensor, the
+    CG and the mass, as in every :class:`~.rig_unknowns.Layout`), then each record's others in turn."""
+
+    size: int
+
+    @property
+    def inertia(self) -> slice:
+        return slice(0, 6)
+
+    @property
+    def cg(self) -> slice:
+        return slice(6, 9)
+
+    @property
+    def mass(self) -> int:
+        return 9
+
+
+class JointProblem:
+    """The weighted residual of several records of one body as a function of the scaled unknowns
+    z: each record's :class:`RigProblem` (its own rig, cables, load cells, geometry, segments and
+    force correction), the body's unknowns (:data:`BODY`) shared.  The residual holds every
+    record's data rows in turn, then every record's priors' rows; the body's priors (the scale's
+    mass, the static CG) belong to one record's problem only (the caller's choice), so they count once.
+    The records' problems must be made at the same body (their unit scales agree there).
+    """
+
+    def __init__(self, problems: Sequence[RigProblem]):
+        self.problems = tuple(problems)
+        first = self.problems[0]
+        for p in self.problems[1:]:
+            if not np.allclose(p.scale[:BODY], first.scale[:BODY]) or not np.allclose(p.x0[:BODY], first.x0[:BODY]):
+                raise ValueError("a joint problem's records must be made at the same body")
+        own = [p.lay.size - BODY for p in self.problems]
+        self.starts = BODY + np.concatenate([[0], np.cumsum(own)[:-1]]).astype(int)
+        self.lay = JointLayout(BODY + int(sum(own)))
+        self.x0 = np.concatenate([first.x0[:BODY]] + [p.x0[BODY:] for p in self.problems])
+        self.scale = np.concatenate([first.scale[:BODY]] + [p.scale[BODY:] for p in self.problems])
+        self.data_rows = sum(p.data_rows for p in self.problems)
+        self.seconds = sum(p.seconds for p in self.problems)
+
+    def indices(self, k: int) -> np.ndarray:
+        """(record k's layout size,) where each of record ``k``'s unknowns sits in the joint vector."""
+        start = int(self.starts[k])
+        return np.concatenate([np.arange(BODY), np.arange(start, start + self.problems[k].lay.size - BODY)])
+
+    def part(self, v: np.ndarray, k: int) -> np.ndarray:
+        """Record ``k``'s unknowns (its layout) out of the joint vector ``v`` (z or x)."""
+        out: np.ndarray = v[self.indices(k)]
+        return out
+
+    def x(self, z: np.ndarray) -> np.ndarray:
+        x: np.ndarray = self.x0 + self.scale * z
+        return x
+
+    def residual(self, z: np.ndarray) -> np.ndarray:
+        """Every record's data rows, then every record's priors' rows (:meth:`RigProblem.residual`);
+        all :data:`OUTSIDE` where any record's is."""
+        parts = [p.residual(self.part(z, k)) for k, p in enumerate(self.problems)]
+        if any(r[0] == OUTSIDE for r in parts):
+            return np.full(sum(len(r) for r in parts), OUTSIDE)
+        return np.concatenate([r[:p.data_rows] for r, p in zip(parts, self.problems)]
+                              + [r[p.data_rows:] for r, p in zip(parts, self.problems)])
+
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        """(rows, size) :meth:`residual`'s Jacobian: each record's (:meth:`RigProblem.jacobian`) in its
+        rows and unknowns."""
+        blocks = [p.jacobian(self.part(z, k)) for k, p in enumerate(self.problems)]
+        rows = sum(len(b) for b in blocks)
+        J = np.zeros((rows, self.lay.size))
+        data, prior = 0, self.data_rows
+        for k, (b, p) in enumerate(zip(blocks, self.problems)):
+            cols = self.indices(k)
+            J[data:data + p.data_rows, cols] = b[:p.data_rows]
+            J[prior:prior + len(b) - p.data_rows, cols] = b[p.data_rows:]
+            data += p.data_rows
+            prior += len(b) - p.data_rows
+        return J
+
+    def score_edges(self, blocks: int) -> np.ndarray:
+        """The data rows' edges of ``blocks`` blocks of each record in turn (:meth:`RigProblem.score_edges`)."""
+        offsets = np.cumsum([0] + [p.data_rows for p in self.problems])
+        return np.unique(np.concatenate([o + p.score_edges(blocks) for o, p in zip(offsets, self.problems)]))
+
+    def row_scale(self, noise_scales: Sequence[np.ndarray]) -> np.ndarray:
+        """(data_rows,) each data row's factor of its record's ``noise_scales`` (n_out,)
+        (:meth:`RigProblem.row_scale`)."""
+        return np.concatenate([p.row_scale(s) for p, s in zip(self.problems, noise_scales)])
+
+
 def levels(prob: RigProblem, x: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:
     """Each channel's residual RMS in the band over its noise's (1: noise alone); ``outputs``:
     :meth:`RigProblem.outputs` at x where already known."""
@@ -428,6 +541,7 @@ def base_state(rec: Record, p: RigParameters, rest: RestPose, substeps: int) -> 
     return simulate(p, y, drive(rec.u[:rec.start + 1], rec.dt, substeps))[1]
 
 
-__all__ = ["RigPoint", "RigProblem", "levels", "base_state", "DECIMATED_RATE", "THREADS", "MAX_ITERATIONS", "XTOL",
+__all__ = ["RigPoint", "RigProblem", "JointProblem", "JointLayout", "BODY",
+           "levels", "base_state", "DECIMATED_RATE", "THREADS", "MAX_ITERATIONS", "XTOL",
            "FTOL", "GTOL", "OUTSIDE", "JACOBIAN_STEP", "IMPULSE_TAIL", "NON_NEGATIVE", "SETTLE_STEPS",
            "SETTLE_DECREMENT"]

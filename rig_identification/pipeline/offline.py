@@ -3,15 +3,14 @@ from __future__ import annotations
 
 import logging
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 
 from ..estimation.harmonic_start import box_tensor
-from ..estimation.identification import identify_inertia, identify_inertia_joint
+from ..estimation.identification import identify_inertia
 from ..estimation.inertia_result import InertiaResult
 from ..estimation.thesis_estimator import identify_inertia_thesis
-from ..io.recording import Recording, RecordingError, recording_labels
+from ..io.recording import Recording
 from ..model.parametrisation import from_tensor
 from .fit_validation import validate_fit, weight_surplus, weight_warning
 from .prepare import PreparedRecording, prepare_recording
@@ -101,64 +100,3 @@ def with_cg_uncertainty(rec: Recording, result: InertiaResult, cg_covariance: np
                    cg_contribution_std=np.sqrt(np.clip(np.diag(added), 0, None)),
                    uncertainty=result.uncertainty + "; with the CG's σ propagated (the tensor refitted with the CG "
                    "±1 σ along each principal axis of its covariance)")
-
-
-MASS_RTOL = 1e-3   # relative: rig.yaml body.mass of recordings fitted jointly must agree this well
-CG_TOL = 0.002     # m: and their body.center_of_gravity this well
-
-
-def _rig_file(rec: Recording) -> str:
-    """The recording's rig.yaml, or its rig's source for an in-memory recording."""
-    return str(Path(rec.path) / "rig.yaml") if rec.path is not None else str(rec.rig.source)
-
-
-def check_same_body(recs: list[Recording], mass_rtol: float = MASS_RTOL, cg_tol: float = CG_TOL) -> None:
-    """Refuse a joint fit of recordings whose rig.yaml describe different bodies: body.mass
-    must agree within ``mass_rtol`` (relative) and body.center_of_gravity within ``cg_tol``
-    m (body axes) of the first recording's.  Raises
-    :class:`~rig_identification.io.recording.RecordingError` naming both files."""
-    ref = recs[0]
-    m0, c0 = ref.rig.mass, ref.rig.require_cg()
-    for r in recs[1:]:
-        m, c = r.rig.mass, r.rig.require_cg()
-        where = f"{_rig_file(ref)} and {_rig_file(r)}"
-        if abs(m - m0) > mass_rtol * abs(m0):
-            raise RecordingError(f"{where} describe different bodies: body.mass {m0:g} kg vs {m:g} kg (a joint "
-                                 f"fit needs the same body; tolerance {100 * mass_rtol:g} %)")
-        d = float(np.linalg.norm(np.asarray(c) - np.asarray(c0)))
-        if d > cg_tol:
-            raise RecordingError(f"{where} describe different bodies: body.center_of_gravity "
-                                 f"[{', '.join(f'{x:g}' for x in c0)}] vs [{', '.join(f'{x:g}' for x in c)}] m, "
-                                 f"{1000 * d:.1f} mm apart (a joint fit needs the same body; tolerance "
-                                 f"{1000 * cg_tol:g} mm)")
-
-
-def identify_recordings(recs: list[Recording], start: float | None = None, end: float | None = None,
-                        settle: float = 5.0, band_hz: tuple[float, float] | None = None,
-                        mass_rtol: float = MASS_RTOL, cg_tol: float = CG_TOL) -> InertiaResult:
-    """One inertia tensor from several recordings of the same body (different exciter
-    frequencies or positions, cable geometries).
-
-    Checks the bodies agree (:func:`check_same_body`) before any processing, replays
-    each recording with :func:`~rig_identification.pipeline.prepare.prepare_recording` (the same
-    start/end/settle window on each), then fits jointly with
-    :func:`~rig_identification.estimation.identification.identify_inertia_joint` (each recording
-    band-passed on its own, ``band_hz`` or automatic per recording).  One recording:
-    :func:`identify_recording`.  Warnings are prefixed with the recording's name; the
-    result's ``series`` labels are :func:`~rig_identification.io.recording.recording_labels`.  Raises like
-    :func:`identify_recording`.
-    """
-    recs = list(recs)
-    if not recs:
-        raise RecordingError("no recording given")
-    if len(recs) == 1:
-        return identify_recording(recs[0], start=start, end=end, settle=settle, band_hz=band_hz)
-    check_same_body(recs, mass_rtol, cg_tol)
-    labels = recording_labels(recs)
-    preps = [prepare_recording(r, start, end, settle) for r in recs]
-    log.info("fitting one inertia tensor to %d recordings (prediction error)", len(preps))
-    result = identify_inertia_joint([p.rec.rig for p in preps], [(p.t, p.gyro_body, p.torque) for p in preps],
-                                    band_hz=band_hz, labels=labels)
-    result = replace(result, warnings=[f"{lab}: {w}" for lab, p in zip(labels, preps)
-                                       for w in p.rec.warnings + p.warnings] + result.warnings)
-    return validate_fit(preps, result)

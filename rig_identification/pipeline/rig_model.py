@@ -20,18 +20,20 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 
 from ..diagnosis.rig_diagnosis import RigDiagnosis, diagnose_rig
 from ..estimation.harmonic_start import box_tensor, forced_response_start
 from ..estimation.identification import IdentificationError, identify_inertia
+from ..estimation.joint_fit import fit_jointly
 from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.rig_fit import LEVEL_LIMIT, RigFit, fit_rig
-from ..estimation.rig_record import record
+from ..estimation.rig_record import Record, record
 from ..estimation.rig_unknowns import EXTENSIONS, Prior
 from ..io.export import Axes, Expressed, express
-from ..io.recording import Recording
+from ..io.recording import Recording, RecordingError
 from ..io.rig import Survey
 from ..io.verdict import KEYS
 from ..model.parametrisation import entry_scales, from_tensor, physically_consistent, to_tensor
@@ -370,6 +372,77 @@ def start_tensors(rec: Recording, first: np.ndarray, first_std: np.ndarray, harm
     return np.vstack(([first, harmonic] if trusted else [harmonic, first]) + boxes)
 
 
+@dataclass(frozen=True)
+class FitInput:
+    """A recording made ready for the rig model's fit (:func:`prepared`): ``rc`` its
+    :class:`~rig_identification.estimation.rig_record.Record`, ``prior`` the fit's
+    :class:`~rig_identification.estimation.rig_unknowns.Prior`, ``starts`` (k, 6) kg·m² the tensors
+    tried in turn (:func:`start_tensors`), ``restarts`` (0 or 1, 6) the gyro-only fit's tensor the
+    whole-record fit is restarted from, ``stiffness`` (N,) N/m the cables' start, ``guess`` (6,)
+    and ``guess_std`` (6,) the gyro-only start and its σ (inf: the box), ``source`` its name, ``cg_source``
+    where the CG's prior came from, ``warnings`` what reading and cleaning did, ``t_first`` the first IMU stamp, s."""
+
+    rec: Recording
+    rc: Record
+    prior: Prior
+    starts: np.ndarray
+    restarts: np.ndarray
+    stiffness: np.ndarray
+    guess: np.ndarray
+    guess_std: np.ndarray
+    source: str
+    cg_source: str
+    warnings: tuple[str, ...]
+    t_first: float
+
+    def fit(self, extensions: dict[str, np.ndarray] | None = None, first: np.ndarray | None = None) -> RigFit:
+        """The rig model fitted to the record (:func:`~rig_identification.estimation.rig_fit.fit_rig`),
+        with ``extensions`` (name -> start) where given, from ``first`` (6,) kg·m² before the starts."""
+        starts = self.starts if first is None else np.vstack([first, self.starts])
+        return fit_rig(self.rc, self.rec.rig, self.prior, starts, restarts=self.restarts, extensions=extensions,
+                       stiffness=self.stiffness)
+
+    def result(self, fit: RigFit, seconds: float, diagnosis: RigDiagnosis | None = None) -> RigModelResult:
+        """The :class:`RigModelResult` of ``fit`` (``seconds``: the wall time)."""
+        rc = self.rc
+        return RigModelResult(fit, str(self.rec.path), rc.t0, rc.t0 - self.t_first + rc.start * rc.dt,
+                              (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, self.guess, self.guess_std, self.source,
+                              self.prior.cg, self.prior.cg_std, self.cg_source, self.rec.rig.survey, seconds,
+                              self.rec.truth, self.warnings, diagnosis)
+
+
+def prepared(rec: Recording, cg=None, cg_std=None, cg_source: str | None = None, start: float | None = None,
+             end: float | None = None) -> FitInput:
+    """The recording checked, cleaned and put on one grid, the CG's prior, the starts (the
+    gyro-only fit's and the forced response's: module docstring).  Arguments as
+    :func:`fit_whole_recording`'s; raises as it does."""
+    t_first = float(rec.sensors.t_start)
+    check_units(rec)
+    warnings = list(rec.warnings)       # the reader's (stamps regularised, samples dropped), then the cleaning's
+    sensors = clean_sensors(rec, warnings)
+    check_motion(rec, sensors)
+    rc = record(sensors, rec.rig, None if start is None else t_first + start,
+                None if end is None else t_first + end)
+    given = cg is not None
+    if cg is None:                                  # rig.yaml's CG: the static test's, its σ unknown
+        cg, cg_std = rec.rig.require_cg(), np.full(3, RIG_YAML_CG_STD)
+        cg_source = cg_source or f"rig.yaml (σ {1e3 * RIG_YAML_CG_STD:g} mm assumed)"
+    prior = Prior.from_rig(rec.rig, cg, cg_std)
+    guess, guess_std, source = start_tensor(rec)
+    box = box_tensor(rec.rig)
+    stiff = forced_response_start(rc, rec.rig, prior,
+                                  np.vstack([guess] + [f * box for f in BOX_SCALES if not np.allclose(f * box, guess)]))
+    if stiff.moved:
+        warnings.append(f"the cables' stiffness starts at {np.exp(stiff.log_scale):.3g}× the default steel cable's "
+                        f"({np.mean(stiff.stiffness):.3g} N/m; rig.yaml gives none): the forced response's misfit "
+                        f"{stiff.level:.3g}× the noise there, {stiff.prior_level:.3g}× at the default's")
+    starts = start_tensors(rec, guess, guess_std, stiff.tensor)
+    restarts = guess[None] if np.any(np.isfinite(guess_std)) else np.zeros((0, 6))
+    source_cg = cg_source or ("given" if given and cg_std is not None else "rig.yaml (start only)")
+    return FitInput(rec, rc, prior, starts, restarts, np.asarray(stiff.stiffness, float), guess, guess_std, source,
+                    source_cg, tuple(warnings), t_first)
+
+
 def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | None = None,
                         start: float | None = None, end: float | None = None, diagnose: bool = True
                         ) -> RigModelResult:
@@ -385,41 +458,139 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     :class:`~rig_identification.io.rig.RigError`,
     :class:`~rig_identification.io.recording.RecordingError`."""
     t_wall = time.perf_counter()
-    t_first = float(rec.sensors.t_start)
-    check_units(rec)
-    warnings = list(rec.warnings)       # the reader's (stamps regularised, samples dropped), then the cleaning's
-    sensors = clean_sensors(rec, warnings)
-    check_motion(rec, sensors)
-    rc = record(sensors, rec.rig, None if start is None else t_first + start,
-                None if end is None else t_first + end)
-    if cg is None:                                  # rig.yaml's CG: the static test's, its σ unknown
-        cg, cg_std = rec.rig.require_cg(), np.full(3, RIG_YAML_CG_STD)
-        cg_source = cg_source or f"rig.yaml (σ {1e3 * RIG_YAML_CG_STD:g} mm assumed)"
-    prior = Prior.from_rig(rec.rig, cg, cg_std)
-    guess, guess_std, source = start_tensor(rec)
-    log.info("fitting the rig model to every sensor (%.0f s, %d channels)", rc.duration, len(rc.channels))
-    box = box_tensor(rec.rig)
-    stiff = forced_response_start(rc, rec.rig, prior,
-                                  np.vstack([guess] + [f * box for f in BOX_SCALES if not np.allclose(f * box, guess)]))
-    if stiff.moved:
-        warnings.append(f"the cables' stiffness starts at {np.exp(stiff.log_scale):.3g}× the default steel cable's "
-                        f"({np.mean(stiff.stiffness):.3g} N/m; rig.yaml gives none): the forced response's misfit "
-                        f"{stiff.level:.3g}× the noise there, {stiff.prior_level:.3g}× at the default's")
-    starts = start_tensors(rec, guess, guess_std, stiff.tensor)
-    restarts = guess[None] if np.any(np.isfinite(guess_std)) else ()
-    fit = fit_rig(rc, rec.rig, prior, starts, restarts=restarts, stiffness=stiff.stiffness)
+    inp = prepared(rec, cg, cg_std, cg_source, start, end)
+    log.info("fitting the rig model to every sensor (%.0f s, %d channels)", inp.rc.duration, len(inp.rc.channels))
+    fit = inp.fit()
     diagnosis = None
     if diagnose and np.all(np.isfinite(fit.inertia_std)):
         log.info("testing what the model leaves out")
 
         def refit(extensions: dict[str, np.ndarray], start: np.ndarray) -> RigFit:
             log.info("fitting the rig model with %s", ", ".join(extensions) or "nothing added, again")
-            return fit_rig(rc, rec.rig, prior, np.vstack([start, starts]), restarts=restarts,
-                           extensions=extensions, stiffness=stiff.stiffness)
+            return inp.fit(extensions, start)
 
-        diagnosis = diagnose_rig(rc, prior, fit, list(rec.rig.cable_names), refit)
+        diagnosis = diagnose_rig(inp.rc, inp.prior, fit, list(rec.rig.cable_names), refit)
         fit = diagnosis.refit or diagnosis.rigid
-    return RigModelResult(fit, str(rec.path), rc.t0, rc.t0 - t_first + rc.start * rc.dt,
-                          (len(rc.y) - 1 - rc.start) * rc.dt, rc.band, guess, guess_std, source, prior.cg, prior.cg_std,
-                          cg_source or ("rig.yaml (start only)" if cg_std is None else "given"), rec.rig.survey,
-                          time.perf_counter() - t_wall, rec.truth, tuple(warnings), diagnosis)
+    return inp.result(fit, time.perf_counter() - t_wall, diagnosis)
+
+
+MASS_RTOL = 1e-3   # relative: rig.yaml body.mass of recordings fitted jointly must agree this well
+CG_TOL = 0.002     # m: and their body.center_of_gravity this well
+
+
+def _rig_file(rec: Recording) -> str:
+    """The recording's rig.yaml, or its rig's source for an in-memory recording."""
+    return str(Path(rec.path) / "rig.yaml") if rec.path is not None else str(rec.rig.source)
+
+
+def check_same_body(recs: list[Recording], mass_rtol: float = MASS_RTOL, cg_tol: float = CG_TOL) -> None:
+    """Refuse a joint fit of recordings whose rig.yaml describe different bodies: body.mass
+    must agree within ``mass_rtol`` (relative) and body.center_of_gravity within ``cg_tol``
+    m (body axes) of the first recording's.  Raises
+    :class:`~rig_identification.io.recording.RecordingError` naming both files."""
+    ref = recs[0]
+    m0, c0 = ref.rig.mass, ref.rig.require_cg()
+    for r in recs[1:]:
+        m, c = r.rig.mass, r.rig.require_cg()
+        where = f"{_rig_file(ref)} and {_rig_file(r)}"
+        if abs(m - m0) > mass_rtol * abs(m0):
+            raise RecordingError(f"{where} describe different bodies: body.mass {m0:g} kg vs {m:g} kg (a joint "
+                                 f"fit needs the same body; tolerance {100 * mass_rtol:g} %)")
+        d = float(np.linalg.norm(np.asarray(c) - np.asarray(c0)))
+        if d > cg_tol:
+            raise RecordingError(f"{where} describe different bodies: body.center_of_gravity "
+                                 f"[{', '.join(f'{x:g}' for x in c0)}] vs [{', '.join(f'{x:g}' for x in c)}] m, "
+                                 f"{1000 * d:.1f} mm apart (a joint fit needs the same body; tolerance "
+                                 f"{1000 * cg_tol:g} mm)")
+
+
+#: The verdicts from the worst to the best: a joint fit's is its worst record's.
+SEVERITY = ("failed", "model_error", "not_identifiable", "inconsistent", "ok")
+
+
+@dataclass(frozen=True)
+class JointResult:
+    """The rig model fitted to several recordings of one body (:func:`fit_recordings`).
+
+    results: each recording's :class:`RigModelResult` at the joint estimate (the body — mass, CG,
+    tensor, σ, CRB, minima — the same in each; its own cables, geometry, channels and levels).
+    alone: each recording fitted by itself (what each run alone determines).  seconds: wall time.
+    """
+
+    results: tuple[RigModelResult, ...]
+    alone: tuple[RigModelResult, ...]
+    seconds: float
+
+    @property
+    def first(self) -> RigModelResult:
+        """The first recording's result: the body's estimate, σ and verdict lines are every one's."""
+        return self.results[0]
+
+    @property
+    def verdict(self) -> str:
+        """The worst of the recordings' verdicts (:data:`SEVERITY`): every channel of every
+        recording must fit, and the joint tensor be determined."""
+        return min((r.verdict for r in self.results), key=SEVERITY.index)
+
+    @property
+    def summary(self) -> str:
+        """The verdict and what it means, one line; a channel that does not fit named with its recording."""
+        worst = next(r for r in self.results if r.verdict == self.verdict)
+        line = worst.verdict_line
+        return f"{line} (in {worst.path})" if self.verdict in ("model_error", "failed") else line
+
+    @property
+    def withheld(self) -> tuple[str, ...]:
+        return KEYS if self.verdict in ("not_identifiable", "failed") else ()
+
+    def expressed(self, axes: str | Axes = "body") -> Expressed:
+        """The body's mass, CG and tensor in ``axes`` with σ, the :attr:`withheld` entries left out."""
+        f = self.first.fit
+        return express(f.body.mass, f.body.cg, to_tensor(f.inertia), f.inertia_std, self.withheld, axes)
+
+    def to_dict(self) -> dict:
+        """The JSON object of ``rig-identify inertia REC1 REC2 … --json``: the body as one recording's
+        result gives it (verdict, tensor, σ, CRB, mass, CG, minima, truth), then ``recordings``: each
+        one's own part (window, cables, damping, channels, offsets, warnings) and what it determines alone."""
+        d = self.first.to_dict()
+        own = ("recording", "window", "cables", "body_damping", "residual_level", "offsets", "poorly_fitted_channels",
+               "natural_frequencies_hz", "warnings", "extensions", "diagnosis", "rigid_body_fit", "inertia_start",
+               "survey")
+        for k in own:
+            d.pop(k, None)
+        d.update(schema="rig_identification.joint_rig_model_result", schema_version=1,
+                 model="rig (grey-box, every sensor an output), one body over several recordings",
+                 verdict=self.verdict, summary=self.summary, seconds=self.seconds)
+        d["recordings"] = []
+        for r, a in zip(self.results, self.alone):
+            one = r.to_dict()
+            part = {k: one[k] for k in own if k in one}
+            part["verdict"] = r.verdict
+            part["alone"] = {"verdict": a.verdict, "undetermined": a.undetermined, "ambiguous": a.ambiguous,
+                             "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, a.fit.inertia)},
+                             "inertia_std": {k: float(v) for k, v in zip(KEYS, a.fit.inertia_std)}}
+            d["recordings"].append(part)
+        return d
+
+
+def fit_recordings(recs: list[Recording], cg=None, cg_std=None, cg_source: str | None = None,
+                   start: float | None = None, end: float | None = None) -> JointResult:
+    """Fit the rig model to several recordings of one body at once
+    (:func:`~rig_identification.estimation.joint_fit.fit_jointly`: each run's cables, load cells,
+    geometry and states its own, the body's mass, CG and tensor shared).  The bodies must agree
+    (:func:`check_same_body`, before any fit).  Each recording is prepared and fitted alone first
+    (:func:`prepared`, the rigid-body rig model: no diagnosis; run ``rig-identify diagnose`` on a
+    recording whose channels do not fit).  cg, cg_std, cg_source, start, end: as
+    :func:`fit_whole_recording`'s, the same for every recording.  Raises as it does."""
+    check_same_body(recs)
+    t_wall = time.perf_counter()
+    inputs = [prepared(r, cg, cg_std, cg_source, start, end) for r in recs]
+    singles = []
+    for inp in inputs:
+        log.info("fitting the rig model to %s alone (%.0f s)", inp.rec.path, inp.rc.duration)
+        singles.append(inp.fit())
+    alone = tuple(inp.result(f, np.nan) for inp, f in zip(inputs, singles))
+    log.info("fitting the rig model to the %d recordings at once", len(recs))
+    joint = fit_jointly([i.rc for i in inputs], singles, [i.prior for i in inputs])
+    seconds = time.perf_counter() - t_wall
+    return JointResult(tuple(inp.result(f, seconds) for inp, f in zip(inputs, joint.fits)), alone, seconds)
