@@ -7,7 +7,8 @@ Each seed draws a rig as bench_any_rig does (:func:`~bench_any_rig.draw`,
 a layout, an exciter placement, 60–120 s at 200 Hz, reference noise).  Run A is that
 experiment; run B the same rig, body and IMU with the exciter where another placement kind puts
 it (its position, spin axis, force and frequency: ``random_experiment`` of the same seed with
-the next kind of :data:`~bench_any_rig.EXCITERS`), its own noise.  Both recordings share one
+the next kind of :data:`~bench_any_rig.EXCITERS`), its own noise; each run's force lowered
+where a cable would go slack (:func:`~rig_identification.design.scenarios.simulate_taut`).  Both recordings share one
 rig.yaml surveyed once with concealed errors of the survey's σ (:func:`~scoring.surveyed`; the
 CG by rig.yaml's assumed σ), as a lab's one rig is.  ``rig-identify inertia A B``'s core
 (:func:`~rig_identification.pipeline.rig_model.fit_recordings`) fits each alone and both at once.
@@ -30,10 +31,8 @@ import numpy as np
 from bench_any_rig import EXCITERS, draw
 from scoring import entry_scales, run_jobs, surveyed
 
-from rig_identification.design.scenarios import random_experiment
+from rig_identification.design.scenarios import random_experiment, simulate_taut
 from rig_identification.io.recording import Recording
-from rig_identification.model.experiment import experiment_from_dict
-from rig_identification.model.simulator import simulate
 from rig_identification.pipeline.rig_model import RIG_YAML_CG_STD, fit_recordings
 
 #: The default seeds: bench_any_rig's first eight (``--rigs 8 --first-seed 21000``).
@@ -58,7 +57,7 @@ def job(seed: int) -> dict:
     kind = draw(seed)
     row: dict = {"seed": seed} | kind
     try:
-        sims = [simulate(experiment_from_dict(d, d["name"])) for d in runs(seed)]
+        sims = [simulate_taut(d)[1] for d in runs(seed)]
     except Exception as e:                      # noqa: BLE001 — a rig the simulator cannot make is skipped
         return row | {"skipped": f"{type(e).__name__}: {e}"}
     recs = []

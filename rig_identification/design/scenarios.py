@@ -35,6 +35,7 @@ default limit), and returns the mapping and the :class:`~rig_identification.mode
 """
 from __future__ import annotations
 
+import copy
 import csv
 from dataclasses import dataclass
 from importlib import resources
@@ -390,7 +391,15 @@ def simulate_random(seed: int, cables: int = 4, layout: str = "wide", effects: l
     experiment mapping and the :class:`~rig_identification.model.simulator.SimResult`.  Raises
     :class:`~rig_identification.model.simulator.SimulationError` if no force keeps the cables taut, or a
     cable carries less than :data:`SLACK_SHARE` of the mean tension at rest."""
-    d = random_experiment(seed, cables, layout, effects, duration, noise=noise, exciter=exciter)
+    return simulate_taut(random_experiment(seed, cables, layout, effects, duration, noise=noise, exciter=exciter))
+
+
+def simulate_taut(d: dict) -> tuple[dict, SimResult]:
+    """Simulate the experiment mapping ``d``; while a cable drops below :data:`MIN_TENSION` of its
+    static tension, the force is lowered by a third (at most four times).  Returns the mapping as
+    simulated and the :class:`~rig_identification.model.simulator.SimResult`.  Raises as
+    :func:`simulate_random`."""
+    d = copy.deepcopy(d)
     for _ in range(5):
         sim = simulate(experiment_from_dict(d, d["name"]))
         T = np.column_stack([sim.sensors.load_cells[n].data[:, 0] for n in sim.rig.cable_names])
