@@ -22,7 +22,7 @@ from datetime import datetime, timezone
 
 import numpy as np
 
-from ..estimation.identification import IdentificationError
+from ..estimation.gyro_fit import IdentificationError
 from ..estimation.inertia_result import InertiaResult, compare_to_truth
 from ..io.atomic import atomic_write_text
 from ..io.export import (

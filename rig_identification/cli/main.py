@@ -317,7 +317,7 @@ def check_paths(args) -> None:
 
 def user_errors() -> tuple:
     """The exceptions that are the user's to fix: printed as one line, exit status 2."""
-    from ..estimation.identification import IdentificationError
+    from ..estimation.gyro_fit import IdentificationError
     from ..estimation.rig_record import RigFitError
     from ..estimation.tracker import TrackerError
     from ..io.recording import RecordingError

@@ -53,7 +53,7 @@ from ..model.dynamics import skew, skews
 from ..model.experiment import REFERENCE_NOISE
 from ..model.parametrisation import basis, from_tensor
 from .adjoints import cumtrapz_adjoint, sosfiltfilt_adjoint
-from .identification import prepare_segment
+from .gyro_fit import prepare_segment
 from .linearisation import TrackerModel, tracker_model, wrench_jacobians
 from .prediction import PlanError, Prediction
 from .preprocessor import generalized_wrench

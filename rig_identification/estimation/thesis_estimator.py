@@ -7,7 +7,7 @@ from scipy.optimize import least_squares
 
 from ..io.rig import Rig
 from ..model.parametrisation import physically_consistent, to_tensor
-from .identification import sample_interval
+from .gyro_fit import sample_interval
 from .inertia_result import InertiaResult
 
 

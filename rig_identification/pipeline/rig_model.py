@@ -2,7 +2,7 @@
 
 recording → :func:`~rig_identification.estimation.rig_record.record` (every stream on one grid, the
 exciter's force denoised) → a start for the tensor (the prediction-error fit on the gyro,
-:func:`~rig_identification.estimation.identification.identify_inertia`, where it gives a
+:func:`~rig_identification.estimation.gyro_fit.fit_gyro`, where it gives a
 physical tensor: its first stage a linear regression that needs no start; else the body anchors'
 box; the cables' stiffness, where rig.yaml gives none, from the forced response:
 :func:`~rig_identification.estimation.harmonic_start.forced_response_start`) →
@@ -25,8 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from ..diagnosis.rig_diagnosis import RigDiagnosis, diagnose_rig
+from ..estimation.gyro_fit import IdentificationError, fit_gyro
 from ..estimation.harmonic_start import box_tensor, forced_response_start
-from ..estimation.identification import IdentificationError, identify_inertia
 from ..estimation.joint_fit import fit_jointly
 from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.rig_fit import LEVEL_LIMIT, RigFit, fit_rig
@@ -36,7 +36,7 @@ from ..io.export import Axes, Expressed, express
 from ..io.recording import Recording, RecordingError
 from ..io.rig import Survey
 from ..io.verdict import KEYS
-from ..model.parametrisation import entry_scales, from_tensor, physically_consistent, to_tensor
+from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
 from .prepare import prepare_recording
 
 log = logging.getLogger(__name__)
@@ -339,19 +339,19 @@ def start_tensor(rec: Recording) -> tuple[np.ndarray, np.ndarray, str]:
     """The tensor entries (6,) the fit starts from, their σ (6,) (inf: a guess) and their source:
     the prediction-error fit on the gyro, the tensions its input
     (:func:`~rig_identification.pipeline.prepare.prepare_recording`: tracker and preprocessor;
-    :func:`~rig_identification.estimation.identification.identify_inertia`; thesis §3.3), where it
+    :func:`~rig_identification.estimation.gyro_fit.fit_gyro`; thesis §3.3), where it
     gives a physical tensor whose trace is within a factor :data:`START_TRACE_FACTOR` of the body
     anchors' box's, else that box (:func:`~rig_identification.estimation.harmonic_start.box_tensor`)."""
     box = box_tensor(rec.rig)
     try:
         prep = prepare_recording(rec)
-        res = identify_inertia(rec.rig, prep.t, prep.gyro_body, prep.torque)
-        tensor = np.asarray(res.inertia, float)      # (3, 3)
+        res = fit_gyro(prep.t, prep.gyro_body, prep.torque)
+        tensor = to_tensor(res.inertia)
         if np.all(np.isfinite(tensor)) and physically_consistent(tensor):
             ratio = np.trace(tensor) / (box[0] + box[3] + box[5])
             if 1 / START_TRACE_FACTOR <= ratio <= START_TRACE_FACTOR:
-                std = np.asarray(res.inertia_std, float)
-                return from_tensor(tensor), np.where(np.isfinite(std), std, np.inf), \
+                std = res.std
+                return np.asarray(res.inertia, float), np.where(np.isfinite(std), std, np.inf), \
                     "the prediction-error fit on the gyro"
             log.info("the prediction-error start's trace is %.3g times the box's: not a start", ratio)
     except (IdentificationError, np.linalg.LinAlgError, ValueError) as e:

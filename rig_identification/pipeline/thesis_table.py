@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..estimation.identification import IdentificationError
+from ..estimation.gyro_fit import IdentificationError
 from ..estimation.inertia_result import compare_to_truth
 from ..io.export import ORDER
 from ..io.recording import Recording
