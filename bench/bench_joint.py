@@ -13,8 +13,9 @@ rig.yaml surveyed once with concealed errors of the survey's σ (:func:`~scoring
 CG by rig.yaml's assumed σ), as a lab's one rig is.  ``rig-identify inertia A B``'s core
 (:func:`~rig_identification.pipeline.rig_model.fit_recordings`) fits each alone and both at once.
 
-Printed per seed: each run alone (verdict, worst σ % of scale), the joint fit (verdict, worst
-error % of scale, worst |error|/σ, worst σ/CRB, the CRB the joint fit's at its estimate), the
+Printed per seed: each run alone (verdict, worst σ % of scale: a product's of the largest
+moment), the joint fit (verdict, worst error % of scale, worst |error|/σ, worst σ/CRB, the CRB
+the joint fit's at its estimate), the
 wall time; then the counts: joint ``ok`` fits within 1 % and 3 σ, joint fits that determine
 what neither run determined alone, silent failures (``ok`` and beyond 3 σ): 0.
 """
@@ -33,6 +34,7 @@ from scoring import entry_scales, run_jobs, surveyed
 
 from rig_identification.design.scenarios import random_experiment, simulate_taut
 from rig_identification.io.recording import Recording
+from rig_identification.io.verdict import KEYS
 from rig_identification.pipeline.rig_model import RIG_YAML_CG_STD, fit_recordings
 
 #: The default seeds: bench_any_rig's first eight (``--rigs 8 --first-seed 21000``).
@@ -69,12 +71,12 @@ def job(seed: int) -> dict:
         res = fit_recordings(recs)
     except ValueError as e:                     # RigFitError, RigError: refused, with its message
         return row | {"verdict": "refused", "error": str(e)}
-    truth = np.array([sims[0].truth["inertia_about_cg"][k] for k in ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")])
+    truth = np.array([sims[0].truth["inertia_about_cg"][k] for k in KEYS])
     scale = entry_scales(truth)
     f = res.first.fit
     err = f.inertia - truth
-    row.update(verdict=res.verdict, alone=[a.verdict for a in res.alone],
-               alone_std_percent=[float(np.max(100 * a.fit.inertia_std / scale)) for a in res.alone],
+    row.update(verdict=res.verdict, alone=[a.verdict for a in res.alone], truth=list(truth), estimate=list(f.inertia),
+               alone_std_percent=[list(100 * a.fit.inertia_std / scale) for a in res.alone],
                error_percent=list(100 * err / scale), error_sigma=list(err / f.inertia_std),
                std_percent=list(100 * f.inertia_std / scale), sigma_over_crb=list(f.inertia_std / f.crb),
                seconds=time.perf_counter() - t0)
@@ -90,7 +92,7 @@ def summary(rows: list[dict]) -> None:
         if "verdict" not in r or r["verdict"] == "refused":
             print(f"{r['seed']:>6} {rig:<28} {r.get('skipped') or r.get('error')}")
             continue
-        alone = [f"{v} {s:.2g}%" for v, s in zip(r["alone"], r["alone_std_percent"])]
+        alone = [f"{v} {max(s):.2g}%" for v, s in zip(r["alone"], r["alone_std_percent"])]
         e, z, q = (np.max(np.abs(r[k])) for k in ("error_percent", "error_sigma", "sigma_over_crb"))
         print(f"{r['seed']:>6} {rig:<28} {alone[0]:<17} {alone[1]:<17} {r['verdict']:<17} {e:>6.3f} {z:>6.2f} "
               f"{q:>6.2f} {r['seconds']:>5.0f}")
