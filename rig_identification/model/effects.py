@@ -139,6 +139,49 @@ class Effect:
         return out
 
 
+def _parameter(size: int | tuple[int, int], v: Any, w: str) -> Any:
+    """One parameter's value ``v`` of ``size`` (-1 text, 0 a number, n a list of n numbers,
+    :data:`EITHER_3` a number or three) checked and converted; ValueError naming ``w`` (its field)."""
+    if size == EITHER_3:
+        size = 3 if isinstance(v, (list, tuple, np.ndarray)) else 0
+    if size == -1:
+        if not isinstance(v, str):
+            raise ValueError(f"{w}: must be text, got {v!r}")
+        return v
+    if size == 0:
+        try:
+            x = float(v)
+        except (TypeError, ValueError):
+            raise ValueError(f"{w}: must be a number, got {v!r}") from None
+        if not np.isfinite(x):
+            raise ValueError(f"{w}: must be finite, got {v!r}")
+        return x
+    try:
+        a = np.asarray(v, float)
+    except (TypeError, ValueError):
+        raise ValueError(f"{w}: must be a list of {size} numbers, got {v!r}") from None
+    if a.shape != (size,) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{w}: must be a list of {size} finite numbers, got {v!r}")
+    return a
+
+
+def _check_values(name: str, params: dict[str, Any], w: str, cable_names: list[str]) -> None:
+    """The checks of one effect's values beyond their types (streams, cables, signs,
+    :func:`_check_ranges`); ValueError naming ``w``.field."""
+    if name == "sensor_delay" and params["stream"] not in DELAY_STREAMS:
+        raise ValueError(f"{w}.stream: must be one of {', '.join(DELAY_STREAMS)}, got {params['stream']!r}")
+    if name == "load_cell_scale":
+        if params["cable"] not in cable_names:
+            raise ValueError(f"{w}.cable: no cable {params['cable']!r} in the rig ({', '.join(cable_names)})")
+        if params["scale"] <= 0:
+            raise ValueError(f"{w}.scale: must be > 0")
+    if name in ("cable_elasticity",) and params["stiffness"] <= 0:
+        raise ValueError(f"{w}.stiffness: must be > 0")
+    if name == "cable_mass" and params["mass"] < 0:
+        raise ValueError(f"{w}.mass: must be >= 0")
+    _check_ranges(name, params, w)
+
+
 def parse_effects(raw: Any, where: str, cable_names: list[str]) -> tuple[Effect, ...]:
     """Validate an ``effects`` list: each item ``{name: ..., <parameter>: <value>}``.
 
@@ -163,44 +206,11 @@ def parse_effects(raw: Any, where: str, cable_names: list[str]) -> tuple[Effect,
                 continue
             if k not in spec:
                 raise ValueError(f"{w}.{k}: not a parameter of {name} (parameters: {', '.join(spec) or 'none'})")
-            size, _ = spec[k]
-            if size == EITHER_3:
-                size = 3 if isinstance(v, (list, tuple, np.ndarray)) else 0
-            if size == -1:
-                if not isinstance(v, str):
-                    raise ValueError(f"{w}.{k}: must be text, got {v!r}")
-                params[k] = v
-            elif size == 0:
-                try:
-                    x = float(v)
-                except (TypeError, ValueError):
-                    raise ValueError(f"{w}.{k}: must be a number, got {v!r}") from None
-                if not np.isfinite(x):
-                    raise ValueError(f"{w}.{k}: must be finite, got {v!r}")
-                params[k] = x
-            else:
-                try:
-                    a = np.asarray(v, float)
-                except (TypeError, ValueError):
-                    raise ValueError(f"{w}.{k}: must be a list of {size} numbers, got {v!r}") from None
-                if a.shape != (size,) or not np.all(np.isfinite(a)):
-                    raise ValueError(f"{w}.{k}: must be a list of {size} finite numbers, got {v!r}")
-                params[k] = a
+            params[k] = _parameter(spec[k][0], v, f"{w}.{k}")
         for k, (_, required) in spec.items():
             if required and k not in params:
                 raise ValueError(f"{w}: {name} needs the parameter {k}")
-        if name == "sensor_delay" and params["stream"] not in DELAY_STREAMS:
-            raise ValueError(f"{w}.stream: must be one of {', '.join(DELAY_STREAMS)}, got {params['stream']!r}")
-        if name == "load_cell_scale":
-            if params["cable"] not in cable_names:
-                raise ValueError(f"{w}.cable: no cable {params['cable']!r} in the rig ({', '.join(cable_names)})")
-            if params["scale"] <= 0:
-                raise ValueError(f"{w}.scale: must be > 0")
-        if name in ("cable_elasticity",) and params["stiffness"] <= 0:
-            raise ValueError(f"{w}.stiffness: must be > 0")
-        if name == "cable_mass" and params["mass"] < 0:
-            raise ValueError(f"{w}.mass: must be >= 0")
-        _check_ranges(name, params, w)
+        _check_values(name, params, w, cable_names)
         if name == "structural_mode":
             if any(o.name == name and o.parameters["sensor"] == params["sensor"] for o in out):
                 raise ValueError(f"{w}: structural_mode of sensor {params['sensor']} listed twice")
