@@ -51,6 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2, norm, t
 
+from ..estimation.harmonic_start import DampedStart, drag_start
 from ..estimation.rig_extensions import ExtensionFit, LinearisedRig
 from ..estimation.rig_fit import LEVEL_LIMIT, REWEIGHT_LIMIT, SANDWICH_BLOCKS, RigFit
 from ..estimation.rig_problem import NON_NEGATIVE as FIT_NON_NEGATIVE
@@ -224,7 +225,7 @@ class PriorConflict:
                 "prior_std": self.prior_std, "z": self.z}
 
 
-def _lost(fit: RigFit) -> bool:
+def lost(fit: RigFit) -> bool:
     """The fit has not found the motion: a channel beyond
     :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise (its estimate is no
     minimum, and no test at it is evidence)."""
@@ -251,7 +252,7 @@ class RigDiagnosis:
         """Whether the last fit found the motion (every channel within
         :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise): where it did
         not, nothing is named and no test at it is evidence."""
-        return not _lost(self.refit or self.rigid)
+        return not lost(self.refit or self.rigid)
 
     @property
     def explained(self) -> bool:
@@ -391,21 +392,31 @@ def next_step(lin: LinearisedRig) -> Step | None:
     return Step(added, best, close, z, tuple(c for c, _ in tests.values()))
 
 
-def physical_starts(rec: Record) -> dict[str, np.ndarray]:
+def physical_starts(rec: Record, damped: DampedStart | None = None) -> dict[str, np.ndarray]:
     """The extensions whose unknowns the recording itself gives a start, and that start: the
     exciter's rotor, its unbalance the one that makes the measured force
     (:meth:`~rig_identification.estimation.rig_record.Record.unbalance`; its weight's moment turns
-    with it) and its mass 0.  Empty where the force is not a rotating vector."""
+    with it) and its mass 0 (none where the force is not a rotating vector); the air drag, the
+    quadratic drag equivalent at the record's amplitudes to the viscous damping the fundamental
+    asks for (``damped``: :func:`~rig_identification.estimation.harmonic_start.damped_start`;
+    :func:`~rig_identification.estimation.harmonic_start.drag_start`), where it asks for some."""
+    out = {}
     unbalance = rec.unbalance()
-    return {} if unbalance is None else {"exciter_rotor": np.array([unbalance, 0.0])}
+    if unbalance is not None:
+        out["exciter_rotor"] = np.array([unbalance, 0.0])
+    if damped is not None and np.any(damped.damping > 0):
+        out["air_drag"] = drag_start(rec, damped)
+    return out
 
 
-def restart_step(rec: Record, prior: Prior, fit: RigFit,
-                 refit: Callable[[dict[str, np.ndarray], np.ndarray], RigFit]) -> tuple[Step, RigFit] | None:
+def restart_step(rec: Record, prior: Prior, fit: RigFit, refit: Callable[[dict[str, np.ndarray], np.ndarray], RigFit],
+                 damped: DampedStart | None = None) -> tuple[Step, RigFit] | None:
     """Where the rigid-body ``fit`` did not find the motion (a channel beyond
     :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise), no test at it is
     evidence, and an extension tried from zero starts where the rigid fit did.  Each extension of
-    :func:`physical_starts` is fitted from the value the recording gives it (``refit``); the first
+    :func:`physical_starts` (``damped``: the forced response fitted with the body's damping) is
+    fitted from the value the recording gives it (``refit``), from the start's tensor where the
+    start has one; the first
     whose fit finds the motion is tested at that fit as a step's candidate is at the rigid fit: the
     model without it (its unknowns at zero, linearised) against the model with it — significant,
     determined, plausible, cross-validated (:meth:`LinearisedRig.held_out`) — and every other
@@ -414,10 +425,11 @@ def restart_step(rec: Record, prior: Prior, fit: RigFit,
     (on the package's simulator a 10 kg rotor on a vertical spin axis: the rigid fit's tensions
     3 300× their noise, the fit from the unbalance every channel within 1.1×)."""
     apart = float(t.ppf(APART_LEVEL, SANDWICH_BLOCKS - 1))
-    for name, start in physical_starts(rec).items():
+    for name, start in physical_starts(rec, damped).items():
         log.info("diagnosis: the fit did not find the motion; fitting it with %s from %s", name, np.round(start, 4))
-        after = refit({name: start}, fit.parameters.inertia)
-        if _lost(after):
+        after = refit({name: start}, damped.tensor if name == "air_drag" and damped is not None
+                      else fit.parameters.inertia)
+        if lost(after):
             log.info("diagnosis: with %s it still does not", name)
             continue
         untried = tuple(e for e in EXTENSIONS if e not in after.layout.extensions)
@@ -482,7 +494,8 @@ def _extended(rec: Record, prior: Prior, steps: list[Step], fit: RigFit,
 
 
 def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
-                 refit: Callable[[dict[str, np.ndarray], np.ndarray], RigFit] | None = None) -> RigDiagnosis:
+                 refit: Callable[[dict[str, np.ndarray], np.ndarray], RigFit] | None = None,
+                 damped: DampedStart | None = None) -> RigDiagnosis:
     """The data errors and the extensions the recording tells apart (module docstring), and the
     rig model refitted with those added: ``refit`` (extensions, the tensor (6,) kg·m² to start
     from first -> the fit), given the linearised estimates of the extensions' unknowns as their
@@ -502,18 +515,19 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     not the extensions' physics; nothing is named, and that rigid fit is the one reported (on
     bench_trust's clean, undetermined 7201 the first rigid fit misfit and ``sensor_delay`` was
     named).  Where neither the rigid-body fit nor the extensions its tests added find the motion,
-    the extensions the recording itself gives a start (:func:`physical_starts`) are fitted from it
+    the extensions the recording itself gives a start (:func:`physical_starts`; ``damped``: the
+    forced response fitted with the body's damping, the air drag's start) are fitted from it
     (:func:`restart_step`), and the steps go on from the first that finds it.
     """
     if not fit.determined and np.max(fit.residual_level) <= LEVEL_LIMIT:
         return RigDiagnosis(prior_conflicts(fit, prior, cables), None, (), fit, None, False)
     steps, current, lin = _extended(rec, prior, [], fit, refit)
-    if steps and _lost(current):
+    if steps and lost(current):
         log.info("diagnosis: with %s the fit still does not find the motion: nothing named",
                  ", ".join(s.added for s in steps))
         steps, current = [], fit
-    if not steps and refit is not None and _lost(fit):
-        restarted = restart_step(rec, prior, fit, refit)
+    if not steps and refit is not None and lost(fit):
+        restarted = restart_step(rec, prior, fit, refit, damped)
         if restarted is not None:
             steps, current, lin = _extended(rec, prior, [restarted[0]], restarted[1], refit)
     if steps and not current.determined and refit is not None:
@@ -523,13 +537,13 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
                      "the tensor undetermined: nothing named", ", ".join(s.added for s in steps))
             return RigDiagnosis(prior_conflicts(again, prior, cables), None, (), again, None, False)
     # where the fit has not found the motion, the estimate is no minimum: a test there is no evidence
-    damping = None if _lost(current) else damping_alternatives(lin, current)
+    damping = None if lost(current) else damping_alternatives(lin, current)
     conflicts = prior_conflicts(current, prior, cables)
     log.info("diagnosis: data errors %s; extensions %s", [c.unknown for c in conflicts], [s.added for s in steps])
     return RigDiagnosis(conflicts, damping, tuple(steps), fit, current if steps else None)
 
 
 __all__ = ["Candidate", "Step", "Damping", "PriorConflict", "RigDiagnosis", "plausible", "prior_conflicts", "next_step",
-           "physical_starts", "restart_step", "damping_alternatives", "diagnose_rig", "SIGNIFICANCE", "DETERMINED_Z",
-           "APART_LEVEL", "MAX_EXTENSIONS", "CONFLICT_SIGMA", "DAMPING_SIGMA", "BOUNDS", "NON_NEGATIVE", "DAMPING",
-           "APART_ADVICE"]
+           "lost", "physical_starts", "restart_step", "damping_alternatives", "diagnose_rig", "SIGNIFICANCE",
+           "DETERMINED_Z", "APART_LEVEL", "MAX_EXTENSIONS", "CONFLICT_SIGMA", "DAMPING_SIGMA", "BOUNDS", "NON_NEGATIVE",
+           "DAMPING", "APART_ADVICE"]

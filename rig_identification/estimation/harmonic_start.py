@@ -233,6 +233,80 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
     return m.found(best_tensor, best_level, best_s, prior_level)
 
 
+@dataclass(frozen=True)
+class DampedStart:
+    """The forced response fitted with the body's viscous damping beside the tensor
+    (:func:`damped_start`): ``tensor`` (6,) kg·m², ``damping`` (2,) the body's viscous damping
+    (linear N·s/m on the CG's velocity, angular N·m·s), ``level`` the misfit over the noise."""
+
+    tensor: np.ndarray
+    damping: np.ndarray
+    level: float
+
+
+def damped_start(rec: Record, rig: Rig, prior: Prior, start: ForcedResponseStart) -> DampedStart:
+    """The tensor and the body's viscous damping whose linearised forced response best matches the
+    record's fundamental (module docstring; ``start``: the undamped fit, its tensor the start and
+    its stiffness the cables'), the damping bounded below by 0.  Where the body is damped far beyond
+    the cables' own damping (air drag on a large body, a damper), the undamped fundamental misses
+    the measured one by orders of magnitude (bench_trust's air-drag row: 320× the noise) and the
+    rig model's fit, started without damping, does not find the motion; the damping the
+    fundamental asks for is its start then (an equivalent viscous damping: quadratic drag and
+    friction at this amplitude).  The linear rig's damping matrix is affine in the body's damping
+    (:func:`~rig_identification.model.linear_rig.linearise`: D = D₀ + c_lin G_cG_cᵀ + c_ang E_φ).
+    Raises :class:`RigFitError` when the rig has no rest pose."""
+    h = harmonics(rec, len(rig.cables))
+    p0, rest = start_parameters(rig, prior, start.tensor, rec, stiffness=start.stiffness)
+    p0 = p0.replace(body_damping=np.zeros(2))
+    lin0 = linearise(p0, rest)
+    parts = [linearise(p0.replace(body_damping=np.eye(2)[i]), rest).D - lin0.D for i in range(2)]
+    weight = 1.0 / h.std
+    big = np.full(2 * len(h.readings), 1e6)
+    moment = max(abs(start.tensor[0]), abs(start.tensor[3]), abs(start.tensor[5]))
+    scale = np.r_[np.full(6, 1e-2 * moment), 1e-2 * h.omega * np.array([prior.mass, moment])]
+
+    def residual(z: np.ndarray) -> np.ndarray:
+        x = np.r_[start.tensor, 0.0, 0.0] + scale * z
+        if not physically_consistent(to_tensor(x[:6])):
+            return big
+        p = p0.replace(inertia=x[:6], body_damping=x[6:])
+        lin = replace(lin0, M=mass_matrix(p, rest), D=lin0.D + x[6] * parts[0] + x[7] * parts[1])
+        try:
+            e = (h.readings - frequency_response(p, lin, h.omega, h.force)) * weight
+        except (np.linalg.LinAlgError, SimulationError):
+            return big
+        return np.concatenate([e.real, e.imag])
+
+    lower = np.r_[np.full(6, -np.inf), 0.0, 0.0]
+    sol = least_squares(residual, np.zeros(8), method="trf", bounds=(lower, np.inf), max_nfev=MAX_ITERATIONS)
+    x = np.r_[start.tensor, 0.0, 0.0] + scale * sol.x
+    level = _level(float(sol.cost), h)
+    log.info("damped forced-response start: %s kg·m², body damping %s (N·s/m, N·m·s), misfit %.3g× the noise "
+             "(undamped %.3g×)", np.round(x[:6], 1), np.round(x[6:], 1), level, start.level)
+    return DampedStart(x[:6], x[6:], level)
+
+
+def drag_start(rec: Record, damped: DampedStart) -> np.ndarray:
+    """(2,) the quadratic drag (linear N·s²/m², angular N·m·s²) that dissipates over a cycle what
+    ``damped``'s viscous damping does at the record's amplitudes — the equivalent linearisation
+    c_eq = (8 / 3π) c_q V of a quadratic damping at velocity amplitude V (Den Hartog, *Mechanical
+    Vibrations*, 4th ed., §8.2; Rao, *Mechanical Vibrations*, 6th ed., §3.10): V the fundamental's
+    amplitude of the body's angular velocity (the gyro) and of its CG's velocity (the
+    accelerometer's over ω, its gravity tilt included: a start, not an estimate)."""
+    y = rec.y[rec.start:]
+    t = rec.dt * np.arange(len(y))
+    omega = _peak_frequency(rec.u[rec.start:], rec.dt)
+    X = np.column_stack([np.cos(omega * t), np.sin(omega * t), np.ones_like(t)])
+
+    def amplitude(prefix: str) -> float:
+        c = np.linalg.lstsq(X, y[:, [i for i, n in enumerate(rec.channels) if n.startswith(prefix)]], rcond=None)[0]
+        return float(np.linalg.norm(np.hypot(c[0], c[1])))
+
+    velocity = np.array([amplitude("accel") / omega, amplitude("gyro")])
+    out: np.ndarray = np.asarray(damped.damping, float) / (8.0 / (3.0 * np.pi) * np.maximum(velocity, 1e-12))
+    return out
+
+
 class _Misfit:
     """The forced response's misfit as a function of the log factor on the stiffness of the
     cables rig.yaml gives none for (``free``), the tensor fitted from ``starts`` (k, 6)

@@ -24,9 +24,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..diagnosis.rig_diagnosis import RigDiagnosis, diagnose_rig
+from ..diagnosis.rig_diagnosis import RigDiagnosis, diagnose_rig, lost
 from ..estimation.gyro_fit import IdentificationError, fit_gyro
-from ..estimation.harmonic_start import box_tensor, forced_response_start
+from ..estimation.harmonic_start import ForcedResponseStart, box_tensor, damped_start, forced_response_start
 from ..estimation.joint_fit import fit_jointly
 from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.rig_fit import LEVEL_LIMIT, RigFit, fit_rig
@@ -378,7 +378,8 @@ class FitInput:
     :class:`~rig_identification.estimation.rig_record.Record`, ``prior`` the fit's
     :class:`~rig_identification.estimation.rig_unknowns.Prior`, ``starts`` (k, 6) kg·m² the tensors
     tried in turn (:func:`start_tensors`), ``restarts`` (0 or 1, 6) the gyro-only fit's tensor the
-    whole-record fit is restarted from, ``stiffness`` (N,) N/m the cables' start, ``guess`` (6,)
+    whole-record fit is restarted from, ``forced`` the forced response's start (the cables'
+    stiffness's, :func:`~rig_identification.estimation.harmonic_start.forced_response_start`), ``guess`` (6,)
     and ``guess_std`` (6,) the gyro-only start and its σ (inf: the box), ``source`` its name, ``cg_source``
     where the CG's prior came from, ``warnings`` what reading and cleaning did, ``t_first`` the first IMU stamp, s."""
 
@@ -387,7 +388,7 @@ class FitInput:
     prior: Prior
     starts: np.ndarray
     restarts: np.ndarray
-    stiffness: np.ndarray
+    forced: ForcedResponseStart
     guess: np.ndarray
     guess_std: np.ndarray
     source: str
@@ -400,7 +401,7 @@ class FitInput:
         with ``extensions`` (name -> start) where given, from ``first`` (6,) kg·m² before the starts."""
         starts = self.starts if first is None else np.vstack([first, self.starts])
         return fit_rig(self.rc, self.rec.rig, self.prior, starts, restarts=self.restarts, extensions=extensions,
-                       stiffness=self.stiffness)
+                       stiffness=self.forced.stiffness)
 
     def result(self, fit: RigFit, seconds: float, diagnosis: RigDiagnosis | None = None) -> RigModelResult:
         """The :class:`RigModelResult` of ``fit`` (``seconds``: the wall time)."""
@@ -439,7 +440,7 @@ def prepared(rec: Recording, cg=None, cg_std=None, cg_source: str | None = None,
     starts = start_tensors(rec, guess, guess_std, stiff.tensor)
     restarts = guess[None] if np.any(np.isfinite(guess_std)) else np.zeros((0, 6))
     source_cg = cg_source or ("given" if given and cg_std is not None else "rig.yaml (start only)")
-    return FitInput(rec, rc, prior, starts, restarts, np.asarray(stiff.stiffness, float), guess, guess_std, source,
+    return FitInput(rec, rc, prior, starts, restarts, stiff, guess, guess_std, source,
                     source_cg, tuple(warnings), t_first)
 
 
@@ -469,7 +470,9 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
             log.info("fitting the rig model with %s", ", ".join(extensions) or "nothing added, again")
             return inp.fit(extensions, start)
 
-        diagnosis = diagnose_rig(inp.rc, inp.prior, fit, list(rec.rig.cable_names), refit)
+        # where the fit did not find the motion, the damping the fundamental asks for starts the drag's fit
+        damped = damped_start(inp.rc, rec.rig, inp.prior, inp.forced) if lost(fit) else None
+        diagnosis = diagnose_rig(inp.rc, inp.prior, fit, list(rec.rig.cable_names), refit, damped)
         fit = diagnosis.refit or diagnosis.rigid
     return inp.result(fit, time.perf_counter() - t_wall, diagnosis)
 
