@@ -9,10 +9,12 @@ refuses several recordings.
 import copy
 import dataclasses
 import json
+from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from conftest import REPO, run_cli
+from conftest import REPO, background, gather, run_cli
 
 from rig_identification.cli.rig_model import print_joint
 from rig_identification.io.recording import Recording, RecordingError
@@ -38,26 +40,43 @@ def _experiment(name: str):
     return experiment_from_dict(d, f"{DEFAULT} ({name})")
 
 
-@pytest.fixture(scope="module")
-def recs(tmp_path_factory):
-    out = {}
+def _joint_fit():
+    """Job: runs A and B simulated and fitted at once (``rig-identify inertia A B``'s core); the
+    truth and the :class:`~rig_identification.pipeline.rig_model.JointResult`."""
+    recs = []
     for name in SETTINGS:
         sim = simulate(_experiment(name))
-        out[name] = Recording(sim.rig, sim.sensors, sim.truth, tmp_path_factory.mktemp("joint") / name)
-    return out
+        recs.append(Recording(sim.rig, sim.sensors, sim.truth, Path(name)))
+    return recs[0].truth, rig_model.fit_recordings(recs)
+
+
+background("joint", __file__, _joint_fit, {"ab": ()}, first=True)
 
 
 @pytest.fixture(scope="module")
-def joint(recs):
-    return rig_model.fit_recordings([recs["A"], recs["B"]])
+def joint():
+    return gather("joint", "ab")["ab"][1]
 
 
-def test_joint_fit_recovers_truth_and_beats_each_recording(recs, joint):
+@pytest.fixture(scope="module")
+def truth():
+    return gather("joint", "ab")["ab"][0]
+
+
+@pytest.fixture(scope="module")
+def recs(tmp_path_factory):
+    """The two runs' rig.yaml (no recording: the bodies are compared before any is read)."""
+    return {name: SimpleNamespace(rig=_experiment(name).rig, path=tmp_path_factory.mktemp("joint") / name)
+            for name in SETTINGS}
+
+
+def test_joint_fit_recovers_truth_and_beats_each_recording(truth, joint):
     """One body over two runs: ok, every entry within 0.5 % and 3 σ of the truth; the information
     adds (σ and the Cramér–Rao bound below either run's alone on every entry); σ near the joint
     bound; each run's own channels at their noise; the body the same in each run's view."""
     assert joint.verdict == "ok", joint.summary
-    truth = np.array([recs["A"].truth["inertia_about_cg"][k] for k in KEYS])
+    mass = truth["mass"]
+    truth = np.array([truth["inertia_about_cg"][k] for k in KEYS])
     f = joint.first.fit
     err = f.inertia - truth
     assert np.all(np.abs(err) / entry_scales(truth) < 0.005), err
@@ -74,7 +93,7 @@ def test_joint_fit_recovers_truth_and_beats_each_recording(recs, joint):
         assert r.fit.residual_level.max() < 1.5, dict(zip(r.fit.channels, r.fit.residual_level))
         # each run keeps its own states: the exciter's channels fitted to its own force
         assert r.fit.layout.n_force > 0
-    assert abs(f.body.mass - recs["A"].truth["mass"]) < 3 * f.body.std[9]
+    assert abs(f.body.mass - mass) < 3 * f.body.std[9]
 
 
 def test_joint_json_and_text(joint, capsys):
@@ -100,7 +119,7 @@ def test_different_bodies_refused(recs, change):
         rig = dataclasses.replace(rig, mass=rig.mass * 1.01)
     else:
         rig = dataclasses.replace(rig, center_of_gravity=rig.center_of_gravity + np.array([0.0, 0.0, 0.005]))
-    other = dataclasses.replace(b, rig=rig)
+    other = SimpleNamespace(rig=rig, path=b.path)
     with pytest.raises(RecordingError) as e:
         rig_model.fit_recordings([a, other])
     msg = str(e.value)
@@ -109,7 +128,7 @@ def test_different_bodies_refused(recs, change):
     # within the tolerance (a re-weighing, a CG re-measured to a millimetre) it is the same body
     close = dataclasses.replace(b.rig, mass=b.rig.mass * (1 + 0.2 * rig_model.MASS_RTOL),
                                 center_of_gravity=b.rig.center_of_gravity + 0.4 * rig_model.CG_TOL)
-    rig_model.check_same_body([a, dataclasses.replace(b, rig=close)])
+    rig_model.check_same_body([a, SimpleNamespace(rig=close, path=b.path)])
 
 
 def test_cli_different_bodies_exit_2(recs, tmp_path):

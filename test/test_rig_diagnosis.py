@@ -25,6 +25,7 @@ from rig_identification.pipeline.rig_model import LEVEL_LIMIT, fit_whole_recordi
 
 DELAY = 0.008
 ROTOR_MASS = 10.0
+DRAG = 5000.0
 
 
 def _diagnosed(seed: int, effects: list, seconds: float):
@@ -38,11 +39,22 @@ def _diagnosed(seed: int, effects: list, seconds: float):
     return sim.truth, res.to_dict(), text.getvalue()
 
 
+def _drag_start(seed: int, seconds: float):
+    """Job: bench_trust's air-drag rig (``seed``) with a drag of :data:`DRAG` on both terms; the
+    undamped and the damped forced response's misfits, the drag start and the air drag's physical
+    start the diagnosis would take."""
+    _, sim = simulate_random(seed, 4, "wide", [{"name": "air_drag", "linear": DRAG, "angular": DRAG}], seconds)
+    inp = prepared(Recording(sim.rig, sim.sensors, sim.truth, None))      # the fit's starts, as inertia makes them
+    damped = damped_start(inp.rc, sim.rig, inp.prior, inp.forced)
+    return inp.forced.level, damped.level, drag_start(inp.rc, damped), physical_starts(inp.rc, damped)["air_drag"]
+
+
 background("rig_diagnosis", __file__, _diagnosed, {
     "delay": (7001, [{"name": "sensor_delay", "stream": "load_cells", "delay": DELAY}], 20.0),
     # 7002: the exciter's spin axis vertical, so its unbalance's weight makes a rotating moment
     "rotor": (7002, [{"name": "exciter_rotor", "rotor_mass": ROTOR_MASS}], 20.0),
 }, first=True)
+background("drag_start", __file__, _drag_start, {"drag": (8500, 30.0)})
 
 
 def test_a_load_cell_delay_is_named_fitted_and_the_tensor_corrected():
@@ -367,13 +379,7 @@ def test_a_strongly_damped_body_gets_its_drag_start_from_the_damped_forced_respo
     the motion) is positive on both terms and its angular term within a factor 2 of the truth,
     where the motion is mostly a rotation (the linear term rests on the CG's small swing: only a
     start)."""
-    truth_drag = 5000.0
-    _, sim = simulate_random(8500, 4, "wide", [{"name": "air_drag", "linear": truth_drag, "angular": truth_drag}],
-                             30.0)
-    inp = prepared(Recording(sim.rig, sim.sensors, sim.truth, None))      # the fit's starts, as inertia makes them
-    rc, forced = inp.rc, inp.forced
-    damped = damped_start(rc, sim.rig, inp.prior, forced)
-    assert forced.level > 100 and damped.level < 0.6 * forced.level, (forced.level, damped.level)
-    start = drag_start(rc, damped)
-    assert np.all(start > 0) and 0.5 < start[1] / truth_drag < 2.0, start
-    np.testing.assert_array_equal(physical_starts(rc, damped)["air_drag"], start)
+    forced_level, damped_level, start, physical = gather("drag_start")["drag"]
+    assert forced_level > 100 and damped_level < 0.6 * forced_level, (forced_level, damped_level)
+    assert np.all(start > 0) and 0.5 < start[1] / DRAG < 2.0, start
+    np.testing.assert_array_equal(physical, start)

@@ -14,6 +14,11 @@ another estimator found is one the likelihood may hold too) → :class:`RigModel
 The CG's prior: a saved static result (``--cg CG.json``, its σ), else rig.yaml's CG with σ
 :data:`RIG_YAML_CG_STD`; the result gives the static and the fitted CG side by side and their
 difference in σ.
+
+Several recordings of one body (``rig-identify inertia RUN1 RUN2 …``): each prepared and fitted
+alone as above (no diagnosis), then all at once, the body shared
+(:func:`fit_recordings`, :func:`~rig_identification.estimation.joint_fit.fit_jointly`) →
+:class:`JointResult`.
 """
 from __future__ import annotations
 
