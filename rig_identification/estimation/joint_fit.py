@@ -11,8 +11,11 @@ each run's estimate (an undetermined run's estimate is not Gaussian about the tr
 likelihood may hold another minimum as high).
 
 The fit starts from each record fitted alone (:func:`~.rig_fit.fit_rig`): the nuisance of each
-at its own estimate, the body of the record whose tensor is best determined.  It then solves the
-joint problem on the whole records, re-weights each channel by its residual as the single fit does,
+at its own estimate, the body of the record whose tensor is best determined.  It solves the
+joint problem on the whole records and re-weights each channel by its residual as the single fit
+does; where a record's channels then misfit beyond :data:`~.rig_fit.LEVEL_LIMIT` and beyond what
+that record reached alone, it solves again from the next record's body (the least misfit kept:
+two undetermined runs' likelihood may hold a minimum that explains one run only).  It then
 restarts from every other record's tensor, 1 % either way and 10 σ either way along the joint
 tensor's weakest direction (the lowest minimum is the estimate; another within the 95 %
 likelihood-ratio region more than 3 σ off makes the entries ambiguous), polishes, and takes the
@@ -31,6 +34,7 @@ import numpy as np
 from ..model.linear_rig import linearise, natural_frequencies
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
 from .rig_fit import (
+    LEVEL_LIMIT,
     REWEIGHT_LIMIT,
     REWEIGHT_ROUNDS,
     Body,
@@ -96,6 +100,50 @@ def _points(joint: JointProblem, x: np.ndarray) -> list[RigPoint]:
     return [p.point(joint.part(x, k)) for k, p in enumerate(joint.problems)]
 
 
+@dataclass(frozen=True)
+class _Descent:
+    """A joint solve from one body (:func:`_descent`): each record's point, the noise factors,
+    the worst channel's level over all records, ``misfit``: the largest over the records of its
+    worst channel over the larger of :data:`~.rig_fit.LEVEL_LIMIT` and what it reached alone
+    (≤ 1: every run fits as well as alone), and the model runs."""
+
+    points: list[RigPoint]
+    noise_scales: list[np.ndarray]
+    worst: float
+    misfit: float
+    nfev: int
+
+
+def _descent(recs: Sequence[Record], singles: Sequence[RigFit], own: Sequence[Prior], body: np.ndarray) -> _Descent:
+    """The joint problem solved from ``body`` (:data:`~.rig_problem.BODY`,) with each record's
+    other unknowns at its single fit's, re-weighted as the single fit is (each channel's noise
+    raised to its residual's, :data:`~.rig_fit.REWEIGHT_ROUNDS` rounds at most)."""
+    points = []
+    for rec, f, prior in zip(recs, singles, own):
+        assert f.unknowns is not None and f.rest is not None
+        alone = _problem(rec, RigPoint(f.unknowns, f.parameters, f.rest, f.bases), f, prior, f.noise_scale)
+        x = f.unknowns.copy()
+        x[:BODY] = body
+        points.append(alone.point(x))
+    noise_scales = [np.asarray(f.noise_scale, float) for f in singles]
+    nfev = 0
+    found: list[np.ndarray] = []
+    for _ in range(REWEIGHT_ROUNDS + 1):
+        joint = _joint(recs, singles, own, points, noise_scales)
+        sol, runs, _ = solve(joint, True)
+        nfev += runs
+        points = _points(joint, joint.x(sol.x))
+        found = [levels(_problem(r, pt, f, p, np.ones(len(r.channels))), pt.x)
+                 for r, pt, f, p in zip(recs, points, singles, own)]
+        new = [np.maximum(v, 1.0) for v in found]
+        if max(float(np.max(v)) for v in found) > REWEIGHT_LIMIT or \
+                all(np.allclose(a, b, rtol=0.05) for a, b in zip(new, noise_scales)):
+            break
+        noise_scales = new
+    misfit = max(float(np.max(v)) / max(LEVEL_LIMIT, float(np.max(f.residual_level))) for v, f in zip(found, singles))
+    return _Descent(points, noise_scales, max(float(np.max(v)) for v in found), misfit, nfev)
+
+
 def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Sequence[Prior]) -> JointFit:
     """Fit the rig model to the records ``recs`` of one body at once (module docstring).
 
@@ -114,29 +162,18 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
     inf = np.full(3, np.inf)
     own = [priors[0]] + [replace(p, mass_std=np.inf, cg_std=inf) for p in priors[1:]]
     order = sorted(range(len(singles)), key=lambda k: _determinacy(singles[k]))
-    body0 = np.asarray(singles[order[0]].unknowns, float)[:BODY]
-    points = []
-    for rec, f, prior in zip(recs, singles, own):
-        assert f.unknowns is not None and f.rest is not None
-        alone = _problem(rec, RigPoint(f.unknowns, f.parameters, f.rest, f.bases), f, prior, f.noise_scale)
-        x = f.unknowns.copy()
-        x[:BODY] = body0
-        points.append(alone.point(x))
-    noise_scales = [np.asarray(f.noise_scale, float) for f in singles]
     nfev = 0
-    worst = np.inf
-    for _ in range(REWEIGHT_ROUNDS + 1):
-        joint = _joint(recs, singles, own, points, noise_scales)
-        sol, runs, _ = solve(joint, True)
-        nfev += runs
-        points = _points(joint, joint.x(sol.x))
-        found = [levels(_problem(r, pt, f, p, np.ones(len(r.channels))), pt.x)
-                 for r, pt, f, p in zip(recs, points, singles, own)]
-        worst = max(float(np.max(v)) for v in found)
-        new = [np.maximum(v, 1.0) for v in found]
-        if worst > REWEIGHT_LIMIT or all(np.allclose(a, b, rtol=0.05) for a, b in zip(new, noise_scales)):
+    descents = []
+    for k in order:           # from the best-determined run's body; another's where a run's channels then misfit
+        d = _descent(recs, singles, own, np.asarray(singles[k].unknowns, float)[:BODY])
+        nfev += d.nfev
+        descents.append(d)
+        if d.misfit <= 1.0:
             break
-        noise_scales = new
+        log.info("joint fit: from run %d's body a run's channels misfit (%.2f× what it reached alone or %g): "
+                 "the next run's body", k, d.misfit, LEVEL_LIMIT)
+    chosen = min(descents, key=lambda d: d.misfit)
+    points, noise_scales, worst = chosen.points, chosen.noise_scales, chosen.worst
     last = _joint(recs, singles, own, points, noise_scales)
     J, r = last.jacobian(np.zeros(last.lay.size)), last.residual(np.zeros(last.lay.size))
     nfev += last.lay.size + 2
