@@ -325,6 +325,12 @@ def cmd_rig_model(args, rec: Recording, axes: Axes = BODY) -> int:
     return 0
 
 
+#: The last line of a joint fit's ``-q`` output: what the full output adds.
+JOINT_BRIEF_TAIL = ("(-q: the short result; without -q also the principal moments and axes, the tensor about the "
+                    "origin, each recording's cables, damping, modes and channels, and what σ holds; --json gives "
+                    "everything)")
+
+
 def print_joint(res: JointResult, axes: Axes = BODY, brief: bool = False) -> None:
     """The text output of ``rig-identify inertia REC1 REC2 …`` (the rig model over several
     recordings at once): the verdict, each recording with its own verdict, span and what it
@@ -353,7 +359,7 @@ def print_joint(res: JointResult, axes: Axes = BODY, brief: bool = False) -> Non
         print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
     if brief:
         _print_mass_and_cg(first, d)
-        print(BRIEF_TAIL)
+        print(JOINT_BRIEF_TAIL)
         return
     for line in principal_lines(body) + [origin_line(body)]:
         print(line)
