@@ -267,18 +267,55 @@ def print_cg(cg: CentreOfGravity) -> None:
                                                                for x in d) + " σ)")
 
 
+def saved_cg(args) -> tuple:
+    """``--cg``'s saved static result as the CG's prior: (CG (3,) m, its σ (3,) m, the file), or
+    three None (rig.yaml's)."""
+    if not args.cg:
+        return None, None, None
+    saved = load_cg_result(args.cg)
+    return saved.center_of_gravity, saved.center_of_gravity_std, args.cg
+
+
+def write_outputs(args, res: RigModelResult | JointResult, axes: Axes, sources: list[str], window: dict | None,
+                  printed) -> None:
+    """What ``inertia`` writes after a fit of the rig model: ``--yaml`` (the mass properties in
+    ``axes``, ``sources`` and ``window`` named), then the JSON (``--json``; ``axes``' block where
+    not the body's) or the text (``printed(res, axes, brief)``), the URDF element with ``--urdf``,
+    and the YAML's path."""
+    urdf = urdf_inertial(res.expressed(BODY)) if args.urdf else None
+    if args.yaml:
+        first = res.first if isinstance(res, JointResult) else res
+        content = export_dict(res.expressed(axes), verdict=res.verdict, summary=res.summary, std_kind=STD_IS,
+                              sources=sources, window=window,
+                              created=datetime.now(timezone.utc).isoformat(timespec="seconds"),
+                              version=package_version())
+        content["center_of_gravity_source"] = "fitted (the rig model), its prior " + first.cg_source
+        atomic_write_text(args.yaml, yaml_text(content))
+    args.progress.finish()
+    if args.json:
+        d = res.to_dict()
+        if axes.name != "body":
+            d[axes.json_key] = axes_block(res.expressed(axes))
+        if urdf is not None:
+            d["urdf_inertial"] = urdf
+        print(json.dumps(d))
+    else:
+        printed(res, axes, brief=bool(getattr(args, "quiet", False)))
+        if urdf is not None:
+            print("URDF inertial element (link frame: rig.yaml's body frame; ixy, ixz, iyz: the tensor's entries):")
+            print(urdf)
+    if args.yaml:
+        print(f"yaml: {args.yaml}", file=sys.stderr if args.json else sys.stdout)
+
+
 def fitted_and_reported(args, rec: Recording, axes: Axes, what: str) -> tuple[RigModelResult, object | None]:
     """The rig model fitted to ``rec`` (``--cg``'s saved static result as the CG's prior, the
     window ``--start``/``--end``; :func:`~rig_identification.pipeline.rig_model.fit_whole_recording`)
     and, with ``--report``, its report in ``axes`` (the page's index, else None); ``what``: the
     progress heading.  Raises :class:`~rig_identification.report.page.ReportError` where the
     report cannot be written."""
-    cg = cg_std = source = None
-    if args.cg:
-        saved = load_cg_result(args.cg)
-        cg, cg_std, source = saved.center_of_gravity, saved.center_of_gravity_std, args.cg
     heading(what)
-    res = fit_whole_recording(rec, cg, cg_std, source, args.start, args.end)
+    res = fit_whole_recording(rec, *saved_cg(args), args.start, args.end)
     index = None
     if args.report:
         step(f"writing the report to {args.report}")
@@ -295,33 +332,10 @@ def cmd_rig_model(args, rec: Recording, axes: Axes = BODY) -> int:
     the prediction-error fit.  Returns the exit status."""
     res, index = fitted_and_reported(args, rec, axes, "fitting the rig's model to every sensor (tensions, gyro, "
                                      "accelerometer, inclinometer)")
-    urdf = urdf_inertial(res.expressed(BODY)) if args.urdf else None
-    if args.yaml:
-        content = export_dict(res.expressed(axes), verdict=res.verdict, summary=res.summary,
-                              std_kind=STD_IS, sources=[str(rec.path)],
-                              window={"start": float(res.start_s), "end": float(res.start_s + res.duration_s)},
-                              created=datetime.now(timezone.utc).isoformat(timespec="seconds"),
-                              version=package_version())
-        content["center_of_gravity_source"] = "fitted (the rig model), its prior " + res.cg_source
-        atomic_write_text(args.yaml, yaml_text(content))
-    args.progress.finish()
-    if args.json:
-        d = res.to_dict()
-        if axes.name != "body":
-            d[axes.json_key] = axes_block(res.expressed(axes))
-        if urdf is not None:
-            d["urdf_inertial"] = urdf
-        print(json.dumps(d))
-    else:
-        print_rig_model(res, axes, brief=bool(getattr(args, "quiet", False)))
-        if urdf is not None:
-            print("URDF inertial element (link frame: rig.yaml's body frame; ixy, ixz, iyz: the tensor's entries):")
-            print(urdf)
-    out = sys.stderr if args.json else sys.stdout
-    if args.yaml:
-        print(f"yaml: {args.yaml}", file=out)
+    write_outputs(args, res, axes, [str(rec.path)],
+                  {"start": float(res.start_s), "end": float(res.start_s + res.duration_s)}, print_rig_model)
     if index is not None:
-        print(f"report: {index}", file=out)
+        print(f"report: {index}", file=sys.stderr if args.json else sys.stdout)
     return 0
 
 
@@ -378,35 +392,9 @@ def cmd_joint(args, recs: list[Recording], axes: Axes = BODY) -> int:
     """``rig-identify inertia REC1 REC2 …``: the rig model fitted to the recordings at once
     (:func:`~rig_identification.pipeline.rig_model.fit_recordings`); ``--json``, ``--yaml`` and
     ``--urdf`` as for one recording.  Returns the exit status."""
-    cg = cg_std = source = None
-    if args.cg:
-        saved = load_cg_result(args.cg)
-        cg, cg_std, source = saved.center_of_gravity, saved.center_of_gravity_std, args.cg
     heading(f"fitting the rig's model to every sensor of {len(recs)} recordings at once")
-    res = fit_recordings(recs, cg, cg_std, source, args.start, args.end)
-    urdf = urdf_inertial(res.expressed(BODY)) if args.urdf else None
-    if args.yaml:
-        content = export_dict(res.expressed(axes), verdict=res.verdict, summary=res.summary, std_kind=STD_IS,
-                              sources=[str(r.path) for r in recs], window=None,
-                              created=datetime.now(timezone.utc).isoformat(timespec="seconds"),
-                              version=package_version())
-        content["center_of_gravity_source"] = "fitted (the rig model), its prior " + res.first.cg_source
-        atomic_write_text(args.yaml, yaml_text(content))
-    args.progress.finish()
-    if args.json:
-        d = res.to_dict()
-        if axes.name != "body":
-            d[axes.json_key] = axes_block(res.expressed(axes))
-        if urdf is not None:
-            d["urdf_inertial"] = urdf
-        print(json.dumps(d))
-    else:
-        print_joint(res, axes, brief=bool(getattr(args, "quiet", False)))
-        if urdf is not None:
-            print("URDF inertial element (link frame: rig.yaml's body frame; ixy, ixz, iyz: the tensor's entries):")
-            print(urdf)
-    if args.yaml:
-        print(f"yaml: {args.yaml}", file=sys.stderr if args.json else sys.stdout)
+    res = fit_recordings(recs, *saved_cg(args), args.start, args.end)
+    write_outputs(args, res, axes, [str(r.path) for r in recs], None, print_joint)
     return 0
 
 
