@@ -20,16 +20,6 @@ the RMS of error/σ (1 when σ is calibrated).  Where the quadrature regression'
 ``input_correlation``'s statistic is the Hausman test's of the tensor (validation.quadrature_check) —
 printed as it stands.  Whether a false alarm on one recording is the
 check's null mis-stated or the rig's own physics: a mis-stated null shows on every rig's noise.
-
-``--any-rig SEED --first-order N``: whether σ misses a path of the noise.  The rig simulated without
-noise (s), then N white realisations n at the reference levels (``uncertainty.add_noise``) added and
-subtracted; the least-squares fit (the chain: tracker, yaw anchor, preprocessor, fit; the noise-free
-recording's band) of each: ½[θ(s + n) − θ(s − n)] is the chain's first-order error for n, every path
-included, ½[θ(s + n) + θ(s − n)] − θ(s) its even part.  Printed per entry: the propagated σ of the
-least-squares fit (``uncertainty.propagated``) and the RMS of the first-order errors — equal within
-the sample's ±1/√(2N) when the linearisation holds every path — and the even part's mean and sd.
-With ``--first-noise-seed K`` the realisations are the simulator's own instead (n = the recording of
-noise seed k minus the noise-free one, k = K..K+N−1: the --any-rig recordings' noise).
 """
 from __future__ import annotations
 
@@ -120,85 +110,6 @@ def _noise_job(args):
             "error": vec(err), "std": vec(res.inertia_std), "crb_std": vec(res.crb_std)}
 
 
-def _first_order_job(args):
-    seed, k, simulator, first = args
-    import warnings
-    warnings.simplefilter("ignore")
-    sys.path.insert(0, str(ROOT / "bench"))
-    from bench_any_rig import draw
-
-    from rig_identification.design.scenarios import simulate_random
-    from rig_identification.estimation.identification import identify_inertia
-    from rig_identification.estimation.uncertainty import add_noise
-    from rig_identification.io.recording import Recording, SensorData, TimeSeries
-    from rig_identification.io.verdict import KEYS
-    from rig_identification.model.experiment import REFERENCE_NOISE, experiment_from_dict
-    from rig_identification.model.parametrisation import from_tensor
-    from rig_identification.model.simulator import simulate
-    from rig_identification.pipeline.prepare import prepare_recording
-    kind = draw(seed)
-    _, clean = simulate_random(seed, kind["cables"], kind["layout"], [], kind["duration"],
-                               noise={n: 0.0 for n in REFERENCE_NOISE}, exciter=kind["exciter"])
-    rig, truth, s = clean.rig, clean.truth, clean.sensors
-    tru = np.array([truth["inertia_about_cg"][n] for n in KEYS])
-
-    def fit(sensors, band=None):
-        p = prepare_recording(Recording(rig, sensors, truth, None))
-        r = identify_inertia(rig, p.t, p.gyro_body, p.torque, band_hz=band)
-        return from_tensor(r.inertia) - tru, tuple(r.band_hz), p
-
-    base, band, _ = fit(s)
-    if simulator:
-        d, _ = simulate_random(seed, kind["cables"], kind["layout"], [], kind["duration"], exciter=kind["exciter"])
-        d = json.loads(json.dumps(d))
-        d["seed"] = k
-        noisy = simulate(experiment_from_dict(d, d["name"])).sensors
-
-        def ts(x, y, sign):
-            return None if x is None else TimeSeries(y.t, y.data + sign * (x.data - y.data))
-        pm = [SensorData(ts(noisy.imu, s.imu, g),
-                         {n: ts(noisy.load_cells[n], s.load_cells[n], g) for n in s.load_cells},
-                         ts(noisy.exciter, s.exciter, g), ts(noisy.inclinometer, s.inclinometer, g))
-              for g in (1.0, -1.0)]
-    else:
-        pm = [add_noise(s, REFERENCE_NOISE, np.random.default_rng([seed, k]), g) for g in (1.0, -1.0)]
-    (ep, _, prep), (em, _, _) = fit(pm[0], band), fit(pm[1], band)
-    row = {"k": k, "first_order": list(0.5 * (ep - em)), "even": list(0.5 * (ep + em) - base)}
-    if first:
-        from rig_identification.estimation.uncertainty import propagated, sensor_noise
-        noise, rates = sensor_noise(rig, prep.sensors)
-        from rig_identification.model.parametrisation import to_tensor
-        pred = propagated(rig, prep.poses, prep.sensors, prep.t, to_tensor(tru), band, dict(REFERENCE_NOISE), rates)
-        row["propagated"] = list(pred.std)
-        row["propagated_cov"] = pred.covariance.tolist()
-    return json.loads(json.dumps(row, default=float))
-
-
-def first_order_main(a) -> int:
-    """The --any-rig --first-order mode (see module docstring)."""
-    from rig_identification.io.verdict import KEYS
-    simulator = a.first_noise_seed_given
-    ks = range(a.first_noise_seed, a.first_noise_seed + a.first_order) if simulator else range(a.first_order)
-    with ProcessPoolExecutor(a.procs) as ex:
-        rows = list(ex.map(_first_order_job, [(a.any_rig, k, simulator, k == ks.start) for k in ks]))
-    if a.json:
-        Path(a.json).write_text(json.dumps(rows, indent=1))
-    F = np.array([r["first_order"] for r in rows])
-    E = np.array([r["even"] for r in rows])
-    prop = next(r["propagated"] for r in rows if "propagated" in r)
-    what = (f"the simulator's noise seeds {ks.start}..{ks.stop - 1}" if simulator else
-            f"{len(rows)} white realisations (uncertainty.add_noise)")
-    print(f"rig {a.any_rig} of bench_any_rig, least-squares fit, {what}")
-    print(f"{'entry':6s} {'propagated σ':>13s} {'first-order RMS':>16s} {'ratio':>6s} {'even mean':>10s} "
-          f"{'even sd':>8s}")
-    for i, k in enumerate(KEYS):
-        rms = float(np.sqrt(np.mean(F[:, i] ** 2)))
-        print(f"{k:6s} {prop[i]:13.4g} {rms:16.4g} {rms / prop[i]:6.2f} {E[:, i].mean():+10.4g} "
-              f"{E[:, i].std(ddof=1):8.4g}")
-    print(f"(the ratio's sampling spread alone: ±{100 / np.sqrt(2 * len(rows)):.0f} %)")
-    return 0
-
-
 def noise_main(a) -> int:
     """The --any-rig mode (see module docstring)."""
     from rig_identification.estimation.validation import EFFECT_FACTOR, WHITENESS_FACTOR
@@ -269,13 +180,11 @@ def main(argv=None) -> int:
     ap.add_argument("--noise-seeds", type=int, default=12, help="with --any-rig: N noise seeds (default 12)")
     ap.add_argument("--first-noise-seed", type=int, default=None,
                     help="with --any-rig: the first noise seed (default 1)")
-    ap.add_argument("--first-order", type=int, metavar="N",
-                    help="with --any-rig: N antithetic first-order realisations")
     a = ap.parse_args(argv)
     a.first_noise_seed_given = a.first_noise_seed is not None
     a.first_noise_seed = 1 if a.first_noise_seed is None else a.first_noise_seed
     if a.any_rig is not None:
-        return first_order_main(a) if a.first_order else noise_main(a)
+        return noise_main(a)
     lays = [(int(x[0]), x[1:]) for x in a.layouts.split(",")]
     durs = [float(x) for x in a.durations.split(",")]
     jobs = [(a.first_seed + 1000 * i + k, c, lay, dur) for i, (c, lay) in enumerate(lays) for dur in durs

@@ -178,8 +178,8 @@ def add_plan_parser(sub) -> None:
                      "Experiment design for the dynamic test: the rig's natural modes, the σ a baseline exciter run "
                      "would give the tensor of a nominal body, and the run(s) that would do better within the rig's "
                      "limits (rotation, cable tension, exciter force and frequency). The σ is the rig model's "
-                     "Cramér–Rao bound (every sensor an output: what inertia reaches); the gyro-only fit's "
-                     "prediction, which ranks the runs, beside it.",
+                     "Cramér–Rao bound along a simulation of each run (every sensor an output: what inertia "
+                     "reaches); a screen of the rig linearised ranks the candidates first.",
                      lazy("rig_identification.cli.plan", "cmd_plan"), inputs=("rig", "geometry"))
     pp.add_argument("rig", help="rig.yaml, experiment file or recording folder (CG from rig.yaml)")
     pp.add_argument("--inertia", type=float, nargs=6, required=True, metavar=TENSOR,

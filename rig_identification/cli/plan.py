@@ -164,13 +164,12 @@ def plan_from_args(args):
 
 
 def describe_run(c, title: str) -> None:
-    """One exciter run of a plan, with its limits and band."""
+    """One exciter run of a plan, with its limits."""
     r = c.run
     axis = f"spin axis body {r.spin_axis}" if r.rpy is None else f"exciter rpy {np.round(r.exciter_rpy, 3).tolist()}"
-    band = "" if c.band is None else f"; identify with --band {c.band[0]:.2f} {c.band[1]:.2f}"
     print(f"{title}: {r.amplitude:.0f} N rotating at {r.frequency:.3f} Hz, exciter at "
           f"({', '.join(f'{x:.2f}' for x in r.position)}) m body, {axis}, {r.duration:.0f} s — peak rotation "
-          f"{c.peak_rotation_deg:.2f}°, lowest tension {100 * c.min_tension_ratio:.0f} % of static{band}")
+          f"{c.peak_rotation_deg:.2f}°, lowest tension {100 * c.min_tension_ratio:.0f} % of static")
     if c.geometry is not None:
         print(f"  on another cable geometry ({c.geometry}): "
               + "; ".join(f"{cb.name} ceiling anchor ({', '.join(f'{x:.2f}' for x in cb.ceiling_anchor)}) m, "
@@ -182,7 +181,7 @@ def plan_precision(body, plan, args) -> dict:
     (:func:`~rig_identification.estimation.precision.precision_of`; each run of ``--duration``):
     {"baseline": Precision, "plan": Precision}."""
     return {title: precision_of(body.inertia, std, (), args.duration, "ok", args.target / 100, subject="each run's")
-            for title, std in (("baseline", plan.rig_model["baseline_std"]), ("plan", plan.rig_model["std"]))}
+            for title, std in (("baseline", plan.baseline_std), ("plan", plan.std))}
 
 
 def cmd_plan(args) -> int:
@@ -224,27 +223,26 @@ def cmd_plan(args) -> int:
             print(f"recommended run {i}: the same run again")
             continue
         describe_run(c, f"recommended run {i}" if len(plan.runs) > 1 else "recommended run")
-    bp, pp = plan.baseline.prediction, plan.prediction
     print(f"predicted σ at the noise levels {', '.join(f'{kk} {v:g}' for kk, v in body.noise.items())} "
           "(rad/s, m/s², N, N, rad):")
     print(TABLE_CAPTION)
-    print("σ: the rig model's Cramér–Rao bound (every sensor an output: what rig-identify inertia reaches); "
-          "gyro-only: the prediction-error fit on the gyro (--model pem), which ranks the runs")
-    print(f"{'':6s} {'value':>9s} {'baseline σ':>11s} {'plan σ':>9s} {'ratio':>6s} {'plan σ rel.':>11s}   "
-          f"{'gyro-only: baseline σ':>21s} {'plan σ':>9s}")
+    print("σ: the rig model's Cramér–Rao bound along a simulation of each run (every sensor an output: what "
+          "rig-identify inertia reaches); the runs fitted at once")
+    print(f"{'':6s} {'value':>9s} {'baseline σ':>11s} {'plan σ':>9s} {'ratio':>6s} {'plan σ rel.':>11s}")
     theta = from_tensor(body.inertia)
     scale = entry_scales(theta)
     for kk in ORDER:
         i = KEYS.index(kk)
-        b, p = plan.rig_model["baseline_std"][i], plan.rig_model["std"][i]
+        b, p = plan.baseline_std[i], plan.std[i]
         print(f"{'I' + kk[1:]:6s} {VEHICLE_SIGN[i] * theta[i] + 0.0:9.1f} {b:11.3f} {p:9.3f} {b / p:6.1f} "
-              f"{100 * p / scale[i]:10.4f}%   {bp.std[i]:21.3f} {pp.std[i]:9.3f}")
+              f"{100 * p / scale[i]:10.4f}%")
     print("(relative: of the entry for moments, of the largest moment for products)")
     for title, p in reach.items():
         print(f"{title}: {p.text()}")
-    for title, pr in (("baseline", bp), ("plan", pp)):
-        for w in pr.weak(1):
-            print(f"{title} (gyro-only fit): {w['text']}")
+    out = plan.to_dict()
+    for title, pr in (("baseline", out["baseline"]["prediction"]), ("plan", out["prediction"])):
+        for w in pr["weakly_determined"][:1]:
+            print(f"{title}: {w['text']}")
     for n in plan.notes:
         print("note: " + n)
     return 0

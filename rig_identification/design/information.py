@@ -1,4 +1,5 @@
-"""What a run tells the rig model: the Cramér–Rao bound of the tensor entries for a simulated run.
+"""What a run tells the rig model: the Fisher information of the body's unknowns and the Cramér–Rao
+bound of the tensor entries for a simulated run, alone or with other runs of the same body.
 
 The bound is the rig model's own (:func:`~rig_identification.estimation.rig_fit.cramer_rao`: the
 inverse Fisher information of every sensor's weighted residual in the fit's band, at the true
@@ -12,7 +13,7 @@ the lab's noise level.  It is what ``rig-identify inertia`` reaches on a recordi
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -25,6 +26,10 @@ from ..model.cables import DEFAULT_DAMPING_RATIO
 from ..model.linear_rig import RigParameters
 from ..model.parametrisation import from_tensor
 from ..model.simulator import SimResult
+
+#: The body's unknowns at the head of the rig model's vector: the tensor's six entries (kg·m²,
+#: :data:`~rig_identification.io.verdict.KEYS` order), the CG (3, body m), the mass (kg).
+BODY = 10
 
 #: The noise key (:data:`~rig_identification.model.experiment.REFERENCE_NOISE`'s) of each rig-model
 #: channel, by the channel name's prefix.
@@ -43,6 +48,17 @@ def channel_noise(channels: Sequence[str], noise: dict[str, float]) -> np.ndarra
             raise KeyError(f"no noise level for channel {c!r} (noise keys: {', '.join(noise)})")
         out.append(float(noise[key]))
     return np.array(out)
+
+
+def nominal_parameters(rig: Rig, inertia: np.ndarray, stiffness: np.ndarray, mass: float) -> RigParameters:
+    """The rig model's parameters of a nominal body on ``rig``'s geometry (CG rig.yaml's): the tensor
+    ``inertia`` (3, 3) kg·m² about the CG, cable ``stiffness`` (N,) N/m, ``mass`` kg, the cables'
+    damping time of the package simulator's damping ratio
+    (:data:`~rig_identification.model.cables.DEFAULT_DAMPING_RATIO`: c_i = 2 ζ √(k_i m / N), τ = mean c_i / k_i).
+    Raises :class:`~rig_identification.io.rig.RigError` without a CG, ValueError without an exciter."""
+    k = np.asarray(stiffness, float)
+    tau = float(np.mean(2 * DEFAULT_DAMPING_RATIO * np.sqrt(mass / (len(k) * k))))
+    return RigParameters.from_rig(rig, from_tensor(inertia), k, tau, mass, rig.require_cg())
 
 
 def true_parameters(rig: Rig, truth: dict[str, Any]) -> RigParameters:
@@ -83,13 +99,69 @@ def tensor_bound(sim: SimResult, noise: dict[str, float]) -> np.ndarray:
     return np.sqrt(np.diag(tensor_covariance(sim, noise)))
 
 
-def combined_std(covariances: Sequence[np.ndarray]) -> np.ndarray:
-    """(6,) kg·m² the σ of each tensor entry from several runs of the same body, each run's
-    information added (the runs' nuisance — initial state, force, stiffness, gains — taken as
-    their own: slightly pessimistic where runs share a rig day's)."""
-    info = sum(np.linalg.pinv(c, hermitian=True) for c in covariances)
-    return np.sqrt(np.diag(np.linalg.pinv(np.asarray(info), hermitian=True)))
+@dataclass(frozen=True)
+class RunInformation:
+    """What one run tells the rig model about the body: ``body`` (10, 10) the Fisher information of the
+    body's unknowns (:data:`BODY`: tensor kg·m², CG m, mass kg), the run's own nuisance profiled out and
+    no prior on the body (the scale's and the static test's count once, :func:`combined`); ``seconds``
+    the fitted span it holds."""
+
+    body: np.ndarray
+    seconds: float
+
+    def scaled(self, seconds: float) -> "RunInformation":
+        """The same run fitted over ``seconds``: the information grows with the span (steady motion)."""
+        return RunInformation(self.body * (seconds / self.seconds), seconds)
 
 
-__all__ = ["NOISE_OF_CHANNEL", "channel_noise", "true_parameters", "tensor_covariance", "record_covariance",
-           "tensor_bound", "combined_std"]
+def body_prior(rig: Rig) -> np.ndarray:
+    """(10, 10) the information of the body's priors in the rig model
+    (:class:`~rig_identification.estimation.rig_unknowns.Prior` of ``rig``: the scale's σ on the mass,
+    the CG free)."""
+    prior = Prior.from_rig(rig)
+    info = np.zeros((BODY, BODY))
+    info[6:9, 6:9] = np.diag(np.where(np.isfinite(prior.cg_std), 1.0 / prior.cg_std ** 2, 0.0))
+    info[9, 9] = 1.0 / prior.mass_std ** 2
+    return info
+
+
+def run_information(sim: SimResult, noise: dict[str, float]) -> RunInformation:
+    """The :class:`RunInformation` of the run ``sim`` simulated (noise-free), each channel at its level
+    in ``noise``, from the rig model's Cramér–Rao bound (:func:`record_covariance`'s, every nuisance of
+    the fit: the survey, the force's correction, the segments' states).  Raises
+    :class:`~rig_identification.estimation.rig_record.RigFitError` as :func:`tensor_covariance`."""
+    rc = record(sim.sensors, sim.rig)
+    rc = replace(rc, sigma=channel_noise(rc.channels, noise))
+    p = true_parameters(sim.rig, sim.truth)
+    cov = cramer_rao(rc, sim.rig, Prior.from_rig(sim.rig.with_cg(p.cg)), p)
+    info = np.linalg.inv(cov[:BODY, :BODY]) - body_prior(sim.rig)
+    return RunInformation(0.5 * (info + info.T), float((len(rc.y) - rc.start) * rc.dt))
+
+
+#: Condition number beyond which the runs' information leaves some combination of the body's
+#: unknowns undetermined (:func:`combined` gives σ inf).
+SINGULAR = 1e13
+
+
+def combined(runs: Sequence[RunInformation], prior: np.ndarray) -> np.ndarray:
+    """(10, 10) the covariance of the body's unknowns from the runs together (the joint fit of
+    several recordings: their information added, the body's ``prior`` (:func:`body_prior`) once).
+    Rows and columns of an undetermined combination are inf."""
+    info = sum((r.body for r in runs), np.zeros((BODY, BODY))) + prior
+    d = 1.0 / np.sqrt(np.maximum(np.diag(info), 1e-300))
+    scaled = info * np.outer(d, d)
+    if not np.all(np.isfinite(scaled)) or np.linalg.cond(scaled) > SINGULAR:
+        return np.full((BODY, BODY), np.inf)
+    cov: np.ndarray = np.linalg.inv(scaled) * np.outer(d, d)
+    return cov
+
+
+def tensor_std(runs: Sequence[RunInformation], prior: np.ndarray) -> np.ndarray:
+    """(6,) kg·m² each tensor entry's σ (:data:`~rig_identification.io.verdict.KEYS` order) from the runs
+    together (:func:`combined`)."""
+    return np.sqrt(np.abs(np.diag(combined(runs, prior))[:6]))
+
+
+__all__ = ["BODY", "NOISE_OF_CHANNEL", "SINGULAR", "RunInformation", "body_prior", "channel_noise",
+           "combined", "nominal_parameters", "record_covariance", "run_information",
+           "tensor_bound", "tensor_covariance", "tensor_std", "true_parameters"]

@@ -1,76 +1,100 @@
 """Know before you shake: the experiment design search — which exciter run(s) to do on a rig.
 
-The σ the plan and the baseline reach with ``rig-identify inertia`` is the rig model's
-Cramér–Rao bound (:mod:`~rig_identification.design.information`: every sensor an output, the
-fit's nuisance model), computed once the runs are chosen (``Plan.rig_model``).  The search ranks
-runs by the gyro-only prediction-error fit's prediction
-(:func:`~rig_identification.estimation.propagation.predict_from_trajectory`: fast enough for
-hundreds of candidates; larger than the rig model's σ — the load cells see the motion more
-finely — but largest for the runs that move the body least).  The planned run and the nominal
-body are :mod:`rig_identification.design.run`'s, the linearised screen
-:mod:`rig_identification.design.screen`'s (the names users import from here are re-exported).
+Every σ here is the rig model's (:mod:`~rig_identification.design.information`: every sensor an
+output, the fit's nuisance model): the fast screen ranks hundreds of candidate runs by the
+linearised rig's Fisher information (:mod:`~rig_identification.design.screen`), and the best few,
+simulated, by the exact model's Cramér–Rao bound along the simulation, which is what
+``rig-identify inertia`` reaches on a recording of the run.  The linearised rig misses what the
+exact model draws from the motion's second-order terms (on the package's default rig the screen's
+σ of Izz is 0.2–5× the exact bound, candidate by candidate), so the screen only shortlists:
+``refine`` runs are simulated and the choice is made on the exact bound.  The planned run and the
+nominal body are :mod:`rig_identification.design.run`'s (the names users import from here are
+re-exported).
 
 Design
 ------
 :func:`plan_experiment` searches the exciter frequency, mounting point (corners of the box
 spanned by the body anchors and the rig's exciter position), spin axis (body x, y, z or a
 diagonal between two of them, :data:`~rig_identification.design.run.SPIN_AXES`), sense of rotation and force
-amplitude: a fast screen of the linearised rig (:func:`~rig_identification.design.screen.linear_rig`)
-driven from rest by the spinning-up force and the stationary form of the noise model, then
-simulations of the best candidates with the full predictor; the amplitude is the largest for
+amplitude: the screen of the linearised rig driven from rest by the spinning-up force, then
+simulations of the best candidates with the exact model; the amplitude is the largest for
 which the simulated run keeps every cable above ``min_tension_ratio`` of its static tension,
 the rotation (start-up included) below ``max_rotation_deg``, the force below ``max_force``
 and the swing from growing.  Frequencies near a mode, its double or a sum of two modes are
-skipped (:func:`resonances`).  A single steady harmonic cannot determine all six entries
-(the body's angular velocity then stays in one plane: the moment of inertia about its normal
-is seen only through the start-up transients), so a second run — complementary, or the same
-again — is added when allowed; it may also use another cable geometry (``geometries``: the
-lab's own, or :func:`geometry_variants`, the ceiling anchors moved), which changes the modes
-and so the directions the rig moves in.  Pairs are ranked on short simulations and the best
-few confirmed by full-length ones before one is chosen.  Objective: ``"baseline"`` (the least-improved entry as much
-better than a baseline run as possible) or ``"relative"`` (the largest σ relative to the
-entry: diagonals to themselves, products to the largest diagonal).
+skipped (:func:`resonances`).  A second run — complementary, or the same again — is added when
+allowed (the runs fitted at once share the body's unknowns: their information adds,
+:func:`~rig_identification.design.information.combined`); it may also use another cable geometry
+(``geometries``: the lab's own, or :func:`geometry_variants`, the ceiling anchors moved), which
+changes the modes and so the directions the rig moves in.  Pairs are ranked on short simulations
+and the best few confirmed by full-length ones before one is chosen.  Objective: ``"baseline"``
+(the least-improved entry as much better than a baseline run as possible) or ``"relative"`` (the
+largest σ relative to the entry: diagonals to themselves, products to the largest diagonal).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
-from ..estimation.prediction import PlanError, Prediction, combine
-from ..estimation.propagation import Trajectory, predict_from_trajectory
+from ..estimation.directions import describe_direction, weak_directions
+from ..estimation.rig_record import RigFitError
 from ..io.rig import Rig
 from ..io.verdict import KEYS
 from ..model.cables import CableModel
 from ..model.dynamics import SimulationError
 from ..model.equilibrium import equilibrium
 from ..model.modes import natural_modes
+from ..model.parametrisation import entry_scales, from_tensor
 from ..model.simulator import simulate
-from .information import combined_std, tensor_covariance
-from .run import SPIN_AXES, Body, Run, load_plan_input, make_body, recommended_band
-from .screen import DesignScreen, linear_rig
+from .information import BODY, SINGULAR, RunInformation, body_prior, combined, run_information, tensor_std
+from .run import SPIN_AXES, Body, PlanError, Run, load_plan_input, make_body
+from .screen import RigScreen
 
-# the public names, with those of planning_run that users import from here
+# the public names, with those of design.run that users import from here
 __all__ = ["SPIN_AXES", "Body", "Candidate", "Plan", "PlanError", "PlanOptions", "Run", "amplitude_at_limits",
            "candidate_positions", "geometry_variants", "load_plan_input", "make_body", "plan_experiment", "resonances"]
 
 
-@dataclass
+def summary(runs: list[RunInformation], prior: np.ndarray, inertia: np.ndarray) -> dict[str, Any]:
+    """The σ of the tensor entries from ``runs`` together (the rig model's, :func:`~.information.combined`
+    with the body's ``prior``) as the plan's JSON gives it: ``std`` and ``relative_std`` per entry (of
+    the entry for moments, of the largest moment for products), ``max_relative_std``,
+    ``weakly_determined`` (the two weakest combinations in words,
+    :func:`~rig_identification.estimation.directions.describe_direction`),
+    ``seconds`` (the fitted spans, summed)."""
+    cov = combined(runs, prior)[:6, :6]
+    std = np.sqrt(np.abs(np.diag(cov)))
+    rel = std / entry_scales(from_tensor(inertia))
+    scale = float(np.trace(inertia)) / 3
+    weak = [describe_direction(r, D, scale=scale, weakest=i == 0)
+            for i, (r, D) in enumerate(weak_directions(inertia, cov, 2))]
+    return {"std": {k: float(v) for k, v in zip(KEYS, std)}, "relative_std": {k: float(v) for k, v in zip(KEYS, rel)},
+            "max_relative_std": float(np.max(rel)), "weakly_determined": weak,
+            "seconds": float(sum(r.seconds for r in runs))}
+
+
+@dataclass(frozen=True)
 class Candidate:
-    """A screened run: the run, its (screen or simulated) prediction, the binding limit."""
+    """A run of the search: the run, what it tells the rig model (:class:`~.information.RunInformation`:
+    the screen's, or the exact model's along a simulation; None where a simulation gave the rig model
+    nothing to fit), the limit that binds its amplitude, whether it was simulated, its peak rotation
+    deg and lowest tension over static, whether its swing keeps growing, the cable geometry
+    (None: the rig's own; else the other geometry's label) and the body on it (None: the plan's)."""
 
     run: Run
-    prediction: Prediction
+    information: RunInformation | None
     limit: str
     simulated: bool = False
     peak_rotation_deg: float | None = None
     min_tension_ratio: float | None = None
-    band: tuple | None = None      # identification band to use (None: the identifier's automatic band)
-    geometry: str | None = None    # None: the rig's own cables; else the other cable geometry's label
-    body: "Body | None" = None     # the body on that geometry (None: the plan's)
+    geometry: str | None = None
+    body: Body | None = None
+    growing: bool = False
 
-    def to_dict(self) -> dict:
+    def to_dict(self, prior: np.ndarray, inertia: np.ndarray) -> dict[str, Any]:
+        """The run, its geometry, limits and σ alone (:func:`summary`) as the plan's JSON gives them."""
         geo = None
         if self.geometry is not None and self.body is not None:
             geo = {"label": self.geometry,
@@ -78,41 +102,42 @@ class Candidate:
                                "body_anchor": [float(x) for x in c.body_anchor], "length": float(c.length)}
                               for c in self.body.rig.cables]}
         return {"run": self.run.to_dict(), "cable_geometry": geo, "limit": self.limit, "simulated": self.simulated,
-                "identification_band_hz": None if self.band is None else [float(x) for x in self.band],
                 "peak_rotation_deg": self.peak_rotation_deg, "min_tension_ratio": self.min_tension_ratio,
-                "prediction": self.prediction.to_dict()}
+                "prediction": None if self.information is None else summary([self.information], prior, inertia)}
 
 
-@dataclass
+@dataclass(frozen=True)
 class Plan:
-    """The recommended runs, their joint prediction, the baseline for comparison, the rig's
-    modes and the limits used."""
+    """The recommended runs, the rig model's σ of them together (``std``, (6,) kg·m², and its
+    ``covariance`` of the body's ten unknowns) and of the baseline (``baseline_std``), the
+    baseline, the rig's modes, the limits used, notes, and each other cable geometry's best
+    second run."""
 
     runs: list[Candidate]
-    prediction: Prediction
+    std: np.ndarray
+    covariance: np.ndarray
     baseline: Candidate
+    baseline_std: np.ndarray
     modes: list
     limits: dict
+    prior: np.ndarray
+    inertia: np.ndarray
     notes: list[str] = field(default_factory=list)
-    other_geometries: list = field(default_factory=list)   # per other cable geometry: its best second run
-    rig_model: dict = field(default_factory=dict)   # "std", "baseline_std": (6,) kg·m², the rig model's bound
+    other_geometries: list = field(default_factory=list)
 
     def improvement(self) -> np.ndarray:
-        """(6,) baseline σ / plan σ per entry (the rig model's bound where computed, else the
-        gyro-only prediction's)."""
-        if self.rig_model:
-            return np.asarray(self.rig_model["baseline_std"] / self.rig_model["std"])
-        return self.baseline.prediction.std / self.prediction.std
+        """(6,) baseline σ / plan σ per entry."""
+        return np.asarray(self.baseline_std / self.std)
 
-    def to_dict(self) -> dict:
+    def to_dict(self) -> dict[str, Any]:
+        runs = [c.information for c in self.runs if c.information is not None]
         return {"modes": [m.to_dict() for m in self.modes],
-                "runs": [c.to_dict() for c in self.runs],
-                "prediction": self.prediction.to_dict(),
-                "baseline": self.baseline.to_dict(),
+                "runs": [c.to_dict(self.prior, self.inertia) for c in self.runs],
+                "prediction": summary(runs, self.prior, self.inertia),
+                "baseline": self.baseline.to_dict(self.prior, self.inertia),
                 "improvement": {k: float(v) for k, v in zip(KEYS, self.improvement())},
-                "rig_model": {k: {kk: float(v) for kk, v in zip(KEYS, a)} for k, a in self.rig_model.items()},
                 "limits": dict(self.limits), "notes": list(self.notes),
-                "other_geometries": [c.to_dict() for c in self.other_geometries]}
+                "other_geometries": [c.to_dict(self.prior, self.inertia) for c in self.other_geometries]}
 
 
 def candidate_positions(rig: Rig) -> list[np.ndarray]:
@@ -132,58 +157,43 @@ def candidate_positions(rig: Rig) -> list[np.ndarray]:
 AMPLITUDE_TRIES = 2
 
 
-def _sim_check(body: Body, run: Run, limits: dict, settle: float, tracker_params,
-               rot_f=None) -> tuple[Candidate, object]:
+def _sim_check(body: Body, run: Run) -> Candidate:
     """Simulate ``run`` without noise, measure its peak rotation, lowest tension ratio and
-    whether the swing keeps growing (last third against the middle third), and predict.
-    Returns (Candidate, SimResult)."""
+    whether the swing keeps growing (last third against the middle third), and what it tells the
+    rig model (:func:`~.information.run_information`; None where slack cables leave it nothing to fit)."""
     sim = simulate(body.experiment(run))
     rot = sim.states.rotation
     ang = np.linalg.norm((rot * rot[0].inv()).as_rotvec(), axis=1)
-    peak = float(np.degrees(np.max(ang)))
     T = sim.states.tensions
-    tmin = float(np.min(T / T[0][None, :]))
     n = len(ang)
     growing = bool(np.max(ang[2 * n // 3:]) > 1.15 * np.max(ang[n // 3: 2 * n // 3]))
     try:
-        traj = Trajectory.from_simulation(sim)
-    except PlanError:   # slack cables etc. leave too little to fit: scale down (see _fit_amplitude)
-        cand = Candidate(run, None, "", True, peak, tmin)
-        cand.growing = growing
-        return cand, sim
-    pred = predict_from_trajectory(traj, body.noise, settle, None, tracker_params)
-    band = None
-    if rot_f is not None:
-        # the identifier's automatic band also takes in the weak difference tones of large
-        # swings (f0 - f_mode), where the tracker's noise is large; a band around the exciter
-        # and the rotational modes may do better: recommend it then
-        rec = recommended_band(run.frequency, rot_f, traj.t[-1] - traj.t[0] - settle, float(body.rates["imu"]))
-        pr = predict_from_trajectory(traj, body.noise, settle, rec, tracker_params)
-        if pr.objective < 0.9 * pred.objective:
-            pred, band = pr, rec
-    cand = Candidate(run, pred, "", True, peak, tmin, band)
-    cand.growing = growing
-    return cand, sim
+        info: RunInformation | None = run_information(sim, body.noise)
+    except (RigFitError, SimulationError, np.linalg.LinAlgError):
+        info = None
+    return Candidate(run, info, "", True, float(np.degrees(np.max(ang))), float(np.min(T / T[0][None, :])),
+                     growing=growing)
 
 
 def _feasible(c: Candidate, limits: dict) -> bool:
-    return (c.prediction is not None and c.peak_rotation_deg <= limits["max_rotation_deg"] * 1.001
-            and c.min_tension_ratio >= limits["min_tension_ratio"] * 0.999 and not getattr(c, "growing", False)
+    return (c.information is not None and c.peak_rotation_deg is not None and c.min_tension_ratio is not None
+            and c.peak_rotation_deg <= limits["max_rotation_deg"] * 1.001
+            and c.min_tension_ratio >= limits["min_tension_ratio"] * 0.999 and not c.growing
             and c.run.amplitude <= limits["max_force_n"] * 1.001)
 
 
-def _fit_amplitude(body: Body, run: Run, limits: dict, settle: float, tracker_params,
-                   grow: bool = True, rot_f=None, say=None) -> Candidate | None:
+def _fit_amplitude(body: Body, run: Run, limits: dict, grow: bool = True, say=None) -> Candidate | None:
     """Simulate ``run`` and bring its force amplitude to the limits: scale it linearly so
     that the simulated peak rotation and lowest tension (start-up transients and beats
     included) meet them with a 3 % margin, at most ``limits["max_force_n"]`` (up only if
     ``grow``), and simulate again (announced to ``say``, callable(str), when given), at most
     :data:`AMPLITUDE_TRIES` times.  None if the run still breaks a limit or its swing keeps
     growing (a parametric resonance)."""
-    cand, _ = _sim_check(body, run, limits, settle, tracker_params, rot_f)
+    cand = _sim_check(body, run)
     for _ in range(AMPLITUDE_TRIES):
-        if getattr(cand, "growing", False):
+        if cand.growing:
             return None
+        assert cand.peak_rotation_deg is not None and cand.min_tension_ratio is not None
         s_rot = np.radians(limits["max_rotation_deg"]) / max(np.radians(cand.peak_rotation_deg), 1e-12)
         s_ten = (1 - limits["min_tension_ratio"]) / max(1 - cand.min_tension_ratio, 1e-12)
         s_force = limits["max_force_n"] / run.amplitude
@@ -200,29 +210,29 @@ def _fit_amplitude(body: Body, run: Run, limits: dict, settle: float, tracker_pa
         run = replace(run, amplitude=run.amplitude * s)
         if say is not None:
             say(f"simulating it again at {run.amplitude:.0f} N (its amplitude brought to the limits) ...")
-        cand, _ = _sim_check(body, run, limits, settle, tracker_params, rot_f)
+        cand = _sim_check(body, run)
         grow = False
     if not _feasible(cand, limits):
         return None
+    assert cand.peak_rotation_deg is not None and cand.min_tension_ratio is not None
     use = {"rotation": cand.peak_rotation_deg / limits["max_rotation_deg"],
            "tension": (1 - cand.min_tension_ratio) / (1 - limits["min_tension_ratio"]),
            "force": run.amplitude / limits["max_force_n"]}
-    cand.limit = max(use, key=use.get)   # the limit it comes closest to
-    return cand
+    return replace(cand, limit=max(use, key=lambda k: use[k]))   # the limit it comes closest to
 
 
 def amplitude_at_limits(body: Body, run: Run, max_rotation_deg: float = 3.0, min_tension_ratio: float = 0.2,
-                        max_force: float = math.inf, settle: float = 5.0) -> Candidate | None:
+                        max_force: float = math.inf) -> Candidate | None:
     """``run`` (its frequency, exciter position and spin axis kept) at the largest force
     amplitude within the limits of :func:`plan_experiment` (same defaults): peak rotation ≤
     ``max_rotation_deg``, every cable ≥ ``min_tension_ratio`` × its static tension (start-up
     and beats included, 3 % margin), force ≤ ``max_force`` N; found by noise-free
     simulation as the planner does (:func:`_fit_amplitude`).  Returns the
     :class:`Candidate` (``.run.amplitude`` N, ``.peak_rotation_deg``,
-    ``.min_tension_ratio``, ``.prediction``), or None if no amplitude keeps the run within
+    ``.min_tension_ratio``, ``.information``), or None if no amplitude keeps the run within
     the limits (its swing keeps growing).  Raises :class:`PlanError` for bad limits,
     :class:`~rig_identification.model.simulator.SimulationError`."""
-    return _fit_amplitude(body, run, _limits(max_force, max_rotation_deg, min_tension_ratio), settle, None)
+    return _fit_amplitude(body, run, _limits(max_force, max_rotation_deg, min_tension_ratio))
 
 
 def _limits(max_force: float, max_rotation_deg: float, min_tension_ratio: float) -> dict:
@@ -245,9 +255,8 @@ class PlanOptions:
     least-improved entry as much better than the baseline as possible (minimise
     max_k σ_k / σ_k,baseline), or ``"relative"`` — minimise the largest relative σ (diagonals
     relative to themselves, products to the largest diagonal).  refine: how many screened
-    candidates are simulated (``short`` s each).  settle: s the identifier leaves out at the
-    start.  tracker_params: the tracker's, for the prediction (default its own).  geometries:
-    other cable geometries the rig can take for the second run, [(label,
+    candidates are simulated (``short`` s each).  settle: s the screen leaves out at the start
+    (the spin-up).  geometries: other cable geometries the rig can take for the second run, [(label,
     :class:`~rig_identification.io.rig.Rig`)] with the same body (e.g. :func:`geometry_variants`);
     the best runs on each are searched like the rig's own and paired with the best run on the rig."""
 
@@ -263,11 +272,10 @@ class PlanOptions:
     settle: float = 5.0
     short: float = 30.0
     mode_margin: float = 0.1
-    tracker_params: dict | None = None
     geometries: tuple = ()
 
 
-#: Frequencies screened per progress line of :func:`plan_experiment` (each line about 10 s on the thesis rig).
+#: Frequencies screened per progress line of :func:`plan_experiment`.
 SCREEN_GROUP = 4
 
 
@@ -276,19 +284,22 @@ class _Search:
     ranked against, and the short and full-length simulations made so far (each run once)."""
 
     def __init__(self, body: Body, opts: PlanOptions, limits: dict, say, ref_screen: np.ndarray,
-                 ref_sim: np.ndarray, rot_f: list[float]):
+                 ref_sim: np.ndarray):
         self.body, self.opts, self.limits, self.say = body, opts, limits, say
         self.ref_screen, self.ref_sim = ref_screen, ref_sim
+        self.prior = body_prior(body.rig)
         self.short = min(opts.short, opts.duration)
-        self.rot_fs: dict = {None: rot_f}   # per cable geometry: its rotational modes (Hz), for the band
         self.done: dict = {}
         self.full: dict = {}
 
-    def worst(self, *cs: Candidate) -> float:
-        """The worst entry's σ over the reference of ``cs`` done together."""
-        return combine([c.prediction for c in cs]).worst(self.ref_sim)
+    def worst(self, *cs: Candidate, ref: np.ndarray | None = None) -> float:
+        """The worst entry's σ over the reference (the simulations' unless ``ref``) of ``cs`` done together."""
+        infos = [c.information for c in cs]
+        if any(i is None for i in infos):
+            return math.inf
+        return float(np.max(tensor_std(infos, self.prior) / (self.ref_sim if ref is None else ref)))
 
-    def search(self, b: Body, label: str | None, modes, scr: DesignScreen | None = None,
+    def search(self, b: Body, label: str | None, modes, scr: RigScreen | None = None,
                partner: Candidate | None = None) -> tuple[list[Candidate], list[Candidate]]:
         """Screen frequencies, mounting points and spin axes on the body ``b`` (cable
         geometry ``label``; None: the rig's own, whose ``modes`` are given), then simulate the
@@ -299,8 +310,7 @@ class _Search:
         where = "" if label is None else f" ({label})"
         ms = modes if label is None else natural_modes(b.rig, b.mass, b.rig.require_cg(), b.inertia, b.stiffness)
         mf = np.array([m.frequency for m in ms])
-        rf = self.rot_fs.setdefault(label, _rotational(ms))
-        scr = scr or DesignScreen(b, linear_rig(b), o.duration, o.settle, tracker_params=o.tracker_params)
+        scr = scr or RigScreen(b, o.duration, o.settle)
         avoid = resonances(mf)
         freqs = [f for f in np.geomspace(o.frequencies[0], o.frequencies[1], 30)
                  if np.all(np.abs(f / avoid - 1) >= o.mode_margin)]
@@ -317,37 +327,34 @@ class _Search:
                      f"{len(freqs)}; at each {len(pts)} mounting points × {len(SPIN_AXES)} spin axes × 2 senses, "
                      f"linearised rig{where}) ...")
             for f in group:
-                screened += self._screen_frequency(scr, b, label, f, pts, rf)
-        screened.sort(key=lambda c: c.prediction.worst(self.ref_screen))
+                screened += self._screen_frequency(scr, b, label, f, pts)
+        screened.sort(key=lambda c: self.worst(c, ref=self.ref_screen))
         picks = _distinct(screened, o.refine)
-        if partner is not None:   # a ranking only: the partner's prediction is simulated, the candidates' screened
-            together = sorted(screened, key=lambda c: combine([partner.prediction, c.prediction]).worst(self.ref_sim))
+        if partner is not None:   # a ranking only: the partner's information is simulated, the candidates' screened
+            together = sorted(screened, key=lambda c: self.worst(partner, c))
             picks += [c for c in _distinct(together, o.refine) if all(not _same(c, o_) for o_ in picks)]
         singles = [x for x in (self.simulate_short(c, "a candidate run") for c in picks) if x is not None]
         return screened, singles
 
-    def _screen_frequency(self, scr: DesignScreen, b: Body, label: str | None, f: float, pts: list[np.ndarray],
-                          rf: list[float]) -> list[Candidate]:
+    def _screen_frequency(self, scr: RigScreen, b: Body, label: str | None, f: float,
+                          pts: list[np.ndarray]) -> list[Candidate]:
         """The screened candidates at ``f`` Hz on the body ``b`` (cable geometry ``label``): every
-        mounting point of ``pts`` (body m), spin axis and sense whose prediction is finite."""
-        X = scr.responses(f)
-        band = scr.band(f, rf)
-        dens = scr.noise_density(band)
+        mounting point of ``pts`` (body m), spin axis and sense that determines the tensor."""
+        at = scr.at(f)
         out = []
         for p in pts:
             for ax in SPIN_AXES:
                 for sense in (1, -1):
-                    amp, lim, rot, tmin, pred = scr.candidate(X, p, SPIN_AXES[ax], self.limits, dens, band,
-                                                              direction=sense)
-                    if pred is None or not np.all(np.isfinite(pred.std)):
+                    sr = at.candidate(p, SPIN_AXES[ax], self.limits, direction=sense)
+                    if not np.all(np.isfinite(tensor_std([sr.information], self.prior))):
                         continue
-                    out.append(Candidate(Run(float(f), float(amp), tuple(float(x) for x in p), ax, self.opts.duration,
-                                             direction=sense), pred, lim, False, float(rot), float(tmin),
-                                         geometry=label, body=b))
+                    out.append(Candidate(Run(float(f), sr.amplitude, tuple(float(x) for x in p), ax,
+                                             self.opts.duration, direction=sense), sr.information, sr.limit, False,
+                                         sr.rotation_deg, sr.min_tension_ratio, geometry=label, body=b))
         return out
 
     def simulate_short(self, c: Candidate, what: str) -> Candidate | None:
-        """``c`` simulated over ``short`` s, its amplitude brought to the limits, its prediction
+        """``c`` simulated over ``short`` s, its amplitude brought to the limits, its information
         scaled to the full length; None if it breaks a limit."""
         key = _run_key(c)
         if key not in self.done:
@@ -355,11 +362,11 @@ class _Search:
             where = "" if c.geometry is None else f" ({c.geometry})"
             self.say(f"simulating {what}{where}: {c.run.frequency:.2f} Hz, {c.run.amplitude:.0f} N, spin axis "
                      f"{c.run.spin_axis}, at {np.round(c.run.position, 2).tolist()} m ({self.short:.0f} s) ...")
-            cs = _fit_amplitude(c.body, replace(c.run, duration=self.short), self.limits, o.settle, o.tracker_params,
-                                rot_f=self.rot_fs[c.geometry])
-            if cs is not None:
-                cs.prediction = cs.prediction.scaled((o.duration - o.settle) / cs.prediction.duration)
-                cs.geometry, cs.body = c.geometry, c.body
+            cs = _fit_amplitude(c.body or self.body, replace(c.run, duration=self.short), self.limits)
+            if cs is not None and cs.information is not None:
+                info = cs.information
+                cs = replace(cs, information=info.scaled(info.seconds + o.duration - self.short),
+                             geometry=c.geometry, body=c.body)
             self.done[key] = cs
         return self.done[key]
 
@@ -374,11 +381,10 @@ class _Search:
                 return c
             where = "" if c.geometry is None else f" on cable geometry {c.geometry!r}"
             self.say(f"simulating {what}{where} in full ({c.run.amplitude:.0f} N at {c.run.frequency:.2f} Hz, "
-                     f"{o.duration:.0f} s) ...")
-            cf = _fit_amplitude(c.body, replace(c.run, duration=o.duration), self.limits, o.settle, o.tracker_params,
-                                rot_f=self.rot_fs[c.geometry], say=self.say)
+                     f"{o.duration:.0f} s; the rig model's bound along it) ...")
+            cf = _fit_amplitude(c.body or self.body, replace(c.run, duration=o.duration), self.limits, say=self.say)
             if cf is not None:
-                cf.geometry, cf.body = c.geometry, c.body
+                cf = replace(cf, geometry=c.geometry, body=c.body)
             self.full[key] = cf
         return self.full[key]
 
@@ -397,23 +403,26 @@ def _checked_limits(opts: PlanOptions) -> dict:
     return limits
 
 
-def _baseline(body: Body, baseline: Run, opts: PlanOptions, limits: dict, screen: DesignScreen, rot_f: list[float],
+def _baseline(body: Body, baseline: Run, opts: PlanOptions, limits: dict, screen: RigScreen,
               say) -> tuple[Candidate, np.ndarray, np.ndarray]:
     """The baseline simulated in full and screened (each stage compares like with like):
     (its candidate, the reference σ of the screen's ranking, that of the simulations')."""
     say(f"simulating the baseline ({baseline.amplitude:.0f} N at {baseline.frequency:.2f} Hz, "
-        f"{opts.duration:.0f} s) ...")
-    base, _ = _sim_check(body, replace(baseline, duration=opts.duration), limits, opts.settle, opts.tracker_params)
-    base.limit = "baseline"
-    if base.prediction is None:
+        f"{opts.duration:.0f} s; the rig model's bound along it) ...")
+    base = replace(_sim_check(body, replace(baseline, duration=opts.duration)), limit="baseline")
+    prior = body_prior(body.rig)
+    if base.information is None or not np.all(np.isfinite(tensor_std([base.information], prior))):
         raise PlanError(f"the baseline excitation ({baseline.amplitude:g} N at {baseline.frequency:g} Hz) slackens "
-                        "cables so often that the identifier could not fit it; choose a gentler --baseline-force")
-    bband = screen.band(baseline.frequency, rot_f)
-    base_screen = screen.candidate(screen.responses(baseline.frequency), baseline.position, baseline.exciter_rpy,
-                                   limits, screen.noise_density(bband), bband, baseline.amplitude)[4]
-    if opts.objective == "baseline":
-        return base, (base_screen.std if base_screen is not None else base.prediction.std), base.prediction.std
-    return base, base.prediction.scale, base.prediction.scale
+                        "cables or moves the body so little that the rig model could not fit it; choose another "
+                        "--baseline-force or --baseline-frequency")
+    if opts.objective == "relative":
+        scale = entry_scales(from_tensor(body.inertia))
+        return base, scale, scale
+    screened = screen.at(baseline.frequency).candidate(baseline.position, baseline.exciter_rpy, limits,
+                                                       baseline.amplitude)
+    ref_screen = tensor_std([screened.information], prior)
+    ref_sim = tensor_std([base.information], prior)
+    return base, (ref_screen if np.all(np.isfinite(ref_screen)) else ref_sim), ref_sim
 
 
 def _first_run(s: _Search, singles: list[Candidate]) -> Candidate:
@@ -434,7 +443,7 @@ def _second_run(s: _Search, first: Candidate, singles: list[Candidate], screened
     notes: list[str] = []
     others: list[Candidate] = []
     sims2 = []
-    for a, b in _best_pairs(screened, max(2, o.refine // 2), s.ref_screen):
+    for a, b in _best_pairs(screened, max(2, o.refine // 2), s.ref_screen, s.prior):
         sa, sb = s.simulate_short(a, "a pair, first run"), s.simulate_short(b, "a pair, second run")
         if sa is not None and sb is not None:
             sims2.append((sa, sb))
@@ -456,20 +465,18 @@ def _second_run(s: _Search, first: Candidate, singles: list[Candidate], screened
         sims2 += [(singles[0], y) for y in gs]
         if gs:
             g_best[label] = min(gs, key=lambda y: s.worst(singles[0], y))
-    # the short runs' predictions, scaled to the full length, only rank the pairs (beats and
+    # the short runs' information, scaled to the full length, only ranks the pairs (beats and
     # start-up weigh differently in 30 s): the best few that promise to beat the best run done
     # twice are simulated in full and compared in full
-    repeat_short = s.worst(singles[0]) / math.sqrt(2)
+    repeat_short = s.worst(singles[0], singles[0])
     promising = [ab for ab in sorted(sims2, key=lambda ab: s.worst(*ab)) if s.worst(*ab) < repeat_short][:3]
-    repeat = s.worst(first) / math.sqrt(2)
+    repeat = s.worst(first, first)
     best, best_val = None, repeat
     for a, b in promising:
         fa, fb = s.simulate_full(a, "a pair's first run"), s.simulate_full(b, "a pair's second run")
         if fa is not None and fb is not None and s.worst(fa, fb) < best_val:
             best, best_val = (fa, fb), s.worst(fa, fb)
-        # a run simulated in full for a pair may itself be the better run to do twice than the
-        # best screened single (with 20 s runs a pair's first run twice gave 0.306 of the
-        # reference σ, the pair 0.388, the best single twice more)
+        # a run simulated in full for a pair may itself be the better run to do twice than the best screened single
         for f in (fa, fb):
             if f is not None and s.worst(f, f) < best_val:
                 best, best_val = (f, f), s.worst(f, f)
@@ -484,8 +491,8 @@ def _second_run(s: _Search, first: Candidate, singles: list[Candidate], screened
                      f"{repeat:.3g} for the best run done twice and {s.worst(first):.3g} for it alone")
     else:
         chosen = [first, first]
-        notes.append(f"no other run complements the best one better than itself: do it twice (every σ / √2; "
-                     f"worst entry σ/reference {repeat:.3g} against {s.worst(first):.3g} for one run)")
+        notes.append(f"no other run complements the best one better than itself: do it twice (worst entry "
+                     f"σ/reference {repeat:.3g} against {s.worst(first):.3g} for one run)")
     for label, y in g_best.items():   # what each other geometry offered (full-length where simulated so)
         key = _run_key(y)
         yf = s.full.get(key)
@@ -498,42 +505,25 @@ def _second_run(s: _Search, first: Candidate, singles: list[Candidate], screened
     return chosen, notes, others
 
 
-def _rig_model_std(body: Body, base: Candidate, chosen: list[Candidate], say) -> dict:
-    """The σ ``rig-identify inertia`` reaches: the rig model's bound, every sensor an output, of
-    the chosen runs together and of the baseline (:mod:`~rig_identification.design.information`)."""
-    bound: dict = {}
-    for n, c in enumerate([base, *chosen]):
-        key = _run_key(c)
-        if key not in bound:
-            what = "the baseline" if n == 0 else f"run {n}" if len(chosen) > 1 else "the run"
-            say(f"the rig model's Cramér–Rao bound of {what} ({c.run.amplitude:.0f} N at {c.run.frequency:.2f} Hz: "
-                "a simulation and a Jacobian) ...")
-            bound[key] = tensor_covariance(simulate((c.body or body).experiment(c.run)), body.noise)
-    return {"std": combined_std([bound[_run_key(c)] for c in chosen]),
-            "baseline_std": combined_std([bound[_run_key(base)]])}
-
-
 def plan_experiment(body: Body, baseline: Run, options: PlanOptions = PlanOptions(), progress=None) -> Plan:
     """Recommend one or two exciter runs (see module docstring).
 
     body: :class:`Body`.  baseline: the run to compare with (e.g. the thesis's 200 N at
     1.05 Hz at the rig's exciter).  options: :class:`PlanOptions` (limits, search, objective).
     progress: optional callable(str), called as each step starts: each group of
-    :data:`SCREEN_GROUP` frequencies screened, each simulation, each run's Cramér–Rao bound.
+    :data:`SCREEN_GROUP` frequencies screened, each simulation.
     Raises :class:`PlanError`, :class:`~rig_identification.model.simulator.SimulationError`.
     """
     say = progress or (lambda s: None)
     limits = _checked_limits(options)
     rig = body.rig
     modes = natural_modes(rig, body.mass, rig.require_cg(), body.inertia, body.stiffness)
-    rot_f = _rotational(modes)
-    screen = DesignScreen(body, linear_rig(body), options.duration, options.settle,
-                          tracker_params=options.tracker_params)
-    base, ref_screen, ref_sim = _baseline(body, baseline, options, limits, screen, rot_f, say)
-    s = _Search(body, options, limits, say, ref_screen, ref_sim, rot_f)
+    screen = RigScreen(body, options.duration, options.settle)
+    base, ref_screen, ref_sim = _baseline(body, baseline, options, limits, screen, say)
+    s = _Search(body, options, limits, say, ref_screen, ref_sim)
     screened, singles = s.search(body, None, modes, screen)
     if not screened:
-        raise PlanError("no candidate run moves the body measurably")
+        raise PlanError("no candidate run moves the body enough to determine the tensor")
     if not singles:
         raise PlanError("every screened candidate broke a limit in simulation (cable slack, rotation, growing "
                         "swing): lower --max-force or change the frequency range")
@@ -542,8 +532,11 @@ def plan_experiment(body: Body, baseline: Run, options: PlanOptions = PlanOption
     chosen, notes, others = [first], [], []
     if options.max_runs >= 2:
         chosen, notes, others = _second_run(s, first, singles, screened, modes)
-    return Plan(chosen, combine([c.prediction for c in chosen]), base, modes, limits, notes, others,
-                _rig_model_std(body, base, chosen, say))
+    infos = [c.information for c in chosen if c.information is not None]
+    assert base.information is not None
+    cov = combined(infos, s.prior)
+    return Plan(chosen, np.sqrt(np.abs(np.diag(cov)))[:6], cov, base, tensor_std([base.information], s.prior),
+                modes, limits, s.prior, body.inertia, notes, others)
 
 
 def geometry_variants(body: Body, shift: float = 1.0) -> list[tuple[str, Rig]]:
@@ -575,34 +568,29 @@ def geometry_variants(body: Body, shift: float = 1.0) -> list[tuple[str, Rig]]:
     return out
 
 
-def _rotational(modes) -> list[float]:
-    """Frequencies (Hz) of the modes that are mostly rotation (> 30 % of their energy)."""
-    return [m.frequency for m in modes if m.energy[3:].sum() > 0.3]
-
-
 def _run_key(c: Candidate) -> tuple:
     """What makes a run distinct for the simulation caches: geometry, frequency, mounting
     point, spin axis and sense (the amplitude is fitted)."""
     return (c.geometry, c.run.frequency, c.run.position, c.run.spin_axis, c.run.direction)
 
 
-def _best_pairs(cands: list[Candidate], n: int, ref: np.ndarray) -> list[tuple[Candidate, Candidate]]:
-    """The ``n`` best distinct pairs of screened runs for a joint fit (information and noise
-    of the two runs add; each with its own weights)."""
-    B = np.array([np.einsum("a,aij->ij", c.prediction.weights, c.prediction.axis_bread) for c in cands])
-    M = np.array([sum(np.einsum("a,b,abij->ij", c.prediction.weights, c.prediction.weights, m)
-                      for m in c.prediction.axis_meats.values()) for c in cands])
+def _best_pairs(cands: list[Candidate], n: int, ref: np.ndarray, prior: np.ndarray
+                ) -> list[tuple[Candidate, Candidate]]:
+    """The ``n`` best distinct pairs of screened runs fitted at once (their information on the body
+    added, the body's ``prior`` once: :func:`~.information.combined`), by the worst entry's σ over ``ref``."""
+    B = np.array([c.information.body if c.information is not None else np.zeros((BODY, BODY)) for c in cands])
     i, j = np.triu_indices(len(cands), 1)
     out = np.full(len(i), np.inf)
-    for lo in range(0, len(i), 50000):
-        sl = slice(lo, lo + 50000)
-        Bs = B[i[sl]] + B[j[sl]]
-        ok = np.linalg.cond(Bs) < 1e12
-        Bi = np.zeros_like(Bs)
-        Bi[ok] = np.linalg.inv(Bs[ok])
-        var = np.einsum("pkl,plm,pkm->pk", Bi, M[i[sl]] + M[j[sl]], Bi)
-        obj = np.max(np.sqrt(np.clip(var, 0, None)) / ref, axis=1)
-        out[sl] = np.where(ok, obj, np.inf)
+    for lo in range(0, len(i), 20000):
+        sl = slice(lo, lo + 20000)
+        Bs = B[i[sl]] + B[j[sl]] + prior
+        d = 1.0 / np.sqrt(np.maximum(np.einsum("pkk->pk", Bs), 1e-300))
+        Bs = Bs * d[:, :, None] * d[:, None, :]
+        ok = np.linalg.cond(Bs) < SINGULAR
+        var = np.full((len(Bs), 6), np.inf)
+        if np.any(ok):
+            var[ok] = np.einsum("pkk->pk", np.linalg.inv(Bs[ok]))[:, :6] * d[ok, :6] ** 2
+        out[sl] = np.max(np.sqrt(np.clip(var, 0, None)) / ref, axis=1)
     order = np.argsort(out)
     taken: list[tuple[Candidate, Candidate]] = []
     for k in order:

@@ -1,7 +1,6 @@
 """The inputs of an experiment design: a planned exciter run (:class:`Run`, spinning about one
-of :data:`SPIN_AXES`), the nominal body it shakes (:class:`Body`, from the command line's
-numbers by :func:`make_body`, on the rig :func:`load_plan_input` reads), and the
-identification band recommended for a run (:func:`recommended_band`).
+of :data:`SPIN_AXES`) and the nominal body it shakes (:class:`Body`, from the command line's
+numbers by :func:`make_body`, on the rig :func:`load_plan_input` reads).
 
 The search over runs is :mod:`~rig_identification.design.planning`; the linearised screen it
 ranks candidates with, :mod:`~rig_identification.design.screen`.
@@ -15,12 +14,16 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..estimation.prediction import PlanError
 from ..io.recording import RecordingError
 from ..io.rig import Rig, RigError, inertia_entries, load_rig, read_yaml
 from ..model.cables import DEFAULT_STIFFNESS
 from ..model.experiment import REFERENCE_NOISE, REFERENCE_RATES, ExperimentError, experiment_from_dict, load_experiment
 from ..model.parametrisation import physically_consistent, to_tensor
+
+
+class PlanError(ValueError):
+    """The planned experiment cannot be designed (bad limits or body, no run that determines the tensor)."""
+
 
 _DIAGONALS = {"x+y": (1, 1, 0), "x-y": (1, -1, 0), "x+z": (1, 0, 1), "x-z": (1, 0, -1), "y+z": (0, 1, 1),
               "y-z": (0, 1, -1)}
@@ -102,13 +105,6 @@ class Body:
              "sensors": {"rates_hz": dict(self.rates), "noise": {k: 0.0 for k in REFERENCE_NOISE}},
              "seed": seed}
         return experiment_from_dict(d, "planned run")
-
-
-def recommended_band(f0: float, rot_f, duration: float, fs: float) -> tuple[float, float]:
-    """Pass band (Hz) around the exciter frequency ``f0`` and the rotational modes below 5 Hz
-    (``rot_f``), widened like :func:`~rig_identification.estimation.signals.auto_band` (0.6x below, 1.5x above)."""
-    fr = [f0] + [x for x in rot_f if x < 5.0]
-    return (max(0.15, 0.6 * min(fr), 2.0 / duration), min(1.5 * max(fr), 0.4 * fs))
 
 
 def load_plan_input(path) -> tuple[Rig, dict | None, np.ndarray | None]:
