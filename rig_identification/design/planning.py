@@ -360,8 +360,9 @@ class _Search:
         if key not in self.done:
             o = self.opts
             where = "" if c.geometry is None else f" ({c.geometry})"
+            sense = "" if c.run.direction > 0 else " (reversed)"
             self.say(f"simulating {what}{where}: {c.run.frequency:.2f} Hz, {c.run.amplitude:.0f} N, spin axis "
-                     f"{c.run.spin_axis}, at {np.round(c.run.position, 2).tolist()} m ({self.short:.0f} s) ...")
+                     f"{c.run.spin_axis}{sense}, at {np.round(c.run.position, 2).tolist()} m ({self.short:.0f} s) ...")
             cs = _fit_amplitude(c.body or self.body, replace(c.run, duration=self.short), self.limits)
             if cs is not None and cs.information is not None:
                 info = cs.information
