@@ -92,9 +92,9 @@ def test_plan_on_a_three_cable_rig_keeps_the_cables_taut():
     entry."""
     plan = gather("any_rig_plan", "3")["3"]
     run = plan.runs[0]
-    assert np.all(np.isfinite(plan.prediction.std)) and np.all(plan.prediction.std > 0)
+    assert np.all(np.isfinite(plan.std)) and np.all(plan.std > 0)
     assert run.min_tension_ratio >= 0.2 * 0.999 and run.peak_rotation_deg <= 3.0 * 1.001
-    assert plan.prediction.worst(plan.baseline.prediction.std) <= 1.0 + 1e-9
+    assert np.max(plan.std / plan.baseline_std) <= 1.0 + 1e-9, plan.std / plan.baseline_std
 
 
 @pytest.mark.parametrize("cables,seed,layout", [(3, 7101, "wide"), (5, 7206, "wide"), (3, 21022, "random"),
@@ -117,10 +117,9 @@ def test_plan_on_the_five_cable_rig_keeps_the_cables_taut():
     """`rig-identify plan`'s search on the 5-cable rig identified above (seed 7206; 30 s runs,
     the rig's exciter position, 0.8 Hz, its own frequency and 1.6 Hz): σ predicted for every
     entry, the run within the limits (every cable above 20 % of its static tension, the
-    rotation below 3°).  Not asserted: that it beats the baseline — the screen's ranking
-    and the full simulation disagree by a few per cent here (the plan's least-improved entry
-    1.03× the baseline's σ)."""
+    rotation below 3°).  Not asserted: that it beats the baseline — the screen only shortlists
+    (the linearised rig's ranking and the exact bound's differ, docs/rig_model.md)."""
     plan = gather("any_rig_plan", "5")["5"]
     run = plan.runs[0]
-    assert np.all(np.isfinite(plan.prediction.std)) and np.all(plan.prediction.std > 0)
+    assert np.all(np.isfinite(plan.std)) and np.all(plan.std > 0)
     assert run.min_tension_ratio >= 0.2 * 0.999 and run.peak_rotation_deg <= 3.0 * 1.001

@@ -47,7 +47,7 @@ from ..model.dynamics import SimulationError
 from ..model.equilibrium import equilibrium
 from ..model.modes import natural_modes
 from ..model.parametrisation import entry_scales, from_tensor
-from ..model.simulator import simulate
+from ..model.simulator import SimResult, simulate
 from .information import BODY, SINGULAR, RunInformation, body_prior, combined, run_information, tensor_std
 from .run import SPIN_AXES, Body, PlanError, Run, load_plan_input, make_body
 from .screen import RigScreen
@@ -157,39 +157,46 @@ def candidate_positions(rig: Rig) -> list[np.ndarray]:
 AMPLITUDE_TRIES = 2
 
 
-def _sim_check(body: Body, run: Run) -> Candidate:
-    """Simulate ``run`` without noise, measure its peak rotation, lowest tension ratio and
-    whether the swing keeps growing (last third against the middle third), and what it tells the
-    rig model (:func:`~.information.run_information`; None where slack cables leave it nothing to fit)."""
+def _sim_check(body: Body, run: Run) -> tuple[Candidate, SimResult]:
+    """Simulate ``run`` without noise and measure its peak rotation, lowest tension ratio and
+    whether the swing keeps growing (last third against the middle third).  Returns (the
+    candidate, without its information yet, and the simulation)."""
     sim = simulate(body.experiment(run))
     rot = sim.states.rotation
     ang = np.linalg.norm((rot * rot[0].inv()).as_rotvec(), axis=1)
     T = sim.states.tensions
     n = len(ang)
     growing = bool(np.max(ang[2 * n // 3:]) > 1.15 * np.max(ang[n // 3: 2 * n // 3]))
+    return Candidate(run, None, "", True, float(np.degrees(np.max(ang))), float(np.min(T / T[0][None, :])),
+                     growing=growing), sim
+
+
+def _informed(c: Candidate, sim: SimResult, noise: dict[str, float]) -> Candidate:
+    """``c`` with what its simulation ``sim`` tells the rig model (:func:`~.information.run_information`;
+    None where slack cables leave it nothing to fit)."""
     try:
-        info: RunInformation | None = run_information(sim, body.noise)
+        return replace(c, information=run_information(sim, noise))
     except (RigFitError, SimulationError, np.linalg.LinAlgError):
-        info = None
-    return Candidate(run, info, "", True, float(np.degrees(np.max(ang))), float(np.min(T / T[0][None, :])),
-                     growing=growing)
+        return c
 
 
-def _feasible(c: Candidate, limits: dict) -> bool:
-    return (c.information is not None and c.peak_rotation_deg is not None and c.min_tension_ratio is not None
+def _within(c: Candidate, limits: dict) -> bool:
+    return (c.peak_rotation_deg is not None and c.min_tension_ratio is not None
             and c.peak_rotation_deg <= limits["max_rotation_deg"] * 1.001
             and c.min_tension_ratio >= limits["min_tension_ratio"] * 0.999 and not c.growing
             and c.run.amplitude <= limits["max_force_n"] * 1.001)
 
 
-def _fit_amplitude(body: Body, run: Run, limits: dict, grow: bool = True, say=None) -> Candidate | None:
+def _fit_amplitude(body: Body, run: Run, limits: dict, grow: bool = True, say=None,
+                   informed: bool = True) -> Candidate | None:
     """Simulate ``run`` and bring its force amplitude to the limits: scale it linearly so
     that the simulated peak rotation and lowest tension (start-up transients and beats
     included) meet them with a 3 % margin, at most ``limits["max_force_n"]`` (up only if
     ``grow``), and simulate again (announced to ``say``, callable(str), when given), at most
-    :data:`AMPLITUDE_TRIES` times.  None if the run still breaks a limit or its swing keeps
-    growing (a parametric resonance)."""
-    cand = _sim_check(body, run)
+    :data:`AMPLITUDE_TRIES` times; then, where ``informed``, what the last simulation tells the
+    rig model (:func:`_informed`).  None if the run still breaks a limit, its swing keeps
+    growing (a parametric resonance) or it leaves the rig model nothing to fit."""
+    cand, sim = _sim_check(body, run)
     for _ in range(AMPLITUDE_TRIES):
         if cand.growing:
             return None
@@ -210,10 +217,14 @@ def _fit_amplitude(body: Body, run: Run, limits: dict, grow: bool = True, say=No
         run = replace(run, amplitude=run.amplitude * s)
         if say is not None:
             say(f"simulating it again at {run.amplitude:.0f} N (its amplitude brought to the limits) ...")
-        cand = _sim_check(body, run)
+        cand, sim = _sim_check(body, run)
         grow = False
-    if not _feasible(cand, limits):
+    if not _within(cand, limits):
         return None
+    if informed:
+        cand = _informed(cand, sim, body.noise)
+        if cand.information is None:
+            return None
     assert cand.peak_rotation_deg is not None and cand.min_tension_ratio is not None
     use = {"rotation": cand.peak_rotation_deg / limits["max_rotation_deg"],
            "tension": (1 - cand.min_tension_ratio) / (1 - limits["min_tension_ratio"]),
@@ -410,7 +421,8 @@ def _baseline(body: Body, baseline: Run, opts: PlanOptions, limits: dict, screen
     (its candidate, the reference σ of the screen's ranking, that of the simulations')."""
     say(f"simulating the baseline ({baseline.amplitude:.0f} N at {baseline.frequency:.2f} Hz, "
         f"{opts.duration:.0f} s; the rig model's bound along it) ...")
-    base = replace(_sim_check(body, replace(baseline, duration=opts.duration)), limit="baseline")
+    base, sim = _sim_check(body, replace(baseline, duration=opts.duration))
+    base = replace(_informed(base, sim, body.noise), limit="baseline")
     prior = body_prior(body.rig)
     if base.information is None or not np.all(np.isfinite(tensor_std([base.information], prior))):
         raise PlanError(f"the baseline excitation ({baseline.amplitude:g} N at {baseline.frequency:g} Hz) slackens "
