@@ -288,6 +288,18 @@ class PlanOptions:
 
 #: Frequencies screened per progress line of :func:`plan_experiment`.
 SCREEN_GROUP = 4
+#: The most exciter frequencies the search screens, and the least ratio between two of them.
+SCREEN_FREQUENCIES = 30
+SCREEN_FREQUENCY_RATIO = 1.02
+
+
+def screened_frequencies(band: tuple[float, float]) -> np.ndarray:
+    """The exciter frequencies (Hz) the search screens in ``band`` (low, high): evenly spaced in
+    log, at most :data:`SCREEN_FREQUENCIES` and at least :data:`SCREEN_FREQUENCY_RATIO` apart."""
+    lo, hi = band
+    n = int(np.ceil(np.log(hi / lo) / np.log(SCREEN_FREQUENCY_RATIO))) + 1
+    out: np.ndarray = np.geomspace(lo, hi, max(2, min(SCREEN_FREQUENCIES, n)))
+    return out
 
 
 class _Search:
@@ -323,8 +335,7 @@ class _Search:
         mf = np.array([m.frequency for m in ms])
         scr = scr or RigScreen(b, o.duration, o.settle)
         avoid = resonances(mf)
-        freqs = [f for f in np.geomspace(o.frequencies[0], o.frequencies[1], 30)
-                 if np.all(np.abs(f / avoid - 1) >= o.mode_margin)]
+        freqs = [f for f in screened_frequencies(o.frequencies) if np.all(np.abs(f / avoid - 1) >= o.mode_margin)]
         if not freqs:
             raise PlanError(f"no exciter frequency in {o.frequencies[0]:g}–{o.frequencies[1]:g} Hz is "
                             f"{100 * o.mode_margin:.0f} % "
