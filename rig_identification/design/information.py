@@ -73,24 +73,36 @@ def true_parameters(rig: Rig, truth: dict[str, Any]) -> RigParameters:
     return RigParameters.from_rig(rig, J, k, float(np.mean(c / k)), truth["mass"], truth["center_of_gravity"])
 
 
+def _noisy_record(sim: SimResult, noise: dict[str, float]) -> Record:
+    """The record of the run ``sim`` (noise-free) with each channel's σ its level in ``noise``."""
+    rc = record(sim.sensors, sim.rig)
+    return replace(rc, sigma=channel_noise(rc.channels, noise))
+
+
 def tensor_covariance(sim: SimResult, noise: dict[str, float]) -> np.ndarray:
     """(6, 6) kg²·m⁴ the Cramér–Rao bound of the tensor entries (ixx, ixy, ixz, iyy, iyz, izz about
     the CG) for the run ``sim`` simulated (noise-free), each channel at its level in ``noise``
     (:func:`channel_noise`), under the rig model's nuisance model (module docstring).  Raises
     :class:`~rig_identification.estimation.rig_record.RigFitError` where the run gives the rig
     model nothing to fit (no exciter, under 10 s after the spin-up)."""
-    rc = record(sim.sensors, sim.rig)
-    return record_covariance(replace(rc, sigma=channel_noise(rc.channels, noise)), sim.rig, sim.truth)
+    return record_covariance(_noisy_record(sim, noise), sim.rig, sim.truth)
+
+
+def body_covariance(rc: Record, rig: Rig, truth: dict[str, Any]) -> np.ndarray:
+    """(10, 10) the Cramér–Rao bound of the body's unknowns (:data:`BODY`: tensor kg·m², CG m, mass
+    kg) for the record ``rc`` (its input and its channels' σ) at the true parameters of ``truth``
+    (:func:`true_parameters`), under the rig model's nuisance model (module docstring), the scale's
+    prior on the mass included."""
+    p = true_parameters(rig, truth)
+    cov: np.ndarray = cramer_rao(rc, rig, Prior.from_rig(rig.with_cg(p.cg)), p)[:BODY, :BODY]
+    return cov
 
 
 def record_covariance(rc: Record, rig: Rig, truth: dict[str, Any]) -> np.ndarray:
-    """(6, 6) kg²·m⁴ the Cramér–Rao bound of the tensor entries for the record ``rc`` (its input
-    and its channels' σ) at the true parameters of ``truth`` (:func:`true_parameters`), under the
-    rig model's nuisance model (module docstring)."""
-    p = true_parameters(rig, truth)
-    cov = cramer_rao(rc, rig, Prior.from_rig(rig.with_cg(p.cg)), p)
+    """(6, 6) kg²·m⁴ the Cramér–Rao bound of the tensor entries for the record ``rc``
+    (:func:`body_covariance`'s tensor block)."""
     inertia = Layout(len(rig.cables)).inertia
-    block: np.ndarray = cov[inertia, inertia]
+    block: np.ndarray = body_covariance(rc, rig, truth)[inertia, inertia]
     return block
 
 
@@ -127,14 +139,11 @@ def body_prior(rig: Rig) -> np.ndarray:
 
 def run_information(sim: SimResult, noise: dict[str, float]) -> RunInformation:
     """The :class:`RunInformation` of the run ``sim`` simulated (noise-free), each channel at its level
-    in ``noise``, from the rig model's Cramér–Rao bound (:func:`record_covariance`'s, every nuisance of
+    in ``noise``, from the rig model's Cramér–Rao bound (:func:`body_covariance`'s, every nuisance of
     the fit: the survey, the force's correction, the segments' states).  Raises
     :class:`~rig_identification.estimation.rig_record.RigFitError` as :func:`tensor_covariance`."""
-    rc = record(sim.sensors, sim.rig)
-    rc = replace(rc, sigma=channel_noise(rc.channels, noise))
-    p = true_parameters(sim.rig, sim.truth)
-    cov = cramer_rao(rc, sim.rig, Prior.from_rig(sim.rig.with_cg(p.cg)), p)
-    info = np.linalg.inv(cov[:BODY, :BODY]) - body_prior(sim.rig)
+    rc = _noisy_record(sim, noise)
+    info = np.linalg.inv(body_covariance(rc, sim.rig, sim.truth)) - body_prior(sim.rig)
     return RunInformation(0.5 * (info + info.T), float((len(rc.y) - rc.start) * rc.dt))
 
 
@@ -162,6 +171,6 @@ def tensor_std(runs: Sequence[RunInformation], prior: np.ndarray) -> np.ndarray:
     return np.sqrt(np.abs(np.diag(combined(runs, prior))[:6]))
 
 
-__all__ = ["BODY", "NOISE_OF_CHANNEL", "SINGULAR", "RunInformation", "body_prior", "channel_noise",
+__all__ = ["BODY", "NOISE_OF_CHANNEL", "SINGULAR", "RunInformation", "body_covariance", "body_prior", "channel_noise",
            "combined", "nominal_parameters", "record_covariance", "run_information",
            "tensor_bound", "tensor_covariance", "tensor_std", "true_parameters"]

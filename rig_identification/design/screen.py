@@ -37,11 +37,11 @@ from scipy.linalg import expm
 from scipy.signal import butter, lfilter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
-from ..estimation.rig_record import FORCE_BAND
+from ..estimation.rig_record import FORCE_BAND, channel_names
 from ..estimation.rig_unknowns import SEGMENT, Layout, Prior, parameters_of, priors, unit_scale, vector
 from ..model.dynamics import skew
 from ..model.linear_rig import RestPose, RigParameters, linearise, rest_pose
-from .information import BODY, RunInformation, nominal_parameters
+from .information import BODY, RunInformation, channel_noise, nominal_parameters
 from .run import Body
 
 #: Hz, the screen's sampling rate (the rig model's band reaches 4× the exciter frequency: 16 Hz at 4 Hz).
@@ -244,9 +244,7 @@ class RigScreen:
         self.t = np.arange(int(round(duration * rate)) + 1) / rate
         self.first = int(np.searchsorted(self.t, settle))
         has_inc = rig.inclinometer is not None
-        sig = np.concatenate([np.full(n, body.noise["load_cell"]), np.full(3, body.noise["gyro"]),
-                              np.full(3, body.noise["accelerometer"]),
-                              np.full(2 * has_inc, body.noise.get("inclinometer", 0.0))])
+        sig = channel_noise(channel_names(rig), body.noise)
         rates = np.concatenate([np.full(n, body.rates["load_cells"]), np.full(6, body.rates["imu"]),
                                 np.full(2 * has_inc, body.rates.get("inclinometer", 0.0))])
         self.weight = np.sqrt(rates / rate) / sig
