@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from rig_identification.cli.sim import sim_main
@@ -27,8 +28,6 @@ from rig_identification.model.simulator import simulate
 ROOT = Path(__file__).resolve().parents[1]
 DEFAULT = ROOT / "config" / "rigs" / "default.yaml"
 CASES = sorted((ROOT / "config" / "cases").glob("case*.yaml"))
-REFERENCE = Path("/work/shared/recordings")
-needs_reference = pytest.mark.skipif(not REFERENCE.is_dir(), reason="reference recordings not available")
 
 
 def default_dict() -> dict:
@@ -265,9 +264,8 @@ def test_case_configs(path):
         assert np.shape(exp.thesis["reported_error_percent"]) == (3, 3)
 
 
-@needs_reference
 def test_case16_geometry_matches_reference_rig():
-    ref = load_rig(REFERENCE / "visible_case16_clean" / "rig.yaml")
+    ref = load_rig(recording("visible_case16_clean") / "rig.yaml")
     for path in (ROOT / "config/cases/case16.yaml", DEFAULT):
         rig = load_experiment(path).rig
         assert rig.cable_names == ref.cable_names
@@ -392,10 +390,9 @@ def test_rig_sim_simulates_a_labs_rig_yaml_with_a_force_given_by_options(tmp_pat
 
 # --- (6) against the independent reference simulator --------------------------------------------
 
-@needs_reference
 @pytest.mark.parametrize("folder", ["static_baseline", "static_dummy"])
 def test_static_equilibrium_matches_reference(folder):
-    ref = read_recording(REFERENCE / "visible_case16_static" / folder)
+    ref = read_recording(recording("visible_case16_static") / folder)
     exp = load_experiment(ROOT / "config/cases/case16.yaml")
     mass, cg = exp.mass, exp.cg
     if folder == "static_dummy":
@@ -413,9 +410,8 @@ def test_static_equilibrium_matches_reference(folder):
     np.testing.assert_allclose(R.T @ [0, 0, exp.rig.gravity], f_ref, atol=2e-3)
 
 
-@needs_reference
 def test_dynamic_run_matches_reference():
-    ref = read_recording(REFERENCE / "visible_case16_clean")
+    ref = read_recording(recording("visible_case16_clean"))
     exp = load_experiment(DEFAULT).with_overrides(duration=60.0, noise_free=True)
     res = simulate(exp)
     t0 = exp.stamp_origin
