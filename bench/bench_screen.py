@@ -5,7 +5,8 @@ frequency log-uniform in 0.35–3.8 Hz, a corner of :func:`~rig_identification.d
 a spin axis of :data:`~rig_identification.design.run.SPIN_AXES`, the force at the plan's limits (the screen's:
 3°, 20 % of static tension, 200 N).  Per run: the screen's σ of each entry
 (:class:`~rig_identification.design.screen.RigScreen`) and the rig model's Cramér–Rao bound along a noise-free
-simulation of the run (:func:`~rig_identification.design.information.run_information`), 30 s each; then the
+simulation of the run by the rig model's integrator (:func:`~rig_identification.design.information.simulate_run`,
+:func:`~rig_identification.design.information.run_information`), 30 s each; then the
 rank correlation (Spearman) of the two over the runs, per entry and for the worst relative entry
 (what the plan ranks by).
 
@@ -20,13 +21,12 @@ from pathlib import Path
 import numpy as np
 from scipy.stats import spearmanr
 
-from rig_identification.design.information import body_prior, run_information, tensor_std
+from rig_identification.design.information import body_prior, run_information, simulate_run, tensor_std
 from rig_identification.design.planning import candidate_positions
 from rig_identification.design.run import SPIN_AXES, Run, load_plan_input, make_body
 from rig_identification.design.screen import RigScreen
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import entry_scales, from_tensor
-from rig_identification.model.simulator import simulate
 
 RIG = Path(__file__).resolve().parents[1] / "config" / "rigs" / "default.yaml"
 INERTIA = [2894.0, 0.0, 0.0, 695.0, -102.0, 3101.0]     # KEYS order
@@ -49,8 +49,8 @@ def one(args):
     axis = list(SPIN_AXES)[rng.integers(len(SPIN_AXES))]
     prior = body_prior(b.rig)
     c = RigScreen(b, duration, 5.0).at(f).candidate(pos, SPIN_AXES[axis], LIMITS)
-    sim = simulate(b.experiment(Run(f, c.amplitude, pos, axis, duration=duration)))
-    return (tensor_std([c.information], prior), tensor_std([run_information(sim, b.noise)], prior),
+    sim = simulate_run(b, Run(f, c.amplitude, pos, axis, duration=duration))
+    return (tensor_std([c.information], prior), tensor_std([run_information(sim)], prior),
             (f, c.amplitude, pos, axis))
 
 

@@ -266,7 +266,8 @@ background("second_geometry", __file__, _second_geometry_plan, {"run": ()}, firs
 def test_second_run_on_another_cable_geometry_stays_within_the_limits():
     """plan_experiment with one other cable geometry (ceiling anchors 1 m farther apart in
     y; a narrowed search, 20 s runs) searches it for the second run: its best second run
-    there, simulated again on that geometry, keeps every cable above 20 % of its static
+    there, simulated again on that geometry by the package's simulator (DOP853; the plan's runs
+    are the rig model's fixed-step integrator), keeps every cable above 20 % of its static
     tension and the rotation below 3° as the plan says (on the rig's own cables it would
     not behave the same); the plan is chosen between it and the best run done twice, and
     no pair it could make of the runs it reports (each of its runs twice, its two runs, a
@@ -276,7 +277,7 @@ def test_second_run_on_another_cable_geometry_stays_within_the_limits():
     c = plan.other_geometries[0]
     assert c.geometry == label and c.body.rig.cables is vr.cables
     (tmin, peak), on_rig = limits
-    assert tmin == pytest.approx(c.min_tension_ratio, abs=1e-6) and peak == pytest.approx(c.peak_rotation_deg, abs=1e-6)
+    assert tmin == pytest.approx(c.min_tension_ratio, abs=1e-4) and peak == pytest.approx(c.peak_rotation_deg, abs=1e-4)
     assert tmin >= 0.2 * 0.999 and peak <= 3.0 * 1.001
     assert on_rig != pytest.approx((tmin, peak), rel=0.02)   # the geometry matters
     d = c.to_dict(plan.prior, plan.inertia)["cable_geometry"]

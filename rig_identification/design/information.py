@@ -17,15 +17,19 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from ..estimation.rig_fit import cramer_rao
-from ..estimation.rig_record import Record, record
+from ..estimation.rig_record import Record, Streams, channel_names, on_model_grid, record
 from ..estimation.rig_unknowns import Layout, Prior
-from ..io.rig import Rig, inertia_tensor
+from ..io.rig import Mount, Rig, inertia_tensor
 from ..model.cables import DEFAULT_DAMPING_RATIO
-from ..model.linear_rig import RigParameters
+from ..model.excitation import RotatingForce
+from ..model.linear_rig import RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import from_tensor
+from ..model.rig_ode import drive, rest_state, substeps_for, trajectory
 from ..model.simulator import SimResult
+from .run import Body, Run
 
 #: The body's unknowns at the head of the rig model's vector: the tensor's six entries (kg·m²,
 #: :data:`~rig_identification.io.verdict.KEYS` order), the CG (3, body m), the mass (kg).
@@ -35,19 +39,27 @@ BODY = 10
 #: channel, by the channel name's prefix.
 NOISE_OF_CHANNEL = {"tension": "load_cell", "gyro": "gyro", "accel": "accelerometer", "incl": "inclinometer",
                     "exciter": "exciter"}
+#: The stream (:data:`~rig_identification.model.experiment.REFERENCE_RATES`' key) of each rig-model
+#: channel, by the channel name's prefix.
+RATE_OF_CHANNEL = {"tension": "load_cells", "gyro": "imu", "accel": "imu", "incl": "inclinometer",
+                   "exciter": "exciter"}
+
+
+def _per_channel(channels: Sequence[str], table: dict[str, str], values: dict[str, float], what: str) -> np.ndarray:
+    out = []
+    for c in channels:
+        key = next((v for k, v in table.items() if c.startswith(k)), None)
+        if key is None or key not in values:
+            raise KeyError(f"no {what} for channel {c!r} (keys: {', '.join(values)})")
+        out.append(float(values[key]))
+    return np.array(out)
 
 
 def channel_noise(channels: Sequence[str], noise: dict[str, float]) -> np.ndarray:
     """(len(channels),) the white-noise σ of each rig-model channel (``tension:c0``, ``gyro_x``, …)
     from ``noise``, a mapping of :data:`NOISE_OF_CHANNEL`'s keys (N, rad/s, m/s², rad, N).
     Raises ``KeyError`` naming a channel whose noise ``noise`` does not give."""
-    out = []
-    for c in channels:
-        key = next((v for k, v in NOISE_OF_CHANNEL.items() if c.startswith(k)), None)
-        if key is None or key not in noise:
-            raise KeyError(f"no noise level for channel {c!r} (noise keys: {', '.join(noise)})")
-        out.append(float(noise[key]))
-    return np.array(out)
+    return _per_channel(channels, NOISE_OF_CHANNEL, noise, "noise level")
 
 
 def nominal_parameters(rig: Rig, inertia: np.ndarray, stiffness: np.ndarray, mass: float) -> RigParameters:
@@ -85,24 +97,22 @@ def tensor_covariance(sim: SimResult, noise: dict[str, float]) -> np.ndarray:
     (:func:`channel_noise`), under the rig model's nuisance model (module docstring).  Raises
     :class:`~rig_identification.estimation.rig_record.RigFitError` where the run gives the rig
     model nothing to fit (no exciter, under 10 s after the spin-up)."""
-    return record_covariance(_noisy_record(sim, noise), sim.rig, sim.truth)
+    return record_covariance(_noisy_record(sim, noise), sim.rig, true_parameters(sim.rig, sim.truth))
 
 
-def body_covariance(rc: Record, rig: Rig, truth: dict[str, Any]) -> np.ndarray:
+def body_covariance(rc: Record, rig: Rig, p: RigParameters) -> np.ndarray:
     """(10, 10) the Cramér–Rao bound of the body's unknowns (:data:`BODY`: tensor kg·m², CG m, mass
-    kg) for the record ``rc`` (its input and its channels' σ) at the true parameters of ``truth``
-    (:func:`true_parameters`), under the rig model's nuisance model (module docstring), the scale's
-    prior on the mass included."""
-    p = true_parameters(rig, truth)
+    kg) for the record ``rc`` (its input and its channels' σ) of ``rig`` at the true parameters ``p``,
+    under the rig model's nuisance model (module docstring), the scale's prior on the mass included."""
     cov: np.ndarray = cramer_rao(rc, rig, Prior.from_rig(rig.with_cg(p.cg)), p)[:BODY, :BODY]
     return cov
 
 
-def record_covariance(rc: Record, rig: Rig, truth: dict[str, Any]) -> np.ndarray:
+def record_covariance(rc: Record, rig: Rig, p: RigParameters) -> np.ndarray:
     """(6, 6) kg²·m⁴ the Cramér–Rao bound of the tensor entries for the record ``rc``
     (:func:`body_covariance`'s tensor block)."""
     inertia = Layout(len(rig.cables)).inertia
-    block: np.ndarray = body_covariance(rc, rig, truth)[inertia, inertia]
+    block: np.ndarray = body_covariance(rc, rig, p)[inertia, inertia]
     return block
 
 
@@ -137,31 +147,104 @@ def body_prior(rig: Rig) -> np.ndarray:
     return info
 
 
-def run_information(sim: SimResult, noise: dict[str, float]) -> RunInformation:
-    """The :class:`RunInformation` of the run ``sim`` simulated (noise-free), each channel at its level
-    in ``noise``, from the rig model's Cramér–Rao bound (:func:`body_covariance`'s, every nuisance of
-    the fit: the survey, the force's correction, the segments' states).  Raises
-    :class:`~rig_identification.estimation.rig_record.RigFitError` as :func:`tensor_covariance`."""
-    rc = _noisy_record(sim, noise)
-    info = np.linalg.inv(body_covariance(rc, sim.rig, sim.truth)) - body_prior(sim.rig)
+@dataclass(frozen=True)
+class SimulatedRun:
+    """A planned run as the rig model runs it, noise-free (:func:`simulate_run`).
+
+    record: what the fit would be given (:func:`~rig_identification.estimation.rig_record.on_model_grid`),
+    each channel's σ the lab's noise level; rig: the body's rig with the run's exciter mount;
+    parameters: the nominal body's (:func:`nominal_parameters`); peak_rotation_deg: the body's largest
+    rotation from rest, deg; min_tension_ratio: the lowest tension over its static value (spin-up
+    and beats included); growing: the swing's peak over its last third exceeds 1.15× the middle
+    third's (a parametric resonance)."""
+
+    record: Record
+    rig: Rig
+    parameters: RigParameters
+    peak_rotation_deg: float
+    min_tension_ratio: float
+    growing: bool
+
+
+def simulate_run(body: Body, run: Run) -> SimulatedRun:
+    """The run ``run`` of ``body`` (its nominal tensor, mass, CG and cable stiffness) simulated from
+    rest by the rig model's own integrator (:func:`~rig_identification.model.rig_ode.trajectory`:
+    the exact equations with spring–damper cables, ζ
+    :data:`~rig_identification.model.cables.DEFAULT_DAMPING_RATIO`), driven by the spinning-up
+    rotating force (:class:`~rig_identification.model.excitation.RotatingForce`, ``spin_up``) sampled
+    at the fastest of ``body.rates``, each channel's stream at its own rate and noise
+    (:data:`RATE_OF_CHANNEL`, :data:`NOISE_OF_CHANNEL`).  Raises
+    :class:`~rig_identification.model.dynamics.SimulationError` (no taut rest pose),
+    :class:`~rig_identification.estimation.rig_record.RigFitError` (a run under 10 s after the spin-up),
+    ``KeyError`` (a stream's rate or noise missing from ``body``)."""
+    max_force = None if body.rig.exciter is None else body.rig.exciter.max_force
+    rig = replace(body.rig, exciter=Mount(np.asarray(run.position, float), np.asarray(run.exciter_rpy, float),
+                                          max_force))
+    p = nominal_parameters(rig, body.inertia, body.stiffness, body.mass)
+    channels = channel_names(rig)
+    rates = _per_channel(channels, RATE_OF_CHANNEL, body.rates, "rate")
+    dt = 1.0 / round(max(float(rates.max()), float(body.rates["exciter"])), 6)
+    t = dt * np.arange(int(np.floor(run.duration / dt + 1e-6)) + 1)
+    spin = RotatingForce(run.amplitude, run.frequency, run.ramp_time, 0.0, run.direction, ramp_shape="spin_up")
+    force = np.array([spin.force(x)[:2] for x in t])
+    rest = rest_pose(p)
+    substeps = substeps_for(2 * np.pi * natural_frequencies(linearise(p, rest)).max(), dt)
+    out, states = trajectory(p, rest_state(p, rest), drive(force, dt, substeps))
+    turned = Rotation.from_quat(states[:, [4, 5, 6, 3]])
+    ang = np.linalg.norm((turned * turned[0].inv()).as_rotvec(), axis=1)
+    n = len(ang)
+    tension = out[:, :len(rig.cables)]
+    rc = on_model_grid(Streams(0.0, dt, out, channel_noise(channels, body.noise), rates, force,
+                               float(body.noise["exciter"]), float(body.rates["exciter"])), rig)
+    return SimulatedRun(rc, rig, p, float(np.degrees(ang.max())), float(np.min(tension / tension[0][None, :])),
+                        bool(np.max(ang[2 * n // 3:]) > 1.15 * np.max(ang[n // 3: 2 * n // 3])))
+
+
+def run_information(run: SimulatedRun) -> RunInformation:
+    """The :class:`RunInformation` of the simulated ``run`` from the rig model's Cramér–Rao bound
+    (:func:`body_covariance`'s, every nuisance of the fit: the survey, the force's correction, the
+    segments' states).  Raises ``numpy.linalg.LinAlgError`` where the bound is singular."""
+    rc = run.record
+    info = np.linalg.inv(body_covariance(rc, run.rig, run.parameters)) - body_prior(run.rig)
     return RunInformation(0.5 * (info + info.T), float((len(rc.y) - rc.start) * rc.dt))
 
 
-#: Condition number beyond which the runs' information leaves some combination of the body's
-#: unknowns undetermined (:func:`combined` gives σ inf).
+#: The largest variance, in units of its own information (the information scaled to a unit diagonal),
+#: beyond which the runs leave some combination of the body's unknowns undetermined
+#: (:func:`covariances` gives σ inf): the scaled information's smallest eigenvalue is then below
+#: ~10/SINGULAR.
 SINGULAR = 1e13
+
+
+def covariances(info: np.ndarray) -> np.ndarray:
+    """(P, 10, 10) the covariance of the body's unknowns for each of P information matrices ``info``
+    (P, 10, 10) (:data:`BODY` order): the inverse, by the Cholesky factor of the information scaled to
+    a unit diagonal.  Inf where the scaled information is not positive definite or leaves a variance
+    over :data:`SINGULAR` (some combination undetermined)."""
+    d = 1.0 / np.sqrt(np.maximum(np.einsum("pkk->pk", info), 1e-300))
+    scaled = info * d[:, :, None] * d[:, None, :]
+    ok = np.all(np.isfinite(scaled), axis=(1, 2))
+    cov = np.full(info.shape, np.inf)
+    if not np.any(ok):
+        return cov
+    try:
+        np.linalg.cholesky(scaled[ok])
+    except np.linalg.LinAlgError:     # some are not positive definite: their smallest eigenvalue says which
+        ok[ok] = np.linalg.eigvalsh(scaled[ok])[:, 0] > 0
+    idx = np.flatnonzero(ok)
+    inv = np.linalg.inv(scaled[idx])
+    held = np.max(np.einsum("pkk->pk", inv), axis=1) < SINGULAR
+    idx = idx[held]
+    cov[idx] = inv[held] * d[idx, :, None] * d[idx, None, :]
+    return cov
 
 
 def combined(runs: Sequence[RunInformation], prior: np.ndarray) -> np.ndarray:
     """(10, 10) the covariance of the body's unknowns from the runs together (the joint fit of
-    several recordings: their information added, the body's ``prior`` (:func:`body_prior`) once).
-    Rows and columns of an undetermined combination are inf."""
+    several recordings: their information added, the body's ``prior`` (:func:`body_prior`) once;
+    :func:`covariances`).  Rows and columns of an undetermined combination are inf."""
     info = sum((r.body for r in runs), np.zeros((BODY, BODY))) + prior
-    d = 1.0 / np.sqrt(np.maximum(np.diag(info), 1e-300))
-    scaled = info * np.outer(d, d)
-    if not np.all(np.isfinite(scaled)) or np.linalg.cond(scaled) > SINGULAR:
-        return np.full((BODY, BODY), np.inf)
-    cov: np.ndarray = np.linalg.inv(scaled) * np.outer(d, d)
+    cov: np.ndarray = covariances(info[None])[0]
     return cov
 
 
@@ -171,6 +254,7 @@ def tensor_std(runs: Sequence[RunInformation], prior: np.ndarray) -> np.ndarray:
     return np.sqrt(np.abs(np.diag(combined(runs, prior))[:6]))
 
 
-__all__ = ["BODY", "NOISE_OF_CHANNEL", "SINGULAR", "RunInformation", "body_covariance", "body_prior", "channel_noise",
-           "combined", "nominal_parameters", "record_covariance", "run_information",
-           "tensor_bound", "tensor_covariance", "tensor_std", "true_parameters"]
+__all__ = ["BODY", "NOISE_OF_CHANNEL", "RATE_OF_CHANNEL", "SINGULAR", "RunInformation", "SimulatedRun",
+           "body_covariance", "body_prior", "channel_noise", "combined", "covariances", "nominal_parameters",
+           "record_covariance", "run_information", "simulate_run", "tensor_bound", "tensor_covariance", "tensor_std",
+           "true_parameters"]

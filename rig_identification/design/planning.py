@@ -3,7 +3,8 @@
 Every σ here is the rig model's (:mod:`~rig_identification.design.information`: every sensor an
 output, the fit's nuisance model): the fast screen ranks hundreds of candidate runs by the
 linearised rig's Fisher information (:mod:`~rig_identification.design.screen`), and the best few,
-simulated, by the exact model's Cramér–Rao bound along the simulation, which is what
+simulated by the rig model's own integrator (:func:`~rig_identification.design.information.simulate_run`),
+by the exact model's Cramér–Rao bound along the simulation, which is what
 ``rig-identify inertia`` reaches on a recording of the run.  The linearised rig misses what the
 exact model draws from the motion's second-order terms (on the package's default rig the screen's
 σ of Izz is 0.2–5× the exact bound, candidate by candidate), so the screen only shortlists:
@@ -47,8 +48,17 @@ from ..model.dynamics import SimulationError
 from ..model.equilibrium import equilibrium
 from ..model.modes import natural_modes
 from ..model.parametrisation import entry_scales, from_tensor
-from ..model.simulator import SimResult, simulate
-from .information import BODY, SINGULAR, RunInformation, body_prior, combined, run_information, tensor_std
+from .information import (
+    BODY,
+    RunInformation,
+    SimulatedRun,
+    body_prior,
+    combined,
+    covariances,
+    run_information,
+    simulate_run,
+    tensor_std,
+)
 from .run import SPIN_AXES, Body, PlanError, Run, load_plan_input, make_body
 from .screen import RigScreen
 
@@ -157,25 +167,19 @@ def candidate_positions(rig: Rig) -> list[np.ndarray]:
 AMPLITUDE_TRIES = 2
 
 
-def _sim_check(body: Body, run: Run) -> tuple[Candidate, SimResult]:
-    """Simulate ``run`` without noise and measure its peak rotation, lowest tension ratio and
-    whether the swing keeps growing (last third against the middle third).  Returns (the
-    candidate, without its information yet, and the simulation)."""
-    sim = simulate(body.experiment(run))
-    rot = sim.states.rotation
-    ang = np.linalg.norm((rot * rot[0].inv()).as_rotvec(), axis=1)
-    T = sim.states.tensions
-    n = len(ang)
-    growing = bool(np.max(ang[2 * n // 3:]) > 1.15 * np.max(ang[n // 3: 2 * n // 3]))
-    return Candidate(run, None, "", True, float(np.degrees(np.max(ang))), float(np.min(T / T[0][None, :])),
-                     growing=growing), sim
+def _sim_check(body: Body, run: Run) -> tuple[Candidate, SimulatedRun]:
+    """Simulate ``run`` without noise (:func:`~.information.simulate_run`): its peak rotation,
+    lowest tension ratio and whether the swing keeps growing.  Returns (the candidate, without
+    its information yet, and the simulation)."""
+    sim = simulate_run(body, run)
+    return Candidate(run, None, "", True, sim.peak_rotation_deg, sim.min_tension_ratio, growing=sim.growing), sim
 
 
-def _informed(c: Candidate, sim: SimResult, noise: dict[str, float]) -> Candidate:
+def _informed(c: Candidate, sim: SimulatedRun) -> Candidate:
     """``c`` with what its simulation ``sim`` tells the rig model (:func:`~.information.run_information`;
     None where slack cables leave it nothing to fit)."""
     try:
-        return replace(c, information=run_information(sim, noise))
+        return replace(c, information=run_information(sim))
     except (RigFitError, SimulationError, np.linalg.LinAlgError):
         return c
 
@@ -222,7 +226,7 @@ def _fit_amplitude(body: Body, run: Run, limits: dict, grow: bool = True, say=No
     if not _within(cand, limits):
         return None
     if informed:
-        cand = _informed(cand, sim, body.noise)
+        cand = _informed(cand, sim)
         if cand.information is None:
             return None
     assert cand.peak_rotation_deg is not None and cand.min_tension_ratio is not None
@@ -242,7 +246,7 @@ def amplitude_at_limits(body: Body, run: Run, max_rotation_deg: float = 3.0, min
     :class:`Candidate` (``.run.amplitude`` N, ``.peak_rotation_deg``,
     ``.min_tension_ratio``, ``.information``), or None if no amplitude keeps the run within
     the limits (its swing keeps growing).  Raises :class:`PlanError` for bad limits,
-    :class:`~rig_identification.model.simulator.SimulationError`."""
+    :class:`~rig_identification.model.dynamics.SimulationError`."""
     return _fit_amplitude(body, run, _limits(max_force, max_rotation_deg, min_tension_ratio))
 
 
@@ -433,7 +437,7 @@ def _baseline(body: Body, baseline: Run, opts: PlanOptions, limits: dict, screen
     say(f"simulating the baseline ({baseline.amplitude:.0f} N at {baseline.frequency:.2f} Hz, "
         f"{opts.duration:.0f} s; the rig model's bound along it) ...")
     base, sim = _sim_check(body, replace(baseline, duration=opts.duration))
-    base = replace(_informed(base, sim, body.noise), limit="baseline")
+    base = replace(_informed(base, sim), limit="baseline")
     prior = body_prior(body.rig)
     if base.information is None or not np.all(np.isfinite(tensor_std([base.information], prior))):
         raise PlanError(f"the baseline excitation ({baseline.amplitude:g} N at {baseline.frequency:g} Hz) slackens "
@@ -536,7 +540,7 @@ def plan_experiment(body: Body, baseline: Run, options: PlanOptions = PlanOption
     1.05 Hz at the rig's exciter).  options: :class:`PlanOptions` (limits, search, objective).
     progress: optional callable(str), called as each step starts: each group of
     :data:`SCREEN_GROUP` frequencies screened, each simulation.
-    Raises :class:`PlanError`, :class:`~rig_identification.model.simulator.SimulationError`.
+    Raises :class:`PlanError`, :class:`~rig_identification.model.dynamics.SimulationError`.
     """
     say = progress or (lambda s: None)
     limits = _checked_limits(options)
@@ -607,13 +611,7 @@ def _best_pairs(cands: list[Candidate], n: int, ref: np.ndarray, prior: np.ndarr
     out = np.full(len(i), np.inf)
     for lo in range(0, len(i), 20000):
         sl = slice(lo, lo + 20000)
-        Bs = B[i[sl]] + B[j[sl]] + prior
-        d = 1.0 / np.sqrt(np.maximum(np.einsum("pkk->pk", Bs), 1e-300))
-        Bs = Bs * d[:, :, None] * d[:, None, :]
-        ok = np.linalg.cond(Bs) < SINGULAR
-        var = np.full((len(Bs), 6), np.inf)
-        if np.any(ok):
-            var[ok] = np.einsum("pkk->pk", np.linalg.inv(Bs[ok]))[:, :6] * d[ok, :6] ** 2
+        var = np.einsum("pkk->pk", covariances(B[i[sl]] + B[j[sl]] + prior))[:, :6]
         out[sl] = np.max(np.sqrt(np.clip(var, 0, None)) / ref, axis=1)
     order = np.argsort(out)
     taken: list[tuple[Candidate, Candidate]] = []

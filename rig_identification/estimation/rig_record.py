@@ -152,13 +152,32 @@ def _on_grid(t: np.ndarray, x: np.ndarray, grid: np.ndarray) -> np.ndarray:
     return spline
 
 
+@dataclass(frozen=True)
+class Streams:
+    """Every channel of a run on one uniform grid before :func:`on_model_grid`: t0 s the first
+    sample's stamp, dt s the step; y (n, n_out) the readings in :func:`channel_names` order
+    (tensions N, gyro rad/s, accelerometer m/s², inclinometer rad); sigma (n_out,) each channel's
+    white-noise σ per sample of its own stream; rates (n_out,) Hz each channel's stream rate;
+    force (n, 2) N the exciter's measured components (exciter frame), ``force_sigma`` N their σ per
+    sample, ``force_rate`` Hz their stream's rate."""
+
+    t0: float
+    dt: float
+    y: np.ndarray = field(repr=False)
+    sigma: np.ndarray
+    rates: np.ndarray
+    force: np.ndarray = field(repr=False)
+    force_sigma: float
+    force_rate: float
+
+
 def record(sensors: SensorData, rig: Rig, t0: float | None = None, t1: float | None = None) -> Record:
     """The recording's :class:`Record` over [t0, t1] (stamps, s; default the span every stream covers).
 
     Every stream is put on one uniform grid at the fastest stream's rate (a cubic spline where
-    its stamps differ from the grid's), then low-passed and decimated where that rate exceeds
-    :data:`MODEL_RATE_BANDS` band edges twice or more.  Raises :class:`RigFitError` without an exciter stream,
-    or when the streams share less than 10 s.
+    its stamps differ from the grid's), each channel's σ estimated from its own samples
+    (:func:`~rig_identification.io.noise.white_sigma`), then :func:`on_model_grid`.  Raises
+    :class:`RigFitError` without an exciter stream, or when the streams share less than 10 s.
     """
     if sensors.exciter is None or rig.exciter is None:
         raise RigFitError(f"{rig.source}: the rig model needs the exciter (rig.yaml exciter and the "
@@ -184,12 +203,25 @@ def record(sensors: SensorData, rig: Rig, t0: float | None = None, t1: float | N
         sig.append(white_sigma(x[m]))
     me = (ex_t >= lo - 4 * dt) & (ex_t <= grid[-1] + 4 * dt)
     measured = np.column_stack([_on_grid(ex_t[me], sensors.exciter.data[me, j], grid) for j in range(2)])
-    band = band_edge(measured, dt)
     # σ of the force's samples as read, like every stream's: a spline onto the grid at a fractional
     # offset smooths the noise (load cells stamped 8 ms late, the grid theirs: the force's σ from
     # the grid 0.67× the true, its channel fitted at 1.5–1.6× its noise), and one that upsamples
     # a slower stream more
     force_sigma = white_sigma(sensors.exciter.data[me, :2])
+    return on_model_grid(Streams(float(lo), dt, np.column_stack(y), np.array(sig), np.array(rates), measured,
+                                 force_sigma, ex_rate), rig)
+
+
+def on_model_grid(s: Streams, rig: Rig) -> Record:
+    """The :class:`Record` the rig model is fitted to from the streams ``s`` of ``rig``: the fit's
+    band (:func:`band_edge`); where the grid's rate exceeds :data:`MODEL_RATE_BANDS` band edges
+    twice or more, every channel low-passed (zero-phase 8th-order Butterworth) and decimated,
+    :data:`DECIMATION_EDGE` s dropped at each end; the force denoised (:func:`smooth_force`) and,
+    where it is a rotating vector, its readings two more outputs.  Raises :class:`RigFitError` with
+    under 10 s after the exciter's spin-up."""
+    lo, dt, n = s.t0, s.dt, len(s.y)
+    y, measured = s.y, s.force
+    band = band_edge(measured, dt)
     q = int(1.0 / (dt * MODEL_RATE_BANDS * band))
     if q >= 2:              # a zero-phase anti-aliasing low-pass (padded by odd extension: the
         # tensions' kilonewtons of offset stay put at the ends), then every q-th sample, less
@@ -197,23 +229,24 @@ def record(sensors: SensorData, rig: Rig, t0: float | None = None, t1: float | N
         # tension sample, 1e-6 N inside: a 5-cable rig at 1 kHz)
         sos = butter(8, 0.8 * 0.5 / (q * dt), fs=1.0 / dt, output="sos")
         k = int(np.ceil(DECIMATION_EDGE / (q * dt)))
-        y = [sosfiltfilt(sos, x)[::q][k:-k] for x in y]
+        y = sosfiltfilt(sos, y, axis=0)[::q][k:-k]
         measured = sosfiltfilt(sos, measured, axis=0)[::q][k:-k]
         lo, dt, n = lo + k * q * dt, q * dt, len(measured)
     # the force's noise per grid sample: a decimated stream's low-passed (σ² × grid rate / its rate)
-    u, start, knots = smooth_force(measured, dt, band, force_sigma * np.sqrt(min(1.0, 1.0 / (ex_rate * dt))))
+    u, start, knots = smooth_force(measured, dt, band, s.force_sigma * np.sqrt(min(1.0, 1.0 / (s.force_rate * dt))))
     # each stream's samples per grid step (a slower stream's sample counts once; a faster one's
     # low-passed noise keeps its in-band density: σ² × grid rate / stream rate per grid sample)
-    over = (1.0 / dt) / np.array(rates)
+    over = (1.0 / dt) / s.rates
+    sig = s.sigma
     if (n - start) * dt < 10.0:
         raise RigFitError(f"{rig.source}: {(n - start) * dt:.1f} s after the exciter's spin-up; the rig model "
                           "needs ≥ 10 s")
     force = start > 0
     if force:
-        y += [measured[:, 0], measured[:, 1]]
-        sig += [force_sigma] * 2
-        over = np.append(over, [(1.0 / dt) / ex_rate] * 2)
-    return Record(float(lo), dt, np.column_stack(y), u, np.array(sig), over, channel_names(rig, force), band, start,
+        y = np.column_stack([y, measured])
+        sig = np.append(sig, [s.force_sigma] * 2)
+        over = np.append(over, [(1.0 / dt) / s.force_rate] * 2)
+    return Record(float(lo), dt, y, u, sig, over, channel_names(rig, force), band, start,
                   knots[knots > start * dt] if force else np.zeros(0))
 
 

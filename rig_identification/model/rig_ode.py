@@ -170,6 +170,7 @@ def _simulate(y0: np.ndarray, force: np.ndarray, dt: float, substeps: int, A: np
     N = L.shape[0]
     n_out = N + 6 + (2 if has_inc else 0)
     out = np.empty((n, n_out))
+    states = np.empty((n, 13))
     T = np.empty(N)
     R = np.empty((3, 3))
     y = y0.copy()
@@ -182,8 +183,9 @@ def _simulate(y0: np.ndarray, force: np.ndarray, dt: float, substeps: int, A: np
             _rhs(y, force[b, 0], force[b, 1], A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k1, R)
             if s_ == 0:                    # the readings at the grid's sample: the first stage's derivative
                 _readings(y, k1, T, R, gain, g, Rimu, rimu, Rinc, has_inc, out[j])
+                states[j] = y
                 if j == n - 1:
-                    return out, y
+                    return out, states
             ub0, ub1 = force[b + 1, 0], force[b + 1, 1]
             uc0, uc1 = force[b + 2, 0], force[b + 2, 1]
             for i in range(13):
@@ -200,7 +202,7 @@ def _simulate(y0: np.ndarray, force: np.ndarray, dt: float, substeps: int, A: np
             qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
             for i in range(3, 7):
                 y[i] = y[i] / qn
-    return out, y
+    return out, states
 
 
 def substeps_for(omega_max: float, dt: float) -> int:
@@ -307,4 +309,12 @@ def simulate(p: RigParameters, y0: np.ndarray, force: Drive) -> tuple[np.ndarray
     """Every sensor's reading (n, n_out) on the grid (module docstring) from the state ``y0``
     (13,) (:func:`rest_state`, :func:`moved_state`) under the exciter force ``force``
     (:func:`drive`: n grid samples).  Returns the readings and the state (13,) at the last sample."""
-    return _simulate(*_arguments(p, y0, force))
+    out, states = _simulate(*_arguments(p, y0, force))
+    return out, states[-1]
+
+
+def trajectory(p: RigParameters, y0: np.ndarray, force: Drive) -> tuple[np.ndarray, np.ndarray]:
+    """As :func:`simulate`, with the state at every grid sample: the readings (n, n_out) and the
+    states (n, 13) = [p_cg world m, quaternion wxyz body → world, v_cg world m/s, ω body rad/s]."""
+    out, states = _simulate(*_arguments(p, y0, force))
+    return out, states
