@@ -1,10 +1,10 @@
 """Scaling bench (issue "fast at lab scale"): wall time, CPU time and peak memory of
 ``rig-identify inertia REC --json`` (the rig model fitted to every sensor, with its diagnosis)
-and of the gyro-only ``--quick --json`` against the recording's length, at 200 Hz and with every
-stream at 1 kHz, so that a user sees how the cost grows with the recording.
+against the recording's length, at 200 Hz and with every stream at 1 kHz, so that a user sees
+how the cost grows with the recording.
 
     bench/bench_scaling.py [--runs N] [--dir DIR] [--durations S ...] [--rates HZ ...]
-                           [--no-reference] [--quick-only] [--help-row]
+                           [--no-reference] [--help-row]
 
 The "verdict" column says what the fit's validation found.
 
@@ -114,7 +114,6 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--rates", type=float, nargs="+", default=[200.0, 1000.0],
                    help="200: the config's rates (inclinometer 50 Hz); any other: every stream at that rate")
     p.add_argument("--no-reference", action="store_true", help="without visible_case16_clean")
-    p.add_argument("--quick-only", action="store_true", help="only inertia --quick --json")
     p.add_argument("--help-row", action="store_true", help="also time rig-identify --help")
     a = p.parse_args(argv)
     if not CLI.exists():
@@ -131,8 +130,6 @@ def main(argv: list[str] | None = None) -> int:
             cases.append(("default rig", f"{rate:.0f}" + (" (incl. 50)" if rate == 200.0 else ""), d, rec))
     if not a.no_reference:
         cases.append(("visible_case16_clean", "200 (incl. 50)", 120.0, REFERENCE))
-    full = ["--json"]
-    variants = [["--quick", "--json"]] if a.quick_only else [full, ["--quick", "--json"]]
     print(f"# load average before: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; {os.cpu_count()} CPUs; "
           f"OMP_NUM_THREADS={env['OMP_NUM_THREADS']}; {a.runs} counted runs after one warm-up, whole processes",
           flush=True)
@@ -142,10 +139,8 @@ def main(argv: list[str] | None = None) -> int:
     if a.help_row:
         print(row("—", "—", 0.0, "—", "rig-identify --help", measure(["--help"], a.runs, env)), flush=True)
     for label, rate, d, rec in cases:
-        n = messages(rec)
-        for v in variants:
-            m = measure(["inertia", str(rec), *v], a.runs, env)
-            print(row(label, rate, d, n, "rig-identify inertia REC " + " ".join(v), m), flush=True)
+        m = measure(["inertia", str(rec), "--json"], a.runs, env)
+        print(row(label, rate, d, messages(rec), "rig-identify inertia REC --json", m), flush=True)
     print(f"# load average after: {' '.join(f'{x:.2f}' for x in os.getloadavg())}")
     return 0
 

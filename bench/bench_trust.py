@@ -67,11 +67,8 @@ def _rig_model_row(row: dict, rec, sim, t0: float) -> dict:
     """The row of the rig model (``rig-identify inertia``'s default): its verdict, the channels
     it does not fit (``failed``), the entries it gives, the extensions its diagnosis named (an
     extension's effect name: :data:`EFFECT_OF`) and the classes it did not tell apart."""
-    from types import SimpleNamespace
-
     from scoring import score_entries, worst
 
-    from rig_identification.model.parametrisation import to_tensor
     from rig_identification.pipeline.rig_model import fit_whole_recording
     try:
         res = fit_whole_recording(rec)
@@ -79,8 +76,7 @@ def _rig_model_row(row: dict, rec, sim, t0: float) -> dict:
         row.update(verdict="refused", error=str(e), seconds=time.perf_counter() - t0)
         return row
     f = res.fit
-    given = SimpleNamespace(inertia=to_tensor(f.inertia), inertia_std=f.inertia_std, undetermined=res.withheld)
-    entries = score_entries(given, sim.truth["inertia_about_cg"])
+    entries = score_entries(f.inertia, f.inertia_std, res.withheld, sim.truth["inertia_about_cg"])
     max_pct, max_z = worst(entries)
     row.update(verdict=res.verdict, failed=res.poorly_fitted,
                undetermined=list(dict.fromkeys(res.undetermined + res.ambiguous)),

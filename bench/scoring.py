@@ -16,10 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from rig_identification.estimation.inertia_result import InertiaResult
 from rig_identification.io.rig import Rig
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.parametrisation import entry_scales, from_tensor
+from rig_identification.model.parametrisation import entry_scales
 
 
 def surveyed(rig: Rig, rng: np.random.Generator, std: float | None = None, cg_std: float = 0.0) -> Rig:
@@ -43,15 +42,15 @@ def load_cell_errors(cables: int, share: float, rng: np.random.Generator) -> lis
             for i in range(cables)]
 
 
-def score_entries(res: InertiaResult, truth: dict) -> dict:
-    """Each entry the fit gives (its undetermined ones left out), against ``truth``
-    (``inertia_about_cg``: KEYS -> kg·m²): {key: {"error_pct" (of :func:`entry_scales`), "z"
-    (error/σ; inf for σ 0), "rel_std", "finite"}}."""
+def score_entries(inertia: np.ndarray, std: np.ndarray, undetermined, truth: dict) -> dict:
+    """Each entry a fit gives — ``inertia`` (6,) kg·m² and its σ ``std`` (6,) in KEYS order, its
+    ``undetermined`` entries left out — against ``truth`` (``inertia_about_cg``: KEYS -> kg·m²):
+    {key: {"error_pct" (of :func:`entry_scales`), "z" (error/σ; inf for σ 0), "rel_std", "finite"}}."""
     th = np.array([truth[k] for k in KEYS])
     scale = entry_scales(th)
     out = {}
-    for k, x, s, ref, t in zip(KEYS, from_tensor(res.inertia), res.inertia_std, scale, th):
-        if k in res.undetermined:
+    for k, x, s, ref, t in zip(KEYS, np.asarray(inertia, float), np.asarray(std, float), scale, th):
+        if k in undetermined:
             continue
         out[k] = {"error_pct": float(100 * (x - t) / ref), "z": float((x - t) / s) if s > 0 else float("inf"),
                   "rel_std": float(s / ref), "finite": bool(np.isfinite(x) and np.isfinite(s))}

@@ -143,13 +143,3 @@ def test_cli_different_bodies_exit_2(recs, tmp_path):
     assert "Traceback" not in err and len(err.splitlines()) == 1, err
     assert str(tmp_path / "light" / "rig.yaml") in err and str(tmp_path / "heavy" / "rig.yaml") in err
     assert "body.mass" in err and "1810" in err and "1900" in err
-
-
-def test_gyro_only_fit_refuses_several_recordings(recs, tmp_path):
-    """--model pem / --quick fit one recording: several are the rig model's, and the message says so."""
-    for name in ("a", "b"):
-        (tmp_path / name).mkdir()
-        (tmp_path / name / "rig.yaml").write_text(dump_rig(recs["A"].rig))
-    for flags in (("--model", "pem"), ("--quick",)):
-        code, _, err = run_cli("inertia", tmp_path / "a", tmp_path / "b", *flags)
-        assert code == 2 and "fits one recording at a time" in err and "rig model" in err, err

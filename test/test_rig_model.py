@@ -9,12 +9,10 @@ import dataclasses
 
 import numpy as np
 import pytest
-from conftest import background, gather, recording, run_cli
+from conftest import background, gather
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
-from rig_identification.cli.arg_types import resolve_model
-from rig_identification.cli.main import build_parser
 from rig_identification.design.information import tensor_bound
 from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random
 from rig_identification.estimation import rig_unknowns
@@ -363,19 +361,6 @@ def test_a_recording_without_exciter_or_too_short_is_refused(quiet_rig):
         record(SensorData(s.imu, s.load_cells, None, s.inclinometer), quiet_rig.rig)
     with pytest.raises(RigFitError, match="needs ≥ 10 s"):
         record(s, quiet_rig.rig, t1=s.t_start + 8.0)
-
-
-def test_the_rig_model_takes_none_of_the_gyro_fits_options():
-    """Refused before any bag is read: the options that only the gyro-only fit takes; without
-    --model, --quick means that fit, and one recording or several the rig model."""
-    rec = recording("visible_case16_clean")
-    for opts in (["--quick"], ["--band", "0.5", "3"], ["--target", "2"]):
-        code, _, err = run_cli("inertia", rec, "--model", "rig", *opts)
-        assert code == 2 and f"{opts[0]}: options of --model pem" in err, (opts, err)
-    parse = build_parser(["inertia"]).parse_args
-    for argv, model in ((["inertia", "R"], "rig"), (["inertia", "R", "--quick"], "pem"),
-                        (["inertia", "R", "S"], "rig"), (["inertia", "R", "--model", "thesis"], "thesis")):
-        assert resolve_model(parse(argv)) == model, argv
 
 
 @pytest.mark.parametrize("cables", [3, 5])

@@ -3,8 +3,8 @@
 --report DIR``.  The fit, the text and the report all use the static test's CG and say so: the
 report's header names cg.json and its σ instead of "rig.yaml body.center_of_gravity".
 
-The shake is the clean reference recording (--quick: a few seconds), the static pair the
-reference pair (its CG 2.2 mm below truth.yaml's, the body origin)."""
+The shake is the clean reference recording (its first 45 s), the static pair the reference pair
+(its CG 2.2 mm below truth.yaml's, the body origin)."""
 import html
 import json
 import tempfile
@@ -26,68 +26,18 @@ run = run_cli
 
 
 @pytest.fixture(scope="module")
-def day(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("rigday")
+def cg_json():
+    """``rig-identify cg BASELINE DUMMY --json``'s result."""
     code, out, err = run("cg", BASE, DUMMY, "--json", "-q")
     assert code == 0, err
-    cg_file = folder / "cg.json"
-    cg_file.write_text(out)
-    report = folder / "report"
-    code, text, err = run("inertia", CLEAN, "--quick", "--cg", cg_file, "--report", report, "-q")
-    assert code == 0, err
-    return json.loads(out), cg_file, report, text, err
+    return json.loads(out)
 
 
-def test_the_fit_is_about_the_static_tests_cg(day):
-    cg, cg_file, report, text, err = day
-    data = json.loads((report / "report.json").read_text())
-    c = np.array(cg["center_of_gravity"])
-    # the static test's CG, not rig.yaml's (the body origin, truth.yaml's): 2.2 mm apart in z
-    rig_cg = yaml.safe_load((CLEAN / "rig.yaml").read_text())["body"]["center_of_gravity"]
-    assert np.abs(c - rig_cg).max() > 1e-3
-    np.testing.assert_allclose(data["result"]["center_of_gravity"], c, rtol=0, atol=1e-12)
-    assert f"({', '.join(f'{x:.4f}' for x in c)}) m (from {cg_file})" in text
-    assert f"centre of gravity from {cg_file} (σ" in err     # the warning with its σ
-
-
-def test_the_tensors_sigma_carries_the_static_tests_cg(day):
-    """The CG's σ (9.4 mm in z from the 50 kg dummy) is carried into the tensor's σ: Iyy, 0.13 %
-    off and 8 σ from truth with the CG taken as exact, is within 3 σ; every entry is; the share
-    the CG adds is in the JSON and said in the text."""
-    cg, cg_file, report, text, err = day
-    res = json.loads((report / "report.json").read_text())["result"]
-    truth = yaml.safe_load((CLEAN / "truth.yaml").read_text())["inertia_about_cg"]
-    share, std = res["inertia_cg_std"], res["inertia_std"]
-    for k, t in truth.items():
-        assert abs(res["inertia_about_cg"][k] - t) <= 3 * std[k], (k, res["inertia_about_cg"][k], t, std[k])
-        assert 0 <= share[k] <= std[k] * (1 + 1e-9), (k, share[k], std[k])
-    # the pitch moment is the one the CG's height moves: its σ is mostly the CG's, and without it
-    # (the noise's σ alone) Iyy would be beyond 3 σ
-    noise_only = np.sqrt(std["iyy"] ** 2 - share["iyy"] ** 2)
-    assert share["iyy"] > 0.9 * std["iyy"] and abs(res["inertia_about_cg"]["iyy"] - truth["iyy"]) > 3 * noise_only
-    assert "σ includes the centre of gravity's σ" in text and "with the CG's σ propagated" in res["uncertainty"]
-
-
-def test_the_report_says_where_the_cg_came_from(day):
-    cg, cg_file, report, text, err = day
-    data = json.loads((report / "report.json").read_text())
-    source = data["report"]["center_of_gravity_source"]
-    sd_mm = ", ".join(f"{1e3 * x:.2g}" for x in cg["center_of_gravity_std"])
-    assert source == f"from {cg_file} (σ {sd_mm} mm)", source
-    page = html.unescape((report / "index.html").read_text())
-    assert f"in body axes ({source})" in page
-    assert "rig.yaml body.center_of_gravity, as measured" not in page
-    # the modes table's geometric modes are about the same CG, and say so
-    assert data["modes"][0]["center_of_gravity_source"] == source
-    c = ", ".join(f"{x:.4f}" for x in cg["center_of_gravity"])
-    assert f"CG [{c}] m ({source})" in page and "CG from rig.yaml" not in page
-
-
-def test_cg_json_gives_each_state_window_as_start_and_end_take_it(day):
+def test_cg_json_gives_each_state_window_as_start_and_end_take_it(cg_json):
     """cg.json's state windows in s from each recording's first IMU sample (the header stamps
     beside): what --start/--end would take to average the same stretch again."""
     from rig_identification.io.recording import read_recording
-    cg = day[0]
+    cg = cg_json
     assert [s["label"] for s in cg["states"]] == ["baseline", "dummy"]
     for s, path in zip(cg["states"], (BASE, DUMMY)):
         t0 = float(read_recording(path).sensors.t_start)
@@ -108,22 +58,6 @@ def test_cg_plan_says_what_it_is_doing_on_stderr():
                      "rig-identify: searching dummy masses (50 kg) and positions for ±2 mm"], err
     assert out.startswith("rig: ")
     assert "rig-identify: " not in run("cg-plan", BASE, "--masses", "50", "--position", "0.5", "0.5", "0.3", "-q")[2]
-
-
-def test_the_exports_say_where_the_cg_came_from(day, tmp_path):
-    """--json and --yaml carry the CG's source as the report's header says it (an archived
-    result names cg.json and its σ); without --cg: rig.yaml's."""
-    cg, cg_file, report, _, _ = day
-    source = json.loads((report / "report.json").read_text())["report"]["center_of_gravity_source"]
-    path = tmp_path / "mass_properties.yaml"
-    code, out, err = run("inertia", CLEAN, "--quick", "--cg", cg_file, "--json", "--yaml", path, "-q")
-    assert code == 0, err
-    d, exported = json.loads(out), yaml.safe_load(path.read_text())
-    assert d["center_of_gravity_source"] == exported["center_of_gravity_source"] == source
-    assert source.startswith(f"from {cg_file} (σ ")
-    np.testing.assert_allclose(exported["center_of_gravity"], cg["center_of_gravity"], rtol=0, atol=1e-12)
-    code, out, err = run("inertia", CLEAN, "--quick", "--json", "-q")
-    assert json.loads(out)["center_of_gravity_source"] == "rig.yaml body.center_of_gravity"
 
 
 def _chain():
@@ -149,17 +83,19 @@ background("rig_day_chain", __file__, _chain, {"run": ()}, first=True)
 
 
 def test_the_rig_model_carries_the_static_cg_and_finds_its_own():
-    """The chain static pair → ``cg`` → ``inertia --model rig --cg cg.json`` (45 s of the clean
-    run): the static CG is the prior and is shown as such; the run alone places the CG within
+    """The chain static pair → ``cg`` → ``inertia --cg cg.json`` (45 s of the clean run): the static
+    CG is the prior and is shown as such (the JSON and the report name cg.json); the run alone places the CG within
     1 mm and 3 σ of the truth (the body origin) with σ at least ten times smaller in height than
     the static test's; the combined CG is the tensor's point, and the tensor is within 1 % of the
     truth (its σ: the next test)."""
-    cg_text, out, code, err = gather("rig_day_chain")["run"][:4]
+    cg_text, out, code, err, page = gather("rig_day_chain")["run"][:5]
     assert code == 0, err
     cg = json.loads(cg_text)
     res = json.loads(out)
     c = res["center_of_gravity"]
     assert c["static_source"].endswith("cg.json")
+    static_row = html.unescape(page).split("<td>static</td>")[1].split("</tr>")[0]
+    assert static_row.endswith(f"<td>{c['static_source']}</td>"), static_row
     np.testing.assert_allclose(c["static"], cg["center_of_gravity"])
     np.testing.assert_allclose(c["static_std"], cg["center_of_gravity_std"])
     dyn, dyn_std = np.array(c["dynamic"]), np.array(c["dynamic_std"])
@@ -179,7 +115,7 @@ def test_the_rig_models_sigma_after_the_chain_covers_its_error():
 
 
 def test_the_default_inertia_is_the_rig_model_with_its_report_yaml_and_urdf():
-    """``inertia`` without --model fits the rig model; its report shows the tensor with σ and the
+    """``inertia`` fits the rig model; its report shows the tensor with σ and the
     Cramér–Rao bound, the CG three ways, every channel against its noise and a figure per sensor
     group; report.json's products are the negated entries; the YAML export and the URDF element
     carry the same numbers (the fitted CG and mass)."""

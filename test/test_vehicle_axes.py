@@ -4,7 +4,6 @@ ISO 8855 tensors are J' = R J Rᵀ with R from it, the words roll/pitch/yaw labe
 it names, and without it neither the words nor the vehicle axes are given.
 
 Synthetic inputs only (a hand-made rig and tensor): each test takes well under a second."""
-import dataclasses
 import re
 
 import numpy as np
@@ -12,17 +11,13 @@ import pytest
 import yaml
 from conftest import run_cli
 
-from rig_identification.cli.inertia import print_inertia
 from rig_identification.cli.recordings import output_axes
 from rig_identification.cli.text import principal_lines, tensor_table
-from rig_identification.estimation.directions import weak_directions
-from rig_identification.estimation.inertia_result import InertiaResult
 from rig_identification.io.export import AxesError, axes_block, axes_for, convention_lines, express
 from rig_identification.io.rig import RigError, dump_rig, load_rig, rig_from_dict
 from rig_identification.io.vehicle import Vehicle, common_vehicle
-from rig_identification.io.verdict import Validation
 from rig_identification.model.parametrisation import to_tensor
-from rig_identification.report.mass import convention, mass_properties, moments_table, principal_html
+from rig_identification.report.mass import convention, mass_properties_of, moments_table, principal_html
 
 # a tensor with every product non-zero and three different moments (kg·m²): the Jeep's size,
 # lying along body y (its smallest moment about y)
@@ -48,14 +43,6 @@ def rig_dict(**body) -> dict:
                         "length": 2.0} for i, (x, y) in enumerate([(-2, -2), (2, -2), (-2, 2), (2, 2)])],
             "body": {"mass": 1810.0, "center_of_gravity": [0.0, 0.0, 0.0], **body},
             "imu": {"position": [0.0, 0.0, 0.0]}}
-
-
-def result(undetermined=()) -> InertiaResult:
-    """A fitted result with the tensor :data:`J` (no series: nothing fitted)."""
-    cov = np.diag(STD**2)
-    res = InertiaResult(1810.0, CG.copy(), J.copy(), STD.copy(), cov, 100.0, 160.0, 12001, (0.4, 3.0),
-                        np.full(3, 1e-3), np.full(3, 0.99), weak_directions(J, cov))
-    return dataclasses.replace(res, validation=Validation("ok", (), tuple(undetermined)))
 
 
 # --- rig.yaml body.vehicle ------------------------------------------------------------------------
@@ -176,7 +163,7 @@ def test_without_the_vehicle_the_vehicle_axes_are_refused():
         with pytest.raises(AxesError, match="body.vehicle"):
             axes_for(name)
         with pytest.raises(AxesError, match="body.vehicle"):
-            result().expressed(name)
+            express(1810.0, CG, J, STD, (), name)
     with pytest.raises(AxesError, match="known: body, sae, iso8855"):
         axes_for("vehicle", FRONT_Y)
 
@@ -203,28 +190,16 @@ def test_words_in_the_text_follow_the_vehicle():
     assert "x forward" not in text
 
 
-def test_printout_without_the_vehicle_says_no_roll(capsys):
-    """The whole text of rig-identify inertia on a result without body.vehicle: no roll, pitch,
-    yaw (nor "x forward") anywhere — not in the frame line, the table, the weak direction."""
-    print_inertia(result(), None, ["REC"], [100.0], "body", "rig.yaml body.center_of_gravity")
-    out = capsys.readouterr().out
-    assert "Ixx" in out and not WORDS.search(out), WORDS.search(out)
-    assert "x forward" not in out
-    print_inertia(result(), None, ["REC"], [100.0], axes_for("body", FRONT_Y), "rig.yaml body.center_of_gravity")
-    out = capsys.readouterr().out
-    assert re.search(r"^Iyy .*  roll moment$", out, re.MULTILINE), out
-
-
 def test_report_words_follow_the_vehicle():
     """The report's tensor table and principal axes: "Iyy (roll moment)", "Ixx (pitch moment)"
     with front +y; "Ixx (moment about x)" and no roll, pitch or yaw without it."""
-    mp = mass_properties(result(), FRONT_Y)
+    mp = mass_properties_of(1810.0, CG, J, STD, np.diag(STD ** 2), None, (), FRONT_Y)
     table = moments_table(mp, None)
     assert "Iyy (roll moment)" in table and "Ixx (pitch moment)" in table and "Izz (yaw moment)" in table
     assert "Iyz (product, y–z (roll–yaw))" in table
     assert "body y (roll axis)" in principal_html(mp)
     assert "front along +y" in convention(mp.axes)
-    plain = mass_properties(result())
+    plain = mass_properties_of(1810.0, CG, J, STD, np.diag(STD ** 2), None)
     html = moments_table(plain, None) + principal_html(plain) + convention(plain.axes)
     assert "Ixx (moment about x)" in html and "Iyy (moment about y)" in html
     assert not WORDS.search(html), WORDS.search(html)

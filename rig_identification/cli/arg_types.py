@@ -30,16 +30,4 @@ JOB_OPTIONS = (("--vehicle-name", "vehicle_name", "the vehicle measured (make, m
                ("--customer", "customer", "the customer"),
                ("--operator", "operator", "who ran the test"))
 
-#: The options only the gyro-only prediction-error fit (--model pem or thesis) takes.
-PEM_ONLY = (("band", "--band"), ("initial_guess", "--initial-guess"), ("target", "--target"))
-
-
-def resolve_model(args) -> str:
-    """The model ``--model`` names, else the default: ``rig`` (one recording, or several fitted
-    jointly), ``pem`` for ``--quick`` (the gyro-only fit, unrefined) or its own options."""
-    if args.model is not None:
-        return str(args.model)
-    return "pem" if args.quick or any(getattr(args, k, None) for k, _ in PEM_ONLY) else "rig"
-
-
-__all__ = ["JOB_OPTIONS", "PEM_ONLY", "number", "resolve_model"]
+__all__ = ["JOB_OPTIONS", "number"]

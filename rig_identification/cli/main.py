@@ -17,7 +17,7 @@ import sys
 from typing import Callable
 
 from ..io.package import package_version
-from .arg_types import JOB_OPTIONS, UsageError, number, resolve_model
+from .arg_types import JOB_OPTIONS, UsageError, number
 from .progress import attached
 from .sim_args import parse_sim_args
 
@@ -43,7 +43,7 @@ a rig day:
   rig-identify inertia REC --urdf --yaml F.yaml  a URDF <inertial> element; a YAML file
   rig-identify diagnose REC                      where the model and the recording disagree, and why
 research baselines (not for a rig day):
-  rig-identify thesis-table                      the thesis's 17 case studies: its errors, ours, --model thesis
+  rig-identify thesis-table                      the thesis's 17 case studies: its errors, ours, its method's
 Exit status: 0 done, 2 a user error (one line on stderr, naming the file or the option)."""
 
 
@@ -53,16 +53,6 @@ def lazy(module: str, name: str) -> Callable:
         return getattr(importlib.import_module(module), name)(args)
     run.__qualname__ = f"{module}.{name}"
     return run
-
-
-def run_inertia(args) -> int:
-    """``rig-identify inertia``: the rig model's command (:mod:`rig_identification.cli.rig_model`), or
-    the gyro-only fit's (:mod:`rig_identification.cli.inertia`) where ``--model``, ``--quick`` or its
-    own options ask for it (:func:`~rig_identification.cli.arg_types.resolve_model`;
-    ``args.model`` set); each imported only when it runs."""
-    args.model = resolve_model(args)
-    module = "rig_identification.cli.rig_model" if args.model == "rig" else "rig_identification.cli.inertia"
-    return lazy(module, "cmd_inertia")(args)
 
 
 TENSOR = ("ixx", "iyy", "izz", "ixy", "ixz", "iyz")   # metavars of every option that takes a tensor (export.ORDER)
@@ -100,9 +90,8 @@ def add_inertia_parser(sub) -> None:
                     "there), the principal moments and axes, the tensor about the body frame's origin, the mass "
                     "and the CG from the static test, the run and both, and each channel's residual against its "
                     "noise. Several recordings of one body: fitted at once, each with its own rig model, the "
-                    "body's mass, CG and tensor shared. --quick: the gyro-only prediction-error fit (--model pem) "
-                    "of one recording through tracker, preprocessor and identifier.",
-                    run_inertia, inputs=("recording", "cg"),
+                    "body's mass, CG and tensor shared.",
+                    lazy("rig_identification.cli.rig_model", "cmd_inertia"), inputs=("recording", "cg"),
                     outputs=("yaml",), output_dirs=("report",))
     p.add_argument("recording", nargs="+",
                    help="recording folder (rig.yaml + bag/); several recordings of the same body (other exciter "
@@ -110,8 +99,7 @@ def add_inertia_parser(sub) -> None:
     add_report_options(p)
     p.add_argument("--json", action="store_true",
                    help="print one JSON object (schema rig_identification.rig_model_result; "
-                        "rig_identification.joint_rig_model_result for several recordings; "
-                        "rig_identification.inertia_result for --model pem; units per field)")
+                        "rig_identification.joint_rig_model_result for several recordings; units per field)")
     p.add_argument("--urdf", action="store_true",
                    help="also print a URDF <inertial> element (origin at the CG, mass, tensor entries; always in "
                         "rig.yaml's body axes, REP-103, whatever --axes says)")
@@ -124,29 +112,9 @@ def add_inertia_parser(sub) -> None:
                         "axes and gains a 'sae_j670' or 'iso_8855' block")
     p.add_argument("--start", type=float, metavar="S", help="window start, s from the first IMU sample")
     p.add_argument("--end", type=float, metavar="S", help="window end, s from the first IMU sample")
-    p.add_argument("--band", type=float, nargs=2, metavar=("LOW_HZ", "HIGH_HZ"),
-                   help="--model pem: pass band of the fit (default: around the spectral peaks of the gyro; the rig "
-                        "model chooses its own band from the exciter's force)")
-    p.add_argument("--model", choices=["rig", "pem", "thesis"], default=None,
-                   help="rig (default): the rig's grey-box model fitted to every sensor (tensions, "
-                        "gyro, accelerometer, inclinometer), the CG and mass with the tensor, σ against the "
-                        "Cramér–Rao bound, one recording or several at once; pem (default for --quick): the "
-                        "gyro-only prediction-error fit of one recording, the tensions as its input (no diagnosis: "
-                        "rig-identify diagnose is the rig model's); thesis: the thesis's model and estimator, as a "
-                        "baseline")
-    p.add_argument("--initial-guess", type=float, nargs=6, metavar=TENSOR,
-                   help="starting tensor for --model thesis: " + TENSOR_HELP)
-    p.add_argument("--quick", action="store_true",
-                   help="the plain gyro-only fit (--model pem): not compensated for the noise in its input, σ from "
-                        "the fit's residuals (sandwich); seconds (docs/results.md)")
     p.add_argument("--cg", metavar="CG.json",
                    help="take the centre of gravity from a saved 'rig-identify cg --json' result instead of "
                         "rig.yaml's body.center_of_gravity")
-    p.add_argument("--target", type=number("--target"), default=None, metavar="PCT",
-                   help="--model pem: the precision the lab asks of every entry, %% at 95 %% (of a moment, of the "
-                        "largest moment for a product; default 1): the output says which entries fall short of it and "
-                        "how long a recording would reach it (the rig model holds every entry to ±1 %%: short of it, "
-                        "not_identifiable)")
 
 
 def add_diagnose_parser(sub) -> None:
@@ -237,9 +205,10 @@ def add_modes_parser(sub) -> None:
 
 def add_thesis_table_parser(sub) -> None:
     t = add_command(sub, "thesis-table", None,
-                    "Simulate the thesis's case studies (config/cases) noise-free, identify each with our method and "
-                    "with the thesis's, and print the errors beside those the thesis reported.",
-                    lazy("rig_identification.cli.plan", "cmd_thesis_table"))
+                    "Simulate the thesis's case studies (config/cases) noise-free, identify each with the rig model "
+                    "(the cases whose cables stretch) and with the thesis's method, and print the errors beside "
+                    "those the thesis reported.",
+                    lazy("rig_identification.cli.thesis_table", "cmd_thesis_table"))
     t.add_argument("cases", nargs="*", help="case names (default: case01 … case17)")
     t.add_argument("--json", action="store_true", help="print one JSON list")
 

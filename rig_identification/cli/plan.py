@@ -1,5 +1,4 @@
-"""``rig-identify plan``, ``modes`` and ``thesis-table``: experiment design, natural modes, the
-thesis's case studies.
+"""``rig-identify plan`` and ``modes``: experiment design, natural modes.
 
 Tensors on the command line (``plan --inertia``, ``modes --inertia``) are six tensor entries
 in the order ixx iyy izz ixy ixz iyz (:data:`~rig_identification.io.export.ORDER`,
@@ -26,26 +25,9 @@ from ..model.experiment import ExperimentError
 from ..model.modes import estimate_modes, match_modes, natural_modes
 from ..model.parametrisation import entry_scales, from_tensor, to_tensor
 from ..pipeline.rig_model import fit_whole_recording
-from ..pipeline.thesis_table import print_summary, print_table, run_case
 from .arg_types import UsageError
 from .progress import heading, step, warn
 from .text import TABLE_CAPTION
-
-
-def cmd_thesis_table(args) -> int:
-    """``rig-identify thesis-table``: one progress step per case."""
-    rows = []
-    for name in args.cases or [f"case{i:02d}" for i in range(1, 18)]:
-        step(f"{name}: simulating and identifying (ours and --model thesis)")
-        rows.append(run_case(name))
-        args.progress.finish()
-        if not args.json:
-            print_table(rows[-1:])
-    if args.json:
-        print(json.dumps(rows))
-    else:
-        print_summary(rows)
-    return 0
 
 
 def cmd_modes(args) -> int:

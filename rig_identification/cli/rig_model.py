@@ -1,4 +1,4 @@
-"""``rig-identify inertia`` (the default, ``--model rig``): the whole recording read by the rig's grey-box model.
+"""``rig-identify inertia``: the whole recording read by the rig's grey-box model.
 
 Prints the fit's span and band, the tensor about the CG with σ, the Cramér–Rao bound and σ/CRB
 (and the truth when truth.yaml is there), the mass, the centre of gravity the dynamic test
@@ -27,6 +27,7 @@ from ..io.export import (
     VEHICLE_SIGN,
     Axes,
     axes_block,
+    convention_lines,
     export_dict,
     urdf_inertial,
     yaml_text,
@@ -48,7 +49,7 @@ from ..pipeline.rig_model import (
 from ..report.folder import Job, ReportError
 from ..report.rig_page import write_rig_report
 from ..statics.handover import load_cg_result
-from .arg_types import JOB_OPTIONS, PEM_ONLY, UsageError
+from .arg_types import JOB_OPTIONS, UsageError
 from .progress import heading, step, warn
 from .recordings import check_common, output_axes, read_all
 from .text import TABLE_CAPTION, origin_line, principal_lines, tensor_entries_line, tensor_table
@@ -59,7 +60,7 @@ STD_IS = ("the larger of the inverse Fisher information and the sandwich, the CG
 
 
 def job_of(args) -> Job:
-    """The report's :class:`~rig_identification.report.page.Job` from ``--vehicle-name``,
+    """The report's :class:`~rig_identification.report.folder.Job` from ``--vehicle-name``,
     ``--customer`` and ``--operator`` (each one line; stripped)."""
     return Job(*(getattr(args, k, None) and getattr(args, k).strip() or None for _, k, _ in JOB_OPTIONS))
 
@@ -75,10 +76,13 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
     the tensor is given in too (``--axes``, rig.yaml ``output_axes``).  The main table gives the
     moments and products of inertia (:data:`TABLE_CAPTION`'s convention, as the report's), the
     line below it the tensor's off-diagonal entries (−products) with σ and σ/CRB.  ``brief``
-    (``-q``): the verdict, the recording, the tensor table and entries, the mass and the CG, the
-    channels the fit leans less on, then :data:`BRIEF_TAIL`."""
+    (``-q``): the verdict, the recording, the conventions (frame, units, the products' sign), the
+    tensor table and entries, the mass and the CG, the channels the fit leans less on, then
+    :data:`BRIEF_TAIL`."""
     d = res.to_dict()
     _print_head(res, brief)
+    for line in convention_lines(res.expressed(BODY).axes):
+        print(line)
     _print_tensor(res, d.get("truth_comparison"))
     body = res.expressed(BODY)
     print(tensor_entries_line(body, res.fit.crb))
@@ -312,7 +316,7 @@ def fitted_and_reported(args, rec: Recording, axes: Axes, what: str) -> tuple[Ri
     """The rig model fitted to ``rec`` (``--cg``'s saved static result as the CG's prior, the
     window ``--start``/``--end``; :func:`~rig_identification.pipeline.rig_model.fit_whole_recording`)
     and, with ``--report``, its report in ``axes`` (the page's index, else None); ``what``: the
-    progress heading.  Raises :class:`~rig_identification.report.page.ReportError` where the
+    progress heading.  Raises :class:`~rig_identification.report.folder.ReportError` where the
     report cannot be written."""
     heading(what)
     res = fit_whole_recording(rec, *saved_cg(args), args.start, args.end)
@@ -399,14 +403,9 @@ def cmd_joint(args, recs: list[Recording], axes: Axes = BODY) -> int:
 
 
 def cmd_inertia(args) -> int:
-    """``rig-identify inertia`` with the rig model (the default: none of the gyro-only fit's
-    options): one recording, or several of one body fitted at once (their rig.yaml's mass and CG
-    checked to agree before any bag is read); returns the exit status (user errors raise, see
-    cli.user_errors)."""
-    given = [flag for k, flag in PEM_ONLY if getattr(args, k, None)] + (["--quick"] if args.quick else [])
-    if given:
-        raise UsageError(f"{', '.join(given)}: options of --model pem, the gyro-only fit; the rig model "
-                         "takes none of them")
+    """``rig-identify inertia``: the rig model fitted to one recording, or to several of one body at
+    once (their rig.yaml's mass and CG checked to agree before any bag is read); returns the exit
+    status (user errors raise, see cli.user_errors)."""
     paths = args.recording
     if len(paths) > 1:
         if args.report:

@@ -1,2 +1,3 @@
-"""From a recording to a validated tensor: tracker, preprocessor, the prediction-error fit,
-noise propagation, σ, errors in variables and model validation. Layer 2."""
+"""From a recording to a validated tensor: the rig model's record, unknowns, fit and Cramér–Rao
+bound, its starts (the tracker, preprocessor and gyro-only fit among them), the joint fit of
+several recordings and the data's quality checks. Layer 2."""

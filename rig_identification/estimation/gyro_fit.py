@@ -26,8 +26,7 @@ the sandwich (heteroscedasticity- and autocorrelation-consistent) estimate with 
 over blocks longer than the correlation time (Huber 1967; White 1982).
 
 This is the gyro-only fit: the rig model's first start for the tensor
-(:func:`~rig_identification.pipeline.rig_model.start_tensor`: :func:`fit_gyro`) and, through
-:mod:`~rig_identification.estimation.identification`, ``rig-identify inertia --model pem``.
+(:func:`~rig_identification.pipeline.rig_model.start_tensor`: :func:`fit_gyro`).
 """
 from __future__ import annotations
 

@@ -1,8 +1,7 @@
 """The identifier's signal helpers: stepped inputs found, integrated without smearing a step,
 the pass band around the motion (the white-noise level is io.noise.white_sigma, the one estimator).
 
-Used by the fit (:mod:`rig_identification.estimation.identification`), the data-quality check
-(:mod:`rig_identification.estimation.quality`), the noise propagation and the diagnosis window.
+Used by the gyro-only fit (:mod:`rig_identification.estimation.gyro_fit`).
 """
 from __future__ import annotations
 

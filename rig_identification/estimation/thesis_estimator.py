@@ -2,17 +2,28 @@
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.optimize import least_squares
 
-from ..io.rig import Rig
 from ..model.parametrisation import physically_consistent, to_tensor
 from .gyro_fit import sample_interval
-from .inertia_result import InertiaResult
 
 
-def identify_inertia_thesis(rig: Rig, t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
-                            initial_guess: np.ndarray) -> InertiaResult:
+@dataclass(frozen=True)
+class ThesisFit:
+    """The thesis's estimate: ``inertia`` (3, 3) kg·m² about the CG, body axes; ``std`` (6,) kg·m² its
+    entries' σ (:data:`~rig_identification.io.verdict.KEYS` order) under the white-residual assumption;
+    ``warnings`` what went wrong (not converged, not physically consistent)."""
+
+    inertia: np.ndarray
+    std: np.ndarray
+    warnings: tuple[str, ...]
+
+
+def identify_inertia_thesis(t: np.ndarray, omega_body: np.ndarray, torque: np.ndarray,
+                            initial_guess: np.ndarray) -> ThesisFit:
     """The thesis's identification, as a baseline (thesis sections 3.3 and 3.5).
 
     Model: eq. 3.10/3.11 — ``J θ̈ = M`` with the angular velocities as states, *without*
@@ -21,7 +32,9 @@ def identify_inertia_thesis(rig: Rig, t: np.ndarray, omega_body: np.ndarray, tor
     (eq. 3.25 with C = I): ``ω̂(n+1) = ω(n) + T J⁻¹ M(n)``; prediction errors minimised
     by Levenberg–Marquardt (eq. 3.30) from ``initial_guess`` (6,) tensor entries in
     :data:`~rig_identification.io.verdict.KEYS` order, as MATLAB's ``pem`` did.  Covariance: σ² (AᵀA)⁻¹ of the
-    white-residual assumption.  t: (N,) s uniform; omega_body (N,3) rad/s; torque (N,3) N·m.
+    white-residual assumption.  t: (N,) s uniform; omega_body (N,3) rad/s; torque (N,3) N·m, both
+    body axes, the torque about the CG.  Raises :class:`~rig_identification.estimation.gyro_fit.IdentificationError`
+    for a non-uniform ``t``.
     """
     t = np.asarray(t, float)
     T = sample_interval(t, "identifier (thesis model)")
@@ -42,9 +55,4 @@ def identify_inertia_thesis(rig: Rig, t: np.ndarray, omega_body: np.ndarray, tor
     warnings = [] if physically_consistent(J) else ["the identified tensor is not physically consistent"]
     if not sol.success:
         warnings.append(f"Levenberg–Marquardt did not converge: {sol.message}")
-    return InertiaResult(rig.mass, rig.require_cg().copy(), J, np.sqrt(np.clip(np.diag(cov), 0, None)), cov,
-                         float(t[0]), float(t[-1]), len(t), (0.0, 0.5 / T), np.sqrt(np.mean(resid**2, 0)),
-                         1 - np.sum(resid**2, 0) / np.sum((dw - dw.mean(0)) ** 2, 0), [],
-                         method="thesis: eq. 3.11 without gyroscopic terms, forward Euler, one-step "
-                                "predictor (3.25), Levenberg–Marquardt from the initial guess",
-                         warnings=warnings)
+    return ThesisFit(J, np.sqrt(np.clip(np.diag(cov), 0, None)), tuple(warnings))

@@ -22,8 +22,7 @@ did not determine stay undetermined in everything derived from them: ``None`` in
 "not determined" in text; the principal moments need every entry.
 
 Exports: :func:`urdf_inertial` (a URDF ``<inertial>`` element) and :func:`yaml_text` (the
-YAML file of ``rig-identify inertia --yaml``).  Units of the JSON's fields: :data:`UNITS`.
-Pure numpy; no ROS.
+YAML file of ``rig-identify inertia --yaml``).  Pure numpy; no ROS.
 """
 from __future__ import annotations
 
@@ -39,8 +38,6 @@ from numpy.typing import ArrayLike
 from .vehicle import MOTIONS, VEHICLE_AXES, AxesError, Vehicle, vehicle_rotation
 from .verdict import KEYS
 
-INERTIA_SCHEMA = "rig_identification.inertia_result"    # the JSON of rig-identify inertia --json
-INERTIA_SCHEMA_VERSION = 3   # 3: no σ replays or input-noise compensation; 2: segment times from the first IMU sample
 EXPORT_SCHEMA = "rig_identification.inertia_export"     # the YAML file of rig-identify inertia --yaml
 EXPORT_SCHEMA_VERSION = 1
 
@@ -301,34 +298,6 @@ def urdf_inertial(ex: Expressed, fmt: str = ".7g") -> str:
             f"  <inertia {ent}/>\n</inertial>")
 
 
-UNITS = {
-    "mass": "kg", "center_of_gravity": "m, body frame", "inertia_about_cg": "kg·m², body axes, tensor entries",
-    "inertia_about_origin": "kg·m², body axes, tensor entries", "inertia_std": "kg·m²",
-    "inertia_crb_std": "kg·m²",
-    "products_of_inertia": "kg·m², body axes, vehicle-dynamics sign (Ixy = −ixy)",
-    "principal_moments": "kg·m², ascending", "principal_axes": "1: unit vectors, body axes, one per principal moment",
-    "correlation": "1", "weakly_determined.relative_std": "1: σ over tr J / 3", "weakly_determined.std": "kg·m²",
-    "weakly_determined.direction": "1: unit vector of tensor entries (ixx..izz, Frobenius norm; 'combination' is the "
-                                   "same direction in products of inertia with the vehicle-dynamics sign)",
-    "window.start": "s from the recording's first IMU sample", "window.end": "s from the recording's first IMU sample",
-    "window.start_stamp": "s, header stamps", "window.end_stamp": "s, header stamps", "band_hz": "Hz",
-    "residual_rms_rad_s": "rad/s", "fit_r2": "1",
-    "weight_surplus": "1: load cells' mean vertical force over rig.yaml's weight, − 1",
-    "precision.target": "1: the 95 % half-width asked, a fraction of the entry's scale (a moment's own, the "
-                        "largest moment's for a product)", "precision.half_width": "1: 1.96 σ over the entry's scale",
-    "precision.duration_s": "s", "precision.length_factor": "1: multiple of duration_s",
-    "validation.segments.start": "s from the first IMU sample of the segment's recording",
-    "validation.segments.end": "s from the first IMU sample of the segment's recording",
-    "validation.segments.start_stamp": "s, header stamps", "validation.segments.end_stamp": "s, header stamps",
-    "validation.segments.inertia_about_cg": "kg·m², body axes, tensor entries",
-    "validation.sub_bands.band_hz": "Hz", "validation.sub_bands.inertia_about_cg": "kg·m², body axes, tensor entries",
-    "validation.spread_std": "kg·m²", "validation.sigma_factor": "1",
-    "validation.checks.statistic": "as its threshold (the check's detail says what it measures)",
-}
-"""Units of the fields of the inertia JSON (``"units"`` of
-:meth:`~rig_identification.estimation.inertia_result.InertiaResult.to_dict`)."""
-
-
 def axes_block(ex: Expressed) -> dict[str, Any]:
     """The mass properties of ``ex`` for a JSON block in other axes (``"sae_j670"`` of
     ``rig-identify inertia --json --axes sae``, ``"iso_8855"`` of ``--axes iso8855``:
@@ -372,8 +341,8 @@ def yaml_text(content: dict[str, Any]) -> str:
 
 
 __all__ = ["AXES", "Axes", "AxesError", "BODY", "BODY_LABEL", "ENTRY_NAMES", "EXPORT_SCHEMA",
-           "EXPORT_SCHEMA_VERSION", "Expressed", "INERTIA_SCHEMA", "INERTIA_SCHEMA_VERSION", "JSON_KEYS",
-           "NOT_DETERMINED", "ORDER", "PRODUCTS", "PRODUCTS_SIGN", "SYMBOL", "TABLE_CAPTION", "UNITS",
+           "EXPORT_SCHEMA_VERSION", "Expressed", "JSON_KEYS",
+           "NOT_DETERMINED", "ORDER", "PRODUCTS", "PRODUCTS_SIGN", "SYMBOL", "TABLE_CAPTION",
            "VEHICLE_SIGN", "axes_block", "axes_for", "convention_lines", "entries_from_option", "export_dict",
            "express", "finite_or_none", "parallel_axis", "principal", "tensor_from_option", "urdf_inertial",
            "yaml_text"]

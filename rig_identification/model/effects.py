@@ -44,7 +44,7 @@ gyro_bias              ``bias`` (3,) rad/s, IMU axes
 accelerometer_bias     ``bias`` (3,) m/s², IMU axes
 load_cell_scale        ``cable`` name, ``scale`` (reading / true tension, e.g. 1.03)
 gyroscopic_coupling    none: ω × Jω is always in the simulated physics; a model that leaves
-                       it out (the thesis's eq. 3.10, ``--model thesis``) misses it
+                       it out (the thesis's eq. 3.10: ``rig-identify thesis-table``'s thesis method) misses it
 gyro_bias_drift        ``random_walk`` rad/s/√s: each gyro axis (IMU axes) gets its own
                        random-walk bias, b(0) = 0, b(t_k+1) = b(t_k) + random_walk √dt N(0, 1)
                        on the IMU's sample grid; drawn from the experiment's seeded generator

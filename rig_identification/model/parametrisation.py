@@ -5,7 +5,7 @@ geometry_msgs/Inertia, the negated products of inertia), the symmetric basis tha
 to the (3,3) tensor, and the log-Cholesky parametrisation of Wensing, Kim & Slotine (IEEE
 RA-L 2017) under which every tensor is positive definite and obeys the triangle
 inequalities; and the parallel-axis arithmetic (Steiner's theorem) of joining two bodies and
-taking one from another.  Used by the identifiers (:mod:`rig_identification.estimation.identification`,
+taking one from another.  Used by the fits (:mod:`rig_identification.estimation.gyro_fit`,
 :mod:`rig_identification.estimation.rig_fit`).
 """
 from __future__ import annotations

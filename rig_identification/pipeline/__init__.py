@@ -1,2 +1,3 @@
-"""The offline pipeline, recording → clean → track → preprocess → identify → σ → validate →
-diagnose, and the thesis's table. Layer 4."""
+"""The offline pipeline: a recording cleaned, put on one grid and fitted with the rig model (its
+diagnosis and refit), the gyro-only start's tracker and preprocessor pass, and the thesis's table.
+Layer 4."""

@@ -1,11 +1,7 @@
 """The report's figures (matplotlib, Agg, object API: no pyplot state), each written as a PNG.
 
-* :func:`fit_figure` — measured vs predicted band-passed angular velocity per body axis,
-  the thesis's "comparison of the identified and measured systems" (sections 4.x);
-* :func:`residual_figure` — the residuals in time (the band-pass filter's edge transients
-  shaded and left out of the y-limits) and their Welch spectrum over the fit band;
-* :func:`ellipse_figure` — 1σ/2σ uncertainty ellipses of pairs of entries (2-D marginals of
-  the covariance; 1σ is Mahalanobis distance 1, holding 39 % of a 2-D Gaussian, 2σ 86 %);
+* :func:`channels_figure` — every channel of the rig model measured and predicted over the fit's
+  span, the thesis's "comparison of the identified and measured systems" (sections 4.x);
 * :func:`ellipsoid_figure` — the equimomental ellipsoid (the uniform solid ellipsoid with the
   body's mass and tensor) and the principal axes drawn on the body: the rig's body anchors,
   IMU, exciter and CG, three projections and a 3-D view.
@@ -19,16 +15,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-from scipy.signal import welch
 
-from ..estimation.inertia_result import FitSeries, InertiaResult
 from ..io.rig import Rig
-from ..io.verdict import KEYS
-from ..model.parametrisation import from_tensor
-from .mass import SIGN, SYMBOL, MassProperties
+from .mass import MassProperties
 
 AXES = "xyz"
-ELLIPSE_PAIRS = (("ixx", "iyy"), ("iyy", "izz"), ("ixx", "izz"), ("ixy", "ixz"), ("ixy", "iyz"), ("ixz", "iyz"))
 AXIS_COLORS = ("tab:red", "tab:green", "tab:blue")    # body x, y, z (as RViz draws axes)
 
 
@@ -38,104 +29,6 @@ def figure(w: float, h: float):
     return Figure(figsize=(w, h), dpi=100, layout="constrained")
 
 
-def edge_seconds(s: FitSeries) -> float:
-    """Duration s at each end of the window where the zero-phase band-pass filter's start-up
-    transient lives: two periods of the band's low edge, at most a tenth of the window (as the
-    validation's segments)."""
-    T = float(s.t[-1] - s.t[0])
-    lo = float(s.band_hz[0]) if np.isfinite(s.band_hz[0]) and s.band_hz[0] > 0 else 1.0
-    return min(0.1 * T, 2.0 / lo)
-
-
-def robust_limit(x: np.ndarray, margin: float = 1.25) -> float:
-    """Symmetric y-limit of ``x``: ``margin`` × the 99.9th percentile of |x| (positive)."""
-    a = np.abs(x[np.isfinite(x)])
-    v = float(np.percentile(a, 99.9)) if a.size else 1.0
-    return margin * v if v > 0 else 1.0
-
-
-def shade_edges(ax, T: float, edge: float, label: bool) -> None:
-    """Shade the filter's edge zones [0, edge] and [T − edge, T] on time axis ``ax``."""
-    for a, b in ((0.0, edge), (T - edge, T)):
-        ax.axvspan(a, b, color="0.85", alpha=0.6, lw=0, label="filter edge transient" if label and a == 0 else None)
-
-
-def fit_figure(path: Path, s: FitSeries, title: str) -> None:
-    """Measured vs predicted band-passed angular velocity (mrad/s) per body axis: the whole
-    window and 10 s in its middle."""
-    fig = figure(11, 7.8)
-    ax = fig.subplots(3, 2, sharex="col", width_ratios=(2, 1))
-    t = s.t - s.t[0]
-    mid = t[len(t) // 2]
-    zoom = (t >= mid - 5) & (t <= mid + 5)
-    edge = edge_seconds(s)
-    for i in range(3):
-        for c, m in ((0, slice(None)), (1, zoom)):
-            a = ax[i, c]
-            a.plot(t[m], 1e3 * s.measured[m, i], color="0.55", lw=1.8, label="measured (gyro, band-passed)")
-            a.plot(t[m], 1e3 * s.predicted[m, i], color="tab:red", lw=0.8, ls="--",
-                   label="predicted (the reported model)")
-            a.grid(alpha=0.3)
-        shade_edges(ax[i, 0], float(t[-1]), edge, label=i == 0)
-        ax[i, 0].set_ylabel(f"ω{AXES[i]}, mrad/s")
-    ax[0, 0].set_title("whole window")
-    ax[0, 1].set_title("10 s in the middle")
-    for c in (0, 1):
-        ax[2, c].set_xlabel("time from the window start, s")
-    fig.legend(*ax[0, 0].get_legend_handles_labels(), loc="outside lower center", ncols=3, fontsize=9)
-    fig.suptitle(f"{title}: measured vs predicted angular velocity, body axes, band "
-                 f"{s.band_hz[0]:.2f}–{s.band_hz[1]:.2f} Hz")
-    fig.savefig(path)
-
-
-def residual_figure(path: Path, s: FitSeries, title: str) -> None:
-    """Residuals (measured − predicted, mrad/s) in time — y-limits from the window without the
-    filter's edge transients, which are shaded — and their Welch spectrum over the fit band
-    (a little beyond), the band-passed measurement faint behind."""
-    fig = figure(11, 7.0)
-    ax = fig.subplots(2, 1)
-    t = s.t - s.t[0]
-    r = 1e3 * s.residual
-    fs = s.fs or 1.0 / float(np.median(np.diff(s.t)))
-    edge = edge_seconds(s)
-    inner = (t >= edge) & (t <= t[-1] - edge)
-    for i in range(3):
-        ax[0].plot(t, r[:, i], lw=0.6, label=f"ω{AXES[i]}  RMS {np.sqrt(np.mean(r[:, i] ** 2)):.3g} mrad/s")
-    shade_edges(ax[0], float(t[-1]), edge, label=True)
-    lim = robust_limit(r[inner] if inner.sum() > 10 else r)
-    ax[0].set_ylim(-lim, lim)
-    ax[0].set_xlim(0, t[-1])
-    ax[0].set_xlabel("time from the window start, s")
-    ax[0].set_ylabel("residual, mrad/s")
-    ax[0].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8, title="residual (whole window)",
-                 title_fontsize=8)
-    ax[0].grid(alpha=0.3)
-    nper = int(min(len(t), 2 ** np.ceil(np.log2(20 * fs))))
-    f, Pr = welch(s.residual, fs=fs, nperseg=nper, axis=0)
-    _, Py = welch(s.measured, fs=fs, nperseg=nper, axis=0)
-    lo, hi = float(s.band_hz[0]), float(s.band_hz[1])
-    f0, f1 = max(0.0, lo - 0.3 * (hi - lo)), min(fs / 2, hi + 0.3 * (hi - lo))
-    for i in range(3):
-        line, = ax[1].semilogy(f, Pr[:, i], lw=0.9, label=f"residual ω{AXES[i]}")
-        ax[1].semilogy(f, Py[:, i], lw=0.7, alpha=0.35, color=line.get_color(),
-                       label=f"measured ω{AXES[i]} (band-passed)")
-    ax[1].axvspan(lo, hi, color="tab:green", alpha=0.07, label="fit band")
-    ax[1].set_xlim(f0, f1)
-    view = (f >= f0) & (f <= f1)
-    inb = (f >= lo) & (f <= hi)
-    if inb.any():
-        floor = max(float(np.percentile(Pr[inb], 2)), 1e-300)
-        top = max(float(Py[view].max()), float(Pr[view].max()), 10 * floor)
-        ax[1].set_ylim(0.3 * floor, 3 * top)
-    ax[1].set_xlabel("frequency, Hz")
-    ax[1].set_ylabel("PSD, (rad/s)²/Hz")
-    ax[1].legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=8)
-    ax[1].grid(alpha=0.3)
-    fig.suptitle(f"{title}: residuals (measured − predicted) and their spectrum (Welch)")
-    fig.savefig(path)
-
-
-#: The channel groups of :func:`channels_figure`: name prefix, label, unit, scale from SI.
 CHANNEL_GROUPS = (("tension:", "tensions", "N", 1.0), ("gyro_", "gyro", "mrad/s", 1e3),
                   ("accel_", "accelerometer", "m/s²", 1.0), ("incl_", "inclinometer", "mrad", 1e3),
                   ("exciter_", "exciter force", "N", 1.0))
@@ -169,67 +62,6 @@ def channels_figure(path: Path, t: np.ndarray, measured: np.ndarray, predicted: 
         ax[-1, c].set_xlabel("time from the span's start, s")
     fig.legend(*ax[0, 0].get_legend_handles_labels(), loc="outside lower center", ncols=2, fontsize=9)
     fig.suptitle(f"{title}: {label}, measured vs the rig model")
-    fig.savefig(path)
-    return True
-
-
-def offset_label(sym: str, c: float) -> str:
-    """Axis label of a deviation from the estimate ``c``: "Ixx − 2897.1 kg·m²", "Ixy + 0.7 kg·m²"."""
-    return f"{sym} − {c:.1f} kg·m²" if c >= 0 else f"{sym} + {-c:.1f} kg·m²"
-
-
-def ellipse_figure(path: Path, result: InertiaResult, truth: dict | None) -> bool:
-    """1σ/2σ uncertainty ellipses of pairs of entries, deviation from the estimate, products
-    with the vehicle-dynamics sign; the truth when known.  Pairs with an undetermined entry
-    are left empty with a note.  Returns False (nothing written) when the covariance is not
-    finite."""
-    from matplotlib.lines import Line2D
-    from matplotlib.patches import Ellipse
-    gone = set(result.undetermined)
-    C = np.asarray(result.covariance, float) * np.outer(SIGN, SIGN)
-    theta = SIGN * from_tensor(result.inertia)
-    ok = [k for i, k in enumerate(KEYS) if k not in gone and np.isfinite(theta[i]) and np.all(np.isfinite(C[i]))]
-    if len(ok) < 2:
-        return False
-    fig = figure(11, 7.8)
-    axs = fig.subplots(2, 3).ravel()
-    tru = None if truth is None else SIGN * np.array([truth["inertia_about_cg"][k] for k in KEYS], float)
-    for a, (k1, k2) in zip(axs, ELLIPSE_PAIRS):
-        i, j = KEYS.index(k1), KEYS.index(k2)
-        if k1 not in ok or k2 not in ok:
-            a.text(0.5, 0.5, f"{SYMBOL[k1]}–{SYMBOL[k2]}:\nnot determined", ha="center", va="center",
-                   transform=a.transAxes, color="0.4")
-            a.set_axis_off()
-            continue
-        C2 = C[np.ix_([i, j], [i, j])]
-        ev, V = np.linalg.eigh(C2)
-        ev = np.clip(ev, 0, None)
-        ang = np.degrees(np.arctan2(V[1, 1], V[0, 1]))
-        for r, ls in ((1, "-"), (2, "--")):
-            a.add_patch(Ellipse((0, 0), 2 * r * np.sqrt(ev[1]), 2 * r * np.sqrt(ev[0]), angle=ang,
-                                fill=False, ls=ls, color="tab:blue", lw=1.2))
-        a.plot(0, 0, "+", color="tab:blue", ms=10)
-        lim = 2.6 * np.sqrt(np.diag(C2))
-        if tru is not None:
-            d = tru[[i, j]] - theta[[i, j]]
-            a.plot(d[0], d[1], "x", color="tab:red", ms=9, mew=2)
-            lim = np.maximum(lim, 1.2 * np.abs(d))
-        lim = np.where(lim > 0, lim, 1.0)
-        a.set_xlim(-lim[0], lim[0])
-        a.set_ylim(-lim[1], lim[1])
-        a.set_xlabel(offset_label(SYMBOL[k1], theta[i]))
-        a.set_ylabel(offset_label(SYMBOL[k2], theta[j]))
-        rho = C2[0, 1] / np.sqrt(max(C2[0, 0] * C2[1, 1], 1e-300))
-        a.set_title(f"{SYMBOL[k1]}–{SYMBOL[k2]}  (correlation {rho:+.2f})".replace("-", "−"), fontsize=10)
-        a.grid(alpha=0.3)
-    handles = [Line2D([], [], color="tab:blue", ls="-", label="1σ"), Line2D([], [], color="tab:blue", ls="--",
-                                                                           label="2σ"),
-               Line2D([], [], color="tab:blue", marker="+", ls="", ms=10, label="estimate")]
-    if tru is not None:
-        handles.append(Line2D([], [], color="tab:red", marker="x", ls="", ms=9, mew=2, label="truth (truth.yaml)"))
-    fig.legend(handles=handles, loc="outside lower center", ncols=len(handles), fontsize=9)
-    fig.suptitle("uncertainty ellipses of pairs of moments and products of inertia about the CG "
-                 "(deviation from the estimate)")
     fig.savefig(path)
     return True
 
@@ -327,5 +159,4 @@ def ellipsoid_figure(path: Path, mp: MassProperties, rig: Rig | None) -> bool:
     return True
 
 
-__all__ = ["fit_figure", "residual_figure", "ellipse_figure", "ellipsoid_figure", "edge_seconds", "figure",
-           "channels_figure", "CHANNEL_GROUPS"]
+__all__ = ["ellipsoid_figure", "figure", "channels_figure", "CHANNEL_GROUPS"]

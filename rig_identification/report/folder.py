@@ -1,5 +1,4 @@
-"""The report's folder and header fields, shared by both report pages
-(:mod:`~rig_identification.report.rig_page`, :mod:`~rig_identification.report.page`): who and
+"""The report's folder and header fields (:mod:`~rig_identification.report.rig_page`): who and
 what the report is for (:class:`Job`), the rig's label, and the refusal to replace anything
 but an earlier report (:func:`check_report_dir`)."""
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""HTML building blocks of the identification report (:mod:`rig_identification.report.page`): number formatting that
+"""HTML building blocks of the identification report (:mod:`rig_identification.report.rig_page`): number formatting that
 never prints ``nan`` or ``inf``, tables, the page's style sheet and the page frame.
 
 Every number on the page goes through :func:`num` (or :func:`pct`): a value that is None or
@@ -87,14 +87,6 @@ def table(head: Sequence, rows: Iterable[Sequence], cls: str = "", ident: str = 
     return f"<table{attrs}>{cap}<thead><tr>{h}</tr></thead><tbody>{body}</tbody></table>"
 
 
-def bullets(items: Iterable[str], cls: str = "") -> str:
-    """An HTML list of escaped ``items`` (empty string when there are none)."""
-    items = list(items)
-    if not items:
-        return ""
-    return (f'<ul class="{cls}">' if cls else "<ul>") + "".join(f"<li>{esc(i)}</li>" for i in items) + "</ul>"
-
-
 def json_safe(x):
     """``x`` with every non-finite float replaced by None and numpy values by Python ones
     (report.json never holds NaN or infinity)."""
@@ -166,5 +158,5 @@ def page(title: str, body: Sequence[str]) -> str:
             + "\n</body></html>\n")
 
 
-__all__ = ["MISSING", "NOT_DETERMINED", "GENERATOR", "finite", "num", "pct", "esc", "Cell", "table", "bullets",
+__all__ = ["MISSING", "NOT_DETERMINED", "GENERATOR", "finite", "num", "pct", "esc", "Cell", "table",
            "json_safe", "CSS", "page"]

@@ -13,9 +13,9 @@ dynamics uses them); the inertia tensor is ::
          [−Ixy,  Iyy, −Iyz],
          [−Ixz, −Iyz,  Izz]]
 
-so its off-diagonal entries — what ``geometry_msgs/Inertia``, the identifier
-(:class:`~rig_identification.estimation.inertia_result.InertiaResult`) and ``report.json``'s ``result`` hold as ``ixy``,
-``ixz``, ``iyz`` — are the negated products.  :func:`mass_properties` turns a result into the
+so its off-diagonal entries — what ``geometry_msgs/Inertia``, the rig model's result and
+``report.json``'s ``result`` hold as ``ixy``, ``ixz``, ``iyz`` — are the negated products.
+:func:`mass_properties_of` turns a result into the
 page's numbers: the moments and products about the CG with their σ, the same about the body
 frame's origin (parallel-axis theorem, J_O = J_G + m (|c|² I − c cᵀ), c the CG), the principal
 moments (σ by the delta method, dλ = vᵀ dJ v) and axes, and the semi-axes of the equimomental
@@ -27,7 +27,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..estimation.inertia_result import InertiaResult, compare_to_truth
 from ..io.export import BODY, MOMENTS, PRODUCTS_SIGN, SYMBOL, Axes, Expressed, axes_for
 from ..io.export import VEHICLE_SIGN as SIGN
 from ..io.vehicle import Vehicle
@@ -115,13 +114,6 @@ def equimomental_semi_axes(principal: np.ndarray, mass: float) -> np.ndarray:
     return np.sqrt(np.clip(5.0 * (total - 2.0 * np.asarray(principal)) / (2.0 * mass), 0.0, None))
 
 
-def mass_properties(result: InertiaResult, vehicle: Vehicle | None = None) -> MassProperties:
-    """The page's mass properties of ``result`` (see :class:`MassProperties`); ``vehicle``: where the
-    vehicle lies in the body frame (rig.yaml ``body.vehicle``; None: not stated)."""
-    return mass_properties_of(result.mass, result.center_of_gravity, result.inertia, result.inertia_std,
-                              result.covariance, result.crb_std, result.undetermined, vehicle)
-
-
 def mass_properties_of(mass: float, cg: np.ndarray, J: np.ndarray, std: np.ndarray, covariance: np.ndarray,
                        crb: np.ndarray | None, undetermined=(), vehicle: Vehicle | None = None) -> MassProperties:
     """:class:`MassProperties` of ``mass`` kg, ``cg`` (3,) m and ``J`` (3,3) kg·m² about it (body
@@ -143,18 +135,6 @@ def mass_properties_of(mass: float, cg: np.ndarray, J: np.ndarray, std: np.ndarr
     return MassProperties(float(mass), c, SIGN * theta, np.asarray(std, float), crb,
                           SIGN * from_tensor(Jo), J, Jo, principal, pstd, axes, semi, frozenset(gone),
                           axes_for("body", vehicle))
-
-
-def truth_rows(result: InertiaResult, truth: dict | None) -> dict | None:
-    """Errors against truth.yaml, products with the vehicle-dynamics sign: {key: {"truth",
-    "error" kg·m², "error_percent" (of the entry for moments, of the largest moment for
-    products), "error_sigma"}} (:func:`~rig_identification.estimation.inertia_result.compare_to_truth`, signs
-    turned), or None."""
-    if not truth or "inertia_about_cg" not in truth:
-        return None
-    cmp = compare_to_truth(result, truth)
-    return {k: {f: s * cmp[k][f] for f in ("truth", "error", "error_percent", "error_sigma")}
-            for k, s in zip(KEYS, SIGN)}
 
 
 def entry_cell(mp: MassProperties, k: str, x, fmt: str, main: bool = False) -> Cell | str:
@@ -278,8 +258,8 @@ def to_json(mp: MassProperties, errors: dict | None) -> dict:
     return out
 
 
-__all__ = ["SIGN", "ORDER", "SYMBOL", "convention", "MassProperties", "mass_properties", "mass_properties_of",
-           "parallel_axis", "principal_std", "equimomental_semi_axes", "truth_rows", "moments_table", "matrices_html",
+__all__ = ["SIGN", "ORDER", "SYMBOL", "convention", "MassProperties", "mass_properties_of",
+           "parallel_axis", "principal_std", "equimomental_semi_axes", "moments_table", "matrices_html",
            "principal_html", "to_json"]
 
 

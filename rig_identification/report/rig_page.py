@@ -172,7 +172,7 @@ def write_rig_report(out_dir, res: RigModelResult, rec: Recording, axes: str | A
     """Write the report of ``res`` (the rig model fitted to ``rec``) to the folder ``out_dir``
     (replaced if it is an earlier report).  axes: the vehicle axes the lab reads its numbers in
     (a section gives the mass properties in them when not ``body``).  Returns the path of
-    ``index.html``.  Raises :class:`~rig_identification.report.page.ReportError` (``out_dir`` a
+    ``index.html``.  Raises :class:`~rig_identification.report.folder.ReportError` (``out_dir`` a
     file or a folder that is not an earlier report), OSError (cannot write)."""
     out_dir = Path(out_dir)
     check_report_dir(out_dir)
