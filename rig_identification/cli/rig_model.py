@@ -47,7 +47,6 @@ from ..pipeline.rig_model import (
     fit_whole_recording,
 )
 from ..report.folder import Job, ReportError
-from ..report.rig_page import write_rig_report
 from ..statics.handover import load_cg_result
 from .arg_types import JOB_OPTIONS, UsageError
 from .progress import heading, step, warn
@@ -322,6 +321,8 @@ def fitted_and_reported(args, rec: Recording, axes: Axes, what: str) -> tuple[Ri
     res = fit_whole_recording(rec, *saved_cg(args), args.start, args.end)
     index = None
     if args.report:
+        # the page's modules (its figures, matplotlib) load only when a report is asked for
+        from ..report.rig_page import write_rig_report
         step(f"writing the report to {args.report}")
         try:
             index = write_rig_report(args.report, res, rec, axes, job_of(args))

@@ -75,12 +75,29 @@ import X``):
 * :mod:`.handover` -- the CG handed on: a saved result read back, rig.yaml written with the CG
   (not re-exported).
 """
-from .estimation import estimate_cg
-from .model import DEFAULT_ANCHOR_STD, DEFAULT_DUMMY_POSITION_STD, DEFAULT_LENGTH_STD, CgOptions, static_equilibrium
-from .plan import CgPlan, PlanLimits, SensorNoise, candidate_positions, plan_static_test, predict_cg_std
-from .result import CG_RESULT_SCHEMA, CG_RESULT_SCHEMA_VERSION, CG_RESULT_UNITS, CgResult, StatePose
-from .state import StaticsError, StaticState, StreamStats
-from .validation import CG_MODEL_CHECKS, CG_VERDICTS, VALIDATION_SIGMA, CgValidation
+from importlib import import_module
+from typing import Any
+
+#: Where each public name lives; the submodule is imported when the name is first used (PEP 562),
+#: so that reading a saved CG (:mod:`.handover`) does not load the fit, its checks and the planner.
+_HOME = {
+    "estimate_cg": "estimation",
+    **dict.fromkeys(("DEFAULT_ANCHOR_STD", "DEFAULT_DUMMY_POSITION_STD", "DEFAULT_LENGTH_STD", "CgOptions",
+                     "static_equilibrium"), "model"),
+    **dict.fromkeys(("CgPlan", "PlanLimits", "SensorNoise", "candidate_positions", "plan_static_test",
+                     "predict_cg_std"), "plan"),
+    **dict.fromkeys(("CG_RESULT_SCHEMA", "CG_RESULT_SCHEMA_VERSION", "CG_RESULT_UNITS", "CgResult", "StatePose"),
+                    "result"),
+    **dict.fromkeys(("StaticsError", "StaticState", "StreamStats"), "state"),
+    **dict.fromkeys(("CG_MODEL_CHECKS", "CG_VERDICTS", "VALIDATION_SIGMA", "CgValidation"), "validation"),
+}
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _HOME:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return getattr(import_module(f".{_HOME[name]}", __name__), name)
+
 
 __all__ = ["CG_MODEL_CHECKS", "CG_RESULT_SCHEMA", "CG_RESULT_SCHEMA_VERSION", "CG_RESULT_UNITS", "CG_VERDICTS",
            "DEFAULT_ANCHOR_STD", "DEFAULT_DUMMY_POSITION_STD", "DEFAULT_LENGTH_STD", "VALIDATION_SIGMA", "CgOptions",
