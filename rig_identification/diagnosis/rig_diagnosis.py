@@ -473,11 +473,14 @@ def _extended(rec: Record, prior: Prior, steps: list[Step], fit: RigFit,
               ) -> tuple[list[Step], RigFit, LinearisedRig]:
     """``fit`` (``steps`` made it) with the extensions added step by step (:func:`next_step`, each
     refitted from ``fit``'s tensor while it lowers the misfit, at most :data:`MAX_EXTENSIONS` in
-    all): the steps, the last fit and its linearisation."""
+    all; none on a fit with an extension that has not found the motion: an extension is added to
+    a found one only): the steps, the last fit and its linearisation."""
     steps, current = list(steps), fit
     while True:
         untried = tuple(e for e in EXTENSIONS if e not in current.layout.extensions)
         lin = LinearisedRig(rec, prior, current, untried)
+        if steps and lost(current):
+            return steps, current, lin
         step = next_step(lin) if len(steps) < MAX_EXTENSIONS and refit is not None else None
         if step is None or refit is None:
             return steps, current, lin
