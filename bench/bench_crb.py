@@ -39,9 +39,9 @@ from rig_identification.estimation.rig_record import record
 from rig_identification.io.recording import Recording, read_recording
 from rig_identification.io.rig import inertia_tensor
 from rig_identification.io.verdict import KEYS
-from rig_identification.model.dynamics import SimulationError
 from rig_identification.model.linear_rig import RigParameters
 from rig_identification.model.parametrisation import entry_scales, from_tensor
+from rig_identification.model.rigid_body import SimulationError
 from rig_identification.pipeline.rig_model import fit_whole_recording
 
 QUIET = {k: 0.0 for k in REFERENCE_NOISE}

@@ -22,7 +22,7 @@ from rig_identification.design.scenarios import simulate_random
 from rig_identification.estimation.harmonic_start import box_tensor, forced_response_start
 from rig_identification.estimation.rig_record import record
 from rig_identification.estimation.rig_unknowns import Prior
-from rig_identification.model.simulator import SimulationError
+from rig_identification.model.rigid_body import SimulationError
 from rig_identification.pipeline.rig_model import BOX_SCALES
 
 

@@ -20,9 +20,9 @@ from rig_identification.io.noise import white_sigma
 from rig_identification.io.recording import read_recording
 from rig_identification.io.rig import inertia_tensor, load_rig
 from rig_identification.model.cables import CableModel
-from rig_identification.model.dynamics import SimulationError
 from rig_identification.model.equilibrium import equilibrium
 from rig_identification.model.experiment import ExperimentError, experiment_from_dict, load_experiment
+from rig_identification.model.rigid_body import SimulationError
 from rig_identification.model.simulator import simulate
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -14,6 +14,7 @@ from conftest import REPO, recording, run_cli
 from rig_identification.io.recording import SensorData, TimeSeries, read_recording
 from rig_identification.io.rig import DummyMass
 from rig_identification.model.experiment import experiment_from_dict, load_experiment
+from rig_identification.model.rigid_body import skew
 from rig_identification.model.simulator import simulate
 from rig_identification.statics import (
     CgOptions,
@@ -25,7 +26,7 @@ from rig_identification.statics import (
     predict_cg_std,
     static_equilibrium,
 )
-from rig_identification.statics.model import GlobalUnknowns, StaticModel, skew
+from rig_identification.statics.model import GlobalUnknowns, StaticModel
 
 TABLE = REPO / "config" / "cases" / "table2_1_static.yaml"
 FRAME_MASS, FRAME_CG = 262.0, np.array([2.0, 1.0, 1.0])

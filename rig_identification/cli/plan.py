@@ -20,10 +20,10 @@ from ..estimation.rig_record import RigFitError
 from ..io.export import ORDER, VEHICLE_SIGN, entries_from_option, tensor_from_option
 from ..io.recording import read_recording
 from ..io.verdict import KEYS
-from ..model.dynamics import SimulationError
 from ..model.experiment import ExperimentError
 from ..model.modes import estimate_modes, match_modes, natural_modes
 from ..model.parametrisation import entry_scales, from_tensor, to_tensor
+from ..model.rigid_body import SimulationError
 from ..pipeline.rig_model import fit_whole_recording
 from .arg_types import UsageError
 from .progress import heading, step, warn

@@ -24,8 +24,8 @@ from ..io.export import entries_from_option
 from ..io.recording import RecordingError
 from ..io.recording_writer import write_recording
 from ..io.rig import DummyMass, RigError
-from ..model.dynamics import SimulationError
 from ..model.experiment import ExperimentError, RigRun, load_simulation
+from ..model.rigid_body import SimulationError
 from ..model.simulator import simulate
 from .progress import attached, step
 from .sim_args import parse_sim_args

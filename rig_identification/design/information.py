@@ -174,7 +174,7 @@ def simulate_run(body: Body, run: Run) -> SimulatedRun:
     rotating force (:class:`~rig_identification.model.excitation.RotatingForce`, ``spin_up``) sampled
     at the fastest of ``body.rates``, each channel's stream at its own rate and noise
     (:data:`RATE_OF_CHANNEL`, :data:`NOISE_OF_CHANNEL`).  Raises
-    :class:`~rig_identification.model.dynamics.SimulationError` (no taut rest pose),
+    :class:`~rig_identification.model.rigid_body.SimulationError` (no taut rest pose),
     :class:`~rig_identification.estimation.rig_record.RigFitError` (a run under 10 s after the spin-up),
     ``KeyError`` (a stream's rate or noise missing from ``body``)."""
     max_force = None if body.rig.exciter is None else body.rig.exciter.max_force

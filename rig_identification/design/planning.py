@@ -44,10 +44,10 @@ from ..estimation.rig_record import RigFitError
 from ..io.rig import Rig
 from ..io.verdict import KEYS
 from ..model.cables import CableModel
-from ..model.dynamics import SimulationError
 from ..model.equilibrium import equilibrium
 from ..model.modes import natural_modes
 from ..model.parametrisation import entry_scales, from_tensor
+from ..model.rigid_body import SimulationError
 from .information import (
     BODY,
     RunInformation,
@@ -246,7 +246,7 @@ def amplitude_at_limits(body: Body, run: Run, max_rotation_deg: float = 3.0, min
     :class:`Candidate` (``.run.amplitude`` N, ``.peak_rotation_deg``,
     ``.min_tension_ratio``, ``.information``), or None if no amplitude keeps the run within
     the limits (its swing keeps growing).  Raises :class:`PlanError` for bad limits,
-    :class:`~rig_identification.model.dynamics.SimulationError`."""
+    :class:`~rig_identification.model.rigid_body.SimulationError`."""
     return _fit_amplitude(body, run, _limits(max_force, max_rotation_deg, min_tension_ratio))
 
 
@@ -540,7 +540,7 @@ def plan_experiment(body: Body, baseline: Run, options: PlanOptions = PlanOption
     1.05 Hz at the rig's exciter).  options: :class:`PlanOptions` (limits, search, objective).
     progress: optional callable(str), called as each step starts: each group of
     :data:`SCREEN_GROUP` frequencies screened, each simulation.
-    Raises :class:`PlanError`, :class:`~rig_identification.model.dynamics.SimulationError`.
+    Raises :class:`PlanError`, :class:`~rig_identification.model.rigid_body.SimulationError`.
     """
     say = progress or (lambda s: None)
     limits = _checked_limits(options)

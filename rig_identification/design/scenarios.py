@@ -45,10 +45,11 @@ from scipy.optimize import lsq_linear
 from scipy.spatial.transform import Rotation
 
 from ..io.rig import rig_from_dict
-from ..model.experiment import REFERENCE_NOISE, REFERENCE_RATES
+from ..model.experiment import REFERENCE_NOISE, REFERENCE_RATES, experiment_from_dict
 from ..model.modes import natural_modes
 from ..model.parametrisation import joined
-from ..model.simulator import SimResult, SimulationError, experiment_from_dict, simulate
+from ..model.rigid_body import SimulationError
+from ..model.simulator import SimResult, simulate
 from .planning import resonances
 
 LAYOUTS = ("wide", "splayed", "parallel", "mixed", "random")

@@ -39,8 +39,8 @@ from scipy.spatial.transform import Rotation
 
 from ..estimation.rig_record import FORCE_BAND, channel_names
 from ..estimation.rig_unknowns import SEGMENT, Layout, Prior, parameters_of, priors, unit_scale, vector
-from ..model.dynamics import skew
 from ..model.linear_rig import RestPose, RigParameters, linearise, rest_pose
+from ..model.rigid_body import skew
 from .information import BODY, RunInformation, channel_noise, nominal_parameters
 from .run import Body
 
@@ -212,7 +212,7 @@ class FrequencyScreen:
 class RigScreen:
     """The fast design screen of ``body``'s rig (module docstring) for runs of ``duration`` s, the
     fit from ``settle`` s, the force spun up over ``ramp`` s.  Raises
-    :class:`~rig_identification.model.dynamics.SimulationError` where the rig has no taut rest pose."""
+    :class:`~rig_identification.model.rigid_body.SimulationError` where the rig has no taut rest pose."""
 
     def __init__(self, body: Body, duration: float, settle: float, ramp: float = 2.0, rate: float = SCREEN_RATE):
         self.duration, self.settle, self.ramp, self.rate = duration, settle, ramp, rate

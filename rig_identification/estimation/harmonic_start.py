@@ -26,9 +26,9 @@ import numpy as np
 from scipy.optimize import least_squares, minimize_scalar
 
 from ..io.rig import Rig
-from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, frequency_response, linearise, mass_matrix
 from ..model.parametrisation import physically_consistent, to_tensor
+from ..model.rigid_body import SimulationError
 from .rig_record import Record, RigFitError
 from .rig_start import carried_to, start_parameters
 from .rig_unknowns import Prior

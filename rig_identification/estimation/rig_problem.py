@@ -16,7 +16,6 @@ from scipy.interpolate import CubicSpline
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
 
-from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import physically_consistent, to_tensor
 from ..model.rig_ode import (
@@ -29,6 +28,7 @@ from ..model.rig_ode import (
     substeps_for,
     with_sensor_traits,
 )
+from ..model.rigid_body import SimulationError
 from .rig_record import ChannelSeries, Record
 from .rig_unknowns import Layout, Prior, body_unknowns, parameters_of, priors, relayout, unit_scale
 
@@ -253,7 +253,7 @@ class RigProblem:
         rest state of ``p`` (a shifted geometry or CG moves the start with it, so the fit need not
         cancel the two against each other: each channel's offset is projected out, and the rest
         pose itself is not what the data see).  Raises
-        :class:`~rig_identification.model.dynamics.SimulationError` where ``p`` has no rest pose."""
+        :class:`~rig_identification.model.rigid_body.SimulationError` where ``p`` has no rest pose."""
         key = p.ceiling.tobytes() + p.body.tobytes() + p.length.tobytes() + p.cg.tobytes() + p.stiffness.tobytes() \
             + np.array([p.mass]).tobytes()
         ref = self._rest_cache.get(key)

@@ -18,8 +18,8 @@ from scipy.optimize import least_squares
 
 from ..io.rig import Rig
 from ..model.cables import DEFAULT_DAMPING_RATIO
-from ..model.dynamics import SimulationError
 from ..model.linear_rig import RestPose, RigParameters, rest_pose
+from ..model.rigid_body import SimulationError
 from .rig_record import Record, RigFitError
 from .rig_unknowns import Prior
 
@@ -77,7 +77,7 @@ def carried_to(p: RigParameters, rest: RestPose, stiffness: np.ndarray, surveyed
     length moved by their mean offset from ``surveyed`` (N,) m (the survey's prior holds their
     common part: on softer cables the body hangs lower, the tensions' shares alike), the rest
     pose found by Newton from ``rest``; τ the default cable's (:func:`default_damping_time`).
-    Raises :class:`~rig_identification.model.dynamics.SimulationError` where it has no rest pose."""
+    Raises :class:`~rig_identification.model.rigid_body.SimulationError` where it has no rest pose."""
     k = np.asarray(stiffness, float)
     length = p.length + rest.tensions * (1.0 / p.stiffness - 1.0 / k)
     q = p.replace(stiffness=k, length=length + np.mean(surveyed - length), damping_time=default_damping_time(p.mass, k))

@@ -39,8 +39,8 @@ Cable models (``cable_model``)
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.linalg.lapack import dposv
@@ -49,12 +49,22 @@ from scipy.spatial.transform import Rotation
 from ..io.rig import Rig
 from .cables import CableModel
 from .effects import Effect
+from .equilibrium import HangingBody
 from .excitation import Excitation
+from .rigid_body import SimulationError, moment_sum, skew
 from .suspension import Suspension
 
 
-class SimulationError(RuntimeError):
-    """The chosen physical model cannot represent the experiment (or a solver failed)."""
+class CableKinematics(NamedTuple):
+    """The cables at a state: ``d`` (N, 3) body anchor -> ceiling anchor, world m; ``l`` (N,) their
+    lengths m; ``u`` (N, 3) the unit vectors along them; ``Pdot`` (N, 3) the body anchors'
+    velocities, world m/s; ``ldot`` (N,) the lengths' rates m/s."""
+
+    d: np.ndarray
+    l: np.ndarray
+    u: np.ndarray
+    Pdot: np.ndarray
+    ldot: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -70,30 +80,6 @@ class Evaluation:
     exciter: np.ndarray
 
 
-def skew(a: np.ndarray | Sequence[float]) -> np.ndarray:
-    """Cross-product matrix [a]× (3, 3) of a vector a (3,): ``skew(a) @ x == np.cross(a, x)``.
-
-    The rotation by a rotation vector φ (3,) rad is its matrix exponential,
-    ``scipy.linalg.expm(skew(φ))`` (numerically equal to Rodrigues' formula)."""
-    x, y, z = a
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-
-
-def skews(a: np.ndarray) -> np.ndarray:
-    """Cross-product matrices (N, 3, 3) of the rows of a (N, 3): ``skews(a)[i] == skew(a[i])``."""
-    out = np.zeros((len(a), 3, 3))
-    out[:, 0, 1], out[:, 0, 2] = -a[:, 2], a[:, 1]
-    out[:, 1, 0], out[:, 1, 2] = a[:, 2], -a[:, 0]
-    out[:, 2, 0], out[:, 2, 1] = -a[:, 1], a[:, 0]
-    return out
-
-
-def moment_sum(s: np.ndarray, f: np.ndarray) -> np.ndarray:
-    """sum_i s_i × f_i of two (N, 3) arrays -> (3,)."""
-    X = s.T @ f
-    return np.array([X[1, 2] - X[2, 1], X[2, 0] - X[0, 2], X[0, 1] - X[1, 0]])
-
-
 class RigDynamics:
     """Forces, tensions and state derivative of the suspended rigid body.
 
@@ -106,19 +92,16 @@ class RigDynamics:
 
     def __init__(self, rig: Rig, mass: float, cg: np.ndarray, inertia: np.ndarray, cables: CableModel,
                  excitation: Excitation, effects: tuple[Effect, ...] = (), suspension: Suspension | None = None):
-        n = len(rig.cables)
-        if cables.type == "inextensible" and n > 6:
-            raise SimulationError(f"inextensible cables: {n} cables have statically indeterminate tensions "
-                                  "(at most 6); use the spring model")
-        self.m = float(mass)
+        self.hanging = HangingBody.of(rig, mass, cg, cables)
+        self.m = self.hanging.m
         self.J = np.asarray(inertia, float)
         self.Jinv = np.linalg.inv(self.J)
         self.cg = np.asarray(cg, float)
-        self.A = rig.ceiling_anchors
-        self.r = rig.body_anchors - self.cg
+        self.A = self.hanging.A
+        self.r = self.hanging.r
         self.r_skew = np.array([skew(r) for r in self.r])      # (N, 3, 3): r_i × ·
-        self.L = rig.cable_lengths
-        self.g = np.array([0.0, 0.0, -rig.gravity])
+        self.L = self.hanging.L
+        self.g = self.hanging.g
         self.cables = cables
         self.excitation = excitation
         self.suspension = suspension
@@ -220,7 +203,7 @@ class RigDynamics:
             a = (Tu.sum(axis=0) + F_ext) / self.m + self.g
             alpha = self.Jinv @ (moment_sum(self.r, Tu @ R) + M_rest)
         else:
-            a, alpha, T = self._constrained(R, Rdot, W, d, l, u, Pdot, ldot, F_ext, M_rest)
+            a, alpha, T = self._constrained(R, Rdot, W, CableKinematics(d, l, u, Pdot, ldot), F_ext, M_rest)
         dy = np.empty(self.size)
         dy[0:3], dy[3:12], dy[12:15], dy[15:18] = v, Rdot.ravel(), a, alpha
         if self.suspension is not None:
@@ -231,10 +214,10 @@ class RigDynamics:
         """The integrator's right-hand side: dy/dt (size,) of y (size,) at t."""
         return self.evaluate_one(t, y)[0]
 
-    def _constrained(self, R: np.ndarray, Rdot: np.ndarray, W: np.ndarray, d: np.ndarray, l: np.ndarray,
-                     u: np.ndarray, Pdot: np.ndarray, ldot: np.ndarray, F_ext: np.ndarray,
+    def _constrained(self, R: np.ndarray, Rdot: np.ndarray, W: np.ndarray, cab: CableKinematics, F_ext: np.ndarray,
                      M_rest: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """KKT solve for inextensible cables -> (a (3,), α (3,), T (N,)).
+        """KKT solve for inextensible cables -> (a (3,), α (3,), T (N,)), the cables at the
+        state ``cab``.
 
         Generalised accelerations q̈ = [a (world); α (body)] satisfy M q̈ = Q + B T with
         B_i = [u_i; r_i × Rᵀu_i] and, per cable, B_iᵀq̈ = (|Ṗ_i|² - d_i·(ω×(ω×s_i)) + 2β φ̇_i
@@ -243,6 +226,7 @@ class RigDynamics:
         ω × Jω (body).
         """
         beta = self.cables.baumgarte
+        d, l, u, Pdot, ldot = cab
         n = len(l)
         B, MinvB, MinvQ = np.empty((n, 6)), np.empty((n, 6)), np.empty(6)     # B: rows B_iᵀ
         B[:, :3] = u
@@ -268,15 +252,3 @@ class RigDynamics:
         return Evaluation(R=Rotation.from_matrix(np.atleast_2d(Y)[:, 3:12].reshape(-1, 3, 3)).as_matrix(),
                           a=dY[:, 12:15], alpha=dY[:, 15:18], T=np.array([o[1] for o in out]),
                           exciter=np.array([o[2] for o in out]))
-
-    def static_wrench(self, p_cg: np.ndarray, R: np.ndarray, T: np.ndarray) -> np.ndarray:
-        """Net force (world, N) and moment about the CG (world, N m) of cables + weight at rest, (6,)."""
-        s = self.r @ R.T
-        d = self.A - (p_cg + s)
-        u = d / np.linalg.norm(d, axis=1)[:, None]
-        return np.concatenate([T @ u + self.m * self.g, moment_sum(s, T[:, None] * u)])
-
-    def spring_tension_at_rest(self, p_cg: np.ndarray, R: np.ndarray) -> np.ndarray:
-        l = np.linalg.norm(self.A - (p_cg + self.r @ R.T), axis=1)
-        T: np.ndarray = np.maximum(self.cables.stiffness * (l - self.L), 0.0)
-        return T

@@ -1,13 +1,11 @@
-"""The body hanging at rest, and the start state of a simulation.
-
-:func:`equilibrium` solves the static equilibrium (thesis section 2.2, eqs. 2.13–2.25) for
-either cable model; :func:`initial_state` the pose a simulation starts from (at rest, or
-displaced and projected back onto the cable lengths).  Frames as
-:mod:`~rig_identification.model.dynamics`.
+"""The body hanging at rest: the static equilibrium (thesis section 2.2, eqs. 2.13–2.25) of a
+:class:`HangingBody` for either cable model (:func:`equilibrium`, :func:`hanging_equilibrium`).
+Frames as :mod:`~rig_identification.model.dynamics`.
 """
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -17,9 +15,47 @@ from scipy.spatial.transform import Rotation
 
 from ..io.rig import Rig
 from .cables import CableModel
-from .dynamics import RigDynamics, SimulationError
-from .excitation import Excitation
-from .experiment import Initial
+from .rigid_body import SimulationError, moment_sum
+
+
+@dataclass(frozen=True)
+class HangingBody:
+    """The rigid body on its cables as its statics see it: ``A`` (N, 3) the ceiling anchors,
+    world m; ``r`` (N, 3) the body anchors from the CG, body m; ``L`` (N,) the cables' unstretched
+    lengths m; ``m`` kg; ``g`` (3,) gravity, world m/s²; ``cables`` the cable model."""
+
+    A: np.ndarray
+    r: np.ndarray
+    L: np.ndarray
+    m: float
+    g: np.ndarray
+    cables: CableModel
+
+    @staticmethod
+    def of(rig: Rig, mass: float, cg: ArrayLike, cables: CableModel) -> "HangingBody":
+        """The body of ``mass`` kg with its CG at ``cg`` (3,) body m on ``rig``'s cables.  Raises
+        :class:`SimulationError` for more than 6 inextensible cables (their tensions statically
+        indeterminate)."""
+        n = len(rig.cables)
+        if cables.type == "inextensible" and n > 6:
+            raise SimulationError(f"inextensible cables: {n} cables have statically indeterminate tensions "
+                                  "(at most 6); use the spring model")
+        return HangingBody(rig.ceiling_anchors, rig.body_anchors - np.asarray(cg, float), rig.cable_lengths,
+                           float(mass), np.array([0.0, 0.0, -rig.gravity]), cables)
+
+    def static_wrench(self, p_cg: np.ndarray, R: np.ndarray, T: np.ndarray) -> np.ndarray:
+        """Net force (world, N) and moment about the CG (world, N m) of cables + weight at rest, (6,)."""
+        s = self.r @ R.T
+        d = self.A - (p_cg + s)
+        u = d / np.linalg.norm(d, axis=1)[:, None]
+        return np.concatenate([T @ u + self.m * self.g, moment_sum(s, T[:, None] * u)])
+
+    def spring_tension_at_rest(self, p_cg: np.ndarray, R: np.ndarray) -> np.ndarray:
+        """(N,) N the spring cables' tensions at a pose (CG ``p_cg`` (3,) world m, ``R`` body -> world)."""
+        assert self.cables.stiffness is not None   # a spring model has its stiffness
+        l = np.linalg.norm(self.A - (p_cg + self.r @ R.T), axis=1)
+        T: np.ndarray = np.maximum(self.cables.stiffness * (l - self.L), 0.0)
+        return T
 
 
 class RestState(NamedTuple):
@@ -45,13 +81,13 @@ def _pose(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return x[:3], Rotation.from_rotvec(x[3:]).as_matrix()
 
 
-def _lengths(model: RigDynamics, x: np.ndarray) -> np.ndarray:
+def _lengths(model: HangingBody, x: np.ndarray) -> np.ndarray:
     p, R = _pose(x)
     lengths: np.ndarray = np.linalg.norm(model.A - (p + model.r @ R.T), axis=1)
     return lengths
 
 
-def _hanging_guess(model: RigDynamics) -> np.ndarray:
+def _hanging_guess(model: HangingBody) -> np.ndarray:
     """A start pose (body axes = world axes) with every cable within its length."""
     h = model.A - model.r                          # CG position if cable i had zero length
     xy = h[:, :2].mean(axis=0)
@@ -77,8 +113,8 @@ def _solve_or_fail(fun: Callable[[np.ndarray], np.ndarray], x0: np.ndarray, what
     return x
 
 
-def hanging_equilibrium(model: RigDynamics) -> RestState:
-    """The :class:`RestState` of ``model`` at static equilibrium (thesis eqs. 2.20–2.25).
+def hanging_equilibrium(model: HangingBody) -> RestState:
+    """The :class:`RestState` of the body ``model`` at static equilibrium (thesis eqs. 2.20–2.25).
     Raises :class:`SimulationError`."""
     n = len(model.L)
     weight = model.m * np.linalg.norm(model.g)
@@ -129,27 +165,6 @@ def hanging_equilibrium(model: RigDynamics) -> RestState:
             raise SimulationError("inextensible cables: no equilibrium with at least 3 taut cables")
 
 
-def _project(model: RigDynamics, p_cg: np.ndarray, R: np.ndarray,
-             target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Move a pose the least distance (Gauss–Newton, minimum-norm steps in CG position and
-    world rotation vector) so that the cable lengths equal ``target`` (N,) m."""
-    for _ in range(50):
-        s = model.r @ R.T
-        d = model.A - (p_cg + s)
-        l = np.linalg.norm(d, axis=1)
-        err = l - target
-        if np.max(np.abs(err)) < 1e-13:
-            break
-        u = d / l[:, None]
-        Jac = np.hstack([-u, -np.cross(s, u)])               # dl / d[p, θ_world]
-        step = -np.linalg.lstsq(Jac, err, rcond=None)[0]
-        p_cg = p_cg + step[:3]
-        R = Rotation.from_rotvec(step[3:]).as_matrix() @ R
-    else:
-        raise SimulationError("the initial pose cannot be projected onto the cable lengths")
-    return p_cg, R
-
-
 def equilibrium(rig: Rig, mass: float, cg: ArrayLike, cable_model: CableModel) -> Equilibrium:
     """Static equilibrium of the body hanging at rest (thesis section 2.2, eqs. 2.13–2.25).
 
@@ -163,26 +178,5 @@ def equilibrium(rig: Rig, mass: float, cg: ArrayLike, cable_model: CableModel) -
     Raises :class:`SimulationError` (no equilibrium; inextensible with N > 6).
     """
     cg = np.asarray(cg, float)
-    model = RigDynamics(rig, mass, cg, np.eye(3), cable_model, Excitation())
-    p_cg, R, T = hanging_equilibrium(model)
+    p_cg, R, T = hanging_equilibrium(HangingBody.of(rig, mass, cg, cable_model))
     return Equilibrium(p_cg - R @ cg, Rotation.from_matrix(R), T)
-
-
-def initial_state(model: RigDynamics, initial: Initial,
-                  eq: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """(18,) start state of the rigid ``model`` (state layout of :class:`RigDynamics`) for
-    ``initial`` (at rest, or displaced; a displaced pose is projected onto the cable lengths
-    when ``initial.project``); ``eq``: its :func:`hanging_equilibrium` if known.  Raises
-    :class:`SimulationError`."""
-    p_eq, R_eq, T_eq = hanging_equilibrium(model) if eq is None else eq
-    if initial.pose_cg_position is not None:
-        p, R = initial.pose_cg_position.copy(), Rotation.from_euler("xyz", initial.pose_rpy).as_matrix()
-    else:
-        p = p_eq + initial.displacement_position
-        R = Rotation.from_euler("xyz", initial.displacement_rpy).as_matrix() @ R_eq
-    moved = initial.pose_cg_position is not None or np.any(initial.displacement_position) \
-        or np.any(initial.displacement_rpy)
-    if moved and initial.project:
-        target = model.L + (T_eq / model.cables.stiffness if model.cables.type == "spring" else 0.0)
-        p, R = _project(model, p, R, target)
-    return np.concatenate([p, R.ravel(), np.zeros(6)])

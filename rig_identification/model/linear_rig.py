@@ -35,9 +35,9 @@ from scipy.spatial.transform import Rotation
 
 from ..io.rig import Cable, Mount, Rig
 from .cables import CableModel
-from .dynamics import SimulationError, skew, skews
 from .equilibrium import equilibrium
 from .parametrisation import to_tensor
+from .rigid_body import SimulationError, skew, skews
 
 #: Newton iterations of :func:`rest_pose` from a nearby pose, and its tolerance on the net
 #: wrench relative to the weight (N / N).
@@ -194,7 +194,7 @@ def rest_pose(p: RigParameters, near: RestPose | None = None, taut: bool = True)
     the net wrench from ``near`` (a nearby rest pose), else from
     :func:`~rig_identification.model.equilibrium.equilibrium`.  ``taut=False``: the linear
     springs' equilibrium even where a cable would push (a negative tension: a pose to start
-    from, not a rig).  Raises :class:`~rig_identification.model.dynamics.SimulationError` (no
+    from, not a rig).  Raises :class:`~rig_identification.model.rigid_body.SimulationError` (no
     equilibrium; a slack cable unless ``taut`` is False)."""
     if near is None:
         rig = _as_rig(p)

@@ -42,8 +42,8 @@ from scipy.spatial.transform import Rotation
 
 from ..io.rig import Rig
 from .cables import CableModel
-from .dynamics import SimulationError
 from .equilibrium import equilibrium
+from .rigid_body import SimulationError
 
 if TYPE_CHECKING:
     from ..io.recording import Recording, TimeSeries

@@ -26,9 +26,10 @@ from scipy.spatial.transform import Rotation
 
 from ..io.recording import SensorData, TimeSeries
 from ..io.rig import Rig
-from .dynamics import Evaluation, RigDynamics, SimulationError
+from .dynamics import Evaluation, RigDynamics
 from .effects import Effect
 from .experiment import Experiment
+from .rigid_body import SimulationError
 
 STATIC_STREAMS = {"baseline": 1, "dummy": 2}   # static recordings: noise from default_rng([seed, stream])
 MODE_FILTER_RATE = 2000.0          # Hz: structural_mode's filter runs at >= this rate (and >= 40 x the

@@ -31,7 +31,7 @@ Public API
 
 Errors: :class:`~rig_identification.model.experiment.ExperimentError` (a ``ValueError``) for a
 bad experiment file, naming the file and the field;
-:class:`~rig_identification.model.dynamics.SimulationError` (a ``RuntimeError``) for physics
+:class:`~rig_identification.model.rigid_body.SimulationError` (a ``RuntimeError``) for physics
 that the chosen model cannot represent (slack inextensible cable, no equilibrium, ...).
 """
 from __future__ import annotations
@@ -47,21 +47,19 @@ from scipy.integrate import solve_ivp
 from scipy.spatial.transform import Rotation
 
 from ..io.recording import SensorData
-from ..io.rig import Rig, inertia_entries, inertia_tensor
+from ..io.rig import Rig, inertia_entries
 from .cables import CableModel
-from .dynamics import Evaluation, RigDynamics, SimulationError
-from .equilibrium import hanging_equilibrium, initial_state
+from .dynamics import Evaluation, RigDynamics
+from .equilibrium import HangingBody, hanging_equilibrium
 from .excitation import Excitation
-from .experiment import Experiment, Initial, experiment_from_dict
+from .experiment import Experiment, Initial
 from .parametrisation import joined
+from .rigid_body import SimulationError
 from .sensors import Sampled, sample_sensors
 from .suspension import Suspension, split_body, without
 
-# re-exported (defined in dynamics, experiment, io.rig) only for the files of other helpers that
-# import them from here while this split is merged: design/scenarios.py (SimulationError,
-# experiment_from_dict), test/test_diagnose.py (experiment_from_dict, inertia_tensor)
 __all__ = ["COMPLIANT_ATOL", "COMPLIANT_RTOL", "RTOL", "ATOL", "SimResult", "States", "Trajectory", "integrate",
-           "simulate", "true_states", "SimulationError", "experiment_from_dict", "inertia_tensor"]
+           "simulate", "true_states", "initial_state"]
 
 RTOL, ATOL = 1e-10, 1e-12
 COMPLIANT_RTOL, COMPLIANT_ATOL = 1e-9, 1e-11   # compliant_body: its light frame rings faster on the stiff
@@ -69,6 +67,47 @@ COMPLIANT_RTOL, COMPLIANT_ATOL = 1e-9, 1e-11   # compliant_body: its light frame
                                    # at 1e-10, ~1.6x at 1e-9 (~1.5-2x the time), and its noise-free readings
                                    # differ from the 1e-10 ones by < 1e-5 of the reference sensor noise
                                    # (gyro 6e-11 rad/s, accelerometer 3e-8 m/s², load cells 2e-6 N)
+
+
+def _projected(model: HangingBody, p_cg: np.ndarray, R: np.ndarray,
+             target: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Move a pose the least distance (Gauss–Newton, minimum-norm steps in CG position and
+    world rotation vector) so that the cable lengths equal ``target`` (N,) m."""
+    for _ in range(50):
+        s = model.r @ R.T
+        d = model.A - (p_cg + s)
+        l = np.linalg.norm(d, axis=1)
+        err = l - target
+        if np.max(np.abs(err)) < 1e-13:
+            break
+        u = d / l[:, None]
+        Jac = np.hstack([-u, -np.cross(s, u)])               # dl / d[p, θ_world]
+        step = -np.linalg.lstsq(Jac, err, rcond=None)[0]
+        p_cg = p_cg + step[:3]
+        R = Rotation.from_rotvec(step[3:]).as_matrix() @ R
+    else:
+        raise SimulationError("the initial pose cannot be projected onto the cable lengths")
+    return p_cg, R
+
+
+def initial_state(model: HangingBody, initial: Initial,
+                  eq: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None) -> np.ndarray:
+    """(18,) start state of the rigid body ``model`` (state layout of :class:`RigDynamics`) for
+    ``initial`` (at rest, or displaced; a displaced pose is projected onto the cable lengths
+    when ``initial.project``); ``eq``: its :func:`hanging_equilibrium` if known.  Raises
+    :class:`SimulationError`."""
+    p_eq, R_eq, T_eq = hanging_equilibrium(model) if eq is None else eq
+    if initial.pose_cg_position is not None:
+        p, R = initial.pose_cg_position.copy(), Rotation.from_euler("xyz", initial.pose_rpy).as_matrix()
+    else:
+        p = p_eq + initial.displacement_position
+        R = Rotation.from_euler("xyz", initial.displacement_rpy).as_matrix() @ R_eq
+    moved = initial.pose_cg_position is not None or np.any(initial.displacement_position) \
+        or np.any(initial.displacement_rpy)
+    if moved and initial.project:
+        target = model.L + (T_eq / model.cables.stiffness if model.cables.type == "spring" else 0.0)
+        p, R = _projected(model, p, R, target)
+    return np.concatenate([p, R.ravel(), np.zeros(6)])
 
 
 class Trajectory:
@@ -218,10 +257,10 @@ def simulate(exp: Experiment) -> SimResult:
     compliant = exp.effect("compliant_body")
     rtol, atol = RTOL, ATOL
     if compliant is None:
-        y0 = initial_state(model, initial)
+        y0 = initial_state(model.hanging, initial)
     else:                       # the whole body's rest pose; then frame + sprung body at it
-        eq = hanging_equilibrium(model)
-        y_whole = initial_state(model, initial, eq)
+        eq = hanging_equilibrium(model.hanging)
+        y_whole = initial_state(model.hanging, initial, eq)
         sprung, _ = split_body(exp.mass, exp.cg, exp.inertia, compliant)
         frame = without(mass, cg, J, sprung)     # the rest of the body + dummy and cable masses
         suspension = Suspension(sprung, frame.cg, compliant, exp.rig.gravity, eq.R)

@@ -25,8 +25,8 @@ from scipy.linalg import expm
 
 from ..io.rig import DummyMass, Rig, Survey
 from ..model.cables import CableModel
-from ..model.dynamics import SimulationError, skew, skews
 from ..model.equilibrium import equilibrium
+from ..model.rigid_body import SimulationError, skew, skews
 from .state import StaticsError
 
 Z = np.array([0.0, 0.0, 1.0])    # world z, up (gravity is -g Z)
