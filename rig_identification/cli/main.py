@@ -19,7 +19,6 @@ from typing import Callable
 from ..io.package import package_version
 from .arg_types import JOB_OPTIONS, UsageError, number
 from .progress import attached
-from .sim_args import parse_sim_args
 
 DESCRIPTION = """\
 Identify the mass properties of a vehicle hung on cables, offline, from recording folders
@@ -324,6 +323,7 @@ def sim_main(argv: list[str] | None = None) -> int:
     """Entry point of ``rig-sim`` (implemented in :mod:`rig_identification.cli.sim`): its command
     line is checked first (:mod:`~rig_identification.cli.sim_args`), so that ``--help`` and usage
     errors answer without importing the simulator (scipy)."""
+    from .sim_args import parse_sim_args
     parse_sim_args(argv)
     from .sim import sim_main as run
     return run(argv)

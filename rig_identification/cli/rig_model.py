@@ -47,7 +47,6 @@ from ..pipeline.rig_model import (
     fit_whole_recording,
 )
 from ..report.folder import Job, ReportError
-from ..statics.handover import load_cg_result
 from .arg_types import JOB_OPTIONS, UsageError
 from .progress import heading, step, warn
 from .recordings import check_common, output_axes, read_all
@@ -275,6 +274,7 @@ def saved_cg(args) -> tuple:
     three None (rig.yaml's)."""
     if not args.cg:
         return None, None, None
+    from ..statics.handover import load_cg_result  # the static test's modules load only with --cg
     saved = load_cg_result(args.cg)
     return saved.center_of_gravity, saved.center_of_gravity_std, args.cg
 
