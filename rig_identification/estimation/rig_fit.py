@@ -49,6 +49,7 @@ from the estimate's, and stops on it where it comes back.
 from __future__ import annotations
 
 import logging
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -68,6 +69,7 @@ from .rig_problem import (
     JACOBIAN_STEP,
     MAX_ITERATIONS,
     OUTSIDE,
+    THREADS,
     XTOL,
     JointProblem,
     RigPoint,
@@ -581,10 +583,10 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     given = list(np.asarray(restarts, float).reshape(-1, 6)) + along_weakest(last, J, x[lay.inertia])
     others = [t for t in given if physically_consistent(to_tensor(t))]
     tried = [shifted(x[lay.inertia], 1.0), shifted(x[lay.inertia], -1.0)] + others if check else []
-    for tensor in tried:
-        x2, cost2, runs = restarted(last, (J, r), tensor)
-        nfev += runs
-        minima.append((cost2, last.point(x2)))
+    with ThreadPoolExecutor(THREADS) as pool:         # independent solves from one estimate: the cores share them
+        for x2, cost2, runs in pool.map(lambda t: restarted(last, (J, r), t), tried):
+            nfev += runs
+            minima.append((cost2, last.point(x2)))
     minima_costs = [m[0] for m in minima]
     descent = minima[0][1].x[lay.inertia]
     minima.sort(key=lambda m: m[0])
