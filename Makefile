@@ -21,7 +21,7 @@ $(STAMP): setup.py package.xml requirements.txt
 demo: setup
 	$(VENV)/bin/demo
 
-# test/test_report.py renders the HTML report in Debian's chromium: installed here when missing and
+# test/test_rigday.py renders the HTML report in Debian's chromium: installed here when missing and
 # we are root (CI on a fresh machine); otherwise a note, and that test fails saying what is missing.
 browser:
 	@if [ -x $(CHROMIUM) ]; then :; \
@@ -29,10 +29,10 @@ browser:
 	  echo "installing chromium (Debian package) for the report test"; \
 	  { DEBIAN_FRONTEND=noninteractive apt-get update -qq && \
 	    DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; } || \
-	  echo "note: installing chromium failed: test/test_report.py will fail"; \
+	  echo "note: installing chromium failed: test/test_rigday.py will fail"; \
 	else \
 	  echo "note: $(CHROMIUM) is missing and this is not root: install it (sudo apt-get install chromium)," \
-	       "else test/test_report.py fails"; \
+	       "else test/test_rigday.py fails"; \
 	fi
 
 # one BLAS thread per process: the tests run in this process and the heavy simulations of some

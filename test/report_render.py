@@ -1,5 +1,5 @@
 """Rendering a report page in headless Chromium and reading what a reader sees (Debian's
-``chromium``, installed by ``make setup`` when run as root): test_report.py and test_rigday.py."""
+``chromium``, installed by ``make test`` when run as root): test_rigday.py."""
 import html
 import json
 import os
