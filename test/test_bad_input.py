@@ -224,8 +224,9 @@ def test_imu_stamped_on_arrival_is_put_on_its_rate(sim, tmp_path):
     """An IMU whose stamps scatter by ±4 ms about its sampling instants at 100 Hz (the 0–4 ms of a
     USB IMU stamped on arrival at 200 Hz, scaled to this fixture's rate; their mean latency is a
     constant delay, diagnose's sensor_delay) reads as gaps of 1.5 periods.  Its stamps are put
-    on the stream's own rate with a warning (no gap left for the cleaning to exclude); a lost
-    sample inside the run keeps the stamps as they were (regular_stamps)."""
+    on the stream's own rate with a warning (no gap left for the cleaning to exclude); a sample
+    lost inside the run leaves a gap of one period there, the others on their own instants
+    (regular_stamps); steady stamps are left alone."""
     rng = np.random.default_rng(9)
 
     def arrival(s):
@@ -239,9 +240,33 @@ def test_imu_stamped_on_arrival_is_put_on_its_rate(sim, tmp_path):
     assert np.allclose(np.diff(fixed), 0.01, rtol=1e-4, atol=0)
     assert np.max(np.abs(fixed - sim.sensors.imu.t - 0.004)) < 0.001       # the mean delay stays
     lost, note = regular_stamps(np.delete(t, 500), "/rig/imu")
-    assert np.array_equal(lost, np.delete(t, 500)) and note is None
+    assert np.max(np.abs(lost - np.delete(sim.sensors.imu.t, 500) - 0.004)) < 0.001, note
+    assert "1 sample(s) lost inside the runs" in note
     steady = sim.sensors.imu.t
     assert regular_stamps(steady, "/rig/imu") == (steady, None)
+
+
+def test_a_clock_with_lost_samples_is_numbered_exactly_under_jitter_of_most_of_a_period():
+    """Stamps taken on a steady clock (100 Hz to 1 kHz, its rate 0.1 % off nominal), each late by a
+    uniform 0 to 0.3–0.8 of a period, 0–1 % of the samples lost: every run is put back on its
+    clock's instants (the mean delay kept) with each lost sample a gap of one period, and the
+    warning counts them; at 0.9 of a period a run may be left as stamped, never numbered wrongly."""
+    rng = np.random.default_rng(3)
+    for k in range(60):
+        period = rng.choice([0.001, 0.005, 0.01]) * (1 + rng.uniform(-1e-3, 1e-3))
+        spread = (0.3, 0.6, 0.8, 0.9)[k % 4]
+        n = int(rng.integers(300, 20000))
+        true = 50.0 + period * np.arange(n)
+        keep = np.ones(n, bool)
+        keep[rng.choice(np.arange(1, n - 1), int(rng.integers(0, n // 100 + 1)), replace=False)] = False
+        delay = rng.uniform(0.0, spread * period, n)
+        out, note = regular_stamps((true + delay)[keep], "/rig/imu")
+        if note is None:
+            assert spread == 0.9, (k, spread, n)
+            continue
+        lost = int(n - keep.sum())
+        assert np.max(np.abs(out - true[keep] - spread * period / 2)) < 0.05 * period, (k, spread, n)
+        assert (f"{lost} sample(s) lost" in note) == (lost > 0), note
 
 
 # 7. gaps ---------------------------------------------------------------------------------------
@@ -308,10 +333,9 @@ def test_load_cell_spikes_are_replaced_not_fitted(sim, tmp_path):
 def test_the_rig_model_fits_through_every_recoverable_fault_at_once(sim, tmp_path):
     """``rig-identify inertia`` (the rig model: the load cells are outputs, so a spike left in
     would be fitted) on one recording with the faults the reading and the cleaning recover: the
-    IMU stamped on arrival (±4 ms) and one of its messages duplicated, a load cell gone for 2 s
-    (its span excluded) and three single-sample spikes on another.  (Non-finite samples dropped
-    from an IMU stamped on arrival leave its stamps as they are: test_nan_samples_dropped,
-    test_imu_stamped_on_arrival_is_put_on_its_rate.)  Each is said in the
+    IMU stamped on arrival (±4 ms), one of its messages duplicated and three lost (non-finite,
+    dropped by the reader, the gap bridged by the cleaning), a load cell gone for 2 s (its span
+    excluded) and three single-sample spikes on another.  Each is said in the
     warnings (on stderr too), the verdict is ``ok`` and every entry lies within 1 % and 3 σ of the
     truth."""
     rng = np.random.default_rng(11)
@@ -321,6 +345,7 @@ def test_the_rig_model_fits_through_every_recoverable_fault_at_once(sim, tmp_pat
         k = len(s.imu.t) // 3
         s.imu.t = np.insert(s.imu.t, k, s.imu.t[k])
         s.imu.data = np.insert(s.imu.data, k, s.imu.data[k], axis=0)
+        s.imu.data[2 * k:2 * k + 3, 0] = np.nan
         c = s.load_cells["c1"]
         for i, dv in zip((700, 1500, 2300), (3000.0, -2000.0, 800.0)):
             c.data[i, 0] += dv
@@ -329,7 +354,7 @@ def test_the_rig_model_fits_through_every_recoverable_fault_at_once(sim, tmp_pat
     assert rc == 0, err
     assert out["schema"] == "rig_identification.rig_model_result"
     w = out["warnings"]
-    for topic, words in (("/rig/imu", "jitter"), ("/rig/imu", "duplicated"),
+    for topic, words in (("/rig/imu", "jitter"), ("/rig/imu", "duplicated"), ("/rig/imu", "3 sample(s) lost"),
                          ("/rig/load_cells/c2", "gap"), ("/rig/load_cells/c1", "3 single-sample spike(s)")):
         assert any(topic in x and words in x for x in w), (topic, words, w)
     assert "warning:" in err
