@@ -58,8 +58,10 @@ def truth_parameters(rig, truth: dict) -> tuple[np.ndarray, RigParameters]:
 
 
 def bound(rec_record, rig, truth: dict) -> np.ndarray:
-    """The tensor entries' bound (6,) kg·m² (1 σ)."""
-    return np.sqrt(np.diag(information.record_covariance(rec_record, rig, truth)))
+    """The tensor entries' bound (6,) kg·m² (1 σ) of the record ``rec_record`` of ``rig`` at the
+    truth mapping ``truth`` (truth.yaml's)."""
+    p = information.true_parameters(rig, truth)
+    return np.sqrt(np.diag(information.record_covariance(rec_record, rig, p)))
 
 
 def judge(J: np.ndarray, crb: np.ndarray, rec: Recording | None) -> dict:
