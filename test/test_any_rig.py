@@ -6,14 +6,20 @@ their lines cross near the CG (rig_identification.design.scenarios, layout "wide
 45 s at 200 Hz.  The sweep over many rigs is bench/bench_any_rig.py (and bench_trust.py).
 """
 
+import sys
+from dataclasses import replace
+
 import numpy as np
 import pytest
-from conftest import background, gather
+from conftest import REPO, background, gather
 from synthetic import static_pair
 
+from rig_identification.design.information import tensor_bound
 from rig_identification.design.planning import PlanOptions, Run, make_body, plan_experiment
 from rig_identification.design.scenarios import CABLE_STIFFNESS, simulate_random
+from rig_identification.estimation.rig_record import record
 from rig_identification.io.verdict import KEYS
+from rig_identification.model.experiment import REFERENCE_NOISE
 from rig_identification.statics import estimate_cg
 
 
@@ -71,3 +77,16 @@ def test_plan_on_the_five_cable_rig_keeps_the_cables_taut():
     run = plan.runs[0]
     assert np.all(np.isfinite(plan.std)) and np.all(plan.std > 0)
     assert run.min_tension_ratio >= 0.2 * 0.999 and run.peak_rotation_deg <= 3.0 * 1.001
+
+
+def test_the_benches_bound_is_the_packages():
+    """bench_any_rig, bench_trust and bench_crb judge every rig by bench_crb.bound: on a quiet
+    4-cable rig (20 s) it is the package's own Cramér–Rao bound of the run at the reference noise
+    (design.information.tensor_bound, what ``plan`` predicts), every entry finite and positive."""
+    sys.path.insert(0, str(REPO / "bench"))
+    import bench_crb
+    _, quiet = simulate_random(7311, 4, "wide", [], 20.0, noise=bench_crb.QUIET)
+    rc = record(quiet.sensors, quiet.rig)
+    crb = bench_crb.bound(replace(rc, sigma=bench_crb.channel_noise(rc.channels)), quiet.rig, quiet.truth)
+    assert np.all(np.isfinite(crb)) and np.all(crb > 0), crb
+    np.testing.assert_allclose(crb, tensor_bound(quiet, REFERENCE_NOISE), rtol=1e-9)
