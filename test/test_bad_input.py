@@ -19,7 +19,7 @@ import yaml
 
 from rig_identification.cli.main import identify_main
 from rig_identification.estimation.quality import clean_sensors
-from rig_identification.io.recording import read_recording
+from rig_identification.io.recording import Recording, on_own_clocks, read_recording
 from rig_identification.io.recording_writer import write_recording
 from rig_identification.io.stamps import regular_stamps
 
@@ -245,6 +245,25 @@ def test_imu_stamped_on_arrival_is_put_on_its_rate(sim, tmp_path):
     steady = sim.sensors.imu.t
     assert regular_stamps(steady, "/rig/imu") == (steady, None)
 
+
+def test_streams_buffered_live_are_put_on_their_clocks_as_the_reader_does(sim):
+    """The identifier node's buffered window (io.recording.on_own_clocks): an IMU stamped on arrival
+    (0–8 ms late at 100 Hz) is put on its own clock as the reader would (the same stamps, the
+    warning naming the topic), the steady streams are left as they are, and the cleaning then
+    bridges no gap; left jittered, the cleaning took 1.5 periods for a gap and bridged hundreds."""
+    rng = np.random.default_rng(5)
+    s = copy.deepcopy(sim.sensors)
+    s.imu.t = s.imu.t + rng.uniform(0.0, 0.008, len(s.imu.t))
+    warnings: list[str] = []
+    own = on_own_clocks(s, sim.rig.topics, warnings)
+    assert len(warnings) == 1 and warnings[0].startswith("topic /rig/imu: stamps jitter"), warnings
+    np.testing.assert_array_equal(own.imu.t, regular_stamps(s.imu.t, "/rig/imu")[0])
+    assert np.max(np.abs(own.imu.t - sim.sensors.imu.t - 0.004)) < 0.001
+    assert all(own.load_cells[n] is s.load_cells[n] for n in s.load_cells) and own.exciter is s.exciter
+    for sensors, bridged in ((own, False), (s, True)):
+        w: list[str] = []
+        clean_sensors(Recording(sim.rig, sensors, None, None), w)
+        assert any("/rig/imu" in x and "bridged" in x for x in w) == bridged, w
 
 def test_a_clock_with_lost_samples_is_numbered_exactly_under_jitter_of_most_of_a_period():
     """Stamps taken on a steady clock (100 Hz to 1 kHz, its rate 0.1 % off nominal), each late by a

@@ -415,6 +415,23 @@ def crop(sensors: SensorData, t0: float, t1: float) -> SensorData:
                       w(sensors.exciter), w(sensors.inclinometer))
 
 
+def on_own_clocks(sensors: SensorData, topics: Topics, warnings: list[str]) -> SensorData:
+    """``sensors`` with each stream's stamps put on its own clock where they jitter
+    (:func:`~rig_identification.io.stamps.regular_stamps`: a sensor stamped on arrival), a warning
+    naming its topic (``topics``, rig.yaml's) appended to ``warnings`` for each stream that was:
+    what the reader does to a bag's streams, for streams buffered live (the identifier node's)."""
+    def own(s: TimeSeries, topic: str) -> TimeSeries:
+        t, note = regular_stamps(s.t, topic)
+        if note:
+            warnings.append(note)
+        return s if note is None else TimeSeries(t, s.data)
+
+    return SensorData(own(sensors.imu, topics.imu),
+                      {n: own(s, topics.load_cells + n) for n, s in sensors.load_cells.items()},
+                      None if sensors.exciter is None else own(sensors.exciter, topics.exciter),
+                      None if sensors.inclinometer is None else own(sensors.inclinometer, topics.inclinometer))
+
+
 def read_recording(path: str | Path) -> Recording:
     """Read a recording folder (``rig.yaml`` + ``bag/`` [+ ``truth.yaml``]).
 

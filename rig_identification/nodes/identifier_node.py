@@ -105,7 +105,7 @@ from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
 from ..estimation.fit_window import WindowRequest, fit_window
-from ..io.recording import Recording, crop
+from ..io.recording import Recording, crop, on_own_clocks
 from ..io.rig import DummyMass
 from ..model.parametrisation import to_tensor
 from ..pipeline.rig_model import fit_whole_recording
@@ -308,10 +308,11 @@ class IdentifierNode(Node):
                              f"{self.get_parameter('max_seconds').value:g} s): a later window_start or a larger "
                              "max_seconds")
         t_fit = time.monotonic()
-        sensors = crop(data, window.start, window.end)
+        stamps: list[str] = []       # a stream stamped on arrival put on its own clock, as the reader does
+        sensors = on_own_clocks(crop(data, window.start, window.end), self.rig.topics, stamps)
         lo, hi = sensors.t_start, sensors.t_end     # the samples fitted: the window's first and last
-        res = fit_whole_recording(Recording(self.rig, sensors, None, Path(f"{self.get_fully_qualified_name()} buffer")),
-                                  cg, cg_std, source)
+        res = fit_whole_recording(Recording(self.rig, sensors, None, Path(f"{self.get_fully_qualified_name()} buffer"),
+                                            stamps), cg, cg_std, source)
         delay = float(self.get_parameter("debug_fit_delay").value)
         if delay > 0:
             time.sleep(delay)
