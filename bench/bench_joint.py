@@ -11,7 +11,7 @@ the next kind of :data:`~bench_any_rig.EXCITERS`), its own noise; each run's for
 where a cable would go slack (:func:`~rig_identification.design.scenarios.simulate_taut`).  Both recordings share one
 rig.yaml surveyed once with concealed errors of the survey's σ (:func:`~scoring.surveyed`; the
 CG by rig.yaml's assumed σ), as a lab's one rig is.  ``rig-identify inertia A B``'s core
-(:func:`~rig_identification.pipeline.rig_model.fit_recordings`) fits each alone and both at once.
+(:func:`~rig_identification.pipeline.joint.fit_recordings`) fits each alone and both at once.
 
 Printed per seed: each run alone (verdict, worst σ % of scale: a product's of the largest
 moment), the joint fit (verdict, worst error % of scale, worst |error|/σ, worst σ/CRB, the CRB
@@ -35,7 +35,8 @@ from scoring import entry_scales, run_jobs, surveyed
 from rig_identification.design.scenarios import random_experiment, simulate_taut
 from rig_identification.io.recording import Recording
 from rig_identification.io.verdict import KEYS
-from rig_identification.pipeline.rig_model import RIG_YAML_CG_STD, fit_recordings
+from rig_identification.pipeline.joint import fit_recordings
+from rig_identification.pipeline.rig_model import RIG_YAML_CG_STD
 
 #: The default seeds: bench_any_rig's first eight (``--rigs 8 --first-seed 21000``).
 SEEDS = tuple(range(21000, 21008))

@@ -78,7 +78,8 @@ def one_run_plan(args):
     """Worker: noisy copies (seed, seed+1, ...) of the noise-free simulations of ``exps``
     (cached per worker), fitted by the rig model (``rig-identify inertia``: several at once, the body
     shared; no diagnosis)."""
-    from rig_identification.pipeline.rig_model import fit_recordings, fit_whole_recording
+    from rig_identification.pipeline.joint import fit_recordings
+    from rig_identification.pipeline.rig_model import fit_whole_recording
     key, exps, seed = args
     if key not in _EXP_SIMS:
         _EXP_SIMS.clear()

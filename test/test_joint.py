@@ -16,14 +16,14 @@ import numpy as np
 import pytest
 from conftest import REPO, background, gather, run_cli
 
-from rig_identification.cli.rig_model import print_joint
+from rig_identification.cli.joint import print_joint
 from rig_identification.io.recording import Recording, RecordingError
 from rig_identification.io.rig import RigError, dump_rig, read_yaml
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.experiment import experiment_from_dict
 from rig_identification.model.parametrisation import entry_scales, physically_consistent, to_tensor
 from rig_identification.model.simulator import simulate
-from rig_identification.pipeline import rig_model
+from rig_identification.pipeline.joint import CG_TOL, MASS_RTOL, check_same_body, fit_recordings
 
 DEFAULT = REPO / "config" / "rigs" / "default.yaml"
 # exciter A: the thesis's (corner, below the CG), 1.05 Hz; B: the opposite corner, 0.95 Hz
@@ -42,12 +42,12 @@ def _experiment(name: str):
 
 def _joint_fit():
     """Job: runs A and B simulated and fitted at once (``rig-identify inertia A B``'s core); the
-    truth and the :class:`~rig_identification.pipeline.rig_model.JointResult`."""
+    truth and the :class:`~rig_identification.pipeline.joint.JointResult`."""
     recs = []
     for name in SETTINGS:
         sim = simulate(_experiment(name))
         recs.append(Recording(sim.rig, sim.sensors, sim.truth, Path(name)))
-    return recs[0].truth, rig_model.fit_recordings(recs)
+    return recs[0].truth, fit_recordings(recs)
 
 
 background("joint", __file__, _joint_fit, {"ab": ()}, first=True)
@@ -121,14 +121,14 @@ def test_different_bodies_refused(recs, change):
         rig = dataclasses.replace(rig, center_of_gravity=rig.center_of_gravity + np.array([0.0, 0.0, 0.005]))
     other = SimpleNamespace(rig=rig, path=b.path)
     with pytest.raises(RecordingError) as e:
-        rig_model.fit_recordings([a, other])
+        fit_recordings([a, other])
     msg = str(e.value)
     assert str(a.path / "rig.yaml") in msg and str(b.path / "rig.yaml") in msg
     assert ("body.mass" if change == "mass" else "body.center_of_gravity") in msg
     # within the tolerance (a re-weighing, a CG re-measured to a millimetre) it is the same body
-    close = dataclasses.replace(b.rig, mass=b.rig.mass * (1 + 0.2 * rig_model.MASS_RTOL),
-                                center_of_gravity=b.rig.center_of_gravity + 0.4 * rig_model.CG_TOL)
-    rig_model.check_same_body([a, SimpleNamespace(rig=close, path=b.path)])
+    close = dataclasses.replace(b.rig, mass=b.rig.mass * (1 + 0.2 * MASS_RTOL),
+                                center_of_gravity=b.rig.center_of_gravity + 0.4 * CG_TOL)
+    check_same_body([a, SimpleNamespace(rig=close, path=b.path)])
 
 
 def test_cli_different_bodies_exit_2(recs, tmp_path):

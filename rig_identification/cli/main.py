@@ -2,8 +2,9 @@
 
 The sub-commands replay recording folders (rig.yaml + bag/) through the same tracker,
 preprocessor and identifier code as the ROS nodes.  This module builds the command line and
-runs the chosen command; the commands are in cli.inertia, cli.diagnose, cli.plan, cli.cg and cli.cg_plan,
-imported only when they run (``rig-identify --help`` does not load scipy).  User errors (a
+runs the chosen command; the commands are in cli.rig_model (cli.joint for several recordings),
+cli.diagnose, cli.plan (plan and modes), cli.cg, cli.cg_plan and cli.thesis_table, imported only
+when they run (``rig-identify --help`` does not load scipy).  User errors (a
 missing path, bad files, inconsistent input) print one line ``rig-identify: error: …`` and
 exit with status 2, no traceback; a path that does not exist is refused before any work.
 Progress goes to stderr (one line per step, warnings as they happen; ``--quiet``: warnings only).
@@ -60,6 +61,13 @@ TENSOR_HELP = ("tensor entries about the CG, body axes of rig.yaml, kg·m², in 
                "entries as in truth.yaml and the JSON, i.e. the negated products of inertia (ixy = −Ixy)")
 
 
+def inertia_command(args) -> int:
+    """``rig-identify inertia``: one recording's command (cli.rig_model), or several recordings' at
+    once (cli.joint: the joint fit's modules load only then)."""
+    module = "rig_identification.cli.joint" if len(args.recording) > 1 else "rig_identification.cli.rig_model"
+    return lazy(module, "cmd_inertia")(args)
+
+
 def add_command(sub, name: str, help: str | None, description: str, run: Callable, inputs=(),
                 outputs=(), output_dirs=()) -> argparse.ArgumentParser:
     """A sub-command parser with a description paragraph, its runner, the destinations of its
@@ -90,7 +98,7 @@ def add_inertia_parser(sub) -> None:
                     "and the CG from the static test, the run and both, and each channel's residual against its "
                     "noise. Several recordings of one body: fitted at once, each with its own rig model, the "
                     "body's mass, CG and tensor shared.",
-                    lazy("rig_identification.cli.rig_model", "cmd_inertia"), inputs=("recording", "cg"),
+                    inertia_command, inputs=("recording", "cg"),
                     outputs=("yaml",), output_dirs=("report",))
     p.add_argument("recording", nargs="+",
                    help="recording folder (rig.yaml + bag/); several recordings of the same body (other exciter "

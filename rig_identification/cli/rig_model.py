@@ -11,8 +11,7 @@ from __future__ import annotations
 import json
 import sys
 from datetime import datetime, timezone
-from pathlib import Path
-from types import SimpleNamespace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -34,23 +33,22 @@ from ..io.export import (
 )
 from ..io.package import package_version
 from ..io.recording import Recording
-from ..io.rig import load_rig
 from ..io.verdict import KEYS
 from ..pipeline.rig_model import (
     CONSISTENCY_SIGMA,
     LEVEL_LIMIT,
     CentreOfGravity,
-    JointResult,
     RigModelResult,
-    check_same_body,
-    fit_recordings,
     fit_whole_recording,
 )
 from ..report.folder import Job, ReportError
-from .arg_types import JOB_OPTIONS, UsageError
+from .arg_types import JOB_OPTIONS
 from .progress import heading, step, warn
 from .recordings import check_common, output_axes, read_all
 from .text import TABLE_CAPTION, origin_line, principal_lines, tensor_entries_line, tensor_table
+
+if TYPE_CHECKING:                     # the joint fit's modules load only for several recordings (cli.joint)
+    from ..pipeline.joint import JointResult
 
 #: What the σ of the rig model are (the YAML export's ``std_is``).
 STD_IS = ("the larger of the inverse Fisher information and the sandwich, the CG, mass, cables, load cells and "
@@ -81,7 +79,7 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
     _print_head(res, brief)
     for line in convention_lines(res.expressed(BODY).axes):
         print(line)
-    _print_tensor(res, d.get("truth_comparison"))
+    print_tensor(res, d.get("truth_comparison"))
     body = res.expressed(BODY)
     print(tensor_entries_line(body, res.fit.crb))
     if axes.name != "body":
@@ -89,19 +87,19 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
         print(f"  centre of gravity ({', '.join(f'{x:.4f}' for x in res.expressed(axes).cg)}) m")
         print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
     if brief:
-        _print_mass_and_cg(res, d)
+        print_mass_and_cg(res, d)
         if res.diagnosis is not None and res.diagnosis.extensions:
             print(f"added to the model: {', '.join(res.diagnosis.extensions)} (rig-identify diagnose says why)")
-        _print_leaned_less(res)
+        print_leaned_less(res)
         print(BRIEF_TAIL)
         return
     for line in principal_lines(body) + [origin_line(body)]:
         print(line)
     if res.diagnosis is not None:
         print_diagnosis(res.diagnosis)
-    _print_mass_and_cg(res, d)
-    _print_nuisance(res.fit, d)
-    _print_leaned_less(res)
+    print_mass_and_cg(res, d)
+    print_nuisance(res.fit, d)
+    print_leaned_less(res)
     sv = d["survey"]
     print("σ: the inverse Fisher information (each channel's noise as estimated from the recording, raised where "
           "it does not fit) or the sandwich over 12 blocks, whichever is larger; the CG, mass, cables, gains and "
@@ -127,7 +125,7 @@ def _print_head(res: RigModelResult, brief: bool) -> None:
               f"started from {res.start_source}")
 
 
-def _print_tensor(res: RigModelResult, truth: dict | None, withheld: tuple[str, ...] | None = None) -> None:
+def print_tensor(res: RigModelResult, truth: dict | None, withheld: tuple[str, ...] | None = None) -> None:
     """The moments and products of inertia (body axes) with σ, the CRB and σ/CRB, and against the
     truth where the recording has one (``truth``: the JSON's ``truth_comparison``); ``withheld``:
     the entries given as not determined (default: ``res``'s)."""
@@ -151,7 +149,7 @@ def _print_tensor(res: RigModelResult, truth: dict | None, withheld: tuple[str, 
         print(line)
 
 
-def _print_mass_and_cg(res: RigModelResult, d: dict) -> None:
+def print_mass_and_cg(res: RigModelResult, d: dict) -> None:
     """The mass with σ, the exciter's rotor taken out, the CG (``d``: the JSON)."""
     print(f"mass {d['mass']:.2f} ± {d['mass_std']:.2f} kg (the scale's value a prior of σ "
           f"{d['survey']['mass_kg']:.3g} kg)")
@@ -159,12 +157,12 @@ def _print_mass_and_cg(res: RigModelResult, d: dict) -> None:
     print_cg(res.cg)
 
 
-def _print_leaned_less(res: RigModelResult) -> None:
+def print_leaned_less(res: RigModelResult) -> None:
     if res.poorly_fitted:
         print(f"the fit leans less on {', '.join(res.poorly_fitted)} (their noise raised to their residual's)")
 
 
-def _print_nuisance(f: RigFit, d: dict) -> None:
+def print_nuisance(f: RigFit, d: dict) -> None:
     """The cables, the body's damping, the natural frequencies, each channel's residual level and
     the offsets the fit eliminated (``d``: the JSON)."""
     p = f.parameters
@@ -287,12 +285,11 @@ def write_outputs(args, res: RigModelResult | JointResult, axes: Axes, sources: 
     and the YAML's path."""
     urdf = urdf_inertial(res.expressed(BODY)) if args.urdf else None
     if args.yaml:
-        first = res.first if isinstance(res, JointResult) else res
         content = export_dict(res.expressed(axes), verdict=res.verdict, summary=res.summary, std_kind=STD_IS,
                               sources=sources, window=window,
                               created=datetime.now(timezone.utc).isoformat(timespec="seconds"),
                               version=package_version())
-        content["center_of_gravity_source"] = "fitted (the rig model), its prior " + first.cg_source
+        content["center_of_gravity_source"] = "fitted (the rig model), its prior " + res.cg_source
         atomic_write_text(args.yaml, yaml_text(content))
     args.progress.finish()
     if args.json:
@@ -344,79 +341,13 @@ def cmd_rig_model(args, rec: Recording, axes: Axes = BODY) -> int:
     return 0
 
 
-#: The last line of a joint fit's ``-q`` output: what the full output adds.
-JOINT_BRIEF_TAIL = ("(-q: the short result; without -q also the principal moments and axes, the tensor about the "
-                    "origin, each recording's cables, damping, modes and channels, and what σ holds; --json gives "
-                    "everything)")
-
-
-def print_joint(res: JointResult, axes: Axes = BODY, brief: bool = False) -> None:
-    """The text output of ``rig-identify inertia REC1 REC2 …`` (the rig model over several
-    recordings at once): the verdict, each recording with its own verdict, span and what it
-    determines alone, the body's tensor (as :func:`print_rig_model`'s), mass and CG; without
-    ``brief`` each recording's cables and channels."""
-    first = res.first
-    d = first.to_dict()
-    print(f"verdict: {res.summary}")
-    print(f"recordings (one body, fitted at once): {len(res.results)}")
-    for r, a in zip(res.results, res.alone):
-        alone = "every entry determined" if not (a.undetermined or a.ambiguous) else \
-            "not determined: " + ", ".join(a.undetermined or a.ambiguous)
-        print(f"  {r.path}: {r.verdict}; span {r.start_s:.1f}–{r.start_s + r.duration_s:.1f} s, band "
-              f"0–{r.band_hz:.2f} Hz; alone {a.verdict} ({alone})")
-        for w in r.warnings:
-            print(f"    warning: {w}")
-    if not brief:
-        print("model: each recording's rig model (its cables, load cells, surveyed geometry and states), every "
-              "sensor an output; the body's mass, CG and tensor shared by all")
-    _print_tensor(first, d.get("truth_comparison"), res.withheld)
-    body = res.expressed(BODY)
-    print(tensor_entries_line(body, first.fit.crb))
-    if axes.name != "body":
-        print(f"in {axes.label}:")
-        print(f"  centre of gravity ({', '.join(f'{x:.4f}' for x in res.expressed(axes).cg)}) m")
-        print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
-    if brief:
-        _print_mass_and_cg(first, d)
-        print(JOINT_BRIEF_TAIL)
-        return
-    for line in principal_lines(body) + [origin_line(body)]:
-        print(line)
-    _print_mass_and_cg(first, d)
-    for r in res.results:
-        print(f"{r.path}:")
-        _print_nuisance(r.fit, r.to_dict())
-        _print_leaned_less(r)
-    print("σ: the inverse Fisher information of all the recordings at once (each channel's noise as estimated "
-          "from its recording, raised where it does not fit) or the sandwich over 12 blocks of each, whichever is "
-          "larger; CRB: the bound of these runs at the sensors' own noise")
-    print(f"time: {res.seconds:.1f} s")
-
-
-def cmd_joint(args, recs: list[Recording], axes: Axes = BODY) -> int:
-    """``rig-identify inertia REC1 REC2 …``: the rig model fitted to the recordings at once
-    (:func:`~rig_identification.pipeline.rig_model.fit_recordings`); ``--json``, ``--yaml`` and
-    ``--urdf`` as for one recording.  Returns the exit status."""
-    heading(f"fitting the rig's model to every sensor of {len(recs)} recordings at once")
-    res = fit_recordings(recs, *saved_cg(args), args.start, args.end)
-    write_outputs(args, res, axes, [str(r.path) for r in recs], None, print_joint)
-    return 0
-
-
 def cmd_inertia(args) -> int:
-    """``rig-identify inertia``: the rig model fitted to one recording, or to several of one body at
-    once (their rig.yaml's mass and CG checked to agree before any bag is read); returns the exit
-    status (user errors raise, see cli.user_errors)."""
-    paths = args.recording
-    if len(paths) > 1:
-        if args.report:
-            raise UsageError("--report takes one recording: a joint fit of several has no report page yet "
-                             "(give each recording its own --report run)")
-        if all((Path(p) / "rig.yaml").is_file() for p in paths):  # different bodies: said before reading bags
-            check_same_body([SimpleNamespace(path=Path(p), rig=load_rig(Path(p) / "rig.yaml")) for p in paths])
+    """``rig-identify inertia REC``: the rig model fitted to one recording (several:
+    :func:`~rig_identification.cli.joint.cmd_inertia`); returns the exit status (user errors raise,
+    see cli.user_errors)."""
     check_common(args)
-    recs = read_all(paths)
+    recs = read_all(args.recording)
     axes, axes_notes = output_axes(args.axes, recs)
     for note in axes_notes:
         warn(note)
-    return cmd_rig_model(args, recs[0], axes) if len(recs) == 1 else cmd_joint(args, recs, axes)
+    return cmd_rig_model(args, recs[0], axes)
