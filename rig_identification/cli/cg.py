@@ -33,6 +33,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+from dataclasses import replace
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -140,8 +141,7 @@ def _state(rec, label: str, args) -> StaticState:
     if args.start is not None and args.end is not None and args.end <= args.start:
         raise StaticsError(f"--end ({args.end} s) must be after --start ({args.start} s)")
     st = StaticState.from_window(rec.sensors, t0, t1, label=label, allow_motion=args.allow_motion)
-    st.warnings = [f"{rec.path}: {w}" for w in rec.warnings] + st.warnings
-    return st
+    return replace(st, warnings=[f"{rec.path}: {w}" for w in rec.warnings] + st.warnings)
 
 
 def run_cg(args):
@@ -164,8 +164,7 @@ def run_cg(args):
             raise StaticsError(f"{rd.rig.source}: missing field dummy_mass (or pass --dummy-mass and "
                                "--dummy-position)")
     sb = _state(rb, "baseline", args)
-    sd = _state(rd, "dummy", args)
-    sd.added = (dummy,)
+    sd = replace(_state(rd, "dummy", args), added=(dummy,))
     return estimate_cg(rig, sb, sd, cg_options(args, rig.survey)), rb, rd
 
 

@@ -75,7 +75,7 @@ class Run:
                 "ramp_time_s": float(self.ramp_time), "ramp_shape": "spin_up"}
 
 
-@dataclass
+@dataclass(frozen=True)
 class Body:
     """The rig and the nominal body: rig (CG from rig.yaml), mass kg, inertia (3,3) kg·m²
     about the CG, body axes; cable stiffness (N,) N/m of the simulation (rig.yaml's, else

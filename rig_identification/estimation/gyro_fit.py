@@ -79,7 +79,7 @@ def batch_means_meat(A3: np.ndarray, resid: np.ndarray, nb: int) -> np.ndarray:
     return meat
 
 
-@dataclass
+@dataclass(frozen=True)
 class Segment:
     """One stretch of data prepared for the fit (band-passed output and regressors)."""
 

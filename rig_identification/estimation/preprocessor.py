@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from ..io.recording import SensorData
 
 
-@dataclass
+@dataclass(frozen=True)
 class Wrench:
     """Generalized wrench at stamp t: force (3,) N and torque (3,) N·m about the CG, body axes."""
 
@@ -43,7 +43,7 @@ class Wrench:
     torque: np.ndarray
 
 
-@dataclass
+@dataclass(frozen=True)
 class WrenchSeries:
     """t (N,) s, force (N,3) N, torque (N,3) N·m — body axes, moment about the CG."""
 

@@ -92,7 +92,7 @@ class EstimatedMode:
                 "amplitude_rad_s": float(self.amplitude)}
 
 
-@dataclass
+@dataclass(frozen=True)
 class ModalEstimate:
     """Output of :func:`estimate_modes`: the modes and the exciter frequency (Hz or None)."""
 

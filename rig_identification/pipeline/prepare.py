@@ -18,7 +18,7 @@ from ..io.recording import Recording, RecordingError
 log = logging.getLogger(__name__)   # steps (INFO) and warnings as they happen: cli_progress shows them
 
 
-@dataclass
+@dataclass(frozen=True)
 class PreparedRecording:
     """A recording replayed through the cleaning, the tracker and the preprocessor, cut
     to the fit window: the identifier's input.

@@ -154,7 +154,7 @@ class ParameterLayout:
         return len(self.names)
 
 
-@dataclass
+@dataclass(frozen=True)
 class GlobalUnknowns:
     """The global unknowns θ of the fit in physical units (common to every static state).
 

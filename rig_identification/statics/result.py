@@ -54,7 +54,7 @@ CG_RESULT_UNITS = {
     "uncertainty.budget": "m", "validation.checks.statistic": "see each check's detail (σ, χ²/dof)"}
 
 
-@dataclass
+@dataclass(frozen=True)
 class CgResult:
     """The static experiment's estimate.
 

@@ -11,7 +11,7 @@ Frames and units (docs/recording_format.md): sensor frames; SI units (m, kg, N, 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
@@ -185,7 +185,7 @@ def _exciter_warnings(exc: StreamStats | None, label: str) -> list[str]:
     return []
 
 
-@dataclass
+@dataclass(frozen=True)
 class StaticState:
     """One static state of the body: the mean of every sensor stream over a window at rest.
 
@@ -263,8 +263,7 @@ class StaticState:
     def from_recording(cls, recording, label: str = "state", **kw) -> "StaticState":
         """:meth:`from_window` over a whole :class:`~rig_identification.io.recording.Recording`."""
         st = cls.from_window(recording.sensors, label=label, **kw)
-        st.warnings = [f"{recording.path}: {w}" for w in recording.warnings] + st.warnings
-        return st
+        return replace(st, warnings=[f"{recording.path}: {w}" for w in recording.warnings] + st.warnings)
 
     def tensions_for(self, rig: Rig) -> tuple[np.ndarray, np.ndarray] | None:
         """(tensions (N,), std (N,)) in rig.yaml cable order, or None without load cells.
