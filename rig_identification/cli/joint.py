@@ -15,8 +15,16 @@ from ..pipeline.joint import JointResult, check_same_body, fit_recordings
 from .arg_types import UsageError
 from .progress import heading, warn
 from .recordings import check_common, output_axes, read_all
-from .rig_model import print_leaned_less, print_mass_and_cg, print_nuisance, print_tensor, saved_cg, write_outputs
-from .text import origin_line, principal_lines, tensor_entries_line, tensor_table
+from .rig_model import (
+    print_leaned_less,
+    print_mass_and_cg,
+    print_nuisance,
+    print_other_axes,
+    print_tensor,
+    saved_cg,
+    write_outputs,
+)
+from .text import origin_line, principal_lines, tensor_entries_line
 
 #: The last line of a joint fit's ``-q`` output: what the full output adds.
 JOINT_BRIEF_TAIL = ("(-q: the short result; without -q also the principal moments and axes, the tensor about the "
@@ -46,10 +54,7 @@ def print_joint(res: JointResult, axes: Axes = BODY, brief: bool = False) -> Non
     print_tensor(first, d.get("truth_comparison"), res.withheld)
     body = res.expressed(BODY)
     print(tensor_entries_line(body, first.fit.crb))
-    if axes.name != "body":
-        print(f"in {axes.label}:")
-        print(f"  centre of gravity ({', '.join(f'{x:.4f}' for x in res.expressed(axes).cg)}) m")
-        print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
+    print_other_axes(res, axes)
     if brief:
         print_mass_and_cg(first, d)
         print(JOINT_BRIEF_TAIL)

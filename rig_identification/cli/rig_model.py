@@ -82,10 +82,7 @@ def print_rig_model(res: RigModelResult, axes: Axes = BODY, brief: bool = False)
     print_tensor(res, d.get("truth_comparison"))
     body = res.expressed(BODY)
     print(tensor_entries_line(body, res.fit.crb))
-    if axes.name != "body":
-        print(f"in {axes.label}:")
-        print(f"  centre of gravity ({', '.join(f'{x:.4f}' for x in res.expressed(axes).cg)}) m")
-        print("\n".join("  " + line for line in tensor_table(res.expressed(axes))))
+    print_other_axes(res, axes)
     if brief:
         print_mass_and_cg(res, d)
         if res.diagnosis is not None and res.diagnosis.extensions:
@@ -123,6 +120,16 @@ def _print_head(res: RigModelResult, brief: bool) -> None:
         print(f"span: {res.start_s:.1f}–{res.start_s + res.duration_s:.1f} s from the first IMU sample "
               f"({res.duration_s:.1f} s, after the exciter's spin-up); band 0–{res.band_hz:.2f} Hz; "
               f"started from {res.start_source}")
+
+
+def print_other_axes(res: RigModelResult | JointResult, axes: Axes) -> None:
+    """The CG and the tensor of ``res`` in ``axes`` where they are not the body's: the text output of
+    one recording and of several alike."""
+    if axes.name != "body":
+        expressed = res.expressed(axes)
+        print(f"in {axes.label}:")
+        print(f"  centre of gravity ({', '.join(f'{x:.4f}' for x in expressed.cg)}) m")
+        print("\n".join("  " + line for line in tensor_table(expressed)))
 
 
 def print_tensor(res: RigModelResult, truth: dict | None, withheld: tuple[str, ...] | None = None) -> None:
