@@ -41,6 +41,7 @@ from .rig_fit import (
     RigFit,
     along_weakest,
     covariance,
+    jacobian_near,
     larger_of,
     polished,
     restarted,
@@ -191,9 +192,11 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
     best = min(range(len(minima)), key=lambda i: minima[i][0])
     cost = minima[best][0]
     if best != 0:                          # a restart settled lower: the estimate's problem and Jacobian
-        last = _joint(recs, singles, own, _points(last, minima[best][1]), noise_scales)
-        J, r = last.jacobian(np.zeros(last.lay.size)), last.residual(np.zeros(last.lay.size))
-        nfev += last.lay.size + 2
+        moved = _joint(recs, singles, own, _points(last, minima[best][1]), noise_scales)
+        J, runs = jacobian_near(last, moved, J)
+        last = moved
+        r = last.residual(np.zeros(last.lay.size))
+        nfev += runs + 1
     estimate = minima[best][1][last.lay.inertia]
     others_x = [m for i, m in enumerate(minima) if i != best]
     settled = np.array([m[1][last.lay.inertia] for m in others_x]).reshape(-1, 6)

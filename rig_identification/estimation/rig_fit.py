@@ -431,6 +431,19 @@ def _jacobian_at_x0(prob: RigProblem, solved: RigProblem, J: np.ndarray | None, 
     return prob.jacobian(np.zeros(prob.lay.size)), prob.lay.size + 1
 
 
+def jacobian_near(prob: RigProblem | JointProblem, moved: RigProblem | JointProblem, J: np.ndarray
+                  ) -> tuple[np.ndarray, int]:
+    """The Jacobian of ``moved`` at its x0 and the model runs it took: ``J``, ``prob``'s fresh at its
+    x0, in ``moved``'s units where ``moved`` lies within :data:`ANCHOR_SIGMA` σ of it in every tensor
+    entry, CG coordinate and the mass (the model is linear that near: the rule :func:`solve` stops
+    by; the Fisher information changes by the share σ is of the parameters), else computed."""
+    body = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
+    std = prob.scale[body] * np.sqrt(np.diag(np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True))[body])
+    if np.all(np.abs(moved.x0[body] - prob.x0[body]) < ANCHOR_SIGMA * std):
+        return J * (moved.scale / prob.scale)[None, :], 0
+    return moved.jacobian(np.zeros(moved.lay.size)), moved.lay.size + 1
+
+
 def polished(prob: RigProblem | JointProblem, J: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, int]:
     """The estimate after Gauss–Newton steps from ``prob``'s x0 with its Jacobian ``J`` there (the
     chord method; ``r``: the residual at x0), each taken where it lowers the cost, at most
@@ -597,10 +610,11 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     log.info("rig fit: the other minima settled %s from the estimate, χ² %s", np.round(settled - x[lay.inertia], 3),
              np.round(other_chi2, 2))
     if cost != minima_costs[0]:           # a restart settled lower: the estimate's problem and Jacobian
-        last = RigProblem(rec, at, lay, prior, noise_scale, n_all)
-        J = last.jacobian(np.zeros(last.lay.size))
+        moved = RigProblem(rec, at, lay, prior, noise_scale, n_all)
+        J, runs = jacobian_near(last, moved, J)
+        last = moved
         r = last.residual(np.zeros(last.lay.size))
-        nfev += last.lay.size + 2
+        nfev += runs + 1
     z, runs = polished(last, J, r)
     at = last.point(last.x(z)) if np.any(z) else last.at_x0
     x, p, rest, bases = at.x, at.parameters, at.rest, at.bases
