@@ -86,8 +86,7 @@ def run_once(args: list[str], env: dict) -> tuple[float, float, float, str]:
         out.seek(0)
         verdict = "—"
         if "--json" in args:
-            d = json.loads(out.read())     # the rig model's JSON has "verdict", the gyro-only fit's "validation"
-            verdict = d.get("verdict") or (d.get("validation") or {}).get("verdict", "—")
+            verdict = json.loads(out.read()).get("verdict", "—")
     return wall, user + system, rss_kib / 1024.0, verdict
 
 

@@ -3,8 +3,7 @@
 Two short simulated recordings of thesis case 16 (realistic noise), the exciter at two
 positions and frequencies: the joint fit recovers the true tensor and is more certain
 than either recording alone; recordings of different bodies are refused with a clear
-error naming the files (exit status 2 from the command line), and the gyro-only fit
-refuses several recordings.
+error naming the files (exit status 2 from the command line).
 """
 import copy
 import dataclasses

@@ -7,7 +7,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..io.rig import Rig
-from .html import GENERATOR
+
+#: The mark every report page carries (:mod:`~rig_identification.report.html`): a folder whose
+#: index.html has it holds an earlier report (:func:`check_report_dir`).
+GENERATOR = '<meta name="generator" content="rig-identify report">'
 
 
 @dataclass(frozen=True)
@@ -52,4 +55,4 @@ def rig_label(rig: Rig) -> str:
     return f"{rig.name} ({rig.source})" if rig.name else str(rig.source)
 
 
-__all__ = ["Job", "ReportError", "check_report_dir", "rig_label"]
+__all__ = ["GENERATOR", "Job", "ReportError", "check_report_dir", "rig_label"]

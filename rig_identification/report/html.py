@@ -15,10 +15,9 @@ from collections.abc import Iterable, Sequence
 import numpy as np
 
 from ..io.export import NOT_DETERMINED  # an entry the recording does not determine (verdict not_identifiable)
+from .folder import GENERATOR  # the mark of a page this package wrote
 
 MISSING = "—"                       # a number that does not exist (no truth, no CRB, …)
-
-GENERATOR = '<meta name="generator" content="rig-identify report">'
 
 
 def finite(x) -> bool:
@@ -158,5 +157,5 @@ def page(title: str, body: Sequence[str]) -> str:
             + "\n</body></html>\n")
 
 
-__all__ = ["MISSING", "NOT_DETERMINED", "GENERATOR", "finite", "num", "pct", "esc", "Cell", "table",
+__all__ = ["MISSING", "NOT_DETERMINED", "finite", "num", "pct", "esc", "Cell", "table",
            "json_safe", "CSS", "page"]

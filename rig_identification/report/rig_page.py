@@ -119,9 +119,10 @@ def minima_html(res: RigModelResult) -> str:
             for m, c in zip(f.other_minima, f.other_chi2)]
     return (table(["settled from the estimate, σ (ixx, ixy, ixz, iyy, iyz, izz)", "χ² over the estimate's"], rows,
                   ident="minima-table")
-            + '<p class="note">The whole-record fit restarted with every entry 1 % away, once each way, and from the '
-              "gyro-only fit's tensor: another minimum more than 3 σ off at a χ² within 12.6 makes those entries "
-              "ambiguous (verdict not_identifiable).</p>")
+            + '<p class="note">The whole-record fit restarted with every entry 1 % away, once each way, 10 σ '
+              "either way along the tensor's weakest direction, and from the gyro-only fit's tensor: another "
+              "minimum more than 3 σ off at a χ² within 12.6 makes those entries ambiguous (verdict "
+              "not_identifiable).</p>")
 
 
 def diagnosis_html(res: RigModelResult) -> str:
