@@ -162,7 +162,7 @@ def plan_precision(body, plan, args) -> dict:
     """The baseline's and the plan's predicted σ against ``--target``
     (:func:`~rig_identification.estimation.precision.precision_of`; each run of ``--duration``):
     {"baseline": Precision, "plan": Precision}."""
-    return {title: precision_of(body.inertia, std, (), args.duration, "ok", args.target / 100, subject="each run's")
+    return {title: precision_of(body.inertia, std, args.duration, args.target / 100, subject="each run's")
             for title, std in (("baseline", plan.baseline_std), ("plan", plan.std))}
 
 
