@@ -51,7 +51,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.stats import chi2, norm, t
 
-from ..estimation.harmonic_start import DampedStart, drag_start
+from ..estimation.harmonic_start import DampedStart, ForcedResponseStart, drag_start
 from ..estimation.rig_extensions import ExtensionFit, LinearisedRig
 from ..estimation.rig_fit import LEVEL_LIMIT, REWEIGHT_LIMIT, SANDWICH_BLOCKS, RigFit
 from ..estimation.rig_problem import NON_NEGATIVE as FIT_NON_NEGATIVE
@@ -409,14 +409,16 @@ def physical_starts(rec: Record, damped: DampedStart | None = None) -> dict[str,
     return out
 
 
-def restart_step(rec: Record, prior: Prior, fit: RigFit, refit: Callable[[dict[str, np.ndarray], np.ndarray], RigFit],
-                 damped: DampedStart | None = None) -> tuple[Step, RigFit] | None:
+def restart_step(rec: Record, prior: Prior, fit: RigFit, refit: Callable[..., RigFit],
+                 damped: DampedStart | None = None, turning: ForcedResponseStart | None = None
+                 ) -> tuple[Step, RigFit] | None:
     """Where the rigid-body ``fit`` did not find the motion (a channel beyond
     :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise), no test at it is
     evidence, and an extension tried from zero starts where the rigid fit did.  Each extension of
-    :func:`physical_starts` (``damped``: the forced response fitted with the body's damping) is
-    fitted from the value the recording gives it (``refit``), from the start's tensor where the
-    start has one; the first
+    :func:`physical_starts` (``damped``: the forced response fitted with the body's damping;
+    ``turning``: with the exciter rotor's unbalance, its tensor and the cables' stiffness the
+    rotor's start) is fitted from the value the recording gives it (``refit``: extensions, tensor,
+    stiffness or None), from the start's tensor where the start has one; the first
     whose fit finds the motion is tested at that fit as a step's candidate is at the rigid fit: the
     model without it (its unknowns at zero, linearised) against the model with it — significant,
     determined, plausible, cross-validated (:meth:`LinearisedRig.held_out`) — and every other
@@ -427,8 +429,11 @@ def restart_step(rec: Record, prior: Prior, fit: RigFit, refit: Callable[[dict[s
     apart = float(t.ppf(APART_LEVEL, SANDWICH_BLOCKS - 1))
     for name, start in physical_starts(rec, damped).items():
         log.info("diagnosis: the fit did not find the motion; fitting it with %s from %s", name, np.round(start, 4))
-        after = refit({name: start}, damped.tensor if name == "air_drag" and damped is not None
-                      else fit.parameters.inertia)
+        if name == "exciter_rotor" and turning is not None:
+            after = refit({name: start}, turning.tensor, turning.stiffness)
+        else:
+            after = refit({name: start}, damped.tensor if name == "air_drag" and damped is not None
+                          else fit.parameters.inertia)
         if lost(after):
             log.info("diagnosis: with %s it still does not", name)
             continue
@@ -469,7 +474,7 @@ def damping_alternatives(lin: LinearisedRig, fit: RigFit) -> Damping | None:
 
 
 def _extended(rec: Record, prior: Prior, steps: list[Step], fit: RigFit,
-              refit: Callable[[dict[str, np.ndarray], np.ndarray], RigFit] | None
+              refit: Callable[..., RigFit] | None
               ) -> tuple[list[Step], RigFit, LinearisedRig]:
     """``fit`` (``steps`` made it) with the extensions added step by step (:func:`next_step`, each
     refitted from ``fit``'s tensor while it lowers the misfit, at most :data:`MAX_EXTENSIONS` in
@@ -497,8 +502,8 @@ def _extended(rec: Record, prior: Prior, steps: list[Step], fit: RigFit,
 
 
 def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
-                 refit: Callable[[dict[str, np.ndarray], np.ndarray], RigFit] | None = None,
-                 damped: DampedStart | None = None) -> RigDiagnosis:
+                 refit: Callable[..., RigFit] | None = None,
+                 damped: DampedStart | None = None, turning: ForcedResponseStart | None = None) -> RigDiagnosis:
     """The data errors and the extensions the recording tells apart (module docstring), and the
     rig model refitted with those added: ``refit`` (extensions, the tensor (6,) kg·m² to start
     from first -> the fit), given the linearised estimates of the extensions' unknowns as their
@@ -519,8 +524,9 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     bench_trust's clean, undetermined 7201 the first rigid fit misfit and ``sensor_delay`` was
     named).  Where neither the rigid-body fit nor the extensions its tests added find the motion,
     the extensions the recording itself gives a start (:func:`physical_starts`; ``damped``: the
-    forced response fitted with the body's damping, the air drag's start) are fitted from it
-    (:func:`restart_step`), and the steps go on from the first that finds it.
+    forced response fitted with the body's damping, the air drag's start; ``turning``: with the
+    exciter rotor's unbalance, the rotor's) are fitted from it (:func:`restart_step`), and the
+    steps go on from the first that finds it.
     """
     if not fit.determined and np.max(fit.residual_level) <= LEVEL_LIMIT:
         return RigDiagnosis(prior_conflicts(fit, prior, cables), None, (), fit, None, False)
@@ -530,7 +536,7 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
                  ", ".join(s.added for s in steps))
         steps, current = [], fit
     if not steps and refit is not None and lost(fit):
-        restarted = restart_step(rec, prior, fit, refit, damped)
+        restarted = restart_step(rec, prior, fit, refit, damped, turning)
         if restarted is not None:
             steps, current, lin = _extended(rec, prior, [restarted[0]], restarted[1], refit)
     if steps and not current.determined and refit is not None:

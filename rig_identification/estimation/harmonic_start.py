@@ -175,7 +175,8 @@ class ForcedResponseStart:
         return self.log_scale != 0.0
 
 
-def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarray) -> ForcedResponseStart:
+def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarray,
+                          rotor: np.ndarray | None = None) -> ForcedResponseStart:
     """The tensor and the cables' stiffness the rig model's fit starts from: the tensor entries
     whose linearised forced response best matches the record's fundamental (module docstring),
     fitted from each row of ``starts`` (k, 6) kg·m²; mass, CG and geometry the fit's start
@@ -201,10 +202,13 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
     grid's: a refined misfit can dip within 1 % of stiffness).  On steel cables the modes lie
     far above the band and the misfit, dominated by the linearisation's error and a tensor the
     one frequency determines poorly, is no evidence: it changes by a few per cent over a factor
-    10 of stiffness.  The stiffness's prior itself stays (:class:`~.rig_unknowns.Prior`): only
-    the start moves.  Raises
+    10 of stiffness.  ``rotor``: (2,) the exciter rotor's unbalance kg·m and mass kg the model
+    holds (None: none): an unbalance's weight turns with the force and moves the fundamental
+    (:func:`~rig_identification.model.linear_rig.frequency_response`).  The stiffness's prior
+    itself stays (:class:`~.rig_unknowns.Prior`): only the start moves.  Raises
     :class:`RigFitError` when the rig has no rest pose or the fit no finite tensor."""
-    m = _Misfit(rec, rig, prior, np.atleast_2d(np.asarray(starts, float)))
+    m = _Misfit(rec, rig, prior, np.atleast_2d(np.asarray(starts, float)),
+                np.zeros(2) if rotor is None else np.asarray(rotor, float))
     if not np.any(m.free):
         level, tensor = m.at(0.0, m.starts)
         return m.found(tensor, level, 0.0, float("nan"))
@@ -309,11 +313,11 @@ def drag_start(rec: Record, damped: DampedStart) -> np.ndarray:
 
 class _Misfit:
     """The forced response's misfit as a function of the log factor on the stiffness of the
-    cables rig.yaml gives none for (``free``), the tensor fitted from ``starts`` (k, 6)
-    (:func:`forced_response_start`)."""
+    cables rig.yaml gives none for (``free``), the tensor fitted from ``starts`` (k, 6), the
+    exciter's rotor ``rotor`` (2,) (:func:`forced_response_start`)."""
 
-    def __init__(self, rec: Record, rig: Rig, prior: Prior, starts: np.ndarray):
-        self.rec, self.rig, self.prior, self.starts = rec, rig, prior, starts
+    def __init__(self, rec: Record, rig: Rig, prior: Prior, starts: np.ndarray, rotor: np.ndarray):
+        self.rec, self.rig, self.prior, self.starts, self.rotor = rec, rig, prior, starts, rotor
         self.free = ~prior.stiffness_given
         self.h = harmonics(rec, len(rig.cables))
         self._at_prior: tuple[RigParameters, RestPose] | None = None
@@ -321,7 +325,8 @@ class _Misfit:
     def prior_start(self) -> tuple[RigParameters, RestPose]:
         """The start's parameters and rest pose at the prior's stiffness (searched once)."""
         if self._at_prior is None:
-            self._at_prior = start_parameters(self.rig, self.prior, self.starts[0], self.rec)
+            p, rest = start_parameters(self.rig, self.prior, self.starts[0], self.rec)
+            self._at_prior = p.replace(rotor=self.rotor), rest
         return self._at_prior
 
     def stiffness(self, s: float) -> np.ndarray:
@@ -335,6 +340,7 @@ class _Misfit:
                 start_parameters(self.rig, self.prior, self.starts[0], self.rec, stiffness=self.stiffness(s))
         except RigFitError:
             return float("inf"), tensors[0]
+        p0 = p0.replace(rotor=self.rotor)
         tensor, cost = _fitted(self.h, p0, rest, tensors, tolerance)
         return _level(cost, self.h), tensor
 

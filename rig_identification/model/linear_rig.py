@@ -254,12 +254,18 @@ def frequency_response(p: RigParameters, lin: LinearRig, omega: float, force: np
     load cells' readings (N,) N and the gyro's (3,) rad/s (IMU axes), concatenated (N + 3,).
 
     Q = (K − ω² M + iω D)⁻¹ B u (module docstring); a tension moves by -g_i k_i (1 + iωτ) G_i Q,
-    the gyro reads R_imuᵀ R0ᵀ iω Q_φ.  The fundamental of the exact model's readings to first
+    the gyro reads R_imuᵀ R0ᵀ iω Q_φ.  Where ``p`` gives the exciter's rotor an unbalance m_u e
+    (``p.rotor[0]``), its weight turns with the force and adds the moment m_u e (u × g), u the
+    force's direction (:mod:`~rig_identification.model.rig_ode`): (m_u e / |F|) F × g, |F| the
+    rotating force's amplitude.  The fundamental of the exact model's readings to first
     order in the motion (its quadratic terms fall at 0 and 2ω)."""
     R0 = lin.rest.rotation
     s_e = R0 @ p.exciter_position
     f_world = R0 @ p.exciter_rotation[:, :2] @ np.asarray(force, complex)
     B = np.concatenate([f_world, np.cross(s_e, f_world)])
+    if p.rotor[0] > 0.0:        # the unbalance's weight, turning with the force (rig_ode: m_u e u × g)
+        amplitude = np.sqrt(0.5 * np.sum(np.abs(force) ** 2))
+        B[3:] += p.rotor[0] / amplitude * np.cross(f_world, np.array([0.0, 0.0, -p.gravity]))
     Q = np.linalg.solve(lin.K - omega ** 2 * lin.M + 1j * omega * lin.D, B)
     tensions = -p.gain * p.stiffness * (1 + 1j * omega * p.damping_time) * (lin.G @ Q)
     gyro = p.imu_rotation.T @ R0.T @ (1j * omega * Q[3:])

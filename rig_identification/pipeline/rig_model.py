@@ -396,12 +396,14 @@ class FitInput:
     warnings: tuple[str, ...]
     t_first: float
 
-    def fit(self, extensions: dict[str, np.ndarray] | None = None, first: np.ndarray | None = None) -> RigFit:
+    def fit(self, extensions: dict[str, np.ndarray] | None = None, first: np.ndarray | None = None,
+            stiffness: np.ndarray | None = None) -> RigFit:
         """The rig model fitted to the record (:func:`~rig_identification.estimation.rig_fit.fit_rig`),
-        with ``extensions`` (name -> start) where given, from ``first`` (6,) kg·m² before the starts."""
+        with ``extensions`` (name -> start) where given, from ``first`` (6,) kg·m² before the starts,
+        the cables' stiffness from ``stiffness`` (N,) N/m (default the forced response's start)."""
         starts = self.starts if first is None else np.vstack([first, self.starts])
         return fit_rig(self.rc, self.rec.rig, self.prior, starts, restarts=self.restarts, extensions=extensions,
-                       stiffness=self.forced.stiffness)
+                       stiffness=self.forced.stiffness if stiffness is None else stiffness)
 
     def result(self, fit: RigFit, seconds: float, diagnosis: RigDiagnosis | None = None) -> RigModelResult:
         """The :class:`RigModelResult` of ``fit`` (``seconds``: the wall time)."""
@@ -466,12 +468,21 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     if diagnose and np.all(np.isfinite(fit.inertia_std)):
         log.info("testing what the model leaves out")
 
-        def refit(extensions: dict[str, np.ndarray], start: np.ndarray) -> RigFit:
+        def refit(extensions: dict[str, np.ndarray], start: np.ndarray, stiffness: np.ndarray | None = None
+                  ) -> RigFit:
             log.info("fitting the rig model with %s", ", ".join(extensions) or "nothing added, again")
-            return inp.fit(extensions, start)
+            return inp.fit(extensions, start, stiffness)
 
-        # where the fit did not find the motion, the damping the fundamental asks for starts the drag's fit
-        damped = damped_start(inp.rc, rec.rig, inp.prior, inp.forced) if lost(fit) else None
-        diagnosis = diagnose_rig(inp.rc, inp.prior, fit, list(rec.rig.cable_names), refit, damped)
+        # where the fit did not find the motion, the damping the fundamental asks for starts the drag's
+        # fit, and the forced response with the exciter rotor's unbalance (its weight turning with the
+        # force) the rotor's: the tensor and the cables' stiffness
+        damped = turning = None
+        unbalance = inp.rc.unbalance()
+        if lost(fit):
+            damped = damped_start(inp.rc, rec.rig, inp.prior, inp.forced)
+            if unbalance is not None:
+                turning = forced_response_start(inp.rc, rec.rig, inp.prior, inp.starts,
+                                                rotor=np.array([unbalance, 0.0]))
+        diagnosis = diagnose_rig(inp.rc, inp.prior, fit, list(rec.rig.cable_names), refit, damped, turning)
         fit = diagnosis.refit or diagnosis.rigid
     return inp.result(fit, time.perf_counter() - t_wall, diagnosis)
