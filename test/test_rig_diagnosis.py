@@ -46,7 +46,8 @@ def _drag_start(seed: int, seconds: float):
     _, sim = simulate_random(seed, 4, "wide", [{"name": "air_drag", "linear": DRAG, "angular": DRAG}], seconds)
     inp = prepared(Recording(sim.rig, sim.sensors, sim.truth, None))      # the fit's starts, as inertia makes them
     damped = damped_start(inp.rc, sim.rig, inp.prior, inp.forced)
-    return inp.forced.level, damped.level, drag_start(inp.rc, damped), physical_starts(inp.rc, damped)["air_drag"]
+    physical = physical_starts(inp.rc, damped)["air_drag"]
+    return inp.forced.level, damped.level, drag_start(inp.rc, damped), physical.values
 
 
 background("rig_diagnosis", __file__, _diagnosed, {
@@ -257,7 +258,7 @@ def test_nothing_is_tested_where_the_fit_leaves_the_tensor_undetermined():
 
     from rig_identification.diagnosis.rig_diagnosis import diagnose_rig
 
-    def refit(extensions, start):
+    def refit(extensions, start, stiffness):
         raise AssertionError("no refit where the tensor is not determined")
     fit = SimpleNamespace(unknowns=None, residual_level=np.array([1.0, 1.02]), channels=("tension:c0", "gyro_x"),
                           determined=False)
@@ -290,7 +291,7 @@ def test_no_name_where_the_rigid_model_restarted_from_the_extended_fit_explains_
         again = fake(again_level)
         calls = []
 
-        def refit(extensions, start):
+        def refit(extensions, start, stiffness):
             calls.append((tuple(extensions), start))
             return extended if extensions else again
         steps = iter([step])
@@ -351,7 +352,7 @@ def test_the_rotor_fitted_from_its_unbalance_is_named_only_where_it_finds_the_mo
     lost = SimpleNamespace(parameters=SimpleNamespace(inertia=np.arange(6.0)))
     calls = []
 
-    def refit(extensions, start):
+    def refit(extensions, start, stiffness):
         calls.append({e: v.tolist() for e, v in extensions.items()})
         return after
     for after_level, z, expected in (([1.0, 1.1], 9.0, ((), True)), ([1.0, 1.1], 0.5, (("air_drag",), True)),

@@ -392,33 +392,54 @@ def next_step(lin: LinearisedRig) -> Step | None:
     return Step(added, best, close, z, tuple(c for c, _ in tests.values()))
 
 
-def physical_starts(rec: Record, damped: DampedStart | None = None) -> dict[str, np.ndarray]:
+#: The refit the diagnosis calls: (extensions: name -> the start of its unknowns, the tensor (6,)
+#: kg·m² to start from first, the cables' stiffness (N,) N/m to start from or None: the fit's own)
+#: -> the fit.
+Refit = Callable[[dict[str, np.ndarray], np.ndarray, "np.ndarray | None"], RigFit]
+
+
+@dataclass(frozen=True)
+class PhysicalStart:
+    """An extension's start the recording itself gives (:func:`physical_starts`): ``values`` its
+    unknowns; ``tensor`` (6,) kg·m² the tensor its fit starts from (None: the rigid fit's);
+    ``stiffness`` (N,) N/m the cables' (None: the fit's own start)."""
+
+    values: np.ndarray
+    tensor: np.ndarray | None = None
+    stiffness: np.ndarray | None = None
+
+
+def physical_starts(rec: Record, damped: DampedStart | None = None, turning: ForcedResponseStart | None = None
+                    ) -> dict[str, PhysicalStart]:
     """The extensions whose unknowns the recording itself gives a start, and that start: the
     exciter's rotor, its unbalance the one that makes the measured force
     (:meth:`~rig_identification.estimation.rig_record.Record.unbalance`; its weight's moment turns
-    with it) and its mass 0 (none where the force is not a rotating vector); the air drag, the
-    quadratic drag equivalent at the record's amplitudes to the viscous damping the fundamental
-    asks for (``damped``: :func:`~rig_identification.estimation.harmonic_start.damped_start`;
-    :func:`~rig_identification.estimation.harmonic_start.drag_start`), where it asks for some."""
+    with it) and its mass 0 (none where the force is not a rotating vector), from the tensor and
+    the cables' stiffness of ``turning`` (the forced response with that unbalance) where given;
+    the air drag, the quadratic drag equivalent at the record's amplitudes to the viscous damping
+    the fundamental asks for (``damped``: :func:`~rig_identification.estimation.harmonic_start.damped_start`;
+    :func:`~rig_identification.estimation.harmonic_start.drag_start`), where it asks for some,
+    from ``damped``'s tensor."""
     out = {}
     unbalance = rec.unbalance()
     if unbalance is not None:
-        out["exciter_rotor"] = np.array([unbalance, 0.0])
+        rotor = np.array([unbalance, 0.0])
+        out["exciter_rotor"] = PhysicalStart(rotor) if turning is None else \
+            PhysicalStart(rotor, turning.tensor, turning.stiffness)
     if damped is not None and np.any(damped.damping > 0):
-        out["air_drag"] = drag_start(rec, damped)
+        out["air_drag"] = PhysicalStart(drag_start(rec, damped), damped.tensor)
     return out
 
 
-def restart_step(rec: Record, prior: Prior, fit: RigFit, refit: Callable[..., RigFit],
+def restart_step(rec: Record, prior: Prior, fit: RigFit, refit: Refit,
                  damped: DampedStart | None = None, turning: ForcedResponseStart | None = None
                  ) -> tuple[Step, RigFit] | None:
     """Where the rigid-body ``fit`` did not find the motion (a channel beyond
     :data:`~rig_identification.estimation.rig_fit.REWEIGHT_LIMIT` of its noise), no test at it is
     evidence, and an extension tried from zero starts where the rigid fit did.  Each extension of
     :func:`physical_starts` (``damped``: the forced response fitted with the body's damping;
-    ``turning``: with the exciter rotor's unbalance, its tensor and the cables' stiffness the
-    rotor's start) is fitted from the value the recording gives it (``refit``: extensions, tensor,
-    stiffness or None), from the start's tensor where the start has one; the first
+    ``turning``: with the exciter rotor's unbalance) is fitted from the start the recording gives
+    it (``refit``), its values, tensor and stiffness; the first
     whose fit finds the motion is tested at that fit as a step's candidate is at the rigid fit: the
     model without it (its unknowns at zero, linearised) against the model with it — significant,
     determined, plausible, cross-validated (:meth:`LinearisedRig.held_out`) — and every other
@@ -427,13 +448,11 @@ def restart_step(rec: Record, prior: Prior, fit: RigFit, refit: Callable[..., Ri
     (on the package's simulator a 10 kg rotor on a vertical spin axis: the rigid fit's tensions
     3 300× their noise, the fit from the unbalance every channel within 1.1×)."""
     apart = float(t.ppf(APART_LEVEL, SANDWICH_BLOCKS - 1))
-    for name, start in physical_starts(rec, damped).items():
-        log.info("diagnosis: the fit did not find the motion; fitting it with %s from %s", name, np.round(start, 4))
-        if name == "exciter_rotor" and turning is not None:
-            after = refit({name: start}, turning.tensor, turning.stiffness)
-        else:
-            after = refit({name: start}, damped.tensor if name == "air_drag" and damped is not None
-                          else fit.parameters.inertia)
+    for name, start in physical_starts(rec, damped, turning).items():
+        log.info("diagnosis: the fit did not find the motion; fitting it with %s from %s", name,
+                 np.round(start.values, 4))
+        after = refit({name: start.values}, fit.parameters.inertia if start.tensor is None else start.tensor,
+                      start.stiffness)
         if lost(after):
             log.info("diagnosis: with %s it still does not", name)
             continue
@@ -474,7 +493,7 @@ def damping_alternatives(lin: LinearisedRig, fit: RigFit) -> Damping | None:
 
 
 def _extended(rec: Record, prior: Prior, steps: list[Step], fit: RigFit,
-              refit: Callable[..., RigFit] | None
+              refit: Refit | None
               ) -> tuple[list[Step], RigFit, LinearisedRig]:
     """``fit`` (``steps`` made it) with the extensions added step by step (:func:`next_step`, each
     refitted from ``fit``'s tensor while it lowers the misfit, at most :data:`MAX_EXTENSIONS` in
@@ -493,7 +512,7 @@ def _extended(rec: Record, prior: Prior, steps: list[Step], fit: RigFit,
         values = {e: current.unknowns[current.layout.extension_of(e)] for e in current.layout.extensions}
         values[step.added] = np.maximum(start, 0.0) if step.added in NON_NEGATIVE else start
         log.info("diagnosis: adding %s (%s)", step.added, np.round(start, 5))
-        after = refit(values, fit.parameters.inertia)
+        after = refit(values, fit.parameters.inertia, None)
         if not np.sum(after.residual_level ** 2) < np.sum(current.residual_level ** 2):
             log.info("diagnosis: with %s the fit is no better: left out", step.added)
             return steps, current, lin
@@ -502,12 +521,11 @@ def _extended(rec: Record, prior: Prior, steps: list[Step], fit: RigFit,
 
 
 def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
-                 refit: Callable[..., RigFit] | None = None,
+                 refit: Refit | None = None,
                  damped: DampedStart | None = None, turning: ForcedResponseStart | None = None) -> RigDiagnosis:
     """The data errors and the extensions the recording tells apart (module docstring), and the
-    rig model refitted with those added: ``refit`` (extensions, the tensor (6,) kg·m² to start
-    from first -> the fit), given the linearised estimates of the extensions' unknowns as their
-    starts (None: no refit).
+    rig model refitted with those added: ``refit`` (:data:`Refit`), given the linearised
+    estimates of the extensions' unknowns as their starts (None: no refit).
 
     rec, prior: the record and prior ``fit`` was made from; cables: the cables' names (rig.yaml).
     Where ``fit`` explains every channel (within
@@ -540,7 +558,7 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
         if restarted is not None:
             steps, current, lin = _extended(rec, prior, [restarted[0]], restarted[1], refit)
     if steps and not current.determined and refit is not None:
-        again = refit({}, current.parameters.inertia)
+        again = refit({}, current.parameters.inertia, None)
         if np.max(again.residual_level) <= LEVEL_LIMIT:
             log.info("diagnosis: the rigid-body model from the tensor of the fit with %s explains every channel, "
                      "the tensor undetermined: nothing named", ", ".join(s.added for s in steps))
@@ -553,6 +571,7 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
 
 
 __all__ = ["Candidate", "Step", "Damping", "PriorConflict", "RigDiagnosis", "plausible", "prior_conflicts", "next_step",
-           "lost", "physical_starts", "restart_step", "damping_alternatives", "diagnose_rig", "SIGNIFICANCE",
+           "lost", "Refit", "PhysicalStart", "physical_starts", "restart_step", "damping_alternatives",
+           "diagnose_rig", "SIGNIFICANCE",
            "DETERMINED_Z", "APART_LEVEL", "MAX_EXTENSIONS", "CONFLICT_SIGMA", "DAMPING_SIGMA", "BOUNDS", "NON_NEGATIVE",
            "DAMPING", "APART_ADVICE"]

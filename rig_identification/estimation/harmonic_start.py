@@ -340,7 +340,7 @@ class _Misfit:
                 start_parameters(self.rig, self.prior, self.starts[0], self.rec, stiffness=self.stiffness(s))
         except RigFitError:
             return float("inf"), tensors[0]
-        p0 = p0.replace(rotor=self.rotor)
+        p0 = p0.replace(rotor=self.rotor)            # the prior's start holds it already; a searched one not
         tensor, cost = _fitted(self.h, p0, rest, tensors, tolerance)
         return _level(cost, self.h), tensor
 

@@ -468,8 +468,7 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     if diagnose and np.all(np.isfinite(fit.inertia_std)):
         log.info("testing what the model leaves out")
 
-        def refit(extensions: dict[str, np.ndarray], start: np.ndarray, stiffness: np.ndarray | None = None
-                  ) -> RigFit:
+        def refit(extensions: dict[str, np.ndarray], start: np.ndarray, stiffness: np.ndarray | None) -> RigFit:
             log.info("fitting the rig model with %s", ", ".join(extensions) or "nothing added, again")
             return inp.fit(extensions, start, stiffness)
 
@@ -477,9 +476,9 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
         # fit, and the forced response with the exciter rotor's unbalance (its weight turning with the
         # force) the rotor's: the tensor and the cables' stiffness
         damped = turning = None
-        unbalance = inp.rc.unbalance()
         if lost(fit):
             damped = damped_start(inp.rc, rec.rig, inp.prior, inp.forced)
+            unbalance = inp.rc.unbalance()
             if unbalance is not None:
                 turning = forced_response_start(inp.rc, rec.rig, inp.prior, inp.starts,
                                                 rotor=np.array([unbalance, 0.0]))
