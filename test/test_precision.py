@@ -4,8 +4,8 @@ law σ ∝ 1/√T.  The package's claims against the truth over many rigs are be
 import numpy as np
 import pytest
 
-from rig_identification.estimation.precision import Z95, precision_of
-from rig_identification.io.verdict import KEYS
+from rig_identification.estimation.precision import precision_of
+from rig_identification.io.verdict import KEYS, Z95
 from rig_identification.model.parametrisation import to_tensor
 
 # a 1.4 t car's tensor (kg·m²; entries ixx, ixy, ixz, iyy, iyz, izz) and σ making Ixx ±2.5 %,

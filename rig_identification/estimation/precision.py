@@ -19,11 +19,10 @@ from typing import Any
 import numpy as np
 
 from ..io.export import SYMBOL
-from ..io.verdict import KEYS
+from ..io.verdict import KEYS, Z95
 from ..model.parametrisation import entry_scales, from_tensor
 
 TARGET = 0.01               # the default target: ±1 % at 95 %
-Z95 = 1.959963984540054     # the normal distribution's 97.5 % quantile: ±Z95·σ holds 95 %
 
 
 @dataclass(frozen=True)
@@ -91,4 +90,4 @@ def precision_of(inertia: np.ndarray, std: np.ndarray, duration: float, target: 
     return Precision(float(target), hw, short, float(duration), factor, subject)
 
 
-__all__ = ["Precision", "TARGET", "Z95", "precision_of"]
+__all__ = ["Precision", "TARGET", "precision_of"]

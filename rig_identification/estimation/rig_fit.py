@@ -58,10 +58,9 @@ from numpy.typing import ArrayLike
 from scipy.optimize import OptimizeResult, least_squares
 
 from ..io.rig import Rig
-from ..io.verdict import KEYS
+from ..io.verdict import KEYS, Z95
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
-from .precision import Z95
 from .reused_jacobian import ReusedJacobian
 from .rig_problem import (
     FTOL,

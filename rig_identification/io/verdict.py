@@ -1,5 +1,5 @@
-"""The names every result shares: the tensor entries' :data:`KEYS` and one validation :class:`Check`
-(the static test's, :mod:`rig_identification.statics.validation`)."""
+"""The names every result shares: the tensor entries' :data:`KEYS`, the 95 % interval's :data:`Z95`
+and one validation :class:`Check` (the static test's, :mod:`rig_identification.statics.validation`)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -8,6 +8,8 @@ from typing import Any
 import numpy as np
 
 KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+#: The normal distribution's 97.5 % quantile: ±Z95·σ holds 95 %.
+Z95 = 1.959963984540054
 
 
 @dataclass(frozen=True)
