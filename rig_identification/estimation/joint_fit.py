@@ -41,6 +41,7 @@ from .rig_fit import (
     RigFit,
     along_weakest,
     covariance,
+    gauss_newton_gain,
     jacobian_near,
     larger_of,
     polished,
@@ -184,8 +185,9 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
         others = [np.asarray(f.unknowns, float)[:6] for f in singles]
         tries = [t for t in others if not np.allclose(t, tensor) and physically_consistent(to_tensor(t))]
         tries += [shifted(tensor, 1.0), shifted(tensor, -1.0)] + along_weakest(last, J, tensor)
+        gain = gauss_newton_gain(J)
         for t in tries:
-            x2, cost2, runs = restarted(last, (J, r), t)
+            x2, cost2, runs = restarted(last, (J, r), gain, t)
             nfev += runs
             minima.append((cost2, x2))
     descent = tensor

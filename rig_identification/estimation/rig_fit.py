@@ -42,9 +42,10 @@ restarts on the whole record (:func:`restarted`) from tensors :data:`RESTART_SHI
 either side and from another estimator's tensor where the caller gives one: where one settles
 more than 3 σ off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is
 flat or multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`);
-the lowest of the minima is the estimate.  On the whole record the Jacobian is reused where it
+the lowest of the minima is the estimate.  After the first stage the Jacobian is reused where it
 predicts the trust region's steps (:class:`~.reused_jacobian.ReusedJacobian`); a restart starts
-from the estimate's, and stops on it where it comes back.
+with the estimate's, and where its chord steps come straight back to the estimate
+(:func:`came_back`) no trust region is needed.
 """
 from __future__ import annotations
 
@@ -138,7 +139,9 @@ REUSE_RATIO = 0.5
 #: A solve that stops within this many σ (tensor, CG, mass) of the point whose Jacobian it was
 #: given judges its stop with that Jacobian (:func:`solve`): the model is linear that near.
 ANCHOR_SIGMA = 1.0
-#: A whole-record solve, its Jacobian reused, may run this many times :data:`MAX_ITERATIONS` model
+#: A restart's chord steps with the estimate's Jacobian (:func:`came_back`), at most.
+CHORD_STEPS = 8
+#: A solve, its Jacobian reused, may run this many times :data:`MAX_ITERATIONS` model
 #: evaluations (each an iteration without a Jacobian costs one).
 REUSED_EVALUATIONS = 3
 
@@ -341,12 +344,13 @@ def larger_of(fisher: np.ndarray, sandwich: np.ndarray) -> np.ndarray:
 
 
 def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray | None = None,
-          at_x0: tuple[np.ndarray, np.ndarray] | None = None
+          at_x0: tuple[np.ndarray, np.ndarray] | None = None, reuse: bool = True
           ) -> tuple[OptimizeResult, int, np.ndarray | None]:
     """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``at_x0``: the Jacobian
-    and the residual at 0 where known) (scipy's trust region; on the ``whole`` record the Jacobian reused where it
-    predicts the steps: :class:`~.reused_jacobian.ReusedJacobian`), stopped where the Gauss–Newton
-    decrement ½ gᵀ (JᵀJ)⁺ g of a fresh Jacobian falls below :data:`NEWTON_DECREMENT` (Boyd &
+    and the residual at 0 where known) (scipy's trust region; with ``reuse`` the Jacobian reused where
+    it predicts the steps, :class:`~.reused_jacobian.ReusedJacobian`, else made afresh every
+    iteration: the first stage, from a far start, where steps mispredicted are the rule), stopped
+    where the Gauss–Newton decrement ½ gᵀ (JᵀJ)⁺ g of a fresh Jacobian falls below :data:`NEWTON_DECREMENT` (Boyd &
     Vandenberghe, *Convex Optimization*, §9.5.1: the cost the Gauss–Newton step would still
     gain), where the last :data:`STALL_ITERATIONS` iterations gained less than that together,
     or by the tolerances; on the ``whole`` record (no stage after it) also where the Gauss–Newton
@@ -356,7 +360,7 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
     (a restart that came back to the estimate) is judged with that point's Jacobian, updated on
     the way, not a fresh one.  Returns the solution, the model runs it took and the fresh
     Jacobian at the solution where the stop made one (else None)."""
-    jac = ReusedJacobian(prob.residual, prob.jacobian, prob.lay.size, whole, at_x0, REUSE_RATIO)
+    jac = ReusedJacobian(prob.residual, prob.jacobian, prob.lay.size, reuse, at_x0, REUSE_RATIO)
     costs: list[float] = []
     result = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
     # where the solve ends within ANCHOR_SIGMA of the point whose Jacobian it was given, that one serves its stop
@@ -388,7 +392,7 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
 
     sol = least_squares(jac.residual, np.zeros(prob.lay.size) if z0 is None else z0, jac=jac.jacobian,
                         method="trf", x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=GTOL,
-                        max_nfev=MAX_ITERATIONS * (REUSED_EVALUATIONS if whole else 1),
+                        max_nfev=MAX_ITERATIONS * (REUSED_EVALUATIONS if reuse else 1),
                         callback=converged)
     log.info("rig fit: %.0f s of record, %d iterations, %d Jacobians, cost %.6g", prob.seconds, sol.nfev,
              jac.jacobians, sol.cost)
@@ -443,6 +447,13 @@ def jacobian_near(prob: RigProblem | JointProblem, moved: RigProblem | JointProb
     return moved.jacobian(np.zeros(moved.lay.size)), moved.lay.size + 1
 
 
+def gauss_newton_gain(J: np.ndarray) -> np.ndarray:
+    """(size, rows) the Gauss–Newton gain (JᵀJ)⁺Jᵀ of the Jacobian ``J`` (rows, size): the step to the
+    linearised residual's minimum is ``-gain @ r``."""
+    gain: np.ndarray = np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True) @ J.T
+    return gain
+
+
 def polished(prob: RigProblem | JointProblem, J: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, int]:
     """The estimate after Gauss–Newton steps from ``prob``'s x0 with its Jacobian ``J`` there (the
     chord method; ``r``: the residual at x0), each taken where it lowers the cost, at most
@@ -450,7 +461,7 @@ def polished(prob: RigProblem | JointProblem, J: np.ndarray, r: np.ndarray) -> t
     carry it to the minimum wherever in that neighbourhood it stopped (the estimate then does not
     depend on the rounding that steered the iterations).  Returns the scaled unknowns z there and the
     model runs."""
-    gain = np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True) @ J.T
+    gain = gauss_newton_gain(J)
     z = np.zeros(prob.lay.size)
     runs = 0
     for _ in range(POLISH_STEPS):
@@ -489,18 +500,59 @@ def shifted(x: np.ndarray, sign: float) -> np.ndarray:
     return moved
 
 
-def restarted(prob: RigProblem | JointProblem, at_x0: tuple[np.ndarray, np.ndarray], tensor: np.ndarray
-              ) -> tuple[np.ndarray, float, int]:
-    """The whole-record fit ``prob`` (its x0 the estimate, ``at_x0`` its Jacobian and residual there) restarted from
-    the tensor entries ``tensor`` (6,) kg·m², every other unknown at the estimate: the unknowns x
-    it settles at, its cost (½ χ², the same weights) and the model runs.  A
-    well-determined minimum draws the restart back within its σ; where the likelihood is flat or
-    multimodal along some direction of the tensor it settles elsewhere at a χ² about as low."""
+def came_back(prob: RigProblem | JointProblem, gain: np.ndarray, z0: np.ndarray
+              ) -> tuple[np.ndarray | None, float, int]:
+    """Where the restart of ``prob`` from the scaled unknowns ``z0`` comes back to the estimate
+    (x0; ``gain`` (size, rows): the Gauss–Newton gain of its Jacobian there,
+    :func:`gauss_newton_gain`): the chord method's steps (:func:`polished`) from ``z0``, each
+    lowering the cost, at most :data:`CHORD_STEPS`, until a step moves no tensor entry, CG
+    coordinate or the mass by :data:`RESULT_STEP` of its σ; they came back where they end within
+    :data:`ANCHOR_SIGMA` σ of x0 and the cost falls along the straight path from ``z0`` to that end
+    at each of its quarter points (no ridge between them that a step jumped).  Returns the scaled
+    unknowns z there (None where the restart did not come back so: the trust region's descent from
+    ``z0`` then decides, :func:`restarted`), the cost (½ χ²) and the model runs."""
+    body = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
+    std = np.sqrt(np.sum(gain[body] ** 2, axis=1))         # (JᵀJ)⁺ = gain gainᵀ
+    z, r = z0, prob.residual(z0)
+    start = float(r @ r)
+    runs = 1
+    for _ in range(CHORD_STEPS):
+        step = -gain @ r
+        r1 = prob.residual(z + step)
+        runs += 1
+        if not r1 @ r1 < r @ r:
+            return None, 0.0, runs
+        z, r = z + step, r1
+        if np.all(np.abs(step[body]) < RESULT_STEP * std):
+            break
+    else:
+        return None, 0.0, runs
+    if not np.all(np.abs(z[body]) < ANCHOR_SIGMA * std):
+        return None, 0.0, runs
+    costs = [float(ri @ ri) for ri in (prob.residual(z0 + t * (z - z0)) for t in (0.25, 0.5, 0.75))]
+    runs += 3
+    if not all(a >= b for a, b in zip([start] + costs, costs + [float(r @ r)])):
+        return None, 0.0, runs
+    return z, 0.5 * float(r @ r), runs
+
+
+def restarted(prob: RigProblem | JointProblem, at_x0: tuple[np.ndarray, np.ndarray], gain: np.ndarray,
+              tensor: np.ndarray) -> tuple[np.ndarray, float, int]:
+    """The whole-record fit ``prob`` (its x0 the estimate, ``at_x0`` its Jacobian and residual there,
+    ``gain`` its Gauss–Newton gain) restarted from the tensor entries ``tensor`` (6,) kg·m², every
+    other unknown at the estimate: the unknowns x it settles at, its cost (½ χ², the same weights)
+    and the model runs.  A well-determined minimum draws the restart back within its σ (found by
+    :func:`came_back` where its chord steps show it); where the likelihood is flat or multimodal
+    along some direction of the tensor, the trust region's descent settles elsewhere at a χ² about
+    as low."""
     lay = prob.lay
     z0 = np.zeros(lay.size)
     z0[lay.inertia] = (tensor - prob.x0[lay.inertia]) / prob.scale[lay.inertia]
+    back, cost, tried = came_back(prob, gain, z0)
+    if back is not None:
+        return prob.x(back), cost, tried
     sol, runs, _ = solve(prob, True, z0, at_x0)
-    return prob.x(sol.x), float(sol.cost), runs
+    return prob.x(sol.x), float(sol.cost), tried + runs
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: ArrayLike = (),
@@ -543,7 +595,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
         if np.all(prob.residual(np.zeros(prob.lay.size)) == OUTSIDE):
             log.info("rig fit: the start %s leaves the physical region or diverges: the next", np.round(start, 1))
             continue
-        sol, runs, J_end = solve(prob)
+        sol, runs, J_end = solve(prob, reuse=False)
         nfev += runs
         if best is None or sol.cost < best[1].cost:
             best = (prob, sol)
@@ -552,7 +604,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
             break
     if best is None:                # every start outside: the first, which the verdict will call failed
         prob = problems[0]
-        sol, _, J_end = solve(prob)
+        sol, _, J_end = solve(prob, reuse=False)
         best, solved = (prob, sol), (prob, J_end, noise_scale)
     prob, sol = best
     at = prob.point(prob.x(sol.x))
@@ -595,8 +647,9 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     given = list(np.asarray(restarts, float).reshape(-1, 6)) + along_weakest(last, J, x[lay.inertia])
     others = [t for t in given if physically_consistent(to_tensor(t))]
     tried = [shifted(x[lay.inertia], 1.0), shifted(x[lay.inertia], -1.0)] + others if check else []
+    gain = gauss_newton_gain(J)
     with ThreadPoolExecutor(THREADS) as pool:         # independent solves from one estimate: the cores share them
-        for x2, cost2, runs in pool.map(lambda t: restarted(last, (J, r), t), tried):
+        for x2, cost2, runs in pool.map(lambda t: restarted(last, (J, r), gain, t), tried):
             nfev += runs
             minima.append((cost2, last.point(x2)))
     minima_costs = [m[0] for m in minima]
