@@ -37,11 +37,11 @@ browser:
 
 # one BLAS thread per process: the tests run in this process and the heavy simulations of some
 # modules in one background worker on the second core (test/conftest.py; RIG_TEST_WORKERS=N sets how many, 0: none)
-# lint (ruff.toml: import order, unused names, lines ≤ 120) and types (setup.cfg [mypy]: strict
-# on io/, model/ and estimation/), then the tests
+# lint (ruff.toml: import order, unused names, lines ≤ 120) and types (setup.cfg [mypy]: the whole
+# package, strict on io/, model/ and estimation/), then the tests
 test: setup browser
 	$(VENV)/bin/ruff check rig_identification test bench
-	$(VENV)/bin/mypy rig_identification/io rig_identification/model rig_identification/estimation
+	$(VENV)/bin/mypy rig_identification
 	OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 $(PY) -m pytest -q test
 
 bench: setup

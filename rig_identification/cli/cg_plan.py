@@ -126,10 +126,12 @@ def _planned_dummy(args, rig: Rig) -> DummyMass | None:
     """The planned dummy mass: ``--dummy-mass`` and ``--dummy-position``, each else rig.yaml's
     dummy_mass; None when neither is given anywhere.  Raises :class:`StaticsError` for one of the
     two options alone when rig.yaml has no dummy_mass."""
-    if (args.dummy_mass is None) != (args.dummy_position is None) and rig.dummy_mass is None:
-        raise StaticsError("--dummy-mass and --dummy-position go together when rig.yaml has no dummy_mass")
-    if args.dummy_mass is None and args.dummy_position is None and rig.dummy_mass is None:
-        return None
+    if rig.dummy_mass is None:
+        if args.dummy_mass is None and args.dummy_position is None:
+            return None
+        if args.dummy_mass is None or args.dummy_position is None:
+            raise StaticsError("--dummy-mass and --dummy-position go together when rig.yaml has no dummy_mass")
+        return DummyMass(float(args.dummy_mass), np.array(args.dummy_position, float))
     m = args.dummy_mass if args.dummy_mass is not None else rig.dummy_mass.mass
     pos = args.dummy_position if args.dummy_position is not None else rig.dummy_mass.position
     return DummyMass(float(m), np.array(pos, float))

@@ -209,10 +209,10 @@ def print_diagnosis(dg: RigDiagnosis) -> None:
         if st.restart:
             print(f"  the rigid-body fit did not find the motion; fitted again with {st.added} from the value the "
                   "recording gives it, the fit found it; tested there:")
-        c = next(c for c in st.candidates if c.name == st.best)
+        cand = next(c for c in st.candidates if c.name == st.best)
         word = ("named" if st.named else f"not told apart from {', '.join(st.indistinguishable)}") if dg.explained \
             else "added, not named"
-        print(f"  {st.best}: χ² falls {c.statistic:.0f} (threshold {c.threshold:.1f}), cross-validated; {word}"
+        print(f"  {st.best}: χ² falls {cand.statistic:.0f} (threshold {cand.threshold:.1f}), cross-validated; {word}"
               + ("" if st.added == st.best else f"; the model takes {st.added}, the class's simplest"))
         if dg.refit is not None:
             print(f"    fitted: {_fitted(dg.refit, st.added)}")
@@ -227,13 +227,13 @@ def print_diagnosis(dg: RigDiagnosis) -> None:
         alt = ", ".join(f"{e} z {z:+.1f}" for e, z in dg.damping.alternatives.items())
         f = dg.refit or dg.rigid
         b = f.layout.body_damping
-        c, sd = f.parameters.body_damping, np.sqrt(np.diag(f.covariance[b, b]))
+        damp, sd = f.parameters.body_damping, np.sqrt(np.diag(f.covariance[b, b]))
         word = "viscous_damping named" if "viscous_damping" in dg.named else \
             "not named: " + ", ".join(w for w, bad in (("below zero beyond 3 σ", not dg.damping.plausible),
                                                      ("raises χ² held out", not dg.damping.cross_validated)) if bad) \
             if not dg.damping.found else "not told apart" if dg.explained else "not named"
-        print(f"  damping: viscous, {max(dg.damping.significance):.0f} σ (linear {c[0]:.4g} ± {sd[0]:.2g} N·s/m, "
-              f"angular {c[1]:.4g} ± {sd[1]:.2g} N·m·s); in its place (Vuong's z, + viscous better): {alt}: {word}")
+        print(f"  damping: viscous, {max(dg.damping.significance):.0f} σ (linear {damp[0]:.4g} ± {sd[0]:.2g} N·s/m, "
+              f"angular {damp[1]:.4g} ± {sd[1]:.2g} N·m·s); in its place (Vuong's z, + viscous better): {alt}: {word}")
     for line in dg.advice:
         print(f"  {line}")
     if dg.refit is not None:
@@ -274,7 +274,7 @@ def print_cg(cg: CentreOfGravity) -> None:
                                                                for x in d) + " σ)")
 
 
-def saved_cg(args) -> tuple:
+def saved_cg(args) -> tuple[np.ndarray | None, np.ndarray | None, str | None]:
     """``--cg``'s saved static result as the CG's prior: (CG (3,) m, its σ (3,) m, the file), or
     three None (rig.yaml's)."""
     if not args.cg:

@@ -90,6 +90,7 @@ def principal_lines(ex: Expressed) -> list[str]:
     if ex.principal is None:
         gone = ", ".join(k for k in ORDER if k in ex.undetermined)
         return [f"principal moments and axes: {NOT_DETERMINED} (they need every entry; not determined: {gone})"]
+    assert ex.principal_axes is not None   # set together with principal
     lines = ["principal moments (kg·m², ascending) and axes (unit vectors x, y, z in these axes):"]
     for i in range(3):
         v = ex.principal_axes[:, i]

@@ -158,8 +158,8 @@ def candidate_positions(rig: Rig) -> list[np.ndarray]:
     if rig.exciter is not None:
         pts.append(rig.exciter.position)
     pts.append(rig.require_cg())
-    pts = np.array(pts)
-    lo, hi = pts.min(0), pts.max(0)
+    box = np.array(pts)
+    lo, hi = box.min(0), box.max(0)
     return [np.array([x, y, z]) for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])]
 
 
@@ -321,8 +321,8 @@ class _Search:
 
     def worst(self, *cs: Candidate, ref: np.ndarray | None = None) -> float:
         """The worst entry's σ over the reference (the simulations' unless ``ref``) of ``cs`` done together."""
-        infos = [c.information for c in cs]
-        if any(i is None for i in infos):
+        infos = [c.information for c in cs if c.information is not None]
+        if len(infos) < len(cs):
             return math.inf
         return float(np.max(tensor_std(infos, self.prior) / (self.ref_sim if ref is None else ref)))
 
@@ -557,7 +557,9 @@ def plan_experiment(body: Body, baseline: Run, options: PlanOptions = PlanOption
                         "swing): lower --max-force or change the frequency range")
     singles.sort(key=s.worst)
     first = _first_run(s, singles)
-    chosen, notes, others = [first], [], []
+    chosen: list[Candidate] = [first]
+    notes: list[str] = []
+    others: list[Candidate] = []
     if options.max_runs >= 2:
         chosen, notes, others = _second_run(s, first, singles, screened, modes)
     infos = [c.information for c in chosen if c.information is not None]

@@ -238,7 +238,7 @@ def _drawn_ceiling(rng: np.random.Generator, layout: str, body: Body, b: np.ndar
     heights never share it exactly): the body hangs a little tilted, and :func:`simulate_random`
     checks that every cable stays taut."""
     level = float(np.exp(rng.uniform(*np.log(RANDOM_SPLAY)))) if layout == "random" else 0.0
-    best = None
+    best: tuple[np.ndarray, np.ndarray, float] | None = None
     for _ in range(MIXED_TRIES):
         if layout == "mixed":
             offset = out * rng.uniform(0.2, 0.8, len(b))[:, None]
@@ -252,6 +252,7 @@ def _drawn_ceiling(rng: np.random.Generator, layout: str, body: Body, b: np.ndar
             best = (ceiling, lengths, resid)
         if resid < 1e-4:
             break
+    assert best is not None    # MIXED_TRIES ≥ 1 draws
     ceiling, lengths, _ = best
     return ceiling, lengths
 

@@ -83,7 +83,8 @@ def _discrete(p: RigParameters, rest: RestPose, rate: float) -> _Linear:
     E = expm(Z / rate)
     lam, V = np.linalg.eig(E[:12, :12])
     n = p.cables
-    has_inc = p.inclinometer_rotation is not None
+    R_inc = p.inclinometer_rotation
+    has_inc = R_inc is not None
     C = np.zeros((n + 6 + 2 * has_inc, 12))
     Cd = np.zeros_like(C)
     C[:n, :6] = -(p.gain * p.stiffness)[:, None] * lin.G
@@ -96,9 +97,9 @@ def _discrete(p: RigParameters, rest: RestPose, rate: float) -> _Linear:
     Cd[n + 3:n + 6, 6:9] = Ri @ R0.T
     Cd[n + 3:n + 6, 9:] = Ri @ (-R0.T @ skew(c) - skew(r) @ R0.T)
     C[n + 3:n + 6, 3:6] = Ri @ R0.T @ skew(p.gravity * ez)
-    if has_inc:
+    if R_inc is not None:
         for j in range(2):
-            w = R0 @ p.inclinometer_rotation[:, j]
+            w = R0 @ R_inc[:, j]
             C[n + 6 + j, 3:6] = np.cross(w, ez) / np.sqrt(max(1.0 - w[2] ** 2, 1e-12))
     return _Linear(lam, V, np.linalg.solve(V, E[:12, 12:]), (C + Cd @ A) @ V, Cd @ Bc)
 

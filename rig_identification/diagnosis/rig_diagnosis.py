@@ -488,7 +488,8 @@ def damping_alternatives(lin: LinearisedRig, fit: RigFit) -> Damping | None:
         return None
     apart = float(t.ppf(APART_LEVEL, SANDWICH_BLOCKS - 1))
     without = lin.without(lay.body_damping)
-    z = {e: lin.vuong(lin.base(), without.fitted((e,))) for e in ("air_drag", "coulomb_friction") if e in lin.names}
+    z: dict[str, float] = {e: lin.vuong(lin.base(), without.fitted((e,))) for e in ("air_drag", "coulomb_friction")
+                           if e in lin.names}
     return Damping(z_c, z, tuple(e for e, v in z.items() if v < apart), lin.held_out(lay.body_damping))
 
 
@@ -509,7 +510,11 @@ def _extended(rec: Record, prior: Prior, steps: list[Step], fit: RigFit,
         if step is None or refit is None:
             return steps, current, lin
         start = lin.fitted((step.added,)).of(step.added)
-        values = {e: current.unknowns[current.layout.extension_of(e)] for e in current.layout.extensions}
+        values: dict[str, np.ndarray] = {}
+        if current.layout.extensions:
+            if current.unknowns is None:
+                raise ValueError("the fit carries no estimate of its extensions")
+            values = {e: current.unknowns[current.layout.extension_of(e)] for e in current.layout.extensions}
         values[step.added] = np.maximum(start, 0.0) if step.added in NON_NEGATIVE else start
         log.info("diagnosis: adding %s (%s)", step.added, np.round(start, 5))
         after = refit(values, fit.parameters.inertia, None)

@@ -50,6 +50,7 @@ with the estimate's, and where its chord steps come straight back to the estimat
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from functools import cached_property
@@ -556,7 +557,7 @@ def restarted(prob: RigProblem | JointProblem, at_x0: tuple[np.ndarray, np.ndarr
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: ArrayLike = (),
-            extensions: dict[str, ArrayLike] | None = None, stiffness: ArrayLike | None = None) -> RigFit:
+            extensions: Mapping[str, ArrayLike] | None = None, stiffness: ArrayLike | None = None) -> RigFit:
     """Fit the rig model to a :class:`Record` (module docstring).
 
     rig: rig.yaml (geometry, mounts).  prior: :class:`Prior` (its CG is the start).

@@ -11,6 +11,7 @@ exciter force's correction (2 K), then the later segments' initial states (12 ea
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -277,7 +278,7 @@ EXTENSION_FIELDS = {"air_drag": "air_drag", "coulomb_friction": "friction", "loa
                     "exciter_rotor": "rotor"}
 
 
-def extension_fields(values: dict[str, ArrayLike]) -> dict[str, object]:
+def extension_fields(values: Mapping[str, ArrayLike]) -> dict[str, object]:
     """The :class:`~rig_identification.model.linear_rig.RigParameters` fields that the extensions'
     ``values`` (name -> its unknowns) set, for ``RigParameters.replace``."""
     out: dict[str, object] = {}

@@ -115,7 +115,7 @@ class MessageLayout:
             self._string_bytes[f"s{k}"] = np.frombuffer(pattern, np.uint8)
         offsets = [find(struct.pack("<d", value), path) for path, value in zip(self.fields, markers)]
         # runs of fields stored next to each other: one (n, m) view each
-        self._runs = []
+        self._runs: list[list[int]] = []
         for k, off in enumerate(offsets):
             if k and off == offsets[k - 1] + 8:
                 self._runs[-1][1] += 1

@@ -28,6 +28,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import BinaryIO
 
 import rclpy
 import yaml
@@ -67,7 +68,7 @@ class Graph:
         self.env = ros_env(self.domain_id)
         self.python = python or sys.executable
         self.procs: dict[str, subprocess.Popen] = {}
-        self._logs: dict[str, object] = {}
+        self._logs: dict[str, BinaryIO] = {}
 
     def params_file(self, name: str, params: dict) -> Path:
         p = self.dir / f"{name}.params.yaml"
@@ -96,10 +97,12 @@ class Graph:
     def cpu_seconds(self, name: str) -> float | None:
         """User + system CPU time of a running node process, s (Linux /proc)."""
         p = self.procs.get(name)
+        if p is None:
+            return None
         try:
             fields = Path(f"/proc/{p.pid}/stat").read_text().rsplit(")", 1)[1].split()
             return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
-        except (OSError, AttributeError, IndexError, ValueError):
+        except (OSError, IndexError, ValueError):
             return None
 
     def dead(self) -> list[str]:

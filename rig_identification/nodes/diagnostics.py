@@ -7,6 +7,7 @@ from typing import Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 
 from .inputs import InputGuard
 from .qos import DIAGNOSTICS_QOS
@@ -39,13 +40,13 @@ class Diagnostics:
         self.stale_after = float(node.get_parameter("stale_after").value)
         self.stopped_after = float(node.get_parameter("stopped_after").value)
         self.sent: dict[str, int] = {}
-        self.writers: dict[str, object] = {}
+        self.writers: dict[str, Publisher] = {}
         self._rx_prev: dict[str, int] = {}
         self._t_prev = time.monotonic()
         self.pub = node.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, DIAGNOSTICS_QOS)
         self.timer = node.create_timer(period, self.publish)
 
-    def add_writer(self, topic: str, publisher) -> None:
+    def add_writer(self, topic: str, publisher: Publisher) -> None:
         """Report the matched-reader count of ``publisher`` as ``matched <topic>``."""
         self.writers[topic] = publisher
 
@@ -118,7 +119,7 @@ class Diagnostics:
 
 def diagnostic_values(status) -> dict:
     """DiagnosticStatus -> {key: int|float|str} (numbers parsed back)."""
-    out = {}
+    out: dict[str, int | float | str] = {}
     for kv in status.values:
         v = kv.value
         try:

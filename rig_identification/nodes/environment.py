@@ -4,6 +4,7 @@ DDS participant profile, and the environment of a child process of an isolated g
 from __future__ import annotations
 
 import os
+from collections.abc import MutableMapping
 from pathlib import Path
 
 PACKAGE = "rig_identification"
@@ -35,7 +36,7 @@ def default_experiment() -> Path:
 DDS_PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")  # Fast DDS 2.x, 3.x
 
 
-def dds_profile(env: dict | None = None) -> None:
+def dds_profile(env: MutableMapping[str, str] | None = None) -> None:
     """Point Fast DDS at the package's participant profile ``config/dds/fastdds.xml`` (a 3 s
     participant lease instead of 20 s: a killed node's readers stop holding the reliable
     KEEP_ALL writers back after 3 s) unless a profile file is set already

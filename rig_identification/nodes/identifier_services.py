@@ -11,13 +11,44 @@ a second request during a fit is answered "busy" at once.
 from __future__ import annotations
 
 import threading
+from typing import Protocol
 
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
+from rclpy.impl.rcutils_logger import RcutilsLogger
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
 from .messages import to_json
+
+
+class ServiceOwner(Protocol):
+    """What :class:`IdentifierServices` needs of its owner (the identifier node): the node's
+    name, namespace, context and logger, the lock ``busy`` and the calls its services make."""
+
+    busy: threading.Lock
+
+    @property
+    def context(self) -> Context: ...
+
+    def get_name(self) -> str: ...
+
+    def get_namespace(self) -> str: ...
+
+    def get_fully_qualified_name(self) -> str: ...
+
+    def get_logger(self) -> RcutilsLogger: ...
+
+    def estimate_cg(self) -> dict: ...
+
+    def capture_cg(self, which: str) -> dict: ...
+
+    def diagnose(self) -> dict: ...
+
+    def identify_rig_model(self) -> dict: ...
+
+    def status(self) -> dict: ...
 
 
 class IdentifierServices(Node):
@@ -26,7 +57,7 @@ class IdentifierServices(Node):
     owner: the identifier node, whose ``identify_rig_model``, ``estimate_cg``,
     ``capture_cg``, ``diagnose`` and ``status`` the services call, one at a time (``owner.busy``, a lock)."""
 
-    def __init__(self, owner: Node):
+    def __init__(self, owner: ServiceOwner):
         super().__init__(f"{owner.get_name()}_services", namespace=owner.get_namespace(),
                          context=owner.context, start_parameter_services=False)
         self.owner = owner

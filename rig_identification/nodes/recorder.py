@@ -49,6 +49,7 @@ Command line: ``rig-record OUTPUT --rig RIG [--duration S] [--extra TOPIC ...]``
 from __future__ import annotations
 
 import argparse
+import functools
 import importlib
 import os
 import shutil
@@ -58,6 +59,7 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Literal
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
@@ -91,7 +93,7 @@ from .topics import (
 #: suffix of the folder a recording is written into before it is renamed to OUTPUT
 PARTIAL_SUFFIX = ".partial"
 #: rosbag2 metadata version written (rosbags.rosbag2.Writer: 8 or 9; Jazzy reads both)
-BAG_VERSION = 9
+BAG_VERSION: Literal[8, 9] = 9
 
 #: the extra topics the recorder can store: name -> (ROS type name, latched?)
 EXTRA_TOPICS = {
@@ -222,7 +224,7 @@ class RecorderNode(Node):
             qos = LATCHED_QOS if latched else (DIAGNOSTICS_QOS if topic == DIAGNOSTICS_TOPIC
                                                       else qos_in)
             self.subs.append(self.create_subscription(message_class(type_name), topic,
-                                                      lambda raw, t=topic: self._arrived(t, raw), qos, raw=True))
+                                                      functools.partial(self._arrived, topic), qos, raw=True))
             if topic != DIAGNOSTICS_TOPIC:
                 self.guard.expect(topic)
         self.create_timer(float(get("write_period")), self._write_queued)

@@ -67,7 +67,7 @@ from nav_msgs.msg import Odometry
 from rclpy.node import Node
 
 from ..estimation.tracker import PoseTracker
-from ..estimation.tracker_replay import EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS
+from ..estimation.tracker_kernel import EVENT_EXCITER, EVENT_IMU, EVENT_INCLINOMETER, EVENT_TENSIONS
 from .codec import imu_layout, odometry_layout, vector_layout, wrench_layout
 from .diagnostics import Diagnostics
 from .frames import Endpoint, declare_frame_ids, log_interface

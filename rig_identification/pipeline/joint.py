@@ -8,14 +8,17 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
 from ..estimation.joint_fit import fit_jointly
 from ..io.export import Axes, Expressed, express
 from ..io.recording import Recording, RecordingError
+from ..io.rig import Rig
 from ..io.verdict import KEYS
 from ..model.parametrisation import to_tensor
 from .rig_model import RigModelResult, prepared
@@ -26,12 +29,23 @@ MASS_RTOL = 1e-3   # relative: rig.yaml body.mass of recordings fitted jointly m
 CG_TOL = 0.002     # m: and their body.center_of_gravity this well
 
 
-def _rig_file(rec: Recording) -> str:
+class RigSource(Protocol):
+    """What :func:`check_same_body` reads of a recording: its rig and its folder (None for an
+    in-memory one)."""
+
+    @property
+    def rig(self) -> Rig: ...
+
+    @property
+    def path(self) -> Path | None: ...
+
+
+def _rig_file(rec: RigSource) -> str:
     """The recording's rig.yaml, or its rig's source for an in-memory recording."""
     return str(Path(rec.path) / "rig.yaml") if rec.path is not None else str(rec.rig.source)
 
 
-def check_same_body(recs: list[Recording], mass_rtol: float = MASS_RTOL, cg_tol: float = CG_TOL) -> None:
+def check_same_body(recs: Sequence[RigSource], mass_rtol: float = MASS_RTOL, cg_tol: float = CG_TOL) -> None:
     """Refuse a joint fit of recordings whose rig.yaml describe different bodies: body.mass
     must agree within ``mass_rtol`` (relative) and body.center_of_gravity within ``cg_tol``
     m (body axes) of the first recording's.  Raises

@@ -70,7 +70,7 @@ def run_case(name: str, duration: float | None = None) -> dict:
     if duration is not None:
         exp = replace(exp, duration=float(duration))
     sim = simulate(exp)
-    rec = Recording(sim.rig, sim.sensors, sim.truth, f"{name} (simulated)")   # the name in error messages
+    rec = Recording(sim.rig, sim.sensors, sim.truth, Path(f"{name} (simulated)"))   # the name in error messages
     th = exp.thesis or {}
     window = th.get("identification_window")
     start, end = (window if window else (None, None))

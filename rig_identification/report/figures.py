@@ -91,6 +91,8 @@ def ellipsoid_figure(path: Path, mp: MassProperties, rig: Rig | None) -> bool:
     Returns False (nothing written) when the tensor is not determined."""
     if not mp.determined:
         return False
+    # set together with principal (mass_properties_of)
+    assert mp.principal is not None and mp.principal_axes is not None and mp.semi_axes is not None
     from matplotlib.lines import Line2D
     fig = figure(11, 9.2)
     axs = [fig.add_subplot(2, 2, k) for k in (1, 2, 3)] + [fig.add_subplot(2, 2, 4, projection="3d")]

@@ -163,14 +163,15 @@ def moments_table(mp: MassProperties, errors: dict | None, crb_label: str = "σ 
     if errors:
         head += ["truth kg·m²", "error kg·m²", "error %", "error / σ"]
     head += ["about the body-frame origin kg·m²"]
+    crb = mp.crb_std if crb_shown(mp) else None
     rows = []
     for i in ORDER:
         k = KEYS[i]
         ref = abs(mp.values[i]) if k in MOMENTS else big
         row = [f"{SYMBOL[k]} ({mp.axes.meaning(k)})", entry_cell(mp, k, mp.values[i], ".2f", main=True),
                entry_cell(mp, k, mp.std[i], ".3g")]
-        if crb_shown(mp):
-            row.append(entry_cell(mp, k, mp.crb_std[i], ".3g"))
+        if crb is not None:
+            row.append(entry_cell(mp, k, crb[i], ".3g"))
         row.append(entry_cell(mp, k, 100 * mp.std[i] / ref if finite(ref) and ref > 0 else None, ".3g"))
         if errors:
             e = errors[k]
@@ -186,7 +187,7 @@ def matrix_html(M: np.ndarray, gone: frozenset, caption: str) -> str:
     """A 3×3 tensor as a table with body-axis labels; undetermined entries as text."""
     rows = []
     for a in range(3):
-        r = [Cell("xyz"[a], "text")]
+        r: list[Cell | str] = [Cell("xyz"[a], "text")]
         for b in range(3):
             k = KEYS[[(0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2)].index((min(a, b), max(a, b)))]
             r.append(Cell(NOT_DETERMINED, "undet") if k in gone else num(M[a, b], ".2f"))
@@ -216,6 +217,8 @@ def principal_html(mp: MassProperties) -> str:
         return (f'<p>Principal moments and axes: {NOT_DETERMINED} (they need every entry of the tensor, and the '
                 "recording does not determine "
                 + esc(", ".join(SYMBOL[k] for k in KEYS if k in mp.undetermined)) + ").</p>")
+    # set together with principal (mass_properties_of)
+    assert mp.principal is not None and mp.principal_axes is not None and mp.semi_axes is not None
     rows = []
     for i in range(3):
         v = mp.principal_axes[:, i]
@@ -246,10 +249,11 @@ def to_json(mp: MassProperties, errors: dict | None) -> dict:
            "about_cg": entries(mp.values), "std": entries(mp.std), "crb_std": entries(mp.crb_std),
            "about_origin": entries(mp.about_origin), "tensor_about_cg": matrix(mp.tensor_cg),
            "tensor_about_origin": matrix(mp.tensor_origin),
-           "principal_moments": None if not mp.determined else [float(x) for x in mp.principal],
+           "principal_moments": None if mp.principal is None else [float(x) for x in mp.principal],
            "principal_moments_std": None if mp.principal_std is None else [float(x) for x in mp.principal_std],
-           "principal_axes_columns": None if not mp.determined else mp.principal_axes.T.tolist(),
-           "equimomental_semi_axes_m": None if not mp.determined else [float(x) for x in mp.semi_axes],
+           # principal_axes and semi_axes: set together with principal (None unless determined)
+           "principal_axes_columns": None if mp.principal_axes is None else mp.principal_axes.T.tolist(),
+           "equimomental_semi_axes_m": None if mp.semi_axes is None else [float(x) for x in mp.semi_axes],
            "undetermined": [SYMBOL[k] for k in KEYS if k in mp.undetermined]}
     if errors:
         out["errors_against_truth"] = {

@@ -47,7 +47,7 @@ def initial_pose(rig: Rig, tens, elev, label: str) -> StaticPose:
             raise StaticsError(f"{label}: the inclinometer reads {deg} but no pose of the body on these cables "
                                "has that tilt: angles outside the geometry's reach (check rig.yaml's cable "
                                "lengths and anchors, and inclinometer.rpy)") from None
-        if tens is not None:
+        if tens is not None and rig.inclinometer is not None:
             try:
                 ps = static_pose(rig, tensions=tens, elevations=None)
             except TrackerError:
@@ -94,8 +94,9 @@ def check_tilt_change(states: list[StaticState], poses: list[StaticPose], have_i
     baseline = states[0]
     for s, ps in zip(states[1:], poses[1:]):
         if have_inclinometer:
-            d = s.elevations - baseline.elevations
-            sd = np.hypot(s.elevations_std, baseline.elevations_std)
+            (e, e_sd), (e0, e0_sd) = s.reading("inclinometer"), baseline.reading("inclinometer")
+            d = e - e0
+            sd = np.hypot(e_sd, e0_sd)
         else:
             d = (ps.rotation * poses[0].rotation.inv()).as_rotvec()[:2]
             sd = np.full(2, 1e-6)

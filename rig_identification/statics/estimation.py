@@ -225,11 +225,13 @@ def _measurements(st: _States) -> _Measurements:
             mv.append(t[0])
             sv.append(np.maximum(t[1], 1e-7 * np.abs(t[0]) + 1e-9))
         if st.have_e:
-            mv.append(s.elevations)
-            sv.append(np.maximum(s.elevations_std, 1e-9))
+            e, e_sd = s.reading("inclinometer")
+            mv.append(e)
+            sv.append(np.maximum(e_sd, 1e-9))
         if st.have_a:
-            mv.append(s.specific_force)
-            sv.append(np.maximum(s.specific_force_std, 1e-8))
+            f, f_sd = s.reading("accelerometer")
+            mv.append(f)
+            sv.append(np.maximum(f_sd, 1e-8))
         meas.append(np.concatenate(mv))
         sig.append(np.concatenate(sv))
     return _Measurements(meas, sig)
@@ -244,7 +246,7 @@ def _start_values(rig: Rig, model: StaticModel, st: _States, poses: list, Wz: li
     each state's equilibrium solve starts at its first pose with the measured (or even)
     tensions."""
     lay = model.layout
-    if st.have_T:
+    if Wz is not None:     # with load cells (st.have_T)
         m_lc0 = Wz[0] / rig.gravity
         kappa0 = 1.0
         if lay.i_k is not None:
@@ -315,7 +317,7 @@ def _theta_partials(lay: ParameterLayout, part: EquationPartials, n_eq: int, i: 
     if i > 0 and lay.i_dd is not None:
         Fth[:, lay.i_dd[i - 1]] = part.w_add * ma
     if i > 0 and lay.i_dm is not None:
-        Fth[:, lay.i_dm[i - 1]] = part.m_add + part.w_add @ (dbar + gl.dd[i])
+        Fth[:, lay.i_dm[i - 1]] = part.m_add + part.w_add @ (dbar + gl.offsets()[0][i])
     if lay.i_A is not None:
         Fth[:, lay.i_A] = part.A
         Fth[:, lay.i_B] = part.B
@@ -330,7 +332,7 @@ def _input_partials(part: EquationPartials, n_eq: int, i: int, ma: float, dbar: 
     Fq = np.zeros((n_eq, q_slices["body_anchors"].stop))
     if i == 1:
         Fq[:, 0:3] = part.w_add * ma
-        Fq[:, 3] = part.m_add + part.w_add @ (dbar + gl.dd[i])
+        Fq[:, 3] = part.m_add + part.w_add @ (dbar + gl.offsets()[0][i])
     Fq[:, q_slices["cable_lengths"]] = part.L
     Fq[:, q_slices["ceiling_anchors"]] = part.A
     Fq[:, q_slices["body_anchors"]] = part.B
@@ -371,9 +373,10 @@ class _Misfit:
         lay, model, st = self.model.layout, self.model, self.st
         meas, sig = self.data.meas[i], self.data.sig[i]
         # the added masses, with the fitted offsets of the dummy's mass and position
-        ma = st.m_add[i] + gl.dm[i]
+        dd, dm = gl.offsets()
+        ma = st.m_add[i] + dm[i]
         dbar = st.w_add[i] / st.m_add[i] if st.m_add[i] > 0 else np.zeros(3)
-        wa = ma * (dbar + gl.dd[i])
+        wa = ma * (dbar + dd[i])
         R, p, T = model.solve_state(gl, ma, wa, self.y_cache[i], st.states[i].label)
         self.y_cache[i] = (R, p, T)
         E, Fy, part = model.equations(R, p, T, gl, ma, wa, jac=True)
@@ -408,9 +411,9 @@ class _Misfit:
         if lay.i_L is not None:
             add("cable_lengths", lay.i_L, gl.L - model.L0, opts.length_std)
         if lay.i_dd is not None:
-            add("dummy_position", lay.i_dd, gl.dd[1:], opts.dummy_position_std)
+            add("dummy_position", lay.i_dd, gl.offsets()[0][1:], opts.dummy_position_std)
         if lay.i_dm is not None:
-            add("dummy_mass", lay.i_dm, gl.dm[1:], opts.dummy_mass_std)
+            add("dummy_mass", lay.i_dm, gl.offsets()[1][1:], opts.dummy_mass_std)
         if lay.i_A is not None:
             add("ceiling_anchors", lay.i_A, gl.A - model.A, opts.anchor_std)
             add("body_anchors", lay.i_B, gl.B - model.b, opts.anchor_std)
@@ -420,7 +423,7 @@ class _Misfit:
         """The misfit at the scaled θ (n_θ,) (:class:`_Evaluation`, J in scaled θ); the same
         object again for the θ of the last call."""
         key = th.tobytes()
-        if key == self._key:
+        if key == self._key and self._last is not None:
             return self._last
         gl = self.model.unpack(th, self.fixed)
         rows = [self._state_rows(i, gl, False) for i in range(len(self.st.states))]
@@ -613,7 +616,7 @@ def _mass_check(rig: Rig, m_lc: float | None, m_lc_sd: float | None, scale_std: 
     """The load cells' weight m_lc ± m_lc_sd kg against the scale's (σ ``scale_std`` kg) as a
     :class:`~rig_identification.io.verdict.Check` (passed within :data:`MASS_COVERAGE` combined
     σ), or None without load cells."""
-    if m_lc is None:
+    if m_lc is None or m_lc_sd is None:
         return None
     comb = math.hypot(m_lc_sd, scale_std)
     z = abs(m_lc - rig.mass) / comb
@@ -743,7 +746,8 @@ def _input_deviations(gl: GlobalUnknowns, model: StaticModel, opts: CgOptions, r
             out += [(f"cable {n} {what} {a}", float(X[i, k]), opts.anchor_std)
                     for i, n in enumerate(names) for k, a in enumerate("xyz")]
     if lay.i_dd is not None:
-        out += [(f"{labels[s]} dummy position {a}", float(gl.dd[s, k]), opts.dummy_position_std)
+        dd = gl.offsets()[0]
+        out += [(f"{labels[s]} dummy position {a}", float(dd[s, k]), opts.dummy_position_std)
                 for s in range(1, len(labels)) for k, a in enumerate("xyz")]
     return sorted(out, key=lambda t: -abs(t[1]) / t[2])
 

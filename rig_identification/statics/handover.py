@@ -52,12 +52,10 @@ class SavedCgResult:
     failed: tuple[str, ...] = ()
 
 
-def _vec3(d: dict, key: str, src: str, positive: bool = False, required: bool = True) -> np.ndarray | None:
+def _vec3(d: dict, key: str, src: str, positive: bool = False) -> np.ndarray:
     v = d.get(key)
     if v is None:
-        if required:
-            raise CgResultError(f"{src}: missing field {key}")
-        return None
+        raise CgResultError(f"{src}: missing field {key}")
     if not isinstance(v, list) or len(v) != 3 or not all(isinstance(x, (int, float)) and not isinstance(x, bool)
                                                           for x in v):
         raise CgResultError(f"{src}: field {key} must be a list of 3 numbers, got {v!r}")
@@ -68,6 +66,11 @@ def _vec3(d: dict, key: str, src: str, positive: bool = False, required: bool = 
         if positive and x <= 0:
             raise CgResultError(f"{src}: field {key}[{i}] must be > 0, got {v[i]!r}")
     return a
+
+
+def _optional_vec3(d: dict, key: str, src: str, positive: bool = False) -> np.ndarray | None:
+    """:func:`_vec3`, or None when the field is missing."""
+    return None if d.get(key) is None else _vec3(d, key, src, positive)
 
 
 def load_cg_result(path: str | Path) -> SavedCgResult:
@@ -103,9 +106,10 @@ def cg_result_from_dict(d, src: str) -> SavedCgResult:
         raise CgResultError(f"{src}: field schema is {schema!r}, not {CG_RESULT_SCHEMA!r} "
                             "(not a rig-identify cg result)")
     else:
-        version = d.get("schema_version")
-        if not isinstance(version, int) or isinstance(version, bool) or version < 1:
-            raise CgResultError(f"{src}: field schema_version must be an integer >= 1, got {version!r}")
+        declared = d.get("schema_version")
+        if not isinstance(declared, int) or isinstance(declared, bool) or declared < 1:
+            raise CgResultError(f"{src}: field schema_version must be an integer >= 1, got {declared!r}")
+        version = declared
         if version > CG_RESULT_SCHEMA_VERSION:
             raise CgResultError(f"{src}: field schema_version is {version}, written by a newer rig_identification; "
                                 f"this one reads up to {CG_RESULT_SCHEMA_VERSION}")
@@ -114,7 +118,7 @@ def cg_result_from_dict(d, src: str) -> SavedCgResult:
         raise CgResultError(f"{src}: field frame is {frame!r}; the CG must be in the body frame")
     c = _vec3(d, "center_of_gravity", src)
     sd = _vec3(d, "center_of_gravity_std", src, positive=True)
-    sdn = _vec3(d, "center_of_gravity_std_noise", src, positive=True, required=False)
+    sdn = _optional_vec3(d, "center_of_gravity_std_noise", src, positive=True)
     cov = None
     raw = d.get("center_of_gravity_covariance")
     if raw is not None:

@@ -178,6 +178,13 @@ class GlobalUnknowns:
     A: np.ndarray | None = None    # (N, 3) world m: ceiling anchors (None: rig.yaml's)
     B: np.ndarray | None = None    # (N, 3) body m: body anchors (None: rig.yaml's)
 
+    def offsets(self) -> tuple[np.ndarray, np.ndarray]:
+        """(dd (S, 3), dm (S,)): the dummy offsets, as :meth:`StaticModel.unpack` sets them.  Raises
+        :class:`StaticsError` when they are not set."""
+        if self.dd is None or self.dm is None:
+            raise StaticsError("the global unknowns carry no dummy offsets dd, dm (StaticModel.unpack sets them)")
+        return self.dd, self.dm
+
 
 class EquationPartials(NamedTuple):
     """Derivatives of one state's scaled equilibrium equations E (N + 6,) w.r.t. the globals:

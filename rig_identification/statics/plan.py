@@ -130,7 +130,7 @@ def candidate_positions(rig: Rig) -> list[np.ndarray]:
     for x in (lo[0], hi[0]):
         for y in (lo[1], hi[1]):
             out.append(np.array([x, y, ztop - 1.0]))
-    uniq = []
+    uniq: list[np.ndarray] = []
     for p in out:
         if not any(np.allclose(p, q) for q in uniq):
             uniq.append(p)

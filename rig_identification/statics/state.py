@@ -179,7 +179,7 @@ def _exciter_warnings(exc: StreamStats | None, label: str) -> list[str]:
     if exc is None:
         return []
     f = exc.mean
-    if np.linalg.norm(f) > max(1.0, 5 * np.linalg.norm(exc.std_of_mean)):
+    if float(np.linalg.norm(f)) > max(1.0, 5 * float(np.linalg.norm(exc.std_of_mean))):
         return [f"{label}: the exciter load cells read a mean force of "
                 f"{np.linalg.norm(f):.1f} N at rest; ignored (is the exciter off?)"]
     return []
@@ -265,12 +265,24 @@ class StaticState:
         st = cls.from_window(recording.sensors, label=label, **kw)
         return replace(st, warnings=[f"{recording.path}: {w}" for w in recording.warnings] + st.warnings)
 
+    def reading(self, stream: str) -> tuple[np.ndarray, np.ndarray]:
+        """(mean, σ of the mean) of the ``inclinometer`` (elevations (2,) rad) or the
+        ``accelerometer`` (specific force (3,) m/s², IMU axes).  Raises :class:`StaticsError`
+        when this state has none."""
+        mean, std = {"inclinometer": (self.elevations, self.elevations_std),
+                     "accelerometer": (self.specific_force, self.specific_force_std)}[stream]
+        if mean is None or std is None:
+            raise StaticsError(f"{self.label}: no {stream} reading")
+        return mean, std
+
     def tensions_for(self, rig: Rig) -> tuple[np.ndarray, np.ndarray] | None:
         """(tensions (N,), std (N,)) in rig.yaml cable order, or None without load cells.
 
         Raises :class:`StaticsError` if a cable of the rig has no load cell here."""
         if self.tensions is None:
             return None
+        if self.cable_names is None or self.tensions_std is None:
+            raise StaticsError(f"{self.label}: tensions without their cable names or σ")
         idx = {n: i for i, n in enumerate(self.cable_names)}
         missing = [n for n in rig.cable_names if n not in idx]
         if missing:
