@@ -6,6 +6,7 @@ rigs (reference noise, 45 s) within 1 % and 3 σ with σ near the Cramér–Rao 
 over many rigs is ``bench/bench_any_rig.py``.
 """
 import dataclasses
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ from rig_identification.design.information import tensor_bound
 from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random
 from rig_identification.estimation import rig_unknowns
 from rig_identification.estimation.harmonic_start import box_tensor, forced_response_start, harmonics
-from rig_identification.estimation.rig_fit import RigFit, cramer_rao
+from rig_identification.estimation.rig_fit import RigFit, came_back, cramer_rao, gauss_newton_gain
 from rig_identification.estimation.rig_record import (
     FORCE_CHANNELS,
     MODEL_RATE_BANDS,
@@ -518,3 +519,38 @@ def test_the_dynamic_cg_is_the_fusion_inverted():
     blind = split_cg(static.copy(), cov_nz, static, static_std, "cg.json")
     assert not np.isfinite(blind.dynamic_std[2]) and np.all(np.isfinite(blind.dynamic_std[:2]))
     assert np.isnan(blind.difference_sigma[2]) and blind.agree
+
+
+class _Valley:
+    """A least-squares problem of the scaled unknowns z (10,) whose minimum is z = 0, every unknown seen
+    by one residual row of slope 10 (σ 0.1), the first one's row r₀ = 10 z₀ + bump(z₀): ``bump`` a
+    ridge between z₀ = 0 and a start beyond it that the linear model at 0 does not see."""
+
+    lay = SimpleNamespace(inertia=slice(0, 6), cg=slice(6, 9), mass=9, size=10)
+
+    def __init__(self, bump):
+        self.bump = bump
+
+    def residual(self, z: np.ndarray) -> np.ndarray:
+        r = 10.0 * np.asarray(z, float)
+        r[0] += self.bump(z[0])
+        return r
+
+
+def test_a_restart_comes_back_by_chord_steps_only_without_a_ridge_between():
+    """came_back: from a start 20 σ out in a valley without a ridge the chord steps with the
+    estimate's Jacobian end at the minimum (within 1e-6 σ); with a ridge between (its height 30,
+    the start's residual 20) the steps would jump it straight to the minimum, but the cost along
+    the straight path rises at a quarter point and the restart is left to the trust region (None);
+    a start where the first chord step raises the cost is left to it too."""
+    gain = gauss_newton_gain(10.0 * np.eye(10))
+    start = np.zeros(10)
+    start[0] = 2.0
+    smooth = _Valley(lambda z0: 0.0)
+    z, cost, runs = came_back(smooth, gain, start)
+    assert z is not None and np.max(np.abs(z)) < 1e-7 and cost < 1e-10 and runs >= 5
+    ridge = _Valley(lambda z0: 30.0 * np.exp(-((z0 - 1.0) / 0.2) ** 2))
+    assert came_back(ridge, gain, start)[0] is None
+    other = _Valley(lambda z0: -10.0 * z0 ** 2 / 4)       # r₀ = 10 z₀ (1 − z₀/4): a second minimum at 4
+    start[0] = 3.5
+    assert came_back(other, gain, start)[0] is None

@@ -506,7 +506,7 @@ def came_back(prob: RigProblem | JointProblem, gain: np.ndarray, z0: np.ndarray
     """Where the restart of ``prob`` from the scaled unknowns ``z0`` comes back to the estimate
     (x0; ``gain`` (size, rows): the Gauss–Newton gain of its Jacobian there,
     :func:`gauss_newton_gain`): the chord method's steps (:func:`polished`) from ``z0``, each
-    lowering the cost, at most :data:`CHORD_STEPS`, until a step moves no tensor entry, CG
+    lowering the cost, at most :data:`CHORD_STEPS`, until the next would move no tensor entry, CG
     coordinate or the mass by :data:`RESULT_STEP` of its σ; they came back where they end within
     :data:`ANCHOR_SIGMA` σ of x0 and the cost falls along the straight path from ``z0`` to that end
     at each of its quarter points (no ridge between them that a step jumped).  Returns the scaled
@@ -519,13 +519,13 @@ def came_back(prob: RigProblem | JointProblem, gain: np.ndarray, z0: np.ndarray
     runs = 1
     for _ in range(CHORD_STEPS):
         step = -gain @ r
+        if np.all(np.abs(step[body]) < RESULT_STEP * std):
+            break
         r1 = prob.residual(z + step)
         runs += 1
         if not r1 @ r1 < r @ r:
             return None, 0.0, runs
         z, r = z + step, r1
-        if np.all(np.abs(step[body]) < RESULT_STEP * std):
-            break
     else:
         return None, 0.0, runs
     if not np.all(np.abs(z[body]) < ANCHOR_SIGMA * std):
