@@ -178,6 +178,7 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
     points, noise_scales, worst = chosen.points, chosen.noise_scales, chosen.worst
     last = _joint(recs, singles, own, points, noise_scales)
     J, r = last.jacobian(np.zeros(last.lay.size)), last.residual(np.zeros(last.lay.size))
+    gain = gauss_newton_gain(J)
     nfev += last.lay.size + 2
     tensor = last.x0[last.lay.inertia]
     minima = [(0.5 * float(r @ r), last.x0)]
@@ -185,7 +186,6 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
         others = [np.asarray(f.unknowns, float)[:6] for f in singles]
         tries = [t for t in others if not np.allclose(t, tensor) and physically_consistent(to_tensor(t))]
         tries += [shifted(tensor, 1.0), shifted(tensor, -1.0)] + along_weakest(last, J, tensor)
-        gain = gauss_newton_gain(J)
         for t in tries:
             x2, cost2, runs = restarted(last, (J, r), gain, t)
             nfev += runs
@@ -196,6 +196,7 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
     if best != 0:                          # a restart settled lower: the estimate's problem and Jacobian
         moved = _joint(recs, singles, own, _points(last, minima[best][1]), noise_scales)
         J, runs = jacobian_near(last, moved, J)
+        gain = gauss_newton_gain(J)
         last = moved
         r = last.residual(np.zeros(last.lay.size))
         nfev += runs + 1
@@ -205,7 +206,7 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
     other_chi2 = np.array([2 * (m[0] - cost) for m in others_x])
     log.info("joint fit: the other minima settled %s from the estimate, χ² %s", np.round(settled - estimate, 3),
              np.round(other_chi2, 2))
-    z, runs = polished(last, J, r)
+    z, runs = polished(last, gain, r)
     nfev += runs
     points = _points(last, last.x(z)) if np.any(z) else [p.at_x0 for p in last.problems]
     fisher, sandwich, bound = covariance(last, J, last.row_scale(noise_scales))

@@ -455,14 +455,13 @@ def gauss_newton_gain(J: np.ndarray) -> np.ndarray:
     return gain
 
 
-def polished(prob: RigProblem | JointProblem, J: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, int]:
-    """The estimate after Gauss–Newton steps from ``prob``'s x0 with its Jacobian ``J`` there (the
-    chord method; ``r``: the residual at x0), each taken where it lowers the cost, at most
-    :data:`POLISH_STEPS`: a solve stops within :data:`RESULT_STEP` σ of the minimum, and the steps
+def polished(prob: RigProblem | JointProblem, gain: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, int]:
+    """The estimate after Gauss–Newton steps from ``prob``'s x0 with the gain of its Jacobian there
+    (``gain``: :func:`gauss_newton_gain`; the chord method; ``r``: the residual at x0), each taken
+    where it lowers the cost, at most :data:`POLISH_STEPS`: a solve stops within :data:`RESULT_STEP` σ of the minimum, and the steps
     carry it to the minimum wherever in that neighbourhood it stopped (the estimate then does not
     depend on the rounding that steered the iterations).  Returns the scaled unknowns z there and the
     model runs."""
-    gain = gauss_newton_gain(J)
     z = np.zeros(prob.lay.size)
     runs = 0
     for _ in range(POLISH_STEPS):
@@ -665,10 +664,11 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     if cost != minima_costs[0]:           # a restart settled lower: the estimate's problem and Jacobian
         moved = RigProblem(rec, at, lay, prior, noise_scale, n_all)
         J, runs = jacobian_near(last, moved, J)
+        gain = gauss_newton_gain(J)
         last = moved
         r = last.residual(np.zeros(last.lay.size))
         nfev += runs + 1
-    z, runs = polished(last, J, r)
+    z, runs = polished(last, gain, r)
     at = last.point(last.x(z)) if np.any(z) else last.at_x0
     x, p, rest, bases = at.x, at.parameters, at.rest, at.bases
     nfev += runs
