@@ -458,10 +458,10 @@ def gauss_newton_gain(J: np.ndarray) -> np.ndarray:
 def polished(prob: RigProblem | JointProblem, gain: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, int]:
     """The estimate after Gauss–Newton steps from ``prob``'s x0 with the gain of its Jacobian there
     (``gain``: :func:`gauss_newton_gain`; the chord method; ``r``: the residual at x0), each taken
-    where it lowers the cost, at most :data:`POLISH_STEPS`: a solve stops within :data:`RESULT_STEP` σ of the minimum, and the steps
-    carry it to the minimum wherever in that neighbourhood it stopped (the estimate then does not
-    depend on the rounding that steered the iterations).  Returns the scaled unknowns z there and the
-    model runs."""
+    where it lowers the cost, at most :data:`POLISH_STEPS`: a solve stops within :data:`RESULT_STEP`
+    σ of the minimum, and the steps carry it to the minimum wherever in that neighbourhood it
+    stopped (the estimate then does not depend on the rounding that steered the iterations).
+    Returns the scaled unknowns z there and the model runs."""
     z = np.zeros(prob.lay.size)
     runs = 0
     for _ in range(POLISH_STEPS):
