@@ -162,19 +162,20 @@ def test_the_compiled_model_reproduces_the_simulator(quiet_rig):
 
 
 def test_the_compiled_model_reproduces_the_simulators_effects():
-    """With the extensions the diagnosis tries (quadratic drag, Coulomb friction, the exciter's
+    """With the extensions the diagnosis tries (quadratic drag, the ceiling pins' friction, the exciter's
     unbalance, the load cells' delay, gyro scale, an IMU offset) all concealed at once, the compiled
     model with the same values gives every sensor the simulator gives (on the IMU's times), and
-    without them it does not: tensions within 0.5 N, IMU within 5 % of its reference noise."""
+    without them, or without the pins' friction alone, it does not: tensions within 0.5 N, IMU within 5 % of its
+    reference noise."""
     effects = [{"name": "air_drag", "linear": 400.0, "angular": 900.0},
-               {"name": "coulomb_friction", "force": 8.0, "torque": 6.0},
+               {"name": "pivot_friction", "mu_r": 1e-3},
                {"name": "exciter_rotor", "unbalance": 5.0},
                {"name": "sensor_delay", "stream": "load_cells", "delay": 0.01},
                {"name": "gyro_scale", "scale": [1.01, 0.99, 1.02]},
                {"name": "imu_offset", "offset": [0.1, -0.15, 0.05]}]
     _, sim = simulate_random(7206, 5, "wide", effects, 8.0, noise=QUIET)
     p0 = _truth_parameters(sim)
-    p = p0.replace(air_drag=np.array([400.0, 900.0]), friction=np.array([8.0, 6.0]), rotor=np.array([5.0, 0.0]),
+    p = p0.replace(air_drag=np.array([400.0, 900.0]), pivot_friction=1e-3, rotor=np.array([5.0, 0.0]),
                    load_cell_delay=0.01, gyro_scale=np.array([0.01, -0.01, 0.02]),
                    imu_position=p0.imu_position + [0.1, -0.15, 0.05])
     s = sim.sensors
@@ -193,6 +194,8 @@ def test_the_compiled_model_reproduces_the_simulators_effects():
     with_them, without = misfit(p), misfit(p0)
     assert with_them[0] < 0.5 and with_them[1] < 0.05 and with_them[2] < 0.05, with_them
     assert without[0] > 50 and without[1] > 0.3 and without[2] > 0.3, without
+    no_pins = misfit(p.replace(pivot_friction=0.0))         # the pins' friction alone: hundreds of N
+    assert no_pins[0] > 50 and no_pins[1] > 0.3, no_pins
 
 
 def test_the_exciter_reads_its_rotors_inertial_force_and_the_body_is_the_suspended_one_less_the_rotor():

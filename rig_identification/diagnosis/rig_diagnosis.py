@@ -31,7 +31,7 @@ Two kinds of finding.  Data errors come first: they are unknowns of the model it
   misfit they do not explain (on the package's simulator a structural mode at 8 Hz took
   imu_offset and gyro_scale), and the advice says so.  The rig
   model already holds viscous damping; where it is significant,
-  quadratic drag and Coulomb friction are tried in its place, and said indistinguishable from it
+  quadratic drag and the ceiling pins' dry friction are tried in its place, and said indistinguishable from it
   where Vuong's test cannot tell them apart (at one forcing amplitude they are nearly the same
   force).  The damping, its class or a name, is reported only where it passes an extension's
   tests too: no term below zero beyond 3 σ, and fitted on either half it lowers χ² on the other
@@ -83,7 +83,7 @@ BOUNDS = {"load_cell_delay": 0.1, "exciter_delay": 0.1, "imu_offset": 0.5, "gyro
 #: mass lies toward the force it makes).
 NON_NEGATIVE = FIT_NON_NEGATIVE + ("exciter_rotor",)
 #: What tells two candidates apart (:meth:`RigDiagnosis.advice`), by the pair's class.
-DAMPING = ("viscous_damping", "air_drag", "coulomb_friction")
+DAMPING = ("viscous_damping", "air_drag", "pivot_friction")
 APART_ADVICE = {
     "damping": "a run at a second forcing amplitude (viscous, quadratic and dry friction scale differently with "
                "the swing's speed)",
@@ -168,7 +168,7 @@ class Damping:
     """The model's viscous damping and what else would explain it.
 
     z: (2,) c/σ of its linear and angular terms.  alternatives: Vuong's z of
-    the viscous model against each of ``air_drag`` and ``coulomb_friction`` put in its place
+    the viscous model against each of ``air_drag`` and ``pivot_friction`` put in its place
     (positive: viscous fits better); indistinguishable: those within Student's t at 97.5 %.
     held_out: (2,) the fall of χ² on each half of the record of the damping fitted on the other
     (:meth:`~rig_identification.estimation.rig_extensions.LinearisedRig.held_out`)."""
@@ -277,7 +277,7 @@ class RigDiagnosis:
     def named(self) -> tuple[str, ...]:
         """Where the last fit explains the recording (:attr:`explained`): the extensions the
         recording tells apart from every other candidate, and ``viscous_damping`` where the model's
-        viscous damping is significant and told apart from quadratic drag and Coulomb friction in
+        viscous damping is significant and told apart from quadratic drag and the pins' friction in
         its place.  Otherwise none."""
         if not self.explained:
             return ()
@@ -488,7 +488,7 @@ def damping_alternatives(lin: LinearisedRig, fit: RigFit) -> Damping | None:
         return None
     apart = float(t.ppf(APART_LEVEL, SANDWICH_BLOCKS - 1))
     without = lin.without(lay.body_damping)
-    z: dict[str, float] = {e: lin.vuong(lin.base(), without.fitted((e,))) for e in ("air_drag", "coulomb_friction")
+    z: dict[str, float] = {e: lin.vuong(lin.base(), without.fitted((e,))) for e in ("air_drag", "pivot_friction")
                            if e in lin.names}
     return Damping(z_c, z, tuple(e for e, v in z.items() if v < apart), lin.held_out(lay.body_damping))
 

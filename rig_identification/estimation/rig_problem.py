@@ -57,7 +57,7 @@ IMPULSE_TAIL = 1e-12
 SETTLE_STEPS = 6
 SETTLE_DECREMENT = 0.01
 #: Extensions (:data:`~.rig_unknowns.EXTENSIONS`) whose unknowns are never negative: a damping.
-NON_NEGATIVE = ("air_drag", "coulomb_friction")
+NON_NEGATIVE = ("air_drag", "pivot_friction")
 
 
 @dataclass(frozen=True)

@@ -48,7 +48,7 @@ STIFFNESS_LOG_STD_DEFAULT = 1.0
 #: The rig model's extensions (the physics and sensor traits the diagnosis tries,
 #: :mod:`~rig_identification.diagnosis.rig_diagnosis`): name -> (unknowns, units).  Their values sit in
 #: :class:`~rig_identification.model.linear_rig.RigParameters`: ``air_drag`` (quadratic damping,
-#: linear and angular), ``coulomb_friction`` (force and moment), ``load_cell_delay`` and
+#: linear and angular), ``pivot_friction`` (μ r of the ceiling pins, m), ``load_cell_delay`` and
 #: ``exciter_delay`` (s, the stream's readings behind the IMU's),
 #: ``imu_offset`` (the IMU's position, body m), ``gyro_scale`` (3, share) and ``gyro_bias_drift``
 #: (3, rad/s²) and ``exciter_rotor`` (2: the unbalance, kg·m, whose weight turns with the force; the
@@ -57,7 +57,7 @@ STIFFNESS_LOG_STD_DEFAULT = 1.0
 #: :meth:`~.rig_fit.RigFit.body` the body's without it).
 EXTENSIONS: dict[str, tuple[int, str]] = {
     "air_drag": (2, "N s^2/m^2, N m s^2/rad^2"),
-    "coulomb_friction": (2, "N, N m"),
+    "pivot_friction": (1, "m (the ceiling pins' friction moment per newton of tension: mu r)"),
     "load_cell_delay": (1, "s"),
     "exciter_delay": (1, "s"),
     "imu_offset": (3, "m (the IMU's position, body frame)"),
@@ -272,7 +272,7 @@ def in_layout(x: np.ndarray, old: Layout, new: Layout, p: RigParameters) -> np.n
 
 
 #: The :class:`~rig_identification.model.linear_rig.RigParameters` field each extension sets.
-EXTENSION_FIELDS = {"air_drag": "air_drag", "coulomb_friction": "friction", "load_cell_delay": "load_cell_delay",
+EXTENSION_FIELDS = {"air_drag": "air_drag", "pivot_friction": "pivot_friction", "load_cell_delay": "load_cell_delay",
                     "exciter_delay": "exciter_delay",
                     "imu_offset": "imu_position", "gyro_scale": "gyro_scale", "gyro_bias_drift": "gyro_drift",
                     "exciter_rotor": "rotor"}
@@ -352,9 +352,9 @@ def unit_scale(x0: np.ndarray, lay: Layout, prior: Prior) -> np.ndarray:
     s[lay.segments] = 1e-4
     s[lay.geometry] = 1e-4
     s[lay.force] = 1e-2
-    # the extensions' units: quadratic drag and Coulomb friction as strong as the viscous unit at
-    # 0.02 m/s and rad/s (a swing's typical speed)
-    units = {"air_drag": (5e-2 * prior.mass, 5e-2 * big), "coulomb_friction": (2e-5 * prior.mass, 2e-5 * big),
+    # the extensions' units: quadratic drag as strong as the viscous unit at 0.02 m/s and rad/s (a
+    # swing's typical speed); the pins' μ r whose friction, μ r m g / l on a 2 m cable, is that unit's
+    units = {"air_drag": (5e-2 * prior.mass, 5e-2 * big), "pivot_friction": (4e-6,),
              "load_cell_delay": (1e-3,), "exciter_delay": (1e-3,), "imu_offset": (1e-3,) * 3, "gyro_scale": (1e-3,) * 3,
              "gyro_bias_drift": (1e-5,) * 3, "exciter_rotor": (1e-2, 1e-2)}
     for e in lay.extensions:

@@ -8,7 +8,8 @@ The Newton–Euler equations (gyroscopic term included, unlike thesis eq. 3.10):
 
 :class:`RigDynamics` evaluates them for the two cable models (thesis eqs. 2.13–2.16 for the
 inextensible one), the exciter's rotating force and the force pulses, the concealed effects
-that act as forces (:mod:`~rig_identification.model.effects`: dissipation, the exciter's rotor)
+that act as forces (:mod:`~rig_identification.model.effects`: dissipation, the ceiling pins'
+friction, the exciter's rotor)
 and, with the ``compliant_body`` effect, the joint to the sprung body
 (:mod:`~rig_identification.model.suspension`).
 
@@ -110,7 +111,9 @@ class RigDynamics:
         self.R_exc = ex.rotation.as_matrix() if ex is not None else np.eye(3)
         r_exc = ex.position - self.cg if ex is not None else np.zeros(3)
         self.M_exc = skew(r_exc) @ self.R_exc          # exciter-frame force -> moment about the CG
-        self._dissipative = [e for e in effects if e.name in ("viscous_damping", "air_drag", "coulomb_friction")]
+        self._dissipative = [e for e in effects if e.name in ("viscous_damping", "air_drag")]
+        pins = next((e for e in effects if e.name == "pivot_friction"), None)
+        self._pins = None if pins is None else (float(pins.get("mu_r")), float(pins.get("velocity_scale", 1e-4)))
         self._rotor = next((e for e in effects if e.name == "exciter_rotor"), None)
         if self._rotor is not None:
             rot = excitation.rotating
@@ -126,13 +129,9 @@ class RigDynamics:
             if e.name == "viscous_damping":
                 F -= e.get("linear") * v
                 M -= e.get("angular") * w
-            elif e.name == "air_drag":
+            else:
                 F -= e.get("linear") * math.sqrt(v @ v) * v
                 M -= e.get("angular") * math.sqrt(w @ w) * w
-            else:
-                eps = e.get("velocity_scale", 1e-3)
-                F -= e.get("force") * v / math.sqrt(v @ v + eps * eps)
-                M -= e.get("torque") * w / math.sqrt(w @ w + eps * eps)
         if self._rotor is not None:
             assert self.excitation.rotating is not None   # as in __init__
             theta, speed, acc = self.excitation.rotating.angle_and_speed(t)
@@ -142,6 +141,19 @@ class RigDynamics:
             h = self._rotor_inertia * speed * z                                # spin angular momentum, body
             M -= np.cross(w, h) + self._rotor_inertia * acc * z
         return F, M
+
+    def pin_friction(self, T: np.ndarray, l: np.ndarray, u: np.ndarray, Pdot: np.ndarray) -> np.ndarray:
+        """(N, 3) world N: the force of each ceiling pin's dry friction on the body anchor (the
+        ``pivot_friction`` effect): the pin resists the cable's swing with the moment μ r T_i, which the
+        straight cable passes on as μ r T_i / l_i across it, against the anchor's velocity across it
+        (v⊥ = Ṗ_i − (Ṗ_i·u_i) u_i), regularised: −μ r T_i / l_i · v⊥ / sqrt(|v⊥|² + ε²).  T (N,) N,
+        l (N,) m, u (N, 3) unit vectors toward the ceiling, Pdot (N, 3) m/s the anchors' velocities."""
+        assert self._pins is not None
+        mu_r, eps = self._pins
+        across = Pdot - (u * Pdot).sum(axis=1)[:, None] * u
+        speed = np.sqrt((across * across).sum(axis=1) + eps * eps)
+        out: np.ndarray = -(mu_r * T / (l * speed))[:, None] * across
+        return out
 
     def breakpoints(self) -> list[float]:
         """Times where the forcing is discontinuous (or has a kink), s."""
@@ -200,6 +212,8 @@ class RigDynamics:
         if self.cables.type == "spring":
             T = np.maximum(self.cables.stiffness * (l - self.L) + self.cables.damping * ldot, 0.0)
             Tu = T[:, None] * u
+            if self._pins is not None:
+                Tu = Tu + self.pin_friction(T, l, u, Pdot)
             a = (Tu.sum(axis=0) + F_ext) / self.m + self.g
             alpha = self.Jinv @ (moment_sum(self.r, Tu @ R) + M_rest)
         else:

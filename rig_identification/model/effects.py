@@ -13,9 +13,12 @@ viscous_damping        ``linear`` N·s/m (force −c v on the CG, world), ``angu
                        damped recording uses these two names
 air_drag               ``linear`` N·s²/m² (force −c |v| v), ``angular`` N·m·s²/rad²
                        (moment −c |ω| ω)
-coulomb_friction       ``torque`` N·m (moment −τ ω/|ω|), ``force`` N (force −f v/|v|):
-                       dry friction in the cable anchors' pivots, lumped on the body;
-                       regularised over ``velocity_scale`` (default 1e-3 rad/s or m/s)
+pivot_friction         ``mu_r`` m (friction coefficient × pin radius; e.g. 0.08 × 12 mm):
+                       dry friction in the ceiling anchors' pins (spring cables only). Each pin
+                       resists its cable's swing with the moment μ r T; the straight cable
+                       passes it on as the force μ r T / l across the cable at the body
+                       anchor, against the anchor's velocity across the cable, regularised
+                       over ``velocity_scale`` (default 1e-4 m/s)
 cable_elasticity       ``stiffness`` N/m: the cables' true axial stiffness, which rig.yaml
                        gets wrong: it states ``declared_stiffness`` N/m, or (default) none —
                        then the tool assumes steel cables stretching 1–2 mm, so a much
@@ -83,7 +86,7 @@ from typing import Any
 
 import numpy as np
 
-EFFECT_NAMES = ("viscous_damping", "air_drag", "coulomb_friction", "cable_elasticity", "cable_mass", "body_mass",
+EFFECT_NAMES = ("viscous_damping", "air_drag", "pivot_friction", "cable_elasticity", "cable_mass", "body_mass",
                 "exciter_rotor", "cg_offset", "imu_offset", "imu_misalignment", "sensor_delay", "gyro_bias",
                 "accelerometer_bias", "load_cell_scale", "gyroscopic_coupling", "gyro_bias_drift", "gyro_scale",
                 "structural_mode", "compliant_body")
@@ -94,7 +97,7 @@ EITHER_3 = (0, 3)
 PARAMETERS: dict[str, dict[str, tuple[int | tuple[int, int], bool]]] = {
     "viscous_damping": {"linear": (0, False), "angular": (0, False)},
     "air_drag": {"linear": (0, False), "angular": (0, False)},
-    "coulomb_friction": {"torque": (0, False), "force": (0, False), "velocity_scale": (0, False)},
+    "pivot_friction": {"mu_r": (0, True), "velocity_scale": (0, False)},
     "cable_elasticity": {"stiffness": (0, True), "declared_stiffness": (0, False)},
     "cable_mass": {"mass": (0, True)},
     "body_mass": {"mass_error": (0, True)},

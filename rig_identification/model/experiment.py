@@ -444,6 +444,9 @@ def experiment_from_dict(d: Any, source: str = "<memory>") -> Experiment:
         raise ExperimentError(str(e)) from None
     if any(e.name == "exciter_rotor" for e in effects) and excitation.rotating is None:
         raise ExperimentError(f"{source}: effects: exciter_rotor needs excitation.rotating")
+    if any(e.name == "pivot_friction" for e in effects) and cable_model.type != "spring":
+        raise ExperimentError(f"{source}: effects: pivot_friction needs spring cables (cable_model.type: spring): "
+                              "the pins' friction scales with tensions that inextensible cables solve for")
     for i, eff in enumerate(effects):
         if eff.name == "compliant_body":    # the split must be a physical pair of rigid bodies
             try:

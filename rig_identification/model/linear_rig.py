@@ -56,10 +56,12 @@ class RigParameters:
     body_damping: (2,) the body's viscous damping: linear N·s/m on the CG's velocity, angular
     N·m·s on the angular velocity (air, joints; the ``viscous_damping`` effect).
     air_drag: (2,) quadratic damping: linear N·s²/m² (force −c |v| v on the CG), angular
-    N·m·s²/rad² (moment −c |ω| ω).  friction: (2,) Coulomb friction, regularised
-    (:data:`~rig_identification.model.rig_ode.FRICTION_SPEED`): force N (−f v/|v|), moment N·m
-    (−τ ω/|ω|).  These two leave the linearised equations (zero slope at rest, or none) and
-    act in the exact model (:mod:`~rig_identification.model.rig_ode`).  rotor: (2,) the exciter's
+    N·m·s²/rad² (moment −c |ω| ω).  pivot_friction: m, μ r of the ceiling anchors' pins (friction
+    coefficient times pin radius): each pin resists its cable's swing with the Coulomb moment
+    μ r T, a force μ r T / l across the cable at its body anchor against the anchor's velocity
+    across it (regularised, :data:`~rig_identification.model.rig_ode.PIVOT_SPEED`).  These two
+    leave the linearised equations (zero slope at rest, or none) and act in the exact model
+    (:mod:`~rig_identification.model.rig_ode`).  rotor: (2,) the exciter's
     rotor (exact model only): its unbalance, kg·m (the unbalanced mass times its eccentricity:
     its weight's moment about the CG turns with the force's direction), and its mass, kg (carried
     on the exciter's bearing: the exciter's load cells read the bearing's force, the rotor's own
@@ -93,7 +95,7 @@ class RigParameters:
     inclinometer_rotation: np.ndarray | None
     body_damping: np.ndarray = field(default_factory=lambda: np.zeros(2))
     air_drag: np.ndarray = field(default_factory=lambda: np.zeros(2))
-    friction: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    pivot_friction: float = 0.0
     load_cell_delay: float = 0.0
     gyro_scale: np.ndarray = field(default_factory=lambda: np.zeros(3))
     gyro_drift: np.ndarray = field(default_factory=lambda: np.zeros(3))

@@ -2,8 +2,10 @@
 
 The same physics as :class:`~rig_identification.model.dynamics.RigDynamics` with spring-damper
 cables (Newton–Euler with the gyroscopic term; tension max(0, k_i (l_i - L_i) + τ k_i dl_i/dt)
-along the cable; the body's damping on the CG's velocity and the angular velocity: viscous
--c v, quadratic -c |v| v and Coulomb -f v/|v|, regularised; the exciter's unbalanced mass,
+along the cable; the ceiling pins' friction, a Coulomb moment μ r T_i resisting each cable's
+swing: the force μ r T_i / l_i across the cable at its body anchor, against the anchor's
+velocity across it, regularised; the body's damping on the CG's velocity and the angular
+velocity: viscous -c v and quadratic -c |v| v; the exciter's unbalanced mass,
 whose weight turns with the measured force's direction), driven by the measured
 exciter force (its frame turning with the body), the force a cubic spline through the samples of
 a uniform grid (linear interpolation of a 200 Hz force leaves 0.2 N in the tensions: they see
@@ -37,8 +39,10 @@ from .parametrisation import to_tensor
 #: ω_max h of the fixed step: RK4 is stable to 2.8; the cables' axial modes it integrates
 #: coarsely lie above the fit's band, and the band's motion (≤ 5 Hz) is resolved to ~1e-6.
 STEP_OMEGA = 0.5
-#: m/s and rad/s: Coulomb friction −f v/sqrt(|v|² + ε²) is regularised over this speed ε.
-FRICTION_SPEED = 1e-3
+#: m/s: the pins' Coulomb friction −F v/sqrt(|v|² + ε²) (v the body anchor's velocity across its
+#: cable) is regularised over this speed ε, well below a swing's anchor speeds (mm/s to cm/s), so
+#: that the friction is dry, not viscous, over nearly all of a swing.
+PIVOT_SPEED = 1e-4
 
 
 @numba.njit(cache=True, nogil=True)
@@ -90,6 +94,20 @@ def _rhs(y: np.ndarray, u0: float, u1: float, A: np.ndarray, r: np.ndarray, L: n
         Mx += ry * bz - rz * by
         My += rz * bx - rx * bz
         Mz += rx * by - ry * bx
+        if bd[5] != 0.0 and T > 0.0:      # the ceiling pin's friction moment μ r T, across the cable at the anchor
+            vn = ux * pdx + uy * pdy + uz * pdz
+            vx, vy, vz = pdx - vn * ux, pdy - vn * uy, pdz - vn * uz
+            sc = -bd[5] * T / (length * math.sqrt(vx * vx + vy * vy + vz * vz + PIVOT_SPEED * PIVOT_SPEED))
+            fx, fy, fz = sc * vx, sc * vy, sc * vz
+            Fx += fx
+            Fy += fy
+            Fz += fz
+            bx = R[0, 0] * fx + R[1, 0] * fy + R[2, 0] * fz
+            by = R[0, 1] * fx + R[1, 1] * fy + R[2, 1] * fz
+            bz = R[0, 2] * fx + R[1, 2] * fy + R[2, 2] * fz
+            Mx += ry * bz - rz * by
+            My += rz * bx - rx * bz
+            Mz += rx * by - ry * bx
     ex = Re[0, 0] * u0 + Re[0, 1] * u1
     ey = Re[1, 0] * u0 + Re[1, 1] * u1
     ez = Re[2, 0] * u0 + Re[2, 1] * u1
@@ -100,17 +118,17 @@ def _rhs(y: np.ndarray, u0: float, u1: float, A: np.ndarray, r: np.ndarray, L: n
     My += re[2] * ex - re[0] * ez
     Mz += re[0] * ey - re[1] * ex
     fn = math.sqrt(ex * ex + ey * ey + ez * ez)
-    if bd[6] != 0.0 and fn > 0.0:          # the exciter's unbalanced mass, its weight turning with it
+    if bd[4] != 0.0 and fn > 0.0:          # the exciter's unbalanced mass, its weight turning with it
         gx, gy, gz = -g * R[2, 0], -g * R[2, 1], -g * R[2, 2]
-        Mx += bd[6] * (ey * gz - ez * gy) / fn
-        My += bd[6] * (ez * gx - ex * gz) / fn
-        Mz += bd[6] * (ex * gy - ey * gx) / fn
-    # the body's damping: viscous bd[0:2], quadratic bd[2:4], Coulomb bd[4:6] (linear, angular); bd[6]: the
-    # exciter's unbalance (above)
+        Mx += bd[4] * (ey * gz - ez * gy) / fn
+        My += bd[4] * (ez * gx - ex * gz) / fn
+        Mz += bd[4] * (ex * gy - ey * gx) / fn
+    # the body's damping: viscous bd[0:2], quadratic bd[2:4] (linear, angular); bd[4]: the exciter's
+    # unbalance (above); bd[5]: the pins' μ r (in the cables' loop)
     speed = math.sqrt(y[7] * y[7] + y[8] * y[8] + y[9] * y[9])
     spin = math.sqrt(wx * wx + wy * wy + wz * wz)
-    fl = bd[0] + bd[2] * speed + bd[4] / math.sqrt(speed * speed + FRICTION_SPEED * FRICTION_SPEED)
-    fa = bd[1] + bd[3] * spin + bd[5] / math.sqrt(spin * spin + FRICTION_SPEED * FRICTION_SPEED)
+    fl = bd[0] + bd[2] * speed
+    fa = bd[1] + bd[3] * spin
     Fx -= fl * y[7]
     Fy -= fl * y[8]
     Fz -= fl * y[9]
@@ -259,7 +277,7 @@ def _arguments(p: RigParameters, y0: ArrayLike, d: Drive) -> tuple[Any, ...]:
             p.stiffness.astype(float), (p.damping_time * p.stiffness).astype(float), p.gain.astype(float),
             float(p.mass), J, np.linalg.inv(J), float(p.gravity), np.ascontiguousarray(p.exciter_rotation[:, :2]),
             p.exciter_position - p.cg,
-            np.concatenate([p.body_damping, p.air_drag, p.friction, p.rotor[:1]]).astype(float),
+            np.concatenate([p.body_damping, p.air_drag, p.rotor[:1], [p.pivot_friction]]).astype(float),
             np.ascontiguousarray(p.imu_rotation), p.imu_position - p.cg,
             np.ascontiguousarray(Rinc), has_inc)
 
