@@ -418,6 +418,9 @@ def test_bench_effects_simulate_on_a_random_rig(effects):
     (dict(COMPLIANT, sprung_cg=[0.0, 0.0]), "effects[0].sprung_cg"),
     (dict(COMPLIANT, sprung_inertia_share=1.0), "effects[0].sprung_inertia_share"),
     (dict(COMPLIANT, stiffness=1e5), "effects[0].stiffness"),
+    ({"name": "pivot_friction"}, "needs the parameter mu_r"),
+    ({"name": "pivot_friction", "mu_r": -1e-3}, "effects[0].mu_r"),
+    ({"name": "pivot_friction", "mu_r": 1e-3, "velocity_scale": 0.0}, "effects[0].velocity_scale"),
 ])
 def test_effect_parameter_errors_name_the_field(effect, field):
     d = yaml.safe_load(DEFAULT.read_text())
@@ -425,6 +428,17 @@ def test_effect_parameter_errors_name_the_field(effect, field):
     with pytest.raises(ExperimentError) as e:
         experiment_from_dict(d, "bad.yaml")
     assert "bad.yaml" in str(e.value) and field in str(e.value)
+
+
+def test_pivot_friction_needs_spring_cables():
+    """The pins' friction grows with the tensions, which inextensible cables solve for from the
+    accelerations: an experiment with both is refused, naming the file and the cable model."""
+    d = yaml.safe_load(DEFAULT.read_text())
+    d["effects"] = [{"name": "pivot_friction", "mu_r": 1e-3}]
+    experiment_from_dict(d, "good.yaml")
+    d["cable_model"] = {"type": "inextensible"}
+    with pytest.raises(ExperimentError, match=r"bad.yaml: effects: pivot_friction needs spring cables"):
+        experiment_from_dict(d, "bad.yaml")
 
 
 def test_compliant_body_damping_ratio_may_be_per_axis():

@@ -233,6 +233,9 @@ def _check_ranges(name: str, params: dict[str, Any], w: str) -> None:
 
     if name == "gyro_bias_drift":
         at_least("random_walk", 0.0)
+    elif name == "pivot_friction":
+        at_least("mu_r", 0.0)
+        at_least("velocity_scale", 0.0, strict=True)
     elif name == "gyro_scale":
         at_least("scale", 0.0, strict=True)
     elif name == "structural_mode":
