@@ -58,9 +58,9 @@ ROWS = {
     "exciter_rotor": (4, "wide", [{"name": "exciter_rotor", "rotor_mass": 10.0}], False),
     "soft_cables": (4, "wide", [{"name": "cable_elasticity", "stiffness": 5.0e5}], False),
     "air_drag": (4, "wide", [{"name": "air_drag", "linear": 5000.0, "angular": 5000.0}], False),
-    "pivot_friction": (4, "wide", [{"name": "pivot_friction", "mu_r": 1e-3}], False),
     "sensor_delay": (4, "wide", [{"name": "sensor_delay", "stream": "load_cells", "delay": 0.02}], False),
     "load_cell_scale": (4, "wide", [{"name": "load_cell_scale", "cable": "c1", "scale": 1.03}], False),
+    "pivot_friction": (4, "wide", [{"name": "pivot_friction", "mu_r": 1e-3}], False),
 }
 
 

@@ -545,11 +545,15 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     explains every channel, the misfit was its descent's (a flat likelihood holds other minima),
     not the extensions' physics; nothing is named, and that rigid fit is the one reported (on
     bench_trust's clean, undetermined 7201 the first rigid fit misfit and ``sensor_delay`` was
-    named).  Where neither the rigid-body fit nor the extensions its tests added find the motion,
-    the extensions the recording itself gives a start (:func:`physical_starts`; ``damped``: the
-    forced response fitted with the body's damping, the air drag's start; ``turning``: with the
-    exciter rotor's unbalance, the rotor's) are fitted from it (:func:`restart_step`), and the
-    steps go on from the first that finds it.
+    named).  Where the rigid-body fit does not find the motion and the extensions its tests added
+    do not explain the recording (a channel beyond
+    :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` of its noise, or the motion still
+    lost), the extensions the recording itself gives a start (:func:`physical_starts`; ``damped``:
+    the forced response fitted with the body's damping, the air drag's start; ``turning``: with the
+    exciter rotor's unbalance, the rotor's) are fitted from it (:func:`restart_step`), the steps
+    go on from the first that finds it, and of the two the fit whose worst channel is nearer its
+    noise is kept (at a lost rigid fit the tests' linearisation is no evidence: on bench_trust's
+    air-drag rig 8500 it added the exciter's delay, which left the tensions 8–9× their noise).
     """
     if not fit.determined and np.max(fit.residual_level) <= LEVEL_LIMIT:
         return RigDiagnosis(prior_conflicts(fit, prior, cables), None, (), fit, None, False)
@@ -558,10 +562,15 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
         log.info("diagnosis: with %s the fit still does not find the motion: nothing named",
                  ", ".join(s.added for s in steps))
         steps, current = [], fit
-    if not steps and refit is not None and lost(fit):
+    if refit is not None and lost(fit) and (not steps or np.max(current.residual_level) > LEVEL_LIMIT):
         restarted = restart_step(rec, prior, fit, refit, damped, turning)
         if restarted is not None:
-            steps, current, lin = _extended(rec, prior, [restarted[0]], restarted[1], refit)
+            after = _extended(rec, prior, [restarted[0]], restarted[1], refit)
+            if not steps or np.max(after[1].residual_level) < np.max(current.residual_level):
+                steps, current, lin = after
+            else:
+                log.info("diagnosis: the fit from %s explains less than the one with %s", restarted[0].added,
+                         ", ".join(s.added for s in steps))
     if steps and not current.determined and refit is not None:
         again = refit({}, current.parameters.inertia, None)
         if np.max(again.residual_level) <= LEVEL_LIMIT:
