@@ -12,12 +12,13 @@ import io
 import numpy as np
 import pytest
 from conftest import background, gather
+from scipy.stats import t
 
 from rig_identification.cli.diagnose import print_rig_diagnosis_text
 from rig_identification.design.scenarios import simulate_random
 from rig_identification.diagnosis.rig_diagnosis import physical_starts
 from rig_identification.estimation.harmonic_start import damped_start, drag_start
-from rig_identification.estimation.rig_fit import REWEIGHT_LIMIT
+from rig_identification.estimation.rig_fit import REWEIGHT_LIMIT, SANDWICH_BLOCKS
 from rig_identification.io.recording import Recording
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import entry_scales
@@ -27,6 +28,9 @@ DELAY = 0.008
 ROTOR_MASS = 10.0
 DRAG = 5000.0
 PINS = 1e-3         # m: μ r of the ceiling pins (0.08 × 12 mm)
+GYRO_BIAS = [0.003, -0.002, 0.004]      # rad/s, IMU axes
+#: A bias's error over its σ (12 blocks' means: Student's t, 11 degrees of freedom) within this at 99.9 %.
+T999 = float(t.ppf(0.9995, SANDWICH_BLOCKS - 1))
 
 
 def _diagnosed(seed: int, effects: list, seconds: float):
@@ -55,7 +59,8 @@ background("rig_diagnosis", __file__, _diagnosed, {
     "delay": (7001, [{"name": "sensor_delay", "stream": "load_cells", "delay": DELAY}], 20.0),
     # 7002: the exciter's spin axis vertical, so its unbalance's weight makes a rotating moment
     "rotor": (7002, [{"name": "exciter_rotor", "rotor_mass": ROTOR_MASS}], 20.0),
-    "pins": (7003, [{"name": "pivot_friction", "mu_r": PINS}], 20.0),
+    # and a constant gyro bias (the fit removes each channel's offset: the pins' fit is as without it)
+    "pins": (7003, [{"name": "pivot_friction", "mu_r": PINS}, {"name": "gyro_bias", "bias": GYRO_BIAS}], 20.0),
 }, first=True)
 background("drag_start", __file__, _drag_start, {"drag": (8500, 30.0)})
 
@@ -113,15 +118,24 @@ def test_an_exciter_rotor_is_named_and_the_body_given_without_it():
 
 
 def test_dry_friction_in_the_ceiling_pins_is_named_fitted_and_the_tensor_corrected():
-    """Dry friction in the ceiling anchors' pins (μ r = 1 mm: 0.08 on a 12 mm pin; 20 s): the
-    rigid-body model does not explain the tensions (beyond 1.5× their noise); the diagnosis names
-    pivot_friction, told apart from every other extension and from the body's viscous damping
-    (at one amplitude an equivalent damping), and nothing else; the refit gives μ r within 3 σ and
-    2 %, explains every channel within 1.5× its noise, and every tensor entry it determines is
-    the truth's within 1 % and 3 σ."""
-    truth, d, _ = gather("rig_diagnosis", "pins")["pins"]
+    """Dry friction in the ceiling anchors' pins (μ r = 1 mm: 0.08 on a 12 mm pin; 20 s) and a
+    constant gyro bias: the rigid-body model does not explain the tensions (beyond 1.5× their
+    noise); the diagnosis names pivot_friction, told apart from every other extension and from the
+    body's viscous damping (at one amplitude an equivalent damping), and the gyro's bias, and
+    nothing else; the bias within Student's t at 99.9 % of its σ of the truth and its σ within a
+    factor 2 of the white noise's σ/√m; the refit gives μ r within 3 σ and 2 %, explains every
+    channel within 1.5× its noise, and every tensor entry it determines is the truth's within 1 %
+    and 3 σ.  (The delay's and the rotor's rigs, without a bias, name none.)"""
+    truth, d, text = gather("rig_diagnosis", "pins")["pins"]
     dg = d["diagnosis"]
-    assert dg["named"] == ["pivot_friction"] and dg["extensions"] == ["pivot_friction"], dg["steps"]
+    assert dg["named"] == ["pivot_friction", "gyro_bias"] and dg["extensions"] == ["pivot_friction"], dg["steps"]
+    bias = dg["gyro_bias"]
+    err = np.subtract(bias["values"], GYRO_BIAS)
+    assert np.all(np.abs(err) < T999 * np.array(bias["std"])), (err, bias)
+    sim = truth["simulator"]
+    white = sim["sensor_noise_sigma"]["gyro"] / np.sqrt(d["window"]["duration_s"] * sim["sensor_rates_hz"]["imu"])
+    assert np.all((np.array(bias["std"]) > white / 2) & (np.array(bias["std"]) < 2 * white)), (bias["std"], white)
+    assert "gyro_bias named" in text
     before = dg["residual_level_before"]
     assert max(v for c, v in before.items() if c.startswith("tension")) > LEVEL_LIMIT, before
     ext = d["extensions"]["pivot_friction"]
@@ -276,22 +290,79 @@ def test_the_dampings_alternatives_leave_out_one_the_model_already_holds():
     assert d.found and d.plausible and d.cross_validated
 
 
-def test_nothing_is_tested_where_the_fit_leaves_the_tensor_undetermined():
-    """A fit that leaves the tensor undetermined (verdict not_identifiable) sits at one of many
-    estimates along its undetermined directions: diagnose_rig tests nothing there (no extension,
-    no damping), names nothing and says why; the linearisation is never made (rec None)."""
+def test_no_extension_is_tested_where_the_fit_leaves_the_tensor_undetermined(monkeypatch):
+    """A fit that explains the recording but leaves the tensor undetermined (verdict
+    not_identifiable) sits at one of many estimates along its undetermined directions:
+    diagnose_rig tests no extension there and refits nothing, but reads what the model holds —
+    its viscous damping against quadratic drag and the pins' friction in its place (the
+    linearisation asked for those two alone) and the gyro's bias from the fit's offsets — and
+    names those it finds; the advice says why nothing else is tested."""
     from types import SimpleNamespace
 
-    from rig_identification.diagnosis.rig_diagnosis import diagnose_rig
+    from rig_identification.diagnosis import rig_diagnosis as rd
+    asked = []
+
+    class Lin:
+        def __init__(self, rec, prior, fit, names):
+            asked.append(names)
+            self.names = names
+
+        def without(self, index):
+            return self
+
+        def base(self):
+            return "base"
+
+        def fitted(self, names):
+            return names
+
+        def vuong(self, a, b):
+            return 5.0
+
+        def held_out(self, index):
+            return np.array([3.0, 4.0])
 
     def refit(extensions, start, stiffness):
         raise AssertionError("no refit where the tensor is not determined")
-    fit = SimpleNamespace(unknowns=None, residual_level=np.array([1.0, 1.02]), channels=("tension:c0", "gyro_x"),
-                          determined=False)
-    dg = diagnose_rig(None, None, fit, ["c0"], refit)
-    assert dg.steps == () and dg.damping is None and dg.refit is None and dg.named == () and dg.classes == ()
-    assert len(dg.advice) == 1 and "not determined" in dg.advice[0] and "nothing is named" in dg.advice[0]
-    assert dg.to_dict()["determined"] is False
+    monkeypatch.setattr(rd, "LinearisedRig", Lin)
+    monkeypatch.setattr(rd, "next_step", lambda lin: pytest.fail("an extension tested at an undetermined tensor"))
+    channels = ("tension:c0", "gyro_x", "gyro_y", "gyro_z")
+    fit = SimpleNamespace(unknowns=None, residual_level=np.array([1.0, 1.02, 0.98, 1.01]), channels=channels,
+                          determined=False, layout=SimpleNamespace(body_damping=slice(0, 2)),
+                          parameters=SimpleNamespace(body_damping=np.array([180.0, 320.0])),
+                          covariance=np.diag([1.7, 210.0]), offsets=np.array([12.0, -0.003, 2e-5, 0.004]),
+                          offset_std=np.array([0.01, 2e-5, 2e-5, 2e-5]))
+    dg = rd.diagnose_rig(None, None, fit, ["c0"], refit)
+    assert asked == [("air_drag", "pivot_friction")]
+    assert dg.steps == () and dg.refit is None and not dg.determined
+    assert dg.damping.found and dg.damping.alternatives == {"air_drag": 5.0, "pivot_friction": 5.0}
+    np.testing.assert_allclose(dg.gyro.values, [-0.003, 2e-5, 0.004])
+    assert dg.named == ("viscous_damping", "gyro_bias") and dg.classes == ()
+    assert len(dg.advice) == 1 and "not determined" in dg.advice[0] and "no extension is tested" in dg.advice[0]
+    assert dg.to_dict()["determined"] is False and dg.to_dict()["gyro_bias"]["found"]
+
+
+def test_a_gyro_bias_is_found_where_its_mean_stands_out_of_the_blocks_scatter():
+    """The offset the fit removes and its σ from the blocks' means (channel_offsets): on white
+    noise (σ 2 mrad/s, 18 000 samples) σ is the white noise's σ/√m (within the scatter of a σ
+    from 12 blocks' means), and a bias of
+    0.2 mrad/s (13 σ) is found, within Student's t at 99.9 % of its σ, while none is not; a random
+    walk of 1e-4 rad/s/√s (no constant bias)
+    widens σ to the walk's scatter, so its mean is not read as a bias."""
+    from rig_identification.diagnosis.rig_diagnosis import GyroBias
+    from rig_identification.estimation.rig_fit import channel_offsets
+
+    rng = np.random.default_rng(5)
+    m = 18000
+    white = 0.002 * rng.standard_normal((m, 3))
+    off, sd = channel_offsets(white + [2e-4, 0.0, 0.0])
+    ratio = sd / (0.002 / np.sqrt(m))           # √(χ²₁₁/11): within 0.45–1.8 at 99.9 %
+    assert np.all((ratio > 0.45) & (ratio < 1.8)), ratio
+    assert np.all(np.abs(off - [2e-4, 0.0, 0.0]) < T999 * sd)
+    assert GyroBias(off, sd).found and not GyroBias(*channel_offsets(white)).found
+    walk = np.cumsum(1e-4 * np.sqrt(1 / 200) * rng.standard_normal((m, 3)), axis=0)
+    off, sd = channel_offsets(walk + white)
+    assert np.all(sd > 2 * 0.002 / np.sqrt(m)), (off, sd)
 
 
 def test_no_name_where_the_rigid_model_restarted_from_the_extended_fit_explains_every_channel(monkeypatch):
@@ -306,7 +377,7 @@ def test_no_name_where_the_rigid_model_restarted_from_the_extended_fit_explains_
     def fake(level, extensions=(), determined=True):
         return SimpleNamespace(residual_level=np.array(level), channels=("tension:c0", "gyro_x"), unknowns=None,
                                determined=determined, parameters=SimpleNamespace(inertia=np.arange(6.0)),
-                               layout=SimpleNamespace(extensions=extensions))
+                               layout=SimpleNamespace(extensions=extensions), offsets=None, offset_std=None)
     step = SimpleNamespace(added="load_cell_delay", best="load_cell_delay", named=True, indistinguishable=())
     lin = SimpleNamespace(fitted=lambda names: SimpleNamespace(of=lambda e: np.array([0.008])))
     monkeypatch.setattr(rig_diagnosis, "LinearisedRig", lambda rec, prior, current, untried: lin)

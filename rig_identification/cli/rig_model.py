@@ -234,6 +234,12 @@ def print_diagnosis(dg: RigDiagnosis) -> None:
             if not dg.damping.found else "not told apart" if dg.explained else "not named"
         print(f"  damping: viscous, {max(dg.damping.significance):.0f} σ (linear {damp[0]:.4g} ± {sd[0]:.2g} N·s/m, "
               f"angular {damp[1]:.4g} ± {sd[1]:.2g} N·m·s); in its place (Vuong's z, + viscous better): {alt}: {word}")
+    if dg.gyro is not None and dg.gyro.found:
+        g = dg.gyro
+        print("  gyro bias (the offset the fit removed): " + ", ".join(
+            f"{a:.3g} ± {b:.1g}" for a, b in zip(g.values, g.std)) + f" rad/s (IMU axes; |z| up to "
+            f"{max(abs(g.z)):.0f}, threshold {g.threshold:.1f}): "
+            + ("gyro_bias named" if dg.explained else "not named"))
     for line in dg.advice:
         print(f"  {line}")
     if dg.refit is not None:

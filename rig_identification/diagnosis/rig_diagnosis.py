@@ -37,10 +37,16 @@ Two kinds of finding.  Data errors come first: they are unknowns of the model it
   tests too: no term below zero beyond 3 σ, and fitted on either half it lowers χ² on the other
   (:attr:`Damping.found`).
 
+The gyro's constant bias is the offset the fit removes from its channels (no physics of a body
+hanging on cables makes a mean rate): named ``gyro_bias`` where the recording determines it
+(:class:`GyroBias`).
+
 The last refit's tensor is the estimate, and each channel's residual before and after shows the
 fit improve.  The data errors are those of the last fit.  Where the fit with the extensions leaves
 the tensor undetermined, the rigid-body model fitted again from its tensor must still misfit for
-anything to be named (:func:`diagnose_rig`).
+anything to be named (:func:`diagnose_rig`).  Where the rigid-body fit explains the recording and
+leaves the tensor undetermined, no extension is tested; what the model itself holds — its viscous
+damping and the gyro's bias — is still read and named as above.
 """
 from __future__ import annotations
 
@@ -207,6 +213,51 @@ class Damping:
                 "cross_validated": self.cross_validated, "found": self.found}
 
 
+#: The gyro's channels (:func:`~rig_identification.estimation.rig_record.channel_names`).
+GYRO_CHANNELS = ("gyro_x", "gyro_y", "gyro_z")
+
+
+@dataclass(frozen=True)
+class GyroBias:
+    """The gyro's constant bias: the offset the fit removed from its channels
+    (:attr:`~rig_identification.estimation.rig_fit.RigFit.offsets`), values (3,) rad/s IMU axes,
+    std (3,) their σ (:func:`~rig_identification.estimation.rig_fit.channel_offsets`: from the
+    scatter of the blocks' means, Student's t with SANDWICH_BLOCKS − 1 degrees of freedom).
+    A body hanging on cables has no mean rate, but the Earth turns at 7.3e-5 rad/s: a gyro fine
+    enough to resolve that reads it as a bias too."""
+
+    values: np.ndarray
+    std: np.ndarray
+
+    @property
+    def z(self) -> np.ndarray:
+        """(3,) each axis's bias over its σ."""
+        return self.values / self.std
+
+    @property
+    def threshold(self) -> float:
+        """Student's t (SANDWICH_BLOCKS − 1 degrees of freedom) at :data:`SIGNIFICANCE`, two-sided,
+        over three axes (Bonferroni): one test per recording, as an extension's."""
+        return float(t.ppf(1 - (1 - SIGNIFICANCE) / 6, SANDWICH_BLOCKS - 1))
+
+    @property
+    def found(self) -> bool:
+        """An axis's bias lies beyond :attr:`threshold` of its σ."""
+        return bool(np.any(np.abs(self.z) > self.threshold))
+
+    def to_dict(self) -> dict:
+        return {"values": self.values.tolist(), "std": self.std.tolist(), "units": "rad/s, IMU axes",
+                "z": self.z.tolist(), "threshold": self.threshold, "found": self.found}
+
+
+def gyro_bias(fit: RigFit) -> GyroBias | None:
+    """The gyro's bias in ``fit`` (:class:`GyroBias`), None where the fit carries no offsets."""
+    if fit.offsets is None or fit.offset_std is None:
+        return None
+    idx = [fit.channels.index(c) for c in GYRO_CHANNELS]
+    return GyroBias(fit.offsets[idx], fit.offset_std[idx])
+
+
 @dataclass(frozen=True)
 class PriorConflict:
     """An unknown the data pull off its prior: ``unknown`` (its label), ``estimate`` and ``prior``
@@ -238,7 +289,8 @@ class RigDiagnosis:
     alternatives (``damping``, None where it is not significant), the extensions added step by
     step (``steps``), the refit with them (``refit``, None where none was added) and the fit it
     started from (``rigid``); ``determined``: whether the fit determined the tensor (where it did
-    not, nothing was tested: :func:`diagnose_rig`)."""
+    not, no extension was tested: :func:`diagnose_rig`); ``gyro``: the gyro's bias in the last fit
+    (:class:`GyroBias`; None: not read)."""
 
     conflicts: tuple[PriorConflict, ...]
     damping: Damping | None
@@ -246,6 +298,7 @@ class RigDiagnosis:
     rigid: RigFit
     refit: RigFit | None
     determined: bool = True
+    gyro: GyroBias | None = None
 
     @property
     def found_motion(self) -> bool:
@@ -276,14 +329,16 @@ class RigDiagnosis:
     @property
     def named(self) -> tuple[str, ...]:
         """Where the last fit explains the recording (:attr:`explained`): the extensions the
-        recording tells apart from every other candidate, and ``viscous_damping`` where the model's
+        recording tells apart from every other candidate, ``viscous_damping`` where the model's
         viscous damping is significant and told apart from quadratic drag and the pins' friction in
-        its place.  Otherwise none."""
+        its place, and ``gyro_bias`` where the gyro's bias is found (:class:`GyroBias`).  Otherwise
+        none."""
         if not self.explained:
             return ()
         d = self.damping
         viscous = ("viscous_damping",) if d is not None and d.found and not d.indistinguishable else ()
-        return tuple(s.added for s in self.steps if s.named) + viscous
+        bias = ("gyro_bias",) if self.gyro is not None and self.gyro.found else ()
+        return tuple(s.added for s in self.steps if s.named) + viscous + bias
 
     @property
     def classes(self) -> tuple[tuple[str, ...], ...]:
@@ -306,10 +361,10 @@ class RigDiagnosis:
             return [f"the model with {held} still leaves {', '.join(self.unexplained)} beyond {LEVEL_LIMIT:g}× the "
                     "noise: what it leaves out is none of the extensions tested alone (a structural mode, a sprung "
                     "body, several effects at once?); nothing is named"]
-        if not self.determined:
-            return ["the tensor is not determined (not_identifiable): the estimate is one of many that fit the "
-                    "recording as well, so no test at it tells what the model leaves out; nothing is named"]
-        out = []
+        out = [] if self.determined else [
+            "the tensor is not determined (not_identifiable): the estimate is one of many that fit the recording "
+            "as well, so no extension is tested at it; only what the model holds (its damping, the gyro's bias) "
+            "is named"]
         for g in self.classes:
             kind = "damping" if all(e in DAMPING for e in g) else "other"
             out.append(f"{' or '.join(g)}: not told apart by this recording; {APART_ADVICE[kind]} tells them apart")
@@ -320,6 +375,7 @@ class RigDiagnosis:
                    "unexplained_channels": list(self.unexplained), "data_errors": [c.to_dict() for c in self.conflicts],
                    "damping": None if self.damping is None else self.damping.to_dict(),
                    "steps": [s.to_dict() for s in self.steps], "extensions": list(self.extensions),
+                   "gyro_bias": None if self.gyro is None else self.gyro.to_dict(),
                    "named": list(self.named), "classes": [list(g) for g in self.classes], "advice": self.advice,
                    "residual_level_before": {c: float(v) for c, v in
                                              zip(self.rigid.channels, self.rigid.residual_level)}}
@@ -536,12 +592,14 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     Where ``fit`` explains every channel (within
     :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` of its noise) but does not
     determine the tensor (:attr:`~rig_identification.estimation.rig_fit.RigFit.determined`:
-    verdict ``not_identifiable``), no extension and no damping is tested: the estimate is one of
-    many along the tensor's undetermined directions, and the tests at it name physics that is not
-    there (bench_trust's clean, undetermined 7201 took ``sensor_delay``); the data errors are
-    listed as ever.  Under a misfit the tests run (σ is not calibrated there, so it does not judge
-    the tensor undetermined).  Where they added extensions and the fit with them leaves the tensor
-    undetermined, the rigid-body model is fitted again from that fit's tensor: where it then
+    verdict ``not_identifiable``), no extension is tested: the estimate is one of many along the
+    tensor's undetermined directions, and the tests at it name physics that is not there
+    (bench_trust's clean, undetermined 7201 took ``sensor_delay``); the data errors, the model's
+    own damping (its alternatives in its place, :func:`damping_alternatives`: its σ holds the
+    undetermined directions) and the gyro's bias are read as ever.  Under a misfit the tests run
+    (σ is not calibrated there, so it does not judge the tensor undetermined).  Where they added
+    extensions and the fit with them leaves the tensor undetermined, the rigid-body model is
+    fitted again from that fit's tensor: where it then
     explains every channel, the misfit was its descent's (a flat likelihood holds other minima),
     not the extensions' physics; nothing is named, and that rigid fit is the one reported (on
     bench_trust's clean, undetermined 7201 the first rigid fit misfit and ``sensor_delay`` was
@@ -556,7 +614,8 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     air-drag rig 8500 it added the exciter's delay, which left the tensions 8–9× their noise).
     """
     if not fit.determined and np.max(fit.residual_level) <= LEVEL_LIMIT:
-        return RigDiagnosis(prior_conflicts(fit, prior, cables), None, (), fit, None, False)
+        damping = damping_alternatives(LinearisedRig(rec, prior, fit, DAMPING[1:]), fit)
+        return RigDiagnosis(prior_conflicts(fit, prior, cables), damping, (), fit, None, False, gyro_bias(fit))
     steps, current, lin = _extended(rec, prior, [], fit, refit)
     if steps and lost(current):
         log.info("diagnosis: with %s the fit still does not find the motion: nothing named",
@@ -576,16 +635,15 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
         if np.max(again.residual_level) <= LEVEL_LIMIT:
             log.info("diagnosis: the rigid-body model from the tensor of the fit with %s explains every channel, "
                      "the tensor undetermined: nothing named", ", ".join(s.added for s in steps))
-            return RigDiagnosis(prior_conflicts(again, prior, cables), None, (), again, None, False)
+            return RigDiagnosis(prior_conflicts(again, prior, cables), None, (), again, None, False, gyro_bias(again))
     # where the fit has not found the motion, the estimate is no minimum: a test there is no evidence
     damping = None if lost(current) else damping_alternatives(lin, current)
     conflicts = prior_conflicts(current, prior, cables)
     log.info("diagnosis: data errors %s; extensions %s", [c.unknown for c in conflicts], [s.added for s in steps])
-    return RigDiagnosis(conflicts, damping, tuple(steps), fit, current if steps else None)
+    return RigDiagnosis(conflicts, damping, tuple(steps), fit, current if steps else None, gyro=gyro_bias(current))
 
 
-__all__ = ["Candidate", "Step", "Damping", "PriorConflict", "RigDiagnosis", "plausible", "prior_conflicts", "next_step",
-           "lost", "Refit", "PhysicalStart", "physical_starts", "restart_step", "damping_alternatives",
-           "diagnose_rig", "SIGNIFICANCE",
-           "DETERMINED_Z", "APART_LEVEL", "MAX_EXTENSIONS", "CONFLICT_SIGMA", "DAMPING_SIGMA", "BOUNDS", "NON_NEGATIVE",
-           "DAMPING", "APART_ADVICE"]
+__all__ = ["Candidate", "Step", "Damping", "GyroBias", "PriorConflict", "RigDiagnosis", "plausible", "prior_conflicts",
+           "gyro_bias", "next_step", "lost", "Refit", "PhysicalStart", "physical_starts", "restart_step",
+           "damping_alternatives", "diagnose_rig", "SIGNIFICANCE", "DETERMINED_Z", "APART_LEVEL", "MAX_EXTENSIONS",
+           "CONFLICT_SIGMA", "DAMPING_SIGMA", "BOUNDS", "NON_NEGATIVE", "DAMPING", "APART_ADVICE", "GYRO_CHANNELS"]

@@ -40,6 +40,7 @@ from .rig_fit import (
     Body,
     RigFit,
     along_weakest,
+    channel_offsets,
     covariance,
     gauss_newton_gain,
     jacobian_near,
@@ -217,11 +218,12 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
         idx = last.indices(k)
         unit = _problem(rec, pt, f, prior, np.ones(len(rec.channels)))
         outputs = unit.outputs(pt.x)
-        offsets = np.mean(rec.y[rec.start:rec.start + unit.n] - np.concatenate(outputs), axis=0)
+        offsets, offset_std = channel_offsets(rec.y[rec.start:rec.start + unit.n] - np.concatenate(outputs))
         fits.append(RigFit(pt.parameters, pt.x[unit.lay.initial], cov[np.ix_(idx, idx)], crb,
                            levels(unit, pt.x, outputs), noise_scales[k], rec.channels,
                            natural_frequencies(linearise(pt.parameters, pt.rest)), unit.lay, nfev, settled,
-                           other_chi2, unit.fitted(pt.x, outputs), descent, pt.x, pt.bases, pt.rest, offsets))
+                           other_chi2, unit.fitted(pt.x, outputs), descent, pt.x, pt.bases, pt.rest, offsets,
+                           offset_std=offset_std))
     return JointFit(tuple(fits), tuple(singles))
 
 

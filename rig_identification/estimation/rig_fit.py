@@ -195,7 +195,8 @@ class RigFit:
     unknowns, rest: the rest pose — what the model is linearised about
     (:mod:`~rig_identification.estimation.rig_extensions`).  offsets: (n_out,) each channel's
     offset the fit eliminated, the mean of reading − model over the span (a load cell's bias N, a
-    gyro's rad/s, an accelerometer's m/s², an inclinometer's rad; the exciter's N).  jacobian:
+    gyro's rad/s, an accelerometer's m/s², an inclinometer's rad; the exciter's N), offset_std:
+    (n_out,) their σ (:func:`channel_offsets`).  jacobian:
     (rows, size) the weighted residual's Jacobian the covariance was made from (per unit of each
     unknown's scale), reused where the model is linearised again at the estimate.
     """
@@ -219,6 +220,7 @@ class RigFit:
     rest: RestPose | None = None
     offsets: np.ndarray | None = None
     jacobian: np.ndarray | None = None
+    offset_std: np.ndarray | None = None
 
     @property
     def ambiguous(self) -> list[int]:
@@ -677,13 +679,24 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     unit = RigProblem(rec, at, lay, prior, np.ones(channels), n_all)
     outputs = unit.outputs(x)             # one model run for the levels and the plotted series
     level = levels(unit, x, outputs)
-    offsets = np.mean(rec.y[rec.start:rec.start + n_all] - np.concatenate(outputs), axis=0)
+    offsets, offset_std = channel_offsets(rec.y[rec.start:rec.start + n_all] - np.concatenate(outputs))
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
                   freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x, outputs), descent, x, bases, rest,
-                  offsets, J)
+                  offsets, J, offset_std)
 
 
+
+
+def channel_offsets(residual: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each channel's offset the fit eliminates and its σ: ``residual`` (m, n_out) reading − model
+    over the fit's span (channel units).  The offset is the residual's mean; its σ the scatter of
+    the means of :data:`SANDWICH_BLOCKS` consecutive blocks over √blocks (Student's t with
+    blocks − 1 degrees of freedom), so a slow misfit or a drift widens it where the white noise's
+    σ/√m would not (the batch-means estimate of a mean's variance: Law & Kelton, *Simulation
+    Modeling and Analysis*, 3rd ed., §9.5.3).  Returns (offsets (n_out,), σ (n_out,))."""
+    means = np.array([b.mean(axis=0) for b in np.array_split(residual, SANDWICH_BLOCKS)])
+    return residual.mean(axis=0), means.std(axis=0, ddof=1) / np.sqrt(SANDWICH_BLOCKS)
 
 
 def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.ndarray:

@@ -158,6 +158,10 @@ def diagnosis_html(res: RigModelResult) -> str:
                    + ("" if dg.damping.found else "; not named: it fails an extension's plausibility or "
                       "cross-validation (held out χ² fall " + ", ".join(num(v, ".1f") for v in dg.damping.held_out)
                       + ")") + ".</p>")
+    if dg.gyro is not None and dg.gyro.found:
+        out.append("<p>Gyro bias (the offset the fit removed): "
+                   + ", ".join(f"{num(a, '.3g')} ± {num(b, '.1g')}" for a, b in zip(dg.gyro.values, dg.gyro.std))
+                   + f" rad/s, IMU axes ({'named' if 'gyro_bias' in dg.named else 'not named'}).</p>")
     if dg.advice:
         out.append("<ul>" + "".join(f"<li>{esc(a)}</li>" for a in dg.advice) + "</ul>")
     if dg.refit is not None:
