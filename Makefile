@@ -37,7 +37,7 @@ browser:
 
 # one BLAS thread per process: the tests run in this process and the heavy simulations of some
 # modules in one background worker on the second core (test/conftest.py; RIG_TEST_WORKERS=N sets how many, 0: none)
-# lint (ruff.toml: import order, unused names, lines ≤ 120) and types (setup.cfg [mypy]: the whole
+# lint (ruff.toml: import order, unused names, lines ≤ 120, function size) and types (setup.cfg [mypy]: the whole
 # package, strict on io/, model/ and estimation/), then the tests
 test: setup browser
 	$(VENV)/bin/ruff check rig_identification test bench
