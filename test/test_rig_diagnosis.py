@@ -23,6 +23,7 @@ from rig_identification.io.recording import Recording
 from rig_identification.io.verdict import KEYS
 from rig_identification.model.parametrisation import entry_scales
 from rig_identification.pipeline.rig_model import LEVEL_LIMIT, fit_whole_recording, prepared
+from rig_identification.report.rig_page import diagnosis_html
 
 DELAY = 0.008
 ROTOR_MASS = 10.0
@@ -296,7 +297,8 @@ def test_no_extension_is_tested_where_the_fit_leaves_the_tensor_undetermined(mon
     diagnose_rig tests no extension there and refits nothing, but reads what the model holds —
     its viscous damping against quadratic drag and the pins' friction in its place (the
     linearisation asked for those two alone) and the gyro's bias from the fit's offsets — and
-    names those it finds; the advice says why nothing else is tested."""
+    names those it finds (the report's page says so too); the advice says why nothing else is
+    tested."""
     from types import SimpleNamespace
 
     from rig_identification.diagnosis import rig_diagnosis as rd
@@ -340,6 +342,8 @@ def test_no_extension_is_tested_where_the_fit_leaves_the_tensor_undetermined(mon
     assert dg.named == ("viscous_damping", "gyro_bias") and dg.classes == ()
     assert len(dg.advice) == 1 and "not determined" in dg.advice[0] and "no extension is tested" in dg.advice[0]
     assert dg.to_dict()["determined"] is False and dg.to_dict()["gyro_bias"]["found"]
+    html = diagnosis_html(SimpleNamespace(diagnosis=dg))
+    assert "Gyro bias" in html and "-0.003 ± 2e-05" in html and "(named)" in html
 
 
 def test_a_gyro_bias_is_found_where_its_mean_stands_out_of_the_blocks_scatter():
