@@ -46,7 +46,8 @@ fit improve.  The data errors are those of the last fit.  Where the fit with the
 the tensor undetermined, the rigid-body model fitted again from its tensor must still misfit for
 anything to be named (:func:`diagnose_rig`).  Where the rigid-body fit explains the recording and
 leaves the tensor undetermined, no extension is tested; what the model itself holds — its viscous
-damping and the gyro's bias — is still read and named as above.
+damping (where no other minimum fits as well) and the gyro's bias — is still read and named as
+above.
 """
 from __future__ import annotations
 
@@ -594,9 +595,12 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     determine the tensor (:attr:`~rig_identification.estimation.rig_fit.RigFit.determined`:
     verdict ``not_identifiable``), no extension is tested: the estimate is one of many along the
     tensor's undetermined directions, and the tests at it name physics that is not there
-    (bench_trust's clean, undetermined 7201 took ``sensor_delay``); the data errors, the model's
-    own damping (its alternatives in its place, :func:`damping_alternatives`: its σ holds the
-    undetermined directions) and the gyro's bias are read as ever.  Under a misfit the tests run
+    (bench_trust's clean, undetermined 7201 took ``sensor_delay``); the data errors and the
+    gyro's bias are read as ever, and the model's own damping (its alternatives in its place,
+    :func:`damping_alternatives`: its σ holds the undetermined directions) where no other minimum
+    fits as well (none :attr:`~rig_identification.estimation.rig_fit.RigFit.ambiguous`: at another
+    minimum the damping may make up for the tensor's error, as on bench_any_rig's clean 21039,
+    Ixx 24 % off and the viscous damping "found").  Under a misfit the tests run
     (σ is not calibrated there, so it does not judge the tensor undetermined).  Where they added
     extensions and the fit with them leaves the tensor undetermined, the rigid-body model is
     fitted again from that fit's tensor: where it then
@@ -614,7 +618,8 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     air-drag rig 8500 it added the exciter's delay, which left the tensions 8–9× their noise).
     """
     if not fit.determined and np.max(fit.residual_level) <= LEVEL_LIMIT:
-        damping = damping_alternatives(LinearisedRig(rec, prior, fit, DAMPING[1:]), fit)
+        # where another minimum fits as well (ambiguous) the damping may make up for the tensor's error
+        damping = None if fit.ambiguous else damping_alternatives(LinearisedRig(rec, prior, fit, DAMPING[1:]), fit)
         return RigDiagnosis(prior_conflicts(fit, prior, cables), damping, (), fit, None, False, gyro_bias(fit))
     steps, current, lin = _extended(rec, prior, [], fit, refit)
     if steps and lost(current):
