@@ -181,13 +181,15 @@ def test_a_fit_that_did_not_find_the_motion_names_nothing(capsys):
 
     from rig_identification.cli.rig_model import print_diagnosis
     from rig_identification.diagnosis.rig_diagnosis import RigDiagnosis
-    lost = SimpleNamespace(residual_level=np.array([0.98, 318.3, 11.0]), channels=("gyro_x", "tension:c0", "gyro_y"))
+    lost = SimpleNamespace(residual_level=np.array([0.98, 318.3, 11.0]), offsets=None, offset_std=None,
+                           channels=("gyro_x", "tension:c0", "gyro_y"))
     dg = RigDiagnosis((), None, (), lost, None)
     assert not dg.found_motion and dg.named == () and dg.advice == [] and dg.to_dict()["found_motion"] is False
     print_diagnosis(dg)
     out = capsys.readouterr().out
     assert "did not find the motion" in out and "nothing is named" in out and "explains" not in out, out
-    fits = SimpleNamespace(residual_level=np.array([0.98, 1.2, 1.0]), channels=lost.channels)
+    fits = SimpleNamespace(residual_level=np.array([0.98, 1.2, 1.0]), offsets=None, offset_std=None,
+                           channels=lost.channels)
     assert RigDiagnosis((), None, (), fits, None).found_motion
     print_diagnosis(RigDiagnosis((), None, (), fits, None))
     assert "the model explains the recording" in capsys.readouterr().out
@@ -203,19 +205,19 @@ def test_an_extension_that_lowers_a_misfit_it_does_not_explain_is_not_named(caps
     from rig_identification.cli.rig_model import print_diagnosis
     from rig_identification.diagnosis.rig_diagnosis import Candidate, Damping, RigDiagnosis, Step
     channels = ("tension:c0", "gyro_x", "gyro_y")
-    rigid = SimpleNamespace(residual_level=np.array([4.0, 6.1, 3.2]), channels=channels)
+    rigid = SimpleNamespace(residual_level=np.array([4.0, 6.1, 3.2]), offsets=None, offset_std=None, channels=channels)
     cand = Candidate("imu_offset", 120.0, 3, 16.3, np.array([0.01, 0.0, 0.02]), np.full(3, 1e-3),
                      np.array([40.0, 50.0]), True)
     step = Step("imu_offset", "imu_offset", (), {}, (cand,))
     damping = Damping(np.array([5.0, 0.5]), {"air_drag": 3.0, "pivot_friction": 4.0}, (), np.array([9.0, 14.0]))
-    after = SimpleNamespace(residual_level=np.array([1.1, 2.3, 1.2]), channels=channels)
+    after = SimpleNamespace(residual_level=np.array([1.1, 2.3, 1.2]), offsets=None, offset_std=None, channels=channels)
     dg = RigDiagnosis((), damping, (step,), rigid, after)
     assert dg.found_motion and not dg.explained and dg.unexplained == ("gyro_x",)
     assert dg.extensions == ("imu_offset",) and dg.named == () and dg.classes == ()
     assert len(dg.advice) == 1 and "gyro_x" in dg.advice[0] and "nothing is named" in dg.advice[0], dg.advice
     d = dg.to_dict()
     assert d["explained"] is False and d["named"] == [] and d["unexplained_channels"] == ["gyro_x"]
-    fitted = SimpleNamespace(residual_level=np.array([1.1, 1.3, 1.2]), channels=channels)
+    fitted = SimpleNamespace(residual_level=np.array([1.1, 1.3, 1.2]), offsets=None, offset_std=None, channels=channels)
     good = RigDiagnosis((), damping, (step,), rigid, fitted)
     assert good.explained and good.named == ("imu_offset", "viscous_damping") and good.advice == []
     # a significant damping that fails an extension's other tests is no name and no class: negative beyond

@@ -290,8 +290,7 @@ class RigDiagnosis:
     alternatives (``damping``, None where it is not significant), the extensions added step by
     step (``steps``), the refit with them (``refit``, None where none was added) and the fit it
     started from (``rigid``); ``determined``: whether the fit determined the tensor (where it did
-    not, no extension was tested: :func:`diagnose_rig`); ``gyro``: the gyro's bias in the last fit
-    (:class:`GyroBias`; None: not read)."""
+    not, no extension was tested: :func:`diagnose_rig`)."""
 
     conflicts: tuple[PriorConflict, ...]
     damping: Damping | None
@@ -299,7 +298,11 @@ class RigDiagnosis:
     rigid: RigFit
     refit: RigFit | None
     determined: bool = True
-    gyro: GyroBias | None = None
+
+    @property
+    def gyro(self) -> GyroBias | None:
+        """The gyro's bias in the last fit (:func:`gyro_bias`; None where it carries no offsets)."""
+        return gyro_bias(self.refit or self.rigid)
 
     @property
     def found_motion(self) -> bool:
@@ -620,7 +623,7 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     if not fit.determined and np.max(fit.residual_level) <= LEVEL_LIMIT:
         # where another minimum fits as well (ambiguous) the damping may make up for the tensor's error
         damping = None if fit.ambiguous else damping_alternatives(LinearisedRig(rec, prior, fit, DAMPING[1:]), fit)
-        return RigDiagnosis(prior_conflicts(fit, prior, cables), damping, (), fit, None, False, gyro_bias(fit))
+        return RigDiagnosis(prior_conflicts(fit, prior, cables), damping, (), fit, None, False)
     steps, current, lin = _extended(rec, prior, [], fit, refit)
     if steps and lost(current):
         log.info("diagnosis: with %s the fit still does not find the motion: nothing named",
@@ -640,12 +643,12 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
         if np.max(again.residual_level) <= LEVEL_LIMIT:
             log.info("diagnosis: the rigid-body model from the tensor of the fit with %s explains every channel, "
                      "the tensor undetermined: nothing named", ", ".join(s.added for s in steps))
-            return RigDiagnosis(prior_conflicts(again, prior, cables), None, (), again, None, False, gyro_bias(again))
+            return RigDiagnosis(prior_conflicts(again, prior, cables), None, (), again, None, False)
     # where the fit has not found the motion, the estimate is no minimum: a test there is no evidence
     damping = None if lost(current) else damping_alternatives(lin, current)
     conflicts = prior_conflicts(current, prior, cables)
     log.info("diagnosis: data errors %s; extensions %s", [c.unknown for c in conflicts], [s.added for s in steps])
-    return RigDiagnosis(conflicts, damping, tuple(steps), fit, current if steps else None, gyro=gyro_bias(current))
+    return RigDiagnosis(conflicts, damping, tuple(steps), fit, current if steps else None)
 
 
 __all__ = ["Candidate", "Step", "Damping", "GyroBias", "PriorConflict", "RigDiagnosis", "plausible", "prior_conflicts",
