@@ -19,8 +19,8 @@ import argparse
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
-from rig_identification.estimation.quality import clean_sensors
 from rig_identification.estimation.rig_record import record
+from rig_identification.io.quality import clean_sensors
 from rig_identification.io.recording import read_recording
 
 

@@ -2,7 +2,7 @@
 
 What cannot be fitted is refused by ``rig-identify inertia`` (the rig model) with one line naming
 the topic or the field; what can is read and cleaned with a warning (io.recording.read_recording,
-estimation.quality.clean_sensors, as every fit reads and cleans), and one recording carrying every
+io.quality.clean_sensors, as every fit reads and cleans), and one recording carrying every
 recoverable fault at once is fitted through the command line."""
 import contextlib
 import copy
@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from rig_identification.cli.main import identify_main
-from rig_identification.estimation.quality import clean_sensors
+from rig_identification.io.quality import clean_sensors
 from rig_identification.io.recording import Recording, on_own_clocks, read_recording
 from rig_identification.io.recording_writer import write_recording
 from rig_identification.io.stamps import regular_stamps
@@ -387,7 +387,7 @@ def test_noise_free_steps_are_not_saturation(sim):
     """A noise-free stream that holds a value exactly (a simulated stepped force, the thesis's
     case studies 1–9) is not a saturated sensor; the same run of identical samples in a
     noisy channel is."""
-    from rig_identification.io.bad_spans import find_bad_spans
+    from rig_identification.io.quality import find_bad_spans
     from rig_identification.io.recording import TimeSeries
     s = copy.deepcopy(sim.sensors)
     t = s.exciter.t

@@ -53,7 +53,7 @@ def test_integral_places_a_step_at_the_sample_that_shows_it():
     across the jump errs by a third to a half sample × the step."""
     from scipy.integrate import cumulative_simpson
 
-    from rig_identification.estimation.signals import cumulative_integral, step_indices
+    from rig_identification.estimation.gyro_fit import cumulative_integral, step_indices
     t = np.arange(101) / 100.0
     step = 5.0 * (t >= 0.5 - 1e-9)
     x = np.column_stack([np.sin(2 * np.pi * t) + step, np.cos(3 * t)])
@@ -69,7 +69,7 @@ def test_no_steps_in_smooth_or_noisy_signals():
     rng = np.random.default_rng(5)
     t = np.arange(24000) / 200.0
     smooth = 600.0 * np.column_stack([np.cos(2 * np.pi * 1.5 * t), np.sin(2 * np.pi * 1.5 * t), 0 * t])
-    from rig_identification.estimation.signals import step_indices
+    from rig_identification.estimation.gyro_fit import step_indices
     assert len(step_indices(smooth)) == 0
     noisy = smooth + rng.normal(0, 0.5, smooth.shape)
     assert len(step_indices(noisy)) == 0

@@ -16,7 +16,7 @@ from conftest import recording
 from scipy.spatial.transform import Rotation
 
 from rig_identification.cli.sim import sim_main
-from rig_identification.io.noise import white_sigma
+from rig_identification.io.quality import white_sigma
 from rig_identification.io.recording import read_recording
 from rig_identification.io.rig import inertia_tensor, load_rig
 from rig_identification.model.cables import CableModel

@@ -25,6 +25,7 @@ from rig_identification.estimation.tracker_replay import (
     EVENT_INCLINOMETER,
     EVENT_TENSIONS,
     merge_events,
+    prepare_recording,
     replay,
     track,
 )
@@ -33,7 +34,6 @@ from rig_identification.io.verdict import KEYS
 from rig_identification.model.experiment import experiment_from_dict, load_experiment
 from rig_identification.model.parametrisation import entry_scales
 from rig_identification.model.simulator import simulate
-from rig_identification.pipeline.prepare import prepare_recording
 
 CASES = Path(__file__).resolve().parents[1] / "config" / "cases"
 

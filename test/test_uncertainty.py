@@ -1,10 +1,10 @@
-"""The sensors' noise estimated from the data (io.noise.white_sigma) and the noise the benches
+"""The sensors' noise estimated from the data (io.quality.white_sigma) and the noise the benches
 add (estimation.uncertainty.add_noise)."""
 import numpy as np
 import pytest
 
 from rig_identification.estimation.uncertainty import add_noise
-from rig_identification.io.noise import white_sigma
+from rig_identification.io.quality import white_sigma
 from rig_identification.io.recording import SensorData, TimeSeries
 
 

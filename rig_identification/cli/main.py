@@ -17,7 +17,7 @@ import os
 import sys
 from typing import Callable
 
-from ..io.package import package_version
+from ..io.verdict import package_version
 from .arg_types import JOB_OPTIONS, UsageError, number
 from .progress import attached
 

@@ -31,9 +31,8 @@ from ..io.export import (
     urdf_inertial,
     yaml_text,
 )
-from ..io.package import package_version
 from ..io.recording import Recording
-from ..io.verdict import KEYS
+from ..io.verdict import KEYS, package_version
 from ..pipeline.rig_model import (
     CONSISTENCY_SIGMA,
     LEVEL_LIMIT,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import math
 
-from ..io.package import PACKAGE, package_version
+from ..io.verdict import PACKAGE, package_version
 
 
 def sim_parser() -> argparse.ArgumentParser:

@@ -1,7 +1,7 @@
 """The window of a fit over buffered streams (the identifier node's ``~/identify_rig_model``): the
 window asked for, a settling time, and the gaps in the input streams.
 
-A gap is what :func:`~rig_identification.io.bad_spans.find_bad_spans` calls one offline: two
+A gap is what :func:`~rig_identification.io.quality.find_bad_spans` calls one offline: two
 consecutive stamps of a stream further apart than max(0.1 s, 1.5 sampling periods) (a sensor
 that stopped).  No fit runs over one: a window that contains a gap is refused, naming the stream
 and the span; a window that only ends or starts inside one is cut at its edge; with no window

@@ -8,7 +8,7 @@ the thesis's chapter 3 with every sensor an output (Ljung, *System Identificatio
 ch. 4 grey-box models and ch. 7): every stream on one uniform grid over the record
 (:mod:`~rig_identification.estimation.rig_record`), each channel
 weighted by its white noise as estimated from the recording
-(:func:`~rig_identification.io.noise.white_sigma`, counted once per sample of its own rate:
+(:func:`~rig_identification.io.quality.white_sigma`, counted once per sample of its own rate:
 the residual, low-passed to the fit's band and decimated, weighted so that its sum of squares is
 the full-rate in-band log-likelihood),
 each channel's offset (a load cell's bias, the tension at rest, a gyro's bias) eliminated by
@@ -43,7 +43,7 @@ either side and from another estimator's tensor where the caller gives one: wher
 more than 3 σ off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is
 flat or multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`);
 the lowest of the minima is the estimate.  After the first stage the Jacobian is reused where it
-predicts the trust region's steps (:class:`~.reused_jacobian.ReusedJacobian`); a restart starts
+predicts the trust region's steps (:class:`~.rig_problem.ReusedJacobian`); a restart starts
 with the estimate's, and where its chord steps come straight back to the estimate
 (:func:`came_back`) no trust region is needed.
 """
@@ -63,7 +63,6 @@ from ..io.rig import Rig
 from ..io.verdict import KEYS, Z95
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
-from .reused_jacobian import ReusedJacobian
 from .rig_problem import (
     FTOL,
     GTOL,
@@ -73,6 +72,7 @@ from .rig_problem import (
     THREADS,
     XTOL,
     JointProblem,
+    ReusedJacobian,
     RigPoint,
     RigProblem,
     levels,
@@ -135,7 +135,7 @@ WEAK_RESTART_SIGMA = 10.0
 #: less lies inside the tensor's 95 % likelihood-ratio region.
 CHI2_95_6 = 12.592
 #: A solve's Jacobian is made afresh where a tried step lowered the cost by less than this share
-#: of what the Jacobian's linear model predicted (:class:`~.reused_jacobian.ReusedJacobian`).
+#: of what the Jacobian's linear model predicted (:class:`~.rig_problem.ReusedJacobian`).
 REUSE_RATIO = 0.5
 #: A solve that stops within this many σ (tensor, CG, mass) of the point whose Jacobian it was
 #: given judges its stop with that Jacobian (:func:`solve`): the model is linear that near.
@@ -351,7 +351,7 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
           ) -> tuple[OptimizeResult, int, np.ndarray | None]:
     """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``at_x0``: the Jacobian
     and the residual at 0 where known) (scipy's trust region; with ``reuse`` the Jacobian reused where
-    it predicts the steps, :class:`~.reused_jacobian.ReusedJacobian`, else made afresh every
+    it predicts the steps, :class:`~.rig_problem.ReusedJacobian`, else made afresh every
     iteration: the first stage, from a far start, where steps mispredicted are the rule), stopped
     where the Gauss–Newton decrement ½ gᵀ (JᵀJ)⁺ g of a fresh Jacobian falls below :data:`NEWTON_DECREMENT` (Boyd &
     Vandenberghe, *Convex Optimization*, §9.5.1: the cost the Gauss–Newton step would still

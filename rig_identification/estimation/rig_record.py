@@ -2,7 +2,7 @@
 
 Every stream (the load cells' tensions, the IMU's gyro and accelerometer, the inclinometer, the
 exciter's force) is put on one uniform grid at the fastest stream's rate, each channel's white
-noise estimated from its own samples (:func:`~rig_identification.io.noise.white_sigma`); the
+noise estimated from its own samples (:func:`~rig_identification.io.quality.white_sigma`); the
 exciter's force is denoised (:func:`smooth_force`: a rotating vector's amplitude and phase as
 least-squares splines) and, where it is a rotating vector, its readings become two output
 channels of the fit.  The fit's band (:func:`band_edge`) is a multiple of the force's frequency.
@@ -15,7 +15,7 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_lsq_spline
 from scipy.signal import butter, sosfiltfilt
 
-from ..io.noise import white_sigma
+from ..io.quality import white_sigma
 from ..io.recording import SensorData
 from ..io.rig import Rig
 
@@ -176,7 +176,7 @@ def record(sensors: SensorData, rig: Rig, t0: float | None = None, t1: float | N
 
     Every stream is put on one uniform grid at the fastest stream's rate (a cubic spline where
     its stamps differ from the grid's), each channel's σ estimated from its own samples
-    (:func:`~rig_identification.io.noise.white_sigma`), then :func:`on_model_grid`.  Raises
+    (:func:`~rig_identification.io.quality.white_sigma`), then :func:`on_model_grid`.  Raises
     :class:`RigFitError` without an exciter stream, or when the streams share less than 10 s.
     """
     if sensors.exciter is None or rig.exciter is None:

@@ -21,7 +21,7 @@ drift, so the pose does not wander over long recordings.
 
 Stepped inputs (the thesis's force pulses, cases 1–8): where the specific force jumps
 between two samples — a second difference above ``step_accel`` followed by its opposite
-(:func:`~rig_identification.estimation.signals.step_indices`) — the quadratures do not
+(:func:`~rig_identification.estimation.gyro_fit.step_indices`) — the quadratures do not
 interpolate across the jump.  The step is placed at the first
 sample that shows it (zero-order hold: an input switched on the sampling clock, as the
 thesis's 0.01 s Simulink pulses) — the interval before it is integrated from the samples

@@ -326,7 +326,7 @@ def run(ev_t: np.ndarray, ev_kind: np.ndarray, ev_index: np.ndarray, start: int,
         # confused with the rotation's own change)
         # (second differences D₋₁ = a₋₁ − 2a₋₂ + a₋₃ and D₀ = a₀ − 2a₋₁ + a₋₂: a step Δ at the
         # previous sample gives D₋₁ ≈ Δ, D₀ ≈ −Δ whatever the slope; see
-        # signals.step_indices)
+        # gyro_fit.step_indices)
         b0 = r00 * f0 + r01 * f1 + r02 * f2 - c0
         b1 = r10 * f0 + r11 * f1 + r12 * f2 - c1
         b2 = r20 * f0 + r21 * f1 + r22 * f2 - gravity - c2

@@ -16,7 +16,7 @@ Topics (all stamped; consumers align them by ``header.stamp``):
   inclinometer's x/y axes above the horizontal, rad.
 
 Writing a recording: :mod:`~rig_identification.io.recording_writer`; the spans a fit must leave
-out (gaps, saturation, slack cables): :mod:`~rig_identification.io.bad_spans`.
+out (gaps, saturation, slack cables): :mod:`~rig_identification.io.quality`.
 
 Errors: :class:`RecordingError` (a ``ValueError``) naming the file and topic.
 """

@@ -1,11 +1,16 @@
-"""The names every result shares: the tensor entries' :data:`KEYS`, the 95 % interval's :data:`Z95`
-and one validation :class:`Check` (the static test's, :mod:`rig_identification.statics.validation`)."""
+"""The names every result shares: the tensor entries' :data:`KEYS`, the 95 % interval's :data:`Z95`,
+one validation :class:`Check` (the static test's, :mod:`rig_identification.statics.validation`), and
+the package's name and installed version that every ``--version`` and every report states
+(:data:`PACKAGE`, :func:`package_version`).  Standard library only, so that a ``--version`` loads
+nothing else."""
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from importlib.metadata import PackageNotFoundError, version
 from typing import Any
 
-import numpy as np
+PACKAGE = "rig_identification"
 
 KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 #: The normal distribution's 97.5 % quantile: ±Z95·σ holds 95 %.
@@ -29,7 +34,15 @@ class Check:
 
     def to_dict(self) -> dict[str, Any]:
         def num(x: float | None) -> float | None:
-            return None if x is None or not np.isfinite(x) else float(x)
+            return None if x is None or not math.isfinite(x) else float(x)
         return {"name": self.name, "statistic": num(self.statistic), "threshold": num(self.threshold),
                 "passed": self.passed, "detail": self.detail, "sigma_factor": float(self.sigma_factor)}
 
+
+def package_version() -> str:
+    """The installed version of this package (``importlib.metadata``), or "unknown (not
+    installed)" when it is run from a source tree that was not installed."""
+    try:
+        return version(PACKAGE)
+    except PackageNotFoundError:
+        return "unknown (not installed)"

@@ -57,8 +57,8 @@ from std_srvs.srv import Trigger
 
 from ..io.atomic import atomic_write_text
 from ..io.export import BODY, convention_lines
-from ..io.package import PACKAGE, package_version
 from ..io.rig import RigError
+from ..io.verdict import PACKAGE, package_version
 from ..statics.handover import CgResultError, cg_result_from_dict, check_rig_target, rig_with_cg_text
 from .parameters import load_rig_source
 from .qos import LATCHED_QOS, SERVICE_SETTLE_SECONDS

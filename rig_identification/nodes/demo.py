@@ -37,7 +37,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.signals import SignalHandlerOptions
 from std_msgs.msg import String
 
-from ..io.package import PACKAGE, package_version
+from ..io.verdict import PACKAGE, package_version
 from .diagnostics import diagnostic_values
 from .environment import default_experiment, ros_env
 from .qos import DIAGNOSTICS_QOS, LATCHED_QOS

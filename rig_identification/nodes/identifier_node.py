@@ -36,7 +36,7 @@ remapped the ROS way (--ros-args -r /rig/imu:=/my/imu); the node logs its resolv
 outputs and services once at start-up ("interface: ...").
 
 Gaps: two consecutive stamps of an input stream further apart than max(0.1 s, 1.5 sampling
-periods) are a gap (a sensor that stopped; the offline rule of io.bad_spans.find_bad_spans).
+periods) are a gap (a sensor that stopped; the offline rule of io.quality.find_bad_spans).
 The window rule is the core's (estimation.fit_window): no fit runs over a gap; a window that
 contains one is refused, naming the topic and the span (a window that only ends or starts
 inside one is cut at its edge); with no window start or end set, the fit uses the data after

@@ -21,7 +21,7 @@ import time
 import numpy as np
 from rclpy.node import Node
 
-from ..io.bad_spans import SHORT_GAP
+from ..io.quality import SHORT_GAP
 from .codec import MessageLayout, PersistentReason
 from .frames import Endpoint
 
@@ -41,7 +41,7 @@ class InputGuard:
 
     Gaps: two consecutive accepted stamps of a topic further apart than
     ``max(max_gap, 1.5 × the topic's typical sampling period)`` (the offline rule of
-    :func:`~rig_identification.io.recording.find_bad_spans`) are recorded in ``gaps[topic]``
+    :func:`~rig_identification.io.quality.find_bad_spans`) are recorded in ``gaps[topic]``
     as (t0, t1) header stamps (the last ``keep_gaps``).  ``last_arrival[topic]`` is the
     monotonic wall time of the latest message (silence: see :class:`Diagnostics`).
     """

@@ -70,8 +70,8 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from ..io.atomic import atomic_directory
-from ..io.package import PACKAGE, package_version
 from ..io.rig import RigError, dump_rig, read_yaml
+from ..io.verdict import PACKAGE, package_version
 from .diagnostics import Diagnostics
 from .frames import Endpoint, log_interface
 from .inputs import InputGuard

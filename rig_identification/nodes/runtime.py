@@ -23,8 +23,8 @@ from rclpy.experimental import EventsExecutor
 from rclpy.node import Node
 from rclpy.task import Future
 
-from ..io.package import PACKAGE, package_version
 from ..io.rig import RigError
+from ..io.verdict import PACKAGE, package_version
 from .environment import dds_profile
 
 # reStructuredText inline markup of the modules' docstrings: :role:`title <target>`,

@@ -28,16 +28,16 @@ import numpy as np
 from ..diagnosis.rig_diagnosis import RigDiagnosis, diagnose_rig, lost
 from ..estimation.gyro_fit import IdentificationError, fit_gyro
 from ..estimation.harmonic_start import ForcedResponseStart, box_tensor, damped_start, forced_response_start
-from ..estimation.quality import check_motion, check_units, clean_sensors
 from ..estimation.rig_fit import LEVEL_LIMIT, RigFit, fit_rig
 from ..estimation.rig_record import Record, record
 from ..estimation.rig_unknowns import EXTENSIONS, Prior
+from ..estimation.tracker_replay import prepare_recording
 from ..io.export import Axes, Expressed, express
+from ..io.quality import check_motion, check_units, clean_sensors
 from ..io.recording import Recording
 from ..io.rig import Survey
 from ..io.verdict import KEYS
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
-from .prepare import prepare_recording
 
 log = logging.getLogger(__name__)
 
@@ -136,7 +136,7 @@ class RigModelResult:
     (rig.yaml ``survey``).  seconds: wall time.  truth: truth.yaml or None.  warnings: what reading
     the recording did (:attr:`~rig_identification.io.recording.Recording.warnings`: stamps put on
     their rate, samples dropped) and the data's cleaning
-    (:func:`~rig_identification.estimation.quality.clean_sensors`: spans excluded, gaps bridged,
+    (:func:`~rig_identification.io.quality.clean_sensors`: spans excluded, gaps bridged,
     spikes replaced).  diagnosis: what the rigid-body rig model left out
     (:func:`~rig_identification.diagnosis.rig_diagnosis.diagnose_rig`; None: not run); where it
     added extensions, ``fit`` is the refit with them and ``diagnosis.rigid`` the fit before.
@@ -338,7 +338,7 @@ class RigModelResult:
 def start_tensor(rec: Recording) -> tuple[np.ndarray, np.ndarray, str]:
     """The tensor entries (6,) the fit starts from, their σ (6,) (inf: a guess) and their source:
     the prediction-error fit on the gyro, the tensions its input
-    (:func:`~rig_identification.pipeline.prepare.prepare_recording`: tracker and preprocessor;
+    (:func:`~rig_identification.estimation.tracker_replay.prepare_recording`: tracker and preprocessor;
     :func:`~rig_identification.estimation.gyro_fit.fit_gyro`; thesis §3.3), where it
     gives a physical tensor whose trace is within a factor :data:`START_TRACE_FACTOR` of the body
     anchors' box's, else that box (:func:`~rig_identification.estimation.harmonic_start.box_tensor`)."""
@@ -455,7 +455,7 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     with σ :data:`RIG_YAML_CG_STD`).  start/end: s from the first IMU sample.  diagnose: what the
     model leaves out tested and, where the recording tells it, added (:func:`~rig_identification.
     diagnosis.rig_diagnosis.diagnose_rig`: the reported fit is then the refit).  The data are checked
-    and cleaned as for every fit (:mod:`~rig_identification.estimation.quality`: the tensions'
+    and cleaned as for every fit (:mod:`~rig_identification.io.quality`: the tensions'
     units, bad spans, spikes, a body that did not move).  Raises
     :class:`~rig_identification.estimation.rig_record.RigFitError`,
     :class:`~rig_identification.io.rig.RigError`,

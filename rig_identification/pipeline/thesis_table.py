@@ -7,7 +7,8 @@ recordings are noise-free, so every channel's noise, estimated from the data, is
 level) on the cases whose cables stretch (spring cables, as steel ropes are); the thesis's cases
 with inextensible cables (01–09, 13) are outside its physics and say so.  The thesis's method
 (:func:`~rig_identification.estimation.thesis_estimator.identify_inertia_thesis`) runs on every
-case, on the tracker's and the preprocessor's output (:func:`~rig_identification.pipeline.prepare.prepare_recording`).
+case, on the tracker's and the preprocessor's output
+(:func:`~rig_identification.estimation.tracker_replay.prepare_recording`).
 
 Error convention: % of the entry for moments, % of the largest moment for products (the
 thesis printed absolute errors, ±, for products whose true value is 0; those are shown as
@@ -26,6 +27,7 @@ from ..estimation.harmonic_start import box_tensor
 from ..estimation.rig_record import RigFitError
 from ..estimation.thesis_estimator import identify_inertia_thesis
 from ..estimation.tracker import TrackerError
+from ..estimation.tracker_replay import prepare_recording
 from ..io.export import ORDER
 from ..io.recording import Recording, RecordingError
 from ..io.rig import RigError
@@ -33,7 +35,6 @@ from ..io.verdict import KEYS
 from ..model.experiment import load_experiment
 from ..model.parametrisation import PAIRS, entry_scales, from_tensor
 from ..model.simulator import simulate
-from .prepare import prepare_recording
 from .rig_model import fit_whole_recording
 
 CASES = Path(__file__).resolve().parents[2] / "config" / "cases"

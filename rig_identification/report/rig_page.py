@@ -28,10 +28,9 @@ import numpy as np
 
 from ..io.atomic import atomic_directory
 from ..io.export import Axes, axes_for
-from ..io.package import PACKAGE, package_version
 from ..io.recording import Recording
 from ..io.vehicle import VEHICLE_AXES
-from ..io.verdict import KEYS
+from ..io.verdict import KEYS, PACKAGE, package_version
 from ..model.parametrisation import to_tensor
 from ..pipeline.rig_model import LEVEL_LIMIT, RigModelResult
 from .figures import CHANNEL_GROUPS, channels_figure, ellipsoid_figure
