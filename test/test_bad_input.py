@@ -19,7 +19,7 @@ import yaml
 
 from rig_identification.cli.main import identify_main
 from rig_identification.io.quality import clean_sensors
-from rig_identification.io.recording import Recording, on_own_clocks, read_recording
+from rig_identification.io.recording import Recording, TimeSeries, on_own_clocks, read_recording
 from rig_identification.io.recording_writer import write_recording
 from rig_identification.io.stamps import regular_stamps
 
@@ -72,21 +72,15 @@ def same_streams(a, b):
 
 def make(sim, tmp_path, mutate=None, storage="mcap", rig=None):
     sensors = copy.deepcopy(sim.sensors)
-    if mutate is not None:
-        mutate(sensors)
+    if mutate is not None:              # SensorData and TimeSeries are frozen: a mutator returns new ones
+        sensors = mutate(sensors) or sensors
     return write_recording(tmp_path / "rec", rig or sim.rig, sensors, sim.truth, storage=storage)
-
-
-def drop_topic(sensors, name):
-    if name == "imu":
-        sensors.imu = None
-    else:
-        del sensors.load_cells[name]
 
 
 # 1. missing topics ------------------------------------------------------------------
 def test_missing_load_cell(sim, tmp_path):
-    rec = make(sim, tmp_path, lambda s: s.load_cells.pop("c2"))
+    rec = make(sim, tmp_path, lambda s: dataclasses.replace(s, load_cells={n: c for n, c in s.load_cells.items()
+                                                                          if n != "c2"}))
     rc, _, err = run(rec)
     assert rc == 2
     assert "/rig/load_cells/c2" in err and "missing" in err
@@ -99,7 +93,6 @@ def test_missing_imu(sim, tmp_path):
     (tmp_path / "rec").mkdir()
     (tmp_path / "rec" / "rig.yaml").write_text((Path(sim_rec_dir(sim, tmp_path)) / "rig.yaml").read_text())
     # a bag without /rig/imu: write the load cells only
-    sensors.imu = dataclasses.replace(sensors.imu) if False else sensors.imu
     from rig_identification.io import recording_writer as R
     orig = R.sensor_messages
 
@@ -122,9 +115,10 @@ def sim_rec_dir(sim, tmp_path):
 # 2. empty and truncated bags ----------------------------------------------------------
 def test_empty_bag(sim, tmp_path):
     def empty(s):
-        for ts in [s.imu, *s.load_cells.values(), s.exciter, s.inclinometer]:
-            if ts is not None:
-                ts.t, ts.data = ts.t[:0], ts.data[:0]
+        def none(ts):
+            return None if ts is None else TimeSeries(ts.t[:0], ts.data[:0])
+        return dataclasses.replace(s, imu=none(s.imu), load_cells={n: none(c) for n, c in s.load_cells.items()},
+                                   exciter=none(s.exciter), inclinometer=none(s.inclinometer))
     rec = make(sim, tmp_path, empty)
     rc, _, err = run(rec)
     assert rc == 2
@@ -205,8 +199,8 @@ def test_duplicated_and_unordered_stamps(sim, tmp_path, base):
 
     def dup(s):
         k = len(s.imu.t) // 3
-        s.imu.t = np.insert(s.imu.t, k, s.imu.t[k])
-        s.imu.data = np.insert(s.imu.data, k, s.imu.data[k], axis=0)
+        return dataclasses.replace(s, imu=TimeSeries(np.insert(s.imu.t, k, s.imu.t[k]),
+                                                     np.insert(s.imu.data, k, s.imu.data[k], axis=0)))
     R.sensor_messages = swapped
     try:
         rec = make(sim, tmp_path, dup)
@@ -230,7 +224,7 @@ def test_imu_stamped_on_arrival_is_put_on_its_rate(sim, tmp_path):
     rng = np.random.default_rng(9)
 
     def arrival(s):
-        s.imu.t = s.imu.t + rng.uniform(-0.004, 0.004, len(s.imu.t))
+        return dataclasses.replace(s, imu=TimeSeries(s.imu.t + rng.uniform(-0.004, 0.004, len(s.imu.t)), s.imu.data))
     warnings, s, _ = cleaned(make(sim, tmp_path, arrival))
     note = [w for w in warnings if "/rig/imu" in w and "jitter" in w]
     assert len(note) == 1 and "on the stream's own rate, 100 Hz" in note[0], warnings
@@ -253,7 +247,7 @@ def test_streams_buffered_live_are_put_on_their_clocks_as_the_reader_does(sim):
     bridges no gap; left jittered, the cleaning took 1.5 periods for a gap and bridged hundreds."""
     rng = np.random.default_rng(5)
     s = copy.deepcopy(sim.sensors)
-    s.imu.t = s.imu.t + rng.uniform(0.0, 0.008, len(s.imu.t))
+    s = dataclasses.replace(s, imu=TimeSeries(s.imu.t + rng.uniform(0.0, 0.008, len(s.imu.t)), s.imu.data))
     warnings: list[str] = []
     own = on_own_clocks(s, sim.rig.topics, warnings)
     assert len(warnings) == 1 and warnings[0].startswith("topic /rig/imu: stamps jitter"), warnings
@@ -290,15 +284,19 @@ def test_a_clock_with_lost_samples_is_numbered_exactly_under_jitter_of_most_of_a
 
 # 7. gaps ---------------------------------------------------------------------------------------
 def _cut(ts, t0, t1):
+    """``ts`` without its samples in [t0, t1]: a new TimeSeries."""
     m = (ts.t < t0) | (ts.t > t1)
-    ts.t, ts.data = ts.t[m], ts.data[m]
+    return TimeSeries(ts.t[m], ts.data[m])
 
 
 @pytest.mark.parametrize("topic", ["imu", "c1"])
 def test_gap_excluded(sim, tmp_path, topic):
     def gap(s):
         t0 = s.imu.t[0]
-        _cut(s.imu if topic == "imu" else s.load_cells[topic], t0 + 4.0, t0 + 6.0)
+        if topic == "imu":
+            return dataclasses.replace(s, imu=_cut(s.imu, t0 + 4.0, t0 + 6.0))
+        s.load_cells[topic] = _cut(s.load_cells[topic], t0 + 4.0, t0 + 6.0)
+        return s
     warnings, s, t0 = cleaned(make(sim, tmp_path, gap))
     name = "/rig/imu" if topic == "imu" else f"/rig/load_cells/{topic}"
     assert any(name in w and "gap" in w and "excluded" in w for w in warnings), warnings
@@ -309,7 +307,8 @@ def test_gap_leaves_too_little(sim, tmp_path):
     def gaps(s):
         t0 = s.imu.t[0]
         for a in (8.0, 17.0, 26.0):
-            _cut(s.imu, t0 + a, t0 + a + 1.0)
+            s = dataclasses.replace(s, imu=_cut(s.imu, t0 + a, t0 + a + 1.0))
+        return s
     rec = make(sim, tmp_path, gaps)
     rc, _, err = run(rec)
     assert rc == 2
@@ -360,15 +359,15 @@ def test_the_rig_model_fits_through_every_recoverable_fault_at_once(sim, tmp_pat
     rng = np.random.default_rng(11)
 
     def every(s):
-        s.imu.t = s.imu.t + rng.uniform(-0.004, 0.004, len(s.imu.t))
-        k = len(s.imu.t) // 3
-        s.imu.t = np.insert(s.imu.t, k, s.imu.t[k])
-        s.imu.data = np.insert(s.imu.data, k, s.imu.data[k], axis=0)
-        s.imu.data[2 * k:2 * k + 3, 0] = np.nan
+        t = s.imu.t + rng.uniform(-0.004, 0.004, len(s.imu.t))
+        k = len(t) // 3
+        imu = TimeSeries(np.insert(t, k, t[k]), np.insert(s.imu.data, k, s.imu.data[k], axis=0))
+        imu.data[2 * k:2 * k + 3, 0] = np.nan
         c = s.load_cells["c1"]
         for i, dv in zip((700, 1500, 2300), (3000.0, -2000.0, 800.0)):
             c.data[i, 0] += dv
-        _cut(s.load_cells["c2"], s.imu.t[0] + 2.0, s.imu.t[0] + 4.0)
+        s.load_cells["c2"] = _cut(s.load_cells["c2"], imu.t[0] + 2.0, imu.t[0] + 4.0)
+        return dataclasses.replace(s, imu=imu)
     rc, out, err = run(make(sim, tmp_path, every))
     assert rc == 0, err
     assert out["schema"] == "rig_identification.rig_model_result"
@@ -388,15 +387,15 @@ def test_noise_free_steps_are_not_saturation(sim):
     case studies 1–9) is not a saturated sensor; the same run of identical samples in a
     noisy channel is."""
     from rig_identification.io.quality import find_bad_spans
-    from rig_identification.io.recording import TimeSeries
     s = copy.deepcopy(sim.sensors)
     t = s.exciter.t
     step = np.where((t > t[0] + 5) & (t < t[0] + 8), 200.0, 0.0)
-    s.exciter = TimeSeries(t, np.column_stack([step, np.zeros(len(t))]))
+    s = dataclasses.replace(s, exciter=TimeSeries(t, np.column_stack([step, np.zeros(len(t))])))
     assert not [b for b in find_bad_spans(sim.rig, s) if "exciter" in b.topic]
     noisy = step + 0.5 * np.random.default_rng(0).standard_normal(len(t))
     noisy[(t > t[0] + 5) & (t < t[0] + 8)] = noisy.max()
-    s.exciter = TimeSeries(t, np.column_stack([noisy, 0.5 * np.random.default_rng(1).standard_normal(len(t))]))
+    s = dataclasses.replace(s, exciter=TimeSeries(t, np.column_stack([noisy, 0.5 * np.random.default_rng(1)
+                                                                      .standard_normal(len(t))])))
     spans = [b for b in find_bad_spans(sim.rig, s) if "exciter" in b.topic]
     assert len(spans) == 1 and "saturated" in spans[0].reason
     assert spans[0].t0 == pytest.approx(t[0] + 5, abs=0.02) and spans[0].t1 == pytest.approx(t[0] + 8, abs=0.02)
@@ -449,8 +448,8 @@ def test_lengths_in_mm(sim, tmp_path):
 
 def test_tensions_in_kN(sim, tmp_path):
     def kn(s):
-        for c in s.load_cells.values():
-            c.data = c.data / 1000.0
+        for n, c in s.load_cells.items():
+            s.load_cells[n] = TimeSeries(c.t, c.data / 1000.0)
     rec = make(sim, tmp_path, kn)
     rc, _, err = run(rec)
     assert rc == 2

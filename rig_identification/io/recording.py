@@ -52,7 +52,7 @@ class RecordingError(ValueError):
     """A recording that cannot be read or is inconsistent with its rig description."""
 
 
-@dataclass
+@dataclass(frozen=True)
 class TimeSeries:
     """Samples of one stream.  t: (N,) header stamps, s.  data: (N, k)."""
 
@@ -60,10 +60,9 @@ class TimeSeries:
     data: np.ndarray
 
     def __post_init__(self) -> None:
-        self.t = np.asarray(self.t, float)
-        self.data = np.asarray(self.data, float)
-        if self.data.ndim == 1:
-            self.data = self.data[:, None]
+        data = np.asarray(self.data, float)
+        object.__setattr__(self, "t", np.asarray(self.t, float))     # frozen: the arrays made once, here
+        object.__setattr__(self, "data", data[:, None] if data.ndim == 1 else data)
 
     def __len__(self) -> int:
         return len(self.t)
@@ -77,7 +76,7 @@ class TimeSeries:
         return np.column_stack([np.interp(t, self.t, c) for c in self.data.T])
 
 
-@dataclass
+@dataclass(frozen=True)
 class SensorData:
     """All sensor streams of one experiment.
 
@@ -101,7 +100,7 @@ class SensorData:
         return float(self.imu.t[-1])
 
 
-@dataclass
+@dataclass(frozen=True)
 class Recording:
     """A recording folder in memory: rig description, sensor data, optional truth."""
 
