@@ -192,9 +192,9 @@ def feed(tracker: PoseTracker, events: Events, k: int) -> PoseEstimate | None:
     return None
 
 
-YAW_WEAK = 1e-2      # yaw information / position information below which the yaw is anchored
-MAX_OFFSET = 0.05    # rad: a larger estimate is not a tracker's starting error; the poses are left as they are
-STEP = 1e-4          # rad: the finite difference of K
+YAW_WEAK = 1e-2          # yaw information / position information below which the yaw is anchored
+YAW_MAX_OFFSET = 0.05    # rad: a larger estimate is not a tracker's starting error; the poses are left as they are
+YAW_STEP = 1e-4          # rad: the finite difference of K
 
 
 @dataclass(frozen=True)
@@ -238,7 +238,7 @@ def anchor_yaw(rig: Rig, track: PoseTrack, sensors: SensorData, lo: float, hi: f
     poses turned about the vertical through the CG by −ψ₀ (attitude and the body origin's
     position; the CG and the velocities unchanged), or ``track`` itself when the yaw is
     determined by the lengths, the window is empty or the estimate is beyond
-    :data:`MAX_OFFSET`."""
+    :data:`YAW_MAX_OFFSET`."""
     cg = rig.require_cg()
     m = (track.t >= lo) & (track.t <= hi)
     if m.sum() < 10:
@@ -251,7 +251,7 @@ def anchor_yaw(rig: Rig, track: PoseTrack, sensors: SensorData, lo: float, hi: f
     tens = np.column_stack([np.interp(t, sensors.load_cells[n].t, sensors.load_cells[n].data[:, 0])
                             for n in rig.cable_names])
     exc = sensors.exciter.interp(t) if (sensors.exciter is not None and rig.exciter is not None) else None
-    # the mean world-z moment about the CG with the poses turned by +STEP, -STEP and 0 about
+    # the mean world-z moment about the CG with the poses turned by +YAW_STEP, -YAW_STEP and 0 about
     # the vertical through the CG: the attitude R_z(ψ) R, the body origin p_cg − R_z(ψ) R cg.
     # The world z-axis is R_z's own, so the moment's world z-component is R's third row (as a
     # matrix) times the body-axes moment: R, R cg once for the three trials
@@ -259,14 +259,14 @@ def anchor_yaw(rig: Rig, track: PoseTrack, sensors: SensorData, lo: float, hi: f
     rc = R.apply(cg)                                                # (n,3) world
     p_cg = track.position[m] + rc
     mz = np.empty(3)
-    for k, Rz in enumerate(Rotation.from_rotvec(np.outer([STEP, -STEP, 0.0], [0.0, 0.0, 1.0])).as_matrix()):
+    for k, Rz in enumerate(Rotation.from_rotvec(np.outer([YAW_STEP, -YAW_STEP, 0.0], [0.0, 0.0, 1.0])).as_matrix()):
         _, M = generalized_wrench(rig, p_cg - rc @ Rz.T, np.matmul(Rz, Rm), tens, exc)
         mz[k] = np.mean(np.einsum("nj,nj->n", Rm[:, 2, :], M))
-    K = float((mz[0] - mz[1]) / (2 * STEP))
+    K = float((mz[0] - mz[1]) / (2 * YAW_STEP))
     if not np.isfinite(K) or K == 0.0:
         return track, YawAnchor(info, note="the cables' forces do not hold the yaw either")
     psi = -float(mz[2]) / K
-    if abs(psi) > MAX_OFFSET:
+    if abs(psi) > YAW_MAX_OFFSET:
         return track, YawAnchor(info, psi, K, False, f"the moment balance asks for {psi:.3g} rad: not a tracker's "
                                                     "starting error, the poses are left as they are")
     Rz = Rotation.from_rotvec([0.0, 0.0, psi])
