@@ -2,7 +2,8 @@
 :func:`replay`), their yaw anchored by the moment balance where the cables leave it free
 (:func:`anchor_yaw`), and the recording prepared for the gyro-only fit and the thesis's estimator —
 cleaned, tracked, preprocessed into the generalized wrench, cut to the fit window
-(:func:`prepare_recording`, :class:`PreparedRecording`; the one pass :func:`replay_window`).
+(:func:`prepare_recording`, :func:`replay_cleaned`, :class:`PreparedRecording`; the one pass
+:func:`replay_window`).
 
 The streams of a recording are merged in stamp order (:func:`merge_events`) and fed to a
 :class:`~rig_identification.estimation.tracker.PoseTracker`: the samples of its initialisation
@@ -328,7 +329,23 @@ def replay_window(rig: Rig, s: SensorData, lo: float, hi: float) -> Replay:
 
 def prepare_recording(rec: Recording, start: float | None = None, end: float | None = None,
                       settle: float = 5.0) -> PreparedRecording:
-    """Clean a dynamic recording, run the tracker and the preprocessor, cut the window.
+    """Clean a dynamic recording (:func:`~rig_identification.io.quality.check_units`,
+    :func:`~rig_identification.io.quality.clean_sensors`, :func:`~rig_identification.io.quality.check_motion`;
+    the cleaning's warnings logged as they happen), then :func:`replay_cleaned`.  Arguments and
+    errors as :func:`replay_cleaned`'s."""
+    check_units(rec)
+    warnings: list[str] = []
+    s = clean_sensors(rec, warnings)
+    check_motion(rec, s)
+    for w in warnings:
+        log.warning(w)
+    return replay_cleaned(rec, s, warnings, start, end, settle)
+
+
+def replay_cleaned(rec: Recording, s: SensorData, warnings: list[str], start: float | None = None,
+                   end: float | None = None, settle: float = 5.0) -> PreparedRecording:
+    """The tracker and the preprocessor run over ``s``, the cleaned sensors of ``rec`` (their
+    cleaning's ``warnings`` kept in the result), the window cut.
 
     start/end: window in seconds from the first IMU stamp (default: the whole
     recording after ``settle`` s, the tracker's convergence time, at most a tenth of
@@ -336,21 +353,15 @@ def prepare_recording(rec: Recording, start: float | None = None, end: float | N
     :class:`~rig_identification.io.rig.RigError` (no CG in rig.yaml),
     :class:`~rig_identification.estimation.tracker.TrackerError`.
     """
-    rig, s = rec.rig, rec.sensors
+    rig = rec.rig
     rig.require_cg()
-    if rig.exciter is not None and s.exciter is None:
+    if rig.exciter is not None and rec.sensors.exciter is None:
         raise RecordingError(f"{rec.path}: rig.yaml describes an exciter but the bag has no "
                              "/rig/exciter/wrench topic")
-    check_units(rec)
-    warnings: list[str] = []
-    s = clean_sensors(rec, warnings)
-    check_motion(rec, s)
     t0 = rec.sensors.t_start  # --start/--end count from the recording's first IMU sample
     settle = min(settle, 0.1 * (s.t_end - s.t_start))
     lo = s.t_start + settle if start is None else max(t0 + start, s.t_start + settle)
     hi = s.t_end if end is None else min(t0 + end, s.t_end)
-    for w in warnings:
-        log.warning(w)
     log.info("tracking the pose and computing the generalized wrench")
     r = replay_window(rig, s, lo, hi)
     poses, t, gyro_body, torque, force = r.poses, r.t, r.gyro_body, r.torque, r.force
@@ -359,4 +370,5 @@ def prepare_recording(rec: Recording, start: float | None = None, end: float | N
                  1e3 * r.anchor.offset)
     if len(t) < 10:
         raise RecordingError(f"{rec.path}: no samples in the window [{lo - t0:.1f}, {hi - t0:.1f}] s")
-    return PreparedRecording(rec, t, gyro_body, torque, warnings, s, poses, (lo, hi), force, yaw_anchor=r.anchor)
+    return PreparedRecording(rec, t, gyro_body, torque, list(warnings), s, poses, (lo, hi), force,
+                             yaw_anchor=r.anchor)

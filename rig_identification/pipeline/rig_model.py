@@ -31,10 +31,10 @@ from ..estimation.harmonic_start import ForcedResponseStart, box_tensor, damped_
 from ..estimation.rig_fit import LEVEL_LIMIT, RigFit, fit_rig
 from ..estimation.rig_record import Record, record
 from ..estimation.rig_unknowns import EXTENSIONS, Prior
-from ..estimation.tracker_replay import prepare_recording
+from ..estimation.tracker_replay import replay_cleaned
 from ..io.export import Axes, Expressed, express
 from ..io.quality import check_motion, check_units, clean_sensors
-from ..io.recording import Recording
+from ..io.recording import Recording, SensorData
 from ..io.rig import Survey
 from ..io.verdict import KEYS
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
@@ -335,16 +335,16 @@ class RigModelResult:
         return d
 
 
-def start_tensor(rec: Recording) -> tuple[np.ndarray, np.ndarray, str]:
+def start_tensor(rec: Recording, sensors: SensorData) -> tuple[np.ndarray, np.ndarray, str]:
     """The tensor entries (6,) the fit starts from, their σ (6,) (inf: a guess) and their source:
-    the prediction-error fit on the gyro, the tensions its input
-    (:func:`~rig_identification.estimation.tracker_replay.prepare_recording`: tracker and preprocessor;
+    the prediction-error fit on the gyro, the tensions its input (``sensors``: ``rec``'s, cleaned;
+    :func:`~rig_identification.estimation.tracker_replay.replay_cleaned`: tracker and preprocessor;
     :func:`~rig_identification.estimation.gyro_fit.fit_gyro`; thesis §3.3), where it
     gives a physical tensor whose trace is within a factor :data:`START_TRACE_FACTOR` of the body
     anchors' box's, else that box (:func:`~rig_identification.estimation.harmonic_start.box_tensor`)."""
     box = box_tensor(rec.rig)
     try:
-        prep = prepare_recording(rec)
+        prep = replay_cleaned(rec, sensors, [])
         res = fit_gyro(prep.t, prep.gyro_body, prep.torque)
         tensor = to_tensor(res.inertia)
         if np.all(np.isfinite(tensor)) and physically_consistent(tensor):
@@ -423,6 +423,8 @@ def prepared(rec: Recording, cg=None, cg_std=None, cg_source: str | None = None,
     check_units(rec)
     warnings = list(rec.warnings)       # the reader's (stamps regularised, samples dropped), then the cleaning's
     sensors = clean_sensors(rec, warnings)
+    for w in warnings[len(rec.warnings):]:       # the cleaning's, as they happen
+        log.warning(w)
     check_motion(rec, sensors)
     rc = record(sensors, rec.rig, None if start is None else t_first + start,
                 None if end is None else t_first + end)
@@ -431,7 +433,7 @@ def prepared(rec: Recording, cg=None, cg_std=None, cg_source: str | None = None,
         cg, cg_std = rec.rig.require_cg(), np.full(3, RIG_YAML_CG_STD)
         cg_source = cg_source or f"rig.yaml (σ {1e3 * RIG_YAML_CG_STD:g} mm assumed)"
     prior = Prior.from_rig(rec.rig, cg, cg_std)
-    guess, guess_std, source = start_tensor(rec)
+    guess, guess_std, source = start_tensor(rec, sensors)
     box = box_tensor(rec.rig)
     stiff = forced_response_start(rc, rec.rig, prior,
                                   np.vstack([guess] + [f * box for f in BOX_SCALES if not np.allclose(f * box, guess)]))
