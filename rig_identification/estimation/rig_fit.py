@@ -145,6 +145,9 @@ CHORD_STEPS = 8
 #: A solve, its Jacobian reused, may run this many times :data:`MAX_ITERATIONS` model
 #: evaluations (each an iteration without a Jacobian costs one).
 REUSED_EVALUATIONS = 3
+#: scipy's least_squares statuses of a stop by its tolerances (ftol, xtol, gtol): the Gauss–Newton
+#: decrement of a fresh Jacobian checks it, as it checks a stall (:func:`solve`).
+TOLERANCE_STOPS = (2, 3, 4)
 
 # --- the fit -------------------------------------------------------------------------------------------
 
@@ -391,12 +394,34 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
             costs.clear()
             if not done(intermediate_result.fun):
                 return
+        short[0] = jac.fresh and not done(intermediate_result.fun)
         raise StopIteration
 
-    sol = least_squares(jac.residual, np.zeros(prob.lay.size) if z0 is None else z0, jac=jac.jacobian,
-                        method="trf", x_scale=1.0, xtol=XTOL, ftol=FTOL, gtol=GTOL,
-                        max_nfev=MAX_ITERATIONS * (REUSED_EVALUATIONS if reuse else 1),
-                        callback=converged)
+    budget = MAX_ITERATIONS * (REUSED_EVALUATIONS if reuse else 1)
+    z, iterations, short = np.zeros(prob.lay.size) if z0 is None else z0, 0, [False]
+    while True:
+        sol = least_squares(jac.residual, z, jac=jac.jacobian, method="trf", x_scale=1.0, xtol=XTOL, ftol=FTOL,
+                            gtol=GTOL, max_nfev=budget - iterations, callback=converged)
+        iterations += sol.nfev
+        if sol.status in TOLERANCE_STOPS and iterations < budget:
+            if not (jac.fresh and np.array_equal(jac.z, sol.x)):
+                jac.refresh(sol.x)
+            short[0] = not done(sol.fun)
+        if not short[0] or iterations >= budget:
+            break
+        # the trust region stalled (or stopped by its tolerances) where a fresh Jacobian's Gauss–Newton step
+        # still gains more than NEWTON_DECREMENT: steps the model mispredicted shrank the region far below
+        # that step.  The step is taken where it lowers the cost, and the solve goes on from there.
+        step = -gauss_newton_gain(jac.J) @ sol.fun
+        r1 = jac.residual(sol.x + step)
+        iterations += 1
+        if not r1 @ r1 < sol.fun @ sol.fun:
+            break
+        z, short[0] = sol.x + step, False
+        costs.clear()
+        log.info("rig fit: the trust region stalled at cost %.6g; a Gauss–Newton step to %.6g", sol.cost,
+                 0.5 * float(r1 @ r1))
+    sol.nfev = iterations
     log.info("rig fit: %.0f s of record, %d iterations, %d Jacobians, cost %.6g", prob.seconds, sol.nfev,
              jac.jacobians, sol.cost)
     fresh = jac.fresh and jac.z is not None and np.array_equal(jac.z, sol.x)

@@ -594,6 +594,8 @@ class ReusedJacobian:
         if (not self.reuse or self.z is None or self.stale_model or self.last is None
                 or not np.array_equal(self.last[0], z)):
             return self.refresh(z)
+        if np.array_equal(z, self.z):       # a solve resumed where the last Jacobian was made
+            return self.J
         s = z - self.z
         r = self.last[1]
         self.J = self.J + np.outer(r - self.r - self.J @ s, s / (s @ s))
