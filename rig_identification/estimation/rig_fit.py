@@ -404,7 +404,7 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
                             gtol=GTOL, max_nfev=budget - iterations, callback=converged)
         iterations += sol.nfev
         if sol.status in TOLERANCE_STOPS and iterations < budget:
-            if not (jac.fresh and np.array_equal(jac.z, sol.x)):
+            if not (jac.fresh and jac.z is not None and np.array_equal(jac.z, sol.x)):
                 jac.refresh(sol.x)
             short[0] = not done(sol.fun)
         if not short[0] or iterations >= budget:
