@@ -359,7 +359,10 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
     where the Gauss–Newton decrement ½ gᵀ (JᵀJ)⁺ g of a fresh Jacobian falls below :data:`NEWTON_DECREMENT` (Boyd &
     Vandenberghe, *Convex Optimization*, §9.5.1: the cost the Gauss–Newton step would still
     gain), where the last :data:`STALL_ITERATIONS` iterations gained less than that together,
-    or by the tolerances; on the ``whole`` record (no stage after it) also where the Gauss–Newton
+    or by the tolerances — these two checked by that decrement at a fresh Jacobian: where the
+    Gauss–Newton step still gains more, it is taken (where it lowers the cost) and the trust
+    region starts anew from there (mispredicted steps shrink it far below the step to the
+    minimum: bench_any_rig 21096); on the ``whole`` record (no stage after it) also where the Gauss–Newton
     step would move no tensor entry, CG coordinate or the mass by :data:`RESULT_STEP` of its σ
     (the trust region then crawls along a valley of the nuisance unknowns: the segments' states
     and the force's correction).  A stop within :data:`ANCHOR_SIGMA` of the point ``at_x0`` gives
