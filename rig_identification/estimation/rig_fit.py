@@ -410,7 +410,7 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
             if not (jac.fresh and jac.z is not None and np.array_equal(jac.z, sol.x)):
                 jac.refresh(sol.x)
             short[0] = not done(sol.fun)
-        if not short[0] or iterations >= budget:
+        if not short[0] or iterations + 1 >= budget:      # the step and a resumed solve need a run each
             break
         # the trust region stalled (or stopped by its tolerances) where a fresh Jacobian's Gauss–Newton step
         # still gains more than NEWTON_DECREMENT: steps the model mispredicted shrank the region far below
