@@ -44,8 +44,9 @@ def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, rec: Record |
     mass and CG, the cables' ``stiffness`` (N,) N/m (default the prior's centre), the tensor
     entries ``inertia0`` (6,) kg·m² about the CG, τ ``damping_time`` s (default the default
     cable's, 2 ζ sqrt(m / (N k)) with that stiffness); with ``rec`` the lengths and CG its mean
-    tensions imply (:func:`start_geometry`).  Raises :class:`~.rig_record.RigFitError` when the
-    rig as described has no rest pose."""
+    tensions imply (:func:`start_geometry`: where rig.yaml's geometry leaves a cable slack, from the
+    linear springs' equilibrium there).  Raises :class:`~.rig_record.RigFitError` when the rig as
+    described has no rest pose and the mean tensions give none either."""
     n = len(rig.cables)
     k = prior.stiffness if stiffness is None else np.broadcast_to(np.asarray(stiffness, float), (n,))
     tau = default_damping_time(prior.mass, k) if damping_time is None else damping_time
@@ -57,7 +58,16 @@ def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, rec: Record |
     except SimulationError as e:
         if tensions is None or not np.all(tensions > 0):
             raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e})") from None
-        start, rest = _taut_start(start, tensions, rig, e)
+        try:
+            near = rest_pose(start, taut=False)
+        except SimulationError as e2:
+            raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e}; {e2})") from None
+        log.info("rig fit: rig.yaml's geometry has no rest pose (%s): the lengths start from the mean tensions", e)
+        start, rest = start_geometry(start, near, tensions, prior, surveyed)
+        if rest.tensions.min() <= 0:
+            raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e}), nor with the lengths its "
+                              f"mean tensions imply ({np.round(tensions, 1)} N)")
+        return start.replace(inertia=np.asarray(inertia0, float)), rest
     if tensions is not None:
         start, rest = start_geometry(start, rest, tensions, prior, surveyed)
     return start.replace(inertia=np.asarray(inertia0, float)), rest
@@ -84,25 +94,6 @@ def carried_to(p: RigParameters, rest: RestPose, stiffness: np.ndarray, surveyed
     return q, rest_pose(q, rest)
 
 
-def _taut_start(p: RigParameters, tensions: np.ndarray, rig: Rig, why: SimulationError
-                ) -> tuple[RigParameters, RestPose]:
-    """``p`` (rig.yaml's geometry, a cable slack at its rest pose: stiff cables turn a survey's
-    millimetre into kilonewtons) with each length shortened or lengthened so that, at the linear
-    springs' equilibrium, it carries its measured mean tension (their sum scaled to the
-    equilibrium's), and its rest pose.  Raises :class:`~.rig_record.RigFitError` where none is found."""
-    try:
-        near = rest_pose(p, taut=False)
-        stretched = p.length + near.tensions / p.stiffness
-        q = p.replace(length=stretched - tensions * near.tensions.sum() / tensions.sum() / p.stiffness)
-        rest = rest_pose(q, near)
-    except SimulationError as e:
-        raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({why}), nor with the lengths its "
-                          f"mean tensions imply ({e})") from None
-    log.info("rig fit: rig.yaml's geometry has no rest pose (%s): the start's lengths moved %s mm to carry the mean "
-             "tensions", why, np.round(1e3 * (q.length - p.length), 2))
-    return q, rest
-
-
 def start_geometry(p: RigParameters, rest: RestPose, tensions: np.ndarray, prior: Prior,
                    surveyed: np.ndarray | None = None) -> tuple[RigParameters, RestPose]:
     """``p`` with the cable lengths and CG that best explain the measured mean ``tensions``
@@ -111,10 +102,12 @@ def start_geometry(p: RigParameters, rest: RestPose, tensions: np.ndarray, prior
     (x and y without a σ move freely, z stays), each tension
     weighted by its gain's σ (rig.yaml ``survey.load_cell_gain``, at least
     :data:`MEAN_TENSION_SHARE`), their common scale free (the gains' common part against the
-    mass).  The rest tensions are the static equilibrium's (thesis eqs. 2.20–2.25 with springs,
-    :func:`~rig_identification.model.linear_rig.rest_pose`).  Where no such geometry is found
-    (a trial with a slack cable throughout) ``p`` and ``rest`` come back unchanged and the log
-    says so."""
+    mass).  The rest tensions are the linear springs' static equilibrium (thesis eqs. 2.20–2.25
+    with springs, :func:`~rig_identification.model.linear_rig.rest_pose` with ``taut=False``): a
+    trial that slackens a cable gives it a negative tension, so the search moves through it, and
+    ``p`` and ``rest`` may be such a pose (rig.yaml's geometry with a cable slack by a survey's
+    millimetres: bench_any_rig 21135, 1.6 mm on a 5-cable rig).  Where the geometry found has no
+    rest pose with every cable taut, ``p`` and ``rest`` come back unchanged and the log says so."""
     n = p.cables
     T = np.asarray(tensions, float)
     if T.shape != (n,) or not np.all(np.isfinite(T)) or np.any(T <= 0):
@@ -134,7 +127,7 @@ def start_geometry(p: RigParameters, rest: RestPose, tensions: np.ndarray, prior
 
     def residual(v: np.ndarray) -> np.ndarray:
         try:
-            at = rest_pose(trial(v), rest)
+            at = rest_pose(trial(v), rest, taut=False)
         except SimulationError:
             return np.full(2 * n + int(has_prior.sum()), OUTSIDE)
         return np.concatenate([(at.tensions - (1.0 + SCALE_UNIT * v[-1]) * T) / sigma_t, v[:n] + offset,
