@@ -18,8 +18,8 @@ import pytest
 import yaml
 
 from rig_identification.cli.main import identify_main
-from rig_identification.io.quality import clean_sensors
-from rig_identification.io.recording import Recording, TimeSeries, on_own_clocks, read_recording
+from rig_identification.io.quality import check_motion, clean_sensors, white_sigma
+from rig_identification.io.recording import Recording, RecordingError, TimeSeries, on_own_clocks, read_recording
 from rig_identification.io.recording_writer import write_recording
 from rig_identification.io.stamps import regular_stamps
 
@@ -466,6 +466,25 @@ def test_static_recording(sim, tmp_path):
     rc, _, err = run(rec)
     assert rc == 2
     assert "did not move" in err and "static recording" in err
+
+
+def test_a_motion_the_gyro_does_not_see_but_the_tensions_do_is_fitted_not_refused(sim):
+    """The shaken default rig with its gyro's motion taken out (white noise of the gyro's σ
+    left: a motion within the gyro's noise, as on bench_any_rig's 21057) is not a static recording:
+    its tensions swing far beyond their noise, and the load cells are outputs of the fit.  With the
+    tensions' motion taken out too (each its mean plus white noise) it is refused, naming both."""
+    rng = np.random.default_rng(3)
+    s = sim.sensors
+    imu = s.imu.data.copy()
+    imu[:, :3] = rng.normal(0.0, white_sigma(imu[:, :3]), imu[:, :3].shape)
+    quiet_gyro = dataclasses.replace(s, imu=TimeSeries(s.imu.t, imu))
+    rec = Recording(sim.rig, quiet_gyro, sim.truth, None)
+    check_motion(rec, quiet_gyro)
+    still = {n: TimeSeries(c.t, c.data.mean() + rng.normal(0.0, white_sigma(c.data), c.data.shape))
+             for n, c in s.load_cells.items()}
+    static = dataclasses.replace(quiet_gyro, load_cells=still)
+    with pytest.raises(RecordingError, match=r"did not move .*gyro RMS.*the tensions at most"):
+        check_motion(Recording(sim.rig, static, sim.truth, None), static)
 
 
 def test_missing_paths_are_named_at_once(tmp_path):

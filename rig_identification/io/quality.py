@@ -177,9 +177,15 @@ def replace_spikes(ts: TimeSeries) -> tuple[TimeSeries, np.ndarray]:
 MIN_CLEAN = 15.0  # s: shortest clean span worth fitting (tracker settling + two high-pass periods);
 #                   a shorter recording (the thesis's 10 s case studies) needs 75 % of its length clean
 MIN_MOTION = 2e-4  # rad/s: RMS of the low-passed gyro about its mean below which the body "hardly moved"
-MOTION_SNR = 1.5   # ... or below this multiple of the gyro noise's RMS in that band: a static recording.
+MOTION_SNR = 1.5   # ... or below this multiple of the gyro noise's RMS in that band, and every tension
+#                    below TENSION_SNR: a static recording.
 #                    Whether a moving body's motion determines the tensor is the validation's
 #                    question (predicted σ of each entry, validation.REL_STD_LIMIT), not a gate's
+TENSION_BAND = (0.1, 10.0)  # Hz: a tension's motion; its load cell's drift and zero below, the cables' ringing above
+#: A tension's RMS in TENSION_BAND over its noise's there below which it did not move: band-passed
+#: white noise reads ~1 (a static record's 0.9–1.8, a settling swing among them); a shaken rig's
+#: 20–500 (bench_any_rig 21057, whose gyro stayed within its noise).
+TENSION_SNR = 5.0
 
 
 def check_units(rec: Recording) -> None:
@@ -253,9 +259,14 @@ def _despiked(ts: TimeSeries, topic: str, t0: float, warnings: list[str]) -> Tim
 
 
 def check_motion(rec: Recording, s: SensorData) -> None:
-    """Refuse a static recording: the gyro low-passed at 10 Hz (zero-phase Butterworth,
-    scipy) about its mean must stand out of the noise it would have in that band (σ from
-    its third differences, io.quality.white_sigma) by :data:`MOTION_SNR`, and be at least :data:`MIN_MOTION`.
+    """Refuse a static recording: neither the gyro nor any load cell moved out of its noise.
+    The gyro low-passed at 10 Hz (zero-phase Butterworth, scipy) about its mean must stand out of
+    the noise it would have in that band (σ from its third differences,
+    io.quality.white_sigma) by :data:`MOTION_SNR`, and be at least :data:`MIN_MOTION`; or a
+    tension band-passed at :data:`TENSION_BAND` Hz (its drift and zero left out; the lower edge at
+    least four cycles over the record) must stand out of
+    its noise there by :data:`TENSION_SNR`: through the stiff cables the load cells see a motion
+    the gyro's noise hides (the tensions are the rig model's outputs).
     A body that moved, however little, is fitted: whether that motion determines each
     entry is the validation's verdict (``not_identifiable``), from the entries' σ.
     Raises :class:`RecordingError`."""
@@ -266,7 +277,19 @@ def check_motion(rec: Recording, s: SensorData) -> None:
     rms = float(np.sqrt(np.mean(np.sum(sm**2, axis=1))))
     noise = white_sigma(g) * np.sqrt(3 * 2 * f_lp / fs)
     threshold = max(MOTION_SNR * noise, MIN_MOTION)
-    if rms < threshold:
+    if rms >= threshold:
+        return
+    snr = 0.0
+    for c in s.load_cells.values():
+        fc = 1.0 / np.median(np.diff(c.t))
+        x = c.data[:, 0]
+        band = (max(TENSION_BAND[0], 4 * fc / len(x)), min(TENSION_BAND[1], 0.4 * fc))
+        sigma = white_sigma(x) * np.sqrt(2 * (band[1] - band[0]) / fc)
+        if band[0] < band[1] and sigma > 0:
+            t = sosfiltfilt(butter(2, band, btype="bandpass", fs=fc, output="sos"), x - x.mean())
+            snr = max(snr, float(np.sqrt(np.mean(t**2))) / sigma)
+    if snr < TENSION_SNR:
         raise RecordingError(f"{rec.path}: the body did not move (gyro RMS below 10 Hz {rms:.1e} rad/s, no more "
-                             f"than its noise there, threshold {threshold:.1e} rad/s): is this a static recording? "
-                             "inertia needs a dynamic one")
+                             f"than its noise there, threshold {threshold:.1e} rad/s; the tensions at most "
+                             f"{snr:.2g}× their noise below {TENSION_BAND[1]:g} Hz, threshold {TENSION_SNR:g}×): "
+                             "is this a static recording? inertia needs a dynamic one")
