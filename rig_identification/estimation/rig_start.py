@@ -53,23 +53,23 @@ def start_parameters(rig: Rig, prior: Prior, inertia0: np.ndarray, rec: Record |
     start = RigParameters.from_rig(rig, np.zeros(6), k, tau, prior.mass, prior.cg)
     surveyed = start.length
     tensions = None if rec is None else rec.y[rec.start:, :n].mean(axis=0)
+    slack: SimulationError | None = None
     try:
         rest = rest_pose(start)
     except SimulationError as e:
         if tensions is None or not np.all(tensions > 0):
             raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e})") from None
         try:
-            near = rest_pose(start, taut=False)
+            rest = rest_pose(start, taut=False)
         except SimulationError as e2:
             raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e}; {e2})") from None
+        slack = e
         log.info("rig fit: rig.yaml's geometry has no rest pose (%s): the lengths start from the mean tensions", e)
-        start, rest = start_geometry(start, near, tensions, prior, surveyed)
-        if rest.tensions.min() <= 0:
-            raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({e}), nor with the lengths its "
-                              f"mean tensions imply ({np.round(tensions, 1)} N)")
-        return start.replace(inertia=np.asarray(inertia0, float)), rest
     if tensions is not None:
         start, rest = start_geometry(start, rest, tensions, prior, surveyed)
+    if rest.tensions.min() <= 0:
+        raise RigFitError(f"{rig.source}: the rig as described has no rest pose ({slack}), nor with the lengths its "
+                          f"mean tensions imply ({np.round(np.asarray(tensions, float), 1)} N)")
     return start.replace(inertia=np.asarray(inertia0, float)), rest
 
 

@@ -286,8 +286,8 @@ def check_motion(rec: Recording, s: SensorData) -> None:
         band = (max(TENSION_BAND[0], 4 * fc / len(x)), min(TENSION_BAND[1], 0.4 * fc))
         sigma = white_sigma(x) * np.sqrt(2 * (band[1] - band[0]) / fc)
         if band[0] < band[1] and sigma > 0:
-            t = sosfiltfilt(butter(2, band, btype="bandpass", fs=fc, output="sos"), x - x.mean())
-            snr = max(snr, float(np.sqrt(np.mean(t**2))) / sigma)
+            swing = sosfiltfilt(butter(2, band, btype="bandpass", fs=fc, output="sos"), x - x.mean())
+            snr = max(snr, float(np.sqrt(np.mean(swing**2))) / sigma)
     if snr < TENSION_SNR:
         raise RecordingError(f"{rec.path}: the body did not move (gyro RMS below 10 Hz {rms:.1e} rad/s, no more "
                              f"than its noise there, threshold {threshold:.1e} rad/s; the tensions at most "
