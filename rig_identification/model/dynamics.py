@@ -111,6 +111,7 @@ class RigDynamics:
         self.R_exc = ex.rotation.as_matrix() if ex is not None else np.eye(3)
         r_exc = ex.position - self.cg if ex is not None else np.zeros(3)
         self.M_exc = skew(r_exc) @ self.R_exc          # exciter-frame force -> moment about the CG
+        self.r_exc = r_exc
         self._dissipative = [e for e in effects if e.name in ("viscous_damping", "air_drag")]
         pins = next((e for e in effects if e.name == "pivot_friction"), None)
         self._pins = None if pins is None else (float(pins.get("mu_r")), float(pins.get("velocity_scale", 1e-4)))
@@ -141,6 +142,22 @@ class RigDynamics:
             h = self._rotor_inertia * speed * z                                # spin angular momentum, body
             M -= np.cross(w, h) + self._rotor_inertia * acc * z
         return F, M
+
+    def unbalance_inertia(self, t: float, R: np.ndarray, a: np.ndarray, alpha: np.ndarray, w: np.ndarray
+                          ) -> np.ndarray:
+        """Moment (3,) body N·m about the CG of the exciter's unbalanced mass's inertial force on its
+        arm, −m_u e û × a_e: the unbalance m_u e (kg·m) toward û (the force's direction, body), a_e
+        the exciter axis's acceleration (body axes) for the CG's acceleration ``a`` (3,) world m/s²
+        and the angular acceleration ``alpha`` (3,) and velocity ``w`` (3,) body.  Its weight's
+        moment is :meth:`effect_wrench`'s; the two make m_u e û × (g − a_e), what the rotor, its
+        speed held by the drive, passes to the body about its arm (the part about the spin axis
+        through the drive)."""
+        assert self._rotor is not None and self.excitation.rotating is not None
+        theta = self.excitation.rotating.angle_and_speed(t)[0]
+        u = self.R_exc @ np.array([math.cos(theta), math.sin(theta), 0.0])
+        a_e = R.T @ a + np.cross(alpha, self.r_exc) + np.cross(w, np.cross(w, self.r_exc))
+        out: np.ndarray = -self._unbalance * np.cross(u, a_e)
+        return out
 
     def pin_friction(self, T: np.ndarray, l: np.ndarray, u: np.ndarray, Pdot: np.ndarray) -> np.ndarray:
         """(N, 3) world N: the force of each ceiling pin's dry friction on the body anchor (the
@@ -216,8 +233,14 @@ class RigDynamics:
                 Tu = Tu + self.pin_friction(T, l, u, Pdot)
             a = (Tu.sum(axis=0) + F_ext) / self.m + self.g
             alpha = self.Jinv @ (moment_sum(self.r, Tu @ R) + M_rest)
+            if self._rotor is not None:        # one fixed-point pass: the moment is ~1 % of the weight's
+                alpha = alpha + self.Jinv @ self.unbalance_inertia(t, R, a, alpha, w)
         else:
-            a, alpha, T = self._constrained(R, Rdot, W, CableKinematics(d, l, u, Pdot, ldot), F_ext, M_rest)
+            cab = CableKinematics(d, l, u, Pdot, ldot)
+            a, alpha, T = self._constrained(R, Rdot, W, cab, F_ext, M_rest)
+            if self._rotor is not None:
+                a, alpha, T = self._constrained(R, Rdot, W, cab, F_ext,
+                                                M_rest + self.unbalance_inertia(t, R, a, alpha, w))
         dy = np.empty(self.size)
         dy[0:3], dy[3:12], dy[12:15], dy[15:18] = v, Rdot.ravel(), a, alpha
         if self.suspension is not None:

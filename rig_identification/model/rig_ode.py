@@ -5,8 +5,10 @@ cables (Newton–Euler with the gyroscopic term; tension max(0, k_i (l_i - L_i) 
 along the cable; the ceiling pins' friction, a Coulomb moment μ r T_i resisting each cable's
 swing: the force μ r T_i / l_i across the cable at its body anchor, against the anchor's
 velocity across it, regularised; the body's damping on the CG's velocity and the angular
-velocity: viscous -c v and quadratic -c |v| v; the exciter's unbalanced mass,
-whose weight turns with the measured force's direction), driven by the measured
+velocity: viscous -c v and quadratic -c |v| v; the exciter's unbalanced mass m_u e on its arm,
+toward the measured force's direction û: the moment m_u e û × (g − a_e) of its weight and of its
+inertial force on the exciter axis's acceleration a_e, which a rotor whose drive holds its speed
+passes to the body), driven by the measured
 exciter force (its frame turning with the body), the force a cubic spline through the samples of
 a uniform grid (linear interpolation of a 200 Hz force leaves 0.2 N in the tensions: they see
 the motion that finely).  Classical fourth-order Runge–Kutta with a fixed step (``substeps``
@@ -140,6 +142,22 @@ def _rhs(y: np.ndarray, u0: float, u1: float, A: np.ndarray, r: np.ndarray, L: n
     dy[10] = Jinv[0, 0] * tx + Jinv[0, 1] * ty + Jinv[0, 2] * tz
     dy[11] = Jinv[1, 0] * tx + Jinv[1, 1] * ty + Jinv[1, 2] * tz
     dy[12] = Jinv[2, 0] * tx + Jinv[2, 1] * ty + Jinv[2, 2] * tz
+    if bd[4] != 0.0 and fn > 0.0:
+        # the unbalanced mass's inertial force on its arm: −m_u e û × a_e, a_e the exciter axis's
+        # acceleration (body axes) from this derivative (one fixed-point pass: the moment is ~1 % of
+        # its weight's, and moves the accelerations it depends on by ~1 % of itself)
+        ax = R[0, 0] * dy[7] + R[1, 0] * dy[8] + R[2, 0] * dy[9]
+        ay = R[0, 1] * dy[7] + R[1, 1] * dy[8] + R[2, 1] * dy[9]
+        az = R[0, 2] * dy[7] + R[1, 2] * dy[8] + R[2, 2] * dy[9]
+        px, py, pz = wy * re[2] - wz * re[1], wz * re[0] - wx * re[2], wx * re[1] - wy * re[0]
+        ax += dy[11] * re[2] - dy[12] * re[1] + wy * pz - wz * py
+        ay += dy[12] * re[0] - dy[10] * re[2] + wz * px - wx * pz
+        az += dy[10] * re[1] - dy[11] * re[0] + wx * py - wy * px
+        s_ = -bd[4] / fn
+        nx, ny, nz = s_ * (ey * az - ez * ay), s_ * (ez * ax - ex * az), s_ * (ex * ay - ey * ax)
+        dy[10] += Jinv[0, 0] * nx + Jinv[0, 1] * ny + Jinv[0, 2] * nz
+        dy[11] += Jinv[1, 0] * nx + Jinv[1, 1] * ny + Jinv[1, 2] * nz
+        dy[12] += Jinv[2, 0] * nx + Jinv[2, 1] * ny + Jinv[2, 2] * nz
 
 
 @numba.njit(cache=True, nogil=True)
