@@ -603,7 +603,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
     Raises :class:`~.rig_record.RigFitError` when the rig has no rest pose.
     """
     extensions = extensions or {}
-    lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1],
+    lay = Layout(len(rig.cables), rec.force_unknowns(),
                  extensions=tuple(e for e in EXTENSIONS if e in extensions))
     n_all = len(rec.y) - rec.start
     channels = len(rec.channels)
@@ -732,7 +732,7 @@ def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.
     and noise levels at the true parameters ``truth``: the inverse Fisher information of the
     weighted residual (Gaussian white noise per channel, in the fit's band), the priors of
     ``prior``, the initial state at the fit's start free."""
-    lay = Layout(len(rig.cables), 2 * rec.force_basis().shape[1])
+    lay = Layout(len(rig.cables), rec.force_unknowns())
     x = vector(truth, np.zeros(12), lay)
     rest = rest_pose(truth)
     prob = RigProblem(rec, RigPoint(x, truth, rest), lay, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start)

@@ -115,6 +115,10 @@ class RigProblem:
         lin = linearise(parameters_of(self.x0, like, self.lay), rest)
         self.substeps = substeps_for(2 * np.pi * natural_frequencies(lin).max(), rec.dt)
         self.basis = rec.force_basis()[:n] if self.lay.n_force else np.zeros((n, 0))
+        z = rec.u[rec.start:rec.start + n, 0] + 1j * rec.u[rec.start:rec.start + n, 1]
+        # each harmonic's correction turns k + 1 times per revolution of the force, scaled by its amplitude
+        self.turns = [np.abs(z) * np.exp(1j * (h + 1) * np.angle(z)) for h in rec.force_harmonics] \
+            if self.lay.n_force else []
         self.edges = np.linspace(0, n, self.lay.n_segments + 1).round().astype(int)
         if bases is not None and len(bases) == self.lay.n_segments and len(x0) == self.lay.size:
             self.bases = bases
@@ -209,16 +213,22 @@ class RigProblem:
         return x
 
     def force(self, x: np.ndarray) -> np.ndarray:
-        """(n, 2) N the exciter force over the span: the denoised one times (1 + a(t)) e^{iφ(t)},
-        a and φ the B-splines of the unknowns ``force`` (:class:`Layout`)."""
+        """(n, 2) N the exciter force over the span: the denoised one z times (1 + a(t)) e^{iφ(t)},
+        plus |z| c_k(t) (z/|z|)^(k+1) for each of the record's co-rotating harmonics k
+        (:attr:`~.rig_record.Record.force_harmonics`); a, φ and each complex c_k the B-splines of the
+        unknowns ``force`` (:class:`Layout`)."""
         a = self.rec.start
         u = self.rec.u[a:a + self.n]
         if not self.lay.n_force:
             return u
         c = x[self.lay.force]
-        k = self.lay.n_force // 2
-        z = (u[:, 0] + 1j * u[:, 1]) * (1.0 + self.basis @ c[:k]) * np.exp(1j * (self.basis @ c[k:]))
-        return np.column_stack([z.real, z.imag])
+        k = self.basis.shape[1]
+        z = u[:, 0] + 1j * u[:, 1]
+        out = z * (1.0 + self.basis @ c[:k]) * np.exp(1j * (self.basis @ c[k:2 * k]))
+        for j, turn in enumerate(self.turns):
+            first = 2 * k * (1 + j)
+            out = out + turn * (self.basis @ c[first:first + k] + 1j * (self.basis @ c[first + k:first + 2 * k]))
+        return np.column_stack([out.real, out.imag])
 
     def drive(self, x: np.ndarray, u: np.ndarray, a: int, b: int) -> Drive:
         """The force ``u`` (:meth:`force` at ``x``, as read) over the span's samples a to b as the
@@ -383,11 +393,12 @@ class RigProblem:
         lay = self.lay
         out: dict[int, tuple[int, ...]] = {i: (k,) for k in range(lay.n_segments)
                                            for i in range(*lay.state(k).indices(lay.size))}
-        K = lay.n_force // 2
+        K = self.basis.shape[1]
         for j in range(K):
             hit = tuple(k for k in range(lay.n_segments)
                         if np.any(self.basis[self.edges[k]:self.edges[k + 1], j] != 0.0))
-            out[lay.force.start + j] = out[lay.force.start + K + j] = hit
+            for block in range(lay.n_force // K):
+                out[lay.force.start + block * K + j] = hit
         return out
 
     def jacobian(self, z: np.ndarray, columns: Sequence[int] | None = None) -> np.ndarray:

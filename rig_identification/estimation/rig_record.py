@@ -9,15 +9,19 @@ channels of the fit.  The fit's band (:func:`band_edge`) is a multiple of the fo
 """
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline, make_lsq_spline
 from scipy.signal import butter, sosfiltfilt
+from scipy.stats import chi2
 
 from ..io.quality import white_sigma
 from ..io.recording import SensorData
 from ..io.rig import Rig
+
+log = logging.getLogger(__name__)
 
 #: The fit's band edge over the exciter force's dominant frequency (:func:`band_edge`).
 FORCE_BAND = 4.0
@@ -38,6 +42,19 @@ SETTLE = 2.0
 #: force besides the rotating one (5 % of it: a 10 kg rotor on a 1.5 t body swinging 1 cm at
 #: 1.2 Hz), which the fit's exciter channels model (:func:`~rig_identification.model.rig_ode.exciter_readings`).
 ROTATING_SHARE = 0.1
+#: The rotating force's co-rotating harmonics k (the components turning k + 1 times per revolution,
+#: :func:`smooth_force`) that the denoised force may keep: a rotor whose drive holds its speed
+#: against the body's swing, and an exciter's bearings, make them (the independent simulator's rotor:
+#: 0.24 N at twice the spin, 0.12 N at three times, beside 230 N, ringing the yaw mode at 2.36 Hz by
+#: 6 N in the tensions where the input left them out); a rotor's own inertial force on the body's
+#: swing, which the load cells read too, makes them in the readings alone: the fit corrects each
+#: kept harmonic with the exciter's readings as an output (:class:`Record` ``force_harmonics``).
+#: The counter-rotating part (a rotor's reaction to an elliptic swing) and the constant one are not in it.
+FORCE_HARMONICS = (1, 2, 3)
+#: A harmonic is kept where its splines hold more than noise would, at this false-alarm probability.
+HARMONIC_P = 1e-3
+#: The counter-rotating part, in the rotating force's own frame (turning −2 times per revolution there).
+COUNTER_ROTATING = -2
 
 
 class RigFitError(ValueError):
@@ -63,6 +80,8 @@ class Record:
     force_knots: s from ``t0``, the interior knots of the denoised force's amplitude and phase
     splines after ``start`` (empty when the force is not a rotating vector): the fit corrects
     the force in that spline space (:class:`~rig_identification.estimation.rig_unknowns.Layout` ``force``).
+    force_harmonics: the co-rotating harmonics k (:data:`FORCE_HARMONICS`) the denoised force
+    holds (:func:`smooth_force`), each corrected in that spline space too.
     """
 
     t0: float
@@ -75,6 +94,7 @@ class Record:
     band: float
     start: int
     force_knots: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    force_harmonics: tuple[int, ...] = ()
 
     @property
     def duration(self) -> float:
@@ -102,6 +122,12 @@ class Record:
         inner = np.concatenate([[t[0]] * 4, self.force_knots[self.force_knots < t[-1]], [t[-1]] * 4])
         basis: np.ndarray = BSpline.design_matrix(t, inner, 3).toarray()
         return basis
+
+    def force_unknowns(self) -> int:
+        """The force correction's unknowns (:class:`~rig_identification.estimation.rig_unknowns.Layout`
+        ``n_force``): 2 K for the amplitude and phase (K: :meth:`force_basis`'s columns) and 2 K for
+        each of :attr:`force_harmonics` (real and imaginary part)."""
+        return 2 * int(self.force_basis().shape[1]) * (1 + len(self.force_harmonics))
 
 
 @dataclass(frozen=True)
@@ -233,7 +259,8 @@ def on_model_grid(s: Streams, rig: Rig) -> Record:
         measured = sosfiltfilt(sos, measured, axis=0)[::q][k:-k]
         lo, dt, n = lo + k * q * dt, q * dt, len(measured)
     # the force's noise per grid sample: a decimated stream's low-passed (σ² × grid rate / its rate)
-    u, start, knots = smooth_force(measured, dt, band, s.force_sigma * np.sqrt(min(1.0, 1.0 / (s.force_rate * dt))))
+    u, start, knots, harmonics = smooth_force(measured, dt, band,
+                                              s.force_sigma * np.sqrt(min(1.0, 1.0 / (s.force_rate * dt))))
     # each stream's samples per grid step (a slower stream's sample counts once; a faster one's
     # low-passed noise keeps its in-band density: σ² × grid rate / stream rate per grid sample)
     over = (1.0 / dt) / s.rates
@@ -247,7 +274,7 @@ def on_model_grid(s: Streams, rig: Rig) -> Record:
         sig = np.append(sig, [s.force_sigma] * 2)
         over = np.append(over, [(1.0 / dt) / s.force_rate] * 2)
     return Record(float(lo), dt, y, u, sig, over, channel_names(rig, force), band, start,
-                  knots[knots > start * dt] if force else np.zeros(0))
+                  knots[knots > start * dt] if force else np.zeros(0), harmonics if force else ())
 
 
 def band_edge(u: np.ndarray, dt: float) -> float:
@@ -279,10 +306,11 @@ def _offset(z: np.ndarray, steady: np.ndarray) -> complex:
 
 
 def smooth_force(u: np.ndarray, dt: float, band: float, noise: float | None = None
-                 ) -> tuple[np.ndarray, int, np.ndarray]:
+                 ) -> tuple[np.ndarray, int, np.ndarray, tuple[int, ...]]:
     """The exciter's force (n, 2) N with its measurement noise removed, the first sample
-    after the motor's spin-up (0 when the force is not a rotating vector) and the splines'
-    interior knots, s from the first sample (empty when it is not).  ``noise``: the force's
+    after the motor's spin-up (0 when the force is not a rotating vector), the splines'
+    interior knots, s from the first sample (empty when it is not), and the co-rotating
+    harmonics k it holds (:data:`FORCE_HARMONICS`).  ``noise``: the force's
     white-noise σ per sample of ``u``, N, where ``u`` was low-passed (default: estimated from ``u``).
 
     The load cells resolve the force's own noise (0.5 N is a load cell's too), and the model,
@@ -291,7 +319,14 @@ def smooth_force(u: np.ndarray, dt: float, band: float, noise: float | None = No
     amplitude and phase vary slowly once the motor runs at speed: both are fitted with
     least-squares cubic splines (the phase weighted by A², its noise's inverse variance), knots
     every :data:`RAMP_KNOT` s while the motor spins up and every :data:`STEADY_KNOT` s after, so
-    the noise left is within ~1/(2·STEADY_KNOT) Hz of the rotation's frequency.  The readings'
+    the noise left is within ~1/(2·STEADY_KNOT) Hz of the rotation's frequency.  A co-rotating
+    harmonic (:data:`FORCE_HARMONICS`: the component turning k + 1 times per revolution) is the
+    readings less the vector, turned back by k + 1 times the phase, fitted with the splines of the
+    span after the spin-up (where the spin-up's knots would take in the swing itself), all of them
+    at once with the counter-rotating part (:data:`COUNTER_ROTATING`, which alone would leak into
+    them at the span's ends); it is kept
+    where those splines hold more than noise alone would (σ² χ² with two degrees of freedom per
+    coefficient, false-alarm probability :data:`HARMONIC_P`).  The readings'
     constant offset (a load cell's bias, or the weight of a rotor spinning about a horizontal axis,
     which its bearing carries: part of the suspended body's weight, not a force that moves it) is
     not part of the vector (:func:`_offset`): it is taken out of the input (the readings, an
@@ -305,7 +340,7 @@ def smooth_force(u: np.ndarray, dt: float, band: float, noise: float | None = No
     readings as an output (:class:`~rig_identification.estimation.rig_unknowns.Layout` ``force``), so
     the load cells inform the force too and the fit is an output-error fit with no noisy input
     (no errors-in-variables bias)."""
-    fallback = sosfiltfilt(butter(4, band, fs=1.0 / dt, output="sos"), u, axis=0), 0, np.zeros(0)
+    fallback = sosfiltfilt(butter(4, band, fs=1.0 / dt, output="sos"), u, axis=0), 0, np.zeros(0), ()
     n = len(u)
     t = dt * np.arange(n)
     z = u[:, 0] + 1j * u[:, 1]
@@ -333,4 +368,29 @@ def smooth_force(u: np.ndarray, dt: float, band: float, noise: float | None = No
     zs = amp_s * np.exp(1j * phase_s)
     if np.sqrt(np.mean(np.abs(z - zs) ** 2) / 2) > max(2 * noise, ROTATING_SHARE * steady):
         return fallback
-    return np.column_stack([zs.real, zs.imag]), int(min(n - 1, np.ceil((ramp_end + SETTLE) / dt))), knots
+    first = int(min(n - 1, np.ceil((ramp_end + SETTLE) / dt)))
+    # the harmonics over the steady span only, on its knots (the spin-up's, every RAMP_KNOT s, would
+    # take in the swing's own frequencies there), fitted together with the counter-rotating part,
+    # which would otherwise leak into them at the span's ends
+    steady_t = t >= ramp_end
+    ts, ph = t[steady_t], phase_s[steady_t]
+    inner_s = np.concatenate([[ts[0]] * 4, knots[knots > ramp_end], [ts[-1]] * 4])
+    try:
+        basis = BSpline.design_matrix(ts, inner_s, 3).toarray()
+    except ValueError:
+        return np.column_stack([zs.real, zs.imag]), first, knots, ()
+    m = basis.shape[1]
+    turns = (COUNTER_ROTATING,) + FORCE_HARMONICS
+    design = np.hstack([basis * np.exp(1j * k * ph)[:, None] for k in turns])
+    coef = np.linalg.lstsq(design, ((z - zs) * np.exp(-1j * phase_s))[steady_t], rcond=None)[0]
+    # a harmonic's splines fitted to noise alone hold σ² χ²(2m) (m coefficients each, real and imaginary)
+    kept = chi2.isf(HARMONIC_P, 2 * m) * noise**2
+    harmonics: list[int] = []
+    for j, k in enumerate(turns[1:], start=1):
+        b = basis @ coef[j * m:(j + 1) * m]
+        if np.sum(np.abs(b) ** 2) > kept:
+            log.info("exciter force: its co-rotating harmonic %d kept (%.2g N, %.3g times noise's threshold)", k + 1,
+                     float(np.sqrt(np.mean(np.abs(b) ** 2))), np.sum(np.abs(b) ** 2) / kept)
+            zs[steady_t] += b * np.exp(1j * (k + 1) * ph)
+            harmonics.append(k)
+    return np.column_stack([zs.real, zs.imag]), first, knots, tuple(harmonics)

@@ -118,9 +118,11 @@ class Prior:
 class Layout:
     """Where each unknown sits in the parameter vector.
 
-    n_cables: the rig's cables.  n_force: the exciter force's correction unknowns (0 or 2 K):
+    n_cables: the rig's cables.  n_force: the exciter force's correction unknowns (0 or 2 K (1 + H)):
     K B-spline coefficients of its amplitude's relative change, then K of its phase's change,
-    rad, over the fit's span (:meth:`Record.force_basis`).  n_segments: the span's segments
+    rad, over the fit's span (:meth:`Record.force_basis`), then for each of the record's H
+    co-rotating harmonics K of its real and K of its imaginary part, shares of the amplitude
+    (:meth:`Record.force_unknowns`).  n_segments: the span's segments
     (:data:`SEGMENT`), each after the first with its own initial state (12 unknowns, last).
     extensions: names of :data:`EXTENSIONS` whose unknowns the vector holds (after the geometry).
     """
