@@ -43,8 +43,9 @@ hanging on cables makes a mean rate): named ``gyro_bias`` where the recording de
 
 The last refit's tensor is the estimate, and each channel's residual before and after shows the
 fit improve.  The data errors are those of the last fit.  Where the fit with the extensions leaves
-the tensor undetermined, the rigid-body model fitted again from its tensor must still misfit for
-anything to be named (:func:`diagnose_rig`).  Where the rigid-body fit explains the recording and
+the tensor undetermined, or the first rigid-body fit had lost the motion and an extension added is
+not determined at the refit, the rigid-body model fitted again from its tensor must still misfit
+for anything to be named (:func:`diagnose_rig`).  Where the rigid-body fit explains the recording and
 leaves the tensor undetermined, no extension is tested; what the model itself holds — its viscous
 damping (where no other minimum fits as well) and the gyro's bias — is still read and named as
 above.
@@ -275,6 +276,12 @@ class PriorConflict:
     def to_dict(self) -> dict:
         return {"unknown": self.unknown, "estimate": self.estimate, "std": self.std, "prior": self.prior,
                 "prior_std": self.prior_std, "z": self.z}
+
+
+def evidenced(fit: RigFit, steps: list[Step]) -> bool:
+    """Every extension the ``steps`` added is determined at ``fit`` (the fit with them): one of
+    its values beyond :data:`DETERMINED_Z` of its σ (Wald's test at the refit's estimate)."""
+    return all(bool(np.any(np.abs(v) > DETERMINED_Z * sd)) for v, sd in (fit.extension(s.added) for s in steps))
 
 
 def lost(fit: RigFit) -> bool:
@@ -606,12 +613,16 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     Ixx 24 % off and the viscous damping "found").  Under a misfit the tests run
     (σ is not calibrated there, so it does not judge the tensor undetermined).  Where they added
     extensions and the fit with them leaves the tensor undetermined, the rigid-body model is
-    fitted again from that fit's tensor: where it then
+    fitted again from that fit's tensor, and so it is where the first rigid-body fit had not found
+    the motion (:func:`lost`) and an added extension is not determined at the refit
+    (:func:`evidenced`: the refit found the motion from its fresh start, not through the
+    extension): where it then
     explains every channel, the misfit was its descent's (a flat likelihood holds other minima),
     not the extensions' physics; nothing is named, and that rigid fit is the one reported (on
     bench_trust's clean, undetermined 7201 the first rigid fit misfit and ``sensor_delay`` was
-    named).  Where the rigid-body fit does not find the motion and the extensions its tests added
-    do not explain the recording (a channel beyond
+    named; on bench_any_rig's clean, determined 21138 the first rigid fit lost the motion and the
+    refit with ``load_cell_delay``, from a fresh start, found it).  Where the rigid-body fit does
+    not find the motion and the extensions its tests added do not explain the recording (a channel beyond
     :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` of its noise, or the motion still
     lost), the extensions the recording itself gives a start (:func:`physical_starts`; ``damped``:
     the forced response fitted with the body's damping, the air drag's start; ``turning``: with the
@@ -638,11 +649,16 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
             else:
                 log.info("diagnosis: the fit from %s explains less than the one with %s", restarted[0].added,
                          ", ".join(s.added for s in steps))
-    if steps and not current.determined and refit is not None:
+    undetermined = not current.determined or (lost(fit) and not evidenced(current, steps))
+    if steps and undetermined and refit is not None:
+        log.info("diagnosis: the fit with %s leaves the tensor undetermined or its extensions at %s σ: the rigid-body "
+                 "model fitted again from its tensor", ", ".join(s.added for s in steps),
+                 [np.round(v / sd, 1).tolist() for v, sd in (current.extension(s.added) for s in steps)])
         again = refit({}, current.parameters.inertia, None)
         if np.max(again.residual_level) <= LEVEL_LIMIT:
-            log.info("diagnosis: the rigid-body model from the tensor of the fit with %s explains every channel, "
-                     "the tensor undetermined: nothing named", ", ".join(s.added for s in steps))
+            log.info("diagnosis: the rigid-body model from the tensor of the fit with %s explains every channel "
+                     "(the tensor undetermined, or the first rigid-body fit lost and an extension not determined "
+                     "at the refit): nothing named", ", ".join(s.added for s in steps))
             return RigDiagnosis(prior_conflicts(again, prior, cables), None, (), again, None, False)
     # where the fit has not found the motion, the estimate is no minimum: a test there is no evidence
     damping = None if lost(current) else damping_alternatives(lin, current)
@@ -652,6 +668,6 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
 
 
 __all__ = ["Candidate", "Step", "Damping", "GyroBias", "PriorConflict", "RigDiagnosis", "plausible", "prior_conflicts",
-           "gyro_bias", "next_step", "lost", "Refit", "PhysicalStart", "physical_starts", "restart_step",
+           "gyro_bias", "next_step", "evidenced", "lost", "Refit", "PhysicalStart", "physical_starts", "restart_step",
            "damping_alternatives", "diagnose_rig", "SIGNIFICANCE", "DETERMINED_Z", "APART_LEVEL", "MAX_EXTENSIONS",
            "CONFLICT_SIGMA", "DAMPING_SIGMA", "BOUNDS", "NON_NEGATIVE", "DAMPING", "APART_ADVICE", "GYRO_CHANNELS"]
