@@ -413,6 +413,43 @@ def test_no_name_where_the_rigid_model_restarted_from_the_extended_fit_explains_
             assert dg.refit is None and dg.rigid is again and not dg.determined and "not determined" in dg.advice[0]
 
 
+def test_no_name_where_a_fresh_start_not_the_extension_found_the_motion_the_rigid_fit_lost(monkeypatch):
+    """The first rigid-body fit lost the motion (a channel 40× its noise) and the refit with the
+    extension its tests added found it, the tensor determined: where the extension is not
+    determined at the refit (−1.1 σ: bench_any_rig's clean 21138 and its load_cell_delay) the
+    rigid-body model is fitted again from the refit's tensor, and where that explains every channel
+    nothing is named; where the extension is determined (30 σ) it is named without that refit."""
+    from types import SimpleNamespace
+
+    from rig_identification.diagnosis import rig_diagnosis
+
+    def fake(level, extensions=(), z=0.0):
+        return SimpleNamespace(residual_level=np.array(level), channels=("tension:c0", "gyro_x"), unknowns=None,
+                               determined=True, parameters=SimpleNamespace(inertia=np.arange(6.0)),
+                               layout=SimpleNamespace(extensions=extensions), offsets=None, offset_std=None,
+                               extension=lambda name: (np.array([z * 1e-4]), np.array([1e-4])))
+    step = SimpleNamespace(added="load_cell_delay", best="load_cell_delay", named=True, indistinguishable=())
+    lin = SimpleNamespace(fitted=lambda names: SimpleNamespace(of=lambda e: np.array([-0.036])))
+    monkeypatch.setattr(rig_diagnosis, "LinearisedRig", lambda rec, prior, current, untried: lin)
+    monkeypatch.setattr(rig_diagnosis, "damping_alternatives", lambda lin, fit: None)
+    rigid = fake([40.0, 3.0])
+    again = fake([1.0, 1.0])
+    cases = ((-1.1, (), [("load_cell_delay",), ()]), (30.0, ("load_cell_delay",), [("load_cell_delay",)]))
+    for z, named, fits in cases:
+        extended = fake([1.0, 1.0], ("load_cell_delay",), z)
+        calls = []
+
+        def refit(extensions, start, stiffness):
+            calls.append(tuple(extensions))
+            return extended if extensions else again
+        steps = iter([step])
+        monkeypatch.setattr(rig_diagnosis, "next_step", lambda lin: next(steps, None))
+        dg = rig_diagnosis.diagnose_rig(None, None, rigid, ["c0"], refit)
+        assert calls == fits, (z, calls)
+        assert dg.named == named, (z, dg.named)
+        assert (dg.rigid is again and dg.refit is None) if not named else (dg.refit is extended), z
+
+
 def test_the_rotor_fitted_from_its_unbalance_is_named_only_where_it_finds_the_motion_and_is_told_apart(monkeypatch):
     """Where the rigid-body fit lost the motion, the rotor is fitted from the unbalance the
     measured force gives (its mass 0): no step where that fit loses it too or the recording gives

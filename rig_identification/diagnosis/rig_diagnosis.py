@@ -651,9 +651,9 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
                          ", ".join(s.added for s in steps))
     undetermined = not current.determined or (lost(fit) and not evidenced(current, steps))
     if steps and undetermined and refit is not None:
-        log.info("diagnosis: the fit with %s leaves the tensor undetermined or its extensions at %s σ: the rigid-body "
-                 "model fitted again from its tensor", ", ".join(s.added for s in steps),
-                 [np.round(v / sd, 1).tolist() for v, sd in (current.extension(s.added) for s in steps)])
+        log.info("diagnosis: the fit with %s leaves the tensor undetermined, or found the motion the first rigid-body "
+                 "fit lost with an extension it does not determine: the rigid-body model fitted again from its "
+                 "tensor", ", ".join(s.added for s in steps))
         again = refit({}, current.parameters.inertia, None)
         if np.max(again.residual_level) <= LEVEL_LIMIT:
             log.info("diagnosis: the rigid-body model from the tensor of the fit with %s explains every channel "
