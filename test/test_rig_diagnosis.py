@@ -16,7 +16,7 @@ from scipy.stats import t
 
 from rig_identification.cli.diagnose import print_rig_diagnosis_text
 from rig_identification.design.scenarios import simulate_random
-from rig_identification.diagnosis.rig_diagnosis import physical_starts
+from rig_identification.diagnosis.rig_diagnosis import apart_advice, physical_starts
 from rig_identification.estimation.harmonic_start import damped_start, drag_start
 from rig_identification.estimation.rig_fit import REWEIGHT_LIMIT, SANDWICH_BLOCKS
 from rig_identification.io.recording import Recording
@@ -233,7 +233,14 @@ def test_an_extension_that_lowers_a_misfit_it_does_not_explain_is_not_named(caps
     assert RigDiagnosis((), told, (), fitted, None).classes == (("viscous_damping", "air_drag"),)
     unsure = RigDiagnosis((), damping, (Step("imu_offset", "imu_offset", ("gyro_scale",), {"gyro_scale": 1.0},
                                              (cand,)),), rigid, fitted)
-    assert unsure.classes == (("imu_offset", "gyro_scale"),) and "tells them apart" in unsure.advice[0]
+    assert unsure.classes == (("imu_offset", "gyro_scale"),)
+    assert "another exciter frequency" in unsure.advice[0] and "ω² times" in unsure.advice[0], unsure.advice
+    # what tells a class apart follows its members' physics: a common event aligns two clocks,
+    # a second amplitude the dampings; a pair with nothing particular gets the plan's run
+    assert "tap on the frame" in apart_advice(("load_cell_delay", "exciter_delay"))
+    assert "second forcing amplitude" in apart_advice(("viscous_damping", "air_drag", "pivot_friction"))
+    mixed = apart_advice(("exciter_rotor", "imu_offset", "exciter_delay"))
+    assert mixed.count("tells exciter_rotor from imu_offset, exciter_delay") == 1 and "rig-identify plan" in mixed
     # the text: the step added, not named (the refit's extension values are not printed: no refit record)
     dg_text = RigDiagnosis((), None, (step,), rigid, None)
     print_diagnosis(dg_text)

@@ -97,6 +97,19 @@ APART_ADVICE = {
                "the swing's speed)",
     "other": "a run at another exciter frequency or position (rig-identify plan)",
 }
+#: What tells two candidates apart where their physics says more than :data:`APART_ADVICE`'s
+#: "other" (:func:`apart_advice`).
+PAIR_ADVICE = {
+    frozenset(("load_cell_delay", "exciter_delay")):
+        "a tap on the frame that every sensor records (one event in every stream: the load cells' clock against "
+        "the exciter's and the IMU's)",
+    frozenset(("imu_offset", "gyro_scale")):
+        "a run at another exciter frequency (an IMU offset's lever arm reads the angular acceleration, ω² times "
+        "the swing; a gyro scale error a share of the rate, ω times it)",
+    frozenset(("gyro_bias_drift", "gyro_scale")):
+        "a still span before and after the run (a drifting bias shows where the body does not turn; a scale error "
+        "does not)",
+}
 
 
 @dataclass(frozen=True)
@@ -377,8 +390,7 @@ class RigDiagnosis:
             "as well, so no extension is tested at it; only what the model holds (its damping, the gyro's bias) "
             "is named"]
         for g in self.classes:
-            kind = "damping" if all(e in DAMPING for e in g) else "other"
-            out.append(f"{' or '.join(g)}: not told apart by this recording; {APART_ADVICE[kind]} tells them apart")
+            out.append(f"{' or '.join(g)}: not told apart by this recording; {apart_advice(g)}")
         return out
 
     def to_dict(self) -> dict:
@@ -393,6 +405,18 @@ class RigDiagnosis:
         if self.refit is not None:
             d["residual_level_after"] = {c: float(v) for c, v in zip(self.refit.channels, self.refit.residual_level)}
         return d
+
+
+def apart_advice(group: tuple[str, ...]) -> str:
+    """What would tell the candidates of ``group`` (the best first) apart: the damping class's run
+    at a second amplitude (:data:`APART_ADVICE`), else for each other member the pair's
+    (:data:`PAIR_ADVICE`) or a run at another exciter frequency or position."""
+    if all(e in DAMPING for e in group):
+        return f"{APART_ADVICE['damping']} tells them apart"
+    ways: dict[str, list[str]] = {}
+    for e in group[1:]:
+        ways.setdefault(PAIR_ADVICE.get(frozenset((group[0], e)), APART_ADVICE["other"]), []).append(e)
+    return "; ".join(f"{way} tells {group[0]} from {', '.join(es)}" for way, es in ways.items())
 
 
 def plausible(name: str, fit: ExtensionFit) -> bool:
@@ -670,4 +694,5 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
 __all__ = ["Candidate", "Step", "Damping", "GyroBias", "PriorConflict", "RigDiagnosis", "plausible", "prior_conflicts",
            "gyro_bias", "next_step", "evidenced", "lost", "Refit", "PhysicalStart", "physical_starts", "restart_step",
            "damping_alternatives", "diagnose_rig", "SIGNIFICANCE", "DETERMINED_Z", "APART_LEVEL", "MAX_EXTENSIONS",
-           "CONFLICT_SIGMA", "DAMPING_SIGMA", "BOUNDS", "NON_NEGATIVE", "DAMPING", "APART_ADVICE", "GYRO_CHANNELS"]
+           "CONFLICT_SIGMA", "DAMPING_SIGMA", "BOUNDS", "NON_NEGATIVE", "DAMPING", "APART_ADVICE", "PAIR_ADVICE",
+           "apart_advice", "GYRO_CHANNELS"]
