@@ -62,6 +62,12 @@ SCAN_TOLERANCE = 1e-3
 #: lies near the default's (the linearisation's error and the tensor's own minima dominate the
 #: misfit), with soft ones orders of magnitude below it (``python bench/bench_stiffness_start.py``).
 STIFFNESS_MISFIT_SHARE = 0.5
+#: Nothing is scanned where the forced response at the prior's stiffness misfits the fundamental
+#: by no more than this (RMS over the amplitudes' σ: their noise and the linearisation's share):
+#: the prior already explains it, and a lower misfit elsewhere would be noise.  Soft cables miss
+#: by 3.1–19 600 at the default steel cable's, steel ones 0.35–12 (``python
+#: bench/bench_stiffness_start.py``).
+PRIOR_EXPLAINS = 1.0
 
 
 @dataclass(frozen=True)
@@ -173,7 +179,7 @@ class ForcedResponseStart:
     stiffness: (N,) N/m, the cables' stiffness the fit starts from.  log_scale: the natural log of
     the factor on the prior's stiffness of the cables rig.yaml gives none for (0: the
     prior's, the default steel cable's).  prior_level: the misfit at the prior's stiffness (nan
-    where nothing was scanned: rig.yaml gives every cable's).
+    where rig.yaml gives every cable's).
     """
 
     tensor: np.ndarray
@@ -196,9 +202,10 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
     (:func:`~.rig_start.start_parameters`, the lengths and CG from the record's mean tensions).
 
     The stiffness is the prior's where rig.yaml gives every cable's
-    (:attr:`~.rig_unknowns.Prior.stiffness_given`), else the stiffness of those it does not give
-    scaled by the common factor whose linearised forced response, the tensor fitted beside it,
-    best matches the record's fundamental.
+    (:attr:`~.rig_unknowns.Prior.stiffness_given`) or where the prior's forced response misfits
+    the fundamental by no more than :data:`PRIOR_EXPLAINS`, else the stiffness of those it does
+    not give scaled by the common factor whose linearised forced response, the tensor fitted
+    beside it, best matches the record's fundamental.
 
     Where the cables are soft enough to bring their bounce and rocking modes near the band
     (vertical ≈ sqrt(Σk / m) / 2π: 3 Hz for 4 cables of 150 kN/m under 1.7 t, 17 Hz for steel),
@@ -222,15 +229,14 @@ def forced_response_start(rec: Record, rig: Rig, prior: Prior, starts: np.ndarra
     :class:`RigFitError` when the rig has no rest pose or the fit no finite tensor."""
     m = _Misfit(rec, rig, prior, np.atleast_2d(np.asarray(starts, float)),
                 np.zeros(2) if rotor is None else np.asarray(rotor, float))
-    if not np.any(m.free):
-        level, tensor = m.at(0.0, m.starts)
-        return m.found(tensor, level, 0.0, float("nan"))
+    # at the prior's stiffness the tensor fitted to full precision from every start
+    own_level, prior_tensor = m.at(0.0, m.starts)
+    if not np.any(m.free) or own_level <= PRIOR_EXPLAINS:
+        return m.found(prior_tensor, own_level, 0.0, own_level if np.any(m.free) else float("nan"))
     levels, tensors = m.scan()
     prior_index = int(np.argmin(np.abs(STIFFNESS_SCAN)))
     i = int(np.argmin(levels))
-    # at the prior's stiffness the tensor fitted to full precision from every start; its misfit
-    # also from the best's tensor: not trapped in a minimum of its own
-    own_level, prior_tensor = m.at(0.0, m.starts)
+    # the prior's misfit also from the best's tensor: not trapped in a minimum of its own
     best_s, best_level, best_tensor, prior_level = 0.0, own_level, prior_tensor, own_level
     if i != prior_index:
         best_s = float(STIFFNESS_SCAN[i])
