@@ -13,7 +13,9 @@ exciter force (its frame turning with the body), the force a cubic spline throug
 a uniform grid (linear interpolation of a 200 Hz force leaves 0.2 N in the tensions: they see
 the motion that finely).  Classical fourth-order Runge–Kutta with a fixed step (``substeps``
 per grid step, chosen by :func:`substeps_for` so that the stiffest cable mode stays inside the
-method's stability region), compiled with numba: the
+method's stability region), compiled with numba (numpy's error model: a division by zero gives
+inf or nan, which the fit takes as a diverged run, where Python's would raise; no check before each division,
+the same bits otherwise): the
 output-error fit (:mod:`~rig_identification.estimation.rig_fit`) runs it once per parameter
 perturbation.
 
@@ -47,7 +49,7 @@ STEP_OMEGA = 0.5
 PIVOT_SPEED = 1e-4
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _rhs(y: np.ndarray, u0: float, u1: float, A: np.ndarray, r: np.ndarray, L: np.ndarray, k: np.ndarray,
          c: np.ndarray, m: float, J: np.ndarray, Jinv: np.ndarray, g: float, Re: np.ndarray, re: np.ndarray,
          bd: np.ndarray, out_T: np.ndarray, dy: np.ndarray, R: np.ndarray) -> None:
@@ -160,7 +162,7 @@ def _rhs(y: np.ndarray, u0: float, u1: float, A: np.ndarray, r: np.ndarray, L: n
         dy[12] += Jinv[2, 0] * nx + Jinv[2, 1] * ny + Jinv[2, 2] * nz
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _readings(y: np.ndarray, dy: np.ndarray, T: np.ndarray, R: np.ndarray, gain: np.ndarray, g: float,
               Rimu: np.ndarray, rimu: np.ndarray, Rinc: np.ndarray, has_inc: bool, out: np.ndarray) -> None:
     """Every sensor's reading (module docstring) into ``out`` from the state ``y``, its derivative
@@ -186,7 +188,7 @@ def _readings(y: np.ndarray, dy: np.ndarray, T: np.ndarray, R: np.ndarray, gain:
             out[N + 6 + j] = math.asin(min(1.0, max(-1.0, e)))
 
 
-@numba.njit(cache=True, nogil=True)
+@numba.njit(cache=True, nogil=True, error_model="numpy")
 def _simulate(y0: np.ndarray, force: np.ndarray, dt: float, substeps: int, A: np.ndarray, r: np.ndarray,
               L: np.ndarray, k: np.ndarray, c: np.ndarray, gain: np.ndarray, m: float, J: np.ndarray,
               Jinv: np.ndarray, g: float, Re: np.ndarray, re: np.ndarray, bd: np.ndarray, Rimu: np.ndarray,
