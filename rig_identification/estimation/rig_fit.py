@@ -71,6 +71,7 @@ from .rig_problem import (
     OUTSIDE,
     THREADS,
     XTOL,
+    CompressedResidual,
     JointProblem,
     ReusedJacobian,
     RigPoint,
@@ -367,8 +368,11 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
     (the trust region then crawls along a valley of the nuisance unknowns: the segments' states
     and the force's correction).  A stop within :data:`ANCHOR_SIGMA` of the point ``at_x0`` gives
     (a restart that came back to the estimate) is judged with that point's Jacobian, updated on
-    the way, not a fresh one.  Returns the solution, the model runs it took and the fresh
-    Jacobian at the solution where the stop made one (else None)."""
+    the way, not a fresh one.  With ``reuse`` the trust region takes the residual compressed onto
+    the Jacobian's columns (:class:`~.rig_problem.CompressedResidual`: the same cost and gradient,
+    its SVD per iteration of a square matrix).  Returns the solution (its ``fun`` the whole
+    residual), the model runs it took and the fresh Jacobian at the solution where the stop made
+    one (else None)."""
     jac = ReusedJacobian(prob.residual, prob.jacobian, prob.lay.size, reuse, at_x0, REUSE_RATIO)
     costs: list[float] = []
     result = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
@@ -389,22 +393,30 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
         costs.append(float(intermediate_result.cost))
         z = intermediate_result.x
         stalled = len(costs) > STALL_ITERATIONS and costs[-1 - STALL_ITERATIONS] - costs[-1] < NEWTON_DECREMENT
-        if jac.z is None or not np.array_equal(jac.z, z) or not (stalled or done(intermediate_result.fun)):
+        if jac.z is None or not np.array_equal(jac.z, z):
+            return
+        f = intermediate_result.fun if packed is None else packed.full(z)
+        if not (stalled or done(f)):
             return
         near = anchor_std is not None and bool(np.all(np.abs(z[result]) < ANCHOR_SIGMA * anchor_std))
         if not (jac.fresh or near):         # a stale Jacobian's stall or decrement: checked with a fresh one
             jac.refresh(z)
             costs.clear()
-            if not done(intermediate_result.fun):
+            if not done(f):
                 return
-        short[0] = jac.fresh and not done(intermediate_result.fun)
+        short[0] = jac.fresh and not done(f)
         raise StopIteration
 
     budget = MAX_ITERATIONS * (REUSED_EVALUATIONS if reuse else 1)
     z, iterations, short = np.zeros(prob.lay.size) if z0 is None else z0, 0, [False]
+    packed: CompressedResidual | None = None
     while True:
-        sol = least_squares(jac.residual, z, jac=jac.jacobian, method="trf", x_scale=1.0, xtol=XTOL, ftol=FTOL,
-                            gtol=GTOL, max_nfev=budget - iterations, callback=converged)
+        packed = CompressedResidual(jac, z) if reuse else None
+        sol = least_squares(jac.residual if packed is None else packed.residual, z,
+                            jac=jac.jacobian if packed is None else packed.jacobian, method="trf", x_scale=1.0,
+                            xtol=XTOL, ftol=FTOL, gtol=GTOL, max_nfev=budget - iterations, callback=converged)
+        if packed is not None:
+            sol.fun = packed.full(sol.x)
         iterations += sol.nfev
         if sol.status in TOLERANCE_STOPS and iterations < budget:
             if not (jac.fresh and jac.z is not None and np.array_equal(jac.z, sol.x)):

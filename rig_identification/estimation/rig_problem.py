@@ -35,6 +35,9 @@ from .rig_unknowns import Layout, Prior, body_unknowns, parameters_of, priors, r
 
 log = logging.getLogger(__name__)
 
+#: A solve hands the trust region its residual compressed onto the Jacobian's columns
+#: (:class:`CompressedResidual`) where it has more than this many rows per unknown.
+COMPRESS_ROWS = 4
 #: The decimated residual's rate over the fit's band edge (:func:`~.rig_record.band_edge`).
 DECIMATED_RATE = 3.0
 #: Threads that compute the Jacobian's columns (the machine's cores, at most 4).
@@ -614,7 +617,60 @@ class ReusedJacobian:
         return self.J
 
 
-__all__ = ["ReusedJacobian", "RigPoint", "RigProblem", "JointProblem", "JointLayout", "BODY",
+class CompressedResidual:
+    """The residual of a :class:`ReusedJacobian` as scipy's trust region takes it, its rows
+    compressed onto the Jacobian's column space: f̃(z) = [Qᵀ r(z); ‖r(z) − Q Qᵀ r(z)‖] with Q
+    (rows, size) an orthonormal basis of the columns of the Jacobian at the solve's start ``z0``
+    (QR), and its Jacobian [Qᵀ J; (P r)ᵀ J / ‖P r‖], P = I − Q Qᵀ.  ½‖f̃‖² = ½‖r‖² and J̃ᵀf̃ = Jᵀr
+    exactly, and J̃ᵀJ̃ = JᵀJ where the Jacobian's columns stay in Q's span (at the start; the
+    Jacobians made later in the solve are near it), so the trust region takes the same steps
+    while its SVD each iteration is of a (size + 1, size) matrix, not of a (rows, size) one
+    (Björck, *Numerical Methods for Least Squares Problems*, 1996, §2.2: the least-squares
+    problem reduced by a QR factorisation).  A Jacobian of at most :data:`COMPRESS_ROWS` rows per
+    column is passed as it is (its SVD is cheap).  ``full(z)`` gives the uncompressed residual at
+    a point the solve evaluated."""
+
+    def __init__(self, jac: ReusedJacobian, z0: np.ndarray):
+        self.jac = jac
+        self._full: dict[bytes, np.ndarray] = {}
+        self.full_at(z0)                 # the trust region's first evaluation, then its first Jacobian
+        J0 = jac.jacobian(z0)
+        self.Q = np.linalg.qr(J0)[0] if J0.shape[0] > COMPRESS_ROWS * J0.shape[1] else None
+
+    def full_at(self, z: np.ndarray) -> np.ndarray:
+        """(rows,) the uncompressed residual at ``z``, evaluated once."""
+        key = np.asarray(z, float).tobytes()
+        r = self._full.get(key)
+        if r is None:
+            if len(self._full) > 8:
+                self._full.clear()
+            r = self._full[key] = self.jac.residual(z)
+        return r
+
+    def full(self, z: np.ndarray) -> np.ndarray:
+        """(rows,) the uncompressed residual at ``z``; raises KeyError where the solve did not evaluate it."""
+        return self._full[np.asarray(z, float).tobytes()]
+
+    def residual(self, z: np.ndarray) -> np.ndarray:
+        r = self.full_at(z)
+        if self.Q is None:
+            return r
+        head = self.Q.T @ r
+        return np.concatenate([head, [np.linalg.norm(r - self.Q @ head)]])
+
+    def jacobian(self, z: np.ndarray) -> np.ndarray:
+        J = self.jac.jacobian(z)
+        if self.Q is None:
+            return J
+        r = self.full_at(z)
+        rest = r - self.Q @ (self.Q.T @ r)
+        tail = np.linalg.norm(rest)
+        last = rest @ J / tail if tail > 0 else np.zeros(J.shape[1])
+        return np.vstack([self.Q.T @ J, last])
+
+
+__all__ = ["ReusedJacobian", "CompressedResidual", "COMPRESS_ROWS",
+           "RigPoint", "RigProblem", "JointProblem", "JointLayout", "BODY",
            "levels", "base_state", "DECIMATED_RATE", "THREADS", "MAX_ITERATIONS", "XTOL",
            "FTOL", "GTOL", "OUTSIDE", "JACOBIAN_STEP", "IMPULSE_TAIL", "NON_NEGATIVE", "SETTLE_STEPS",
            "SETTLE_DECREMENT"]
