@@ -35,6 +35,9 @@ from .rig_unknowns import Layout, Prior, body_unknowns, parameters_of, priors, r
 
 log = logging.getLogger(__name__)
 
+#: The residuals a :class:`CompressedResidual` keeps, the last evaluated (the trust region's rejected
+#: steps between two accepted points are evaluated too).
+KEPT_RESIDUALS = 32
 #: A solve hands the trust region its residual compressed onto the Jacobian's columns
 #: (:class:`CompressedResidual`) where it has more than this many rows per unknown.
 COMPRESS_ROWS = 4
@@ -633,26 +636,23 @@ class CompressedResidual:
     def __init__(self, jac: ReusedJacobian, z0: np.ndarray):
         self.jac = jac
         self._full: dict[bytes, np.ndarray] = {}
-        self.full_at(z0)                 # the trust region's first evaluation, then its first Jacobian
+        self.full(z0)                 # the trust region's first evaluation, then its first Jacobian
         J0 = jac.jacobian(z0)
         self.Q = np.linalg.qr(J0)[0] if J0.shape[0] > COMPRESS_ROWS * J0.shape[1] else None
 
-    def full_at(self, z: np.ndarray) -> np.ndarray:
-        """(rows,) the uncompressed residual at ``z``, evaluated once."""
+    def full(self, z: np.ndarray) -> np.ndarray:
+        """(rows,) the uncompressed residual at ``z``: the one the solve evaluated there (the last
+        :data:`KEPT_RESIDUALS` points), else evaluated."""
         key = np.asarray(z, float).tobytes()
         r = self._full.get(key)
         if r is None:
-            if len(self._full) > 8:
-                self._full.clear()
+            while len(self._full) >= KEPT_RESIDUALS:
+                del self._full[next(iter(self._full))]          # the oldest
             r = self._full[key] = self.jac.residual(z)
         return r
 
-    def full(self, z: np.ndarray) -> np.ndarray:
-        """(rows,) the uncompressed residual at ``z``; raises KeyError where the solve did not evaluate it."""
-        return self._full[np.asarray(z, float).tobytes()]
-
     def residual(self, z: np.ndarray) -> np.ndarray:
-        r = self.full_at(z)
+        r = self.full(z)
         if self.Q is None:
             return r
         head = self.Q.T @ r
@@ -662,14 +662,14 @@ class CompressedResidual:
         J = self.jac.jacobian(z)
         if self.Q is None:
             return J
-        r = self.full_at(z)
+        r = self.full(z)
         rest = r - self.Q @ (self.Q.T @ r)
         tail = np.linalg.norm(rest)
         last = rest @ J / tail if tail > 0 else np.zeros(J.shape[1])
         return np.vstack([self.Q.T @ J, last])
 
 
-__all__ = ["ReusedJacobian", "CompressedResidual", "COMPRESS_ROWS",
+__all__ = ["ReusedJacobian", "CompressedResidual", "COMPRESS_ROWS", "KEPT_RESIDUALS",
            "RigPoint", "RigProblem", "JointProblem", "JointLayout", "BODY",
            "levels", "base_state", "DECIMATED_RATE", "THREADS", "MAX_ITERATIONS", "XTOL",
            "FTOL", "GTOL", "OUTSIDE", "JACOBIAN_STEP", "IMPULSE_TAIL", "NON_NEGATIVE", "SETTLE_STEPS",
