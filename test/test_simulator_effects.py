@@ -17,6 +17,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from rig_identification.design.scenarios import simulate_random
+from rig_identification.model.dynamics import bearing_inertial_force
 from rig_identification.model.equilibrium import equilibrium
 from rig_identification.model.experiment import ExperimentError, experiment_from_dict
 from rig_identification.model.sensors import mode_response
@@ -460,3 +461,37 @@ def test_structural_mode_once_per_sensor():
     d["effects"] = [imu, dict(imu, frequency=9.0)]
     with pytest.raises(ExperimentError, match=r"bad.yaml: effects\[1\]: structural_mode of sensor imu listed twice"):
         experiment_from_dict(d, "bad.yaml")
+
+
+def test_the_unbalances_inertial_force_is_the_eccentric_masss_acceleration_in_the_turning_body():
+    # a mass at e û(t) from the exciter axis, û spinning at Ω about ẑ in a body turning with ω(t):
+    # its world acceleration less the axis point's, by second differences of the positions, in body
+    # axes, is e[α × û + ω × (ω × û) + 2 Ω ω × (ẑ × û) − Ω² û]; bearing_inertial_force is −m_u e times
+    # all but the spin's own centripetal term (which the exciter's force is)
+    e, m_u, spin = 0.34, 3.7, 7.85
+    z = np.array([0.2, -0.1, 1.0]) / np.linalg.norm([0.2, -0.1, 1.0])
+    x = np.cross([0.0, 1.0, 0.0], z)
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    axis = np.array([2.4, -0.85, -0.35])                    # the exciter axis's point, body m
+
+    def rotvec(t):                                          # the body's attitude, a smooth tumble
+        return np.array([0.03 * math.sin(1.3 * t), 0.05 * math.sin(0.7 * t + 0.4), 0.02 * t + 0.04 * math.cos(2.1 * t)])
+
+    def u(t):
+        return math.cos(spin * t) * x + math.sin(spin * t) * y
+
+    def mass(t):                                            # world position of the mass less the axis point's
+        return Rotation.from_rotvec(rotvec(t)).apply(axis + e * u(t)) - Rotation.from_rotvec(rotvec(t)).apply(axis)
+
+    t, h = 0.9, 1e-4
+    acc = (mass(t + h) - 2 * mass(t) + mass(t - h)) / h ** 2
+    R = Rotation.from_rotvec(rotvec(t))
+    # the body's angular velocity and acceleration, body axes, by differences of the attitude
+    w_of = [(Rotation.from_rotvec(rotvec(s - 1e-6)).inv() * Rotation.from_rotvec(rotvec(s + 1e-6))).as_rotvec() / 2e-6
+            for s in (t - h, t, t + h)]
+    w, alpha = w_of[1], (w_of[2] - w_of[0]) / (2 * h)
+    relative = R.inv().apply(acc) + e * spin ** 2 * u(t)     # the spin's own centripetal term taken out
+    f = bearing_inertial_force(m_u * e, u(t), z, spin, w, alpha)           # the unbalance m_u e, kg·m
+    np.testing.assert_allclose(f, -m_u * relative, rtol=2e-3, atol=1e-6 * m_u * e * spin ** 2)
+    assert np.linalg.norm(f) > 0.05                          # the Coriolis term: 2 m_u e Ω |ω| ~ 1 N here

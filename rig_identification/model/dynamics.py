@@ -56,6 +56,23 @@ from .rigid_body import SimulationError, moment_sum, skew
 from .suspension import Suspension
 
 
+def bearing_inertial_force(unbalance: float, u: np.ndarray, z: np.ndarray, spin: np.ndarray | float,
+                           w: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """The exciter's unbalanced mass's inertial force from the body's rotation, which its bearing
+    passes to the body at the exciter axis: (3,) or (n, 3) N, body axes,
+    −m_u e [α × û + ω × (ω × û) + 2 Ω ω × (ẑ × û)] — the mass m_u at e û from the axis, its
+    acceleration relative to the axis's in a frame turning with the body (Goldstein, *Classical
+    Mechanics*, §4.10: the tangential, centripetal and Coriolis terms; its spin's centripetal
+    term is the exciter's force itself).  unbalance: m_u e kg·m; u: (3,) or (n, 3) û, the
+    force's direction; z: (3,) ẑ, the spin axis (the exciter's z); spin: Ω rad/s, the spin
+    relative to the body about ẑ (scalar or (n,)); w, alpha: (3,) or (n, 3) the body's angular
+    velocity rad/s and acceleration rad/s², body axes."""
+    spin = np.asarray(spin, float)[..., None] if np.ndim(spin) else float(spin)
+    coriolis = np.cross(w, np.cross(z, u))
+    out: np.ndarray = -unbalance * (np.cross(alpha, u) + np.cross(w, np.cross(w, u)) + 2 * spin * coriolis)
+    return out
+
+
 class CableKinematics(NamedTuple):
     """The cables at a state: ``d`` (N, 3) body anchor -> ceiling anchor, world m; ``l`` (N,) their
     lengths m; ``u`` (N, 3) the unit vectors along them; ``Pdot`` (N, 3) the body anchors'
@@ -122,6 +139,11 @@ class RigDynamics:
             self._unbalance = self._rotor.get("unbalance", rot.amplitude / (2 * math.pi * rot.frequency) ** 2)
             self._rotor_inertia = self._rotor.get("rotor_inertia", 0.0)
 
+    @property
+    def unbalance(self) -> float:
+        """The exciter rotor's unbalance m_u e, kg·m (0 without the ``exciter_rotor`` effect)."""
+        return float(self._unbalance) if self._rotor is not None else 0.0
+
     def effect_wrench(self, t: float, R: np.ndarray, v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Force (3,) world N and moment (3,) body N·m about the CG of the concealed effects
         (:mod:`~rig_identification.model.effects`): dissipation and the exciter's rotor."""
@@ -144,20 +166,25 @@ class RigDynamics:
         return F, M
 
     def unbalance_inertia(self, t: float, R: np.ndarray, a: np.ndarray, alpha: np.ndarray, w: np.ndarray
-                          ) -> np.ndarray:
-        """Moment (3,) body N·m about the CG of the exciter's unbalanced mass's inertial force on its
-        arm, −m_u e û × a_e: the unbalance m_u e (kg·m) toward û (the force's direction, body), a_e
-        the exciter axis's acceleration (body axes) for the CG's acceleration ``a`` (3,) world m/s²
-        and the angular acceleration ``alpha`` (3,) and velocity ``w`` (3,) body.  Its weight's
-        moment is :meth:`effect_wrench`'s; the two make m_u e û × (g − a_e), what the rotor, its
-        speed held by the drive, passes to the body about its arm (the part about the spin axis
-        through the drive)."""
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """The exciter's unbalanced mass's inertial wrench on the body: force (3,) world N and moment
+        (3,) body N·m about the CG.  The moment of its inertial force on its arm, −m_u e û × a_e: the
+        unbalance m_u e (kg·m) toward û (the force's direction, body), a_e the exciter axis's
+        acceleration (body axes) for the CG's acceleration ``a`` (3,) world m/s² and the angular
+        acceleration ``alpha`` (3,) and velocity ``w`` (3,) body; its weight's moment is
+        :meth:`effect_wrench`'s, the two make m_u e û × (g − a_e), what the rotor, its speed held by
+        the drive, passes to the body about its arm (the part about the spin axis through the
+        drive).  And the mass's inertial force from the body's rotation, at the axis,
+        f = −m_u e [α × û + ω × (ω × û) + 2 Ω ω × (ẑ × û)] (Ω the spin relative to the body about
+        the exciter's z axis ẑ; the last the Coriolis term of the mass's velocity e Ω ẑ × û), with
+        its moment r_e × f (:func:`bearing_inertial_force`; the exciter's load cells read it too)."""
         assert self._rotor is not None and self.excitation.rotating is not None
-        theta = self.excitation.rotating.angle_and_speed(t)[0]
+        theta, speed, _ = self.excitation.rotating.angle_and_speed(t)
         u = self.R_exc @ np.array([math.cos(theta), math.sin(theta), 0.0])
         a_e = R.T @ a + np.cross(alpha, self.r_exc) + np.cross(w, np.cross(w, self.r_exc))
-        out: np.ndarray = -self._unbalance * np.cross(u, a_e)
-        return out
+        f = bearing_inertial_force(self._unbalance, u, self.R_exc[:, 2], speed, w, alpha)
+        moment: np.ndarray = -self._unbalance * np.cross(u, a_e) + np.cross(self.r_exc, f)
+        return R @ f, moment
 
     def pin_friction(self, T: np.ndarray, l: np.ndarray, u: np.ndarray, Pdot: np.ndarray) -> np.ndarray:
         """(N, 3) world N: the force of each ceiling pin's dry friction on the body anchor (the
@@ -234,13 +261,14 @@ class RigDynamics:
             a = (Tu.sum(axis=0) + F_ext) / self.m + self.g
             alpha = self.Jinv @ (moment_sum(self.r, Tu @ R) + M_rest)
             if self._rotor is not None:        # one fixed-point pass: the moment is ~1 % of the weight's
-                alpha = alpha + self.Jinv @ self.unbalance_inertia(t, R, a, alpha, w)
+                f, moment = self.unbalance_inertia(t, R, a, alpha, w)
+                a, alpha = a + f / self.m, alpha + self.Jinv @ moment
         else:
             cab = CableKinematics(d, l, u, Pdot, ldot)
             a, alpha, T = self._constrained(R, Rdot, W, cab, F_ext, M_rest)
             if self._rotor is not None:
-                a, alpha, T = self._constrained(R, Rdot, W, cab, F_ext,
-                                                M_rest + self.unbalance_inertia(t, R, a, alpha, w))
+                f, moment = self.unbalance_inertia(t, R, a, alpha, w)
+                a, alpha, T = self._constrained(R, Rdot, W, cab, F_ext + f, M_rest + moment)
         dy = np.empty(self.size)
         dy[0:3], dy[3:12], dy[12:15], dy[15:18] = v, Rdot.ravel(), a, alpha
         if self.suspension is not None:

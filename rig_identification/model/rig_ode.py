@@ -8,7 +8,9 @@ velocity across it, regularised; the body's damping on the CG's velocity and the
 velocity: viscous -c v and quadratic -c |v| v; the exciter's unbalanced mass m_u e on its arm,
 toward the measured force's direction û: the moment m_u e û × (g − a_e) of its weight and of its
 inertial force on the exciter axis's acceleration a_e, which a rotor whose drive holds its speed
-passes to the body), driven by the measured
+passes to the body, and the mass's inertial force from the body's rotation at the axis,
+−m_u e [ω̇ × û + ω × (ω × û) + 2 Ω ω × (ẑ × û)], Ω the force's rotation rate about the exciter's
+z axis ẑ: the Coriolis term of the mass's velocity e Ω ẑ × û), driven by the measured
 exciter force (its frame turning with the body), the force a cubic spline through the samples of
 a uniform grid (linear interpolation of a 200 Hz force leaves 0.2 N in the tensions: they see
 the motion that finely).  Classical fourth-order Runge–Kutta with a fixed step (``substeps``
@@ -43,6 +45,10 @@ from .parametrisation import to_tensor
 #: ω_max h of the fixed step: RK4 is stable to 2.8; the cables' axial modes it integrates
 #: coarsely lie above the fit's band, and the band's motion (≤ 5 Hz) is resolved to ~1e-6.
 STEP_OMEGA = 0.5
+#: Grid samples either side over which the exciter force's rotation rate (the rotor's spin relative
+#: to the body, :func:`_spin`) is taken: the force's noise (0.5 N on 230 N) moves its direction by
+#: ~2 mrad per sample, which over ±5 samples at 200 Hz is under 1 % of a 1.25 Hz spin.
+SPIN_REACH = 5
 #: m/s: the pins' Coulomb friction −F v/sqrt(|v|² + ε²) (v the body anchor's velocity across its
 #: cable) is regularised over this speed ε, well below a swing's anchor speeds (mm/s to cm/s), so
 #: that the friction is dry, not viscous, over nearly all of a swing.
@@ -50,7 +56,7 @@ PIVOT_SPEED = 1e-4
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def _rhs(y: np.ndarray, u0: float, u1: float, A: np.ndarray, r: np.ndarray, L: np.ndarray, k: np.ndarray,
+def _rhs(y: np.ndarray, u0: float, u1: float, om: float, A: np.ndarray, r: np.ndarray, L: np.ndarray, k: np.ndarray,
          c: np.ndarray, m: float, J: np.ndarray, Jinv: np.ndarray, g: float, Re: np.ndarray, re: np.ndarray,
          bd: np.ndarray, out_T: np.ndarray, dy: np.ndarray, R: np.ndarray) -> None:
     """State derivative into ``dy``; y = [p_cg 3, quaternion wxyz 4, v_cg 3, ω body 3]; the
@@ -157,9 +163,43 @@ def _rhs(y: np.ndarray, u0: float, u1: float, A: np.ndarray, r: np.ndarray, L: n
         az += dy[10] * re[1] - dy[11] * re[0] + wx * py - wy * px
         s_ = -bd[4] / fn
         nx, ny, nz = s_ * (ey * az - ez * ay), s_ * (ez * ax - ex * az), s_ * (ex * ay - ey * ax)
+        # the unbalanced mass's inertial force from the body's rotation, at the exciter axis (body
+        # axes): −m_u e [ω̇ × û + ω × (ω × û) + 2 Ω ω × (ẑ × û)], Ω the spin relative to the body
+        # about the exciter's z axis ẑ (the Coriolis term: the mass's velocity e Ω ẑ × û)
+        ux, uy, uz = ex / fn, ey / fn, ez / fn
+        zx = Re[1, 0] * Re[2, 1] - Re[2, 0] * Re[1, 1]
+        zy = Re[2, 0] * Re[0, 1] - Re[0, 0] * Re[2, 1]
+        zz = Re[0, 0] * Re[1, 1] - Re[1, 0] * Re[0, 1]
+        vx, vy, vz = zy * uz - zz * uy, zz * ux - zx * uz, zx * uy - zy * ux          # ẑ × û
+        wux, wuy, wuz = wy * uz - wz * uy, wz * ux - wx * uz, wx * uy - wy * ux     # ω × û
+        fbx = dy[11] * uz - dy[12] * uy + wy * wuz - wz * wuy + 2 * om * (wy * vz - wz * vy)
+        fby = dy[12] * ux - dy[10] * uz + wz * wux - wx * wuz + 2 * om * (wz * vx - wx * vz)
+        fbz = dy[10] * uy - dy[11] * ux + wx * wuy - wy * wux + 2 * om * (wx * vy - wy * vx)
+        fbx, fby, fbz = -bd[4] * fbx, -bd[4] * fby, -bd[4] * fbz
+        nx += re[1] * fbz - re[2] * fby
+        ny += re[2] * fbx - re[0] * fbz
+        nz += re[0] * fby - re[1] * fbx
+        dy[7] += (R[0, 0] * fbx + R[0, 1] * fby + R[0, 2] * fbz) / m
+        dy[8] += (R[1, 0] * fbx + R[1, 1] * fby + R[1, 2] * fbz) / m
+        dy[9] += (R[2, 0] * fbx + R[2, 1] * fby + R[2, 2] * fbz) / m
         dy[10] += Jinv[0, 0] * nx + Jinv[0, 1] * ny + Jinv[0, 2] * nz
         dy[11] += Jinv[1, 0] * nx + Jinv[1, 1] * ny + Jinv[1, 2] * nz
         dy[12] += Jinv[2, 0] * nx + Jinv[2, 1] * ny + Jinv[2, 2] * nz
+
+
+@numba.njit(cache=True, nogil=True, error_model="numpy")
+def _spin(force: np.ndarray, j: int, reach: int, h: float) -> float:
+    """The force's rotation rate rad/s about the exciter's z axis at row ``j`` of the drive's
+    samples (every h/2 s): the angle between the rows ``reach`` either side (clipped at the ends)
+    over their time apart."""
+    a = max(0, j - reach)
+    b = min(force.shape[0] - 1, j + reach)
+    if b == a:
+        return 0.0
+    cross = force[a, 0] * force[b, 1] - force[a, 1] * force[b, 0]
+    dot = force[a, 0] * force[b, 0] + force[a, 1] * force[b, 1]
+    rate: float = math.atan2(cross, dot) / ((b - a) * 0.5 * h)
+    return rate
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
@@ -205,10 +245,13 @@ def _simulate(y0: np.ndarray, force: np.ndarray, dt: float, substeps: int, A: np
     yt = np.empty(13)
     k1, k2, k3, k4 = np.empty(13), np.empty(13), np.empty(13), np.empty(13)
     h = dt / substeps
+    rotor = bd[4] != 0.0
+    reach = SPIN_REACH * 2 * substeps
     for j in range(n):
         for s_ in range(substeps):
             b = 2 * (substeps * j + s_)
-            _rhs(y, force[b, 0], force[b, 1], A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k1, R)
+            _rhs(y, force[b, 0], force[b, 1], _spin(force, b, reach, h) if rotor else 0.0, A, r, L, k, c, m, J, Jinv,
+                 g, Re, re, bd, T, k1, R)
             if s_ == 0:                    # the readings at the grid's sample: the first stage's derivative
                 _readings(y, k1, T, R, gain, g, Rimu, rimu, Rinc, has_inc, out[j])
                 states[j] = y
@@ -218,13 +261,15 @@ def _simulate(y0: np.ndarray, force: np.ndarray, dt: float, substeps: int, A: np
             uc0, uc1 = force[b + 2, 0], force[b + 2, 1]
             for i in range(13):
                 yt[i] = y[i] + 0.5 * h * k1[i]
-            _rhs(yt, ub0, ub1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k2, R)
+            om = _spin(force, b + 1, reach, h) if rotor else 0.0
+            _rhs(yt, ub0, ub1, om, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k2, R)
             for i in range(13):
                 yt[i] = y[i] + 0.5 * h * k2[i]
-            _rhs(yt, ub0, ub1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k3, R)
+            _rhs(yt, ub0, ub1, om, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k3, R)
             for i in range(13):
                 yt[i] = y[i] + h * k3[i]
-            _rhs(yt, uc0, uc1, A, r, L, k, c, m, J, Jinv, g, Re, re, bd, T, k4, R)
+            _rhs(yt, uc0, uc1, _spin(force, b + 2, reach, h) if rotor else 0.0, A, r, L, k, c, m, J, Jinv, g, Re, re,
+                 bd, T, k4, R)
             for i in range(13):
                 y[i] = y[i] + h / 6.0 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i])
             qn = math.sqrt(y[3] ** 2 + y[4] ** 2 + y[5] ** 2 + y[6] ** 2)
@@ -318,19 +363,46 @@ def exciter_readings(out: np.ndarray, force: np.ndarray, p: RigParameters, dt: f
     rotor's bearing, so they read F − m_r f_e (Newton's second law on the rotor: the bearing
     carries its weight and accelerates it with the body), f_e the specific force at the exciter
     (body axes: the accelerometer's, moved by ω̇ × d + ω × (ω × d), d the IMU-to-exciter arm, ω̇
-    the gyro's central differences), the x and y of the exciter frame.  ``force`` itself
-    without a rotor mass."""
-    m_r = float(p.rotor[1])
-    if m_r == 0.0:
+    the gyro's central differences), the x and y of the exciter frame; and the unbalanced mass's
+    inertial force from the body's rotation, −m_u e [ω̇ × û + ω × (ω × û) + 2 Ω ω × (ẑ × û)] (as in
+    the model's equations; Ω the force's rotation rate, :func:`spin_rate`).  ``force`` itself
+    without a rotor."""
+    m_r, unbalance = float(p.rotor[1]), float(p.rotor[0])
+    if m_r == 0.0 and unbalance == 0.0:
         return force
     n_c = p.cables
     w = out[:, n_c:n_c + 3] @ p.imu_rotation.T                     # body axes
-    f_imu = out[:, n_c + 3:n_c + 6] @ p.imu_rotation.T
     dw = np.gradient(w, dt, axis=0, edge_order=2)
-    d = p.exciter_position - p.imu_position
-    f_e = f_imu + np.cross(dw, d) + np.cross(w, np.cross(w, d))
-    readings: np.ndarray = force - m_r * (f_e @ p.exciter_rotation)[:, :2]
+    Re = p.exciter_rotation
+    readings: np.ndarray = np.asarray(force, float).copy()
+    if m_r != 0.0:
+        f_imu = out[:, n_c + 3:n_c + 6] @ p.imu_rotation.T
+        d = p.exciter_position - p.imu_position
+        f_e = f_imu + np.cross(dw, d) + np.cross(w, np.cross(w, d))
+        readings -= m_r * (f_e @ Re)[:, :2]
+    if unbalance != 0.0:
+        size = np.linalg.norm(force, axis=1, keepdims=True)
+        u = np.divide(force, size, out=np.zeros_like(readings), where=size > 0) @ Re[:, :2].T     # û, body axes
+        spin = spin_rate(force, dt)[:, None]
+        coriolis = np.cross(w, np.cross(Re[:, 2], u))
+        inertial = -unbalance * (np.cross(dw, u) + np.cross(w, np.cross(w, u)) + 2 * spin * coriolis)
+        readings += (inertial @ Re)[:, :2]
     return readings
+
+
+def spin_rate(force: ArrayLike, dt: float) -> np.ndarray:
+    """(n,) rad/s the rotation rate of the exciter force ``force`` (n, 2) N (exciter frame, samples
+    ``dt`` s apart) about the exciter's z axis: the angle between the samples :data:`SPIN_REACH`
+    either side (clipped at the ends) over their time apart, as the compiled model takes it."""
+    f = np.asarray(force, float)
+    n = len(f)
+    i = np.arange(n)
+    a, b = np.maximum(i - SPIN_REACH, 0), np.minimum(i + SPIN_REACH, n - 1)
+    cross = f[a, 0] * f[b, 1] - f[a, 1] * f[b, 0]
+    dot = f[a, 0] * f[b, 0] + f[a, 1] * f[b, 1]
+    span = np.maximum(b - a, 1) * dt
+    rate: np.ndarray = np.where(b > a, np.arctan2(cross, dot) / span, 0.0)
+    return rate
 
 
 def simulate(p: RigParameters, y0: np.ndarray, force: Drive) -> tuple[np.ndarray, np.ndarray]:

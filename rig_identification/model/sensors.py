@@ -26,7 +26,7 @@ from scipy.spatial.transform import Rotation
 
 from ..io.recording import SensorData, TimeSeries
 from ..io.rig import Rig
-from .dynamics import Evaluation, RigDynamics
+from .dynamics import Evaluation, RigDynamics, bearing_inertial_force
 from .effects import Effect
 from .experiment import Experiment
 from .rigid_body import SimulationError
@@ -166,17 +166,26 @@ def _load_cell_readings(run: _Run) -> dict[str, TimeSeries]:
 
 def _exciter_readings(run: _Run) -> TimeSeries | None:
     """The exciter's load cells (K, 2) N, exciter frame: the force less the rotor's m_r f_e
-    (exciter_rotor with a rotor_mass), noise, sensor_delay; None without an exciter."""
+    (exciter_rotor with a rotor_mass) and with its unbalanced mass's inertial force from the body's
+    rotation (:func:`~rig_identification.model.dynamics.bearing_inertial_force`), noise,
+    sensor_delay; None without an exciter."""
     rig, model, eff = run.rig, run.model, run.eff
     if rig.exciter is None:
         return None
     t, Y, ev = run.at(run.exp.sensors.rates["exciter"])
     force = ev.exciter
+    Re = rig.exciter.rotation.as_matrix()
     if "exciter_rotor" in eff and eff["exciter_rotor"].get("rotor_mass") > 0:
         # the load cells hold the rotor's bearing: they read the force less the rotor's m_r f_e
-        f_e = _specific_force(ev, Y[:, 15:18], ev.alpha, rig.exciter.position - model.cg, model.g) \
-            @ rig.exciter.rotation.as_matrix()
+        f_e = _specific_force(ev, Y[:, 15:18], ev.alpha, rig.exciter.position - model.cg, model.g) @ Re
         force = force - eff["exciter_rotor"].get("rotor_mass") * f_e[:, :2]
+    if "exciter_rotor" in eff:
+        rotating = run.exp.excitation.rotating
+        assert rotating is not None             # the experiment refuses exciter_rotor without it
+        angles = np.array([rotating.angle_and_speed(ti)[:2] for ti in t])
+        u = np.column_stack([np.cos(angles[:, 0]), np.sin(angles[:, 0]), np.zeros(len(t))]) @ Re.T
+        f = bearing_inertial_force(model.unbalance, u, Re[:, 2], angles[:, 1], Y[:, 15:18], ev.alpha)
+        force = force + (f @ Re)[:, :2]
     return TimeSeries(run.exp.stamp_origin + t + run.delay.get("exciter", 0.0), run.noisy(force, "exciter"))
 
 
