@@ -17,9 +17,9 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 from rig_identification.design.scenarios import simulate_random
-from rig_identification.model.dynamics import bearing_inertial_force
 from rig_identification.model.equilibrium import equilibrium
 from rig_identification.model.experiment import ExperimentError, experiment_from_dict
+from rig_identification.model.rigid_body import bearing_inertial_force
 from rig_identification.model.sensors import mode_response
 from rig_identification.model.simulator import simulate
 from rig_identification.model.suspension import split_body

@@ -52,25 +52,8 @@ from .cables import CableModel
 from .effects import Effect
 from .equilibrium import HangingBody
 from .excitation import Excitation
-from .rigid_body import SimulationError, moment_sum, skew
+from .rigid_body import SimulationError, bearing_inertial_force, moment_sum, skew
 from .suspension import Suspension
-
-
-def bearing_inertial_force(unbalance: float, u: np.ndarray, z: np.ndarray, spin: np.ndarray | float,
-                           w: np.ndarray, alpha: np.ndarray) -> np.ndarray:
-    """The exciter's unbalanced mass's inertial force from the body's rotation, which its bearing
-    passes to the body at the exciter axis: (3,) or (n, 3) N, body axes,
-    −m_u e [α × û + ω × (ω × û) + 2 Ω ω × (ẑ × û)] — the mass m_u at e û from the axis, its
-    acceleration relative to the axis's in a frame turning with the body (Goldstein, *Classical
-    Mechanics*, §4.10: the tangential, centripetal and Coriolis terms; its spin's centripetal
-    term is the exciter's force itself).  unbalance: m_u e kg·m; u: (3,) or (n, 3) û, the
-    force's direction; z: (3,) ẑ, the spin axis (the exciter's z); spin: Ω rad/s, the spin
-    relative to the body about ẑ (scalar or (n,)); w, alpha: (3,) or (n, 3) the body's angular
-    velocity rad/s and acceleration rad/s², body axes."""
-    spin = np.asarray(spin, float)[..., None] if np.ndim(spin) else float(spin)
-    coriolis = np.cross(w, np.cross(z, u))
-    out: np.ndarray = -unbalance * (np.cross(alpha, u) + np.cross(w, np.cross(w, u)) + 2 * spin * coriolis)
-    return out
 
 
 class CableKinematics(NamedTuple):
@@ -177,7 +160,7 @@ class RigDynamics:
         drive).  And the mass's inertial force from the body's rotation, at the axis,
         f = −m_u e [α × û + ω × (ω × û) + 2 Ω ω × (ẑ × û)] (Ω the spin relative to the body about
         the exciter's z axis ẑ; the last the Coriolis term of the mass's velocity e Ω ẑ × û), with
-        its moment r_e × f (:func:`bearing_inertial_force`; the exciter's load cells read it too)."""
+        its moment r_e × f (:func:`~.rigid_body.bearing_inertial_force`; the exciter's load cells read it too)."""
         assert self._rotor is not None and self.excitation.rotating is not None
         theta, speed, _ = self.excitation.rotating.angle_and_speed(t)
         u = self.R_exc @ np.array([math.cos(theta), math.sin(theta), 0.0])

@@ -41,6 +41,7 @@ from scipy.spatial.transform import Rotation
 
 from .linear_rig import RestPose, RigParameters
 from .parametrisation import to_tensor
+from .rigid_body import bearing_inertial_force
 
 #: ω_max h of the fixed step: RK4 is stable to 2.8; the cables' axial modes it integrates
 #: coarsely lie above the fit's band, and the band's motion (≤ 5 Hz) is resolved to ~1e-6.
@@ -364,8 +365,8 @@ def exciter_readings(out: np.ndarray, force: np.ndarray, p: RigParameters, dt: f
     carries its weight and accelerates it with the body), f_e the specific force at the exciter
     (body axes: the accelerometer's, moved by ω̇ × d + ω × (ω × d), d the IMU-to-exciter arm, ω̇
     the gyro's central differences), the x and y of the exciter frame; and the unbalanced mass's
-    inertial force from the body's rotation, −m_u e [ω̇ × û + ω × (ω × û) + 2 Ω ω × (ẑ × û)] (as in
-    the model's equations; Ω the force's rotation rate, :func:`spin_rate`).  ``force`` itself
+    inertial force from the body's rotation (:func:`~.rigid_body.bearing_inertial_force`, as in the
+    model's equations; Ω the force's rotation rate, :func:`spin_rate`).  ``force`` itself
     without a rotor."""
     m_r, unbalance = float(p.rotor[1]), float(p.rotor[0])
     if m_r == 0.0 and unbalance == 0.0:
@@ -383,9 +384,7 @@ def exciter_readings(out: np.ndarray, force: np.ndarray, p: RigParameters, dt: f
     if unbalance != 0.0:
         size = np.linalg.norm(force, axis=1, keepdims=True)
         u = np.divide(force, size, out=np.zeros_like(readings), where=size > 0) @ Re[:, :2].T     # û, body axes
-        spin = spin_rate(force, dt)[:, None]
-        coriolis = np.cross(w, np.cross(Re[:, 2], u))
-        inertial = -unbalance * (np.cross(dw, u) + np.cross(w, np.cross(w, u)) + 2 * spin * coriolis)
+        inertial = bearing_inertial_force(unbalance, u, Re[:, 2], spin_rate(force, dt), w, dw)
         readings += (inertial @ Re)[:, :2]
     return readings
 

@@ -36,4 +36,21 @@ def moment_sum(s: np.ndarray, f: np.ndarray) -> np.ndarray:
     return np.array([X[1, 2] - X[2, 1], X[2, 0] - X[0, 2], X[0, 1] - X[1, 0]])
 
 
-__all__ = ["SimulationError", "skew", "skews", "moment_sum"]
+def bearing_inertial_force(unbalance: float, u: np.ndarray, z: np.ndarray, spin: np.ndarray | float,
+                           w: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """The exciter's unbalanced mass's inertial force from the body's rotation, which its bearing
+    passes to the body at the exciter axis: (3,) or (n, 3) N, body axes,
+    −m_u e [α × û + ω × (ω × û) + 2 Ω ω × (ẑ × û)] — the mass m_u at e û from the axis, its
+    acceleration relative to the axis's in a frame turning with the body (Goldstein, *Classical
+    Mechanics*, §4.10: the tangential, centripetal and Coriolis terms; its spin's centripetal
+    term is the exciter's force itself).  unbalance: m_u e kg·m; u: (3,) or (n, 3) û, the
+    force's direction; z: (3,) ẑ, the spin axis (the exciter's z); spin: Ω rad/s, the spin
+    relative to the body about ẑ (scalar or (n,)); w, alpha: (3,) or (n, 3) the body's angular
+    velocity rad/s and acceleration rad/s², body axes."""
+    spin = np.asarray(spin, float)[..., None] if np.ndim(spin) else float(spin)
+    coriolis = np.cross(w, np.cross(z, u))
+    out: np.ndarray = -unbalance * (np.cross(alpha, u) + np.cross(w, np.cross(w, u)) + 2 * spin * coriolis)
+    return out
+
+
+__all__ = ["SimulationError", "bearing_inertial_force", "skew", "skews", "moment_sum"]

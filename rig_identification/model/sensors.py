@@ -26,10 +26,10 @@ from scipy.spatial.transform import Rotation
 
 from ..io.recording import SensorData, TimeSeries
 from ..io.rig import Rig
-from .dynamics import Evaluation, RigDynamics, bearing_inertial_force
+from .dynamics import Evaluation, RigDynamics
 from .effects import Effect
 from .experiment import Experiment
-from .rigid_body import SimulationError
+from .rigid_body import SimulationError, bearing_inertial_force
 
 STATIC_STREAMS = {"baseline": 1, "dummy": 2}   # static recordings: noise from default_rng([seed, stream])
 MODE_FILTER_RATE = 2000.0          # Hz: structural_mode's filter runs at >= this rate (and >= 40 x the
@@ -167,7 +167,7 @@ def _load_cell_readings(run: _Run) -> dict[str, TimeSeries]:
 def _exciter_readings(run: _Run) -> TimeSeries | None:
     """The exciter's load cells (K, 2) N, exciter frame: the force less the rotor's m_r f_e
     (exciter_rotor with a rotor_mass) and with its unbalanced mass's inertial force from the body's
-    rotation (:func:`~rig_identification.model.dynamics.bearing_inertial_force`), noise,
+    rotation (:func:`~rig_identification.model.rigid_body.bearing_inertial_force`), noise,
     sensor_delay; None without an exciter."""
     rig, model, eff = run.rig, run.model, run.eff
     if rig.exciter is None:
