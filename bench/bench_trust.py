@@ -64,6 +64,9 @@ ROWS = {
     "sensor_delay": (4, "wide", [{"name": "sensor_delay", "stream": "load_cells", "delay": 0.02}], False),
     "load_cell_scale": (4, "wide", [{"name": "load_cell_scale", "cable": "c1", "scale": 1.03}], False),
     "pivot_friction": (4, "wide", [{"name": "pivot_friction", "mu_r": 1e-3}], False),
+    "rotor_structural_mode": (4, "wide", [{"name": "exciter_rotor", "rotor_mass": 10.0},
+                                          {"name": "structural_mode", "sensor": "imu", "frequency": 8.0,
+                                           "damping_ratio": 0.03}], False),
 }
 
 
@@ -106,11 +109,11 @@ DATA_ERROR_OF = {"load_cell_scale": "load-cell gain"}
 
 def _named(dg) -> dict:
     """``named`` (the extensions told apart, as effect names), ``classes`` (the candidates of
-    each class not told apart) and ``data_errors`` (the unknowns pulled off their prior, labels) of
-    a rig-model diagnosis (None: none)."""
+    each class not told apart), ``data_errors`` (the unknowns pulled off their prior, labels) and
+    ``extensions`` (what the model holds, named or not) of a rig-model diagnosis (None: none)."""
     if dg is None:
-        return {"named": [], "classes": [], "data_errors": []}
-    return {"named": [EFFECT_OF.get(e, e) for e in dg.named],
+        return {"named": [], "classes": [], "data_errors": [], "extensions": []}
+    return {"named": [EFFECT_OF.get(e, e) for e in dg.named], "extensions": list(dg.extensions),
             "classes": [[EFFECT_OF.get(e, e) for e in g] for g in dg.classes],
             "data_errors": [c.unknown for c in dg.conflicts]}
 

@@ -210,7 +210,7 @@ def print_diagnosis(dg: RigDiagnosis) -> None:
                   "recording gives it, the fit found it; tested there:")
         cand = next(c for c in st.candidates if c.name == st.best)
         word = ("named" if st.named else f"not told apart from {', '.join(st.indistinguishable)}") if dg.explained \
-            else "added, not named"
+            else "named: the force measures it (below)" if st.added in dg.named else "added, not named"
         print(f"  {st.best}: χ² falls {cand.statistic:.0f} (threshold {cand.threshold:.1f}), cross-validated; {word}"
               + ("" if st.added == st.best else f"; the model takes {st.added}, the class's simplest"))
         if dg.refit is not None:

@@ -29,7 +29,10 @@ Two kinds of finding.  Data errors come first: they are unknowns of the model it
   :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` (the fit's own ``model_error``) the
   extensions stay in the model but nothing is named (:attr:`RigDiagnosis.named`): they lowered a
   misfit they do not explain (on the package's simulator a structural mode at 8 Hz took
-  imu_offset and gyro_scale), and the advice says so.  The rig
+  imu_offset and gyro_scale), and the advice says so — but for an extension that the restart
+  found, told apart, whose values another sensor measures and the motion confirms
+  (:func:`confirms`: the rotor's unbalance, which the exciter's force gives and the body's
+  motion asks for within its σ): two sensors agree on its physics, and it is named beside the misfit.  The rig
   model already holds viscous damping; where it is significant,
   quadratic drag and the ceiling pins' dry friction are tried in its place, and said indistinguishable from it
   where Vuong's test cannot tell them apart (at one forcing amplitude they are nearly the same
@@ -54,17 +57,18 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.stats import chi2, norm, t
 
 from ..estimation.harmonic_start import DampedStart, ForcedResponseStart, drag_start
 from ..estimation.rig_extensions import ExtensionFit, LinearisedRig
-from ..estimation.rig_fit import LEVEL_LIMIT, REWEIGHT_LIMIT, SANDWICH_BLOCKS, RigFit
+from ..estimation.rig_fit import LEVEL_LIMIT, REWEIGHT_LIMIT, SANDWICH_BLOCKS, RigFit, fitted_force
 from ..estimation.rig_problem import NON_NEGATIVE as FIT_NON_NEGATIVE
 from ..estimation.rig_record import Record
 from ..estimation.rig_unknowns import EXTENSIONS, Prior, labels, priors
+from ..io.verdict import Z95
 
 log = logging.getLogger(__name__)
 
@@ -78,6 +82,10 @@ DETERMINED_Z = float(norm.ppf(0.5 + SIGNIFICANCE / 2))
 #: Vuong's z beyond Student's t at this level (SANDWICH_BLOCKS − 1 degrees of freedom) tells two
 #: explanations apart.
 APART_LEVEL = 0.975
+#: A value the motion gives an extension confirms the one another sensor measures (:func:`confirms`)
+#: where the two differ by less than Z95 of its σ plus this share of the measured one (the force's
+#: median amplitude over its mean Ω², taken where the spin wanders a little).
+CONFIRM_SHARE = 0.01
 #: Extensions the selection adds at most.
 MAX_EXTENSIONS = 3
 #: A prior is in conflict with the data where the estimate lies more than this many of its σ off.
@@ -164,7 +172,8 @@ class Step:
     class); ``vuong``: z of the best against each other eligible candidate; ``candidates``: every
     test of the step.  ``restart``: the step came from a fit started with the extension at the
     value the recording gives it (:func:`restart_step`), where the rigid-body fit had not found the
-    motion; its tests are then made at that fit, the others' in its place."""
+    motion; its tests are then made at that fit, the others' in its place.  ``measured``: value
+    index -> what another sensor measures of it (:func:`measured_values`)."""
 
     added: str
     best: str
@@ -172,6 +181,7 @@ class Step:
     vuong: dict[str, float]
     candidates: tuple[Candidate, ...]
     restart: bool = False
+    measured: dict[int, float] = field(default_factory=dict)
 
     @property
     def named(self) -> bool:
@@ -181,7 +191,20 @@ class Step:
     def to_dict(self) -> dict:
         return {"added": self.added, "best": self.best, "named": self.named,
                 "indistinguishable": list(self.indistinguishable), "vuong_z": self.vuong,
-                "candidates": [c.to_dict() for c in self.candidates], "restart": self.restart}
+                "candidates": [c.to_dict() for c in self.candidates], "restart": self.restart,
+                "measured": {str(i): v for i, v in self.measured.items()}}
+
+
+def confirms(values: np.ndarray, std: np.ndarray, measured: dict[int, float]) -> bool:
+    """Whether an extension's fitted ``values`` (σ ``std``, units of
+    :data:`~rig_identification.estimation.rig_unknowns.EXTENSIONS`) are what another sensor
+    measures of them (``measured``: value index -> value), each within Z95 of its σ plus
+    :data:`CONFIRM_SHARE` of the measured value: two sensors agree on the extension's physics (the
+    body's motion and the exciter's force on the rotor's unbalance), which a term that only soaks
+    up a misfit would not (on the package's simulator without a rotor, its unbalance fitted from
+    the force's falls to zero within its σ: test_rig_diagnosis).  False where nothing is measured."""
+    return bool(measured) and all(abs(values[i] - v) <= Z95 * std[i] + CONFIRM_SHARE * abs(v)
+                                  for i, v in measured.items())
 
 
 @dataclass(frozen=True)
@@ -355,14 +378,24 @@ class RigDiagnosis:
         """Where the last fit explains the recording (:attr:`explained`): the extensions the
         recording tells apart from every other candidate, ``viscous_damping`` where the model's
         viscous damping is significant and told apart from quadratic drag and the pins' friction in
-        its place, and ``gyro_bias`` where the gyro's bias is found (:class:`GyroBias`).  Otherwise
-        none."""
+        its place, and ``gyro_bias`` where the gyro's bias is found (:class:`GyroBias`).  Where it
+        does not: only an extension told apart that another sensor confirms (:attr:`confirmed`);
+        what else the model holds is not named."""
         if not self.explained:
-            return ()
+            return tuple(s.added for s in self.steps if s.named and s.added in self.confirmed) \
+                if self.found_motion else ()
         d = self.damping
         viscous = ("viscous_damping",) if d is not None and d.found and not d.indistinguishable else ()
         bias = ("gyro_bias",) if self.gyro is not None and self.gyro.found else ()
         return tuple(s.added for s in self.steps if s.named) + viscous + bias
+
+    @property
+    def confirmed(self) -> tuple[str, ...]:
+        """The extensions whose values in the last fit another sensor measures and :func:`confirms`
+        (the rotor's unbalance: the exciter's force over Ω²)."""
+        if self.refit is None:
+            return ()
+        return tuple(s.added for s in self.steps if s.measured and confirms(*self.refit.extension(s.added), s.measured))
 
     @property
     def classes(self) -> tuple[tuple[str, ...], ...]:
@@ -382,9 +415,17 @@ class RigDiagnosis:
         does not explain the recording, that nothing is named and why."""
         if self.found_motion and not self.explained and (self.steps or self.damping is not None):
             held = ", ".join(self.extensions) or "its viscous damping"
+            named = self.named
+            confirmed = [f"{s.added} is named all the same: the motion asks for "
+                         + ", ".join(f"{v[i]:.4g} ± {sd[i]:.2g}" for i in s.measured)
+                         + " where another sensor measures " + ", ".join(f"{m:.4g}" for m in s.measured.values())
+                         + f" ({EXTENSIONS[s.added][1]})"
+                         for s in self.steps if s.added in named and self.refit is not None
+                         for v, sd in (self.refit.extension(s.added),)]
+            rest = "nothing else is named" if named else "nothing is named"
             return [f"the model with {held} still leaves {', '.join(self.unexplained)} beyond {LEVEL_LIMIT:g}× the "
                     "noise: what it leaves out is none of the extensions tested alone (a structural mode, a sprung "
-                    "body, several effects at once?); nothing is named"]
+                    f"body, several effects at once?); {rest}"] + confirmed
         out = [] if self.determined else [
             "the tensor is not determined (not_identifiable): the estimate is one of many that fit the recording "
             "as well, so no extension is tested at it; only what the model holds (its damping, the gyro's bias) "
@@ -399,7 +440,8 @@ class RigDiagnosis:
                    "damping": None if self.damping is None else self.damping.to_dict(),
                    "steps": [s.to_dict() for s in self.steps], "extensions": list(self.extensions),
                    "gyro_bias": None if self.gyro is None else self.gyro.to_dict(),
-                   "named": list(self.named), "classes": [list(g) for g in self.classes], "advice": self.advice,
+                   "named": list(self.named), "confirmed": list(self.confirmed),
+                   "classes": [list(g) for g in self.classes], "advice": self.advice,
                    "residual_level_before": {c: float(v) for c, v in
                                              zip(self.rigid.channels, self.rigid.residual_level)}}
         if self.refit is not None:
@@ -505,8 +547,9 @@ def physical_starts(rec: Record, damped: DampedStart | None = None, turning: For
     """The extensions whose unknowns the recording itself gives a start, and that start: the
     exciter's rotor, its unbalance the one that makes the measured force
     (:meth:`~rig_identification.estimation.rig_record.Record.unbalance`; its weight's moment turns
-    with it) and its mass 0 (none where the force is not a rotating vector), from the tensor and
-    the cables' stiffness of ``turning`` (the forced response with that unbalance) where given;
+    with it) and its mass 0 (none where the force is not a rotating
+    vector), from the tensor and the cables' stiffness of ``turning`` (the forced response with
+    that unbalance) where given;
     the air drag, the quadratic drag equivalent at the record's amplitudes to the viscous damping
     the fundamental asks for (``damped``: :func:`~rig_identification.estimation.harmonic_start.damped_start`;
     :func:`~rig_identification.estimation.harmonic_start.drag_start`), where it asks for some,
@@ -520,6 +563,21 @@ def physical_starts(rec: Record, damped: DampedStart | None = None, turning: For
     if damped is not None and np.any(damped.damping > 0):
         out["air_drag"] = PhysicalStart(drag_start(rec, damped), damped.tensor)
     return out
+
+
+def measured_values(rec: Record, prior: Prior, fit: RigFit) -> dict[str, dict[int, float]]:
+    """What another sensor than the motion's measures of the extensions ``fit`` holds (name ->
+    value index -> value, units of :data:`~rig_identification.estimation.rig_unknowns.EXTENSIONS`):
+    the exciter rotor's unbalance (index 0), the median amplitude over Ω² of the force on the body
+    as the fit infers it from the exciter's readings
+    (:meth:`~rig_identification.estimation.rig_record.Record.unbalance` of
+    :func:`~rig_identification.estimation.rig_fit.fitted_force`: the readings hold the force less
+    the rotor's own inertial force, −m_r a_e, which its bearing passes too — a few % of the force on
+    the package's simulator's 10 kg rotor, test_rig_diagnosis — and the fit adds it back)."""
+    if "exciter_rotor" not in fit.layout.extensions:
+        return {}
+    unbalance = rec.unbalance(fitted_force(rec, prior, fit))
+    return {} if unbalance is None else {"exciter_rotor": {0: unbalance}}
 
 
 def restart_step(rec: Record, prior: Prior, fit: RigFit, refit: Refit,
@@ -688,11 +746,13 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
     damping = None if lost(current) else damping_alternatives(lin, current)
     conflicts = prior_conflicts(current, prior, cables)
     log.info("diagnosis: data errors %s; extensions %s", [c.unknown for c in conflicts], [s.added for s in steps])
+    measured = measured_values(rec, prior, current) if steps else {}
+    steps = [replace(s, measured=measured[s.added]) if s.added in measured else s for s in steps]
     return RigDiagnosis(conflicts, damping, tuple(steps), fit, current if steps else None)
 
 
 __all__ = ["Candidate", "Step", "Damping", "GyroBias", "PriorConflict", "RigDiagnosis", "plausible", "prior_conflicts",
            "gyro_bias", "next_step", "evidenced", "lost", "Refit", "PhysicalStart", "physical_starts", "restart_step",
            "damping_alternatives", "diagnose_rig", "SIGNIFICANCE", "DETERMINED_Z", "APART_LEVEL", "MAX_EXTENSIONS",
-           "CONFLICT_SIGMA", "DAMPING_SIGMA", "BOUNDS", "NON_NEGATIVE", "DAMPING", "APART_ADVICE", "PAIR_ADVICE",
-           "apart_advice", "GYRO_CHANNELS"]
+           "CONFLICT_SIGMA", "CONFIRM_SHARE", "confirms", "measured_values", "DAMPING_SIGMA", "BOUNDS",
+           "NON_NEGATIVE", "DAMPING", "APART_ADVICE", "PAIR_ADVICE", "apart_advice", "GYRO_CHANNELS"]

@@ -728,6 +728,20 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
 
 
 
+def fitted_force(rec: Record, prior: Prior, fit: RigFit) -> np.ndarray:
+    """(m, 2) N, exciter frame: the exciter's force on the body over the fit's span as ``fit``
+    (made from ``rec`` and ``prior``) infers it — the denoised readings with the fit's correction
+    (:meth:`~.rig_problem.RigProblem.force`), which takes in what the exciter's load cells read
+    beside it (a rotor's own inertial force, which its bearing passes).  Raises ValueError where
+    the fit carries no estimate."""
+    if fit.unknowns is None or fit.rest is None:
+        raise ValueError("the fit carries no estimate")
+    n = len(rec.y) - rec.start
+    prob = RigProblem(rec, RigPoint(fit.unknowns, fit.parameters, fit.rest, fit.bases), fit.layout, prior,
+                      fit.noise_scale, n)
+    return prob.force(prob.x0)
+
+
 def channel_offsets(residual: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Each channel's offset the fit eliminates and its σ: ``residual`` (m, n_out) reading − model
     over the fit's span (channel units).  The offset is the residual's mean; its σ the scatter of

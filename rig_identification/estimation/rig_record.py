@@ -100,14 +100,16 @@ class Record:
     def duration(self) -> float:
         return self.dt * (len(self.y) - 1)
 
-    def unbalance(self) -> float | None:
-        """The unbalance m_u e, kg·m, whose rotation makes the denoised force over the fit's span:
+    def unbalance(self, force: np.ndarray | None = None) -> float | None:
+        """The unbalance m_u e, kg·m, whose rotation makes the denoised force over the fit's span
+        (or ``force`` (m, 2) N, exciter frame, from the span's start: the force a fit infers):
         its median amplitude over Ω², with Ω rad/s the mean rate of its phase (a rotating
         unbalance's force is m_u e Ω²: Rao, *Mechanical Vibrations*, 6th ed., §3.7).  None where
         the force is not a rotating vector (then it is no output: :data:`FORCE_CHANNELS`)."""
         if self.channels[-len(FORCE_CHANNELS):] != FORCE_CHANNELS:
             return None
-        z = self.u[self.start:, 0] + 1j * self.u[self.start:, 1]
+        u = self.u[self.start:] if force is None else np.asarray(force, float)
+        z = u[:, 0] + 1j * u[:, 1]
         phase = np.unwrap(np.angle(z))
         omega = abs(phase[-1] - phase[0]) / (self.dt * (len(z) - 1))
         return float(np.median(np.abs(z)) / omega ** 2) if omega > 0 else None

@@ -142,7 +142,8 @@ def diagnosis_html(res: RigModelResult) -> str:
                  "yes" if c.cross_validated else "no", num(st.vuong[c.name], "+.1f") if c.name in st.vuong else ""]
                 for c in sorted(st.candidates, key=lambda c: -c.statistic)]
         word = ("named" if st.named else f"not told apart from {', '.join(st.indistinguishable)}; the model takes it") \
-            if dg.explained else "not named: the model with it still does not fit"
+            if dg.explained else "named: the motion asks for what another sensor measures" if st.added in dg.named \
+            else "not named: the model with it still does not fit"
         if st.restart:
             word += "; fitted from the value the recording gives it, where the rigid-body fit had not found the motion"
         out.append(f"<h3>Step {i}: {esc(st.added)} added ({esc(word)})</h3>"
