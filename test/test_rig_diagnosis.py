@@ -308,7 +308,8 @@ def test_a_restarts_extension_that_another_sensor_confirms_is_named_beside_a_mis
     dg = RigDiagnosis((), None, (rotor(), drag), rigid, fit(3.72))
     assert not dg.explained and dg.named == ("exciter_rotor",) and dg.confirmed == ("exciter_rotor",), dg.named
     assert dg.classes == () and "nothing else is named" in dg.advice[0] and "tension:c0" in dg.advice[0], dg.advice
-    assert "3.72 ± 0.07 where another sensor measures 3.73" in dg.advice[1], dg.advice
+    assert "3.72 ± 0.07 kg·m of unbalance, the exciter's force on the body over Ω² gives 3.73" in dg.advice[1], \
+        dg.advice
     assert dg.to_dict()["confirmed"] == ["exciter_rotor"] and dg.to_dict()["named"] == ["exciter_rotor"]
     print_diagnosis(dg)
     out = capsys.readouterr().out

@@ -86,6 +86,9 @@ APART_LEVEL = 0.975
 #: where the two differ by less than Z95 of its σ plus this share of the measured one (the force's
 #: median amplitude over its mean Ω², taken where the spin wanders a little).
 CONFIRM_SHARE = 0.01
+#: What another sensor measures of an extension (:func:`measured_values`): name -> value index ->
+#: (the value's unit and name, the sensor's reading of it).
+MEASURED = {"exciter_rotor": {0: ("kg·m of unbalance", "the exciter's force on the body over Ω² gives")}}
 #: Extensions the selection adds at most.
 MAX_EXTENSIONS = 3
 #: A prior is in conflict with the data where the estimate lies more than this many of its σ off.
@@ -416,10 +419,9 @@ class RigDiagnosis:
         if self.found_motion and not self.explained and (self.steps or self.damping is not None):
             held = ", ".join(self.extensions) or "its viscous damping"
             named = self.named
-            confirmed = [f"{s.added} is named all the same: the motion asks for "
-                         + ", ".join(f"{v[i]:.4g} ± {sd[i]:.2g}" for i in s.measured)
-                         + " where another sensor measures " + ", ".join(f"{m:.4g}" for m in s.measured.values())
-                         + f" ({EXTENSIONS[s.added][1]})"
+            confirmed = [f"{s.added} is named all the same: the body's motion asks for "
+                         + ", ".join(f"{v[i]:.4g} ± {sd[i]:.2g} {MEASURED[s.added][i][0]}" for i in s.measured)
+                         + ", " + ", ".join(f"{MEASURED[s.added][i][1]} {m:.4g}" for i, m in s.measured.items())
                          for s in self.steps if s.added in named and self.refit is not None
                          for v, sd in (self.refit.extension(s.added),)]
             rest = "nothing else is named" if named else "nothing is named"
@@ -754,5 +756,5 @@ def diagnose_rig(rec: Record, prior: Prior, fit: RigFit, cables: list[str],
 __all__ = ["Candidate", "Step", "Damping", "GyroBias", "PriorConflict", "RigDiagnosis", "plausible", "prior_conflicts",
            "gyro_bias", "next_step", "evidenced", "lost", "Refit", "PhysicalStart", "physical_starts", "restart_step",
            "damping_alternatives", "diagnose_rig", "SIGNIFICANCE", "DETERMINED_Z", "APART_LEVEL", "MAX_EXTENSIONS",
-           "CONFLICT_SIGMA", "CONFIRM_SHARE", "confirms", "measured_values", "DAMPING_SIGMA", "BOUNDS",
+           "CONFLICT_SIGMA", "CONFIRM_SHARE", "MEASURED", "confirms", "measured_values", "DAMPING_SIGMA", "BOUNDS",
            "NON_NEGATIVE", "DAMPING", "APART_ADVICE", "PAIR_ADVICE", "apart_advice", "GYRO_CHANNELS"]
