@@ -29,10 +29,10 @@ Two kinds of finding.  Data errors come first: they are unknowns of the model it
   :data:`~rig_identification.estimation.rig_fit.LEVEL_LIMIT` (the fit's own ``model_error``) the
   extensions stay in the model but nothing is named (:attr:`RigDiagnosis.named`): they lowered a
   misfit they do not explain (on the package's simulator a structural mode at 8 Hz took
-  imu_offset and gyro_scale), and the advice says so — but for an extension that the restart
-  found, told apart, whose values another sensor measures and the motion confirms
-  (:func:`confirms`: the rotor's unbalance, which the exciter's force gives and the body's
-  motion asks for within its σ): two sensors agree on its physics, and it is named beside the misfit.  The rig
+  imu_offset and gyro_scale), and the advice says so — but for an extension, told apart, whose
+  values another sensor measures and the last fit confirms (:func:`confirms`: the rotor's
+  unbalance, which the exciter's force gives and the body's motion asks for within its σ): two
+  sensors agree on its physics, and it is named beside the misfit.  The rig
   model already holds viscous damping; where it is significant,
   quadratic drag and the ceiling pins' dry friction are tried in its place, and said indistinguishable from it
   where Vuong's test cannot tell them apart (at one forcing amplitude they are nearly the same
