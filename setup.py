@@ -32,7 +32,7 @@ setup(
     ],
     package_data={PACKAGE: ["data/*.yaml", "data/*.csv"]},
     include_package_data=True,
-    install_requires=["setuptools", "numpy", "scipy", "numba", "pyyaml", "rosbags"],
+    install_requires=["setuptools", "numpy", "scipy", "numba", "threadpoolctl", "pyyaml", "rosbags"],
     zip_safe=True,
     maintainer="rig_identification developers",
     maintainer_email="dev@rig-identification.local",

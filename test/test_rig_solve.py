@@ -74,7 +74,7 @@ def test_the_compressed_residual_keeps_the_cost_and_the_gradient_exactly():
     prob, _ = damped_sine_problem()
     jac = ReusedJacobian(prob.residual, prob.jacobian, 3, reuse=True)
     packed = CompressedResidual(jac, np.zeros(3))
-    assert packed.Q is not None and packed.Q.shape == (400, 3)
+    assert packed.basis is not None and packed.basis[0].shape == (400, 3)
     for z in (np.zeros(3), np.array([0.1, -0.01, 0.02])):
         f, J = packed.residual(z), packed.jacobian(z)
         r, Jr = prob.residual(z), jac.J               # the Jacobian the solve uses there (updated, not fresh)

@@ -77,6 +77,7 @@ from .rig_problem import (
     RigPoint,
     RigProblem,
     levels,
+    sequential_blas,
 )
 from .rig_record import ChannelSeries, Record
 from .rig_start import start_parameters
@@ -758,8 +759,9 @@ def cramer_rao(rec: Record, rig: Rig, prior: Prior, truth: RigParameters) -> np.
     and noise levels at the true parameters ``truth``: the inverse Fisher information of the
     weighted residual (Gaussian white noise per channel, in the fit's band), the priors of
     ``prior``, the initial state at the fit's start free."""
-    lay = Layout(len(rig.cables), rec.force_unknowns())
-    x = vector(truth, np.zeros(12), lay)
-    rest = rest_pose(truth)
-    prob = RigProblem(rec, RigPoint(x, truth, rest), lay, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start)
-    return covariance(prob, prob.jacobian(np.zeros(prob.lay.size)))[0]
+    with sequential_blas():
+        lay = Layout(len(rig.cables), rec.force_unknowns())
+        x = vector(truth, np.zeros(12), lay)
+        rest = rest_pose(truth)
+        prob = RigProblem(rec, RigPoint(x, truth, rest), lay, prior, np.ones(len(rec.channels)), len(rec.y) - rec.start)
+        return covariance(prob, prob.jacobian(np.zeros(prob.lay.size)))[0]

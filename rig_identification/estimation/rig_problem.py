@@ -8,14 +8,17 @@ from __future__ import annotations
 
 import logging
 import os
+import threading
 from collections.abc import Callable, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import CubicSpline
+from scipy.linalg import solve_triangular
 from scipy.signal import butter, sosfiltfilt
 from scipy.spatial.transform import Rotation
+from threadpoolctl import threadpool_limits
 
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import physically_consistent, to_tensor
@@ -45,6 +48,17 @@ COMPRESS_ROWS = 4
 DECIMATED_RATE = 3.0
 #: Threads that compute the Jacobian's columns (the machine's cores, at most 4).
 THREADS = max(1, min(4, os.cpu_count() or 1))
+
+
+def sequential_blas() -> threadpool_limits:
+    """A context (``with sequential_blas(): ...``) in which BLAS, numpy's and scipy's linear
+    algebra, runs on one thread, its setting before restored on leaving: a fit's own
+    :data:`THREADS` threads take the cores with the model's runs, and BLAS's threads, spinning
+    between calls, took the cores back from them (docs/results.md#speed).  Each fit of the rig model
+    (:func:`~rig_identification.pipeline.rig_model.fit_whole_recording`, the joint fit, the
+    Cramér–Rao bound) runs in one; they nest."""
+    return threadpool_limits(limits=1, user_api="blas")
+
 #: Stopping rules of each least-squares solve (scipy.optimize.least_squares): its iterations
 #: at most, and the tolerances on the step, the cost's change and the gradient.
 MAX_ITERATIONS = 100
@@ -116,8 +130,10 @@ class RigProblem:
         self.weight_scale = np.asarray(noise_scale, float).copy()
         self.rest = rest
         self.ref = rest_state(parameters_of(self.x0, like, self.lay), rest)
-        self._rest_cache: dict[bytes, np.ndarray] = {}
+        self._rest_cache: dict[bytes, tuple[np.ndarray, Rotation]] = {}
+        self._rest_lock = threading.Lock()
         self._drives: dict[tuple[int, int, bytes], Drive] = {}
+        self._forces: dict[bytes, np.ndarray] = {}
         lin = linearise(parameters_of(self.x0, like, self.lay), rest)
         self.substeps = substeps_for(2 * np.pi * natural_frequencies(lin).max(), rec.dt)
         self.basis = rec.force_basis()[:n] if self.lay.n_force else np.zeros((n, 0))
@@ -228,13 +244,22 @@ class RigProblem:
         if not self.lay.n_force:
             return u
         c = x[self.lay.force]
+        key = c.tobytes()
+        cached = self._forces.get(key)
+        if cached is not None:
+            return cached
         k = self.basis.shape[1]
         z = u[:, 0] + 1j * u[:, 1]
         out = z * (1.0 + self.basis @ c[:k]) * np.exp(1j * (self.basis @ c[k:2 * k]))
         for j, turn in enumerate(self.turns):
             first = 2 * k * (1 + j)
             out = out + turn * (self.basis @ c[first:first + k] + 1j * (self.basis @ c[first + k:first + 2 * k]))
-        return np.column_stack([out.real, out.imag])
+        force = np.column_stack([out.real, out.imag])
+        force.flags.writeable = False
+        if len(self._forces) > 2 * THREADS:       # x0's and the columns' on the threads at once
+            self._forces.clear()
+        self._forces[key] = force
+        return force
 
     def drive(self, x: np.ndarray, u: np.ndarray, a: int, b: int) -> Drive:
         """The force ``u`` (:meth:`force` at ``x``, as read) over the span's samples a to b as the
@@ -258,41 +283,60 @@ class RigProblem:
         force is an output: :func:`~rig_identification.model.rig_ode.exciter_readings`); ``u``: the
         span's force at x (:meth:`force`) where already known."""
         p = parameters_of(x, self.like, self.lay)
-        u = self.force(x) if u is None else u
+        return self._run(x, p, self.force(x) if u is None else u, k, self.starts(x, p, [k])[0])
+
+    def _run(self, x: np.ndarray, p: RigParameters, u: np.ndarray, k: int, y0: np.ndarray) -> np.ndarray:
+        """Segment ``k``'s readings (:meth:`segment_outputs`) at ``x``, its parameters ``p``, force
+        ``u`` and start ``y0`` (13,)."""
         a, b = self.edges[k], self.edges[k + 1]
-        y0 = moved_state(self._rebased(p, self.bases[k]), x[self.lay.state(k)])
         raw = simulate(p, y0, self.drive(x, u, a, b))[0]
         out = with_sensor_traits(raw, p, a * self.rec.dt, self.rec.dt)
         return np.column_stack([out, exciter_readings(raw, u[a:b], p, self.rec.dt)]) if self.lay.n_force else out
 
-    def _rebased(self, p: RigParameters, base: np.ndarray) -> np.ndarray:
-        """``base`` (13,) moved with the rest pose: its offset from the rest state at x0 put on the
-        rest state of ``p`` (a shifted geometry or CG moves the start with it, so the fit need not
-        cancel the two against each other: each channel's offset is projected out, and the rest
-        pose itself is not what the data see).  Raises
+    def starts(self, x: np.ndarray, p: RigParameters, segments: Sequence[int]) -> np.ndarray:
+        """(len(segments), 13) the states the ``segments`` run from at the unknowns ``x`` (``p``
+        their parameters): each one's base moved with the rest pose (:meth:`_rebased`) and by its
+        initial-state unknowns (:func:`~rig_identification.model.rig_ode.moved_state`)."""
+        which = list(segments)
+        offsets = np.array([x[self.lay.state(k)] for k in which])
+        moved: np.ndarray = moved_state(self._rebased(p, self.bases[which]), offsets)
+        return moved
+
+    def _rebased(self, p: RigParameters, bases: np.ndarray) -> np.ndarray:
+        """``bases`` (k, 13) moved with the rest pose: each one's offset from the rest state at x0
+        put on the rest state of ``p`` (a shifted geometry or CG moves the start with it, so the
+        fit need not cancel the two against each other: each channel's offset is projected out, and
+        the rest pose itself is not what the data see).  Raises
         :class:`~rig_identification.model.rigid_body.SimulationError` where ``p`` has no rest pose."""
         key = p.ceiling.tobytes() + p.body.tobytes() + p.length.tobytes() + p.cg.tobytes() + p.stiffness.tobytes() \
-            + np.array([p.mass]).tobytes()
-        ref = self._rest_cache.get(key)
-        if ref is None:
+            + np.float64(p.mass).tobytes()
+        with self._rest_lock:           # the least recently used goes first
+            cached = self._rest_cache.pop(key, None)
+            if cached is not None:
+                self._rest_cache[key] = cached
+        if cached is None:
             ref = rest_state(p, rest_pose(p, self.rest))
-            self._rest_cache = {key: ref}
-        R0 = Rotation.from_quat(self.ref[[4, 5, 6, 3]])
-        R1 = Rotation.from_quat(ref[[4, 5, 6, 3]])
-        Rb = Rotation.from_quat(base[[4, 5, 6, 3]])
-        q = (R1 * R0.inv() * Rb).as_quat()
-        return np.concatenate([base[:3] - self.ref[:3] + ref[:3], [q[3], q[0], q[1], q[2]], base[7:]])
+            turn = Rotation.from_quat(ref[[4, 5, 6, 3]]) * Rotation.from_quat(self.ref[[4, 5, 6, 3]]).inv()
+            cached = (ref, turn)
+            with self._rest_lock:       # the Jacobian's columns on the threads at once, and x0's
+                self._rest_cache[key] = cached
+                while len(self._rest_cache) > 2 * THREADS + 1:
+                    del self._rest_cache[next(iter(self._rest_cache))]
+        ref, turn = cached
+        q = (turn * Rotation.from_quat(bases[:, [4, 5, 6, 3]])).as_quat()
+        return np.column_stack([bases[:, :3] - self.ref[:3] + ref[:3], q[:, [3, 0, 1, 2]], bases[:, 7:]])
 
     def bases_at(self, x: np.ndarray) -> np.ndarray:
         """(n_segments, 13) the segments' states before their unknowns, moved with the rest pose
         to the parameters of ``x``: what a problem made at ``x`` takes as ``bases``."""
-        p = parameters_of(x, self.like, self.lay)
-        return np.array([self._rebased(p, b) for b in self.bases])
+        return self._rebased(parameters_of(x, self.like, self.lay), self.bases)
 
     def outputs(self, x: np.ndarray) -> list[np.ndarray]:
         """The model's readings over the span, segment by segment ((samples, n_out) each)."""
+        p = parameters_of(x, self.like, self.lay)
         u = self.force(x)
-        return [self.segment_outputs(x, k, u) for k in range(self.lay.n_segments)]
+        starts = self.starts(x, p, range(self.lay.n_segments))
+        return [self._run(x, p, u, k, starts[k]) for k in range(self.lay.n_segments)]
 
     def data_residual(self, x: np.ndarray, outputs: list[np.ndarray] | None = None) -> np.ndarray:
         """(m, n_out) weighted, low-passed and decimated to the band, each channel's offset
@@ -622,23 +666,30 @@ class ReusedJacobian:
 
 class CompressedResidual:
     """The residual of a :class:`ReusedJacobian` as scipy's trust region takes it, its rows
-    compressed onto the Jacobian's column space: f̃(z) = [Qᵀ r(z); ‖r(z) − Q Qᵀ r(z)‖] with Q
-    (rows, size) an orthonormal basis of the columns of the Jacobian at the solve's start ``z0``
-    (QR), and its Jacobian [Qᵀ J; (P r)ᵀ J / ‖P r‖], P = I − Q Qᵀ.  ½‖f̃‖² = ½‖r‖² and J̃ᵀf̃ = Jᵀr
-    exactly, and J̃ᵀJ̃ = JᵀJ where the Jacobian's columns stay in Q's span (at the start; the
-    Jacobians made later in the solve are near it), so the trust region takes the same steps
-    while its SVD each iteration is of a (size + 1, size) matrix, not of a (rows, size) one
-    (Björck, *Numerical Methods for Least Squares Problems*, 1996, §2.2: the least-squares
-    problem reduced by a QR factorisation).  A Jacobian of at most :data:`COMPRESS_ROWS` rows per
-    column is passed as it is (its SVD is cheap).  ``full(z)`` gives the uncompressed residual at
-    a point the solve evaluated."""
+    compressed onto the Jacobian's column space: f̃(z) = [Qᵀ r(z); (‖r‖² − ‖Qᵀ r‖²)^½] with
+    Qᵀ = L⁻¹ J0ᵀ, J0 (rows, size) the Jacobian at the solve's start ``z0`` and L the Cholesky factor
+    of J0ᵀJ0 (Q = J0 L⁻ᵀ spans J0's columns and is orthonormal in exact arithmetic: the
+    semi-normal equations, Björck, *Numerical Methods for Least Squares Problems*, 1996, §2.2 and
+    §6.6, without forming Q), and its Jacobian [Qᵀ J; (rᵀJ − (Qᵀr)ᵀ QᵀJ) / f̃_last].  ½‖f̃‖² = ½‖r‖²
+    and J̃ᵀf̃ = Jᵀr hold whatever L's rounding (the terms in Q cancel), and J̃ᵀJ̃ = JᵀJ where the
+    Jacobian's columns stay in J0's span (at the start; the Jacobians made later in the solve are
+    near it), so the trust region takes the same steps while its SVD each iteration is of a
+    (size + 1, size) matrix, not of a (rows, size) one.  A Jacobian of at most
+    :data:`COMPRESS_ROWS` rows per column, or whose J0ᵀJ0 is not numerically positive definite (a
+    column the residual does not see), is passed as it is.  ``full(z)`` gives the uncompressed
+    residual at a point the solve evaluated."""
 
     def __init__(self, jac: ReusedJacobian, z0: np.ndarray):
         self.jac = jac
         self._full: dict[bytes, np.ndarray] = {}
         self.full(z0)                 # the trust region's first evaluation, then its first Jacobian
         J0 = jac.jacobian(z0)
-        self.Q = np.linalg.qr(J0)[0] if J0.shape[0] > COMPRESS_ROWS * J0.shape[1] else None
+        self.basis: tuple[np.ndarray, np.ndarray] | None = None     # J0 and L
+        if J0.shape[0] > COMPRESS_ROWS * J0.shape[1]:
+            try:
+                self.basis = J0, np.linalg.cholesky(J0.T @ J0)
+            except np.linalg.LinAlgError:
+                log.info("rig fit: the Jacobian's Gram matrix is not positive definite: the residual is not compressed")
 
     def full(self, z: np.ndarray) -> np.ndarray:
         """(rows,) the uncompressed residual at ``z``: the one the solve evaluated there (the last
@@ -651,25 +702,35 @@ class CompressedResidual:
             r = self._full[key] = self.jac.residual(z)
         return r
 
+    def projected(self, M: np.ndarray) -> np.ndarray:
+        """Qᵀ M (size, ...) of ``M`` (rows, ...) (the class docstring's Q).  Raises ValueError where
+        the residual is not compressed."""
+        if self.basis is None:
+            raise ValueError("the residual is not compressed: no basis to project on")
+        J0, L = self.basis
+        out: np.ndarray = solve_triangular(L, J0.T @ M, lower=True)
+        return out
+
     def residual(self, z: np.ndarray) -> np.ndarray:
         r = self.full(z)
-        if self.Q is None:
+        if self.basis is None:
             return r
-        head = self.Q.T @ r
-        return np.concatenate([head, [np.linalg.norm(r - self.Q @ head)]])
+        head = self.projected(r)
+        return np.concatenate([head, [np.sqrt(max(r @ r - head @ head, 0.0))]])
 
     def jacobian(self, z: np.ndarray) -> np.ndarray:
         J = self.jac.jacobian(z)
-        if self.Q is None:
+        if self.basis is None:
             return J
         r = self.full(z)
-        rest = r - self.Q @ (self.Q.T @ r)
-        tail = np.linalg.norm(rest)
-        last = rest @ J / tail if tail > 0 else np.zeros(J.shape[1])
-        return np.vstack([self.Q.T @ J, last])
+        head = self.projected(r)
+        top = self.projected(J)
+        tail = np.sqrt(max(r @ r - head @ head, 0.0))
+        last = (r @ J - head @ top) / tail if tail > 0 else np.zeros(J.shape[1])
+        return np.vstack([top, last])
 
 
-__all__ = ["ReusedJacobian", "CompressedResidual", "COMPRESS_ROWS", "KEPT_RESIDUALS",
+__all__ = ["sequential_blas", "ReusedJacobian", "CompressedResidual", "COMPRESS_ROWS", "KEPT_RESIDUALS",
            "RigPoint", "RigProblem", "JointProblem", "JointLayout", "BODY",
            "levels", "base_state", "DECIMATED_RATE", "THREADS", "MAX_ITERATIONS", "XTOL",
            "FTOL", "GTOL", "OUTSIDE", "JACOBIAN_STEP", "IMPULSE_TAIL", "NON_NEGATIVE", "SETTLE_STEPS",

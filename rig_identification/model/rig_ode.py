@@ -293,12 +293,13 @@ def rest_state(p: RigParameters, rest: RestPose) -> np.ndarray:
 
 def moved_state(y: np.ndarray, offset: np.ndarray) -> np.ndarray:
     """The state ``y`` (13,) moved by ``offset`` (12,) = (δp_cg world m, δφ world rad, δv_cg world
-    m/s, δω body rad/s)."""
-    off = np.asarray(offset, float)
-    q = y[3:7]
-    R = Rotation.from_rotvec(off[3:6]) * Rotation.from_quat([q[1], q[2], q[3], q[0]])
-    qn = R.as_quat()
-    return np.concatenate([y[:3] + off[:3], [qn[3], qn[0], qn[1], qn[2]], y[7:10] + off[6:9], y[10:13] + off[9:12]])
+    m/s, δω body rad/s); or k states (k, 13) each by its offset (k, 12)."""
+    y, off = np.asarray(y, float), np.asarray(offset, float)
+    ys, offs = np.atleast_2d(y), np.atleast_2d(off)
+    qn = (Rotation.from_rotvec(offs[:, 3:6]) * Rotation.from_quat(ys[:, [4, 5, 6, 3]])).as_quat()
+    out = np.column_stack([ys[:, :3] + offs[:, :3], qn[:, [3, 0, 1, 2]], ys[:, 7:10] + offs[:, 6:9],
+                           ys[:, 10:13] + offs[:, 9:12]])
+    return out if y.ndim == 2 else out[0]
 
 
 @dataclass(frozen=True)

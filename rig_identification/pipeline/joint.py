@@ -16,6 +16,7 @@ from typing import Protocol
 import numpy as np
 
 from ..estimation.joint_fit import fit_jointly
+from ..estimation.rig_problem import sequential_blas
 from ..io.export import Axes, Expressed, express
 from ..io.recording import Recording, RecordingError
 from ..io.rig import Rig
@@ -150,15 +151,16 @@ def fit_recordings(recs: list[Recording], cg=None, cg_std=None, cg_source: str |
     diagnosis; run ``rig-identify diagnose`` on a recording whose channels do not fit).  cg,
     cg_std, cg_source, start, end: as :func:`~rig_identification.pipeline.rig_model.fit_whole_recording`'s,
     the same for every recording.  Raises as it does."""
-    check_same_body(recs)
-    t_wall = time.perf_counter()
-    inputs = [prepared(r, cg, cg_std, cg_source, start, end) for r in recs]
-    singles = []
-    for inp in inputs:
-        log.info("fitting the rig model to %s alone (%.0f s)", inp.rec.path, inp.rc.duration)
-        singles.append(inp.fit())
-    alone = tuple(inp.result(f, np.nan) for inp, f in zip(inputs, singles))
-    log.info("fitting the rig model to the %d recordings at once", len(recs))
-    joint = fit_jointly([i.rc for i in inputs], singles, [i.prior for i in inputs])
-    seconds = time.perf_counter() - t_wall
-    return JointResult(tuple(inp.result(f, seconds) for inp, f in zip(inputs, joint.fits)), alone, seconds)
+    with sequential_blas():
+        check_same_body(recs)
+        t_wall = time.perf_counter()
+        inputs = [prepared(r, cg, cg_std, cg_source, start, end) for r in recs]
+        singles = []
+        for inp in inputs:
+            log.info("fitting the rig model to %s alone (%.0f s)", inp.rec.path, inp.rc.duration)
+            singles.append(inp.fit())
+        alone = tuple(inp.result(f, np.nan) for inp, f in zip(inputs, singles))
+        log.info("fitting the rig model to the %d recordings at once", len(recs))
+        joint = fit_jointly([i.rc for i in inputs], singles, [i.prior for i in inputs])
+        seconds = time.perf_counter() - t_wall
+        return JointResult(tuple(inp.result(f, seconds) for inp, f in zip(inputs, joint.fits)), alone, seconds)

@@ -29,6 +29,7 @@ from ..diagnosis.rig_diagnosis import RigDiagnosis, diagnose_rig, lost
 from ..estimation.gyro_fit import IdentificationError, fit_gyro
 from ..estimation.harmonic_start import ForcedResponseStart, box_tensor, damped_start, forced_response_start
 from ..estimation.rig_fit import LEVEL_LIMIT, RigFit, fit_rig
+from ..estimation.rig_problem import sequential_blas
 from ..estimation.rig_record import Record, record
 from ..estimation.rig_unknowns import EXTENSIONS, Prior
 from ..estimation.tracker_replay import replay_cleaned
@@ -462,28 +463,29 @@ def fit_whole_recording(rec: Recording, cg=None, cg_std=None, cg_source: str | N
     :class:`~rig_identification.estimation.rig_record.RigFitError`,
     :class:`~rig_identification.io.rig.RigError`,
     :class:`~rig_identification.io.recording.RecordingError`."""
-    t_wall = time.perf_counter()
-    inp = prepared(rec, cg, cg_std, cg_source, start, end)
-    log.info("fitting the rig model to every sensor (%.0f s, %d channels)", inp.rc.duration, len(inp.rc.channels))
-    fit = inp.fit()
-    diagnosis = None
-    if diagnose and np.all(np.isfinite(fit.inertia_std)):
-        log.info("testing what the model leaves out")
+    with sequential_blas():
+        t_wall = time.perf_counter()
+        inp = prepared(rec, cg, cg_std, cg_source, start, end)
+        log.info("fitting the rig model to every sensor (%.0f s, %d channels)", inp.rc.duration, len(inp.rc.channels))
+        fit = inp.fit()
+        diagnosis = None
+        if diagnose and np.all(np.isfinite(fit.inertia_std)):
+            log.info("testing what the model leaves out")
 
-        def refit(extensions: dict[str, np.ndarray], start: np.ndarray, stiffness: np.ndarray | None) -> RigFit:
-            log.info("fitting the rig model with %s", ", ".join(extensions) or "nothing added, again")
-            return inp.fit(extensions, start, stiffness)
+            def refit(extensions: dict[str, np.ndarray], start: np.ndarray, stiffness: np.ndarray | None) -> RigFit:
+                log.info("fitting the rig model with %s", ", ".join(extensions) or "nothing added, again")
+                return inp.fit(extensions, start, stiffness)
 
-        # where the fit did not find the motion, the damping the fundamental asks for starts the drag's
-        # fit, and the forced response with the exciter rotor's unbalance (its weight turning with the
-        # force) the rotor's: the tensor and the cables' stiffness
-        damped = turning = None
-        if lost(fit):
-            damped = damped_start(inp.rc, rec.rig, inp.prior, inp.forced)
-            unbalance = inp.rc.unbalance()
-            if unbalance is not None:
-                turning = forced_response_start(inp.rc, rec.rig, inp.prior, inp.starts,
-                                                rotor=np.array([unbalance, 0.0]))
-        diagnosis = diagnose_rig(inp.rc, inp.prior, fit, list(rec.rig.cable_names), refit, damped, turning)
-        fit = diagnosis.refit or diagnosis.rigid
-    return inp.result(fit, time.perf_counter() - t_wall, diagnosis)
+            # where the fit did not find the motion, the damping the fundamental asks for starts the drag's
+            # fit, and the forced response with the exciter rotor's unbalance (its weight turning with the
+            # force) the rotor's: the tensor and the cables' stiffness
+            damped = turning = None
+            if lost(fit):
+                damped = damped_start(inp.rc, rec.rig, inp.prior, inp.forced)
+                unbalance = inp.rc.unbalance()
+                if unbalance is not None:
+                    turning = forced_response_start(inp.rc, rec.rig, inp.prior, inp.starts,
+                                                    rotor=np.array([unbalance, 0.0]))
+            diagnosis = diagnose_rig(inp.rc, inp.prior, fit, list(rec.rig.cable_names), refit, damped, turning)
+            fit = diagnosis.refit or diagnosis.rigid
+        return inp.result(fit, time.perf_counter() - t_wall, diagnosis)
