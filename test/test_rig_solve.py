@@ -5,9 +5,12 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from scipy.optimize import least_squares
+from scipy.spatial.transform import Rotation
+from threadpoolctl import threadpool_info
 
 from rig_identification.estimation.rig_fit import solve
-from rig_identification.estimation.rig_problem import CompressedResidual, ReusedJacobian
+from rig_identification.estimation.rig_problem import CompressedResidual, ReusedJacobian, sequential_blas
+from rig_identification.model.rig_ode import moved_state
 
 
 def linear_problem(J: np.ndarray, b: np.ndarray) -> SimpleNamespace:
@@ -98,3 +101,49 @@ def test_the_compressed_solve_reaches_the_minimum_of_the_whole_residual():
     start = np.array([-0.3, 0.02, 0.05])
     assert np.all(np.abs(start + sol.x) < 4 * np.sqrt(np.diag(cov)))   # the truth within 4 σ
     assert runs < 60
+
+
+def test_a_jacobian_with_a_column_the_residual_does_not_see_is_passed_uncompressed():
+    # J0ᵀJ0 singular (a zero column: an unknown the residual does not see): no Cholesky factor, the
+    # residual and the Jacobian go to the trust region as they are
+    prob, _ = damped_sine_problem()
+    jacobian = prob.jacobian
+    prob.jacobian = lambda z: np.column_stack([jacobian(z[:3]), np.zeros(400)])
+    residual = prob.residual
+    jac = ReusedJacobian(lambda z: residual(z[:3]), prob.jacobian, 4, reuse=True)
+    packed = CompressedResidual(jac, np.zeros(4))
+    assert packed.basis is None
+    z = np.array([0.1, -0.01, 0.02, 0.3])
+    np.testing.assert_array_equal(packed.residual(z), residual(z[:3]))
+    assert packed.jacobian(z).shape == (400, 4)
+    with pytest.raises(ValueError, match="not compressed"):
+        packed.projected(np.ones(400))
+
+
+def test_sequential_blas_runs_blas_on_one_thread_and_restores_it():
+    blas = [i for i in threadpool_info() if i["user_api"] == "blas"]
+    if not blas:
+        pytest.skip("threadpoolctl finds no BLAS in this process")
+    before = [i["num_threads"] for i in blas]
+    with sequential_blas():
+        assert all(i["num_threads"] == 1 for i in threadpool_info() if i["user_api"] == "blas")
+        with sequential_blas():                 # a fit within a fit (the joint fit's single fits)
+            pass
+        assert all(i["num_threads"] == 1 for i in threadpool_info() if i["user_api"] == "blas")
+    assert [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"] == before
+
+
+def test_moved_state_moves_a_stack_of_states_as_each_alone():
+    rng = np.random.default_rng(3)
+    q = Rotation.random(5, random_state=4).as_quat()[:, [3, 0, 1, 2]]      # wxyz
+    y = np.column_stack([rng.normal(size=(5, 3)), q, rng.normal(size=(5, 6))])
+    offsets = 1e-2 * rng.normal(size=(5, 12))
+    stacked = moved_state(y, offsets)
+    assert stacked.shape == (5, 13)
+    for k in range(5):
+        np.testing.assert_allclose(stacked[k], moved_state(y[k], offsets[k]), rtol=0, atol=1e-15)
+    # the rotation: the offset's rotation vector (world) after the state's attitude
+    R = Rotation.from_rotvec(offsets[0, 3:6]) * Rotation.from_quat(y[0, [4, 5, 6, 3]])
+    np.testing.assert_allclose(Rotation.from_quat(stacked[0, [4, 5, 6, 3]]).as_matrix(), R.as_matrix(), atol=1e-15)
+    np.testing.assert_allclose(stacked[0, :3], y[0, :3] + offsets[0, :3])
+    np.testing.assert_allclose(stacked[0, 7:], y[0, 7:] + offsets[0, 6:])
