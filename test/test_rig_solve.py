@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
-from threadpoolctl import threadpool_info
+from threadpoolctl import threadpool_info, threadpool_limits
 
 from rig_identification.estimation.rig_fit import solve
 from rig_identification.estimation.rig_problem import CompressedResidual, ReusedJacobian, sequential_blas
@@ -121,16 +121,21 @@ def test_a_jacobian_with_a_column_the_residual_does_not_see_is_passed_uncompress
 
 
 def test_sequential_blas_runs_blas_on_one_thread_and_restores_it():
-    blas = [i for i in threadpool_info() if i["user_api"] == "blas"]
-    if not blas:
-        pytest.skip("threadpoolctl finds no BLAS in this process")
-    before = [i["num_threads"] for i in blas]
-    with sequential_blas():
-        assert all(i["num_threads"] == 1 for i in threadpool_info() if i["user_api"] == "blas")
-        with sequential_blas():                 # a fit within a fit (the joint fit's single fits)
-            pass
-        assert all(i["num_threads"] == 1 for i in threadpool_info() if i["user_api"] == "blas")
-    assert [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"] == before
+    # numpy's BLAS is found (else the context would limit nothing); the suite runs with
+    # OPENBLAS_NUM_THREADS=1, so BLAS is first given two threads for the context to take away
+    def blas_threads() -> list[int]:
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    assert blas_threads(), "threadpoolctl finds no BLAS in this process"
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = blas_threads()
+        assert all(n == 2 for n in before)
+        with sequential_blas():
+            assert all(n == 1 for n in blas_threads())
+            with sequential_blas():                 # a fit within a fit (the joint fit's single fits)
+                pass
+            assert all(n == 1 for n in blas_threads())
+        assert blas_threads() == before
 
 
 def test_moved_state_moves_a_stack_of_states_as_each_alone():
