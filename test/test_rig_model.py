@@ -18,7 +18,7 @@ from rig_identification.design.information import tensor_bound
 from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random
 from rig_identification.estimation import rig_unknowns
 from rig_identification.estimation.harmonic_start import box_tensor, forced_response_start, harmonics
-from rig_identification.estimation.rig_fit import RigFit, came_back, cramer_rao, gauss_newton_gain
+from rig_identification.estimation.rig_fit import CHI2_95_6, RigFit, came_back, cramer_rao, gauss_newton_gain
 from rig_identification.estimation.rig_record import (
     FORCE_CHANNELS,
     MODEL_RATE_BANDS,
@@ -597,18 +597,20 @@ def test_the_dynamic_cg_is_the_fusion_inverted():
 
 
 class _Valley:
-    """A least-squares problem of the scaled unknowns z (10,) whose minimum is z = 0, every unknown seen
-    by one residual row of slope 10 (σ 0.1), the first one's row r₀ = 10 z₀ + bump(z₀): ``bump`` a
-    ridge between z₀ = 0 and a start beyond it that the linear model at 0 does not see."""
+    """A least-squares problem of the scaled unknowns z (10 + nuisance,) whose minimum is z = 0, every
+    unknown seen by one residual row of slope 10 (σ 0.1), the first one's row r₀ = 10 z₀ + bump(z₀):
+    ``bump`` a ridge between z₀ = 0 and a start beyond it that the linear model at 0 does not see; the
+    last one's (a nuisance unknown's, where there is one) 10 z + 2 z²."""
 
-    lay = SimpleNamespace(inertia=slice(0, 6), cg=slice(6, 9), mass=9, size=10)
-
-    def __init__(self, bump):
+    def __init__(self, bump, nuisance: int = 0):
         self.bump = bump
+        self.lay = SimpleNamespace(inertia=slice(0, 6), cg=slice(6, 9), mass=9, size=10 + nuisance)
 
     def residual(self, z: np.ndarray) -> np.ndarray:
         r = 10.0 * np.asarray(z, float)
         r[0] += self.bump(z[0])
+        if self.lay.size > 10:
+            r[-1] += 2.0 * z[-1] ** 2
         return r
 
 
@@ -617,15 +619,23 @@ def test_a_restart_comes_back_by_chord_steps_only_without_a_ridge_between():
     estimate's Jacobian end at the minimum (within 1e-6 σ); with a ridge between (its height 30,
     the start's residual 20) the steps would jump it straight to the minimum, but the cost along
     the straight path rises at a quarter point and the restart is left to the trust region (None);
-    a start where the first chord step raises the cost is left to it too."""
-    gain = gauss_newton_gain(10.0 * np.eye(10))
+    a start where the first chord step raises the cost is left to it too.  A start at the minimum in
+    the body's unknowns with a nuisance unknown 20 σ off is not back until that one settled too
+    (the cost within ½ χ²₉₅(6) of the minimum's), not where the body's step first looks small."""
+    J = 10.0 * np.eye(10)
+    gain = gauss_newton_gain(J)
     start = np.zeros(10)
     start[0] = 2.0
     smooth = _Valley(lambda z0: 0.0)
-    z, cost, runs = came_back(smooth, gain, start)
+    z, cost, runs = came_back(smooth, J, gain, start)
     assert z is not None and np.max(np.abs(z)) < 1e-7 and cost < 1e-10 and runs >= 5
     ridge = _Valley(lambda z0: 30.0 * np.exp(-((z0 - 1.0) / 0.2) ** 2))
-    assert came_back(ridge, gain, start)[0] is None
+    assert came_back(ridge, J, gain, start)[0] is None
     other = _Valley(lambda z0: -10.0 * z0 ** 2 / 4)       # r₀ = 10 z₀ (1 − z₀/4): a second minimum at 4
     start[0] = 3.5
-    assert came_back(other, gain, start)[0] is None
+    assert came_back(other, J, gain, start)[0] is None
+    J = 10.0 * np.eye(11)
+    nuisance = np.zeros(11)
+    nuisance[-1] = 2.0
+    z, cost, runs = came_back(_Valley(lambda z0: 0.0, nuisance=1), J, gauss_newton_gain(J), nuisance)
+    assert z is not None and cost < 0.5 * CHI2_95_6 and abs(z[-1]) < 0.2 and runs >= 3

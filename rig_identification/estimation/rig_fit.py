@@ -543,13 +543,15 @@ def shifted(x: np.ndarray, sign: float) -> np.ndarray:
     return moved
 
 
-def came_back(prob: RigProblem | JointProblem, gain: np.ndarray, z0: np.ndarray
+def came_back(prob: RigProblem | JointProblem, J: np.ndarray, gain: np.ndarray, z0: np.ndarray
               ) -> tuple[np.ndarray | None, float, int]:
     """Where the restart of ``prob`` from the scaled unknowns ``z0`` comes back to the estimate
-    (x0; ``gain`` (size, rows): the Gauss–Newton gain of its Jacobian there,
+    (x0; ``J`` (rows, size) its Jacobian there, ``gain`` (size, rows) its Gauss–Newton gain,
     :func:`gauss_newton_gain`): the chord method's steps (:func:`polished`) from ``z0``, each
     lowering the cost, at most :data:`CHORD_STEPS`, until the next would move no tensor entry, CG
-    coordinate or the mass by :data:`RESULT_STEP` of its σ; they came back where they end within
+    coordinate or the mass by :data:`RESULT_STEP` of its σ and would lower the cost by less than
+    ½ :data:`CHI2_95_6` (the Gauss–Newton decrement ½ ‖J step‖²: the whole record's stop in
+    :func:`solve`; the nuisance unknowns settled too); they came back where they end within
     :data:`ANCHOR_SIGMA` σ of x0 and the cost falls along the straight path from ``z0`` to that end
     at each of its quarter points (no ridge between them that a step jumped).  Returns the scaled
     unknowns z there (None where the restart did not come back so: the trust region's descent from
@@ -561,7 +563,8 @@ def came_back(prob: RigProblem | JointProblem, gain: np.ndarray, z0: np.ndarray
     runs = 1
     for _ in range(CHORD_STEPS):
         step = -gain @ r
-        if np.all(np.abs(step[body]) < RESULT_STEP * std):
+        predicted = J @ step
+        if np.all(np.abs(step[body]) < RESULT_STEP * std) and 0.5 * predicted @ predicted < 0.5 * CHI2_95_6:
             break
         r1 = prob.residual(z + step)
         runs += 1
@@ -591,7 +594,7 @@ def restarted(prob: RigProblem | JointProblem, at_x0: tuple[np.ndarray, np.ndarr
     lay = prob.lay
     z0 = np.zeros(lay.size)
     z0[lay.inertia] = (tensor - prob.x0[lay.inertia]) / prob.scale[lay.inertia]
-    back, cost, tried = came_back(prob, gain, z0)
+    back, cost, tried = came_back(prob, at_x0[0], gain, z0)
     if back is not None:
         return prob.x(back), cost, tried
     sol, runs, _ = solve(prob, True, z0, at_x0)
