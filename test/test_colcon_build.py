@@ -27,7 +27,7 @@ NODES = ("sensor_driver", "tracker", "preprocessor", "identifier", "mass_propert
          "rig_visualizer", "demo", "rig-record")
 PACKAGE_FILES = ("setup.py", "setup.cfg", "package.xml", "resource", "rig_identification", "config", "launch")
 EXEC_DEPENDS = {"rclpy", "sensor_msgs", "geometry_msgs", "std_srvs", "python3-numpy", "python3-scipy",
-                "python3-rosbags-pip"}
+                "python3-rosbags-pip", "python3-numba"}
 
 
 def test_package_xml_is_format_3_with_the_exec_depends():
