@@ -46,6 +46,8 @@ from rig_identification.model.parametrisation import entry_scales, from_tensor, 
 from rig_identification.model.rig_ode import drive, exciter_readings, rest_state, simulate, with_sensor_traits
 from rig_identification.model.simulator import simulate as simulate_experiment
 from rig_identification.pipeline.rig_model import (
+    BOX_SCALES,
+    BOX_SCALES_BETWEEN,
     TRUSTED_START_SHARE,
     RigModelResult,
     fit_whole_recording,
@@ -551,7 +553,8 @@ def test_a_restart_that_settles_elsewhere_as_well_is_not_identifiable(quiet_rig)
 def test_a_trusted_gyro_fit_is_the_first_start_else_the_forced_response():
     """The starts in turn: the gyro-only fit first where each σ is within 5 % of its entry's scale,
     else the tensor whose linearised forced response matches the record's fundamental; the body
-    anchors' boxes after both."""
+    anchors' boxes after both, the scales between the others last (tried only where no other
+    start fits the first stage)."""
     _, sim = simulate_random(7206, 5, "wide", [], 20.0)
     rec = Recording(sim.rig, sim.sensors, sim.truth, None)
     rc = record(sim.sensors, sim.rig)
@@ -567,7 +570,7 @@ def test_a_trusted_gyro_fit_is_the_first_start_else_the_forced_response():
     assert np.allclose(trusted[1], doubted[0]) and np.allclose(trusted[2:], doubted[2:])
     tensor = inertia_tensor(dict(zip(KEYS, doubted[0])))        # a tensor of its own, a physical one
     assert not any(np.allclose(doubted[0], row) for row in doubted[1:]) and np.all(np.linalg.eigvalsh(tensor) > 0)
-    assert any(np.allclose(row, box) for row in trusted[2:])
+    assert np.allclose(trusted[2:], [f * box for f in BOX_SCALES + BOX_SCALES_BETWEEN])
 
 
 def test_the_dynamic_cg_is_the_fusion_inverted():
