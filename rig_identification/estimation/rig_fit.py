@@ -563,8 +563,7 @@ def came_back(prob: RigProblem | JointProblem, J: np.ndarray, gain: np.ndarray, 
     runs = 1
     for _ in range(CHORD_STEPS):
         step = -gain @ r
-        predicted = J @ step
-        if np.all(np.abs(step[body]) < RESULT_STEP * std) and 0.5 * predicted @ predicted < 0.5 * CHI2_95_6:
+        if np.all(np.abs(step[body]) < RESULT_STEP * std) and 0.5 * np.sum((J @ step) ** 2) < 0.5 * CHI2_95_6:
             break
         r1 = prob.residual(z + step)
         runs += 1
