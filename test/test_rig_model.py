@@ -18,7 +18,15 @@ from rig_identification.design.information import tensor_bound
 from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random
 from rig_identification.estimation import rig_unknowns
 from rig_identification.estimation.harmonic_start import box_tensor, forced_response_start, harmonics
-from rig_identification.estimation.rig_fit import CHI2_95_6, RigFit, came_back, cramer_rao, gauss_newton_gain
+from rig_identification.estimation.rig_fit import (
+    CHI2_95_6,
+    VALLEY_SHIFT,
+    RigFit,
+    along_moments,
+    came_back,
+    cramer_rao,
+    gauss_newton_gain,
+)
 from rig_identification.estimation.rig_record import (
     FORCE_CHANNELS,
     MODEL_RATE_BANDS,
@@ -597,6 +605,32 @@ def test_the_dynamic_cg_is_the_fusion_inverted():
     blind = split_cg(static.copy(), cov_nz, static, static_std, "cg.json")
     assert not np.isfinite(blind.dynamic_std[2]) and np.all(np.isfinite(blind.dynamic_std[:2]))
     assert np.isnan(blind.difference_sigma[2]) and blind.agree
+
+
+def test_restarts_along_the_moments_go_per_cents_where_the_data_see_them_coarsely_enough():
+    """along_moments: on a tensor whose entries the Fisher information determines (σ 0.2 % of each
+    entry's scale) each moment is restarted 3 % either way, the other five entries kept; a moment
+    seen 300× finer than that shift (σ 0.01 %) is not; where one entry is undetermined (a product
+    with σ 0.6 %: 95 % half-width 1.2 % > 1 %) none is."""
+    tensor = np.array([520.0, -8.0, 30.0, 2100.0, 4.0, 2250.0])
+    scale = entry_scales(tensor)
+    prob = SimpleNamespace(lay=SimpleNamespace(inertia=slice(0, 6)), scale=scale)
+
+    def with_std(share: np.ndarray) -> list[np.ndarray]:
+        return along_moments(prob, np.diag(1.0 / share), tensor)       # J = diag(1/σ) in scaled units
+
+    share = np.full(6, 0.002)
+    tried = with_std(share)
+    assert len(tried) == 6
+    for k, pair in zip((0, 3, 5), (tried[0:2], tried[2:4], tried[4:6])):
+        for t, sign in zip(pair, (1.0, -1.0)):
+            moved = np.zeros(6)
+            moved[k] = sign * VALLEY_SHIFT * tensor[k]
+            assert np.allclose(t - tensor, moved)
+    share[5] = 1e-4
+    assert len(with_std(share)) == 4 and all(t[5] == tensor[5] for t in with_std(share))
+    share[1] = 0.006
+    assert with_std(share) == []
 
 
 class _Valley:

@@ -39,6 +39,7 @@ from .rig_fit import (
     REWEIGHT_ROUNDS,
     Body,
     RigFit,
+    along_moments,
     along_weakest,
     channel_offsets,
     covariance,
@@ -186,7 +187,8 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
     if worst <= REWEIGHT_LIMIT:            # the motion found: the minimum checked by restarts
         others = [np.asarray(f.unknowns, float)[:6] for f in singles]
         tries = [t for t in others if not np.allclose(t, tensor) and physically_consistent(to_tensor(t))]
-        tries += [shifted(tensor, 1.0), shifted(tensor, -1.0)] + along_weakest(last, J, tensor)
+        tries += [shifted(tensor, 1.0), shifted(tensor, -1.0)] + along_weakest(last, J, tensor) \
+            + along_moments(last, J, tensor)
         for t in tries:
             x2, cost2, runs = restarted(last, (J, r), gain, t)
             nfev += runs

@@ -39,7 +39,10 @@ pose of the parameters tried (a changed geometry, CG or mass moves the rest pose
 held fixed would become a swing the data do not show).  The fit starts on the record's first
 :data:`STAGES` seconds, one segment each, then takes the whole record.  Its minimum is then checked by
 restarts on the whole record (:func:`restarted`) from tensors :data:`RESTART_SHIFT` away on
-either side and from another estimator's tensor where the caller gives one: where one settles
+either side, from :data:`WEAK_RESTART_SIGMA` σ along the tensor's weakest direction, from
+each moment of inertia :data:`VALLEY_SHIFT` of its scale off where the data see it coarsely
+enough for a flat, rippled valley (:func:`along_moments`), and from another estimator's tensor
+where the caller gives one: where one settles
 more than 3 σ off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is
 flat or multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`);
 the lowest of the minima is the estimate.  After the first stage the Jacobian is reused where it
@@ -133,6 +136,11 @@ RESTART_SHIFT = 0.01
 #: The restarts along the tensor's most weakly determined direction go this many σ either way
 #: (:func:`along_weakest`).
 WEAK_RESTART_SIGMA = 10.0
+#: The restarts along a valley of the likelihood move one moment of inertia by this share of its
+#: scale either way (:func:`along_moments`) ...
+VALLEY_SHIFT = 0.03
+#: ... where that lies within this many of its σ (the Fisher information's at the estimate).
+VALLEY_SIGMA = 100.0
 #: 95 % quantile of χ² with 6 degrees of freedom: a second minimum whose χ² exceeds the fit's by
 #: less lies inside the tensor's 95 % likelihood-ratio region.
 CHI2_95_6 = 12.592
@@ -517,18 +525,50 @@ def polished(prob: RigProblem | JointProblem, gain: np.ndarray, r: np.ndarray) -
     return z, runs
 
 
+def scaled_tensor_covariance(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.ndarray) -> np.ndarray:
+    """(6, 6) the tensor entries' covariance by the inverse Fisher information of ``J`` (``prob``'s
+    Jacobian at x0, weighted rows), each entry in units of its scale
+    (:func:`~rig_identification.model.parametrisation.entry_scales` of ``tensor`` (6,) kg·m²)."""
+    cov = np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True)[prob.lay.inertia, prob.lay.inertia]
+    unit = prob.scale[prob.lay.inertia] / entry_scales(tensor)
+    scaled: np.ndarray = cov * np.outer(unit, unit)
+    return scaled
+
+
 def along_weakest(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
     """The tensors :data:`WEAK_RESTART_SIGMA` σ either way of ``tensor`` (6,) along the tensor's
     most weakly determined direction (the inverse Fisher information of ``J``, ``prob``'s
-    Jacobian at x0, each entry in units of its scale): where the likelihood has other minima,
-    they lie along it (bench_any_rig 21003: minima 5–20 % apart in Ixx and Iyy, each with σ 0.4 %)."""
-    cov = np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True)[prob.lay.inertia, prob.lay.inertia]
-    unit = prob.scale[prob.lay.inertia] / entry_scales(tensor)
-    w, v = np.linalg.eigh(cov * np.outer(unit, unit))
+    Jacobian at x0, each entry in units of its scale): a minimum the descent stopped short of,
+    or one beside it, lies along it."""
+    w, v = np.linalg.eigh(scaled_tensor_covariance(prob, J, tensor))
     if not w[-1] > 0:
         return []
     step = WEAK_RESTART_SIGMA * np.sqrt(w[-1]) * v[:, -1] * entry_scales(tensor)
     return [tensor + step, tensor - step]
+
+
+def along_moments(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
+    """The tensors ``tensor`` (6,) kg·m² with one moment of inertia (Ixx, Iyy, Izz) moved
+    :data:`VALLEY_SHIFT` of its scale either way, every other entry kept: restarts that walk a
+    flat valley of the likelihood per cents, not σ.  On a rig whose data hardly tell two moments
+    apart (bench_any_rig 21003: the bound 7 % at the truth) the likelihood along that valley
+    ripples by a few units of χ², and each ripple's minimum is as sharp as a σ of 0.2 % (its own
+    Fisher information): the restarts σ away all come back, those per cents away settle in
+    another ripple at about the same χ² (:attr:`RigFit.ambiguous`).  Made only where the
+    Fisher information of ``J`` (``prob``'s Jacobian at x0) determines every entry (95 % within
+    :data:`DETERMINED_SHARE` of its scale: elsewhere the verdict does not rest on the σ), and
+    for each moment only where the shift lies within :data:`VALLEY_SIGMA` of its σ (beyond, the
+    data see the moment too finely for such a valley: case 16's lie 560–1 250 σ out)."""
+    std = np.sqrt(np.diag(scaled_tensor_covariance(prob, J, tensor)))
+    if not np.all(Z95 * std <= DETERMINED_SHARE):
+        return []
+    tried = []
+    for k in (0, 3, 5):
+        if VALLEY_SHIFT <= VALLEY_SIGMA * std[k]:
+            step = np.zeros(6)
+            step[k] = VALLEY_SHIFT * entry_scales(tensor)[k]
+            tried += [tensor + step, tensor - step]
+    return tried
 
 
 def shifted(x: np.ndarray, sign: float) -> np.ndarray:
@@ -689,7 +729,8 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     r = last.residual(np.zeros(last.lay.size))
     nfev += runs + 1
     minima = [(0.5 * float(r @ r), last.at_x0)]
-    given = list(np.asarray(restarts, float).reshape(-1, 6)) + along_weakest(last, J, x[lay.inertia])
+    given = list(np.asarray(restarts, float).reshape(-1, 6)) + along_weakest(last, J, x[lay.inertia]) \
+        + along_moments(last, J, x[lay.inertia])
     others = [t for t in given if physically_consistent(to_tensor(t))]
     tried = [shifted(x[lay.inertia], 1.0), shifted(x[lay.inertia], -1.0)] + others if check else []
     gain = gauss_newton_gain(J)
