@@ -18,15 +18,8 @@ from rig_identification.design.information import tensor_bound
 from rig_identification.design.scenarios import REFERENCE_NOISE, random_experiment, simulate_random
 from rig_identification.estimation import rig_unknowns
 from rig_identification.estimation.harmonic_start import box_tensor, forced_response_start, harmonics
-from rig_identification.estimation.rig_fit import (
-    CHI2_95_6,
-    VALLEY_SHIFT,
-    RigFit,
-    along_moments,
-    came_back,
-    cramer_rao,
-    gauss_newton_gain,
-)
+from rig_identification.estimation.restart_tensors import VALLEY_SHIFT, along_moments
+from rig_identification.estimation.rig_fit import CHI2_95_6, RigFit, came_back, cramer_rao, gauss_newton_gain
 from rig_identification.estimation.rig_record import (
     FORCE_CHANNELS,
     MODEL_RATE_BANDS,

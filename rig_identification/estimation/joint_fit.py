@@ -33,14 +33,13 @@ import numpy as np
 
 from ..model.linear_rig import linearise, natural_frequencies
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
+from .restart_tensors import along_moments, along_weakest, shifted
 from .rig_fit import (
     LEVEL_LIMIT,
     REWEIGHT_LIMIT,
     REWEIGHT_ROUNDS,
     Body,
     RigFit,
-    along_moments,
-    along_weakest,
     channel_offsets,
     covariance,
     gauss_newton_gain,
@@ -48,7 +47,6 @@ from .rig_fit import (
     larger_of,
     polished,
     restarted,
-    shifted,
     solve,
 )
 from .rig_problem import BODY, JointProblem, RigPoint, RigProblem, levels

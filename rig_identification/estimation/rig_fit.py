@@ -38,10 +38,10 @@ long-record minima are ambiguous).  Each segment's start is held as its offset f
 pose of the parameters tried (a changed geometry, CG or mass moves the rest pose, and a start
 held fixed would become a swing the data do not show).  The fit starts on the record's first
 :data:`STAGES` seconds, one segment each, then takes the whole record.  Its minimum is then checked by
-restarts on the whole record (:func:`restarted`) from tensors :data:`RESTART_SHIFT` away on
-either side, from :data:`WEAK_RESTART_SIGMA` σ along the tensor's weakest direction, from
-each moment of inertia :data:`VALLEY_SHIFT` of its scale off where the data see it coarsely
-enough for a flat, rippled valley (:func:`along_moments`), and from another estimator's tensor
+restarts on the whole record (:func:`restarted`) from tensors :data:`~.restart_tensors.RESTART_SHIFT` away on
+either side, from :data:`~.restart_tensors.WEAK_RESTART_SIGMA` σ along the tensor's weakest direction, from
+each moment of inertia :data:`~.restart_tensors.VALLEY_SHIFT` of its scale off where the data see it coarsely
+enough for a flat, rippled valley (:func:`~.restart_tensors.along_moments`), and from another estimator's tensor
 where the caller gives one: where one settles
 more than 3 σ off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is
 flat or multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`);
@@ -63,9 +63,10 @@ from numpy.typing import ArrayLike
 from scipy.optimize import OptimizeResult, least_squares
 
 from ..io.rig import Rig
-from ..io.verdict import KEYS, Z95
+from ..io.verdict import DETERMINED_SHARE, KEYS, Z95
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
+from .restart_tensors import along_moments, along_weakest, shifted
 from .rig_problem import (
     FTOL,
     GTOL,
@@ -101,9 +102,6 @@ STAGES = (5.0, 15.0)
 #: A channel whose residual in the band exceeds its noise by this factor does not fit (the
 #: verdict ``model_error``).
 LEVEL_LIMIT = 1.5
-#: A tensor entry is determined when its 95 % half-width is within this share of its scale
-#: (:attr:`RigFit.undetermined`).
-DETERMINED_SHARE = 0.01
 #: Re-weighting rounds: each channel's noise level replaced by its residual's where the
 #: residual is larger (a channel the model does not fit at its noise level is leaned on less).
 REWEIGHT_ROUNDS = 2
@@ -129,18 +127,6 @@ INITIAL_SPAN = 3.0
 #: A start that fits the first stage within this RMS over the noise (the priors' rows counted)
 #: is taken without trying the next (:func:`fit_rig`).
 START_LEVEL = 1.5
-#: The restarts that check a fit's minimum (:func:`restarted`) move each tensor entry by this
-#: share of its scale (:func:`~rig_identification.model.parametrisation.entry_scales`), the
-#: signs alternating entry by entry, once each way.
-RESTART_SHIFT = 0.01
-#: The restarts along the tensor's most weakly determined direction go this many σ either way
-#: (:func:`along_weakest`).
-WEAK_RESTART_SIGMA = 10.0
-#: The restarts along a valley of the likelihood move one moment of inertia by this share of its
-#: scale either way (:func:`along_moments`) ...
-VALLEY_SHIFT = 0.03
-#: ... where that lies within this many of its σ (the Fisher information's at the estimate).
-VALLEY_SIGMA = 100.0
 #: 95 % quantile of χ² with 6 degrees of freedom: a second minimum whose χ² exceeds the fit's by
 #: less lies inside the tensor's 95 % likelihood-ratio region.
 CHI2_95_6 = 12.592
@@ -198,7 +184,7 @@ class RigFit:
     the factor the fit put on each channel's noise (≥ 1).  channels: names.
     natural_frequencies: (6,) Hz, linearised about the rest pose.  nfev: model runs.
     other_minima: (k, 6) kg·m² the suspended body's tensors (:attr:`parameters`) where the other
-    whole-record fits settled (the staged fit, its two restarts :data:`RESTART_SHIFT` away and
+    whole-record fits settled (the staged fit, its two restarts :data:`~.restart_tensors.RESTART_SHIFT` away and
     those from ``restarts``, :func:`fit_rig`: the lowest is the estimate; none where a channel is
     beyond :data:`REWEIGHT_LIMIT` of its noise: the motion not found), other_chi2: (k,) their χ²
     less the estimate's (≥ 0).  series:
@@ -525,64 +511,6 @@ def polished(prob: RigProblem | JointProblem, gain: np.ndarray, r: np.ndarray) -
     return z, runs
 
 
-def scaled_tensor_covariance(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.ndarray) -> np.ndarray:
-    """(6, 6) the tensor entries' covariance by the inverse Fisher information of ``J`` (``prob``'s
-    Jacobian at x0, weighted rows), each entry in units of its scale
-    (:func:`~rig_identification.model.parametrisation.entry_scales` of ``tensor`` (6,) kg·m²)."""
-    cov = np.linalg.pinv(J.T @ J, rcond=1e-13, hermitian=True)[prob.lay.inertia, prob.lay.inertia]
-    unit = prob.scale[prob.lay.inertia] / entry_scales(tensor)
-    scaled: np.ndarray = cov * np.outer(unit, unit)
-    return scaled
-
-
-def along_weakest(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
-    """The tensors :data:`WEAK_RESTART_SIGMA` σ either way of ``tensor`` (6,) along the tensor's
-    most weakly determined direction (the inverse Fisher information of ``J``, ``prob``'s
-    Jacobian at x0, each entry in units of its scale): a minimum the descent stopped short of,
-    or one beside it, lies along it."""
-    w, v = np.linalg.eigh(scaled_tensor_covariance(prob, J, tensor))
-    if not w[-1] > 0:
-        return []
-    step = WEAK_RESTART_SIGMA * np.sqrt(w[-1]) * v[:, -1] * entry_scales(tensor)
-    return [tensor + step, tensor - step]
-
-
-def along_moments(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
-    """The tensors ``tensor`` (6,) kg·m² with one moment of inertia (Ixx, Iyy, Izz) moved
-    :data:`VALLEY_SHIFT` of its scale either way, every other entry kept: restarts that walk a
-    flat valley of the likelihood per cents, not σ.  On a rig whose data hardly tell two moments
-    apart (bench_any_rig 21003: the bound 7 % at the truth) the likelihood along that valley
-    ripples by a few units of χ², and each ripple's minimum is as sharp as a σ of 0.2 % (its own
-    Fisher information): the restarts σ away all come back, those per cents away settle in
-    another ripple at about the same χ² (:attr:`RigFit.ambiguous`).  Made only where the
-    Fisher information of ``J`` (``prob``'s Jacobian at x0) determines every entry (95 % within
-    :data:`DETERMINED_SHARE` of its scale: elsewhere the verdict does not rest on the σ), and
-    for each moment only where the shift lies within :data:`VALLEY_SIGMA` of its σ (beyond, the
-    data see the moment too finely for such a valley: case 16's lie 560–1 250 σ out)."""
-    std = np.sqrt(np.diag(scaled_tensor_covariance(prob, J, tensor)))
-    if not np.all(Z95 * std <= DETERMINED_SHARE):
-        return []
-    tried = []
-    for k in (0, 3, 5):
-        if VALLEY_SHIFT <= VALLEY_SIGMA * std[k]:
-            step = np.zeros(6)
-            step[k] = VALLEY_SHIFT * entry_scales(tensor)[k]
-            tried += [tensor + step, tensor - step]
-    return tried
-
-
-def shifted(x: np.ndarray, sign: float) -> np.ndarray:
-    """(6,) the tensor entries of ``x`` (6,) moved by ``sign`` :data:`RESTART_SHIFT` of their scale
-    (signs alternating entry by entry; halved until the tensor is physical)."""
-    shift = sign * RESTART_SHIFT * entry_scales(x) * np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
-    for _ in range(6):
-        if physically_consistent(to_tensor(x + shift)):
-            break
-        shift = shift / 2
-    moved: np.ndarray = x + shift
-    return moved
-
-
 def came_back(prob: RigProblem | JointProblem, J: np.ndarray, gain: np.ndarray, z0: np.ndarray
               ) -> tuple[np.ndarray | None, float, int]:
     """Where the restart of ``prob`` from the scaled unknowns ``z0`` comes back to the estimate
@@ -649,7 +577,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
     over the first stage until one fits it within :data:`START_LEVEL` of the noise (else the one
     of least cost goes on): the swinging modes make the likelihood multimodal where a start's
     frequencies are far off.  restarts: (k, 6) kg·m² tensors the whole-record fit is restarted
-    from besides the two :data:`RESTART_SHIFT` away (another estimator's: a minimum it found is
+    from besides the two :data:`~.restart_tensors.RESTART_SHIFT` away (another estimator's: a minimum it found is
     one the likelihood may hold too); a tensor no body has is left out.
     τ starts at the default cable's (:func:`~.rig_start.default_damping_time`).
     extensions: the model's extensions (:data:`~.rig_unknowns.EXTENSIONS`: name -> the start of

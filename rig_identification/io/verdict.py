@@ -1,4 +1,5 @@
 """The names every result shares: the tensor entries' :data:`KEYS`, the 95 % interval's :data:`Z95`,
+the share :data:`DETERMINED_SHARE` within which an entry is determined,
 one validation :class:`Check` (the static test's, :mod:`rig_identification.statics.validation`), and
 the package's name and installed version that every ``--version`` and every report states
 (:data:`PACKAGE`, :func:`package_version`).  Standard library only, so that a ``--version`` loads
@@ -15,6 +16,9 @@ PACKAGE = "rig_identification"
 KEYS = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 #: The normal distribution's 97.5 % quantile: ±Z95·σ holds 95 %.
 Z95 = 1.959963984540054
+#: A tensor entry is determined when its 95 % half-width is within this share of its scale (a
+#: moment's own, the largest moment's for a product).
+DETERMINED_SHARE = 0.01
 
 
 @dataclass(frozen=True)

@@ -192,7 +192,7 @@ class RigModelResult:
     @property
     def undetermined(self) -> list[str]:
         """The entries whose 95 % half-width exceeds
-        :data:`~rig_identification.estimation.rig_fit.DETERMINED_SHARE` of their scale (a moment's
+        :data:`~rig_identification.io.verdict.DETERMINED_SHARE` of their scale (a moment's
         own, the largest moment's for a product; :attr:`~.rig_fit.RigFit.undetermined`).  Their values
         are not an estimate:
         where the recording determines a direction of the tensor that weakly, the likelihood is
