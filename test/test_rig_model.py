@@ -606,11 +606,9 @@ def test_restarts_along_the_moments_go_per_cents_where_the_data_see_them_coarsel
     seen 300× finer than that shift (σ 0.01 %) is not; where one entry is undetermined (a product
     with σ 0.6 %: 95 % half-width 1.2 % > 1 %) none is."""
     tensor = np.array([520.0, -8.0, 30.0, 2100.0, 4.0, 2250.0])
-    scale = entry_scales(tensor)
-    prob = SimpleNamespace(lay=SimpleNamespace(inertia=slice(0, 6)), scale=scale)
 
     def with_std(share: np.ndarray) -> list[np.ndarray]:
-        return along_moments(prob, np.diag(1.0 / share), tensor)       # J = diag(1/σ) in scaled units
+        return along_moments(np.diag(share ** 2), tensor)        # the covariance in units of each entry's scale
 
     share = np.full(6, 0.002)
     tried = with_std(share)

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..model.linear_rig import linearise, natural_frequencies
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
-from .restart_tensors import along_moments, along_weakest, shifted
+from .restart_tensors import along_valleys, shifted
 from .rig_fit import (
     LEVEL_LIMIT,
     REWEIGHT_LIMIT,
@@ -185,8 +185,7 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
     if worst <= REWEIGHT_LIMIT:            # the motion found: the minimum checked by restarts
         others = [np.asarray(f.unknowns, float)[:6] for f in singles]
         tries = [t for t in others if not np.allclose(t, tensor) and physically_consistent(to_tensor(t))]
-        tries += [shifted(tensor, 1.0), shifted(tensor, -1.0)] + along_weakest(last, J, tensor) \
-            + along_moments(last, J, tensor)
+        tries += [shifted(tensor, 1.0), shifted(tensor, -1.0)] + along_valleys(last, J, tensor)
         for t in tries:
             x2, cost2, runs = restarted(last, (J, r), gain, t)
             nfev += runs

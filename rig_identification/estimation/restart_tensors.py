@@ -2,7 +2,8 @@
 (:func:`~.rig_fit.restarted`): a small shift of every entry either way (:func:`shifted`), steps
 along the tensor's most weakly determined direction (:func:`along_weakest`) and per cents along
 each moment of inertia where the data see it coarsely enough for a rippled valley
-(:func:`along_moments`).  Each is a (6,) kg·m² tensor about the CG, body frame, KEYS order."""
+(:func:`along_moments`); :func:`along_valleys` gives the last two.  Each is a (6,) kg·m² tensor
+about the CG, body frame, KEYS order."""
 from __future__ import annotations
 
 import numpy as np
@@ -35,19 +36,18 @@ def scaled_tensor_covariance(prob: RigProblem | JointProblem, J: np.ndarray, ten
     return scaled
 
 
-def along_weakest(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
+def along_weakest(cov: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
     """The tensors :data:`WEAK_RESTART_SIGMA` σ either way of ``tensor`` (6,) along the tensor's
-    most weakly determined direction (the inverse Fisher information of ``J``, ``prob``'s
-    Jacobian at x0, each entry in units of its scale): a minimum the descent stopped short of,
-    or one beside it, lies along it."""
-    w, v = np.linalg.eigh(scaled_tensor_covariance(prob, J, tensor))
+    most weakly determined direction (``cov`` (6, 6): :func:`scaled_tensor_covariance` at
+    ``tensor``): a minimum the descent stopped short of, or one beside it, lies along it."""
+    w, v = np.linalg.eigh(cov)
     if not w[-1] > 0:
         return []
     step = WEAK_RESTART_SIGMA * np.sqrt(w[-1]) * v[:, -1] * entry_scales(tensor)
     return [tensor + step, tensor - step]
 
 
-def along_moments(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
+def along_moments(cov: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
     """The tensors ``tensor`` (6,) kg·m² with one moment of inertia (Ixx, Iyy, Izz) moved
     :data:`VALLEY_SHIFT` of its scale either way, every other entry kept: restarts that walk a
     flat valley of the likelihood per cents, not σ.  On a rig whose data hardly tell two moments
@@ -55,11 +55,12 @@ def along_moments(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.nda
     ripples by a few units of χ², and each ripple's minimum is as sharp as a σ of 0.2 % (its own
     Fisher information): the restarts σ away all come back, those per cents away settle in
     another ripple at about the same χ² (:attr:`~.rig_fit.RigFit.ambiguous`).  Made only where the
-    Fisher information of ``J`` (``prob``'s Jacobian at x0) determines every entry (95 % within
-    :data:`DETERMINED_SHARE` of its scale: elsewhere the verdict does not rest on the σ), and
+    Fisher information (``cov`` (6, 6): :func:`scaled_tensor_covariance` at ``tensor``)
+    determines every entry (95 % within :data:`DETERMINED_SHARE` of its scale: elsewhere the
+    verdict does not rest on the σ), and
     for each moment only where the shift lies within :data:`VALLEY_SIGMA` of its σ (beyond, the
     data see the moment too finely for such a valley: case 16's lie 560–1 250 σ out)."""
-    std = np.sqrt(np.diag(scaled_tensor_covariance(prob, J, tensor)))
+    std = np.sqrt(np.diag(cov))
     if not np.all(Z95 * std <= DETERMINED_SHARE):
         return []
     tried = []
@@ -69,6 +70,14 @@ def along_moments(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.nda
             step[k] = VALLEY_SHIFT * entry_scales(tensor)[k]
             tried += [tensor + step, tensor - step]
     return tried
+
+
+def along_valleys(prob: RigProblem | JointProblem, J: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
+    """The restarts of ``prob`` (``J`` (rows, size) its Jacobian at x0, ``tensor`` (6,) kg·m² its
+    estimate) along the weakest direction (:func:`along_weakest`) and along the moments
+    (:func:`along_moments`), both from one :func:`scaled_tensor_covariance`."""
+    cov = scaled_tensor_covariance(prob, J, tensor)
+    return along_weakest(cov, tensor) + along_moments(cov, tensor)
 
 
 def shifted(x: np.ndarray, sign: float) -> np.ndarray:

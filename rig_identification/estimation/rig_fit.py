@@ -66,7 +66,7 @@ from ..io.rig import Rig
 from ..io.verdict import DETERMINED_SHARE, KEYS, Z95
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
-from .restart_tensors import along_moments, along_weakest, shifted
+from .restart_tensors import along_valleys, shifted
 from .rig_problem import (
     FTOL,
     GTOL,
@@ -657,8 +657,7 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     r = last.residual(np.zeros(last.lay.size))
     nfev += runs + 1
     minima = [(0.5 * float(r @ r), last.at_x0)]
-    given = list(np.asarray(restarts, float).reshape(-1, 6)) + along_weakest(last, J, x[lay.inertia]) \
-        + along_moments(last, J, x[lay.inertia])
+    given = list(np.asarray(restarts, float).reshape(-1, 6)) + along_valleys(last, J, x[lay.inertia])
     others = [t for t in given if physically_consistent(to_tensor(t))]
     tried = [shifted(x[lay.inertia], 1.0), shifted(x[lay.inertia], -1.0)] + others if check else []
     gain = gauss_newton_gain(J)
