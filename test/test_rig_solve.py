@@ -20,14 +20,15 @@ def linear_problem(J: np.ndarray, b: np.ndarray) -> SimpleNamespace:
     return SimpleNamespace(residual=lambda z: J @ z - b, jacobian=lambda z: J.copy(), lay=lay, seconds=1.0)
 
 
-def test_solve_reaches_a_far_minimum_the_trust_region_crawls_towards():
+@pytest.mark.parametrize("reuse", [False, True])
+def test_solve_reaches_a_far_minimum_the_trust_region_crawls_towards(reuse):
     # a weakly determined unknown whose minimum lies 10⁴ from the start: scipy's trust region starts
     # at radius 1 and gains ~1e-4 of cost per unit step, so five iterations gain less than the
     # Newton decrement the solve stops by, while the Gauss–Newton step reaches the minimum at once
     J = np.diag([1.0, 1e-4])
     b = np.array([0.3, 1.0])
     truth = np.linalg.solve(J, b)
-    sol, runs, _ = solve(linear_problem(J, b))
+    sol, runs, _ = solve(linear_problem(J, b), reuse=reuse)
     assert sol.cost < 1e-6, sol.cost                       # 0.5 at the start, 0 at the minimum
     np.testing.assert_allclose(sol.x, truth, rtol=1e-6)
     assert runs < 100
@@ -37,7 +38,7 @@ def test_reused_jacobian_resumed_at_its_own_point_keeps_the_fresh_one():
     # a solve resumed where the last fresh Jacobian was made: no update along a zero step (which
     # would divide by zero), the fresh Jacobian itself
     J = np.array([[2.0, 0.0], [0.0, 3.0], [1.0, 1.0]])
-    jac = ReusedJacobian(lambda z: J @ z, lambda z: J.copy(), 2)
+    jac = ReusedJacobian(lambda z: J @ z, lambda z: J.copy(), 2, reuse=True)
     z = np.array([0.5, -1.0])
     jac.residual(z)
     jac.refresh(z)
@@ -74,7 +75,7 @@ def damped_sine_problem(seed: int = 3) -> tuple[SimpleNamespace, np.ndarray]:
 def test_the_compressed_residual_keeps_the_cost_and_the_gradient_exactly():
     # ½‖f̃‖² = ½‖r‖² and J̃ᵀf̃ = Jᵀr at any point; J̃ᵀJ̃ = JᵀJ where the Jacobian is the start's
     prob, _ = damped_sine_problem()
-    jac = ReusedJacobian(prob.residual, prob.jacobian, 3)
+    jac = ReusedJacobian(prob.residual, prob.jacobian, 3, reuse=True)
     packed = CompressedResidual(jac, np.zeros(3))
     assert packed.basis is not None and packed.basis[0].shape == (400, 3)
     for z in (np.zeros(3), np.array([0.1, -0.01, 0.02])):
@@ -91,7 +92,7 @@ def test_the_compressed_solve_reaches_the_minimum_of_the_whole_residual():
     # the solve with the Jacobian reused (the residual compressed) ends at scipy's own minimum of
     # the uncompressed problem, within the solve's stop (a Gauss–Newton decrement of 0.01 in ½χ²)
     prob, truth = damped_sine_problem()
-    sol, runs, _ = solve(prob)
+    sol, runs, _ = solve(prob, reuse=True)
     ref = least_squares(prob.residual, np.zeros(3), jac=prob.jacobian, xtol=1e-15, ftol=1e-15, gtol=1e-15)
     assert sol.cost - ref.cost < 0.01, (sol.cost, ref.cost)
     cov = np.linalg.inv(ref.jac.T @ ref.jac)
@@ -109,7 +110,7 @@ def test_a_jacobian_with_a_column_the_residual_does_not_see_is_passed_uncompress
     jacobian = prob.jacobian
     prob.jacobian = lambda z: np.column_stack([jacobian(z[:3]), np.zeros(400)])
     residual = prob.residual
-    jac = ReusedJacobian(lambda z: residual(z[:3]), prob.jacobian, 4)
+    jac = ReusedJacobian(lambda z: residual(z[:3]), prob.jacobian, 4, reuse=True)
     packed = CompressedResidual(jac, np.zeros(4))
     assert packed.basis is None
     z = np.array([0.1, -0.01, 0.02, 0.3])

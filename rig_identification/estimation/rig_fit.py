@@ -45,7 +45,7 @@ enough for a flat, rippled valley (:func:`~.restart_tensors.along_moments`), and
 where the caller gives one: where one settles
 more than 3 σ off at a χ² within the tensor's 95 % likelihood-ratio region, the likelihood is
 flat or multimodal where the Fisher information says it is sharp (:attr:`RigFit.ambiguous`);
-the lowest of the minima is the estimate.  Each solve reuses its Jacobian where it
+the lowest of the minima is the estimate.  After the first stage the Jacobian is reused where it
 predicts the trust region's steps (:class:`~.rig_problem.ReusedJacobian`); a restart starts
 with the estimate's, and where its chord steps come straight back to the estimate
 (:func:`came_back`) no trust region is needed.
@@ -138,8 +138,8 @@ REUSE_RATIO = 0.5
 ANCHOR_SIGMA = 1.0
 #: A restart's chord steps with the estimate's Jacobian (:func:`came_back`), at most.
 CHORD_STEPS = 8
-#: A solve may run this many times :data:`MAX_ITERATIONS` model evaluations (each iteration
-#: without a fresh Jacobian costs one).
+#: A solve, its Jacobian reused, may run this many times :data:`MAX_ITERATIONS` model
+#: evaluations (each an iteration without a Jacobian costs one).
 REUSED_EVALUATIONS = 3
 #: scipy's least_squares statuses of a stop by its tolerances (ftol, xtol, gtol): the Gauss–Newton
 #: decrement of a fresh Jacobian checks it, as it checks a stall (:func:`solve`).
@@ -347,10 +347,12 @@ def larger_of(fisher: np.ndarray, sandwich: np.ndarray) -> np.ndarray:
 
 
 def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray | None = None,
-          at_x0: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[OptimizeResult, int, np.ndarray | None]:
+          at_x0: tuple[np.ndarray, np.ndarray] | None = None, reuse: bool = True
+          ) -> tuple[OptimizeResult, int, np.ndarray | None]:
     """One least-squares solve of ``prob`` from ``z0`` (default 0: its x0; ``at_x0``: the Jacobian
-    and the residual at 0 where known) (scipy's trust region, the Jacobian reused where it predicts
-    the steps, :class:`~.rig_problem.ReusedJacobian`), stopped
+    and the residual at 0 where known) (scipy's trust region; with ``reuse`` the Jacobian reused where
+    it predicts the steps, :class:`~.rig_problem.ReusedJacobian`, else made afresh every
+    iteration: the first stage, from a far start, where steps mispredicted are the rule), stopped
     where the Gauss–Newton decrement ½ gᵀ (JᵀJ)⁺ g of a fresh Jacobian falls below :data:`NEWTON_DECREMENT` (Boyd &
     Vandenberghe, *Convex Optimization*, §9.5.1: the cost the Gauss–Newton step would still
     gain), where the last :data:`STALL_ITERATIONS` iterations gained less than that together,
@@ -362,12 +364,12 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
     (the trust region then crawls along a valley of the nuisance unknowns: the segments' states
     and the force's correction).  A stop within :data:`ANCHOR_SIGMA` of the point ``at_x0`` gives
     (a restart that came back to the estimate) is judged with that point's Jacobian, updated on
-    the way, not a fresh one.  The trust region takes the residual compressed onto
+    the way, not a fresh one.  With ``reuse`` the trust region takes the residual compressed onto
     the Jacobian's columns (:class:`~.rig_problem.CompressedResidual`: the same cost and gradient,
     its SVD per iteration of a square matrix).  Returns the solution (its ``fun`` the whole
     residual), the model runs it took and the fresh Jacobian at the solution where the stop made
     one (else None)."""
-    jac = ReusedJacobian(prob.residual, prob.jacobian, prob.lay.size, at_x0, REUSE_RATIO)
+    jac = ReusedJacobian(prob.residual, prob.jacobian, prob.lay.size, reuse, at_x0, REUSE_RATIO)
     costs: list[float] = []
     result = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
     # where the solve ends within ANCHOR_SIGMA of the point whose Jacobian it was given, that one serves its stop
@@ -389,7 +391,7 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
         stalled = len(costs) > STALL_ITERATIONS and costs[-1 - STALL_ITERATIONS] - costs[-1] < NEWTON_DECREMENT
         if jac.z is None or not np.array_equal(jac.z, z):
             return
-        f = packed.full(z)
+        f = intermediate_result.fun if packed is None else packed.full(z)
         if not (stalled or done(f)):
             return
         near = anchor_std is not None and bool(np.all(np.abs(z[result]) < ANCHOR_SIGMA * anchor_std))
@@ -401,13 +403,16 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
         short[0] = jac.fresh and not done(f)
         raise StopIteration
 
-    budget = MAX_ITERATIONS * REUSED_EVALUATIONS
+    budget = MAX_ITERATIONS * (REUSED_EVALUATIONS if reuse else 1)
     z, iterations, short = np.zeros(prob.lay.size) if z0 is None else z0, 0, [False]
+    packed: CompressedResidual | None = None
     while True:
-        packed = CompressedResidual(jac, z)
-        sol = least_squares(packed.residual, z, jac=packed.jacobian, method="trf", x_scale=1.0,
+        packed = CompressedResidual(jac, z) if reuse else None
+        sol = least_squares(jac.residual if packed is None else packed.residual, z,
+                            jac=jac.jacobian if packed is None else packed.jacobian, method="trf", x_scale=1.0,
                             xtol=XTOL, ftol=FTOL, gtol=GTOL, max_nfev=budget - iterations, callback=converged)
-        sol.fun = packed.full(sol.x)
+        if packed is not None:
+            sol.fun = packed.full(sol.x)
         iterations += sol.nfev
         if sol.status in TOLERANCE_STOPS and iterations < budget:
             if not (jac.fresh and jac.z is not None and np.array_equal(jac.z, sol.x)):
@@ -604,7 +609,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
         if np.all(prob.residual(np.zeros(prob.lay.size)) == OUTSIDE):
             log.info("rig fit: the start %s leaves the physical region or diverges: the next", np.round(start, 1))
             continue
-        sol, runs, J_end = solve(prob)
+        sol, runs, J_end = solve(prob, reuse=False)
         nfev += runs
         if best is None or sol.cost < best[1].cost:
             best = (prob, sol)
@@ -613,7 +618,7 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
             break
     if best is None:                # every start outside: the first, which the verdict will call failed
         prob = problems[0]
-        sol, _, J_end = solve(prob)
+        sol, _, J_end = solve(prob, reuse=False)
         best, solved = (prob, sol), (prob, J_end, noise_scale)
     prob, sol = best
     at = prob.point(prob.x(sol.x))

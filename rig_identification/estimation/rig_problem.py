@@ -609,11 +609,13 @@ class ReusedJacobian:
     update along the accepted step (Broyden 1965; Dennis & Schnabel, *Numerical Methods for
     Unconstrained Optimization and Nonlinear Equations*, §8.2).  A step whose cost fell by less than
     ``ratio`` of the fall the Jacobian predicted asks for a fresh one at the next
-    accepted point.  Each fresh Jacobian costs a model run per unknown, an update none."""
+    accepted point.  Each fresh Jacobian costs a model run per unknown, an update none.  Without
+    ``reuse`` (a short stage from a far start, where the model is far from linear and steps
+    mispredicted are the rule), every Jacobian is fresh."""
 
     def __init__(self, residual: Callable[[np.ndarray], np.ndarray], jacobian: Callable[[np.ndarray], np.ndarray],
-                 size: int, at_x0: tuple[np.ndarray, np.ndarray] | None = None, ratio: float = 0.5):
-        self._residual, self._jacobian, self.size, self.ratio = residual, jacobian, size, ratio
+                 size: int, reuse: bool, at_x0: tuple[np.ndarray, np.ndarray] | None = None, ratio: float = 0.5):
+        self._residual, self._jacobian, self.size, self.reuse, self.ratio = residual, jacobian, size, reuse, ratio
         self.z: np.ndarray | None = None
         self.J = np.zeros((0, 0))
         self.r = np.zeros(0)
@@ -650,7 +652,7 @@ class ReusedJacobian:
         return self.J
 
     def jacobian(self, z: np.ndarray) -> np.ndarray:
-        if (self.z is None or self.stale_model or self.last is None
+        if (not self.reuse or self.z is None or self.stale_model or self.last is None
                 or not np.array_equal(self.last[0], z)):
             return self.refresh(z)
         if np.array_equal(z, self.z):       # a solve resumed where the last Jacobian was made
