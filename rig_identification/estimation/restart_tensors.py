@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..io.verdict import determined
+from ..io.verdict import entry_determined
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
 from .rig_problem import JointProblem, RigProblem
 
@@ -56,12 +56,12 @@ def along_moments(cov: np.ndarray, tensor: np.ndarray) -> list[np.ndarray]:
     Fisher information): the restarts σ away all come back, those per cents away settle in
     another ripple at about the same χ² (:attr:`~.rig_fit.RigFit.ambiguous`).  Made only where the
     Fisher information (``cov`` (6, 6): :func:`scaled_tensor_covariance` at ``tensor``)
-    determines every entry (:func:`~rig_identification.io.verdict.determined`: elsewhere the
+    determines every entry (:func:`~rig_identification.io.verdict.entry_determined`: elsewhere the
     verdict does not rest on the σ), and
     for each moment only where the shift lies within :data:`VALLEY_SIGMA` of its σ (beyond, the
     data see the moment too finely for such a valley: case 16's lie 560–1 250 σ out)."""
     std = np.sqrt(np.diag(cov))
-    if not all(determined(s) for s in std):
+    if not all(entry_determined(s) for s in std):
         return []
     tried = []
     for k in (0, 3, 5):

@@ -63,7 +63,7 @@ from numpy.typing import ArrayLike
 from scipy.optimize import OptimizeResult, least_squares
 
 from ..io.rig import Rig
-from ..io.verdict import KEYS, determined
+from ..io.verdict import KEYS, entry_determined
 from ..model.linear_rig import RestPose, RigParameters, linearise, natural_frequencies, rest_pose
 from ..model.parametrisation import entry_scales, physically_consistent, to_tensor
 from .restart_tensors import along_valleys, shifted
@@ -237,11 +237,11 @@ class RigFit:
 
     @property
     def undetermined(self) -> list[str]:
-        """The tensor entries (KEYS names) not :func:`~rig_identification.io.verdict.determined`:
+        """The tensor entries (KEYS names) not :func:`~rig_identification.io.verdict.entry_determined`:
         their 95 % half-width beyond its share of their scale (a moment's own, the largest
         moment's for a product)."""
         scale = entry_scales(self.inertia)
-        return [k for k, s, c in zip(KEYS, self.inertia_std, scale) if not determined(s / c)]
+        return [k for k, s, c in zip(KEYS, self.inertia_std, scale) if not entry_determined(s / c)]
 
     @property
     def determined(self) -> bool:

@@ -1,5 +1,5 @@
 """The names every result shares: the tensor entries' :data:`KEYS`, the 95 % interval's :data:`Z95`,
-the share :data:`DETERMINED_SHARE` within which an entry is determined (:func:`determined`),
+the share :data:`DETERMINED_SHARE` within which an entry is determined (:func:`entry_determined`),
 one validation :class:`Check` (the static test's, :mod:`rig_identification.statics.validation`), and
 the package's name and installed version that every ``--version`` and every report states
 (:data:`PACKAGE`, :func:`package_version`).  Standard library only, so that a ``--version`` loads
@@ -21,7 +21,7 @@ Z95 = 1.959963984540054
 DETERMINED_SHARE = 0.01
 
 
-def determined(share: float) -> bool:
+def entry_determined(share: float) -> bool:
     """Whether an entry whose σ is ``share`` of its scale is determined: its 95 % half-width
     Z95·σ within :data:`DETERMINED_SHARE` of that scale (False for a non-finite σ)."""
     return bool(Z95 * share <= DETERMINED_SHARE)
