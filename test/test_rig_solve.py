@@ -8,6 +8,7 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 from threadpoolctl import threadpool_info, threadpool_limits
 
+from rig_identification.estimation import rig_fit
 from rig_identification.estimation.rig_fit import solve
 from rig_identification.estimation.rig_problem import CompressedResidual, ReusedJacobian, sequential_blas
 from rig_identification.model.rig_ode import moved_state
@@ -32,6 +33,20 @@ def test_solve_reaches_a_far_minimum_the_trust_region_crawls_towards(reuse):
     assert sol.cost < 1e-6, sol.cost                       # 0.5 at the start, 0 at the minimum
     np.testing.assert_allclose(sol.x, truth, rtol=1e-6)
     assert runs < 100
+
+
+@pytest.mark.parametrize("reuse", [False, True])
+def test_a_solve_that_spends_its_budget_says_it_did_not_settle(monkeypatch, reuse):
+    # the far minimum above: with its budget of model runs the solve reaches it and has settled;
+    # with a budget of two runs it stops short, its end no minimum, and says so
+    J = np.diag([1.0, 1e-4])
+    b = np.array([0.3, 1.0])
+    sol, _, _ = solve(linear_problem(J, b), reuse=reuse)
+    assert sol.settled and sol.cost < 1e-6, (sol.settled, sol.cost)
+    monkeypatch.setattr(rig_fit, "MAX_ITERATIONS", 2)
+    monkeypatch.setattr(rig_fit, "REUSED_EVALUATIONS", 1)
+    sol, _, _ = solve(linear_problem(J, b), reuse=reuse)
+    assert not sol.settled and sol.nfev <= 2 and sol.cost > 0.1, (sol.settled, sol.nfev, sol.cost)
 
 
 def test_reused_jacobian_resumed_at_its_own_point_keeps_the_fresh_one():

@@ -181,15 +181,15 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
     gain = gauss_newton_gain(J)
     nfev += last.lay.size + 2
     tensor = last.x0[last.lay.inertia]
-    minima = [(0.5 * float(r @ r), last.x0)]
+    minima = [(0.5 * float(r @ r), last.x0, True)]
     if worst <= REWEIGHT_LIMIT:            # the motion found: the minimum checked by restarts
         others = [np.asarray(f.unknowns, float)[:6] for f in singles]
         tries = [t for t in others if not np.allclose(t, tensor) and physically_consistent(to_tensor(t))]
         tries += [shifted(tensor, 1.0), shifted(tensor, -1.0)] + along_valleys(last, J, tensor)
         for t in tries:
-            x2, cost2, runs = restarted(last, (J, r), gain, t)
+            x2, cost2, runs, ended = restarted(last, (J, r), gain, t)
             nfev += runs
-            minima.append((cost2, x2))
+            minima.append((cost2, x2, ended))
     descent = tensor
     best = min(range(len(minima)), key=lambda i: minima[i][0])
     cost = minima[best][0]
@@ -222,7 +222,7 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
                            levels(unit, pt.x, outputs), noise_scales[k], rec.channels,
                            natural_frequencies(linearise(pt.parameters, pt.rest)), unit.lay, nfev, settled,
                            other_chi2, unit.fitted(pt.x, outputs), descent, pt.x, pt.bases, pt.rest, offsets,
-                           offset_std=offset_std))
+                           offset_std=offset_std, other_settled=np.array([m[2] for m in others_x], bool)))
     return JointFit(tuple(fits), tuple(singles))
 
 

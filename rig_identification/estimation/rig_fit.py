@@ -187,7 +187,10 @@ class RigFit:
     whole-record fits settled (the staged fit, its two restarts :data:`~.restart_tensors.RESTART_SHIFT` away and
     those from ``restarts``, :func:`fit_rig`: the lowest is the estimate; none where a channel is
     beyond :data:`REWEIGHT_LIMIT` of its noise: the motion not found), other_chi2: (k,) their χ²
-    less the estimate's (≥ 0).  series:
+    less the estimate's (≥ 0), other_settled: (k,) bool, False where that fit's trust region spent
+    its budget of model runs first (:func:`solve`): its end is where the runs ran out, not a
+    minimum (its χ² still counts in :attr:`ambiguous`: a point that low and that far shows the
+    likelihood flat whether or not it is a minimum); None: not recorded.  series:
     every channel at the estimate (:class:`ChannelSeries`).  descent: (6,) kg·m² where the staged
     fit's own descent ended (the estimate unless a restart settled lower).  unknowns: (size,) every
     unknown at the estimate (``layout``), bases: (segments, 13) the segments' states before their
@@ -220,6 +223,7 @@ class RigFit:
     offsets: np.ndarray | None = None
     jacobian: np.ndarray | None = None
     offset_std: np.ndarray | None = None
+    other_settled: np.ndarray | None = None
 
     @property
     def ambiguous(self) -> list[int]:
@@ -367,8 +371,10 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
     the way, not a fresh one.  With ``reuse`` the trust region takes the residual compressed onto
     the Jacobian's columns (:class:`~.rig_problem.CompressedResidual`: the same cost and gradient,
     its SVD per iteration of a square matrix).  Returns the solution (its ``fun`` the whole
-    residual), the model runs it took and the fresh Jacobian at the solution where the stop made
-    one (else None)."""
+    residual; ``settled`` False where the budget of :data:`MAX_ITERATIONS` model runs (times
+    :data:`REUSED_EVALUATIONS` with ``reuse``) ran out before a stop above: its end is where the runs
+    ran out, not a minimum), the model runs it took and the fresh Jacobian at the solution where
+    the stop made one (else None)."""
     jac = ReusedJacobian(prob.residual, prob.jacobian, prob.lay.size, reuse, at_x0, REUSE_RATIO)
     costs: list[float] = []
     result = np.r_[prob.lay.inertia, prob.lay.cg, prob.lay.mass]
@@ -419,6 +425,7 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
                 jac.refresh(sol.x)
             short[0] = not done(sol.fun)
         if not short[0] or iterations + 1 >= budget:      # the step and a resumed solve need a run each
+            settled = sol.status != 0 and not short[0]
             break
         # the trust region stalled (or stopped by its tolerances) where a fresh Jacobian's Gauss–Newton step
         # still gains more than NEWTON_DECREMENT: steps the model mispredicted shrank the region far below
@@ -426,15 +433,16 @@ def solve(prob: RigProblem | JointProblem, whole: bool = False, z0: np.ndarray |
         step = -gauss_newton_gain(jac.J) @ sol.fun
         r1 = jac.residual(sol.x + step)
         iterations += 1
-        if not r1 @ r1 < sol.fun @ sol.fun:
+        if not r1 @ r1 < sol.fun @ sol.fun:        # neither the trust region nor the step gains: a minimum
+            settled = True
             break
         z, short[0] = sol.x + step, False
         costs.clear()
         log.info("rig fit: the trust region stalled at cost %.6g; a Gauss–Newton step to %.6g", sol.cost,
                  0.5 * float(r1 @ r1))
-    sol.nfev = iterations
-    log.info("rig fit: %.0f s of record, %d iterations, %d Jacobians, cost %.6g", prob.seconds, sol.nfev,
-             jac.jacobians, sol.cost)
+    sol.nfev, sol.settled = iterations, settled
+    log.info("rig fit: %.0f s of record, %d iterations, %d Jacobians, cost %.6g%s", prob.seconds, sol.nfev,
+             jac.jacobians, sol.cost, "" if settled else " (its budget of model runs spent: not settled)")
     fresh = jac.fresh and jac.z is not None and np.array_equal(jac.z, sol.x)
     return sol, jac.runs, jac.J if fresh else None
 
@@ -551,11 +559,12 @@ def came_back(prob: RigProblem | JointProblem, J: np.ndarray, gain: np.ndarray, 
 
 
 def restarted(prob: RigProblem | JointProblem, at_x0: tuple[np.ndarray, np.ndarray], gain: np.ndarray,
-              tensor: np.ndarray) -> tuple[np.ndarray, float, int]:
+              tensor: np.ndarray) -> tuple[np.ndarray, float, int, bool]:
     """The whole-record fit ``prob`` (its x0 the estimate, ``at_x0`` its Jacobian and residual there,
     ``gain`` its Gauss–Newton gain) restarted from the tensor entries ``tensor`` (6,) kg·m², every
-    other unknown at the estimate: the unknowns x it settles at, its cost (½ χ², the same weights)
-    and the model runs.  A well-determined minimum draws the restart back within its σ (found by
+    other unknown at the estimate: the unknowns x it settles at, its cost (½ χ², the same weights),
+    the model runs and whether it settled (False: the trust region's budget ran out first, the end
+    no minimum: :func:`solve`).  A well-determined minimum draws the restart back within its σ (found by
     :func:`came_back` where its chord steps show it); where the likelihood is flat or multimodal
     along some direction of the tensor, the trust region's descent settles elsewhere at a χ² about
     as low."""
@@ -564,9 +573,9 @@ def restarted(prob: RigProblem | JointProblem, at_x0: tuple[np.ndarray, np.ndarr
     z0[lay.inertia] = (tensor - prob.x0[lay.inertia]) / prob.scale[lay.inertia]
     back, cost, tried = came_back(prob, at_x0[0], gain, z0)
     if back is not None:
-        return prob.x(back), cost, tried
+        return prob.x(back), cost, tried, True
     sol, runs, _ = solve(prob, True, z0, at_x0)
-    return prob.x(sol.x), float(sol.cost), tried + runs
+    return prob.x(sol.x), float(sol.cost), tried + runs, bool(sol.settled)
 
 
 def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: ArrayLike = (),
@@ -657,22 +666,23 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     J, runs = _jacobian_at_x0(last, *solved)
     r = last.residual(np.zeros(last.lay.size))
     nfev += runs + 1
-    minima = [(0.5 * float(r @ r), last.at_x0)]
+    minima = [(0.5 * float(r @ r), last.at_x0, True)]
     given = list(np.asarray(restarts, float).reshape(-1, 6)) + along_valleys(last, J, x[lay.inertia])
     others = [t for t in given if physically_consistent(to_tensor(t))]
     tried = [shifted(x[lay.inertia], 1.0), shifted(x[lay.inertia], -1.0)] + others if check else []
     gain = gauss_newton_gain(J)
     with ThreadPoolExecutor(THREADS) as pool:         # independent solves from one estimate: the cores share them
-        for x2, cost2, runs in pool.map(lambda t: restarted(last, (J, r), gain, t), tried):
+        for x2, cost2, runs, ended in pool.map(lambda t: restarted(last, (J, r), gain, t), tried):
             nfev += runs
-            minima.append((cost2, last.point(x2)))
+            minima.append((cost2, last.point(x2), ended))
     minima_costs = [m[0] for m in minima]
     descent = minima[0][1].x[lay.inertia]
     minima.sort(key=lambda m: m[0])
-    cost, at = minima[0]
+    cost, at, _ = minima[0]
     x = at.x
     settled = np.array([m[1].x[lay.inertia] for m in minima[1:]]).reshape(-1, 6)
     other_chi2 = np.array([2 * (m[0] - cost) for m in minima[1:]])
+    other_settled = np.array([m[2] for m in minima[1:]], bool)
     log.info("rig fit: the other minima settled %s from the estimate, χ² %s", np.round(settled - x[lay.inertia], 3),
              np.round(other_chi2, 2))
     if cost != minima_costs[0]:           # a restart settled lower: the estimate's problem and Jacobian
@@ -695,7 +705,7 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     freqs = natural_frequencies(linearise(p, rest))
     return RigFit(p, x[lay.initial], cov, np.sqrt(np.diag(bound)[lay.inertia]), level, noise_scale, rec.channels,
                   freqs, last.lay, nfev, settled, other_chi2, unit.fitted(x, outputs), descent, x, bases, rest,
-                  offsets, J, offset_std)
+                  offsets, J, offset_std, other_settled)
 
 
 

@@ -126,7 +126,7 @@ class JointResult:
                "survey")
         for k in own:
             d.pop(k, None)
-        d.update(schema="rig_identification.joint_rig_model_result", schema_version=1,
+        d.update(schema="rig_identification.joint_rig_model_result", schema_version=2,
                  model="rig (grey-box, every sensor an output), one body over several recordings",
                  verdict=self.verdict, summary=self.summary, seconds=self.seconds)
         d["recordings"] = []

@@ -292,16 +292,20 @@ class RigModelResult:
         sd = f.inertia_std
         bd_cov = f.covariance[f.layout.body_damping][:, f.layout.body_damping]
         d = {
-            "schema": "rig_identification.rig_model_result", "schema_version": 7,
+            "schema": "rig_identification.rig_model_result", "schema_version": 8,
             "recording": self.path, "model": "rig (grey-box, every sensor an output)",
             "verdict": self.verdict, "undetermined": self.undetermined, "ambiguous": self.ambiguous,
             "other_minima": [{"inertia_about_cg": {k: float(v) for k, v in zip(KEYS, m + f.inertia - p.inertia)},
-                              "chi2_over_estimate": float(c)} for m, c in zip(f.other_minima, f.other_chi2)],
+                              "chi2_over_estimate": float(c), "settled": None if e is None else bool(e)}
+                             for m, c, e in zip(f.other_minima, f.other_chi2,
+                                                [None] * len(f.other_chi2) if f.other_settled is None
+                                                else f.other_settled)],
             "other_minima_note": "the whole-record fit restarted with every entry 1 % away, once each way, 10 σ "
                                  "either way along the tensor's weakest direction, and from the gyro-only fit's "
                                  "tensor where it gave one; the lowest of the minima is the estimate; another more "
                                  "than 3 σ off at a χ² within 12.6 of the estimate's, or the fit's own descent ending "
-                                 "more than 3 σ from it, makes those entries ambiguous",
+                                 "more than 3 σ from it, makes those entries ambiguous; settled false: that restart "
+                                 "spent its budget of model runs first, its end no minimum",
             "window": {"start_s": self.start_s, "duration_s": self.duration_s, "band_hz": [0.0, self.band_hz]},
             "inertia_about_cg": {k: float(v) for k, v in zip(KEYS, f.inertia)},
             "inertia_std": {k: float(v) for k, v in zip(KEYS, sd)},

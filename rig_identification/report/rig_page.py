@@ -114,10 +114,12 @@ def cables_html(res: RigModelResult) -> str:
 def minima_html(res: RigModelResult) -> str:
     """The other minima the restarts settled in, in σ of the estimate, with their χ²."""
     f = res.fit
-    rows = [[", ".join(num((a - b) / s, "+.1f") for a, b, s in zip(m, f.inertia, f.inertia_std)), num(c, ".2f")]
-            for m, c in zip(f.other_minima, f.other_chi2)]
-    return (table(["settled from the estimate, σ (ixx, ixy, ixz, iyy, iyz, izz)", "χ² over the estimate's"], rows,
-                  ident="minima-table")
+    ended = [None] * len(f.other_chi2) if f.other_settled is None else f.other_settled
+    rows = [[", ".join(num((a - b) / s, "+.1f") for a, b, s in zip(m, f.inertia, f.inertia_std)), num(c, ".2f"),
+             "" if e is None else "settled" if e else "budget spent: no minimum"]
+            for m, c, e in zip(f.other_minima, f.other_chi2, ended)]
+    return (table(["settled from the estimate, σ (ixx, ixy, ixz, iyy, iyz, izz)", "χ² over the estimate's",
+                   "restart"], rows, ident="minima-table")
             + '<p class="note">The whole-record fit restarted with every entry 1 % away, once each way, 10 σ '
               "either way along the tensor's weakest direction, and from the gyro-only fit's tensor: another "
               "minimum more than 3 σ off at a χ² within 12.6 makes those entries ambiguous (verdict "
