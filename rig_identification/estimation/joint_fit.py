@@ -107,13 +107,15 @@ class _Descent:
     """A joint solve from one body (:func:`_descent`): each record's point, the noise factors,
     the worst channel's level over all records, ``misfit``: the largest over the records of its
     worst channel over the larger of :data:`~.rig_fit.LEVEL_LIMIT` and what it reached alone
-    (≤ 1: every run fits as well as alone), and the model runs."""
+    (≤ 1: every run fits as well as alone), the model runs, and whether its last solve settled
+    (:func:`~.rig_fit.solve`)."""
 
     points: list[RigPoint]
     noise_scales: list[np.ndarray]
     worst: float
     misfit: float
     nfev: int
+    settled: bool
 
 
 def _descent(recs: Sequence[Record], singles: Sequence[RigFit], own: Sequence[Prior], body: np.ndarray) -> _Descent:
@@ -143,7 +145,7 @@ def _descent(recs: Sequence[Record], singles: Sequence[RigFit], own: Sequence[Pr
             break
         noise_scales = new
     misfit = max(float(np.max(v)) / max(LEVEL_LIMIT, float(np.max(f.residual_level))) for v, f in zip(found, singles))
-    return _Descent(points, noise_scales, max(float(np.max(v)) for v in found), misfit, nfev)
+    return _Descent(points, noise_scales, max(float(np.max(v)) for v in found), misfit, nfev, bool(sol.settled))
 
 
 def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Sequence[Prior]) -> JointFit:
@@ -181,7 +183,7 @@ def fit_jointly(recs: Sequence[Record], singles: Sequence[RigFit], priors: Seque
     gain = gauss_newton_gain(J)
     nfev += last.lay.size + 2
     tensor = last.x0[last.lay.inertia]
-    minima = [(0.5 * float(r @ r), last.x0, True)]
+    minima = [(0.5 * float(r @ r), last.x0, chosen.settled)]
     if worst <= REWEIGHT_LIMIT:            # the motion found: the minimum checked by restarts
         others = [np.asarray(f.unknowns, float)[:6] for f in singles]
         tries = [t for t in others if not np.allclose(t, tensor) and physically_consistent(to_tensor(t))]

@@ -650,15 +650,15 @@ def fit_rig(rec: Record, rig: Rig, prior: Prior, inertia0: ArrayLike, restarts: 
     else:
         check = True
     last = RigProblem(rec, at, lay, prior, noise_scale, n_all)
-    return _concluded(last, solved, restarts, nfev, check)
+    return _concluded(last, solved, restarts, nfev, check, bool(sol.settled))
 
 
 def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np.ndarray], restarts: ArrayLike,
-               nfev: int, check: bool = True) -> RigFit:
+               nfev: int, check: bool = True, descent_settled: bool = True) -> RigFit:
     """The whole-record fit ``last`` (its x0 the estimate; its last solve ``solved``: problem,
-    fresh Jacobian or None, weights) checked by restarts (``check``: False where a channel is
-    beyond :data:`REWEIGHT_LIMIT` of its noise, the motion not found), polished, its covariance
-    and levels: the :class:`RigFit`."""
+    fresh Jacobian or None, weights; ``descent_settled``: that solve's ``settled``, :func:`solve`) checked by restarts
+    (``check``: False where a channel is beyond :data:`REWEIGHT_LIMIT` of its noise, the motion not
+    found), polished, its covariance and levels: the :class:`RigFit`."""
     rec, prior, lay, noise_scale = last.rec, last.prior, last.lay, last.weight_scale
     x = last.x0
     n_all = last.n
@@ -666,7 +666,7 @@ def _concluded(last: RigProblem, solved: tuple[RigProblem, np.ndarray | None, np
     J, runs = _jacobian_at_x0(last, *solved)
     r = last.residual(np.zeros(last.lay.size))
     nfev += runs + 1
-    minima = [(0.5 * float(r @ r), last.at_x0, True)]
+    minima = [(0.5 * float(r @ r), last.at_x0, descent_settled)]
     given = list(np.asarray(restarts, float).reshape(-1, 6)) + along_valleys(last, J, x[lay.inertia])
     others = [t for t in given if physically_consistent(to_tensor(t))]
     tried = [shifted(x[lay.inertia], 1.0), shifted(x[lay.inertia], -1.0)] + others if check else []
