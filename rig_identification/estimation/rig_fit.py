@@ -226,6 +226,13 @@ class RigFit:
     other_settled: np.ndarray | None = None
 
     @property
+    def minima_settled(self) -> list[bool | None]:
+        """(k,) :attr:`other_settled` per other minimum, None for each where it was not recorded."""
+        if self.other_settled is None:
+            return [None] * len(self.other_chi2)
+        return [bool(e) for e in self.other_settled]
+
+    @property
     def ambiguous(self) -> list[int]:
         """The tensor entries (indices, KEYS order) on which another minimum differs from the
         estimate by more than 3 σ while its χ² is within :data:`CHI2_95_6` of the estimate's, or

@@ -296,10 +296,8 @@ class RigModelResult:
             "recording": self.path, "model": "rig (grey-box, every sensor an output)",
             "verdict": self.verdict, "undetermined": self.undetermined, "ambiguous": self.ambiguous,
             "other_minima": [{"inertia_about_cg": {k: float(v) for k, v in zip(KEYS, m + f.inertia - p.inertia)},
-                              "chi2_over_estimate": float(c), "settled": None if e is None else bool(e)}
-                             for m, c, e in zip(f.other_minima, f.other_chi2,
-                                                [None] * len(f.other_chi2) if f.other_settled is None
-                                                else f.other_settled)],
+                              "chi2_over_estimate": float(c), "settled": e}
+                             for m, c, e in zip(f.other_minima, f.other_chi2, f.minima_settled)],
             "other_minima_note": "the whole-record fit restarted with every entry 1 % away, once each way, 10 σ "
                                  "either way along the tensor's weakest direction, and from the gyro-only fit's "
                                  "tensor where it gave one; the lowest of the minima is the estimate; another more "

@@ -114,10 +114,9 @@ def cables_html(res: RigModelResult) -> str:
 def minima_html(res: RigModelResult) -> str:
     """The other minima the restarts settled in, in σ of the estimate, with their χ²."""
     f = res.fit
-    ended = [None] * len(f.other_chi2) if f.other_settled is None else f.other_settled
     rows = [[", ".join(num((a - b) / s, "+.1f") for a, b, s in zip(m, f.inertia, f.inertia_std)), num(c, ".2f"),
              "" if e is None else "settled" if e else "budget spent: no minimum"]
-            for m, c, e in zip(f.other_minima, f.other_chi2, ended)]
+            for m, c, e in zip(f.other_minima, f.other_chi2, f.minima_settled)]
     return (table(["settled from the estimate, σ (ixx, ixy, ixz, iyy, iyz, izz)", "χ² over the estimate's",
                    "restart"], rows, ident="minima-table")
             + '<p class="note">The whole-record fit restarted with every entry 1 % away, once each way, 10 σ '
